@@ -1,0 +1,238 @@
+"""Earth constants, Kepler's equation and Keplerian orbits with J2 secular drift.
+
+Plain functions and one plain class; no bus, no I/O, no wall clock. SI units: m, s, rad.
+Positions and velocities are in ECI (GCRF axes); the classical elements are referred to the
+ECI equator and x axis.
+
+Earth constants (one set, used by every orbit component):
+
+- ``MU_EARTH`` = 3.986004418e14 m^3/s^2: geocentric gravitational constant (including the
+  atmosphere) of WGS 84 (NIMA TR8350.2, 3rd ed., Table 3.1) and EGM96 (NASA/TP-1998-206861).
+- ``R_EARTH`` = 6378137.0 m: WGS 84 equatorial radius (semi-major axis of the ellipsoid),
+  also EGM96's reference radius.
+- ``J2_EARTH`` = 1.08262668e-3: EGM96 zonal coefficient, J2 = -sqrt(5) * C̄20 with the
+  fully normalized C̄20 = -4.84165371736e-4 (NIMA TR8350.2, Table 5.3).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+MU_EARTH = 3.986004418e14
+"""Earth's gravitational parameter GM, m^3/s^2 (WGS 84 / EGM96)."""
+R_EARTH = 6378137.0
+"""Earth's equatorial radius, m (WGS 84 / EGM96 reference radius)."""
+J2_EARTH = 1.08262668e-3
+"""Earth's second zonal harmonic J2, unitless (EGM96, unnormalized)."""
+
+TWO_PI = 2.0 * math.pi
+
+
+class ElementError(ValueError):
+    """Invalid orbital elements; ``key`` names the offending element."""
+
+    def __init__(self, key: str, message: str):
+        super().__init__(f"{key}: {message}")
+        self.key = key
+        self.message = message
+
+
+def check_elements(semi_major_axis: float, eccentricity: float, inclination: float,
+                   body_radius: float = R_EARTH) -> None:
+    """Raise :class:`ElementError` unless the elements describe an elliptic orbit above the surface.
+
+    semi_major_axis in m (> 0), eccentricity unitless (0 <= e < 1), inclination in rad ([0, pi]);
+    the perigee radius a(1 - e) must exceed ``body_radius`` (m).
+    """
+    a, e, i = float(semi_major_axis), float(eccentricity), float(inclination)
+    if not math.isfinite(a) or a <= 0.0:
+        raise ElementError("semi_major_axis", f"expected a positive length (m), got {a!r}")
+    if not math.isfinite(e) or not 0.0 <= e < 1.0:
+        raise ElementError("eccentricity", f"expected 0 <= e < 1 (an elliptic orbit), got {e!r}")
+    if not math.isfinite(i) or not 0.0 <= i <= math.pi:
+        raise ElementError("inclination",
+                           f"expected 0 <= i <= pi rad (0 to 180 deg), got {i!r} rad ({math.degrees(i):.6g} deg)")
+    perigee = a * (1.0 - e)
+    if perigee <= body_radius:
+        hint = f"; did you mean '{a:g} km'?" if a < body_radius / 1000.0 else ""
+        raise ElementError("semi_major_axis",
+                           f"expected a perigee radius a(1-e) above Earth's surface ({body_radius:.0f} m), "
+                           f"got a = {a:.9g} m, e = {e:g} -> {perigee:.9g} m{hint}")
+
+
+def solve_kepler(mean_anomaly: float, eccentricity: float, tol: float = 1e-12, max_iter: int = 100) -> float:
+    """Eccentric anomaly E (rad) solving Kepler's equation M = E - e sin E, for 0 <= e < 1.
+
+    mean_anomaly M in rad (any real); the result lies in the same 2*pi period as M.
+    Newton's method safeguarded by bisection: for M reduced to [0, pi] the root lies in
+    [M, min(M + e, pi)], and f(E) = E - e sin E - M is increasing there, so every iterate stays
+    in a shrinking bracket and the method converges for every e < 1 (quadratically near the
+    root). Stops when the Newton correction is below ``tol`` (rad); with Newton's quadratic
+    convergence the remaining error is far below ``tol``.
+    """
+    e = float(eccentricity)
+    if not 0.0 <= e < 1.0:
+        raise ValueError(f"eccentricity: expected 0 <= e < 1, got {e!r}")
+    m_full = float(mean_anomaly)
+    if not math.isfinite(m_full):
+        raise ValueError(f"mean_anomaly: expected a finite angle (rad), got {m_full!r}")
+    turns = math.floor(m_full / TWO_PI)
+    m = m_full - turns * TWO_PI          # [0, 2 pi)
+    flip = m > math.pi
+    if flip:
+        m = TWO_PI - m                   # [0, pi]; E(2 pi - M) = 2 pi - E(M)
+    if e == 0.0 or m == 0.0 or m == math.pi:
+        ecc = m
+    else:
+        lo, hi = m, min(m + e, math.pi)
+        # starting guess (third-order in e for small e, pi-ward for large e)
+        ecc = m + e * math.sin(m) / max(1.0 - math.sin(m + e) + math.sin(m), 1e-3)
+        if not lo < ecc < hi:
+            ecc = 0.5 * (lo + hi)
+        for _ in range(max_iter):
+            s, c = math.sin(ecc), math.cos(ecc)
+            f = ecc - e * s - m
+            if f > 0.0:
+                hi = ecc
+            elif f < 0.0:
+                lo = ecc
+            else:
+                break
+            step = f / (1.0 - e * c)
+            new = ecc - step
+            if not lo <= new <= hi:      # Newton left the bracket: bisect instead
+                new = 0.5 * (lo + hi)
+                step = ecc - new
+            ecc = new
+            if abs(step) <= tol or hi - lo <= tol:
+                break
+        else:  # pragma: no cover - the bracket halves at worst, 100 iterations is far more than enough
+            raise RuntimeError(f"Kepler solver did not converge for M = {m_full!r}, e = {e!r}")
+    if flip:
+        ecc = TWO_PI - ecc
+    return ecc + turns * TWO_PI
+
+
+def true_from_eccentric(eccentric_anomaly: float, eccentricity: float) -> float:
+    """True anomaly (rad) from eccentric anomaly E (rad), same revolution as E."""
+    e, ecc = float(eccentricity), float(eccentric_anomaly)
+    return 2.0 * math.atan2(math.sqrt(1.0 + e) * math.sin(ecc / 2.0), math.sqrt(1.0 - e) * math.cos(ecc / 2.0))
+
+
+def perifocal_to_eci(raan: float, inclination: float, arg_perigee: float) -> np.ndarray:
+    """Rotation matrix C_eci_pqw (3x3) whose columns are the perifocal P, Q, W axes in ECI.
+
+    raan (Ω), inclination (i), arg_perigee (ω) in rad: C = R3(Ω) R1(i) R3(ω) as active rotations.
+    P points to perigee, W along the angular momentum.
+    """
+    so, co = math.sin(raan), math.cos(raan)
+    si, ci = math.sin(inclination), math.cos(inclination)
+    sw, cw = math.sin(arg_perigee), math.cos(arg_perigee)
+    return np.array([
+        [co * cw - so * sw * ci, -co * sw - so * cw * ci, so * si],
+        [so * cw + co * sw * ci, -so * sw + co * cw * ci, -co * si],
+        [sw * si, cw * si, ci],
+    ])
+
+
+def coe_to_rv(semi_latus_rectum: float, eccentricity: float, inclination: float, raan: float,
+              arg_perigee: float, true_anomaly: float, mu: float = MU_EARTH) -> tuple[np.ndarray, np.ndarray]:
+    """Classical elements -> ECI position (m) and velocity (m/s); two-body (Vallado's COE2RV).
+
+    semi_latus_rectum p in m, angles in rad, mu in m^3/s^2. Works for 0 <= e < 1 (and e >= 1
+    where the true anomaly is reachable); circular/equatorial orbits take ω = 0 / Ω = 0 as given.
+    """
+    p, e, nu = float(semi_latus_rectum), float(eccentricity), float(true_anomaly)
+    cn, sn = math.cos(nu), math.sin(nu)
+    r_pqw = np.array([cn, sn, 0.0]) * (p / (1.0 + e * cn))
+    v_pqw = np.array([-sn, e + cn, 0.0]) * math.sqrt(mu / p)
+    c = perifocal_to_eci(raan, inclination, arg_perigee)
+    return c @ r_pqw, c @ v_pqw
+
+
+def j2_secular_rates(semi_major_axis: float, eccentricity: float, inclination: float,
+                     mu: float = MU_EARTH, body_radius: float = R_EARTH, j2: float = J2_EARTH
+                     ) -> tuple[float, float, float]:
+    """First-order secular J2 rates (rad/s): (dΩ/dt, dω/dt, dM/dt).
+
+    With n = sqrt(mu/a^3), p = a(1 - e^2), k = J2 (R/p)^2 (Vallado, Fundamentals of
+    Astrodynamics, 4th ed., eqs. 9-41):
+        dΩ/dt = -3/2 n k cos i
+        dω/dt =  3/4 n k (4 - 5 sin^2 i)
+        dM/dt =  n + 3/4 n k sqrt(1 - e^2) (2 - 3 sin^2 i)
+    Inputs in m, unitless, rad, m^3/s^2, m, unitless.
+    """
+    a, e, i = float(semi_major_axis), float(eccentricity), float(inclination)
+    n = math.sqrt(mu / a ** 3)
+    p = a * (1.0 - e * e)
+    k = j2 * (body_radius / p) ** 2
+    s2 = math.sin(i) ** 2
+    raan_rate = -1.5 * n * k * math.cos(i)
+    argp_rate = 0.75 * n * k * (4.0 - 5.0 * s2)
+    mean_rate = n + 0.75 * n * k * math.sqrt(1.0 - e * e) * (2.0 - 3.0 * s2)
+    return raan_rate, argp_rate, mean_rate
+
+
+class KeplerOrbit:
+    """A Keplerian ellipse about the Earth, optionally with J2 secular drift of Ω, ω and M.
+
+    Elements (mean elements at t = 0): semi_major_axis a (m), eccentricity e, inclination i,
+    raan Ω, arg_perigee ω, mean_anomaly M0 (rad). With ``j2`` the angles drift linearly at the
+    rates of :func:`j2_secular_rates`; a, e, i stay constant. The position at time t is the
+    two-body ellipse of the drifted elements; velocity and acceleration returned by
+    :meth:`state` are the exact time derivatives of that position (so the LVLH frame built from
+    them is kinematically consistent), which with J2 includes the frame drift
+    (|Ω̇| r ≈ 7 m/s for the ISS); without J2 they are the two-body velocity and -mu r/|r|^3.
+    """
+
+    def __init__(self, semi_major_axis: float, eccentricity: float, inclination: float, raan: float,
+                 arg_perigee: float, mean_anomaly: float, j2: bool = False, mu: float = MU_EARTH,
+                 body_radius: float = R_EARTH, j2_coefficient: float = J2_EARTH):
+        check_elements(semi_major_axis, eccentricity, inclination, body_radius)
+        self.a, self.e, self.i = float(semi_major_axis), float(eccentricity), float(inclination)
+        self.raan0, self.argp0, self.m0 = float(raan), float(arg_perigee), float(mean_anomaly)
+        self.mu = float(mu)
+        self.n = math.sqrt(self.mu / self.a ** 3)
+        if j2:
+            self.raan_rate, self.argp_rate, self.mean_rate = j2_secular_rates(
+                self.a, self.e, self.i, self.mu, body_radius, j2_coefficient)
+        else:
+            self.raan_rate, self.argp_rate, self.mean_rate = 0.0, 0.0, self.n
+
+    @property
+    def period(self) -> float:
+        """Anomalistic period 2*pi / (dM/dt), s."""
+        return TWO_PI / self.mean_rate
+
+    def elements(self, t: float) -> tuple[float, float, float]:
+        """(Ω, ω, M) in rad at t seconds after t = 0 (M not reduced modulo 2*pi)."""
+        return (self.raan0 + self.raan_rate * t, self.argp0 + self.argp_rate * t,
+                self.m0 + self.mean_rate * t)
+
+    def state(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position (m), velocity (m/s), acceleration (m/s^2) in ECI at t seconds after t = 0."""
+        raan, argp, m = self.elements(float(t))
+        a, e = self.a, self.e
+        ecc = solve_kepler(m, e)
+        se, ce = math.sin(ecc), math.cos(ecc)
+        b_over_a = math.sqrt(1.0 - e * e)
+        radius = a * (1.0 - e * ce)
+        r_pqw = np.array([a * (ce - e), a * b_over_a * se, 0.0])
+        # derivatives with respect to the mean anomaly (two-body: d/dt = n d/dM)
+        dr_dm = np.array([-se, b_over_a * ce, 0.0]) * (a * a / radius)
+        d2r_dm2 = r_pqw * (-(a / radius) ** 3)
+        c = perifocal_to_eci(raan, self.i, argp)
+        r = c @ r_pqw
+        u = (c @ dr_dm) * self.mean_rate           # velocity relative to the drifting perifocal frame
+        a_rel = (c @ d2r_dm2) * self.mean_rate ** 2
+        if self.raan_rate == 0.0 and self.argp_rate == 0.0:
+            return r, u, a_rel
+        k_axis = np.array([0.0, 0.0, 1.0])
+        w_axis = c[:, 2]
+        omega = self.raan_rate * k_axis + self.argp_rate * w_axis       # perifocal frame rate
+        alpha = self.argp_rate * self.raan_rate * np.cross(k_axis, w_axis)
+        v = np.cross(omega, r) + u
+        acc = (np.cross(alpha, r) + np.cross(omega, np.cross(omega, r))
+               + 2.0 * np.cross(omega, u) + a_rel)
+        return r, v, acc

@@ -1,0 +1,56 @@
+"""Component types by name.
+
+A config's ``type`` is a registered name (``orbit.kepler``), an importable ``module:Class``, or a
+Python file relative to the config, ``path/to/file.py:Class``.
+"""
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import sys
+from pathlib import Path
+
+from components.errors import ConfigError
+from components.sdk import Component
+
+TYPES = {
+    # small blocks for tests and examples
+    "test.counter": "components.testing.blocks:Counter",
+    "test.constant": "components.testing.blocks:Constant",
+    "test.integrator": "components.testing.blocks:Integrator",
+    "test.noop": "components.testing.blocks:NoOp",
+    "test.faulty": "components.testing.blocks:Faulty",
+    # orbit
+    # dynamics
+    # controllers
+    # observers
+}
+
+
+def load(type_name: str, config_dir: str | Path | None = None) -> type[Component]:
+    """The Component class for ``type_name``; ConfigError (key ``type``) when it cannot be found."""
+    target = TYPES.get(type_name, type_name)
+    module_name, sep, class_name = target.rpartition(":")
+    if not sep or not module_name or not class_name:
+        known = ", ".join(sorted(t for t in TYPES if not t.startswith("test.")))
+        raise ConfigError("type", f"unknown component type {type_name!r} (known: {known}; "
+                                  "or give module:Class or file.py:Class)")
+    try:
+        if module_name.endswith(".py"):
+            path = Path(config_dir or ".") / module_name
+            if not path.is_file():
+                raise ConfigError("type", f"component file {path} not found")
+            spec = importlib.util.spec_from_file_location(f"zenorbit_user_{path.stem}", path)
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[spec.name] = module
+            spec.loader.exec_module(module)
+        else:
+            module = importlib.import_module(module_name)
+    except ConfigError:
+        raise
+    except ImportError as e:
+        raise ConfigError("type", f"cannot import {module_name!r} for type {type_name!r}: {e}") from None
+    cls = getattr(module, class_name, None)
+    if not (isinstance(cls, type) and issubclass(cls, Component)):
+        raise ConfigError("type", f"{target!r} is not a Component subclass")
+    return cls

@@ -1,0 +1,181 @@
+"""Small components with closed-form behaviour, for tests, benchmarks and examples."""
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import numpy as np
+
+from components.sdk import Component, Parameter, Variable
+
+
+class Counter(Component):
+    """Counts its steps.
+
+    | variable | causality | shape | unit | description |
+    |---|---|---|---|---|
+    | n | output | () | 1 | number of steps done |
+    """
+    type_name = "test.counter"
+    parameters = ()
+
+    @classmethod
+    def declare(cls, params):
+        return [Variable("n", "output", (), "1", 0.0, "number of steps done")]
+
+    def __init__(self, params):
+        self.n = 0
+
+    def initialize(self, t0_ns, inputs):
+        return {"n": self.n}
+
+    def do_step(self, t_ns, h_ns, inputs):
+        self.n += 1
+        return {"n": self.n}
+
+    def get_state(self):
+        return {"n": np.int64(self.n)}
+
+    def set_state(self, state):
+        self.n = int(state["n"])
+
+
+class Constant(Component):
+    """Outputs a constant.
+
+    | variable | causality | shape | unit | description |
+    |---|---|---|---|---|
+    | y | output | () | 1 | the parameter `value` |
+    """
+    type_name = "test.constant"
+    parameters = (Parameter("value", "float", unit="1", description="the constant output"),)
+
+    @classmethod
+    def declare(cls, params):
+        return [Variable("y", "output", (), "1", params["value"], "the constant")]
+
+    def __init__(self, params):
+        self.value = params["value"]
+
+    def initialize(self, t0_ns, inputs):
+        return {"y": self.value}
+
+    def do_step(self, t_ns, h_ns, inputs):
+        return {"y": self.value}
+
+    def get_state(self):
+        return {}
+
+    def set_state(self, state):
+        pass
+
+
+class Integrator(Component):
+    """x' = gain * u by explicit Euler: x(t + h) = x(t) + gain * u * h.
+
+    | variable | causality | shape | unit | description |
+    |---|---|---|---|---|
+    | u | input | () | 1 | rate (held over the step) |
+    | x | output | () | 1·s | integral |
+    """
+    type_name = "test.integrator"
+    parameters = (
+        Parameter("gain", "float", unit="1", default=1.0, description="multiplies u"),
+        Parameter("x0", "float", unit="1", default=0.0, description="initial value of x"),
+    )
+
+    @classmethod
+    def declare(cls, params):
+        return [Variable("u", "input", (), "1", 0.0, "rate"),
+                Variable("x", "output", (), "1", params["x0"], "integral of gain * u")]
+
+    def __init__(self, params):
+        self.gain, self.x = params["gain"], params["x0"]
+
+    def initialize(self, t0_ns, inputs):
+        return {"x": self.x}
+
+    def do_step(self, t_ns, h_ns, inputs):
+        self.x += self.gain * float(inputs["u"]) * (h_ns / 1e9)
+        return {"x": self.x}
+
+    def get_state(self):
+        return {"x": np.float64(self.x)}
+
+    def set_state(self, state):
+        self.x = float(state["x"])
+
+
+class NoOp(Component):
+    """Does nothing with a small input and output vector; for measuring the lockstep overhead.
+
+    | variable | causality | shape | unit | description |
+    |---|---|---|---|---|
+    | u | input | (n,) | 1 | ignored |
+    | y | output | (n,) | 1 | zeros |
+    """
+    type_name = "test.noop"
+    parameters = (Parameter("size", "int", default=1, description="length of u and y"),)
+
+    @classmethod
+    def declare(cls, params):
+        n = params["size"]
+        return [Variable("u", "input", (n,), "1", 0.0, "ignored"),
+                Variable("y", "output", (n,), "1", 0.0, "zeros")]
+
+    def __init__(self, params):
+        self.y = np.zeros(params["size"])
+
+    def initialize(self, t0_ns, inputs):
+        return {"y": self.y}
+
+    def do_step(self, t_ns, h_ns, inputs):
+        return {"y": self.y}
+
+    def get_state(self):
+        return {}
+
+    def set_state(self, state):
+        pass
+
+
+class Faulty(Component):
+    """Misbehaves at a chosen step, to test how the orchestrator handles failures.
+
+    | variable | causality | shape | unit | description |
+    |---|---|---|---|---|
+    | y | output | () | 1 | the step count, or NaN when `fault: nan` |
+    """
+    type_name = "test.faulty"
+    parameters = (
+        Parameter("fault", "str", choices=("raise", "exit", "kill", "hang", "nan"),
+                  description="what goes wrong"),
+        Parameter("at_step", "int", description="the step (0-based) at which it goes wrong"),
+    )
+
+    @classmethod
+    def declare(cls, params):
+        return [Variable("y", "output", (), "1", 0.0, "step count")]
+
+    def __init__(self, params):
+        self.fault, self.at_step, self.k = params["fault"], params["at_step"], 0
+
+    def initialize(self, t0_ns, inputs):
+        return {"y": 0.0}
+
+    def do_step(self, t_ns, h_ns, inputs):
+        if self.k == self.at_step:
+            if self.fault == "raise":
+                raise RuntimeError(f"deliberate failure at step {self.k}")
+            if self.fault == "exit":
+                os._exit(3)
+            if self.fault == "kill":
+                os.kill(os.getpid(), signal.SIGKILL)
+            if self.fault == "hang":
+                while True:
+                    time.sleep(1.0)
+            if self.fault == "nan":
+                return {"y": float("nan")}
+        self.k += 1
+        return {"y": float(self.k)}

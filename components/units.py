@@ -1,0 +1,96 @@
+"""Quantities with units in configs: ``6778 km``, ``51.6 deg``, ``1 ms``, ``20s``, ``1.5e-3 N*m``.
+
+Everything in code, on the bus and in recordings is SI; units only exist at the config edge.
+A declared unit ("m", "rad", "m/s", "N*m", "kg*m^2", "1") fixes the dimension a value must have;
+a bare number is taken as already SI.
+"""
+from __future__ import annotations
+
+import re
+from decimal import ROUND_HALF_EVEN, Decimal
+
+from components.errors import ConfigError
+
+# symbol -> (factor to SI, dimension exponents over (m, kg, s, rad))
+_SYMBOLS: dict[str, tuple[float, tuple[int, int, int, int]]] = {
+    "1": (1.0, (0, 0, 0, 0)),
+    "m": (1.0, (1, 0, 0, 0)), "km": (1e3, (1, 0, 0, 0)), "cm": (1e-2, (1, 0, 0, 0)),
+    "mm": (1e-3, (1, 0, 0, 0)),
+    "kg": (1.0, (0, 1, 0, 0)), "g": (1e-3, (0, 1, 0, 0)),
+    "s": (1.0, (0, 0, 1, 0)), "ms": (1e-3, (0, 0, 1, 0)), "us": (1e-6, (0, 0, 1, 0)),
+    "ns": (1e-9, (0, 0, 1, 0)), "min": (60.0, (0, 0, 1, 0)), "h": (3600.0, (0, 0, 1, 0)),
+    "d": (86400.0, (0, 0, 1, 0)), "day": (86400.0, (0, 0, 1, 0)),
+    "rad": (1.0, (0, 0, 0, 1)), "deg": (3.141592653589793 / 180.0, (0, 0, 0, 1)),
+    "N": (1.0, (1, 1, -2, 0)), "Hz": (1.0, (0, 0, -1, 0)),
+}
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_QUANTITY = re.compile(rf"^\s*({_NUMBER})\s*([A-Za-z][A-Za-z0-9*/^\-]*)?\s*$")
+
+
+def _unit(text: str) -> tuple[float, tuple[int, ...]]:
+    """Factor to SI and dimension of a unit expression such as ``km/s`` or ``kg*m^2``."""
+    factor, dim = 1.0, [0, 0, 0, 0]
+    sign = 1
+    for token in re.split(r"([*/])", text.replace(" ", "")):
+        if token in ("*", "/"):
+            sign = 1 if token == "*" else -1
+            continue
+        name, _, power = token.partition("^")
+        if name not in _SYMBOLS or (power and not re.fullmatch(r"-?\d+", power)):
+            raise ValueError(f"unknown unit {text!r}")
+        f, d = _SYMBOLS[name]
+        p = sign * (int(power) if power else 1)
+        factor *= f ** p
+        dim = [a + p * b for a, b in zip(dim, d)]
+    return factor, tuple(dim)
+
+
+def to_si(value, unit: str, key: str) -> float:
+    """Convert a config value to SI in the dimension of ``unit``.
+
+    ``value`` is a number (taken as SI) or a string "<number> <unit>" whose unit must have the
+    same dimension as ``unit``. Raises ConfigError naming ``key`` otherwise.
+    """
+    if isinstance(value, bool):
+        raise ConfigError(key, f"expected a quantity in {unit}, got {value!r}")
+    if isinstance(value, (int, float)):
+        return float(value)
+    if not isinstance(value, str):
+        raise ConfigError(key, f"expected a quantity in {unit}, got {value!r}")
+    m = _QUANTITY.match(value)
+    if not m:
+        raise ConfigError(key, f"expected a number with a unit like '6778 km', got {value!r}")
+    number, given = float(m.group(1)), m.group(2)
+    if given is None:
+        return number
+    try:
+        factor, dim = _unit(given)
+    except ValueError:
+        raise ConfigError(key, f"unknown unit {given!r} in {value!r} (expected a unit of {unit})") from None
+    _, want = _unit(unit)
+    if dim != want:
+        raise ConfigError(key, f"unit {given!r} does not measure {unit} (got {value!r})")
+    return number * factor
+
+
+_TIME_NS = {"ns": 1, "us": 10**3, "ms": 10**6, "s": 10**9, "min": 60 * 10**9, "h": 3600 * 10**9,
+            "d": 86400 * 10**9, "day": 86400 * 10**9}
+
+
+def duration_ns(value, key: str) -> int:
+    """A time span as exact integer nanoseconds: ``"1 ms"`` -> 1_000_000, ``0.02`` (s) -> 20_000_000.
+
+    Decimal arithmetic, so decimal input such as ``"0.1 s"`` does not pick up binary rounding.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise ConfigError(key, f"expected a duration like '1 ms', got {value!r}")
+    if isinstance(value, str):
+        m = _QUANTITY.match(value)
+        if not m:
+            raise ConfigError(key, f"expected a duration like '1 ms' or '20 s', got {value!r}")
+        number, unit = m.group(1), m.group(2) or "s"
+        if unit not in _TIME_NS:
+            raise ConfigError(key, f"unknown time unit {unit!r} in {value!r} (expected one of {', '.join(_TIME_NS)})")
+    else:
+        number, unit = repr(value), "s"
+    return int((Decimal(number) * _TIME_NS[unit]).to_integral_value(ROUND_HALF_EVEN))

@@ -1,0 +1,202 @@
+"""`orchestrator` command line (DESIGN §5).
+
+Exit codes: 0 success; 1 the run failed (a component crashed, hung or produced NaN);
+2 bad usage or bad config; 130 interrupted (Ctrl-C).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+USAGE_ERROR = 2
+
+
+def _fail(message: str, code: int = USAGE_ERROR) -> int:
+    print(f"error: {message}", file=sys.stderr)
+    return code
+
+
+def _load(path: str, overrides: list[str]):
+    from orchestrator.config import ConfigErrors, load
+    try:
+        return load(path, overrides), None
+    except ConfigErrors as e:
+        return None, e.errors
+
+
+def cmd_check(args) -> int:
+    config, errors = _load(args.config, args.set)
+    if errors:
+        for line in errors:
+            print(f"error: {line}", file=sys.stderr)
+        return USAGE_ERROR
+    print(f"{args.config}: ok — {len(config.components)} components, {len(config.connections)} connections, "
+          f"{config.steps} steps of {config.step_ns / 1e6:g} ms ({config.algorithm})")
+    return 0
+
+
+def cmd_run(args) -> int:
+    config, errors = _load(args.config, args.set)
+    if errors:
+        for line in errors:
+            print(f"error: {line}", file=sys.stderr)
+        return USAGE_ERROR
+    if args.view:
+        return _fail("--view: the Rerun viewer component is not available yet")
+    from orchestrator.engine import Run
+    run = Run(config, record=args.record, profile=args.profile, progress=sys.stderr.isatty())
+    code = run.execute()
+    if code == 0 and args.record:
+        print(f"recorded {args.record}", file=sys.stderr)
+    return code
+
+
+def _query(entry: dict, request: dict, timeout: float = 30.0) -> dict:
+    import zenoh
+    from components import bus
+
+    session = zenoh.open(bus.session_config(connect=[entry["endpoint"]]))
+    try:
+        for reply in session.get(bus.run_key(entry["run_id"], "ctl"), payload=json.dumps(request), timeout=timeout):
+            if reply.ok is not None:
+                return json.loads(reply.ok.payload.to_bytes())
+        return {"ok": False, "error": f"run {entry['run_id']} did not answer within {timeout:g} s"}
+    finally:
+        session.close()
+
+
+def _one_run(name: str):
+    from orchestrator import runs
+    found = runs.find(name)
+    if not found:
+        names = ", ".join(r["name"] for r in runs.alive()) or "none"
+        return None, f"no run named {name!r} is alive (alive: {names}; see `orchestrator ps`)"
+    if len(found) > 1:
+        return None, f"several runs are named {name!r}: give a run id ({', '.join(r['run_id'] for r in found)})"
+    return found[0], None
+
+
+def cmd_ps(args) -> int:
+    from orchestrator import runs
+    entries = runs.alive()
+    if not entries:
+        print("no runs alive")
+        return 0
+    print(f"{'RUN ID':<32}{'PID':>8}  {'TIME':>12}  {'ENDPOINT':<24}COMPONENTS")
+    for entry in entries:
+        status = _query(entry, {"op": "status"}, timeout=3.0)
+        if status.get("ok"):
+            when = f"{status['time']:.3f} s"
+            comps = ", ".join(f"{n}:{c['type']}" for n, c in status["components"].items())
+        else:
+            when, comps = "?", status.get("error", "")
+        print(f"{entry['run_id']:<32}{entry['pid']:>8}  {when:>12}  {entry['endpoint']:<24}{comps}")
+    return 0
+
+
+def cmd_stop(args) -> int:
+    entry, error = _one_run(args.run)
+    if error:
+        return _fail(error)
+    answer = _query(entry, {"op": "stop"})
+    if not answer.get("ok"):
+        return _fail(answer.get("error", "stop refused"), 1)
+    print(f"stopping {entry['run_id']}")
+    return 0
+
+
+def cmd_swap(args) -> int:
+    entry, error = _one_run(args.run)
+    if error:
+        return _fail(error)
+    answer = _query(entry, {"op": "swap", "component": args.component, "type": args.type, "set": args.set},
+                    timeout=120.0)
+    if not answer.get("ok"):
+        return _fail(answer.get("error", "swap refused"))
+    print(f"swapped {args.component} at step {answer['step']} (generation {answer['generation']})")
+    return 0
+
+
+def cmd_describe(args) -> int:
+    from components import registry
+    from components.errors import ConfigError
+    from components.sdk import REQUIRED
+    try:
+        cls = registry.load(args.type)
+    except ConfigError as e:
+        return _fail(e.message)
+    print(f"{cls.type_name or args.type}")
+    doc = (cls.__doc__ or "").strip()
+    if doc:
+        print("\n".join("  " + line.strip() if line.strip() else "" for line in doc.splitlines()))
+    print("\nparameters:")
+    for p in cls.parameters:
+        default = "required" if p.default is REQUIRED else f"default {p.default!r}"
+        unit = f" [{p.unit}]" if p.unit else ""
+        print(f"  {p.name:<22}{p.kind}{unit:<10} {default:<22} {p.description}")
+    if not cls.parameters:
+        print("  (none)")
+    print("\nvariables (with default parameters):")
+    try:
+        params = {p.name: p.default for p in cls.parameters if p.default is not REQUIRED}
+        if any(p.default is REQUIRED for p in cls.parameters):
+            raise KeyError
+        for v in cls.declare(params):
+            print(f"  {v.causality:<7} {v.name:<22}{str(v.shape):<8}{v.unit:<10} {v.description}")
+    except Exception:
+        print("  depend on the required parameters; see the table above")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="orchestrator", description="Zenorbit: lockstep co-simulation over Zenoh.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def with_set(p):
+        p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a config key, e.g. run.duration=2s (repeatable)")
+
+    p = sub.add_parser("run", help="run a config")
+    p.add_argument("config")
+    p.add_argument("--record", metavar="DIR", help="write signals.parquet, events.jsonl and config.yaml to DIR")
+    with_set(p)
+    p.add_argument("--view", metavar="{spawn,web,save:FILE.rrd}", help="live view in Rerun")
+    p.add_argument("--profile", action="store_true", help="print compute time, barrier wait and bus overhead")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("check", help="validate a config without running it")
+    p.add_argument("config")
+    with_set(p)
+    p.set_defaults(func=cmd_check)
+
+    p = sub.add_parser("ps", help="list runs alive on this machine")
+    p.set_defaults(func=cmd_ps)
+
+    p = sub.add_parser("stop", help="stop a run cleanly (recording flushed)")
+    p.add_argument("--run", required=True, metavar="NAME", help="run name or run id")
+    p.set_defaults(func=cmd_stop)
+
+    p = sub.add_parser("swap", help="replace a component of a running run at the next step boundary")
+    p.add_argument("--run", required=True, metavar="NAME", help="run name or run id")
+    p.add_argument("component")
+    p.add_argument("--type", help="the new component type (default: the same type, state handed over)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a parameter of the new component")
+    p.set_defaults(func=cmd_swap)
+
+    p = sub.add_parser("describe", help="print a component type's parameters and variables")
+    p.add_argument("type")
+    p.set_defaults(func=cmd_describe)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,551 @@
+"""The lockstep master: launches component processes, routes signals, steps time, records.
+
+One Zenoh session; every message the components send lands in a single inbox queue (callbacks
+only enqueue), and the main thread does all the work. Step k covers [k*h, (k+1)*h); times are
+integer nanoseconds computed by multiplication. Components are addressed by name and generation,
+so a component can be replaced at a step boundary (swap) without anyone else noticing.
+
+Jacobi: every component due at step k gets its inputs from the outputs at t_k, all step in
+parallel. Gauss-Seidel: components step one after another in config order, each seeing the
+outputs at t_(k+1) of those before it.
+"""
+from __future__ import annotations
+
+import datetime as dt
+import json
+import os
+import queue
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from components import bus
+from orchestrator import runs
+from orchestrator.config import ComponentSpec, Event, RunConfig, component_spec
+from orchestrator.recording import Recording
+
+
+class RunFailure(Exception):
+    """The run cannot go on: a component crashed, hung, or produced a non-finite value."""
+
+
+class StopRequested(Exception):
+    """Ctrl-C, SIGTERM or `orchestrator stop`: end the run cleanly."""
+
+
+@dataclass
+class Member:
+    """A live component: its spec, process, and where its signals live in the global vectors."""
+    spec: ComponentSpec
+    generation: int
+    process: subprocess.Popen | None
+    log_path: Path | None
+    command: object = None                 # Zenoh publisher of its command key
+    inputs: np.ndarray = None
+    route_dst: np.ndarray = None           # input indices fed from ...
+    route_src: np.ndarray = None           # ... these indices of the global output vector
+    out_dst: np.ndarray = None             # where its outputs go in the global output vector
+    out_src: np.ndarray = None             # ... from these indices of its output vector
+    ratio: int = 1                         # its step in run steps
+    compute_s: float = 0.0
+    steps: int = 0
+    reply: dict | None = field(default=None, repr=False)
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+
+def _pdeathsig():
+    """In the child: die with the orchestrator, even if it is SIGKILLed (Linux)."""
+    try:
+        import ctypes
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except OSError:
+        pass
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def resolve_endpoints(listen: list[str]) -> tuple[list[str], str]:
+    """Fill port 0 with a free port; return (listen endpoints, the one local components connect to)."""
+    resolved = []
+    for endpoint in listen:
+        proto, _, address = endpoint.partition("/")
+        host, _, port = address.rpartition(":")
+        if port == "0":
+            port = str(_free_port())
+        resolved.append(f"{proto}/{host}:{port}")
+    proto, _, address = resolved[0].partition("/")
+    host, _, port = address.rpartition(":")
+    local_host = "127.0.0.1" if host in ("0.0.0.0", "[::]") else host
+    return resolved, f"{proto}/{local_host}:{port}"
+
+
+class Run:
+    """One execution of a validated config. ``execute()`` returns the exit code (0, 1)."""
+
+    def __init__(self, config: RunConfig, *, record: str | Path | None = None, profile: bool = False,
+                 progress: bool = False, out=sys.stderr):
+        self.config = config
+        self.record_dir = Path(record) if record else None
+        self.profile = profile
+        self.progress = progress
+        self.out = out
+        self.run_id = f"{config.name}-{uuid.uuid4().hex[:8]}"
+        self.inbox: queue.Queue = queue.Queue()
+        self.members: dict[str, Member] = {}
+        self.pending_events: list[Event] = list(config.events)
+        self.controls: list = []            # queries from the CLI, handled at step boundaries
+        self.stop_reason: str | None = None
+        self.k = 0
+        self.recording: Recording | None = None
+        self.log_dir = Path(tempfile.mkdtemp(prefix=f"zenorbit-{self.run_id}-"))
+        self.wait_s = 0.0                   # time spent waiting on the barrier
+        self.loop_s = 0.0
+
+        # the global output vector: every component's outputs, in config order = recorded columns
+        self.columns: list[str] = []
+        self.column_index: dict[tuple[str, str], np.ndarray] = {}
+        for spec in config.components.values():
+            for v in spec.outputs.variables:
+                start = len(self.columns)
+                self.columns += v.columns(spec.name)
+                self.column_index[spec.name, v.name] = np.arange(start, len(self.columns))
+        self.values = np.zeros(len(self.columns))
+
+    # ---------------------------------------------------------------- messages
+
+    def _on_output(self, sample) -> None:
+        self.inbox.put(("out", str(sample.key_expr), sample.payload.to_bytes()))
+
+    def _on_liveliness(self, sample) -> None:
+        import zenoh
+        parts = str(sample.key_expr).split("/")
+        alive = sample.kind == zenoh.SampleKind.PUT
+        self.inbox.put(("alive" if alive else "dead", parts[-2], int(parts[-1])))
+
+    def _on_control(self, query) -> None:
+        self.inbox.put(("ctl", query, None))
+
+    def _handle(self, message, expect: dict[str, str]) -> None:
+        """Apply one inbox message; ``expect`` maps component name -> what we wait for."""
+        kind, a, b = message
+        if kind == "ctl":
+            self.controls.append(a)
+            return
+        if kind in ("alive", "dead"):
+            name, generation = a, b
+            member = self.members.get(name)
+            if member is None or member.generation != generation:
+                return
+            if kind == "alive":
+                if expect.get(name) == "alive":
+                    del expect[name]
+                return
+            if expect.get(name) == "exit":
+                return
+            raise RunFailure(self._death(member, "its process disappeared (liveliness lost)"))
+        parts = a.split("/")
+        name, generation = parts[-3], int(parts[-2])
+        member = self.members.get(name)
+        if member is None or member.generation != generation:
+            return  # a replaced generation: ignore
+        tag = b[:1]
+        if tag == bus.OUTPUT:
+            k, compute_s, vector = bus.decode_output(b)
+            if expect.get(name) != "step" or k != self.k:
+                raise RunFailure(f"component {name!r}: output for step {k} while waiting for step {self.k}")
+            if not np.isfinite(vector).all():
+                bad = int(np.flatnonzero(~np.isfinite(vector))[0])
+                var = next(v for v in member.spec.outputs.variables if bad < member.spec.outputs.offsets[v.name].stop)
+                raise RunFailure(f"component {name!r} produced a non-finite value in output {var.name!r} "
+                                 f"at step {k} (t = {(k * self.config.step_ns) / 1e9:g} s)")
+            self.values[member.out_dst] = vector[member.out_src]
+            member.compute_s += compute_s
+            member.steps += 1
+            del expect[name]
+        elif tag == bus.REPLY:
+            body, blob = bus.decode_message(b)
+            member.reply = {**body, "blob": blob}
+            if expect.get(name) == body["op"]:
+                del expect[name]
+        elif tag == bus.FAULT:
+            body, _ = bus.decode_message(b)
+            where = f"step {body['k']} (t = {body['k'] * self.config.step_ns / 1e9:g} s)" if body["op"] == "step" \
+                else body["op"]
+            raise RunFailure(f"component {name!r} ({member.spec.type}) failed in {where}: {body['error']}")
+
+    def _wait(self, expect: dict[str, str], timeout: float, what: str) -> None:
+        """Process inbox messages until every expectation is met, or fail naming the laggards."""
+        deadline = time.monotonic() + timeout
+        while expect:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                late = ", ".join(f"{n!r}" for n in expect)
+                raise RunFailure(f"component {late} did not answer {what} within {timeout:g} s "
+                                 f"(hung? raise run.step_timeout / run.start_timeout if it is just slow)")
+            try:
+                message = self.inbox.get(timeout=min(remaining, 0.2))
+            except queue.Empty:
+                for name in expect:
+                    member = self.members[name]
+                    if expect[name] != "exit" and member.process is not None and member.process.poll() is not None:
+                        raise RunFailure(self._death(member, f"its process exited with code {member.process.returncode}"))
+                continue
+            self._handle(message, expect)
+
+    def _death(self, member: Member, how: str) -> str:
+        tail = ""
+        if member.log_path and member.log_path.exists():
+            lines = [line for line in member.log_path.read_text(errors="replace").splitlines() if line.strip()]
+            if lines:
+                tail = f"; last output: {lines[-1].strip()}"
+        return f"component {member.name!r} ({member.spec.type}) died at step {self.k}: {how}{tail}"
+
+    # ---------------------------------------------------------------- lifecycle
+
+    def _control(self, member: Member, op: str, body: dict | None = None, blob: bytes = b"") -> None:
+        member.command.put(bus.encode_message(bus.CONTROL, {"op": op, **(body or {})}, blob))
+
+    def _launch(self, spec: ComponentSpec, generation: int) -> Member:
+        process = log_path = None
+        args = ["--connect", self.endpoint, "--run-id", self.run_id, "--name", spec.name,
+                "--generation", str(generation)]
+        if spec.launch == "local":
+            log_path = self.log_dir / f"{spec.name}.{generation}.log"
+            with open(log_path, "wb") as log:
+                process = subprocess.Popen([sys.executable, "-m", "components.runner", *args],
+                                           stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                                           preexec_fn=_pdeathsig)
+        else:
+            print(f"waiting for external component {spec.name!r}: start it with\n"
+                  f"    python -m components.runner {' '.join(args)}", file=self.out, flush=True)
+        member = Member(spec=spec, generation=generation, process=process, log_path=log_path,
+                        ratio=spec.step_ns // self.config.step_ns)
+        member.command = bus.publisher(self.session, bus.component_key(self.run_id, spec.name, generation, "cmd"))
+        self._wire(member)
+        return member
+
+    def _wire(self, member: Member) -> None:
+        """Index arrays that route the global output vector into this member's inputs, and back."""
+        spec = member.spec
+        member.inputs = spec.inputs.start_vector()
+        dst, src = [], []
+        for d, dv, s, sv in self.config.connections:
+            if d == spec.name:
+                dst.append(np.arange(spec.inputs.offsets[dv].start, spec.inputs.offsets[dv].stop))
+                src.append(self.column_index[s, sv])
+        member.route_dst = np.concatenate(dst) if dst else np.zeros(0, dtype=np.int64)
+        member.route_src = np.concatenate(src) if src else np.zeros(0, dtype=np.int64)
+        out_dst, out_src = [], []
+        for v in spec.outputs.variables:
+            index = self.column_index.get((spec.name, v.name))
+            if index is not None and len(index) == v.size:  # a swapped-in type may lack some columns
+                out_dst.append(index)
+                out_src.append(np.arange(spec.outputs.offsets[v.name].start, spec.outputs.offsets[v.name].stop))
+        member.out_dst = np.concatenate(out_dst) if out_dst else np.zeros(0, dtype=np.int64)
+        member.out_src = np.concatenate(out_src) if out_src else np.zeros(0, dtype=np.int64)
+
+    def _start(self, specs: list[ComponentSpec], generation: dict[str, int]) -> list[Member]:
+        started = [self._launch(spec, generation[spec.name]) for spec in specs]
+        for member in started:
+            self.members[member.name] = member
+        timeout = self.config.start_timeout_s
+        self._wait({m.name: "alive" for m in started}, timeout, "start-up")
+        for member in started:
+            self._control(member, "instantiate", {"type": member.spec.type, "params": _jsonable(
+                {**member.spec.parameters, "_epoch": self.config.epoch,
+                 "_config_dir": str(self.config.path.parent.resolve())})})
+        self._wait({m.name: "instantiate" for m in started}, timeout, "instantiate")
+        return started
+
+    def _initialize(self, member: Member, t_ns: int) -> None:
+        member.inputs[member.route_dst] = self.values[member.route_src]
+        self._control(member, "initialize", {"t0_ns": t_ns}, member.inputs.tobytes())
+        self._wait({member.name: "initialize"}, self.config.start_timeout_s, "initialize")
+        vector = np.frombuffer(member.reply["blob"], dtype=np.float64)
+        self.values[member.out_dst] = vector[member.out_src]
+
+    def _initialization_order(self) -> list[str]:
+        """Sources before the components they feed; config order breaks cycles."""
+        feeds = {n: {s for d, _, s, _ in self.config.connections if d == n and s != n} for n in self.config.components}
+        done: list[str] = []
+        while len(done) < len(feeds):
+            pending = [n for n in feeds if n not in done]
+            ready = [n for n in pending if feeds[n] <= set(done)]
+            done.append(ready[0] if ready else pending[0])
+        return done
+
+    def _terminate(self, member: Member, timeout: float = 5.0) -> None:
+        """Ask a member to terminate, then make sure its process is gone."""
+        try:
+            if member.process is None or member.process.poll() is None:
+                self._control(member, "terminate")
+                self._wait({member.name: "terminate"}, timeout, "terminate")
+        except RunFailure:
+            pass
+        if member.process is not None:
+            try:
+                member.process.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                member.process.kill()
+                member.process.wait()
+        member.command.undeclare()
+
+    # ---------------------------------------------------------------- swap
+
+    def swap(self, spec: ComponentSpec) -> None:
+        """Replace a component at the current step boundary, handing over its state."""
+        old = self.members[spec.name]
+        t_ns = self.k * self.config.step_ns
+        self._control(old, "get_state")
+        self._wait({old.name: "get_state"}, self.config.step_timeout_s, "get_state")
+        state = old.reply["blob"]
+        new = self._start([spec], {spec.name: old.generation + 1})[0]
+        self._initialize(new, t_ns)
+        if spec.type == old.spec.type:
+            self._control(new, "set_state", {}, state)
+            self._wait({new.name: "set_state"}, self.config.step_timeout_s, "set_state")
+        old_keep = old
+        self.members[spec.name] = new
+        # the old generation is now unknown to the router: its messages are ignored
+        old_keep.generation = -1
+        self._terminate_detached(old_keep)
+        self._log("swap", component=spec.name, type=spec.type, generation=new.generation,
+                  step=self.k, time=t_ns / 1e9, state_handed_over=spec.type == old.spec.type)
+
+    def _terminate_detached(self, member: Member) -> None:
+        self._control(member, "terminate")
+        if member.process is not None:
+            try:
+                member.process.wait(timeout=5.0)
+            except subprocess.TimeoutExpired:
+                member.process.kill()
+                member.process.wait()
+        member.command.undeclare()
+
+    # ---------------------------------------------------------------- control from the CLI
+
+    def _serve_controls(self) -> None:
+        while self.controls:
+            query = self.controls.pop(0)
+            try:
+                request = json.loads(query.payload.to_bytes()) if query.payload is not None else {}
+                answer = self._control_request(request)
+            except Exception as error:  # a bad request must not end the run
+                answer = {"ok": False, "error": f"{type(error).__name__}: {error}"}
+            query.reply(query.key_expr, json.dumps(answer))
+            query.drop()
+
+    def _control_request(self, request: dict) -> dict:
+        op = request.get("op")
+        if op == "status":
+            return {"ok": True, "run_id": self.run_id, "name": self.config.name, "step": self.k,
+                    "steps": self.config.steps, "time": self.k * self.config.step_ns / 1e9,
+                    "components": {n: {"type": m.spec.type, "generation": m.generation}
+                                   for n, m in self.members.items()}}
+        if op == "stop":
+            self.stop_reason = "stopped by request"
+            return {"ok": True}
+        if op == "swap":
+            from orchestrator.config import ConfigErrors, apply_overrides
+            name = request["component"]
+            if name not in self.members:
+                return {"ok": False, "error": f"no component {name!r} (components: {', '.join(self.members)})"}
+            old = self.members[name].spec
+            entry = {"type": request.get("type") or old.type, "parameters": json.loads(json.dumps(
+                old.parameters if not request.get("type") or request["type"] == old.type else {}))}
+            try:
+                apply_overrides(entry, [f"parameters.{s}" for s in request.get("set", [])])
+                spec = component_spec(name, {**entry, "step": f"{old.step_ns} ns"}, self.config.step_ns,
+                                      self.config.path.parent.resolve(), self.config.epoch, f"components.{name}")
+                self._check_swap(spec)
+            except ConfigErrors as e:
+                return {"ok": False, "error": "; ".join(e.errors)}
+            self.swap(spec)
+            return {"ok": True, "step": self.k, "generation": self.members[name].generation}
+        return {"ok": False, "error": f"unknown operation {op!r} (status, stop, swap)"}
+
+    def _check_swap(self, spec: ComponentSpec) -> None:
+        from orchestrator.config import ConfigErrors
+        problems = []
+        for d, dv, s, sv in self.config.connections:
+            for comp, var, layout in ((d, dv, spec.inputs), (s, sv, spec.outputs)):
+                if comp == spec.name and var not in layout.offsets:
+                    problems.append(f"{spec.type} has no variable {var!r} that the connections of {spec.name} use")
+        if problems:
+            raise ConfigErrors(problems)
+
+    # ---------------------------------------------------------------- the loop
+
+    def _log(self, kind: str, **fields) -> None:
+        if self.recording is not None:
+            self.recording.event(kind, **fields)
+
+    def _step(self) -> None:
+        k, h = self.k, self.config.step_ns
+        t_ns = k * h
+        due = [m for m in self.members.values() if k % m.ratio == 0]
+        step_timeout = self.config.step_timeout_s
+        started = time.perf_counter()
+        if self.config.algorithm == "jacobi":
+            for m in due:
+                m.inputs[m.route_dst] = self.values[m.route_src]
+            for m in due:
+                m.command.put(bus.encode_step(k, t_ns, m.ratio * h, m.inputs))
+            self._wait({m.name: "step" for m in due}, step_timeout, f"step {k}")
+        else:
+            for m in due:
+                m.inputs[m.route_dst] = self.values[m.route_src]
+                m.command.put(bus.encode_step(k, t_ns, m.ratio * h, m.inputs))
+                self._wait({m.name: "step"}, step_timeout, f"step {k}")
+        self.wait_s += time.perf_counter() - started
+
+    def execute(self) -> int:
+        import zenoh
+
+        config = self.config
+        listen, self.endpoint = resolve_endpoints(config.listen)
+        previous_term = signal.signal(signal.SIGTERM, _raise_stop)
+        self.session = zenoh.open(bus.session_config(listen=listen))
+        subscriptions = [
+            self.session.declare_subscriber(bus.run_key(self.run_id, "c", "*", "*", "out"), self._on_output),
+            self.session.liveliness().declare_subscriber(bus.run_key(self.run_id, "alive", "*", "*"),
+                                                         self._on_liveliness),
+            self.session.declare_queryable(bus.run_key(self.run_id, "ctl"), self._on_control),
+        ]
+        token = self.session.liveliness().declare_token(bus.run_key(self.run_id, "alive", "orchestrator"))
+        signals_out = bus.publisher(self.session, bus.run_key(self.run_id, "signals"), drop=True)
+        runs.register(self.run_id, config.name, self.endpoint, config.path)
+        if self.record_dir is not None:
+            self.recording = Recording(self.record_dir, self.columns, config.resolved)
+        code, message = 0, None
+        wall_start = time.perf_counter()
+        try:
+            self._log("start", run_id=self.run_id, config=str(config.path), steps=config.steps,
+                      step_ns=config.step_ns, algorithm=config.algorithm,
+                      components={n: s.type for n, s in config.components.items()})
+            self._start(list(config.components.values()), {n: 0 for n in config.components})
+            for name in self._initialization_order():
+                self._initialize(self.members[name], 0)
+            self._record(0)
+            wall_start = time.perf_counter()
+            last_progress = wall_start
+            for self.k in range(config.steps):
+                self._boundary()
+                if self.stop_reason:
+                    break
+                self._step()
+                self._record(self.k + 1)
+                signals_out.put(self.values.tobytes())
+                now = time.perf_counter()
+                if config.realtime > 0:
+                    ahead = (self.k + 1) * config.step_ns / 1e9 / config.realtime - (now - wall_start)
+                    if ahead > 0:
+                        time.sleep(ahead)
+                if self.progress and now - last_progress > 0.5:
+                    last_progress = now
+                    self._print_progress(now - wall_start)
+            else:
+                self.k = config.steps
+        except RunFailure as failure:
+            code, message = 1, str(failure)
+            self._log("fault", step=self.k, message=message)
+        except (KeyboardInterrupt, StopRequested):
+            self.stop_reason = "interrupted"
+            code = 130
+        finally:
+            self.loop_s = time.perf_counter() - wall_start
+            if self.progress:
+                print(file=self.out)
+            for member in list(self.members.values()):
+                self._terminate(member, timeout=2.0 if code else 5.0)
+            self._log("end", step=self.k, time=self.k * config.step_ns / 1e9,
+                      status="failed" if code == 1 else (self.stop_reason or "completed"))
+            if self.recording is not None:
+                self.recording.close()
+            runs.unregister(self.run_id)
+            del token, subscriptions
+            self.session.close()
+            signal.signal(signal.SIGTERM, previous_term)
+        if message:
+            print(f"error: {message}", file=self.out)
+            logs = ", ".join(str(m.log_path) for m in self.members.values() if m.log_path)
+            if logs:
+                print(f"component logs: {logs}", file=self.out)
+        if self.profile:
+            self._print_profile()
+        return code
+
+    def _boundary(self) -> None:
+        """Work done between steps: control requests from the CLI, scheduled events."""
+        while True:
+            try:
+                self._handle(self.inbox.get_nowait(), {})
+            except queue.Empty:
+                break
+        if self.controls:
+            self._serve_controls()
+        t_ns = self.k * self.config.step_ns
+        while self.pending_events and self.pending_events[0].at_ns <= t_ns:
+            self.swap(self.pending_events.pop(0).spec)
+
+    def _record(self, k: int) -> None:
+        if self.recording is not None:
+            self.recording.append(k, k * self.config.step_ns / 1e9, self.values)
+
+    def _print_progress(self, wall: float) -> None:
+        sim = (self.k + 1) * self.config.step_ns / 1e9
+        total = self.config.duration_ns / 1e9
+        print(f"\r  t = {sim:9.3f} / {total:g} s   {(self.k + 1) / wall:8.0f} steps/s   "
+              f"real-time factor {sim / wall:6.2f}", end="", file=self.out, flush=True)
+
+    def _print_profile(self) -> None:
+        steps = max(self.k, 1)
+        wall = self.loop_s
+        print(f"profile: {self.k} steps in {wall:.3f} s wall ({self.k / wall if wall else 0:.0f} steps/s), "
+              f"{self.config.algorithm}", file=self.out)
+        print(f"  {'component':<16}{'compute/step':>14}{'share of wall':>15}", file=self.out)
+        compute_total = 0.0
+        for m in self.members.values():
+            per = m.compute_s / max(m.steps, 1)
+            compute_total += m.compute_s
+            print(f"  {m.name:<16}{per * 1e6:>11.1f} us{100 * m.compute_s / wall if wall else 0:>14.1f}%",
+                  file=self.out)
+        barrier = self.wait_s / steps
+        slowest = max((m.compute_s / max(m.steps, 1) for m in self.members.values()), default=0.0) \
+            if self.config.algorithm == "jacobi" else compute_total / steps
+        print(f"  barrier wait     {barrier * 1e6:>8.1f} us/step (of which bus + adapter overhead "
+              f"~{max(barrier - slowest, 0) * 1e6:.1f} us)", file=self.out)
+        print(f"  orchestrator     {(wall - self.wait_s) / steps * 1e6:>8.1f} us/step (routing, recording)",
+              file=self.out)
+
+
+def _raise_stop(signum, frame):
+    raise StopRequested()
+
+
+def _jsonable(value):
+    """Config values as JSON for the instantiate message (YAML gives datetimes, numpy gives arrays)."""
+    if isinstance(value, (dt.datetime, dt.date)):
+        return value.isoformat().replace("+00:00", "Z")
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    return value

@@ -1,0 +1,70 @@
+"""Recording (DESIGN §6): signals.parquet in chunks, events.jsonl, the resolved config.yaml.
+
+Rows go to Parquet one row group per ``chunk_rows`` rows (by count, never by wall time, so two
+runs of one config write identical files). The writer is closed in every exit path of a run, so
+a run that fails midway leaves a readable file up to the failure.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+
+class Recording:
+    """Appends rows (step, time, signals...) and events to a directory."""
+
+    def __init__(self, directory: str | Path, columns: list[str], resolved_config: dict, *,
+                 chunk_rows: int = 1000):
+        import pyarrow as pa
+
+        self.directory = Path(directory)
+        self.directory.mkdir(parents=True, exist_ok=True)
+        for stale in ("signals.parquet", "events.jsonl"):
+            (self.directory / stale).unlink(missing_ok=True)
+        (self.directory / "config.yaml").write_text(yaml.safe_dump(resolved_config, sort_keys=False))
+        self.columns = columns
+        self.schema = pa.schema([("step", pa.int64()), ("time", pa.float64())]
+                                + [(c, pa.float64()) for c in columns])
+        self._writer = None
+        self._steps = np.empty(chunk_rows, dtype=np.int64)
+        self._times = np.empty(chunk_rows)
+        self._values = np.empty((chunk_rows, len(columns)))
+        self._rows = 0
+        self._events = open(self.directory / "events.jsonl", "a")
+
+    def append(self, step: int, time_s: float, values: np.ndarray) -> None:
+        i = self._rows
+        self._steps[i], self._times[i] = step, time_s
+        self._values[i] = values
+        self._rows += 1
+        if self._rows == len(self._steps):
+            self.flush()
+
+    def flush(self) -> None:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        if not self._rows:
+            return
+        n = self._rows
+        arrays = [pa.array(self._steps[:n]), pa.array(self._times[:n])]
+        arrays += [pa.array(self._values[:n, j]) for j in range(len(self.columns))]
+        if self._writer is None:
+            self._writer = pq.ParquetWriter(self.directory / "signals.parquet", self.schema)
+        self._writer.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
+        self._rows = 0
+
+    def event(self, kind: str, **fields) -> None:
+        self._events.write(json.dumps({"event": kind, **fields}) + "\n")
+        self._events.flush()
+
+    def close(self) -> None:
+        self.flush()
+        if self._writer is None:  # no row at all: still leave a readable, empty table
+            import pyarrow.parquet as pq
+            self._writer = pq.ParquetWriter(self.directory / "signals.parquet", self.schema)
+        self._writer.close()
+        self._events.close()

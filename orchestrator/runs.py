@@ -1,0 +1,50 @@
+"""Runs alive on this machine, so that `orchestrator ps`, `stop` and `swap` can find them.
+
+Each run writes a small JSON file (run id, name, Zenoh endpoint, pid) in a per-user runtime
+directory while it lives; the CLI reads them and talks to the run over Zenoh.
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+
+def directory() -> Path:
+    base = os.environ.get("ZENORBIT_RUNTIME_DIR") or os.environ.get("XDG_RUNTIME_DIR") or tempfile.gettempdir()
+    path = Path(base) / f"zenorbit-{os.getuid()}" / "runs"
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def register(run_id: str, name: str, endpoint: str, config: Path) -> None:
+    entry = {"run_id": run_id, "name": name, "endpoint": endpoint, "pid": os.getpid(),
+             "config": str(config), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    (directory() / f"{run_id}.json").write_text(json.dumps(entry))
+
+
+def unregister(run_id: str) -> None:
+    (directory() / f"{run_id}.json").unlink(missing_ok=True)
+
+
+def alive() -> list[dict]:
+    """Registered runs whose orchestrator process still exists (stale files are removed)."""
+    result = []
+    for path in sorted(directory().glob("*.json")):
+        try:
+            entry = json.loads(path.read_text())
+            os.kill(entry["pid"], 0)
+        except (ValueError, KeyError, ProcessLookupError):
+            path.unlink(missing_ok=True)
+            continue
+        except PermissionError:
+            pass
+        result.append(entry)
+    return result
+
+
+def find(name: str) -> list[dict]:
+    """Runs whose name or run id is ``name``."""
+    return [r for r in alive() if name in (r["name"], r["run_id"])]

@@ -39,11 +39,12 @@ class ElementError(ValueError):
 
 
 def check_elements(semi_major_axis: float, eccentricity: float, inclination: float,
-                   body_radius: float = R_EARTH) -> None:
+                   min_perigee: float | None = R_EARTH) -> None:
     """Raise :class:`ElementError` unless the elements describe an elliptic orbit above the surface.
 
     semi_major_axis in m (> 0), eccentricity unitless (0 <= e < 1), inclination in rad ([0, pi]);
-    the perigee radius a(1 - e) must exceed ``body_radius`` (m).
+    unless ``min_perigee`` is None, the perigee radius a(1 - e) must exceed it (m; default
+    Earth's equatorial radius, which also catches "6778" meant as km).
     """
     a, e, i = float(semi_major_axis), float(eccentricity), float(inclination)
     if not math.isfinite(a) or a <= 0.0:
@@ -53,11 +54,13 @@ def check_elements(semi_major_axis: float, eccentricity: float, inclination: flo
     if not math.isfinite(i) or not 0.0 <= i <= math.pi:
         raise ElementError("inclination",
                            f"expected 0 <= i <= pi rad (0 to 180 deg), got {i!r} rad ({math.degrees(i):.6g} deg)")
+    if min_perigee is None:
+        return
     perigee = a * (1.0 - e)
-    if perigee <= body_radius:
-        hint = f"; did you mean '{a:g} km'?" if a < body_radius / 1000.0 else ""
+    if perigee <= min_perigee:
+        hint = f"; did you mean '{a:g} km'?" if a * 1e3 * (1.0 - e) > min_perigee else ""
         raise ElementError("semi_major_axis",
-                           f"expected a perigee radius a(1-e) above Earth's surface ({body_radius:.0f} m), "
+                           f"expected a perigee radius a(1-e) above Earth's surface ({min_perigee:.0f} m), "
                            f"got a = {a:.9g} m, e = {e:g} -> {perigee:.9g} m{hint}")
 
 
@@ -178,6 +181,7 @@ class KeplerOrbit:
     """A Keplerian ellipse about the Earth, optionally with J2 secular drift of Ω, ω and M.
 
     Elements (mean elements at t = 0): semi_major_axis a (m), eccentricity e, inclination i,
+    (checked as in :func:`check_elements`, except that the perigee may be below the surface),
     raan Ω, arg_perigee ω, mean_anomaly M0 (rad). With ``j2`` the angles drift linearly at the
     rates of :func:`j2_secular_rates`; a, e, i stay constant. The position at time t is the
     two-body ellipse of the drifted elements; velocity and acceleration returned by
@@ -189,7 +193,7 @@ class KeplerOrbit:
     def __init__(self, semi_major_axis: float, eccentricity: float, inclination: float, raan: float,
                  arg_perigee: float, mean_anomaly: float, j2: bool = False, mu: float = MU_EARTH,
                  body_radius: float = R_EARTH, j2_coefficient: float = J2_EARTH):
-        check_elements(semi_major_axis, eccentricity, inclination, body_radius)
+        check_elements(semi_major_axis, eccentricity, inclination, min_perigee=None)
         self.a, self.e, self.i = float(semi_major_axis), float(eccentricity), float(inclination)
         self.raan0, self.argp0, self.m0 = float(raan), float(arg_perigee), float(mean_anomaly)
         self.mu = float(mu)

@@ -47,12 +47,12 @@ class QuinticHermiteSpline:
                 raise SplineError(f"expected finite {name}s, got {arr[k].tolist()} at waypoint {k}", k)
         if not np.all(np.isfinite(t)):
             k = int(np.argwhere(~np.isfinite(t))[0, 0])
-            raise SplineError(f"expected finite times, got {t[k]!r} at waypoint {k}", k)
+            raise SplineError(f"expected finite times, got {float(t[k])!r} at waypoint {k}", k)
         steps = np.diff(t)
         if np.any(steps <= 0.0):
             k = int(np.argmax(steps <= 0.0)) + 1
-            raise SplineError(f"expected strictly increasing times, got t[{k - 1}] = {t[k - 1]!r} s "
-                              f"then t[{k}] = {t[k]!r} s", k)
+            raise SplineError(f"expected strictly increasing times, got t[{k - 1}] = {float(t[k - 1])!r} s "
+                              f"then t[{k}] = {float(t[k])!r} s", k)
         self.times = t
         h = steps[:, None]
         p0, p1, v0, v1, a0, a1 = p[:-1], p[1:], v[:-1], v[1:], a[:-1], a[1:]

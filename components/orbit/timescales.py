@@ -10,13 +10,24 @@ No function here reads the wall clock.
 """
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import re
+import warnings
 
 import erfa
 import numpy as np
 
 SECONDS_PER_DAY = 86400.0
+
+
+@contextlib.contextmanager
+def _quiet_erfa():
+    """ERFA warns "dubious year" past the end of its leap-second table (it then keeps the last
+    TAI-UTC, the best available guess for a future date) and before 1960; not an error here."""
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore", erfa.ErfaWarning)
+        yield
 
 _ISO = re.compile(
     r"^\s*(\d{4})-(\d{2})-(\d{2})"            # date
@@ -48,23 +59,27 @@ def parse_utc(value) -> tuple[float, float]:
     else:
         raise ValueError(f"expected a UTC time like '2022-09-18T12:00:00Z', got {value!r}")
     try:
-        with np.errstate(all="ignore"):
+        with warnings.catch_warnings(record=True) as caught, np.errstate(all="ignore"):
+            warnings.simplefilter("always", erfa.ErfaWarning)
             jd1, jd2 = erfa.dtf2d("UTC", *parts)
     except (erfa.ErfaError, ValueError) as e:
         raise ValueError(f"expected a valid UTC time like '2022-09-18T12:00:00Z', got {value!r} ({e})") from None
+    for w in caught:   # "time is after end of day": second 60 on a day without a leap second
+        if "dubious year" not in str(w.message):
+            raise ValueError(f"expected a valid UTC time like '2022-09-18T12:00:00Z', got {value!r} ({w.message})")
     return float(jd1), float(jd2)
 
 
 def utc_to_tai(utc: tuple[float, float]) -> tuple[float, float]:
     """UTC two-part Julian date -> TAI two-part Julian date (days)."""
-    with np.errstate(all="ignore"):  # ERFA warns "dubious year" for dates past its leap-second table
+    with _quiet_erfa():
         a, b = erfa.utctai(*utc)
     return float(a), float(b)
 
 
 def tai_to_utc(tai: tuple[float, float]) -> tuple[float, float]:
     """TAI two-part Julian date -> UTC two-part Julian date (days)."""
-    with np.errstate(all="ignore"):
+    with _quiet_erfa():
         a, b = erfa.taiutc(*tai)
     return float(a), float(b)
 
@@ -84,6 +99,6 @@ def seconds_between(utc_from: tuple[float, float], utc_to: tuple[float, float]) 
 
 def utc_to_tt(utc: tuple[float, float]) -> tuple[float, float]:
     """UTC -> TT (= TAI + 32.184 s), two-part Julian dates (days)."""
-    with np.errstate(all="ignore"):
+    with _quiet_erfa():
         a, b = erfa.taitt(*utc_to_tai(utc))
     return float(a), float(b)

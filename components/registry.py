@@ -21,6 +21,10 @@ TYPES = {
     "test.noop": "components.testing.blocks:NoOp",
     "test.faulty": "components.testing.blocks:Faulty",
     # orbit
+    "orbit.kepler": "components.orbit.components:KeplerComponent",
+    "orbit.sgp4": "components.orbit.components:SGP4Component",
+    "orbit.custom_path": "components.orbit.components:CustomPathComponent",
+    "orbit.fixed": "components.orbit.components:FixedComponent",
     # dynamics
     # controllers
     # observers

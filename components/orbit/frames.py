@@ -89,6 +89,21 @@ def quat_to_dcm(q) -> np.ndarray:
     ])
 
 
+def rotation_vector(c) -> np.ndarray:
+    """Rotation vector (axis times angle, rad) of a proper rotation matrix C, angle in [0, pi).
+
+    For C = exp([θ×]): θ = atan2(|s|, (tr C - 1)/2) · s/|s| with s the axial vector of
+    (C - C^T)/2; accurate for small angles (as used for rates from finite differences).
+    """
+    m = np.asarray(c, dtype=np.float64)
+    s = 0.5 * np.array([m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]])
+    sin_angle = np.linalg.norm(s)
+    angle = math.atan2(sin_angle, 0.5 * (m[0, 0] + m[1, 1] + m[2, 2] - 1.0))
+    if sin_angle < 1e-300:
+        return np.zeros(3)
+    return s * (angle / sin_angle)
+
+
 def continuous(q, q_previous) -> np.ndarray:
     """q or -q (the same rotation), whichever is closer to ``q_previous``: no sign jumps in a series."""
     q = np.asarray(q, dtype=np.float64)

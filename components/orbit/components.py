@@ -1,0 +1,432 @@
+"""Orbit component types: thin wrappers mapping parameters to the orbit models and the models'
+states to the four outputs every orbit component publishes.
+
+Every orbit component has no inputs and these outputs (SI, ECI = GCRF axes):
+
+| variable | causality | shape | unit | description |
+|---|---|---|---|---|
+| r_eci | output | (3,) | m | position of the reference orbit point, ECI |
+| v_eci | output | (3,) | m/s | its velocity, ECI |
+| q_eci_lvlh | output | (4,) | 1 | [x, y, z, w], rotates LVLH vectors into ECI |
+| w_lvlh | output | (3,) | rad/s | angular velocity of LVLH with respect to ECI, in ECI axes |
+
+LVLH: x radial outward, z along r × v, y = z × x. The quaternion's sign is kept continuous
+from step to step (q and -q are the same rotation); that last sign is the components' only
+state (``get_state`` -> ``q_previous``), so outputs are otherwise a pure function of time.
+The run epoch reaches a component as ``params["_epoch"]`` (ISO-8601 UTC), injected by the
+orchestrator; ``params["_config_dir"]`` likewise, for relative paths.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from components.errors import ConfigError
+from components.sdk import Component, Parameter, Variable
+from components.units import to_si
+
+NS = 1e-9  # seconds per nanosecond
+
+
+def _outputs() -> list[Variable]:
+    return [
+        Variable("r_eci", "output", (3,), "m", [0.0, 0.0, 0.0], "position of the reference orbit point, ECI (GCRF axes)"),
+        Variable("v_eci", "output", (3,), "m/s", [0.0, 0.0, 0.0], "velocity of the reference orbit point, ECI"),
+        Variable("q_eci_lvlh", "output", (4,), "1", [0.0, 0.0, 0.0, 1.0],
+                 "attitude of LVLH: quaternion [x, y, z, w] rotating LVLH vectors into ECI"),
+        Variable("w_lvlh", "output", (3,), "rad/s", [0.0, 0.0, 0.0],
+                 "angular velocity of LVLH with respect to ECI, in ECI axes"),
+    ]
+
+
+def _epoch(params: Mapping[str, Any]) -> tuple[float, float]:
+    """The run epoch as a UTC two-part Julian date; ConfigError if missing or unreadable."""
+    from components.orbit import timescales
+
+    value = params.get("_epoch")
+    if value is None:
+        raise ConfigError("_epoch", "the run epoch was not given to the component (expected run.epoch)")
+    try:
+        return timescales.parse_utc(value)
+    except ValueError as e:
+        raise ConfigError("_epoch", str(e)) from None
+
+
+class _OrbitComponent(Component):
+    """Shared lifecycle: subclasses implement ``_sample(t_s) -> (r, v, q, w)``."""
+
+    @classmethod
+    def declare(cls, params):
+        return _outputs()
+
+    def __init__(self, params):
+        super().__init__(params)
+        self._q_previous: np.ndarray | None = None
+
+    def _sample(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def _outputs_at(self, t_ns: int) -> dict[str, np.ndarray]:
+        from components.orbit.frames import continuous
+
+        r, v, q, w = self._sample(t_ns * NS)
+        q = continuous(q, self._q_previous)
+        self._q_previous = q
+        return {"r_eci": r, "v_eci": v, "q_eci_lvlh": q, "w_lvlh": w}
+
+    def initialize(self, t0_ns, inputs):
+        return self._outputs_at(t0_ns)
+
+    def do_step(self, t_ns, h_ns, inputs):
+        return self._outputs_at(t_ns + h_ns)
+
+    def get_state(self):
+        q = np.zeros(4) if self._q_previous is None else self._q_previous
+        return {"q_previous": np.array(q, dtype=np.float64)}
+
+    def set_state(self, state):
+        q = np.asarray(state.get("q_previous", np.zeros(4)), dtype=np.float64)
+        self._q_previous = None if not np.any(q) else q
+
+
+class KeplerComponent(_OrbitComponent):
+    """Keplerian orbit about the Earth, optionally with J2 secular drift (type ``orbit.kepler``).
+
+    Two-body ellipse of the given elements (mean elements at run.epoch, ECI/GCRF equator and
+    x axis); with ``j2: true`` Ω, ω and M drift at the first-order secular J2 rates, and the
+    published velocity is the exact time derivative of the position (see
+    :class:`components.orbit.kepler.KeplerOrbit`). Earth constants: WGS 84 / EGM96
+    (mu = 3.986004418e14 m^3/s^2, R = 6378137 m, J2 = 1.08262668e-3).
+
+    | parameter | kind | unit | default | description |
+    |---|---|---|---|---|
+    | semi_major_axis | float | m | required | a > 0, perigee a(1-e) above Earth's surface |
+    | eccentricity | float | 1 | required | 0 <= e < 1 |
+    | inclination | float | rad | required | 0 to pi |
+    | raan | float | rad | required | right ascension of the ascending node Ω |
+    | arg_perigee | float | rad | required | argument of perigee ω |
+    | mean_anomaly | float | rad | — | M at run.epoch; give this or time_of_perigee |
+    | time_of_perigee | str | UTC | — | a perigee passage, e.g. "2022-09-18T11:30:00Z" |
+    | j2 | bool | — | false | apply the J2 secular rates of Ω, ω, M |
+
+    | variable | causality | shape | unit | description |
+    |---|---|---|---|---|
+    | r_eci | output | (3,) | m | position, ECI |
+    | v_eci | output | (3,) | m/s | velocity, ECI |
+    | q_eci_lvlh | output | (4,) | 1 | LVLH attitude [x, y, z, w], LVLH -> ECI |
+    | w_lvlh | output | (3,) | rad/s | LVLH angular velocity w.r.t. ECI, ECI axes |
+    """
+    type_name = "orbit.kepler"
+    parameters = (
+        Parameter("semi_major_axis", "float", unit="m", description="semi-major axis a (m), e.g. '6778 km'"),
+        Parameter("eccentricity", "float", unit="1", description="eccentricity, 0 <= e < 1"),
+        Parameter("inclination", "float", unit="rad", description="inclination, 0 to 180 deg"),
+        Parameter("raan", "float", unit="rad", description="right ascension of the ascending node"),
+        Parameter("arg_perigee", "float", unit="rad", description="argument of perigee"),
+        Parameter("mean_anomaly", "float", unit="rad", default=None,
+                  description="mean anomaly at run.epoch (or give time_of_perigee)"),
+        Parameter("time_of_perigee", "any", default=None,
+                  description="UTC time of a perigee passage, e.g. '2022-09-18T11:30:00Z' (or give mean_anomaly)"),
+        Parameter("j2", "bool", default=False, description="apply J2 secular drift of RAAN, argument of perigee, mean anomaly"),
+    )
+
+    @classmethod
+    def validate(cls, params):
+        from components.orbit.kepler import ElementError, check_elements
+        from components.orbit.timescales import parse_utc
+
+        try:
+            check_elements(params["semi_major_axis"], params["eccentricity"], params["inclination"])
+        except ElementError as e:
+            raise ConfigError(e.key, e.message) from None
+        given = [k for k in ("mean_anomaly", "time_of_perigee") if params.get(k) is not None]
+        if not given:
+            raise ConfigError("mean_anomaly", "expected mean_anomaly (at run.epoch) or time_of_perigee (UTC), got neither")
+        if len(given) == 2:
+            raise ConfigError("time_of_perigee", "expected mean_anomaly or time_of_perigee, got both")
+        if params.get("time_of_perigee") is not None:
+            try:
+                parse_utc(params["time_of_perigee"])
+            except ValueError as e:
+                raise ConfigError("time_of_perigee", str(e)) from None
+        elif not math.isfinite(params["mean_anomaly"]):
+            raise ConfigError("mean_anomaly", f"expected a finite angle, got {params['mean_anomaly']!r}")
+
+    def __init__(self, params):
+        from components.orbit import timescales
+        from components.orbit.kepler import KeplerOrbit
+
+        super().__init__(params)
+        orbit = KeplerOrbit(params["semi_major_axis"], params["eccentricity"], params["inclination"],
+                            params["raan"], params["arg_perigee"], 0.0, j2=params["j2"])
+        if params.get("time_of_perigee") is not None:
+            since_perigee = timescales.seconds_between(timescales.parse_utc(params["time_of_perigee"]),
+                                                       _epoch(params))
+            orbit.m0 = orbit.mean_rate * since_perigee
+        else:
+            orbit.m0 = float(params["mean_anomaly"])
+        self.orbit = orbit
+
+    def _sample(self, t_s):
+        from components.orbit.frames import lvlh_state
+
+        r, v, a = self.orbit.state(t_s)
+        q, w = lvlh_state(r, v, a)
+        return r, v, q, w
+
+
+class SGP4Component(_OrbitComponent):
+    """A TLE propagated with SGP4 (``sgp4`` package), converted from TEME to GCRF (type ``orbit.sgp4``).
+
+    Propagated at run.epoch + t (UTC, leap seconds counted). TEME -> GCRF by IAU 2006/2000A
+    precession-nutation and the equation of the equinoxes through ERFA, UT1 = UTC (see
+    :mod:`components.orbit.tle`; rotation error ~ milliarcseconds, centimetres at LEO). r_eci and
+    v_eci are SGP4's position and velocity rotated to GCRF; q_eci_lvlh is built from them and
+    w_lvlh is the rate of that frame, by a central difference of the LVLH attitude over ±0.5 s
+    (error < 1e-12 rad/s; SGP4's velocity is not exactly the derivative of its position,
+    differing by ~1 cm/s, so the frame's own rate is used rather than a formula in r and v).
+    A propagation failure (decay, eccentricity out of range) raises RuntimeError with sgp4's
+    SGP4_ERRORS text; a failure already at run.epoch is a ConfigError on ``tle``/``tle_file``.
+
+    | parameter | kind | unit | default | description |
+    |---|---|---|---|---|
+    | tle | [str, str] | — | — | the two TLE lines (give this or tle_file) |
+    | tle_file | str | — | — | file holding one TLE (2 lines, optional name line), relative to the config |
+
+    | variable | causality | shape | unit | description |
+    |---|---|---|---|---|
+    | r_eci | output | (3,) | m | position, ECI (GCRF) |
+    | v_eci | output | (3,) | m/s | velocity, ECI (GCRF) |
+    | q_eci_lvlh | output | (4,) | 1 | LVLH attitude [x, y, z, w], LVLH -> ECI |
+    | w_lvlh | output | (3,) | rad/s | LVLH angular velocity w.r.t. ECI, ECI axes |
+    """
+    type_name = "orbit.sgp4"
+    parameters = (
+        Parameter("tle", "any", default=None, description="TLE as [line1, line2] (or give tle_file)"),
+        Parameter("tle_file", "str", default=None, description="path of a TLE file, relative to the config (or give tle)"),
+    )
+    RATE_HALF_STEP = 0.5  # s, half-width of the central difference giving w_lvlh
+
+    @classmethod
+    def _lines(cls, params) -> tuple[str, tuple[str, str]]:
+        """(key, validated lines); ConfigError naming tle or tle_file."""
+        from components.orbit.tle import TLEFormatError, check_tle, read_tle_file
+
+        tle, tle_file = params.get("tle"), params.get("tle_file")
+        if (tle is None) == (tle_file is None):
+            raise ConfigError("tle", "expected either tle: [line1, line2] or tle_file: PATH, got "
+                              + ("neither" if tle is None else "both"))
+        if tle is not None:
+            if not (isinstance(tle, (list, tuple)) and len(tle) == 2 and all(isinstance(s, str) for s in tle)):
+                raise ConfigError("tle", f"expected a list of the 2 TLE lines (strings), got {tle!r}")
+            try:
+                return "tle", check_tle(tle[0], tle[1])
+            except TLEFormatError as e:
+                raise ConfigError("tle", str(e)) from None
+        path = Path(tle_file)
+        if not path.is_absolute():
+            path = Path(params.get("_config_dir") or ".") / path
+        try:
+            return "tle_file", read_tle_file(path)
+        except OSError as e:
+            raise ConfigError("tle_file", f"cannot read {path}: {e.strerror or e}") from None
+        except TLEFormatError as e:
+            raise ConfigError("tle_file", f"{path}: {e}") from None
+
+    @classmethod
+    def validate(cls, params):
+        from components.orbit.tle import SGP4Propagator
+
+        key, lines = cls._lines(params)
+        if params.get("_epoch") is None:
+            return
+        try:
+            SGP4Propagator(*lines).teme(_epoch(params))
+        except RuntimeError as e:
+            raise ConfigError(key, f"cannot propagate to run.epoch {params['_epoch']}: {e}") from None
+
+    def __init__(self, params):
+        from components.orbit.tle import SGP4Propagator
+
+        super().__init__(params)
+        _, lines = self._lines(params)
+        self.propagator = SGP4Propagator(*lines)
+        self.epoch = _epoch(params)
+
+    def _frame(self, t_s: float):
+        from components.orbit import timescales
+        from components.orbit.frames import lvlh_dcm
+
+        state = self.propagator.at_utc(timescales.utc_after(self.epoch, t_s))
+        return state.r_gcrf, state.v_gcrf, lvlh_dcm(state.r_gcrf, state.v_gcrf)
+
+    def _sample(self, t_s):
+        from components.orbit.frames import dcm_to_quat, rotation_vector
+
+        r, v, c = self._frame(t_s)
+        d = self.RATE_HALF_STEP
+        c_minus, c_plus = self._frame(t_s - d)[2], self._frame(t_s + d)[2]
+        w = rotation_vector(c_plus @ c_minus.T) / (2.0 * d)
+        return r, v, dcm_to_quat(c), w
+
+
+def _waypoints(raw) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Waypoint list from the config -> (t s, r m, v m/s, a m/s^2) arrays; ConfigError naming the key."""
+    if not isinstance(raw, (list, tuple)):
+        raise ConfigError("waypoints", f"expected a list of {{time, position, velocity, acceleration}}, got {raw!r}")
+    if len(raw) < 2:
+        raise ConfigError("waypoints", f"expected at least 2 waypoints, got {len(raw)}")
+    fields = (("time", "s", None), ("position", "m", 3), ("velocity", "m/s", 3), ("acceleration", "m/s^2", 3))
+    columns: dict[str, list] = {name: [] for name, _, _ in fields}
+    for k, point in enumerate(raw):
+        where = f"waypoints[{k}]"
+        if not isinstance(point, Mapping):
+            raise ConfigError(where, f"expected a mapping with time, position, velocity, acceleration, got {point!r}")
+        unknown = set(point) - set(columns)
+        if unknown:
+            raise ConfigError(f"{where}.{sorted(unknown)[0]}",
+                              "unknown key (expected time, position, velocity, acceleration)")
+        for name, unit, size in fields:
+            key = f"{where}.{name}"
+            if name not in point:
+                raise ConfigError(key, "missing required key")
+            value = point[name]
+            if size is None:
+                columns[name].append(to_si(value, unit, key))
+                continue
+            if not isinstance(value, (list, tuple)) or len(value) != size:
+                raise ConfigError(key, f"expected {size} values in {unit}, got {value!r}")
+            columns[name].append([to_si(x, unit, f"{key}[{i}]") for i, x in enumerate(value)])
+    arrays = tuple(np.array(columns[name], dtype=np.float64) for name, _, _ in fields)
+    for (name, unit, _), arr in zip(fields, arrays):
+        bad = np.argwhere(~np.isfinite(arr))
+        if bad.size:
+            raise ConfigError(f"waypoints[{bad[0][0]}].{name}", f"expected finite values in {unit}, got {arr[bad[0][0]]}")
+    return arrays
+
+
+class CustomPathComponent(_OrbitComponent):
+    """A path through ECI waypoints, interpolated by a C2 quintic Hermite spline (type ``orbit.custom_path``).
+
+    Each waypoint gives time (s since run.epoch), position (m), velocity (m/s) and acceleration
+    (m/s^2) in ECI; the spline matches all three at every waypoint. LVLH is built from the
+    spline's r and v; w_lvlh = (|r| (a·z)/|h|) x + (|h|/|r|^2) z with the spline's a (exact for
+    the path, including the out-of-plane term). Times must strictly increase and the first must
+    be <= 0 (the path covers the run's start). Past the last waypoint ``after_end`` chooses:
+    ``hold`` freezes all four outputs at their values at the last waypoint; ``error`` fails the
+    step. r and v must not be parallel (LVLH undefined) at any waypoint.
+
+    | parameter | kind | unit | default | description |
+    |---|---|---|---|---|
+    | waypoints | list of {time, position, velocity, acceleration} | s, m, m/s, m/s^2 | required | >= 2, ECI |
+    | after_end | str | — | required | hold or error |
+
+    | variable | causality | shape | unit | description |
+    |---|---|---|---|---|
+    | r_eci | output | (3,) | m | position, ECI |
+    | v_eci | output | (3,) | m/s | velocity, ECI |
+    | q_eci_lvlh | output | (4,) | 1 | LVLH attitude [x, y, z, w], LVLH -> ECI |
+    | w_lvlh | output | (3,) | rad/s | LVLH angular velocity w.r.t. ECI, ECI axes |
+    """
+    type_name = "orbit.custom_path"
+    parameters = (
+        Parameter("waypoints", "any", description="list of {time, position, velocity, acceleration} in ECI (s, m, m/s, m/s^2)"),
+        Parameter("after_end", "str", choices=("hold", "error"),
+                  description="past the last waypoint: hold the last outputs or fail"),
+    )
+
+    @classmethod
+    def _spline(cls, params):
+        from components.orbit.spline import QuinticHermiteSpline, SplineError
+
+        t, r, v, a = _waypoints(params["waypoints"])
+        for k in range(1, len(t)):
+            if not t[k] > t[k - 1]:
+                raise ConfigError(f"waypoints[{k}].time", f"expected times strictly increasing, got "
+                                  f"{t[k]!r} s after {t[k - 1]!r} s (waypoints[{k - 1}])")
+        if t[0] > 0.0:
+            raise ConfigError("waypoints[0].time",
+                              f"expected <= 0 s (the path must cover the run's start), got {t[0]!r} s")
+        for k in range(len(t)):
+            h = np.linalg.norm(np.cross(r[k], v[k]))
+            if not h > 1e-12 * np.linalg.norm(r[k]) * max(np.linalg.norm(v[k]), 1e-300):
+                raise ConfigError(f"waypoints[{k}].velocity",
+                                  f"expected a velocity not parallel to the position (LVLH needs r x v != 0), "
+                                  f"got r = {r[k].tolist()} m, v = {v[k].tolist()} m/s")
+        try:
+            return QuinticHermiteSpline(t, r, v, a)
+        except SplineError as e:  # pragma: no cover - the checks above come first
+            raise ConfigError("waypoints", str(e)) from None
+
+    @classmethod
+    def validate(cls, params):
+        cls._spline(params)
+
+    def __init__(self, params):
+        super().__init__(params)
+        self.spline = self._spline(params)
+        self.after_end = params["after_end"]
+
+    def _sample(self, t_s):
+        from components.orbit.frames import lvlh_state
+
+        if t_s > self.spline.end:
+            if self.after_end == "error":
+                raise RuntimeError(f"orbit.custom_path: t = {t_s!r} s is past the last waypoint "
+                                   f"({self.spline.end!r} s) and after_end is 'error'")
+            t_s = self.spline.end
+        if t_s < self.spline.start:
+            raise RuntimeError(f"orbit.custom_path: t = {t_s!r} s is before the first waypoint ({self.spline.start!r} s)")
+        r, v, a = self.spline.evaluate(t_s)
+        try:
+            q, w = lvlh_state(r, v, a)
+        except ValueError as e:
+            raise RuntimeError(f"orbit.custom_path at t = {t_s!r} s: {e}") from None
+        return r, v, q, w
+
+
+class FixedComponent(_OrbitComponent):
+    """A fixed point: constant r_eci and q_eci_lvlh, zero velocity and rate (type ``orbit.fixed``).
+
+    Not an orbit: for tests and for scenes away from any orbit. ``q_eci_lvlh`` must be a unit
+    quaternion to 1e-3; it is normalized.
+
+    | parameter | kind | unit | default | description |
+    |---|---|---|---|---|
+    | r_eci | vector (3,) | m | required | position, ECI |
+    | q_eci_lvlh | vector (4,) | 1 | [0, 0, 0, 1] | attitude [x, y, z, w] of the "LVLH" frame, LVLH -> ECI |
+
+    | variable | causality | shape | unit | description |
+    |---|---|---|---|---|
+    | r_eci | output | (3,) | m | the parameter r_eci |
+    | v_eci | output | (3,) | m/s | zero |
+    | q_eci_lvlh | output | (4,) | 1 | the parameter q_eci_lvlh, normalized |
+    | w_lvlh | output | (3,) | rad/s | zero |
+    """
+    type_name = "orbit.fixed"
+    parameters = (
+        Parameter("r_eci", "vector", unit="m", shape=(3,), description="position in ECI"),
+        Parameter("q_eci_lvlh", "vector", unit="1", shape=(4,), default=np.array([0.0, 0.0, 0.0, 1.0]),
+                  description="attitude quaternion [x, y, z, w], LVLH -> ECI"),
+    )
+
+    @classmethod
+    def validate(cls, params):
+        q = np.asarray(params["q_eci_lvlh"], dtype=np.float64)
+        if not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1.0) > 1e-3:
+            raise ConfigError("q_eci_lvlh", f"expected a unit quaternion [x, y, z, w] (norm 1 within 1e-3), "
+                              f"got {q.tolist()} (norm {np.linalg.norm(q):.6g})")
+        if not np.all(np.isfinite(params["r_eci"])):
+            raise ConfigError("r_eci", f"expected finite values in m, got {np.asarray(params['r_eci']).tolist()}")
+
+    def __init__(self, params):
+        super().__init__(params)
+        self.r = np.array(params["r_eci"], dtype=np.float64)
+        q = np.asarray(params["q_eci_lvlh"], dtype=np.float64)
+        self.q = q / np.linalg.norm(q)
+
+    def _sample(self, t_s):
+        return self.r.copy(), np.zeros(3), self.q.copy(), np.zeros(3)

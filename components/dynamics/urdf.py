@@ -1,0 +1,311 @@
+"""URDF reading without a physics engine: structure, limits, masses, and the text DART loads.
+
+``read_urdf(path)`` parses a URDF with :mod:`xml.etree` only, so a component can declare its
+variables (joint and link counts, names) cheaply, before DART is imported. The same parsed model
+then produces the URDF text given to DART (``dart_urdf_text``): locked joints welded at their
+initial position, massless frame links (tool frames) left out of the multibody.
+
+Conventions (URDF): a joint's ``origin`` places its frame in the parent link frame, rpy is
+R = Rz(yaw) Ry(pitch) Rx(roll); ``axis`` is in the joint frame. Units: m, rad, kg, kg m^2, N m.
+
+Supported joint types: revolute, continuous, prismatic (one degree of freedom each) and fixed.
+The root link is the free-floating base. ``UrdfError`` says what is wrong and where.
+"""
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
+SUPPORTED_TYPES = MOVABLE_TYPES + ("fixed",)
+
+
+class UrdfError(ValueError):
+    """A URDF that cannot be used: missing, not XML, or not a tree of supported joints."""
+
+
+@dataclass(frozen=True)
+class UrdfJoint:
+    """One URDF joint. ``lower``/``upper`` are -inf/+inf without position limits (continuous);
+    ``effort`` and ``velocity`` are +inf when the URDF gives none."""
+    name: str
+    type: str
+    parent: str
+    child: str
+    xyz: tuple[float, float, float]
+    rpy: tuple[float, float, float]
+    axis: tuple[float, float, float]
+    lower: float
+    upper: float
+    effort: float
+    velocity: float
+
+    @property
+    def movable(self) -> bool:
+        return self.type in MOVABLE_TYPES
+
+
+@dataclass(frozen=True)
+class UrdfLink:
+    """One URDF link: mass (0 without ``<inertial>``), CoM in the link frame, has collision shapes."""
+    name: str
+    mass: float
+    com: tuple[float, float, float]
+    has_inertial: bool
+    has_collision: bool
+
+
+@dataclass
+class UrdfModel:
+    """A parsed URDF. ``links`` and ``joints`` are in file order; ``movable_joints`` are the
+    names of the non-fixed joints in file order (the layout of q, qd and tau)."""
+    path: Path
+    name: str
+    links: list[UrdfLink]
+    joints: list[UrdfJoint]
+    root: str
+    tree: ET.ElementTree = field(repr=False)
+
+    @property
+    def link_names(self) -> list[str]:
+        return [link.name for link in self.links]
+
+    @property
+    def movable_joints(self) -> list[str]:
+        return [j.name for j in self.joints if j.movable]
+
+    def joint(self, name: str) -> UrdfJoint:
+        for j in self.joints:
+            if j.name == name:
+                return j
+        raise KeyError(name)
+
+    def link(self, name: str) -> UrdfLink:
+        for link in self.links:
+            if link.name == name:
+                return link
+        raise KeyError(name)
+
+    def frame_links(self) -> dict[str, UrdfJoint]:
+        """Links that are pure frames: no mass, no collision, no children, attached by a fixed
+        joint (tool frames). They are left out of the DART multibody; maps link -> its joint."""
+        parents = {j.parent for j in self.joints}
+        by_child = {j.child: j for j in self.joints}
+        frames = {}
+        for link in self.links:
+            joint = by_child.get(link.name)
+            if (joint is not None and joint.type == "fixed" and link.mass == 0.0
+                    and not link.has_collision and link.name not in parents):
+                frames[link.name] = joint
+        return frames
+
+
+def _floats(text: str | None, n: int, default: tuple[float, ...], where: str) -> tuple[float, ...]:
+    if text is None:
+        return default
+    parts = text.split()
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        raise UrdfError(f"{where}: expected {n} numbers, got {text!r}") from None
+    if len(values) != n or not all(math.isfinite(v) for v in values):
+        raise UrdfError(f"{where}: expected {n} finite numbers, got {text!r}")
+    return values
+
+
+def _float(element: ET.Element, attribute: str, default: float | None, where: str) -> float:
+    text = element.get(attribute)
+    if text is None:
+        if default is None:
+            raise UrdfError(f"{where}: missing attribute {attribute!r}")
+        return default
+    try:
+        return float(text)
+    except ValueError:
+        raise UrdfError(f"{where}: {attribute} expected a number, got {text!r}") from None
+
+
+def read_urdf(path: str | Path) -> UrdfModel:
+    """Parse and check a URDF file (tree of links, supported joints, positive base mass)."""
+    path = Path(path)
+    if not path.is_file():
+        raise UrdfError(f"URDF file {path} not found")
+    try:
+        tree = ET.parse(path)
+    except ET.ParseError as e:
+        raise UrdfError(f"{path} is not valid XML: {e}") from None
+    robot = tree.getroot()
+    if robot.tag != "robot":
+        raise UrdfError(f"{path}: expected a <robot> root element, got <{robot.tag}>")
+
+    links: list[UrdfLink] = []
+    for element in robot.findall("link"):
+        name = element.get("name")
+        where = f"{path.name}: link {name!r}"
+        if not name:
+            raise UrdfError(f"{path.name}: a <link> has no name")
+        if any(link.name == name for link in links):
+            raise UrdfError(f"{path.name}: duplicate link name {name!r}")
+        inertial = element.find("inertial")
+        mass, com = 0.0, (0.0, 0.0, 0.0)
+        if inertial is not None:
+            mass_el = inertial.find("mass")
+            if mass_el is None:
+                raise UrdfError(f"{where}: <inertial> without <mass>")
+            mass = _float(mass_el, "value", None, f"{where} mass")
+            if not (mass >= 0.0 and math.isfinite(mass)):
+                raise UrdfError(f"{where}: expected a mass >= 0 kg, got {mass}")
+            origin = inertial.find("origin")
+            if origin is not None:
+                com = _floats(origin.get("xyz"), 3, com, f"{where} inertial origin xyz")
+            inertia = inertial.find("inertia")
+            if inertia is None and mass > 0.0:
+                raise UrdfError(f"{where}: <inertial> without <inertia>")
+            if inertia is not None:
+                for a in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"):
+                    _float(inertia, a, 0.0, f"{where} inertia")
+        links.append(UrdfLink(name, mass, com, inertial is not None, element.find("collision") is not None))
+    if not links:
+        raise UrdfError(f"{path.name}: no <link> elements")
+    link_names = {link.name for link in links}
+
+    joints: list[UrdfJoint] = []
+    children: set[str] = set()
+    for element in robot.findall("joint"):
+        name = element.get("name")
+        kind = element.get("type")
+        where = f"{path.name}: joint {name!r}"
+        if not name:
+            raise UrdfError(f"{path.name}: a <joint> has no name")
+        if any(j.name == name for j in joints):
+            raise UrdfError(f"{path.name}: duplicate joint name {name!r}")
+        if kind not in SUPPORTED_TYPES:
+            raise UrdfError(f"{where}: unsupported joint type {kind!r} (expected one of {', '.join(SUPPORTED_TYPES)})")
+        if element.find("mimic") is not None:
+            raise UrdfError(f"{where}: mimic joints are not supported")
+        parent_el, child_el = element.find("parent"), element.find("child")
+        if parent_el is None or child_el is None:
+            raise UrdfError(f"{where}: expected <parent link=...> and <child link=...>")
+        parent, child = parent_el.get("link"), child_el.get("link")
+        for role, link in (("parent", parent), ("child", child)):
+            if link not in link_names:
+                raise UrdfError(f"{where}: {role} link {link!r} is not a <link> of the file")
+        if child in children:
+            raise UrdfError(f"{where}: link {child!r} has two parent joints")
+        children.add(child)
+        origin = element.find("origin")
+        xyz = _floats(origin.get("xyz") if origin is not None else None, 3, (0.0, 0.0, 0.0), f"{where} origin xyz")
+        rpy = _floats(origin.get("rpy") if origin is not None else None, 3, (0.0, 0.0, 0.0), f"{where} origin rpy")
+        axis_el = element.find("axis")
+        axis = _floats(axis_el.get("xyz") if axis_el is not None else None, 3, (1.0, 0.0, 0.0), f"{where} axis")
+        norm = math.sqrt(sum(a * a for a in axis))
+        if kind in MOVABLE_TYPES and norm < 1e-12:
+            raise UrdfError(f"{where}: axis must be non-zero, got {axis}")
+        if norm > 0:
+            axis = tuple(a / norm for a in axis)
+        lower, upper, effort, velocity = -math.inf, math.inf, math.inf, math.inf
+        limit = element.find("limit")
+        if limit is not None:
+            effort = _float(limit, "effort", math.inf, f"{where} limit")
+            velocity = _float(limit, "velocity", math.inf, f"{where} limit")
+            if effort <= 0.0:   # URDF convention: 0 effort means "not given"
+                effort = math.inf
+            if kind in ("revolute", "prismatic"):
+                lower = _float(limit, "lower", 0.0, f"{where} limit")
+                upper = _float(limit, "upper", 0.0, f"{where} limit")
+                if lower > upper:
+                    raise UrdfError(f"{where}: limit lower {lower} > upper {upper}")
+        elif kind in ("revolute", "prismatic"):
+            raise UrdfError(f"{where}: a {kind} joint needs a <limit> element")
+        joints.append(UrdfJoint(name, kind, parent, child, xyz, rpy, axis, lower, upper, effort, velocity))
+
+    roots = [link.name for link in links if link.name not in children]
+    if len(roots) != 1:
+        raise UrdfError(f"{path.name}: expected one root link (the free-floating base), got {roots or 'none (a cycle)'}")
+    root = roots[0]
+    # every link reachable from the root (no cycles, nothing detached)
+    by_parent: dict[str, list[str]] = {}
+    for j in joints:
+        by_parent.setdefault(j.parent, []).append(j.child)
+    seen, stack = set(), [root]
+    while stack:
+        link = stack.pop()
+        if link in seen:
+            raise UrdfError(f"{path.name}: the links do not form a tree (cycle at {link!r})")
+        seen.add(link)
+        stack.extend(by_parent.get(link, []))
+    if seen != link_names:
+        raise UrdfError(f"{path.name}: links not connected to the root {root!r}: {sorted(link_names - seen)}")
+    if root == "world":
+        raise UrdfError(f"{path.name}: the root link is the free-floating base; remove the 'world' link and its joint")
+    root_link = next(link for link in links if link.name == root)
+    if root_link.mass <= 0.0:
+        raise UrdfError(f"{path.name}: the base link {root!r} needs a positive mass, got {root_link.mass} kg")
+    return UrdfModel(path, robot.get("name") or path.stem, links, joints, root, tree)
+
+
+# --------------------------------------------------------------------------- rotations (URDF rpy)
+
+def rpy_to_matrix(rpy) -> np.ndarray:
+    """R = Rz(yaw) Ry(pitch) Rx(roll) (URDF convention)."""
+    r, p, y = rpy
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def matrix_to_rpy(R: np.ndarray) -> tuple[float, float, float]:
+    """Inverse of :func:`rpy_to_matrix` (any valid solution at pitch = +-90 deg)."""
+    cp = math.hypot(R[0, 0], R[1, 0])
+    pitch = math.atan2(-R[2, 0], cp)
+    if cp > 1e-9:
+        roll = math.atan2(R[2, 1], R[2, 2])
+        yaw = math.atan2(R[1, 0], R[0, 0])
+    else:   # gimbal lock: put everything in roll
+        yaw = 0.0
+        roll = math.atan2(-R[1, 2], R[1, 1])
+    return roll, pitch, yaw
+
+
+def axis_angle_matrix(axis, angle: float) -> np.ndarray:
+    a = np.asarray(axis, dtype=float)
+    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * (K @ K)
+
+
+def dart_urdf_text(model: UrdfModel, locked: dict[str, float]) -> str:
+    """The URDF text DART loads: joints in ``locked`` (name -> position) become fixed joints at
+    that position, and frame links (see ``UrdfModel.frame_links``) are left out."""
+    tree = ET.ElementTree(ET.fromstring(ET.tostring(model.tree.getroot())))
+    robot = tree.getroot()
+    frames = model.frame_links()
+    for element in list(robot.findall("joint")):
+        name = element.get("name")
+        if element.find("child").get("link") in frames:
+            robot.remove(element)
+            continue
+        if name not in locked:
+            continue
+        joint = model.joint(name)
+        R = rpy_to_matrix(joint.rpy)
+        p = np.array(joint.xyz, dtype=float)
+        q0 = float(locked[name])
+        if joint.type == "prismatic":
+            p = p + R @ (np.array(joint.axis) * q0)
+        else:
+            R = R @ axis_angle_matrix(joint.axis, q0)
+        element.set("type", "fixed")
+        for tag in ("origin", "axis", "limit", "dynamics", "safety_controller", "calibration"):
+            for child in element.findall(tag):
+                element.remove(child)
+        ET.SubElement(element, "origin", xyz=" ".join(repr(float(v)) for v in p),
+                      rpy=" ".join(repr(float(v)) for v in matrix_to_rpy(R)))
+    for element in list(robot.findall("link")):
+        if element.get("name") in frames:
+            robot.remove(element)
+    return ET.tostring(robot, encoding="unicode")

@@ -1,0 +1,634 @@
+"""Free-floating multibodies in orbit: DART forward dynamics in the free-falling world frame W.
+
+``OrbitalWorld`` is the physics of the ``dynamics.dart`` component as a plain class (no bus, no
+I/O): several bodies, each a URDF on a free-floating base (DART FreeJoint), in zero gravity with
+the orbital environment of :mod:`components.dynamics.environment` (tidal force, gravity-gradient
+torque, drag) computed per link from the reference orbit inputs.
+
+Frames: W has its origin at the reference orbit point r_eci(t), axes parallel to ECI, and falls
+freely (it does not rotate). LVLH (Hill): x radial, z orbit normal, y = z x x. Quaternions are
+[x, y, z, w]; q_A_B rotates vectors in B into A.
+
+Integrators (``integrator``):
+
+- ``rk4`` (default): classical Runge-Kutta 4 on the configuration manifold (Runge-Kutta-Munthe-
+  Kaas): stages evaluate DART's ``computeForwardDynamics`` at q0 (+) xi, where (+) is DART's own
+  ``integratePositions`` (for the FreeJoint: R = exp(xi_w) R0, p = p0 + xi_v with world-frame
+  rates); the stage derivative of xi maps the angular velocity through the inverse left Jacobian
+  of SO(3). Fourth order; momentum drifts ~1e-10 (relative) over 10 s at 1 ms. Contacts are not
+  handled; joint position limits act as inelastic stops (a momentum-conserving joint impulse).
+- ``dart``: DART's native ``World.step`` (semi-implicit Euler + constraint solver): contacts
+  between bodies, joint limits as constraints. First order (momentum drift ~1e-3 over 10 s at
+  1 ms): use it when bodies touch.
+
+Each communication step ``step(h)`` runs ``substeps`` internal steps of h / substeps. Within a
+step the orbit inputs are held, but the reference point moves along its Kepler arc
+(:func:`environment.propagate_reference`), so a long step does not lag the tidal field.
+
+Per body (see ``BodySpec``): the base pose and twist and the joint positions/rates at
+``reset_bodies``, in W or in LVLH (``frame: lvlh``: relative to LVLH, including its rotation:
+a zero twist co-rotates with LVLH). ``locked_joints`` are welded at their initial position.
+Joint torques are clipped to the URDF effort limits. URDF joint damping/friction is ignored.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from components.dynamics import environment as env
+from components.dynamics.urdf import UrdfModel, dart_urdf_text, read_urdf, rpy_to_matrix
+
+INTEGRATORS = ("rk4", "dart")
+FRAMES = ("world", "lvlh")
+DEFAULT_CD = 2.2
+
+
+class ModelError(ValueError):
+    """A body specification that does not fit its URDF; ``key`` is relative to ``bodies``."""
+
+    def __init__(self, key: str, message: str):
+        super().__init__(f"{key}: {message}")
+        self.key = key
+        self.message = message
+
+
+@dataclass
+class BodySpec:
+    """One free-floating body.
+
+    | field | unit | meaning |
+    |---|---|---|
+    | name | - | body name (variables ``<name>.q`` ...) |
+    | urdf | - | URDF path; its root link is the free base |
+    | frame | - | ``world`` (W) or ``lvlh``: frame of position/orientation/twist |
+    | position | m | base link origin |
+    | orientation | - | base orientation [x, y, z, w] (q_W_base or q_LVLH_base) |
+    | twist | m/s, rad/s | base origin linear velocity, then angular velocity |
+    | q, qd | rad or m, per s | initial joint positions/rates by joint name (others 0) |
+    | locked_joints | - | joints welded at their initial q |
+    | drag_area | m^2 | link name -> reference area (links not named: no drag) |
+    | drag_cd | - | drag coefficient, one number or link name -> Cd (default 2.2) |
+    """
+    name: str
+    urdf: str | Path
+    frame: str = "world"
+    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    orientation: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
+    twist: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    q: Mapping[str, float] = field(default_factory=dict)
+    qd: Mapping[str, float] = field(default_factory=dict)
+    locked_joints: tuple[str, ...] = ()
+    drag_area: Mapping[str, float] = field(default_factory=dict)
+    drag_cd: float | Mapping[str, float] = DEFAULT_CD
+
+
+def check_spec(spec: BodySpec, model: UrdfModel) -> None:
+    """Check a spec against its parsed URDF (cheap, no DART); ModelError naming the key."""
+    n = spec.name
+    if spec.frame not in FRAMES:
+        raise ModelError(f"{n}.frame", f"expected one of {', '.join(FRAMES)}, got {spec.frame!r}")
+    for key, value, size in (("position", spec.position, 3), ("orientation", spec.orientation, 4),
+                             ("twist", spec.twist, 6)):
+        array = np.asarray(value, dtype=float)
+        if array.shape != (size,) or not np.all(np.isfinite(array)):
+            raise ModelError(f"{n}.{key}", f"expected {size} finite numbers, got {value!r}")
+    if not 0.5 < np.linalg.norm(spec.orientation) < 2.0:
+        raise ModelError(f"{n}.orientation", f"expected a unit quaternion [x, y, z, w], got {list(spec.orientation)}")
+    movable = model.movable_joints
+    for key in ("q", "qd"):
+        for joint, value in getattr(spec, key).items():
+            if joint not in movable:
+                raise ModelError(f"{n}.{key}.{joint}", f"not a movable joint of {Path(spec.urdf).name} "
+                                                       f"(joints: {', '.join(movable) or 'none'})")
+            if not math.isfinite(value):
+                raise ModelError(f"{n}.{key}.{joint}", f"expected a finite number, got {value!r}")
+    for joint, value in spec.q.items():
+        j = model.joint(joint)
+        if not j.lower - 1e-9 <= value <= j.upper + 1e-9:
+            raise ModelError(f"{n}.q.{joint}", f"expected within the URDF limits [{j.lower}, {j.upper}], got {value}")
+    seen = set()
+    for joint in spec.locked_joints:
+        if joint not in movable:
+            raise ModelError(f"{n}.locked_joints", f"{joint!r} is not a movable joint of {Path(spec.urdf).name}")
+        if joint in seen:
+            raise ModelError(f"{n}.locked_joints", f"{joint!r} listed twice")
+        seen.add(joint)
+        if spec.qd.get(joint, 0.0) != 0.0:
+            raise ModelError(f"{n}.qd.{joint}", "the joint is locked: expected no initial rate")
+    links = model.link_names
+    for link, area in spec.drag_area.items():
+        if link not in links:
+            raise ModelError(f"{n}.drag_area.{link}", f"not a link of {Path(spec.urdf).name}")
+        if not (area >= 0.0 and math.isfinite(area)):
+            raise ModelError(f"{n}.drag_area.{link}", f"expected an area >= 0 m^2, got {area}")
+    cds = spec.drag_cd.items() if isinstance(spec.drag_cd, Mapping) else [(None, spec.drag_cd)]
+    for link, cd in cds:
+        key = f"{n}.drag_cd" + (f".{link}" if link is not None else "")
+        if link is not None and link not in links:
+            raise ModelError(key, f"not a link of {Path(spec.urdf).name}")
+        if not (cd >= 0.0 and math.isfinite(cd)):
+            raise ModelError(key, f"expected a drag coefficient >= 0, got {cd}")
+
+
+# --------------------------------------------------------------------------- small rotation helpers
+
+def quat_to_matrix(q) -> np.ndarray:
+    """Rotation matrix of a quaternion [x, y, z, w] (normalized first)."""
+    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def matrix_to_quat(R: np.ndarray) -> np.ndarray:
+    """Quaternions [x, y, z, w] with w >= 0 of rotation matrices (..., 3, 3) (Shepperd's method)."""
+    R = np.asarray(R, dtype=float)
+    flat = R.reshape(-1, 3, 3)
+    out = np.empty((flat.shape[0], 4))
+    for i, m in enumerate(flat):
+        t = m[0, 0] + m[1, 1] + m[2, 2]
+        k = int(np.argmax([m[0, 0], m[1, 1], m[2, 2], t]))
+        if k == 3:
+            s = 2.0 * math.sqrt(1.0 + t)
+            q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
+        elif k == 0:
+            s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+            q = [0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
+        elif k == 1:
+            s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+            q = [(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
+        else:
+            s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+            q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s]
+        q = np.array(q)
+        out[i] = -q if q[3] < 0 else q
+    return out.reshape(R.shape[:-2] + (4,))
+
+
+def so3_left_jacobian_inverse_times(phi: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """J_l(phi)^-1 omega: the rate of phi for R = exp(phi) R0 turning at world angular velocity
+    omega. J_l^-1 = I - [phi]x / 2 + (1 - (t/2) cot(t/2)) / t^2 [phi]x^2, t = |phi|."""
+    px, py, pz = phi.tolist()
+    wx, wy, wz = omega.tolist()
+    t2 = px * px + py * py + pz * pz
+    if t2 < 1e-6:
+        c = 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0
+    else:
+        t = math.sqrt(t2)
+        c = (1.0 - 0.5 * t / math.tan(0.5 * t)) / t2
+    cx, cy, cz = py * wz - pz * wy, pz * wx - px * wz, px * wy - py * wx          # phi x omega
+    dx, dy, dz = py * cz - pz * cy, pz * cx - px * cz, px * cy - py * cx          # phi x (phi x omega)
+    return np.array([wx - 0.5 * cx + c * dx, wy - 0.5 * cy + c * dy, wz - 0.5 * cz + c * dz])
+
+
+# --------------------------------------------------------------------------- bodies
+
+class _Body:
+    """A body's DART skeleton and the index maps between it and the URDF's variable layout."""
+
+    def __init__(self, spec: BodySpec, model: UrdfModel, dart):
+        self.spec, self.model, self.name = spec, model, spec.name
+        self.joints = model.movable_joints                     # URDF order: layout of q, qd, tau
+        self.locked = {j: float(spec.q.get(j, 0.0)) for j in spec.locked_joints}
+        loader = dart.utils.DartLoader()
+        options = dart.utils.DartLoader.Options()
+        options.mDefaultRootJointType = dart.utils.DartLoader.RootJointType.FLOATING
+        massless = dart.dynamics.Inertia()                      # links without <inertial>: 0 kg, as URDF
+        massless.setMass(0.0)
+        massless.setMoment(np.zeros((3, 3)))
+        options.mDefaultInertia = massless
+        loader.setOptions(options)
+        uri = dart.common.Uri.createFromPath(str(Path(spec.urdf).resolve()))
+        skel = loader.parseSkeletonString(dart_urdf_text(model, self.locked), uri)
+        if skel is None:
+            raise ModelError(f"{spec.name}.urdf", f"DART could not load {spec.urdf}")
+        skel.setName(spec.name)
+        skel.setGravity(np.zeros(3))
+        skel.disableSelfCollisionCheck()
+        self.skel = skel
+        if skel.getRootJoint().getType() != "FreeJoint":
+            raise ModelError(f"{spec.name}.urdf", f"expected a free-floating base, DART made a {skel.getRootJoint().getType()}")
+        self.ndofs = skel.getNumDofs()
+        dof_names = [skel.getDof(i).getName() for i in range(self.ndofs)]
+        # joints: URDF order -> DART dof index (-1 when locked)
+        self.dof_index = np.array([-1 if j in self.locked else dof_names.index(j) for j in self.joints], dtype=int)
+        self.free = self.dof_index >= 0
+        self.free_dofs = self.dof_index[self.free]
+        self.effort = np.array([model.joint(j).effort for j in self.joints])
+        self.locked_q = np.array([self.locked.get(j, 0.0) for j in self.joints])
+        for i in range(6, self.ndofs):                         # no joint friction, springs or damping
+            dof = skel.getDof(i)
+            dof.setDampingCoefficient(0.0)
+            dof.setCoulombFriction(0.0)
+            dof.setSpringStiffness(0.0)
+        lower = np.full(self.ndofs, -np.inf)
+        upper = np.full(self.ndofs, np.inf)
+        for j, k in zip(self.joints, self.dof_index):
+            if k >= 0:
+                lower[k], upper[k] = model.joint(j).lower, model.joint(j).upper
+        self.lower, self.upper = lower, upper
+        self.limited = bool(np.any(np.isfinite(lower) | np.isfinite(upper)))
+        # links: DART body nodes with mass (environment), URDF link order (outputs)
+        nodes = {skel.getBodyNode(i).getName(): skel.getBodyNode(i) for i in range(skel.getNumBodyNodes())}
+        self.nodes = [bn for bn in nodes.values() if bn.getMass() > 0.0]
+        self.mass = np.array([bn.getMass() for bn in self.nodes])
+        self.local_com = np.array([bn.getLocalCOM() for bn in self.nodes]).reshape(-1, 3)
+        self.local_inertia = np.array([bn.getInertia().getMoment() for bn in self.nodes]).reshape(-1, 3, 3)
+        self.total_mass = float(self.mass.sum())
+        node_slot = {bn.getName(): i for i, bn in enumerate(self.nodes)}
+        frames = model.frame_links()
+        self.link_names = model.link_names
+        self.link_source = []                                  # (node or None, env slot or -1, fixed offset)
+        for link in self.link_names:
+            if link in frames:
+                joint = frames[link]
+                T = np.eye(4)
+                T[:3, :3], T[:3, 3] = rpy_to_matrix(joint.rpy), joint.xyz
+                self.link_source.append((nodes[joint.parent], -1, T))
+            else:
+                self.link_source.append((nodes[link], node_slot.get(link, -1), None))
+        cd = spec.drag_cd
+        self.drag_area = np.array([float(spec.drag_area.get(bn.getName(), 0.0)) for bn in self.nodes])
+        self.drag_cd = np.array([float(cd.get(bn.getName(), DEFAULT_CD)) if isinstance(cd, Mapping) else float(cd)
+                                 for bn in self.nodes])
+        self.has_drag = bool(np.any(self.drag_area * self.drag_cd > 0.0))
+        self.tau = np.zeros(self.ndofs)                        # generalized forces, DART order
+        self.stops = np.zeros(0, dtype=int)                    # rk4: dofs resting on a limit stop
+        self.stop_sides = np.zeros(0)                          # +1 upper, -1 lower
+
+    # -- state in variable layout
+    def joint_positions(self) -> np.ndarray:
+        q = self.locked_q.copy()
+        q[self.free] = self.skel.getPositions()[self.free_dofs]
+        return q
+
+    def joint_velocities(self) -> np.ndarray:
+        qd = np.zeros(len(self.joints))
+        qd[self.free] = self.skel.getVelocities()[self.free_dofs]
+        return qd
+
+
+class OrbitalWorld:
+    """Free-floating URDF bodies in the free-falling frame W, with the orbital environment.
+
+    | constructor argument | default | meaning |
+    |---|---|---|
+    | bodies | - | list of BodySpec (unique names) |
+    | integrator | rk4 | rk4 (manifold RK4 on DART forward dynamics) or dart (DART step, contacts) |
+    | substeps | 1 | internal steps per ``step(h)`` |
+    | tidal_force, gravity_gradient, drag | True, True, False | environment terms, per link |
+    | mu | 3.986004418e14 m^3/s^2 | Earth's gravitational parameter |
+    | atmosphere | None | ExponentialAtmosphere; None = the 0-1000 km table |
+    | joint_limits | True | enforce URDF position limits |
+
+    Use: ``set_orbit(r_eci, v_eci, q_eci_lvlh, w_lvlh)`` then ``reset_bodies()`` (initial state,
+    which needs LVLH for ``frame: lvlh`` bodies); per step ``set_orbit(...)``,
+    ``set_torques(name, tau)``, ``step(h)``, ``outputs(name)``. ``get_state``/``set_state`` carry
+    everything a restart needs to continue bit-exactly.
+
+    r_eci = 0 means "no orbit": the environment forces are then zero (deep space).
+    """
+
+    def __init__(self, bodies: list[BodySpec], *, integrator: str = "rk4", substeps: int = 1,
+                 tidal_force: bool = True, gravity_gradient: bool = True, drag: bool = False,
+                 mu: float = env.MU_EARTH, atmosphere: env.ExponentialAtmosphere | None = None,
+                 joint_limits: bool = True, models: Mapping[str, UrdfModel] | None = None):
+        import dartpy as dart
+
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"integrator: expected one of {', '.join(INTEGRATORS)}, got {integrator!r}")
+        if not (isinstance(substeps, int) and substeps >= 1):
+            raise ValueError(f"substeps: expected an integer >= 1, got {substeps!r}")
+        self.integrator, self.substeps = integrator, substeps
+        self.tidal, self.gg, self.drag = bool(tidal_force), bool(gravity_gradient), bool(drag)
+        self.mu = float(mu)
+        self.atmosphere = atmosphere or env.ExponentialAtmosphere()
+        self.joint_limits = bool(joint_limits)
+        self.world = dart.simulation.World()
+        self.world.setGravity(np.zeros(3))
+        self.bodies: dict[str, _Body] = {}
+        for spec in bodies:
+            if spec.name in self.bodies:
+                raise ModelError(spec.name, "duplicate body name")
+            model = (models or {}).get(spec.name) or read_urdf(spec.urdf)
+            check_spec(spec, model)
+            body = _Body(spec, model, dart)
+            self.world.addSkeleton(body.skel)
+            body.skel.setGravity(np.zeros(3))
+            if integrator == "dart" and joint_limits:
+                for i in range(1, body.skel.getNumJoints()):
+                    joint = body.skel.getJoint(i)
+                    if joint.getNumDofs() > 0:
+                        joint.setLimitEnforcement(True)
+            self.bodies[spec.name] = body
+        self._dart = dart
+        self.r_eci = np.zeros(3)
+        self.v_eci = np.zeros(3)
+        self.q_eci_lvlh = np.array([0.0, 0.0, 0.0, 1.0])
+        self.w_lvlh = np.zeros(3)
+        self.elapsed = 0.0          # s since the orbit inputs were set (the reference point moved on)
+        self._env_now = False
+
+    # ----------------------------------------------------------------- inputs
+
+    def set_orbit(self, r_eci, v_eci, q_eci_lvlh=(0.0, 0.0, 0.0, 1.0), w_lvlh=(0.0, 0.0, 0.0)) -> None:
+        """Reference orbit point (m, m/s, ECI), LVLH attitude q_ECI_LVLH and rate (rad/s, ECI axes)."""
+        values = {"r_eci": r_eci, "v_eci": v_eci, "q_eci_lvlh": q_eci_lvlh, "w_lvlh": w_lvlh}
+        for key, value in values.items():
+            if not np.all(np.isfinite(value)):
+                raise ValueError(f"input {key}: expected finite values, got {np.asarray(value).tolist()}")
+        self.r_eci = np.array(r_eci, dtype=float)
+        self.v_eci = np.array(v_eci, dtype=float)
+        self.q_eci_lvlh = np.array(q_eci_lvlh, dtype=float)
+        self.w_lvlh = np.array(w_lvlh, dtype=float)
+        self.elapsed = 0.0
+
+    def set_torques(self, name: str, tau) -> None:
+        """Joint torques/forces (N m or N) of body ``name`` in URDF joint order; clipped to the
+        URDF effort limits; ignored on locked joints."""
+        body = self.bodies[name]
+        tau = np.asarray(tau, dtype=float).ravel()
+        if tau.size != len(body.joints):
+            raise ValueError(f"input {name}.tau: expected {len(body.joints)} values, got {tau.size}")
+        bad = ~np.isfinite(tau)
+        if np.any(bad):
+            k = int(np.argmax(bad))
+            raise ValueError(f"input {name}.tau: expected finite values, got {tau[k]} for {body.joints[k]}")
+        tau = np.clip(tau, -body.effort, body.effort)
+        body.tau[:] = 0.0
+        body.tau[body.free_dofs] = tau[body.free]
+
+    def reset_bodies(self) -> None:
+        """Put every body in its initial state from its spec (``frame: lvlh`` uses the orbit inputs)."""
+        R_WL = quat_to_matrix(self.q_eci_lvlh)
+        for body in self.bodies.values():
+            spec = body.spec
+            p = np.asarray(spec.position, dtype=float)
+            R = quat_to_matrix(spec.orientation)
+            v, w = np.asarray(spec.twist[:3], dtype=float), np.asarray(spec.twist[3:], dtype=float)
+            if spec.frame == "lvlh":
+                p, R = R_WL @ p, R_WL @ R
+                w = self.w_lvlh + R_WL @ w
+                v = R_WL @ v + np.cross(self.w_lvlh, p)
+            self._set_base(body, p, R, v, w, spec.q, spec.qd)
+
+    def set_body_state(self, name: str, p_W_base, q_W_base, twist_W, q=None, qd=None) -> None:
+        """Set a body's base pose and twist (W) and its joint positions/rates (URDF order)."""
+        body = self.bodies[name]
+        q = {} if q is None else dict(zip(body.joints, np.asarray(q, dtype=float)))
+        qd = {} if qd is None else dict(zip(body.joints, np.asarray(qd, dtype=float)))
+        twist = np.asarray(twist_W, dtype=float)
+        self._set_base(body, np.asarray(p_W_base, dtype=float), quat_to_matrix(q_W_base), twist[:3], twist[3:], q, qd)
+
+    def _set_base(self, body: _Body, p, R, v, w, q: Mapping, qd: Mapping) -> None:
+        T = self._dart.math.Isometry3()
+        T.set_rotation(R)
+        T.set_translation(p)
+        positions = np.zeros(body.ndofs)
+        velocities = np.zeros(body.ndofs)
+        positions[:6] = self._dart.dynamics.FreeJoint.convertToPositions(T)
+        velocities[:3], velocities[3:6] = w, v
+        for j, k in zip(body.joints, body.dof_index):
+            if k >= 0:
+                positions[k] = q.get(j, 0.0)
+                velocities[k] = qd.get(j, 0.0)
+        body.skel.setPositions(positions)
+        body.skel.setVelocities(velocities)
+
+    # ----------------------------------------------------------------- environment
+
+    @property
+    def environment_on(self) -> bool:
+        return (self.tidal or self.gg or self.drag) and bool(np.any(self.r_eci != 0.0))
+
+    def reference(self, s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Reference point (r_eci, v_eci) s seconds after the orbit inputs were set."""
+        return env.propagate_reference(self.r_eci, self.v_eci, s, self.mu)
+
+    def link_wrenches(self, body: _Body, R: np.ndarray, V: np.ndarray):
+        """Environment on each massive link at the skeleton's current state: (tidal force, drag
+        force, gravity-gradient torque), each (n_nodes, 3), N and N m, W axes, about the CoM."""
+        n = len(body.nodes)
+        coms = np.array([bn.getCOM() for bn in body.nodes]).reshape(n, 3)
+        zeros = np.zeros((n, 3))
+        tidal = body.mass[:, None] * env.tidal_acceleration(R, coms, self.mu) if self.tidal else zeros
+        torque, drag = zeros, zeros
+        if self.gg:
+            rot = np.array([bn.getTransform().rotation() for bn in body.nodes]).reshape(n, 3, 3)
+            inertia_W = rot @ body.local_inertia @ rot.transpose(0, 2, 1)
+            torque = env.gravity_gradient_torque(R + coms, inertia_W, self.mu)
+        if self.drag and body.has_drag:
+            v_com = np.array([bn.getCOMLinearVelocity() for bn in body.nodes]).reshape(n, 3)
+            position = R + coms
+            v_rel = V + v_com - env.atmosphere_velocity(position)
+            density = self.atmosphere.density(np.linalg.norm(position, axis=1) - env.EARTH_RADIUS)
+            drag = env.drag_force(density, body.drag_cd, body.drag_area, v_rel)
+        return tidal, drag, torque
+
+    def _apply_environment(self, body: _Body, s: float) -> None:
+        R, V = self.reference(s)
+        tidal, drag, torque = self.link_wrenches(body, R, V)
+        force = tidal + drag
+        for bn, f, t, c in zip(body.nodes, force, torque, body.local_com):
+            bn.setExtForce(f, c, False, True)      # at the CoM (offset local), force in W
+            bn.addExtTorque(t, False)              # torque in W (setExtForce replaced the whole wrench)
+
+    # ----------------------------------------------------------------- integration
+
+    def _acceleration(self, body: _Body, q0, xi, v, s: float) -> np.ndarray:
+        skel = body.skel
+        skel.setPositions(q0)
+        if xi is not None:
+            skel.setVelocities(xi)
+            skel.integratePositions(1.0)           # q = q0 (+) xi, DART's own chart
+        skel.setVelocities(v)
+        skel.setForces(body.tau)
+        if self._env_now:
+            self._apply_environment(body, s)
+        skel.computeForwardDynamics()
+        a = skel.getAccelerations()
+        if body.stops.size:
+            a = self._hold_stops(body, a)
+        return a
+
+    @staticmethod
+    def _hold_stops(body: _Body, a: np.ndarray) -> np.ndarray:
+        """Joints resting on a limit stop: a joint-space constraint torque (internal, momentum-
+        free) cancels their outward acceleration; a stop that would have to pull lets go."""
+        Minv = body.skel.getInvMassMatrix()
+        dofs, sides = body.stops, body.stop_sides
+        keep = np.ones(dofs.size, dtype=bool)
+        for _ in range(dofs.size):
+            S = dofs[keep]
+            if S.size == 0:
+                return a
+            torque = np.linalg.solve(Minv[np.ix_(S, S)], -a[S])
+            pulling = sides[keep] * torque > 0.0
+            if not np.any(pulling):
+                return a + Minv[:, S] @ torque
+            keep[np.flatnonzero(keep)[pulling]] = False
+        return a
+
+    @staticmethod
+    def _xi_rate(v: np.ndarray, xi) -> np.ndarray:
+        if xi is None:
+            return v
+        rate = v.copy()
+        rate[:3] = so3_left_jacobian_inverse_times(xi[:3], v[:3])
+        return rate
+
+    def _rk4(self, body: _Body, h: float, s: float) -> None:
+        skel = body.skel
+        q0, v0 = skel.getPositions(), skel.getVelocities()
+        a1 = self._acceleration(body, q0, None, v0, s)
+        d1 = v0
+        xi2, v2 = 0.5 * h * d1, v0 + 0.5 * h * a1
+        a2 = self._acceleration(body, q0, xi2, v2, s + 0.5 * h)
+        d2 = self._xi_rate(v2, xi2)
+        xi3, v3 = 0.5 * h * d2, v0 + 0.5 * h * a2
+        a3 = self._acceleration(body, q0, xi3, v3, s + 0.5 * h)
+        d3 = self._xi_rate(v3, xi3)
+        xi4, v4 = h * d3, v0 + h * a3
+        a4 = self._acceleration(body, q0, xi4, v4, s + h)
+        d4 = self._xi_rate(v4, xi4)
+        xi = (h / 6.0) * (d1 + 2.0 * d2 + 2.0 * d3 + d4)
+        v = v0 + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+        skel.setPositions(q0)
+        skel.setVelocities(xi)
+        skel.integratePositions(1.0)
+        skel.setVelocities(v)
+        if self.joint_limits and body.limited:
+            self._joint_stops(body)
+
+    @staticmethod
+    def _joint_stops(body: _Body) -> None:
+        """Inelastic joint stops, for rk4. A joint found past a limit has its outward rate
+        cancelled by a joint-space impulse and rests on the stop (``_hold_stops``) until its
+        acceleration points back inside. Joint impulses and torques are internal: the body's
+        momentum is unchanged. The joint stays past the limit by at most one step's travel
+        (positions are not projected, which would change the momentum)."""
+        skel = body.skel
+        q = skel.getPositions()
+        over, under = q >= body.upper, q <= body.lower
+        stops = np.flatnonzero(over | under)
+        body.stops, body.stop_sides = stops, np.where(over[stops], 1.0, -1.0)
+        if stops.size == 0:
+            return
+        v = skel.getVelocities()
+        outward = stops[body.stop_sides * v[stops] > 0.0]
+        if outward.size:
+            Minv = skel.getInvMassMatrix()
+            impulse = np.linalg.solve(Minv[np.ix_(outward, outward)], -v[outward])
+            skel.setVelocities(v + Minv[:, outward] @ impulse)
+
+    def step(self, h: float) -> None:
+        """Advance every body by h seconds (``substeps`` internal steps), inputs held."""
+        if not (h > 0.0 and math.isfinite(h)):
+            raise ValueError(f"step: expected a positive duration, got {h} s")
+        dt = h / self.substeps
+        self._env_now = self.environment_on
+        for k in range(self.substeps):
+            s = self.elapsed + k * dt
+            if self.integrator == "rk4":
+                for body in self.bodies.values():
+                    self._rk4(body, dt, s)
+            else:
+                for body in self.bodies.values():
+                    body.skel.setForces(body.tau)
+                    if self._env_now:
+                        self._apply_environment(body, s)
+                self.world.setTimeStep(dt)
+                self.world.step()
+        self.elapsed += h
+
+    # ----------------------------------------------------------------- outputs
+
+    def momentum(self, name: str) -> np.ndarray:
+        """(linear kg m/s, angular kg m^2/s about the body's CoM), W axes."""
+        body = self.bodies[name]
+        n = len(body.nodes)
+        coms = np.array([bn.getCOM() for bn in body.nodes]).reshape(n, 3)
+        v_com = np.array([bn.getCOMLinearVelocity() for bn in body.nodes]).reshape(n, 3)
+        omega = np.array([bn.getAngularVelocity() for bn in body.nodes]).reshape(n, 3)
+        rot = np.array([bn.getTransform().rotation() for bn in body.nodes]).reshape(n, 3, 3)
+        linear = body.mass @ v_com
+        c = body.mass @ coms / body.total_mass
+        inertia_W = rot @ body.local_inertia @ rot.transpose(0, 2, 1)
+        spin = np.einsum("nij,nj->i", inertia_W, omega)
+        orbital = np.sum(body.mass[:, None] * np.cross(coms - c, v_com), axis=0)
+        return np.concatenate([linear, spin + orbital])
+
+    def outputs(self, name: str) -> dict[str, np.ndarray]:
+        """Every output of body ``name`` at the current state (see the component's table)."""
+        body = self.bodies[name]
+        skel = body.skel
+        root = skel.getRootBodyNode().getTransform()
+        velocities = skel.getVelocities()
+        n_links = len(body.link_names)
+        link_p = np.zeros((n_links, 3))
+        link_R = np.zeros((n_links, 3, 3))
+        for i, (bn, _, offset) in enumerate(body.link_source):
+            T = bn.getTransform().matrix()
+            if offset is not None:
+                T = T @ offset
+            link_p[i], link_R[i] = T[:3, 3], T[:3, :3]
+        gg = np.zeros((n_links, 3))
+        tidal = np.zeros((n_links, 3))
+        drag = np.zeros((n_links, 3))
+        if self.environment_on:
+            R, V = self.reference(self.elapsed)
+            f_tidal, f_drag, t_gg = self.link_wrenches(body, R, V)
+            for i, (_, slot, _) in enumerate(body.link_source):
+                if slot >= 0:
+                    tidal[i], drag[i], gg[i] = f_tidal[slot], f_drag[slot], t_gg[slot]
+        return {
+            "position": np.array(root.translation()),
+            "orientation": matrix_to_quat(root.rotation()),
+            "twist": np.concatenate([velocities[3:6], velocities[:3]]),
+            "q": body.joint_positions(),
+            "qd": body.joint_velocities(),
+            "com": np.array(skel.getCOM()),
+            "momentum": self.momentum(name),
+            "gg_torque": gg.ravel(),
+            "tidal_force": tidal.ravel(),
+            "drag_force": drag.ravel(),
+            "link_position": link_p.ravel(),
+            "link_orientation": matrix_to_quat(link_R).ravel(),
+        }
+
+    # ----------------------------------------------------------------- state
+
+    def get_state(self) -> dict[str, np.ndarray]:
+        """Everything needed to continue bit-exactly: per body positions/velocities (DART order)
+        and torques, the orbit inputs and the time since they were set."""
+        state = {"r_eci": self.r_eci.copy(), "v_eci": self.v_eci.copy(), "q_eci_lvlh": self.q_eci_lvlh.copy(),
+                 "w_lvlh": self.w_lvlh.copy(), "elapsed": np.float64(self.elapsed)}
+        for name, body in self.bodies.items():
+            state[f"{name}.positions"] = np.array(body.skel.getPositions())
+            state[f"{name}.velocities"] = np.array(body.skel.getVelocities())
+            state[f"{name}.tau"] = body.tau.copy()
+        return state
+
+    def set_state(self, state: Mapping[str, np.ndarray]) -> None:
+        for key in ("r_eci", "v_eci", "q_eci_lvlh", "w_lvlh", "elapsed"):
+            if key not in state:
+                raise ValueError(f"state: missing {key!r}")
+        for name, body in self.bodies.items():
+            for key in ("positions", "velocities", "tau"):
+                value = state.get(f"{name}.{key}")
+                if value is None or np.asarray(value).shape != (body.ndofs,):
+                    raise ValueError(f"state: {name}.{key} expected {body.ndofs} values, "
+                                     f"got {None if value is None else np.asarray(value).shape}")
+        self.r_eci = np.array(state["r_eci"], dtype=float)
+        self.v_eci = np.array(state["v_eci"], dtype=float)
+        self.q_eci_lvlh = np.array(state["q_eci_lvlh"], dtype=float)
+        self.w_lvlh = np.array(state["w_lvlh"], dtype=float)
+        self.elapsed = float(state["elapsed"])
+        for name, body in self.bodies.items():
+            body.skel.setPositions(np.array(state[f"{name}.positions"], dtype=float))
+            body.skel.setVelocities(np.array(state[f"{name}.velocities"], dtype=float))
+            body.tau[:] = np.array(state[f"{name}.tau"], dtype=float)

@@ -545,6 +545,24 @@ class OrbitalWorld:
                 self.world.step()
         self.elapsed += h
 
+    def forward_dynamics(self, name: str) -> dict[str, np.ndarray]:
+        """Accelerations of body ``name`` at its current state, torques and environment (no
+        contacts, no joint stops): ``dv_W_base`` (6: classical linear acceleration of the base
+        origin m/s^2, then angular acceleration rad/s^2, W axes) and ``qdd`` (URDF joint order)."""
+        body = self.bodies[name]
+        skel = body.skel
+        skel.setForces(body.tau)
+        if self.environment_on:
+            self._apply_environment(body, self.elapsed)
+        else:
+            skel.clearExternalForces()
+        skel.computeForwardDynamics()
+        a = np.array(skel.getAccelerations())
+        skel.clearExternalForces()
+        qdd = np.zeros(len(body.joints))
+        qdd[body.free] = a[body.free_dofs]
+        return {"dv_W_base": np.concatenate([a[3:6], a[:3]]), "qdd": qdd}
+
     # ----------------------------------------------------------------- outputs
 
     def momentum(self, name: str) -> np.ndarray:

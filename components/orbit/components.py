@@ -28,7 +28,7 @@ from components.errors import ConfigError
 from components.sdk import Component, Parameter, Variable
 from components.units import to_si
 
-NS = 1e-9  # seconds per nanosecond
+NS_PER_S = 1e9  # t_s = t_ns / NS_PER_S: correctly rounded (1.2e11 ns -> exactly 120.0 s)
 
 
 def _outputs() -> list[Variable]:
@@ -72,7 +72,7 @@ class _OrbitComponent(Component):
     def _outputs_at(self, t_ns: int) -> dict[str, np.ndarray]:
         from components.orbit.frames import continuous
 
-        r, v, q, w = self._sample(t_ns * NS)
+        r, v, q, w = self._sample(t_ns / NS_PER_S)
         q = continuous(q, self._q_previous)
         self._q_previous = q
         return {"r_eci": r, "v_eci": v, "q_eci_lvlh": q, "w_lvlh": w}
@@ -346,10 +346,10 @@ class CustomPathComponent(_OrbitComponent):
         for k in range(1, len(t)):
             if not t[k] > t[k - 1]:
                 raise ConfigError(f"waypoints[{k}].time", f"expected times strictly increasing, got "
-                                  f"{t[k]!r} s after {t[k - 1]!r} s (waypoints[{k - 1}])")
+                                  f"{float(t[k])!r} s after {float(t[k - 1])!r} s (waypoints[{k - 1}])")
         if t[0] > 0.0:
             raise ConfigError("waypoints[0].time",
-                              f"expected <= 0 s (the path must cover the run's start), got {t[0]!r} s")
+                              f"expected <= 0 s (the path must cover the run's start), got {float(t[0])!r} s")
         for k in range(len(t)):
             h = np.linalg.norm(np.cross(r[k], v[k]))
             if not h > 1e-12 * np.linalg.norm(r[k]) * max(np.linalg.norm(v[k]), 1e-300):

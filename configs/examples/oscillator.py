@@ -1,0 +1,36 @@
+"""A user-written component: a mass on a spring, as shown in the README."""
+from components.sdk import Component, Parameter, Variable
+
+
+class Oscillator(Component):
+    """x'' = (force - stiffness * x) / mass, by semi-implicit Euler over each step."""
+    type_name = "example.oscillator"
+    parameters = (
+        Parameter("mass", "float", unit="kg", description="moving mass"),
+        Parameter("stiffness", "float", unit="N/m", description="spring constant"),
+        Parameter("x0", "float", unit="m", default=0.0, description="initial position"),
+    )
+
+    @classmethod
+    def declare(cls, params):
+        return [Variable("force", "input", (), "N", 0.0, "external force"),
+                Variable("x", "output", (), "m", params["x0"], "position"),
+                Variable("v", "output", (), "m/s", 0.0, "velocity")]
+
+    def __init__(self, params):
+        self.m, self.k, self.x, self.v = params["mass"], params["stiffness"], params["x0"], 0.0
+
+    def initialize(self, t0_ns, inputs):
+        return {"x": self.x, "v": self.v}
+
+    def do_step(self, t_ns, h_ns, inputs):
+        h = h_ns * 1e-9
+        self.v += h * (float(inputs["force"]) - self.k * self.x) / self.m
+        self.x += h * self.v
+        return {"x": self.x, "v": self.v}
+
+    def get_state(self):
+        return {"x": self.x, "v": self.v}
+
+    def set_state(self, state):
+        self.x, self.v = float(state["x"]), float(state["v"])

@@ -1,0 +1,38 @@
+"""Shared helpers: run the real `orchestrator` CLI in a subprocess and find leftover processes."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def component_processes(run_tag: str = "") -> list[str]:
+    """Command lines of live component processes (optionally only those of one run)."""
+    out = subprocess.run(["ps", "-ww", "-eo", "pid=,args="], capture_output=True, text=True).stdout
+    return [line for line in out.splitlines() if "components.runner" in line and run_tag in line]
+
+
+def orchestrator(*args, timeout=300, cwd=None, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "orchestrator.cli", *map(str, args)], capture_output=True,
+                          text=True, timeout=timeout, cwd=cwd or ROOT, **kw)
+
+
+@pytest.fixture
+def write_config(tmp_path):
+    """Write a YAML config text to a file in tmp_path and return its path."""
+    def write(text: str, name: str = "config.yaml") -> Path:
+        path = tmp_path / name
+        path.write_text(text)
+        return path
+    return write
+
+
+@pytest.fixture(autouse=True)
+def _isolated_runtime_dir(tmp_path, monkeypatch):
+    """Each test registers its runs in its own runtime dir (for `ps`/`stop`)."""
+    monkeypatch.setenv("ZENORBIT_RUNTIME_DIR", str(tmp_path / "runtime"))

@@ -1,0 +1,255 @@
+"""Multi-process runs: the real orchestrator CLI, real component processes, real Zenoh on loopback."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from tests.conftest import ROOT, component_processes, orchestrator
+
+pytestmark = pytest.mark.integration
+
+CHAIN = """
+run: {{name: {name}, epoch: 2022-09-18T12:00:00Z, duration: {steps} s, step: 1 s, algorithm: {algorithm}}}
+components:
+  source: {{type: test.constant, parameters: {{value: 1.0}}}}
+  first: {{type: test.integrator}}
+  second: {{type: test.integrator}}
+connections:
+  first.u: source.y
+  second.u: first.x
+"""
+
+
+def signals(directory):
+    return pq.read_table(directory / "signals.parquet").to_pydict()
+
+
+def events(directory):
+    import json
+    return [json.loads(line) for line in (directory / "events.jsonl").read_text().splitlines()]
+
+
+@pytest.mark.parametrize("algorithm, second", [
+    # integrator chain with a 1 s step: first.x(k) = k exactly; second sees first.x with
+    # Jacobi's one-step delay (sum of 0..k-1) or Gauss-Seidel's same-step value (sum of 1..k).
+    ("jacobi", lambda k: k * (k - 1) / 2),
+    ("gauss-seidel", lambda k: k * (k + 1) / 2),
+])
+def test_integrator_chain_matches_closed_form_exactly(write_config, tmp_path, algorithm, second):
+    steps = 10_000
+    config = write_config(CHAIN.format(name="chain", steps=steps, algorithm=algorithm))
+    result = orchestrator("run", config, "--record", tmp_path / "rec")
+    assert result.returncode == 0, result.stderr
+    data = signals(tmp_path / "rec")
+    k = np.arange(steps + 1)
+    assert data["step"] == list(k)
+    assert np.array_equal(data["time"], k.astype(float))
+    assert np.array_equal(data["first.x"], k.astype(float))          # exact: integers in float64
+    assert np.array_equal(data["second.x"], second(k).astype(float))
+    kinds = [e["event"] for e in events(tmp_path / "rec")]
+    assert kinds[0] == "start" and kinds[-1] == "end"
+    assert (tmp_path / "rec" / "config.yaml").exists()
+    assert not component_processes("chain-")
+
+
+def test_multi_rate_component_holds_between_its_steps(write_config, tmp_path):
+    config = write_config("""
+run: {name: rates, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 10 ms}
+components:
+  fast: {type: test.counter}
+  slow: {type: test.counter, step: 50 ms}
+""")
+    assert orchestrator("run", config, "--record", tmp_path / "rec").returncode == 0
+    data = signals(tmp_path / "rec")
+    k = np.arange(101)
+    assert np.array_equal(data["fast.n"], k)
+    # slow steps at k = 0, 5, 10, ...; its output after step k holds until its next step
+    assert np.array_equal(data["slow.n"], np.ceil(k / 5))
+
+
+def test_two_runs_of_one_config_are_bit_identical(write_config, tmp_path):
+    config = write_config("""
+run: {name: twice, epoch: 2022-09-18T12:00:00Z, duration: 3 s, step: 1 ms}
+components:
+  push: {type: test.constant, parameters: {value: 2.0}}
+  spring: {type: oscillator.py:Oscillator, parameters: {mass: 2 kg, stiffness: 8 N/m, x0: 1 m}}
+connections: {spring.force: push.y}
+""")
+    (tmp_path / "oscillator.py").write_text((ROOT / "configs/examples/oscillator.py").read_text())
+    for name in ("a", "b"):
+        assert orchestrator("run", config, "--record", tmp_path / name).returncode == 0
+    assert (tmp_path / "a/signals.parquet").read_bytes() == (tmp_path / "b/signals.parquet").read_bytes()
+
+
+def test_two_simultaneous_runs_do_not_cross(write_config, tmp_path):
+    """Same run name, same keys, two orchestrators at once: each sees only its own components."""
+    procs = []
+    for value, name in ((1.0, "a"), (3.0, "b")):
+        config = write_config(CHAIN.format(name="same", steps=3000, algorithm="jacobi").replace(
+            "value: 1.0", f"value: {value}"), name=f"{name}.yaml")
+        procs.append(subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", config,
+                                       "--record", tmp_path / name], cwd=ROOT,
+                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+    for p in procs:
+        _, err = p.communicate(timeout=120)
+        assert p.returncode == 0, err
+    k = np.arange(3001)
+    for value, name in ((1.0, "a"), (3.0, "b")):
+        data = signals(tmp_path / name)
+        assert np.array_equal(data["first.x"], value * k)
+        assert np.array_equal(data["second.x"], value * k * (k - 1) / 2)
+
+
+def test_user_component_from_the_readme(tmp_path):
+    """configs/user_component.yaml: a mass on a spring under a constant force, against the closed form."""
+    result = orchestrator("run", "configs/user_component.yaml", "--record", tmp_path / "rec")
+    assert result.returncode == 0, result.stderr
+    data = signals(tmp_path / "rec")
+    t, x = np.array(data["time"]), np.array(data["spring.x"])
+    omega, f_over_k = np.sqrt(8 / 2), 2.0 / 8
+    reference = f_over_k + (1 - f_over_k) * np.cos(omega * t)
+    # semi-implicit Euler at h = 1 ms: phase error ~ omega^3 h t / 24 per unit amplitude, < 1e-3 m over 10 s
+    assert np.abs(x - reference).max() < 2e-3
+
+
+FAULTY = """
+run: {{name: faulty, epoch: 2022-09-18T12:00:00Z, duration: 10 s, step: 10 ms, step_timeout: 2 s}}
+components:
+  counter: {{type: test.counter}}
+  bad: {{type: test.faulty, parameters: {{fault: {fault}, at_step: 50}}}}
+"""
+
+
+@pytest.mark.parametrize("fault, message", [
+    ("raise", "component 'bad' (test.faulty) failed in step 50 (t = 0.5 s): RuntimeError: deliberate failure"),
+    ("kill", "component 'bad' (test.faulty) died at step 50"),
+    ("exit", "component 'bad' (test.faulty) died at step 50"),
+    ("hang", "component 'bad' did not answer step 50 within 2 s"),
+    ("nan", "component 'bad' produced a non-finite value in output 'y' at step 50"),
+])
+def test_a_failing_component_stops_the_run_with_exit_1(write_config, tmp_path, fault, message):
+    config = write_config(FAULTY.format(fault=fault))
+    result = orchestrator("run", config, "--record", tmp_path / "rec", timeout=60)
+    assert result.returncode == 1
+    assert message in result.stderr, result.stderr
+    assert "Traceback" not in result.stderr
+    data = signals(tmp_path / "rec")  # readable up to the failure
+    assert data["step"] == list(range(51)) and data["counter.n"][-1] == 50.0
+    assert events(tmp_path / "rec")[-1]["status"] == "failed"
+    assert not component_processes("faulty-")
+
+
+def test_component_killed_from_outside_is_seen_quickly(write_config, tmp_path):
+    """SIGKILL from another process midway: liveliness tells the orchestrator within the step."""
+    config = write_config("""
+run: {name: victim, epoch: 2022-09-18T12:00:00Z, duration: 600 s, step: 1 ms, realtime: 1.0}
+components:
+  a: {type: test.counter}
+  b: {type: test.counter}
+""")
+    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", config, "--record", tmp_path / "rec"],
+                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        victims = []
+        while time.monotonic() < deadline and len(victims) < 2:
+            victims = component_processes("victim-")
+            time.sleep(0.2)
+        time.sleep(1.0)
+        pid = next((int(line.split()[0]) for line in victims if "--name b " in line), None)
+        if pid is None:
+            run.kill()
+            raise AssertionError(f"no component b: {victims} {run.communicate()}")
+        killed_at = time.monotonic()
+        os.kill(pid, signal.SIGKILL)
+        _, err = run.communicate(timeout=30)
+        detected_after = time.monotonic() - killed_at
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 1
+    assert "component 'b' (test.counter) died" in err
+    assert detected_after < 10  # not the 10 s step deadline: the process death itself was seen
+    assert len(signals(tmp_path / "rec")["step"]) > 100
+    assert not component_processes("victim-")
+
+
+def test_stop_and_ps_from_the_cli(write_config, tmp_path):
+    config = write_config("""
+run: {name: longrun, epoch: 2022-09-18T12:00:00Z, duration: 1000 s, step: 1 ms, realtime: 1.0}
+components:
+  a: {type: test.counter}
+""")
+    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", config, "--record", tmp_path / "rec"],
+                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            listing = orchestrator("ps")
+            if "longrun-" in listing.stdout and "a:test.counter" in listing.stdout:
+                break
+            time.sleep(0.5)
+        assert "a:test.counter" in listing.stdout, listing
+        stop = orchestrator("stop", "--run", "longrun")
+        assert stop.returncode == 0, stop.stderr
+        run.communicate(timeout=30)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 0
+    data = signals(tmp_path / "rec")
+    assert 0 < data["step"][-1] < 1_000_000 and data["a.n"][-1] == data["step"][-1]
+    assert events(tmp_path / "rec")[-1]["status"] == "stopped by request"
+    assert orchestrator("stop", "--run", "longrun").returncode == 2  # gone now: named, exit 2
+
+
+def test_ctrl_c_stops_cleanly(write_config, tmp_path):
+    config = write_config("""
+run: {name: interrupted, epoch: 2022-09-18T12:00:00Z, duration: 1000 s, step: 1 ms, realtime: 1.0}
+components:
+  a: {type: test.counter}
+""")
+    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", config, "--record", tmp_path / "rec"],
+                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not component_processes("interrupted-") and time.monotonic() < deadline:
+        time.sleep(0.2)
+    time.sleep(1.0)
+    run.send_signal(signal.SIGINT)
+    _, err = run.communicate(timeout=30)
+    assert run.returncode == 130, err
+    assert "Traceback" not in err
+    data = signals(tmp_path / "rec")
+    assert data["a.n"][-1] == data["step"][-1] > 0
+    assert not component_processes("interrupted-")
+
+
+def test_swap_event_hands_over_state(write_config, tmp_path):
+    """A same-type swap at 5 s continues exactly; the new generation's integrator keeps the integral."""
+    config = write_config(CHAIN.format(name="swapper", steps=10, algorithm="jacobi")
+                          + "events:\n  - {at: 5 s, swap: second, parameters: {gain: 2.0}}\n")
+    assert orchestrator("run", config, "--record", tmp_path / "rec").returncode == 0
+    data = signals(tmp_path / "rec")
+    k = np.arange(11)
+    expected = np.where(k <= 5, k * (k - 1) / 2, 10 + 2 * (k * (k - 1) / 2 - 10))  # gain 2 from step 5 on
+    assert np.array_equal(data["second.x"], expected)
+    swaps = [e for e in events(tmp_path / "rec") if e["event"] == "swap"]
+    assert swaps == [{"event": "swap", "component": "second", "type": "test.integrator", "generation": 1,
+                      "step": 5, "time": 5.0, "state_handed_over": True}]
+
+
+def test_bad_config_exits_2_before_starting_anything(write_config):
+    config = write_config(CHAIN.format(name="bad", steps=5, algorithm="jacobi").replace("value: 1.0", "valeu: 1.0"))
+    result = orchestrator("run", config)
+    assert result.returncode == 2
+    assert "components.source.parameters.valeu: unknown parameter" in result.stderr
+    assert "components.source.parameters.value: missing required parameter" in result.stderr
+    assert "Traceback" not in result.stderr
+    assert not component_processes("bad-")

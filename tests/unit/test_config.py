@@ -1,0 +1,95 @@
+"""Config validation: every error names its key and file, all errors at once, before any process."""
+import textwrap
+
+import pytest
+
+from orchestrator.config import ConfigErrors, load
+
+GOOD = """
+run: {name: chain, epoch: 2022-09-18T12:00:00Z, duration: 2 s, step: 1 ms}
+components:
+  src: {type: test.constant, parameters: {value: 1.0}}
+  int: {type: test.integrator, step: 10 ms, parameters: {gain: 2}}
+connections:
+  int.u: src.y
+"""
+
+
+def errors_of(write_config, text, overrides=()):
+    with pytest.raises(ConfigErrors) as e:
+        load(write_config(textwrap.dedent(text)), overrides)
+    return e.value.errors
+
+
+def test_good_config_resolves_units_defaults_and_routes(write_config):
+    config = load(write_config(GOOD))
+    assert config.step_ns == 1_000_000 and config.steps == 2000
+    assert config.algorithm == "jacobi"                       # documented default, written to config.yaml
+    assert config.components["int"].step_ns == 10_000_000
+    assert config.components["int"].resolved["x0"] == 0.0     # default filled
+    assert config.connections == [("int", "u", "src", "y")]
+    assert config.resolved["components"]["int"]["parameters"] == {"gain": 2.0, "x0": 0.0}
+    assert config.epoch == "2022-09-18T12:00:00Z"
+
+
+def test_overrides_reach_any_key(write_config):
+    config = load(write_config(GOOD), ["run.duration=0.02", "components.int.parameters.gain=50",
+                                       "run.algorithm=gauss-seidel"])
+    assert config.steps == 20 and config.algorithm == "gauss-seidel"
+    assert config.components["int"].resolved["gain"] == 50.0
+
+
+@pytest.mark.parametrize("text, key", [
+    (GOOD + "not_a_key: 1\n", "not_a_key: unknown key"),
+    (GOOD.replace("step: 1 ms}", "step: 1 ms, colour: red}"), "run.colour: unknown key"),
+    (GOOD.replace("name: chain, ", ""), "run.name: missing required key"),
+    (GOOD.replace("duration: 2 s", "duration: 2 parsecs"), "run.duration: unknown time unit"),
+    (GOOD.replace("step: 10 ms", "step: 1.5 ms"), "components.int.step: must be a positive integer multiple"),
+    (GOOD.replace("{gain: 2}", "{gain: 2, gian: 3}"), "components.int.parameters.gian: unknown parameter"),
+    (GOOD.replace("{value: 1.0}", "{}"), "components.src.parameters.value: missing required parameter"),
+    (GOOD.replace("{gain: 2}", "{gain: '2 km'}"), "components.int.parameters.gain: unit 'km' does not measure 1"),
+    (GOOD.replace("int.u: src.y", "int.u: src.z"), "connections.int.u: src (test.constant) has no output 'z'"),
+    (GOOD.replace("int.u: src.y", "int.v: src.y"), "connections.int.v: int (test.integrator) has no input 'v'"),
+    (GOOD.replace("int.u: src.y", "int.u: nowhere.y"), "connections.int.u: no component named 'nowhere'"),
+    (GOOD.replace("test.constant", "orbit.warp_drive"), "components.src.type: unknown component type"),
+    (GOOD.replace("step: 1 ms}", "step: 1 ms, algorithm: newton}"), "run.algorithm: expected one of jacobi"),
+    (GOOD.replace("duration: 2 s", "duration: 2.0005 s"), "run.duration: must be a whole number of steps"),
+    (GOOD.replace("epoch: 2022-09-18T12:00:00Z", "epoch: yesterday"), "run.epoch"),
+    (GOOD + "events: [{at: 1 s, swap: ghost}]\n", "events[0].swap: no component named 'ghost'"),
+])
+def test_each_error_names_its_key_and_file(write_config, text, key):
+    errors = errors_of(write_config, text)
+    assert any(key in e for e in errors), errors
+    assert all("config.yaml" in e for e in errors)
+
+
+def test_all_errors_are_reported_at_once(write_config):
+    text = GOOD.replace("{gain: 2}", "{gian: 3}").replace("int.u: src.y", "int.u: src.z") + "extra: 1\n"
+    errors = errors_of(write_config, text)
+    assert len(errors) == 3, errors
+
+
+def test_shape_mismatch_is_an_error(write_config):
+    text = """
+    run: {name: s, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 1 ms}
+    components:
+      a: {type: test.noop, parameters: {size: 3}}
+      b: {type: test.noop, parameters: {size: 2}}
+    connections: {b.u: a.y}
+    """
+    assert any("shape mismatch" in e and "connections.b.u" in e for e in errors_of(write_config, text))
+
+
+def test_duplicate_yaml_keys_are_errors(write_config):
+    text = GOOD + "connections:\n  int.u: src.y\n"
+    assert any("duplicate key 'connections'" in e for e in errors_of(write_config, text))
+
+
+def test_bad_override_syntax(write_config):
+    with pytest.raises(ConfigErrors, match="expected KEY=VALUE"):
+        load(write_config(GOOD), ["run.duration"])
+
+
+def test_missing_file_is_a_config_error(tmp_path):
+    with pytest.raises(ConfigErrors, match="cannot read config"):
+        load(tmp_path / "absent.yaml")

@@ -38,10 +38,12 @@ def _run(h, n, step_ns):
     return outs
 
 
-def _check_rate_against_quaternions(outs, step_s, tol):
+def _check_rate_against_quaternions(outs, step_s, tol, skip=()):
     """w_lvlh at sample k vs the central difference of q_eci_lvlh at k-1, k+1 (scipy rotations)."""
     worst = 0.0
     for k in range(1, len(outs) - 1):
+        if k in skip:
+            continue
         qm, qp = Rotation.from_quat(outs[k - 1]["q_eci_lvlh"]), Rotation.from_quat(outs[k + 1]["q_eci_lvlh"])
         w_fd = (qp * qm.inv()).as_rotvec() / (2 * step_s)
         worst = max(worst, np.linalg.norm(w_fd - outs[k]["w_lvlh"]))
@@ -126,8 +128,8 @@ def test_state_round_trip_gives_identical_outputs(type_name, params):
     _run(a, 40, 60 * S)                       # 40 min: the quaternion has turned ~150°
     blob = a.get_state()
     b = Harness(type_name, params, epoch=EPOCH, t0_ns=a.t_ns)
+    b.initialize()                            # as the orchestrator's swap: initialize at t, then set_state
     b.set_state(blob)
-    b._initialized = True                     # resume mid-run, as after a swap
     for _ in range(30):
         oa, ob = a.step(60 * S), b.step(60 * S)
         for name in oa:
@@ -223,7 +225,9 @@ def test_custom_path_passes_through_waypoints_and_matches_orbit_nearby():
 
 def test_custom_path_out_of_plane_rate_from_spline_acceleration():
     # an out-of-plane acceleration bends the orbit plane: w_lvlh gets an x component, and it
-    # still matches the quaternions' finite difference (tolerance 1e-9 rad/s)
+    # still matches the quaternions' finite difference (tolerance 1e-9 rad/s; measured 3e-10).
+    # The joint at 200 s is skipped: the spline is C2, so the jerk, hence dw/dt, jumps there and
+    # a central difference straddling it is off by O(h * jump) ~ 1e-7 rad/s.
     _, points = _circular_waypoints([0.0, 200.0, 400.0])
     for p in points:
         r, v = np.array(p["position"]), np.array(p["velocity"])
@@ -231,7 +235,7 @@ def test_custom_path_out_of_plane_rate_from_spline_acceleration():
         p["acceleration"] = (np.array(p["acceleration"]) + 0.05 * z).tolist()
     h = Harness("orbit.custom_path", {"waypoints": points, "after_end": "error"}, epoch=EPOCH)
     outs = _run(h, 400, S)
-    _check_rate_against_quaternions(outs, 1.0, 1e-9)
+    _check_rate_against_quaternions(outs, 1.0, 1e-9, skip=(200,))
     x_rate = outs[200]["w_lvlh"] @ Rotation.from_quat(outs[200]["q_eci_lvlh"]).apply([1, 0, 0])
     assert x_rate > 1e-6
 
@@ -327,7 +331,7 @@ def test_shipped_configs_validate_and_start(name):
     from orchestrator import config
 
     cfg = config.load(CONFIGS / name)
-    (spec,) = [c for c in cfg.components.values()] if isinstance(cfg.components, dict) else list(cfg.components)
+    (spec,) = cfg.components.values()
     h = Harness(spec.type, spec.parameters, epoch=cfg.epoch, config_dir=CONFIGS)
     out = h.step(S)
     assert 6.5e6 < np.linalg.norm(out["r_eci"]) < 6.9e6

@@ -6,7 +6,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from components.orbit.frames import (continuous, dcm_to_quat, lvlh_angular_velocity, lvlh_dcm, lvlh_state,
-                                     quat_to_dcm)
+                                     quat_to_dcm, rotation_vector)
 from components.orbit.kepler import KeplerOrbit
 
 deg = math.radians
@@ -68,6 +68,16 @@ def test_quaternion_rotates_lvlh_vectors_into_eci():
     for r, v in list(_states())[:10]:
         q, _ = lvlh_state(r, v, np.zeros(3))
         np.testing.assert_allclose(Rotation.from_quat(q).apply([1, 0, 0]), r / np.linalg.norm(r), atol=1e-14)
+
+
+def test_rotation_vector_matches_scipy():
+    # Reference: scipy Rotation.as_rotvec; tolerance 1e-15 rad absolute for angles from 1e-12 to 3 rad
+    rng = np.random.default_rng(5)
+    for angle in (0.0, 1e-12, 1e-6, 1e-3, 0.5, 2.0, 3.0):
+        axis = rng.normal(size=3)
+        rotvec = axis / np.linalg.norm(axis) * angle
+        np.testing.assert_allclose(rotation_vector(Rotation.from_rotvec(rotvec).as_matrix()), rotvec,
+                                   rtol=1e-12, atol=1e-15)
 
 
 def test_continuous_keeps_sign():

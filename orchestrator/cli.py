@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 
 USAGE_ERROR = 2
 
@@ -42,10 +43,15 @@ def cmd_run(args) -> int:
         for line in errors:
             print(f"error: {line}", file=sys.stderr)
         return USAGE_ERROR
+    viewer = None
     if args.view:
-        return _fail("--view: the Rerun viewer component is not available yet")
+        from orchestrator.config import viewer_spec
+        errors: list[str] = []
+        viewer = viewer_spec(args.view, "--view", errors, Path.cwd())
+        if errors or viewer is None:
+            return _fail("; ".join(errors) or "--view: expected spawn, web or save:FILE.rrd")
     from orchestrator.engine import Run
-    run = Run(config, record=args.record, profile=args.profile, progress=sys.stderr.isatty())
+    run = Run(config, record=args.record, profile=args.profile, progress=sys.stderr.isatty(), viewer=viewer)
     code = run.execute()
     if code == 0 and args.record:
         print(f"recorded {args.record}", file=sys.stderr)

@@ -16,7 +16,7 @@ import yaml
 from components import registry
 from components.errors import ConfigError
 from components.sdk import Component, Layout, Variable, resolve_parameters
-from components.units import duration_ns
+from components.units import duration_ns, to_si
 
 RUN_KEYS = {"name": True, "epoch": True, "duration": True, "step": True,
             "algorithm": False, "realtime": False, "step_timeout": False, "start_timeout": False}
@@ -25,6 +25,8 @@ TOP_KEYS = {"run": True, "components": True, "connections": False, "bus": False,
 COMPONENT_KEYS = {"type": True, "step": False, "parameters": False, "launch": False}
 EVENT_KEYS = {"at": True, "swap": True, "type": False, "parameters": False}
 BUS_KEYS = {"listen": False}
+VIEWER_KEYS = {"mode": True, "file": False, "rate": False, "open_browser": False}
+VIEWER_MODES = ("spawn", "web", "save", "off")
 ALGORITHMS = ("jacobi", "gauss-seidel")
 DEFAULTS = {"algorithm": "jacobi", "realtime": 0, "step_timeout": "10 s", "start_timeout": "60 s"}
 NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
@@ -57,6 +59,45 @@ class ComponentSpec:
 
 
 @dataclass
+class ViewerSpec:
+    """The Rerun live view: ``mode`` spawn | web | save; ``file`` for save; ``rate_hz`` of sim time."""
+    mode: str
+    file: Path | None
+    rate_hz: float
+    open_browser: bool = False
+
+
+def viewer_spec(raw: Any, where: str, errors: list[str], base: Path) -> ViewerSpec | None:
+    """Parse a ``viewer:`` section or a ``--view`` value (``spawn``, ``web``, ``save:FILE.rrd``)."""
+    if isinstance(raw, str):
+        mode, _, file = raw.partition(":")
+        raw = {"mode": mode, **({"file": file} if file else {})}
+    section = _keys(raw, VIEWER_KEYS, where, errors, "")
+    if not section or "mode" not in section:
+        return None
+    mode = section["mode"]
+    if mode not in VIEWER_MODES:
+        errors.append(f"{where}.mode: expected one of {', '.join(VIEWER_MODES)}, got {mode!r}")
+        return None
+    if mode == "off":
+        return None
+    file = section.get("file")
+    if mode == "save" and not (isinstance(file, str) and file.endswith(".rrd")):
+        errors.append(f"{where}.file: save needs a file name ending in .rrd (e.g. save:run.rrd), got {file!r}")
+        return None
+    try:
+        rate = to_si(section.get("rate", 30.0), "Hz", "rate")
+    except ConfigError as e:
+        errors.append(f"{where}.rate: {e.message}")
+        return None
+    if rate <= 0:
+        errors.append(f"{where}.rate: must be positive, got {section.get('rate')!r}")
+        return None
+    return ViewerSpec(mode=mode, file=(base / file) if file else None, rate_hz=rate,
+                      open_browser=bool(section.get("open_browser", False)))
+
+
+@dataclass
 class Event:
     at_ns: int
     swap: str
@@ -80,7 +121,7 @@ class RunConfig:
     connections: list[tuple[str, str, str, str]]  # (dst component, dst var, src component, src var)
     listen: list[str]
     events: list[Event] = field(default_factory=list)
-    viewer: dict | None = None
+    viewer: ViewerSpec | None = None
     resolved: dict = field(default_factory=dict)   # the config as written to config.yaml
 
     @property
@@ -153,17 +194,18 @@ def load(path: str | Path, overrides: list[str] = ()) -> RunConfig:
     return validate(raw, path)
 
 
-def _keys(section: Any, allowed: dict[str, bool], where: str, errors: list[str], file: Path) -> dict:
+def _keys(section: Any, allowed: dict[str, bool], where: str, errors: list[str], file: Path | str) -> dict:
+    at = f"{file}: " if file else ""
     if not isinstance(section, dict):
-        errors.append(f"{file}: {where}: expected a mapping, got {section!r}")
+        errors.append(f"{at}{where}: expected a mapping, got {section!r}")
         return {}
     for key in section:
         if key not in allowed:
-            errors.append(f"{file}: {where + '.' if where else ''}{key}: unknown key "
+            errors.append(f"{at}{where + '.' if where else ''}{key}: unknown key "
                           f"(expected one of: {', '.join(allowed)})")
     for key, required in allowed.items():
         if required and key not in section:
-            errors.append(f"{file}: {where + '.' if where else ''}{key}: missing required key")
+            errors.append(f"{at}{where + '.' if where else ''}{key}: missing required key")
     return section
 
 
@@ -289,7 +331,11 @@ def validate(raw: dict, path: Path) -> RunConfig:
 
     connections = _connections(raw.get("connections") or {}, components, entries or {}, file, errors)
     events = _events(raw.get("events") or [], components, step_ns, total_ns, config_dir, epoch, file, errors)
-    viewer = raw.get("viewer")
+    viewer = None
+    if raw.get("viewer") is not None:
+        viewer_errors: list[str] = []
+        viewer = viewer_spec(raw["viewer"], "viewer", viewer_errors, path.parent)
+        errors += [f"{file}: {e}" for e in viewer_errors]
 
     if errors:
         raise ConfigErrors(errors)
@@ -306,7 +352,8 @@ def validate(raw: dict, path: Path) -> RunConfig:
                    for e in events],
     }
     if viewer is not None:
-        resolved["viewer"] = viewer
+        resolved["viewer"] = {"mode": viewer.mode, "rate": f"{viewer.rate_hz} Hz",
+                              **({"file": str(viewer.file)} if viewer.file else {})}
     return RunConfig(path=path, name=name, epoch=epoch, duration_ns=total_ns, step_ns=step_ns,
                      algorithm=algorithm, realtime=float(realtime), step_timeout_s=step_timeout,
                      start_timeout_s=start_timeout, components=components, connections=connections,

@@ -17,6 +17,7 @@ import os
 import queue
 import signal
 import socket
+import struct
 import subprocess
 import sys
 import tempfile
@@ -29,8 +30,12 @@ import numpy as np
 
 from components import bus
 from orchestrator import runs
-from orchestrator.config import ComponentSpec, Event, RunConfig, component_spec
+from orchestrator.config import ComponentSpec, Event, RunConfig, ViewerSpec, component_spec
 from orchestrator.recording import Recording
+
+
+VIEWER = "_viewer"   # liveliness name of the observer (component names cannot start with _)
+SIGNALS_HEADER = struct.Struct("<qd")  # k, time in s; then the row of every output, float64
 
 
 class RunFailure(Exception):
@@ -98,8 +103,11 @@ class Run:
     """One execution of a validated config. ``execute()`` returns the exit code (0, 1)."""
 
     def __init__(self, config: RunConfig, *, record: str | Path | None = None, profile: bool = False,
-                 progress: bool = False, out=sys.stderr):
+                 progress: bool = False, out=sys.stderr, viewer: ViewerSpec | None = None):
         self.config = config
+        self.viewer = viewer or config.viewer
+        self.viewer_process: subprocess.Popen | None = None
+        self.viewer_alive = False
         self.record_dir = Path(record) if record else None
         self.profile = profile
         self.progress = progress
@@ -148,6 +156,13 @@ class Run:
             return
         if kind in ("alive", "dead"):
             name, generation = a, b
+            if name == VIEWER:
+                self.viewer_alive = kind == "alive"
+                if kind == "alive" and expect.get(name) == "alive":
+                    del expect[name]
+                elif kind == "dead" and self.recording is not None:
+                    self._log("warning", message="the viewer went away; the run goes on", step=self.k)
+                return
             member = self.members.get(name)
             if member is None or member.generation != generation:
                 return
@@ -442,6 +457,9 @@ class Run:
             for name in self._initialization_order():
                 self._initialize(self.members[name], 0)
             self._record(0)
+            decimation = self._start_viewer()
+            if decimation:
+                signals_out.put(SIGNALS_HEADER.pack(0, 0.0) + self.values.tobytes())
             wall_start = time.perf_counter()
             last_progress = wall_start
             for self.k in range(config.steps):
@@ -450,7 +468,9 @@ class Run:
                     break
                 self._step()
                 self._record(self.k + 1)
-                signals_out.put(self.values.tobytes())
+                if decimation and (self.k + 1) % decimation == 0:
+                    signals_out.put(SIGNALS_HEADER.pack(self.k + 1, (self.k + 1) * config.step_ns / 1e9)
+                                    + self.values.tobytes())
                 now = time.perf_counter()
                 if config.realtime > 0:
                     ahead = (self.k + 1) * config.step_ns / 1e9 / config.realtime - (now - wall_start)
@@ -473,6 +493,7 @@ class Run:
                 print(file=self.out)
             for member in list(self.members.values()):
                 self._terminate(member, timeout=2.0 if code else 5.0)
+            self._stop_viewer(signals_out)
             self._log("end", step=self.k, time=self.k * config.step_ns / 1e9,
                       status="failed" if code == 1 else (self.stop_reason or "completed"))
             if self.recording is not None:
@@ -502,6 +523,45 @@ class Run:
         t_ns = self.k * self.config.step_ns
         while self.pending_events and self.pending_events[0].at_ns <= t_ns:
             self.swap(self.pending_events.pop(0).spec)
+
+    def _start_viewer(self) -> int:
+        """Start the Rerun observer, if asked; return the decimation (publish every n-th row), or 0."""
+        if self.viewer is None:
+            return 0
+        setup = self.log_dir / "viewer.json"
+        setup.write_text(json.dumps({
+            "columns": self.columns, "config": self.config.resolved, "step_ns": self.config.step_ns,
+            "config_dir": str(self.config.path.parent.resolve()), "epoch": self.config.epoch,
+            "mode": self.viewer.mode, "file": str(self.viewer.file) if self.viewer.file else None,
+            "open_browser": self.viewer.open_browser}))
+        self.viewer_process = subprocess.Popen(
+            [sys.executable, "-m", "components.viewer.observer", "--connect", self.endpoint,
+             "--run-id", self.run_id, "--setup", str(setup)],
+            stdin=subprocess.DEVNULL, preexec_fn=_pdeathsig)
+        self._wait({VIEWER: "alive"}, self.config.start_timeout_s, "viewer start-up")
+        self._log("viewer", mode=self.viewer.mode, rate_hz=self.viewer.rate_hz)
+        return max(1, round(1e9 / (self.viewer.rate_hz * self.config.step_ns)))
+
+    def _stop_viewer(self, signals_out) -> None:
+        """Tell the observer the run is over and let it finish (flush the .rrd; web: until Ctrl-C)."""
+        if self.viewer_process is None:
+            return
+        signals_out.put(b"END")
+        try:
+            if self.viewer.mode == "web" and sys.stdin.isatty() and self.stop_reason != "interrupted":
+                print("run finished; the web viewer stays up until Ctrl-C", file=self.out, flush=True)
+                self.viewer_process.wait()
+            else:
+                self.viewer_process.wait(timeout=30)
+        except (KeyboardInterrupt, StopRequested, subprocess.TimeoutExpired):
+            pass
+        if self.viewer_process.poll() is None:
+            self.viewer_process.terminate()
+            try:
+                self.viewer_process.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self.viewer_process.kill()
+                self.viewer_process.wait()
 
     def _record(self, k: int) -> None:
         if self.recording is not None:

@@ -566,19 +566,16 @@ class OrbitalWorld:
     # ----------------------------------------------------------------- outputs
 
     def momentum(self, name: str) -> np.ndarray:
-        """(linear kg m/s, angular kg m^2/s about the body's CoM), W axes."""
-        body = self.bodies[name]
-        n = len(body.nodes)
-        coms = np.array([bn.getCOM() for bn in body.nodes]).reshape(n, 3)
-        v_com = np.array([bn.getCOMLinearVelocity() for bn in body.nodes]).reshape(n, 3)
-        omega = np.array([bn.getAngularVelocity() for bn in body.nodes]).reshape(n, 3)
-        rot = np.array([bn.getTransform().rotation() for bn in body.nodes]).reshape(n, 3, 3)
-        linear = body.mass @ v_com
-        c = body.mass @ coms / body.total_mass
-        inertia_W = rot @ body.local_inertia @ rot.transpose(0, 2, 1)
-        spin = np.einsum("nij,nj->i", inertia_W, omega)
-        orbital = np.sum(body.mass[:, None] * np.cross(coms - c, v_com), axis=0)
-        return np.concatenate([linear, spin + orbital])
+        """(linear kg m/s, angular kg m^2/s about the body's CoM), W axes.
+
+        The base rows of M(q) v are the momentum conjugate to DART's FreeJoint velocity
+        (omega_W, v_W): total angular momentum about the base origin p, then linear momentum L;
+        about the CoM c: H_c = H_p - (c - p) x L."""
+        skel = self.bodies[name].skel
+        h = skel.getMassMatrix()[:6] @ skel.getVelocities()
+        linear = h[3:6]
+        lever = np.asarray(skel.getCOM()) - np.asarray(skel.getRootBodyNode().getTransform().translation())
+        return np.concatenate([linear, h[:3] - np.cross(lever, linear)])
 
     def outputs(self, name: str) -> dict[str, np.ndarray]:
         """Every output of body ``name`` at the current state (see the component's table)."""

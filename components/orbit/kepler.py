@@ -29,6 +29,11 @@ J2_EARTH = 1.08262668e-3
 TWO_PI = 2.0 * math.pi
 
 
+def _cross(a, b) -> np.ndarray:
+    """a × b for 3-vectors (np.cross is slow on single vectors)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
 class ElementError(ValueError):
     """Invalid orbital elements; ``key`` names the offending element."""
 
@@ -235,8 +240,8 @@ class KeplerOrbit:
         k_axis = np.array([0.0, 0.0, 1.0])
         w_axis = c[:, 2]
         omega = self.raan_rate * k_axis + self.argp_rate * w_axis       # perifocal frame rate
-        alpha = self.argp_rate * self.raan_rate * np.cross(k_axis, w_axis)
-        v = np.cross(omega, r) + u
-        acc = (np.cross(alpha, r) + np.cross(omega, np.cross(omega, r))
-               + 2.0 * np.cross(omega, u) + a_rel)
+        alpha = self.argp_rate * self.raan_rate * _cross(k_axis, w_axis)
+        v = _cross(omega, r) + u
+        acc = (_cross(alpha, r) + _cross(omega, _cross(omega, r))
+               + 2.0 * _cross(omega, u) + a_rel)
         return r, v, acc

@@ -71,6 +71,7 @@ def test_free_floating_accelerations_match_pinocchio(urdf):
         v_W, w_W = rng.normal(size=3), rng.normal(size=3)
         q = rng.uniform(lower, upper)
         qd, tau = rng.normal(size=len(joints)), rng.normal(size=len(joints)) * 2.0
+        tau = np.clip(tau, -body.effort, body.effort)         # OrbitalWorld clips to the URDF efforts
         world.set_body_state("robot", p, quat, np.concatenate([v_W, w_W]), q, qd)
         world.set_torques("robot", tau)
         dart = world.forward_dynamics("robot")

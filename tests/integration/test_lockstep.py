@@ -82,7 +82,7 @@ components:
   spring: {type: oscillator.py:Oscillator, parameters: {mass: 2 kg, stiffness: 8 N/m, x0: 1 m}}
 connections: {spring.force: push.y}
 """)
-    (tmp_path / "oscillator.py").write_text((ROOT / "configs/examples/oscillator.py").read_text())
+    (tmp_path / "oscillator.py").write_text((ROOT / "components/examples/oscillator.py").read_text())
     for name in ("a", "b"):
         assert orchestrator("run", config, "--record", tmp_path / name).returncode == 0
     assert (tmp_path / "a/signals.parquet").read_bytes() == (tmp_path / "b/signals.parquet").read_bytes()

@@ -186,7 +186,7 @@ class SGP4Component(_OrbitComponent):
     :mod:`components.orbit.tle`; rotation error ~ milliarcseconds, centimetres at LEO). r_eci and
     v_eci are SGP4's position and velocity rotated to GCRF; q_eci_lvlh is built from them and
     w_lvlh is the rate of that frame, by a central difference of the LVLH attitude over ±0.5 s
-    (error < 1e-12 rad/s; SGP4's velocity is not exactly the derivative of its position,
+    (error ~1e-11 rad/s; SGP4's velocity is not exactly the derivative of its position,
     differing by ~1 cm/s, so the frame's own rate is used rather than a formula in r and v).
     A propagation failure (decay, eccentricity out of range) raises RuntimeError with sgp4's
     SGP4_ERRORS text; a failure already at run.epoch is a ConfigError on ``tle``/``tle_file``.
@@ -249,28 +249,38 @@ class SGP4Component(_OrbitComponent):
             raise ConfigError(key, f"cannot propagate to run.epoch {params['_epoch']}: {e}") from None
 
     def __init__(self, params):
+        from components.orbit import timescales
         from components.orbit.tle import SGP4Propagator
 
         super().__init__(params)
         _, lines = self._lines(params)
         self.propagator = SGP4Propagator(*lines)
-        self.epoch = _epoch(params)
+        self.epoch_tai = timescales.utc_to_tai(_epoch(params))
 
-    def _frame(self, t_s: float):
+    def _utc(self, t_s: float) -> tuple[tuple[float, float], tuple[float, float]]:
+        """(UTC, TT) two-part Julian dates t_s seconds after run.epoch (leap seconds counted)."""
         from components.orbit import timescales
-        from components.orbit.frames import lvlh_dcm
 
-        state = self.propagator.at_utc(timescales.utc_after(self.epoch, t_s))
-        return state.r_gcrf, state.v_gcrf, lvlh_dcm(state.r_gcrf, state.v_gcrf)
+        tai = (self.epoch_tai[0], self.epoch_tai[1] + t_s / timescales.SECONDS_PER_DAY)
+        return timescales.tai_to_utc(tai), timescales.tai_to_tt(tai)
 
     def _sample(self, t_s):
-        from components.orbit.frames import dcm_to_quat, rotation_vector
+        from components.orbit.frames import dcm_to_quat, lvlh_dcm, rotation_vector
+        from components.orbit.tle import teme_to_gcrf_matrix
 
-        r, v, c = self._frame(t_s)
+        utc, tt = self._utc(t_s)
+        c = teme_to_gcrf_matrix(tt, utc)       # UT1 ~ UTC
+        r_teme, v_teme = self.propagator.teme(utc)
+        r, v = c @ r_teme, c @ v_teme
+        # rate of the published LVLH frame: central difference of its attitude over ±d, with the
+        # TEME->GCRF matrix of t (its own rotation, < 1e-11 rad/s, is left out)
         d = self.RATE_HALF_STEP
-        c_minus, c_plus = self._frame(t_s - d)[2], self._frame(t_s + d)[2]
-        w = rotation_vector(c_plus @ c_minus.T) / (2.0 * d)
-        return r, v, dcm_to_quat(c), w
+        frames = []
+        for offset in (-d, d):
+            rs, vs = self.propagator.teme(self._utc(t_s + offset)[0])
+            frames.append(lvlh_dcm(c @ rs, c @ vs))
+        w = rotation_vector(frames[1] @ frames[0].T) / (2.0 * d)
+        return r, v, dcm_to_quat(lvlh_dcm(r, v)), w
 
 
 def _waypoints(raw) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

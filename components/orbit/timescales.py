@@ -10,7 +10,6 @@ No function here reads the wall clock.
 """
 from __future__ import annotations
 
-import contextlib
 import datetime as _dt
 import re
 import warnings
@@ -19,15 +18,8 @@ import erfa
 import numpy as np
 
 SECONDS_PER_DAY = 86400.0
+TT_MINUS_TAI = 32.184  # s, by definition
 
-
-@contextlib.contextmanager
-def _quiet_erfa():
-    """ERFA warns "dubious year" past the end of its leap-second table (it then keeps the last
-    TAI-UTC, the best available guess for a future date) and before 1960; not an error here."""
-    with warnings.catch_warnings(), np.errstate(all="ignore"):
-        warnings.simplefilter("ignore", erfa.ErfaWarning)
-        yield
 
 _ISO = re.compile(
     r"^\s*(\d{4})-(\d{2})-(\d{2})"            # date
@@ -71,17 +63,28 @@ def parse_utc(value) -> tuple[float, float]:
 
 
 def utc_to_tai(utc: tuple[float, float]) -> tuple[float, float]:
-    """UTC two-part Julian date -> TAI two-part Julian date (days)."""
-    with _quiet_erfa():
-        a, b = erfa.utctai(*utc)
+    """UTC two-part Julian date -> TAI two-part Julian date (days).
+
+    Past the end of ERFA's leap-second table the last TAI-UTC is kept (the best guess for a
+    future date; ERFA's "dubious year" status is not an error here).
+    """
+    a, b, status = erfa.ufunc.utctai(*utc)
+    if status < 0:
+        raise ValueError(f"expected a valid UTC Julian date, got {utc!r}")
     return float(a), float(b)
 
 
 def tai_to_utc(tai: tuple[float, float]) -> tuple[float, float]:
     """TAI two-part Julian date -> UTC two-part Julian date (days)."""
-    with _quiet_erfa():
-        a, b = erfa.taiutc(*tai)
+    a, b, status = erfa.ufunc.taiutc(*tai)
+    if status < 0:
+        raise ValueError(f"expected a valid TAI Julian date, got {tai!r}")
     return float(a), float(b)
+
+
+def tai_to_tt(tai: tuple[float, float]) -> tuple[float, float]:
+    """TAI -> TT = TAI + 32.184 s, two-part Julian dates (days)."""
+    return tai[0], tai[1] + TT_MINUS_TAI / SECONDS_PER_DAY
 
 
 def utc_after(utc: tuple[float, float], seconds: float) -> tuple[float, float]:
@@ -99,6 +102,4 @@ def seconds_between(utc_from: tuple[float, float], utc_to: tuple[float, float]) 
 
 def utc_to_tt(utc: tuple[float, float]) -> tuple[float, float]:
     """UTC -> TT (= TAI + 32.184 s), two-part Julian dates (days)."""
-    with _quiet_erfa():
-        a, b = erfa.taitt(*utc_to_tai(utc))
-    return float(a), float(b)
+    return tai_to_tt(utc_to_tai(utc))

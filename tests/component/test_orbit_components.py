@@ -89,6 +89,20 @@ def test_kepler_time_of_perigee():
     assert abs(r @ v) / np.linalg.norm(r) < 1e-6
 
 
+def test_kepler_time_of_perigee_as_yaml_timestamp():
+    # unquoted in YAML, a time arrives as a datetime; it means the same as the string
+    import datetime as dt
+
+    import yaml
+
+    raw = yaml.safe_load("time_of_perigee: 2022-09-18T12:30:00Z")["time_of_perigee"]
+    assert isinstance(raw, dt.datetime)
+    params = {k: v for k, v in KEPLER.items() if k != "mean_anomaly"}
+    a = Harness("orbit.kepler", {**params, "time_of_perigee": raw}, epoch=EPOCH).initialize()
+    b = Harness("orbit.kepler", {**params, "time_of_perigee": "2022-09-18T12:30:00Z"}, epoch=EPOCH).initialize()
+    np.testing.assert_array_equal(a["r_eci"], b["r_eci"])
+
+
 @pytest.mark.parametrize("change,key", [
     ({"eccentricity": 1.0}, "eccentricity"),
     ({"eccentricity": 1.3}, "eccentricity"),

@@ -13,6 +13,12 @@ from components.orbit.kepler import (J2_EARTH, MU_EARTH, R_EARTH, ElementError, 
 deg = math.radians
 
 
+def test_constants_are_the_published_values():
+    assert MU_EARTH == 3.986004418e14                                   # WGS 84 GM
+    assert R_EARTH == 6378137.0                                         # WGS 84 a
+    assert J2_EARTH == pytest.approx(math.sqrt(5) * 4.84165371736e-4, rel=1e-8)   # EGM96 -sqrt(5) C20
+
+
 def test_vallado_example_2_6_coe2rv():
     # Vallado, Fundamentals of Astrodynamics and Applications (4th ed.), Example 2-6 (COE2RV):
     # p = 11067.790 km, e = 0.83285, i = 87.87°, Ω = 227.89°, ω = 53.38°, ν = 92.335°, with Vallado's

@@ -84,6 +84,7 @@ def serve(connect: str, run_id: str, name: str, generation: int) -> int:
     import zenoh
 
     session = zenoh.open(bus.session_config(connect=[connect]))
+    token = watcher = None
     try:
         commands = session.declare_subscriber(bus.component_key(run_id, name, generation, "cmd"),
                                               zenoh.handlers.FifoChannel(1024))

@@ -1,0 +1,67 @@
+"""The CLI around a run: check, describe, runtime swap."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from tests.conftest import ROOT, component_processes, orchestrator
+
+pytestmark = pytest.mark.integration
+
+CHAIN = """
+run: {name: swapme, epoch: 2022-09-18T12:00:00Z, duration: 600 s, step: 10 ms, realtime: 1.0}
+components:
+  source: {type: test.constant, parameters: {value: 1.0}}
+  first: {type: test.integrator}
+connections:
+  first.u: source.y
+"""
+
+
+def test_check_and_describe(write_config):
+    config = write_config(CHAIN)
+    result = orchestrator("check", config)
+    assert result.returncode == 0 and "2 components, 1 connections, 60000 steps" in result.stdout
+    described = orchestrator("describe", "test.integrator")
+    assert described.returncode == 0
+    assert "gain" in described.stdout and "input   u" in described.stdout and "output  x" in described.stdout
+    unknown = orchestrator("describe", "controller.nonexistent")
+    assert unknown.returncode == 2 and "unknown component type" in unknown.stderr
+
+
+def test_swap_while_running_hands_over_state(write_config, tmp_path):
+    config = write_config(CHAIN)
+    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", config, "--record", tmp_path / "rec"],
+                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while len(component_processes("swapme-")) < 2 and time.monotonic() < deadline:
+            time.sleep(0.2)
+        time.sleep(0.5)
+        bad = orchestrator("swap", "--run", "swapme", "first", "--set", "gian=3")
+        assert bad.returncode == 2 and "gian: unknown parameter" in bad.stderr
+        swap = orchestrator("swap", "--run", "swapme", "first", "--set", "gain=3")
+        assert swap.returncode == 0, swap.stderr
+        time.sleep(0.5)
+        assert orchestrator("stop", "--run", "swapme").returncode == 0
+        _, err = run.communicate(timeout=30)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 0, err
+    events = [json.loads(line) for line in (tmp_path / "rec/events.jsonl").read_text().splitlines()]
+    swap_event = next(e for e in events if e["event"] == "swap")
+    s = swap_event["step"]
+    x = np.array(pq.read_table(tmp_path / "rec/signals.parquet").column("first.x"))
+    k = np.arange(len(x))
+    h = 0.01
+    expected = np.where(k <= s, k * h, s * h + 3 * (k - s) * h)  # the integral carries over, then gain 3
+    assert np.allclose(x, expected, rtol=0, atol=1e-9)
+    assert swap_event["generation"] == 1 and swap_event["state_handed_over"] is True
+    assert not component_processes("swapme-")

@@ -287,12 +287,13 @@ class Run:
         self._wait({m.name: "instantiate" for m in started}, timeout, "instantiate")
         return started
 
-    def _initialize(self, member: Member, t_ns: int) -> None:
+    def _initialize(self, member: Member, t_ns: int, *, take_outputs: bool = True) -> None:
         member.inputs[member.route_dst] = self.values[member.route_src]
         self._control(member, "initialize", {"t0_ns": t_ns}, member.inputs.tobytes())
         self._wait({member.name: "initialize"}, self.config.start_timeout_s, "initialize")
-        vector = np.frombuffer(member.reply["blob"], dtype=np.float64)
-        self.values[member.out_dst] = vector[member.out_src]
+        if take_outputs:
+            vector = np.frombuffer(member.reply["blob"], dtype=np.float64)
+            self.values[member.out_dst] = vector[member.out_src]
 
     def _initialization_order(self) -> list[str]:
         """Sources before the components they feed; config order breaks cycles."""
@@ -330,7 +331,8 @@ class Run:
         self._wait({old.name: "get_state"}, self.config.step_timeout_s, "get_state")
         state = old.reply["blob"]
         new = self._start([spec], {spec.name: old.generation + 1})[0]
-        self._initialize(new, t_ns)
+        # same type: the state carries over and the outputs at t_k stay the old ones
+        self._initialize(new, t_ns, take_outputs=spec.type != old.spec.type)
         if spec.type == old.spec.type:
             self._control(new, "set_state", {}, state)
             self._wait({new.name: "set_state"}, self.config.step_timeout_s, "set_state")

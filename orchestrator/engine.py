@@ -69,8 +69,10 @@ class Member:
         return self.spec.name
 
 
-def _pdeathsig():
-    """In the child: die with the orchestrator, even if it is SIGKILLed (Linux)."""
+def _child_setup():
+    """In a component process: leave Ctrl-C to the orchestrator (which stops everyone in order),
+    and die with the orchestrator even if it is SIGKILLed (Linux PR_SET_PDEATHSIG)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         import ctypes
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
@@ -244,7 +246,7 @@ class Run:
             with open(log_path, "wb") as log:
                 process = subprocess.Popen([sys.executable, "-m", "components.runner", *args],
                                            stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                                           preexec_fn=_pdeathsig)
+                                           preexec_fn=_child_setup)
         else:
             print(f"waiting for external component {spec.name!r}: start it with\n"
                   f"    python -m components.runner {' '.join(args)}", file=self.out, flush=True)
@@ -539,7 +541,7 @@ class Run:
         self.viewer_process = subprocess.Popen(
             [sys.executable, "-m", "components.viewer.observer", "--connect", self.endpoint,
              "--run-id", self.run_id, "--setup", str(setup)],
-            stdin=subprocess.DEVNULL, preexec_fn=_pdeathsig)
+            stdin=subprocess.DEVNULL, preexec_fn=_child_setup)
         self._wait({VIEWER: "alive"}, self.config.start_timeout_s, "viewer start-up")
         self._log("viewer", mode=self.viewer.mode, rate_hz=self.viewer.rate_hz)
         return max(1, round(1e9 / (self.viewer.rate_hz * self.config.step_ns)))

@@ -65,3 +65,13 @@ def test_swap_while_running_hands_over_state(write_config, tmp_path):
     assert np.allclose(x, expected, rtol=0, atol=1e-9)
     assert swap_event["generation"] == 1 and swap_event["state_handed_over"] is True
     assert not component_processes("swapme-")
+
+
+def test_profile_reports_compute_barrier_and_overhead():
+    result = orchestrator("run", "configs/user_component.yaml", "--set", "run.duration=0.5 s", "--profile")
+    assert result.returncode == 0, result.stderr
+    out = result.stderr
+    assert "profile: 500 steps" in out
+    for name in ("push", "spring"):
+        assert any(line.split()[:1] == [name] and "us" in line for line in out.splitlines()), out
+    assert "barrier wait" in out and "bus + adapter overhead" in out

@@ -211,18 +211,20 @@ components:
 
 
 def test_ctrl_c_stops_cleanly(write_config, tmp_path):
+    """Ctrl-C on a terminal signals the whole process group: components leave it to the orchestrator."""
     config = write_config("""
 run: {name: interrupted, epoch: 2022-09-18T12:00:00Z, duration: 1000 s, step: 1 ms, realtime: 1.0}
 components:
   a: {type: test.counter}
 """)
     run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", config, "--record", tmp_path / "rec"],
-                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                           start_new_session=True)
     deadline = time.monotonic() + 60
     while not component_processes("interrupted-") and time.monotonic() < deadline:
         time.sleep(0.2)
     time.sleep(1.0)
-    run.send_signal(signal.SIGINT)
+    os.killpg(run.pid, signal.SIGINT)
     _, err = run.communicate(timeout=30)
     assert run.returncode == 130, err
     assert "Traceback" not in err

@@ -1,0 +1,248 @@
+"""OrbitalWorld (components/dynamics/world.py): conservation, joints, frames, state, contacts.
+
+Tolerances are stated per test. No environment here (r_eci = 0: deep space) unless said.
+"""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from components.dynamics.world import BodySpec, ModelError, OrbitalWorld, matrix_to_quat, quat_to_matrix
+
+ROOT = Path(__file__).resolve().parents[2]
+HUMANOID = ROOT / "models" / "humanoid_torso.urdf"
+TARGET = ROOT / "models" / "target.urdf"
+# a posture away from the joint limits, both elbows bent
+POSTURE = {"arm_right_1_joint": -0.4, "arm_right_2_joint": -0.3, "arm_right_4_joint": -1.0,
+           "arm_left_1_joint": -0.4, "arm_left_2_joint": 0.3, "arm_left_4_joint": -1.0}
+
+
+def humanoid(**kw) -> BodySpec:
+    defaults = dict(q=POSTURE, qd={"arm_right_1_joint": 0.3, "arm_left_3_joint": -0.4},
+                    twist=np.array([0.02, -0.01, 0.005, 0.01, -0.02, 0.015]))
+    defaults.update(kw)
+    return BodySpec("humanoid", HUMANOID, **defaults)
+
+
+def link_momentum(world: OrbitalWorld, name: str) -> np.ndarray:
+    """Textbook momentum from the links: sum m_i v_i; sum I_i w_i + m_i (c_i - c) x v_i."""
+    body = world.bodies[name]
+    linear, spin, moment = np.zeros(3), np.zeros(3), np.zeros(3)
+    c = np.asarray(body.skel.getCOM())
+    for bn, m, inertia in zip(body.nodes, body.mass, body.local_inertia):
+        R = bn.getTransform().rotation()
+        v = np.asarray(bn.getCOMLinearVelocity())
+        linear += m * v
+        spin += R @ inertia @ R.T @ np.asarray(bn.getAngularVelocity())
+        moment += m * np.cross(np.asarray(bn.getCOM()) - c, v)
+    return np.concatenate([linear, spin + moment])
+
+
+def tracking_torques(world, name, t, kp=2.0, kd=0.5):
+    """Arbitrary (state-dependent, smooth) joint torques: a PD towards a moving posture."""
+    body = world.bodies[name]
+    out = world.outputs(name)
+    ref = np.array([POSTURE.get(j, 0.0) for j in body.joints]) + 0.3 * np.sin(1.3 * t + np.arange(len(body.joints)))
+    return kp * (ref - out["q"]) - kd * out["qd"]
+
+
+def test_momentum_output_equals_link_sum():
+    world = OrbitalWorld([humanoid()])
+    world.reset_bodies()
+    world.step(0.01)
+    assert np.allclose(world.momentum("humanoid"), link_momentum(world, "humanoid"), rtol=1e-12, atol=1e-12)
+
+
+def test_rk4_conserves_momentum_of_free_floating_humanoid():
+    """10 s at 1 ms, rk4, joint torques changing every step, no environment:
+    linear and angular (about the CoM) momentum constant to relative drift < 1e-6."""
+    world = OrbitalWorld([humanoid()], integrator="rk4")
+    world.reset_bodies()
+    h0 = world.momentum("humanoid")
+    worst_linear = worst_angular = 0.0
+    tau_max = 0.0
+    for k in range(10_000):
+        tau = tracking_torques(world, "humanoid", k * 1e-3)
+        tau_max = max(tau_max, np.abs(tau).max())
+        world.set_torques("humanoid", tau)
+        world.step(1e-3)
+        if k % 100 == 99:
+            h = world.momentum("humanoid")
+            worst_linear = max(worst_linear, np.linalg.norm(h[:3] - h0[:3]) / np.linalg.norm(h0[:3]))
+            worst_angular = max(worst_angular, np.linalg.norm(h[3:] - h0[3:]) / np.linalg.norm(h0[3:]))
+    print(f"rk4 10 s at 1 ms, |tau| up to {tau_max:.2f} N m: relative momentum drift "
+          f"linear {worst_linear:.1e}, angular {worst_angular:.1e}")
+    assert tau_max > 0.1
+    assert worst_linear < 1e-6 and worst_angular < 1e-6
+
+
+def test_dart_integrator_runs_and_roughly_conserves_momentum():
+    """DART's semi-implicit step: first order; 2 s at 1 ms, relative drift < 1e-2."""
+    world = OrbitalWorld([humanoid()], integrator="dart")
+    world.reset_bodies()
+    h0 = world.momentum("humanoid")
+    for k in range(2000):
+        world.set_torques("humanoid", tracking_torques(world, "humanoid", k * 1e-3))
+        world.step(1e-3)
+    h = world.momentum("humanoid")
+    drift = np.linalg.norm(h - h0) / np.linalg.norm(h0)
+    print(f"dart 2 s at 1 ms: relative momentum drift {drift:.1e}")
+    assert drift < 1e-2
+
+
+def test_joint_stop_holds_the_limit_and_keeps_momentum():
+    """rk4: a wrist pushed hard into its limit stays within one step's travel of it, and the
+    stop (an internal impulse) leaves the momentum unchanged to 1e-9 relative."""
+    world = OrbitalWorld([humanoid()], integrator="rk4")
+    world.reset_bodies()
+    body = world.bodies["humanoid"]
+    k7 = body.joints.index("arm_right_7_joint")
+    upper = body.model.joint("arm_right_7_joint").upper
+    h0 = world.momentum("humanoid")
+    tau = np.zeros(14)
+    tau[k7] = 0.2
+    peak = -np.inf
+    for _ in range(1000):
+        world.set_torques("humanoid", tau)
+        world.step(1e-3)
+        peak = max(peak, world.outputs("humanoid")["q"][k7])
+    q = world.outputs("humanoid")["q"][k7]
+    drift = np.linalg.norm(world.momentum("humanoid") - h0) / np.linalg.norm(h0)
+    print(f"wrist stop: limit {upper}, peak {peak:.5f}, final {q:.5f}, momentum drift {drift:.1e}")
+    assert upper - 1e-3 < q and peak < upper + 0.02
+    assert drift < 1e-9
+
+
+def test_effort_limits_clip_torques():
+    world = OrbitalWorld([humanoid()])
+    world.reset_bodies()
+    body = world.bodies["humanoid"]
+    effort = body.effort.copy()
+    world.set_torques("humanoid", effort)
+    at_limit = world.forward_dynamics("humanoid")["qdd"]
+    world.set_torques("humanoid", 10 * effort)
+    assert np.array_equal(world.forward_dynamics("humanoid")["qdd"], at_limit)
+
+
+def test_locked_joints_stay_at_their_initial_position():
+    locked = ["arm_left_1_joint", "arm_left_4_joint"]
+    world = OrbitalWorld([humanoid(locked_joints=tuple(locked), qd={"arm_right_1_joint": 0.3})])
+    world.reset_bodies()
+    body = world.bodies["humanoid"]
+    assert body.skel.getNumDofs() == 6 + 14 - 2
+    idx = [body.joints.index(j) for j in locked]
+    h0 = world.momentum("humanoid")
+    for k in range(200):
+        world.set_torques("humanoid", np.full(14, 0.05))      # torque on locked joints ignored
+        world.step(1e-3)
+    out = world.outputs("humanoid")
+    assert out["q"].shape == (14,)
+    assert out["q"][idx].tolist() == [POSTURE["arm_left_1_joint"], POSTURE["arm_left_4_joint"]]
+    assert out["qd"][idx].tolist() == [0.0, 0.0]
+    assert np.linalg.norm(world.momentum("humanoid") - h0) / np.linalg.norm(h0) < 1e-9
+    # the welded joint sits where the joint would be at that q: same link pose as a free body
+    free = OrbitalWorld([humanoid(qd={})])
+    welded = OrbitalWorld([humanoid(qd={}, locked_joints=tuple(locked))])
+    free.reset_bodies()
+    welded.reset_bodies()
+    assert np.allclose(free.outputs("humanoid")["link_position"], welded.outputs("humanoid")["link_position"],
+                       atol=1e-12)
+
+
+def test_lvlh_initial_state_co_rotates():
+    """frame: lvlh, zero twist: the base turns with LVLH and moves as w x p."""
+    angle = 0.7
+    q_eci_lvlh = np.array([0.0, 0.0, np.sin(angle / 2), np.cos(angle / 2)])
+    w_lvlh = np.array([0.0, 0.0, 1.1e-3])
+    spec = BodySpec("t", TARGET, frame="lvlh", position=np.array([10.0, 0.0, 0.0]),
+                    orientation=np.array([0.0, 0.0, 0.0, 1.0]))
+    world = OrbitalWorld([spec], tidal_force=False, gravity_gradient=False)
+    world.set_orbit([7e6, 0, 0], [0, 7.5e3, 0], q_eci_lvlh, w_lvlh)
+    world.reset_bodies()
+    out = world.outputs("t")
+    R_WL = quat_to_matrix(q_eci_lvlh)
+    assert np.allclose(out["position"], R_WL @ [10.0, 0.0, 0.0], atol=1e-12)
+    assert np.allclose(out["orientation"], q_eci_lvlh, atol=1e-12)
+    assert np.allclose(out["twist"][3:], w_lvlh, atol=1e-15)
+    assert np.allclose(out["twist"][:3], np.cross(w_lvlh, R_WL @ [10.0, 0.0, 0.0]), atol=1e-12)
+
+
+def test_quaternion_helpers_round_trip():
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        q = q if q[3] >= 0 else -q
+        assert np.allclose(matrix_to_quat(quat_to_matrix(q)), q, atol=1e-14)
+
+
+@pytest.mark.parametrize("integrator", ["rk4", "dart"])
+def test_state_restore_continues_bit_exactly(integrator):
+    """get_state after 50 steps, 50 more steps; a fresh world given the state does the same 50
+    steps to identical bits (outputs compared with array_equal)."""
+    specs = [humanoid(), BodySpec("target", TARGET, position=np.array([1.5, 0.0, 0.0]))]
+    orbit = ([6778e3, 0, 0], [0, 7668.6, 0], [0, 0, 0, 1], [0, 0, 1.13e-3])
+
+    def run(world, k0, n):
+        for k in range(k0, k0 + n):
+            world.set_orbit(*orbit)
+            world.set_torques("humanoid", 0.05 * np.sin(0.01 * k + np.arange(14)))
+            world.step(1e-3)
+        return {**world.outputs("humanoid"), **{f"t.{k}": v for k, v in world.outputs("target").items()}}
+
+    a = OrbitalWorld(specs, integrator=integrator, substeps=2)
+    a.set_orbit(*orbit)
+    a.reset_bodies()
+    run(a, 0, 50)
+    state = a.get_state()
+    expected = run(a, 50, 50)
+    b = OrbitalWorld(specs, integrator=integrator, substeps=2)
+    b.set_state(state)
+    got = run(b, 50, 50)
+    for key in expected:
+        assert np.array_equal(expected[key], got[key]), key
+
+
+def test_nan_torque_is_refused_naming_the_variable():
+    world = OrbitalWorld([humanoid()])
+    tau = np.zeros(14)
+    tau[3] = np.nan
+    with pytest.raises(ValueError, match=r"humanoid\.tau.*arm_left_4_joint"):
+        world.set_torques("humanoid", tau)
+    with pytest.raises(ValueError, match=r"humanoid\.tau: expected 14 values"):
+        world.set_torques("humanoid", np.zeros(3))
+
+
+def test_bad_specs_are_refused_naming_the_key():
+    with pytest.raises(ModelError, match="duplicate body name") as e:
+        OrbitalWorld([humanoid(), humanoid()])
+    assert e.value.key == "humanoid"
+    with pytest.raises(ModelError) as e:
+        OrbitalWorld([humanoid(q={"no_such_joint": 0.1})])
+    assert e.value.key == "humanoid.q.no_such_joint"
+    with pytest.raises(ModelError) as e:
+        OrbitalWorld([humanoid(q={"arm_right_4_joint": 1.0})])       # elbow limit [-2.36, 0.0035]
+    assert e.value.key == "humanoid.q.arm_right_4_joint"
+    with pytest.raises(ModelError) as e:
+        OrbitalWorld([humanoid(locked_joints=("arm_right_1_joint",))])  # locked but has qd
+    assert e.value.key == "humanoid.qd.arm_right_1_joint"
+
+
+def test_contact_between_bodies_in_dart_mode():
+    """integrator: dart. A 200 kg box drifting at 0.2 m/s into the humanoid's arm and torso
+    pushes the humanoid: it ends up moving with the box, and the total linear momentum of the
+    two bodies is conserved (contact forces are equal and opposite) to 1e-6 relative."""
+    box = BodySpec("target", TARGET, position=np.array([1.0, 0.0, -0.1]),
+                   twist=np.array([-0.2, 0.0, 0.0, 0.0, 0.0, 0.0]))
+    world = OrbitalWorld([humanoid(twist=np.zeros(6), qd={}), box], integrator="dart")
+    world.reset_bodies()
+    total0 = world.momentum("humanoid")[:3] + world.momentum("target")[:3]
+    for _ in range(2500):
+        world.set_torques("humanoid", np.zeros(14))
+        world.step(1e-3)
+    humanoid_p = world.momentum("humanoid")[:3]
+    total = humanoid_p + world.momentum("target")[:3]
+    print(f"contact: humanoid linear momentum {humanoid_p.round(3)} kg m/s, total drift "
+          f"{np.linalg.norm(total - total0) / np.linalg.norm(total0):.1e}")
+    assert humanoid_p[0] < -5.0          # pushed along -x by a good part of the box's 40 kg m/s
+    assert np.linalg.norm(total - total0) / np.linalg.norm(total0) < 1e-6

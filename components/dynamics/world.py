@@ -145,28 +145,25 @@ def quat_to_matrix(q) -> np.ndarray:
 
 
 def matrix_to_quat(R: np.ndarray) -> np.ndarray:
-    """Quaternions [x, y, z, w] with w >= 0 of rotation matrices (..., 3, 3) (Shepperd's method)."""
+    """Quaternions [x, y, z, w] with w >= 0 of rotation matrices (..., 3, 3) (Shepperd's method:
+    from the largest of w^2, x^2, y^2, z^2, vectorized)."""
     R = np.asarray(R, dtype=float)
-    flat = R.reshape(-1, 3, 3)
-    out = np.empty((flat.shape[0], 4))
-    for i, m in enumerate(flat):
-        t = m[0, 0] + m[1, 1] + m[2, 2]
-        k = int(np.argmax([m[0, 0], m[1, 1], m[2, 2], t]))
-        if k == 3:
-            s = 2.0 * math.sqrt(1.0 + t)
-            q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
-        elif k == 0:
-            s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
-            q = [0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
-        elif k == 1:
-            s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
-            q = [(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
-        else:
-            s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
-            q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s]
-        q = np.array(q)
-        out[i] = -q if q[3] < 0 else q
-    return out.reshape(R.shape[:-2] + (4,))
+    m = R.reshape(-1, 3, 3)
+    m00, m11, m22 = m[:, 0, 0], m[:, 1, 1], m[:, 2, 2]
+    # 4 x^2, 4 y^2, 4 z^2, 4 w^2 (up to the common 1 + ...), pick the largest per matrix
+    d = np.stack([1.0 + m00 - m11 - m22, 1.0 - m00 + m11 - m22, 1.0 - m00 - m11 + m22, 1.0 + m00 + m11 + m22], axis=1)
+    k = np.argmax(d, axis=1)
+    s = 2.0 * np.sqrt(np.maximum(d[np.arange(len(k)), k], 1e-300))
+    a21, a12, a02, a20, a10, a01 = m[:, 2, 1], m[:, 1, 2], m[:, 0, 2], m[:, 2, 0], m[:, 1, 0], m[:, 0, 1]
+    candidates = np.stack([
+        np.stack([0.25 * s, (a01 + a10) / s, (a02 + a20) / s, (a21 - a12) / s], axis=1),
+        np.stack([(a01 + a10) / s, 0.25 * s, (a12 + a21) / s, (a02 - a20) / s], axis=1),
+        np.stack([(a02 + a20) / s, (a12 + a21) / s, 0.25 * s, (a10 - a01) / s], axis=1),
+        np.stack([(a21 - a12) / s, (a02 - a20) / s, (a10 - a01) / s, 0.25 * s], axis=1),
+    ], axis=0)
+    q = candidates[k, np.arange(len(k))]
+    q = np.where(q[:, 3:4] < 0.0, -q, q)
+    return q.reshape(R.shape[:-2] + (4,))
 
 
 def so3_left_jacobian_inverse_times(phi: np.ndarray, omega: np.ndarray) -> np.ndarray:
@@ -332,6 +329,7 @@ class OrbitalWorld:
         self.w_lvlh = np.zeros(3)
         self.elapsed = 0.0          # s since the orbit inputs were set (the reference point moved on)
         self._env_now = False
+        self._reference_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
     # ----------------------------------------------------------------- inputs
 
@@ -346,6 +344,7 @@ class OrbitalWorld:
         self.q_eci_lvlh = np.array(q_eci_lvlh, dtype=float)
         self.w_lvlh = np.array(w_lvlh, dtype=float)
         self.elapsed = 0.0
+        self._reference_cache = {}
 
     def set_torques(self, name: str, tau) -> None:
         """Joint torques/forces (N m or N) of body ``name`` in URDF joint order; clipped to the
@@ -407,7 +406,12 @@ class OrbitalWorld:
 
     def reference(self, s: float) -> tuple[np.ndarray, np.ndarray]:
         """Reference point (r_eci, v_eci) s seconds after the orbit inputs were set."""
-        return env.propagate_reference(self.r_eci, self.v_eci, s, self.mu)
+        cached = self._reference_cache.get(s)
+        if cached is None:
+            if len(self._reference_cache) > 8:
+                self._reference_cache.clear()
+            cached = self._reference_cache[s] = env.propagate_reference(self.r_eci, self.v_eci, s, self.mu)
+        return cached
 
     def link_wrenches(self, body: _Body, R: np.ndarray, V: np.ndarray):
         """Environment on each massive link at the skeleton's current state: (tidal force, drag
@@ -575,7 +579,7 @@ class OrbitalWorld:
         h = skel.getMassMatrix()[:6] @ skel.getVelocities()
         linear = h[3:6]
         lever = np.asarray(skel.getCOM()) - np.asarray(skel.getRootBodyNode().getTransform().translation())
-        return np.concatenate([linear, h[:3] - np.cross(lever, linear)])
+        return np.concatenate([linear, h[:3] - env.cross(lever, linear)])
 
     def outputs(self, name: str) -> dict[str, np.ndarray]:
         """Every output of body ``name`` at the current state (see the component's table)."""
@@ -643,6 +647,7 @@ class OrbitalWorld:
         self.q_eci_lvlh = np.array(state["q_eci_lvlh"], dtype=float)
         self.w_lvlh = np.array(state["w_lvlh"], dtype=float)
         self.elapsed = float(state["elapsed"])
+        self._reference_cache = {}
         for name, body in self.bodies.items():
             body.skel.setPositions(np.array(state[f"{name}.positions"], dtype=float))
             body.skel.setVelocities(np.array(state[f"{name}.velocities"], dtype=float))

@@ -26,6 +26,7 @@ TYPES = {
     "orbit.custom_path": "components.orbit.components:CustomPathComponent",
     "orbit.fixed": "components.orbit.components:FixedComponent",
     # dynamics
+    "dynamics.dart": "components.dynamics.component:DartDynamics",
     # controllers
     # observers
 }

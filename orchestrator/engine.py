@@ -11,6 +11,7 @@ outputs at t_(k+1) of those before it.
 """
 from __future__ import annotations
 
+import copy
 import datetime as dt
 import json
 import os
@@ -308,13 +309,8 @@ class Run:
         return done
 
     def _terminate(self, member: Member, timeout: float = 5.0) -> None:
-        """Ask a member to terminate, then make sure its process is gone."""
-        try:
-            if member.process is None or member.process.poll() is None:
-                self._control(member, "terminate")
-                self._wait({member.name: "terminate"}, timeout, "terminate")
-        except RunFailure:
-            pass
+        """Ask a member to terminate and make sure its process is gone (killed after ``timeout``)."""
+        self._control(member, "terminate")
         if member.process is not None:
             try:
                 member.process.wait(timeout=timeout)
@@ -338,23 +334,9 @@ class Run:
         if spec.type == old.spec.type:
             self._control(new, "set_state", {}, state)
             self._wait({new.name: "set_state"}, self.config.step_timeout_s, "set_state")
-        old_keep = old
-        self.members[spec.name] = new
-        # the old generation is now unknown to the router: its messages are ignored
-        old_keep.generation = -1
-        self._terminate_detached(old_keep)
+        self._terminate(old)  # its late messages carry the old generation: ignored from here on
         self._log("swap", component=spec.name, type=spec.type, generation=new.generation,
                   step=self.k, time=t_ns / 1e9, state_handed_over=spec.type == old.spec.type)
-
-    def _terminate_detached(self, member: Member) -> None:
-        self._control(member, "terminate")
-        if member.process is not None:
-            try:
-                member.process.wait(timeout=5.0)
-            except subprocess.TimeoutExpired:
-                member.process.kill()
-                member.process.wait()
-        member.command.undeclare()
 
     # ---------------------------------------------------------------- control from the CLI
 
@@ -385,8 +367,8 @@ class Run:
             if name not in self.members:
                 return {"ok": False, "error": f"no component {name!r} (components: {', '.join(self.members)})"}
             old = self.members[name].spec
-            entry = {"type": request.get("type") or old.type, "parameters": json.loads(json.dumps(
-                old.parameters if not request.get("type") or request["type"] == old.type else {}))}
+            entry = {"type": request.get("type") or old.type, "parameters": copy.deepcopy(
+                old.parameters if not request.get("type") or request["type"] == old.type else {})}
             try:
                 apply_overrides(entry, [f"parameters.{s}" for s in request.get("set", [])])
                 spec = component_spec(name, {**entry, "step": f"{old.step_ns} ns"}, self.config.step_ns,

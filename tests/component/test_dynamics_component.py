@@ -1,0 +1,196 @@
+"""dynamics.dart through the in-process harness: parameters and variables, cheap declare, config
+errors naming the key, NaN inputs, LVLH start, bit-exact restart; the shipped configs check and
+run (integration: real orchestrator)."""
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from components import registry
+from components.dynamics.component import DartDynamics
+from components.errors import ComponentError, ConfigError
+from components.sdk import resolve_parameters
+from components.testing.harness import Harness
+from tests.conftest import orchestrator
+
+ROOT = Path(__file__).resolve().parents[2]
+CONFIGS = ROOT / "configs"
+MS = 1_000_000
+HUMANOID = {"urdf": "../models/humanoid_torso.urdf", "q": {"arm_right_4_joint": "-60 deg"},
+            "qd": {"arm_right_1_joint": "0.1 rad/s"}}
+MU = 3.986004418e14
+
+
+def circular(a, t):
+    n = math.sqrt(MU / a**3)
+    th = n * t
+    return {"r_eci": a * np.array([math.cos(th), math.sin(th), 0.0]),
+            "v_eci": a * n * np.array([-math.sin(th), math.cos(th), 0.0]),
+            "q_eci_lvlh": np.array([0.0, 0.0, math.sin(th / 2), math.cos(th / 2)]),
+            "w_lvlh": np.array([0.0, 0.0, n])}
+
+
+def harness(bodies=None, **params):
+    return Harness("dynamics.dart", {"bodies": bodies or {"humanoid": HUMANOID}, **params}, config_dir=CONFIGS)
+
+
+def errors_of(params):
+    _, errors = resolve_parameters(DartDynamics, {"_config_dir": str(CONFIGS), **params})
+    return errors
+
+
+def test_registered_and_variables_declared():
+    assert registry.load("dynamics.dart") is DartDynamics
+    h = harness({"humanoid": HUMANOID, "target": {"urdf": "../models/target.urdf"}})
+    shapes = {v.name: v.shape for v in h.input_layout.variables + h.output_layout.variables}
+    assert shapes["r_eci"] == (3,) and shapes["q_eci_lvlh"] == (4,) and shapes["w_lvlh"] == (3,)
+    assert shapes["humanoid.tau"] == (14,) and shapes["target.tau"] == (0,)
+    for body, joints, links in (("humanoid", 14, 17), ("target", 0, 1)):
+        assert shapes[f"{body}.position"] == (3,) and shapes[f"{body}.orientation"] == (4,)
+        assert shapes[f"{body}.twist"] == (6,) and shapes[f"{body}.momentum"] == (6,)
+        assert shapes[f"{body}.q"] == (joints,) and shapes[f"{body}.qd"] == (joints,)
+        assert shapes[f"{body}.com"] == (3,) and shapes[f"{body}.gg_torque"] == (3 * links,)
+        assert shapes[f"{body}.link_orientation"] == (4 * links,)
+
+
+def test_declare_does_not_load_dart():
+    code = ("import sys; from components.dynamics.component import DartDynamics as D; "
+            "from components.sdk import resolve_parameters as r; "
+            "p, e = r(D, {'bodies': {'h': {'urdf': 'models/humanoid_torso.urdf'}}}); assert not e, e; "
+            "v = D.declare(p); assert len(v) > 10; assert 'dartpy' not in sys.modules, 'dartpy imported'")
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+
+
+@pytest.mark.parametrize("bodies, key", [
+    ({"humanoid": {"urdf": "../models/nope.urdf"}}, "bodies.humanoid.urdf"),
+    ({"humanoid": {}}, "bodies.humanoid.urdf"),
+    ({"humanoid": {**HUMANOID, "colour": "red"}}, "bodies.humanoid.colour"),
+    ({"humanoid": {**HUMANOID, "q": {"arm_right_9_joint": 0.1}}}, "bodies.humanoid.q.arm_right_9_joint"),
+    ({"humanoid": {**HUMANOID, "q": {"arm_right_4_joint": "-60 m"}}}, "bodies.humanoid.q.arm_right_4_joint"),
+    ({"humanoid": {**HUMANOID, "position": [0, 0]}}, "bodies.humanoid.position"),
+    ({"humanoid": {**HUMANOID, "frame": "ecef"}}, "bodies.humanoid.frame"),
+    ({"humanoid": {**HUMANOID, "locked_joints": ["arm_right_1_joint"], "qd": {"arm_right_1_joint": 1.0}}},
+     "bodies.humanoid.qd.arm_right_1_joint"),
+    ({"humanoid": {**HUMANOID, "drag_area": {"no_link": 1.0}}}, "bodies.humanoid.drag_area.no_link"),
+    ([{"name": "humanoid", **HUMANOID}, {"name": "humanoid", "urdf": "../models/target.urdf"}], "bodies.humanoid"),
+    ({"my body": HUMANOID}, "bodies.my body"),
+    ({}, "bodies"),
+])
+def test_bad_bodies_are_config_errors_naming_the_key(bodies, key):
+    errors = errors_of({"bodies": bodies})
+    assert errors and errors[0].key == key, [str(e) for e in errors]
+
+
+def test_bad_urdf_is_a_config_error_naming_the_key(tmp_path):
+    bad = {
+        "not_xml.urdf": "<robot name='x'><link name='a'>",
+        "floating.urdf": "<robot name='x'><link name='a'><inertial><mass value='1'/><inertia ixx='1' iyy='1' izz='1'/>"
+                         "</inertial></link><link name='b'/><joint name='j' type='floating'><parent link='a'/>"
+                         "<child link='b'/></joint></robot>",
+        "massless.urdf": "<robot name='x'><link name='a'/></robot>",
+        "two_roots.urdf": "<robot name='x'><link name='a'/><link name='b'/></robot>",
+    }
+    for name, text in bad.items():
+        (tmp_path / name).write_text(text)
+        _, errors = resolve_parameters(DartDynamics, {"_config_dir": str(tmp_path), "bodies": {"b": {"urdf": name}}})
+        assert errors and errors[0].key == "bodies.b.urdf", (name, [str(e) for e in errors])
+        assert name in str(errors[0])
+    assert errors_of({"bodies": {"humanoid": HUMANOID}, "integrator": "euler"})[0].key == "integrator"
+    assert errors_of({"bodies": {"humanoid": HUMANOID}, "substeps": 0})[0].key == "substeps"
+    assert errors_of({"bodies": {"humanoid": HUMANOID}, "atmosphere": {"density": 1}})[0].key == "atmosphere"
+
+
+def test_urdf_paths_resolve_from_the_config_dir_or_the_project_root():
+    for path in ("../models/target.urdf", "models/target.urdf", str(ROOT / "models" / "target.urdf")):
+        assert not errors_of({"bodies": {"t": {"urdf": path}}}), path
+
+
+def test_nan_torque_fails_the_step_naming_the_variable():
+    h = harness()
+    h.initialize()
+    tau = np.zeros(14)
+    tau[5] = np.nan
+    h.inputs["humanoid.tau"] = tau
+    with pytest.raises(ComponentError, match=r"humanoid\.tau"):
+        h.step(MS)
+    h.inputs["humanoid.tau"] = np.zeros(14)
+    h.inputs["r_eci"] = [np.nan, 0, 0]
+    with pytest.raises(ComponentError, match=r"r_eci"):
+        h.step(MS)
+
+
+def test_lvlh_start_and_environment_outputs():
+    """frame: lvlh at t0 of a circular orbit: base aligned with LVLH, turning at n; with the
+    orbit connected, the environment outputs are non-zero and tiny."""
+    h = harness({"humanoid": {**HUMANOID, "frame": "lvlh"}})
+    a = 6778e3
+    h.inputs.update(circular(a, 0.0))
+    out = h.initialize()
+    n = math.sqrt(MU / a**3)
+    assert np.allclose(out["humanoid.orientation"], [0, 0, 0, 1], atol=1e-15)
+    assert np.allclose(out["humanoid.twist"][3:], [0, 0, n], atol=1e-15)
+    for k in range(20):
+        h.inputs.update(circular(a, k * 1e-2))
+        out = h.step(10 * MS)
+    gg, tidal = out["humanoid.gg_torque"], out["humanoid.tidal_force"]
+    assert 0 < np.abs(gg).max() < 1e-4 and 0 < np.abs(tidal).max() < 1e-3
+    assert np.all(out["humanoid.drag_force"] == 0.0)          # drag off by default
+    assert np.all(np.isfinite(np.concatenate(list(out.values()))))
+
+
+@pytest.mark.parametrize("integrator", ["rk4", "dart"])
+def test_restart_from_state_is_bit_exact(integrator):
+    """State through the harness's byte encoding (as on the bus) into a fresh instance."""
+    bodies = {"humanoid": HUMANOID, "target": {"urdf": "../models/target.urdf", "position": [1.2, 0, 0]}}
+    a = 6778e3
+
+    def steps(h, k0, n):
+        out = None
+        for k in range(k0, k0 + n):
+            h.inputs.update(circular(a, k * 1e-3))
+            h.inputs["humanoid.tau"] = 0.05 * np.sin(0.02 * k + np.arange(14))
+            out = h.step(MS)
+        return out
+
+    first = harness(bodies, integrator=integrator)
+    first.inputs.update(circular(a, 0.0))
+    first.initialize()
+    steps(first, 0, 30)
+    blob = first.get_state()
+    expected = steps(first, 30, 30)
+    second = harness(bodies, integrator=integrator)
+    second.inputs.update(circular(a, 0.0))
+    second.initialize()
+    second.set_state(blob)
+    got = steps(second, 30, 30)
+    for key, value in expected.items():
+        assert np.array_equal(value, got[key]), key
+
+
+@pytest.mark.parametrize("config", ["free_floating_humanoid.yaml", "gravity_gradient_libration.yaml"])
+def test_shipped_configs_check(config):
+    done = orchestrator("check", CONFIGS / config)
+    assert done.returncode == 0, done.stdout + done.stderr
+
+
+@pytest.mark.integration
+def test_free_floating_humanoid_config_runs_and_records(tmp_path):
+    import pyarrow.parquet as pq
+
+    done = orchestrator("run", CONFIGS / "free_floating_humanoid.yaml", "--record", tmp_path / "rec",
+                        "--set", "run.duration=0.5s", timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr
+    table = pq.read_table(tmp_path / "rec" / "signals.parquet")
+    assert table.num_rows == 51
+    col = lambda name, n: np.stack([table.column(f"{name}[{i}]").to_numpy() for i in range(n)], 1)  # noqa: E731
+    momentum, time = col("dynamics.humanoid.momentum", 6), table.column("time").to_numpy()
+    # linear momentum changes only by the (recorded) tidal forces on the links: d p / dt = sum F_i
+    force = col("dynamics.humanoid.tidal_force", 3 * 17).reshape(-1, 17, 3).sum(axis=1)
+    impulse = np.sum(0.5 * (force[1:] + force[:-1]) * np.diff(time)[:, None], axis=0)
+    change = momentum[-1, :3] - momentum[0, :3]
+    assert np.linalg.norm(change) > 1e-7
+    assert np.linalg.norm(change - impulse) < 1e-2 * np.linalg.norm(impulse)

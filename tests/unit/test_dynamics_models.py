@@ -1,0 +1,69 @@
+"""models/*.urdf: Table 1 of the paper in the humanoid, names the controller relies on, and both
+URDF readers (ours, Pinocchio's) agree."""
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from components.dynamics.urdf import UrdfError, matrix_to_rpy, read_urdf, rpy_to_matrix
+
+MODELS = Path(__file__).resolve().parents[2] / "models"
+TABLE1_MASS = [2.741, 2.425, 2.209, 0.877, 1.878, 0.409, 0.308]
+TABLE1_LENGTH = [0.28, 0.144, 0.0, 0.274, 0.265, 0.0, 0.0]
+
+
+def test_humanoid_follows_table_1():
+    model = read_urdf(MODELS / "humanoid_torso.urdf")
+    assert model.root == "torso"
+    assert model.movable_joints == [f"arm_{s}_{i}_joint" for s in ("left", "right") for i in range(1, 8)]
+    torso = model.tree.getroot().find("link[@name='torso']/inertial")
+    assert float(torso.find("mass").get("value")) == 93.0
+    inertia = {k: float(v) for k, v in torso.find("inertia").attrib.items()}
+    assert inertia == {"ixx": 18.6, "iyy": 15.4, "izz": 4.1, "ixy": -0.008, "ixz": -0.027, "iyz": 0.058}
+    for side in ("left", "right"):
+        for i in range(7):
+            assert model.link(f"arm_{side}_{i + 1}_link").mass == TABLE1_MASS[i]
+            joint = model.joint(f"arm_{side}_{i + 1}_joint")
+            assert np.linalg.norm(joint.xyz) == pytest.approx(TABLE1_LENGTH[i], abs=1e-9)
+            assert np.isfinite(joint.lower) and np.isfinite(joint.effort)
+        tool = model.joint(f"arm_{side}_tool_joint")
+        assert tool.type == "fixed" and tool.child == f"arm_{side}_tool_link"
+    assert set(model.frame_links()) == {"arm_left_tool_link", "arm_right_tool_link"}
+
+
+@pytest.mark.parametrize("name, nq, mass", [("humanoid_torso", 14, 93 + 2 * sum(TABLE1_MASS)),
+                                            ("servicer", 6, None), ("target", 0, 200.0)])
+def test_pinocchio_loads_the_models_on_a_free_flyer(name, nq, mass):
+    model = pin.buildModelFromUrdf(str(MODELS / f"{name}.urdf"), pin.JointModelFreeFlyer())
+    ours = read_urdf(MODELS / f"{name}.urdf")
+    assert model.nv == 6 + nq and len(ours.movable_joints) == nq
+    total = sum(inertia.mass for inertia in model.inertias)
+    assert total == pytest.approx(sum(link.mass for link in ours.links))
+    if mass is not None:
+        assert total == pytest.approx(mass)
+    if name == "servicer":
+        assert 500.0 < total < 560.0 and model.existFrame("arm_tool_link")
+
+
+def test_rpy_round_trip():
+    rng = np.random.default_rng(1)
+    for rpy in list(rng.uniform(-3, 3, size=(20, 3))) + [np.array([0.3, np.pi / 2, -0.2])]:
+        R = rpy_to_matrix(rpy)
+        assert np.allclose(rpy_to_matrix(matrix_to_rpy(R)), R, atol=1e-12)
+
+
+def test_read_urdf_errors(tmp_path):
+    with pytest.raises(UrdfError, match="not found"):
+        read_urdf(tmp_path / "missing.urdf")
+    path = tmp_path / "cycle.urdf"
+    path.write_text("<robot name='c'><link name='a'/><link name='b'/>"
+                    "<joint name='j1' type='fixed'><parent link='a'/><child link='b'/></joint>"
+                    "<joint name='j2' type='fixed'><parent link='b'/><child link='a'/></joint></robot>")
+    with pytest.raises(UrdfError, match="root"):
+        read_urdf(path)
+    path.write_text("<robot name='c'><link name='a'><inertial><mass value='1'/><inertia ixx='1' iyy='1' izz='1'/>"
+                    "</inertial></link><link name='b'/><joint name='j' type='revolute'><parent link='a'/>"
+                    "<child link='b'/><axis xyz='0 0 1'/></joint></robot>")
+    with pytest.raises(UrdfError, match="needs a <limit>"):
+        read_urdf(path)

@@ -5,7 +5,8 @@
 For each integrator (rk4, dart) and environment (none; tidal + gravity gradient in a 6778 km
 orbit), prints the wall time per communication step of OrbitalWorld.step alone and of the whole
 component step (inputs, step, all outputs) through the in-process harness. The arm follows
-smooth joint torques. A benchmark, not a test: numbers depend on the machine.
+a PD law towards a moving posture
+(within the joint limits). A benchmark, not a test: numbers depend on the machine.
 """
 from __future__ import annotations
 
@@ -29,8 +30,13 @@ START = {"arm_right_1_joint": -0.4, "arm_right_2_joint": -0.3, "arm_right_4_join
          "arm_left_1_joint": -0.4, "arm_left_2_joint": 0.3, "arm_left_4_joint": -1.0}
 
 
-def torques(k: int, n: int) -> np.ndarray:
-    return 0.02 * np.sin(2e-3 * k + np.arange(n))
+REF = np.array([START.get(f"arm_{s}_{i}_joint", 0.0) for s in ("left", "right") for i in range(1, 8)])
+
+
+def torques(k: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+    """A PD towards a slowly moving posture: the arms move, no joint reaches a limit."""
+    ref = REF + 0.3 * np.sin(1.3e-3 * k + np.arange(14))
+    return 2.0 * (ref - q) - 0.5 * qd
 
 
 def bench_world(integrator: str, environment: bool, steps: int, h: float) -> float:
@@ -40,8 +46,9 @@ def bench_world(integrator: str, environment: bool, steps: int, h: float) -> flo
         world.set_orbit(R0, V0)
     world.reset_bodies()
     started = time.perf_counter()
+    body = world.bodies["humanoid"]
     for k in range(steps):
-        world.set_torques("humanoid", torques(k, 14))
+        world.set_torques("humanoid", torques(k, body.joint_positions(), body.joint_velocities()))
         world.step(h)
     return (time.perf_counter() - started) / steps
 
@@ -55,9 +62,10 @@ def bench_component(integrator: str, environment: bool, steps: int, h: float) ->
     harness.initialize()
     h_ns = int(round(h * 1e9))
     started = time.perf_counter()
+    out = harness.outputs
     for k in range(steps):
-        harness.inputs["humanoid.tau"] = torques(k, 14)
-        harness.step(h_ns)
+        harness.inputs["humanoid.tau"] = torques(k, out["humanoid.q"], out["humanoid.qd"])
+        out = harness.step(h_ns)
     return (time.perf_counter() - started) / steps
 
 

@@ -18,6 +18,7 @@ own step with its constraint solver (contacts between bodies). Quaternions [x, y
 | atmosphere | any | - | null | null: piecewise exponential table 0-1000 km; or {altitude, density, scale_height} |
 | mu | float | m^3/s^2 | 3.986004418e14 | Earth's gravitational parameter |
 | joint_limits | bool | - | true | URDF position limits (rk4: inelastic stops; dart: constraints) |
+| link_outputs | bool | - | true | publish the per-link outputs (last five rows below), for the viewer |
 
 Body (``bodies.<name>``):
 
@@ -223,6 +224,8 @@ class DartDynamics(Component):
                   description="null: exponential table 0-1000 km; or {altitude, density, scale_height}"),
         Parameter("mu", "float", unit="m^3/s^2", default=3.986004418e14, description="Earth's gravitational parameter"),
         Parameter("joint_limits", "bool", default=True, description="enforce the URDF joint position limits"),
+        Parameter("link_outputs", "bool", default=True,
+                  description="publish the per-link outputs (poses, environment wrenches) for the viewer"),
     )
 
     @classmethod
@@ -236,10 +239,11 @@ class DartDynamics(Component):
             Variable("w_lvlh", "input", (3,), "rad/s", [0.0, 0.0, 0.0],
                      "LVLH angular velocity, ECI axes; used at initialize for frame: lvlh bodies"),
         ]
+        links = params.get("link_outputs", True)
         for name, model in load_models(params).items():
             n, m = len(model.movable_joints), len(model.links)
             joints = ", ".join(model.movable_joints)
-            links = ", ".join(model.link_names)
+            link_names = ", ".join(model.link_names)
             variables += [
                 Variable(f"{name}.tau", "input", (n,), "N*m", 0.0,
                          f"joint torques (N m, N for prismatic), URDF order: {joints}"),
@@ -253,8 +257,12 @@ class DartDynamics(Component):
                 Variable(f"{name}.com", "output", (3,), "m", 0.0, "body CoM in W"),
                 Variable(f"{name}.momentum", "output", (6,), "kg*m/s, kg*m^2/s", 0.0,
                          "linear momentum, then angular momentum about the body CoM, W axes"),
+            ]
+            if not links:
+                continue
+            variables += [
                 Variable(f"{name}.gg_torque", "output", (3 * m,), "N*m", 0.0,
-                         f"gravity-gradient torque per link about its CoM, W axes, links: {links}"),
+                         f"gravity-gradient torque per link about its CoM, W axes, links: {link_names}"),
                 Variable(f"{name}.tidal_force", "output", (3 * m,), "N", 0.0, "tidal force per link, W axes"),
                 Variable(f"{name}.drag_force", "output", (3 * m,), "N", 0.0, "drag force per link, W axes"),
                 Variable(f"{name}.link_position", "output", (3 * m,), "m", 0.0, "link frame origins in W"),
@@ -300,7 +308,7 @@ class DartDynamics(Component):
     def _outputs(self) -> dict[str, np.ndarray]:
         out = {}
         for name in self.names:
-            for key, value in self.world.outputs(name).items():
+            for key, value in self.world.outputs(name, links=self.params["link_outputs"]).items():
                 out[f"{name}.{key}"] = value
         return out
 

@@ -145,24 +145,29 @@ def quat_to_matrix(q) -> np.ndarray:
 
 
 def matrix_to_quat(R: np.ndarray) -> np.ndarray:
-    """Quaternions [x, y, z, w] with w >= 0 of rotation matrices (..., 3, 3) (Shepperd's method:
-    from the largest of w^2, x^2, y^2, z^2, vectorized)."""
+    """Quaternions [x, y, z, w] with w >= 0 of rotation matrices (..., 3, 3).
+
+    Shepperd's method, vectorized: row k of the symmetric matrix A below is 4 q_k q, and the
+    row with the largest diagonal entry 4 q_k^2 is divided by 4 |q_k| (no small divisor)."""
     R = np.asarray(R, dtype=float)
     m = R.reshape(-1, 3, 3)
+    n = m.shape[0]
+    A = np.empty((n, 4, 4))
     m00, m11, m22 = m[:, 0, 0], m[:, 1, 1], m[:, 2, 2]
-    # 4 x^2, 4 y^2, 4 z^2, 4 w^2 (up to the common 1 + ...), pick the largest per matrix
-    d = np.stack([1.0 + m00 - m11 - m22, 1.0 - m00 + m11 - m22, 1.0 - m00 - m11 + m22, 1.0 + m00 + m11 + m22], axis=1)
-    k = np.argmax(d, axis=1)
-    s = 2.0 * np.sqrt(np.maximum(d[np.arange(len(k)), k], 1e-300))
-    a21, a12, a02, a20, a10, a01 = m[:, 2, 1], m[:, 1, 2], m[:, 0, 2], m[:, 2, 0], m[:, 1, 0], m[:, 0, 1]
-    candidates = np.stack([
-        np.stack([0.25 * s, (a01 + a10) / s, (a02 + a20) / s, (a21 - a12) / s], axis=1),
-        np.stack([(a01 + a10) / s, 0.25 * s, (a12 + a21) / s, (a02 - a20) / s], axis=1),
-        np.stack([(a02 + a20) / s, (a12 + a21) / s, 0.25 * s, (a10 - a01) / s], axis=1),
-        np.stack([(a21 - a12) / s, (a02 - a20) / s, (a10 - a01) / s, 0.25 * s], axis=1),
-    ], axis=0)
-    q = candidates[k, np.arange(len(k))]
-    q = np.where(q[:, 3:4] < 0.0, -q, q)
+    A[:, 0, 0] = 1.0 + m00 - m11 - m22
+    A[:, 1, 1] = 1.0 - m00 + m11 - m22
+    A[:, 2, 2] = 1.0 - m00 - m11 + m22
+    A[:, 3, 3] = 1.0 + m00 + m11 + m22
+    A[:, 0, 1] = A[:, 1, 0] = m[:, 0, 1] + m[:, 1, 0]
+    A[:, 0, 2] = A[:, 2, 0] = m[:, 0, 2] + m[:, 2, 0]
+    A[:, 1, 2] = A[:, 2, 1] = m[:, 1, 2] + m[:, 2, 1]
+    A[:, 0, 3] = A[:, 3, 0] = m[:, 2, 1] - m[:, 1, 2]
+    A[:, 1, 3] = A[:, 3, 1] = m[:, 0, 2] - m[:, 2, 0]
+    A[:, 2, 3] = A[:, 3, 2] = m[:, 1, 0] - m[:, 0, 1]
+    rows = np.arange(n)
+    k = np.argmax(A[:, [0, 1, 2, 3], [0, 1, 2, 3]], axis=1)
+    q = A[rows, k] / (2.0 * np.sqrt(A[rows, k, k]))[:, None]
+    q *= np.where(q[:, 3:4] < 0.0, -1.0, 1.0)
     return q.reshape(R.shape[:-2] + (4,))
 
 
@@ -248,6 +253,8 @@ class _Body:
                 self.link_source.append((nodes[joint.parent], -1, T))
             else:
                 self.link_source.append((nodes[link], node_slot.get(link, -1), None))
+        self.massive_links = np.array([i for i, (_, slot, _) in enumerate(self.link_source) if slot >= 0], dtype=int)
+        self.massive_slots = np.array([slot for _, slot, _ in self.link_source if slot >= 0], dtype=int)
         cd = spec.drag_cd
         self.drag_area = np.array([float(spec.drag_area.get(bn.getName(), 0.0)) for bn in self.nodes])
         self.drag_cd = np.array([float(cd.get(bn.getName(), DEFAULT_CD)) if isinstance(cd, Mapping) else float(cd)
@@ -535,6 +542,9 @@ class OrbitalWorld:
             raise ValueError(f"step: expected a positive duration, got {h} s")
         dt = h / self.substeps
         self._env_now = self.environment_on
+        if not self._env_now:
+            for body in self.bodies.values():
+                body.skel.clearExternalForces()        # none left over from an earlier step
         for k in range(self.substeps):
             s = self.elapsed + k * dt
             if self.integrator == "rk4":
@@ -581,30 +591,14 @@ class OrbitalWorld:
         lever = np.asarray(skel.getCOM()) - np.asarray(skel.getRootBodyNode().getTransform().translation())
         return np.concatenate([linear, h[:3] - env.cross(lever, linear)])
 
-    def outputs(self, name: str) -> dict[str, np.ndarray]:
-        """Every output of body ``name`` at the current state (see the component's table)."""
+    def outputs(self, name: str, links: bool = True) -> dict[str, np.ndarray]:
+        """Every output of body ``name`` at the current state (see the component's table);
+        ``links=False`` leaves out the per-link ones (poses and environment wrenches)."""
         body = self.bodies[name]
         skel = body.skel
         root = skel.getRootBodyNode().getTransform()
         velocities = skel.getVelocities()
-        n_links = len(body.link_names)
-        link_p = np.zeros((n_links, 3))
-        link_R = np.zeros((n_links, 3, 3))
-        for i, (bn, _, offset) in enumerate(body.link_source):
-            T = bn.getTransform().matrix()
-            if offset is not None:
-                T = T @ offset
-            link_p[i], link_R[i] = T[:3, 3], T[:3, :3]
-        gg = np.zeros((n_links, 3))
-        tidal = np.zeros((n_links, 3))
-        drag = np.zeros((n_links, 3))
-        if self.environment_on:
-            R, V = self.reference(self.elapsed)
-            f_tidal, f_drag, t_gg = self.link_wrenches(body, R, V)
-            for i, (_, slot, _) in enumerate(body.link_source):
-                if slot >= 0:
-                    tidal[i], drag[i], gg[i] = f_tidal[slot], f_drag[slot], t_gg[slot]
-        return {
+        out = {
             "position": np.array(root.translation()),
             "orientation": matrix_to_quat(root.rotation()),
             "twist": np.concatenate([velocities[3:6], velocities[:3]]),
@@ -612,11 +606,34 @@ class OrbitalWorld:
             "qd": body.joint_velocities(),
             "com": np.array(skel.getCOM()),
             "momentum": self.momentum(name),
+        }
+        if links:
+            out.update(self.link_outputs(name))
+        return out
+
+    def link_outputs(self, name: str) -> dict[str, np.ndarray]:
+        """Per URDF link (file order), W axes: environment wrenches at the current state
+        (``gg_torque``, ``tidal_force``, ``drag_force``) and ``link_position``, ``link_orientation``."""
+        body = self.bodies[name]
+        n_links = len(body.link_names)
+        T = np.array([bn.getTransform().matrix() for bn, _, _ in body.link_source])
+        for i, (_, _, offset) in enumerate(body.link_source):
+            if offset is not None:
+                T[i] = T[i] @ offset
+        gg = np.zeros((n_links, 3))
+        tidal = np.zeros((n_links, 3))
+        drag = np.zeros((n_links, 3))
+        if self.environment_on:
+            R, V = self.reference(self.elapsed)
+            f_tidal, f_drag, t_gg = self.link_wrenches(body, R, V)
+            links, slots = body.massive_links, body.massive_slots
+            tidal[links], drag[links], gg[links] = f_tidal[slots], f_drag[slots], t_gg[slots]
+        return {
             "gg_torque": gg.ravel(),
             "tidal_force": tidal.ravel(),
             "drag_force": drag.ravel(),
-            "link_position": link_p.ravel(),
-            "link_orientation": matrix_to_quat(link_R).ravel(),
+            "link_position": T[:, :3, 3].ravel(),
+            "link_orientation": matrix_to_quat(T[:, :3, :3]).ravel(),
         }
 
     # ----------------------------------------------------------------- state

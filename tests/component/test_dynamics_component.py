@@ -56,6 +56,13 @@ def test_registered_and_variables_declared():
         assert shapes[f"{body}.link_orientation"] == (4 * links,)
 
 
+def test_link_outputs_can_be_left_out():
+    h = harness(link_outputs=False)
+    names = [v.name for v in h.output_layout.variables]
+    assert "humanoid.momentum" in names and "humanoid.gg_torque" not in names and "humanoid.link_position" not in names
+    assert set(h.initialize()) == set(names)
+
+
 def test_declare_does_not_load_dart():
     code = ("import sys; from components.dynamics.component import DartDynamics as D; "
             "from components.sdk import resolve_parameters as r; "

@@ -127,3 +127,27 @@ def test_environment_wrenches_match_pinocchio_external_forces():
     print(f"environment wrenches up to {largest:.2g}: max relative difference {worst:.2e}")
     assert largest > 1.0
     assert worst < TOL
+
+
+def test_link_poses_match_pinocchio_frames():
+    """link_position / link_orientation outputs (tool frames included) against Pinocchio's
+    frame placements for random configurations: 1e-12."""
+    path = ROOT / "models" / "humanoid_torso.urdf"
+    world = OrbitalWorld([BodySpec("robot", path)])
+    model = free_floating_model(path)
+    data = model.createData()
+    body = world.bodies["robot"]
+    rng = np.random.default_rng(11)
+    for _ in range(5):
+        p, quat, q = rng.normal(size=3), random_rotation(rng), rng.uniform(-1, 1, len(body.joints))
+        world.set_body_state("robot", p, quat, np.zeros(6), q)
+        out = world.link_outputs("robot")
+        positions = out["link_position"].reshape(-1, 3)
+        orientations = out["link_orientation"].reshape(-1, 4)
+        q_pin, _, _ = pinocchio_state(model, body.joints, p, quat, np.zeros(3), np.zeros(3), q, np.zeros(len(q)))
+        pin.framesForwardKinematics(model, data, q_pin)
+        for link, position, orientation in zip(body.link_names, positions, orientations):
+            placement = data.oMf[model.getFrameId(link)]
+            assert np.allclose(position, placement.translation, atol=1e-12), link
+            R = pin.Quaternion(orientation[3], *orientation[:3]).toRotationMatrix()
+            assert np.allclose(R, placement.rotation, atol=1e-12), link

@@ -113,6 +113,22 @@ def test_joint_stop_holds_the_limit_and_keeps_momentum():
     assert drift < 1e-9
 
 
+def test_dart_integrator_enforces_joint_limits():
+    """integrator: dart: DART's joint-limit constraints hold a wrist pushed into its stop
+    (within 0.01 rad, DART's constraint softness)."""
+    world = OrbitalWorld([humanoid()], integrator="dart")
+    world.reset_bodies()
+    body = world.bodies["humanoid"]
+    k7 = body.joints.index("arm_right_7_joint")
+    tau = np.zeros(14)
+    tau[k7] = 0.2
+    for _ in range(500):
+        world.set_torques("humanoid", tau)
+        world.step(1e-3)
+    q = world.outputs("humanoid")["q"][k7]
+    assert abs(q - body.model.joint("arm_right_7_joint").upper) < 0.01
+
+
 def test_effort_limits_clip_torques():
     world = OrbitalWorld([humanoid()])
     world.reset_bodies()

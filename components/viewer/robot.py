@@ -1,0 +1,194 @@
+"""What the viewer needs of a robot: its URDF visuals and its forward kinematics (Pinocchio).
+
+``read_geometry(path)`` reads the links (file order), their CoM and their ``<visual>`` elements
+(box, cylinder, sphere, mesh) with their colours, with :mod:`xml.etree` only.
+``Kinematics`` turns recorded base poses and joint positions into the pose of every link, for a
+whole batch of rows at once: the base is a free flyer (``position`` = base link origin in W,
+``orientation`` = q_W_base [x, y, z, w]) and ``q`` follows the movable joints in URDF file order,
+as the ``dynamics.dart`` outputs do. Units: m, rad.
+"""
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+MOVABLE = ("revolute", "continuous", "prismatic")
+DEFAULT_COLOR = (150, 150, 155, 255)
+
+
+@dataclass(frozen=True)
+class Visual:
+    """One ``<visual>`` of a link: ``kind`` box | cylinder | sphere | mesh, placed by ``xyz``/``rpy``
+    in the link frame. ``size``: box (x, y, z) full lengths; cylinder (radius, length) along its z;
+    sphere (radius,); mesh (scale x, y, z) with ``mesh`` the file, resolved when it exists."""
+    link: str
+    kind: str
+    size: tuple[float, ...]
+    xyz: tuple[float, float, float]
+    rpy: tuple[float, float, float]
+    color: tuple[int, int, int, int]
+    mesh: Path | None = None
+
+
+@dataclass
+class Geometry:
+    """A URDF as the viewer sees it: link names and CoMs (link frame) in file order, movable
+    joints in file order, visuals."""
+    path: Path
+    name: str
+    links: list[str]
+    coms: np.ndarray                         # (n_links, 3), m, link frame
+    joints: list[str]                        # movable joints, file order (layout of q and tau)
+    visuals: list[Visual] = field(default_factory=list)
+
+
+def _floats(text: str | None, n: int, default: tuple[float, ...]) -> tuple[float, ...]:
+    if text is None:
+        return default
+    values = tuple(float(v) for v in text.split())
+    if len(values) != n:
+        raise ValueError(f"expected {n} numbers, got {text!r}")
+    return values
+
+
+def _color(element: ET.Element | None) -> tuple[int, int, int, int] | None:
+    color = element.find("color") if element is not None else None
+    if color is None or color.get("rgba") is None:
+        return None
+    r, g, b, a = _floats(color.get("rgba"), 4, (0.6, 0.6, 0.6, 1.0))
+    return tuple(int(round(255 * min(max(c, 0.0), 1.0))) for c in (r, g, b, a))
+
+
+def _mesh_path(filename: str, urdf_dir: Path) -> Path | None:
+    """A mesh file: ``package://pkg/rest`` and ``file://`` forms are looked up next to the URDF."""
+    name = filename
+    for prefix in ("file://", "package://"):
+        if name.startswith(prefix):
+            name = name[len(prefix):]
+    candidates = [Path(name)] if Path(name).is_absolute() else []
+    parts = Path(name).parts
+    for start in range(len(parts)):
+        candidates += [urdf_dir / Path(*parts[start:]), urdf_dir.parent / Path(*parts[start:])]
+    return next((c for c in candidates if c.is_file()), None)
+
+
+def read_geometry(path: str | Path) -> Geometry:
+    """Links, CoMs, movable joints and visuals of a URDF; ValueError naming the file when broken."""
+    path = Path(path)
+    try:
+        root = ET.parse(path).getroot()
+    except (OSError, ET.ParseError) as e:
+        raise ValueError(f"{path}: cannot read URDF ({e})") from None
+    materials = {m.get("name"): _color(m) for m in root.findall("material")}
+    links, coms, visuals = [], [], []
+    for link in root.findall("link"):
+        name = link.get("name")
+        links.append(name)
+        origin = link.find("inertial/origin")
+        coms.append(_floats(origin.get("xyz") if origin is not None else None, 3, (0.0, 0.0, 0.0)))
+        for visual in link.findall("visual"):
+            origin = visual.find("origin")
+            xyz = _floats(origin.get("xyz") if origin is not None else None, 3, (0.0, 0.0, 0.0))
+            rpy = _floats(origin.get("rpy") if origin is not None else None, 3, (0.0, 0.0, 0.0))
+            material = visual.find("material")
+            color = _color(material) or (materials.get(material.get("name")) if material is not None else None)
+            color = color or DEFAULT_COLOR
+            geometry = visual.find("geometry")
+            shape = geometry[0] if geometry is not None and len(geometry) else None
+            if shape is None:
+                continue
+            if shape.tag == "box":
+                visuals.append(Visual(name, "box", _floats(shape.get("size"), 3, (0.1, 0.1, 0.1)), xyz, rpy, color))
+            elif shape.tag == "cylinder":
+                size = (float(shape.get("radius", 0.05)), float(shape.get("length", 0.1)))
+                visuals.append(Visual(name, "cylinder", size, xyz, rpy, color))
+            elif shape.tag == "sphere":
+                visuals.append(Visual(name, "sphere", (float(shape.get("radius", 0.05)),), xyz, rpy, color))
+            elif shape.tag == "mesh" and shape.get("filename"):
+                scale = _floats(shape.get("scale"), 3, (1.0, 1.0, 1.0))
+                visuals.append(Visual(name, "mesh", scale, xyz, rpy, color,
+                                      _mesh_path(shape.get("filename"), path.parent)))
+    joints = [j.get("name") for j in root.findall("joint") if j.get("type") in MOVABLE]
+    return Geometry(path=path, name=root.get("name", path.stem), links=links,
+                    coms=np.array(coms, dtype=float).reshape(-1, 3), joints=joints, visuals=visuals)
+
+
+def rpy_matrix(rpy) -> np.ndarray:
+    """URDF rpy: R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    r, p, y = rpy
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def matrices_to_quaternions(R: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) -> unit quaternions (..., 4) [x, y, z, w], w >= 0."""
+    from scipy.spatial.transform import Rotation
+
+    shape = R.shape[:-2]
+    q = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat()
+    q *= np.where(q[:, 3:4] < 0, -1.0, 1.0)
+    return q.reshape(*shape, 4)
+
+
+def normalized_quaternions(q: np.ndarray) -> np.ndarray:
+    """Rows of [x, y, z, w] normalized; an all-zero row (nothing recorded yet) becomes identity."""
+    q = np.array(q, dtype=float, copy=True)
+    norm = np.linalg.norm(q, axis=-1, keepdims=True)
+    zero = norm[..., 0] < 1e-12
+    q[zero] = (0.0, 0.0, 0.0, 1.0)
+    norm[zero] = 1.0
+    return q / norm
+
+
+class Kinematics:
+    """Forward kinematics of a free-floating URDF with Pinocchio: link poses in W for batches of rows."""
+
+    def __init__(self, geometry: Geometry):
+        import pinocchio as pin
+
+        self._pin = pin
+        self.geometry = geometry
+        self.model = pin.buildModelFromUrdf(str(geometry.path), pin.JointModelFreeFlyer())
+        self.data = self.model.createData()
+        self.frames = [self.model.getFrameId(link, pin.FrameType.BODY) for link in geometry.links]
+        # where each URDF movable joint sits in Pinocchio's configuration vector (nq 2: cos, sin)
+        self.slots = []
+        for name in geometry.joints:
+            joint = self.model.joints[self.model.getJointId(name)]
+            self.slots.append((joint.idx_q, joint.nq))
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.slots)
+
+    def configuration(self, position, orientation, q) -> np.ndarray:
+        """Pinocchio configuration of one row: base position, q_W_base [x, y, z, w], joints."""
+        config = self._pin.neutral(self.model)
+        config[:3] = position
+        config[3:7] = orientation
+        for (index, nq), value in zip(self.slots, q):
+            if nq == 2:
+                config[index], config[index + 1] = np.cos(value), np.sin(value)
+            else:
+                config[index] = value
+        return config
+
+    def link_poses(self, position: np.ndarray, orientation: np.ndarray, q: np.ndarray):
+        """Rows (n, 3), (n, 4), (n, n_joints) -> link origins (n, L, 3) and rotations (n, L, 3, 3) in W."""
+        pin = self._pin
+        n, L = len(position), len(self.frames)
+        orientation = normalized_quaternions(orientation)
+        translations = np.empty((n, L, 3))
+        rotations = np.empty((n, L, 3, 3))
+        for i in range(n):
+            pin.framesForwardKinematics(self.model, self.data, self.configuration(position[i], orientation[i], q[i]))
+            for j, frame in enumerate(self.frames):
+                placement = self.data.oMf[frame]
+                translations[i, j] = placement.translation
+                rotations[i, j] = placement.rotation
+        return translations, rotations

@@ -1,0 +1,499 @@
+"""Recorded rows -> Rerun log calls: the content and layout of the Zenorbit view (no bus, no I/O).
+
+``SceneLogger(columns, config, config_dir, recording)`` looks at the resolved config (components by
+their ``type``: ``orbit.*``, ``dynamics.*`` with ``bodies``, ``controller.*``) and at the recorded
+column names (``<component>.<name>`` or ``<component>.<name>[i]``, DESIGN §6), and then turns
+batches of rows (step, time, one float64 per column) into columnar Rerun logs on two timelines,
+``sim_time`` (a duration, s) and ``step`` (a sequence). Whatever is absent is simply not shown.
+
+Entities (SI units; W = the dynamics world frame, ECI = GCRF axes):
+
+| entity | what |
+|---|---|
+| ``/world/<dyn>/<body>/links/<link>`` | each link's pose in W (Pinocchio forward kinematics of ``position``, ``orientation``, ``q``), URDF visuals as static children |
+| ``/world/<dyn>/<body>/com`` | the body's CoM (``com``) |
+| ``/world/<dyn>/<body>/gg_torque`` (``tidal_force``, ``drag_force``) | per-link arrows at the link CoMs, scaled (see ``/notes``) |
+| ``/world/<ctrl>/ee_desired``, ``ee_actual`` | end-effector paths (trails: the blueprint shows all past points) |
+| ``/world/lvlh/axes`` | LVLH axes at the W origin (``q_eci_lvlh``; W axes are ECI axes) |
+| ``/orbit/earth`` | the Earth, R = 6378.137 km |
+| ``/orbit/<orbit>/trail``, ``/orbit/<orbit>/spacecraft/lvlh`` | ``r_eci`` trail, LVLH axes at the spacecraft |
+| ``/plots/<ctrl>/ee_position/{actual,desired}``, ``ee_error/{position,orientation}``, ``tau`` | paper Figs. 5, 6, 7 |
+| ``/plots/<dyn>/<body>/momentum/{linear,angular}``, ``gg_torque_norm`` | momentum, per-link gravity-gradient torque magnitude |
+| ``/signals/<component>/<name>`` | every other recorded variable, one plot series per element |
+| ``/notes`` | run summary and arrow scales (text) |
+"""
+from __future__ import annotations
+
+import re
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from components.viewer.robot import (Geometry, Kinematics, matrices_to_quaternions, normalized_quaternions,
+                                     read_geometry, rpy_matrix)
+
+TIMELINE = "sim_time"
+STEP_TIMELINE = "step"
+EARTH_RADIUS = 6378137.0            # m, WGS-84 equatorial
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
+COLUMN = re.compile(r"^(?P<component>[^.\[]+)\.(?P<name>[^\[]+?)(?:\[(?P<index>\d+)\])?$")
+AXIS_COLORS = [(230, 60, 60), (60, 200, 80), (70, 110, 240)]
+LIGHT_AXIS_COLORS = [(250, 160, 150), (150, 230, 160), (150, 180, 250)]
+VECTOR_FIELDS = {            # per-link 3-vectors drawn as arrows: colour, label
+    "gg_torque": ((190, 90, 230), "gravity-gradient torque"),
+    "tidal_force": ((40, 200, 210), "tidal force"),
+    "drag_force": ((240, 150, 40), "drag force"),
+}
+BULK = ("link_position", "link_orientation")      # drawn through the link poses, never plotted
+ARROW_LENGTH = 0.25                                # m, the longest arrow of a field when first seen
+
+
+def parse_columns(columns: list[str]) -> dict[tuple[str, str], np.ndarray]:
+    """``[c.x[0], c.x[1], c.y]`` -> {(c, x): [0, 1], (c, y): [2]}: column indices by variable, in element order."""
+    found: dict[tuple[str, str], list[tuple[int, int]]] = {}
+    for position, column in enumerate(columns):
+        match = COLUMN.match(column)
+        if not match:
+            continue
+        element = int(match["index"]) if match["index"] is not None else 0
+        found.setdefault((match["component"], match["name"]), []).append((element, position))
+    return {key: np.array([p for _, p in sorted(items)], dtype=np.int64) for key, items in found.items()}
+
+
+def resolve_urdf(value: str, config_dir: Path | None) -> Path | None:
+    """A URDF path from a config: absolute, else relative to the config file, else to the project root."""
+    path = Path(value)
+    candidates = [path] if path.is_absolute() else [*([config_dir / path] if config_dir else []),
+                                                     Path.cwd() / path, PROJECT_ROOT / path]
+    return next((c for c in candidates if c.is_file()), None)
+
+
+def body_entries(raw: Any) -> list[tuple[str, dict]]:
+    """``bodies`` as name -> spec, or as a list of specs with ``name``."""
+    if isinstance(raw, dict):
+        return [(str(k), v) for k, v in raw.items() if isinstance(v, dict)]
+    if isinstance(raw, list):
+        return [(str(v["name"]), v) for v in raw if isinstance(v, dict) and "name" in v]
+    return []
+
+
+def _path(*parts: str) -> str:
+    import rerun as rr
+    return "/" + "/".join(rr.escape_entity_path_part(p) for p in parts)
+
+
+@dataclass
+class _Body:
+    dynamics: str
+    name: str
+    geometry: Geometry | None
+    kinematics: Kinematics | None
+    position: np.ndarray | None
+    orientation: np.ndarray | None
+    q: np.ndarray | None
+    com: np.ndarray | None
+    momentum: np.ndarray | None
+    fields: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def base(self) -> str:
+        return _path("world", self.dynamics, self.name)
+
+
+@dataclass
+class _Controller:
+    name: str
+    ee_position: np.ndarray | None
+    ee_desired: np.ndarray | None
+    ee_error: np.ndarray | None
+    tau: np.ndarray | None
+    joints: list[str] | None
+
+
+@dataclass
+class _Orbit:
+    name: str
+    r_eci: np.ndarray | None
+    q_eci_lvlh: np.ndarray | None
+
+
+class SceneLogger:
+    """Turns rows of a Zenorbit run into Rerun log calls on ``recording`` (a ``rr.RecordingStream``).
+
+    Call ``log_static()`` once, then ``log_rows(steps, times, rows)`` with batches of rows in time
+    order (``rows``: shape (n, len(columns)), float64). ``blueprint()`` lays the views out.
+    """
+
+    def __init__(self, columns: list[str], config: dict, config_dir: str | Path | None = None, *,
+                 recording=None, warn: Callable[[str], None] | None = None):
+        self.columns = list(columns)
+        self.config = config or {}
+        self.config_dir = Path(config_dir) if config_dir else None
+        self.rec = recording
+        self.warn = warn or (lambda message: print(f"viewer: {message}", file=sys.stderr, flush=True))
+        self.variables = parse_columns(self.columns)
+        self.shown: set[tuple[str, str]] = set()
+        components = self.config.get("components") or {}
+        types = {name: str((entry or {}).get("type", "")) for name, entry in components.items()}
+        self.connections = {str(k): str(v) for k, v in (self.config.get("connections") or {}).items()}
+        self.bodies = [body for name, t in types.items() if t.startswith("dynamics.")
+                       for body in self._bodies(name, components[name])]
+        self.controllers = [self._controller(name) for name, t in types.items() if t.startswith("controller.")]
+        self.orbits = [self._orbit(name) for name, t in types.items() if t.startswith("orbit.")]
+        self.world_lvlh = self._world_lvlh()
+        for key in self.variables:
+            if key[1].split(".")[-1] in BULK:
+                self.shown.add(key)
+        self.signals = [key for key in self.variables if key not in self.shown]
+        self.arrow_scales: dict[tuple[str, str, str], float] = {}
+        self.rows_logged = 0
+
+    # ------------------------------------------------------------------ discovery
+
+    def _take(self, component: str, name: str, size: int | None = None) -> np.ndarray | None:
+        """Column indices of ``component.name`` (and mark it shown), or None if absent / wrong size."""
+        index = self.variables.get((component, name))
+        if index is None or (size is not None and len(index) != size):
+            return None
+        self.shown.add((component, name))
+        return index
+
+    def _bodies(self, dynamics: str, entry: dict) -> list[_Body]:
+        bodies = []
+        parameters = (entry or {}).get("parameters") or {}
+        for name, spec in body_entries(parameters.get("bodies")):
+            geometry = kinematics = None
+            urdf = resolve_urdf(str(spec.get("urdf", "")), self.config_dir) if spec.get("urdf") else None
+            if urdf is None:
+                self.warn(f"{dynamics}.{name}: URDF {spec.get('urdf')!r} not found; the robot is not drawn")
+            else:
+                try:
+                    geometry = read_geometry(urdf)
+                    kinematics = Kinematics(geometry)
+                except Exception as e:  # a URDF Pinocchio cannot load: plots still work
+                    self.warn(f"{dynamics}.{name}: cannot build the kinematics of {urdf} ({e}); the robot is not drawn")
+                    geometry = geometry if geometry is not None else None
+                    kinematics = None
+            n_joints = len(geometry.joints) if geometry else None
+            n_links = len(geometry.links) if geometry else None
+            body = _Body(dynamics, name, geometry, kinematics,
+                         position=self._take(dynamics, f"{name}.position", 3),
+                         orientation=self._take(dynamics, f"{name}.orientation", 4),
+                         q=self.variables.get((dynamics, f"{name}.q")),
+                         com=self._take(dynamics, f"{name}.com", 3),
+                         momentum=self._take(dynamics, f"{name}.momentum", 6))
+            if body.q is not None and n_joints is not None and len(body.q) != n_joints:
+                self.warn(f"{dynamics}.{name}.q has {len(body.q)} values, the URDF {n_joints} joints; "
+                          "the robot is not drawn")
+                body.kinematics = None
+            if n_links:
+                for key in VECTOR_FIELDS:
+                    index = self._take(dynamics, f"{name}.{key}", 3 * n_links)
+                    if index is not None:
+                        body.fields[key] = index
+            bodies.append(body)
+        return bodies
+
+    def _controlled_body(self, controller: str) -> _Body | None:
+        """The body whose ``tau`` input the controller's ``tau`` feeds (from the connections)."""
+        for destination, source in self.connections.items():
+            if source == f"{controller}.tau" and destination.endswith(".tau"):
+                for body in self.bodies:
+                    if destination == f"{body.dynamics}.{body.name}.tau":
+                        return body
+        return None
+
+    def _controller(self, name: str) -> _Controller:
+        tau = self._take(name, "tau")
+        body = self._controlled_body(name)
+        joints = body.geometry.joints if body is not None and body.geometry is not None else None
+        if tau is not None and joints is not None and len(joints) != len(tau):
+            joints = None
+        return _Controller(name, ee_position=self._take(name, "ee_position", 3),
+                           ee_desired=self._take(name, "ee_position_desired", 3),
+                           ee_error=self._take(name, "ee_error", 6), tau=tau, joints=joints)
+
+    def _orbit(self, name: str) -> _Orbit:
+        return _Orbit(name, r_eci=self.variables.get((name, "r_eci")) if len(
+            self.variables.get((name, "r_eci"), ())) == 3 else None,
+            q_eci_lvlh=self.variables.get((name, "q_eci_lvlh")) if len(
+                self.variables.get((name, "q_eci_lvlh"), ())) == 4 else None)
+
+    def _world_lvlh(self) -> np.ndarray | None:
+        """LVLH attitude for the robot view: the orbit output feeding the dynamics, else the first orbit."""
+        feeding = [source for destination, source in self.connections.items()
+                   if destination.endswith(".q_eci_lvlh") and any(destination.startswith(f"{b.dynamics}.")
+                                                                   for b in self.bodies)]
+        for orbit in self.orbits:
+            if f"{orbit.name}.q_eci_lvlh" in feeding and orbit.q_eci_lvlh is not None:
+                return orbit.q_eci_lvlh
+        if self.bodies:
+            return next((o.q_eci_lvlh for o in self.orbits if o.q_eci_lvlh is not None), None)
+        return None
+
+    # ------------------------------------------------------------------ layout
+
+    def _trail(self):
+        import rerun.blueprint as rrb
+        return rrb.VisibleTimeRanges(timeline=TIMELINE, start=rrb.TimeRangeBoundary.infinite(),
+                                     end=rrb.TimeRangeBoundary.cursor_relative())
+
+    def blueprint(self):
+        """The layout: robots and orbit in 3D on the left, the paper's plots in the middle, the rest in tabs."""
+        import rerun.blueprint as rrb
+
+        spatial = []
+        if self.bodies or any(c.ee_position is not None or c.ee_desired is not None for c in self.controllers):
+            trails = {}
+            for c in self.controllers:
+                if c.ee_desired is not None:
+                    trails[_path("world", c.name, "ee_desired")] = self._trail()
+                if c.ee_position is not None:
+                    trails[_path("world", c.name, "ee_actual")] = self._trail()
+            spatial.append(rrb.Spatial3DView(origin="/world", name="Robots (W frame)", overrides=trails))
+        if self.orbits:
+            trails = {_path("orbit", o.name, "trail"): self._trail() for o in self.orbits if o.r_eci is not None}
+            spatial.append(rrb.Spatial3DView(origin="/orbit", name="Orbit (ECI)", overrides=trails))
+        figures = []
+        for c in self.controllers:
+            if c.ee_position is not None or c.ee_desired is not None:
+                figures.append(rrb.TimeSeriesView(origin=_path("plots", c.name, "ee_position"),
+                                                  name=f"{c.name}: end effector, desired vs actual (m, W)"))
+            if c.ee_error is not None:
+                figures.append(rrb.TimeSeriesView(origin=_path("plots", c.name, "ee_error"),
+                                                  name=f"{c.name}: end-effector error (m, rad)"))
+            if c.tau is not None:
+                figures.append(rrb.TimeSeriesView(origin=_path("plots", c.name, "tau"),
+                                                  name=f"{c.name}: joint torques (N m)"))
+        tabs = []
+        for b in self.bodies:
+            if b.momentum is not None:
+                tabs.append(rrb.TimeSeriesView(origin=b.base.replace("/world", "/plots", 1) + "/momentum",
+                                               name=f"{b.name}: momentum (W)"))
+            if "gg_torque" in b.fields:
+                tabs.append(rrb.TimeSeriesView(origin=b.base.replace("/world", "/plots", 1) + "/gg_torque_norm",
+                                               name=f"{b.name}: gravity-gradient torque per link (N m)"))
+        for component in dict.fromkeys(c for c, _ in self.signals):
+            tabs.append(rrb.TimeSeriesView(origin=_path("signals", component), name=f"{component} signals"))
+        tabs.append(rrb.TextDocumentView(origin="/notes", name="Run"))
+        columns = []
+        if spatial:
+            columns.append(rrb.Vertical(*spatial))
+        if figures:
+            columns.append(rrb.Vertical(*figures))
+        columns.append(rrb.Tabs(*tabs))
+        layout = rrb.Horizontal(*columns, column_shares=[3, 2, 2][:len(columns)] if len(columns) > 1 else None)
+        return rrb.Blueprint(layout, rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
+                             rrb.TimePanel(state="collapsed"))
+
+    # ------------------------------------------------------------------ static content
+
+    def _log(self, path: str, *archetypes, static: bool = False) -> None:
+        import rerun as rr
+        rr.log(path, *archetypes, static=static, recording=self.rec)
+
+    def log_static(self) -> None:
+        """Everything that does not change: visuals, the Earth, axes, plot series names and colours."""
+        import rerun as rr
+
+        for root in ("/world", "/orbit"):
+            self._log(root, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        for body in self.bodies:
+            self._log_body_static(body)
+        for c in self.controllers:
+            if c.ee_desired is not None:
+                self._log(_path("world", c.name, "ee_desired"),
+                          rr.Points3D.from_fields(colors=[(250, 170, 40)], radii=[-2.0]), static=True)
+                self._series(_path("plots", c.name, "ee_position", "desired"),
+                             [f"{a} desired" for a in "xyz"], LIGHT_AXIS_COLORS)
+            if c.ee_position is not None:
+                self._log(_path("world", c.name, "ee_actual"),
+                          rr.Points3D.from_fields(colors=[(40, 220, 250)], radii=[-2.5]), static=True)
+                self._series(_path("plots", c.name, "ee_position", "actual"), [f"{a} actual" for a in "xyz"])
+            if c.ee_error is not None:
+                self._series(_path("plots", c.name, "ee_error", "position"), [f"e_{a} (m)" for a in "xyz"])
+                self._series(_path("plots", c.name, "ee_error", "orientation"), [f"e_{a} (rad)" for a in
+                                                                                   ("roll", "pitch", "yaw")],
+                             LIGHT_AXIS_COLORS)
+            if c.tau is not None:
+                self._series(_path("plots", c.name, "tau"), c.joints or [f"tau[{i}]" for i in range(len(c.tau))])
+        if self.world_lvlh is not None:
+            self._log("/world/lvlh/axes", rr.Arrows3D(origins=np.zeros((3, 3)), vectors=0.5 * np.eye(3),
+                                                      colors=AXIS_COLORS, labels=["LVLH x (radial)", "y", "z (normal)"]),
+                      static=True)
+        if self.orbits:
+            self._log("/orbit/earth", rr.Ellipsoids3D(half_sizes=[[EARTH_RADIUS] * 3], colors=[(35, 80, 160)],
+                                                      fill_mode="solid"), static=True)
+            self._log("/orbit/earth/grid", rr.Ellipsoids3D(half_sizes=[[EARTH_RADIUS * 1.002] * 3],
+                                                           colors=[(120, 170, 230)], line_radii=[-0.5],
+                                                           fill_mode="majorwireframe"), static=True)
+        for o in self.orbits:
+            if o.r_eci is None:
+                continue
+            self._log(_path("orbit", o.name, "trail"), rr.Points3D.from_fields(colors=[(250, 220, 90)], radii=[-1.5]),
+                      static=True)
+            self._log(_path("orbit", o.name, "spacecraft", "marker"),
+                      rr.Points3D([[0.0, 0.0, 0.0]], colors=[(255, 255, 255)], radii=[-5.0], labels=[o.name]),
+                      static=True)
+            if o.q_eci_lvlh is not None:
+                self._log(_path("orbit", o.name, "spacecraft", "lvlh"),
+                          rr.Arrows3D(origins=np.zeros((3, 3)), vectors=1.5e6 * np.eye(3), colors=AXIS_COLORS,
+                                      labels=["x radial", "y along-track", "z normal"]), static=True)
+        for body in self.bodies:
+            plots = body.base.replace("/world", "/plots", 1)
+            if body.momentum is not None:
+                self._series(plots + "/momentum/linear", [f"p_{a} (kg m/s)" for a in "xyz"])
+                self._series(plots + "/momentum/angular", [f"h_{a} (kg m²/s)" for a in "xyz"], LIGHT_AXIS_COLORS)
+            if "gg_torque" in body.fields:
+                self._series(plots + "/gg_torque_norm", body.geometry.links)
+        for component, name in self.signals:
+            n = len(self.variables[component, name])
+            self._series(_path("signals", component, name), [name] if n == 1 else [f"{name}[{i}]" for i in range(n)])
+        self._notes()
+
+    def _series(self, path: str, names: list[str], colors=None) -> None:
+        import rerun as rr
+        if colors is None and len(names) <= 3:
+            colors = AXIS_COLORS
+        self._log(path, rr.SeriesLines(names=names, colors=colors[:len(names)] if colors else None), static=True)
+
+    def _log_body_static(self, body: _Body) -> None:
+        import rerun as rr
+
+        if body.geometry is None:
+            return
+        for k, visual in enumerate(body.geometry.visuals):
+            path = f"{body.base}/links/{rr.escape_entity_path_part(visual.link)}/visual_{k}"
+            quaternion = matrices_to_quaternions(rpy_matrix(visual.rpy))
+            common = dict(centers=[visual.xyz], quaternions=[quaternion], colors=[visual.color], fill_mode="solid")
+            if visual.kind == "box":
+                self._log(path, rr.Boxes3D(half_sizes=[np.array(visual.size) / 2], **common), static=True)
+            elif visual.kind == "cylinder":
+                self._log(path, rr.Cylinders3D(radii=[visual.size[0]], lengths=[visual.size[1]], **common), static=True)
+            elif visual.kind == "sphere":
+                self._log(path, rr.Ellipsoids3D(half_sizes=[[visual.size[0]] * 3], **common), static=True)
+            elif visual.kind == "mesh":
+                if visual.mesh is None or visual.mesh.suffix.lower() not in (".stl", ".obj", ".glb", ".gltf"):
+                    self.warn(f"{body.name}: mesh of link {visual.link} not found or not supported; not drawn")
+                    continue
+                self._log(path, rr.Transform3D(translation=visual.xyz, quaternion=quaternion, scale=visual.size),
+                          rr.Asset3D(path=visual.mesh), static=True)
+        if body.com is not None:
+            self._log(f"{body.base}/com", rr.Points3D.from_fields(colors=[(255, 230, 0)], radii=[-4.0],
+                                                                labels=[f"{body.name} CoM"]), static=True)
+        for key, index in body.fields.items():
+            color, _ = VECTOR_FIELDS[key]
+            self._log(f"{body.base}/{key}", rr.Arrows3D.from_fields(colors=[color], radii=[-1.5]), static=True)
+
+    def _notes(self) -> None:
+        import rerun as rr
+
+        run = self.config.get("run") or {}
+        lines = [f"# {run.get('name', 'Zenorbit run')}", "",
+                 f"epoch {run.get('epoch', '?')}, step {run.get('step', '?')}, duration {run.get('duration', '?')}", "",
+                 "| component | type |", "|---|---|"]
+        for name, entry in (self.config.get("components") or {}).items():
+            lines.append(f"| {name} | {(entry or {}).get('type', '?')} |")
+        if self.arrow_scales:
+            lines += ["", "Arrow scales (length in m per unit of the signal):", ""]
+            for (dynamics, body, key), scale in sorted(self.arrow_scales.items()):
+                unit = "N m" if key == "gg_torque" else "N"
+                lines.append(f"- {dynamics}.{body}.{key}: {scale:.4g} m per {unit}")
+        self._log("/notes", rr.TextDocument("\n".join(lines), media_type=rr.MediaType.MARKDOWN), static=True)
+
+    # ------------------------------------------------------------------ rows
+
+    def log_rows(self, steps, times, rows) -> None:
+        """Log a batch of rows: ``steps`` (n,) int, ``times`` (n,) s, ``rows`` (n, n_columns) float64."""
+        import rerun as rr
+
+        rows = np.asarray(rows, dtype=np.float64).reshape(-1, len(self.columns))
+        if not len(rows):
+            return
+        steps = np.asarray(steps, dtype=np.int64)
+        times = np.asarray(times, dtype=np.float64)
+        indexes = [rr.TimeColumn(TIMELINE, duration=times), rr.TimeColumn(STEP_TIMELINE, sequence=steps)]
+
+        def send(path, columns):
+            rr.send_columns(path, indexes=indexes, columns=columns, recording=self.rec)
+
+        def scalars(path, index):
+            send(path, rr.Scalars.columns(scalars=rows[:, index]))
+
+        notes_changed = False
+        for body in self.bodies:
+            notes_changed |= self._log_body(body, rows, send)
+        for c in self.controllers:
+            if c.ee_desired is not None:
+                send(_path("world", c.name, "ee_desired"), rr.Points3D.columns(positions=rows[:, c.ee_desired]))
+                scalars(_path("plots", c.name, "ee_position", "desired"), c.ee_desired)
+            if c.ee_position is not None:
+                send(_path("world", c.name, "ee_actual"), rr.Points3D.columns(positions=rows[:, c.ee_position]))
+                scalars(_path("plots", c.name, "ee_position", "actual"), c.ee_position)
+            if c.ee_error is not None:
+                scalars(_path("plots", c.name, "ee_error", "position"), c.ee_error[:3])
+                scalars(_path("plots", c.name, "ee_error", "orientation"), c.ee_error[3:])
+            if c.tau is not None:
+                scalars(_path("plots", c.name, "tau"), c.tau)
+        if self.world_lvlh is not None:
+            send("/world/lvlh", rr.Transform3D.columns(quaternion=normalized_quaternions(rows[:, self.world_lvlh])))
+        for o in self.orbits:
+            if o.r_eci is None:
+                continue
+            r = rows[:, o.r_eci]
+            send(_path("orbit", o.name, "trail"), rr.Points3D.columns(positions=r))
+            if o.q_eci_lvlh is not None:
+                send(_path("orbit", o.name, "spacecraft"), rr.Transform3D.columns(
+                    translation=r, quaternion=normalized_quaternions(rows[:, o.q_eci_lvlh])))
+            else:
+                send(_path("orbit", o.name, "spacecraft"), rr.Transform3D.columns(translation=r))
+        for component, name in self.signals:
+            scalars(_path("signals", component, name), self.variables[component, name])
+        if notes_changed:
+            self._notes()
+        self.rows_logged += len(rows)
+
+    def _log_body(self, body: _Body, rows: np.ndarray, send) -> bool:
+        """Link poses, CoM, per-link arrows and plots of one body; True when an arrow scale was set."""
+        import rerun as rr
+
+        changed = False
+        plots = body.base.replace("/world", "/plots", 1)
+        n = len(rows)
+        rotations = None
+        if body.kinematics is not None and body.position is not None and body.orientation is not None:
+            q = rows[:, body.q] if body.q is not None else np.zeros((n, body.kinematics.n_joints))
+            translations, rotations = body.kinematics.link_poses(rows[:, body.position], rows[:, body.orientation], q)
+            quaternions = matrices_to_quaternions(rotations)
+            for j, link in enumerate(body.geometry.links):
+                send(f"{body.base}/links/{rr.escape_entity_path_part(link)}",
+                     rr.Transform3D.columns(translation=translations[:, j], quaternion=quaternions[:, j]))
+        if body.com is not None:
+            send(f"{body.base}/com", rr.Points3D.columns(positions=rows[:, body.com]))
+        if body.momentum is not None:
+            send(plots + "/momentum/linear", rr.Scalars.columns(scalars=rows[:, body.momentum[:3]]))
+            send(plots + "/momentum/angular", rr.Scalars.columns(scalars=rows[:, body.momentum[3:]]))
+        if body.fields:
+            L = len(body.geometry.links)
+            if rotations is not None:     # arrows start at the link CoMs, in W
+                origins = translations + np.einsum("nlij,lj->nli", rotations, body.geometry.coms)
+            for key, index in body.fields.items():
+                vectors = rows[:, index].reshape(n, L, 3)
+                if key == "gg_torque":
+                    send(plots + "/gg_torque_norm", rr.Scalars.columns(scalars=np.linalg.norm(vectors, axis=2)))
+                if rotations is None:
+                    continue
+                scale_key = (body.dynamics, body.name, key)
+                if scale_key not in self.arrow_scales:
+                    largest = float(np.linalg.norm(vectors, axis=2).max())
+                    if largest <= 0.0 or not np.isfinite(largest):
+                        continue
+                    self.arrow_scales[scale_key] = ARROW_LENGTH / largest
+                    changed = True
+                scale = self.arrow_scales[scale_key]
+                send(f"{body.base}/{key}", rr.Arrows3D.columns(
+                    origins=origins.reshape(-1, 3), vectors=scale * vectors.reshape(-1, 3)).partition([L] * n))
+        return changed

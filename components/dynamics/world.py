@@ -199,10 +199,12 @@ class _Body:
         loader = dart.utils.DartLoader()
         options = dart.utils.DartLoader.Options()
         options.mDefaultRootJointType = dart.utils.DartLoader.RootJointType.FLOATING
-        massless = dart.dynamics.Inertia()                      # links without <inertial>: 0 kg, as URDF
-        massless.setMass(0.0)
-        massless.setMoment(np.zeros((3, 3)))
-        options.mDefaultInertia = massless
+        frames = model.frame_links()
+        if any(not link.has_inertial and link.name not in frames for link in model.links):
+            massless = dart.dynamics.Inertia()                  # links without <inertial>: 0 kg, as in URDF
+            massless.setMass(0.0)                               # (DART's default is 1 kg; it warns on 0)
+            massless.setMoment(np.zeros((3, 3)))
+            options.mDefaultInertia = massless
         loader.setOptions(options)
         uri = dart.common.Uri.createFromPath(str(Path(spec.urdf).resolve()))
         skel = loader.parseSkeletonString(dart_urdf_text(model, self.locked), uri)
@@ -242,7 +244,6 @@ class _Body:
         self.local_inertia = np.array([bn.getInertia().getMoment() for bn in self.nodes]).reshape(-1, 3, 3)
         self.total_mass = float(self.mass.sum())
         node_slot = {bn.getName(): i for i, bn in enumerate(self.nodes)}
-        frames = model.frame_links()
         self.link_names = model.link_names
         self.link_source = []                                  # (node or None, env slot or -1, fixed offset)
         for link in self.link_names:

@@ -99,10 +99,7 @@ class Variable:
             raise ValueError(f"variable {self.name}: causality must be one of {CAUSALITIES}, got {self.causality!r}")
         start = np.broadcast_to(np.asarray(self.start, dtype=np.float64), self.shape).copy()
         object.__setattr__(self, "start", start)
-
-    @property
-    def size(self) -> int:
-        return int(np.prod(self.shape, dtype=np.int64)) if self.shape else 1
+        object.__setattr__(self, "size", int(np.prod(self.shape, dtype=np.int64)) if self.shape else 1)
 
     def columns(self, prefix: str) -> list[str]:
         """Recording column names: ``prefix.name`` or ``prefix.name[i]``."""
@@ -199,6 +196,8 @@ class Layout:
             self.offsets[v.name] = slice(start, start + v.size)
             start += v.size
         self.size = start
+        # (name, slice, size, shape) once, for the per-step pack/unpack
+        self._plan = [(v.name, self.offsets[v.name], v.size, v.shape) for v in self.variables]
 
     def start_vector(self) -> np.ndarray:
         out = np.empty(self.size)
@@ -208,19 +207,18 @@ class Layout:
 
     def pack(self, values: Mapping[str, Any], into: np.ndarray) -> None:
         """Write named values into ``into``; every variable of the layout must be present."""
-        for v in self.variables:
+        for name, where, size, shape in self._plan:
             try:
-                value = values[v.name]
+                value = values[name]
             except KeyError:
-                raise ComponentOutputError(f"output {v.name!r} missing from the step's result") from None
-            array = np.asarray(value, dtype=np.float64)
-            if array.size != v.size:
-                raise ComponentOutputError(f"output {v.name!r} has {array.size} values, declared shape {v.shape}")
-            into[self.offsets[v.name]] = array.ravel()
+                raise ComponentOutputError(f"output {name!r} missing from the step's result") from None
+            if np.size(value) != size:
+                raise ComponentOutputError(f"output {name!r} has {np.size(value)} values, declared shape {shape}")
+            into[where] = np.ravel(value)
 
     def unpack(self, vector: np.ndarray) -> dict[str, np.ndarray]:
         """Views of ``vector`` by variable name (scalars as 0-d arrays)."""
-        return {v.name: vector[self.offsets[v.name]].reshape(v.shape) for v in self.variables}
+        return {name: vector[where].reshape(shape) for name, where, _, shape in self._plan}
 
 
 class ComponentOutputError(Exception):

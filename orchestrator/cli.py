@@ -193,6 +193,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("describe", help="print a component type's parameters and variables")
     p.add_argument("type")
     p.set_defaults(func=cmd_describe)
+
+    from components.viewer.replay import add_view_command   # orchestrator view DIR: replay in Rerun
+    add_view_command(sub)
     return parser
 
 

@@ -49,6 +49,7 @@ VECTOR_FIELDS = {            # per-link 3-vectors drawn as arrows: colour, label
 }
 BULK = ("link_position", "link_orientation")      # drawn through the link poses, never plotted
 ARROW_LENGTH = 0.25                                # m, the longest arrow of a field when first seen
+ROBOT_EYE = (1.9, -1.6, 1.0)                       # m, initial camera of the robot view
 
 
 def parse_columns(columns: list[str]) -> dict[tuple[str, str], np.ndarray]:
@@ -137,7 +138,7 @@ class SceneLogger:
         self.variables = parse_columns(self.columns)
         self.shown: set[tuple[str, str]] = set()
         components = self.config.get("components") or {}
-        types = {name: str((entry or {}).get("type", "")) for name, entry in components.items()}
+        types = {name: self._type_name(str((entry or {}).get("type", ""))) for name, entry in components.items()}
         self.connections = {str(k): str(v) for k, v in (self.config.get("connections") or {}).items()}
         self.bodies = [body for name, t in types.items() if t.startswith("dynamics.")
                        for body in self._bodies(name, components[name])]
@@ -153,12 +154,28 @@ class SceneLogger:
 
     # ------------------------------------------------------------------ discovery
 
-    def _take(self, component: str, name: str, size: int | None = None) -> np.ndarray | None:
-        """Column indices of ``component.name`` (and mark it shown), or None if absent / wrong size."""
+    def _type_name(self, type_: str) -> str:
+        """A registered type name as is; for ``module:Class`` / ``file.py:Class``, the class's ``type_name``."""
+        if ":" not in type_:
+            return type_
+        try:
+            from components import registry
+            return registry.load(type_, self.config_dir).type_name or type_
+        except Exception:
+            return type_
+
+    def _find(self, component: str, name: str, size: int | None = None) -> np.ndarray | None:
+        """Column indices of ``component.name``, or None if absent or not of ``size`` elements."""
         index = self.variables.get((component, name))
         if index is None or (size is not None and len(index) != size):
             return None
-        self.shown.add((component, name))
+        return index
+
+    def _take(self, component: str, name: str, size: int | None = None) -> np.ndarray | None:
+        """As ``_find``, and the variable is shown elsewhere than under /signals."""
+        index = self._find(component, name, size)
+        if index is not None:
+            self.shown.add((component, name))
         return index
 
     def _bodies(self, dynamics: str, entry: dict) -> list[_Body]:
@@ -173,15 +190,14 @@ class SceneLogger:
                 try:
                     geometry = read_geometry(urdf)
                     kinematics = Kinematics(geometry)
-                except Exception as e:  # a URDF Pinocchio cannot load: plots still work
+                except Exception as e:  # a URDF Pinocchio cannot load: the plots still work
                     self.warn(f"{dynamics}.{name}: cannot build the kinematics of {urdf} ({e}); the robot is not drawn")
-                    geometry = geometry if geometry is not None else None
                     kinematics = None
             n_joints = len(geometry.joints) if geometry else None
             n_links = len(geometry.links) if geometry else None
             body = _Body(dynamics, name, geometry, kinematics,
-                         position=self._take(dynamics, f"{name}.position", 3),
-                         orientation=self._take(dynamics, f"{name}.orientation", 4),
+                         position=self._find(dynamics, f"{name}.position", 3),
+                         orientation=self._find(dynamics, f"{name}.orientation", 4),
                          q=self.variables.get((dynamics, f"{name}.q")),
                          com=self._take(dynamics, f"{name}.com", 3),
                          momentum=self._take(dynamics, f"{name}.momentum", 6))
@@ -217,10 +233,7 @@ class SceneLogger:
                            ee_error=self._take(name, "ee_error", 6), tau=tau, joints=joints)
 
     def _orbit(self, name: str) -> _Orbit:
-        return _Orbit(name, r_eci=self.variables.get((name, "r_eci")) if len(
-            self.variables.get((name, "r_eci"), ())) == 3 else None,
-            q_eci_lvlh=self.variables.get((name, "q_eci_lvlh")) if len(
-                self.variables.get((name, "q_eci_lvlh"), ())) == 4 else None)
+        return _Orbit(name, r_eci=self._find(name, "r_eci", 3), q_eci_lvlh=self._find(name, "q_eci_lvlh", 4))
 
     def _world_lvlh(self) -> np.ndarray | None:
         """LVLH attitude for the robot view: the orbit output feeding the dynamics, else the first orbit."""
@@ -253,10 +266,18 @@ class SceneLogger:
                     trails[_path("world", c.name, "ee_desired")] = self._trail()
                 if c.ee_position is not None:
                     trails[_path("world", c.name, "ee_actual")] = self._trail()
-            spatial.append(rrb.Spatial3DView(origin="/world", name="Robots (W frame)", overrides=trails))
+            if self.world_lvlh is not None:   # seen from LVLH (z orbit normal up): a steady camera
+                spatial.append(rrb.Spatial3DView(
+                    origin="/world/lvlh", contents="/world/**", name="Robots (W, seen in LVLH axes)",
+                    overrides=trails, eye_controls=rrb.EyeControls3D(position=ROBOT_EYE, look_target=(0, 0, 0))))
+            else:
+                spatial.append(rrb.Spatial3DView(origin="/world", name="Robots (W frame)", overrides=trails,
+                                                 eye_controls=rrb.EyeControls3D(position=ROBOT_EYE,
+                                                                                look_target=(0, 0, 0))))
         if self.orbits:
             trails = {_path("orbit", o.name, "trail"): self._trail() for o in self.orbits if o.r_eci is not None}
-            spatial.append(rrb.Spatial3DView(origin="/orbit", name="Orbit (ECI)", overrides=trails))
+            spatial.append(rrb.Spatial3DView(origin="/orbit", name="Orbit (ECI)", overrides=trails,
+                                             line_grid=rrb.LineGrid3D(visible=False)))
         figures = []
         for c in self.controllers:
             if c.ee_position is not None or c.ee_desired is not None:
@@ -267,7 +288,8 @@ class SceneLogger:
                                                   name=f"{c.name}: end-effector error (m, rad)"))
             if c.tau is not None:
                 figures.append(rrb.TimeSeriesView(origin=_path("plots", c.name, "tau"),
-                                                  name=f"{c.name}: joint torques (N m)"))
+                                                  name=f"{c.name}: joint torques (N m)",
+                                                  plot_legend=rrb.PlotLegend(visible=len(c.tau) <= 6)))
         tabs = []
         for b in self.bodies:
             if b.momentum is not None:
@@ -287,7 +309,7 @@ class SceneLogger:
         columns.append(rrb.Tabs(*tabs))
         layout = rrb.Horizontal(*columns, column_shares=[3, 2, 2][:len(columns)] if len(columns) > 1 else None)
         return rrb.Blueprint(layout, rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
-                             rrb.TimePanel(state="collapsed"))
+                             rrb.TimePanel(state="collapsed", timeline=TIMELINE))
 
     # ------------------------------------------------------------------ static content
 
@@ -299,7 +321,7 @@ class SceneLogger:
         """Everything that does not change: visuals, the Earth, axes, plot series names and colours."""
         import rerun as rr
 
-        for root in ("/world", "/orbit"):
+        for root in ("/world", "/world/lvlh", "/orbit"):
             self._log(root, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         for body in self.bodies:
             self._log_body_static(body)
@@ -311,7 +333,7 @@ class SceneLogger:
                              [f"{a} desired" for a in "xyz"], LIGHT_AXIS_COLORS)
             if c.ee_position is not None:
                 self._log(_path("world", c.name, "ee_actual"),
-                          rr.Points3D.from_fields(colors=[(40, 220, 250)], radii=[-2.5]), static=True)
+                          rr.Points3D.from_fields(colors=[(225, 30, 120)], radii=[-2.5]), static=True)
                 self._series(_path("plots", c.name, "ee_position", "actual"), [f"{a} actual" for a in "xyz"])
             if c.ee_error is not None:
                 self._series(_path("plots", c.name, "ee_error", "position"), [f"e_{a} (m)" for a in "xyz"])
@@ -321,27 +343,24 @@ class SceneLogger:
             if c.tau is not None:
                 self._series(_path("plots", c.name, "tau"), c.joints or [f"tau[{i}]" for i in range(len(c.tau))])
         if self.world_lvlh is not None:
-            self._log("/world/lvlh/axes", rr.Arrows3D(origins=np.zeros((3, 3)), vectors=0.5 * np.eye(3),
-                                                      colors=AXIS_COLORS, labels=["LVLH x (radial)", "y", "z (normal)"]),
-                      static=True)
+            self._log("/world/lvlh/axes", rr.Arrows3D(origins=np.zeros((3, 3)), vectors=0.3 * np.eye(3),
+                                                      colors=AXIS_COLORS, radii=[-1.5]), static=True)
         if self.orbits:
-            self._log("/orbit/earth", rr.Ellipsoids3D(half_sizes=[[EARTH_RADIUS] * 3], colors=[(35, 80, 160)],
-                                                      fill_mode="solid"), static=True)
-            self._log("/orbit/earth/grid", rr.Ellipsoids3D(half_sizes=[[EARTH_RADIUS * 1.002] * 3],
-                                                           colors=[(120, 170, 230)], line_radii=[-0.5],
-                                                           fill_mode="majorwireframe"), static=True)
+            self._log("/orbit/earth", rr.Ellipsoids3D(half_sizes=[[EARTH_RADIUS] * 3], colors=[(40, 100, 210)],
+                                                      line_radii=[-0.6], fill_mode="transparentfillmajorwireframe"),
+                      static=True)
         for o in self.orbits:
             if o.r_eci is None:
                 continue
             self._log(_path("orbit", o.name, "trail"), rr.Points3D.from_fields(colors=[(250, 220, 90)], radii=[-1.5]),
                       static=True)
             self._log(_path("orbit", o.name, "spacecraft", "marker"),
-                      rr.Points3D([[0.0, 0.0, 0.0]], colors=[(255, 255, 255)], radii=[-5.0], labels=[o.name]),
+                      rr.Points3D([[0.0, 0.0, 0.0]], colors=[(255, 255, 255)], radii=[-5.0]),
                       static=True)
             if o.q_eci_lvlh is not None:
                 self._log(_path("orbit", o.name, "spacecraft", "lvlh"),
                           rr.Arrows3D(origins=np.zeros((3, 3)), vectors=1.5e6 * np.eye(3), colors=AXIS_COLORS,
-                                      labels=["x radial", "y along-track", "z normal"]), static=True)
+                                      labels=["radial", "along-track", "normal"]), static=True)
         for body in self.bodies:
             plots = body.base.replace("/world", "/plots", 1)
             if body.momentum is not None:
@@ -382,8 +401,7 @@ class SceneLogger:
                 self._log(path, rr.Transform3D(translation=visual.xyz, quaternion=quaternion, scale=visual.size),
                           rr.Asset3D(path=visual.mesh), static=True)
         if body.com is not None:
-            self._log(f"{body.base}/com", rr.Points3D.from_fields(colors=[(255, 230, 0)], radii=[-4.0],
-                                                                labels=[f"{body.name} CoM"]), static=True)
+            self._log(f"{body.base}/com", rr.Points3D.from_fields(colors=[(255, 230, 0)], radii=[-4.0]), static=True)
         for key, index in body.fields.items():
             color, _ = VECTOR_FIELDS[key]
             self._log(f"{body.base}/{key}", rr.Arrows3D.from_fields(colors=[color], radii=[-1.5]), static=True)

@@ -1,0 +1,168 @@
+"""``orchestrator view DIR``: replay a recording (``orchestrator run --record DIR``) into Rerun.
+
+    orchestrator view DIR [--view spawn|web|save:FILE.rrd] [--rate HZ] [--open-browser]
+
+Reads ``DIR/config.yaml`` (the resolved config: which components, which URDFs) and
+``DIR/signals.parquet`` in batches, keeps the rows the live view would have shown (every n-th step,
+n = round(1 / (rate * step)), default 30 Hz of sim time) and logs them with the same
+``SceneLogger`` as the live observer: same entities, same layout. URDF paths in the config are
+relative to the original config file, found through ``DIR/events.jsonl`` (its ``start`` event),
+else relative to the current directory or the project root.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+import time
+from pathlib import Path
+
+USAGE_ERROR = 2
+DEFAULT_RATE_HZ = 30.0
+BATCH_ROWS = 8192
+
+
+class ReplayError(Exception):
+    """The directory is not a readable recording."""
+
+
+def read_recording(directory: str | Path) -> tuple[dict, Path | None, str]:
+    """(resolved config, directory of the original config file or None, run id) of a recording."""
+    import yaml
+
+    directory = Path(directory)
+    if not (directory / "signals.parquet").is_file():
+        raise ReplayError(f"{directory}: no signals.parquet here (record one with `orchestrator run CONFIG --record DIR`)")
+    try:
+        config = yaml.safe_load((directory / "config.yaml").read_text()) or {}
+    except (OSError, yaml.YAMLError) as e:
+        raise ReplayError(f"{directory / 'config.yaml'}: cannot read the resolved config ({e})") from None
+    config_dir, run_id = None, f"{(config.get('run') or {}).get('name', 'run')}"
+    try:
+        for line in (directory / "events.jsonl").read_text().splitlines():
+            event = json.loads(line)
+            if event.get("event") == "start":
+                run_id = event.get("run_id", run_id)
+                if event.get("config"):
+                    config_dir = Path(event["config"]).resolve().parent
+                break
+    except (OSError, ValueError):
+        pass
+    return config, config_dir, run_id
+
+
+def decimation(config: dict, rate_hz: float, times=None) -> int:
+    """Every how many steps the live view logs a row (as the orchestrator decides it)."""
+    from components.units import duration_ns
+
+    step_ns = None
+    try:
+        step_ns = duration_ns((config.get("run") or {}).get("step"), "step")
+    except Exception:
+        if times is not None and len(times) > 1:
+            step_ns = int(round((times[1] - times[0]) * 1e9))
+    if not step_ns:
+        return 1
+    return max(1, round(1e9 / (rate_hz * step_ns)))
+
+
+def replay(directory: str | Path, mode: str = "spawn", file: str | Path | None = None, *,
+           rate_hz: float = DEFAULT_RATE_HZ, open_browser: bool = False, out=sys.stderr) -> int:
+    """Log a recording into Rerun; returns the number of rows logged. Web mode serves until Ctrl-C."""
+    import numpy as np
+    import pyarrow.parquet as pq
+
+    from components.viewer.scene import SceneLogger
+    from components.viewer.sinks import close_stream, open_stream
+
+    config, config_dir, run_id = read_recording(directory)
+    parquet = pq.ParquetFile(Path(directory) / "signals.parquet")
+    names = parquet.schema_arrow.names
+    if names[:2] != ["step", "time"]:
+        raise ReplayError(f"{directory}/signals.parquet: expected the columns step, time first, got {names[:2]}")
+    columns = names[2:]
+    n = decimation(config, rate_hz)
+    scene = SceneLogger(columns, config, config_dir, warn=lambda m: print(f"view: {m}", file=out, flush=True))
+    stream, url = open_stream(mode, recording_id=f"{run_id}-replay", file=file, blueprint=scene.blueprint(),
+                              open_browser=open_browser, name=f"{(config.get('run') or {}).get('name', run_id)} (replay)")
+    scene.rec = stream
+    try:
+        scene.log_static()
+        for batch in parquet.iter_batches(batch_size=BATCH_ROWS):
+            steps = batch.column(0).to_numpy()
+            keep = np.flatnonzero(steps % n == 0)
+            if not len(keep):
+                continue
+            times = batch.column(1).to_numpy()[keep]
+            rows = np.column_stack([batch.column(j).to_numpy()[keep] for j in range(2, batch.num_columns)]) \
+                if columns else np.zeros((len(keep), 0))
+            scene.log_rows(steps[keep], times, rows)
+        stream.flush(timeout_sec=60.0)
+        if url:
+            print(f"Rerun web viewer at {url}\n{scene.rows_logged} rows; serving until Ctrl-C", file=out, flush=True)
+            previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+            try:
+                while True:
+                    time.sleep(3600)
+            except KeyboardInterrupt:
+                pass
+            finally:
+                signal.signal(signal.SIGTERM, previous)
+    finally:
+        close_stream(stream)
+    return scene.rows_logged
+
+
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt()
+
+
+def add_view_command(subparsers) -> argparse.ArgumentParser:
+    """Add ``view`` to the ``orchestrator`` command line (``subparsers`` of its parser)."""
+    p = subparsers.add_parser("view", help="replay a recording (run --record DIR) in Rerun")
+    p.add_argument("dir", metavar="DIR", help="a recording directory (signals.parquet, config.yaml)")
+    p.add_argument("--view", default="spawn", metavar="{spawn,web,save:FILE.rrd}",
+                   help="desktop viewer (default), web viewer on localhost, or an .rrd file")
+    p.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, metavar="HZ",
+                   help=f"rows per second of sim time (default {DEFAULT_RATE_HZ:g}, as the live view)")
+    p.add_argument("--open-browser", action="store_true", help="web: open the page in the default browser")
+    p.set_defaults(func=cmd_view)
+    return p
+
+
+def cmd_view(args) -> int:
+    """``orchestrator view``: 0 done, 2 bad usage or not a recording, 1 failure."""
+    mode, _, file = args.view.partition(":")
+    if mode not in ("spawn", "web", "save") or (mode == "save") != bool(file) or (file and not file.endswith(".rrd")):
+        print(f"error: --view: expected spawn, web or save:FILE.rrd, got {args.view!r}", file=sys.stderr)
+        return USAGE_ERROR
+    if not args.rate > 0:
+        print(f"error: --rate: must be positive, got {args.rate:g}", file=sys.stderr)
+        return USAGE_ERROR
+    try:
+        rows = replay(args.dir, mode, file or None, rate_hz=args.rate, open_browser=args.open_browser)
+    except ReplayError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return USAGE_ERROR
+    except KeyboardInterrupt:
+        return 130
+    except Exception as e:  # one line naming the cause, not a traceback
+        print(f"error: replaying {args.dir}: {type(e).__name__}: {e}", file=sys.stderr)
+        return 1
+    if mode == "save":
+        print(f"saved {rows} rows to {file}", file=sys.stderr)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m components.viewer.replay DIR [...]``: the same as ``orchestrator view``."""
+    parser = argparse.ArgumentParser(prog="python -m components.viewer.replay", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    add_view_command(sub)
+    args = parser.parse_args(["view", *(sys.argv[1:] if argv is None else argv)])
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

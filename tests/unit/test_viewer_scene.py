@@ -1,0 +1,184 @@
+"""SceneLogger (rows -> Rerun): what ends up in an .rrd, read back with Rerun's own reader (rerun.chunk)."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+rr = pytest.importorskip("rerun")
+from rerun.chunk import RrdReader  # noqa: E402
+
+from components.viewer.robot import Kinematics, read_geometry  # noqa: E402
+from components.viewer.scene import SceneLogger, parse_columns  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+URDF = ROOT / "models" / "humanoid_torso.urdf"
+
+
+def columns_of(spec):
+    """[(component.name, size)] -> recorded column names (DESIGN §6)."""
+    out = []
+    for name, size in spec:
+        out += [name] if size == 0 else [f"{name}[{i}]" for i in range(size)]
+    return out
+
+
+SPEC = [("orbit.r_eci", 3), ("orbit.q_eci_lvlh", 4), ("dyn.humanoid.position", 3), ("dyn.humanoid.orientation", 4),
+        ("dyn.humanoid.q", 14), ("dyn.humanoid.com", 3), ("dyn.humanoid.momentum", 6),
+        ("dyn.humanoid.gg_torque", 51), ("dyn.humanoid.link_position", 51),
+        ("ctrl.tau", 14), ("ctrl.ee_position", 3), ("ctrl.ee_position_desired", 3), ("ctrl.ee_error", 6),
+        ("extra.n", 0)]
+CONFIG = {
+    "run": {"name": "scene_test", "step": "10000000 ns"},
+    "components": {
+        "orbit": {"type": "orbit.kepler", "parameters": {}},
+        "dyn": {"type": "dynamics.dart", "parameters": {"bodies": {"humanoid": {"urdf": str(URDF)}}}},
+        "ctrl": {"type": "controller.computed_torque", "parameters": {}},
+        "extra": {"type": "test.counter", "parameters": {}},
+    },
+    "connections": {"dyn.humanoid.tau": "ctrl.tau", "ctrl.q": "dyn.humanoid.q",
+                    "dyn.q_eci_lvlh": "orbit.q_eci_lvlh"},
+}
+
+
+def synthetic_rows(columns, n, seed=1):
+    rng = np.random.default_rng(seed)
+    rows = rng.normal(scale=0.3, size=(n, len(columns)))
+    index = parse_columns(columns)
+    rows[:, index["orbit", "r_eci"]] = 6.778e6 * np.c_[np.cos(np.arange(n) / 50), np.sin(np.arange(n) / 50), 0 * np.arange(n)]
+    rows[:, index["extra", "n"][0]] = np.arange(n)
+    return rows
+
+
+def read_rrd(path):
+    """{entity: {"static": {component: value}, "rows": n temporal rows, "timelines": set, "data": {component: [...]}}}."""
+    entities = {}
+    for chunk in RrdReader(path).stream():
+        entry = entities.setdefault(chunk.entity_path, {"static": {}, "rows": 0, "timelines": set(), "data": {}})
+        batch = chunk.to_record_batch()
+        names = [n for n in batch.schema.names if n != "rerun.controls.RowId"]
+        if chunk.is_static:
+            for name in names:
+                entry["static"][name] = batch.column(name).to_pylist()[-1]
+            continue
+        entry["rows"] += chunk.num_rows
+        entry["timelines"] |= set(chunk.timeline_names)
+        for name in names:
+            entry["data"].setdefault(name, []).extend(batch.column(name).to_pylist())
+    return entities
+
+
+def save(tmp_path, columns, config, batches, name="scene.rrd", warnings=None):
+    path = tmp_path / name
+    stream = rr.RecordingStream("zenorbit_test", recording_id=name)
+    scene = SceneLogger(columns, config, None, recording=stream,
+                        warn=(warnings.append if warnings is not None else None))
+    stream.save(str(path), default_blueprint=scene.blueprint())
+    scene.log_static()
+    for steps, times, rows in batches:
+        scene.log_rows(steps, times, rows)
+    stream.flush()
+    stream.disconnect()
+    return scene, read_rrd(path)
+
+
+def test_parse_columns_groups_vector_elements_in_order():
+    index = parse_columns(["a.x[1]", "a.x[0]", "a.y", "b.body.q[0]", "b.body.q[1]", "junk"])
+    assert list(index["a", "x"]) == [1, 0] and list(index["a", "y"]) == [2]
+    assert list(index["b", "body.q"]) == [3, 4] and len(index) == 3
+
+
+def test_rows_become_entities_on_sim_time_and_step(tmp_path):
+    columns = columns_of(SPEC)
+    n = 20
+    rows = synthetic_rows(columns, n)
+    steps = np.arange(n) * 3
+    times = steps * 0.01
+    scene, rrd = save(tmp_path, columns, CONFIG, [(steps[:12], times[:12], rows[:12]),
+                                                  (steps[12:], times[12:], rows[12:])])
+    links = read_geometry(URDF).links
+    for link in links:
+        entry = rrd[f"/world/dyn/humanoid/links/{link}"]
+        assert entry["rows"] == n and entry["timelines"] == {"sim_time", "step"}
+    # the link poses are Pinocchio's forward kinematics of the recorded base pose and q
+    index = parse_columns(columns)
+    kin = Kinematics(read_geometry(URDF))
+    translations, _ = kin.link_poses(rows[:, index["dyn", "humanoid.position"]],
+                                     rows[:, index["dyn", "humanoid.orientation"]], rows[:, index["dyn", "humanoid.q"]])
+    logged = np.array([r[0] for r in rrd["/world/dyn/humanoid/links/arm_left_7_link"]["data"]["Transform3D:translation"]])
+    assert np.allclose(logged, translations[:, links.index("arm_left_7_link")], atol=1e-6)   # float32 in Rerun
+    # time columns: sim_time is a duration (ns), step the step index
+    entry = rrd["/plots/ctrl/tau"]
+    assert entry["data"]["step"] == list(steps)
+    assert [int(round(t * 1e9)) for t in times] == [int(v.value if hasattr(v, "value") else v.total_seconds() * 1e9)
+                                                   if not isinstance(v, int) else v for v in entry["data"]["sim_time"]]
+    # paper figures: ee paths (3D trails and plots), errors, torques named by joint
+    assert rrd["/world/ctrl/ee_desired"]["rows"] == n and rrd["/world/ctrl/ee_actual"]["rows"] == n
+    assert rrd["/plots/ctrl/ee_position/desired"]["rows"] == n
+    assert rrd["/plots/ctrl/ee_error/position"]["rows"] == n and rrd["/plots/ctrl/ee_error/orientation"]["rows"] == n
+    assert np.allclose(entry["data"]["Scalars:scalars"][5], rows[5, index["ctrl", "tau"]])
+    assert rrd["/plots/ctrl/tau"]["static"]["SeriesLines:names"][0] == "arm_left_1_joint"
+    # dynamics: momentum, per-link gravity-gradient arrows (17 per row) and their magnitudes
+    assert rrd["/plots/dyn/humanoid/momentum/linear"]["rows"] == n
+    arrows = rrd["/world/dyn/humanoid/gg_torque"]
+    assert arrows["rows"] == n and all(len(v) == len(links) for v in arrows["data"]["Arrows3D:vectors"])
+    first_batch = np.array(arrows["data"]["Arrows3D:vectors"][:12])
+    assert np.isclose(np.linalg.norm(first_batch, axis=2).max(), 0.25, rtol=1e-5)   # scaled on first sight
+    assert rrd["/plots/dyn/humanoid/gg_torque_norm"]["rows"] == n
+    # orbit view: Earth, trail, spacecraft with LVLH axes; LVLH axes in the robot view
+    assert "Ellipsoids3D:half_sizes" in rrd["/orbit/earth"]["static"]
+    assert rrd["/orbit/orbit/trail"]["rows"] == n and rrd["/orbit/orbit/spacecraft"]["rows"] == n
+    assert "Arrows3D:vectors" in rrd["/orbit/orbit/spacecraft/lvlh"]["static"]
+    assert rrd["/world/lvlh"]["rows"] == n
+    # everything else under /signals; shown variables are not repeated, bulk link arrays never plotted
+    assert rrd["/signals/extra/n"]["rows"] == n
+    assert [v[0] for v in rrd["/signals/extra/n"]["data"]["Scalars:scalars"]] == list(range(n))
+    assert rrd["/signals/dyn/humanoid.q"]["rows"] == n
+    for absent in ("/signals/ctrl/tau", "/signals/dyn/humanoid.momentum", "/signals/dyn/humanoid.link_position",
+                   "/signals/dyn/humanoid.gg_torque"):
+        assert absent not in rrd
+    assert "TextDocument:text" in rrd["/notes"]["static"]
+    assert RrdReader(tmp_path / "scene.rrd").blueprints(), "the layout (blueprint) is saved with the data"
+    assert scene.rows_logged == n
+
+
+def test_absent_or_inconsistent_signals_are_skipped_not_fatal(tmp_path):
+    spec = [("dyn.humanoid.position", 3), ("dyn.humanoid.orientation", 4), ("dyn.humanoid.q", 5),   # wrong size
+            ("dyn.ghost.position", 3), ("ctrl.ee_error", 6), ("ctrl.ee_position", 2)]           # wrong size
+    config = {"components": {
+        "dyn": {"type": "dynamics.dart", "parameters": {"bodies": [
+            {"name": "humanoid", "urdf": str(URDF)}, {"name": "ghost", "urdf": "no/such.urdf"}]}},
+        "ctrl": {"type": "controller.joint_pd"}}}
+    columns = columns_of(spec)
+    warnings = []
+    n = 4
+    _, rrd = save(tmp_path, columns, config, [(np.arange(n), np.arange(n) * 0.1, np.zeros((n, len(columns))))],
+                  warnings=warnings)
+    assert any("ghost" in w and "not found" in w for w in warnings)
+    assert any("humanoid.q has 5 values" in w for w in warnings)
+    assert not any(path.startswith("/world/dyn/humanoid/links/") and entry["rows"] for path, entry in rrd.items())
+    assert rrd["/plots/ctrl/ee_error/position"]["rows"] == n
+    assert rrd["/signals/ctrl/ee_position"]["rows"] == n        # not a 3-vector: shown as a plain signal
+    assert rrd["/signals/dyn/humanoid.q"]["rows"] == n
+
+
+def test_zero_vector_fields_draw_no_arrows_until_they_are_nonzero(tmp_path):
+    spec = [("dyn.humanoid.position", 3), ("dyn.humanoid.orientation", 4), ("dyn.humanoid.q", 14),
+            ("dyn.humanoid.tidal_force", 51)]
+    config = {"components": {"dyn": {"type": "dynamics.dart", "parameters": {"bodies": {"humanoid": {"urdf": str(URDF)}}}}}}
+    columns = columns_of(spec)
+    rows = np.zeros((6, len(columns)))
+    rows[:, 6] = 1.0                                                   # identity orientation
+    rows[3:, 3 + 4 + 14 + 3 * 5 + 2] = 2.0                             # link 5, z: from row 3 on
+    scene, rrd = save(tmp_path, columns, config, [(np.arange(3), np.arange(3) * 0.1, rows[:3]),
+                                                  (np.arange(3, 6), np.arange(3, 6) * 0.1, rows[3:])])
+    assert rrd["/world/dyn/humanoid/tidal_force"]["rows"] == 3
+    assert scene.arrow_scales == {("dyn", "humanoid", "tidal_force"): pytest.approx(0.25 / 2.0)}
+    assert "tidal_force: 0.125 m per N" in rrd["/notes"]["static"]["TextDocument:text"][0]
+
+
+def test_module_class_types_are_recognised_by_their_type_name(tmp_path):
+    columns = columns_of([("d.humanoid.position", 3), ("d.humanoid.orientation", 4), ("d.humanoid.q", 14)])
+    config = {"components": {"d": {"type": "components.dynamics.component:DartDynamics",
+                                   "parameters": {"bodies": {"humanoid": {"urdf": str(URDF)}}}}}}
+    scene = SceneLogger(columns, config)
+    assert [b.name for b in scene.bodies] == ["humanoid"] and scene.bodies[0].kinematics is not None

@@ -309,7 +309,7 @@ class SceneLogger:
         columns.append(rrb.Tabs(*tabs))
         layout = rrb.Horizontal(*columns, column_shares=[3, 2, 2][:len(columns)] if len(columns) > 1 else None)
         return rrb.Blueprint(layout, rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
-                             rrb.TimePanel(state="collapsed", timeline=TIMELINE))
+                             rrb.TimePanel(state="collapsed", timeline=TIMELINE, play_state="following"))
 
     # ------------------------------------------------------------------ static content
 

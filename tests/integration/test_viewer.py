@@ -1,0 +1,403 @@
+"""The viewer.rerun observer end to end: real orchestrator, components and Zenoh; .rrd read back with Rerun.
+
+A web-view test loads the served page in headless Chromium and takes a screenshot (skipped when no
+Chromium is installed: ``apt-get install -y chromium``). Set ZENORBIT_VIEWER_SCREENSHOT=FILE.png to
+keep the screenshot.
+"""
+from __future__ import annotations
+
+import base64
+import json
+import os
+import queue
+import shutil
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+import yaml
+
+from tests.conftest import ROOT, component_processes, orchestrator
+
+rr = pytest.importorskip("rerun")
+from rerun.chunk import RrdReader  # noqa: E402
+
+pytestmark = pytest.mark.integration
+
+FAKE_CONTROLLER = '''
+"""Stand-in controller with closed-form outputs: a 0.1 m circle away from the torso, followed 0.3 s late."""
+import numpy as np
+from components.sdk import Component, Parameter, Variable
+
+
+class FakeController(Component):
+    type_name = "controller.fake"
+    parameters = (Parameter("joints", "int", default=14, description="number of joint torques"),)
+
+    @classmethod
+    def declare(cls, params):
+        n = params["joints"]
+        return [Variable("q", "input", (n,), "rad", 0.0, "joint positions"),
+                Variable("tau", "output", (n,), "N*m", 0.0, "joint torques"),
+                Variable("ee_position", "output", (3,), "m", 0.0, "end effector, W"),
+                Variable("ee_position_desired", "output", (3,), "m", 0.0, "desired end effector, W"),
+                Variable("ee_error", "output", (6,), "m, rad", 0.0, "position and orientation error")]
+
+    def __init__(self, params):
+        self.n = params["joints"]
+
+    def outputs(self, t):
+        def path(s):
+            return np.array([0.45, 0.45 + 0.1 * np.cos(s), 0.3 + 0.1 * np.sin(s)])
+        desired, actual = path(t), path(t - 0.3)
+        return {"tau": 1e-3 * np.sin(t + np.arange(self.n)), "ee_position": actual, "ee_position_desired": desired,
+                "ee_error": np.concatenate([desired - actual, 0.01 * np.sin([t, 2 * t, 3 * t])])}
+
+    def initialize(self, t0_ns, inputs):
+        return self.outputs(t0_ns * 1e-9)
+
+    def do_step(self, t_ns, h_ns, inputs):
+        return self.outputs((t_ns + h_ns) * 1e-9)
+
+    def get_state(self):
+        return {}
+
+    def set_state(self, state):
+        pass
+'''
+
+
+def humanoid_config(directory: Path, name: str, duration: str = "1 s") -> Path:
+    """configs/free_floating_humanoid.yaml (or an orbit-only config without it) plus a stand-in controller."""
+    directory.mkdir(parents=True, exist_ok=True)
+    (directory / "fake_controller.py").write_text(FAKE_CONTROLLER)
+    source = ROOT / "configs" / "free_floating_humanoid.yaml"
+    config = yaml.safe_load(source.read_text())
+    config["run"].update(name=name, duration=duration)
+    body = config["components"]["dynamics"]["parameters"]["bodies"]["humanoid"]
+    body["urdf"] = str((source.parent / body["urdf"]).resolve())
+    config["components"]["controller"] = {"type": "fake_controller.py:FakeController"}
+    config["connections"].update({"dynamics.humanoid.tau": "controller.tau", "controller.q": "dynamics.humanoid.q"})
+    path = directory / "config.yaml"
+    path.write_text(yaml.safe_dump(config, sort_keys=False))
+    return path
+
+
+def read_rrd(path) -> dict:
+    """{entity: {"rows": temporal rows, "timelines": set, "static": set of components, "data": {component: values}}}."""
+    import pyarrow as pa
+    entities: dict = {}
+    for chunk in RrdReader(path).stream():
+        entry = entities.setdefault(chunk.entity_path, {"rows": 0, "timelines": set(), "static": set(), "data": {}})
+        batch = chunk.to_record_batch()
+        names = [n for n in batch.schema.names if n != "rerun.controls.RowId"]
+        if chunk.is_static:
+            entry["static"] |= set(names)
+            continue
+        entry["rows"] += chunk.num_rows
+        entry["timelines"] |= set(chunk.timeline_names)
+        for name in names:
+            column = batch.column(name)
+            if pa.types.is_duration(column.type):
+                column = column.cast(pa.int64())
+            entry["data"].setdefault(name, []).extend(column.to_pylist())
+    return entities
+
+
+def viewer_processes(tag: str) -> list[str]:
+    out = subprocess.run(["ps", "-ww", "-eo", "pid=,args="], capture_output=True, text=True).stdout
+    return [line for line in out.splitlines() if "components.viewer.observer" in line and tag in line]
+
+
+@pytest.fixture(scope="module")
+def saved_run(tmp_path_factory):
+    """One 1 s humanoid run (10 ms steps) recorded and viewed into an .rrd: (recording dir, .rrd, stderr)."""
+    base = tmp_path_factory.mktemp("viewer_run")
+    config = humanoid_config(base, "viewer_save")
+    rrd = base / "live.rrd"
+    env = {**os.environ, "ZENORBIT_RUNTIME_DIR": str(base / "runtime")}
+    result = orchestrator("run", config, "--record", base / "rec", "--view", f"save:{rrd}", env=env, timeout=120)
+    assert result.returncode == 0, result.stderr
+    return base / "rec", rrd, result.stderr
+
+
+def test_saved_view_has_robot_orbit_and_plots_at_the_viewer_rate(saved_run):
+    rec, rrd, stderr = saved_run
+    data = pq.read_table(rec / "signals.parquet").to_pydict()
+    steps = np.array(data["step"])
+    shown = steps[steps % 3 == 0]            # 30 Hz of sim time at 10 ms steps: every 3rd step, from step 0
+    assert len(shown) == 34
+    entities = read_rrd(rrd)
+    from components.viewer.robot import read_geometry
+    links = read_geometry(ROOT / "models" / "humanoid_torso.urdf").links
+    expected = [f"/world/dynamics/humanoid/links/{link}" for link in links] + [
+        "/world/dynamics/humanoid/com", "/world/dynamics/humanoid/gg_torque", "/world/dynamics/humanoid/tidal_force",
+        "/world/controller/ee_desired", "/world/controller/ee_actual", "/world/lvlh",
+        "/plots/controller/ee_position/desired", "/plots/controller/ee_position/actual",
+        "/plots/controller/ee_error/position", "/plots/controller/ee_error/orientation", "/plots/controller/tau",
+        "/plots/dynamics/humanoid/momentum/linear", "/plots/dynamics/humanoid/momentum/angular",
+        "/plots/dynamics/humanoid/gg_torque_norm",
+        "/orbit/orbit/trail", "/orbit/orbit/spacecraft",
+        "/signals/orbit/v_eci", "/signals/dynamics/humanoid.q", "/signals/dynamics/humanoid.twist"]
+    for path in expected:
+        assert path in entities, f"{path} missing; entities: {sorted(entities)}"
+        assert entities[path]["rows"] == len(shown), path
+        assert entities[path]["timelines"] == {"sim_time", "step"}, path
+    for path in ("/orbit/earth", "/orbit/orbit/spacecraft/lvlh", "/notes"):
+        assert entities[path]["static"], path
+    # the rows are the recorded ones: same steps, same times, same values
+    signal_entity = entities["/signals/orbit/v_eci"]["data"]
+    assert signal_entity["step"] == list(shown)
+    assert signal_entity["sim_time"] == [int(k) * 10_000_000 for k in shown]
+    v = np.column_stack([np.array(data[f"orbit.v_eci[{i}]"])[steps % 3 == 0] for i in range(3)])
+    assert np.array_equal(np.array(signal_entity["Scalars:scalars"]), v)
+    desired = np.column_stack([np.array(data[f"controller.ee_position_desired[{i}]"])[steps % 3 == 0] for i in range(3)])
+    logged = np.array([p[0] for p in entities["/world/controller/ee_desired"]["data"]["Points3D:positions"]])
+    assert np.allclose(logged, desired, atol=1e-6)
+    assert RrdReader(rrd).blueprints(), "the layout is saved with the data"
+    assert "saved 34 rows" in stderr
+    assert not component_processes("viewer_save") and not viewer_processes("viewer_save")
+
+
+def test_replay_of_the_recording_shows_what_the_live_view_showed(saved_run, tmp_path):
+    rec, live, _ = saved_run
+    replayed = tmp_path / "replay.rrd"
+    result = orchestrator("view", rec, "--view", f"save:{replayed}", timeout=60)
+    assert result.returncode == 0, result.stderr
+    live_rows = {path: e["rows"] for path, e in read_rrd(live).items() if e["rows"]}
+    replay_rows = {path: e["rows"] for path, e in read_rrd(replayed).items() if e["rows"]}
+    assert replay_rows == live_rows
+    assert orchestrator("view", tmp_path / "nothing_here").returncode == 2
+    assert orchestrator("view", rec, "--view", "save:no_suffix").returncode == 2
+
+
+def test_observer_follows_the_bus_contract(tmp_path):
+    """Without the orchestrator: rows and END on `signals`, the `_viewer` token, exit when told."""
+    import zenoh
+    from components import bus
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    endpoint = f"tcp/127.0.0.1:{port}"
+    run_id = f"contract-{os.getpid()}"
+    columns = ["a.x[0]", "a.x[1]", "b.n"]
+    rrd = tmp_path / "contract.rrd"
+    setup = tmp_path / "viewer.json"
+    setup.write_text(json.dumps({"columns": columns, "config": {"components": {"a": {"type": "test.constant"}}},
+                                 "step_ns": 1_000_000, "config_dir": str(tmp_path), "epoch": "2022-09-18T12:00:00Z",
+                                 "mode": "save", "file": str(rrd), "open_browser": False}))
+    session = zenoh.open(bus.session_config(listen=[endpoint]))
+    seen: queue.Queue = queue.Queue()
+    watch = session.liveliness().declare_subscriber(bus.run_key(run_id, "alive", "_viewer", "0"),
+                                                    lambda sample: seen.put(sample.kind))
+    token = session.liveliness().declare_token(bus.run_key(run_id, "alive", "orchestrator"))
+    out = bus.publisher(session, bus.run_key(run_id, "signals"), drop=True)
+    process = subprocess.Popen([sys.executable, "-m", "components.viewer.observer", "--connect", endpoint,
+                                "--run-id", run_id, "--setup", str(setup)], cwd=ROOT,
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert seen.get(timeout=30) == zenoh.SampleKind.PUT
+        header = struct.Struct("<qd")
+        for k in range(50):
+            out.put(header.pack(k, k * 1e-3) + np.array([k, -k, 0.5 * k], dtype=np.float64).tobytes())
+        out.put(b"junk")                                    # a malformed row is counted, not fatal
+        out.put(b"END")
+        assert process.wait(timeout=30) == 0
+        assert seen.get(timeout=10) == zenoh.SampleKind.DELETE
+    finally:
+        if process.poll() is None:
+            process.kill()
+        del token, watch
+        session.close()
+    log = process.stdout.read()
+    assert "saved 50 rows" in log and "ignored 1 signal rows" in log, log
+    entities = read_rrd(rrd)
+    assert entities["/signals/a/x"]["rows"] == 50 and entities["/signals/b/n"]["rows"] == 50
+    assert entities["/signals/a/x"]["data"]["Scalars:scalars"][7] == [7.0, -7.0]
+
+
+def test_observer_exits_when_the_orchestrator_goes_away(tmp_path):
+    import zenoh
+    from components import bus
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    endpoint = f"tcp/127.0.0.1:{port}"
+    run_id = f"orphan-{os.getpid()}"
+    setup = tmp_path / "viewer.json"
+    setup.write_text(json.dumps({"columns": ["a.y"], "config": {}, "mode": "save", "file": str(tmp_path / "o.rrd")}))
+    session = zenoh.open(bus.session_config(listen=[endpoint]))
+    seen: queue.Queue = queue.Queue()
+    watch = session.liveliness().declare_subscriber(bus.run_key(run_id, "alive", "_viewer", "0"),
+                                                    lambda sample: seen.put(sample.kind))
+    token = session.liveliness().declare_token(bus.run_key(run_id, "alive", "orchestrator"))
+    process = subprocess.Popen([sys.executable, "-m", "components.viewer.observer", "--connect", endpoint,
+                                "--run-id", run_id, "--setup", str(setup)], cwd=ROOT,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        assert seen.get(timeout=30) == zenoh.SampleKind.PUT
+        token.undeclare()
+        assert process.wait(timeout=20) == 0
+    finally:
+        if process.poll() is None:
+            process.kill()
+        del watch
+        session.close()
+
+
+# ------------------------------------------------------------------------------------------ web view
+
+def chromium() -> str | None:
+    for name in ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable"):
+        found = shutil.which(name)
+        if found:
+            return found
+    return None
+
+
+CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-quic",
+                  "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+
+
+def screenshot(url: str, png: Path, *, settle_s: float = 3.0, timeout_s: float = 60.0, size=(1280, 800)) -> list[str]:
+    """Load ``url`` in headless Chromium, wait for the Rerun app to start and its picture to settle
+    (two equal frames ``settle_s`` apart), save a PNG.
+
+    Chromium's own --screenshot/--virtual-time-budget fires before the WebAssembly viewer has
+    compiled, so this drives Chromium over the DevTools protocol on a pipe (--remote-debugging-pipe:
+    NUL-terminated JSON on fds 3 and 4), with no extra Python package. Returns the console lines."""
+    to_browser_r, to_browser_w = os.pipe()
+    from_browser_r, from_browser_w = os.pipe()
+
+    def child_fds():
+        os.dup2(to_browser_r, 3)
+        os.dup2(from_browser_w, 4)
+
+    profile = tempfile.mkdtemp(prefix="zenorbit-chromium-")
+    process = subprocess.Popen([chromium(), *CHROMIUM_FLAGS, f"--user-data-dir={profile}",
+                                f"--window-size={size[0]},{size[1]}", "--remote-debugging-pipe", "about:blank"],
+                               pass_fds=(3, 4), preexec_fn=child_fds, stdin=subprocess.DEVNULL,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(to_browser_r)
+    os.close(from_browser_w)
+    inbox: queue.Queue = queue.Queue()
+    console: list[str] = []
+
+    def read():
+        pending = b""
+        with os.fdopen(from_browser_r, "rb", buffering=0) as stream:
+            while chunk := stream.read(1 << 16):
+                pending += chunk
+                while b"\0" in pending:
+                    message, pending = pending.split(b"\0", 1)
+                    inbox.put(json.loads(message))
+
+    threading.Thread(target=read, daemon=True).start()
+    writer = os.fdopen(to_browser_w, "wb", buffering=0)
+    ids = iter(range(1, 1 << 30))
+
+    def pump(until: float, want_id: int | None = None):
+        while True:
+            remaining = until - time.monotonic()
+            if remaining <= 0:
+                if want_id is not None:
+                    raise TimeoutError(f"Chromium did not answer request {want_id}")
+                return None
+            try:
+                message = inbox.get(timeout=min(remaining, 0.5))
+            except queue.Empty:
+                continue
+            if message.get("method") == "Runtime.consoleAPICalled":
+                console.append(" ".join(str(a.get("value", "")) for a in message["params"]["args"]))
+            if want_id is not None and message.get("id") == want_id:
+                if "error" in message:
+                    raise RuntimeError(f"Chromium: {message['error']}")
+                return message["result"]
+
+    def call(method, params=None, session=None, timeout=30.0):
+        request_id = next(ids)
+        message = {"id": request_id, "method": method, "params": params or {}}
+        if session:
+            message["sessionId"] = session
+        writer.write(json.dumps(message).encode() + b"\0")
+        return pump(time.monotonic() + timeout, request_id)
+
+    try:
+        page = next(t for t in call("Target.getTargets")["targetInfos"] if t["type"] == "page")
+        session = call("Target.attachToTarget", {"targetId": page["targetId"], "flatten": True})["sessionId"]
+        call("Runtime.enable", session=session)
+        call("Emulation.setDeviceMetricsOverride", {"width": size[0], "height": size[1], "deviceScaleFactor": 1,
+                                                    "mobile": False}, session=session)
+        call("Page.navigate", {"url": url}, session=session)
+        deadline = time.monotonic() + timeout_s
+        while not any("App started" in line for line in console) and time.monotonic() < deadline:
+            pump(min(deadline, time.monotonic() + 0.5))
+        # the viewer then streams the data in (slowly, on a software rasterizer): wait for two equal frames
+        previous = None
+        while time.monotonic() < deadline:
+            pump(min(deadline, time.monotonic() + settle_s))
+            data = call("Page.captureScreenshot", {"format": "png"}, session=session)["data"]
+            if data == previous:
+                break
+            previous = data
+        png.write_bytes(base64.b64decode(data))
+        try:
+            call("Browser.close", timeout=5)
+        except Exception:
+            pass
+    finally:
+        writer.close()
+        try:
+            process.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+        shutil.rmtree(profile, ignore_errors=True)
+    return console
+
+
+def test_web_view_renders_in_headless_chromium(tmp_path):
+    if chromium() is None:
+        pytest.skip("headless Chromium not found (Debian: apt-get install -y chromium); web view screenshot not taken")
+    from PIL import Image
+
+    config = humanoid_config(tmp_path, "viewer_web", duration="3 s")
+    log = tmp_path / "orchestrator.log"
+    env = {**os.environ, "ZENORBIT_RUNTIME_DIR": str(tmp_path / "runtime")}
+    with open(log, "w") as stderr:
+        run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", str(config), "--view", "web"],
+                               cwd=ROOT, env=env, stdin=subprocess.DEVNULL, stdout=stderr, stderr=stderr, text=True)
+    try:
+        deadline = time.monotonic() + 90
+        while "run over" not in log.read_text():
+            assert run.poll() is None, log.read_text()
+            assert time.monotonic() < deadline, log.read_text()
+            time.sleep(0.2)
+        url = next(w for w in log.read_text().split() if w.startswith("http://127.0.0.1:"))
+        png = tmp_path / "web_view.png"
+        console = screenshot(url, png)
+        assert any("App started" in line for line in console), console[-20:]
+        image = Image.open(png).convert("RGB")
+        assert image.size == (1280, 800)
+        pixels = np.asarray(image).reshape(-1, 3)
+        assert pixels.std() > 20 and len(np.unique(pixels, axis=0)) > 500, "the page looks blank"
+        assert not any("Data source failed" in line for line in console), [l for l in console if "rror" in l]
+        keep = os.environ.get("ZENORBIT_VIEWER_SCREENSHOT")
+        if keep:
+            shutil.copy(png, keep)
+    finally:
+        if run.poll() is None:
+            run.send_signal(signal.SIGTERM)          # the web view serves until the run is stopped
+        run.wait(timeout=60)
+    assert not component_processes("viewer_web") and not viewer_processes("viewer_web")

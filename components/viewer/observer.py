@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import signal
 import struct
 import sys
@@ -35,6 +36,7 @@ VIEWER_NAME, VIEWER_GENERATION = "_viewer", "0"
 LIVE_BATCH_S = 0.05                  # live views: log at most every 50 ms of wall time
 FILE_BATCH_S = 0.5                   # save: larger batches, fewer calls
 MAX_BATCH_ROWS = 4096
+NICENESS = 10
 
 
 class Stop(Exception):
@@ -179,6 +181,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     signal.signal(signal.SIGTERM, _raise_stop)
     signal.signal(signal.SIGINT, _raise_stop)
+    try:
+        os.nice(NICENESS)   # a best-effort observer: on a busy machine the lockstep processes go first
+    except (AttributeError, OSError):
+        pass
     try:
         setup = json.loads(Path(args.setup).read_text())
     except (OSError, ValueError) as e:

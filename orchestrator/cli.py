@@ -50,6 +50,10 @@ def cmd_run(args) -> int:
         viewer = viewer_spec(args.view, "--view", errors, Path.cwd())
         if errors or viewer is None:
             return _fail("; ".join(errors) or "--view: expected spawn, web or save:FILE.rrd")
+    if getattr(viewer or config.viewer, "mode", None) == "spawn":   # fail before the run, not after
+        from components.viewer.sinks import spawn_problem
+        if spawn_problem():
+            return _fail(f"viewer spawn: {spawn_problem()}")
     from orchestrator.engine import Run
     run = Run(config, record=args.record, profile=args.profile, progress=sys.stderr.isatty(), viewer=viewer)
     code = run.execute()

@@ -88,7 +88,7 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
     import zenoh
 
     from components.viewer.scene import SceneLogger
-    from components.viewer.sinks import close_stream, open_stream
+    from components.viewer.sinks import close_stream, open_stream, spawn_problem
 
     mode = setup.get("mode", "save")
     columns = list(setup["columns"])
@@ -104,6 +104,9 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
         watcher = session.liveliness().declare_subscriber(bus.run_key(run_id, "alive", "orchestrator"),
                                                           zenoh.handlers.FifoChannel(16))
         token = session.liveliness().declare_token(bus.run_key(run_id, "alive", VIEWER_NAME, VIEWER_GENERATION))
+        if mode == "spawn" and spawn_problem():
+            log(f"cannot spawn the desktop viewer: {spawn_problem()}")
+            return 1
         scene = SceneLogger(columns, config, setup.get("config_dir"), warn=log)
         stream, url = open_stream(mode, recording_id=run_id, file=setup.get("file"), blueprint=scene.blueprint(),
                                   open_browser=bool(setup.get("open_browser")),

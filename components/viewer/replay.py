@@ -137,6 +137,11 @@ def cmd_view(args) -> int:
     if mode not in ("spawn", "web", "save") or (mode == "save") != bool(file) or (file and not file.endswith(".rrd")):
         print(f"error: --view: expected spawn, web or save:FILE.rrd, got {args.view!r}", file=sys.stderr)
         return USAGE_ERROR
+    if mode == "spawn":
+        from components.viewer.sinks import spawn_problem
+        if spawn_problem():
+            print(f"error: --view spawn: {spawn_problem()}", file=sys.stderr)
+            return USAGE_ERROR
     if not args.rate > 0:
         print(f"error: --rate: must be positive, got {args.rate:g}", file=sys.stderr)
         return USAGE_ERROR

@@ -42,6 +42,19 @@ def analytics_off() -> None:
     os.environ["XDG_CONFIG_HOME"] = str(base)
 
 
+def spawn_problem() -> str | None:
+    """Why ``spawn`` (the desktop viewer) cannot work here, or None: no ``rerun`` executable, or
+    Linux without a display (then use ``web`` or ``save:FILE.rrd``)."""
+    import shutil
+    import sys
+
+    if shutil.which("rerun") is None:
+        return "the Rerun viewer executable `rerun` is not on PATH (pip install rerun-sdk); use web or save:FILE.rrd"
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        return "no display here (neither DISPLAY nor WAYLAND_DISPLAY is set); use web or save:FILE.rrd"
+    return None
+
+
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

@@ -1,0 +1,359 @@
+r"""Computed-torque control of a free-floating manipulator with the Generalized Jacobian
+(Ramón, Pomares, Felicetti, IAC-22, eqs. 1-8). Plain classes, no bus, no I/O.
+
+Model
+-----
+The body is its URDF on a free-flyer base (``pin.JointModelFreeFlyer``), built by Pinocchio from
+the same file the dynamics loads, in zero gravity; joints the dynamics welds (``locked_joints``)
+are removed with ``pin.buildReducedModel`` at their measured position. Generalized velocity, in
+Pinocchio's convention: ``nu = (v_b, w_b, qdot)`` with the base velocity in the base's *local*
+frame (``v_b = R^T v_W`` of the base origin, ``w_b = R^T w_W``); the dynamics publishes the twist
+in W axes (``twist = (v_W, w_W)``), converted here with the base orientation R = R_W_base.
+
+Partition the coordinates into the actuated ones ``m`` (the arm's joints, driven by this
+controller) and the unactuated ones ``b`` (the base's 6, plus any joint of the body that is neither
+driven nor locked: it is passive, zero torque, and moves with the base). Eq. (1):
+
+    [ M_bb   M_bm ] [ dnu_b ]   [ c_b ]   [ 0   ]
+    [ M_bm^T M_mm ] [ qdd   ] + [ c_m ] = [ tau ]
+
+(c = Coriolis/centrifugal terms, Pinocchio's ``nonLinearEffects`` with gravity zero; external
+environment forces are not modelled — feedback absorbs them). The first row gives the base's
+reaction ``dnu_b = -M_bb^-1 (M_bm qdd + c_b)``; substituted in the second, eqs. (2)-(4):
+
+    tau = M* qdd + C*,   M* = M_mm - M_bm^T M_bb^-1 M_bm,   C* = c_m - M_bm^T M_bb^-1 c_b.
+
+(M* and C* do not depend on how the base velocity is parametrised: a change ``nu_b' = T nu_b``
+cancels in the Schur complement.)  The end-effector twist ``xdot = (v_e, w_e)`` (frame origin's
+linear velocity, angular velocity, both W axes) is ``xdot = J_b nu_b + J_m qdot`` with
+``J = getFrameJacobian(..., LOCAL_WORLD_ALIGNED)``; with the momentum ``h = M_bb nu_b + M_bm qdot``
+(eq. 5) it is ``xdot = J_g qdot + J_b M_bb^-1 h``, eq. (7): ``J_g = J_m - J_b M_bb^-1 M_bm``.
+
+Drift term (the ``Jdot_g qdot + nu_gm-dot`` of eq. 6), exact and without numerical
+differentiation: differentiating ``xdot = J nu`` and inserting the base reaction,
+
+    xddot = J (dnu) + Jdot nu = (J_m - J_b M_bb^-1 M_bm) qdd + [J_b (-M_bb^-1 c_b) + Jdot nu]
+          = J_g qdd + a_drift,
+
+where ``a_drift`` is the end effector's (classical) acceleration when ``qdd = 0`` and the base
+accelerates as ``dnu_b = -M_bb^-1 c_b``: one ``forwardKinematics(q, nu, (-M_bb^-1 c_b, 0))`` and
+``getFrameClassicalAcceleration(..., LOCAL_WORLD_ALIGNED)``. It holds for any momentum, not only
+h = 0 (a body co-rotating with LVLH carries angular momentum). With ``h = 0`` it equals the paper's
+``Jdot_g qdot`` (J_b M_bb^-1 h vanishes and so does its derivative up to the environment).
+
+Control law, eqs. (6) and (8): with ``e = (p_d - p, log(R_d R^T))`` and
+``edot = (v_d - v_e, w_d - w_e)``,
+
+    xddot_r = xddot_d + K_d edot + K_p e                                   (per axis gains)
+    qdd*    = J_g^+ (xddot_r - a_drift) + N qdd_0,  qdd_0 = k_np (q_posture - q) - k_nd qdot
+    tau     = M* qdd* + C*
+
+``J_g^+`` is a damped least-squares inverse ``V diag(s / (s^2 + lambda^2)) U^T`` with
+``lambda^2 = lambda_max^2 (1 - (s_min / eps)^2)`` when ``s_min < eps`` (else 0). ``N = I - V_6 V_6^T``
+projects onto J_g's null space (7-DOF arm, 6-D task: one self-motion), where a posture/damping
+term holds the arm near its initial posture. The torques are clipped to the URDF effort limits.
+
+``base_model: fixed`` is the textbook fixed-base computed torque on the same measurements (the
+base is assumed not to accelerate): ``M* = M_mm``, ``C* = c_m``, ``J_g = J_m``, ``a_drift = Jdot_m
+qdot``. It ignores the base's reaction; it is there to show what the free-floating model buys.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from components.controller.trajectory import PoseSample, log_so3, quat_to_matrix
+
+BASE_MODELS = ("free_floating", "fixed")
+
+
+@dataclass
+class ArmState:
+    """The paper's quantities at one state (actuated joints in the order of ``arm_joints``).
+
+    | field | shape | unit | meaning |
+    |---|---|---|---|
+    | M_star | (n, n) | kg m^2 | generalized inertia, eq. 3 |
+    | C_star | (n,) | N m | generalized Coriolis/centrifugal vector, eq. 4 |
+    | J_g | (6, n) | m/rad, 1 | Generalized Jacobian (rows: linear, angular; W axes), eq. 7 |
+    | a_drift | (6,) | m/s^2, rad/s^2 | end-effector acceleration at qdd = 0 (see module doc) |
+    | p, R | (3,), (3, 3) | m | end-effector position and R_W_ee |
+    | xdot | (6,) | m/s, rad/s | end-effector twist (origin velocity, angular velocity), W |
+    | q, qd | (n,) | rad, rad/s | arm joint positions and rates |
+    """
+    M_star: np.ndarray
+    C_star: np.ndarray
+    J_g: np.ndarray
+    a_drift: np.ndarray
+    p: np.ndarray
+    R: np.ndarray
+    xdot: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+
+
+class FreeFloatingArm:
+    """Pinocchio model of a body (URDF on a free flyer) and one arm's Generalized-Jacobian terms.
+
+    | argument | meaning |
+    |---|---|
+    | urdf | path of the URDF (the body's root link is the free base) |
+    | body_joints | the body's non-fixed joints in URDF order: the layout of q, qd, tau |
+    | arm_joints | the joints this controller drives (names) |
+    | end_effector | a link (or frame) name of the URDF |
+    | locked | joint name -> position (rad or m) at which it is welded |
+    """
+
+    def __init__(self, urdf: str | Path, body_joints: Sequence[str], arm_joints: Sequence[str],
+                 end_effector: str, locked: Mapping[str, float] | None = None):
+        import pinocchio as pin
+
+        self.pin = pin
+        full = pin.buildModelFromUrdf(str(urdf), pin.JointModelFreeFlyer())
+        locked = dict(locked or {})
+        if locked:
+            reference = pin.neutral(full)
+            for name, value in locked.items():
+                joint = full.joints[full.getJointId(name)]
+                if joint.nq == 2:        # continuous joint: (cos, sin)
+                    reference[joint.idx_q:joint.idx_q + 2] = math.cos(value), math.sin(value)
+                else:
+                    reference[joint.idx_q] = value
+            model = pin.buildReducedModel(full, [full.getJointId(n) for n in locked], reference)
+        else:
+            model = full
+        model.gravity = pin.Motion.Zero()
+        self.model, self.data = model, model.createData()
+        self.body_joints, self.arm_joints = list(body_joints), list(arm_joints)
+        self.n_body, self.n = len(self.body_joints), len(self.arm_joints)
+        # body layout (URDF order) -> Pinocchio q / v indices; locked joints are not in the model
+        self._q1_body, self._q1_pin, self._v_body, self._v_pin, self._q2 = [], [], [], [], []
+        for k, name in enumerate(self.body_joints):
+            if name in locked:
+                continue
+            joint = model.joints[model.getJointId(name)]
+            if joint.nq == 2:
+                self._q2.append((joint.idx_q, k))
+            else:
+                self._q1_body.append(k)
+                self._q1_pin.append(joint.idx_q)
+            self._v_body.append(k)
+            self._v_pin.append(joint.idx_v)
+        self._q1_body, self._q1_pin = np.array(self._q1_body, dtype=int), np.array(self._q1_pin, dtype=int)
+        self._v_body, self._v_pin = np.array(self._v_body, dtype=int), np.array(self._v_pin, dtype=int)
+        self.body_arm = np.array([self.body_joints.index(j) for j in self.arm_joints])
+        self.arm_v = np.array([model.joints[model.getJointId(j)].idx_v for j in self.arm_joints])
+        passive = [model.joints[model.getJointId(j)].idx_v for j in self.body_joints
+                   if j not in locked and j not in self.arm_joints]
+        self.base_v = np.array(list(range(6)) + sorted(passive))
+        # (base, arm) ordering of the velocity coordinates, and index grids to read M's upper
+        # triangle in that order: entry (i, j) of the reordered M is M[min, max] of the originals
+        self._perm = np.concatenate([self.base_v, self.arm_v])
+        if self._perm.size != model.nv:
+            raise ValueError(f"joints: the model has {model.nv - 6} free joints, {self.arm_v.size} driven "
+                             f"and {len(passive)} passive")
+        rows, cols = np.meshgrid(self._perm, self._perm, indexing="ij")
+        self._perm_rows, self._perm_cols = np.minimum(rows, cols), np.maximum(rows, cols)
+        if not model.existFrame(end_effector):
+            raise ValueError(f"end_effector: {end_effector!r} is not a frame of {Path(urdf).name}")
+        self.ee = model.getFrameId(end_effector)
+        self.q_pin = pin.neutral(model)
+        self.v_pin = np.zeros(model.nv)
+        self.R_base = np.eye(3)
+
+    # ------------------------------------------------------------ state
+
+    def set_state(self, position, orientation, twist, q, qd) -> None:
+        """Measured state: base origin (W), q_W_base [x, y, z, w], twist (v_W, w_W), q and qd of
+        the whole body (URDF order)."""
+        quat = np.asarray(orientation, dtype=float)
+        quat = quat / np.linalg.norm(quat)
+        R = quat_to_matrix(quat)
+        self.R_base = R
+        qp, vp = self.q_pin, self.v_pin
+        qp[:3] = position
+        qp[3:7] = quat
+        twist = np.asarray(twist, dtype=float)
+        vp[:3] = R.T @ twist[:3]
+        vp[3:6] = R.T @ twist[3:]
+        q = np.asarray(q, dtype=float)
+        qd = np.asarray(qd, dtype=float)
+        qp[self._q1_pin] = q[self._q1_body]
+        vp[self._v_pin] = qd[self._v_body]
+        for iq, k in self._q2:                     # continuous joints: (cos, sin)
+            qp[iq], qp[iq + 1] = math.cos(q[k]), math.sin(q[k])
+        self._q_arm = q[self.body_arm]
+        self._qd_arm = qd[self.body_arm]
+
+    def pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """End-effector position and rotation (W) at the current state (kinematics only)."""
+        pin = self.pin
+        pin.forwardKinematics(self.model, self.data, self.q_pin)
+        M = pin.updateFramePlacement(self.model, self.data, self.ee)
+        return np.array(M.translation), np.array(M.rotation)
+
+    def joint_origin(self, name: str) -> np.ndarray:
+        """Position (W) of a joint's frame origin at the current state (after ``pose``)."""
+        return np.array(self.data.oMi[self.model.getJointId(name)].translation)
+
+    def compute(self, base_model: str = "free_floating") -> ArmState:
+        """M*, C*, J_g, a_drift and the end-effector state at the current state (module doc)."""
+        pin, model, data = self.pin, self.model, self.data
+        qp, vp = self.q_pin, self.v_pin
+        pin.computeAllTerms(model, data, qp, vp)           # FK(q, v), M (upper triangle), nle, joint Jacobians
+        frame = pin.updateFramePlacement(model, data, self.ee)
+        J = pin.getFrameJacobian(model, data, self.ee, pin.LOCAL_WORLD_ALIGNED)
+        v = pin.getFrameVelocity(model, data, self.ee, pin.LOCAL_WORLD_ALIGNED)
+        xdot = np.concatenate([v.linear, v.angular])
+        nb = self.base_v.size
+        M = data.M[self._perm_rows, self._perm_cols]       # reordered (b, m), from crba's upper triangle
+        c = data.nle[self._perm]
+        Mmm, cm = M[nb:, nb:], c[nb:]
+        Jb, Jm = J[:, self._perm[:nb]], J[:, self._perm[nb:]]
+        acc = np.zeros(model.nv)
+        if base_model == "fixed":
+            M_star, C_star, J_g = Mmm, cm, Jm
+        else:
+            Mbb, Mbm = M[:nb, :nb], M[:nb, nb:]
+            X = np.linalg.solve(Mbb, np.column_stack([Mbm, c[:nb]]))   # M_bb^-1 [M_bm, c_b]
+            Mi_Mbm, Mi_cb = X[:, :-1], X[:, -1]
+            M_star = Mmm - Mbm.T @ Mi_Mbm
+            M_star = 0.5 * (M_star + M_star.T)
+            C_star = cm - Mbm.T @ Mi_cb
+            J_g = Jm - Jb @ Mi_Mbm
+            acc[self.base_v] = -Mi_cb
+        pin.forwardKinematics(model, data, qp, vp, acc)
+        a = pin.getFrameClassicalAcceleration(model, data, self.ee, pin.LOCAL_WORLD_ALIGNED)
+        a_drift = np.concatenate([a.linear, a.angular])
+        return ArmState(M_star, C_star, J_g, a_drift, np.array(frame.translation), np.array(frame.rotation),
+                        xdot, self._q_arm.copy(), self._qd_arm.copy())
+
+
+def dls_inverse(J: np.ndarray, eps: float, lambda_max: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Damped least-squares inverse of J (m x n, m <= n): (J^+, null-space projector, s_min).
+
+    Damping ``lambda^2 = lambda_max^2 (1 - (s_min/eps)^2)`` only when s_min < eps (Chiaverini's
+    variable damping); the projector ``I - V_m V_m^T`` is exact whatever the damping.
+    """
+    U, s, Vt = np.linalg.svd(J, full_matrices=True)
+    m = s.size
+    s_min = float(s[-1])
+    lam2 = lambda_max ** 2 * (1.0 - (s_min / eps) ** 2) if s_min < eps else 0.0
+    inv = s / (s * s + lam2)
+    J_plus = Vt[:m].T @ (inv[:, None] * U.T)
+    N = np.eye(J.shape[1]) - Vt[:m].T @ Vt[:m]
+    return J_plus, N, s_min
+
+
+@dataclass
+class ControlOutput:
+    """One control step: arm torques and diagnostics.
+
+    | field | unit | meaning |
+    |---|---|---|
+    | tau | N m | arm joint torques, ``arm_joints`` order, clipped to the effort limits |
+    | error | m, rad | (p_d - p, log(R_d R^T)), W |
+    | sigma_min | - | smallest singular value of J_g (J_m for ``fixed``) |
+    | qdd | rad/s^2 | the commanded joint acceleration |
+    """
+    tau: np.ndarray
+    error: np.ndarray
+    sigma_min: float
+    qdd: np.ndarray
+
+
+class ComputedTorqueLaw:
+    """Eqs. (6) and (8) with a damped pseudo-inverse and a null-space posture term.
+
+    | argument | unit | meaning |
+    |---|---|---|
+    | kp | 1/s^2 (6) | Cartesian stiffness per axis: x, y, z (position), then rotation x, y, z |
+    | kd | 1/s (6) | Cartesian damping per axis |
+    | null_kp | 1/s^2 (n) | posture stiffness in the null space |
+    | null_kd | 1/s (n) | joint damping in the null space |
+    | dls_threshold | - | s_min below which the pseudo-inverse is damped (eps) |
+    | dls_damping | - | damping at s_min = 0 (lambda_max) |
+    | effort | N m (n) | torque limits (URDF) |
+    | base_model | - | free_floating (paper) or fixed (ignores the base's reaction) |
+    """
+
+    def __init__(self, kp, kd, null_kp, null_kd, effort, *, dls_threshold: float = 0.02,
+                 dls_damping: float = 0.05, base_model: str = "free_floating"):
+        if base_model not in BASE_MODELS:
+            raise ValueError(f"base_model: expected one of {', '.join(BASE_MODELS)}, got {base_model!r}")
+        self.kp, self.kd = np.asarray(kp, dtype=float), np.asarray(kd, dtype=float)
+        self.null_kp, self.null_kd = np.asarray(null_kp, dtype=float), np.asarray(null_kd, dtype=float)
+        self.effort = np.asarray(effort, dtype=float)
+        self.eps, self.lam = float(dls_threshold), float(dls_damping)
+        self.base_model = base_model
+
+    def control(self, s: ArmState, d: PoseSample, q_posture: np.ndarray) -> ControlOutput:
+        error = np.concatenate([d.p - s.p, log_so3(d.R @ s.R.T)])
+        error_rate = np.concatenate([d.v, d.w]) - s.xdot
+        xdd_r = np.concatenate([d.a, d.dw]) + self.kd * error_rate + self.kp * error
+        J_plus, N, s_min = dls_inverse(s.J_g, self.eps, self.lam)
+        qdd_0 = self.null_kp * (q_posture - s.q) - self.null_kd * s.qd
+        qdd = J_plus @ (xdd_r - s.a_drift) + N @ qdd_0
+        tau = s.M_star @ qdd + s.C_star
+        return ControlOutput(np.clip(tau, -self.effort, self.effort), error, s_min, qdd)
+
+
+class ArmController:
+    """The whole controller of one arm: model, trajectory, law (no I/O; the component wraps it).
+
+    ``start(t, state)`` anchors the trajectory at the measured end-effector pose and takes the
+    arm's posture for the null-space term; ``step(t, state)`` returns the outputs for the state
+    measured at t (``state`` = position, orientation, twist, q, qd as published by the dynamics).
+    The returned ``tau`` covers the whole body (URDF joint order), zero on joints not driven.
+    """
+
+    def __init__(self, arm: FreeFloatingArm, law: ComputedTorqueLaw, trajectory_spec: Mapping,
+                 reach: tuple[str, float] | None = None):
+        self.arm, self.law, self.spec = arm, law, trajectory_spec
+        self.reach = reach                        # (centre joint, reach m) for the out-of-reach check
+        self.trajectory = None
+        self.q_posture = np.zeros(arm.n)
+        self.anchor = None                        # p0 (3), R0 (3x3), R_base0 (3x3)
+
+    def start(self, state: Mapping[str, np.ndarray]) -> None:
+        from components.controller.trajectory import build_cartesian
+        from components.errors import ConfigError
+
+        self.arm.set_state(state["position"], state["orientation"], state["twist"], state["q"], state["qd"])
+        p0, R0 = self.arm.pose()
+        self.q_posture = np.asarray(state["q"], dtype=float)[self.arm.body_arm].copy()
+        self.anchor = (p0, R0, self.arm.R_base.copy())
+        self.trajectory = build_cartesian(self.spec, p0, R0, self.arm.R_base)
+        if self.reach is not None:
+            joint, reach = self.reach
+            centre = self.arm.joint_origin(joint)
+            for key, point in self.trajectory.checkpoints():
+                distance = float(np.linalg.norm(point - centre))
+                if distance > reach:
+                    raise ConfigError(f"trajectory.{key}", f"out of reach: the path passes {distance:.3f} m from "
+                                                           f"{joint}, the arm reaches at most {reach:.3f} m")
+
+    def restore(self, p0, R0, R_base0, q_posture) -> None:
+        """Re-anchor (set_state after a swap): the same trajectory as the generation before."""
+        from components.controller.trajectory import build_cartesian
+
+        self.anchor = (np.asarray(p0, float), np.asarray(R0, float), np.asarray(R_base0, float))
+        self.q_posture = np.asarray(q_posture, dtype=float).copy()
+        self.trajectory = build_cartesian(self.spec, *self.anchor)
+
+    def step(self, t: float, state: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        from components.controller.trajectory import matrix_to_quat
+
+        self.arm.set_state(state["position"], state["orientation"], state["twist"], state["q"], state["qd"])
+        s = self.arm.compute(self.law.base_model)
+        d = self.trajectory.sample(t)
+        out = self.law.control(s, d, self.q_posture)
+        tau = np.zeros(self.arm.n_body)
+        tau[self.arm.body_arm] = out.tau
+        return {"tau": tau, "ee_position": s.p, "ee_position_desired": d.p, "ee_error": out.error,
+                "ee_orientation": matrix_to_quat(s.R), "ee_orientation_desired": matrix_to_quat(d.R),
+                "ee_twist": s.xdot, "sigma_min": np.float64(out.sigma_min)}

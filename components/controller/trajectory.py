@@ -1,0 +1,347 @@
+"""End-effector and joint trajectories for the controllers: quintic time law, the paper's
+parabolic move, Cartesian and joint-space waypoints. Plain functions and classes, no I/O.
+
+Time law (rest to rest, C2): ``s(u) = 10 u^3 - 15 u^4 + 6 u^5`` with ``u = (t - t0) / T`` clipped
+to [0, 1]; ``s' = 30 u^2 (1 - u)^2 / T``, ``s'' = 60 u (1 - u)(1 - 2u) / T^2``. Peak rate
+``1.875 / T``, peak acceleration ``5.774 / T^2`` (per unit of path).
+
+Cartesian trajectories are anchored at the end effector's initial pose ``(p0, R0)`` in W and
+written in the axes ``R_axes`` (the robot base's initial orientation for ``axes: body``, the
+identity for ``axes: world``). ``sample(t)`` returns the desired pose and its first two time
+derivatives, all in W:
+
+| field | unit | meaning |
+|---|---|---|
+| p, v, a | m, m/s, m/s^2 | position of the end-effector frame origin, its (classical) rate and acceleration |
+| R | - | 3x3 rotation R_W_ee |
+| w, dw | rad/s, rad/s^2 | angular velocity and acceleration, W axes |
+
+Config forms (``trajectory`` parameter of ``controller.computed_torque``):
+
+    {type: hold}                                                  # keep the initial pose
+    {type: parabola, start: 1 s, duration: 10 s, displacement: 0.5 m, height: 0.1 m}
+    {type: waypoints, axes: body, start: 0 s,
+     waypoints: [{time: 4 s, position: [0.1, 0, 0.05], rotation: [0, 0, 0.2]}, ...]}
+
+``parabola`` is the paper's move (IAC-22, Fig. 4): ``displacement`` along the base's initial x
+axis, y held, z on the parabola ``4 h s (1 - s)`` (apex ``height`` halfway, back to the start
+height at the end), orientation kept, with the quintic law between ``start`` and
+``start + duration``. ``waypoints``: rest-to-rest quintic segments, straight lines in position
+and a constant-axis rotation in orientation; ``position`` is the offset from the initial
+end-effector position and ``rotation`` a rotation vector (rad) applied to the initial orientation,
+both in ``axes``; each waypoint is reached at its ``time``, leaving the previous one (or the
+initial pose) at the previous ``time`` (or ``start``).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from components.errors import ConfigError
+from components.units import to_si
+
+TRAJECTORY_TYPES = ("hold", "parabola", "waypoints")
+AXES = ("body", "world")
+
+
+# --------------------------------------------------------------------------- time law
+
+def quintic(t: float, t0: float, duration: float) -> tuple[float, float, float]:
+    """Rest-to-rest quintic time law: (s, ds/dt, d2s/dt2) with s from 0 at t0 to 1 at t0 + T."""
+    if duration <= 0.0:
+        return (0.0, 0.0, 0.0) if t < t0 else (1.0, 0.0, 0.0)
+    u = (t - t0) / duration
+    if u <= 0.0:
+        return 0.0, 0.0, 0.0
+    if u >= 1.0:
+        return 1.0, 0.0, 0.0
+    s = u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
+    ds = 30.0 * u * u * (1.0 - u) ** 2 / duration
+    dds = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / duration ** 2
+    return s, ds, dds
+
+
+# --------------------------------------------------------------------------- SO(3)
+
+def skew(w: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def exp_so3(phi: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a rotation vector (Rodrigues)."""
+    t = float(np.linalg.norm(phi))
+    K = skew(phi)
+    if t < 1e-8:
+        return np.eye(3) + K + 0.5 * K @ K
+    return np.eye(3) + math.sin(t) / t * K + (1.0 - math.cos(t)) / (t * t) * K @ K
+
+
+def log_so3(R: np.ndarray) -> np.ndarray:
+    """Rotation vector of a rotation matrix, angle in [0, pi] (robust near 0 and pi)."""
+    c = max(-1.0, min(1.0, 0.5 * (np.trace(R) - 1.0)))
+    t = math.acos(c)
+    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if t < 1e-6:
+        return 0.5 * v
+    if math.pi - t < 1e-4:                       # near pi: axis from the symmetric part
+        B = 0.5 * (R + np.eye(3))
+        k = int(np.argmax(np.diag(B)))
+        axis = B[:, k] / math.sqrt(max(B[k, k], 1e-300))
+        if axis @ v < 0.0:
+            axis = -axis
+        return t * axis / np.linalg.norm(axis)
+    return t / (2.0 * math.sin(t)) * v
+
+
+def quat_to_matrix(q: Sequence[float]) -> np.ndarray:
+    """Rotation matrix of a quaternion [x, y, z, w] (normalized first)."""
+    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def matrix_to_quat(R: np.ndarray) -> np.ndarray:
+    """Quaternion [x, y, z, w] (w >= 0) of a rotation matrix (Shepperd)."""
+    m = R
+    t = m[0, 0] + m[1, 1] + m[2, 2]
+    k = int(np.argmax([m[0, 0], m[1, 1], m[2, 2], t]))
+    if k == 3:
+        s = 2.0 * math.sqrt(1.0 + t)
+        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
+    elif k == 0:
+        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = [0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
+    elif k == 1:
+        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = [(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
+    else:
+        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s]
+    q = np.array(q)
+    return -q if q[3] < 0 else q
+
+
+# --------------------------------------------------------------------------- Cartesian trajectories
+
+@dataclass(frozen=True)
+class PoseSample:
+    """Desired end-effector pose and derivatives at one time, W (see the module table)."""
+    p: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    R: np.ndarray
+    w: np.ndarray
+    dw: np.ndarray
+
+
+class Hold:
+    """The initial pose, forever."""
+
+    def __init__(self, p0: np.ndarray, R0: np.ndarray):
+        self.p0, self.R0 = np.array(p0, dtype=float), np.array(R0, dtype=float)
+
+    def sample(self, t: float) -> PoseSample:
+        z = np.zeros(3)
+        return PoseSample(self.p0.copy(), z, z.copy(), self.R0.copy(), z.copy(), z.copy())
+
+    def checkpoints(self) -> list[tuple[str, np.ndarray]]:
+        """Points of the path (W) with the config key (below ``trajectory``) that places them:
+        enough points that the path lies within any ball containing them all (reach checks)."""
+        return []
+
+
+class Parabola(Hold):
+    """The paper's move: ``displacement`` along the x axis of ``R_axes``, y held, z on a parabola
+    of apex ``height``, orientation kept, quintic in time from ``start`` over ``duration``."""
+
+    def __init__(self, p0, R0, R_axes, start: float, duration: float, displacement: float, height: float):
+        super().__init__(p0, R0)
+        self.R_axes = np.array(R_axes, dtype=float)
+        self.start, self.duration = float(start), float(duration)
+        self.d, self.h = float(displacement), float(height)
+
+    def _shape(self, s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Offset in R_axes as a function of the path parameter, and its two s-derivatives."""
+        d, h = self.d, self.h
+        return (np.array([d * s, 0.0, 4.0 * h * s * (1.0 - s)]),
+                np.array([d, 0.0, 4.0 * h * (1.0 - 2.0 * s)]),
+                np.array([0.0, 0.0, -8.0 * h]))
+
+    def sample(self, t: float) -> PoseSample:
+        s, ds, dds = quintic(t, self.start, self.duration)
+        f, f1, f2 = self._shape(s)
+        Ra = self.R_axes
+        z = np.zeros(3)
+        return PoseSample(self.p0 + Ra @ f, Ra @ (f1 * ds), Ra @ (f2 * ds * ds + f1 * dds),
+                          self.R0.copy(), z, z.copy())
+
+    def checkpoints(self) -> list[tuple[str, np.ndarray]]:
+        points = [("displacement", self.p0 + self.R_axes @ self._shape(1.0)[0])]
+        return points + [("height", self.p0 + self.R_axes @ self._shape(s)[0]) for s in np.linspace(0.0, 1.0, 41)]
+
+
+class Waypoints(Hold):
+    """Rest-to-rest quintic segments through Cartesian waypoints (offsets from the initial pose).
+
+    ``times`` (s, increasing, after ``start``), ``positions`` (n, 3) m and ``rotations`` (n, 3) rad,
+    in the axes ``R_axes``.
+    """
+
+    def __init__(self, p0, R0, R_axes, start: float, times, positions, rotations):
+        super().__init__(p0, R0)
+        Ra = np.array(R_axes, dtype=float)
+        self.t = np.concatenate([[float(start)], np.asarray(times, dtype=float)])
+        self.p = np.vstack([self.p0, self.p0 + np.asarray(positions, dtype=float).reshape(-1, 3) @ Ra.T])
+        self.R = [self.R0] + [exp_so3(Ra @ np.asarray(r, dtype=float)) @ self.R0
+                              for r in np.asarray(rotations, dtype=float).reshape(-1, 3)]
+        # rotation vector of each segment, W axes: R_{i+1} = exp(phi_i) R_i
+        self.phi = [log_so3(self.R[i + 1] @ self.R[i].T) for i in range(len(self.R) - 1)]
+
+    def sample(self, t: float) -> PoseSample:
+        z = np.zeros(3)
+        if t <= self.t[0]:
+            return PoseSample(self.p[0].copy(), z, z.copy(), self.R[0].copy(), z.copy(), z.copy())
+        if t >= self.t[-1]:
+            return PoseSample(self.p[-1].copy(), z, z.copy(), self.R[-1].copy(), z.copy(), z.copy())
+        i = int(np.searchsorted(self.t, t, side="right")) - 1
+        s, ds, dds = quintic(t, self.t[i], self.t[i + 1] - self.t[i])
+        dp, phi = self.p[i + 1] - self.p[i], self.phi[i]
+        return PoseSample(self.p[i] + s * dp, ds * dp, dds * dp, exp_so3(s * phi) @ self.R[i], ds * phi, dds * phi)
+
+    def checkpoints(self) -> list[tuple[str, np.ndarray]]:
+        # straight segments: a ball (convex) holding the waypoints holds the whole path
+        return [(f"waypoints[{i}].position", p) for i, p in enumerate(self.p[1:])]
+
+
+# --------------------------------------------------------------------------- config parsing
+
+def _number(spec: Mapping, key: str, unit: str, prefix: str, default=None) -> float:
+    if key not in spec:
+        if default is None:
+            raise ConfigError(f"{prefix}.{key}", f"missing (expected a quantity in {unit})")
+        return float(default)
+    value = to_si(spec[key], unit, f"{prefix}.{key}")
+    if not math.isfinite(value):
+        raise ConfigError(f"{prefix}.{key}", f"expected a finite number, got {spec[key]!r}")
+    return value
+
+
+def _vector3(value: Any, unit: str, key: str) -> np.ndarray:
+    if not isinstance(value, (list, tuple)) or len(value) != 3:
+        raise ConfigError(key, f"expected 3 values, got {value!r}")
+    return np.array([to_si(v, unit, f"{key}[{i}]") for i, v in enumerate(value)])
+
+
+CARTESIAN_KEYS = {
+    "hold": {"type"},
+    "parabola": {"type", "start", "duration", "displacement", "height", "axes"},
+    "waypoints": {"type", "start", "axes", "waypoints"},
+}
+
+
+def parse_cartesian(spec: Any, prefix: str = "trajectory") -> dict:
+    """Check a ``trajectory`` config mapping; return it in SI (ConfigError naming the key)."""
+    if spec is None:
+        return {"type": "hold"}
+    if not isinstance(spec, Mapping):
+        raise ConfigError(prefix, f"expected a mapping with a type ({', '.join(TRAJECTORY_TYPES)}), got {spec!r}")
+    kind = spec.get("type")
+    if kind not in TRAJECTORY_TYPES:
+        raise ConfigError(f"{prefix}.type", f"expected one of {', '.join(TRAJECTORY_TYPES)}, got {kind!r}")
+    unknown = sorted(set(spec) - CARTESIAN_KEYS[kind])
+    if unknown:
+        raise ConfigError(f"{prefix}.{unknown[0]}", f"unknown key for a {kind} trajectory "
+                                                    f"(known: {', '.join(sorted(CARTESIAN_KEYS[kind]))})")
+    out: dict = {"type": kind}
+    if kind == "hold":
+        return out
+    out["axes"] = spec.get("axes", "body")
+    if out["axes"] not in AXES:
+        raise ConfigError(f"{prefix}.axes", f"expected one of {', '.join(AXES)}, got {out['axes']!r}")
+    out["start"] = _number(spec, "start", "s", prefix, default=0.0)
+    if out["start"] < 0.0:
+        raise ConfigError(f"{prefix}.start", f"expected a time >= 0 s, got {out['start']} s")
+    if kind == "parabola":
+        out["duration"] = _number(spec, "duration", "s", prefix)
+        if out["duration"] <= 0.0:
+            raise ConfigError(f"{prefix}.duration", f"expected a duration > 0 s, got {out['duration']} s")
+        out["displacement"] = _number(spec, "displacement", "m", prefix, default=0.5)
+        out["height"] = _number(spec, "height", "m", prefix, default=0.1)
+        return out
+    points = spec.get("waypoints")
+    if not isinstance(points, (list, tuple)) or not points:
+        raise ConfigError(f"{prefix}.waypoints", f"expected a non-empty list of {{time, position, rotation}}, got {points!r}")
+    times, positions, rotations = [], [], []
+    previous = out["start"]
+    for i, point in enumerate(points):
+        key = f"{prefix}.waypoints[{i}]"
+        if not isinstance(point, Mapping):
+            raise ConfigError(key, f"expected a mapping {{time, position, rotation}}, got {point!r}")
+        unknown = sorted(set(point) - {"time", "position", "rotation"})
+        if unknown:
+            raise ConfigError(f"{key}.{unknown[0]}", "unknown key (known: time, position, rotation)")
+        t = _number(point, "time", "s", key)
+        if not t > previous:
+            raise ConfigError(f"{key}.time", f"expected a time after {previous:g} s (the previous waypoint or start), got {t:g} s")
+        previous = t
+        times.append(t)
+        positions.append(_vector3(point.get("position", [0, 0, 0]), "m", f"{key}.position"))
+        rotations.append(_vector3(point.get("rotation", [0, 0, 0]), "rad", f"{key}.rotation"))
+    out.update(times=times, positions=positions, rotations=rotations)
+    return out
+
+
+def build_cartesian(parsed: Mapping, p0, R0, R_base) -> Hold:
+    """A trajectory object from ``parse_cartesian``'s result, anchored at the pose (p0, R0) in W;
+    ``R_base`` is the base's orientation (for ``axes: body``)."""
+    kind = parsed["type"]
+    if kind == "hold":
+        return Hold(p0, R0)
+    R_axes = np.asarray(R_base, dtype=float) if parsed["axes"] == "body" else np.eye(3)
+    if kind == "parabola":
+        return Parabola(p0, R0, R_axes, parsed["start"], parsed["duration"], parsed["displacement"], parsed["height"])
+    return Waypoints(p0, R0, R_axes, parsed["start"], parsed["times"], parsed["positions"], parsed["rotations"])
+
+
+def max_offset(parsed: Mapping) -> tuple[str, float]:
+    """The config key and size (m) of the largest offset from the initial end-effector position
+    (a necessary reach check: a reachable path lies within twice the arm's reach of its start)."""
+    kind = parsed["type"]
+    if kind == "hold":
+        return "type", 0.0
+    if kind == "parabola":
+        d, h = parsed["displacement"], parsed["height"]
+        sizes = [math.hypot(d * s, 4.0 * h * s * (1.0 - s)) for s in np.linspace(0.0, 1.0, 101)]
+        return "displacement", float(max(sizes))
+    sizes = [float(np.linalg.norm(p)) for p in parsed["positions"]]
+    i = int(np.argmax(sizes))
+    return f"waypoints[{i}].position", sizes[i]
+
+
+# --------------------------------------------------------------------------- joint-space trajectories
+
+class JointWaypoints:
+    """Rest-to-rest quintic segments between joint-space waypoints.
+
+    ``q0`` (n,) the positions at ``start``; ``times`` (m,) increasing; ``targets`` (m, n).
+    ``sample(t)`` -> (q, qd, qdd) (rad, rad/s, rad/s^2 or m, m/s, m/s^2).
+    """
+
+    def __init__(self, q0, start: float, times, targets):
+        self.t = np.concatenate([[float(start)], np.asarray(times, dtype=float)])
+        self.q = np.vstack([np.asarray(q0, dtype=float), np.asarray(targets, dtype=float).reshape(len(times), -1)])
+
+    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        z = np.zeros(self.q.shape[1])
+        if t <= self.t[0]:
+            return self.q[0].copy(), z, z.copy()
+        if t >= self.t[-1]:
+            return self.q[-1].copy(), z, z.copy()
+        i = int(np.searchsorted(self.t, t, side="right")) - 1
+        s, ds, dds = quintic(t, self.t[i], self.t[i + 1] - self.t[i])
+        dq = self.q[i + 1] - self.q[i]
+        return self.q[i] + s * dq, ds * dq, dds * dq

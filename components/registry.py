@@ -28,6 +28,8 @@ TYPES = {
     # dynamics
     "dynamics.dart": "components.dynamics.component:DartDynamics",
     # controllers
+    "controller.computed_torque": "components.controller.components:ComputedTorqueComponent",
+    "controller.joint_pd": "components.controller.components:JointPDComponent",
     # observers
 }
 

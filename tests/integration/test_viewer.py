@@ -256,6 +256,63 @@ def test_observer_exits_when_the_orchestrator_goes_away(tmp_path):
         session.close()
 
 
+def test_spawn_mode_streams_to_a_listening_desktop_viewer(tmp_path):
+    """spawn connects to a viewer already listening on its port; here a headless `rerun --save` stands in."""
+    rerun_exe = shutil.which("rerun")
+    if rerun_exe is None:
+        pytest.skip("the `rerun` executable (rerun-sdk) is not on PATH")
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    config_home = tmp_path / "xdg"                 # the stand-in viewer with analytics off, user config untouched
+    (config_home / "rerun").mkdir(parents=True)
+    (config_home / "rerun" / "analytics.json").write_text(json.dumps({
+        "analytics_enabled": False, "analytics_id": "test", "metadata": {},
+        "config_file_path": str(config_home / "rerun" / "analytics.json"), "data_dir_path": str(tmp_path / "data")}))
+    received = tmp_path / "received.rrd"
+    listener = subprocess.Popen([rerun_exe, "--port", str(port), "--save", str(received)],
+                                env={**os.environ, "XDG_CONFIG_HOME": str(config_home)},
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 30
+        while True:
+            with socket.socket() as probe:
+                if probe.connect_ex(("127.0.0.1", port)) == 0:
+                    break
+            assert time.monotonic() < deadline and listener.poll() is None, "the stand-in viewer did not start"
+            time.sleep(0.1)
+        config = humanoid_config(tmp_path, "viewer_spawn")
+        env = {**os.environ, "ZENORBIT_RUNTIME_DIR": str(tmp_path / "runtime"), "ZENORBIT_RERUN_SPAWN_PORT": str(port),
+               "DISPLAY": os.environ.get("DISPLAY") or ":0"}
+        result = orchestrator("run", config, "--view", "spawn", env=env, timeout=120)
+        assert result.returncode == 0, result.stderr
+    finally:
+        listener.send_signal(signal.SIGINT)
+        try:
+            listener.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            listener.kill()
+            listener.wait()
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")              # a streamed .rrd has no footer
+        entities = read_rrd(received)
+    assert entities["/world/dynamics/humanoid/links/torso"]["rows"] == 34
+    assert entities["/plots/controller/tau"]["rows"] == 34
+    assert not viewer_processes("viewer_spawn")
+
+
+def test_spawn_without_a_display_is_refused_before_the_run(tmp_path):
+    config = humanoid_config(tmp_path, "viewer_nodisplay")
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    if not sys.platform.startswith("linux"):
+        pytest.skip("the display check is Linux-only")
+    result = orchestrator("run", config, "--view", "spawn", env=env, timeout=60)
+    assert result.returncode == 2 and "no display" in result.stderr, result.stderr
+    replay = orchestrator("view", tmp_path, "--view", "spawn", env=env)
+    assert replay.returncode == 2 and "no display" in replay.stderr, replay.stderr
+
+
 # ------------------------------------------------------------------------------------------ web view
 
 def chromium() -> str | None:

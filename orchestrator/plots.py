@@ -1,0 +1,262 @@
+"""PNG plots of a recording, like the paper's Figs. 5-7 (``orchestrator plot DIR``).
+
+``plot_recording(record_dir, out_dir)`` reads ``DIR/signals.parquet`` and ``DIR/config.yaml``
+(DESIGN §6) and, for every controller of the run, writes:
+
+| file | for | content |
+|---|---|---|
+| ``<c>_path.png`` | controller.computed_torque | desired (black) and obtained (red) 3D end-effector path relative to its start, in the axes of the base at t0 (inertial; W axes if the base orientation is not recorded) (Fig. 5) |
+| ``<c>_error.png`` | controller.computed_torque | position error (mm) and orientation error (mrad) per W axis and norm, over time (Fig. 6) |
+| ``<c>_torque.png`` | computed_torque, joint_pd | torques of the driven joints, N m (Fig. 7) |
+| ``<c>_base.png`` | controller.computed_torque | the body's base displacement (mm, W) and rotation (deg) from t0, and sigma_min of J_g |
+| ``<c>_joints.png`` | controller.joint_pd | joint positions and their references |
+
+``<c>`` is the controller's name in the config. Matplotlib's Agg canvas is used directly (no
+pyplot, no display, no global backend switch). Returns the paths written, in that order.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+COMPUTED_TORQUE = "controller.computed_torque"
+JOINT_PD = "controller.joint_pd"
+
+
+class PlotError(Exception):
+    """A recording that cannot be plotted (missing files or columns)."""
+
+
+def _load(record_dir: Path) -> tuple[dict, dict[str, np.ndarray]]:
+    import pyarrow.parquet as pq
+    import yaml
+
+    signals, config = record_dir / "signals.parquet", record_dir / "config.yaml"
+    for path in (signals, config):
+        if not path.is_file():
+            raise PlotError(f"{path} not found (expected a directory written by `orchestrator run --record`)")
+    resolved = yaml.safe_load(config.read_text()) or {}
+    table = pq.read_table(signals)
+    return resolved, {name: table.column(name).to_numpy() for name in table.column_names}
+
+
+def _vector(columns: dict[str, np.ndarray], name: str, n: int | None = None) -> np.ndarray | None:
+    """Columns ``name[0..n-1]`` as an (rows, n) array (all of them when n is None); None if absent."""
+    if n is None:
+        n = 0
+        while f"{name}[{n}]" in columns:
+            n += 1
+    if n == 0 or any(f"{name}[{i}]" not in columns for i in range(n)):
+        return None
+    return np.column_stack([columns[f"{name}[{i}]"] for i in range(n)])
+
+
+def _source(config: dict, component: str, variable: str) -> str | None:
+    """The output feeding ``component.variable`` (``dynamics.humanoid.position``), if connected."""
+    return (config.get("connections") or {}).get(f"{component}.{variable}")
+
+
+def _joint_names(config: dict, record_dir: Path, params: dict, n: int) -> list[str]:
+    """Names of the body's n joints (URDF order) if the URDF can be found, else tau[i]."""
+    from components.dynamics.urdf import UrdfError, read_urdf
+
+    urdf = params.get("urdf")
+    candidates = []
+    if isinstance(urdf, str):
+        events = record_dir / "events.jsonl"
+        if events.is_file():
+            for line in events.read_text().splitlines()[:5]:
+                try:
+                    event = json.loads(line)
+                except ValueError:
+                    continue
+                if event.get("event") == "start" and event.get("config"):
+                    candidates.append(Path(event["config"]).parent / urdf)
+        candidates += [record_dir / urdf, Path(__file__).resolve().parents[1] / urdf, Path(urdf)]
+    for path in candidates:
+        try:
+            names = read_urdf(path).movable_joints
+        except (UrdfError, OSError):
+            continue
+        if len(names) == n:
+            return names
+    return [f"tau[{i}]" for i in range(n)]
+
+
+def _quat_to_matrix(q) -> np.ndarray:
+    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def _save(fig, path: Path) -> Path:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig)
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def _figure(*size):
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=size, layout="constrained")
+
+
+def _driven(tau: np.ndarray) -> np.ndarray:
+    """Indices of the torque columns that are not identically zero."""
+    return np.flatnonzero(np.any(tau != 0.0, axis=0))
+
+
+def _computed_torque(name: str, params: dict, config: dict, columns: dict, t: np.ndarray,
+                     record_dir: Path, out_dir: Path) -> list[Path]:
+    written = []
+    p = _vector(columns, f"{name}.ee_position", 3)
+    p_d = _vector(columns, f"{name}.ee_position_desired", 3)
+    error = _vector(columns, f"{name}.ee_error", 6)
+    tau = _vector(columns, f"{name}.tau")
+    if p is None or p_d is None or error is None or tau is None:
+        raise PlotError(f"{name}: the recording lacks ee_position, ee_position_desired, ee_error or tau")
+    # the path in the base's initial frame (inertial: the torso's axes at t0), as the paper draws
+    # it; in W axes when the base orientation is not in the recording
+    origin, frame = p_d[0], "W"
+    q_source = _source(config, name, "orientation")
+    q_base = _vector(columns, q_source, 4) if q_source else None
+    if q_base is not None:
+        R0 = _quat_to_matrix(q_base[0])
+        p, p_d, frame = p @ R0, p_d @ R0, "the base's initial frame"
+        origin = p_d[0]
+
+    fig = _figure(7.0, 6.0)
+    ax = fig.add_subplot(projection="3d")
+    ax.plot(*(p_d - origin).T, color="black", linestyle="--", linewidth=1.5, label="desired")
+    ax.plot(*(p - origin).T, color="red", linewidth=1.0, label="obtained")
+    ax.scatter(*(p_d[[0, -1]] - origin).T, color="black", s=12)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_zlabel("z (m)")
+    ax.set_title(f"{name}: end-effector path in {frame}, relative to its start")
+    ax.legend(loc="upper left")
+    span = np.ptp(np.vstack([p - origin, p_d - origin]), axis=0).max() / 2 or 0.1
+    centre = (np.vstack([p, p_d]) - origin).min(axis=0) + np.ptp(np.vstack([p, p_d]) - origin, axis=0) / 2
+    ax.set_xlim(centre[0] - span, centre[0] + span)
+    ax.set_ylim(centre[1] - span, centre[1] + span)
+    ax.set_zlim(centre[2] - span, centre[2] + span)
+    written.append(_save(fig, out_dir / f"{name}_path.png"))
+
+    fig = _figure(8.0, 6.0)
+    axes = fig.subplots(2, 1, sharex=True)
+    for ax, part, scale, unit, title in ((axes[0], error[:, :3], 1e3, "mm", "a) position error p_d - p"),
+                                         (axes[1], error[:, 3:], 1e3, "mrad", "b) orientation error log(R_d R^T)")):
+        for i, axis in enumerate("xyz"):
+            ax.plot(t, part[:, i] * scale, linewidth=1.0, label=axis)
+        ax.plot(t, np.linalg.norm(part, axis=1) * scale, color="black", linewidth=1.0, label="norm")
+        ax.set_ylabel(unit)
+        ax.set_title(title, loc="left")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper right", ncols=4, fontsize="small")
+    axes[1].set_xlabel("time (s)")
+    fig.suptitle(f"{name}: tracking error (W axes)")
+    written.append(_save(fig, out_dir / f"{name}_error.png"))
+
+    written.append(_torques(name, params, config, tau, t, record_dir, out_dir))
+
+    base_source = _source(config, name, "position")
+    base = _vector(columns, base_source, 3) if base_source else None
+    sigma = columns.get(f"{name}.sigma_min")
+    if base is not None or sigma is not None:
+        fig = _figure(8.0, 7.5)
+        axes = fig.subplots(3, 1, sharex=True)
+        if q_base is not None:
+            q0 = q_base[0] / np.linalg.norm(q_base[0])
+            dots = np.abs(q_base @ q0) / np.linalg.norm(q_base, axis=1)
+            axes[1].plot(t, np.degrees(2.0 * np.arccos(np.clip(dots, 0.0, 1.0))), color="black", linewidth=1.0)
+            axes[1].set_ylabel("deg")
+            axes[1].set_title(f"b) base rotation from its initial attitude ({q_source})", loc="left")
+            axes[1].grid(True, alpha=0.3)
+        axes = [axes[0], axes[2]]
+        if base is not None:
+            for i, axis in enumerate("xyz"):
+                axes[0].plot(t, (base[:, i] - base[0, i]) * 1e3, linewidth=1.0, label=axis)
+            axes[0].set_ylabel("mm")
+            axes[0].set_title(f"a) base displacement in W ({base_source})", loc="left")
+            axes[0].legend(loc="upper left", ncols=3, fontsize="small")
+            axes[0].grid(True, alpha=0.3)
+        if sigma is not None:
+            axes[1].plot(t, sigma, color="black", linewidth=1.0)
+            axes[1].set_title("c) smallest singular value of J_g", loc="left")
+            axes[1].grid(True, alpha=0.3)
+        axes[1].set_xlabel("time (s)")
+        written.append(_save(fig, out_dir / f"{name}_base.png"))
+    return written
+
+
+def _torques(name, params, config, tau, t, record_dir, out_dir) -> Path:
+    names = _joint_names(config, record_dir, params, tau.shape[1])
+    fig = _figure(8.0, 4.5)
+    ax = fig.add_subplot()
+    driven = _driven(tau)
+    for i in driven:
+        ax.plot(t, tau[:, i], linewidth=1.0, label=names[i])
+    if driven.size == 0:
+        ax.text(0.5, 0.5, "all torques zero", transform=ax.transAxes, ha="center")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("N m")
+    ax.set_title(f"{name}: joint torques")
+    ax.grid(True, alpha=0.3)
+    if driven.size:
+        ax.legend(loc="upper right", fontsize="small", ncols=2)
+    return _save(fig, out_dir / f"{name}_torque.png")
+
+
+def _joint_pd(name, params, config, columns, t, record_dir, out_dir) -> list[Path]:
+    tau = _vector(columns, f"{name}.tau")
+    q_d = _vector(columns, f"{name}.q_desired")
+    if tau is None or q_d is None:
+        raise PlotError(f"{name}: the recording lacks tau or q_desired")
+    written = [_torques(name, params, config, tau, t, record_dir, out_dir)]
+    source = _source(config, name, "q")
+    q = _vector(columns, source) if source else None
+    names = _joint_names(config, record_dir, params, tau.shape[1])
+    driven = [names.index(j) for j in (params.get("gains") or {}) if j in names] or list(_driven(tau))
+    fig = _figure(8.0, 4.5)
+    ax = fig.add_subplot()
+    for k, i in enumerate(driven):
+        color = f"C{k % 10}"
+        ax.plot(t, q_d[:, i], color=color, linestyle="--", linewidth=1.0)
+        if q is not None:
+            ax.plot(t, q[:, i], color=color, linewidth=1.0, label=names[i])
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("rad")
+    ax.set_title(f"{name}: joint positions (solid) and references (dashed)")
+    ax.grid(True, alpha=0.3)
+    if driven and q is not None:
+        ax.legend(loc="upper right", fontsize="small", ncols=2)
+    written.append(_save(fig, out_dir / f"{name}_joints.png"))
+    return written
+
+
+def plot_recording(record_dir, out_dir) -> list[Path]:
+    """Write the PNG plots of a recording (module table) into ``out_dir``; return their paths.
+
+    PlotError when the recording is missing or lacks the columns a controller's plots need.
+    A recording without controllers gives no plots (an empty list).
+    """
+    record_dir, out_dir = Path(record_dir), Path(out_dir)
+    config, columns = _load(record_dir)
+    if "time" not in columns:
+        raise PlotError(f"{record_dir / 'signals.parquet'}: no time column")
+    t = np.asarray(columns["time"], dtype=float)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    for name, spec in (config.get("components") or {}).items():
+        kind = (spec or {}).get("type")
+        params = (spec or {}).get("parameters") or {}
+        if kind == COMPUTED_TORQUE:
+            written += _computed_torque(name, params, config, columns, t, record_dir, out_dir)
+        elif kind == JOINT_PD:
+            written += _joint_pd(name, params, config, columns, t, record_dir, out_dir)
+    return written

@@ -432,9 +432,13 @@ def test_web_view_renders_in_headless_chromium(tmp_path):
     config = humanoid_config(tmp_path, "viewer_web", duration="3 s")
     log = tmp_path / "orchestrator.log"
     env = {**os.environ, "ZENORBIT_RUNTIME_DIR": str(tmp_path / "runtime")}
+    # stdin a terminal: the orchestrator then keeps the web view up after the run until it is stopped
+    # (without one it stops the viewer 30 s after the run, which a slow machine may need for the page)
+    terminal, terminal_child = os.openpty()
     with open(log, "w") as stderr:
         run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", str(config), "--view", "web"],
-                               cwd=ROOT, env=env, stdin=subprocess.DEVNULL, stdout=stderr, stderr=stderr, text=True)
+                               cwd=ROOT, env=env, stdin=terminal_child, stdout=stderr, stderr=stderr, text=True)
+    os.close(terminal_child)
     try:
         deadline = time.monotonic() + 90
         while "run over" not in log.read_text():
@@ -457,4 +461,5 @@ def test_web_view_renders_in_headless_chromium(tmp_path):
         if run.poll() is None:
             run.send_signal(signal.SIGTERM)          # the web view serves until the run is stopped
         run.wait(timeout=60)
+        os.close(terminal)
     assert not component_processes("viewer_web") and not viewer_processes("viewer_web")

@@ -81,9 +81,8 @@ def exp_so3(phi: np.ndarray) -> np.ndarray:
 
 def log_so3(R: np.ndarray) -> np.ndarray:
     """Rotation vector of a rotation matrix, angle in [0, pi] (robust near 0 and pi)."""
-    c = max(-1.0, min(1.0, 0.5 * (np.trace(R) - 1.0)))
-    t = math.acos(c)
     v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    t = math.atan2(0.5 * math.sqrt(v @ v), 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0))   # accurate near 0 and pi
     if t < 1e-6:
         return 0.5 * v
     if math.pi - t < 1e-4:                       # near pi: axis from the symmetric part

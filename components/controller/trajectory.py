@@ -332,7 +332,8 @@ class JointWaypoints:
 
     def __init__(self, q0, start: float, times, targets):
         self.t = np.concatenate([[float(start)], np.asarray(times, dtype=float)])
-        self.q = np.vstack([np.asarray(q0, dtype=float), np.asarray(targets, dtype=float).reshape(len(times), -1)])
+        q0 = np.asarray(q0, dtype=float).ravel()
+        self.q = np.vstack([q0, np.asarray(targets, dtype=float).reshape(len(times), q0.size)])
 
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         z = np.zeros(self.q.shape[1])

@@ -159,6 +159,20 @@ def cmd_describe(args) -> int:
     return 0
 
 
+def cmd_plot(args) -> int:
+    from orchestrator.plots import PlotError, plot_recording
+    out = Path(args.out) if args.out else Path(args.recording) / "plots"
+    try:
+        written = plot_recording(Path(args.recording), out)
+    except PlotError as e:
+        return _fail(str(e))
+    if not written:
+        print(f"nothing to plot in {args.recording}: the run has no controller.computed_torque or controller.joint_pd")
+    for path in written:
+        print(path)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="orchestrator", description="Zenorbit: lockstep co-simulation over Zenoh.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -193,6 +207,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--type", help="the new component type (default: the same type, state handed over)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a parameter of the new component")
     p.set_defaults(func=cmd_swap)
+
+    p = sub.add_parser("plot", help="PNG plots of a recording, like the paper's Figs. 5-7")
+    p.add_argument("recording", metavar="DIR", help="a directory written by run --record")
+    p.add_argument("--out", metavar="DIR", help="where to write the PNGs (default: DIR/plots)")
+    p.set_defaults(func=cmd_plot)
 
     p = sub.add_parser("describe", help="print a component type's parameters and variables")
     p.add_argument("type")

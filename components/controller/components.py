@@ -115,7 +115,7 @@ class ComputedTorqueComponent(Component):
 
     | parameter | kind | unit | default | description |
     |---|---|---|---|---|
-    | urdf | str | - | required | the body's URDF (relative to the config file) |
+    | urdf | str | - | required | the body's URDF (relative to the config file, else to the project root) |
     | joints | any | - | required | names of the driven joints (the arm) |
     | end_effector | str | - | required | link (frame) name of the end effector |
     | locked_joints | any | - | [] | joints welded in the dynamics (same list as there) |
@@ -140,9 +140,14 @@ class ComputedTorqueComponent(Component):
     | ee_twist | output | (6,) | m/s, rad/s | end-effector linear and angular velocity, W |
     | sigma_min | output | () | - | smallest singular value of J_g (of J_m for base_model fixed) |
 
+    The anchor is the state seen at ``initialize``; should the first step see another state (the
+    controller was initialized before the dynamics it reads, e.g. listed first in a cycle), the
+    controller re-anchors there. After a same-type swap, ``set_state`` hands the anchor over.
+
     Errors: unknown joint or end-effector names, gains of the wrong length, a trajectory the
     arm cannot reach -> ConfigError naming the key (the reach is checked against the URDF in
-    ``orchestrator check`` and against the measured initial pose at ``initialize``).
+    ``orchestrator check`` and against the measured initial pose at ``initialize``). A joint of
+    ``locked_joints`` that moves (not locked in the dynamics) stops the run with a message.
     """
     type_name = "controller.computed_torque"
     parameters = (
@@ -233,6 +238,7 @@ class ComputedTorqueComponent(Component):
         super().__init__(params)
         self.checked = self._checked(params)
         self.controller = None
+        self._initial_inputs = None
 
     def _build(self, q: np.ndarray):
         from components.controller.computed_torque import ArmController, ComputedTorqueLaw, FreeFloatingArm
@@ -251,9 +257,16 @@ class ComputedTorqueComponent(Component):
     def initialize(self, t0_ns, inputs):
         self.controller = self._build(np.asarray(inputs["q"], dtype=float))
         self.controller.start(inputs)
+        self._initial_inputs = {k: np.array(v, dtype=float) for k, v in inputs.items()}
         return self.controller.step(t0_ns / NS_PER_S, inputs)
 
     def do_step(self, t_ns, h_ns, inputs):
+        if self._initial_inputs is not None:
+            # initialized before the dynamics it reads (config order): anchor at the first real state
+            if any(not np.array_equal(inputs[k], v) for k, v in self._initial_inputs.items()):
+                self.controller = self._build(np.asarray(inputs["q"], dtype=float))
+                self.controller.start(inputs)
+            self._initial_inputs = None
         return self.controller.step(t_ns / NS_PER_S, inputs)
 
     def get_state(self):
@@ -267,6 +280,7 @@ class ComputedTorqueComponent(Component):
             if key not in state or np.asarray(state[key]).size != size:
                 raise ValueError(f"state: {key} expected {size} values, got "
                                  f"{None if key not in state else np.asarray(state[key]).size}")
+        self._initial_inputs = None
         self.controller.restore(np.asarray(state["ee_position_0"], float),
                                 np.asarray(state["ee_rotation_0"], float).reshape(3, 3),
                                 np.asarray(state["base_rotation_0"], float).reshape(3, 3),
@@ -290,7 +304,7 @@ class JointPDComponent(Component):
 
     | parameter | kind | unit | default | description |
     |---|---|---|---|---|
-    | urdf | str | - | required | the body's URDF (relative to the config file) |
+    | urdf | str | - | required | the body's URDF (relative to the config file, else to the project root) |
     | gains | any | - | required | joint -> {p (N m/rad), i (N m/(rad s), default 0), d (N m s/rad, default 0), i_clamp (N m, default the URDF effort)} |
     | targets | any | rad (m) | {} | joint -> fixed target position (within the URDF limits) |
     | trajectory | any | - | null | {start (s, default 0), waypoints: [{time (s), q: {joint: position}}, ...]}; joints not named keep their previous value |

@@ -106,6 +106,9 @@ class FreeFloatingArm:
     | arm_joints | the joints this controller drives (names) |
     | end_effector | a link (or frame) name of the URDF |
     | locked | joint name -> position (rad or m) at which it is welded |
+
+    ``set_state`` raises ValueError when a locked joint moves (the dynamics does not lock it: the
+    model would be wrong).
     """
 
     def __init__(self, urdf: str | Path, body_joints: Sequence[str], arm_joints: Sequence[str],
@@ -145,6 +148,9 @@ class FreeFloatingArm:
             self._v_pin.append(joint.idx_v)
         self._q1_body, self._q1_pin = np.array(self._q1_body, dtype=int), np.array(self._q1_pin, dtype=int)
         self._v_body, self._v_pin = np.array(self._v_body, dtype=int), np.array(self._v_pin, dtype=int)
+        self.locked = locked
+        self._locked_body = np.array([self.body_joints.index(j) for j in locked], dtype=int)
+        self._locked_q = np.array([locked[j] for j in locked], dtype=float)
         self.body_arm = np.array([self.body_joints.index(j) for j in self.arm_joints])
         self.arm_v = np.array([model.joints[model.getJointId(j)].idx_v for j in self.arm_joints])
         passive = [model.joints[model.getJointId(j)].idx_v for j in self.body_joints
@@ -182,6 +188,14 @@ class FreeFloatingArm:
         vp[3:6] = R.T @ twist[3:]
         q = np.asarray(q, dtype=float)
         qd = np.asarray(qd, dtype=float)
+        if self._locked_body.size:
+            moved = (qd[self._locked_body] != 0.0) | (np.abs(q[self._locked_body] - self._locked_q) > 1e-9)
+            if np.any(moved):
+                k = int(np.argmax(moved))
+                name = self.body_joints[self._locked_body[k]]
+                raise ValueError(f"locked_joints: {name} moves (q = {q[self._locked_body[k]]:.9g}, locked at "
+                                 f"{self._locked_q[k]:.9g}; qd = {qd[self._locked_body[k]]:.3g}): lock it in the "
+                                 "dynamics too (bodies.<body>.locked_joints) or remove it from the controller's")
         qp[self._q1_pin] = q[self._q1_body]
         vp[self._v_pin] = qd[self._v_body]
         for iq, k in self._q2:                     # continuous joints: (cos, sin)

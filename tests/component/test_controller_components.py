@@ -100,6 +100,30 @@ def test_swap_hands_the_trajectory_over():
         c.component.set_state({"q_posture": np.zeros(7)})
 
 
+def test_controller_initialized_before_the_dynamics_anchors_at_the_first_real_state():
+    """Listed before the dynamics (initialized with its inputs' start values), the controller
+    re-anchors at the first state it steps from, and tracks the same path."""
+    reference, _ = closed_loop(computed_torque(), 300)
+    plant, controller = dynamics(), computed_torque()
+    out = controller.initialize()                        # inputs at their start values: q = 0, identity
+    state = plant.initialize()
+    for _ in range(300):
+        plant.inputs["humanoid.tau"] = out["tau"]
+        connect(state, controller)
+        out = controller.step(MS)
+        state = plant.step(MS)
+    assert np.allclose(out["ee_position_desired"], reference["ee_position_desired"], atol=1e-12)
+    assert np.linalg.norm(out["ee_error"][:3]) < 1e-4
+
+
+def test_a_locked_joint_that_moves_stops_the_controller():
+    plant = Harness("dynamics.dart", {"tidal_force": False, "gravity_gradient": False, "link_outputs": False,
+                                      "bodies": {"humanoid": {"urdf": URDF, "q": START,
+                                                              "qd": {"arm_left_4_joint": 0.1}}}})
+    with pytest.raises(ValueError, match="locked_joints: arm_left_4_joint moves"):
+        closed_loop(computed_torque(), 5, plant=plant)
+
+
 def _initialized(t0_ns):
     """A swap without hand-over: set_state is a no-op."""
     h = computed_torque(t0_ns=t0_ns)

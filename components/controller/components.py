@@ -22,7 +22,6 @@ that measured state at t and the reference at t.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
@@ -270,6 +269,8 @@ class ComputedTorqueComponent(Component):
         return self.controller.step(t_ns / NS_PER_S, inputs)
 
     def get_state(self):
+        if self.controller is None:
+            raise RuntimeError("get_state before initialize: the trajectory is not anchored yet")
         p0, R0, Rb = self.controller.anchor
         return {"ee_position_0": p0.copy(), "ee_rotation_0": R0.ravel().copy(), "base_rotation_0": Rb.ravel().copy(),
                 "q_posture": self.controller.q_posture.copy()}

@@ -5,8 +5,10 @@
 
 Runs ``orchestrator run CONFIG --set run.step=1ms --profile`` alternately without and with the view
 (``--view save:...``, decimated by the orchestrator to ``--rate`` Hz of sim time) and compares the
-lockstep loop time that ``--profile`` prints (start-up excluded: the viewer starts in parallel with
-nothing to wait for) and the whole process wall time. Medians over ``--repeats`` pairs.
+lockstep loop time that ``--profile`` prints (start-up excluded), the whole process wall time, and
+the CPU time of the whole process tree (orchestrator, components, observer: ``getrusage`` of the
+reaped children), which does not depend on what else the machine is doing. Medians over
+``--repeats`` pairs, run alternately.
 """
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ import argparse
 import os
 import platform
 import re
+import resource
 import subprocess
 import sys
 import tempfile
@@ -26,22 +29,27 @@ ROOT = Path(__file__).resolve().parents[1]
 PROFILE = re.compile(r"profile: (\d+) steps in ([0-9.]+) s wall")
 
 
-def run_once(config: Path, duration: str, view: str | None, workdir: Path, extra: list[str]) -> tuple[float, float, int]:
-    """(loop seconds from --profile, process wall seconds, steps) of one run."""
+def children_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def run_once(config: Path, duration: str, view: str | None, workdir: Path, extra: list[str]):
+    """(loop seconds from --profile, process wall seconds, steps, CPU seconds of the process tree) of one run."""
     args = [sys.executable, "-m", "orchestrator.cli", "run", str(config), "--profile",
             "--set", "run.step=1ms", "--set", f"run.duration={duration}", *extra]
     if view:
         args += ["--view", view]
     env = {**os.environ, "ZENORBIT_RUNTIME_DIR": str(workdir / "runtime")}
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), children_cpu()
     result = subprocess.run(args, cwd=ROOT, capture_output=True, text=True, env=env, timeout=1800)
-    wall = time.perf_counter() - started
+    wall, cpu = time.perf_counter() - started, children_cpu() - cpu
     if result.returncode != 0:
         sys.exit(f"run failed ({result.returncode}):\n{result.stderr[-2000:]}")
     match = PROFILE.search(result.stderr)
     if not match:
         sys.exit(f"no profile line in the output:\n{result.stderr[-2000:]}")
-    return float(match[2]), wall, int(match[1])
+    return float(match[2]), wall, int(match[1]), cpu
 
 
 def main() -> int:
@@ -73,19 +81,22 @@ def main() -> int:
                 else:
                     viewed.append(run_once(config, args.duration, f"save:{workdir / 'bench.rrd'}", workdir, extra))
                 print(f"  pair {i + 1}: loop {plain[-1][0]:.3f} s -> {viewed[-1][0]:.3f} s with the view; "
-                      f"process {plain[-1][1]:.2f} s -> {viewed[-1][1]:.2f} s", flush=True)
+                      f"process {plain[-1][1]:.2f} s -> {viewed[-1][1]:.2f} s; "
+                      f"CPU {plain[-1][3]:.2f} s -> {viewed[-1][3]:.2f} s", flush=True)
         finally:
             if args.rate != "30":
                 copy.unlink(missing_ok=True)
         size = (workdir / "bench.rrd").stat().st_size if (workdir / "bench.rrd").exists() else 0
     loop_plain, loop_view = np.median([p[0] for p in plain]), np.median([v[0] for v in viewed])
     wall_plain, wall_view = np.median([p[1] for p in plain]), np.median([v[1] for v in viewed])
+    cpu_plain, cpu_view = np.median([p[3] for p in plain]), np.median([v[3] for v in viewed])
     steps = plain[0][2]
     print(f"{Path(args.config).name}, {steps} steps at 1 kHz, view at {args.rate} Hz of sim time "
           f"({platform.processor() or platform.machine()}, {os.cpu_count()} CPUs), medians of {args.repeats}:")
     print(f"  lockstep loop  {loop_plain:8.3f} s -> {loop_view:8.3f} s   cost {100 * (loop_view / loop_plain - 1):+6.1f} %"
           f"   ({steps / loop_plain:.0f} -> {steps / loop_view:.0f} steps/s)")
     print(f"  whole process  {wall_plain:8.3f} s -> {wall_view:8.3f} s   cost {100 * (wall_view / wall_plain - 1):+6.1f} %")
+    print(f"  CPU, all procs {cpu_plain:8.3f} s -> {cpu_view:8.3f} s   cost {100 * (cpu_view / cpu_plain - 1):+6.1f} %")
     print(f"  .rrd written   {size / 1e6:.1f} MB")
     return 0
 

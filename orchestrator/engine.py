@@ -173,8 +173,6 @@ class Run:
                 if expect.get(name) == "alive":
                     del expect[name]
                 return
-            if expect.get(name) == "exit":
-                return
             raise RunFailure(self._death(member, "its process disappeared (liveliness lost)"))
         parts = a.split("/")
         name, generation = parts[-3], int(parts[-2])
@@ -219,8 +217,13 @@ class Run:
                 message = self.inbox.get(timeout=min(remaining, 0.2))
             except queue.Empty:
                 for name in expect:
+                    if name == VIEWER:
+                        if self.viewer_process.poll() is not None:
+                            raise RunFailure(f"the viewer exited during start-up with code "
+                                             f"{self.viewer_process.returncode} (see its message above)")
+                        continue
                     member = self.members[name]
-                    if expect[name] != "exit" and member.process is not None and member.process.poll() is not None:
+                    if member.process is not None and member.process.poll() is not None:
                         raise RunFailure(self._death(member, f"its process exited with code {member.process.returncode}"))
                 continue
             self._handle(message, expect)

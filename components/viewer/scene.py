@@ -81,6 +81,21 @@ def body_entries(raw: Any) -> list[tuple[str, dict]]:
     return []
 
 
+def transform_columns(translation=None, quaternion=None) -> list:
+    """``rr.Transform3D.columns`` for one row per transform, built from described component batches
+    directly (the archetype helper costs ~40 % more per call; the link poses call it once per link)."""
+    import rerun as rr
+    from rerun.components import RotationQuatBatch, Translation3DBatch
+
+    columns = []
+    for values, batch, descriptor in ((translation, Translation3DBatch, rr.Transform3D.descriptor_translation),
+                                      (quaternion, RotationQuatBatch, rr.Transform3D.descriptor_quaternion)):
+        if values is not None:
+            values = np.asarray(values, dtype=np.float32)
+            columns.append(batch(values).described(descriptor()).partition(np.ones(len(values), dtype=np.int32)))
+    return columns
+
+
 def _path(*parts: str) -> str:
     import rerun as rr
     return "/" + "/".join(rr.escape_entity_path_part(p) for p in parts)
@@ -457,17 +472,17 @@ class SceneLogger:
             if c.tau is not None:
                 scalars(_path("plots", c.name, "tau"), c.tau)
         if self.world_lvlh is not None:
-            send("/world/lvlh", rr.Transform3D.columns(quaternion=normalized_quaternions(rows[:, self.world_lvlh])))
+            send("/world/lvlh", transform_columns(quaternion=normalized_quaternions(rows[:, self.world_lvlh])))
         for o in self.orbits:
             if o.r_eci is None:
                 continue
             r = rows[:, o.r_eci]
             send(_path("orbit", o.name, "trail"), rr.Points3D.columns(positions=r))
             if o.q_eci_lvlh is not None:
-                send(_path("orbit", o.name, "spacecraft"), rr.Transform3D.columns(
+                send(_path("orbit", o.name, "spacecraft"), transform_columns(
                     translation=r, quaternion=normalized_quaternions(rows[:, o.q_eci_lvlh])))
             else:
-                send(_path("orbit", o.name, "spacecraft"), rr.Transform3D.columns(translation=r))
+                send(_path("orbit", o.name, "spacecraft"), transform_columns(translation=r))
         for component, name in self.signals:
             scalars(_path("signals", component, name), self.variables[component, name])
         if notes_changed:
@@ -488,7 +503,7 @@ class SceneLogger:
             quaternions = matrices_to_quaternions(rotations)
             for j, link in enumerate(body.geometry.links):
                 send(f"{body.base}/links/{rr.escape_entity_path_part(link)}",
-                     rr.Transform3D.columns(translation=translations[:, j], quaternion=quaternions[:, j]))
+                     transform_columns(translations[:, j], quaternions[:, j]))
         if body.com is not None:
             send(f"{body.base}/com", rr.Points3D.columns(positions=rows[:, body.com]))
         if body.momentum is not None:

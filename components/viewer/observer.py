@@ -6,14 +6,16 @@ The orchestrator starts it when a run has a viewer (``--view spawn|web|save:FILE
 ``viewer:`` config section) and writes the setup JSON: ``columns``, ``config`` (resolved),
 ``config_dir``, ``step_ns``, ``epoch``, ``mode`` (spawn | web | save), ``file``, ``open_browser``.
 
-The process opens the Rerun sink and the scene (URDFs, Pinocchio models), subscribes to
-``zenorbit/<run_id>/signals`` and only then declares its liveliness token
-``alive/_viewer/0`` (the orchestrator waits for it). Each sample is ``<qd`` (step, time in s) then
-one float64 per column, already decimated by the orchestrator; ``END`` ends the run: the data is
-flushed and the process exits, except in web mode where it keeps serving until SIGINT/SIGTERM or
-until the orchestrator's token goes away. It also exits when the orchestrator's liveliness token
-goes away. The publisher drops rather than waits, so a slow viewer never holds up the lockstep.
-All work happens on the main thread, polling FIFO channels; rows are logged in batches.
+The process subscribes to ``zenorbit/<run_id>/signals`` and then at once declares its liveliness
+token ``alive/_viewer/0`` (the orchestrator waits for it before the first step): no row can be
+missed, and rows wait in the FIFO channel while Rerun, the URDFs and the Pinocchio models load, so
+the run does not wait for that. Each sample is ``<qd`` (step, time in s) then one float64 per
+column, already decimated by the orchestrator; ``END`` ends the run: the data is flushed and the
+process exits, except in web mode where it keeps serving until SIGINT/SIGTERM or until the
+orchestrator's token goes away. It also exits when the orchestrator's liveliness token goes away.
+The publisher drops rather than waits and this process runs niced, so a slow viewer never holds up
+the lockstep. All work happens on the main thread, polling FIFO channels; rows are logged in
+batches (a few per second live, every 2 s when saving: far cheaper per row).
 """
 from __future__ import annotations
 

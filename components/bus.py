@@ -33,6 +33,7 @@ CONTROL = b"C"   # orchestrator -> component: JSON + blob
 OUTPUT = b"O"    # component -> orchestrator: header + outputs
 REPLY = b"R"     # component -> orchestrator: JSON + blob
 FAULT = b"E"     # component -> orchestrator: JSON {op, k, error}
+QUIT = b"Q"      # a component to itself, when the orchestrator's liveliness token is gone
 
 _STEP_HEADER = struct.Struct("<qqq")     # k, t_ns, h_ns
 _OUTPUT_HEADER = struct.Struct("<qd")    # k, compute seconds (for --profile only)

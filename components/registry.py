@@ -36,6 +36,8 @@ TYPES = {
 
 def load(type_name: str, config_dir: str | Path | None = None) -> type[Component]:
     """The Component class for ``type_name``; ConfigError (key ``type``) when it cannot be found."""
+    if not isinstance(type_name, str):
+        raise ConfigError("type", f"expected a component type name such as orbit.kepler, got {type_name!r}")
     target = TYPES.get(type_name, type_name)
     module_name, sep, class_name = target.rpartition(":")
     if not sep or not module_name or not class_name:
@@ -57,6 +59,9 @@ def load(type_name: str, config_dir: str | Path | None = None) -> type[Component
         raise
     except ImportError as e:
         raise ConfigError("type", f"cannot import {module_name!r} for type {type_name!r}: {e}") from None
+    except Exception as e:  # the user's module fails while loading: one line naming it
+        raise ConfigError("type", f"loading {module_name!r} for type {type_name!r} failed: "
+                                  f"{type(e).__name__}: {e}") from None
     cls = getattr(module, class_name, None)
     if not (isinstance(cls, type) and issubclass(cls, Component)):
         raise ConfigError("type", f"{target!r} is not a Component subclass")

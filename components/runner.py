@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import threading
 import time
 import traceback
 
@@ -86,22 +87,27 @@ def serve(connect: str, run_id: str, name: str, generation: int) -> int:
     session = zenoh.open(bus.session_config(connect=[connect]))
     token = watcher = None
     try:
-        commands = session.declare_subscriber(bus.component_key(run_id, name, generation, "cmd"),
-                                              zenoh.handlers.FifoChannel(1024))
+        cmd_key = bus.component_key(run_id, name, generation, "cmd")
+        commands = session.declare_subscriber(cmd_key, zenoh.handlers.FifoChannel(1024))
         out = bus.publisher(session, bus.component_key(run_id, name, generation, "out"))
-        orchestrator_gone = []
+        # the orchestrator gone (killed, machine lost): wake the main loop with a local QUIT message
+        orchestrator_gone = threading.Event()
         watcher = session.liveliness().declare_subscriber(
             bus.run_key(run_id, "alive", "orchestrator"),
-            lambda s: orchestrator_gone.append(1) if s.kind == zenoh.SampleKind.DELETE else None)
+            lambda s: orchestrator_gone.set() if s.kind == zenoh.SampleKind.DELETE else None)
+        threading.Thread(target=_quit_when_set, args=(orchestrator_gone, session, cmd_key), daemon=True).start()
         token = session.liveliness().declare_token(bus.run_key(run_id, "alive", name, str(generation)))
         process = ComponentProcess(lambda payload: out.put(payload))
-        while not orchestrator_gone:
+        while True:
             try:
                 sample = commands.recv()  # blocks; raises once the subscriber is closed
             except Exception:
                 return 1
             payload = sample.payload.to_bytes()
             kind = payload[:1]
+            if kind == bus.QUIT:
+                print("the orchestrator went away: exiting", file=sys.stderr)
+                return 1
             try:
                 if kind == bus.STEP:
                     process.step(payload)
@@ -112,10 +118,14 @@ def serve(connect: str, run_id: str, name: str, generation: int) -> int:
                 k = bus.decode_step(payload)[0] if kind == bus.STEP else -1
                 traceback.print_exc(file=sys.stderr)
                 process.fault(op, k, f"{type(error).__name__}: {error}")
-        return 1
     finally:
         del token, watcher
         session.close()
+
+
+def _quit_when_set(event: threading.Event, session, key: str) -> None:
+    event.wait()
+    session.put(key, bus.QUIT)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -6,6 +6,7 @@ a bare number is taken as already SI.
 """
 from __future__ import annotations
 
+import math
 import re
 from decimal import ROUND_HALF_EVEN, Decimal
 
@@ -54,6 +55,8 @@ def to_si(value, unit: str, key: str) -> float:
     if isinstance(value, bool):
         raise ConfigError(key, f"expected a quantity in {unit}, got {value!r}")
     if isinstance(value, (int, float)):
+        if not math.isfinite(value):
+            raise ConfigError(key, f"expected a finite quantity in {unit}, got {value!r}")
         return float(value)
     if not isinstance(value, str):
         raise ConfigError(key, f"expected a quantity in {unit}, got {value!r}")
@@ -61,6 +64,8 @@ def to_si(value, unit: str, key: str) -> float:
     if not m:
         raise ConfigError(key, f"expected a number with a unit like '6778 km', got {value!r}")
     number, given = float(m.group(1)), m.group(2)
+    if not math.isfinite(number):
+        raise ConfigError(key, f"expected a finite quantity in {unit}, got {value!r}")
     if given is None:
         return number
     try:
@@ -92,5 +97,7 @@ def duration_ns(value, key: str) -> int:
         if unit not in _TIME_NS:
             raise ConfigError(key, f"unknown time unit {unit!r} in {value!r} (expected one of {', '.join(_TIME_NS)})")
     else:
+        if not math.isfinite(value):
+            raise ConfigError(key, f"expected a finite duration like '1 ms', got {value!r}")
         number, unit = repr(value), "s"
     return int((Decimal(number) * _TIME_NS[unit]).to_integral_value(ROUND_HALF_EVEN))

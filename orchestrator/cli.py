@@ -43,8 +43,15 @@ def cmd_run(args) -> int:
         for line in errors:
             print(f"error: {line}", file=sys.stderr)
         return USAGE_ERROR
+    if args.record:
+        try:
+            Path(args.record).mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            return _fail(f"--record {args.record}: cannot write a recording there ({e.strerror})")
     viewer = None
-    if args.view:
+    if args.view == "off":
+        config.viewer = None
+    elif args.view:
         from orchestrator.config import viewer_spec
         errors: list[str] = []
         viewer = viewer_spec(args.view, "--view", errors, Path.cwd())
@@ -122,8 +129,8 @@ def cmd_swap(args) -> int:
         return _fail(error)
     answer = _query(entry, {"op": "swap", "component": args.component, "type": args.type, "set": args.set},
                     timeout=120.0)
-    if not answer.get("ok"):
-        return _fail(answer.get("error", "swap refused"))
+    if not answer.get("ok"):  # bad parameters or type: 2; a replacement that failed to start: 1
+        return _fail(answer.get("error", "swap refused"), USAGE_ERROR if answer.get("usage", True) else 1)
     print(f"swapped {args.component} at step {answer['step']} (generation {answer['generation']})")
     return 0
 
@@ -166,6 +173,8 @@ def cmd_plot(args) -> int:
         written = plot_recording(Path(args.recording), out)
     except PlotError as e:
         return _fail(str(e))
+    except Exception as e:  # e.g. a truncated signals.parquet
+        return _fail(f"cannot plot {args.recording}: {type(e).__name__}: {e}")
     if not written:
         print(f"nothing to plot in {args.recording}: the run has no controller.computed_torque or controller.joint_pd")
     for path in written:

@@ -30,6 +30,7 @@ VIEWER_MODES = ("spawn", "web", "save", "off")
 ALGORITHMS = ("jacobi", "gauss-seidel")
 DEFAULTS = {"algorithm": "jacobi", "realtime": 0, "step_timeout": "10 s", "start_timeout": "60 s"}
 NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+ENDPOINT = re.compile(r"^(tcp|udp|tls|quic)/(\[[0-9a-fA-F:]+\]|[A-Za-z0-9.\-]+):\d{1,5}$")
 RUN_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_\-]*$")
 
 
@@ -256,6 +257,9 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
         variables = cls.declare(resolved)
     except ConfigError as e:
         raise ConfigErrors([f"{key}.parameters.{e.key}: {e.message}"]) from None
+    except Exception as e:  # a component's own bug or a file it cannot read: still one line, naming the key
+        raise ConfigErrors([f"{key}.parameters: {type_name} cannot declare its variables: "
+                            f"{type(e).__name__}: {e}"]) from None
     return ComponentSpec(name=name, type=type_name, cls=cls, step_ns=step_ns, parameters=params_raw,
                          resolved=resolved, launch=launch,
                          inputs=Layout([v for v in variables if v.causality == "input"]),
@@ -288,6 +292,9 @@ def validate(raw: dict, path: Path) -> RunConfig:
     total_ns = field_of("duration", lambda v: duration_ns(v, "duration"))
     step_timeout = field_of("step_timeout", lambda v: duration_ns(v, "step_timeout") / 1e9)
     start_timeout = field_of("start_timeout", lambda v: duration_ns(v, "start_timeout") / 1e9)
+    for key, value in (("step_timeout", step_timeout), ("start_timeout", start_timeout)):
+        if value is not None and value <= 0:
+            errors.append(f"{file}: run.{key}: must be positive, got {run[key]!r}")
     if step_ns is not None and step_ns <= 0:
         errors.append(f"{file}: run.step: must be positive, got {run['step']!r}")
         step_ns = None
@@ -300,13 +307,13 @@ def validate(raw: dict, path: Path) -> RunConfig:
     if algorithm not in ALGORITHMS:
         errors.append(f"{file}: run.algorithm: expected one of {', '.join(ALGORITHMS)}, got {algorithm!r}")
     realtime = run.get("realtime")
-    if isinstance(realtime, bool) or not isinstance(realtime, (int, float)) or realtime < 0:
+    if isinstance(realtime, bool) or not isinstance(realtime, (int, float)) or not 0 <= realtime < float("inf"):
         errors.append(f"{file}: run.realtime: expected 0 (as fast as possible) or a positive "
                       f"factor of the wall clock, got {realtime!r}")
 
     bus = _keys(raw.get("bus") or {}, BUS_KEYS, "bus", errors, file)
     listen = bus.get("listen", ["tcp/127.0.0.1:0"])
-    if not (isinstance(listen, list) and all(isinstance(e, str) and "/" in e for e in listen) and listen):
+    if not (isinstance(listen, list) and listen and all(isinstance(e, str) and ENDPOINT.match(e) for e in listen)):
         errors.append(f"{file}: bus.listen: expected a list of Zenoh endpoints like tcp/127.0.0.1:0, got {listen!r}")
 
     components: dict[str, ComponentSpec] = {}
@@ -330,7 +337,8 @@ def validate(raw: dict, path: Path) -> RunConfig:
             errors += [f"{file}: {m}" for m in e.errors]
 
     connections = _connections(raw.get("connections") or {}, components, entries or {}, file, errors)
-    events = _events(raw.get("events") or [], components, step_ns, total_ns, config_dir, epoch, file, errors)
+    events = _events(raw.get("events") or [], components, connections, step_ns, total_ns, config_dir, epoch,
+                     file, errors)
     viewer = None
     if raw.get("viewer") is not None:
         viewer_errors: list[str] = []
@@ -369,6 +377,17 @@ def _plain(value: Any) -> Any:
     if isinstance(value, (list, tuple)):
         return [_plain(v) for v in value]
     return value
+
+
+def check_replacement(spec: ComponentSpec, connections: list[tuple[str, str, str, str]]) -> list[str]:
+    """Problems that keep ``spec`` from replacing the component of that name in these connections."""
+    problems = []
+    for d, dv, s, sv in connections:
+        for comp, var, layout, causality in ((d, dv, spec.inputs, "input"), (s, sv, spec.outputs, "output")):
+            if comp == spec.name and var not in layout.offsets:
+                problems.append(f"{spec.type} has no {causality} {var!r}, which the connection "
+                                f"{d}.{dv}: {s}.{sv} uses")
+    return problems
 
 
 def _split(ref: Any) -> tuple[str, str] | None:
@@ -415,8 +434,8 @@ def _connections(raw: Any, components: dict[str, ComponentSpec], entries: dict, 
     return result
 
 
-def _events(raw: Any, components: dict[str, ComponentSpec], step_ns: int | None, total_ns: int | None,
-            config_dir: Path, epoch: str | None, file: Path, errors: list[str]) -> list[Event]:
+def _events(raw: Any, components: dict[str, ComponentSpec], connections: list, step_ns: int | None,
+            total_ns: int | None, config_dir: Path, epoch: str | None, file: Path, errors: list[str]) -> list[Event]:
     if not isinstance(raw, list):
         errors.append(f"{file}: events: expected a list, got {raw!r}")
         return []
@@ -434,17 +453,25 @@ def _events(raw: Any, components: dict[str, ComponentSpec], step_ns: int | None,
         if target not in components:
             errors.append(f"{file}: {key}.swap: no component named {target!r}")
             continue
-        if step_ns and at_ns % step_ns:
-            errors.append(f"{file}: {key}.at: must fall on a step boundary (a multiple of run.step)")
-            continue
         old = components[target]
+        if at_ns < 0 or (total_ns is not None and at_ns >= total_ns):
+            errors.append(f"{file}: {key}.at: must be within the run, 0 <= at < run.duration, got {entry['at']!r}")
+            continue
+        if at_ns % old.step_ns:
+            errors.append(f"{file}: {key}.at: must fall on a step boundary of {target} "
+                          f"(a multiple of {old.step_ns / 1e6:g} ms), got {entry['at']!r}")
+            continue
         new_type = entry.get("type", old.type)
-        params = entry.get("parameters", old.parameters)
+        params = entry.get("parameters", old.parameters if new_type == old.type else {})
         try:
             spec = component_spec(target, {"type": new_type, "parameters": params,
                                            "step": f"{old.step_ns} ns"}, step_ns, config_dir, epoch, key)
         except ConfigErrors as e:
             errors += [f"{file}: {m}" for m in e.errors]
+            continue
+        problems = check_replacement(spec, connections)
+        if problems:
+            errors += [f"{file}: {key}: {p}" for p in problems]
             continue
         events.append(Event(at_ns=at_ns, swap=target, type=new_type, parameters=params, spec=spec))
     return sorted(events, key=lambda e: e.at_ns)

@@ -16,6 +16,7 @@ import datetime as dt
 import json
 import os
 import queue
+import shutil
 import signal
 import socket
 import struct
@@ -31,7 +32,8 @@ import numpy as np
 
 from components import bus
 from orchestrator import runs
-from orchestrator.config import ComponentSpec, Event, RunConfig, ViewerSpec, component_spec
+from orchestrator.config import (ComponentSpec, Event, RunConfig, ViewerSpec, check_replacement,
+                                 component_spec)
 from orchestrator.recording import Recording
 
 
@@ -41,6 +43,10 @@ SIGNALS_HEADER = struct.Struct("<qd")  # k, time in s; then the row of every out
 
 class RunFailure(Exception):
     """The run cannot go on: a component crashed, hung, or produced a non-finite value."""
+
+
+class SwapFailed(Exception):
+    """A replacement could not start; the component it was to replace runs on."""
 
 
 class StopRequested(Exception):
@@ -61,6 +67,7 @@ class Member:
     out_dst: np.ndarray = None             # where its outputs go in the global output vector
     out_src: np.ndarray = None             # ... from these indices of its output vector
     ratio: int = 1                         # its step in run steps
+    pending: np.ndarray | None = None      # a slower member's outputs, not yet due
     compute_s: float = 0.0
     steps: int = 0
     reply: dict | None = field(default=None, repr=False)
@@ -123,7 +130,11 @@ class Run:
         self.stop_reason: str | None = None
         self.k = 0
         self.recording: Recording | None = None
-        self.log_dir = Path(tempfile.mkdtemp(prefix=f"zenorbit-{self.run_id}-"))
+        # component logs: kept with the recording, else in a temporary directory removed after a clean run
+        self.log_dir = (self.record_dir / "logs") if self.record_dir else Path(
+            tempfile.mkdtemp(prefix=f"zenorbit-{self.run_id}-"))
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        self.joining: dict[str, Member] = {}   # a swap's new generation, until it is ready
         self.wait_s = 0.0                   # time spent waiting on the barrier
         self.loop_s = 0.0
 
@@ -135,7 +146,8 @@ class Run:
                 start = len(self.columns)
                 self.columns += v.columns(spec.name)
                 self.column_index[spec.name, v.name] = np.arange(start, len(self.columns))
-        self.values = np.zeros(len(self.columns))
+        # before initialization every output holds its declared start value
+        self.values = np.concatenate([s.outputs.start_vector() for s in config.components.values()] or [np.zeros(0)])
 
     # ---------------------------------------------------------------- messages
 
@@ -166,8 +178,8 @@ class Run:
                 elif kind == "dead" and self.recording is not None:
                     self._log("warning", message="the viewer went away; the run goes on", step=self.k)
                 return
-            member = self.members.get(name)
-            if member is None or member.generation != generation:
+            member = self._member(name, generation)
+            if member is None:
                 return
             if kind == "alive":
                 if expect.get(name) == "alive":
@@ -176,20 +188,19 @@ class Run:
             raise RunFailure(self._death(member, "its process disappeared (liveliness lost)"))
         parts = a.split("/")
         name, generation = parts[-3], int(parts[-2])
-        member = self.members.get(name)
-        if member is None or member.generation != generation:
+        member = self._member(name, generation)
+        if member is None:
             return  # a replaced generation: ignore
         tag = b[:1]
         if tag == bus.OUTPUT:
             k, compute_s, vector = bus.decode_output(b)
             if expect.get(name) != "step" or k != self.k:
                 raise RunFailure(f"component {name!r}: output for step {k} while waiting for step {self.k}")
-            if not np.isfinite(vector).all():
-                bad = int(np.flatnonzero(~np.isfinite(vector))[0])
-                var = next(v for v in member.spec.outputs.variables if bad < member.spec.outputs.offsets[v.name].stop)
-                raise RunFailure(f"component {name!r} produced a non-finite value in output {var.name!r} "
-                                 f"at step {k} (t = {(k * self.config.step_ns) / 1e9:g} s)")
-            self.values[member.out_dst] = vector[member.out_src]
+            self._check_finite(member, vector, f"at step {k} (t = {(k * self.config.step_ns) / 1e9:g} s)")
+            if member.ratio == 1:
+                self.values[member.out_dst] = vector[member.out_src]
+            else:  # a slower component's outputs are for t_k + its step: they show from then on
+                member.pending = vector[member.out_src].copy()
             member.compute_s += compute_s
             member.steps += 1
             del expect[name]
@@ -203,6 +214,20 @@ class Run:
             where = f"step {body['k']} (t = {body['k'] * self.config.step_ns / 1e9:g} s)" if body["op"] == "step" \
                 else body["op"]
             raise RunFailure(f"component {name!r} ({member.spec.type}) failed in {where}: {body['error']}")
+
+    def _member(self, name: str, generation: int) -> Member | None:
+        """The live (or joining) member with this name and generation; None for a stale generation."""
+        for group in (self.members, self.joining):
+            member = group.get(name)
+            if member is not None and member.generation == generation:
+                return member
+        return None
+
+    def _check_finite(self, member: Member, vector: np.ndarray, when: str) -> None:
+        if not np.isfinite(vector).all():
+            bad = int(np.flatnonzero(~np.isfinite(vector))[0])
+            var = next(v for v in member.spec.outputs.variables if bad < member.spec.outputs.offsets[v.name].stop)
+            raise RunFailure(f"component {member.name!r} produced a non-finite value in output {var.name!r} {when}")
 
     def _wait(self, expect: dict[str, str], timeout: float, what: str) -> None:
         """Process inbox messages until every expectation is met, or fail naming the laggards."""
@@ -222,7 +247,7 @@ class Run:
                             raise RunFailure(f"the viewer exited during start-up with code "
                                              f"{self.viewer_process.returncode} (see its message above)")
                         continue
-                    member = self.members[name]
+                    member = self.joining.get(name) or self.members[name]
                     if member.process is not None and member.process.poll() is not None:
                         raise RunFailure(self._death(member, f"its process exited with code {member.process.returncode}"))
                 continue
@@ -280,10 +305,13 @@ class Run:
         member.out_dst = np.concatenate(out_dst) if out_dst else np.zeros(0, dtype=np.int64)
         member.out_src = np.concatenate(out_src) if out_src else np.zeros(0, dtype=np.int64)
 
-    def _start(self, specs: list[ComponentSpec], generation: dict[str, int]) -> list[Member]:
-        started = [self._launch(spec, generation[spec.name]) for spec in specs]
-        for member in started:
-            self.members[member.name] = member
+    def _start(self, specs: list[ComponentSpec], generation: dict[str, int], into: dict[str, Member]) -> list[Member]:
+        """Launch, wait for and instantiate members, registered in ``into`` (members, or joining)."""
+        started = []
+        for spec in specs:
+            member = self._launch(spec, generation[spec.name])
+            into[member.name] = member
+            started.append(member)
         timeout = self.config.start_timeout_s
         self._wait({m.name: "alive" for m in started}, timeout, "start-up")
         for member in started:
@@ -297,8 +325,9 @@ class Run:
         member.inputs[member.route_dst] = self.values[member.route_src]
         self._control(member, "initialize", {"t0_ns": t_ns}, member.inputs.tobytes())
         self._wait({member.name: "initialize"}, self.config.start_timeout_s, "initialize")
+        vector = np.frombuffer(member.reply["blob"], dtype=np.float64)
+        self._check_finite(member, vector, f"after initialize (t = {t_ns / 1e9:g} s)")
         if take_outputs:
-            vector = np.frombuffer(member.reply["blob"], dtype=np.float64)
             self.values[member.out_dst] = vector[member.out_src]
 
     def _initialization_order(self) -> list[str]:
@@ -325,34 +354,60 @@ class Run:
     # ---------------------------------------------------------------- swap
 
     def swap(self, spec: ComponentSpec) -> None:
-        """Replace a component at the current step boundary, handing over its state."""
+        """Replace a component at the current step boundary, handing over its state (same type).
+
+        The new generation is started, initialized and given the state on the side; only then does
+        it take over. If it fails to get there, it is stopped and SwapFailed is raised: the old
+        generation runs on.
+        """
         old = self.members[spec.name]
         t_ns = self.k * self.config.step_ns
+        same_type = spec.type == old.spec.type
         self._control(old, "get_state")
         self._wait({old.name: "get_state"}, self.config.step_timeout_s, "get_state")
         state = old.reply["blob"]
-        new = self._start([spec], {spec.name: old.generation + 1})[0]
-        # same type: the state carries over and the outputs at t_k stay the old ones
-        self._initialize(new, t_ns, take_outputs=spec.type != old.spec.type)
-        if spec.type == old.spec.type:
-            self._control(new, "set_state", {}, state)
-            self._wait({new.name: "set_state"}, self.config.step_timeout_s, "set_state")
+        try:
+            new = self._start([spec], {spec.name: old.generation + 1}, self.joining)[0]
+            # same type: the state carries over and the outputs at t_k stay the old ones
+            self._initialize(new, t_ns, take_outputs=not same_type)
+            if same_type:
+                self._control(new, "set_state", {}, state)
+                self._wait({new.name: "set_state"}, self.config.step_timeout_s, "set_state")
+        except RunFailure as failure:
+            if old.process is not None and old.process.poll() is not None:
+                raise  # the old generation is gone too: nothing to run on
+            joining = self.joining.pop(spec.name, None)
+            if joining is not None:
+                self._terminate(joining, timeout=2.0)
+            self._log("warning", message=f"swap of {spec.name} to {spec.type} failed: {failure}", step=self.k)
+            raise SwapFailed(str(failure)) from None
+        self.members[spec.name] = self.joining.pop(spec.name)
         self._terminate(old)  # its late messages carry the old generation: ignored from here on
         self._log("swap", component=spec.name, type=spec.type, generation=new.generation,
-                  step=self.k, time=t_ns / 1e9, state_handed_over=spec.type == old.spec.type)
+                  step=self.k, time=t_ns / 1e9, state_handed_over=same_type)
 
     # ---------------------------------------------------------------- control from the CLI
 
     def _serve_controls(self) -> None:
-        while self.controls:
-            query = self.controls.pop(0)
+        waiting = []
+        for query in self.controls:
             try:
                 request = json.loads(query.payload.to_bytes()) if query.payload is not None else {}
+            except ValueError:
+                request = {}
+            target = self.members.get(request.get("component", ""))
+            if request.get("op") == "swap" and target is not None and self.k % target.ratio:
+                waiting.append(query)  # a slower component is replaced at one of its own step boundaries
+                continue
+            try:
                 answer = self._control_request(request)
-            except Exception as error:  # a bad request must not end the run
-                answer = {"ok": False, "error": f"{type(error).__name__}: {error}"}
+            except SwapFailed as error:
+                answer = {"ok": False, "error": str(error), "usage": False}
+            except (KeyError, TypeError, ValueError) as error:  # a bad request must not end the run
+                answer = {"ok": False, "error": f"malformed request: {error}", "usage": True}
             query.reply(query.key_expr, json.dumps(answer))
             query.drop()
+        self.controls = waiting
 
     def _control_request(self, request: dict) -> dict:
         op = request.get("op")
@@ -368,7 +423,8 @@ class Run:
             from orchestrator.config import ConfigErrors, apply_overrides
             name = request["component"]
             if name not in self.members:
-                return {"ok": False, "error": f"no component {name!r} (components: {', '.join(self.members)})"}
+                return {"ok": False, "error": f"no component {name!r} (components: {', '.join(self.members)})",
+                        "usage": True}
             old = self.members[name].spec
             entry = {"type": request.get("type") or old.type, "parameters": copy.deepcopy(
                 old.parameters if not request.get("type") or request["type"] == old.type else {})}
@@ -376,22 +432,14 @@ class Run:
                 apply_overrides(entry, [f"parameters.{s}" for s in request.get("set", [])])
                 spec = component_spec(name, {**entry, "step": f"{old.step_ns} ns"}, self.config.step_ns,
                                       self.config.path.parent.resolve(), self.config.epoch, f"components.{name}")
-                self._check_swap(spec)
+                problems = check_replacement(spec, self.config.connections)
+                if problems:
+                    raise ConfigErrors(problems)
             except ConfigErrors as e:
-                return {"ok": False, "error": "; ".join(e.errors)}
+                return {"ok": False, "error": "; ".join(e.errors), "usage": True}
             self.swap(spec)
             return {"ok": True, "step": self.k, "generation": self.members[name].generation}
         return {"ok": False, "error": f"unknown operation {op!r} (status, stop, swap)"}
-
-    def _check_swap(self, spec: ComponentSpec) -> None:
-        from orchestrator.config import ConfigErrors
-        problems = []
-        for d, dv, s, sv in self.config.connections:
-            for comp, var, layout in ((d, dv, spec.inputs), (s, sv, spec.outputs)):
-                if comp == spec.name and var not in layout.offsets:
-                    problems.append(f"{spec.type} has no variable {var!r} that the connections of {spec.name} use")
-        if problems:
-            raise ConfigErrors(problems)
 
     # ---------------------------------------------------------------- the loop
 
@@ -399,56 +447,58 @@ class Run:
         if self.recording is not None:
             self.recording.event(kind, **fields)
 
+    def _commit(self, member: Member) -> None:
+        """A slower member's outputs become visible once their time has come."""
+        self.values[member.out_dst] = member.pending
+        member.pending = None
+
     def _step(self) -> None:
         k, h = self.k, self.config.step_ns
         t_ns = k * h
-        due = [m for m in self.members.values() if k % m.ratio == 0]
         step_timeout = self.config.step_timeout_s
         started = time.perf_counter()
         if self.config.algorithm == "jacobi":
+            due = [m for m in self.members.values() if k % m.ratio == 0]
             for m in due:
                 m.inputs[m.route_dst] = self.values[m.route_src]
             for m in due:
                 m.command.put(bus.encode_step(k, t_ns, m.ratio * h, m.inputs))
             self._wait({m.name: "step" for m in due}, step_timeout, f"step {k}")
         else:
-            for m in due:
-                m.inputs[m.route_dst] = self.values[m.route_src]
-                m.command.put(bus.encode_step(k, t_ns, m.ratio * h, m.inputs))
-                self._wait({m.name: "step"}, step_timeout, f"step {k}")
+            for m in self.members.values():
+                if m.pending is not None and (k + 1) % m.ratio == 0:
+                    self._commit(m)  # those after it in config order see its value for t_(k+1)
+                if k % m.ratio == 0:
+                    m.inputs[m.route_dst] = self.values[m.route_src]
+                    m.command.put(bus.encode_step(k, t_ns, m.ratio * h, m.inputs))
+                    self._wait({m.name: "step"}, step_timeout, f"step {k}")
+        for m in self.members.values():
+            if m.pending is not None and (k + 1) % m.ratio == 0:
+                self._commit(m)
         self.wait_s += time.perf_counter() - started
 
     def execute(self) -> int:
-        import zenoh
-
+        """Run to the end (0), or until a failure (1) or an interruption (130); clean up in every case."""
         config = self.config
-        listen, self.endpoint = resolve_endpoints(config.listen)
-        previous_term = signal.signal(signal.SIGTERM, _raise_stop)
-        self.session = zenoh.open(bus.session_config(listen=listen))
-        subscriptions = [
-            self.session.declare_subscriber(bus.run_key(self.run_id, "c", "*", "*", "out"), self._on_output),
-            self.session.liveliness().declare_subscriber(bus.run_key(self.run_id, "alive", "*", "*"),
-                                                         self._on_liveliness),
-            self.session.declare_queryable(bus.run_key(self.run_id, "ctl"), self._on_control),
-        ]
-        token = self.session.liveliness().declare_token(bus.run_key(self.run_id, "alive", "orchestrator"))
-        signals_out = bus.publisher(self.session, bus.run_key(self.run_id, "signals"), drop=True)
-        runs.register(self.run_id, config.name, self.endpoint, config.path)
-        if self.record_dir is not None:
-            self.recording = Recording(self.record_dir, self.columns, config.resolved)
+        previous = {sig: signal.signal(sig, _raise_stop) for sig in (signal.SIGTERM,)}
         code, message = 0, None
+        self.session = None
+        self._subscriptions: list = []
         wall_start = time.perf_counter()
         try:
+            self._open_bus()
+            if self.record_dir is not None:
+                self.recording = Recording(self.record_dir, self.columns, config.resolved)
             self._log("start", run_id=self.run_id, config=str(config.path), steps=config.steps,
                       step_ns=config.step_ns, algorithm=config.algorithm,
                       components={n: s.type for n, s in config.components.items()})
-            self._start(list(config.components.values()), {n: 0 for n in config.components})
+            self._start(list(config.components.values()), {n: 0 for n in config.components}, self.members)
             for name in self._initialization_order():
                 self._initialize(self.members[name], 0)
             self._record(0)
             decimation = self._start_viewer()
             if decimation:
-                signals_out.put(SIGNALS_HEADER.pack(0, 0.0) + self.values.tobytes())
+                self.signals_out.put(SIGNALS_HEADER.pack(0, 0.0) + self.values.tobytes())
             wall_start = time.perf_counter()
             last_progress = wall_start
             for self.k in range(config.steps):
@@ -458,8 +508,8 @@ class Run:
                 self._step()
                 self._record(self.k + 1)
                 if decimation and (self.k + 1) % decimation == 0:
-                    signals_out.put(SIGNALS_HEADER.pack(self.k + 1, (self.k + 1) * config.step_ns / 1e9)
-                                    + self.values.tobytes())
+                    self.signals_out.put(SIGNALS_HEADER.pack(self.k + 1, (self.k + 1) * config.step_ns / 1e9)
+                                         + self.values.tobytes())
                 now = time.perf_counter()
                 if config.realtime > 0:
                     ahead = (self.k + 1) * config.step_ns / 1e9 / config.realtime - (now - wall_start)
@@ -477,20 +527,29 @@ class Run:
             self.stop_reason = "interrupted"
             code = 130
         finally:
+            # no second Ctrl-C/SIGTERM in the middle of the clean-up: it has bounded waits of its own
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, signal.SIG_IGN)
             self.loop_s = time.perf_counter() - wall_start
             if self.progress:
                 print(file=self.out)
-            for member in list(self.members.values()):
+            for member in list(self.members.values()) + list(self.joining.values()):
                 self._terminate(member, timeout=2.0 if code else 5.0)
-            self._stop_viewer(signals_out)
+            if self.session is not None:
+                self._stop_viewer(self.signals_out)
             self._log("end", step=self.k, time=self.k * config.step_ns / 1e9,
                       status="failed" if code == 1 else (self.stop_reason or "completed"))
             if self.recording is not None:
                 self.recording.close()
             runs.unregister(self.run_id)
-            del token, subscriptions
-            self.session.close()
-            signal.signal(signal.SIGTERM, previous_term)
+            self._subscriptions.clear()
+            if self.session is not None:
+                self.session.close()
+            if code == 0 and self.record_dir is None:
+                shutil.rmtree(self.log_dir, ignore_errors=True)
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
         if message:
             print(f"error: {message}", file=self.out)
             logs = ", ".join(str(m.log_path) for m in self.members.values() if m.log_path)
@@ -499,6 +558,25 @@ class Run:
         if self.profile:
             self._print_profile()
         return code
+
+    def _open_bus(self) -> None:
+        """The orchestrator's Zenoh session, its subscriptions, and the run's entry for `ps`."""
+        import zenoh
+
+        listen, self.endpoint = resolve_endpoints(self.config.listen)
+        try:
+            self.session = zenoh.open(bus.session_config(listen=listen))
+        except zenoh.ZError as e:
+            raise RunFailure(f"cannot open the bus on {', '.join(listen)} (bus.listen): {e}") from None
+        self._subscriptions = [
+            self.session.declare_subscriber(bus.run_key(self.run_id, "c", "*", "*", "out"), self._on_output),
+            self.session.liveliness().declare_subscriber(bus.run_key(self.run_id, "alive", "*", "*"),
+                                                         self._on_liveliness),
+            self.session.declare_queryable(bus.run_key(self.run_id, "ctl"), self._on_control),
+            self.session.liveliness().declare_token(bus.run_key(self.run_id, "alive", "orchestrator")),
+        ]
+        self.signals_out = bus.publisher(self.session, bus.run_key(self.run_id, "signals"), drop=True)
+        runs.register(self.run_id, self.config.name, self.endpoint, self.config.path)
 
     def _boundary(self) -> None:
         """Work done between steps: control requests from the CLI, scheduled events."""
@@ -511,7 +589,10 @@ class Run:
             self._serve_controls()
         t_ns = self.k * self.config.step_ns
         while self.pending_events and self.pending_events[0].at_ns <= t_ns:
-            self.swap(self.pending_events.pop(0).spec)
+            try:
+                self.swap(self.pending_events.pop(0).spec)
+            except SwapFailed as failure:  # a swap the config asks for is part of the experiment
+                raise RunFailure(str(failure)) from None
 
     def _start_viewer(self) -> int:
         """Start the Rerun observer, if asked; return the decimation (publish every n-th row), or 0."""

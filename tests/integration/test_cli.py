@@ -75,3 +75,40 @@ def test_profile_reports_compute_barrier_and_overhead():
     for name in ("push", "spring"):
         assert any(line.split()[:1] == [name] and "us" in line for line in out.splitlines()), out
     assert "barrier wait" in out and "bus + adapter overhead" in out
+
+
+def test_a_failed_runtime_swap_leaves_the_old_component_running(write_config, tmp_path):
+    (tmp_path / "boom.py").write_text(
+        "from components.testing.blocks import Integrator\n\n"
+        "class Boom(Integrator):\n"
+        "    def initialize(self, t0_ns, inputs):\n"
+        "        raise RuntimeError('cannot start')\n")
+    config = write_config(CHAIN.replace("swapme", "keepme"))
+    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", config, "--record", tmp_path / "rec"],
+                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while len(component_processes("keepme-")) < 2 and time.monotonic() < deadline:
+            time.sleep(0.2)
+        swap = orchestrator("swap", "--run", "keepme", "first", "--type", "boom.py:Boom")
+        assert swap.returncode == 1 and "RuntimeError: cannot start" in swap.stderr, swap.stderr
+        assert len(component_processes("keepme-")) == 2  # the replacement is gone, the old one runs
+        time.sleep(0.3)
+        assert orchestrator("stop", "--run", "keepme").returncode == 0
+        _, err = run.communicate(timeout=30)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 0, err
+    x = np.array(pq.read_table(tmp_path / "rec/signals.parquet").column("first.x"))
+    assert np.allclose(x, 0.01 * np.arange(len(x)), rtol=0, atol=1e-9)  # integrated on, undisturbed
+    events = [json.loads(line) for line in (tmp_path / "rec/events.jsonl").read_text().splitlines()]
+    assert any(e["event"] == "warning" and "swap of first" in e["message"] for e in events)
+    assert not component_processes("keepme-")
+
+
+def test_an_unusable_record_directory_is_a_usage_error(write_config, tmp_path):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    result = orchestrator("run", write_config(CHAIN), "--record", blocker / "rec")
+    assert result.returncode == 2 and "--record" in result.stderr and "Traceback" not in result.stderr

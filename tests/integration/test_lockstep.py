@@ -59,19 +59,28 @@ def test_integrator_chain_matches_closed_form_exactly(write_config, tmp_path, al
     assert not component_processes("chain-")
 
 
-def test_multi_rate_component_holds_between_its_steps(write_config, tmp_path):
-    config = write_config("""
-run: {name: rates, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 10 ms}
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+def test_multi_rate_component_holds_between_its_steps(write_config, tmp_path, algorithm):
+    config = write_config(f"""
+run: {{name: rates, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 10 ms, algorithm: {algorithm}}}
 components:
-  fast: {type: test.counter}
-  slow: {type: test.counter, step: 50 ms}
+  slow: {{type: test.counter, step: 50 ms}}
+  fast: {{type: test.counter}}
+  sum: {{type: test.integrator}}
+connections: {{sum.u: slow.n}}
 """)
     assert orchestrator("run", config, "--record", tmp_path / "rec").returncode == 0
     data = signals(tmp_path / "rec")
     k = np.arange(101)
     assert np.array_equal(data["fast.n"], k)
-    # slow steps at k = 0, 5, 10, ...; its output after step k holds until its next step
-    assert np.array_equal(data["slow.n"], np.ceil(k / 5))
+    # slow steps at k = 0, 5, 10, ... over 50 ms; its output for t_(k+5) shows from row k+5 on and
+    # holds until its next one: never a value from the future
+    assert np.array_equal(data["slow.n"], np.floor(k / 5))
+    # a reader sees the held value: Jacobi the row before (t_k), Gauss-Seidel, placed after it in
+    # config order, the value for t_(k+1)
+    j = np.arange(100)
+    u = np.floor(j / 5) if algorithm == "jacobi" else np.floor((j + 1) / 5)
+    assert np.allclose(data["sum.x"], np.concatenate([[0.0], np.cumsum(0.01 * u)]), rtol=0, atol=1e-12)
 
 
 def test_two_runs_of_one_config_are_bit_identical(write_config, tmp_path):
@@ -255,3 +264,34 @@ def test_bad_config_exits_2_before_starting_anything(write_config):
     assert "components.source.parameters.value: missing required parameter" in result.stderr
     assert "Traceback" not in result.stderr
     assert not component_processes("bad-")
+
+
+def test_external_component_joins_and_leaves_with_the_orchestrator(write_config, tmp_path):
+    """`launch: external`: the orchestrator prints the command; the component exits when the
+    orchestrator is killed (SIGKILL: no goodbye, only its liveliness token disappears)."""
+    config = write_config("""
+run: {name: remote, epoch: 2022-09-18T12:00:00Z, duration: 600 s, step: 1 ms, realtime: 1.0}
+components:
+  here: {type: test.counter}
+  there: {type: test.counter, launch: external}
+""")
+    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", config, "--record", tmp_path / "rec"],
+                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    external = None
+    try:
+        line = ""
+        while "python -m components.runner" not in line:
+            line = run.stderr.readline()
+            assert line, "the orchestrator printed no command for the external component"
+        external = subprocess.Popen([sys.executable, *line.split()[1:]], cwd=ROOT,
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        time.sleep(2.0)
+        assert run.poll() is None and external.poll() is None
+        run.kill()
+        run.wait(timeout=10)
+        _, err = external.communicate(timeout=20)
+    finally:
+        for p in (run, external):
+            if p is not None and p.poll() is None:
+                p.kill()
+    assert external.returncode == 1 and "the orchestrator went away" in err

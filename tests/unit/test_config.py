@@ -56,6 +56,17 @@ def test_overrides_reach_any_key(write_config):
     (GOOD.replace("duration: 2 s", "duration: 2.0005 s"), "run.duration: must be a whole number of steps"),
     (GOOD.replace("epoch: 2022-09-18T12:00:00Z", "epoch: yesterday"), "run.epoch"),
     (GOOD + "events: [{at: 1 s, swap: ghost}]\n", "events[0].swap: no component named 'ghost'"),
+    (GOOD + "events: [{at: 3 s, swap: int}]\n", "events[0].at: must be within the run"),
+    (GOOD + "events: [{at: 5 ms, swap: int}]\n", "events[0].at: must fall on a step boundary of int"),
+    (GOOD + "events: [{at: 1 s, swap: src, type: test.counter}]\n",
+     "events[0]: test.counter has no output 'y', which the connection int.u: src.y uses"),
+    (GOOD.replace("duration: 2 s", "duration: .inf"), "run.duration: expected a finite duration"),
+    (GOOD.replace("step: 10 ms", "step: .nan"), "components.int.step: expected a finite duration"),
+    (GOOD.replace("{gain: 2}", "{gain: .nan}"), "components.int.parameters.gain: expected a finite quantity"),
+    (GOOD.replace("step: 1 ms}", "step: 1 ms, step_timeout: 0 s}"), "run.step_timeout: must be positive"),
+    (GOOD.replace("step: 1 ms}", "step: 1 ms, realtime: .nan}"), "run.realtime: expected 0"),
+    (GOOD + "bus: {listen: [foo/bar]}\n", "bus.listen: expected a list of Zenoh endpoints"),
+    (GOOD.replace("type: test.constant", "type: 5"), "components.src.type: expected a component type name"),
 ])
 def test_each_error_names_its_key_and_file(write_config, text, key):
     errors = errors_of(write_config, text)
@@ -93,3 +104,9 @@ def test_bad_override_syntax(write_config):
 def test_missing_file_is_a_config_error(tmp_path):
     with pytest.raises(ConfigErrors, match="cannot read config"):
         load(tmp_path / "absent.yaml")
+
+
+def test_a_user_component_file_that_fails_to_load_is_one_config_error(write_config, tmp_path):
+    (tmp_path / "broken.py").write_text("raise RuntimeError('half-written component')\n")
+    errors = errors_of(write_config, GOOD.replace("type: test.constant", "type: broken.py:Thing"))
+    assert any("components.src.type: loading 'broken.py'" in e and "half-written component" in e for e in errors)

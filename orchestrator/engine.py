@@ -563,11 +563,14 @@ class Run:
         """The orchestrator's Zenoh session, its subscriptions, and the run's entry for `ps`."""
         import zenoh
 
-        listen, self.endpoint = resolve_endpoints(self.config.listen)
-        try:
-            self.session = zenoh.open(bus.session_config(listen=listen))
-        except zenoh.ZError as e:
-            raise RunFailure(f"cannot open the bus on {', '.join(listen)} (bus.listen): {e}") from None
+        for attempt in range(3):  # a free port picked here may be taken by another run before Zenoh binds it
+            listen, self.endpoint = resolve_endpoints(self.config.listen)
+            try:
+                self.session = zenoh.open(bus.session_config(listen=listen))
+                break
+            except zenoh.ZError as e:
+                if attempt == 2 or not any(e.endswith(":0") for e in self.config.listen):
+                    raise RunFailure(f"cannot open the bus on {', '.join(listen)} (bus.listen): {e}") from None
         self._subscriptions = [
             self.session.declare_subscriber(bus.run_key(self.run_id, "c", "*", "*", "out"), self._on_output),
             self.session.liveliness().declare_subscriber(bus.run_key(self.run_id, "alive", "*", "*"),

@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from components.rotations import quat_to_matrix
+
 COMPUTED_TORQUE = "controller.computed_torque"
 JOINT_PD = "controller.joint_pd"
 
@@ -85,13 +87,6 @@ def _joint_names(config: dict, record_dir: Path, params: dict, n: int) -> list[s
     return [f"tau[{i}]" for i in range(n)]
 
 
-def _quat_to_matrix(q) -> np.ndarray:
-    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
 def _save(fig, path: Path) -> Path:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
@@ -126,7 +121,7 @@ def _computed_torque(name: str, params: dict, config: dict, columns: dict, t: np
     q_source = _source(config, name, "orientation")
     q_base = _vector(columns, q_source, 4) if q_source else None
     if q_base is not None:
-        R0 = _quat_to_matrix(q_base[0])
+        R0 = quat_to_matrix(q_base[0])
         p, p_d, frame = p @ R0, p_d @ R0, "the base's initial frame"
         origin = p_d[0]
 

@@ -66,7 +66,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from components.controller.trajectory import PoseSample, log_so3, quat_to_matrix
+from components.controller.trajectory import PoseSample
+from components.rotations import log_so3, matrix_to_quat, quat_to_matrix
 
 BASE_MODELS = ("free_floating", "fixed")
 
@@ -360,8 +361,6 @@ class ArmController:
         self.trajectory = build_cartesian(self.spec, *self.anchor)
 
     def step(self, t: float, state: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-        from components.controller.trajectory import matrix_to_quat
-
         self.arm.set_state(state["position"], state["orientation"], state["twist"], state["q"], state["qd"])
         s = self.arm.compute(self.law.base_model)
         d = self.trajectory.sample(t)

@@ -36,11 +36,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping
 
 import numpy as np
 
 from components.errors import ConfigError
+from components.rotations import exp_so3, log_so3
 from components.units import to_si
 
 TRAJECTORY_TYPES = ("hold", "parabola", "waypoints")
@@ -62,66 +63,6 @@ def quintic(t: float, t0: float, duration: float) -> tuple[float, float, float]:
     ds = 30.0 * u * u * (1.0 - u) ** 2 / duration
     dds = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / duration ** 2
     return s, ds, dds
-
-
-# --------------------------------------------------------------------------- SO(3)
-
-def skew(w: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-
-
-def exp_so3(phi: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (Rodrigues)."""
-    t = float(np.linalg.norm(phi))
-    K = skew(phi)
-    if t < 1e-8:
-        return np.eye(3) + K + 0.5 * K @ K
-    return np.eye(3) + math.sin(t) / t * K + (1.0 - math.cos(t)) / (t * t) * K @ K
-
-
-def log_so3(R: np.ndarray) -> np.ndarray:
-    """Rotation vector of a rotation matrix, angle in [0, pi] (robust near 0 and pi)."""
-    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    t = math.atan2(0.5 * math.sqrt(v @ v), 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0))   # accurate near 0 and pi
-    if t < 1e-6:
-        return 0.5 * v
-    if math.pi - t < 1e-4:                       # near pi: axis from the symmetric part
-        B = 0.5 * (R + np.eye(3))
-        k = int(np.argmax(np.diag(B)))
-        axis = B[:, k] / math.sqrt(max(B[k, k], 1e-300))
-        if axis @ v < 0.0:
-            axis = -axis
-        return t * axis / np.linalg.norm(axis)
-    return t / (2.0 * math.sin(t)) * v
-
-
-def quat_to_matrix(q: Sequence[float]) -> np.ndarray:
-    """Rotation matrix of a quaternion [x, y, z, w] (normalized first)."""
-    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
-def matrix_to_quat(R: np.ndarray) -> np.ndarray:
-    """Quaternion [x, y, z, w] (w >= 0) of a rotation matrix (Shepperd)."""
-    m = R
-    t = m[0, 0] + m[1, 1] + m[2, 2]
-    k = int(np.argmax([m[0, 0], m[1, 1], m[2, 2], t]))
-    if k == 3:
-        s = 2.0 * math.sqrt(1.0 + t)
-        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
-    elif k == 0:
-        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
-        q = [0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
-    elif k == 1:
-        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
-        q = [(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
-    else:
-        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
-        q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s]
-    q = np.array(q)
-    return -q if q[3] < 0 else q
 
 
 # --------------------------------------------------------------------------- Cartesian trajectories

@@ -21,6 +21,8 @@ import math
 
 import numpy as np
 
+from components.rotations import cross
+
 MU_EARTH = 3.986004418e14      # m^3/s^2, EGM96/WGS-84
 EARTH_RADIUS = 6378.137e3      # m, WGS-84 equatorial radius (altitude reference, spherical Earth)
 EARTH_RATE = 7.292115e-5       # rad/s, Earth rotation rate about ECI z (co-rotating atmosphere)
@@ -93,15 +95,6 @@ def gravity_gradient_torque(rho: np.ndarray, inertia_W: np.ndarray, mu: float = 
     I_rho = np.einsum("nij,nj->ni", inertia_W, rho)
     r2 = np.einsum("ni,ni->n", rho, rho)[:, None]
     return 3.0 * mu / (r2 * r2 * np.sqrt(r2)) * cross(rho, I_rho)
-
-
-def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross product of (n, 3) arrays (np.cross without its axis handling overhead)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
-    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
-    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return out
 
 
 def drag_force(density, cd, area, v_rel: np.ndarray) -> np.ndarray:

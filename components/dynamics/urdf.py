@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from components.rotations import exp_so3, matrix_to_rpy, rpy_to_matrix
+
 MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
 SUPPORTED_TYPES = MOVABLE_TYPES + ("fixed",)
 
@@ -248,36 +250,6 @@ def read_urdf(path: str | Path) -> UrdfModel:
     return UrdfModel(path, robot.get("name") or path.stem, links, joints, root, tree)
 
 
-# --------------------------------------------------------------------------- rotations (URDF rpy)
-
-def rpy_to_matrix(rpy) -> np.ndarray:
-    """R = Rz(yaw) Ry(pitch) Rx(roll) (URDF convention)."""
-    r, p, y = rpy
-    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
-
-
-def matrix_to_rpy(R: np.ndarray) -> tuple[float, float, float]:
-    """Inverse of :func:`rpy_to_matrix` (any valid solution at pitch = +-90 deg)."""
-    cp = math.hypot(R[0, 0], R[1, 0])
-    pitch = math.atan2(-R[2, 0], cp)
-    if cp > 1e-9:
-        roll = math.atan2(R[2, 1], R[2, 2])
-        yaw = math.atan2(R[1, 0], R[0, 0])
-    else:   # gimbal lock: put everything in roll
-        yaw = 0.0
-        roll = math.atan2(-R[1, 2], R[1, 1])
-    return roll, pitch, yaw
-
-
-def axis_angle_matrix(axis, angle: float) -> np.ndarray:
-    a = np.asarray(axis, dtype=float)
-    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * (K @ K)
-
-
 def dart_urdf_text(model: UrdfModel, locked: dict[str, float]) -> str:
     """The URDF text DART loads: joints in ``locked`` (name -> position) become fixed joints at
     that position, and frame links (see ``UrdfModel.frame_links``) are left out."""
@@ -298,7 +270,7 @@ def dart_urdf_text(model: UrdfModel, locked: dict[str, float]) -> str:
         if joint.type == "prismatic":
             p = p + R @ (np.array(joint.axis) * q0)
         else:
-            R = R @ axis_angle_matrix(joint.axis, q0)
+            R = R @ exp_so3(np.array(joint.axis) * q0)
         element.set("type", "fixed")
         for tag in ("origin", "axis", "limit", "dynamics", "safety_controller", "calibration"):
             for child in element.findall(tag):

@@ -40,7 +40,8 @@ from typing import Mapping
 import numpy as np
 
 from components.dynamics import environment as env
-from components.dynamics.urdf import UrdfModel, dart_urdf_text, read_urdf, rpy_to_matrix
+from components.dynamics.urdf import UrdfModel, dart_urdf_text, read_urdf
+from components.rotations import cross, matrix_to_quat, quat_to_matrix, rpy_to_matrix
 
 INTEGRATORS = ("rk4", "dart")
 FRAMES = ("world", "lvlh")
@@ -134,42 +135,7 @@ def check_spec(spec: BodySpec, model: UrdfModel) -> None:
             raise ModelError(key, f"expected a drag coefficient >= 0, got {cd}")
 
 
-# --------------------------------------------------------------------------- small rotation helpers
-
-def quat_to_matrix(q) -> np.ndarray:
-    """Rotation matrix of a quaternion [x, y, z, w] (normalized first)."""
-    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
-def matrix_to_quat(R: np.ndarray) -> np.ndarray:
-    """Quaternions [x, y, z, w] with w >= 0 of rotation matrices (..., 3, 3).
-
-    Shepperd's method, vectorized: row k of the symmetric matrix A below is 4 q_k q, and the
-    row with the largest diagonal entry 4 q_k^2 is divided by 4 |q_k| (no small divisor)."""
-    R = np.asarray(R, dtype=float)
-    m = R.reshape(-1, 3, 3)
-    n = m.shape[0]
-    A = np.empty((n, 4, 4))
-    m00, m11, m22 = m[:, 0, 0], m[:, 1, 1], m[:, 2, 2]
-    A[:, 0, 0] = 1.0 + m00 - m11 - m22
-    A[:, 1, 1] = 1.0 - m00 + m11 - m22
-    A[:, 2, 2] = 1.0 - m00 - m11 + m22
-    A[:, 3, 3] = 1.0 + m00 + m11 + m22
-    A[:, 0, 1] = A[:, 1, 0] = m[:, 0, 1] + m[:, 1, 0]
-    A[:, 0, 2] = A[:, 2, 0] = m[:, 0, 2] + m[:, 2, 0]
-    A[:, 1, 2] = A[:, 2, 1] = m[:, 1, 2] + m[:, 2, 1]
-    A[:, 0, 3] = A[:, 3, 0] = m[:, 2, 1] - m[:, 1, 2]
-    A[:, 1, 3] = A[:, 3, 1] = m[:, 0, 2] - m[:, 2, 0]
-    A[:, 2, 3] = A[:, 3, 2] = m[:, 1, 0] - m[:, 0, 1]
-    rows = np.arange(n)
-    k = np.argmax(A[:, [0, 1, 2, 3], [0, 1, 2, 3]], axis=1)
-    q = A[rows, k] / (2.0 * np.sqrt(A[rows, k, k]))[:, None]
-    q *= np.where(q[:, 3:4] < 0.0, -1.0, 1.0)
-    return q.reshape(R.shape[:-2] + (4,))
-
+# --------------------------------------------------------------------------- integrator helper
 
 def so3_left_jacobian_inverse_times(phi: np.ndarray, omega: np.ndarray) -> np.ndarray:
     """J_l(phi)^-1 omega: the rate of phi for R = exp(phi) R0 turning at world angular velocity
@@ -590,7 +556,7 @@ class OrbitalWorld:
         h = skel.getMassMatrix()[:6] @ skel.getVelocities()
         linear = h[3:6]
         lever = np.asarray(skel.getCOM()) - np.asarray(skel.getRootBodyNode().getTransform().translation())
-        return np.concatenate([linear, h[:3] - env.cross(lever, linear)])
+        return np.concatenate([linear, h[:3] - cross(lever, linear)])
 
     def outputs(self, name: str, links: bool = True) -> dict[str, np.ndarray]:
         """Every output of body ``name`` at the current state (see the component's table);

@@ -265,8 +265,9 @@ class SGP4Component(_OrbitComponent):
         return timescales.tai_to_utc(tai), timescales.tai_to_tt(tai)
 
     def _sample(self, t_s):
-        from components.orbit.frames import dcm_to_quat, lvlh_dcm, rotation_vector
+        from components.orbit.frames import lvlh_dcm
         from components.orbit.tle import teme_to_gcrf_matrix
+        from components.rotations import log_so3, matrix_to_quat
 
         utc, tt = self._utc(t_s)
         c = teme_to_gcrf_matrix(tt, utc)       # UT1 ~ UTC
@@ -279,8 +280,8 @@ class SGP4Component(_OrbitComponent):
         for offset in (-d, d):
             rs, vs = self.propagator.teme(self._utc(t_s + offset)[0])
             frames.append(lvlh_dcm(c @ rs, c @ vs))
-        w = rotation_vector(frames[1] @ frames[0].T) / (2.0 * d)
-        return r, v, dcm_to_quat(lvlh_dcm(r, v)), w
+        w = log_so3(frames[1] @ frames[0].T) / (2.0 * d)
+        return r, v, matrix_to_quat(lvlh_dcm(r, v)), w
 
 
 def _waypoints(raw) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -1,4 +1,4 @@
-"""The LVLH frame of an orbit, its angular velocity, and rotation-matrix/quaternion helpers.
+"""The LVLH frame of an orbit and its angular velocity (rotation helpers: :mod:`components.rotations`).
 
 Conventions (Zenorbit contract):
 
@@ -14,12 +14,7 @@ import math
 
 import numpy as np
 
-
-def cross3(a, b) -> np.ndarray:
-    """a × b for 3-vectors (np.cross is ~20x slower on single vectors)."""
-    a0, a1, a2 = a
-    b0, b1, b2 = b
-    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+from components.rotations import cross3, matrix_to_quat
 
 
 def lvlh_dcm(r_eci, v_eci) -> np.ndarray:
@@ -61,57 +56,6 @@ def _rate(r, v, a, c) -> np.ndarray:
     return (r_norm * float(a @ z) / h_norm) * x + (h_norm / (r_norm * r_norm)) * z
 
 
-def dcm_to_quat(c) -> np.ndarray:
-    """Quaternion [x, y, z, w] (w >= 0) of a proper rotation matrix C_A_B -> q_A_B.
-
-    Shepperd's method: picks the largest of 4w², 4x², 4y², 4z² to divide by, so it is
-    accurate for every rotation.
-    """
-    m = np.asarray(c, dtype=np.float64)
-    tr = m[0, 0] + m[1, 1] + m[2, 2]
-    cands = (tr, m[0, 0], m[1, 1], m[2, 2])
-    k = int(np.argmax(cands))
-    if k == 0:
-        s = 2.0 * math.sqrt(1.0 + tr)
-        q = np.array([(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s])
-    elif k == 1:
-        s = 2.0 * math.sqrt(max(1.0 + 2.0 * m[0, 0] - tr, 0.0))
-        q = np.array([0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s])
-    elif k == 2:
-        s = 2.0 * math.sqrt(max(1.0 + 2.0 * m[1, 1] - tr, 0.0))
-        q = np.array([(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s])
-    else:
-        s = 2.0 * math.sqrt(max(1.0 + 2.0 * m[2, 2] - tr, 0.0))
-        q = np.array([(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s])
-    q /= np.linalg.norm(q)
-    return -q if q[3] < 0.0 else q
-
-
-def quat_to_dcm(q) -> np.ndarray:
-    """Rotation matrix C_A_B of a quaternion q_A_B = [x, y, z, w] (normalized first)."""
-    x, y, z, w = np.asarray(q, dtype=np.float64) / np.linalg.norm(q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
-
-
-def rotation_vector(c) -> np.ndarray:
-    """Rotation vector (axis times angle, rad) of a proper rotation matrix C, angle in [0, pi).
-
-    For C = exp([θ×]): θ = atan2(|s|, (tr C - 1)/2) · s/|s| with s the axial vector of
-    (C - C^T)/2; accurate for small angles (as used for rates from finite differences).
-    """
-    m = np.asarray(c, dtype=np.float64)
-    s = 0.5 * np.array([m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]])
-    sin_angle = np.linalg.norm(s)
-    angle = math.atan2(sin_angle, 0.5 * (m[0, 0] + m[1, 1] + m[2, 2] - 1.0))
-    if sin_angle < 1e-300:
-        return np.zeros(3)
-    return s * (angle / sin_angle)
-
-
 def continuous(q, q_previous) -> np.ndarray:
     """q or -q (the same rotation), whichever is closer to ``q_previous``: no sign jumps in a series."""
     q = np.asarray(q, dtype=np.float64)
@@ -125,4 +69,4 @@ def lvlh_state(r_eci, v_eci, a_eci) -> tuple[np.ndarray, np.ndarray]:
     r = np.asarray(r_eci, dtype=np.float64)
     v = np.asarray(v_eci, dtype=np.float64)
     c = lvlh_dcm(r, v)
-    return dcm_to_quat(c), _rate(r, v, np.asarray(a_eci, dtype=np.float64), c)
+    return matrix_to_quat(c), _rate(r, v, np.asarray(a_eci, dtype=np.float64), c)

@@ -20,6 +20,8 @@ import math
 
 import numpy as np
 
+from components.rotations import cross3
+
 MU_EARTH = 3.986004418e14
 """Earth's gravitational parameter GM, m^3/s^2 (WGS 84)."""
 R_EARTH = 6378137.0
@@ -28,11 +30,6 @@ J2_EARTH = 1.08262668e-3
 """Earth's second zonal harmonic J2, unitless (EGM96, unnormalized)."""
 
 TWO_PI = 2.0 * math.pi
-
-
-def _cross(a, b) -> np.ndarray:
-    """a × b for 3-vectors (np.cross is slow on single vectors)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
 class ElementError(ValueError):
@@ -241,8 +238,8 @@ class KeplerOrbit:
         k_axis = np.array([0.0, 0.0, 1.0])
         w_axis = c[:, 2]
         omega = self.raan_rate * k_axis + self.argp_rate * w_axis       # perifocal frame rate
-        alpha = self.argp_rate * self.raan_rate * _cross(k_axis, w_axis)
-        v = _cross(omega, r) + u
-        acc = (_cross(alpha, r) + _cross(omega, _cross(omega, r))
-               + 2.0 * _cross(omega, u) + a_rel)
+        alpha = self.argp_rate * self.raan_rate * cross3(k_axis, w_axis)
+        v = cross3(omega, r) + u
+        acc = (cross3(alpha, r) + cross3(omega, cross3(omega, r))
+               + 2.0 * cross3(omega, u) + a_rel)
         return r, v, acc

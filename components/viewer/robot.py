@@ -116,39 +116,6 @@ def read_geometry(path: str | Path) -> Geometry:
                     coms=np.array(coms, dtype=float).reshape(-1, 3), joints=joints, visuals=visuals)
 
 
-def rpy_matrix(rpy) -> np.ndarray:
-    """URDF rpy: R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    r, p, y = rpy
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
-
-
-def matrices_to_quaternions(R: np.ndarray) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) -> unit quaternions (..., 4) [x, y, z, w], w >= 0.
-
-    Vectorized Shepperd: each matrix uses the largest of 1 + trace, 1 + 2 R_ii - trace (stable)."""
-    R = np.asarray(R, dtype=float)
-    shape = R.shape[:-2]
-    m = R.reshape(-1, 3, 3)
-    trace = m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2]
-    candidates = np.stack([1.0 + trace, 1.0 + 2 * m[:, 0, 0] - trace, 1.0 + 2 * m[:, 1, 1] - trace,
-                           1.0 + 2 * m[:, 2, 2] - trace], axis=1)
-    pick = candidates.argmax(axis=1)
-    d21, d02, d10 = m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]
-    s01, s02, s12 = m[:, 0, 1] + m[:, 1, 0], m[:, 0, 2] + m[:, 2, 0], m[:, 1, 2] + m[:, 2, 1]
-    # rows of (x, y, z, w) times 4 * the picked component, for each choice
-    table = np.stack([np.stack([d21, d02, d10, candidates[:, 0]], axis=1),
-                      np.stack([candidates[:, 1], s01, s02, d21], axis=1),
-                      np.stack([s01, candidates[:, 2], s12, d02], axis=1),
-                      np.stack([s02, s12, candidates[:, 3], d10], axis=1)], axis=1)
-    q = table[np.arange(len(m)), pick]
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    q *= np.where(q[:, 3:4] < 0, -1.0, 1.0)
-    return q.reshape(*shape, 4)
-
-
 def normalized_quaternions(q: np.ndarray) -> np.ndarray:
     """Rows of [x, y, z, w] normalized; an all-zero row (nothing recorded yet) becomes identity."""
     q = np.array(q, dtype=float, copy=True)

@@ -32,8 +32,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from components.viewer.robot import (Geometry, Kinematics, matrices_to_quaternions, normalized_quaternions,
-                                     read_geometry, rpy_matrix)
+from components.rotations import matrix_to_quat, rpy_to_matrix
+from components.viewer.robot import Geometry, Kinematics, normalized_quaternions, read_geometry
 
 TIMELINE = "sim_time"
 STEP_TIMELINE = "step"
@@ -401,7 +401,7 @@ class SceneLogger:
             return
         for k, visual in enumerate(body.geometry.visuals):
             path = f"{body.base}/links/{rr.escape_entity_path_part(visual.link)}/visual_{k}"
-            quaternion = matrices_to_quaternions(rpy_matrix(visual.rpy))
+            quaternion = matrix_to_quat(rpy_to_matrix(visual.rpy))
             common = dict(centers=[visual.xyz], quaternions=[quaternion], colors=[visual.color], fill_mode="solid")
             if visual.kind == "box":
                 self._log(path, rr.Boxes3D(half_sizes=[np.array(visual.size) / 2], **common), static=True)
@@ -500,7 +500,7 @@ class SceneLogger:
         if body.kinematics is not None and body.position is not None and body.orientation is not None:
             q = rows[:, body.q] if body.q is not None else np.zeros((n, body.kinematics.n_joints))
             translations, rotations = body.kinematics.link_poses(rows[:, body.position], rows[:, body.orientation], q)
-            quaternions = matrices_to_quaternions(rotations)
+            quaternions = matrix_to_quat(rotations)
             for j, link in enumerate(body.geometry.links):
                 send(f"{body.base}/links/{rr.escape_entity_path_part(link)}",
                      transform_columns(translations[:, j], quaternions[:, j]))

@@ -17,7 +17,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from components.controller.trajectory import quat_to_matrix
+from components.rotations import quat_to_matrix
 from tests.conftest import ROOT, component_processes, orchestrator
 
 pytestmark = pytest.mark.integration

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from components.controller.computed_torque import FreeFloatingArm, dls_inverse
-from components.controller.trajectory import log_so3
+from components.rotations import log_so3
 from components.dynamics.urdf import read_urdf
 from components.dynamics.world import BodySpec, OrbitalWorld
 

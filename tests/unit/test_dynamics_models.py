@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from components.dynamics.urdf import UrdfError, matrix_to_rpy, read_urdf, rpy_to_matrix
+from components.dynamics.urdf import UrdfError, read_urdf
 
 MODELS = Path(__file__).resolve().parents[2] / "models"
 TABLE1_MASS = [2.741, 2.425, 2.209, 0.877, 1.878, 0.409, 0.308]
@@ -44,13 +44,6 @@ def test_pinocchio_loads_the_models_on_a_free_flyer(name, nq, mass):
         assert total == pytest.approx(mass)
     if name == "servicer":
         assert 500.0 < total < 560.0 and model.existFrame("arm_tool_link")
-
-
-def test_rpy_round_trip():
-    rng = np.random.default_rng(1)
-    for rpy in list(rng.uniform(-3, 3, size=(20, 3))) + [np.array([0.3, np.pi / 2, -0.2])]:
-        R = rpy_to_matrix(rpy)
-        assert np.allclose(rpy_to_matrix(matrix_to_rpy(R)), R, atol=1e-12)
 
 
 def test_read_urdf_errors(tmp_path):

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from components.dynamics import environment as env
-from components.dynamics.world import BodySpec, OrbitalWorld, quat_to_matrix
+from components.dynamics.world import BodySpec, OrbitalWorld
+from components.rotations import quat_to_matrix
 
 ROOT = Path(__file__).resolve().parents[2]
 TARGET = ROOT / "models" / "target.urdf"

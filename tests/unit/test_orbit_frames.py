@@ -1,13 +1,13 @@
-"""LVLH frame and its angular velocity; quaternion helpers against scipy's Rotation."""
+"""LVLH frame and its angular velocity (references: scipy's Rotation, finite differences)."""
 import math
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from components.orbit.frames import (continuous, dcm_to_quat, lvlh_angular_velocity, lvlh_dcm, lvlh_state,
-                                     quat_to_dcm, rotation_vector)
+from components.orbit.frames import continuous, lvlh_angular_velocity, lvlh_dcm, lvlh_state
 from components.orbit.kepler import KeplerOrbit
+from components.rotations import matrix_to_quat
 
 deg = math.radians
 
@@ -48,36 +48,11 @@ def test_lvlh_undefined_for_radial_motion():
         lvlh_dcm([0, 0, 0], [0, 7e3, 0])
 
 
-def test_dcm_to_quat_matches_scipy_and_round_trips():
-    # Reference: scipy.spatial.transform.Rotation (also [x, y, z, w]); tolerance 1e-14,
-    # including near-180° rotations where the trace is ~ -1 (Shepperd's branches)
-    rots = list(Rotation.random(200, random_state=3)) + [
-        Rotation.from_rotvec([math.pi, 0, 0]), Rotation.from_rotvec([0, math.pi - 1e-9, 0]),
-        Rotation.from_rotvec([0, 0, math.pi]), Rotation.identity()]
-    for rot in rots:
-        q = dcm_to_quat(rot.as_matrix())
-        ref = rot.as_quat()
-        ref = -ref if ref[3] < 0 else ref
-        assert q[3] >= 0
-        assert min(np.abs(q - ref).max(), np.abs(q + ref).max()) < 1e-14   # ±: w = 0 cases
-        np.testing.assert_allclose(quat_to_dcm(q), rot.as_matrix(), atol=1e-14)
-
-
 def test_quaternion_rotates_lvlh_vectors_into_eci():
     # q_eci_lvlh applied to LVLH's x axis gives r̂ in ECI (the contract's q_A_B meaning)
     for r, v in list(_states())[:10]:
         q, _ = lvlh_state(r, v, np.zeros(3))
         np.testing.assert_allclose(Rotation.from_quat(q).apply([1, 0, 0]), r / np.linalg.norm(r), atol=1e-14)
-
-
-def test_rotation_vector_matches_scipy():
-    # Reference: scipy Rotation.as_rotvec; tolerance 1e-15 rad absolute for angles from 1e-12 to 3 rad
-    rng = np.random.default_rng(5)
-    for angle in (0.0, 1e-12, 1e-6, 1e-3, 0.5, 2.0, 3.0):
-        axis = rng.normal(size=3)
-        rotvec = axis / np.linalg.norm(axis) * angle
-        np.testing.assert_allclose(rotation_vector(Rotation.from_rotvec(rotvec).as_matrix()), rotvec,
-                                   rtol=1e-12, atol=1e-15)
 
 
 def test_continuous_keeps_sign():
@@ -103,7 +78,7 @@ def test_w_lvlh_matches_finite_difference_of_q_eci_lvlh(j2, a, e):
 
     def q_of_t(t):
         r, v, _ = orbit.state(t)
-        return dcm_to_quat(lvlh_dcm(r, v))
+        return matrix_to_quat(lvlh_dcm(r, v))
 
     for t in (0.0, 700.0, 3000.0, 40000.0):
         r, v, acc = orbit.state(t)

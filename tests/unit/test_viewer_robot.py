@@ -5,7 +5,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from components.viewer.robot import Kinematics, matrices_to_quaternions, normalized_quaternions, read_geometry
+from components.viewer.robot import Kinematics, normalized_quaternions, read_geometry
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -127,23 +127,6 @@ def test_link_poses_match_a_numpy_walk_of_the_urdf(tmp_path, urdf):
             assert np.allclose(rotations[i, j], R_ref, atol=1e-12), link
 
 
-def test_matrix_to_quaternion_matches_scipy_including_half_turns():
-    from scipy.spatial.transform import Rotation
-
-    rotations = Rotation.concatenate([Rotation.random(500, random_state=3), Rotation.identity(),
-                                      *(Rotation.from_rotvec(np.pi * a) for a in np.eye(3)),
-                                      Rotation.from_rotvec([np.pi / np.sqrt(2), np.pi / np.sqrt(2), 0])])
-    reference = rotations.as_quat()
-    reference *= np.where(reference[:, 3:4] < 0, -1.0, 1.0)
-    q = matrices_to_quaternions(rotations.as_matrix())
-    same = np.minimum(np.abs(q - reference).max(axis=1), np.abs(q + reference).max(axis=1))  # w = 0: either sign
-    assert same.max() < 1e-12
-
-
-def test_quaternion_helpers():
+def test_normalized_quaternions():
     q = normalized_quaternions(np.array([[0, 0, 0, 0], [0, 0, 0, 2.0], [1, 1, 1, 1]]))
     assert np.allclose(q, [[0, 0, 0, 1], [0, 0, 0, 1], [0.5, 0.5, 0.5, 0.5]])
-    R = rpy(0.3, -0.4, 2.5)
-    x, y, z, w = matrices_to_quaternions(R)
-    assert w >= 0
-    assert np.allclose(rot([x, y, z], 2 * np.arctan2(np.linalg.norm([x, y, z]), w)), R)

@@ -26,10 +26,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.sdk import Component, Parameter, Variable
-
-NS_PER_S = 1e9
 
 
 # --------------------------------------------------------------------------- shared helpers

@@ -65,6 +65,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from components.constants import MU_EARTH, NS_PER_S
 from components.dynamics.urdf import UrdfError, UrdfModel, read_urdf
 from components.errors import ComponentError, ConfigError
 from components.sdk import Component, Parameter, Variable
@@ -222,7 +223,7 @@ class DartDynamics(Component):
         Parameter("drag", "bool", default=False, description="atmospheric drag on links with a drag_area"),
         Parameter("atmosphere", "any", default=None,
                   description="null: exponential table 0-1000 km; or {altitude, density, scale_height}"),
-        Parameter("mu", "float", unit="m^3/s^2", default=3.986004418e14, description="Earth's gravitational parameter"),
+        Parameter("mu", "float", unit="m^3/s^2", default=MU_EARTH, description="Earth's gravitational parameter"),
         Parameter("joint_limits", "bool", default=True, description="enforce the URDF joint position limits"),
         Parameter("link_outputs", "bool", default=True,
                   description="publish the per-link outputs (poses, environment wrenches) for the viewer"),
@@ -319,7 +320,7 @@ class DartDynamics(Component):
 
     def do_step(self, t_ns, h_ns, inputs):
         self._inputs(inputs, torques=True)
-        self.world.step(h_ns * 1e-9)
+        self.world.step(h_ns / NS_PER_S)
         return self._outputs()
 
     def get_state(self):

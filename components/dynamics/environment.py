@@ -12,7 +12,7 @@ freely, so a link feels only the difference between gravity at its CoM and gravi
 
 ``I_i`` is the link's inertia about its CoM in W axes; ``v_rel`` is the CoM's ECI velocity
 relative to an atmosphere co-rotating with the Earth (omega_E about ECI z); ``h`` the altitude
-above a spherical Earth (R_E = 6378.137 km); ``rho(h)`` a piecewise exponential atmosphere.
+above a spherical Earth (R_E = ``R_EARTH``, 6378.137 km); ``rho(h)`` a piecewise exponential atmosphere.
 All vectors in W (= ECI) axes, SI units.
 """
 from __future__ import annotations
@@ -21,11 +21,8 @@ import math
 
 import numpy as np
 
+from components.constants import EARTH_RATE, MU_EARTH
 from components.rotations import cross
-
-MU_EARTH = 3.986004418e14      # m^3/s^2, EGM96/WGS-84
-EARTH_RADIUS = 6378.137e3      # m, WGS-84 equatorial radius (altitude reference, spherical Earth)
-EARTH_RATE = 7.292115e-5       # rad/s, Earth rotation rate about ECI z (co-rotating atmosphere)
 
 # Piecewise exponential atmosphere (Vallado, "Fundamentals of Astrodynamics and Applications",
 # Table 8-4; Wertz): base altitude km, density kg/m^3 at the base, scale height km.

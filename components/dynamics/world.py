@@ -39,6 +39,7 @@ from typing import Mapping
 
 import numpy as np
 
+from components.constants import MU_EARTH, R_EARTH
 from components.dynamics import environment as env
 from components.dynamics.urdf import UrdfModel, dart_urdf_text, read_urdf
 from components.rotations import cross, matrix_to_quat, quat_to_matrix, rpy_to_matrix
@@ -266,7 +267,7 @@ class OrbitalWorld:
 
     def __init__(self, bodies: list[BodySpec], *, integrator: str = "rk4", substeps: int = 1,
                  tidal_force: bool = True, gravity_gradient: bool = True, drag: bool = False,
-                 mu: float = env.MU_EARTH, atmosphere: env.ExponentialAtmosphere | None = None,
+                 mu: float = MU_EARTH, atmosphere: env.ExponentialAtmosphere | None = None,
                  joint_limits: bool = True, models: Mapping[str, UrdfModel] | None = None):
         import dartpy as dart
 
@@ -403,7 +404,7 @@ class OrbitalWorld:
             v_com = np.array([bn.getCOMLinearVelocity() for bn in body.nodes]).reshape(n, 3)
             position = R + coms
             v_rel = V + v_com - env.atmosphere_velocity(position)
-            density = self.atmosphere.density(np.linalg.norm(position, axis=1) - env.EARTH_RADIUS)
+            density = self.atmosphere.density(np.linalg.norm(position, axis=1) - R_EARTH)
             drag = env.drag_force(density, body.drag_cd, body.drag_area, v_rel)
         return tidal, drag, torque
 

@@ -24,11 +24,10 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.sdk import Component, Parameter, Variable
 from components.units import to_si
-
-NS_PER_S = 1e9  # t_s = t_ns / NS_PER_S: correctly rounded (1.2e11 ns -> exactly 120.0 s)
 
 
 def _outputs() -> list[Variable]:

@@ -1,18 +1,11 @@
-"""Earth constants, Kepler's equation and Keplerian orbits with J2 secular drift.
+"""Kepler's equation and Keplerian orbits with J2 secular drift.
 
 Plain functions and one plain class; no bus, no I/O, no wall clock. SI units: m, s, rad.
 Positions and velocities are in ECI (GCRF axes); the classical elements are referred to the
 ECI equator and x axis.
 
-Earth constants (one set, used by every orbit component):
-
-- ``MU_EARTH`` = 3.986004418e14 m^3/s^2: geocentric gravitational constant including the
-  atmosphere, a defining parameter of WGS 84 (NIMA TR8350.2, 3rd ed.). (EGM96's own scaling
-  value is 3.986004415e14, 8e-10 relative lower: immaterial here.)
-- ``R_EARTH`` = 6378137.0 m: WGS 84 equatorial radius (semi-major axis of the ellipsoid).
-- ``J2_EARTH`` = 1.08262668e-3: EGM96 (Lemoine et al., NASA/TP-1998-206861), J2 = -sqrt(5) C̄20
-  with the fully normalized C̄20 = -4.84165371736e-4. EGM96 refers it to a = 6378136.3 m; using
-  it with R_EARTH changes J2 R^2 by 2e-7 relative, far below the first-order J2 model's error.
+Earth constants (``MU_EARTH``, ``R_EARTH``, ``J2_EARTH``, WGS 84 / EGM96): :mod:`components.constants`,
+which names their sources.
 """
 from __future__ import annotations
 
@@ -20,14 +13,8 @@ import math
 
 import numpy as np
 
+from components.constants import J2_EARTH, MU_EARTH, R_EARTH
 from components.rotations import cross3
-
-MU_EARTH = 3.986004418e14
-"""Earth's gravitational parameter GM, m^3/s^2 (WGS 84)."""
-R_EARTH = 6378137.0
-"""Earth's equatorial radius, m (WGS 84)."""
-J2_EARTH = 1.08262668e-3
-"""Earth's second zonal harmonic J2, unitless (EGM96, unnormalized)."""
 
 TWO_PI = 2.0 * math.pi
 

@@ -32,12 +32,12 @@ from typing import Any, Callable
 
 import numpy as np
 
+from components.constants import R_EARTH
 from components.rotations import matrix_to_quat, rpy_to_matrix
 from components.viewer.robot import Geometry, Kinematics, normalized_quaternions, read_geometry
 
 TIMELINE = "sim_time"
 STEP_TIMELINE = "step"
-EARTH_RADIUS = 6378137.0            # m, WGS-84 equatorial
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 COLUMN = re.compile(r"^(?P<component>[^.\[]+)\.(?P<name>[^\[]+?)(?:\[(?P<index>\d+)\])?$")
 AXIS_COLORS = [(230, 60, 60), (60, 200, 80), (70, 110, 240)]
@@ -361,7 +361,7 @@ class SceneLogger:
             self._log("/world/lvlh/axes", rr.Arrows3D(origins=np.zeros((3, 3)), vectors=0.3 * np.eye(3),
                                                       colors=AXIS_COLORS, radii=[-1.5]), static=True)
         if self.orbits:
-            self._log("/orbit/earth", rr.Ellipsoids3D(half_sizes=[[EARTH_RADIUS] * 3], colors=[(40, 100, 210)],
+            self._log("/orbit/earth", rr.Ellipsoids3D(half_sizes=[[R_EARTH] * 3], colors=[(40, 100, 210)],
                                                       line_radii=[-0.6], fill_mode="transparentfillmajorwireframe"),
                       static=True)
         for o in self.orbits:

@@ -9,13 +9,14 @@ from pathlib import Path
 
 import numpy as np
 
+from components.constants import EARTH_RATE, MU_EARTH, R_EARTH
 from components.dynamics import environment as env
 from components.dynamics.world import BodySpec, OrbitalWorld
 from components.rotations import quat_to_matrix
 
 ROOT = Path(__file__).resolve().parents[2]
 TARGET = ROOT / "models" / "target.urdf"
-MU = env.MU_EARTH
+MU = MU_EARTH
 
 
 def circular(a: float, t: float):
@@ -101,13 +102,13 @@ def test_drag_decelerates_along_track():
     equatorial orbit (table density 3.725e-12 kg/m^3 there): over 20 s its velocity in W grows
     along -v_rel at 1/2 rho Cd A |v_rel|^2 / m (v_rel: relative to the co-rotating atmosphere),
     within 1 %; the drag_force output is that force."""
-    a = env.EARTH_RADIUS + 400e3
+    a = R_EARTH + 400e3
     spec = BodySpec("sat", TARGET, drag_area={"target": 2.0}, drag_cd=2.2)
     world = OrbitalWorld([spec], tidal_force=False, gravity_gradient=False, drag=True)
     h, steps = 1.0, 20
     twists = run(world, a, h, steps, lambda w, t: w.outputs("sat")["twist"][:3])
     r, v, _, _ = circular(a, steps * h / 2)
-    v_rel = v - np.cross([0, 0, env.EARTH_RATE], r)
+    v_rel = v - np.cross([0, 0, EARTH_RATE], r)
     expected = 0.5 * 3.725e-12 * 2.2 * 2.0 * (v_rel @ v_rel) / 200.0
     measured = -(twists[-1] - twists[0]) @ (v_rel / np.linalg.norm(v_rel)) / (steps * h)
     error = abs(measured / expected - 1)

@@ -7,8 +7,9 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from components.orbit.kepler import (J2_EARTH, MU_EARTH, R_EARTH, ElementError, KeplerOrbit, check_elements,
-                                     coe_to_rv, j2_secular_rates, solve_kepler, true_from_eccentric)
+from components.constants import EARTH_RATE, J2_EARTH, MU_EARTH, R_EARTH
+from components.orbit.kepler import (ElementError, KeplerOrbit, check_elements, coe_to_rv, j2_secular_rates,
+                                     solve_kepler, true_from_eccentric)
 
 deg = math.radians
 
@@ -17,6 +18,7 @@ def test_constants_are_the_published_values():
     assert MU_EARTH == 3.986004418e14                                   # WGS 84 GM
     assert R_EARTH == 6378137.0                                         # WGS 84 a
     assert J2_EARTH == pytest.approx(math.sqrt(5) * 4.84165371736e-4, rel=1e-8)   # EGM96 -sqrt(5) C20
+    assert EARTH_RATE == 7.292115e-5                                    # WGS 84 omega
 
 
 def test_vallado_example_2_6_coe2rv():

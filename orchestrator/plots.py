@@ -16,7 +16,6 @@ pyplot, no display, no global backend switch). Returns the paths written, in tha
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -60,31 +59,21 @@ def _source(config: dict, component: str, variable: str) -> str | None:
     return (config.get("connections") or {}).get(f"{component}.{variable}")
 
 
-def _joint_names(config: dict, record_dir: Path, params: dict, n: int) -> list[str]:
-    """Names of the body's n joints (URDF order) if the URDF can be found, else tau[i]."""
+def _joint_names(record_dir: Path, params: dict, n: int) -> list[str]:
+    """Names of the body's n joints (URDF order) if the URDF can be found, else tau[i]. The
+    controller's ``urdf`` is resolved as the run resolved it (:func:`resolve_urdf`: relative to
+    the original config file, found through the recording's start event)."""
+    from components.dynamics.component import resolve_urdf
     from components.dynamics.urdf import UrdfError, read_urdf
+    from components.errors import ConfigError
+    from components.viewer.replay import ReplayError, read_recording
 
-    urdf = params.get("urdf")
-    candidates = []
-    if isinstance(urdf, str):
-        events = record_dir / "events.jsonl"
-        if events.is_file():
-            for line in events.read_text().splitlines()[:5]:
-                try:
-                    event = json.loads(line)
-                except ValueError:
-                    continue
-                if event.get("event") == "start" and event.get("config"):
-                    candidates.append(Path(event["config"]).parent / urdf)
-        candidates += [record_dir / urdf, Path(__file__).resolve().parents[1] / urdf, Path(urdf)]
-    for path in candidates:
-        try:
-            names = read_urdf(path).movable_joints
-        except (UrdfError, OSError):
-            continue
-        if len(names) == n:
-            return names
-    return [f"tau[{i}]" for i in range(n)]
+    try:
+        config_dir = read_recording(record_dir)[1]
+        names = read_urdf(resolve_urdf(params.get("urdf"), config_dir, "urdf")).movable_joints
+    except (ConfigError, ReplayError, UrdfError, OSError):
+        names = []
+    return names if len(names) == n else [f"tau[{i}]" for i in range(n)]
 
 
 def _save(fig, path: Path) -> Path:
@@ -157,7 +146,7 @@ def _computed_torque(name: str, params: dict, config: dict, columns: dict, t: np
     fig.suptitle(f"{name}: tracking error (W axes)")
     written.append(_save(fig, out_dir / f"{name}_error.png"))
 
-    written.append(_torques(name, params, config, tau, t, record_dir, out_dir))
+    written.append(_torques(name, params, tau, t, record_dir, out_dir))
 
     base_source = _source(config, name, "position")
     base = _vector(columns, base_source, 3) if base_source else None
@@ -189,8 +178,8 @@ def _computed_torque(name: str, params: dict, config: dict, columns: dict, t: np
     return written
 
 
-def _torques(name, params, config, tau, t, record_dir, out_dir) -> Path:
-    names = _joint_names(config, record_dir, params, tau.shape[1])
+def _torques(name, params, tau, t, record_dir, out_dir) -> Path:
+    names = _joint_names(record_dir, params, tau.shape[1])
     fig = _figure(8.0, 4.5)
     ax = fig.add_subplot()
     driven = _driven(tau)
@@ -212,10 +201,10 @@ def _joint_pd(name, params, config, columns, t, record_dir, out_dir) -> list[Pat
     q_d = _vector(columns, f"{name}.q_desired")
     if tau is None or q_d is None:
         raise PlotError(f"{name}: the recording lacks tau or q_desired")
-    written = [_torques(name, params, config, tau, t, record_dir, out_dir)]
+    written = [_torques(name, params, tau, t, record_dir, out_dir)]
     source = _source(config, name, "q")
     q = _vector(columns, source) if source else None
-    names = _joint_names(config, record_dir, params, tau.shape[1])
+    names = _joint_names(record_dir, params, tau.shape[1])
     driven = [names.index(j) for j in (params.get("gains") or {}) if j in names] or list(_driven(tau))
     fig = _figure(8.0, 4.5)
     ax = fig.add_subplot()

@@ -6,8 +6,9 @@ Reads ``DIR/config.yaml`` (the resolved config: which components, which URDFs) a
 ``DIR/signals.parquet`` in batches, keeps the rows the live view would have shown (every n-th step,
 n = round(1 / (rate * step)), default 30 Hz of sim time) and logs them with the same
 ``SceneLogger`` as the live observer: same entities, same layout. URDF paths in the config are
-relative to the original config file, found through ``DIR/events.jsonl`` (its ``start`` event),
-else relative to the current directory or the project root.
+resolved as ``dynamics.dart`` resolves them: relative to the original config file, found through
+``DIR/events.jsonl`` (its ``start`` event; the current directory without one), else to the
+project root.
 """
 from __future__ import annotations
 

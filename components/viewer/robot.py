@@ -1,7 +1,8 @@
 """What the viewer needs of a robot: its URDF visuals and its forward kinematics (Pinocchio).
 
-``read_geometry(path)`` reads the links (file order), their CoM and their ``<visual>`` elements
-(box, cylinder, sphere, mesh) with their colours, with :mod:`xml.etree` only.
+``read_geometry(path)`` reads the URDF with the dynamics' parser
+(:func:`components.dynamics.urdf.read_urdf`: same checks, same link and joint layout) and adds
+the links' ``<visual>`` elements (box, cylinder, sphere, mesh) with their colours.
 ``Kinematics`` turns recorded base poses and joint positions into the pose of every link, for a
 whole batch of rows at once: the base is a free flyer (``position`` = base link origin in W,
 ``orientation`` = q_W_base [x, y, z, w]) and ``q`` follows the movable joints in URDF file order,
@@ -15,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-MOVABLE = ("revolute", "continuous", "prismatic")
+from components.dynamics.urdf import read_urdf
+
 DEFAULT_COLOR = (150, 150, 155, 255)
 
 
@@ -76,19 +78,14 @@ def _mesh_path(filename: str, urdf_dir: Path) -> Path | None:
 
 
 def read_geometry(path: str | Path) -> Geometry:
-    """Links, CoMs, movable joints and visuals of a URDF; ValueError naming the file when broken."""
-    path = Path(path)
-    try:
-        root = ET.parse(path).getroot()
-    except (OSError, ET.ParseError) as e:
-        raise ValueError(f"{path}: cannot read URDF ({e})") from None
+    """Links, CoMs, movable joints (from :func:`read_urdf`) and visuals of a URDF; ValueError
+    (``UrdfError``) naming the file when it is missing or broken."""
+    model = read_urdf(path)
+    root = model.tree.getroot()
     materials = {m.get("name"): _color(m) for m in root.findall("material")}
-    links, coms, visuals = [], [], []
+    visuals = []
     for link in root.findall("link"):
         name = link.get("name")
-        links.append(name)
-        origin = link.find("inertial/origin")
-        coms.append(_floats(origin.get("xyz") if origin is not None else None, 3, (0.0, 0.0, 0.0)))
         for visual in link.findall("visual"):
             origin = visual.find("origin")
             xyz = _floats(origin.get("xyz") if origin is not None else None, 3, (0.0, 0.0, 0.0))
@@ -110,10 +107,10 @@ def read_geometry(path: str | Path) -> Geometry:
             elif shape.tag == "mesh" and shape.get("filename"):
                 scale = _floats(shape.get("scale"), 3, (1.0, 1.0, 1.0))
                 visuals.append(Visual(name, "mesh", scale, xyz, rpy, color,
-                                      _mesh_path(shape.get("filename"), path.parent)))
-    joints = [j.get("name") for j in root.findall("joint") if j.get("type") in MOVABLE]
-    return Geometry(path=path, name=root.get("name", path.stem), links=links,
-                    coms=np.array(coms, dtype=float).reshape(-1, 3), joints=joints, visuals=visuals)
+                                      _mesh_path(shape.get("filename"), model.path.parent)))
+    return Geometry(path=model.path, name=model.name, links=model.link_names,
+                    coms=np.array([link.com for link in model.links], dtype=float).reshape(-1, 3),
+                    joints=model.movable_joints, visuals=visuals)
 
 
 def normalized_quaternions(q: np.ndarray) -> np.ndarray:

@@ -28,17 +28,18 @@ import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Callable
 
 import numpy as np
 
 from components.constants import R_EARTH
+from components.dynamics.component import body_items, resolve_urdf
+from components.errors import ConfigError
 from components.rotations import matrix_to_quat, rpy_to_matrix
 from components.viewer.robot import Geometry, Kinematics, normalized_quaternions, read_geometry
 
 TIMELINE = "sim_time"
 STEP_TIMELINE = "step"
-PROJECT_ROOT = Path(__file__).resolve().parents[2]
 COLUMN = re.compile(r"^(?P<component>[^.\[]+)\.(?P<name>[^\[]+?)(?:\[(?P<index>\d+)\])?$")
 AXIS_COLORS = [(230, 60, 60), (60, 200, 80), (70, 110, 240)]
 LIGHT_AXIS_COLORS = [(250, 160, 150), (150, 230, 160), (150, 180, 250)]
@@ -62,23 +63,6 @@ def parse_columns(columns: list[str]) -> dict[tuple[str, str], np.ndarray]:
         element = int(match["index"]) if match["index"] is not None else 0
         found.setdefault((match["component"], match["name"]), []).append((element, position))
     return {key: np.array([p for _, p in sorted(items)], dtype=np.int64) for key, items in found.items()}
-
-
-def resolve_urdf(value: str, config_dir: Path | None) -> Path | None:
-    """A URDF path from a config: absolute, else relative to the config file, else to the project root."""
-    path = Path(value)
-    candidates = [path] if path.is_absolute() else [*([config_dir / path] if config_dir else []),
-                                                     Path.cwd() / path, PROJECT_ROOT / path]
-    return next((c for c in candidates if c.is_file()), None)
-
-
-def body_entries(raw: Any) -> list[tuple[str, dict]]:
-    """``bodies`` as name -> spec, or as a list of specs with ``name``."""
-    if isinstance(raw, dict):
-        return [(str(k), v) for k, v in raw.items() if isinstance(v, dict)]
-    if isinstance(raw, list):
-        return [(str(v["name"]), v) for v in raw if isinstance(v, dict) and "name" in v]
-    return []
 
 
 def transform_columns(translation=None, quaternion=None) -> list:
@@ -194,14 +178,23 @@ class SceneLogger:
         return index
 
     def _bodies(self, dynamics: str, entry: dict) -> list[_Body]:
+        """The bodies of a dynamics component, read as ``dynamics.dart`` reads them (same ``bodies``
+        forms, same URDF path resolution from the config's directory): the URDF drawn is the one simulated."""
         bodies = []
         parameters = (entry or {}).get("parameters") or {}
-        for name, spec in body_entries(parameters.get("bodies")):
+        try:
+            items = body_items(parameters.get("bodies"))
+        except ConfigError as e:
+            self.warn(f"{dynamics}: {e}; no robot drawn")
+            return bodies
+        for name, spec in items:
             geometry = kinematics = None
-            urdf = resolve_urdf(str(spec.get("urdf", "")), self.config_dir) if spec.get("urdf") else None
-            if urdf is None:
-                self.warn(f"{dynamics}.{name}: URDF {spec.get('urdf')!r} not found; the robot is not drawn")
-            else:
+            try:
+                urdf = resolve_urdf(spec["urdf"], self.config_dir, f"bodies.{name}.urdf")
+            except ConfigError as e:
+                urdf = None
+                self.warn(f"{dynamics}.{name}: {e.message}; the robot is not drawn")
+            if urdf is not None:
                 try:
                     geometry = read_geometry(urdf)
                     kinematics = Kinematics(geometry)

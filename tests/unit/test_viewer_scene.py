@@ -185,3 +185,26 @@ def test_module_class_types_are_recognised_by_their_type_name(tmp_path):
                                    "parameters": {"bodies": {"humanoid": {"urdf": str(URDF)}}}}}}
     scene = SceneLogger(columns, config)
     assert [b.name for b in scene.bodies] == ["humanoid"] and scene.bodies[0].kinematics is not None
+
+
+def test_bodies_and_urdf_paths_are_read_as_the_dynamics_reads_them(tmp_path, monkeypatch):
+    """The viewer draws the URDF dynamics.dart simulates: same body forms (mapping or list with
+    names), same path resolution (config directory first, then the project root; not the cwd)."""
+    from components.dynamics.component import load_models
+
+    here, there = tmp_path / "config", tmp_path / "cwd"
+    for path, source in ((here / "models" / "robot.urdf", "servicer.urdf"),
+                         (there / "models" / "humanoid_torso.urdf", "target.urdf")):   # a decoy in the cwd
+        path.parent.mkdir(parents=True)
+        path.write_text((ROOT / "models" / source).read_text())
+    monkeypatch.chdir(there)
+    bodies = [{"name": "a", "urdf": "models/robot.urdf"}, {"name": "b", "urdf": "models/humanoid_torso.urdf"}]
+    config = {"components": {"dyn": {"type": "dynamics.dart", "parameters": {"bodies": bodies}}}}
+    scene = SceneLogger([], config, here)
+    simulated = load_models({"bodies": bodies, "_config_dir": str(here)})
+    assert [b.name for b in scene.bodies] == ["a", "b"]
+    for body in scene.bodies:
+        assert body.geometry.path == simulated[body.name].path
+        assert body.geometry.links == simulated[body.name].link_names
+    assert scene.bodies[0].geometry.path == (here / "models" / "robot.urdf").resolve()
+    assert scene.bodies[1].geometry.path == URDF.resolve()             # project root fallback

@@ -59,13 +59,15 @@ def _names(value: Any, key: str, allowed: list[str], what: str) -> list[str]:
     return list(value)
 
 
-def _per_joint(value: Any, n: int, key: str, unit: str) -> np.ndarray:
-    """One number for every joint, or a list of n numbers (>= 0)."""
+def _gains(value: Any, n: int, key: str, unit: str, each: str = "one per joint") -> np.ndarray:
+    """One number (the same for all n), or a list of n numbers (``each`` says what they are); all >= 0."""
     from components.units import to_si
 
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
     if isinstance(value, (list, tuple)):
         if len(value) != n:
-            raise ConfigError(key, f"expected one number or {n} numbers (one per joint), got {len(value)}")
+            raise ConfigError(key, f"expected one number or {n} numbers ({each}), got {len(value)}")
         array = np.array([to_si(v, unit, f"{key}[{i}]") for i, v in enumerate(value)])
     else:
         array = np.full(n, to_si(value, unit, key))
@@ -98,6 +100,8 @@ def _kinematic_chain(model, end_effector: str) -> list:
 
 # --------------------------------------------------------------------------- computed torque
 
+TASK_AXES = "x, y, z, rotation about x, y, z"
+
 class ComputedTorqueComponent(Component):
     """Computed-torque control of one arm of a free-floating body with the Generalized Jacobian
     (type ``controller.computed_torque``; paper eqs. 1-8, see
@@ -117,8 +121,8 @@ class ComputedTorqueComponent(Component):
     | joints | any | - | required | names of the driven joints (the arm) |
     | end_effector | str | - | required | link (frame) name of the end effector |
     | locked_joints | any | - | [] | joints welded in the dynamics (same list as there) |
-    | kp | vector (6) | 1/s^2 | [100]*6 | K_p per axis: x, y, z, then rotation about x, y, z (W) |
-    | kd | vector (6) | 1/s | [20]*6 | K_d per axis |
+    | kp | any | 1/s^2 | 100 | K_p: one number for all six axes, or one per axis: x, y, z, then rotation about x, y, z (W) |
+    | kd | any | 1/s | 20 | K_d: one number for all six axes, or one per axis |
     | null_kp | any | 1/s^2 | 4 | null-space posture stiffness, one number or one per joint |
     | null_kd | any | 1/s | 4 | null-space joint damping, one number or one per joint |
     | dls_threshold | float | - | 0.02 | sigma_min(J_g) below which J_g^+ is damped |
@@ -153,10 +157,10 @@ class ComputedTorqueComponent(Component):
         Parameter("joints", "any", description="names of the driven joints (the arm), e.g. [arm_right_1_joint, ...]"),
         Parameter("end_effector", "str", description="link (frame) name of the end effector"),
         Parameter("locked_joints", "any", default=(), description="joints welded in the dynamics (same list)"),
-        Parameter("kp", "vector", unit="1/s^2", shape=(6,), default=np.full(6, 100.0),
-                  description="K_p per axis: x, y, z, rotation x, y, z"),
-        Parameter("kd", "vector", unit="1/s", shape=(6,), default=np.full(6, 20.0),
-                  description="K_d per axis: x, y, z, rotation x, y, z"),
+        Parameter("kp", "any", default=100.0,
+                  description="K_p (1/s^2), one for all six axes or per axis: x, y, z, rotation x, y, z"),
+        Parameter("kd", "any", default=20.0,
+                  description="K_d (1/s), one for all six axes or per axis: x, y, z, rotation x, y, z"),
         Parameter("null_kp", "any", default=4.0, description="null-space posture stiffness (1/s^2), one or per joint"),
         Parameter("null_kd", "any", default=4.0, description="null-space joint damping (1/s), one or per joint"),
         Parameter("dls_threshold", "float", unit="1", default=0.02,
@@ -199,17 +203,16 @@ class ComputedTorqueComponent(Component):
         for key in ("dls_threshold", "dls_damping"):
             if not (params[key] >= 0.0 and math.isfinite(params[key])):
                 raise ConfigError(key, f"expected a finite number >= 0, got {params[key]}")
-        for key in ("kp", "kd"):
-            if not (np.all(np.isfinite(params[key])) and np.all(params[key] >= 0.0)):
-                raise ConfigError(key, f"expected 6 finite numbers >= 0, got {params[key].tolist()}")
         trajectory = parse_cartesian(params["trajectory"])
         key, size = max_offset(trajectory)
         if size > 2.0 * reach:
             raise ConfigError(f"trajectory.{key}", f"out of reach: {size:.3f} m from the initial end-effector "
                                                    f"position, the arm spans at most {2 * reach:.3f} m")
         return {"model": model, "joints": joints, "locked": locked, "trajectory": trajectory,
-                "null_kp": _per_joint(params["null_kp"], n, "null_kp", "1/s^2"),
-                "null_kd": _per_joint(params["null_kd"], n, "null_kd", "1/s"),
+                "kp": _gains(params["kp"], 6, "kp", "1/s^2", TASK_AXES),
+                "kd": _gains(params["kd"], 6, "kd", "1/s", TASK_AXES),
+                "null_kp": _gains(params["null_kp"], n, "null_kp", "1/s^2"),
+                "null_kd": _gains(params["null_kd"], n, "null_kd", "1/s"),
                 "reach": (chain[first].name, reach)}
 
     @classmethod
@@ -247,7 +250,7 @@ class ComputedTorqueComponent(Component):
         locked = {j: float(q[body.index(j)]) for j in c["locked"]}
         arm = FreeFloatingArm(model.path, body, c["joints"], p["end_effector"], locked)
         effort = np.array([model.joint(j).effort for j in c["joints"]])
-        law = ComputedTorqueLaw(p["kp"], p["kd"], c["null_kp"], c["null_kd"], effort,
+        law = ComputedTorqueLaw(c["kp"], c["kd"], c["null_kp"], c["null_kd"], effort,
                                 dls_threshold=p["dls_threshold"], dls_damping=p["dls_damping"],
                                 base_model=p["base_model"])
         return ArmController(arm, law, c["trajectory"], reach=c["reach"])

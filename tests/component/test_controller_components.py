@@ -83,6 +83,19 @@ def test_closed_loop_tracks_a_waypoint_move():
     assert np.linalg.norm(out["ee_orientation"]) == pytest.approx(1.0)
 
 
+def test_gains_kp_kd_take_one_number_for_all_six_axes():
+    """kp: 50 (DESIGN §5's `--set components.controller.parameters.kp=50`) is kp: [50] * 6; units
+    work in either form. The closed loops are bit-identical, and differ from the default gains."""
+    one, _ = closed_loop(computed_torque(kp=50, kd="10 Hz"), 300)
+    six, _ = closed_loop(computed_torque(kp=[50] * 6, kd=[10, 10, 10, 10, 10, "10 Hz"]), 300)
+    default, _ = closed_loop(computed_torque(), 300)
+    for key in one:
+        assert np.array_equal(one[key], six[key]), key
+    assert not np.array_equal(one["tau"], default["tau"])
+    checked = computed_torque(kp=50).component.checked
+    assert checked["kp"].tolist() == [50.0] * 6 and checked["kd"].tolist() == [20.0] * 6   # default kd: 20
+
+
 def test_swap_hands_the_trajectory_over():
     """A same-type swap mid-move (new instance, initialized at the current state, then set_state)
     continues bit-identically: the trajectory stays anchored at the run's initial pose."""
@@ -169,6 +182,8 @@ def test_joint_pd_saturates_at_the_urdf_effort():
     ({"joints": ARM, "locked_joints": ["arm_right_3_joint"]}, "locked_joints"),
     ({"kp": [100, 100, 100, 100, 100]}, "kp"),
     ({"kd": [1, 2, 3, 4, 5, 6, 7]}, "kd"),
+    ({"kp": -1}, "kp"),
+    ({"kd": "fast"}, "kd"),
     ({"null_kp": [1, 2, 3]}, "null_kp"),
     ({"base_model": "floating"}, "base_model"),
     ({"urdf": "models/nothing.urdf"}, "urdf"),

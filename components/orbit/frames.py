@@ -34,8 +34,8 @@ def lvlh_dcm(r_eci, v_eci) -> np.ndarray:
     return np.array([x, y, z]).T
 
 
-def lvlh_angular_velocity(r_eci, v_eci, a_eci) -> np.ndarray:
-    """Angular velocity of LVLH with respect to ECI, in ECI axes (rad/s).
+def _rate(r, v, a, c) -> np.ndarray:
+    """Angular velocity of LVLH (axes ``c`` = C_eci_lvlh) with respect to ECI, in ECI axes (rad/s).
 
     With h = r × v and LVLH axes x = r/|r|, z = h/|h|, differentiating the axes gives
         ω = (|r| (a · z) / |h|) x + (|h| / |r|^2) z,
@@ -45,11 +45,6 @@ def lvlh_angular_velocity(r_eci, v_eci, a_eci) -> np.ndarray:
     non-zero). There is no y component because dx/dt = (v - (v·x) x)/|r| has no z part.
     r in m, v in m/s, a in m/s^2.
     """
-    return _rate(np.asarray(r_eci, dtype=np.float64), np.asarray(v_eci, dtype=np.float64),
-                 np.asarray(a_eci, dtype=np.float64), lvlh_dcm(r_eci, v_eci))
-
-
-def _rate(r, v, a, c) -> np.ndarray:
     x, z = c[:, 0], c[:, 2]
     h = cross3(r, v)
     r_norm, h_norm = math.sqrt(r @ r), math.sqrt(h @ h)
@@ -65,7 +60,8 @@ def continuous(q, q_previous) -> np.ndarray:
 
 
 def lvlh_state(r_eci, v_eci, a_eci) -> tuple[np.ndarray, np.ndarray]:
-    """(q_eci_lvlh [x, y, z, w], w_lvlh in ECI axes, rad/s) from r (m), v (m/s), a (m/s^2) in ECI."""
+    """(q_eci_lvlh [x, y, z, w] with w >= 0, w_lvlh in ECI axes, rad/s) from r (m), v (m/s),
+    a (m/s^2) in ECI; w_lvlh is exact for any trajectory with v = dr/dt, a = dv/dt (see ``_rate``)."""
     r = np.asarray(r_eci, dtype=np.float64)
     v = np.asarray(v_eci, dtype=np.float64)
     c = lvlh_dcm(r, v)

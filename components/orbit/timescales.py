@@ -2,7 +2,8 @@
 
 Zenorbit's clock counts integer nanoseconds of elapsed SI time since ``run.epoch`` (UTC).
 Adding elapsed seconds to a UTC date must go through TAI, or a leap second inside the run
-shifts everything after it by 1 s; :func:`utc_after` does that with ERFA.
+shifts everything after it by 1 s: :func:`utc_to_tai`, add the seconds, :func:`tai_to_utc`
+(ERFA's leap-second table), as ``orbit.sgp4`` does.
 
 A date is a pair ``(jd1, jd2)`` of floats whose sum is the Julian date (ERFA's convention;
 ``jd1`` holds the large part so ``jd2`` keeps sub-microsecond resolution).
@@ -85,12 +86,6 @@ def tai_to_utc(tai: tuple[float, float]) -> tuple[float, float]:
 def tai_to_tt(tai: tuple[float, float]) -> tuple[float, float]:
     """TAI -> TT = TAI + 32.184 s, two-part Julian dates (days)."""
     return tai[0], tai[1] + TT_MINUS_TAI / SECONDS_PER_DAY
-
-
-def utc_after(utc: tuple[float, float], seconds: float) -> tuple[float, float]:
-    """The UTC date ``seconds`` of elapsed SI time after ``utc`` (leap seconds counted)."""
-    a, b = utc_to_tai(utc)
-    return tai_to_utc((a, b + seconds / SECONDS_PER_DAY))
 
 
 def seconds_between(utc_from: tuple[float, float], utc_to: tuple[float, float]) -> float:

@@ -28,13 +28,10 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
 from pathlib import Path
 
 import erfa
 import numpy as np
-
-from components.orbit import timescales
 
 LINE_LENGTH = 69
 
@@ -166,20 +163,12 @@ def teme_to_gcrf_matrix(tt: tuple[float, float], ut1: tuple[float, float]) -> np
     return npb.T @ tod_from_teme
 
 
-@dataclass(frozen=True)
-class TLEState:
-    """One SGP4 sample: position (m) and velocity (m/s) in TEME and in GCRF."""
-    r_teme: np.ndarray
-    v_teme: np.ndarray
-    r_gcrf: np.ndarray
-    v_gcrf: np.ndarray
-
-
 class SGP4Propagator:
     """SGP4 propagation of one validated TLE, with output in TEME and GCRF (SI units).
 
-    ``at_utc((jd1, jd2))`` propagates to a UTC two-part Julian date; a propagation failure
-    (decay, eccentricity out of range, ...) raises RuntimeError with sgp4's SGP4_ERRORS text.
+    ``teme((jd1, jd2))`` propagates to a UTC two-part Julian date (rotate to GCRF with
+    :func:`teme_to_gcrf_matrix`); a propagation failure (decay, eccentricity out of range, ...)
+    raises RuntimeError with sgp4's SGP4_ERRORS text.
     """
 
     def __init__(self, line1: str, line2: str):
@@ -208,16 +197,3 @@ class SGP4Propagator:
             when = f"at JD {utc[0] + utc[1]:.8f} UTC ({(utc[0] - self.epoch_utc[0]) + (utc[1] - self.epoch_utc[1]):+.6f} days from the TLE epoch)"
             raise RuntimeError(self._error_text(code, when))
         return np.asarray(r) * 1e3, np.asarray(v) * 1e3
-
-    def teme_tsince(self, minutes: float) -> tuple[np.ndarray, np.ndarray]:
-        """TEME position (m) and velocity (m/s) ``minutes`` after the TLE epoch (sgp4's tsince)."""
-        code, r, v = self.satrec.sgp4_tsince(float(minutes))
-        if code != 0 or not all(map(math.isfinite, r)):
-            raise RuntimeError(self._error_text(code, f"at {minutes} min from the TLE epoch"))
-        return np.asarray(r) * 1e3, np.asarray(v) * 1e3
-
-    def at_utc(self, utc: tuple[float, float]) -> TLEState:
-        """Propagate to a UTC two-part Julian date; TEME and GCRF states (m, m/s)."""
-        r_teme, v_teme = self.teme(utc)
-        c = teme_to_gcrf_matrix(timescales.utc_to_tt(utc), utc)   # UT1 ~ UTC
-        return TLEState(r_teme, v_teme, c @ r_teme, c @ v_teme)

@@ -623,7 +623,14 @@ class Run:
         try:
             if self.viewer.mode == "web" and sys.stdin.isatty() and self.stop_reason != "interrupted":
                 print("run finished; the web viewer stays up until Ctrl-C", file=self.out, flush=True)
-                self.viewer_process.wait()
+                # the clean-up ignores signals; this one wait is what Ctrl-C (or SIGTERM) is for
+                signal.signal(signal.SIGINT, signal.default_int_handler)
+                signal.signal(signal.SIGTERM, _raise_stop)
+                try:
+                    self.viewer_process.wait()
+                finally:
+                    signal.signal(signal.SIGINT, signal.SIG_IGN)
+                    signal.signal(signal.SIGTERM, signal.SIG_IGN)
             else:
                 self.viewer_process.wait(timeout=30)
         except (KeyboardInterrupt, StopRequested, subprocess.TimeoutExpired):

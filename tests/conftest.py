@@ -1,9 +1,9 @@
 """Shared helpers: run the real `orchestrator` CLI in a subprocess and find leftover processes."""
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -15,6 +15,20 @@ def component_processes(run_tag: str = "") -> list[str]:
     """Command lines of live component processes (optionally only those of one run)."""
     out = subprocess.run(["ps", "-ww", "-eo", "pid=,args="], capture_output=True, text=True).stdout
     return [line for line in out.splitlines() if "components.runner" in line and run_tag in line]
+
+
+def start_run(config, record, **popen) -> subprocess.Popen:
+    """`orchestrator run CONFIG --record DIR` in the background (text pipes for its output)."""
+    return subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", str(config), "--record", str(record)],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **popen)
+
+
+def wait_for_components(run_tag: str, count: int, timeout: float = 60.0) -> list[str]:
+    """Wait until ``count`` component processes of a run are up; return their command lines."""
+    deadline = time.monotonic() + timeout
+    while len(found := component_processes(run_tag)) < count and time.monotonic() < deadline:
+        time.sleep(0.2)
+    return found
 
 
 def orchestrator(*args, timeout=300, cwd=None, **kw) -> subprocess.CompletedProcess:

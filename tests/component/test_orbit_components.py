@@ -11,7 +11,6 @@ from scipy.spatial.transform import Rotation
 from components.errors import ConfigError
 from components.orbit import timescales
 from components.orbit.kepler import KeplerOrbit
-from components.orbit.tle import SGP4Propagator
 from components.testing.harness import Harness
 
 EPOCH = "2022-09-18T12:00:00Z"

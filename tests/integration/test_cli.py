@@ -2,15 +2,13 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 import time
 
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from tests.conftest import ROOT, component_processes, orchestrator
+from tests.conftest import component_processes, orchestrator, start_run, wait_for_components
 
 pytestmark = pytest.mark.integration
 
@@ -37,12 +35,9 @@ def test_check_and_describe(write_config):
 
 def test_swap_while_running_hands_over_state(write_config, tmp_path):
     config = write_config(CHAIN)
-    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", config, "--record", tmp_path / "rec"],
-                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    run = start_run(config, tmp_path / "rec")
     try:
-        deadline = time.monotonic() + 60
-        while len(component_processes("swapme-")) < 2 and time.monotonic() < deadline:
-            time.sleep(0.2)
+        wait_for_components("swapme-", 2)
         time.sleep(0.5)
         bad = orchestrator("swap", "--run", "swapme", "first", "--set", "gian=3")
         assert bad.returncode == 2 and "gian: unknown parameter" in bad.stderr
@@ -84,12 +79,9 @@ def test_a_failed_runtime_swap_leaves_the_old_component_running(write_config, tm
         "    def initialize(self, t0_ns, inputs):\n"
         "        raise RuntimeError('cannot start')\n")
     config = write_config(CHAIN.replace("swapme", "keepme"))
-    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", config, "--record", tmp_path / "rec"],
-                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    run = start_run(config, tmp_path / "rec")
     try:
-        deadline = time.monotonic() + 60
-        while len(component_processes("keepme-")) < 2 and time.monotonic() < deadline:
-            time.sleep(0.2)
+        wait_for_components("keepme-", 2)
         swap = orchestrator("swap", "--run", "keepme", "first", "--type", "boom.py:Boom")
         assert swap.returncode == 1 and "RuntimeError: cannot start" in swap.stderr, swap.stderr
         assert len(component_processes("keepme-")) == 2  # the replacement is gone, the old one runs

@@ -11,7 +11,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from tests.conftest import ROOT, component_processes, orchestrator
+from tests.conftest import ROOT, component_processes, orchestrator, start_run, wait_for_components
 
 pytestmark = pytest.mark.integration
 
@@ -103,9 +103,7 @@ def test_two_simultaneous_runs_do_not_cross(write_config, tmp_path):
     for value, name in ((1.0, "a"), (3.0, "b")):
         config = write_config(CHAIN.format(name="same", steps=3000, algorithm="jacobi").replace(
             "value: 1.0", f"value: {value}"), name=f"{name}.yaml")
-        procs.append(subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", config,
-                                       "--record", tmp_path / name], cwd=ROOT,
-                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+        procs.append(start_run(config, tmp_path / name))
     for p in procs:
         _, err = p.communicate(timeout=120)
         assert p.returncode == 0, err
@@ -163,14 +161,9 @@ components:
   a: {type: test.counter}
   b: {type: test.counter}
 """)
-    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", config, "--record", tmp_path / "rec"],
-                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    run = start_run(config, tmp_path / "rec")
     try:
-        deadline = time.monotonic() + 60
-        victims = []
-        while time.monotonic() < deadline and len(victims) < 2:
-            victims = component_processes("victim-")
-            time.sleep(0.2)
+        victims = wait_for_components("victim-", 2)
         time.sleep(1.0)
         pid = next((int(line.split()[0]) for line in victims if "--name b " in line), None)
         if pid is None:
@@ -196,8 +189,7 @@ run: {name: longrun, epoch: 2022-09-18T12:00:00Z, duration: 1000 s, step: 1 ms, 
 components:
   a: {type: test.counter}
 """)
-    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", config, "--record", tmp_path / "rec"],
-                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ)
+    run = start_run(config, tmp_path / "rec")
     try:
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:
@@ -226,12 +218,8 @@ run: {name: interrupted, epoch: 2022-09-18T12:00:00Z, duration: 1000 s, step: 1 
 components:
   a: {type: test.counter}
 """)
-    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", config, "--record", tmp_path / "rec"],
-                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                           start_new_session=True)
-    deadline = time.monotonic() + 60
-    while not component_processes("interrupted-") and time.monotonic() < deadline:
-        time.sleep(0.2)
+    run = start_run(config, tmp_path / "rec", start_new_session=True)
+    wait_for_components("interrupted-", 1)
     time.sleep(1.0)
     os.killpg(run.pid, signal.SIGINT)
     _, err = run.communicate(timeout=30)
@@ -275,8 +263,7 @@ components:
   here: {type: test.counter}
   there: {type: test.counter, launch: external}
 """)
-    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", config, "--record", tmp_path / "rec"],
-                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    run = start_run(config, tmp_path / "rec")
     external = None
     try:
         line = ""

@@ -116,7 +116,6 @@ class Run:
         self.config = config
         self.viewer = viewer or config.viewer
         self.viewer_process: subprocess.Popen | None = None
-        self.viewer_alive = False
         self.record_dir = Path(record) if record else None
         self.profile = profile
         self.progress = progress
@@ -171,7 +170,6 @@ class Run:
         if kind in ("alive", "dead"):
             name, generation = a, b
             if name == VIEWER:
-                self.viewer_alive = kind == "alive"
                 if kind == "alive" and expect.get(name) == "alive":
                     del expect[name]
                 elif kind == "dead" and self.recording is not None:

@@ -14,9 +14,15 @@ import math
 import numpy as np
 
 from components.constants import J2_EARTH, MU_EARTH, R_EARTH
-from components.rotations import cross3
 
 TWO_PI = 2.0 * math.pi
+
+Vector3 = tuple[float, float, float]
+
+
+def cross_tuples(a: Vector3, b: Vector3) -> Vector3:
+    """a × b of two 3-vectors given as tuples of floats."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
 class ElementError(ValueError):
@@ -193,6 +199,8 @@ class KeplerOrbit:
                 self.a, self.e, self.i, self.mu, body_radius, j2_coefficient)
         else:
             self.raan_rate, self.argp_rate, self.mean_rate = 0.0, 0.0, self.n
+        self._b_over_a = math.sqrt(1.0 - self.e * self.e)
+        self._sin_i, self._cos_i = math.sin(self.i), math.cos(self.i)
 
     @property
     def period(self) -> float:
@@ -206,27 +214,50 @@ class KeplerOrbit:
 
     def state(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position (m), velocity (m/s), acceleration (m/s^2) in ECI at t seconds after t = 0."""
+        r, v, acc = self.state_tuples(t)
+        return np.array(r), np.array(v), np.array(acc)
+
+    def state_tuples(self, t: float) -> tuple[Vector3, Vector3, Vector3]:
+        """:meth:`state` as three tuples of floats (called every step: 3-vectors in plain floats
+        cost a fraction of numpy's per-call overhead)."""
         raan, argp, m = self.elements(float(t))
-        a, e = self.a, self.e
+        a, e, b_over_a = self.a, self.e, self._b_over_a
         ecc = solve_kepler(m, e)
         se, ce = math.sin(ecc), math.cos(ecc)
-        b_over_a = math.sqrt(1.0 - e * e)
         radius = a * (1.0 - e * ce)
-        r_pqw = np.array([a * (ce - e), a * b_over_a * se, 0.0])
-        # derivatives with respect to the mean anomaly (two-body: d/dt = n d/dM)
-        dr_dm = np.array([-se, b_over_a * ce, 0.0]) * (a * a / radius)
-        d2r_dm2 = r_pqw * (-(a / radius) ** 3)
-        c = perifocal_to_eci(raan, self.i, argp)
-        r = c @ r_pqw
-        u = (c @ dr_dm) * self.mean_rate           # velocity relative to the drifting perifocal frame
-        a_rel = (c @ d2r_dm2) * self.mean_rate ** 2
-        if self.raan_rate == 0.0 and self.argp_rate == 0.0:
+        # perifocal (P, Q) coordinates of r and of its first two derivatives with respect to M
+        # (two-body: d/dt = n d/dM); the W coordinate is zero
+        rp, rq = a * (ce - e), a * b_over_a * se
+        scale = a * a / radius
+        dp, dq = -se * scale, b_over_a * ce * scale
+        scale = -(a / radius) ** 3
+        ddp, ddq = rp * scale, rq * scale
+        # P and Q axes in ECI: the first two columns of perifocal_to_eci(raan, i, argp)
+        so, co = math.sin(raan), math.cos(raan)
+        sw, cw = math.sin(argp), math.cos(argp)
+        si, ci = self._sin_i, self._cos_i
+        px, py, pz = co * cw - so * sw * ci, so * cw + co * sw * ci, sw * si
+        qx, qy, qz = -co * sw - so * cw * ci, -so * sw + co * cw * ci, cw * si
+        n = self.mean_rate
+        n2 = n * n
+        r = (px * rp + qx * rq, py * rp + qy * rq, pz * rp + qz * rq)
+        # velocity and acceleration relative to the drifting perifocal frame
+        u = ((px * dp + qx * dq) * n, (py * dp + qy * dq) * n, (pz * dp + qz * dq) * n)
+        a_rel = ((px * ddp + qx * ddq) * n2, (py * ddp + qy * ddq) * n2, (pz * ddp + qz * ddq) * n2)
+        raan_rate, argp_rate = self.raan_rate, self.argp_rate
+        if raan_rate == 0.0 and argp_rate == 0.0:
             return r, u, a_rel
-        k_axis = np.array([0.0, 0.0, 1.0])
-        w_axis = c[:, 2]
-        omega = self.raan_rate * k_axis + self.argp_rate * w_axis       # perifocal frame rate
-        alpha = self.argp_rate * self.raan_rate * cross3(k_axis, w_axis)
-        v = cross3(omega, r) + u
-        acc = (cross3(alpha, r) + cross3(omega, cross3(omega, r))
-               + 2.0 * cross3(omega, u) + a_rel)
+        # perifocal frame rate omega = dΩ/dt k + dω/dt W (W = (so si, -co si, ci)) and its
+        # derivative alpha = dω/dt dΩ/dt (k × W)
+        w_axis = (so * si, -co * si, ci)
+        omega = (argp_rate * w_axis[0], argp_rate * w_axis[1], raan_rate + argp_rate * w_axis[2])
+        spin = argp_rate * raan_rate
+        alpha = (-spin * w_axis[1], spin * w_axis[0], 0.0)
+        omega_r = cross_tuples(omega, r)
+        v = (omega_r[0] + u[0], omega_r[1] + u[1], omega_r[2] + u[2])
+        # acc = alpha × r + omega × (omega × r) + 2 omega × u + a_rel, with the middle terms as omega × (v + u)
+        alpha_r = cross_tuples(alpha, r)
+        frame_terms = cross_tuples(omega, (v[0] + u[0], v[1] + u[1], v[2] + u[2]))
+        acc = (alpha_r[0] + frame_terms[0] + a_rel[0], alpha_r[1] + frame_terms[1] + a_rel[1],
+               alpha_r[2] + frame_terms[2] + a_rel[2])
         return r, v, acc

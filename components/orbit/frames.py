@@ -14,7 +14,51 @@ import math
 
 import numpy as np
 
-from components.rotations import cross3, matrix_to_quat
+from components.orbit.kepler import Vector3, cross_tuples
+
+
+def _floats(vector) -> Vector3:
+    """A 3-vector (array, list or tuple) as a tuple of floats."""
+    x, y, z = vector
+    return float(x), float(y), float(z)
+
+
+def _lvlh_axes(r: Vector3, v: Vector3) -> tuple[Vector3, Vector3, Vector3, float, float]:
+    """(x, y, z, |r|, |h|): the LVLH axes in ECI and the norms of r and h = r × v.
+
+    Raises ValueError if r is zero or r and v are parallel (the orbit normal is undefined).
+    """
+    h = cross_tuples(r, v)
+    r_norm = math.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
+    h_norm = math.sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2])
+    v_norm = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    if not r_norm > 0.0 or not h_norm > 1e-12 * r_norm * max(v_norm, 1e-300):
+        raise ValueError(f"LVLH undefined: expected r and v not parallel and r non-zero, "
+                         f"got r = {np.array(r)}, v = {np.array(v)}")
+    x = (r[0] / r_norm, r[1] / r_norm, r[2] / r_norm)
+    z = (h[0] / h_norm, h[1] / h_norm, h[2] / h_norm)
+    return x, cross_tuples(z, x), z, r_norm, h_norm
+
+
+def _quaternion(x: Vector3, y: Vector3, z: Vector3) -> np.ndarray:
+    """Unit quaternion [x, y, z, w] with w >= 0 of the rotation matrix whose columns are the axes
+    x, y, z (tuples of floats): Shepperd's method as in ``rotations.matrix_to_quat``, on floats
+    (this runs every step; building the 3x3 array alone costs more than the whole of it)."""
+    (m00, m10, m20), (m01, m11, m21), (m02, m12, m22) = x, y, z
+    d = (1.0 + m00 - m11 - m22, 1.0 - m00 + m11 - m22, 1.0 - m00 - m11 + m22, 1.0 + m00 + m11 + m22)
+    k = d.index(max(d))
+    if k == 0:
+        q = (d[0], m01 + m10, m02 + m20, m21 - m12)
+    elif k == 1:
+        q = (m01 + m10, d[1], m12 + m21, m02 - m20)
+    elif k == 2:
+        q = (m02 + m20, m12 + m21, d[2], m10 - m01)
+    else:
+        q = (m21 - m12, m02 - m20, m10 - m01, d[3])
+    scale = 1.0 / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    if q[3] < 0.0:
+        scale = -scale
+    return np.array((q[0] * scale, q[1] * scale, q[2] * scale, q[3] * scale))
 
 
 def lvlh_dcm(r_eci, v_eci) -> np.ndarray:
@@ -22,33 +66,8 @@ def lvlh_dcm(r_eci, v_eci) -> np.ndarray:
 
     Raises ValueError if r is zero or r and v are parallel (the orbit normal is undefined).
     """
-    r = np.asarray(r_eci, dtype=np.float64)
-    v = np.asarray(v_eci, dtype=np.float64)
-    h = cross3(r, v)
-    r_norm, h_norm = math.sqrt(r @ r), math.sqrt(h @ h)
-    if not r_norm > 0.0 or not h_norm > 1e-12 * r_norm * max(math.sqrt(v @ v), 1e-300):
-        raise ValueError(f"LVLH undefined: expected r and v not parallel and r non-zero, got r = {r}, v = {v}")
-    x = r / r_norm
-    z = h / h_norm
-    y = cross3(z, x)
-    return np.array([x, y, z]).T
-
-
-def _rate(r, v, a, c) -> np.ndarray:
-    """Angular velocity of LVLH (axes ``c`` = C_eci_lvlh) with respect to ECI, in ECI axes (rad/s).
-
-    With h = r × v and LVLH axes x = r/|r|, z = h/|h|, differentiating the axes gives
-        ω = (|r| (a · z) / |h|) x + (|h| / |r|^2) z,
-    exactly, for any trajectory with v = dr/dt and a = dv/dt: the orbit-normal term is the
-    in-plane rate, the x term the out-of-plane rotation caused by acceleration normal to the
-    orbit plane (zero for two-body motion; J2 nodal drift, thrust or a custom path make it
-    non-zero). There is no y component because dx/dt = (v - (v·x) x)/|r| has no z part.
-    r in m, v in m/s, a in m/s^2.
-    """
-    x, z = c[:, 0], c[:, 2]
-    h = cross3(r, v)
-    r_norm, h_norm = math.sqrt(r @ r), math.sqrt(h @ h)
-    return (r_norm * float(a @ z) / h_norm) * x + (h_norm / (r_norm * r_norm)) * z
+    x, y, z, _, _ = _lvlh_axes(_floats(r_eci), _floats(v_eci))
+    return np.array((x, y, z)).T
 
 
 def continuous(q, q_previous) -> np.ndarray:
@@ -61,8 +80,20 @@ def continuous(q, q_previous) -> np.ndarray:
 
 def lvlh_state(r_eci, v_eci, a_eci) -> tuple[np.ndarray, np.ndarray]:
     """(q_eci_lvlh [x, y, z, w] with w >= 0, w_lvlh in ECI axes, rad/s) from r (m), v (m/s),
-    a (m/s^2) in ECI; w_lvlh is exact for any trajectory with v = dr/dt, a = dv/dt (see ``_rate``)."""
-    r = np.asarray(r_eci, dtype=np.float64)
-    v = np.asarray(v_eci, dtype=np.float64)
-    c = lvlh_dcm(r, v)
-    return matrix_to_quat(c), _rate(r, v, np.asarray(a_eci, dtype=np.float64), c)
+    a (m/s^2) in ECI.
+
+    With h = r × v and LVLH axes x = r/|r|, z = h/|h|, differentiating the axes gives
+        w_lvlh = (|r| (a · z) / |h|) x + (|h| / |r|^2) z,
+    exactly, for any trajectory with v = dr/dt and a = dv/dt: the orbit-normal term is the
+    in-plane rate, the x term the out-of-plane rotation caused by acceleration normal to the
+    orbit plane (zero for two-body motion; J2 nodal drift, thrust or a custom path make it
+    non-zero). There is no y component because dx/dt = (v - (v·x) x)/|r| has no z part.
+    Plain floats inside: the orbit components call this every step.
+    """
+    x, y, z, r_norm, h_norm = _lvlh_axes(_floats(r_eci), _floats(v_eci))
+    a = _floats(a_eci)
+    out_of_plane = r_norm * (a[0] * z[0] + a[1] * z[1] + a[2] * z[2]) / h_norm
+    in_plane = h_norm / (r_norm * r_norm)
+    w = np.array([out_of_plane * x[0] + in_plane * z[0], out_of_plane * x[1] + in_plane * z[1],
+                  out_of_plane * x[2] + in_plane * z[2]])
+    return _quaternion(x, y, z), w

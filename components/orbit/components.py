@@ -26,6 +26,8 @@ import numpy as np
 
 from components.constants import NS_PER_S
 from components.errors import ConfigError
+from components.orbit.frames import continuous, lvlh_dcm, lvlh_state
+from components.orbit.kepler import ElementError, KeplerOrbit, check_elements
 from components.sdk import Component, Parameter, Variable
 from components.units import to_si
 
@@ -69,8 +71,6 @@ class _OrbitComponent(Component):
         raise NotImplementedError
 
     def _outputs_at(self, t_ns: int) -> dict[str, np.ndarray]:
-        from components.orbit.frames import continuous
-
         r, v, q, w = self._sample(t_ns / NS_PER_S)
         q = continuous(q, self._q_previous)
         self._q_previous = q
@@ -134,7 +134,6 @@ class KeplerComponent(_OrbitComponent):
 
     @classmethod
     def validate(cls, params):
-        from components.orbit.kepler import ElementError, check_elements
         from components.orbit.timescales import parse_utc
 
         try:
@@ -156,7 +155,6 @@ class KeplerComponent(_OrbitComponent):
 
     def __init__(self, params):
         from components.orbit import timescales
-        from components.orbit.kepler import KeplerOrbit
 
         super().__init__(params)
         orbit = KeplerOrbit(params["semi_major_axis"], params["eccentricity"], params["inclination"],
@@ -170,11 +168,9 @@ class KeplerComponent(_OrbitComponent):
         self.orbit = orbit
 
     def _sample(self, t_s):
-        from components.orbit.frames import lvlh_state
-
-        r, v, a = self.orbit.state(t_s)
+        r, v, a = self.orbit.state_tuples(t_s)
         q, w = lvlh_state(r, v, a)
-        return r, v, q, w
+        return np.array(r), np.array(v), q, w
 
 
 class SGP4Component(_OrbitComponent):
@@ -264,7 +260,6 @@ class SGP4Component(_OrbitComponent):
         return timescales.tai_to_utc(tai), timescales.tai_to_tt(tai)
 
     def _sample(self, t_s):
-        from components.orbit.frames import lvlh_dcm
         from components.orbit.tle import teme_to_gcrf_matrix
         from components.rotations import log_so3, matrix_to_quat
 
@@ -381,8 +376,6 @@ class CustomPathComponent(_OrbitComponent):
         self.after_end = params["after_end"]
 
     def _sample(self, t_s):
-        from components.orbit.frames import lvlh_state
-
         if t_s > self.spline.end:
             if self.after_end == "error":
                 raise RuntimeError(f"orbit.custom_path: t = {t_s!r} s is past the last waypoint "

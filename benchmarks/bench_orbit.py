@@ -1,12 +1,14 @@
 """CPU time per step of ``orbit.kepler``, in process (no bus), with the demo's orbital elements.
 
-    python benchmarks/bench_orbit.py [--steps 5000]
+    python benchmarks/bench_orbit.py [--steps 5000] [--repeat 5]
 
 Rows: ``KeplerOrbit.state`` alone, then ``do_step`` plus packing its outputs into the float64
 layout (what a component's process spends per step, as components/runner.py times it), with and
 without J2. The elements are those of configs/humanoid_tracking.yaml; 1 ms steps from t = 0.
 Each row is the median over batches of ``BATCH`` consecutive steps of the thread's CPU time
-(``time.thread_time_ns``), so that another process busy on the other core does not count.
+(``time.thread_time_ns``), so that another process busy on the other core does not count; the
+lowest such median of ``--repeat`` passes (on a shared machine CPU time still varies from pass
+to pass, with the caches and the other core's load).
 """
 from __future__ import annotations
 
@@ -29,15 +31,19 @@ MS = 1_000_000
 BATCH = 10
 
 
-def cpu_time_per_step(step, steps: int) -> float:
-    """Median CPU time (s) of ``step(k)`` over batches of BATCH calls, k = 0 .. steps - 1."""
-    per_step = []
-    for first in range(0, steps - BATCH + 1, BATCH):
-        started = time.thread_time_ns()
-        for k in range(first, first + BATCH):
-            step(k)
-        per_step.append((time.thread_time_ns() - started) / BATCH)
-    return float(np.median(per_step)) * 1e-9
+def cpu_time_per_step(step, steps: int, repeat: int) -> float:
+    """CPU time (s) of ``step(k)``, k = 0 .. steps - 1: median over batches of BATCH calls,
+    lowest of ``repeat`` passes."""
+    medians = []
+    for _ in range(repeat):
+        per_step = []
+        for first in range(0, steps - BATCH + 1, BATCH):
+            started = time.thread_time_ns()
+            for k in range(first, first + BATCH):
+                step(k)
+            per_step.append((time.thread_time_ns() - started) / BATCH)
+        medians.append(np.median(per_step))
+    return float(min(medians)) * 1e-9
 
 
 def kepler(j2: bool) -> Harness:
@@ -51,8 +57,10 @@ def kepler(j2: bool) -> Harness:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=5000)
+    parser.add_argument("--repeat", type=int, default=5)
     args = parser.parse_args()
-    print(f"orbit.kepler CPU time per step ({args.steps} steps of 1 ms; median of batches of {BATCH}; "
+    print(f"orbit.kepler CPU time per step ({args.steps} steps of 1 ms; median of batches of {BATCH}, "
+          f"lowest of {args.repeat} passes; "
           f"{platform.processor() or platform.machine()}, Python {platform.python_version()})")
     for j2 in (True, False):
         harness = kepler(j2)
@@ -64,7 +72,7 @@ def main() -> None:
 
         rows = (("KeplerOrbit.state", lambda k: orbit.state(k * 1e-3)), ("do_step + output packing", do_step))
         for label, step in rows:
-            us = cpu_time_per_step(step, args.steps) * 1e6
+            us = cpu_time_per_step(step, args.steps, args.repeat) * 1e6
             print(f"  j2 {str(j2).lower():<6}{label:<40}{us:9.1f} us/step")
 
 

@@ -67,7 +67,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from components.controller.trajectory import PoseSample
-from components.rotations import log_so3, matrix_to_quat, quat_to_matrix
+from components.rotations import log_so3, matrix_to_quat
 
 BASE_MODELS = ("free_floating", "fixed")
 
@@ -150,8 +150,7 @@ class FreeFloatingArm:
         self._q1_body, self._q1_pin = np.array(self._q1_body, dtype=int), np.array(self._q1_pin, dtype=int)
         self._v_body, self._v_pin = np.array(self._v_body, dtype=int), np.array(self._v_pin, dtype=int)
         self.locked = locked
-        self._locked_body = np.array([self.body_joints.index(j) for j in locked], dtype=int)
-        self._locked_q = np.array([locked[j] for j in locked], dtype=float)
+        self._locked_body = [(self.body_joints.index(j), j, float(locked[j])) for j in locked]
         self.body_arm = np.array([self.body_joints.index(j) for j in self.arm_joints])
         self.arm_v = np.array([model.joints[model.getJointId(j)].idx_v for j in self.arm_joints])
         passive = [model.joints[model.getJointId(j)].idx_v for j in self.body_joints
@@ -170,33 +169,42 @@ class FreeFloatingArm:
         self.ee = model.getFrameId(end_effector)
         self.q_pin = pin.neutral(model)
         self.v_pin = np.zeros(model.nv)
-        self.R_base = np.eye(3)
+        self._R_base = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 
     # ------------------------------------------------------------ state
+
+    @property
+    def R_base(self) -> np.ndarray:
+        """R_W_base (3x3) of the last ``set_state``."""
+        return np.array(self._R_base)
 
     def set_state(self, position, orientation, twist, q, qd) -> None:
         """Measured state: base origin (W), q_W_base [x, y, z, w], twist (v_W, w_W), q and qd of
         the whole body (URDF order)."""
-        quat = np.asarray(orientation, dtype=float)
-        quat = quat / np.linalg.norm(quat)
-        R = quat_to_matrix(quat)
-        self.R_base = R
+        # the base's rotation and twist in plain floats: numpy's per-call overhead on 3-vectors
+        # and 3x3 matrices would cost more than the arithmetic
+        x, y, z, w = np.asarray(orientation, dtype=float).tolist()
+        scale = 1.0 / math.sqrt(x * x + y * y + z * z + w * w)
+        x, y, z, w = x * scale, y * scale, z * scale, w * scale
+        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = self._R_base = (
+            (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)),
+            (2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)),
+            (2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)))
+        vx, vy, vz, wx, wy, wz = np.asarray(twist, dtype=float).tolist()
         qp, vp = self.q_pin, self.v_pin
         qp[:3] = position
-        qp[3:7] = quat
-        twist = np.asarray(twist, dtype=float)
-        vp[:3] = R.T @ twist[:3]
-        vp[3:6] = R.T @ twist[3:]
+        qp[3:7] = x, y, z, w
+        vp[:6] = (r00 * vx + r10 * vy + r20 * vz, r01 * vx + r11 * vy + r21 * vz, r02 * vx + r12 * vy + r22 * vz,
+                  r00 * wx + r10 * wy + r20 * wz, r01 * wx + r11 * wy + r21 * wz, r02 * wx + r12 * wy + r22 * wz)
         q = np.asarray(q, dtype=float)
         qd = np.asarray(qd, dtype=float)
-        if self._locked_body.size:
-            moved = (qd[self._locked_body] != 0.0) | (np.abs(q[self._locked_body] - self._locked_q) > 1e-9)
-            if np.any(moved):
-                k = int(np.argmax(moved))
-                name = self.body_joints[self._locked_body[k]]
-                raise ValueError(f"locked_joints: {name} moves (q = {q[self._locked_body[k]]:.9g}, locked at "
-                                 f"{self._locked_q[k]:.9g}; qd = {qd[self._locked_body[k]]:.3g}): lock it in the "
-                                 "dynamics too (bodies.<body>.locked_joints) or remove it from the controller's")
+        if self._locked_body:
+            q_list, qd_list = q.tolist(), qd.tolist()
+            for k, name, value in self._locked_body:
+                if qd_list[k] != 0.0 or abs(q_list[k] - value) > 1e-9:
+                    raise ValueError(f"locked_joints: {name} moves (q = {q_list[k]:.9g}, locked at {value:.9g}; "
+                                     f"qd = {qd_list[k]:.3g}): lock it in the dynamics too "
+                                     "(bodies.<body>.locked_joints) or remove it from the controller's")
         qp[self._q1_pin] = q[self._q1_body]
         vp[self._v_pin] = qd[self._v_body]
         for iq, k in self._q2:                     # continuous joints: (cos, sin)

@@ -36,10 +36,13 @@ differentiation: differentiating ``xdot = J nu`` and inserting the base reaction
           = J_g qdd + a_drift,
 
 where ``a_drift`` is the end effector's (classical) acceleration when ``qdd = 0`` and the base
-accelerates as ``dnu_b = -M_bb^-1 c_b``: one ``forwardKinematics(q, nu, (-M_bb^-1 c_b, 0))`` and
-``getFrameClassicalAcceleration(..., LOCAL_WORLD_ALIGNED)``. It holds for any momentum, not only
-h = 0 (a body co-rotating with LVLH carries angular momentum). With ``h = 0`` it equals the paper's
-``Jdot_g qdot`` (J_b M_bb^-1 h vanishes and so does its derivative up to the environment).
+accelerates as ``dnu_b = -M_bb^-1 c_b``. That acceleration is affine in ``dnu`` with slope J (the
+classical correction ``w x v`` depends on the velocities only), so ``a_drift = a_0 - J_b M_bb^-1
+c_b`` with ``a_0`` the classical acceleration at ``dnu = 0``, which the pass that computes M and c
+(``computeAllTerms``) leaves in ``data.a`` (``getFrameClassicalAcceleration(...,
+LOCAL_WORLD_ALIGNED)``). It holds for any momentum, not only h = 0 (a body co-rotating with LVLH
+carries angular momentum). With ``h = 0`` it equals the paper's ``Jdot_g qdot`` (J_b M_bb^-1 h
+vanishes and so does its derivative up to the environment).
 
 Control law, eqs. (6) and (8): with ``e = (p_d - p, log(R_d R^T))`` and
 ``edot = (v_d - v_e, w_d - w_e)``,
@@ -65,6 +68,7 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
+from scipy.linalg.lapack import dposv
 
 from components.controller.trajectory import PoseSample
 from components.rotations import log_so3, matrix_to_quat
@@ -83,6 +87,7 @@ class ArmState:
     | J_g | (6, n) | m/rad, 1 | Generalized Jacobian (rows: linear, angular; W axes), eq. 7 |
     | a_drift | (6,) | m/s^2, rad/s^2 | end-effector acceleration at qdd = 0 (see module doc) |
     | p, R | (3,), (3, 3) | m | end-effector position and R_W_ee |
+    | quat | (4,) | 1 | q_W_ee [x, y, z, w], w >= 0 |
     | xdot | (6,) | m/s, rad/s | end-effector twist (origin velocity, angular velocity), W |
     | q, qd | (n,) | rad, rad/s | arm joint positions and rates |
     """
@@ -92,6 +97,7 @@ class ArmState:
     a_drift: np.ndarray
     p: np.ndarray
     R: np.ndarray
+    quat: np.ndarray
     xdot: np.ndarray
     q: np.ndarray
     qd: np.ndarray
@@ -225,35 +231,41 @@ class FreeFloatingArm:
 
     def compute(self, base_model: str = "free_floating") -> ArmState:
         """M*, C*, J_g, a_drift and the end-effector state at the current state (module doc)."""
-        pin, model, data = self.pin, self.model, self.data
-        qp, vp = self.q_pin, self.v_pin
-        pin.computeAllTerms(model, data, qp, vp)           # FK(q, v), M (upper triangle), nle, joint Jacobians
-        frame = pin.updateFramePlacement(model, data, self.ee)
-        J = pin.getFrameJacobian(model, data, self.ee, pin.LOCAL_WORLD_ALIGNED)
-        v = pin.getFrameVelocity(model, data, self.ee, pin.LOCAL_WORLD_ALIGNED)
-        xdot = np.concatenate([v.linear, v.angular])
-        nb = self.base_v.size
-        M = data.M[self._perm_rows, self._perm_cols]       # reordered (b, m), from crba's upper triangle
-        c = data.nle[self._perm]
-        Mmm, cm = M[nb:, nb:], c[nb:]
-        Jb, Jm = J[:, self._perm[:nb]], J[:, self._perm[nb:]]
-        acc = np.zeros(model.nv)
+        pin, model, data, ee = self.pin, self.model, self.data, self.ee
+        # one pass: FK(q, v), M (upper triangle), nle, joint Jacobians and the accelerations at
+        # dnu = 0 (data.a: a_0 of the module doc)
+        pin.computeAllTerms(model, data, self.q_pin, self.v_pin)
+        frame = pin.updateFramePlacement(model, data, ee)
+        pose = pin.SE3ToXYZQUAT(frame)                      # a new array: origin, quaternion [x, y, z, w]
+        if pose[6] < 0.0:
+            pose[3:] *= -1.0                                # w >= 0, as rotations.matrix_to_quat
+        J = pin.getFrameJacobian(model, data, ee, pin.LOCAL_WORLD_ALIGNED)
+        velocity = pin.getFrameVelocity(model, data, ee, pin.LOCAL_WORLD_ALIGNED)
+        acceleration = pin.getFrameClassicalAcceleration(model, data, ee, pin.LOCAL_WORLD_ALIGNED)
+        # eigenpy's vectors view the Motion objects' memory: copy while they are alive
+        xdot, a_0 = velocity.vector.copy(), acceleration.vector.copy()
+        nb, n = self.base_v.size, self.n
+        # [M | c] reordered (b, m), from crba's upper triangle, and [J_m | a_0]: each pair of
+        # blocks below then takes one product
+        Mc = np.empty((model.nv, model.nv + 1))
+        Mc[:, :-1] = data.M[self._perm_rows, self._perm_cols]
+        Mc[:, -1] = data.nle[self._perm]
+        Ja = np.empty((6, n + 1))
+        Ja[:, :-1] = J[:, self.arm_v]
+        Ja[:, -1] = a_0
         if base_model == "fixed":
-            M_star, C_star, J_g = Mmm, cm, Jm
+            terms, task = Mc[nb:, nb:], Ja
         else:
-            Mbb, Mbm = M[:nb, :nb], M[:nb, nb:]
-            X = np.linalg.solve(Mbb, np.column_stack([Mbm, c[:nb]]))   # M_bb^-1 [M_bm, c_b]
-            Mi_Mbm, Mi_cb = X[:, :-1], X[:, -1]
-            M_star = Mmm - Mbm.T @ Mi_Mbm
-            M_star = 0.5 * (M_star + M_star.T)
-            C_star = cm - Mbm.T @ Mi_cb
-            J_g = Jm - Jb @ Mi_Mbm
-            acc[self.base_v] = -Mi_cb
-        pin.forwardKinematics(model, data, qp, vp, acc)
-        a = pin.getFrameClassicalAcceleration(model, data, self.ee, pin.LOCAL_WORLD_ALIGNED)
-        a_drift = np.concatenate([a.linear, a.angular])
-        return ArmState(M_star, C_star, J_g, a_drift, np.array(frame.translation), np.array(frame.rotation),
-                        xdot, self._q_arm.copy(), self._qd_arm.copy())
+            # M_bb^-1 [M_bm, c_b] by Cholesky (M_bb is symmetric positive definite)
+            _, X, info = dposv(Mc[:nb, :nb], Mc[:nb, nb:])
+            if info != 0:
+                raise np.linalg.LinAlgError(f"M_bb is not positive definite (LAPACK dposv info {info})")
+            terms = Mc[nb:, nb:] - Mc[:nb, nb:-1].T @ X    # [M*, C*]
+            # a_drift = a_0 - J_b M_bb^-1 c_b (module doc)
+            task = Ja - J[:, self.base_v] @ X              # [J_g, a_drift]
+        M_star = terms[:, :n]
+        return ArmState(0.5 * (M_star + M_star.T), terms[:, n], task[:, :n], task[:, n],
+                        pose[:3], np.array(frame.rotation), pose[3:], xdot, self._q_arm.copy(), self._qd_arm.copy())
 
 
 def dls_inverse(J: np.ndarray, eps: float, lambda_max: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -376,5 +388,5 @@ class ArmController:
         tau = np.zeros(self.arm.n_body)
         tau[self.arm.body_arm] = out.tau
         return {"tau": tau, "ee_position": s.p, "ee_position_desired": d.p, "ee_error": out.error,
-                "ee_orientation": matrix_to_quat(s.R), "ee_orientation_desired": matrix_to_quat(d.R),
+                "ee_orientation": s.quat, "ee_orientation_desired": matrix_to_quat(d.R),
                 "ee_twist": s.xdot, "sigma_min": np.float64(out.sigma_min)}

@@ -68,10 +68,10 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
-from scipy.linalg.lapack import dposv
+from scipy.linalg.lapack import dgesdd, dposv
 
 from components.controller.trajectory import PoseSample
-from components.rotations import log_so3, matrix_to_quat
+from components.rotations import matrix_to_quat
 
 BASE_MODELS = ("free_floating", "fixed")
 
@@ -274,13 +274,17 @@ def dls_inverse(J: np.ndarray, eps: float, lambda_max: float) -> tuple[np.ndarra
     Damping ``lambda^2 = lambda_max^2 (1 - (s_min/eps)^2)`` only when s_min < eps (Chiaverini's
     variable damping); the projector ``I - V_m V_m^T`` is exact whatever the damping.
     """
-    U, s, Vt = np.linalg.svd(J, full_matrices=True)
-    m = s.size
+    # LAPACK's gesdd (as numpy's svd) called directly: numpy's wrapper costs more than the
+    # decomposition of a 6x7 matrix
+    U, s, Vt, info = dgesdd(J, compute_uv=1, full_matrices=0)     # Vt: the first m rows of V^T
+    if info != 0:
+        raise np.linalg.LinAlgError(f"SVD did not converge (LAPACK dgesdd info {info})")
     s_min = float(s[-1])
     lam2 = lambda_max ** 2 * (1.0 - (s_min / eps) ** 2) if s_min < eps else 0.0
     inv = s / (s * s + lam2)
-    J_plus = Vt[:m].T @ (inv[:, None] * U.T)
-    N = np.eye(J.shape[1]) - Vt[:m].T @ Vt[:m]
+    V = Vt.T
+    J_plus = V @ (inv[:, None] * U.T)
+    N = np.eye(J.shape[1]) - V @ Vt
     return J_plus, N, s_min
 
 
@@ -318,6 +322,8 @@ class ComputedTorqueLaw:
 
     def __init__(self, kp, kd, null_kp, null_kd, effort, *, dls_threshold: float = 0.02,
                  dls_damping: float = 0.05, base_model: str = "free_floating"):
+        import pinocchio as pin
+
         if base_model not in BASE_MODELS:
             raise ValueError(f"base_model: expected one of {', '.join(BASE_MODELS)}, got {base_model!r}")
         self.kp, self.kd = np.asarray(kp, dtype=float), np.asarray(kd, dtype=float)
@@ -325,16 +331,17 @@ class ComputedTorqueLaw:
         self.effort = np.asarray(effort, dtype=float)
         self.eps, self.lam = float(dls_threshold), float(dls_damping)
         self.base_model = base_model
+        self._log3 = pin.log3           # log of SO(3): on one 3x3 a tenth of rotations.log_so3's cost
 
     def control(self, s: ArmState, d: PoseSample, q_posture: np.ndarray) -> ControlOutput:
-        error = np.concatenate([d.p - s.p, log_so3(d.R @ s.R.T)])
+        error = np.concatenate([d.p - s.p, self._log3(d.R @ s.R.T)])
         error_rate = np.concatenate([d.v, d.w]) - s.xdot
         xdd_r = np.concatenate([d.a, d.dw]) + self.kd * error_rate + self.kp * error
         J_plus, N, s_min = dls_inverse(s.J_g, self.eps, self.lam)
         qdd_0 = self.null_kp * (q_posture - s.q) - self.null_kd * s.qd
         qdd = J_plus @ (xdd_r - s.a_drift) + N @ qdd_0
         tau = s.M_star @ qdd + s.C_star
-        return ControlOutput(np.clip(tau, -self.effort, self.effort), error, s_min, qdd)
+        return ControlOutput(np.minimum(np.maximum(tau, -self.effort), self.effort), error, s_min, qdd)
 
 
 class ArmController:

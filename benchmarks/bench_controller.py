@@ -1,12 +1,16 @@
-"""Compute time per step of the controllers, in process (no bus), on states of the paper's demo.
+"""CPU time per step of the controllers, in process (no bus), on states of the paper's demo.
 
-    python benchmarks/bench_controller.py [--steps 5000]
+    python benchmarks/bench_controller.py [--steps 3000] [--repeat 3]
 
-Rows: the model terms alone (Pinocchio: M, nle, Jacobians, the drift pass, the Schur
-complements), one whole ``ArmController.step`` (terms + trajectory + DLS + law), the same through
-the component wrapper and the harness's fixed float64 layout (what a component process spends per
-step, without the bus), the fixed-base variant, and ``controller.joint_pd``. The states come from a
-short closed loop with ``dynamics.dart`` (so velocities and the base motion are realistic).
+Rows: the model terms alone (Pinocchio: M, nle, Jacobians, the drift, the Schur complements),
+one whole ``ArmController.step`` (terms + trajectory + DLS + law), the same through the
+component's ``do_step`` with its inputs and outputs in the fixed float64 layout (what
+components/runner.py times as a component's compute per step, without the bus), the fixed-base
+variant, and ``controller.joint_pd``. The states come from a short closed loop with
+``dynamics.dart`` (so velocities and the base motion are realistic).
+Each row is the median over batches of ``BATCH`` consecutive states of the thread's CPU time
+(``time.thread_time_ns``, so that another process busy on the other core does not count), the
+lowest such median of ``--repeat`` passes.
 """
 from __future__ import annotations
 
@@ -29,6 +33,7 @@ LEFT = [f"arm_left_{i}_joint" for i in range(1, 8)]
 START = dict(zip(ARM, [-0.72, -2.29, -1.85, -1.91, -0.79, 0.61, 0.22]))
 STATE = ("position", "orientation", "twist", "q", "qd")
 MS = 1_000_000
+BATCH = 10
 
 
 def controller(base_model="free_floating"):
@@ -56,21 +61,26 @@ def recorded_states(n: int) -> list[dict]:
     return states
 
 
-def timed(label: str, fn, states: list[dict], repeat: int = 3) -> None:
-    best = np.inf
+def timed(label: str, fn, states: list[dict], repeat: int) -> None:
+    medians = []
     for _ in range(repeat):
-        t0 = time.perf_counter()
-        for k, s in enumerate(states):
-            fn(k, s)
-        best = min(best, (time.perf_counter() - t0) / len(states))
-    print(f"  {label:<52}{best * 1e6:9.1f} us/step")
+        per_step = []
+        for first in range(0, len(states) - BATCH + 1, BATCH):
+            started = time.thread_time_ns()
+            for k in range(first, first + BATCH):
+                fn(k, states[k])
+            per_step.append((time.thread_time_ns() - started) / BATCH)
+        medians.append(np.median(per_step))
+    print(f"  {label:<60}{min(medians) * 1e-3:9.1f} us/step")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=3000)
+    parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
-    print(f"controller compute time per step ({args.steps} demo states; best of 3; "
+    print(f"controller CPU time per step ({args.steps} demo states; median of batches of {BATCH}, "
+          f"lowest of {args.repeat} passes; "
           f"{platform.processor() or platform.machine()}, Python {platform.python_version()})")
     states = recorded_states(args.steps)
 
@@ -84,25 +94,33 @@ def main() -> None:
         arm.set_state(s["position"], s["orientation"], s["twist"], s["q"], s["qd"])
         arm.compute()
 
-    timed("model terms (M*, C*, J_g, a_drift) incl. state mapping", terms, states)
-    timed("ArmController.step (terms + trajectory + DLS + law)", lambda k, s: ctl.step(k * 1e-3, s), states)
+    timed("model terms (M*, C*, J_g, a_drift) incl. state mapping", terms, states, args.repeat)
+    timed("ArmController.step (terms + trajectory + DLS + law)", lambda k, s: ctl.step(k * 1e-3, s), states, args.repeat)
 
-    def through_harness(h):
+    def as_the_runner(h: Harness):
+        """do_step on inputs unpacked from one float64 vector, outputs packed into another: the
+        part of a step components/runner.py times (the input vectors are filled beforehand)."""
+        vectors = []
+        for s in states:
+            vector = h.input_layout.start_vector()
+            for name, value in s.items():
+                vector[h.input_layout.offsets[name]] = np.ravel(value)
+            vectors.append(vector)
+        outputs = h.output_layout.start_vector()
+
         def run(k, s):
-            h.inputs.update(s)
-            h.step(MS)
+            h.output_layout.pack(h.component.do_step(k * MS, MS, h.input_layout.unpack(vectors[k])), outputs)
         return run
 
-    timed("controller.computed_torque do_step via the harness", through_harness(c), states)
+    timed("controller.computed_torque do_step + input/output layout", as_the_runner(c), states, args.repeat)
     fixed = controller("fixed")
     fixed.inputs.update(states[0])
     fixed.initialize()
-    timed("controller.computed_torque, base_model: fixed", through_harness(fixed), states)
+    timed("controller.computed_torque, base_model: fixed, the same", as_the_runner(fixed), states, args.repeat)
     pd = Harness("controller.joint_pd", {"urdf": URDF, "gains": {j: {"p": 10.0, "d": 1.0, "i": 0.1} for j in ARM}})
     pd.inputs.update(states[0])
     pd.initialize()
-    timed("controller.joint_pd do_step via the harness", through_harness(pd), states)
-
+    timed("controller.joint_pd do_step + input/output layout", as_the_runner(pd), states, args.repeat)
 
 if __name__ == "__main__":
     main()

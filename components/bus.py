@@ -1,20 +1,25 @@
-"""The wire protocol between the orchestrator and component processes, over Zenoh.
+"""The wire protocol of a run, over Zenoh.
 
-Star topology: the orchestrator talks to each component; components never talk to each other.
+Components exchange their outputs directly: each publishes its outputs once per step on its
+output key; the components it feeds and the orchestrator subscribe. The orchestrator is off the
+per-step path: it grants a step horizon, records, and watches for faults; control goes through it.
 Keys, under ``zenorbit/<run_id>/``:
 
 | key | from -> to | payload |
 |---|---|---|
-| ``c/<name>/<gen>/cmd`` | orchestrator -> component | control (JSON + blob) or step (binary inputs) |
-| ``c/<name>/<gen>/out`` | component -> orchestrator | reply (JSON + blob), step outputs (binary) or error |
+| ``o/<name>`` | component -> consumers, orchestrator | step outputs (binary, tagged) or sync |
+| ``c/<name>/<gen>/cmd`` | orchestrator -> component | control (JSON + blob) or horizon |
+| ``c/<name>/<gen>/out`` | component -> orchestrator | reply (JSON + blob) or fault |
 | ``alive/<name>/<gen>`` | component | liveliness token, gone when the process dies |
 | ``alive/orchestrator`` | orchestrator | liveliness token; components exit when it goes |
 | ``signals`` | orchestrator -> observers | one recorded row per step (binary), may drop |
 | ``ctl`` | CLI -> orchestrator | queryable: status, stop, swap |
 
-Control and step messages share one FIFO channel per component, so their order is kept (a
-``get_state`` issued after step k sees the state after step k). Step payloads are raw float64
-in the layout that ``describe`` fixes; no JSON per step.
+Every output message carries its generation and tag (the step index of the time it holds, see
+:mod:`components.schedule`), so a consumer takes exactly the values meant for each step and
+ignores a replaced generation. Step outputs are raw float64 in the layout ``declare`` fixes; no
+JSON per step. The sessions form a mesh (gossip through the orchestrator's session): outputs go
+straight from producer to consumer, one hop.
 """
 from __future__ import annotations
 
@@ -28,15 +33,16 @@ import numpy as np
 ROOT = "zenorbit"
 
 # message kinds (first byte)
-STEP = b"S"      # orchestrator -> component: header + inputs
 CONTROL = b"C"   # orchestrator -> component: JSON + blob
-OUTPUT = b"O"    # component -> orchestrator: header + outputs
+HORIZON = b"H"   # orchestrator -> component: steps k < horizon may run
+OUTPUT = b"O"    # component -> consumers: header + outputs
+SYNC = b"Y"      # component -> consumers: "you hear me" (the start-up handshake)
 REPLY = b"R"     # component -> orchestrator: JSON + blob
 FAULT = b"E"     # component -> orchestrator: JSON {op, k, error}
 QUIT = b"Q"      # a component to itself, when the orchestrator's liveliness token is gone
 
-_STEP_HEADER = struct.Struct("<qqq")     # k, t_ns, h_ns
-_OUTPUT_HEADER = struct.Struct("<qd")    # k, compute seconds (for --profile only)
+_OUTPUT_HEADER = struct.Struct("<qqdd")  # generation, tag, compute s, idle s (the last two for --profile)
+_INT = struct.Struct("<q")
 _JSON_LENGTH = struct.Struct("<I")
 
 
@@ -48,22 +54,34 @@ def component_key(run_id: str, name: str, generation: int, leaf: str) -> str:
     return run_key(run_id, "c", name, str(generation), leaf)
 
 
-def encode_step(k: int, t_ns: int, h_ns: int, inputs: np.ndarray) -> bytes:
-    return STEP + _STEP_HEADER.pack(k, t_ns, h_ns) + inputs.tobytes()
+def output_key(run_id: str, name: str) -> str:
+    return run_key(run_id, "o", name)
 
 
-def decode_step(payload: bytes) -> tuple[int, int, int, np.ndarray]:
-    k, t_ns, h_ns = _STEP_HEADER.unpack_from(payload, 1)
-    return k, t_ns, h_ns, np.frombuffer(payload, dtype=np.float64, offset=1 + _STEP_HEADER.size)
+def encode_output(generation: int, tag: int, compute_s: float, idle_s: float, outputs: np.ndarray) -> bytes:
+    return OUTPUT + _OUTPUT_HEADER.pack(generation, tag, compute_s, idle_s) + outputs.tobytes()
 
 
-def encode_output(k: int, compute_s: float, outputs: np.ndarray) -> bytes:
-    return OUTPUT + _OUTPUT_HEADER.pack(k, compute_s) + outputs.tobytes()
+def decode_output(payload: bytes) -> tuple[int, int, float, float, np.ndarray]:
+    """(generation, tag, compute s, idle s, outputs); outputs a read-only view of the payload."""
+    generation, tag, compute_s, idle_s = _OUTPUT_HEADER.unpack_from(payload, 1)
+    return generation, tag, compute_s, idle_s, np.frombuffer(payload, dtype=np.float64, offset=1 + _OUTPUT_HEADER.size)
 
 
-def decode_output(payload: bytes) -> tuple[int, float, np.ndarray]:
-    k, compute_s = _OUTPUT_HEADER.unpack_from(payload, 1)
-    return k, compute_s, np.frombuffer(payload, dtype=np.float64, offset=1 + _OUTPUT_HEADER.size)
+def encode_sync(generation: int) -> bytes:
+    return SYNC + _INT.pack(generation)
+
+
+def decode_sync(payload: bytes) -> int:
+    return _INT.unpack_from(payload, 1)[0]
+
+
+def encode_horizon(horizon: int) -> bytes:
+    return HORIZON + _INT.pack(horizon)
+
+
+def decode_horizon(payload: bytes) -> int:
+    return _INT.unpack_from(payload, 1)[0]
 
 
 def encode_message(kind: bytes, body: Mapping[str, Any], blob: bytes = b"") -> bytes:
@@ -89,8 +107,13 @@ def decode_state(blob: bytes) -> dict[str, np.ndarray]:
         return {k: data[k] for k in data.files}
 
 
-def session_config(listen: list[str] = (), connect: list[str] = ()):
-    """A Zenoh peer config: explicit endpoints only, multicast and gossip scouting off."""
+def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: bool = False):
+    """A Zenoh peer config: explicit endpoints, no multicast scouting.
+
+    ``mesh``: gossip on, so the peers of a run (all connected to the orchestrator's session)
+    learn each other's listen endpoints and connect directly; a run never meets another run's
+    peers, since nothing connects the two meshes.
+    """
     import zenoh
 
     config = zenoh.Config()
@@ -98,8 +121,17 @@ def session_config(listen: list[str] = (), connect: list[str] = ()):
     config.insert_json5("listen/endpoints", json.dumps(list(listen)))
     config.insert_json5("connect/endpoints", json.dumps(list(connect)))
     config.insert_json5("scouting/multicast/enabled", "false")
-    config.insert_json5("scouting/gossip/enabled", "false")
+    config.insert_json5("scouting/gossip/enabled", "true" if mesh else "false")
     return config
+
+
+def listen_beside(connect: str) -> str:
+    """A listen endpoint with a free port on the host used to reach ``connect``'s side: loopback
+    for a local orchestrator, every interface otherwise."""
+    proto, _, address = connect.partition("/")
+    host = address.rpartition(":")[0]
+    local = host in ("127.0.0.1", "localhost", "[::1]")
+    return f"{proto}/{'127.0.0.1' if local else '0.0.0.0'}:0"
 
 
 def publisher(session, key: str, *, drop: bool = False):

@@ -1,23 +1,26 @@
-"""The lockstep master: launches component processes, routes signals, steps time, records.
+"""The lockstep master of a run: starts the components, wires them to each other, grants steps,
+records, and stops the run on the first fault.
 
-One Zenoh session; every message the components send lands in a single inbox queue (callbacks
-only enqueue), and the main thread does all the work. Step k covers [k*h, (k+1)*h); times are
-integer nanoseconds computed by multiplication. Components are addressed by name and generation,
-so a component can be replaced at a step boundary (swap) without anyone else noticing.
+The orchestrator is off the per-step path. Components exchange their outputs directly (see
+:mod:`components.bus`) and each steps ``k`` as soon as it holds the inputs tagged for ``k`` and
+``k`` lies below the *horizon* the orchestrator grants (rules: :mod:`components.schedule`). The
+orchestrator subscribes to every output, assembles the recorded rows, and checks for deaths
+(liveliness) and hangs (a component that holds its inputs but does not step within
+``run.step_timeout``). Control (swap, stop, events) happens at a step boundary: the horizon is
+held there until every component has reached it. A component with no input from the loop (an
+orbit) runs ahead up to the horizon, which hides its cost.
 
-Jacobi: every component due at step k gets its inputs from the outputs at t_k, all step in
-parallel. Gauss-Seidel: components step one after another in config order, each seeing the
-outputs at t_(k+1) of those before it.
+Every message the orchestrator receives lands in one inbox queue (callbacks only enqueue) and the
+main thread does all the work. Times are integer nanoseconds, step k covers [k*h, (k+1)*h).
 """
 from __future__ import annotations
 
-import copy
+import collections
 import datetime as dt
 import json
 import queue
 import shutil
 import signal
-import socket
 import struct
 import subprocess
 import sys
@@ -29,23 +32,25 @@ from pathlib import Path
 
 import numpy as np
 
-from components import bus
-from orchestrator import runs
-from orchestrator.config import (ComponentSpec, Event, RunConfig, ViewerSpec, check_replacement,
-                                 component_spec)
+from components import bus, schedule
+from components.schedule import Route
+from orchestrator import runs, supervisor
+from orchestrator.config import ComponentSpec, RunConfig, ViewerSpec
+from orchestrator.control import ControlServer, SwapFailed
 from orchestrator.recording import Recording
-
 
 VIEWER = "_viewer"   # liveliness name of the observer (component names cannot start with _)
 SIGNALS_HEADER = struct.Struct("<qd")  # k, time in s; then the row of every output, float64
+WINDOW = 256         # steps a component may run ahead of the recorded rows
+SYNC_ROUND_S = 0.05  # the start-up handshake is repeated at this interval until everyone hears everyone
 
 
 class RunFailure(Exception):
     """The run cannot go on: a component crashed, hung, or produced a non-finite value."""
 
-
-class SwapFailed(Exception):
-    """A replacement could not start; the component it was to replace runs on."""
+    def __init__(self, message: str, member: "Member | None" = None):
+        super().__init__(message)
+        self.member = member
 
 
 class StopRequested(Exception):
@@ -54,20 +59,23 @@ class StopRequested(Exception):
 
 @dataclass
 class Member:
-    """A live component: its spec, process, and where its signals live in the global vectors."""
+    """A live component: its spec, its process, its routes, and the outputs seen from it."""
     spec: ComponentSpec
     generation: int
     process: subprocess.Popen | None
     log_path: Path | None
+    ratio: int                             # its step in run steps
     command: object = None                 # Zenoh publisher of its command key
-    inputs: np.ndarray = None
-    route_dst: np.ndarray = None           # input indices fed from ...
-    route_src: np.ndarray = None           # ... these indices of the global output vector
-    out_dst: np.ndarray = None             # where its outputs go in the global output vector
+    routes: list[Route] = field(default_factory=list)
+    out_dst: np.ndarray = None             # where its outputs go in the recorded row ...
     out_src: np.ndarray = None             # ... from these indices of its output vector
-    ratio: int = 1                         # its step in run steps
-    pending: np.ndarray | None = None      # a slower member's outputs, not yet due
+    tag: int = 0                           # the tag of ``latest``: what the recorded rows hold now
+    latest: np.ndarray = None
+    received: collections.deque = field(default_factory=collections.deque)  # (tag, outputs), not yet recorded
+    progress: int = 0                      # the highest tag it has published
+    progress_at: float = 0.0               # wall time of its last output
     compute_s: float = 0.0
+    idle_s: float = 0.0
     steps: int = 0
     reply: dict | None = field(default=None, repr=False)
 
@@ -76,40 +84,8 @@ class Member:
         return self.spec.name
 
 
-def _child_setup():
-    """In a component process: leave Ctrl-C to the orchestrator (which stops everyone in order),
-    and die with the orchestrator even if it is SIGKILLed (Linux PR_SET_PDEATHSIG)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        import ctypes
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
-    except OSError:
-        pass
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def resolve_endpoints(listen: list[str]) -> tuple[list[str], str]:
-    """Fill port 0 with a free port; return (listen endpoints, the one local components connect to)."""
-    resolved = []
-    for endpoint in listen:
-        proto, _, address = endpoint.partition("/")
-        host, _, port = address.rpartition(":")
-        if port == "0":
-            port = str(_free_port())
-        resolved.append(f"{proto}/{host}:{port}")
-    proto, _, address = resolved[0].partition("/")
-    host, _, port = address.rpartition(":")
-    local_host = "127.0.0.1" if host in ("0.0.0.0", "[::]") else host
-    return resolved, f"{proto}/{local_host}:{port}"
-
-
 class Run:
-    """One execution of a validated config. ``execute()`` returns the exit code (0, 1)."""
+    """One execution of a validated config. ``execute()`` returns the exit code (0, 1, 130)."""
 
     def __init__(self, config: RunConfig, *, record: str | Path | None = None, profile: bool = False,
                  progress: bool = False, out=sys.stderr, viewer: ViewerSpec | None = None):
@@ -121,22 +97,25 @@ class Run:
         self.progress = progress
         self.out = out
         self.run_id = f"{config.name}-{uuid.uuid4().hex[:8]}"
-        self.inbox: queue.Queue = queue.Queue()
+        self.inbox: queue.SimpleQueue = queue.SimpleQueue()
         self.members: dict[str, Member] = {}
-        self.pending_events: list[Event] = list(config.events)
-        self.controls: list = []            # queries from the CLI, handled at step boundaries
+        self.joining: dict[str, Member] = {}   # a swap's new generation, until it takes over
+        self.order = list(config.components)
+        self.pending_events = list(config.events)
+        self.controls = ControlServer(self)
         self.stop_reason: str | None = None
-        self.k = 0
+        self.row = 0                           # the last recorded row = the step boundary reached
+        self.horizon = 0                       # steps k < horizon are granted
+        self.horizon_at = 0.0
         self.recording: Recording | None = None
         # component logs: kept with the recording, else in a temporary directory removed after a clean run
         self.log_dir = (self.record_dir / "logs") if self.record_dir else Path(
             tempfile.mkdtemp(prefix=f"zenorbit-{self.run_id}-"))
         self.log_dir.mkdir(parents=True, exist_ok=True)
-        self.joining: dict[str, Member] = {}   # a swap's new generation, until it is ready
-        self.wait_s = 0.0                   # time spent waiting on the barrier
         self.loop_s = 0.0
+        self.decimation = 0                    # publish every n-th row to the viewer; 0: no viewer
 
-        # the global output vector: every component's outputs, in config order = recorded columns
+        # the recorded row: every component's outputs, in config order
         self.columns: list[str] = []
         self.column_index: dict[tuple[str, str], np.ndarray] = {}
         for spec in config.components.values():
@@ -150,7 +129,10 @@ class Run:
     # ---------------------------------------------------------------- messages
 
     def _on_output(self, sample) -> None:
-        self.inbox.put(("out", str(sample.key_expr), sample.payload.to_bytes()))
+        self.inbox.put(("o", str(sample.key_expr), sample.payload.to_bytes()))
+
+    def _on_reply(self, sample) -> None:
+        self.inbox.put(("r", str(sample.key_expr), sample.payload.to_bytes()))
 
     def _on_liveliness(self, sample) -> None:
         import zenoh
@@ -162,18 +144,45 @@ class Run:
         self.inbox.put(("ctl", query, None))
 
     def _handle(self, message, expect: dict[str, str]) -> None:
-        """Apply one inbox message; ``expect`` maps component name -> what we wait for."""
+        """Apply one inbox message; ``expect`` maps component name -> the reply we wait for."""
         kind, a, b = message
-        if kind == "ctl":
-            self.controls.append(a)
-            return
-        if kind in ("alive", "dead"):
+        if kind == "o":
+            member = self.members.get(a.rpartition("/")[2])
+            if member is None or b[:1] != bus.OUTPUT:
+                return
+            generation, tag, compute_s, idle_s, vector = bus.decode_output(b)
+            if generation != member.generation:
+                return  # a replaced generation
+            member.received.append((tag, vector))
+            member.progress, member.progress_at = tag, time.monotonic()
+            member.compute_s += compute_s
+            member.idle_s += idle_s
+            member.steps += 1
+        elif kind == "r":
+            parts = a.split("/")
+            member = self._member(parts[-3], int(parts[-2]))
+            if member is None:
+                return  # a replaced generation
+            tag = b[:1]
+            body, blob = bus.decode_message(b)
+            if tag == bus.REPLY:
+                member.reply = {**body, "blob": blob}
+                if expect.get(member.name) == body["op"]:
+                    del expect[member.name]
+            elif tag == bus.FAULT:
+                if body["k"] >= 0:  # it published every output before the failing step's
+                    member.progress = max(member.progress, body["k"])
+                self._salvage(member)
+                raise RunFailure(self._fault_message(member, body), member)
+        elif kind == "ctl":
+            self.controls.add(a)
+        else:
             name, generation = a, b
             if name == VIEWER:
                 if kind == "alive" and expect.get(name) == "alive":
                     del expect[name]
                 elif kind == "dead" and self.recording is not None:
-                    self._log("warning", message="the viewer went away; the run goes on", step=self.k)
+                    self._log("warning", message="the viewer went away; the run goes on", step=self.row)
                 return
             member = self._member(name, generation)
             if member is None:
@@ -182,35 +191,16 @@ class Run:
                 if expect.get(name) == "alive":
                     del expect[name]
                 return
-            raise RunFailure(self._death(member, "its process disappeared (liveliness lost)"))
-        parts = a.split("/")
-        name, generation = parts[-3], int(parts[-2])
-        member = self._member(name, generation)
-        if member is None:
-            return  # a replaced generation: ignore
-        tag = b[:1]
-        if tag == bus.OUTPUT:
-            k, compute_s, vector = bus.decode_output(b)
-            if expect.get(name) != "step" or k != self.k:
-                raise RunFailure(f"component {name!r}: output for step {k} while waiting for step {self.k}")
-            self._check_finite(member, vector, f"at step {k} (t = {(k * self.config.step_ns) / 1e9:g} s)")
-            if member.ratio == 1:
-                self.values[member.out_dst] = vector[member.out_src]
-            else:  # a slower component's outputs are for t_k + its step: they show from then on
-                member.pending = vector[member.out_src].copy()
-            member.compute_s += compute_s
-            member.steps += 1
-            del expect[name]
-        elif tag == bus.REPLY:
-            body, blob = bus.decode_message(b)
-            member.reply = {**body, "blob": blob}
-            if expect.get(name) == body["op"]:
-                del expect[name]
-        elif tag == bus.FAULT:
-            body, _ = bus.decode_message(b)
-            where = f"step {body['k']} (t = {body['k'] * self.config.step_ns / 1e9:g} s)" if body["op"] == "step" \
-                else body["op"]
-            raise RunFailure(f"component {name!r} ({member.spec.type}) failed in {where}: {body['error']}")
+            self._salvage(member)
+            raise RunFailure(self._death(member, "its process disappeared (liveliness lost)"), member)
+
+    def _fault_message(self, member: Member, body: dict) -> str:
+        k = body["k"]
+        when = f"step {k} (t = {k * self.config.step_ns / 1e9:g} s)"
+        if body["op"] == "nan":
+            return f"component {member.name!r} produced a non-finite value in output {body['error']!r} at {when}"
+        where = when if body["op"] == "step" else body["op"]
+        return f"component {member.name!r} ({member.spec.type}) failed in {where}: {body['error']}"
 
     def _member(self, name: str, generation: int) -> Member | None:
         """The live (or joining) member with this name and generation; None for a stale generation."""
@@ -219,12 +209,6 @@ class Run:
             if member is not None and member.generation == generation:
                 return member
         return None
-
-    def _check_finite(self, member: Member, vector: np.ndarray, when: str) -> None:
-        if not np.isfinite(vector).all():
-            bad = int(np.flatnonzero(~np.isfinite(vector))[0])
-            var = next(v for v in member.spec.outputs.variables if bad < member.spec.outputs.offsets[v.name].stop)
-            raise RunFailure(f"component {member.name!r} produced a non-finite value in output {var.name!r} {when}")
 
     def _wait(self, expect: dict[str, str], timeout: float, what: str) -> None:
         """Process inbox messages until every expectation is met, or fail naming the laggards."""
@@ -238,61 +222,49 @@ class Run:
             try:
                 message = self.inbox.get(timeout=min(remaining, 0.2))
             except queue.Empty:
-                for name in expect:
-                    if name == VIEWER:
-                        if self.viewer_process.poll() is not None:
-                            raise RunFailure(f"the viewer exited during start-up with code "
-                                             f"{self.viewer_process.returncode} (see its message above)")
-                        continue
-                    member = self.joining.get(name) or self.members[name]
-                    if member.process is not None and member.process.poll() is not None:
-                        raise RunFailure(self._death(member, f"its process exited with code {member.process.returncode}"))
+                self._check_processes(expect)
                 continue
             self._handle(message, expect)
 
+    def _check_processes(self, names) -> None:
+        """Fail if the process of one of these members (or the viewer) has exited."""
+        for name in names:
+            if name == VIEWER:
+                if self.viewer_process.poll() is not None:
+                    raise RunFailure(f"the viewer exited during start-up with code "
+                                     f"{self.viewer_process.returncode} (see its message above)")
+                continue
+            member = self.joining.get(name) or self.members[name]
+            if member.process is not None and member.process.poll() is not None:
+                self._salvage(member)
+                raise RunFailure(self._death(member, f"its process exited with code {member.process.returncode}"), member)
+
     def _death(self, member: Member, how: str) -> str:
-        tail = ""
-        if member.log_path and member.log_path.exists():
-            lines = [line for line in member.log_path.read_text(errors="replace").splitlines() if line.strip()]
-            if lines:
-                tail = f"; last output: {lines[-1].strip()}"
-        return f"component {member.name!r} ({member.spec.type}) died at step {self.k}: {how}{tail}"
+        return (f"component {member.name!r} ({member.spec.type}) died at step {member.progress}: {how}"
+                f"{supervisor.last_words(member.log_path)}")
 
     # ---------------------------------------------------------------- lifecycle
 
     def _control(self, member: Member, op: str, body: dict | None = None, blob: bytes = b"") -> None:
         member.command.put(bus.encode_message(bus.CONTROL, {"op": op, **(body or {})}, blob))
 
+    def _ask(self, members: list[Member], op: str, what: str, timeout: float, body=None, blob=b"") -> None:
+        for member in members:
+            self._control(member, op, body, blob)
+        self._wait({m.name: op for m in members}, timeout, what)
+
     def _launch(self, spec: ComponentSpec, generation: int) -> Member:
         process = log_path = None
-        args = ["--connect", self.endpoint, "--run-id", self.run_id, "--name", spec.name,
-                "--generation", str(generation)]
+        args = supervisor.runner_arguments(self.endpoint, self.run_id, spec.name, generation)
         if spec.launch == "local":
             log_path = self.log_dir / f"{spec.name}.{generation}.log"
-            with open(log_path, "wb") as log:
-                process = subprocess.Popen([sys.executable, "-m", "components.runner", *args],
-                                           stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                                           preexec_fn=_child_setup)
+            process = supervisor.start_component(args, log_path)
         else:
             print(f"waiting for external component {spec.name!r}: start it with\n"
                   f"    python -m components.runner {' '.join(args)}", file=self.out, flush=True)
         member = Member(spec=spec, generation=generation, process=process, log_path=log_path,
-                        ratio=spec.step_ns // self.config.step_ns)
+                        ratio=spec.step_ns // self.config.step_ns, latest=spec.outputs.start_vector())
         member.command = bus.publisher(self.session, bus.component_key(self.run_id, spec.name, generation, "cmd"))
-        self._wire(member)
-        return member
-
-    def _wire(self, member: Member) -> None:
-        """Index arrays that route the global output vector into this member's inputs, and back."""
-        spec = member.spec
-        member.inputs = spec.inputs.start_vector()
-        dst, src = [], []
-        for d, dv, s, sv in self.config.connections:
-            if d == spec.name:
-                dst.append(np.arange(spec.inputs.offsets[dv].start, spec.inputs.offsets[dv].stop))
-                src.append(self.column_index[s, sv])
-        member.route_dst = np.concatenate(dst) if dst else np.zeros(0, dtype=np.int64)
-        member.route_src = np.concatenate(src) if src else np.zeros(0, dtype=np.int64)
         out_dst, out_src = [], []
         for v in spec.outputs.variables:
             index = self.column_index.get((spec.name, v.name))
@@ -301,6 +273,7 @@ class Run:
                 out_src.append(np.arange(spec.outputs.offsets[v.name].start, spec.outputs.offsets[v.name].stop))
         member.out_dst = np.concatenate(out_dst) if out_dst else np.zeros(0, dtype=np.int64)
         member.out_src = np.concatenate(out_src) if out_src else np.zeros(0, dtype=np.int64)
+        return member
 
     def _start(self, specs: list[ComponentSpec], generation: dict[str, int], into: dict[str, Member]) -> list[Member]:
         """Launch, wait for and instantiate members, registered in ``into`` (members, or joining)."""
@@ -318,34 +291,70 @@ class Run:
         self._wait({m.name: "instantiate" for m in started}, timeout, "instantiate")
         return started
 
-    def _initialize(self, member: Member, t_ns: int, *, take_outputs: bool = True) -> None:
-        member.inputs[member.route_dst] = self.values[member.route_src]
-        self._control(member, "initialize", {"t0_ns": t_ns}, member.inputs.tobytes())
-        self._wait({member.name: "initialize"}, self.config.start_timeout_s, "initialize")
-        vector = np.frombuffer(member.reply["blob"], dtype=np.float64)
-        self._check_finite(member, vector, f"after initialize (t = {t_ns / 1e9:g} s)")
-        if take_outputs:
-            self.values[member.out_dst] = vector[member.out_src]
+    def _routes(self, consumer: ComponentSpec, members: dict[str, Member]) -> list[Route]:
+        return schedule.routes(consumer.name, consumer.inputs.offsets, self.config.connections,
+                               {n: m.spec.outputs.offsets for n, m in members.items()},
+                               {n: m.ratio for n, m in members.items()}, self.order, self.config.algorithm)
 
-    def _initialization_order(self) -> list[str]:
-        """Sources before the components they feed; config order breaks cycles."""
-        feeds = {n: {s for d, _, s, _ in self.config.connections if d == n and s != n} for n in self.config.components}
-        done: list[str] = []
-        while len(done) < len(feeds):
-            pending = [n for n in feeds if n not in done]
-            ready = [n for n in pending if feeds[n] <= set(done)]
-            done.append(ready[0] if ready else pending[0])
-        return done
+    def _wire(self, member: Member, members: dict[str, Member], k: int) -> None:
+        """Tell a member which sources feed which of its inputs; it subscribes to them."""
+        member.routes = self._routes(member.spec, members)
+        self._ask([member], "wire", "wire", self.config.start_timeout_s, {
+            "generation": member.generation, "step_ns": self.config.step_ns, "ratio": member.ratio, "k": k,
+            "routes": [r.to_json() for r in member.routes],
+            "sources": {r.source: members[r.source].generation for r in member.routes}})
+
+    def _initialize(self, member: Member, t_ns: int, members: dict[str, Member]) -> np.ndarray:
+        inputs = member.spec.inputs.start_vector()
+        for route in member.routes:
+            inputs[route.dst] = members[route.source].latest[route.src]
+        self._ask([member], "initialize", "initialize", self.config.start_timeout_s, {"t0_ns": t_ns}, inputs.tobytes())
+        vector = np.frombuffer(member.reply["blob"], dtype=np.float64)
+        if not np.isfinite(vector).all():
+            bad = int(np.flatnonzero(~np.isfinite(vector))[0])
+            variable = next(v.name for v in member.spec.outputs.variables if bad < member.spec.outputs.offsets[v.name].stop)
+            raise RunFailure(f"component {member.name!r} produced a non-finite value in output {variable!r} "
+                             f"after initialize (t = {t_ns / 1e9:g} s)")
+        return vector
+
+    def _sync(self, waiting: list[Member]) -> None:
+        """Repeat the handshake until each of ``waiting`` has heard every one of its sources: from
+        then on, no output published to it can be lost to a subscription still on its way."""
+        expect = {m.name: "synced" for m in waiting}
+        deadline = time.monotonic() + self.config.start_timeout_s
+        while expect:
+            if time.monotonic() > deadline:
+                raise RunFailure(f"component {', '.join(map(repr, expect))} did not hear its sources within "
+                                 f"{self.config.start_timeout_s:g} s (run.start_timeout)")
+            for member in self.members.values():
+                self._control(member, "sync")
+            round_end = time.monotonic() + SYNC_ROUND_S
+            while expect and time.monotonic() < round_end:
+                try:
+                    self._handle(self.inbox.get(timeout=max(round_end - time.monotonic(), 0.001)), expect)
+                except queue.Empty:
+                    pass
+            self._check_processes(list(expect))
+
+    def _held(self, member: Member, only: str | None = None) -> tuple[dict, bytes]:
+        """What ``member``'s sources (or just ``only``) hold now: the recorded outputs and any
+        published ahead of them, as a ``start``/``rewire`` body part and blob."""
+        held, blobs = [], []
+        for name in {r.source for r in member.routes if only in (None, r.source)}:
+            source = self.members[name]
+            for tag, vector in [(source.tag, source.latest), *source.received]:
+                held.append([name, tag, int(vector.size)])
+                blobs.append(vector.tobytes())
+        return {"held": held}, b"".join(blobs)
+
+    def _go(self, member: Member) -> None:
+        body, blob = self._held(member)
+        self._control(member, "start", {**body, "horizon": self.horizon}, blob)
 
     def _terminate(self, member: Member, timeout: float = 5.0) -> None:
         """Ask a member to terminate and make sure its process is gone (killed after ``timeout``)."""
         self._control(member, "terminate")
-        if member.process is not None:
-            try:
-                member.process.wait(timeout=timeout)
-            except subprocess.TimeoutExpired:
-                member.process.kill()
-                member.process.wait()
+        supervisor.reap(member.process, timeout)
         member.command.undeclare()
 
     # ---------------------------------------------------------------- swap
@@ -353,90 +362,59 @@ class Run:
     def swap(self, spec: ComponentSpec) -> None:
         """Replace a component at the current step boundary, handing over its state (same type).
 
-        The new generation is started, initialized and given the state on the side; only then does
-        it take over. If it fails to get there, it is stopped and SwapFailed is raised: the old
-        generation runs on.
+        Every component is at the boundary (the horizon is held there). The new generation is
+        started, wired, initialized and given the state on the side; only then does it take over
+        and its consumers are rewired to it. If it fails to get there, it is stopped and
+        SwapFailed is raised: the old generation runs on.
         """
         old = self.members[spec.name]
-        t_ns = self.k * self.config.step_ns
+        t_ns = self.row * self.config.step_ns
         same_type = spec.type == old.spec.type
-        self._control(old, "get_state")
-        self._wait({old.name: "get_state"}, self.config.step_timeout_s, "get_state")
+        self._ask([old], "get_state", "get_state", self.config.step_timeout_s)
         state = old.reply["blob"]
         try:
             new = self._start([spec], {spec.name: old.generation + 1}, self.joining)[0]
-            # same type: the state carries over and the outputs at t_k stay the old ones
-            self._initialize(new, t_ns, take_outputs=not same_type)
-            if same_type:
-                self._control(new, "set_state", {}, state)
-                self._wait({new.name: "set_state"}, self.config.step_timeout_s, "set_state")
+            members = {**self.members, spec.name: new}
+            self._wire(new, members, self.row)
+            outputs = self._initialize(new, t_ns, members)
+            if same_type:  # the state carries over and the outputs at t_k stay the old ones
+                self._ask([new], "set_state", "set_state", self.config.step_timeout_s, {}, state)
+                outputs = old.latest
         except RunFailure as failure:
             if old.process is not None and old.process.poll() is not None:
                 raise  # the old generation is gone too: nothing to run on
             joining = self.joining.pop(spec.name, None)
             if joining is not None:
                 self._terminate(joining, timeout=2.0)
-            self._log("warning", message=f"swap of {spec.name} to {spec.type} failed: {failure}", step=self.k)
+            self._log("warning", message=f"swap of {spec.name} to {spec.type} failed: {failure}", step=self.row)
             raise SwapFailed(str(failure)) from None
+        new.tag, new.latest, new.progress = self.row, np.array(outputs), self.row
+        self.values[new.out_dst] = new.latest[new.out_src]
         self.members[spec.name] = self.joining.pop(spec.name)
         self._terminate(old)  # its late messages carry the old generation: ignored from here on
+        consumers = [m for m in self.members.values() if m is not new and any(r.source == spec.name for r in m.routes)]
+        for consumer in consumers:
+            consumer.routes = self._routes(consumer.spec, self.members)
+            body, blob = self._held(consumer, only=spec.name)
+            self._control(consumer, "rewire", {**body, "routes": [r.to_json() for r in consumer.routes],
+                                               "sources": {r.source: self.members[r.source].generation
+                                                           for r in consumer.routes}}, blob)
+        self._wait({m.name: "rewire" for m in consumers}, self.config.step_timeout_s, "rewire")
+        self._sync([new, *consumers])
+        self._go(new)
         self._log("swap", component=spec.name, type=spec.type, generation=new.generation,
-                  step=self.k, time=t_ns / 1e9, state_handed_over=same_type)
+                  step=self.row, time=t_ns / 1e9, state_handed_over=same_type)
 
     # ---------------------------------------------------------------- control from the CLI
 
-    def _serve_controls(self) -> None:
-        waiting = []
-        for query in self.controls:
-            try:
-                request = json.loads(query.payload.to_bytes()) if query.payload is not None else {}
-            except ValueError:
-                request = {}
-            target = self.members.get(request.get("component", ""))
-            if request.get("op") == "swap" and target is not None and self.k % target.ratio:
-                waiting.append(query)  # a slower component is replaced at one of its own step boundaries
-                continue
-            try:
-                answer = self._control_request(request)
-            except SwapFailed as error:
-                answer = {"ok": False, "error": str(error), "usage": False}
-            except (KeyError, TypeError, ValueError) as error:  # a bad request must not end the run
-                answer = {"ok": False, "error": f"malformed request: {error}", "usage": True}
-            query.reply(query.key_expr, json.dumps(answer))
-            query.drop()
-        self.controls = waiting
+    def status(self) -> dict:
+        return {"run_id": self.run_id, "name": self.config.name, "step": self.row,
+                "steps": self.config.steps, "time": self.row * self.config.step_ns / 1e9,
+                "components": {n: {"type": m.spec.type, "generation": m.generation}
+                               for n, m in self.members.items()}}
 
-    def _control_request(self, request: dict) -> dict:
-        op = request.get("op")
-        if op == "status":
-            return {"ok": True, "run_id": self.run_id, "name": self.config.name, "step": self.k,
-                    "steps": self.config.steps, "time": self.k * self.config.step_ns / 1e9,
-                    "components": {n: {"type": m.spec.type, "generation": m.generation}
-                                   for n, m in self.members.items()}}
-        if op == "stop":
-            self.stop_reason = "stopped by request"
-            return {"ok": True}
-        if op == "swap":
-            from orchestrator.config import ConfigErrors, apply_overrides
-            name = request["component"]
-            if name not in self.members:
-                return {"ok": False, "error": f"no component {name!r} (components: {', '.join(self.members)})",
-                        "usage": True}
-            old = self.members[name].spec
-            entry = {"type": request.get("type") or old.type, "parameters": copy.deepcopy(
-                old.parameters if not request.get("type") or request["type"] == old.type else {})}
-            try:
-                apply_overrides(entry, [f"parameters.{s}" for s in request.get("set", [])])
-                spec = component_spec(name, {**entry, "step": f"{old.step_ns} ns"}, self.config.step_ns,
-                                      self.config.path.parent.resolve(), self.config.epoch, f"components.{name}")
-                problems = check_replacement(spec, self.config.connections)
-                if problems:
-                    raise ConfigErrors(problems)
-            except ConfigErrors as e:
-                return {"ok": False, "error": "; ".join(e.errors), "usage": True}
-            self.swap(spec)
-            return {"ok": True, "step": self.k, "generation": self.members[name].generation}
-        return {"ok": False, "error": f"unknown operation {op!r} (status, stop, swap)"}
+    def request_stop(self, reason: str) -> None:
+        self.stop_reason = reason
 
     # ---------------------------------------------------------------- the loop
 
@@ -444,35 +422,132 @@ class Run:
         if self.recording is not None:
             self.recording.event(kind, **fields)
 
-    def _commit(self, member: Member) -> None:
-        """A slower member's outputs become visible once their time has come."""
-        self.values[member.out_dst] = member.pending
-        member.pending = None
+    def _event_step(self) -> int | None:
+        if not self.pending_events:
+            return None
+        return -(-self.pending_events[0].at_ns // self.config.step_ns)
 
-    def _step(self) -> None:
-        k, h = self.k, self.config.step_ns
-        t_ns = k * h
-        step_timeout = self.config.step_timeout_s
-        started = time.perf_counter()
-        if self.config.algorithm == "jacobi":
-            due = [m for m in self.members.values() if k % m.ratio == 0]
+    def _limit(self) -> int:
+        """The step boundary the run must stop at next: the end, an event, a swap from the CLI."""
+        limit = self.config.steps
+        for boundary in (self._event_step(), self.controls.swap_boundary()):
+            if boundary is not None:
+                limit = min(limit, max(boundary, self.row))
+        return limit
+
+    def _grant(self, wall_start: float) -> float:
+        """Extend the horizon when the recorded rows come near it; return how long the loop may
+        sleep before it must look again (realtime pacing)."""
+        limit = self._limit()
+        target = min(limit, self.row + WINDOW)
+        chunk = WINDOW // 2
+        wake = 0.2
+        if self.config.realtime > 0:
+            # step k may start once k steps' worth of time has passed on the wall clock
+            step_s = self.config.step_ns / 1e9 / self.config.realtime
+            elapsed = time.perf_counter() - wall_start
+            target = min(target, int(elapsed / step_s) + 1)
+            chunk = max(1, int(0.005 / step_s))
+            wake = min(wake, max(step_s * chunk - (elapsed % (step_s * chunk)), 0.0005))
+        if target > self.horizon and (target - self.horizon >= chunk or target == limit
+                                      or self.horizon - self.row < chunk):
+            self.horizon, self.horizon_at = target, time.monotonic()
+            grant = bus.encode_horizon(target)
+            for member in self.members.values():
+                member.command.put(grant)
+        return wake
+
+    def _record_rows(self) -> None:
+        """Record every row whose outputs have all arrived."""
+        step_ns = self.config.step_ns
+        members = list(self.members.values())
+        while self.row < self.horizon:
+            row = self.row + 1
+            due = []
+            for m in members:
+                need = row // m.ratio * m.ratio
+                if need == m.tag:
+                    continue
+                received = m.received
+                while received and received[0][0] < need:
+                    received.popleft()
+                if not received or received[0][0] != need:
+                    return
+                due.append(m)
             for m in due:
-                m.inputs[m.route_dst] = self.values[m.route_src]
-            for m in due:
-                m.command.put(bus.encode_step(k, t_ns, m.ratio * h, m.inputs))
-            self._wait({m.name: "step" for m in due}, step_timeout, f"step {k}")
-        else:
-            for m in self.members.values():
-                if m.pending is not None and (k + 1) % m.ratio == 0:
-                    self._commit(m)  # those after it in config order see its value for t_(k+1)
-                if k % m.ratio == 0:
-                    m.inputs[m.route_dst] = self.values[m.route_src]
-                    m.command.put(bus.encode_step(k, t_ns, m.ratio * h, m.inputs))
-                    self._wait({m.name: "step"}, step_timeout, f"step {k}")
+                m.tag, m.latest = m.received.popleft()
+                self.values[m.out_dst] = m.latest[m.out_src]
+            self.row = row
+            if self.recording is not None:
+                self.recording.append(row, row * step_ns / 1e9, self.values)
+            if self.decimation and row % self.decimation == 0:
+                self.signals_out.put(SIGNALS_HEADER.pack(row, row * step_ns / 1e9) + self.values.tobytes())
+
+    def _check_hung(self) -> None:
+        """A member that has held every input of its next step for ``run.step_timeout`` is hung."""
+        now = time.monotonic()
+        timeout = self.config.step_timeout_s
         for m in self.members.values():
-            if m.pending is not None and (k + 1) % m.ratio == 0:
-                self._commit(m)
-        self.wait_s += time.perf_counter() - started
+            k = m.progress
+            if k >= self.horizon:
+                continue
+            sources = [self.members[r.source] for r in m.routes]
+            if any(s.progress < r.tag(k) for s, r in zip(sources, m.routes)):
+                continue
+            since = max([m.progress_at, self.horizon_at, *(s.progress_at for s in sources)])
+            if now - since > timeout:
+                self._salvage(m)
+                raise RunFailure(f"component {m.name!r} did not answer step {k} within {timeout:g} s "
+                                 f"(hung? raise run.step_timeout if it is just slow)", m)
+
+    def _salvage(self, failed: Member, timeout: float = 1.0) -> None:
+        """``failed`` failed: record the rows up to its last output, as far as the others' outputs
+        (some still on their way) complete them within ``timeout``."""
+        if failed.name not in self.members:
+            return
+        deadline = time.monotonic() + timeout
+        while self.row < min(failed.progress, self.horizon) and time.monotonic() < deadline:
+            try:
+                kind, key, payload = self.inbox.get(timeout=0.05)
+            except queue.Empty:
+                continue
+            if kind == "o":
+                self._handle((kind, key, payload), {})
+                self._record_rows()
+
+    def _loop(self) -> None:
+        """Grant, record and watch until the last row is in or a stop is asked for."""
+        steps = self.config.steps
+        wall_start = time.perf_counter()
+        last_progress = last_check = time.monotonic()
+        expect: dict[str, str] = {}
+        while self.row < steps and not self.stop_reason:
+            if self.row == self.horizon:   # everyone is at this boundary: control happens here
+                while self._event_step() is not None and self._event_step() <= self.row:
+                    try:
+                        self.swap(self.pending_events.pop(0).spec)
+                    except SwapFailed as failure:  # a swap the config asks for is part of the experiment
+                        raise RunFailure(str(failure)) from None
+                self.controls.serve(quiescent=True)
+            elif self.controls.queries:
+                self.controls.serve(quiescent=False)
+            wake = self._grant(wall_start)
+            try:
+                self._handle(self.inbox.get(timeout=wake), expect)
+                while True:
+                    self._handle(self.inbox.get_nowait(), expect)
+            except queue.Empty:
+                pass
+            self._record_rows()
+            now = time.monotonic()
+            if now - last_check > 0.2:
+                last_check = now
+                self._check_hung()
+                self._check_processes(list(self.members))
+            if self.progress and now - last_progress > 0.5:
+                last_progress = now
+                self._print_progress(time.perf_counter() - wall_start)
+        self.loop_s = time.perf_counter() - wall_start
 
     def execute(self) -> int:
         """Run to the end (0), or until a failure (1) or an interruption (130); clean up in every case."""
@@ -481,7 +556,6 @@ class Run:
         code, message = 0, None
         self.session = None
         self._subscriptions: list = []
-        wall_start = time.perf_counter()
         try:
             self._open_bus()
             if self.record_dir is not None:
@@ -490,36 +564,24 @@ class Run:
                       step_ns=config.step_ns, algorithm=config.algorithm,
                       components={n: s.type for n, s in config.components.items()})
             self._start(list(config.components.values()), {n: 0 for n in config.components}, self.members)
-            for name in self._initialization_order():
-                self._initialize(self.members[name], 0)
-            self._record(0)
-            decimation = self._start_viewer()
-            if decimation:
+            for member in self.members.values():
+                self._wire(member, self.members, 0)
+            for name in schedule.initialization_order(self.order, config.connections):
+                member = self.members[name]
+                member.latest = self._initialize(member, 0, self.members)
+                self.values[member.out_dst] = member.latest[member.out_src]
+            if self.recording is not None:
+                self.recording.append(0, 0.0, self.values)
+            self.decimation = self._start_viewer()
+            if self.decimation:
                 self.signals_out.put(SIGNALS_HEADER.pack(0, 0.0) + self.values.tobytes())
-            wall_start = time.perf_counter()
-            last_progress = wall_start
-            for self.k in range(config.steps):
-                self._boundary()
-                if self.stop_reason:
-                    break
-                self._step()
-                self._record(self.k + 1)
-                if decimation and (self.k + 1) % decimation == 0:
-                    self.signals_out.put(SIGNALS_HEADER.pack(self.k + 1, (self.k + 1) * config.step_ns / 1e9)
-                                         + self.values.tobytes())
-                now = time.perf_counter()
-                if config.realtime > 0:
-                    ahead = (self.k + 1) * config.step_ns / 1e9 / config.realtime - (now - wall_start)
-                    if ahead > 0:
-                        time.sleep(ahead)
-                if self.progress and now - last_progress > 0.5:
-                    last_progress = now
-                    self._print_progress(now - wall_start)
-            else:
-                self.k = config.steps
+            self._sync(list(self.members.values()))
+            for member in self.members.values():
+                self._go(member)
+            self._loop()
         except RunFailure as failure:
             code, message = 1, str(failure)
-            self._log("fault", step=self.k, message=message)
+            self._log("fault", step=self.row, message=message)
         except (KeyboardInterrupt, StopRequested):
             self.stop_reason = "interrupted"
             code = 130
@@ -527,14 +589,13 @@ class Run:
             # no second Ctrl-C/SIGTERM in the middle of the clean-up: it has bounded waits of its own
             for sig in (signal.SIGINT, signal.SIGTERM):
                 signal.signal(sig, signal.SIG_IGN)
-            self.loop_s = time.perf_counter() - wall_start
             if self.progress:
                 print(file=self.out)
             for member in list(self.members.values()) + list(self.joining.values()):
                 self._terminate(member, timeout=2.0 if code else 5.0)
             if self.session is not None:
                 self._stop_viewer(self.signals_out)
-            self._log("end", step=self.k, time=self.k * config.step_ns / 1e9,
+            self._log("end", step=self.row, time=self.row * config.step_ns / 1e9,
                       status="failed" if code == 1 else (self.stop_reason or "completed"))
             if self.recording is not None:
                 self.recording.close()
@@ -561,15 +622,16 @@ class Run:
         import zenoh
 
         for attempt in range(3):  # a free port picked here may be taken by another run before Zenoh binds it
-            listen, self.endpoint = resolve_endpoints(self.config.listen)
+            listen, self.endpoint = supervisor.resolve_endpoints(self.config.listen)
             try:
-                self.session = zenoh.open(bus.session_config(listen=listen))
+                self.session = zenoh.open(bus.session_config(listen=listen, mesh=True))
                 break
             except zenoh.ZError as e:
                 if attempt == 2 or not any(e.endswith(":0") for e in self.config.listen):
                     raise RunFailure(f"cannot open the bus on {', '.join(listen)} (bus.listen): {e}") from None
         self._subscriptions = [
-            self.session.declare_subscriber(bus.run_key(self.run_id, "c", "*", "*", "out"), self._on_output),
+            self.session.declare_subscriber(bus.run_key(self.run_id, "o", "*"), self._on_output),
+            self.session.declare_subscriber(bus.run_key(self.run_id, "c", "*", "*", "out"), self._on_reply),
             self.session.liveliness().declare_subscriber(bus.run_key(self.run_id, "alive", "*", "*"),
                                                          self._on_liveliness),
             self.session.declare_queryable(bus.run_key(self.run_id, "ctl"), self._on_control),
@@ -577,22 +639,6 @@ class Run:
         ]
         self.signals_out = bus.publisher(self.session, bus.run_key(self.run_id, "signals"), drop=True)
         runs.register(self.run_id, self.config.name, self.endpoint, self.config.path)
-
-    def _boundary(self) -> None:
-        """Work done between steps: control requests from the CLI, scheduled events."""
-        while True:
-            try:
-                self._handle(self.inbox.get_nowait(), {})
-            except queue.Empty:
-                break
-        if self.controls:
-            self._serve_controls()
-        t_ns = self.k * self.config.step_ns
-        while self.pending_events and self.pending_events[0].at_ns <= t_ns:
-            try:
-                self.swap(self.pending_events.pop(0).spec)
-            except SwapFailed as failure:  # a swap the config asks for is part of the experiment
-                raise RunFailure(str(failure)) from None
 
     def _start_viewer(self) -> int:
         """Start the Rerun observer, if asked; return the decimation (publish every n-th row), or 0."""
@@ -607,7 +653,7 @@ class Run:
         self.viewer_process = subprocess.Popen(
             [sys.executable, "-m", "components.viewer.observer", "--connect", self.endpoint,
              "--run-id", self.run_id, "--setup", str(setup)],
-            stdin=subprocess.DEVNULL, preexec_fn=_child_setup)
+            stdin=subprocess.DEVNULL, preexec_fn=supervisor.child_setup)
         self._wait({VIEWER: "alive"}, self.config.start_timeout_s, "viewer start-up")
         self._log("viewer", mode=self.viewer.mode, rate_hz=self.viewer.rate_hz)
         return max(1, round(1e9 / (self.viewer.rate_hz * self.config.step_ns)))
@@ -634,40 +680,25 @@ class Run:
             pass
         if self.viewer_process.poll() is None:
             self.viewer_process.terminate()
-            try:
-                self.viewer_process.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                self.viewer_process.kill()
-                self.viewer_process.wait()
-
-    def _record(self, k: int) -> None:
-        if self.recording is not None:
-            self.recording.append(k, k * self.config.step_ns / 1e9, self.values)
+            supervisor.reap(self.viewer_process, 5)
 
     def _print_progress(self, wall: float) -> None:
-        sim = (self.k + 1) * self.config.step_ns / 1e9
+        sim = self.row * self.config.step_ns / 1e9
         total = self.config.duration_ns / 1e9
-        print(f"\r  t = {sim:9.3f} / {total:g} s   {(self.k + 1) / wall:8.0f} steps/s   "
+        print(f"\r  t = {sim:9.3f} / {total:g} s   {self.row / wall:8.0f} steps/s   "
               f"real-time factor {sim / wall:6.2f}", end="", file=self.out, flush=True)
 
     def _print_profile(self) -> None:
-        steps = max(self.k, 1)
         wall = self.loop_s
-        print(f"profile: {self.k} steps in {wall:.3f} s wall ({self.k / wall if wall else 0:.0f} steps/s), "
+        print(f"profile: {self.row} steps in {wall:.3f} s wall ({self.row / wall if wall else 0:.0f} steps/s, "
+              f"real-time factor {self.row * self.config.step_ns / 1e9 / wall if wall else 0:.2f}), "
               f"{self.config.algorithm}", file=self.out)
-        print(f"  {'component':<16}{'compute/step':>14}{'share of wall':>15}", file=self.out)
-        compute_total = 0.0
+        print(f"  {'component':<16}{'compute/step':>14}{'waiting/step':>14}{'busy':>8}", file=self.out)
         for m in self.members.values():
-            per = m.compute_s / max(m.steps, 1)
-            compute_total += m.compute_s
-            print(f"  {m.name:<16}{per * 1e6:>11.1f} us{100 * m.compute_s / wall if wall else 0:>14.1f}%",
-                  file=self.out)
-        barrier = self.wait_s / steps
-        slowest = max((m.compute_s / max(m.steps, 1) for m in self.members.values()), default=0.0) \
-            if self.config.algorithm == "jacobi" else compute_total / steps
-        print(f"  barrier wait     {barrier * 1e6:>8.1f} us/step (of which bus + adapter overhead "
-              f"~{max(barrier - slowest, 0) * 1e6:.1f} us)", file=self.out)
-        print(f"  orchestrator     {(wall - self.wait_s) / steps * 1e6:>8.1f} us/step (routing, recording)",
+            steps = max(m.steps, 1)
+            print(f"  {m.name:<16}{m.compute_s / steps * 1e6:>11.1f} us{m.idle_s / steps * 1e6:>11.1f} us"
+                  f"{100 * m.compute_s / wall if wall else 0:>7.1f}%", file=self.out)
+        print("  waiting: for inputs or the horizon, and the bus (a component's own compute not included)",
               file=self.out)
 
 

@@ -1,0 +1,94 @@
+"""The control server of a run: status, stop and swap requests from the CLI (`orchestrator ps`,
+`stop`, `swap`), answered between steps. A bad request gets an error answer; it never ends the run."""
+from __future__ import annotations
+
+import copy
+import json
+
+from orchestrator.config import ConfigErrors, apply_overrides, check_replacement, component_spec
+
+
+class SwapFailed(Exception):
+    """A replacement could not start; the component it was to replace runs on."""
+
+
+class ControlServer:
+    """Queries queue up as they arrive; ``serve`` answers them at a step boundary.
+
+    ``run`` provides: ``status()``, ``request_stop()``, ``members``, ``config``, ``row`` (the
+    step boundary the run is at) and ``swap(spec)``.
+    """
+
+    def __init__(self, run):
+        self.run = run
+        self.queries: list = []
+
+    def add(self, query) -> None:
+        self.queries.append(query)
+
+    def swap_boundary(self) -> int | None:
+        """The step at which the first waiting swap can happen (a slower component is replaced at
+        one of its own step boundaries), or None if no swap waits."""
+        for query in self.queries:
+            request = _request(query)
+            member = self.run.members.get(request.get("component", "")) if request.get("op") == "swap" else None
+            if member is not None:
+                return -(-self.run.row // member.ratio) * member.ratio
+        return None
+
+    def serve(self, quiescent: bool) -> None:
+        """Answer what can be answered now; swaps only when every component is at the boundary."""
+        waiting = []
+        for query in self.queries:
+            request = _request(query)
+            target = self.run.members.get(request.get("component", ""))
+            if request.get("op") == "swap" and target is not None and (
+                    not quiescent or self.run.row % target.ratio):
+                waiting.append(query)
+                continue
+            try:
+                answer = self._answer(request)
+            except SwapFailed as error:
+                answer = {"ok": False, "error": str(error), "usage": False}
+            except (KeyError, TypeError, ValueError) as error:
+                answer = {"ok": False, "error": f"malformed request: {error}", "usage": True}
+            query.reply(query.key_expr, json.dumps(answer))
+            query.drop()
+        self.queries = waiting
+
+    def _answer(self, request: dict) -> dict:
+        run = self.run
+        op = request.get("op")
+        if op == "status":
+            return {"ok": True, **run.status()}
+        if op == "stop":
+            run.request_stop("stopped by request")
+            return {"ok": True}
+        if op == "swap":
+            name = request["component"]
+            if name not in run.members:
+                return {"ok": False, "error": f"no component {name!r} (components: {', '.join(run.members)})",
+                        "usage": True}
+            old = run.members[name].spec
+            entry = {"type": request.get("type") or old.type, "parameters": copy.deepcopy(
+                old.parameters if not request.get("type") or request["type"] == old.type else {})}
+            try:
+                apply_overrides(entry, [f"parameters.{s}" for s in request.get("set", [])])
+                spec = component_spec(name, {**entry, "step": f"{old.step_ns} ns"}, run.config.step_ns,
+                                      run.config.path.parent.resolve(), run.config.epoch, f"components.{name}")
+                problems = check_replacement(spec, run.config.connections)
+                if problems:
+                    raise ConfigErrors(problems)
+            except ConfigErrors as e:
+                return {"ok": False, "error": "; ".join(e.errors), "usage": True}
+            run.swap(spec)
+            return {"ok": True, "step": run.row, "generation": run.members[name].generation}
+        return {"ok": False, "error": f"unknown operation {op!r} (status, stop, swap)"}
+
+
+def _request(query) -> dict:
+    try:
+        request = json.loads(query.payload.to_bytes()) if query.payload is not None else {}
+    except ValueError:
+        return {}
+    return request if isinstance(request, dict) else {}

@@ -1,0 +1,84 @@
+"""A config stepped in this one process, no bus: the reference that a bus run must equal bit for bit.
+
+    rows = run_in_process(load("configs/humanoid_tracking.yaml"), steps=500)
+
+The components are built from the same parameters (through the same JSON the instantiate message
+carries), step on the inputs that :mod:`components.schedule` tags for each step, one after another
+in config order, and their outputs go through the same float64 layouts as in a bus run. The
+result is the recording's signal columns, row k = t_k.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from components import schedule
+from components.sdk import Layout, resolve_parameters
+from orchestrator.config import RunConfig
+from orchestrator.engine import _jsonable
+
+
+class _Stepped:
+    """One component instance with its layouts and the outputs it has produced, by tag."""
+
+    def __init__(self, config: RunConfig, name: str):
+        spec = config.components[name]
+        raw = json.loads(json.dumps(_jsonable({**spec.parameters, "_epoch": config.epoch,
+                                               "_config_dir": str(config.path.parent.resolve())})))
+        params, errors = resolve_parameters(spec.cls, raw)
+        if errors:
+            raise errors[0]
+        variables = spec.cls.declare(params)
+        self.inputs = Layout([v for v in variables if v.causality == "input"])
+        self.outputs = Layout([v for v in variables if v.causality == "output"])
+        self.input_vector = self.inputs.start_vector()
+        self.input_views = self.inputs.unpack(self.input_vector)
+        self.component = spec.cls(params)
+        self.ratio = spec.step_ns // config.step_ns
+        self.by_tag: dict[int, np.ndarray] = {}
+        self.routes: list[schedule.Route] = []
+
+    def take_inputs(self, members: dict[str, "_Stepped"], k: int) -> None:
+        for route in self.routes:
+            self.input_vector[route.dst] = members[route.source].by_tag[route.tag(k)][route.src]
+
+    def pack(self, result) -> np.ndarray:
+        vector = np.empty(self.outputs.size)
+        self.outputs.pack(result, vector)
+        return vector
+
+
+def run_in_process(config: RunConfig, steps: int | None = None) -> np.ndarray:
+    """Rows (steps + 1, number of recorded columns) of the config run for ``steps`` steps
+    (default: its duration)."""
+    steps = config.steps if steps is None else steps
+    order = list(config.components)
+    members = {name: _Stepped(config, name) for name in order}
+    offsets = {name: m.outputs.offsets for name, m in members.items()}
+    ratios = {name: m.ratio for name, m in members.items()}
+    for name, member in members.items():
+        member.routes = schedule.routes(name, member.inputs.offsets, config.connections, offsets, ratios,
+                                        order, config.algorithm)
+    for name in schedule.initialization_order(order, config.connections):
+        member = members[name]
+        for route in member.routes:  # sources not initialized yet hold their start values
+            source = members[route.source]
+            member.input_vector[route.dst] = source.by_tag.get(0, source.outputs.start_vector())[route.src]
+        member.by_tag[0] = member.pack(member.component.initialize(0, member.input_views))
+
+    rows = np.empty((steps + 1, sum(m.outputs.size for m in members.values())))
+    rows[0] = np.concatenate([m.by_tag[0] for m in members.values()])
+    for k in range(steps):
+        for member in members.values():
+            if schedule.is_due(member.ratio, k):
+                member.take_inputs(members, k)
+                result = member.component.do_step(k * config.step_ns, member.ratio * config.step_ns,
+                                                  member.input_views)
+                member.by_tag[k + member.ratio] = member.pack(result)
+        rows[k + 1] = np.concatenate([m.by_tag[schedule.row_tag(m.ratio, k + 1)] for m in members.values()])
+        for member in members.values():  # keep only what a later step can still read
+            oldest = schedule.row_tag(member.ratio, k + 1)
+            for tag in [t for t in member.by_tag if t < oldest]:
+                del member.by_tag[tag]
+    return rows

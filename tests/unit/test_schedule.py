@@ -1,0 +1,84 @@
+"""The lockstep rules (components/schedule.py) and the in-process loop built on them, no processes."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from components.schedule import Route, initialization_order, next_due, routes, row_tag
+from orchestrator.config import load
+from orchestrator.inprocess import run_in_process
+
+
+def route(ratio: int, ahead: int) -> Route:
+    return Route("s", np.arange(1), np.arange(1), ratio, ahead)
+
+
+def test_input_tags_jacobi_gauss_seidel_and_slower_sources():
+    # Jacobi reads the values at t_k; Gauss-Seidel (source earlier in config order) those at t_(k+1)
+    assert [route(1, 0).tag(k) for k in range(4)] == [0, 1, 2, 3]
+    assert [route(1, 1).tag(k) for k in range(4)] == [1, 2, 3, 4]
+    # a source stepping every 3 run steps holds its output until the next is due
+    assert [route(3, 0).tag(k) for k in range(7)] == [0, 0, 0, 3, 3, 3, 6]
+    assert [route(3, 1).tag(k) for k in range(7)] == [0, 0, 3, 3, 3, 6, 6]
+    assert [row_tag(3, r) for r in range(7)] == [0, 0, 0, 3, 3, 3, 6]
+    assert [next_due(3, k) for k in range(5)] == [0, 3, 3, 3, 6]
+
+
+def test_routes_group_connections_by_source_and_mark_gauss_seidel_order():
+    inputs = {"u": slice(0, 1), "v": slice(1, 4)}
+    outputs = {"a": {"y": slice(0, 1), "w": slice(1, 4)}, "c": {"y": slice(0, 1)}}
+    connections = [("b", "v", "a", "w"), ("b", "u", "c", "y"), ("x", "u", "a", "y")]
+    for algorithm, ahead in (("jacobi", {"a": 0, "c": 0}), ("gauss-seidel", {"a": 1, "c": 0})):
+        found = {r.source: r for r in routes("b", inputs, connections, outputs, {"a": 1, "c": 2},
+                                            ["a", "b", "c"], algorithm)}
+        assert set(found) == {"a", "c"}
+        assert found["a"].src.tolist() == [1, 2, 3] and found["a"].dst.tolist() == [1, 2, 3]
+        assert found["c"].src.tolist() == [0] and found["c"].dst.tolist() == [0] and found["c"].ratio == 2
+        assert {n: r.ahead for n, r in found.items()} == ahead
+
+
+def test_initialization_order_puts_sources_first_and_breaks_cycles_in_config_order():
+    connections = [("b", "u", "c", "y"), ("c", "u", "a", "y"), ("a", "u", "b", "y")]
+    assert initialization_order(["a", "b", "c"], connections) == ["a", "c", "b"]
+    assert initialization_order(["p", "q"], [("q", "u", "p", "y")]) == ["p", "q"]
+
+
+CHAIN = """
+run: {{name: chain, epoch: 2022-09-18T12:00:00Z, duration: {steps} s, step: 1 s, algorithm: {algorithm}}}
+components:
+  source: {{type: test.constant, parameters: {{value: 1.0}}}}
+  first: {{type: test.integrator}}
+  second: {{type: test.integrator}}
+connections: {{first.u: source.y, second.u: first.x}}
+"""
+
+
+@pytest.mark.parametrize("algorithm, second", [
+    ("jacobi", lambda k: k * (k - 1) / 2),        # one-step delay: sum of 0..k-1
+    ("gauss-seidel", lambda k: k * (k + 1) / 2),  # same-step value: sum of 1..k
+])
+def test_in_process_loop_matches_the_closed_form_exactly(tmp_path, algorithm, second):
+    path = tmp_path / "chain.yaml"
+    path.write_text(CHAIN.format(steps=200, algorithm=algorithm))
+    rows = run_in_process(load(path))
+    k = np.arange(201)
+    assert np.array_equal(rows[:, 1], k.astype(float))
+    assert np.array_equal(rows[:, 2], second(k).astype(float))
+
+
+@pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
+def test_in_process_loop_holds_a_slower_source(tmp_path, algorithm):
+    path = tmp_path / "rates.yaml"
+    path.write_text(f"""
+run: {{name: rates, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 10 ms, algorithm: {algorithm}}}
+components:
+  slow: {{type: test.counter, step: 50 ms}}
+  sum: {{type: test.integrator}}
+connections: {{sum.u: slow.n}}
+""")
+    rows = run_in_process(load(path))
+    k = np.arange(101)
+    assert np.array_equal(rows[:, 0], np.floor(k / 5))
+    j = np.arange(100)
+    u = np.floor(j / 5) if algorithm == "jacobi" else np.floor((j + 1) / 5)
+    assert np.allclose(rows[:, 1], np.concatenate([[0.0], np.cumsum(0.01 * u)]), rtol=0, atol=1e-12)

@@ -241,9 +241,8 @@ class FreeFloatingArm:
             pose[3:] *= -1.0                                # w >= 0, as rotations.matrix_to_quat
         J = pin.getFrameJacobian(model, data, ee, pin.LOCAL_WORLD_ALIGNED)
         velocity = pin.getFrameVelocity(model, data, ee, pin.LOCAL_WORLD_ALIGNED)
-        acceleration = pin.getFrameClassicalAcceleration(model, data, ee, pin.LOCAL_WORLD_ALIGNED)
-        # eigenpy's vectors view the Motion objects' memory: copy while they are alive
-        xdot, a_0 = velocity.vector.copy(), acceleration.vector.copy()
+        a_0 = pin.getFrameClassicalAcceleration(model, data, ee, pin.LOCAL_WORLD_ALIGNED)
+        xdot = velocity.vector.copy()                       # a view of the Motion's memory until copied
         nb, n = self.base_v.size, self.n
         # [M | c] reordered (b, m), from crba's upper triangle, and [J_m | a_0]: each pair of
         # blocks below then takes one product
@@ -252,7 +251,7 @@ class FreeFloatingArm:
         Mc[:, -1] = data.nle[self._perm]
         Ja = np.empty((6, n + 1))
         Ja[:, :-1] = J[:, self.arm_v]
-        Ja[:, -1] = a_0
+        Ja[:, -1] = a_0.vector
         if base_model == "fixed":
             terms, task = Mc[nb:, nb:], Ja
         else:

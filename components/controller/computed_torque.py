@@ -367,8 +367,8 @@ class ArmController:
         self.arm.set_state(state["position"], state["orientation"], state["twist"], state["q"], state["qd"])
         p0, R0 = self.arm.pose()
         self.q_posture = np.asarray(state["q"], dtype=float)[self.arm.body_arm].copy()
-        self.anchor = (p0, R0, self.arm.R_base.copy())
-        self.trajectory = build_cartesian(self.spec, p0, R0, self.arm.R_base)
+        self.anchor = (p0, R0, self.arm.R_base)
+        self.trajectory = build_cartesian(self.spec, *self.anchor)
         if self.reach is not None:
             joint, reach = self.reach
             centre = self.arm.joint_origin(joint)

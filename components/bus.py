@@ -1,13 +1,15 @@
 """The wire protocol of a run, over Zenoh.
 
 Components exchange their outputs directly: each publishes its outputs once per step on its
-output key; the components it feeds and the orchestrator subscribe. The orchestrator is off the
-per-step path: it grants a step horizon, records, and watches for faults; control goes through it.
+output key, to which the components it feeds subscribe. The orchestrator is off the per-step
+path: it grants a step horizon, receives the outputs in batches (one wake-up per batch, not per
+step), records, and watches for faults; control goes through it.
 Keys, under ``zenorbit/<run_id>/``:
 
 | key | from -> to | payload |
 |---|---|---|
-| ``o/<name>`` | component -> consumers, orchestrator | step outputs (binary, tagged) or sync |
+| ``o/<name>`` | component -> consumers | step outputs (binary, tagged) or sync |
+| ``r/<name>`` | component -> orchestrator | a batch of step outputs (binary), for recording |
 | ``c/<name>/<gen>/cmd`` | orchestrator -> component | control (JSON + blob) or horizon |
 | ``c/<name>/<gen>/out`` | component -> orchestrator | reply (JSON + blob) or fault |
 | ``alive/<name>/<gen>`` | component | liveliness token, gone when the process dies |
@@ -36,12 +38,14 @@ ROOT = "zenorbit"
 CONTROL = b"C"   # orchestrator -> component: JSON + blob
 HORIZON = b"H"   # orchestrator -> component: steps k < horizon may run
 OUTPUT = b"O"    # component -> consumers: header + outputs
+BATCH = b"B"     # component -> orchestrator: several steps' outputs
 SYNC = b"Y"      # component -> consumers: "you hear me" (the start-up handshake)
 REPLY = b"R"     # component -> orchestrator: JSON + blob
 FAULT = b"E"     # component -> orchestrator: JSON {op, k, error}
 QUIT = b"Q"      # a component to itself, when the orchestrator's liveliness token is gone
 
-_OUTPUT_HEADER = struct.Struct("<qqdd")  # generation, tag, compute s, idle s (the last two for --profile)
+_OUTPUT_HEADER = struct.Struct("<qq")    # generation, tag
+_BATCH_HEADER = struct.Struct("<qqq")    # generation, number of steps, outputs per step
 _INT = struct.Struct("<q")
 _JSON_LENGTH = struct.Struct("<I")
 
@@ -58,14 +62,35 @@ def output_key(run_id: str, name: str) -> str:
     return run_key(run_id, "o", name)
 
 
-def encode_output(generation: int, tag: int, compute_s: float, idle_s: float, outputs: np.ndarray) -> bytes:
-    return OUTPUT + _OUTPUT_HEADER.pack(generation, tag, compute_s, idle_s) + outputs.tobytes()
+def batch_key(run_id: str, name: str) -> str:
+    return run_key(run_id, "r", name)
 
 
-def decode_output(payload: bytes) -> tuple[int, int, float, float, np.ndarray]:
-    """(generation, tag, compute s, idle s, outputs); outputs a read-only view of the payload."""
-    generation, tag, compute_s, idle_s = _OUTPUT_HEADER.unpack_from(payload, 1)
-    return generation, tag, compute_s, idle_s, np.frombuffer(payload, dtype=np.float64, offset=1 + _OUTPUT_HEADER.size)
+def encode_output(generation: int, tag: int, outputs: np.ndarray) -> bytes:
+    return OUTPUT + _OUTPUT_HEADER.pack(generation, tag) + outputs.tobytes()
+
+
+def decode_output(payload: bytes) -> tuple[int, int, np.ndarray]:
+    """(generation, tag, outputs); outputs a read-only view of the payload."""
+    generation, tag = _OUTPUT_HEADER.unpack_from(payload, 1)
+    return generation, tag, np.frombuffer(payload, dtype=np.float64, offset=1 + _OUTPUT_HEADER.size)
+
+
+def encode_batch(generation: int, tags: np.ndarray, timings: np.ndarray, outputs: np.ndarray) -> bytes:
+    """n steps' outputs: tags (n,) int64, timings (n, 2) compute and idle seconds, outputs (n, size)."""
+    n, size = outputs.shape
+    return (BATCH + _BATCH_HEADER.pack(generation, n, size) + tags.astype(np.int64).tobytes()
+            + timings.tobytes() + outputs.tobytes())
+
+
+def decode_batch(payload: bytes) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    """(generation, tags (n,), timings (n, 2), outputs (n, size)), views of the payload."""
+    generation, n, size = _BATCH_HEADER.unpack_from(payload, 1)
+    offset = 1 + _BATCH_HEADER.size
+    tags = np.frombuffer(payload, dtype=np.int64, count=n, offset=offset)
+    timings = np.frombuffer(payload, dtype=np.float64, count=2 * n, offset=offset + 8 * n).reshape(n, 2)
+    outputs = np.frombuffer(payload, dtype=np.float64, count=n * size, offset=offset + 24 * n).reshape(n, size)
+    return generation, tags, timings, outputs
 
 
 def encode_sync(generation: int) -> bytes:

@@ -19,6 +19,7 @@ import collections
 import os
 import queue
 import sys
+import threading
 import time
 import traceback
 
@@ -29,6 +30,9 @@ from components.schedule import Route
 from components.sdk import Layout, resolve_parameters
 
 COMMAND = ""   # queue tag of messages from the orchestrator (a source is tagged with its name)
+BATCH_STEPS = 32   # outputs go to the orchestrator in batches of this many steps ...
+IDLE_FLUSH_S = 0.02  # ... or sooner: at the horizon, before a reply or fault, after this long idle,
+SLOW_STEP_S = 0.05   # or when a step takes this long (a hung step leaves the steps before it recorded)
 
 
 class Halt(Exception):
@@ -38,16 +42,22 @@ class Halt(Exception):
 class ComponentProcess:
     """The adapter's state: the component, its layouts, its routes and the inputs it holds.
 
-    ``publish_reply`` and ``publish_output`` send bytes on the component's reply and output keys;
-    ``subscribe(source)`` makes the source's outputs arrive in the queue. Nothing here touches
-    Zenoh, so the step logic is tested without the bus.
+    ``publish_reply``, ``publish_output`` and ``publish_batch`` send bytes on the component's
+    reply, output and batch keys; ``subscribe(source)`` makes the source's outputs arrive in the
+    queue. Nothing here touches Zenoh, so the step logic is tested without the bus.
     """
 
-    def __init__(self, name: str, publish_reply, publish_output, subscribe):
+    def __init__(self, name: str, publish_reply, publish_output, publish_batch, subscribe):
         self.name = name
         self.publish_reply = publish_reply
         self.publish_output = publish_output
+        self.publish_batch = publish_batch
         self.subscribe = subscribe
+        self.has_consumers = False
+        self.batch_outputs = False    # consumers get outputs in batches too (they never hold it up)
+        self.batched = 0
+        self.batch_lock = threading.Lock()
+        self.stepping_since: float | None = None   # perf_counter at the start of a running do_step
         self.component = None
         self.generation = 0
         self.routes = []
@@ -64,9 +74,11 @@ class ComponentProcess:
     # ------------------------------------------------------------------ messages
 
     def reply(self, op: str, body: dict | None = None, blob: bytes = b"") -> None:
+        self.flush()
         self.publish_reply(bus.encode_message(bus.REPLY, {"op": op, **(body or {})}, blob))
 
     def fault(self, op: str, k: int, error: str) -> None:
+        self.flush()
         self.publish_reply(bus.encode_message(bus.FAULT, {"op": op, "k": k, "error": error}))
 
     def command(self, payload: bytes) -> bool:
@@ -87,9 +99,13 @@ class ComponentProcess:
         """An output (or sync) message of a source."""
         kind = payload[:1]
         if kind == bus.OUTPUT:
-            generation, tag, _, _, vector = bus.decode_output(payload)
+            generation, tag, vector = bus.decode_output(payload)
             if self.sources.get(source) == generation:
                 self.held[source].append((tag, vector))
+        elif kind == bus.BATCH:
+            generation, tags, _, outputs = bus.decode_batch(payload)
+            if self.sources.get(source) == generation:
+                self.held[source].extend(zip(tags.tolist(), outputs))
         elif kind == bus.SYNC and self.sources.get(source) == bus.decode_sync(payload) and not self.synced:
             self.heard.add(source)
             self._synced_when_complete()
@@ -108,10 +124,15 @@ class ComponentProcess:
             self.input_vector = self.inputs.start_vector()
             self.output_vector = self.outputs.start_vector()
             self.input_views = self.inputs.unpack(self.input_vector)
+            self.batch_tags = np.empty(BATCH_STEPS, dtype=np.int64)
+            self.batch_timings = np.empty((BATCH_STEPS, 2))
+            self.batch_rows = np.empty((BATCH_STEPS, self.outputs.size))
             self.component = cls(params)
             self.reply(op, {"inputs": self.inputs.size, "outputs": self.outputs.size, "pid": os.getpid()})
         elif op == "wire":
             self.generation, self.step_ns, self.ratio = body["generation"], body["step_ns"], body["ratio"]
+            self.has_consumers = body["consumers"]
+            self.batch_outputs = body["batch_outputs"]
             self.next_k = body["k"]
             self.horizon = body["k"]
             self.routes = [Route.from_json(r) for r in body["routes"]]
@@ -177,7 +198,10 @@ class ComponentProcess:
 
     def advance(self) -> None:
         """Do every step whose inputs are all held and which lies below the horizon."""
-        while self.next_k < self.horizon:
+        while True:
+            if self.next_k >= self.horizon:
+                self.flush()   # the orchestrator needs these outputs to grant more steps
+                return
             k = self.next_k
             vectors = []
             for route in self.routes:
@@ -196,13 +220,15 @@ class ComponentProcess:
             self._step(k)
 
     def _step(self, k: int) -> None:
-        started = time.perf_counter()
+        started = self.stepping_since = time.perf_counter()
         try:
             result = self.component.do_step(k * self.step_ns, self.ratio * self.step_ns, self.input_views)
             self.outputs.pack(result, self.output_vector)
         except Exception as error:
             traceback.print_exc(file=sys.stderr)
             raise Halt(self._report("step", k, f"{type(error).__name__}: {error}")) from None
+        finally:
+            self.stepping_since = None
         done = time.perf_counter()
         vector = self.output_vector
         if not np.isfinite(vector).all():
@@ -210,16 +236,51 @@ class ComponentProcess:
             variable = next(v.name for v in self.outputs.variables if bad < self.outputs.offsets[v.name].stop)
             raise Halt(self._report("nan", k, variable))
         tag = k + self.ratio
-        self.publish_output(bus.encode_output(self.generation, tag, done - started, started - self.idle_since, vector))
+        if self.has_consumers and not self.batch_outputs:
+            self.publish_output(bus.encode_output(self.generation, tag, vector))
         if self.name in self.held:   # a component fed by its own outputs
             self.held[self.name].append((tag, vector.copy()))
+        with self.batch_lock:
+            i = self.batched
+            self.batch_tags[i] = tag
+            self.batch_timings[i] = done - started, started - self.idle_since
+            self.batch_rows[i] = vector
+            self.batched = i + 1
+        if self.batched == BATCH_STEPS:
+            self.flush()
         self.next_k = tag
         self.idle_since = time.perf_counter()
+
+    def flush(self) -> None:
+        """Send the outputs not yet sent to the orchestrator (from any thread)."""
+        with self.batch_lock:
+            self._flush()
+
+    def flush_if_stuck(self) -> None:
+        """From a watchdog thread: flush while a step has been running for long."""
+        since = self.stepping_since
+        if since is not None and time.perf_counter() - since > SLOW_STEP_S and self.batched:
+            self.flush()
+
+    def _flush(self) -> None:
+        n = self.batched
+        if n:
+            batch = bus.encode_batch(self.generation, self.batch_tags[:n], self.batch_timings[:n], self.batch_rows[:n])
+            self.publish_batch(batch)
+            if self.has_consumers and self.batch_outputs:
+                self.publish_output(batch)
+            self.batched = 0
 
     def _report(self, op: str, k: int, error: str) -> str:
         self.fault(op, k, error)
         self.horizon = self.next_k   # no further step; the orchestrator ends the run
         return error
+
+
+def _watchdog(process: ComponentProcess) -> None:
+    while True:
+        time.sleep(SLOW_STEP_S)
+        process.flush_if_stuck()
 
 
 def _held_values(body: dict, blob: bytes) -> dict[str, collections.deque]:
@@ -245,6 +306,7 @@ def serve(connect: str, run_id: str, name: str, generation: int, listen: str) ->
                                                lambda s: inbox.put((COMMAND, s.payload.to_bytes()))))
         replies = bus.publisher(session, bus.component_key(run_id, name, generation, "out"))
         outputs = bus.publisher(session, bus.output_key(run_id, name))
+        batches = bus.publisher(session, bus.batch_key(run_id, name))
 
         def subscribe(source: str) -> None:
             keep.append(session.declare_subscriber(bus.output_key(run_id, source),
@@ -255,9 +317,14 @@ def serve(connect: str, run_id: str, name: str, generation: int, listen: str) ->
             bus.run_key(run_id, "alive", "orchestrator"),
             lambda s: inbox.put((COMMAND, bus.QUIT)) if s.kind == zenoh.SampleKind.DELETE else None))
         keep.append(session.liveliness().declare_token(bus.run_key(run_id, "alive", name, str(generation))))
-        process = ComponentProcess(name, replies.put, outputs.put, subscribe)
+        process = ComponentProcess(name, replies.put, outputs.put, batches.put, subscribe)
+        threading.Thread(target=_watchdog, args=(process,), daemon=True).start()
         while True:
-            source, payload = inbox.get()
+            try:
+                source, payload = inbox.get(timeout=IDLE_FLUSH_S) if process.batched else inbox.get()
+            except queue.Empty:
+                process.flush()
+                continue
             if source == COMMAND:
                 if payload == bus.QUIT:
                     print("the orchestrator went away: exiting", file=sys.stderr)

@@ -96,3 +96,21 @@ def initialization_order(names: list[str], connections) -> list[str]:
         ready = [n for n in pending if feeds[n] <= set(done)]
         done.append(ready[0] if ready else pending[0])
     return done
+
+
+def feeds_back(name: str, connections) -> bool:
+    """Is ``name`` on a loop with one of the components it feeds (a self-connection aside)?
+    If not, its consumers never hold it up, and it may send them its outputs in batches."""
+    consumers: dict[str, set[str]] = {}
+    for d, _, s, _ in connections:
+        if d != s:
+            consumers.setdefault(s, set()).add(d)
+    seen, stack = set(), list(consumers.get(name, ()))
+    while stack:
+        node = stack.pop()
+        if node == name:
+            return True
+        if node not in seen:
+            seen.add(node)
+            stack.extend(consumers.get(node, ()))
+    return False

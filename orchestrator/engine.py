@@ -4,12 +4,13 @@ records, and stops the run on the first fault.
 The orchestrator is off the per-step path. Components exchange their outputs directly (see
 :mod:`components.bus`) and each steps ``k`` as soon as it holds the inputs tagged for ``k`` and
 ``k`` lies below the *horizon* the orchestrator grants (rules: :mod:`components.schedule`). The
-orchestrator subscribes to every output, assembles the recorded rows, and checks for deaths
+orchestrator receives every output, assembles the recorded rows, and checks for deaths
 (liveliness) and hangs (a component that holds its inputs but does not step within
 ``run.step_timeout``). Control (swap, stop, events) happens at a step boundary: the horizon is
 held there until every component has reached it. A component with no input from the loop (an
 orbit) runs ahead up to the horizon, which hides its cost.
 
+Components send the orchestrator their outputs in batches (see :mod:`components.runner`).
 Every message the orchestrator receives lands in one inbox queue (callbacks only enqueue) and the
 main thread does all the work. Times are integer nanoseconds, step k covers [k*h, (k+1)*h).
 """
@@ -148,16 +149,17 @@ class Run:
         kind, a, b = message
         if kind == "o":
             member = self.members.get(a.rpartition("/")[2])
-            if member is None or b[:1] != bus.OUTPUT:
+            if member is None or b[:1] != bus.BATCH:
                 return
-            generation, tag, compute_s, idle_s, vector = bus.decode_output(b)
+            generation, tags, timings, outputs = bus.decode_batch(b)
             if generation != member.generation:
                 return  # a replaced generation
-            member.received.append((tag, vector))
-            member.progress, member.progress_at = tag, time.monotonic()
+            member.received.extend(zip(tags.tolist(), outputs))
+            member.progress, member.progress_at = int(tags[-1]), time.monotonic()
+            compute_s, idle_s = timings.sum(axis=0)
             member.compute_s += compute_s
             member.idle_s += idle_s
-            member.steps += 1
+            member.steps += len(tags)
         elif kind == "r":
             parts = a.split("/")
             member = self._member(parts[-3], int(parts[-2]))
@@ -301,6 +303,8 @@ class Run:
         member.routes = self._routes(member.spec, members)
         self._ask([member], "wire", "wire", self.config.start_timeout_s, {
             "generation": member.generation, "step_ns": self.config.step_ns, "ratio": member.ratio, "k": k,
+            "consumers": any(s == member.name and d != member.name for d, _, s, _ in self.config.connections),
+            "batch_outputs": not schedule.feeds_back(member.name, self.config.connections),
             "routes": [r.to_json() for r in member.routes],
             "sources": {r.source: members[r.source].generation for r in member.routes}})
 
@@ -630,7 +634,7 @@ class Run:
                 if attempt == 2 or not any(e.endswith(":0") for e in self.config.listen):
                     raise RunFailure(f"cannot open the bus on {', '.join(listen)} (bus.listen): {e}") from None
         self._subscriptions = [
-            self.session.declare_subscriber(bus.run_key(self.run_id, "o", "*"), self._on_output),
+            self.session.declare_subscriber(bus.run_key(self.run_id, "r", "*"), self._on_output),
             self.session.declare_subscriber(bus.run_key(self.run_id, "c", "*", "*", "out"), self._on_reply),
             self.session.liveliness().declare_subscriber(bus.run_key(self.run_id, "alive", "*", "*"),
                                                          self._on_liveliness),

@@ -82,3 +82,14 @@ connections: {{sum.u: slow.n}}
     j = np.arange(100)
     u = np.floor(j / 5) if algorithm == "jacobi" else np.floor((j + 1) / 5)
     assert np.allclose(rows[:, 1], np.concatenate([[0.0], np.cumsum(0.01 * u)]), rtol=0, atol=1e-12)
+
+
+def test_only_components_off_every_loop_batch_their_outputs():
+    from components.schedule import feeds_back
+    # the paper's demo: orbit -> dynamics <-> controller; a self-connection is not a loop
+    demo = [("dynamics", "r_eci", "orbit", "r_eci"), ("dynamics", "tau", "controller", "tau"),
+            ("controller", "q", "dynamics", "q"), ("orbit", "u", "orbit", "y")]
+    assert [feeds_back(n, demo) for n in ("orbit", "dynamics", "controller")] == [False, True, True]
+    ring = [("b", "u", "a", "y"), ("c", "u", "b", "y"), ("a", "u", "c", "y")]
+    assert all(feeds_back(n, ring) for n in "abc")
+    assert not any(feeds_back(n, ring[:2]) for n in "abc")

@@ -42,11 +42,13 @@ import numpy as np
 from components.constants import MU_EARTH, R_EARTH
 from components.dynamics import environment as env
 from components.dynamics.urdf import UrdfModel, dart_urdf_text, read_urdf
-from components.rotations import cross, matrix_to_quat, quat_to_matrix, rpy_to_matrix
+from components.rotations import cross3, matrix_to_quat, quat_to_matrix, rpy_to_matrix, skew
 
 INTEGRATORS = ("rk4", "dart")
 FRAMES = ("world", "lvlh")
 DEFAULT_CD = 2.2
+ORIGIN = np.zeros(3)
+SKEW_AXIAL = np.array([5, 6, 1])           # (1, 2), (2, 0), (0, 1) of a flattened -[x]x: x
 
 
 class ModelError(ValueError):
@@ -210,6 +212,45 @@ class _Body:
         self.local_com = np.array([bn.getLocalCOM() for bn in self.nodes]).reshape(-1, 3)
         self.local_inertia = np.array([bn.getInertia().getMoment() for bn in self.nodes]).reshape(-1, 3, 3)
         self.total_mass = float(self.mass.sum())
+        # A link welded to its parent (fixed URDF joint, locked joint) moves with its anchor, the
+        # nearest ancestor that is not welded (or itself). The environment needs one DART call per
+        # anchor: its Jacobian, which gives the anchor's pose (see _anchor_frames) and maps the
+        # wrench of its links to generalized forces (J^T W: no DART call per link and wrench).
+        anchor_index: dict[str, int] = {}
+        self.anchors = []
+        slots, com_in_anchor, inertia_in_anchor = [], [], []
+        for bn, com, inertia in zip(self.nodes, self.local_com, self.local_inertia):
+            anchor, T = bn, np.eye(4)
+            while anchor.getParentJoint().getType() == "WeldJoint":
+                T = anchor.getParentJoint().getRelativeTransform().matrix() @ T
+                anchor = anchor.getParentBodyNode()
+            if anchor.getName() not in anchor_index:
+                anchor_index[anchor.getName()] = len(self.anchors)
+                self.anchors.append(anchor)
+            slots.append(anchor_index[anchor.getName()])
+            com_in_anchor.append(T[:3, :3] @ com + T[:3, 3])
+            inertia_in_anchor.append(T[:3, :3] @ inertia @ T[:3, :3].T)
+        self.anchor_slot = np.array(slots, dtype=int)
+        self.com_in_anchor = np.array(com_in_anchor).reshape(-1, 3)
+        self.inertia_in_anchor = np.array(inertia_in_anchor).reshape(-1, 3, 3)
+        # the wrench of each anchor's links about its origin in its axes, [torque; force] (6 per
+        # anchor) = wrench_matrix @ [link torques about the CoMs; link forces at the CoMs] (3n each)
+        n, k = len(self.nodes), len(self.anchors)
+        self.wrench_matrix = np.zeros((k, 6, 2, n, 3))
+        for i, (a, e) in enumerate(zip(self.anchor_slot, self.com_in_anchor)):
+            self.wrench_matrix[a, :3, 0, i] = np.eye(3)
+            self.wrench_matrix[a, :3, 1, i] = skew(e)
+            self.wrench_matrix[a, 3:, 1, i] = np.eye(3)
+        self.wrench_matrix = self.wrench_matrix.reshape(6 * k, 6 * n)
+        # columns of the anchors' Jacobians side by side: their dof, their anchor; and the
+        # columns of the base rotation (the FreeJoint's first three dofs come first in each)
+        dofs = [[anchor.getDependentGenCoordIndex(i) for i in range(anchor.getNumDependentGenCoords())]
+                for anchor in self.anchors]
+        self.jacobian_dofs = np.array([dof for anchor_dofs in dofs for dof in anchor_dofs], dtype=int)
+        self.jacobian_anchor = np.repeat(np.arange(len(self.anchors)), [len(anchor_dofs) for anchor_dofs in dofs])
+        starts = np.cumsum([0] + [len(anchor_dofs) for anchor_dofs in dofs[:-1]])
+        self.base_rotation_columns = (starts[:, None] + np.arange(3)).astype(int)
+        self.root = skel.getRootBodyNode()
         node_slot = {bn.getName(): i for i, bn in enumerate(self.nodes)}
         self.link_names = model.link_names
         self.link_source = []                                  # (node or None, env slot or -1, fixed offset)
@@ -311,13 +352,13 @@ class OrbitalWorld:
     def set_orbit(self, r_eci, v_eci, q_eci_lvlh=(0.0, 0.0, 0.0, 1.0), w_lvlh=(0.0, 0.0, 0.0)) -> None:
         """Reference orbit point (m, m/s, ECI), LVLH attitude q_ECI_LVLH and rate (rad/s, ECI axes)."""
         values = {"r_eci": r_eci, "v_eci": v_eci, "q_eci_lvlh": q_eci_lvlh, "w_lvlh": w_lvlh}
-        for key, value in values.items():
-            if not np.all(np.isfinite(value)):
-                raise ValueError(f"input {key}: expected finite values, got {np.asarray(value).tolist()}")
-        self.r_eci = np.array(r_eci, dtype=float)
-        self.v_eci = np.array(v_eci, dtype=float)
-        self.q_eci_lvlh = np.array(q_eci_lvlh, dtype=float)
-        self.w_lvlh = np.array(w_lvlh, dtype=float)
+        orbit = np.concatenate([np.ravel(value) for value in values.values()], dtype=float)
+        if orbit.size != 13 or not np.isfinite(orbit).all():
+            for (key, value), size in zip(values.items(), (3, 3, 4, 3)):
+                value = np.asarray(value, dtype=float)
+                if value.size != size or not np.isfinite(value).all():
+                    raise ValueError(f"input {key}: expected {size} finite values, got {value.tolist()}")
+        self.r_eci, self.v_eci, self.q_eci_lvlh, self.w_lvlh = orbit[0:3], orbit[3:6], orbit[6:10], orbit[10:13]
         self.elapsed = 0.0
         self._reference_cache = {}
 
@@ -328,13 +369,11 @@ class OrbitalWorld:
         tau = np.asarray(tau, dtype=float).ravel()
         if tau.size != len(body.joints):
             raise ValueError(f"input {name}.tau: expected {len(body.joints)} values, got {tau.size}")
-        bad = ~np.isfinite(tau)
-        if np.any(bad):
-            k = int(np.argmax(bad))
+        if not np.isfinite(tau).all():
+            k = int(np.argmax(~np.isfinite(tau)))
             raise ValueError(f"input {name}.tau: expected finite values, got {tau[k]} for {body.joints[k]}")
-        tau = np.clip(tau, -body.effort, body.effort)
         body.tau[:] = 0.0
-        body.tau[body.free_dofs] = tau[body.free]
+        body.tau[body.free_dofs] = np.minimum(np.maximum(tau, -body.effort), body.effort)[body.free]
 
     def reset_bodies(self) -> None:
         """Put every body in its initial state from its spec (``frame: lvlh`` uses the orbit inputs)."""
@@ -388,44 +427,65 @@ class OrbitalWorld:
             cached = self._reference_cache[s] = env.propagate_reference(self.r_eci, self.v_eci, s, self.mu)
         return cached
 
+    @staticmethod
+    def _anchor_frames(body: _Body):
+        """The anchors' Jacobians side by side (6, n_columns: DART's body Jacobian at each anchor
+        origin, anchor axes, [angular; linear]), the anchors' rotations transposed R_a^T (n_anchors,
+        3, 3) and their origins relative to the base origin p in anchor axes, R_a^T (p_a - p)
+        (n_anchors, 3). The base rotation columns of an anchor's Jacobian are R_a^T (angular rows)
+        and -R_a^T [p_a - p]x = -[R_a^T (p_a - p)]x R_a^T (linear rows)."""
+        J = np.concatenate([anchor.getJacobian(ORIGIN) for anchor in body.anchors], axis=1)
+        base_rotation = J.take(body.base_rotation_columns, axis=1).transpose(1, 0, 2)     # (n_anchors, 6, 3)
+        rotation_T = base_rotation[:, :3]
+        minus_skew = base_rotation[:, 3:] @ rotation_T.transpose(0, 2, 1)
+        return J, rotation_T, minus_skew.reshape(-1, 9).take(SKEW_AXIAL, axis=1)
+
+    def _local_wrenches(self, body: _Body, R, V, rotation_T, offset):
+        """Environment on each massive link at the skeleton's current state, in its anchor's axes:
+        (tidal force, drag force or None when off, gravity-gradient torque), each (n_nodes, 3)."""
+        slot = body.anchor_slot
+        base = body.skel.getPositions()[3:6]                # the FreeJoint's translation: base origin in W
+        local = np.einsum("kij,jm->kim", rotation_T, np.column_stack((R, base))).take(slot, axis=0)
+        R_local = local[:, :, 0]                            # R in each link's anchor axes, and the link CoMs
+        d_local = local[:, :, 1] + (offset.take(slot, axis=0) + body.com_in_anchor)
+        tidal, torque = env.tidal_force_and_gravity_gradient(R_local, d_local, body.mass, body.inertia_in_anchor,
+                                                             self.mu, self.tidal, self.gg)
+        drag = None
+        if self.drag and body.has_drag:
+            v_com = np.array([bn.getCOMLinearVelocity() for bn in body.nodes]).reshape(-1, 3)
+            link_rotation_T = rotation_T.take(slot, axis=0)
+            position = R + np.einsum("nji,nj->ni", link_rotation_T, d_local)
+            v_rel = V + v_com - env.atmosphere_velocity(position)
+            density = self.atmosphere.density(np.linalg.norm(position, axis=1) - R_EARTH)
+            drag = np.einsum("nij,nj->ni", link_rotation_T, env.drag_force(density, body.drag_cd, body.drag_area, v_rel))
+        return tidal, drag, torque
+
     def link_wrenches(self, body: _Body, R: np.ndarray, V: np.ndarray):
         """Environment on each massive link at the skeleton's current state: (tidal force, drag
         force, gravity-gradient torque), each (n_nodes, 3), N and N m, W axes, about the CoM."""
-        n = len(body.nodes)
-        coms = np.array([bn.getCOM() for bn in body.nodes]).reshape(n, 3)
-        zeros = np.zeros((n, 3))
-        tidal = body.mass[:, None] * env.tidal_acceleration(R, coms, self.mu) if self.tidal else zeros
-        torque, drag = zeros, zeros
-        if self.gg:
-            rot = np.array([bn.getTransform().rotation() for bn in body.nodes]).reshape(n, 3, 3)
-            inertia_W = rot @ body.local_inertia @ rot.transpose(0, 2, 1)
-            torque = env.gravity_gradient_torque(R + coms, inertia_W, self.mu)
-        if self.drag and body.has_drag:
-            v_com = np.array([bn.getCOMLinearVelocity() for bn in body.nodes]).reshape(n, 3)
-            position = R + coms
-            v_rel = V + v_com - env.atmosphere_velocity(position)
-            density = self.atmosphere.density(np.linalg.norm(position, axis=1) - R_EARTH)
-            drag = env.drag_force(density, body.drag_cd, body.drag_area, v_rel)
+        _, rotation_T, offset = self._anchor_frames(body)
+        tidal, drag, torque = self._local_wrenches(body, R, V, rotation_T, offset)
+        link_rotation_T = rotation_T.take(body.anchor_slot, axis=0)
+        tidal, torque = (np.einsum("nji,nj->ni", link_rotation_T, local) for local in (tidal, torque))
+        drag = np.zeros_like(tidal) if drag is None else np.einsum("nji,nj->ni", link_rotation_T, drag)
         return tidal, drag, torque
 
     def _apply_environment(self, body: _Body, s: float) -> None:
+        """Sets the body's generalized forces: its joint torques and the environment, J^T W over
+        the anchors, W the wrench of an anchor's links about its origin in its axes."""
         R, V = self.reference(s)
-        tidal, drag, torque = self.link_wrenches(body, R, V)
-        force = tidal + drag
-        for bn, f, t, c in zip(body.nodes, force, torque, body.local_com):
-            bn.setExtForce(f, c, False, True)      # at the CoM (offset local), force in W
-            bn.addExtTorque(t, False)              # torque in W (setExtForce replaced the whole wrench)
+        J, rotation_T, offset = self._anchor_frames(body)
+        tidal, drag, torque = self._local_wrenches(body, R, V, rotation_T, offset)
+        force = tidal if drag is None else tidal + drag
+        wrench = (body.wrench_matrix @ np.concatenate((torque.ravel(), force.ravel()))).reshape(-1, 6)
+        columns = np.einsum("ic,ci->c", J, wrench.take(body.jacobian_anchor, axis=0))
+        body.skel.setForces(body.tau + np.bincount(body.jacobian_dofs, columns, minlength=body.ndofs))
 
     # ----------------------------------------------------------------- integration
 
-    def _acceleration(self, body: _Body, q0, xi, v, s: float) -> np.ndarray:
+    def _acceleration(self, body: _Body, s: float) -> np.ndarray:
+        """Accelerations (DART order) at the skeleton's current state, torques and environment."""
         skel = body.skel
-        skel.setPositions(q0)
-        if xi is not None:
-            skel.setVelocities(xi)
-            skel.integratePositions(1.0)           # q = q0 (+) xi, DART's own chart
-        skel.setVelocities(v)
-        skel.setForces(body.tau)
         if self._env_now:
             self._apply_environment(body, s)
         skel.computeForwardDynamics()
@@ -433,6 +493,13 @@ class OrbitalWorld:
         if body.stops.size:
             a = self._hold_stops(body, a)
         return a
+
+    @staticmethod
+    def _set_stage(skel, q0, xi, v) -> None:
+        skel.setPositions(q0)
+        skel.setVelocities(xi)
+        skel.integratePositions(1.0)               # q = q0 (+) xi, DART's own chart
+        skel.setVelocities(v)
 
     @staticmethod
     def _hold_stops(body: _Body, a: np.ndarray) -> np.ndarray:
@@ -453,9 +520,7 @@ class OrbitalWorld:
         return a
 
     @staticmethod
-    def _xi_rate(v: np.ndarray, xi) -> np.ndarray:
-        if xi is None:
-            return v
+    def _xi_rate(v: np.ndarray, xi: np.ndarray) -> np.ndarray:
         rate = v.copy()
         rate[:3] = so3_left_jacobian_inverse_times(xi[:3], v[:3])
         return rate
@@ -463,23 +528,25 @@ class OrbitalWorld:
     def _rk4(self, body: _Body, h: float, s: float) -> None:
         skel = body.skel
         q0, v0 = skel.getPositions(), skel.getVelocities()
-        a1 = self._acceleration(body, q0, None, v0, s)
+        if not self._env_now:
+            skel.setForces(body.tau)               # forward dynamics leaves them: set once for all stages
+        a1 = self._acceleration(body, s)           # at (q0, v0), the current state
         d1 = v0
         xi2, v2 = 0.5 * h * d1, v0 + 0.5 * h * a1
-        a2 = self._acceleration(body, q0, xi2, v2, s + 0.5 * h)
+        self._set_stage(skel, q0, xi2, v2)
+        a2 = self._acceleration(body, s + 0.5 * h)
         d2 = self._xi_rate(v2, xi2)
         xi3, v3 = 0.5 * h * d2, v0 + 0.5 * h * a2
-        a3 = self._acceleration(body, q0, xi3, v3, s + 0.5 * h)
+        self._set_stage(skel, q0, xi3, v3)
+        a3 = self._acceleration(body, s + 0.5 * h)
         d3 = self._xi_rate(v3, xi3)
         xi4, v4 = h * d3, v0 + h * a3
-        a4 = self._acceleration(body, q0, xi4, v4, s + h)
+        self._set_stage(skel, q0, xi4, v4)
+        a4 = self._acceleration(body, s + h)
         d4 = self._xi_rate(v4, xi4)
         xi = (h / 6.0) * (d1 + 2.0 * d2 + 2.0 * d3 + d4)
         v = v0 + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-        skel.setPositions(q0)
-        skel.setVelocities(xi)
-        skel.integratePositions(1.0)
-        skel.setVelocities(v)
+        self._set_stage(skel, q0, xi, v)
         if self.joint_limits and body.limited:
             self._joint_stops(body)
 
@@ -510,9 +577,6 @@ class OrbitalWorld:
             raise ValueError(f"step: expected a positive duration, got {h} s")
         dt = h / self.substeps
         self._env_now = self.environment_on
-        if not self._env_now:
-            for body in self.bodies.values():
-                body.skel.clearExternalForces()        # none left over from an earlier step
         for k in range(self.substeps):
             s = self.elapsed + k * dt
             if self.integrator == "rk4":
@@ -520,9 +584,10 @@ class OrbitalWorld:
                     self._rk4(body, dt, s)
             else:
                 for body in self.bodies.values():
-                    body.skel.setForces(body.tau)
                     if self._env_now:
                         self._apply_environment(body, s)
+                    else:
+                        body.skel.setForces(body.tau)
                 self.world.setTimeStep(dt)
                 self.world.step()
         self.elapsed += h
@@ -533,14 +598,12 @@ class OrbitalWorld:
         origin m/s^2, then angular acceleration rad/s^2, W axes) and ``qdd`` (URDF joint order)."""
         body = self.bodies[name]
         skel = body.skel
-        skel.setForces(body.tau)
         if self.environment_on:
             self._apply_environment(body, self.elapsed)
         else:
-            skel.clearExternalForces()
+            skel.setForces(body.tau)
         skel.computeForwardDynamics()
         a = np.array(skel.getAccelerations())
-        skel.clearExternalForces()
         qdd = np.zeros(len(body.joints))
         qdd[body.free] = a[body.free_dofs]
         return {"dv_W_base": np.concatenate([a[3:6], a[:3]]), "qdd": qdd}
@@ -548,32 +611,38 @@ class OrbitalWorld:
     # ----------------------------------------------------------------- outputs
 
     def momentum(self, name: str) -> np.ndarray:
-        """(linear kg m/s, angular kg m^2/s about the body's CoM), W axes.
+        """(linear kg m/s, angular kg m^2/s about the body's CoM), W axes."""
+        body = self.bodies[name]
+        skel = body.skel
+        return self._momentum(skel, skel.getVelocities(), skel.getCOM(), body.root.getTransform().translation())
 
-        The base rows of M(q) v are the momentum conjugate to DART's FreeJoint velocity
+    @staticmethod
+    def _momentum(skel, velocities: np.ndarray, com: np.ndarray, base_position: np.ndarray) -> np.ndarray:
+        """The base rows of M(q) v are the momentum conjugate to DART's FreeJoint velocity
         (omega_W, v_W): total angular momentum about the base origin p, then linear momentum L;
-        about the CoM c: H_c = H_p - (c - p) x L."""
-        skel = self.bodies[name].skel
-        h = skel.getMassMatrix()[:6] @ skel.getVelocities()
+        about the CoM c: H_c = H_p - (c - p) x L. (DART builds M in C++ faster than the link
+        sum could gather each link's pose and velocity through Python.)"""
+        h = skel.getMassMatrix()[:6] @ velocities
         linear = h[3:6]
-        lever = np.asarray(skel.getCOM()) - np.asarray(skel.getRootBodyNode().getTransform().translation())
-        return np.concatenate([linear, h[:3] - cross(lever, linear)])
+        return np.concatenate([linear, h[:3] - cross3(com - base_position, linear)])
 
     def outputs(self, name: str, links: bool = True) -> dict[str, np.ndarray]:
         """Every output of body ``name`` at the current state (see the component's table);
         ``links=False`` leaves out the per-link ones (poses and environment wrenches)."""
         body = self.bodies[name]
         skel = body.skel
-        root = skel.getRootBodyNode().getTransform()
+        root = body.root.getTransform()
+        position = root.translation()
         velocities = skel.getVelocities()
+        com = skel.getCOM()
         out = {
-            "position": np.array(root.translation()),
+            "position": position,
             "orientation": matrix_to_quat(root.rotation()),
             "twist": np.concatenate([velocities[3:6], velocities[:3]]),
             "q": body.joint_positions(),
             "qd": body.joint_velocities(),
-            "com": np.array(skel.getCOM()),
-            "momentum": self.momentum(name),
+            "com": com,
+            "momentum": self._momentum(skel, velocities, com, position),
         }
         if links:
             out.update(self.link_outputs(name))

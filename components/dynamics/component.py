@@ -18,7 +18,7 @@ own step with its constraint solver (contacts between bodies). Quaternions [x, y
 | atmosphere | any | - | null | null: piecewise exponential table 0-1000 km; or {altitude, density, scale_height} |
 | mu | float | m^3/s^2 | 3.986004418e14 | Earth's gravitational parameter |
 | joint_limits | bool | - | true | URDF position limits (rk4: inelastic stops; dart: constraints) |
-| link_outputs | bool | - | true | publish the per-link outputs (last five rows below), for the viewer |
+| link_outputs | bool | - | false | publish the per-link outputs (last five rows below): they cost about as much as the rest of the step |
 
 Body (``bodies.<name>``):
 
@@ -76,6 +76,8 @@ NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 BODY_KEYS = ("urdf", "frame", "position", "orientation", "twist", "q", "qd", "locked_joints",
              "drag_area", "drag_cd")
 ORBIT_INPUTS = ("r_eci", "v_eci", "q_eci_lvlh", "w_lvlh")
+BODY_OUTPUTS = ("position", "orientation", "twist", "q", "qd", "com", "momentum")
+LINK_OUTPUTS = ("gg_torque", "tidal_force", "drag_force", "link_position", "link_orientation")
 
 
 def resolve_urdf(value: Any, config_dir: str | None, key: str) -> Path:
@@ -225,8 +227,8 @@ class DartDynamics(Component):
                   description="null: exponential table 0-1000 km; or {altitude, density, scale_height}"),
         Parameter("mu", "float", unit="m^3/s^2", default=MU_EARTH, description="Earth's gravitational parameter"),
         Parameter("joint_limits", "bool", default=True, description="enforce the URDF joint position limits"),
-        Parameter("link_outputs", "bool", default=True,
-                  description="publish the per-link outputs (poses, environment wrenches) for the viewer"),
+        Parameter("link_outputs", "bool", default=False,
+                  description="publish the per-link outputs (poses, environment wrenches)"),
     )
 
     @classmethod
@@ -240,7 +242,7 @@ class DartDynamics(Component):
             Variable("w_lvlh", "input", (3,), "rad/s", [0.0, 0.0, 0.0],
                      "LVLH angular velocity, ECI axes; used at initialize for frame: lvlh bodies"),
         ]
-        links = params.get("link_outputs", True)
+        links = params.get("link_outputs", False)
         for name, model in load_models(params).items():
             n, m = len(model.movable_joints), len(model.links)
             joints = ", ".join(model.movable_joints)
@@ -296,21 +298,25 @@ class DartDynamics(Component):
         except ModelError as e:
             raise ConfigError(f"bodies.{e.key}", e.message) from None
         self.names = [spec.name for spec in specs]
+        self.links = params["link_outputs"]
+        self.torque_inputs = [(name, f"{name}.tau") for name in self.names]
+        self.output_names = {name: {key: f"{name}.{key}" for key in BODY_OUTPUTS + LINK_OUTPUTS} for name in self.names}
 
     def _inputs(self, inputs: Mapping[str, np.ndarray], torques: bool) -> None:
         try:
-            self.world.set_orbit(*(np.asarray(inputs[k], dtype=float) for k in ORBIT_INPUTS))
+            self.world.set_orbit(*(inputs[k] for k in ORBIT_INPUTS))
             if torques:
-                for name in self.names:
-                    self.world.set_torques(name, inputs[f"{name}.tau"])
+                for name, key in self.torque_inputs:
+                    self.world.set_torques(name, inputs[key])
         except ValueError as e:
             raise ComponentError(str(e)) from None
 
     def _outputs(self) -> dict[str, np.ndarray]:
         out = {}
         for name in self.names:
-            for key, value in self.world.outputs(name, links=self.params["link_outputs"]).items():
-                out[f"{name}.{key}"] = value
+            output_names = self.output_names[name]
+            for key, value in self.world.outputs(name, links=self.links).items():
+                out[output_names[key]] = value
         return out
 
     def initialize(self, t0_ns, inputs):

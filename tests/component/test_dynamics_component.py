@@ -45,7 +45,7 @@ def errors_of(params):
 
 def test_registered_and_variables_declared():
     assert registry.load("dynamics.dart") is DartDynamics
-    h = harness({"humanoid": HUMANOID, "target": {"urdf": "../models/target.urdf"}})
+    h = harness({"humanoid": HUMANOID, "target": {"urdf": "../models/target.urdf"}}, link_outputs=True)
     shapes = {v.name: v.shape for v in h.input_layout.variables + h.output_layout.variables}
     assert shapes["r_eci"] == (3,) and shapes["q_eci_lvlh"] == (4,) and shapes["w_lvlh"] == (3,)
     assert shapes["humanoid.tau"] == (14,) and shapes["target.tau"] == (0,)
@@ -57,8 +57,8 @@ def test_registered_and_variables_declared():
         assert shapes[f"{body}.link_orientation"] == (4 * links,)
 
 
-def test_link_outputs_can_be_left_out():
-    h = harness(link_outputs=False)
+def test_link_outputs_are_left_out_by_default():
+    h = harness()
     names = [v.name for v in h.output_layout.variables]
     assert "humanoid.momentum" in names and "humanoid.gg_torque" not in names and "humanoid.link_position" not in names
     assert set(h.initialize()) == set(names)
@@ -192,7 +192,7 @@ def test_lvlh_start_and_environment_outputs():
     urdfs = {"humanoid": CONFIGS / HUMANOID["urdf"], "target": CONFIGS / "../models/target.urdf"}
     h = harness({"humanoid": {**HUMANOID, "frame": "lvlh"},
                  "target": {"urdf": "../models/target.urdf", "frame": "lvlh", "position": [3.0, -2.0, 1.0],
-                            "orientation": attitude.tolist()}})
+                            "orientation": attitude.tolist()}}, link_outputs=True)
     a = 6778e3
     h.inputs.update(circular(a, 0.0))
     out = h.initialize()

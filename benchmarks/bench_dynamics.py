@@ -1,87 +1,103 @@
-"""Time per step of the dynamics.dart physics for the humanoid torso (Table 1 model).
+"""CPU time per step of the dynamics.dart component, in process (no bus).
 
-    python benchmarks/bench_dynamics.py [--steps 2000] [--step 1e-3]
+    python benchmarks/bench_dynamics.py [--steps 3000] [--repeat 3] [--link-outputs] [--table]
 
-For each integrator (rk4, dart) and environment (none; tidal + gravity gradient in a 6778 km
-orbit), prints the wall time per communication step of OrbitalWorld.step alone and of the whole
-component step (inputs, step, all outputs) through the in-process harness. The arm follows
-a PD law towards a moving posture
-(within the joint limits). A benchmark, not a test: numbers depend on the machine.
+First row: the paper's demo, the ``dynamics`` parameters of configs/humanoid_tracking.yaml as
+they are (humanoid torso, left arm locked, rk4, tidal force and gravity-gradient torque, 1 ms
+steps), driven by a circular 6778 km orbit and a PD law holding the demo's start posture.
+Timed as components/runner.py times a component's compute: unpacking the inputs, ``do_step``
+and packing the outputs in the fixed float64 layout. ``--link-outputs`` adds the same with
+``link_outputs: true``; ``--table`` adds rk4 and dart, with and without the environment, on an
+unlocked humanoid (link_outputs false).
+
+Each row is the median over the steps of the thread's CPU time (``time.thread_time_ns``, so
+that another process busy on the other core does not count), the lowest such median of
+``--repeat`` passes. A benchmark, not a test: the numbers depend on the machine.
 """
 from __future__ import annotations
 
 import argparse
+import math
+import platform
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from components.dynamics.component import DartDynamics  # noqa: E402
-from components.dynamics.world import BodySpec, OrbitalWorld  # noqa: E402
+from components.constants import MU_EARTH  # noqa: E402
 from components.testing.harness import Harness  # noqa: E402
 
-URDF = ROOT / "models" / "humanoid_torso.urdf"
-R0, V0 = np.array([6778e3, 0.0, 0.0]), np.array([0.0, 7668.6, 0.0])
-START = {"arm_right_1_joint": -0.4, "arm_right_2_joint": -0.3, "arm_right_4_joint": -1.0,
-         "arm_left_1_joint": -0.4, "arm_left_2_joint": 0.3, "arm_left_4_joint": -1.0}
+CONFIGS = ROOT / "configs"
+DEMO = CONFIGS / "humanoid_tracking.yaml"
+URDF = str(ROOT / "models" / "humanoid_torso.urdf")
+A = 6778e3
+MS = 1_000_000
 
 
-REF = np.array([START.get(f"arm_{s}_{i}_joint", 0.0) for s in ("left", "right") for i in range(1, 8)])
+def circular_orbit(t: float) -> dict[str, np.ndarray]:
+    """The orbit inputs of dynamics.dart on an equatorial circular orbit of radius A at time t."""
+    n = math.sqrt(MU_EARTH / A**3)
+    th = n * t
+    return {"r_eci": A * np.array([math.cos(th), math.sin(th), 0.0]),
+            "v_eci": A * n * np.array([-math.sin(th), math.cos(th), 0.0]),
+            "q_eci_lvlh": np.array([0.0, 0.0, math.sin(th / 2), math.cos(th / 2)]),
+            "w_lvlh": np.array([0.0, 0.0, n])}
 
 
-def torques(k: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-    """A PD towards a slowly moving posture: the arms move, no joint reaches a limit."""
-    ref = REF + 0.3 * np.sin(1.3e-3 * k + np.arange(14))
-    return 2.0 * (ref - q) - 0.5 * qd
-
-
-def bench_world(integrator: str, environment: bool, steps: int, h: float) -> float:
-    world = OrbitalWorld([BodySpec("humanoid", URDF, q=START)], integrator=integrator,
-                         tidal_force=environment, gravity_gradient=environment)
-    if environment:
-        world.set_orbit(R0, V0)
-    world.reset_bodies()
-    started = time.perf_counter()
-    body = world.bodies["humanoid"]
+def step_times(params: dict, steps: int) -> np.ndarray:
+    """CPU time (ns) of each of ``steps`` component steps of 1 ms, as the runner times them."""
+    harness = Harness("dynamics.dart", params, config_dir=CONFIGS)
+    component, inputs, outputs = harness.component, harness.input_layout, harness.output_layout
+    body = next(iter(params["bodies"]))
+    input_vector, output_vector = inputs.start_vector(), outputs.start_vector()
+    harness.inputs.update(circular_orbit(0.0))
+    out = harness.initialize()
+    posture = out[f"{body}.q"].copy()
+    times = np.empty(steps)
     for k in range(steps):
-        world.set_torques("humanoid", torques(k, body.joint_positions(), body.joint_velocities()))
-        world.step(h)
-    return (time.perf_counter() - started) / steps
+        values = {**circular_orbit(k * 1e-3),
+                  f"{body}.tau": 0.5 * (posture - out[f"{body}.q"]) - 0.2 * out[f"{body}.qd"]}
+        for name, value in values.items():
+            input_vector[inputs.offsets[name]] = value
+        started = time.thread_time_ns()
+        result = component.do_step(k * MS, MS, inputs.unpack(input_vector))
+        outputs.pack(result, output_vector)
+        times[k] = time.thread_time_ns() - started
+        out = outputs.unpack(output_vector)
+    return times
 
 
-def bench_component(integrator: str, environment: bool, steps: int, h: float) -> float:
-    harness = Harness(DartDynamics, {"integrator": integrator, "tidal_force": environment,
-                                     "gravity_gradient": environment,
-                                     "bodies": {"humanoid": {"urdf": str(URDF), "q": START}}})
-    if environment:
-        harness.inputs["r_eci"], harness.inputs["v_eci"] = R0, V0
-    harness.initialize()
-    h_ns = int(round(h * 1e9))
-    started = time.perf_counter()
-    out = harness.outputs
-    for k in range(steps):
-        harness.inputs["humanoid.tau"] = torques(k, out["humanoid.q"], out["humanoid.qd"])
-        out = harness.step(h_ns)
-    return (time.perf_counter() - started) / steps
+def timed(label: str, params: dict, steps: int, repeat: int) -> None:
+    median = min(np.median(step_times(params, steps)) for _ in range(repeat))
+    print(f"  {label:<58}{median * 1e-3:9.1f} us/step")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=2000)
-    parser.add_argument("--step", type=float, default=1e-3, help="communication step, s")
+    parser.add_argument("--steps", type=int, default=3000)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--link-outputs", action="store_true", help="also time the demo with link_outputs: true")
+    parser.add_argument("--table", action="store_true", help="also time rk4 and dart, with and without environment")
     args = parser.parse_args()
-    print(f"humanoid torso, 20 DOF (6 base + 14 arm), step {args.step * 1e3:g} ms, {args.steps} steps")
-    print(f"{'integrator':<11}{'environment':<22}{'world.step':>12}{'component step':>16}")
-    for integrator in ("rk4", "dart"):
-        for environment in (False, True):
-            world = bench_world(integrator, environment, args.steps, args.step)
-            component = bench_component(integrator, environment, args.steps, args.step)
-            label = "tidal + gravity grad." if environment else "none"
-            print(f"{integrator:<11}{label:<22}{world * 1e6:>9.0f} us{component * 1e6:>13.0f} us")
+    print(f"dynamics.dart compute per 1 ms step, CPU time, median of {args.steps} steps, best of {args.repeat} "
+          f"({platform.processor() or platform.machine()}, Python {platform.python_version()})")
+    demo = yaml.safe_load(DEMO.read_text())["components"]["dynamics"]["parameters"]
+    timed(f"demo ({DEMO.name}), link_outputs {str(demo.get('link_outputs')).lower()}", demo, args.steps, args.repeat)
+    if args.link_outputs:
+        timed("demo, link_outputs true", {**demo, "link_outputs": True}, args.steps, args.repeat)
+    if args.table:
+        humanoid = {"urdf": URDF, "q": dict(demo["bodies"]["humanoid"]["q"])}
+        for integrator in ("rk4", "dart"):
+            for environment in (False, True):
+                params = {"integrator": integrator, "tidal_force": environment, "gravity_gradient": environment,
+                          "link_outputs": False, "bodies": {"humanoid": humanoid}}
+                label = f"{integrator}, unlocked, {'tidal + gravity gradient' if environment else 'no environment'}"
+                timed(label, params, args.steps, args.repeat)
 
 
 if __name__ == "__main__":

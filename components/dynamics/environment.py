@@ -98,22 +98,23 @@ def tidal_force_and_gravity_gradient(R, delta: np.ndarray, mass, inertia, mu: fl
     """
     R = np.asarray(R, dtype=float)
     d = delta
-    r2 = float(R.reshape(-1, 3)[0] @ R.reshape(-1, 3)[0])
+    x, y, z = R.ravel()[:3].tolist()
+    r2 = x * x + y * y + z * z
     rho = R + d
     w = np.einsum("ni,ni->n", d, rho + R)                    # 2 R.d + d.d = s^2 - r^2
     s2 = w + r2
     s = np.sqrt(s2)
     s3 = s2 * s
-    force = torque = None
+    zeros = None if tidal and gravity_gradient else np.zeros_like(d)
+    force = torque = zeros
     if tidal:
         r = math.sqrt(r2)
         scale = mass / s3 * -mu
-        factor = scale * w * (r * s + s2 + r2) / ((s + r) * (r2 * r))
+        factor = scale * w * (s + r2 / (s + r)) / (r2 * r)          # (r s + s^2 + r^2) / (r + s) = s + r^2 / (r + s)
         force = scale[:, None] * d - factor[:, None] * R
     if gravity_gradient:
         torque = (3.0 * mu / (s2 * s3))[:, None] * row_cross(rho, np.einsum("nij,nj->ni", inertia, rho))
-    zeros = np.zeros_like(d) if force is None or torque is None else None
-    return (zeros if force is None else force), (zeros if torque is None else torque)
+    return force, torque
 
 
 _NEXT, _PREVIOUS = np.array([1, 2, 0]), np.array([2, 0, 1])

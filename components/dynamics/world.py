@@ -3,7 +3,8 @@
 ``OrbitalWorld`` is the physics of the ``dynamics.dart`` component as a plain class (no bus, no
 I/O): several bodies, each a URDF on a free-floating base (DART FreeJoint), in zero gravity with
 the orbital environment of :mod:`components.dynamics.environment` (tidal force, gravity-gradient
-torque, drag) computed per link from the reference orbit inputs.
+torque, drag) computed per link from the reference orbit inputs, at every integrator stage, and
+applied as generalized forces (J^T W over the links, through DART's Jacobians).
 
 Frames: W has its origin at the reference orbit point r_eci(t), axes parallel to ECI, and falls
 freely (it does not rotate). LVLH (Hill): x radial, z orbit normal, y = z x x. Quaternions are
@@ -192,6 +193,7 @@ class _Body:
         self.free = self.dof_index >= 0
         self.free_dofs = self.dof_index[self.free]
         self.effort = np.array([model.joint(j).effort for j in self.joints])
+        self.negative_effort = -self.effort
         self.locked_q = np.array([self.locked.get(j, 0.0) for j in self.joints])
         for i in range(6, self.ndofs):                         # no joint friction, springs or damping
             dof = skel.getDof(i)
@@ -274,14 +276,16 @@ class _Body:
         self.stop_sides = np.zeros(0)                          # +1 upper, -1 lower
 
     # -- state in variable layout
-    def joint_positions(self) -> np.ndarray:
+    def joint_positions(self, positions: np.ndarray) -> np.ndarray:
+        """URDF-order joint positions from DART's positions (locked joints at their lock)."""
         q = self.locked_q.copy()
-        q[self.free] = self.skel.getPositions()[self.free_dofs]
+        q[self.free] = positions[self.free_dofs]
         return q
 
-    def joint_velocities(self) -> np.ndarray:
+    def joint_velocities(self, velocities: np.ndarray) -> np.ndarray:
+        """URDF-order joint rates from DART's velocities (locked joints 0)."""
         qd = np.zeros(len(self.joints))
-        qd[self.free] = self.skel.getVelocities()[self.free_dofs]
+        qd[self.free] = velocities[self.free_dofs]
         return qd
 
 
@@ -352,7 +356,7 @@ class OrbitalWorld:
     def set_orbit(self, r_eci, v_eci, q_eci_lvlh=(0.0, 0.0, 0.0, 1.0), w_lvlh=(0.0, 0.0, 0.0)) -> None:
         """Reference orbit point (m, m/s, ECI), LVLH attitude q_ECI_LVLH and rate (rad/s, ECI axes)."""
         values = {"r_eci": r_eci, "v_eci": v_eci, "q_eci_lvlh": q_eci_lvlh, "w_lvlh": w_lvlh}
-        orbit = np.concatenate([np.ravel(value) for value in values.values()], dtype=float)
+        orbit = np.concatenate(list(values.values()), axis=None, dtype=float)
         if orbit.size != 13 or not np.isfinite(orbit).all():
             for (key, value), size in zip(values.items(), (3, 3, 4, 3)):
                 value = np.asarray(value, dtype=float)
@@ -373,7 +377,7 @@ class OrbitalWorld:
             k = int(np.argmax(~np.isfinite(tau)))
             raise ValueError(f"input {name}.tau: expected finite values, got {tau[k]} for {body.joints[k]}")
         body.tau[:] = 0.0
-        body.tau[body.free_dofs] = np.minimum(np.maximum(tau, -body.effort), body.effort)[body.free]
+        body.tau[body.free_dofs] = np.minimum(np.maximum(tau, body.negative_effort), body.effort)[body.free]
 
     def reset_bodies(self) -> None:
         """Put every body in its initial state from its spec (``frame: lvlh`` uses the orbit inputs)."""
@@ -437,7 +441,7 @@ class OrbitalWorld:
         J = np.concatenate([anchor.getJacobian(ORIGIN) for anchor in body.anchors], axis=1)
         base_rotation = J.take(body.base_rotation_columns, axis=1).transpose(1, 0, 2)     # (n_anchors, 6, 3)
         rotation_T = base_rotation[:, :3]
-        minus_skew = base_rotation[:, 3:] @ rotation_T.transpose(0, 2, 1)
+        minus_skew = np.einsum("kij,klj->kil", base_rotation[:, 3:], rotation_T)
         return J, rotation_T, minus_skew.reshape(-1, 9).take(SKEW_AXIAL, axis=1)
 
     def _local_wrenches(self, body: _Body, R, V, rotation_T, offset):
@@ -639,8 +643,8 @@ class OrbitalWorld:
             "position": position,
             "orientation": matrix_to_quat(root.rotation()),
             "twist": np.concatenate([velocities[3:6], velocities[:3]]),
-            "q": body.joint_positions(),
-            "qd": body.joint_velocities(),
+            "q": body.joint_positions(skel.getPositions()),
+            "qd": body.joint_velocities(velocities),
             "com": com,
             "momentum": self._momentum(skel, velocities, com, position),
         }

@@ -18,7 +18,7 @@ own step with its constraint solver (contacts between bodies). Quaternions [x, y
 | atmosphere | any | - | null | null: piecewise exponential table 0-1000 km; or {altitude, density, scale_height} |
 | mu | float | m^3/s^2 | 3.986004418e14 | Earth's gravitational parameter |
 | joint_limits | bool | - | true | URDF position limits (rk4: inelastic stops; dart: constraints) |
-| link_outputs | bool | - | false | publish the per-link outputs (last five rows below): they cost about as much as the rest of the step |
+| link_outputs | bool | - | false | publish the per-link outputs (last five rows below); each step then costs a transform per link and one more environment evaluation |
 
 Body (``bodies.<name>``):
 
@@ -48,7 +48,7 @@ Body (``bodies.<name>``):
 | <body>.qd | output | (n_joints,) | rad/s (m/s) | joint rates |
 | <body>.com | output | (3,) | m | body CoM in W |
 | <body>.momentum | output | (6,) | kg m/s, kg m^2/s | linear, then angular about the body CoM, W axes |
-| <body>.gg_torque | output | (n_links*3,) | N m | gravity-gradient torque per URDF link (file order), W axes |
+| <body>.gg_torque | output | (n_links*3,) | N m | gravity-gradient torque per URDF link (file order), W axes; this and the next four only with link_outputs: true |
 | <body>.tidal_force | output | (n_links*3,) | N | tidal force per link, W axes |
 | <body>.drag_force | output | (n_links*3,) | N | drag force per link, W axes |
 | <body>.link_position | output | (n_links*3,) | m | link frame origins in W |

@@ -40,9 +40,8 @@ def machine() -> str:
                 break
     except OSError:
         pass
-    import zenoh
-    return (f"{model}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-            f"eclipse-zenoh {getattr(zenoh, '__version__', '?')}")
+    from importlib.metadata import version
+    return f"{model}, {os.cpu_count()} cores, Python {platform.python_version()}, eclipse-zenoh {version('eclipse-zenoh')}"
 
 
 def run_config(text: str, name: str = "bench.yaml") -> float:

@@ -276,16 +276,16 @@ class _Body:
         self.stop_sides = np.zeros(0)                          # +1 upper, -1 lower
 
     # -- state in variable layout
-    def joint_positions(self, positions: np.ndarray) -> np.ndarray:
-        """URDF-order joint positions from DART's positions (locked joints at their lock)."""
+    def joint_positions(self, positions: np.ndarray | None = None) -> np.ndarray:
+        """URDF-order joint positions from DART's (the skeleton's by default); locked joints at their lock."""
         q = self.locked_q.copy()
-        q[self.free] = positions[self.free_dofs]
+        q[self.free] = (self.skel.getPositions() if positions is None else positions)[self.free_dofs]
         return q
 
-    def joint_velocities(self, velocities: np.ndarray) -> np.ndarray:
-        """URDF-order joint rates from DART's velocities (locked joints 0)."""
+    def joint_velocities(self, velocities: np.ndarray | None = None) -> np.ndarray:
+        """URDF-order joint rates from DART's (the skeleton's by default); locked joints 0."""
         qd = np.zeros(len(self.joints))
-        qd[self.free] = velocities[self.free_dofs]
+        qd[self.free] = (self.skel.getVelocities() if velocities is None else velocities)[self.free_dofs]
         return qd
 
 

@@ -64,6 +64,24 @@ def quat_to_matrix(q) -> np.ndarray:
     return R
 
 
+def matrix_entries_to_quat(m00: float, m01: float, m02: float, m10: float, m11: float, m12: float,
+                           m20: float, m21: float, m22: float) -> np.ndarray:
+    """``matrix_to_quat`` of one rotation given as its nine entries (row-major floats): the fast
+    path for per-step callers, with no 3x3 array to build."""
+    d = (1.0 + m00 - m11 - m22, 1.0 - m00 + m11 - m22, 1.0 - m00 - m11 + m22, 1.0 + m00 + m11 + m22)
+    k = d.index(max(d))
+    if k == 0:
+        q = (d[0], m01 + m10, m02 + m20, m21 - m12)
+    elif k == 1:
+        q = (m01 + m10, d[1], m12 + m21, m02 - m20)
+    elif k == 2:
+        q = (m02 + m20, m12 + m21, d[2], m10 - m01)
+    else:
+        q = (m21 - m12, m02 - m20, m10 - m01, d[3])
+    scale = 1.0 / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return np.array(q) * (-scale if q[3] < 0.0 else scale)
+
+
 def matrix_to_quat(R) -> np.ndarray:
     """Unit quaternion q_A_B = [x, y, z, w] of a rotation matrix R_A_B, with **w >= 0**.
 
@@ -79,19 +97,7 @@ def matrix_to_quat(R) -> np.ndarray:
     """
     R = np.asarray(R, dtype=float)
     if R.shape == (3, 3):
-        (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = R.tolist()
-        d = (1.0 + m00 - m11 - m22, 1.0 - m00 + m11 - m22, 1.0 - m00 - m11 + m22, 1.0 + m00 + m11 + m22)
-        k = d.index(max(d))
-        if k == 0:
-            q = (d[0], m01 + m10, m02 + m20, m21 - m12)
-        elif k == 1:
-            q = (m01 + m10, d[1], m12 + m21, m02 - m20)
-        elif k == 2:
-            q = (m02 + m20, m12 + m21, d[2], m10 - m01)
-        else:
-            q = (m21 - m12, m02 - m20, m10 - m01, d[3])
-        scale = 1.0 / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-        return np.array(q) * (-scale if q[3] < 0.0 else scale)
+        return matrix_entries_to_quat(*R.ravel().tolist())
     m = R.reshape(-1, 3, 3)
     n = m.shape[0]
     A = np.empty((n, 4, 4))

@@ -231,9 +231,8 @@ class ComponentProcess:
             self.stepping_since = None
         done = time.perf_counter()
         vector = self.output_vector
-        if not np.isfinite(vector).all():
-            bad = int(np.flatnonzero(~np.isfinite(vector))[0])
-            variable = next(v.name for v in self.outputs.variables if bad < self.outputs.offsets[v.name].stop)
+        variable = self.outputs.first_non_finite(vector)
+        if variable is not None:
             raise Halt(self._report("nan", k, variable))
         tag = k + self.ratio
         if self.has_consumers and not self.batch_outputs:

@@ -216,6 +216,13 @@ class Layout:
                 raise ComponentOutputError(f"output {name!r} has {np.size(value)} values, declared shape {shape}")
             into[where] = np.ravel(value)
 
+    def first_non_finite(self, vector: np.ndarray) -> str | None:
+        """The name of the first variable holding a NaN or infinity in ``vector``, or None."""
+        if np.isfinite(vector).all():
+            return None
+        bad = int(np.flatnonzero(~np.isfinite(vector))[0])
+        return next(name for name, where, _, _ in self._plan if bad < where.stop)
+
     def unpack(self, vector: np.ndarray) -> dict[str, np.ndarray]:
         """Views of ``vector`` by variable name (scalars as 0-d arrays)."""
         return {name: vector[where].reshape(shape) for name, where, _, shape in self._plan}

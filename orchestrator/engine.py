@@ -314,9 +314,8 @@ class Run:
             inputs[route.dst] = members[route.source].latest[route.src]
         self._ask([member], "initialize", "initialize", self.config.start_timeout_s, {"t0_ns": t_ns}, inputs.tobytes())
         vector = np.frombuffer(member.reply["blob"], dtype=np.float64)
-        if not np.isfinite(vector).all():
-            bad = int(np.flatnonzero(~np.isfinite(vector))[0])
-            variable = next(v.name for v in member.spec.outputs.variables if bad < member.spec.outputs.offsets[v.name].stop)
+        variable = member.spec.outputs.first_non_finite(vector)
+        if variable is not None:
             raise RunFailure(f"component {member.name!r} produced a non-finite value in output {variable!r} "
                              f"after initialize (t = {t_ns / 1e9:g} s)")
         return vector

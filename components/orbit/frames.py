@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from components.orbit.kepler import Vector3, cross_tuples
+from components.rotations import matrix_entries_to_quat
 
 
 def _floats(vector) -> Vector3:
@@ -38,27 +39,6 @@ def _lvlh_axes(r: Vector3, v: Vector3) -> tuple[Vector3, Vector3, Vector3, float
     x = (r[0] / r_norm, r[1] / r_norm, r[2] / r_norm)
     z = (h[0] / h_norm, h[1] / h_norm, h[2] / h_norm)
     return x, cross_tuples(z, x), z, r_norm, h_norm
-
-
-def _quaternion(x: Vector3, y: Vector3, z: Vector3) -> np.ndarray:
-    """Unit quaternion [x, y, z, w] with w >= 0 of the rotation matrix whose columns are the axes
-    x, y, z (tuples of floats): Shepperd's method as in ``rotations.matrix_to_quat``, on floats
-    (this runs every step; building the 3x3 array alone costs more than the whole of it)."""
-    (m00, m10, m20), (m01, m11, m21), (m02, m12, m22) = x, y, z
-    d = (1.0 + m00 - m11 - m22, 1.0 - m00 + m11 - m22, 1.0 - m00 - m11 + m22, 1.0 + m00 + m11 + m22)
-    k = d.index(max(d))
-    if k == 0:
-        q = (d[0], m01 + m10, m02 + m20, m21 - m12)
-    elif k == 1:
-        q = (m01 + m10, d[1], m12 + m21, m02 - m20)
-    elif k == 2:
-        q = (m02 + m20, m12 + m21, d[2], m10 - m01)
-    else:
-        q = (m21 - m12, m02 - m20, m10 - m01, d[3])
-    scale = 1.0 / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    if q[3] < 0.0:
-        scale = -scale
-    return np.array((q[0] * scale, q[1] * scale, q[2] * scale, q[3] * scale))
 
 
 def lvlh_dcm(r_eci, v_eci) -> np.ndarray:
@@ -96,4 +76,4 @@ def lvlh_state(r_eci, v_eci, a_eci) -> tuple[np.ndarray, np.ndarray]:
     in_plane = h_norm / (r_norm * r_norm)
     w = np.array([out_of_plane * x[0] + in_plane * z[0], out_of_plane * x[1] + in_plane * z[1],
                   out_of_plane * x[2] + in_plane * z[2]])
-    return _quaternion(x, y, z), w
+    return matrix_entries_to_quat(x[0], y[0], z[0], x[1], y[1], z[1], x[2], y[2], z[2]), w

@@ -509,6 +509,7 @@ class Run:
         if failed.name not in self.members:
             return
         deadline = time.monotonic() + timeout
+        self._record_rows()   # outputs handled before the failure may still wait to be recorded
         while self.row < min(failed.progress, self.horizon) and time.monotonic() < deadline:
             try:
                 kind, key, payload = self.inbox.get(timeout=0.05)

@@ -40,16 +40,16 @@ from typing import Mapping
 
 import numpy as np
 
-from components.constants import MU_EARTH, R_EARTH
+from components.constants import EARTH_RATE, MU_EARTH, R_EARTH
 from components.dynamics import environment as env
+from components.dynamics import link_forces
 from components.dynamics.urdf import UrdfModel, dart_urdf_text, read_urdf
-from components.rotations import cross3, matrix_to_quat, quat_to_matrix, rpy_to_matrix, skew
+from components.rotations import cross3, matrix_to_quat, quat_to_matrix, rpy_to_matrix
 
 INTEGRATORS = ("rk4", "dart")
 FRAMES = ("world", "lvlh")
 DEFAULT_CD = 2.2
 ORIGIN = np.zeros(3)
-SKEW_AXIAL = np.array([5, 6, 1])           # (1, 2), (2, 0), (0, 1) of a flattened -[x]x: x
 
 
 class ModelError(ValueError):
@@ -235,21 +235,12 @@ class _Body:
         self.anchor_slot = np.array(slots, dtype=int)
         self.com_in_anchor = np.array(com_in_anchor).reshape(-1, 3)
         self.inertia_in_anchor = np.array(inertia_in_anchor).reshape(-1, 3, 3)
-        # the wrench of each anchor's links about its origin in its axes, [torque; force] (6 per
-        # anchor) = wrench_matrix @ [link torques about the CoMs; link forces at the CoMs] (3n each)
-        n, k = len(self.nodes), len(self.anchors)
-        self.wrench_matrix = np.zeros((k, 6, 2, n, 3))
-        for i, (a, e) in enumerate(zip(self.anchor_slot, self.com_in_anchor)):
-            self.wrench_matrix[a, :3, 0, i] = np.eye(3)
-            self.wrench_matrix[a, :3, 1, i] = skew(e)
-            self.wrench_matrix[a, 3:, 1, i] = np.eye(3)
-        self.wrench_matrix = self.wrench_matrix.reshape(6 * k, 6 * n)
         # columns of the anchors' Jacobians side by side: their dof, their anchor; and the
         # columns of the base rotation (the FreeJoint's first three dofs come first in each)
         dofs = [[anchor.getDependentGenCoordIndex(i) for i in range(anchor.getNumDependentGenCoords())]
                 for anchor in self.anchors]
         self.jacobian_dofs = np.array([dof for anchor_dofs in dofs for dof in anchor_dofs], dtype=int)
-        self.jacobian_anchor = np.repeat(np.arange(len(self.anchors)), [len(anchor_dofs) for anchor_dofs in dofs])
+        self.jacobian_anchor = np.repeat(np.arange(len(self.anchors)), [len(anchor_dofs) for anchor_dofs in dofs]).astype(int)
         starts = np.cumsum([0] + [len(anchor_dofs) for anchor_dofs in dofs[:-1]])
         self.base_rotation_columns = (starts[:, None] + np.arange(3)).astype(int)
         self.root = skel.getRootBodyNode()
@@ -271,6 +262,9 @@ class _Body:
         self.drag_cd = np.array([float(cd.get(bn.getName(), DEFAULT_CD)) if isinstance(cd, Mapping) else float(cd)
                                  for bn in self.nodes])
         self.has_drag = bool(np.any(self.drag_area * self.drag_cd > 0.0))
+        self.drag_k = 0.5 * self.drag_cd * self.drag_area
+        self.force = np.zeros((len(self.nodes), 3))            # environment per link, anchor axes
+        self.torque = np.zeros((len(self.nodes), 3))
         self.tau = np.zeros(self.ndofs)                        # generalized forces, DART order
         self.stops = np.zeros(0, dtype=int)                    # rk4: dofs resting on a limit stop
         self.stop_sides = np.zeros(0)                          # +1 upper, -1 lower
@@ -431,59 +425,41 @@ class OrbitalWorld:
             cached = self._reference_cache[s] = env.propagate_reference(self.r_eci, self.v_eci, s, self.mu)
         return cached
 
-    @staticmethod
-    def _anchor_frames(body: _Body):
-        """The anchors' Jacobians side by side (6, n_columns: DART's body Jacobian at each anchor
-        origin, anchor axes, [angular; linear]), the anchors' rotations transposed R_a^T (n_anchors,
-        3, 3) and their origins relative to the base origin p in anchor axes, R_a^T (p_a - p)
-        (n_anchors, 3). The base rotation columns of an anchor's Jacobian are R_a^T (angular rows)
-        and -R_a^T [p_a - p]x = -[R_a^T (p_a - p)]x R_a^T (linear rows)."""
+    def _environment(self, body: _Body, R: np.ndarray, V: np.ndarray, tidal: bool, drag: bool):
+        """The body's generalized forces, its joint torques and the environment with the reference
+        point at (R, V) (``link_forces.generalized_forces``, which also fills ``body.force`` and
+        ``body.torque``), and the anchors' Jacobians side by side."""
         J = np.concatenate([anchor.getJacobian(ORIGIN) for anchor in body.anchors], axis=1)
-        base_rotation = J.take(body.base_rotation_columns, axis=1).transpose(1, 0, 2)     # (n_anchors, 6, 3)
-        rotation_T = base_rotation[:, :3]
-        minus_skew = np.einsum("kij,klj->kil", base_rotation[:, 3:], rotation_T)
-        return J, rotation_T, minus_skew.reshape(-1, 9).take(SKEW_AXIAL, axis=1)
-
-    def _local_wrenches(self, body: _Body, R, V, rotation_T, offset):
-        """Environment on each massive link at the skeleton's current state, in its anchor's axes:
-        (tidal force, drag force or None when off, gravity-gradient torque), each (n_nodes, 3)."""
-        slot = body.anchor_slot
-        base = body.skel.getPositions()[3:6]                # the FreeJoint's translation: base origin in W
-        local = np.einsum("kij,jm->kim", rotation_T, np.column_stack((R, base))).take(slot, axis=0)
-        R_local = local[:, :, 0]                            # R in each link's anchor axes, and the link CoMs
-        d_local = local[:, :, 1] + (offset.take(slot, axis=0) + body.com_in_anchor)
-        tidal, torque = env.tidal_force_and_gravity_gradient(R_local, d_local, body.mass, body.inertia_in_anchor,
-                                                             self.mu, self.tidal, self.gg)
-        drag = None
-        if self.drag and body.has_drag:
-            v_com = np.array([bn.getCOMLinearVelocity() for bn in body.nodes]).reshape(-1, 3)
-            link_rotation_T = rotation_T.take(slot, axis=0)
-            position = R + np.einsum("nji,nj->ni", link_rotation_T, d_local)
-            v_rel = V + v_com - env.atmosphere_velocity(position)
-            density = self.atmosphere.density(np.linalg.norm(position, axis=1) - R_EARTH)
-            drag = np.einsum("nij,nj->ni", link_rotation_T, env.drag_force(density, body.drag_cd, body.drag_area, v_rel))
-        return tidal, drag, torque
+        drag = drag and body.has_drag
+        v_com = np.array([bn.getCOMLinearVelocity() for bn in body.nodes]).reshape(-1, 3) if drag else body.force
+        atmosphere = self.atmosphere
+        forces = link_forces.generalized_forces(
+            J, body.base_rotation_columns, body.jacobian_anchor, body.jacobian_dofs, body.anchor_slot,
+            body.com_in_anchor, body.inertia_in_anchor, body.mass, R, V, body.skel.getPositions()[3:6], self.mu,
+            tidal, self.gg, drag, body.drag_k, v_com, atmosphere.h0, atmosphere.rho0, atmosphere.scale,
+            EARTH_RATE, R_EARTH, body.tau, body.force, body.torque)
+        return forces, J
 
     def link_wrenches(self, body: _Body, R: np.ndarray, V: np.ndarray):
-        """Environment on each massive link at the skeleton's current state: (tidal force, drag
-        force, gravity-gradient torque), each (n_nodes, 3), N and N m, W axes, about the CoM."""
-        _, rotation_T, offset = self._anchor_frames(body)
-        tidal, drag, torque = self._local_wrenches(body, R, V, rotation_T, offset)
-        link_rotation_T = rotation_T.take(body.anchor_slot, axis=0)
-        tidal, torque = (np.einsum("nji,nj->ni", link_rotation_T, local) for local in (tidal, torque))
-        drag = np.zeros_like(tidal) if drag is None else np.einsum("nji,nj->ni", link_rotation_T, drag)
-        return tidal, drag, torque
+        """Environment on each massive link at the skeleton's current state, with the reference
+        point at (R, V): (tidal force, drag force, gravity-gradient torque), each (n_nodes, 3), N
+        and N m, W axes, about the CoM."""
+        R, V = np.asarray(R, dtype=float), np.asarray(V, dtype=float)
+        _, J = self._environment(body, R, V, self.tidal, False)
+        tidal, torque = body.force.copy(), body.torque.copy()
+        drag = np.zeros_like(tidal)
+        if self.drag and body.has_drag:
+            self._environment(body, R, V, False, True)
+            drag = body.force.copy()
+        # R_a^T: the angular rows of each anchor's base rotation columns
+        rotation_T = J[:3].take(body.base_rotation_columns, axis=1).transpose(1, 0, 2).take(body.anchor_slot, axis=0)
+        return tuple(np.einsum("nji,nj->ni", rotation_T, local) for local in (tidal, drag, torque))
 
     def _apply_environment(self, body: _Body, s: float) -> None:
-        """Sets the body's generalized forces: its joint torques and the environment, J^T W over
-        the anchors, W the wrench of an anchor's links about its origin in its axes."""
+        """Sets the body's generalized forces: its joint torques and the environment."""
         R, V = self.reference(s)
-        J, rotation_T, offset = self._anchor_frames(body)
-        tidal, drag, torque = self._local_wrenches(body, R, V, rotation_T, offset)
-        force = tidal if drag is None else tidal + drag
-        wrench = (body.wrench_matrix @ np.concatenate((torque.ravel(), force.ravel()))).reshape(-1, 6)
-        columns = np.einsum("ic,ci->c", J, wrench.take(body.jacobian_anchor, axis=0))
-        body.skel.setForces(body.tau + np.bincount(body.jacobian_dofs, columns, minlength=body.ndofs))
+        forces, _ = self._environment(body, R, V, self.tidal, self.drag)
+        body.skel.setForces(forces)
 
     # ----------------------------------------------------------------- integration
 

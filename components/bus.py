@@ -1,16 +1,19 @@
 """The wire protocol of a run, over Zenoh.
 
-Components exchange their outputs directly: each publishes its outputs once per step on its
-output key, to which the components it feeds subscribe. The orchestrator is off the per-step
-path: it grants a step horizon, receives the outputs in batches (one wake-up per batch, not per
-step), records, and watches for faults; control goes through it.
-Keys, under ``zenorbit/<run_id>/``:
+Components exchange their outputs directly: each publishes its outputs once per step into the
+inbox of each component it feeds. The orchestrator is off the per-step path: it grants a step
+horizon, receives the outputs in batches (one wake-up per batch, not per step), records, and
+watches for faults; control goes through it. Everything addressed to a component lands in its
+one inbox, ``i/<name>/**``, read by one subscriber into a Zenoh FIFO: the component's main thread
+takes messages there without a Python callback (no GIL hand-over per message, no wake-up when a
+message is already waiting). Keys, under ``zenorbit/<run_id>/``:
 
 | key | from -> to | payload |
 |---|---|---|
-| ``o/<name>`` | component -> consumers | step outputs (binary, tagged) or sync |
+| ``i/<consumer>/o/<name>`` | component -> a consumer | step outputs (binary, tagged), a batch of them, or sync |
+| ``i/<name>/c/<gen>`` | orchestrator -> component | control (JSON + blob) or horizon |
+| ``i/<name>/q/<gen>`` | component -> itself | quit: the orchestrator's liveliness token went away |
 | ``r/<name>`` | component -> orchestrator | a batch of step outputs (binary), for recording |
-| ``c/<name>/<gen>/cmd`` | orchestrator -> component | control (JSON + blob) or horizon |
 | ``c/<name>/<gen>/out`` | component -> orchestrator | reply (JSON + blob) or fault |
 | ``alive/<name>/<gen>`` | component | liveliness token, gone when the process dies |
 | ``alive/orchestrator`` | orchestrator | liveliness token; components exit when it goes |
@@ -58,8 +61,18 @@ def component_key(run_id: str, name: str, generation: int, leaf: str) -> str:
     return run_key(run_id, "c", name, str(generation), leaf)
 
 
-def output_key(run_id: str, name: str) -> str:
-    return run_key(run_id, "o", name)
+def inbox_key(run_id: str, name: str, *parts: str) -> str:
+    """The inbox of component ``name`` (``parts`` empty: the prefix of all of it)."""
+    return run_key(run_id, "i", name, *parts)
+
+
+def command_key(run_id: str, name: str, generation: int) -> str:
+    return inbox_key(run_id, name, "c", str(generation))
+
+
+def output_key(run_id: str, consumer: str, source: str) -> str:
+    """Where ``source`` sends its outputs for ``consumer``."""
+    return inbox_key(run_id, consumer, "o", source)
 
 
 def batch_key(run_id: str, name: str) -> str:

@@ -5,19 +5,19 @@
 The orchestrator starts it (or a user does, for ``launch: external``) and sends, on the
 component's command key: ``instantiate`` (type + parameters), ``wire`` (which sources feed which
 inputs), ``initialize``, ``sync``, ``start``, step horizons, ``get_state``/``set_state`` and
-``terminate``. Steps need no message from the orchestrator: the component subscribes to its
-sources' outputs directly and steps ``k`` as soon as it holds every input tagged for ``k`` and
-``k`` is below the horizon (see :mod:`components.schedule`). It publishes its outputs once per
-step, for its consumers and the orchestrator. All work happens on the main thread, reading one
-queue that the Zenoh callbacks fill; the process exits after ``terminate``, or when the
-orchestrator's liveliness token goes away.
+``terminate``. Steps need no message from the orchestrator: its sources send their outputs to
+its inbox directly and it steps ``k`` as soon as it holds every input tagged for ``k`` and ``k``
+is below the horizon (see :mod:`components.schedule`). It sends its outputs once per step to
+each consumer, and in batches to the orchestrator. All work happens on the main thread, reading
+the one Zenoh FIFO of its inbox (see :mod:`components.bus`); a watchdog thread only flushes
+batches. The process exits after ``terminate``, or when the orchestrator's liveliness token
+goes away.
 """
 from __future__ import annotations
 
 import argparse
 import collections
 import os
-import queue
 import sys
 import threading
 import time
@@ -29,7 +29,7 @@ from components import bus, registry
 from components.schedule import Route
 from components.sdk import Layout, resolve_parameters
 
-COMMAND = ""   # queue tag of messages from the orchestrator (a source is tagged with its name)
+INBOX_CAPACITY = 4096   # messages waiting in the inbox FIFO (a full one holds the senders back)
 BATCH_STEPS = 32   # outputs go to the orchestrator in batches of this many steps ...
 IDLE_FLUSH_S = 0.02  # ... or sooner: at the horizon, before a reply or fault, after this long idle,
 SLOW_STEP_S = 0.05   # or when a step takes this long (a hung step leaves the steps before it recorded)
@@ -42,18 +42,17 @@ class Halt(Exception):
 class ComponentProcess:
     """The adapter's state: the component, its layouts, its routes and the inputs it holds.
 
-    ``publish_reply``, ``publish_output`` and ``publish_batch`` send bytes on the component's
-    reply, output and batch keys; ``subscribe(source)`` makes the source's outputs arrive in the
-    queue. Nothing here touches Zenoh, so the step logic is tested without the bus.
+    ``publish_reply`` and ``publish_batch`` send bytes on the component's reply and batch keys,
+    ``publish_output(consumers, payload)`` to the inboxes of the named consumers. Nothing here
+    touches Zenoh, so the step logic is tested without the bus.
     """
 
-    def __init__(self, name: str, publish_reply, publish_output, publish_batch, subscribe):
+    def __init__(self, name: str, publish_reply, publish_output, publish_batch):
         self.name = name
         self.publish_reply = publish_reply
         self.publish_output = publish_output
         self.publish_batch = publish_batch
-        self.subscribe = subscribe
-        self.has_consumers = False
+        self.consumers: list[str] = []
         self.batch_outputs = False    # consumers get outputs in batches too (they never hold it up)
         self.batched = 0
         self.batch_lock = threading.Lock()
@@ -131,7 +130,7 @@ class ComponentProcess:
             self.reply(op, {"inputs": self.inputs.size, "outputs": self.outputs.size, "pid": os.getpid()})
         elif op == "wire":
             self.generation, self.step_ns, self.ratio = body["generation"], body["step_ns"], body["ratio"]
-            self.has_consumers = body["consumers"]
+            self.consumers = body["consumers"]
             self.batch_outputs = body["batch_outputs"]
             self.next_k = body["k"]
             self.horizon = body["k"]
@@ -145,7 +144,7 @@ class ComponentProcess:
             self.reply(op, {}, self.output_vector.tobytes())
         elif op == "sync":
             # our outputs now reach every consumer that subscribed before this message
-            self.publish_output(bus.encode_sync(self.generation))
+            self.publish_output(self.consumers, bus.encode_sync(self.generation))
             if self.synced:
                 self.reply("synced")
         elif op == "start":
@@ -173,9 +172,7 @@ class ComponentProcess:
         return True
 
     def _set_sources(self, sources: dict[str, int]) -> None:
-        for source, generation in sources.items():
-            if source not in self.sources and source != self.name:
-                self.subscribe(source)
+        for source in sources:
             self.held.setdefault(source, collections.deque())
         self.sources = dict(sources)
         self.heard = set()
@@ -235,8 +232,8 @@ class ComponentProcess:
         if variable is not None:
             raise Halt(self._report("nan", k, variable))
         tag = k + self.ratio
-        if self.has_consumers and not self.batch_outputs:
-            self.publish_output(bus.encode_output(self.generation, tag, vector))
+        if self.consumers and not self.batch_outputs:
+            self.publish_output(self.consumers, bus.encode_output(self.generation, tag, vector))
         if self.name in self.held:   # a component fed by its own outputs
             self.held[self.name].append((tag, vector.copy()))
         with self.batch_lock:
@@ -255,10 +252,10 @@ class ComponentProcess:
         with self.batch_lock:
             self._flush()
 
-    def flush_if_stuck(self) -> None:
-        """From a watchdog thread: flush while a step has been running for long."""
-        since = self.stepping_since
-        if since is not None and time.perf_counter() - since > SLOW_STEP_S and self.batched:
+    def flush_if_due(self) -> None:
+        """From a watchdog thread: flush when idle for long, or while a step has been running for long."""
+        since, now = self.stepping_since, time.perf_counter()
+        if self.batched and (now - since > SLOW_STEP_S if since is not None else now - self.idle_since > IDLE_FLUSH_S):
             self.flush()
 
     def _flush(self) -> None:
@@ -266,8 +263,8 @@ class ComponentProcess:
         if n:
             batch = bus.encode_batch(self.generation, self.batch_tags[:n], self.batch_timings[:n], self.batch_rows[:n])
             self.publish_batch(batch)
-            if self.has_consumers and self.batch_outputs:
-                self.publish_output(batch)
+            if self.consumers and self.batch_outputs:
+                self.publish_output(self.consumers, batch)
             self.batched = 0
 
     def _report(self, op: str, k: int, error: str) -> str:
@@ -278,8 +275,8 @@ class ComponentProcess:
 
 def _watchdog(process: ComponentProcess) -> None:
     while True:
-        time.sleep(SLOW_STEP_S)
-        process.flush_if_stuck()
+        time.sleep(IDLE_FLUSH_S)
+        process.flush_if_due()
 
 
 def _held_values(body: dict, blob: bytes) -> dict[str, collections.deque]:
@@ -298,40 +295,44 @@ def serve(connect: str, run_id: str, name: str, generation: int, listen: str) ->
     import zenoh
 
     session = zenoh.open(bus.session_config(listen=[listen], connect=[connect], mesh=True))
-    inbox: queue.SimpleQueue = queue.SimpleQueue()
-    keep = []   # subscribers live as long as the session
+    keep = []   # subscribers and publishers live as long as the session
     try:
-        keep.append(session.declare_subscriber(bus.component_key(run_id, name, generation, "cmd"),
-                                               lambda s: inbox.put((COMMAND, s.payload.to_bytes()))))
+        inbox = session.declare_subscriber(bus.inbox_key(run_id, name, "**"), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
+        keep.append(inbox)
+        command = bus.command_key(run_id, name, generation)
+        quit_key = bus.inbox_key(run_id, name, "q", str(generation))
+        output_prefix = bus.inbox_key(run_id, name, "o", "")
         replies = bus.publisher(session, bus.component_key(run_id, name, generation, "out"))
-        outputs = bus.publisher(session, bus.output_key(run_id, name))
         batches = bus.publisher(session, bus.batch_key(run_id, name))
+        outputs: dict[str, object] = {}
 
-        def subscribe(source: str) -> None:
-            keep.append(session.declare_subscriber(bus.output_key(run_id, source),
-                                                   lambda s: inbox.put((source, s.payload.to_bytes()))))
+        def publish_output(consumers: list[str], payload: bytes) -> None:
+            for consumer in consumers:
+                publisher = outputs.get(consumer)
+                if publisher is None:
+                    publisher = outputs[consumer] = bus.publisher(session, bus.output_key(run_id, consumer, name))
+                publisher.put(payload)
 
-        # the orchestrator gone (killed, machine lost): wake the main loop with a QUIT message
+        # the orchestrator gone (killed, machine lost): wake the main loop with a quit message
         keep.append(session.liveliness().declare_subscriber(
             bus.run_key(run_id, "alive", "orchestrator"),
-            lambda s: inbox.put((COMMAND, bus.QUIT)) if s.kind == zenoh.SampleKind.DELETE else None))
+            lambda s: session.put(quit_key, bus.QUIT) if s.kind == zenoh.SampleKind.DELETE else None))
         keep.append(session.liveliness().declare_token(bus.run_key(run_id, "alive", name, str(generation))))
-        process = ComponentProcess(name, replies.put, outputs.put, batches.put, subscribe)
+        process = ComponentProcess(name, replies.put, publish_output, batches.put)
         threading.Thread(target=_watchdog, args=(process,), daemon=True).start()
         while True:
-            try:
-                source, payload = inbox.get(timeout=IDLE_FLUSH_S) if process.batched else inbox.get()
-            except queue.Empty:
-                process.flush()
-                continue
-            if source == COMMAND:
-                if payload == bus.QUIT:
-                    print("the orchestrator went away: exiting", file=sys.stderr)
-                    return 1
-                if not process.command(payload):
+            sample = inbox.recv()
+            key = str(sample.key_expr)
+            if key.startswith(output_prefix):
+                process.source_output(key[len(output_prefix):], sample.payload.to_bytes())
+            elif key == command:
+                if not process.command(sample.payload.to_bytes()):
                     return 0
+            elif key == quit_key:
+                print("the orchestrator went away: exiting", file=sys.stderr)
+                return 1
             else:
-                process.source_output(source, payload)
+                continue   # for another generation of this component
             try:
                 process.advance()
             except Halt:

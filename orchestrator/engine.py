@@ -266,7 +266,7 @@ class Run:
                   f"    python -m components.runner {' '.join(args)}", file=self.out, flush=True)
         member = Member(spec=spec, generation=generation, process=process, log_path=log_path,
                         ratio=spec.step_ns // self.config.step_ns, latest=spec.outputs.start_vector())
-        member.command = bus.publisher(self.session, bus.component_key(self.run_id, spec.name, generation, "cmd"))
+        member.command = bus.publisher(self.session, bus.command_key(self.run_id, spec.name, generation))
         out_dst, out_src = [], []
         for v in spec.outputs.variables:
             index = self.column_index.get((spec.name, v.name))
@@ -299,11 +299,11 @@ class Run:
                                {n: m.ratio for n, m in members.items()}, self.order, self.config.algorithm)
 
     def _wire(self, member: Member, members: dict[str, Member], k: int) -> None:
-        """Tell a member which sources feed which of its inputs; it subscribes to them."""
+        """Tell a member which sources feed which of its inputs, and which members it feeds."""
         member.routes = self._routes(member.spec, members)
         self._ask([member], "wire", "wire", self.config.start_timeout_s, {
             "generation": member.generation, "step_ns": self.config.step_ns, "ratio": member.ratio, "k": k,
-            "consumers": any(s == member.name and d != member.name for d, _, s, _ in self.config.connections),
+            "consumers": sorted({d for d, _, s, _ in self.config.connections if s == member.name and d != member.name}),
             "batch_outputs": not schedule.feeds_back(member.name, self.config.connections),
             "routes": [r.to_json() for r in member.routes],
             "sources": {r.source: members[r.source].generation for r in member.routes}})

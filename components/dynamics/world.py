@@ -42,7 +42,7 @@ import numpy as np
 
 from components.constants import EARTH_RATE, MU_EARTH, R_EARTH
 from components.dynamics import environment as env
-from components.dynamics import link_forces
+from components.dynamics import link_forces, manifold_rk4
 from components.dynamics.urdf import UrdfModel, dart_urdf_text, read_urdf
 from components.rotations import cross3, matrix_to_quat, quat_to_matrix, rpy_to_matrix
 
@@ -137,24 +137,6 @@ def check_spec(spec: BodySpec, model: UrdfModel) -> None:
             raise ModelError(key, f"not a link of {Path(spec.urdf).name}")
         if not (cd >= 0.0 and math.isfinite(cd)):
             raise ModelError(key, f"expected a drag coefficient >= 0, got {cd}")
-
-
-# --------------------------------------------------------------------------- integrator helper
-
-def so3_left_jacobian_inverse_times(phi: np.ndarray, omega: np.ndarray) -> np.ndarray:
-    """J_l(phi)^-1 omega: the rate of phi for R = exp(phi) R0 turning at world angular velocity
-    omega. J_l^-1 = I - [phi]x / 2 + (1 - (t/2) cot(t/2)) / t^2 [phi]x^2, t = |phi|."""
-    px, py, pz = phi.tolist()
-    wx, wy, wz = omega.tolist()
-    t2 = px * px + py * py + pz * pz
-    if t2 < 1e-6:
-        c = 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0
-    else:
-        t = math.sqrt(t2)
-        c = (1.0 - 0.5 * t / math.tan(0.5 * t)) / t2
-    cx, cy, cz = py * wz - pz * wy, pz * wx - px * wz, px * wy - py * wx          # phi x omega
-    dx, dy, dz = py * cz - pz * cy, pz * cx - px * cz, px * cy - py * cx          # phi x (phi x omega)
-    return np.array([wx - 0.5 * cx + c * dx, wy - 0.5 * cy + c * dy, wz - 0.5 * cz + c * dz])
 
 
 # --------------------------------------------------------------------------- bodies
@@ -499,12 +481,6 @@ class OrbitalWorld:
             keep[np.flatnonzero(keep)[pulling]] = False
         return a
 
-    @staticmethod
-    def _xi_rate(v: np.ndarray, xi: np.ndarray) -> np.ndarray:
-        rate = v.copy()
-        rate[:3] = so3_left_jacobian_inverse_times(xi[:3], v[:3])
-        return rate
-
     def _rk4(self, body: _Body, h: float, s: float) -> None:
         skel = body.skel
         q0, v0 = skel.getPositions(), skel.getVelocities()
@@ -512,20 +488,16 @@ class OrbitalWorld:
             skel.setForces(body.tau)               # forward dynamics leaves them: set once for all stages
         a1 = self._acceleration(body, s)           # at (q0, v0), the current state
         d1 = v0
-        xi2, v2 = 0.5 * h * d1, v0 + 0.5 * h * a1
+        xi2, v2, d2 = manifold_rk4.stage(0.5 * h, v0, d1, a1)
         self._set_stage(skel, q0, xi2, v2)
         a2 = self._acceleration(body, s + 0.5 * h)
-        d2 = self._xi_rate(v2, xi2)
-        xi3, v3 = 0.5 * h * d2, v0 + 0.5 * h * a2
+        xi3, v3, d3 = manifold_rk4.stage(0.5 * h, v0, d2, a2)
         self._set_stage(skel, q0, xi3, v3)
         a3 = self._acceleration(body, s + 0.5 * h)
-        d3 = self._xi_rate(v3, xi3)
-        xi4, v4 = h * d3, v0 + h * a3
+        xi4, v4, d4 = manifold_rk4.stage(h, v0, d3, a3)
         self._set_stage(skel, q0, xi4, v4)
         a4 = self._acceleration(body, s + h)
-        d4 = self._xi_rate(v4, xi4)
-        xi = (h / 6.0) * (d1 + 2.0 * d2 + 2.0 * d3 + d4)
-        v = v0 + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+        xi, v = manifold_rk4.combine(h, v0, d1, d2, d3, d4, a1, a2, a3, a4)
         self._set_stage(skel, q0, xi, v)
         if self.joint_limits and body.limited:
             self._joint_stops(body)

@@ -10,6 +10,7 @@ result is the recording's signal columns, row k = t_k.
 from __future__ import annotations
 
 import json
+import time
 
 import numpy as np
 
@@ -49,9 +50,10 @@ class _Stepped:
         return vector
 
 
-def run_in_process(config: RunConfig, steps: int | None = None) -> np.ndarray:
+def run_in_process(config: RunConfig, steps: int | None = None, timing: dict | None = None) -> np.ndarray:
     """Rows (steps + 1, number of recorded columns) of the config run for ``steps`` steps
-    (default: its duration)."""
+    (default: its duration). ``timing``, if given, gets ``loop_s``: the wall time of the stepping
+    loop (start-up excluded, as a bus run's ``loop_s``), for benchmarks."""
     steps = config.steps if steps is None else steps
     order = list(config.components)
     members = {name: _Stepped(config, name) for name in order}
@@ -69,6 +71,7 @@ def run_in_process(config: RunConfig, steps: int | None = None) -> np.ndarray:
 
     rows = np.empty((steps + 1, sum(m.outputs.size for m in members.values())))
     rows[0] = np.concatenate([m.by_tag[0] for m in members.values()])
+    started = time.perf_counter()
     for k in range(steps):
         for member in members.values():
             if schedule.is_due(member.ratio, k):
@@ -81,4 +84,6 @@ def run_in_process(config: RunConfig, steps: int | None = None) -> np.ndarray:
             oldest = schedule.row_tag(member.ratio, k + 1)
             for tag in [t for t in member.by_tag if t < oldest]:
                 del member.by_tag[tag]
+    if timing is not None:
+        timing["loop_s"] = time.perf_counter() - started
     return rows

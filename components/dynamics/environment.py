@@ -13,7 +13,8 @@ freely, so a link feels only the difference between gravity at its CoM and gravi
 ``I_i`` is the link's inertia about its CoM in W axes; ``v_rel`` is the CoM's ECI velocity
 relative to an atmosphere co-rotating with the Earth (omega_E about ECI z); ``h`` the altitude
 above a spherical Earth (R_E = ``R_EARTH``, 6378.137 km); ``rho(h)`` a piecewise exponential atmosphere.
-All vectors in W (= ECI) axes, SI units.
+All vectors in W (= ECI) axes, SI units. The per-link evaluation in a step is
+:mod:`components.dynamics.link_forces`; the functions here are the same formulas in numpy.
 """
 from __future__ import annotations
 
@@ -21,8 +22,7 @@ import math
 
 import numpy as np
 
-from components.constants import EARTH_RATE, MU_EARTH
-from components.rotations import cross
+from components.constants import MU_EARTH
 
 # Piecewise exponential atmosphere (Vallado, "Fundamentals of Astrodynamics and Applications",
 # Table 8-4; Wertz): base altitude km, density kg/m^3 at the base, scale height km.
@@ -93,8 +93,9 @@ def tidal_force_and_gravity_gradient(R, delta: np.ndarray, mass, inertia, mu: fl
 
     The tidal force is written without the cancellation of subtracting two ~9 m/s^2 vectors:
     g(R+d) - g(R) = -mu [d / s^3 + R (r - s)(r^2 + r s + s^2) / (r^3 s^3)],
-    r = |R|, s = |R + d|, r - s = -(2 R.d + d.d) / (r + s). Both terms share s (fewest numpy
-    calls: this runs for every link at every integrator stage).
+    r = |R|, s = |R + d|, r - s = -(2 R.d + d.d) / (r + s). Both terms share s. The dynamics
+    evaluates the same formulas per link in :mod:`components.dynamics.link_forces` (compiled);
+    these numpy forms are their reference.
     """
     R = np.asarray(R, dtype=float)
     d = delta
@@ -124,19 +125,6 @@ def row_cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise a x b of two (n, 3) arrays (four gathers: ~3x faster than rotations.cross for
     the few rows of a body's links)."""
     return a.take(_NEXT, axis=1) * b.take(_PREVIOUS, axis=1) - a.take(_PREVIOUS, axis=1) * b.take(_NEXT, axis=1)
-
-
-def drag_force(density, cd, area, v_rel: np.ndarray) -> np.ndarray:
-    """-1/2 rho Cd A |v_rel| v_rel for rows of v_rel (n, 3) (m/s); density, cd, area (n,) or scalars."""
-    v_rel = np.asarray(v_rel, dtype=float)
-    speed = np.linalg.norm(v_rel, axis=-1, keepdims=True)
-    k = 0.5 * np.asarray(density) * np.asarray(cd) * np.asarray(area)
-    return -np.reshape(k, (-1, 1)) * speed * v_rel
-
-
-def atmosphere_velocity(position_eci: np.ndarray) -> np.ndarray:
-    """Velocity (m/s, ECI axes) of an atmosphere co-rotating with the Earth at ECI position(s)."""
-    return cross(np.array([0.0, 0.0, EARTH_RATE]), np.asarray(position_eci, dtype=float))
 
 
 def propagate_reference(R0: np.ndarray, V0: np.ndarray, s: float, mu: float = MU_EARTH):

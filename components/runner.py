@@ -291,7 +291,9 @@ def _held_values(body: dict, blob: bytes) -> dict[str, collections.deque]:
     return values
 
 
-def serve(connect: str, run_id: str, name: str, generation: int, listen: str) -> int:
+def serve(connect: str, run_id: str, name: str, generation: int, listen: str, cpu: int | None = None) -> int:
+    """Run component ``name`` of run ``run_id`` until told to exit; ``cpu``: step on that CPU alone
+    (the bus's threads, started before, keep the CPUs this process was given)."""
     import zenoh
 
     session = zenoh.open(bus.session_config(listen=[listen], connect=[connect], mesh=True))
@@ -320,6 +322,8 @@ def serve(connect: str, run_id: str, name: str, generation: int, listen: str) ->
         keep.append(session.liveliness().declare_token(bus.run_key(run_id, "alive", name, str(generation))))
         process = ComponentProcess(name, replies.put, publish_output, batches.put)
         threading.Thread(target=_watchdog, args=(process,), daemon=True).start()
+        if cpu is not None:
+            os.sched_setaffinity(0, {cpu})   # this thread only
         while True:
             sample = inbox.recv()
             key = str(sample.key_expr)
@@ -350,8 +354,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--generation", type=int, default=0)
     parser.add_argument("--listen", help="where the other components reach this one directly "
                                          "(default: port 0 on the address used to reach the orchestrator)")
+    parser.add_argument("--cpu", type=int, help="step on this CPU alone (the config's dedicated_cpu)")
     args = parser.parse_args(argv)
-    return serve(args.connect, args.run_id, args.name, args.generation, args.listen or bus.listen_beside(args.connect))
+    return serve(args.connect, args.run_id, args.name, args.generation,
+                 args.listen or bus.listen_beside(args.connect), args.cpu)
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ RUN_KEYS = {"name": True, "epoch": True, "duration": True, "step": True,
             "algorithm": False, "realtime": False, "step_timeout": False, "start_timeout": False}
 TOP_KEYS = {"run": True, "components": True, "connections": False, "bus": False, "events": False,
             "viewer": False}
-COMPONENT_KEYS = {"type": True, "step": False, "parameters": False, "launch": False}
+COMPONENT_KEYS = {"type": True, "step": False, "parameters": False, "launch": False, "dedicated_cpu": False}
 EVENT_KEYS = {"at": True, "swap": True, "type": False, "parameters": False}
 BUS_KEYS = {"listen": False}
 VIEWER_KEYS = {"mode": True, "file": False, "rate": False, "open_browser": False}
@@ -53,6 +53,7 @@ class ComponentSpec:
     inputs: Layout
     outputs: Layout
     launch: str = "local"
+    dedicated_cpu: bool = False   # its stepping thread on a CPU of its own (speed only, never results)
 
     @property
     def variables(self) -> dict[str, Variable]:
@@ -251,6 +252,12 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
     launch = entry.get("launch", "local")
     if launch not in ("local", "external"):
         errors.append(f"{key}.launch: expected local or external, got {launch!r}")
+    dedicated_cpu = entry.get("dedicated_cpu", False)
+    if not isinstance(dedicated_cpu, bool):
+        errors.append(f"{key}.dedicated_cpu: expected true or false, got {dedicated_cpu!r}")
+    elif dedicated_cpu and launch == "external":
+        errors.append(f"{key}.dedicated_cpu: only for components the orchestrator starts (launch: local); "
+                      f"pin an external component where it runs (taskset)")
     if errors:
         raise ConfigErrors(errors)
     try:
@@ -261,7 +268,7 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
         raise ConfigErrors([f"{key}.parameters: {type_name} cannot declare its variables: "
                             f"{type(e).__name__}: {e}"]) from None
     return ComponentSpec(name=name, type=type_name, cls=cls, step_ns=step_ns, parameters=params_raw,
-                         resolved=resolved, launch=launch,
+                         resolved=resolved, launch=launch, dedicated_cpu=dedicated_cpu,
                          inputs=Layout([v for v in variables if v.causality == "input"]),
                          outputs=Layout([v for v in variables if v.causality == "output"]))
 
@@ -353,6 +360,7 @@ def validate(raw: dict, path: Path) -> RunConfig:
                 "start_timeout": f"{start_timeout} s"},
         "bus": {"listen": listen},
         "components": {n: {"type": s.type, "step": f"{s.step_ns} ns", "launch": s.launch,
+                           "dedicated_cpu": s.dedicated_cpu,
                            "parameters": {k: _plain(v) for k, v in s.resolved.items() if not k.startswith("_")}}
                        for n, s in components.items()},
         "connections": {f"{d}.{dv}": f"{s}.{sv}" for d, dv, s, sv in connections},

@@ -19,6 +19,7 @@ from __future__ import annotations
 import collections
 import datetime as dt
 import json
+import os
 import queue
 import shutil
 import signal
@@ -114,6 +115,8 @@ class Run:
             tempfile.mkdtemp(prefix=f"zenorbit-{self.run_id}-"))
         self.log_dir.mkdir(parents=True, exist_ok=True)
         self.loop_s = 0.0
+        self.placement = supervisor.place([n for n, c in config.components.items() if c.dedicated_cpu],
+                                          os.sched_getaffinity(0))
         self.decimation = 0                    # publish every n-th row to the viewer; 0: no viewer
 
         # the recorded row: every component's outputs, in config order
@@ -260,7 +263,9 @@ class Run:
         args = supervisor.runner_arguments(self.endpoint, self.run_id, spec.name, generation)
         if spec.launch == "local":
             log_path = self.log_dir / f"{spec.name}.{generation}.log"
-            process = supervisor.start_component(args, log_path)
+            cpu = self.placement.dedicated.get(spec.name)
+            process = supervisor.start_component(args + (["--cpu", str(cpu)] if cpu is not None else []),
+                                                 log_path, self.placement.shared)
         else:
             print(f"waiting for external component {spec.name!r}: start it with\n"
                   f"    python -m components.runner {' '.join(args)}", file=self.out, flush=True)
@@ -560,13 +565,21 @@ class Run:
         code, message = 0, None
         self.session = None
         self._subscriptions: list = []
+        own_cpus = os.sched_getaffinity(0)
         try:
+            supervisor.keep_to(self.placement.shared)   # this thread, and the bus threads it starts
             self._open_bus()
             if self.record_dir is not None:
                 self.recording = Recording(self.record_dir, self.columns, config.resolved)
             self._log("start", run_id=self.run_id, config=str(config.path), steps=config.steps,
                       step_ns=config.step_ns, algorithm=config.algorithm,
-                      components={n: s.type for n, s in config.components.items()})
+                      components={n: s.type for n, s in config.components.items()},
+                      cpus={**self.placement.dedicated, "shared": sorted(self.placement.shared)})
+            if self.placement.unplaced:
+                message = (f"no CPU to spare for {', '.join(self.placement.unplaced)} (dedicated_cpu; "
+                           f"{len(own_cpus)} CPU(s) available): they share the others'")
+                print(f"note: {message}", file=self.out)
+                self._log("warning", message=message, step=0)
             self._start(list(config.components.values()), {n: 0 for n in config.components}, self.members)
             for member in self.members.values():
                 self._wire(member, self.members, 0)
@@ -612,6 +625,7 @@ class Run:
             signal.signal(signal.SIGINT, signal.default_int_handler)
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
+            supervisor.keep_to(frozenset(own_cpus))
         if message:
             print(f"error: {message}", file=self.out)
             logs = ", ".join(str(m.log_path) for m in self.members.values() if m.log_path)
@@ -658,6 +672,7 @@ class Run:
             [sys.executable, "-m", "components.viewer.observer", "--connect", self.endpoint,
              "--run-id", self.run_id, "--setup", str(setup)],
             stdin=subprocess.DEVNULL, preexec_fn=supervisor.child_setup)
+        supervisor.keep_to(self.placement.shared, self.viewer_process.pid)
         self._wait({VIEWER: "alive"}, self.config.start_timeout_s, "viewer start-up")
         self._log("viewer", mode=self.viewer.mode, rate_hz=self.viewer.rate_hz)
         return max(1, round(1e9 / (self.viewer.rate_hz * self.config.step_ns)))

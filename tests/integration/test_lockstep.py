@@ -216,6 +216,49 @@ components:
     assert orchestrator("stop", "--run", "longrun").returncode == 2  # gone now: named, exit 2
 
 
+def thread_cpus(pid: int) -> dict[int, set[int]]:
+    """{thread id: the CPUs it may run on} of a live process, from /proc."""
+    cpus = {}
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        status = open(f"/proc/{pid}/task/{tid}/status").read()
+        allowed = status.split("Cpus_allowed_list:")[1].split()[0]
+        cpus[int(tid)] = {c for part in allowed.split(",") for c in (
+            range(int(part.split("-")[0]), int(part.split("-")[-1]) + 1))}
+    return cpus
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs 2 CPUs")
+def test_dedicated_cpu_keeps_every_other_thread_of_the_run_off_it(write_config, tmp_path):
+    config = write_config("""
+run: {name: pinned, epoch: 2022-09-18T12:00:00Z, duration: 1000 s, step: 1 ms, realtime: 1.0}
+components:
+  a: {type: test.counter, dedicated_cpu: true}
+  b: {type: test.counter}
+""")
+    dedicated = max(os.sched_getaffinity(0))
+    run = start_run(config, tmp_path / "rec")
+    try:
+        lines = wait_for_components("pinned-", 2)
+        pids = {line.split("--name ")[1].split()[0]: int(line.split()[0]) for line in lines}
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and thread_cpus(pids["a"])[pids["a"]] != {dedicated}:
+            time.sleep(0.2)
+        a, b, orchestrator_threads = thread_cpus(pids["a"]), thread_cpus(pids["b"]), thread_cpus(run.pid)
+        assert a[pids["a"]] == {dedicated}        # a's stepping (main) thread, alone on its CPU
+        others = [c for tid, c in a.items() if tid != pids["a"]] + list(b.values()) + list(orchestrator_threads.values())
+        assert len(others) > 5                    # the bus's threads are among them
+        assert all(dedicated not in c and c for c in others), (dedicated, a, b, orchestrator_threads)
+        assert orchestrator("stop", "--run", "pinned").returncode == 0
+        run.communicate(timeout=30)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 0
+    start = events(tmp_path / "rec")[0]
+    assert start["cpus"]["a"] == dedicated and dedicated not in start["cpus"]["shared"]
+    assert not component_processes("pinned-")
+
+
 def test_ctrl_c_stops_cleanly(write_config, tmp_path):
     """Ctrl-C on a terminal signals the whole process group: components leave it to the orchestrator."""
     config = write_config("""

@@ -67,6 +67,10 @@ def test_overrides_reach_any_key(write_config):
     (GOOD.replace("step: 1 ms}", "step: 1 ms, realtime: .nan}"), "run.realtime: expected 0"),
     (GOOD + "bus: {listen: [foo/bar]}\n", "bus.listen: expected a list of Zenoh endpoints"),
     (GOOD.replace("type: test.constant", "type: 5"), "components.src.type: expected a component type name"),
+    (GOOD.replace("{value: 1.0}}", "{value: 1.0}, dedicated_cpu: yes please}"),
+     "components.src.dedicated_cpu: expected true or false"),
+    (GOOD.replace("{value: 1.0}}", "{value: 1.0}, launch: external, dedicated_cpu: true}"),
+     "components.src.dedicated_cpu: only for components the orchestrator starts"),
 ])
 def test_each_error_names_its_key_and_file(write_config, text, key):
     errors = errors_of(write_config, text)

@@ -93,3 +93,17 @@ def test_only_components_off_every_loop_batch_their_outputs():
     ring = [("b", "u", "a", "y"), ("c", "u", "b", "y"), ("a", "u", "c", "y")]
     assert all(feeds_back(n, ring) for n in "abc")
     assert not any(feeds_back(n, ring[:2]) for n in "abc")
+
+
+def test_dedicated_cpus_are_handed_out_from_the_top_keeping_one_for_the_rest():
+    from orchestrator.supervisor import place
+    two = place(["dynamics"], {0, 1})
+    assert two.dedicated == {"dynamics": 1} and two.shared == {0} and two.unplaced == ()
+    four = place(["a", "b"], {0, 1, 2, 3})
+    assert four.dedicated == {"a": 3, "b": 2} and four.shared == {0, 1}
+    # an orchestrator restricted to CPUs 2 and 5 hands out only those
+    assert place(["a"], {2, 5}).dedicated == {"a": 5}
+    alone = place(["a", "b"], {0})
+    assert alone.dedicated == {} and alone.shared == {0} and alone.unplaced == ("a", "b")
+    assert place(["a", "b"], {0, 1}).unplaced == ("b",)
+    assert place([], {0, 1}).shared == {0, 1}

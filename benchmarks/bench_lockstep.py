@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # run from anywhere, installed or not
+
 
 def pong(endpoint: str) -> None:
     import zenoh

@@ -7,6 +7,7 @@
 Rows:
 - the paper's demo (configs/humanoid_tracking.yaml) over the bus: real-time factor;
 - the same components stepped one after another in this process (orchestrator/inprocess.py), no bus;
+- the demo over the bus again, its dynamics sharing the CPUs (``dedicated_cpu`` off);
 - 3 no-op components in a loop (a -> b -> c -> a, Jacobi) next to the raw Zenoh pub/sub round trip;
 - the no-op chain a -> b -> c against mosaik 3 (one process per simulator; mosaik is installed in
   a virtual environment of its own, ``--mosaik-venv``, made on first use);
@@ -66,8 +67,9 @@ def noop_loop(count: int, steps: int, size: int = 1, closed: bool = True) -> str
             "components:\n%sconnections: {%s}\n" % (steps, components, connections))
 
 
-def demo(seconds: float, repeat: int) -> tuple[float, float]:
-    """(real-time factor over the bus, real-time factor of the in-process loop)."""
+def demo(seconds: float, repeat: int, more: list[str] = ()) -> tuple[float, float]:
+    """(real-time factor over the bus, real-time factor of the in-process loop); ``more``: extra
+    overrides of the bus runs."""
     from orchestrator.config import load
     from orchestrator.engine import Run
     from orchestrator.inprocess import run_in_process
@@ -76,7 +78,7 @@ def demo(seconds: float, repeat: int) -> tuple[float, float]:
     overrides = [f"run.duration={seconds} s"]
     bus = []
     for _ in range(repeat):
-        run = Run(load(config_path, overrides), out=open(os.devnull, "w"))
+        run = Run(load(config_path, [*overrides, *more]), out=open(os.devnull, "w"))
         if run.execute() != 0:
             raise RuntimeError("the demo failed over the bus")
         bus.append(seconds / run.loop_s)
@@ -125,10 +127,13 @@ def main() -> None:
     print(f"zenoh pub/sub round trip (2 processes, 64 B): {rtt * 1e6:.0f} us median")
 
     bus_rtf, local_rtf = demo(demo_s, repeat)
+    shared_rtf = demo(demo_s, repeat, ["components.dynamics.dedicated_cpu=false"])[0]
     print("\n| figure | value |\n|---|---|")
     print(f"| paper's demo over the bus ({demo_s:g} s, 1 kHz, rk4, Jacobi) | real-time factor {bus_rtf:.2f} |")
     print(f"| same components in one process, one after another | real-time factor {local_rtf:.2f} |")
     print(f"| bus / one process | {bus_rtf / local_rtf:.2f}x |")
+    print(f"| the demo over the bus without dedicated_cpu | real-time factor {shared_rtf:.2f} "
+          f"({shared_rtf / local_rtf:.2f}x one process) |")
 
     loop3 = median_rate(noop_loop(3, steps), repeat)
     print(f"| 3 no-op components in a loop | {loop3:.0f} steps/s = {1e6 / loop3:.0f} us/step "

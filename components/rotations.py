@@ -89,7 +89,7 @@ def matrix_to_quat(R) -> np.ndarray:
 
     Sign convention: q and -q are the same rotation; this returns the one with w >= 0 (for a
     half turn, w = 0, the sign is that of the largest of |x|, |y|, |z|). Callers that need a
-    sign-continuous series flip it themselves (``components.orbit.frames.continuous``).
+    sign-continuous series flip it themselves (``continuous``).
 
     Shepperd's method: with A the symmetric 4x4 matrix whose row k is 4 q_k q, the row with the
     largest diagonal entry 4 q_k^2 is used (no small divisor, accurate for every rotation), and
@@ -117,6 +117,17 @@ def matrix_to_quat(R) -> np.ndarray:
     q = A[rows, k]
     q /= np.linalg.norm(q, axis=1, keepdims=True) * np.where(q[:, 3:4] < 0.0, -1.0, 1.0)
     return q.reshape(R.shape[:-2] + (4,))
+
+
+def continuous(q, q_previous) -> np.ndarray:
+    """q with the sign of each of its quaternions (every 4 values, [x, y, z, w]) chosen closer to
+    the same quaternion of ``q_previous`` (q and -q are the same rotation): no sign jumps from one
+    sample of a series to the next. ``q_previous`` None: q as given. Returns a new array."""
+    q = np.array(q, dtype=np.float64)
+    if q_previous is not None:
+        quats = q.reshape(-1, 4)
+        quats[np.einsum("ij,ij->i", quats, np.reshape(q_previous, (-1, 4))) < 0.0] *= -1.0
+    return q
 
 
 # --------------------------------------------------------------------------- rotation vectors (SO(3))

@@ -28,6 +28,7 @@ import numpy as np
 
 from components.constants import NS_PER_S
 from components.errors import ConfigError
+from components.rotations import continuous
 from components.sdk import Component, Parameter, Variable
 
 
@@ -101,6 +102,7 @@ def _kinematic_chain(model, end_effector: str) -> list:
 # --------------------------------------------------------------------------- computed torque
 
 TASK_AXES = "x, y, z, rotation about x, y, z"
+QUATERNION_OUTPUTS = ("ee_orientation", "ee_orientation_desired")
 
 class ComputedTorqueComponent(Component):
     """Computed-torque control of one arm of a free-floating body with the Generalized Jacobian
@@ -137,7 +139,7 @@ class ComputedTorqueComponent(Component):
     | ee_position | output | (3,) | m | end-effector frame origin, W |
     | ee_position_desired | output | (3,) | m | its reference, W |
     | ee_error | output | (6,) | m, rad | (p_d - p, log(R_d R^T)): position then orientation error, W |
-    | ee_orientation | output | (4,) | 1 | q_W_ee [x, y, z, w] |
+    | ee_orientation | output | (4,) | 1 | q_W_ee [x, y, z, w], sign continuous from step to step |
     | ee_orientation_desired | output | (4,) | 1 | its reference |
     | ee_twist | output | (6,) | m/s, rad/s | end-effector linear and angular velocity, W |
     | sigma_min | output | () | - | smallest singular value of J_g (of J_m for base_model fixed) |
@@ -240,6 +242,7 @@ class ComputedTorqueComponent(Component):
         self.checked = self._checked(params)
         self.controller = None
         self._initial_inputs = None
+        self.last_quaternions: dict[str, np.ndarray] = {}
 
     def _build(self, q: np.ndarray):
         from components.controller.computed_torque import ArmController, ComputedTorqueLaw, FreeFloatingArm
@@ -255,11 +258,18 @@ class ComputedTorqueComponent(Component):
                                 base_model=p["base_model"])
         return ArmController(arm, law, c["trajectory"], reach=c["reach"])
 
+    def _continuous(self, out: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The output quaternions' signs continued from the last step's."""
+        for key in QUATERNION_OUTPUTS:
+            out[key] = self.last_quaternions[key] = continuous(out[key], self.last_quaternions.get(key))
+        return out
+
     def initialize(self, t0_ns, inputs):
         self.controller = self._build(np.asarray(inputs["q"], dtype=float))
         self.controller.start(inputs)
         self._initial_inputs = {k: np.array(v, dtype=float) for k, v in inputs.items()}
-        return self.controller.step(t0_ns / NS_PER_S, inputs)
+        self.last_quaternions = {}
+        return self._continuous(self.controller.step(t0_ns / NS_PER_S, inputs))
 
     def do_step(self, t_ns, h_ns, inputs):
         if self._initial_inputs is not None:
@@ -268,14 +278,15 @@ class ComputedTorqueComponent(Component):
                 self.controller = self._build(np.asarray(inputs["q"], dtype=float))
                 self.controller.start(inputs)
             self._initial_inputs = None
-        return self.controller.step(t_ns / NS_PER_S, inputs)
+        return self._continuous(self.controller.step(t_ns / NS_PER_S, inputs))
 
     def get_state(self):
         if self.controller is None:
             raise RuntimeError("get_state before initialize: the trajectory is not anchored yet")
         p0, R0, Rb = self.controller.anchor
         return {"ee_position_0": p0.copy(), "ee_rotation_0": R0.ravel().copy(), "base_rotation_0": Rb.ravel().copy(),
-                "q_posture": self.controller.q_posture.copy()}
+                "q_posture": self.controller.q_posture.copy(),
+                **{f"last_{k}": q.copy() for k, q in self.last_quaternions.items()}}
 
     def set_state(self, state):
         for key, size in (("ee_position_0", 3), ("ee_rotation_0", 9), ("base_rotation_0", 9),
@@ -284,6 +295,8 @@ class ComputedTorqueComponent(Component):
                 raise ValueError(f"state: {key} expected {size} values, got "
                                  f"{None if key not in state else np.asarray(state[key]).size}")
         self._initial_inputs = None
+        self.last_quaternions = {k: np.array(state[f"last_{k}"], dtype=float) for k in QUATERNION_OUTPUTS
+                                 if f"last_{k}" in state}
         self.controller.restore(np.asarray(state["ee_position_0"], float),
                                 np.asarray(state["ee_rotation_0"], float).reshape(3, 3),
                                 np.asarray(state["base_rotation_0"], float).reshape(3, 3),

@@ -42,7 +42,7 @@ Body (``bodies.<name>``):
 | w_lvlh | input | (3,) | rad/s | LVLH angular velocity, ECI axes (used at initialize) |
 | <body>.tau | input | (n_joints,) | N m (N) | joint torques, every non-fixed URDF joint in file order; clipped to the URDF effort; ignored on locked joints |
 | <body>.position | output | (3,) | m | base link origin in W |
-| <body>.orientation | output | (4,) | 1 | q_W_base [x, y, z, w], w >= 0 |
+| <body>.orientation | output | (4,) | 1 | q_W_base [x, y, z, w], sign continuous from step to step (w >= 0 at initialize) |
 | <body>.twist | output | (6,) | m/s, rad/s | base origin linear velocity, then angular velocity, W axes |
 | <body>.q | output | (n_joints,) | rad (m) | joint positions |
 | <body>.qd | output | (n_joints,) | rad/s (m/s) | joint rates |
@@ -52,10 +52,11 @@ Body (``bodies.<name>``):
 | <body>.tidal_force | output | (n_links*3,) | N | tidal force per link, W axes |
 | <body>.drag_force | output | (n_links*3,) | N | drag force per link, W axes |
 | <body>.link_position | output | (n_links*3,) | m | link frame origins in W |
-| <body>.link_orientation | output | (n_links*4,) | 1 | q_W_link per link [x, y, z, w] |
+| <body>.link_orientation | output | (n_links*4,) | 1 | q_W_link per link [x, y, z, w], sign continuous |
 
 ``declare`` reads the URDFs with xml.etree only (joint and link counts); DART loads at instantiate.
-State (``get_state``): the DART positions and velocities of every body, torques, orbit inputs.
+State (``get_state``): the DART positions and velocities of every body, torques, orbit inputs,
+and the last output quaternions (their signs continue).
 """
 from __future__ import annotations
 
@@ -68,6 +69,7 @@ import numpy as np
 from components.constants import MU_EARTH, NS_PER_S
 from components.dynamics.urdf import UrdfError, UrdfModel, read_urdf
 from components.errors import ComponentError, ConfigError
+from components.rotations import continuous
 from components.sdk import Component, Parameter, Variable
 from components.units import to_si
 
@@ -78,6 +80,7 @@ BODY_KEYS = ("urdf", "frame", "position", "orientation", "twist", "q", "qd", "lo
 ORBIT_INPUTS = ("r_eci", "v_eci", "q_eci_lvlh", "w_lvlh")
 BODY_OUTPUTS = ("position", "orientation", "twist", "q", "qd", "com", "momentum")
 LINK_OUTPUTS = ("gg_torque", "tidal_force", "drag_force", "link_position", "link_orientation")
+LAST = "last_output."   # state keys of the last output quaternions
 
 
 def resolve_urdf(value: Any, config_dir: str | None, key: str) -> Path:
@@ -301,6 +304,9 @@ class DartDynamics(Component):
         self.links = params["link_outputs"]
         self.torque_inputs = [(name, f"{name}.tau") for name in self.names]
         self.output_names = {name: {key: f"{name}.{key}" for key in BODY_OUTPUTS + LINK_OUTPUTS} for name in self.names}
+        self.quaternion_outputs = [f"{name}.{key}" for name in self.names
+                                   for key in ("orientation", "link_orientation")[:2 if self.links else 1]]
+        self.last_quaternions: dict[str, np.ndarray] = {}
 
     def _inputs(self, inputs: Mapping[str, np.ndarray], torques: bool) -> None:
         try:
@@ -317,11 +323,14 @@ class DartDynamics(Component):
             output_names = self.output_names[name]
             for key, value in self.world.outputs(name, links=self.links).items():
                 out[output_names[key]] = value
+        for key in self.quaternion_outputs:
+            out[key] = self.last_quaternions[key] = continuous(out[key], self.last_quaternions.get(key))
         return out
 
     def initialize(self, t0_ns, inputs):
         self._inputs(inputs, torques=False)
         self.world.reset_bodies()
+        self.last_quaternions = {}
         return self._outputs()
 
     def do_step(self, t_ns, h_ns, inputs):
@@ -330,10 +339,12 @@ class DartDynamics(Component):
         return self._outputs()
 
     def get_state(self):
-        return self.world.get_state()
+        return {**self.world.get_state(), **{LAST + k: v.copy() for k, v in self.last_quaternions.items()}}
 
     def set_state(self, state):
         try:
-            self.world.set_state(state)
+            self.world.set_state({k: v for k, v in state.items() if not k.startswith(LAST)})
         except ValueError as e:
             raise ComponentError(str(e)) from None
+        self.last_quaternions = {k[len(LAST):]: np.array(v, dtype=np.float64) for k, v in state.items()
+                                 if k.startswith(LAST)}

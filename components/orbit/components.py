@@ -26,7 +26,8 @@ import numpy as np
 
 from components.constants import NS_PER_S
 from components.errors import ConfigError
-from components.orbit.frames import continuous, lvlh_dcm, lvlh_state
+from components.orbit.frames import lvlh_dcm, lvlh_state
+from components.rotations import continuous
 from components.orbit.kepler import ElementError, KeplerOrbit, check_elements
 from components.sdk import Component, Parameter, Variable
 from components.units import to_si

@@ -50,13 +50,6 @@ def lvlh_dcm(r_eci, v_eci) -> np.ndarray:
     return np.array((x, y, z)).T
 
 
-def continuous(q, q_previous) -> np.ndarray:
-    """q or -q (the same rotation), whichever is closer to ``q_previous``: no sign jumps in a series."""
-    q = np.asarray(q, dtype=np.float64)
-    if q_previous is not None and float(np.dot(q, q_previous)) < 0.0:
-        return -q
-    return q
-
 
 def lvlh_state(r_eci, v_eci, a_eci) -> tuple[np.ndarray, np.ndarray]:
     """(q_eci_lvlh [x, y, z, w] with w >= 0, w_lvlh in ECI axes, rad/s) from r (m), v (m/s),

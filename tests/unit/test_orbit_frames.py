@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from components.orbit.frames import continuous, lvlh_dcm, lvlh_state
+from components.orbit.frames import lvlh_dcm, lvlh_state
+from components.rotations import continuous
 from components.orbit.kepler import KeplerOrbit
 
 deg = math.radians
@@ -59,6 +60,10 @@ def test_continuous_keeps_sign():
     np.testing.assert_array_equal(continuous(-q, q), q)
     np.testing.assert_array_equal(continuous(q, q), q)
     np.testing.assert_array_equal(continuous(q, None), q)
+    # several quaternions in one flat output (links): each keeps its own sign
+    links = np.concatenate([q, [0.6, 0.0, 0.0, 0.8], [0.0, -0.8, 0.0, 0.6]])
+    flipped = links * np.repeat([1.0, -1.0, -1.0], 4)
+    np.testing.assert_array_equal(continuous(flipped, links), links)
 
 
 def _rate_by_finite_difference(q_of_t, t, h):

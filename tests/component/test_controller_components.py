@@ -224,3 +224,24 @@ def test_joint_pd_bad_config_names_the_key(params, key):
     with pytest.raises(ConfigError) as error:
         Harness("controller.joint_pd", {"urdf": URDF, **params})
     assert error.value.key == key
+
+
+def test_end_effector_quaternions_keep_their_sign_while_the_base_turns():
+    """The base turned through a full turn about z (inputs given open loop): q_W_ee passes w = 0,
+    and ee_orientation never jumps to -q from one step to the next, through a swap's hand-over too."""
+    def turned(c, k):
+        angle = 2 * np.pi * k / 400
+        c.inputs.update({"q": np.array([0.0] * 7 + list(START.values())), "qd": np.zeros(14),
+                         "orientation": np.array([0.0, 0.0, np.sin(angle / 2), np.cos(angle / 2)])})
+
+    c = computed_torque()
+    turned(c, 0)
+    series = [c.initialize()["ee_orientation"].copy()]
+    for k in range(1, 401):
+        turned(c, k)
+        if k == 250:
+            c = swap_at_boundary(c, computed_torque)
+        series.append(c.step(MS)["ee_orientation"].copy())
+    q = np.array(series)
+    assert np.min(np.einsum("ti,ti->t", q[1:], q[:-1])) > 0.99      # 1/400 turn per step
+    assert np.ptp(np.sign(q[:, 3])) == 2                            # w did change sign

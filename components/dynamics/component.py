@@ -255,7 +255,7 @@ class DartDynamics(Component):
                          f"joint torques (N m, N for prismatic), URDF order: {joints}"),
                 Variable(f"{name}.position", "output", (3,), "m", 0.0, "base link origin in W"),
                 Variable(f"{name}.orientation", "output", (4,), "1", [0.0, 0.0, 0.0, 1.0],
-                         "q_W_base [x, y, z, w], w >= 0"),
+                         "q_W_base [x, y, z, w], sign continuous from step to step"),
                 Variable(f"{name}.twist", "output", (6,), "m/s, rad/s", 0.0,
                          "base origin linear velocity then angular velocity, W axes"),
                 Variable(f"{name}.q", "output", (n,), "rad", 0.0, f"joint positions, URDF order: {joints}"),

@@ -26,7 +26,7 @@ import traceback
 import numpy as np
 
 from components import bus, registry
-from components.schedule import Route
+from components.schedule import Route, fed_inputs
 from components.sdk import Layout, resolve_parameters
 
 INBOX_CAPACITY = 4096   # messages waiting in the inbox FIFO (a full one holds the senders back)
@@ -60,6 +60,7 @@ class ComponentProcess:
         self.component = None
         self.generation = 0
         self.routes = []
+        self.route_inputs: list[list[str]] = []   # the input variables each route feeds
         self.sources: dict[str, int] = {}        # source -> the generation whose outputs count
         self.held: dict[str, collections.deque] = {}   # source -> (tag, outputs), tags increasing
         self.heard: set[str] = set()             # sources whose sync message arrived
@@ -127,6 +128,7 @@ class ComponentProcess:
             self.batch_timings = np.empty((BATCH_STEPS, 2))
             self.batch_rows = np.empty((BATCH_STEPS, self.outputs.size))
             self.component = cls(params)
+            self.component.input_times_ns = self.input_times = {}
             self.reply(op, {"inputs": self.inputs.size, "outputs": self.outputs.size, "pid": os.getpid()})
         elif op == "wire":
             self.generation, self.step_ns, self.ratio = body["generation"], body["step_ns"], body["ratio"]
@@ -134,11 +136,13 @@ class ComponentProcess:
             self.batch_outputs = body["batch_outputs"]
             self.next_k = body["k"]
             self.horizon = body["k"]
-            self.routes = [Route.from_json(r) for r in body["routes"]]
+            self._set_routes(body["routes"])
             self._set_sources(body["sources"])
             self.reply(op)
         elif op == "initialize":
             self.input_vector[:] = np.frombuffer(blob, dtype=np.float64)
+            self.input_times.clear()
+            self.input_times.update(body["input_times_ns"])
             result = self.component.initialize(body["t0_ns"], self.input_views)
             self.outputs.pack(result, self.output_vector)
             self.reply(op, {}, self.output_vector.tobytes())
@@ -153,7 +157,7 @@ class ComponentProcess:
             self.horizon = body["horizon"]
             self.idle_since = time.perf_counter()
         elif op == "rewire":
-            self.routes = [Route.from_json(r) for r in body["routes"]]
+            self._set_routes(body["routes"])
             self._set_sources(body["sources"])
             self._hold(_held_values(body, blob))
             self.reply(op)
@@ -170,6 +174,10 @@ class ComponentProcess:
         else:
             raise ValueError(f"unknown control operation {op!r}")
         return True
+
+    def _set_routes(self, routes: list[dict]) -> None:
+        self.routes = [Route.from_json(r) for r in routes]
+        self.route_inputs = [fed_inputs(route, self.inputs.offsets) for route in self.routes]
 
     def _set_sources(self, sources: dict[str, int]) -> None:
         for source in sources:
@@ -200,10 +208,11 @@ class ComponentProcess:
                 self.flush()   # the orchestrator needs these outputs to grant more steps
                 return
             k = self.next_k
-            vectors = []
+            vectors, tags = [], []
             for route in self.routes:
                 held = self.held[route.source]
                 tag = route.tag(k)
+                tags.append(tag)
                 while held and held[0][0] < tag:
                     held.popleft()
                 if not held:
@@ -212,8 +221,10 @@ class ComponentProcess:
                     raise Halt(self._report("step", k, f"input from {route.source!r} for step {k} "
                                                          f"(tag {tag}) never arrived; got tag {held[0][0]}"))
                 vectors.append(held[0][1])
-            for route, vector in zip(self.routes, vectors):
+            for route, names, vector, tag in zip(self.routes, self.route_inputs, vectors, tags):
                 self.input_vector[route.dst] = vector[route.src]
+                for name in names:
+                    self.input_times[name] = tag * self.step_ns
             self._step(k)
 
     def _step(self, k: int) -> None:

@@ -48,6 +48,13 @@ class Route:
                    np.asarray(data["dst"], dtype=np.int64), int(data["ratio"]), int(data["ahead"]))
 
 
+def fed_inputs(route: Route, input_offsets: dict[str, slice]) -> list[str]:
+    """The consumer's input variables that ``route`` feeds (their values are sampled at
+    ``route.tag(k)`` times the run step)."""
+    dst = set(route.dst.tolist())
+    return [name for name, s in input_offsets.items() if s.start in dst]
+
+
 def routes(consumer: str, input_offsets: dict[str, slice], connections, output_offsets: dict[str, dict[str, slice]],
            ratios: dict[str, int], order: list[str], algorithm: str) -> list[Route]:
     """The routes into ``consumer``, one per source component.

@@ -10,6 +10,7 @@ process, :mod:`components.testing.harness` runs it in-process. See docs/componen
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, ClassVar, Mapping
 
 import numpy as np
@@ -113,6 +114,13 @@ class Component:
 
     type_name: ClassVar[str] = ""
     parameters: ClassVar[tuple[Parameter, ...]] = ()
+    #: Set by the framework before ``initialize`` and each ``do_step``: for each input fed by a
+    #: connection, the time (ns) at which its value was sampled, which is not always t_ns: under
+    #: Gauss-Seidel an input from a component earlier in config order holds that component's
+    #: output at the end of the step (t_ns + its step); a slower source's output is held from its
+    #: last step. At ``initialize`` an input whose source is not initialized yet (it holds its
+    #: start value) is absent.
+    input_times_ns: Mapping[str, int] = MappingProxyType({})
 
     @classmethod
     def declare(cls, params: Mapping[str, Any]) -> list[Variable]:

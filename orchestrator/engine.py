@@ -73,6 +73,7 @@ class Member:
     out_src: np.ndarray = None             # ... from these indices of its output vector
     tag: int = 0                           # the tag of ``latest``: what the recorded rows hold now
     latest: np.ndarray = None
+    initialized: bool = False              # ``latest`` holds its outputs (not its start values)
     received: collections.deque = field(default_factory=collections.deque)  # (tag, outputs), not yet recorded
     progress: int = 0                      # the highest tag it has published
     progress_at: float = 0.0               # wall time of its last output
@@ -315,9 +316,15 @@ class Run:
 
     def _initialize(self, member: Member, t_ns: int, members: dict[str, Member]) -> np.ndarray:
         inputs = member.spec.inputs.start_vector()
+        times = {}
         for route in member.routes:
-            inputs[route.dst] = members[route.source].latest[route.src]
-        self._ask([member], "initialize", "initialize", self.config.start_timeout_s, {"t0_ns": t_ns}, inputs.tobytes())
+            source = members[route.source]
+            inputs[route.dst] = source.latest[route.src]
+            if source.initialized:
+                times.update(dict.fromkeys(schedule.fed_inputs(route, member.spec.inputs.offsets),
+                                           source.tag * self.config.step_ns))
+        self._ask([member], "initialize", "initialize", self.config.start_timeout_s,
+                  {"t0_ns": t_ns, "input_times_ns": times}, inputs.tobytes())
         vector = np.frombuffer(member.reply["blob"], dtype=np.float64)
         variable = member.spec.outputs.first_non_finite(vector)
         if variable is not None:
@@ -396,7 +403,7 @@ class Run:
                 self._terminate(joining, timeout=2.0)
             self._log("warning", message=f"swap of {spec.name} to {spec.type} failed: {failure}", step=self.row)
             raise SwapFailed(str(failure)) from None
-        new.tag, new.latest, new.progress = self.row, np.array(outputs), self.row
+        new.tag, new.latest, new.progress, new.initialized = self.row, np.array(outputs), self.row, True
         self.values[new.out_dst] = new.latest[new.out_src]
         self.members[spec.name] = self.joining.pop(spec.name)
         self._terminate(old)  # its late messages carry the old generation: ignored from here on
@@ -586,6 +593,7 @@ class Run:
             for name in schedule.initialization_order(self.order, config.connections):
                 member = self.members[name]
                 member.latest = self._initialize(member, 0, self.members)
+                member.initialized = True
                 self.values[member.out_dst] = member.latest[member.out_src]
             if self.recording is not None:
                 self.recording.append(0, 0.0, self.values)

@@ -39,10 +39,14 @@ class _Stepped:
         self.ratio = spec.step_ns // config.step_ns
         self.by_tag: dict[int, np.ndarray] = {}
         self.routes: list[schedule.Route] = []
+        self.route_inputs: list[list[str]] = []
+        self.component.input_times_ns = self.input_times = {}
 
-    def take_inputs(self, members: dict[str, "_Stepped"], k: int) -> None:
-        for route in self.routes:
-            self.input_vector[route.dst] = members[route.source].by_tag[route.tag(k)][route.src]
+    def take_inputs(self, members: dict[str, "_Stepped"], k: int, step_ns: int) -> None:
+        for route, names in zip(self.routes, self.route_inputs):
+            tag = route.tag(k)
+            self.input_vector[route.dst] = members[route.source].by_tag[tag][route.src]
+            self.input_times.update(dict.fromkeys(names, tag * step_ns))
 
     def pack(self, result) -> np.ndarray:
         vector = np.empty(self.outputs.size)
@@ -62,11 +66,14 @@ def run_in_process(config: RunConfig, steps: int | None = None, timing: dict | N
     for name, member in members.items():
         member.routes = schedule.routes(name, member.inputs.offsets, config.connections, offsets, ratios,
                                         order, config.algorithm)
+        member.route_inputs = [schedule.fed_inputs(r, member.inputs.offsets) for r in member.routes]
     for name in schedule.initialization_order(order, config.connections):
         member = members[name]
-        for route in member.routes:  # sources not initialized yet hold their start values
-            source = members[route.source]
+        for route, names in zip(member.routes, member.route_inputs):  # sources not initialized yet
+            source = members[route.source]                              # hold their start values
             member.input_vector[route.dst] = source.by_tag.get(0, source.outputs.start_vector())[route.src]
+            if 0 in source.by_tag:
+                member.input_times.update(dict.fromkeys(names, 0))
         member.by_tag[0] = member.pack(member.component.initialize(0, member.input_views))
 
     rows = np.empty((steps + 1, sum(m.outputs.size for m in members.values())))
@@ -75,7 +82,7 @@ def run_in_process(config: RunConfig, steps: int | None = None, timing: dict | N
     for k in range(steps):
         for member in members.values():
             if schedule.is_due(member.ratio, k):
-                member.take_inputs(members, k)
+                member.take_inputs(members, k, config.step_ns)
                 result = member.component.do_step(k * config.step_ns, member.ratio * config.step_ns,
                                                   member.input_views)
                 member.by_tag[k + member.ratio] = member.pack(result)

@@ -267,7 +267,10 @@ class ComputedTorqueComponent(Component):
     def initialize(self, t0_ns, inputs):
         self.controller = self._build(np.asarray(inputs["q"], dtype=float))
         self.controller.start(inputs)
-        self._initial_inputs = {k: np.array(v, dtype=float) for k, v in inputs.items()}
+        # an unsampled state (the dynamics comes later in config order and holds its start values,
+        # or a harness said nothing): re-anchor at the first state stepped from, if it differs
+        sampled = "q" in self.input_times_ns
+        self._initial_inputs = None if sampled else {k: np.array(v, dtype=float) for k, v in inputs.items()}
         self.last_quaternions = {}
         return self._continuous(self.controller.step(t0_ns / NS_PER_S, inputs))
 
@@ -278,7 +281,9 @@ class ComputedTorqueComponent(Component):
                 self.controller = self._build(np.asarray(inputs["q"], dtype=float))
                 self.controller.start(inputs)
             self._initial_inputs = None
-        return self._continuous(self.controller.step(t_ns / NS_PER_S, inputs))
+        # the reference at the time the state was sampled (t_(k+1) under Gauss-Seidel): like with like
+        t_state = self.input_times_ns.get("q", t_ns)
+        return self._continuous(self.controller.step(t_state / NS_PER_S, inputs))
 
     def get_state(self):
         if self.controller is None:

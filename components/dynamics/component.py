@@ -308,9 +308,10 @@ class DartDynamics(Component):
                                    for key in ("orientation", "link_orientation")[:2 if self.links else 1]]
         self.last_quaternions: dict[str, np.ndarray] = {}
 
-    def _inputs(self, inputs: Mapping[str, np.ndarray], torques: bool) -> None:
+    def _inputs(self, inputs: Mapping[str, np.ndarray], torques: bool, t_ns: int) -> None:
+        age = (t_ns - self.input_times_ns.get("r_eci", t_ns)) / NS_PER_S   # < 0 under Gauss-Seidel
         try:
-            self.world.set_orbit(*(inputs[k] for k in ORBIT_INPUTS))
+            self.world.set_orbit(*(inputs[k] for k in ORBIT_INPUTS), age=age)
             if torques:
                 for name, key in self.torque_inputs:
                     self.world.set_torques(name, inputs[key])
@@ -328,13 +329,13 @@ class DartDynamics(Component):
         return out
 
     def initialize(self, t0_ns, inputs):
-        self._inputs(inputs, torques=False)
+        self._inputs(inputs, torques=False, t_ns=t0_ns)
         self.world.reset_bodies()
         self.last_quaternions = {}
         return self._outputs()
 
     def do_step(self, t_ns, h_ns, inputs):
-        self._inputs(inputs, torques=True)
+        self._inputs(inputs, torques=True, t_ns=t_ns)
         self.world.step(h_ns / NS_PER_S)
         return self._outputs()
 

@@ -24,7 +24,9 @@ Integrators (``integrator``):
 
 Each communication step ``step(h)`` runs ``substeps`` internal steps of h / substeps. Within a
 step the orbit inputs are held, but the reference point moves along its Kepler arc
-(:func:`environment.propagate_reference`), so a long step does not lag the tidal field.
+(:func:`environment.propagate_reference`) from the time the inputs were sampled (``set_orbit``'s
+``age``), so neither a long step, a slower orbit component nor Gauss-Seidel's one-step lead
+shifts the tidal field in time.
 
 Per body (see ``BodySpec``): the base pose and twist and the joint positions/rates at
 ``reset_bodies``, in W or in LVLH (``frame: lvlh``: relative to LVLH, including its rotation:
@@ -323,14 +325,16 @@ class OrbitalWorld:
         self.v_eci = np.zeros(3)
         self.q_eci_lvlh = np.array([0.0, 0.0, 0.0, 1.0])
         self.w_lvlh = np.zeros(3)
-        self.elapsed = 0.0          # s since the orbit inputs were set (the reference point moved on)
+        self.elapsed = 0.0          # s since the orbit inputs were sampled (the reference point moved on)
         self._env_now = False
         self._reference_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
     # ----------------------------------------------------------------- inputs
 
-    def set_orbit(self, r_eci, v_eci, q_eci_lvlh=(0.0, 0.0, 0.0, 1.0), w_lvlh=(0.0, 0.0, 0.0)) -> None:
-        """Reference orbit point (m, m/s, ECI), LVLH attitude q_ECI_LVLH and rate (rad/s, ECI axes)."""
+    def set_orbit(self, r_eci, v_eci, q_eci_lvlh=(0.0, 0.0, 0.0, 1.0), w_lvlh=(0.0, 0.0, 0.0), age: float = 0.0) -> None:
+        """Reference orbit point (m, m/s, ECI), LVLH attitude q_ECI_LVLH and rate (rad/s, ECI axes),
+        sampled ``age`` seconds before the current time (negative: after it, as a Gauss-Seidel run
+        gives the next step's): the reference point is propagated from its own time."""
         values = {"r_eci": r_eci, "v_eci": v_eci, "q_eci_lvlh": q_eci_lvlh, "w_lvlh": w_lvlh}
         orbit = np.concatenate(list(values.values()), axis=None, dtype=float)
         if orbit.size != 13 or not np.isfinite(orbit).all():
@@ -339,7 +343,7 @@ class OrbitalWorld:
                 if value.size != size or not np.isfinite(value).all():
                     raise ValueError(f"input {key}: expected {size} finite values, got {value.tolist()}")
         self.r_eci, self.v_eci, self.q_eci_lvlh, self.w_lvlh = orbit[0:3], orbit[3:6], orbit[6:10], orbit[10:13]
-        self.elapsed = 0.0
+        self.elapsed = float(age)
         self._reference_cache = {}
 
     def set_torques(self, name: str, tau) -> None:

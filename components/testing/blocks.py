@@ -78,6 +78,7 @@ class Integrator(Component):
     |---|---|---|---|---|
     | u | input | () | 1 | rate (held over the step) |
     | x | output | () | 1·s | integral |
+    | u_time | output | () | s | when the u it last stepped on was sampled (``input_times_ns``; t if unconnected) |
     """
     type_name = "test.integrator"
     parameters = (
@@ -88,17 +89,18 @@ class Integrator(Component):
     @classmethod
     def declare(cls, params):
         return [Variable("u", "input", (), "1", 0.0, "rate"),
-                Variable("x", "output", (), "1", params["x0"], "integral of gain * u")]
+                Variable("x", "output", (), "1", params["x0"], "integral of gain * u"),
+                Variable("u_time", "output", (), "s", 0.0, "when the u it last stepped on was sampled")]
 
     def __init__(self, params):
         self.gain, self.x = params["gain"], params["x0"]
 
     def initialize(self, t0_ns, inputs):
-        return {"x": self.x}
+        return {"x": self.x, "u_time": self.input_times_ns.get("u", t0_ns) / 1e9}
 
     def do_step(self, t_ns, h_ns, inputs):
         self.x += self.gain * float(inputs["u"]) * (h_ns / 1e9)
-        return {"x": self.x}
+        return {"x": self.x, "u_time": self.input_times_ns.get("u", t_ns) / 1e9}
 
     def get_state(self):
         return {"x": np.float64(self.x)}

@@ -6,7 +6,10 @@
     h.outputs["x"]                   # -> 0.002
 
 Inputs hold their last value (zero-order hold) and start at their declared start value, as on
-the bus. Outputs go through the same fixed float64 layout the bus uses, and get_state/set_state
+the bus. Their sample times (the component's ``input_times_ns``): at a step, the step's start
+t_ns for every input, unless ``h.input_times_ns`` gives another time (ns) for it, as a
+Gauss-Seidel or multi-rate run would; at ``initialize``, only those ``h.input_times_ns`` lists
+(the others count as start values, not yet sampled). Outputs go through the same fixed float64 layout the bus uses, and get_state/set_state
 go through the same byte encoding, so a component that passes here behaves the same in a run.
 """
 from __future__ import annotations
@@ -39,6 +42,7 @@ class Harness:
         self.inputs: dict[str, Any] = {v.name: v.start.copy() for v in self.input_layout.variables}
         self._outputs = self.output_layout.start_vector()
         self.t_ns = t0_ns
+        self.input_times_ns: dict[str, int] = {}
         self._initialized = False
 
     @property
@@ -55,6 +59,7 @@ class Harness:
         return self.input_layout.unpack(vector)
 
     def initialize(self) -> dict[str, np.ndarray]:
+        self.component.input_times_ns = dict(self.input_times_ns)
         self.output_layout.pack(self.component.initialize(self.t_ns, self._input_views()), self._outputs)
         self._initialized = True
         return self.outputs
@@ -63,6 +68,8 @@ class Harness:
         """One do_step over [t, t + h_ns); initializes first if needed."""
         if not self._initialized:
             self.initialize()
+        self.component.input_times_ns = {**{v.name: self.t_ns for v in self.input_layout.variables},
+                                         **self.input_times_ns}
         result = self.component.do_step(self.t_ns, h_ns, self._input_views())
         self.output_layout.pack(result, self._outputs)
         self.t_ns += h_ns

@@ -245,3 +245,22 @@ def test_end_effector_quaternions_keep_their_sign_while_the_base_turns():
     q = np.array(series)
     assert np.min(np.einsum("ti,ti->t", q[1:], q[:-1])) > 0.99      # 1/400 turn per step
     assert np.ptp(np.sign(q[:, 3])) == 2                            # w did change sign
+
+
+def test_under_gauss_seidel_the_reference_is_taken_at_the_states_sample_time():
+    """The demo stepped in process. Under Gauss-Seidel the controller steps on the state at
+    t_(k+1) (the dynamics comes first), so it samples its reference there: its desired pose at row
+    r equals the Jacobi run's at row r + 1, bit for bit, through the start of the move (t > 1 s);
+    and it keeps the anchor of the initial state (no re-anchoring on the first step's new state)."""
+    from orchestrator.config import load
+    from orchestrator.inprocess import run_in_process
+
+    desired = {}
+    for algorithm in ("jacobi", "gauss-seidel"):
+        config = load(ROOT / "configs" / "humanoid_tracking.yaml", ["run.duration=1.3 s", f"run.algorithm={algorithm}"])
+        columns = [c for s in config.components.values() for v in s.outputs.variables for c in v.columns(s.name)]
+        i = columns.index("controller.ee_position_desired[0]")
+        desired[algorithm] = run_in_process(config)[:, i:i + 3]
+    jacobi, gauss_seidel = desired["jacobi"], desired["gauss-seidel"]
+    assert np.linalg.norm(jacobi[-1] - jacobi[0]) > 1e-6          # the move has begun
+    assert np.array_equal(gauss_seidel[1:-1], jacobi[2:])

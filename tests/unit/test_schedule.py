@@ -43,6 +43,12 @@ def test_initialization_order_puts_sources_first_and_breaks_cycles_in_config_ord
     assert initialization_order(["p", "q"], [("q", "u", "p", "y")]) == ["p", "q"]
 
 
+def column(config, rows, name: str) -> np.ndarray:
+    """The recorded column ``name`` of rows from run_in_process."""
+    names = [c for spec in config.components.values() for v in spec.outputs.variables for c in v.columns(spec.name)]
+    return rows[:, names.index(name)]
+
+
 CHAIN = """
 run: {{name: chain, epoch: 2022-09-18T12:00:00Z, duration: {steps} s, step: 1 s, algorithm: {algorithm}}}
 components:
@@ -60,10 +66,11 @@ connections: {{first.u: source.y, second.u: first.x}}
 def test_in_process_loop_matches_the_closed_form_exactly(tmp_path, algorithm, second):
     path = tmp_path / "chain.yaml"
     path.write_text(CHAIN.format(steps=200, algorithm=algorithm))
-    rows = run_in_process(load(path))
+    config = load(path)
+    rows = run_in_process(config)
     k = np.arange(201)
-    assert np.array_equal(rows[:, 1], k.astype(float))
-    assert np.array_equal(rows[:, 2], second(k).astype(float))
+    assert np.array_equal(column(config, rows, "first.x"), k.astype(float))
+    assert np.array_equal(column(config, rows, "second.x"), second(k).astype(float))
 
 
 @pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
@@ -76,12 +83,13 @@ components:
   sum: {{type: test.integrator}}
 connections: {{sum.u: slow.n}}
 """)
-    rows = run_in_process(load(path))
+    config = load(path)
+    rows = run_in_process(config)
     k = np.arange(101)
-    assert np.array_equal(rows[:, 0], np.floor(k / 5))
+    assert np.array_equal(column(config, rows, "slow.n"), np.floor(k / 5))
     j = np.arange(100)
     u = np.floor(j / 5) if algorithm == "jacobi" else np.floor((j + 1) / 5)
-    assert np.allclose(rows[:, 1], np.concatenate([[0.0], np.cumsum(0.01 * u)]), rtol=0, atol=1e-12)
+    assert np.allclose(column(config, rows, "sum.x"), np.concatenate([[0.0], np.cumsum(0.01 * u)]), rtol=0, atol=1e-12)
 
 
 def test_only_components_off_every_loop_batch_their_outputs():
@@ -107,3 +115,10 @@ def test_dedicated_cpus_are_handed_out_from_the_top_keeping_one_for_the_rest():
     assert alone.dedicated == {} and alone.shared == {0} and alone.unplaced == ("a", "b")
     assert place(["a", "b"], {0, 1}).unplaced == ("b",)
     assert place([], {0, 1}).shared == {0, 1}
+
+
+def test_fed_inputs_names_the_variables_a_route_feeds():
+    from components.schedule import fed_inputs
+    offsets = {"a": slice(0, 3), "b": slice(3, 4), "c": slice(4, 8)}
+    route = Route("s", np.arange(2), np.array([4, 5, 6, 7, 3]), 1, 0)
+    assert fed_inputs(route, offsets) == ["b", "c"]

@@ -124,9 +124,15 @@ def continuous(q, q_previous) -> np.ndarray:
     the same quaternion of ``q_previous`` (q and -q are the same rotation): no sign jumps from one
     sample of a series to the next. ``q_previous`` None: q as given. Returns a new array."""
     q = np.array(q, dtype=np.float64)
-    if q_previous is not None:
-        quats = q.reshape(-1, 4)
-        quats[np.einsum("ij,ij->i", quats, np.reshape(q_previous, (-1, 4))) < 0.0] *= -1.0
+    if q_previous is None:
+        return q
+    if q.size == 4:       # the common case, in plain floats (a step's budget is microseconds)
+        a, b = q.tolist(), np.asarray(q_previous, dtype=np.float64).tolist()
+        if a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] < 0.0:
+            q *= -1.0
+        return q
+    quats = q.reshape(-1, 4)
+    quats[np.einsum("ij,ij->i", quats, np.reshape(q_previous, (-1, 4))) < 0.0] *= -1.0
     return q
 
 

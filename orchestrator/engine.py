@@ -39,7 +39,7 @@ from components.schedule import Route
 from orchestrator import runs, supervisor
 from orchestrator.config import ComponentSpec, RunConfig, ViewerSpec
 from orchestrator.control import ControlServer, SwapFailed
-from orchestrator.recording import Recording
+from orchestrator.recording import Recording, RecordingError
 
 VIEWER = "_viewer"   # liveliness name of the observer (component names cannot start with _)
 SIGNALS_HEADER = struct.Struct("<qd")  # k, time in s; then the row of every output, float64
@@ -604,7 +604,7 @@ class Run:
             for member in self.members.values():
                 self._go(member)
             self._loop()
-        except RunFailure as failure:
+        except (RunFailure, RecordingError) as failure:
             code, message = 1, str(failure)
             self._log("fault", step=self.row, message=message)
         except (KeyboardInterrupt, StopRequested):
@@ -623,7 +623,10 @@ class Run:
             self._log("end", step=self.row, time=self.row * config.step_ns / 1e9,
                       status="failed" if code == 1 else (self.stop_reason or "completed"))
             if self.recording is not None:
-                self.recording.close()
+                try:
+                    self.recording.close()
+                except RecordingError as failure:
+                    code, message = 1, message or str(failure)
             runs.unregister(self.run_id)
             self._subscriptions.clear()
             if self.session is not None:

@@ -13,6 +13,10 @@ import numpy as np
 import yaml
 
 
+class RecordingError(Exception):
+    """The recording cannot be written (its directory removed, the disk full, ...)."""
+
+
 class Recording:
     """Appends rows (step, time, signals...) and events to a directory."""
 
@@ -52,9 +56,15 @@ class Recording:
         n = self._rows
         arrays = [pa.array(self._steps[:n]), pa.array(self._times[:n])]
         arrays += [pa.array(self._values[:n, j]) for j in range(len(self.columns))]
-        if self._writer is None:
-            self._writer = pq.ParquetWriter(self.directory / "signals.parquet", self.schema)
-        self._writer.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
+        path = self.directory / "signals.parquet"
+        try:
+            if self._writer is None:
+                self._writer = pq.ParquetWriter(path, self.schema)
+            elif not path.exists():   # writes would still succeed, into a file no one can open
+                raise RecordingError(f"cannot write {path}: it was removed during the run")
+            self._writer.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
+        except OSError as error:
+            raise RecordingError(f"cannot write {path}: {error}") from None
         self._rows = 0
 
     def event(self, kind: str, **fields) -> None:
@@ -62,9 +72,13 @@ class Recording:
         self._events.flush()
 
     def close(self) -> None:
-        self.flush()
-        if self._writer is None:  # no row at all: still leave a readable, empty table
-            import pyarrow.parquet as pq
-            self._writer = pq.ParquetWriter(self.directory / "signals.parquet", self.schema)
-        self._writer.close()
-        self._events.close()
+        try:
+            self.flush()
+            if self._writer is None:  # no row at all: still leave a readable, empty table
+                import pyarrow.parquet as pq
+                self._writer = pq.ParquetWriter(self.directory / "signals.parquet", self.schema)
+            self._writer.close()
+        except OSError as error:
+            raise RecordingError(f"cannot write {self.directory / 'signals.parquet'}: {error}") from None
+        finally:
+            self._events.close()

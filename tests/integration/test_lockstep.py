@@ -330,3 +330,27 @@ components:
             if p is not None and p.poll() is None:
                 p.kill()
     assert external.returncode == 1 and "the orchestrator went away" in err
+
+
+def test_a_recording_directory_removed_mid_run_fails_the_run_cleanly(write_config, tmp_path):
+    """The directory deleted under a running recording: exit 1 naming the file, no traceback, and
+    no process left (the orchestrator used to hang at exit on the bus's threads)."""
+    import shutil
+
+    config = write_config("""
+run: {name: unrecorded, epoch: 2022-09-18T12:00:00Z, duration: 1000 s, step: 1 ms, realtime: 1.0}
+components:
+  a: {type: test.counter}
+""")
+    run = start_run(config, tmp_path / "rec")
+    try:
+        wait_for_components("unrecorded-", 1)
+        time.sleep(1.5)
+        shutil.rmtree(tmp_path / "rec")
+        _, err = run.communicate(timeout=60)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 1, err
+    assert "cannot write" in err and "signals.parquet" in err and "Traceback" not in err
+    assert not component_processes("unrecorded-")

@@ -25,6 +25,7 @@ class Recording:
         import pyarrow as pa
 
         self.directory = Path(directory)
+        self.path = self.directory / "signals.parquet"
         self.directory.mkdir(parents=True, exist_ok=True)
         for stale in ("signals.parquet", "events.jsonl"):
             (self.directory / stale).unlink(missing_ok=True)
@@ -56,15 +57,14 @@ class Recording:
         n = self._rows
         arrays = [pa.array(self._steps[:n]), pa.array(self._times[:n])]
         arrays += [pa.array(self._values[:n, j]) for j in range(len(self.columns))]
-        path = self.directory / "signals.parquet"
         try:
             if self._writer is None:
-                self._writer = pq.ParquetWriter(path, self.schema)
-            elif not path.exists():   # writes would still succeed, into a file no one can open
-                raise RecordingError(f"cannot write {path}: it was removed during the run")
+                self._writer = pq.ParquetWriter(self.path, self.schema)
+            elif not self.path.exists():   # writes would still succeed, into a file no one can open
+                raise RecordingError(f"cannot write {self.path}: it was removed during the run")
             self._writer.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
         except OSError as error:
-            raise RecordingError(f"cannot write {path}: {error}") from None
+            raise RecordingError(f"cannot write {self.path}: {error}") from None
         self._rows = 0
 
     def event(self, kind: str, **fields) -> None:
@@ -76,9 +76,9 @@ class Recording:
             self.flush()
             if self._writer is None:  # no row at all: still leave a readable, empty table
                 import pyarrow.parquet as pq
-                self._writer = pq.ParquetWriter(self.directory / "signals.parquet", self.schema)
+                self._writer = pq.ParquetWriter(self.path, self.schema)
             self._writer.close()
         except OSError as error:
-            raise RecordingError(f"cannot write {self.directory / 'signals.parquet'}: {error}") from None
+            raise RecordingError(f"cannot write {self.path}: {error}") from None
         finally:
             self._events.close()

@@ -9,8 +9,9 @@ Inputs hold their last value (zero-order hold) and start at their declared start
 the bus. Their sample times (the component's ``input_times_ns``): at a step, the step's start
 t_ns for every input, unless ``h.input_times_ns`` gives another time (ns) for it, as a
 Gauss-Seidel or multi-rate run would; at ``initialize``, only those ``h.input_times_ns`` lists
-(the others count as start values, not yet sampled). Outputs go through the same fixed float64 layout the bus uses, and get_state/set_state
-go through the same byte encoding, so a component that passes here behaves the same in a run.
+(the others count as start values, not yet sampled). Outputs go through the same fixed float64
+layout the bus uses, and get_state/set_state go through the same byte encoding, so a component
+that passes here behaves the same in a run.
 """
 from __future__ import annotations
 

@@ -159,7 +159,9 @@ class Run:
             if generation != member.generation:
                 return  # a replaced generation
             member.received.extend(zip(tags.tolist(), outputs))
-            member.progress, member.progress_at = int(tags[-1]), time.monotonic()
+            # max: a fault message (which raises progress to its step) may overtake the batches
+            # sent before it, which travel under another key
+            member.progress, member.progress_at = max(member.progress, int(tags[-1])), time.monotonic()
             compute_s, idle_s = timings.sum(axis=0)
             member.compute_s += compute_s
             member.idle_s += idle_s

@@ -122,3 +122,26 @@ def test_fed_inputs_names_the_variables_a_route_feeds():
     offsets = {"a": slice(0, 3), "b": slice(3, 4), "c": slice(4, 8)}
     route = Route("s", np.arange(2), np.array([4, 5, 6, 7, 3]), 1, 0)
     assert fed_inputs(route, offsets) == ["b", "c"]
+
+
+def test_a_fault_overtaking_earlier_batches_keeps_the_progress_it_reported(tmp_path):
+    """A fault message (progress raised to its step) can arrive before the batches sent ahead of it
+    under another key; a late batch must not lower the progress, or the salvage of the rows up to
+    the fault stops short (seen: a run recording rows 0-32 of 0-50)."""
+    import shutil
+
+    from components import bus
+    from orchestrator.engine import Member, Run
+
+    path = tmp_path / "one.yaml"
+    path.write_text("run: {name: one, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 10 ms}\n"
+                    "components: {bad: {type: test.counter}}\n")
+    config = load(path)
+    run = Run(config)
+    member = run.members["bad"] = Member(spec=config.components["bad"], generation=0, process=None,
+                                         log_path=None, ratio=1, progress=50)
+    tags = np.arange(1, 33)
+    batch = bus.encode_batch(0, tags, np.zeros((32, 2)), np.zeros((32, member.spec.outputs.size)))
+    run._handle(("o", bus.batch_key(run.run_id, "bad"), batch), {})
+    shutil.rmtree(run.log_dir)
+    assert member.progress == 50 and [t for t, _ in member.received] == tags.tolist()

@@ -10,6 +10,7 @@ from scipy.optimize import brentq
 from components.constants import EARTH_RATE, J2_EARTH, MU_EARTH, R_EARTH
 from components.orbit.kepler import (ElementError, KeplerOrbit, check_elements, coe_to_rv, j2_secular_rates,
                                      solve_kepler, true_from_eccentric)
+from tests import validation
 
 deg = math.radians
 
@@ -28,7 +29,7 @@ def test_vallado_example_2_6_coe2rv():
     # r = 6525.368 I + 6861.532 J + 6449.119 K km, v = 4.902279 I + 5.533140 J - 1.975710 K km/s.
     # The book prints 3 decimals in km and 6 in km/s: tolerance half a unit of the last digit.
     r, v = coe_to_rv(11067.790e3, 0.83285, deg(87.87), deg(227.89), deg(53.38), deg(92.335), 398600.4418e9)
-    np.testing.assert_allclose(r, [6525.368e3, 6861.532e3, 6449.119e3], rtol=0, atol=0.5)      # m
+    validation.check("kepler_vallado", np.abs(r - [6525.368e3, 6861.532e3, 6449.119e3]).max())   # m
     np.testing.assert_allclose(v, [4902.279, 5533.140, -1975.710], rtol=0, atol=0.5e-3)         # m/s
 
 
@@ -42,7 +43,7 @@ def test_kepler_orbit_reproduces_vallado_example_at_true_anomaly():
     m = ecc - e * math.sin(ecc)
     orbit = KeplerOrbit(a, e, deg(87.87), deg(227.89), deg(53.38), m, mu=398600.4418e9)
     r, v, _ = orbit.state(0.0)
-    np.testing.assert_allclose(r, [6525.368e3, 6861.532e3, 6449.119e3], rtol=0, atol=0.5)
+    validation.check("kepler_vallado", np.abs(r - [6525.368e3, 6861.532e3, 6449.119e3]).max())
     np.testing.assert_allclose(v, [4902.279, 5533.140, -1975.710], rtol=0, atol=0.5e-3)
 
 
@@ -101,10 +102,12 @@ def test_kepler_matches_dop853_two_body_over_one_day(a, e, i):
     sol = solve_ivp(_two_body, (0.0, 86400.0), np.concatenate([r0, v0]), method="DOP853",
                     rtol=1e-12, atol=1e-6, t_eval=ts)
     assert sol.success
+    worst = 0.0
     for k, t in enumerate(ts):
         r, v, _ = orbit.state(t)
-        assert np.linalg.norm(r - sol.y[:3, k]) < 1.0, (t, np.linalg.norm(r - sol.y[:3, k]))
+        worst = max(worst, np.linalg.norm(r - sol.y[:3, k]))
         assert np.linalg.norm(v - sol.y[3:, k]) < 1e-3
+    validation.check("kepler_two_body", worst)
 
 
 def _raan(r, v):
@@ -143,7 +146,7 @@ def test_j2_raan_drift_of_iss_matches_closed_form_and_numerical_j2_integration()
                     np.concatenate([r0, v0]), method="DOP853", rtol=1e-10, atol=1e-4, t_eval=ts)
     assert sol.success
     nodes_num = np.unwrap([_raan(sol.y[:3, k], sol.y[3:, k]) for k in range(len(ts))])
-    assert np.polyfit(ts, nodes_num, 1)[0] == pytest.approx(closed, rel=1e-2)
+    validation.check("kepler_j2_raan", abs(np.polyfit(ts, nodes_num, 1)[0] / closed - 1))
 
 
 def test_j2_rates_vanish_where_theory_says():

@@ -11,6 +11,7 @@ import sgp4
 from components.orbit import timescales
 from components.orbit.tle import (SGP4Propagator, TLEFormatError, check_tle, read_tle_file, teme_to_gcrf_matrix,
                                   tle_checksum)
+from tests import validation
 
 SGP4_DIR = os.path.dirname(sgp4.__file__)
 ISS = ("1 25544U 98067A   22261.04293564  .00008098  00000-0  14900-3 0  9998",   # ISS, 2022-09-18
@@ -53,7 +54,7 @@ def test_teme_output_matches_sgp4_verification_vectors():
     # (measured 0.16 mm, 0.5 µm/s), and fail exactly where the reference stops, with sgp4's error
     # codes in the reference order (1, 1, 6, 6, 4, 3, 6). Three of the cases carry deliberately
     # wrong checksums; the checksum is not used by SGP4, so it is fixed here.
-    errors, compared = [], 0
+    errors, compared, worst = [], 0, 0.0
     for line1, line2, times, rows in _verification_cases():
         try:
             prop = SGP4Propagator(_with_fixed_checksum(line1), _with_fixed_checksum(line2))
@@ -66,7 +67,7 @@ def test_teme_output_matches_sgp4_verification_vectors():
         for t, row in zip(times, rows):
             assert row[0] == pytest.approx(t, abs=1e-6)
             r, v = at(t)
-            assert np.abs(r - np.array(row[1:4]) * 1e3).max() < 1e-3, (line1[2:7], t)
+            worst = max(worst, np.abs(r - np.array(row[1:4]) * 1e3).max())
             assert np.abs(v - np.array(row[4:7]) * 1e3).max() < 2e-6, (line1[2:7], t)
             compared += 1
         if len(rows) < len(times):
@@ -78,6 +79,7 @@ def test_teme_output_matches_sgp4_verification_vectors():
             errors.append(code)
     assert errors == [1, 1, 6, 6, 4, 3, 6]
     assert compared > 600
+    validation.check("sgp4_vectors", worst)
 
 
 def _independent_cio_path(tt, ut1):
@@ -117,7 +119,7 @@ def test_teme_to_gcrf_reproduces_vallado_example_3_15():
     c = teme_to_gcrf_matrix(tt, ut1)
     r = c @ np.array([5094.18016210, 6127.64465950, 6380.34453270]) * 1e3
     v = c @ np.array([-4.7461314870, 0.7858180410, 5.5319312880]) * 1e3
-    np.testing.assert_allclose(r, np.array([5102.50895790, 6123.01140070, 6378.13692820]) * 1e3, atol=1e-2)
+    validation.check("teme_gcrf", np.abs(r - np.array([5102.50895790, 6123.01140070, 6378.13692820]) * 1e3).max())
     np.testing.assert_allclose(v, np.array([-4.7432201570, 0.7905364970, 5.5337557270]) * 1e3, atol=1e-5)
     # UT1 = UTC (no EOP data, as the component does) changes the result by far less than 1 mm
     r_utc = teme_to_gcrf_matrix(tt, utc) @ np.array([5094.18016210, 6127.64465950, 6380.34453270]) * 1e3

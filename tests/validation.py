@@ -1,0 +1,176 @@
+"""The validation table: each physics module against an independent reference.
+
+    python -m tests.validation            # run the checks, print the table (Markdown), ~2 min
+    python -m tests.validation --readme   # and write it into README.md
+
+Each row is declared once, here: what is compared, against what, and the tolerance. The tests
+that measure a row call :func:`check`, which records the figure and fails the test when it is
+above the tolerance; so ``pytest`` enforces the table and this command reproduces its numbers
+by running exactly those tests. A row that several tests (or parametrized cases) measure shows
+the worst figure.
+"""
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+README_START = "<!-- validation table: python -m tests.validation --readme -->"
+README_END = "<!-- end of validation table -->"
+
+
+@dataclass(frozen=True)
+class Row:
+    module: str
+    quantity: str
+    reference: str
+    tolerance: float
+    unit: str
+    tests: tuple[str, ...]          # pytest node ids (file::test) that measure the row
+
+
+ROWS: dict[str, Row] = {
+    "kepler_vallado": Row(
+        "orbit.kepler", "r, v from classical elements (largest position error)",
+        "Vallado, Fundamentals (4th ed.), Example 2-6", 0.5, "m",
+        ("tests/unit/test_orbit_kepler.py::test_vallado_example_2_6_coe2rv",
+         "tests/unit/test_orbit_kepler.py::test_kepler_orbit_reproduces_vallado_example_at_true_anomaly")),
+    "kepler_two_body": Row(
+        "orbit.kepler", "position over one day: LEO, e = 0.7, GEO",
+        "scipy DOP853 on r'' = -mu r/|r|^3 (rtol 1e-12)", 1.0, "m",
+        ("tests/unit/test_orbit_kepler.py::test_kepler_matches_dop853_two_body_over_one_day",)),
+    "kepler_j2_raan": Row(
+        "orbit.kepler (j2)", "ISS node drift rate, relative error",
+        "DOP853 integration of the J2 force model", 1e-2, "",
+        ("tests/unit/test_orbit_kepler.py::test_j2_raan_drift_of_iss_matches_closed_form_and_numerical_j2_integration",)),
+    "sgp4_vectors": Row(
+        "orbit.sgp4", "TEME position, every sample of 33 satellites",
+        "SGP4-VER verification vectors (tcppver.out, Vallado et al. 2006)", 1e-3, "m",
+        ("tests/unit/test_orbit_tle.py::test_teme_output_matches_sgp4_verification_vectors",)),
+    "teme_gcrf": Row(
+        "orbit.sgp4 frames", "TEME -> GCRF position",
+        "Vallado, Fundamentals (4th ed.), Example 3-15", 1e-2, "m",
+        ("tests/unit/test_orbit_tle.py::test_teme_to_gcrf_reproduces_vallado_example_3_15",)),
+    "dart_aba": Row(
+        "dynamics.dart", "free-floating forward dynamics (humanoid, servicer), relative",
+        "Pinocchio ABA, random states and torques", 1e-8, "",
+        ("tests/unit/test_dynamics_pinocchio.py::test_free_floating_accelerations_match_pinocchio",
+         "tests/unit/test_dynamics_pinocchio.py::test_environment_wrenches_match_pinocchio_external_forces")),
+    "dart_arm_trajectory": Row(
+        "dynamics.dart", "the demo's humanoid under its recorded torques, 3 s: base and joints",
+        "Pinocchio ABA + scipy DOP853 (rtol 1e-12), own tidal and gravity-gradient model", 1e-9, "m, rad",
+        ("tests/unit/test_dynamics_pinocchio.py::test_demo_humanoid_under_recorded_torques_matches_pinocchio_aba_and_dop853",)),
+    "rk4_attitude": Row(
+        "dynamics.dart (rk4)", "tumbling body (I = 2, 3, 4.5), attitude error at h = 1 ms over 3.2 s",
+        "scipy DOP853 on Euler's equations (rtol 1e-13)", 1e-11, "rad",
+        ("tests/unit/test_dynamics_world.py::test_rk4_attitude_converges_at_fourth_order_down_to_small_steps",)),
+    "rk4_momentum": Row(
+        "dynamics.dart (rk4)", "same body: angular momentum drift, h = 4 ... 0.25 ms, relative",
+        "conservation (torque-free)", 1e-9, "",
+        ("tests/unit/test_dynamics_world.py::test_rk4_attitude_converges_at_fourth_order_down_to_small_steps",)),
+    "libration": Row(
+        "dynamics.dart (gravity gradient)", "roll, pitch, yaw libration (I = 200, 300, 450), 3 orbits, "
+        "fraction of the amplitude", "linearized closed form (Wie, Space Vehicle Dynamics, Sec. 7.2)", 1e-2, "",
+        ("tests/unit/test_dynamics_orbital.py::test_gravity_gradient_libration_in_roll_pitch_and_yaw",)),
+    "libration_schedules": Row(
+        "dynamics.dart + orbit.kepler", "pitch libration (box, Ix < Iy = Iz, 1 deg), Jacobi and Gauss-Seidel, "
+        "orbit at the dynamics' rate and 6x slower: period and amplitude, relative",
+        "closed form w = n sqrt(3 (Iy - Ix) / Iz)", 1e-2, "",
+        ("tests/component/test_dynamics_component.py::test_libration_matches_the_closed_form_under_every_schedule",)),
+    "clohessy_wiltshire": Row(
+        "dynamics.dart (tidal force)", "body released 10 m radially, quarter orbit, fraction of displacement",
+        "Clohessy-Wiltshire closed form", 1e-2, "",
+        ("tests/unit/test_dynamics_orbital.py::test_tidal_force_follows_clohessy_wiltshire",)),
+    "cw_schedules": Row(
+        "dynamics.dart + orbit.kepler", "the same under Jacobi and Gauss-Seidel, orbit at the dynamics' rate "
+        "and 6x slower (inclined orbit)", "Clohessy-Wiltshire closed form", 1e-4, "",
+        ("tests/component/test_dynamics_component.py::test_clohessy_wiltshire_under_every_schedule",)),
+    "drag": Row(
+        "dynamics.dart (drag)", "deceleration at 400 km, relative", "1/2 rho Cd A |v_rel|^2 / m", 1e-2, "",
+        ("tests/unit/test_dynamics_orbital.py::test_drag_decelerates_along_track",)),
+    "atmosphere_low": Row(
+        "dynamics.dart (atmosphere)", "density 0-200 km, relative", "U.S. Standard Atmosphere 1976 tables",
+        0.12, "", ("tests/unit/test_dynamics_orbital.py::test_atmosphere_density_against_the_us_standard_atmosphere",)),
+    "atmosphere_high": Row(
+        "dynamics.dart (atmosphere)", "density 250-1000 km, relative (CIRA-72 vs USSA-76)",
+        "U.S. Standard Atmosphere 1976 tables", 0.4, "",
+        ("tests/unit/test_dynamics_orbital.py::test_atmosphere_density_against_the_us_standard_atmosphere",)),
+    "generalized_jacobian": Row(
+        "controller.computed_torque", "Generalized Jacobian J_g (entries of order 1), largest error",
+        "finite differences of the end effector under zero momentum (DART)", 1e-7, "",
+        ("tests/unit/test_controller_model.py::test_generalized_jacobian_by_finite_differences_under_zero_momentum",)),
+    "generalized_inertia": Row(
+        "controller.computed_torque", "generalized inertia M* and drift, relative",
+        "DART's forward dynamics of the same humanoid", 1e-8, "",
+        ("tests/unit/test_controller_model.py::test_generalized_inertia_and_coriolis_match_dart",)),
+}
+
+_measured: dict[str, list[float]] = {}
+
+
+def check(key: str, measured: float) -> None:
+    """Record ``measured`` for the row ``key`` and fail (AssertionError) above its tolerance."""
+    row = ROWS[key]
+    _measured.setdefault(key, []).append(float(measured))
+    assert measured <= row.tolerance, (f"{key}: measured {_figure(measured, row.unit)}, expected at most "
+                                       f"{_figure(row.tolerance, row.unit)} ({row.quantity}; against {row.reference})")
+
+
+def _figure(value: float, unit: str) -> str:
+    """2 significant digits; exponent form (``1e-4``, ``7.6e-5``) below 0.01."""
+    if value != 0 and abs(value) < 1e-2:
+        mantissa, exponent = f"{value:.1e}".split("e")
+        text = f"{mantissa.removesuffix('.0')}e{int(exponent)}"
+    else:
+        text = f"{value:.2g}"
+    return f"{text} {unit}".strip()
+
+
+def table(measured: dict[str, list[float]]) -> str:
+    lines = ["| module | quantity | reference | tolerance | measured |", "|---|---|---|---|---|"]
+    for key, row in ROWS.items():
+        got = _figure(max(measured[key]), row.unit) if key in measured else "not run"
+        cells = [row.module, row.quantity, row.reference, _figure(row.tolerance, row.unit), got]
+        lines.append("| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |")
+    return "\n".join(lines)
+
+
+def write_readme(text: str, readme: Path = ROOT / "README.md") -> None:
+    content = readme.read_text()
+    if README_START not in content or README_END not in content:
+        raise SystemExit(f"{readme}: no '{README_START}' ... '{README_END}' markers to write the table between")
+    head, rest = content.split(README_START, 1)
+    tail = rest.split(README_END, 1)[1]
+    readme.write_text(f"{head}{README_START}\n{text}\n{README_END}{tail}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m tests.validation", description=__doc__.splitlines()[0])
+    parser.add_argument("--readme", action="store_true", help="write the table into README.md")
+    args = parser.parse_args(argv)
+    import pytest
+
+    from tests import validation        # the module the tests record into (this file runs as __main__)
+
+    tests = sorted({t for row in ROWS.values() for t in row.tests})
+    start = time.monotonic()
+    status = pytest.main(["-q", "-p", "no:cacheprovider", "--rootdir", str(ROOT),
+                          *[str(ROOT / t) for t in tests]])
+    text = table(validation._measured)
+    print(f"\n{text}\n\n{len(tests)} tests in {time.monotonic() - start:.0f} s"
+          + ("" if status == 0 else f"; pytest exit status {int(status)}: a check failed (above)"))
+    missing = [k for k in ROWS if k not in validation._measured]
+    if missing:
+        print(f"rows not measured: {', '.join(missing)}", file=sys.stderr)
+    if args.readme and status == 0 and not missing:
+        write_readme(text)
+        print("written into README.md")
+    return 0 if status == 0 and not missing else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -82,6 +82,15 @@ _TIME_NS = {"ns": 1, "us": 10**3, "ms": 10**6, "s": 10**9, "min": 60 * 10**9, "h
             "d": 86400 * 10**9, "day": 86400 * 10**9}
 
 
+def duration_text(ns: int) -> str:
+    """Exact integer nanoseconds in the largest unit that keeps them whole: 3e9 -> ``"3 s"``,
+    1_500_000_000 -> ``"1500 ms"``, 5_400_000_000_000 -> ``"90 min"``. duration_ns reads it back."""
+    for unit in ("h", "min", "s", "ms", "us", "ns"):
+        if ns % _TIME_NS[unit] == 0:
+            return f"{ns // _TIME_NS[unit]} {unit}"
+    raise AssertionError("unreachable: every integer is whole in ns")
+
+
 def duration_ns(value, key: str) -> int:
     """A time span as exact integer nanoseconds: ``"1 ms"`` -> 1_000_000, ``0.02`` (s) -> 20_000_000.
 

@@ -10,6 +10,8 @@ import json
 import sys
 from pathlib import Path
 
+from orchestrator.wording import count
+
 USAGE_ERROR = 2
 
 
@@ -32,8 +34,9 @@ def cmd_check(args) -> int:
         for line in errors:
             print(f"error: {line}", file=sys.stderr)
         return USAGE_ERROR
-    print(f"{args.config}: ok — {len(config.components)} components, {len(config.connections)} connections, "
-          f"{config.steps} steps of {config.step_ns / 1e6:g} ms ({config.algorithm})")
+    print(f"{args.config}: ok — {count(len(config.components), 'component')}, "
+          f"{count(len(config.connections), 'connection')}, {count(config.steps, 'step')} of "
+          f"{config.step_ns / 1e6:g} ms ({config.algorithm})")
     return 0
 
 
@@ -44,10 +47,15 @@ def cmd_run(args) -> int:
             print(f"error: {line}", file=sys.stderr)
         return USAGE_ERROR
     if args.record:
+        from orchestrator.recording import RecordingError, claim_directory
         try:
-            Path(args.record).mkdir(parents=True, exist_ok=True)
+            claim_directory(Path(args.record), args.overwrite)
+        except RecordingError as e:
+            return _fail(str(e))
         except OSError as e:
             return _fail(f"--record {args.record}: cannot write a recording there ({e.strerror})")
+    elif args.overwrite:
+        return _fail("--overwrite goes with --record DIR (it replaces the recording in DIR)")
     viewer = None
     if args.view == "off":
         config.viewer = None
@@ -63,10 +71,7 @@ def cmd_run(args) -> int:
             return _fail(f"viewer spawn: {spawn_problem()}")
     from orchestrator.engine import Run
     run = Run(config, record=args.record, profile=args.profile, progress=sys.stderr.isatty(), viewer=viewer)
-    code = run.execute()
-    if code == 0 and args.record:
-        print(f"recorded {args.record}", file=sys.stderr)
-    return code
+    return run.execute()
 
 
 def _query(entry: dict, request: dict, timeout: float = 30.0) -> dict:
@@ -192,7 +197,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("run", help="run a config")
     p.add_argument("config")
-    p.add_argument("--record", metavar="DIR", help="write signals.parquet, events.jsonl and config.yaml to DIR")
+    p.add_argument("--record", metavar="DIR", help="write signals.parquet, events.jsonl and config.yaml to DIR "
+                   "(a new or empty directory)")
+    p.add_argument("--overwrite", action="store_true", help="replace the recording already in --record DIR")
     with_set(p)
     p.add_argument("--view", metavar="{spawn,web,save:FILE.rrd}", help="live view in Rerun")
     p.add_argument("--profile", action="store_true", help="print compute time, barrier wait and bus overhead")

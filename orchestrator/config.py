@@ -16,7 +16,7 @@ import yaml
 from components import registry
 from components.errors import ConfigError
 from components.sdk import Component, Layout, Variable, resolve_parameters
-from components.units import duration_ns, to_si
+from components.units import duration_ns, duration_text, to_si
 
 RUN_KEYS = {"name": True, "epoch": True, "duration": True, "step": True,
             "algorithm": False, "realtime": False, "step_timeout": False, "start_timeout": False}
@@ -163,6 +163,10 @@ def parse_override(text: str) -> tuple[list[str], Any]:
 def apply_overrides(raw: dict, overrides: list[str]) -> None:
     for text in overrides:
         path, value = parse_override(text)
+        components = raw.get("components")
+        if path[0] == "components" and len(path) > 2 and isinstance(components, dict) and path[1] not in components:
+            raise ConfigErrors([f"--set {text!r}: no component {path[1]!r} (components: "
+                                f"{', '.join(map(str, components)) or 'none'})"])
         node = raw
         for i, part in enumerate(path[:-1]):
             child = node.get(part) if isinstance(node, dict) else None
@@ -174,6 +178,19 @@ def apply_overrides(raw: dict, overrides: list[str]) -> None:
         node[path[-1]] = value
 
 
+def _yaml_problem(error: yaml.YAMLError, text: str) -> str:
+    """' at line L, column C: problem', then the line and a caret under the column, each on its own line."""
+    mark = getattr(error, "problem_mark", None)
+    problem = " ".join(str(getattr(error, "problem", None) or error).split())
+    if mark is None:
+        return f": {problem}"
+    context = getattr(error, "context", None)
+    lines = text.splitlines()
+    source = lines[mark.line] if mark.line < len(lines) else ""
+    return (f" at line {mark.line + 1}, column {mark.column + 1}: {problem}"
+            + (f" ({context})" if context else "") + f"\n    {source}\n    {' ' * mark.column}^")
+
+
 def read_yaml(path: Path) -> dict:
     try:
         text = path.read_text()
@@ -182,7 +199,7 @@ def read_yaml(path: Path) -> dict:
     try:
         raw = yaml.load(text, Loader=_UniqueKeyLoader)
     except yaml.YAMLError as e:
-        raise ConfigErrors([f"{path}: not valid YAML: {' '.join(str(e).split())}"]) from None
+        raise ConfigErrors([f"{path}: not valid YAML{_yaml_problem(e, text)}"]) from None
     if not isinstance(raw, dict):
         raise ConfigErrors([f"{path}: expected a mapping with run, components, connections"])
     return raw
@@ -355,16 +372,16 @@ def validate(raw: dict, path: Path) -> RunConfig:
     if errors:
         raise ConfigErrors(errors)
     resolved = {
-        "run": {"name": name, "epoch": epoch, "duration": f"{total_ns} ns", "step": f"{step_ns} ns",
+        "run": {"name": name, "epoch": epoch, "duration": duration_text(total_ns), "step": duration_text(step_ns),
                 "algorithm": algorithm, "realtime": realtime, "step_timeout": f"{step_timeout} s",
                 "start_timeout": f"{start_timeout} s"},
         "bus": {"listen": listen},
-        "components": {n: {"type": s.type, "step": f"{s.step_ns} ns", "launch": s.launch,
+        "components": {n: {"type": s.type, "step": duration_text(s.step_ns), "launch": s.launch,
                            "dedicated_cpu": s.dedicated_cpu,
                            "parameters": {k: _plain(v) for k, v in s.resolved.items() if not k.startswith("_")}}
                        for n, s in components.items()},
         "connections": {f"{d}.{dv}": f"{s}.{sv}" for d, dv, s, sv in connections},
-        "events": [{"at": f"{e.at_ns} ns", "swap": e.swap, "type": e.type, "parameters": e.parameters}
+        "events": [{"at": duration_text(e.at_ns), "swap": e.swap, "type": e.type, "parameters": e.parameters}
                    for e in events],
     }
     if viewer is not None:
@@ -473,7 +490,7 @@ def _events(raw: Any, components: dict[str, ComponentSpec], connections: list, s
         params = entry.get("parameters", old.parameters if new_type == old.type else {})
         try:
             spec = component_spec(target, {"type": new_type, "parameters": params,
-                                           "step": f"{old.step_ns} ns"}, step_ns, config_dir, epoch, key)
+                                           "step": duration_text(old.step_ns)}, step_ns, config_dir, epoch, key)
         except ConfigErrors as e:
             errors += [f"{file}: {m}" for m in e.errors]
             continue

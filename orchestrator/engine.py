@@ -40,6 +40,7 @@ from orchestrator import runs, supervisor
 from orchestrator.config import ComponentSpec, RunConfig, ViewerSpec
 from orchestrator.control import ControlServer, SwapFailed
 from orchestrator.recording import Recording, RecordingError
+from orchestrator import wording
 
 VIEWER = "_viewer"   # liveliness name of the observer (component names cannot start with _)
 SIGNALS_HEADER = struct.Struct("<qd")  # k, time in s; then the row of every output, float64
@@ -537,6 +538,12 @@ class Run:
         """Grant, record and watch until the last row is in or a stop is asked for."""
         steps = self.config.steps
         wall_start = time.perf_counter()
+        try:
+            self._step_until(steps, wall_start)
+        finally:
+            self.loop_s = time.perf_counter() - wall_start
+
+    def _step_until(self, steps: int, wall_start: float) -> None:
         last_progress = last_check = time.monotonic()
         expect: dict[str, str] = {}
         while self.row < steps and not self.stop_reason:
@@ -565,7 +572,6 @@ class Run:
             if self.progress and now - last_progress > 0.5:
                 last_progress = now
                 self._print_progress(time.perf_counter() - wall_start)
-        self.loop_s = time.perf_counter() - wall_start
 
     def execute(self) -> int:
         """Run to the end (0), or until a failure (1) or an interruption (130); clean up in every case."""
@@ -575,6 +581,7 @@ class Run:
         self.session = None
         self._subscriptions: list = []
         own_cpus = os.sched_getaffinity(0)
+        run_start = time.perf_counter()
         try:
             supervisor.keep_to(self.placement.shared)   # this thread, and the bus threads it starts
             self._open_bus()
@@ -646,7 +653,18 @@ class Run:
                 print(f"component logs: {logs}", file=self.out)
         if self.profile:
             self._print_profile()
+        print(self.summary(code, time.perf_counter() - run_start), file=self.out, flush=True)
         return code
+
+    def summary(self, code: int, wall_s: float) -> str:
+        """One line for the end of every run: how it ended, how far it got, how fast, where it went."""
+        status = {0: "completed", 1: "failed"}.get(code) or self.stop_reason or "interrupted"
+        sim_s = self.row * self.config.step_ns / 1e9
+        stepping = self.loop_s if self.loop_s else 0.0
+        rate = f", real-time factor {sim_s / stepping:.2f}" if stepping > 0 and self.row else ""
+        where = f"recording in {self.record_dir}" if self.record_dir is not None else "not recorded (no --record)"
+        return (f"run {self.config.name} {status}: {wording.count(self.row, 'step')} of {self.config.steps}, "
+                f"{sim_s:g} s simulated; {wall_s:.1f} s wall ({stepping:.1f} s stepping{rate}); {where}")
 
     def _open_bus(self) -> None:
         """The orchestrator's Zenoh session, its subscriptions, and the run's entry for `ps`."""

@@ -7,6 +7,7 @@ a run that fails midway leaves a readable file up to the failure.
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,30 @@ import yaml
 
 class RecordingError(Exception):
     """The recording cannot be written (its directory removed, the disk full, ...)."""
+
+
+# What a run (and `orchestrator plot`) leaves in a recording directory: all that --overwrite removes.
+RECORDING_ENTRIES = frozenset({"signals.parquet", "events.jsonl", "config.yaml", "logs", "plots"})
+
+
+def claim_directory(directory: Path, overwrite: bool) -> None:
+    """Make ``directory`` ready for a new recording: create it, or, with ``overwrite``, empty an
+    earlier recording there. RecordingError for a directory in use without ``overwrite``, and for
+    one holding anything a run does not write (``overwrite`` never deletes a user's own files)."""
+    if directory.exists() and not directory.is_dir():
+        raise RecordingError(f"--record {directory}: exists and is not a directory")
+    entries = sorted(directory.iterdir()) if directory.is_dir() else []
+    if entries and not overwrite:
+        raise RecordingError(f"--record {directory}: the directory is in use (it holds "
+                             f"{', '.join(e.name for e in entries[:4])}{', ...' if len(entries) > 4 else ''}); "
+                             f"give another directory, or --overwrite to replace the recording there")
+    foreign = [e.name for e in entries if e.name not in RECORDING_ENTRIES]
+    if foreign:
+        raise RecordingError(f"--record {directory} --overwrite: the directory holds more than a recording "
+                             f"({', '.join(foreign[:4])}); not deleting it: give another directory")
+    for entry in entries:
+        shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
+    directory.mkdir(parents=True, exist_ok=True)
 
 
 class Recording:

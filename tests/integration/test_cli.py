@@ -2,11 +2,13 @@
 from __future__ import annotations
 
 import json
+import signal
 import time
 
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+import yaml
 
 from tests.conftest import component_processes, orchestrator, start_run, wait_for_components
 
@@ -25,7 +27,7 @@ connections:
 def test_check_and_describe(write_config):
     config = write_config(CHAIN)
     result = orchestrator("check", config)
-    assert result.returncode == 0 and "2 components, 1 connections, 60000 steps" in result.stdout
+    assert result.returncode == 0 and "2 components, 1 connection, 60000 steps" in result.stdout
     described = orchestrator("describe", "test.integrator")
     assert described.returncode == 0
     assert "gain" in described.stdout and "input   u" in described.stdout and "output  x" in described.stdout
@@ -105,3 +107,69 @@ def test_an_unusable_record_directory_is_a_usage_error(write_config, tmp_path):
     blocker.write_text("")
     result = orchestrator("run", write_config(CHAIN), "--record", blocker / "rec")
     assert result.returncode == 2 and "--record" in result.stderr and "Traceback" not in result.stderr
+
+
+SHORT = CHAIN.replace("swapme", "short").replace("duration: 600 s", "duration: 1 s").replace("realtime: 1.0", "realtime: 0")
+
+
+def test_every_run_ends_with_a_summary_even_off_a_terminal(write_config, tmp_path):
+    """Output captured (no terminal): the last line says how the run ended, how far and how fast
+    it got, and where the recording is; after Ctrl-C too."""
+    done = orchestrator("run", write_config(SHORT), "--record", tmp_path / "rec")
+    assert done.returncode == 0, done.stderr
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith("run short completed: 100 steps of 100, 1 s simulated;"), last
+    assert "real-time factor" in last and f"recording in {tmp_path / 'rec'}" in last, last
+
+    run = start_run(write_config(CHAIN.replace("swapme", "ctrlc")), tmp_path / "rec2")
+    try:
+        wait_for_components("ctrlc-", 2)
+        time.sleep(1.0)
+        run.send_signal(signal.SIGINT)
+        _, err = run.communicate(timeout=30)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 130
+    last = err.strip().splitlines()[-1]
+    steps = int(last.split(": ")[1].split()[0])
+    assert last.startswith("run ctrlc interrupted: ") and 0 < steps < 60000 and "of 60000" in last, last
+    assert f"{steps * 0.01:g} s simulated" in last and "real-time factor 1.0" in last, last
+    assert not component_processes("ctrlc-")
+
+
+def test_record_refuses_a_used_directory_unless_overwrite(write_config, tmp_path):
+    config, rec = write_config(SHORT), tmp_path / "rec"
+    assert orchestrator("run", config, "--record", rec).returncode == 0
+    before = (rec / "signals.parquet").read_bytes()
+    (rec / "logs" / "stale.0.log").write_text("from an earlier run")
+
+    again = orchestrator("run", config, "--record", rec, "--set", "components.source.parameters.value=2")
+    assert again.returncode == 2 and str(rec) in again.stderr and "--overwrite" in again.stderr, again.stderr
+    assert (rec / "signals.parquet").read_bytes() == before          # nothing lost
+
+    replaced = orchestrator("run", config, "--record", rec, "--overwrite", "--set", "components.source.parameters.value=2")
+    assert replaced.returncode == 0, replaced.stderr
+    assert not (rec / "logs" / "stale.0.log").exists()
+    assert pq.read_table(rec / "signals.parquet").column("first.x").to_pylist()[-1] == pytest.approx(2.0)
+
+    (rec / "notes.txt").write_text("mine")                           # not a run's: --overwrite keeps out
+    refused = orchestrator("run", config, "--record", rec, "--overwrite")
+    assert refused.returncode == 2 and "notes.txt" in refused.stderr and (rec / "notes.txt").exists()
+    assert orchestrator("run", config, "--overwrite").returncode == 2
+
+
+def test_messages_that_fit_the_mistake(write_config, tmp_path):
+    config = write_config(SHORT)
+    typo = orchestrator("check", config, "--set", "components.sorce.parameters.value=3")
+    assert typo.returncode == 2
+    assert "no component 'sorce' (components: source, first)" in typo.stderr, typo.stderr
+    broken = write_config("run: {name: a, epoch: 2022-09-18T12:00:00Z\n  duration: 1 s\n", "broken.yaml")
+    result = orchestrator("check", broken)
+    lines = result.stderr.splitlines()
+    assert result.returncode == 2 and "line 2, column 11" in lines[0], result.stderr
+    assert lines[1] == "      duration: 1 s" and lines[2] == "    " + " " * 10 + "^", lines
+    assert orchestrator("run", config, "--record", tmp_path / "rec").returncode == 0
+    resolved = yaml.safe_load((tmp_path / "rec" / "config.yaml").read_text())
+    assert resolved["run"]["duration"] == "1 s" and resolved["run"]["step"] == "10 ms"
+    assert resolved["components"]["first"]["step"] == "10 ms"

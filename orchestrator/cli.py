@@ -174,16 +174,15 @@ def cmd_describe(args) -> int:
 def cmd_plot(args) -> int:
     from orchestrator.plots import PlotError, plot_recording
     out = Path(args.out) if args.out else Path(args.recording) / "plots"
+    signals = [name.strip() for name in args.signals.split(",") if name.strip()] if args.signals else None
     try:
-        written = plot_recording(Path(args.recording), out)
+        written = plot_recording(Path(args.recording), out, signals)
     except PlotError as e:
         return _fail(str(e))
     except Exception as e:  # e.g. a truncated signals.parquet
         return _fail(f"cannot plot {args.recording}: {type(e).__name__}: {e}")
-    if not written:
-        print(f"nothing to plot in {args.recording}: the run has no controller.computed_torque or controller.joint_pd")
     for path in written:
-        print(path)
+        print(f"wrote {path}")
     return 0
 
 
@@ -224,9 +223,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a parameter of the new component")
     p.set_defaults(func=cmd_swap)
 
-    p = sub.add_parser("plot", help="PNG plots of a recording, like the paper's Figs. 5-7")
+    p = sub.add_parser("plot", help="PNG plots of a recording: orbit, dynamics, and the paper's Figs. 5-7")
     p.add_argument("recording", metavar="DIR", help="a directory written by run --record")
     p.add_argument("--out", metavar="DIR", help="where to write the PNGs (default: DIR/plots)")
+    p.add_argument("--signals", metavar="NAME,NAME", help="plot these columns instead (orbit.r_eci, "
+                   "dynamics.target.q[0], ...)")
     p.set_defaults(func=cmd_plot)
 
     p = sub.add_parser("describe", help="print a component type's parameters and variables")

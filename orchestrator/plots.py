@@ -1,18 +1,21 @@
-"""PNG plots of a recording, like the paper's Figs. 5-7 (``orchestrator plot DIR``).
+"""PNG plots of a recording (``orchestrator plot DIR``), picked by the component types in it.
 
 ``plot_recording(record_dir, out_dir)`` reads ``DIR/signals.parquet`` and ``DIR/config.yaml``
-(DESIGN §6) and, for every controller of the run, writes:
+(docs/design.md, Recording) and writes, for each component of a type it knows:
 
 | file | for | content |
 |---|---|---|
-| ``<c>_path.png`` | controller.computed_torque | desired (black) and obtained (red) 3D end-effector path relative to its start, in the axes of the base at t0 (inertial; W axes if the base orientation is not recorded) (Fig. 5) |
+| ``<c>_track.png`` | orbit.* | altitude, ground track (spherical Earth, UT1 = UTC), r_eci and v_eci over time |
+| ``<c>_<body>.png`` | dynamics.dart | per body: attitude against LVLH as a rotation vector (about z: the pitch of a libration; against the body's t0 attitude if q_eci_lvlh is not connected), momentum change from t0, joint positions |
+| ``<c>_path.png`` | controller.computed_torque | desired (black) and obtained (red) 3D end-effector path relative to its start, in the axes of the base at t0 (inertial; W axes if the base orientation is not recorded) (paper Fig. 5) |
 | ``<c>_error.png`` | controller.computed_torque | position error (mm) and orientation error (mrad) per W axis and norm, over time (Fig. 6) |
 | ``<c>_torque.png`` | computed_torque, joint_pd | torques of the driven joints, N m (Fig. 7) |
 | ``<c>_base.png`` | controller.computed_torque | the body's base displacement (mm, W) and rotation (deg) from t0, and sigma_min of J_g |
 | ``<c>_joints.png`` | controller.joint_pd | joint positions and their references |
 
-``<c>`` is the controller's name in the config. Matplotlib's Agg canvas is used directly (no
-pyplot, no display, no global backend switch). Returns the paths written, in that order.
+``signals=[name, ...]`` plots those columns instead (``signals.png``): a column such as
+``dynamics.target.q[0]``, or all elements of a vector, ``orbit.r_eci``. ``<c>`` is the component's
+name in the config. Matplotlib's Agg canvas is used directly (no pyplot, no display).
 """
 from __future__ import annotations
 
@@ -24,6 +27,8 @@ from components.rotations import quat_to_matrix
 
 COMPUTED_TORQUE = "controller.computed_torque"
 JOINT_PD = "controller.joint_pd"
+DYNAMICS = "dynamics.dart"
+ORBIT = "orbit."
 
 
 class PlotError(Exception):
@@ -76,14 +81,6 @@ def _joint_names(record_dir: Path, params: dict, n: int) -> list[str]:
     return names if len(names) == n else [f"tau[{i}]" for i in range(n)]
 
 
-def _save(fig, path: Path) -> Path:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=110)
-    return path
-
-
 def _figure(*size):
     from matplotlib.figure import Figure
 
@@ -96,7 +93,7 @@ def _driven(tau: np.ndarray) -> np.ndarray:
 
 
 def _computed_torque(name: str, params: dict, config: dict, columns: dict, t: np.ndarray,
-                     record_dir: Path, out_dir: Path) -> list[Path]:
+                     record_dir: Path) -> list[tuple[str, object]]:
     written = []
     p = _vector(columns, f"{name}.ee_position", 3)
     p_d = _vector(columns, f"{name}.ee_position_desired", 3)
@@ -129,7 +126,7 @@ def _computed_torque(name: str, params: dict, config: dict, columns: dict, t: np
     ax.set_xlim(centre[0] - span, centre[0] + span)
     ax.set_ylim(centre[1] - span, centre[1] + span)
     ax.set_zlim(centre[2] - span, centre[2] + span)
-    written.append(_save(fig, out_dir / f"{name}_path.png"))
+    written.append((f"{name}_path.png", fig))
 
     fig = _figure(8.0, 6.0)
     axes = fig.subplots(2, 1, sharex=True)
@@ -144,9 +141,9 @@ def _computed_torque(name: str, params: dict, config: dict, columns: dict, t: np
         ax.legend(loc="upper right", ncols=4, fontsize="small")
     axes[1].set_xlabel("time (s)")
     fig.suptitle(f"{name}: tracking error (W axes)")
-    written.append(_save(fig, out_dir / f"{name}_error.png"))
+    written.append((f"{name}_error.png", fig))
 
-    written.append(_torques(name, params, tau, t, record_dir, out_dir))
+    written.append(_torques(name, params, tau, t, record_dir))
 
     base_source = _source(config, name, "position")
     base = _vector(columns, base_source, 3) if base_source else None
@@ -174,11 +171,11 @@ def _computed_torque(name: str, params: dict, config: dict, columns: dict, t: np
             axes[1].set_title("c) smallest singular value of J_g", loc="left")
             axes[1].grid(True, alpha=0.3)
         axes[1].set_xlabel("time (s)")
-        written.append(_save(fig, out_dir / f"{name}_base.png"))
+        written.append((f"{name}_base.png", fig))
     return written
 
 
-def _torques(name, params, tau, t, record_dir, out_dir) -> Path:
+def _torques(name, params, tau, t, record_dir) -> tuple[str, object]:
     names = _joint_names(record_dir, params, tau.shape[1])
     fig = _figure(8.0, 4.5)
     ax = fig.add_subplot()
@@ -193,15 +190,15 @@ def _torques(name, params, tau, t, record_dir, out_dir) -> Path:
     ax.grid(True, alpha=0.3)
     if driven.size:
         ax.legend(loc="upper right", fontsize="small", ncols=2)
-    return _save(fig, out_dir / f"{name}_torque.png")
+    return (f"{name}_torque.png", fig)
 
 
-def _joint_pd(name, params, config, columns, t, record_dir, out_dir) -> list[Path]:
+def _joint_pd(name, params, config, columns, t, record_dir) -> list[tuple[str, object]]:
     tau = _vector(columns, f"{name}.tau")
     q_d = _vector(columns, f"{name}.q_desired")
     if tau is None or q_d is None:
         raise PlotError(f"{name}: the recording lacks tau or q_desired")
-    written = [_torques(name, params, tau, t, record_dir, out_dir)]
+    written = [_torques(name, params, tau, t, record_dir)]
     source = _source(config, name, "q")
     q = _vector(columns, source) if source else None
     names = _joint_names(record_dir, params, tau.shape[1])
@@ -219,28 +216,174 @@ def _joint_pd(name, params, config, columns, t, record_dir, out_dir) -> list[Pat
     ax.grid(True, alpha=0.3)
     if driven and q is not None:
         ax.legend(loc="upper right", fontsize="small", ncols=2)
-    written.append(_save(fig, out_dir / f"{name}_joints.png"))
+    written.append((f"{name}_joints.png", fig))
     return written
 
 
-def plot_recording(record_dir, out_dir) -> list[Path]:
-    """Write the PNG plots of a recording (module table) into ``out_dir``; return their paths.
+def _orbit(name: str, config: dict, columns: dict, t: np.ndarray) -> list[tuple[str, object]]:
+    """Altitude, ground track, and r, v over time of an orbit component's r_eci, v_eci."""
+    import erfa
 
-    PlotError when the recording is missing or lacks the columns a controller's plots need.
-    A recording without controllers gives no plots (an empty list).
+    from components.constants import R_EARTH
+    from components.orbit import timescales
+
+    r, v = _vector(columns, f"{name}.r_eci", 3), _vector(columns, f"{name}.v_eci", 3)
+    if r is None:
+        return []
+    utc = timescales.parse_utc(str((config.get("run") or {}).get("epoch")))
+    angle = np.array([erfa.era00(utc[0], utc[1] + s / 86400.0) for s in t])   # Earth rotation, UT1 ~ UTC
+    x = np.cos(angle) * r[:, 0] + np.sin(angle) * r[:, 1]                      # Earth-fixed
+    y = -np.sin(angle) * r[:, 0] + np.cos(angle) * r[:, 1]
+    radius = np.linalg.norm(r, axis=1)
+    fig = _figure(11.0, 7.0)
+    ax = fig.add_subplot(2, 2, 1)
+    altitude = (radius - R_EARTH) / 1e3
+    ax.plot(t, altitude, color="k", linewidth=1.0)
+    ax.ticklabel_format(axis="y", useOffset=False)
+    if np.ptp(altitude) < 1.0:                      # a circular orbit: no axis of rounding noise
+        ax.set_ylim(altitude.mean() - 1.0, altitude.mean() + 1.0)
+    ax.set(xlabel="time (s)", ylabel="km", title=f"{name}: altitude above {R_EARTH / 1e3:g} km")
+    ax = fig.add_subplot(2, 2, 2)
+    lon, lat = np.degrees(np.arctan2(y, x)), np.degrees(np.arcsin(r[:, 2] / radius))
+    jumps = np.abs(np.diff(lon, prepend=lon[0])) > 180                           # break the line at +-180
+    ax.plot(np.where(jumps, np.nan, lon), lat, color="tab:blue", linewidth=1.0)
+    ax.set(xlim=(-180, 180), ylim=(-90, 90), xlabel="longitude (deg)", ylabel="latitude (deg)",
+           title=f"{name}: ground track (spherical Earth)")
+    for i, (vector, unit, what) in enumerate(((r / 1e3, "km", "r_eci"), (v / 1e3 if v is not None else None, "km/s", "v_eci"))):
+        ax = fig.add_subplot(2, 2, 3 + i)
+        if vector is not None:
+            for k, axis in enumerate("xyz"):
+                ax.plot(t, vector[:, k], linewidth=1.0, label=axis)
+            ax.legend(loc="upper right", fontsize="small")
+        ax.set(xlabel="time (s)", ylabel=unit, title=f"{name}.{what} (ECI)")
+    for ax in fig.axes:
+        ax.grid(True, alpha=0.3)
+    return [(f"{name}_track.png", fig)]
+
+
+def attitude_in_lvlh(config: dict, columns: dict, component: str, body: str) -> tuple[np.ndarray, str] | None:
+    """The body's attitude as a rotation vector (rad, rows x 3): relative to LVLH (its axes: x
+    radial, y along-track, z orbit normal; z is the pitch of a libration) when the component's
+    q_eci_lvlh input is recorded, else relative to the body's attitude at t0 in W axes.
+    Returns (rotation vectors, frame name), or None without the orientation columns."""
+    from scipy.spatial.transform import Rotation
+
+    q_body = _vector(columns, f"{component}.{body}.orientation", 4)
+    if q_body is None:
+        return None
+    source = _source(config, component, "q_eci_lvlh")
+    q_lvlh = _vector(columns, source, 4) if source else None
+    body_rotation = Rotation.from_quat(q_body)
+    if q_lvlh is not None:
+        return (Rotation.from_quat(q_lvlh).inv() * body_rotation).as_rotvec(), "LVLH"
+    return (body_rotation[0].inv() * body_rotation).as_rotvec(), "its attitude at t0 (W axes)"
+
+
+def _dynamics(name: str, params: dict, config: dict, columns: dict, t: np.ndarray,
+              record_dir: Path) -> list[tuple[str, object]]:
+    """Per body: attitude (against LVLH when known), momentum, joint angles."""
+    written = []
+    for body in (params.get("bodies") or {}):
+        attitude = attitude_in_lvlh(config, columns, name, body)
+        momentum = _vector(columns, f"{name}.{body}.momentum", 6)
+        q = _vector(columns, f"{name}.{body}.q")
+        panels = [p for p in ("attitude", "momentum", "joints")
+                  if {"attitude": attitude, "momentum": momentum, "joints": q}[p] is not None]
+        if not panels:
+            continue
+        fig = _figure(9.0, 3.2 * len(panels))
+        for row, panel in enumerate(panels, start=1):
+            ax = fig.add_subplot(len(panels), 1, row)
+            if panel == "attitude":
+                angles, frame = attitude
+                for k, axis in enumerate("xyz"):
+                    ax.plot(t, np.degrees(angles[:, k]), linewidth=1.0, label=f"about {axis}")
+                ax.set(ylabel="deg", title=f"{name}.{body}: attitude against {frame} (rotation vector)")
+            elif panel == "momentum":
+                for k, label in enumerate(("p_x", "p_y", "p_z")):
+                    ax.plot(t, momentum[:, k] - momentum[0, k], linewidth=1.0, label=label + " (kg m/s)")
+                for k, label in enumerate(("L_x", "L_y", "L_z")):
+                    ax.plot(t, momentum[:, 3 + k] - momentum[0, 3 + k], linewidth=1.0, linestyle="--",
+                            label=label + " (kg m^2/s)")
+                ax.set(ylabel="change from t0", title=f"{name}.{body}: momentum (W axes, angular about the CoM)")
+            else:
+                names = _joint_names(record_dir, {"urdf": (params["bodies"][body] or {}).get("urdf")}, q.shape[1])
+                for k in range(q.shape[1]):
+                    ax.plot(t, q[:, k], linewidth=1.0, label=f"q[{k}]" if names[k].startswith("tau[") else names[k])
+                ax.set(ylabel="rad or m", title=f"{name}.{body}: joint positions")
+            ax.set_xlabel("time (s)")
+            ax.grid(True, alpha=0.3)
+            ax.legend(loc="upper right", fontsize="x-small", ncols=2)
+        written.append((f"{name}_{body}.png", fig))
+    return written
+
+
+def _signals(names: list[str], columns: dict, t: np.ndarray) -> list[tuple[str, object]]:
+    """One panel per name: a column (``x[0]``) or every element of a vector (``dynamics.b.q``)."""
+    series = {}
+    for name in names:
+        if name in columns:
+            series[name] = columns[name][:, None]
+        elif (vector := _vector(columns, name)) is not None:
+            series[name] = vector
+        else:
+            near = sorted({c.split("[")[0] for c in columns if c not in ("step", "time")})
+            raise PlotError(f"--signals: no column {name!r} in the recording (signals: {', '.join(near)})")
+    fig = _figure(9.0, 2.6 * len(series))
+    for row, (name, values) in enumerate(series.items(), start=1):
+        ax = fig.add_subplot(len(series), 1, row)
+        for k in range(values.shape[1]):
+            ax.plot(t, values[:, k], linewidth=1.0, label=f"[{k}]" if values.shape[1] > 1 else None)
+        ax.set(xlabel="time (s)", title=name)
+        ax.grid(True, alpha=0.3)
+        if values.shape[1] > 1:
+            ax.legend(loc="upper right", fontsize="x-small", ncols=2)
+    return [("signals.png", fig)]
+
+
+def figures(record_dir, signals: list[str] | None = None) -> list[tuple[str, object]]:
+    """(file name, matplotlib Figure) for a recording: the module table's figures, picked by the
+    component types in its config.yaml, or one figure of the named ``signals``.
+
+    PlotError when the recording is missing, lacks the columns a figure needs, or has nothing
+    to plot.
     """
-    record_dir, out_dir = Path(record_dir), Path(out_dir)
+    record_dir = Path(record_dir)
     config, columns = _load(record_dir)
     if "time" not in columns:
         raise PlotError(f"{record_dir / 'signals.parquet'}: no time column")
     t = np.asarray(columns["time"], dtype=float)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    written: list[Path] = []
+    if signals:
+        return _signals(signals, columns, t)
+    written: list[tuple[str, object]] = []
     for name, spec in (config.get("components") or {}).items():
-        kind = (spec or {}).get("type")
+        kind = (spec or {}).get("type") or ""
         params = (spec or {}).get("parameters") or {}
         if kind == COMPUTED_TORQUE:
-            written += _computed_torque(name, params, config, columns, t, record_dir, out_dir)
+            written += _computed_torque(name, params, config, columns, t, record_dir)
         elif kind == JOINT_PD:
-            written += _joint_pd(name, params, config, columns, t, record_dir, out_dir)
+            written += _joint_pd(name, params, config, columns, t, record_dir)
+        elif kind == DYNAMICS:
+            written += _dynamics(name, params, config, columns, t, record_dir)
+        elif kind.startswith(ORBIT):
+            written += _orbit(name, config, columns, t)
+    if not written:
+        types = ", ".join(sorted({(s or {}).get("type", "?") for s in (config.get("components") or {}).values()}))
+        raise PlotError(f"nothing to plot in {record_dir}: no figures for its component types ({types}); "
+                        f"name columns to plot with --signals NAME,NAME")
     return written
+
+
+def plot_recording(record_dir, out_dir, signals: list[str] | None = None) -> list[Path]:
+    """Write :func:`figures` as PNGs into ``out_dir`` (created only then); return their paths."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    made = figures(record_dir, signals)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for filename, fig in made:
+        FigureCanvasAgg(fig)
+        fig.savefig(out_dir / filename, dpi=110)
+        paths.append(out_dir / filename)
+    return paths

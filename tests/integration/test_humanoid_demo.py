@@ -125,8 +125,8 @@ def test_plots_of_the_recording(runs, tmp_path):
     from orchestrator.plots import plot_recording
 
     written = plot_recording(runs["dir"] / "free_floating", tmp_path / "plots")
-    assert [p.name for p in written] == ["controller_path.png", "controller_error.png", "controller_torque.png",
-                                         "controller_base.png"]
+    assert [p.name for p in written] == ["orbit_track.png", "dynamics_humanoid.png", "controller_path.png",
+                                         "controller_error.png", "controller_torque.png", "controller_base.png"]
     for path in written:
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 10_000
 

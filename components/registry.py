@@ -41,9 +41,8 @@ def load(type_name: str, config_dir: str | Path | None = None) -> type[Component
     target = TYPES.get(type_name, type_name)
     module_name, sep, class_name = target.rpartition(":")
     if not sep or not module_name or not class_name:
-        known = ", ".join(sorted(t for t in TYPES if not t.startswith("test.")))
-        raise ConfigError("type", f"unknown component type {type_name!r} (known: {known}; "
-                                  "or give module:Class or file.py:Class)")
+        raise ConfigError("type", f"unknown component type {type_name!r} (known: {', '.join(TYPES)}; "
+                                  "or give module:Class or file.py:Class; `orchestrator types` lists them)")
     try:
         if module_name.endswith(".py"):
             path = Path(config_dir or ".") / module_name

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -140,34 +141,88 @@ def cmd_swap(args) -> int:
     return 0
 
 
-def cmd_describe(args) -> int:
+def _summary(cls) -> str:
+    """The first paragraph of a component's docstring as plain text (:class:`X`, ``X`` -> X)."""
+    import re
+    paragraph = " ".join((cls.__doc__ or "").strip().split("\n\n")[0].split())
+    return re.sub(r":\w+:`~?([^`]+)`|``([^`]+)``", lambda m: m.group(1) or m.group(2), paragraph)
+
+
+def _one_line(cls) -> str:
+    """The summary's first sentence, without its '(type ...)' aside."""
+    import re
+    sentence = re.split(r"(?<=[a-z)])\.\s+(?=[A-Z])", _summary(cls))[0].rstrip(".")
+    return re.sub(r"\s*\(type [^()]*(\([^()]*\)[^()]*)*\)|\s*\(type [^()]*$", "", sentence)
+
+
+def cmd_types(args) -> int:
     from components import registry
     from components.errors import ConfigError
-    from components.sdk import REQUIRED
+    for group, names in (("built-in", [t for t in registry.TYPES if not t.startswith("test.")]),
+                         ("test blocks (tests and examples)", [t for t in registry.TYPES if t.startswith("test.")])):
+        print(f"{group}:")
+        for name in names:
+            try:
+                line = _one_line(registry.load(name))
+            except ConfigError as e:
+                line = f"(cannot load: {e.message})"
+            print(f"  {name:<28}{line}")
+    print("\nyour own: type: module:Class or path/to/file.py:Class (a components.sdk.Component subclass); "
+          "`orchestrator describe TYPE` for its parameters and variables")
+    return 0
+
+
+def cmd_describe(args) -> int:
+    import textwrap
+
+    from components import registry
+    from components.errors import ConfigError
+    from components.sdk import REQUIRED, resolve_parameters
+    from orchestrator.config import ConfigErrors, parse_override
     try:
-        cls = registry.load(args.type)
+        cls = registry.load(args.type, Path.cwd())
+        given: dict = {}
+        for text in args.set:
+            path, value = parse_override(text)
+            node = given
+            for part in path[:-1]:
+                node = node.setdefault(part, {})
+            node[path[-1]] = value
     except ConfigError as e:
         return _fail(e.message)
-    print(f"{cls.type_name or args.type}")
-    doc = (cls.__doc__ or "").strip()
-    if doc:
-        print("\n".join("  " + line.strip() if line.strip() else "" for line in doc.splitlines()))
+    except ConfigErrors as e:
+        return _fail(e.errors[0])
+    declared = {p.name for p in cls.parameters}
+    unknown = [key for key in given if key not in declared]
+    if unknown:
+        return _fail(f"--set {unknown[0]}: unknown parameter of {args.type} (known: {', '.join(declared) or 'none'})")
+    print(cls.type_name or args.type)
+    if summary := _summary(cls):
+        print(textwrap.fill(summary, 100, initial_indent="  ", subsequent_indent="  "))
     print("\nparameters:")
     for p in cls.parameters:
         default = "required" if p.default is REQUIRED else f"default {p.default!r}"
         unit = f" [{p.unit}]" if p.unit else ""
-        print(f"  {p.name:<22}{p.kind}{unit:<10} {default:<22} {p.description}")
+        print(f"  {p.name:<22}{p.kind + unit:<16} {default:<22} {p.description}")
     if not cls.parameters:
         print("  (none)")
-    print("\nvariables (with default parameters):")
+    missing = [p.name for p in cls.parameters if p.default is REQUIRED and p.name not in given]
+    print("\nvariables" + (" (with default parameters):" if not given else " (with the parameters given):"))
+    if missing:
+        print(f"  they depend on the required parameters {', '.join(missing)}: give them to see the "
+              f"variables, e.g. orchestrator describe {args.type} --set {missing[0]}=VALUE")
+        return 0
+    params, errors = resolve_parameters(cls, {**given, "_config_dir": str(Path.cwd()), "_epoch": "2000-01-01T12:00:00Z"})
     try:
-        params = {p.name: p.default for p in cls.parameters if p.default is not REQUIRED}
-        if any(p.default is REQUIRED for p in cls.parameters):
-            raise KeyError
-        for v in cls.declare(params):
-            print(f"  {v.causality:<7} {v.name:<22}{str(v.shape):<8}{v.unit:<10} {v.description}")
-    except Exception:
-        print("  depend on the required parameters; see the table above")
+        variables = cls.declare(params) if not errors else []
+    except ConfigError as e:
+        errors = [e]
+    if errors:
+        for e in errors:
+            print(f"error: --set {e}", file=sys.stderr)
+        return USAGE_ERROR
+    for v in variables:
+        print(f"  {v.causality:<7} {v.name:<28}{str(v.shape):<8}{v.unit:<16} {v.description}")
     return 0
 
 
@@ -230,8 +285,13 @@ def build_parser() -> argparse.ArgumentParser:
                    "dynamics.target.q[0], ...)")
     p.set_defaults(func=cmd_plot)
 
+    p = sub.add_parser("types", help="list the component types, with a line each")
+    p.set_defaults(func=cmd_types)
+
     p = sub.add_parser("describe", help="print a component type's parameters and variables")
-    p.add_argument("type")
+    p.add_argument("type", help="a type from `orchestrator types`, module:Class or file.py:Class")
+    p.add_argument("--set", action="append", default=[], metavar="PARAM=VALUE",
+                   help="a parameter value (YAML), to see the variables that depend on it (repeatable)")
     p.set_defaults(func=cmd_describe)
 
     from components.viewer.replay import add_view_command   # orchestrator view DIR: replay in Rerun
@@ -245,6 +305,9 @@ def main(argv: list[str] | None = None) -> int:
         return args.func(args)
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:   # `orchestrator types | head`: the reader left; no traceback
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":

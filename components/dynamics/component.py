@@ -1,5 +1,5 @@
-"""Component ``dynamics.dart``: free-floating URDF multibodies in orbit (thin wrapper of
-:class:`components.dynamics.world.OrbitalWorld`).
+"""Free-floating URDF multibodies in orbit, simulated with DART (type ``dynamics.dart``; a thin
+wrapper of :class:`components.dynamics.world.OrbitalWorld`).
 
 Zero gravity in the free-falling, non-rotating world frame W (origin at the reference orbit point
 r_eci(t), axes parallel to ECI), plus per link and each switchable: tidal force, gravity-gradient

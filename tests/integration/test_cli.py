@@ -10,7 +10,7 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 
-from tests.conftest import component_processes, orchestrator, start_run, wait_for_components
+from tests.conftest import ROOT, component_processes, orchestrator, start_run, wait_for_components
 
 pytestmark = pytest.mark.integration
 
@@ -173,3 +173,34 @@ def test_messages_that_fit_the_mistake(write_config, tmp_path):
     resolved = yaml.safe_load((tmp_path / "rec" / "config.yaml").read_text())
     assert resolved["run"]["duration"] == "1 s" and resolved["run"]["step"] == "10 ms"
     assert resolved["components"]["first"]["step"] == "10 ms"
+
+
+def test_types_lists_every_registered_type_with_a_line():
+    from components.registry import TYPES
+
+    result = orchestrator("types")
+    assert result.returncode == 0, result.stderr
+    listed = {line.split()[0]: line.split(None, 1)[1] for line in result.stdout.splitlines() if line.startswith("  ")}
+    assert set(listed) == set(TYPES) and "test.constant" in listed
+    assert listed["orbit.kepler"] == "Keplerian orbit about the Earth, optionally with J2 secular drift"
+    assert not any("``" in text or ":class:" in text or "(type" in text for text in listed.values())
+    typo = orchestrator("check", "configs/user_component.yaml", "--set", "components.push.type=test.constnt")
+    assert typo.returncode == 2 and "test.constant" in typo.stderr
+
+
+def test_describe_a_user_component_shows_its_variables_once_its_parameters_are_given():
+    cwd = ROOT / "components" / "examples"
+    bare = orchestrator("describe", "oscillator.py:Oscillator", cwd=cwd)
+    assert bare.returncode == 0, bare.stderr
+    assert "depend on the required parameters mass, stiffness" in bare.stdout
+    assert bare.stdout.count("moving mass") == 1                       # parameters listed once
+    given = orchestrator("describe", "oscillator.py:Oscillator", "--set", "mass=2", "--set", "stiffness=3 N/m", cwd=cwd)
+    rows = [line.split() for line in given.stdout.splitlines() if line.startswith(("  input", "  output"))]
+    assert [r[:3] for r in rows] == [["input", "force", "()"], ["output", "x", "()"], ["output", "v", "()"]], given.stdout
+    typo = orchestrator("describe", "oscillator.py:Oscillator", "--set", "stifness=3", cwd=cwd)
+    assert typo.returncode == 2 and "stifness: unknown parameter" in typo.stderr and "stiffness" in typo.stderr
+    bad = orchestrator("describe", "oscillator.py:Oscillator", "--set", "mass=2", "--set", "stiffness=3 kg", cwd=cwd)
+    assert bad.returncode == 2 and "stiffness" in bad.stderr and "Traceback" not in bad.stderr
+    builtin = orchestrator("describe", "dynamics.dart", "--set", "bodies={sat: {urdf: models/target.urdf}}")
+    assert builtin.returncode == 0 and "output  sat.orientation" in builtin.stdout, builtin.stderr
+    assert ":class:" not in builtin.stdout and "``" not in builtin.stdout

@@ -217,6 +217,9 @@ def cmd_describe(args) -> int:
         variables = cls.declare(params) if not errors else []
     except ConfigError as e:
         errors = [e]
+    if errors and not given:   # the defaults alone do not make a valid instance (one of two needed...)
+        print(f"  they depend on the parameters ({errors[0]}): give them with --set PARAM=VALUE")
+        return 0
     if errors:
         for e in errors:
             print(f"error: --set {e}", file=sys.stderr)

@@ -1,6 +1,6 @@
 """Rotations and small vector helpers shared by every component: plain numpy, no bus, no I/O.
 
-Conventions (Zenorbit contract, DESIGN §2):
+Conventions (Zenorbit contract, docs/design.md §2):
 
 - Quaternions are ``[x, y, z, w]`` (scalar last, as SciPy's ``Rotation``, ROS, Rerun, Pinocchio).
   ``q_A_B`` rotates vectors expressed in B into A; ``R_A_B`` (or ``C_A_B``) is the matching 3x3

@@ -1,4 +1,4 @@
-"""`orchestrator` command line (DESIGN §5).
+"""`orchestrator` command line (docs/design.md §5).
 
 Exit codes: 0 success; 1 the run failed (a component crashed, hung or produced NaN);
 2 bad usage or bad config; 130 interrupted (Ctrl-C).

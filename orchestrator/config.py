@@ -1,4 +1,4 @@
-"""Load, override and validate a run config (DESIGN §4) into typed structures.
+"""Load, override and validate a run config (docs/design.md §4) into typed structures.
 
 Every problem is collected and reported at once, each naming its key and file; nothing is
 started before the whole config is valid. Unknown keys are errors, as are missing required ones.

@@ -1,7 +1,7 @@
 """PNG plots of a recording (``orchestrator plot DIR``), picked by the component types in it.
 
 ``plot_recording(record_dir, out_dir)`` reads ``DIR/signals.parquet`` and ``DIR/config.yaml``
-(docs/design.md, Recording) and writes, for each component of a type it knows:
+(docs/design.md §6) and writes, for each component of a type it knows:
 
 | file | for | content |
 |---|---|---|

@@ -1,4 +1,4 @@
-"""Recording (DESIGN §6): signals.parquet in chunks, events.jsonl, the resolved config.yaml.
+"""Recording (docs/design.md §6): signals.parquet in chunks, events.jsonl, config.yaml.
 
 Rows go to Parquet one row group per ``chunk_rows`` rows (by count, never by wall time, so two
 runs of one config write identical files). The writer is closed in every exit path of a run, so

@@ -2,7 +2,7 @@
 
 ``SceneLogger(columns, config, config_dir, recording)`` looks at the resolved config (components by
 their ``type``: ``orbit.*``, ``dynamics.*`` with ``bodies``, ``controller.*``) and at the recorded
-column names (``<component>.<name>`` or ``<component>.<name>[i]``, DESIGN §6), and then turns
+column names (``<component>.<name>`` or ``<component>.<name>[i]``, docs/design.md §6), and then turns
 batches of rows (step, time, one float64 per column) into columnar Rerun logs on two timelines,
 ``sim_time`` (a duration, s) and ``step`` (a sequence). Whatever is absent is simply not shown.
 

@@ -84,7 +84,7 @@ def test_closed_loop_tracks_a_waypoint_move():
 
 
 def test_gains_kp_kd_take_one_number_for_all_six_axes():
-    """kp: 50 (DESIGN §5's `--set components.controller.parameters.kp=50`) is kp: [50] * 6; units
+    """kp: 50 (docs/design.md §5's `--set components.controller.parameters.kp=50`) is kp: [50] * 6; units
     work in either form. The closed loops are bit-identical, and differ from the default gains."""
     one, _ = closed_loop(computed_torque(kp=50, kd="10 Hz"), 300)
     six, _ = closed_loop(computed_torque(kp=[50] * 6, kd=[10, 10, 10, 10, 10, "10 Hz"]), 300)

@@ -154,7 +154,7 @@ def link_inertials(urdf):
 
 
 def environment_closed_form(urdf, link_position, link_orientation, R):
-    """DESIGN §8 per link, from the link poses in W and the reference point R (ECI): tidal force
+    """docs/design.md §8, per link, from the link poses in W and the reference point R (ECI): tidal force
     m (g(R + d) - g(R)) and gravity-gradient torque 3 mu / |rho|^5 (rho x I rho), rho = R + d,
     with d the link CoM in W, I its inertia in W axes, g(x) = -mu x / |x|^3. Evaluated in 40-digit
     decimal arithmetic from the float64 inputs: the subtraction of two ~8 m/s^2 gravities (and

@@ -16,7 +16,7 @@ URDF = ROOT / "models" / "humanoid_torso.urdf"
 
 
 def columns_of(spec):
-    """[(component.name, size)] -> recorded column names (DESIGN §6)."""
+    """[(component.name, size)] -> recorded column names (docs/design.md §6)."""
     out = []
     for name, size in spec:
         out += [name] if size == 0 else [f"{name}[{i}]" for i in range(size)]

@@ -178,16 +178,11 @@ def cmd_describe(args) -> int:
     from components import registry
     from components.errors import ConfigError
     from components.sdk import REQUIRED, resolve_parameters
-    from orchestrator.config import ConfigErrors, parse_override
+    from orchestrator.config import ConfigErrors, apply_overrides
     try:
         cls = registry.load(args.type, Path.cwd())
         given: dict = {}
-        for text in args.set:
-            path, value = parse_override(text)
-            node = given
-            for part in path[:-1]:
-                node = node.setdefault(part, {})
-            node[path[-1]] = value
+        apply_overrides(given, args.set)
     except ConfigError as e:
         return _fail(e.message)
     except ConfigErrors as e:

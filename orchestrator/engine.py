@@ -660,9 +660,9 @@ class Run:
         """One line for the end of every run: how it ended, how far it got, how fast, where it went."""
         status = {0: "completed", 1: "failed"}.get(code) or self.stop_reason or "interrupted"
         sim_s = self.row * self.config.step_ns / 1e9
-        stepping = self.loop_s if self.loop_s else 0.0
-        factor = sim_s / stepping if stepping > 0 and self.row else 0.0
-        rate = f", real-time factor {factor:.2f}" if factor < 100 else f", real-time factor {factor:.0f}" if factor else ""
+        stepping = self.loop_s
+        factor = sim_s / stepping if stepping > 0 else 0.0
+        rate = f", real-time factor {factor:.{2 if factor < 100 else 0}f}" if factor else ""
         where = f"recording in {self.record_dir}" if self.record_dir is not None else "not recorded (no --record)"
         return (f"run {self.config.name} {status}: {wording.count(self.row, 'step')} of {self.config.steps}, "
                 f"{sim_s:g} s simulated; {wall_s:.1f} s wall ({stepping:.1f} s stepping{rate}); {where}")

@@ -287,8 +287,8 @@ def _dynamics(name: str, params: dict, config: dict, columns: dict, t: np.ndarra
         attitude = attitude_in_lvlh(config, columns, name, body)
         momentum = _vector(columns, f"{name}.{body}.momentum", 6)
         q = _vector(columns, f"{name}.{body}.q")
-        panels = [p for p in ("attitude", "momentum", "joints")
-                  if {"attitude": attitude, "momentum": momentum, "joints": q}[p] is not None]
+        found = {"attitude": attitude, "momentum": momentum, "joints": q}
+        panels = [panel for panel, data in found.items() if data is not None]
         if not panels:
             continue
         fig = _figure(9.0, 3.2 * len(panels))

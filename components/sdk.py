@@ -9,6 +9,7 @@ process, :mod:`components.testing.harness` runs it in-process. See docs/componen
 """
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, ClassVar, Mapping
@@ -16,69 +17,9 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 
 from components.errors import ConfigError
-from components.units import to_si
-
-REQUIRED = object()
-"""Default of a parameter the config must give."""
+from components.schema import REQUIRED, Parameter, Problems, Record, markdown  # noqa: F401 (SDK surface)
 
 CAUSALITIES = ("input", "output")
-PARAMETER_KINDS = ("float", "int", "bool", "str", "vector", "any")
-
-
-@dataclass(frozen=True)
-class Parameter:
-    """A configuration value of a component type, fixed for a run.
-
-    kind: float | int | bool | str | vector | any. ``unit`` (SI, e.g. "m", "rad") lets the config
-    give "6778 km"; ``shape`` applies to vectors; ``choices`` restricts str values.
-    """
-    name: str
-    kind: str
-    unit: str | None = None
-    default: Any = REQUIRED
-    description: str = ""
-    shape: tuple[int, ...] | None = None
-    choices: tuple[str, ...] | None = None
-
-    def __post_init__(self):
-        if self.kind not in PARAMETER_KINDS:
-            raise ValueError(f"parameter {self.name}: kind must be one of {PARAMETER_KINDS}, got {self.kind!r}")
-
-    @property
-    def required(self) -> bool:
-        return self.default is REQUIRED
-
-    def convert(self, value: Any) -> Any:
-        """Check and convert a config value to its SI Python value; ConfigError naming the key."""
-        key = self.name
-        if self.kind == "any":
-            return value
-        if self.kind == "bool":
-            if not isinstance(value, bool):
-                raise ConfigError(key, f"expected true or false, got {value!r}")
-            return value
-        if self.kind == "str":
-            if not isinstance(value, str):
-                raise ConfigError(key, f"expected a string, got {value!r}")
-            if self.choices and value not in self.choices:
-                raise ConfigError(key, f"expected one of {', '.join(self.choices)}, got {value!r}")
-            return value
-        if self.kind == "int":
-            if isinstance(value, bool) or not isinstance(value, int):
-                raise ConfigError(key, f"expected an integer, got {value!r}")
-            return value
-        if self.kind == "float":
-            return to_si(value, self.unit or "1", key)
-        # vector
-        if not isinstance(value, (list, tuple)):
-            raise ConfigError(key, f"expected a list of {self._shape_text()} numbers, got {value!r}")
-        array = np.array([to_si(v, self.unit or "1", f"{key}[{i}]") for i, v in enumerate(value)])
-        if self.shape is not None and array.shape != self.shape:
-            raise ConfigError(key, f"expected {self._shape_text()} values, got {len(value)}")
-        return array
-
-    def _shape_text(self) -> str:
-        return "x".join(map(str, self.shape)) if self.shape else "some"
 
 
 @dataclass(frozen=True)
@@ -110,10 +51,15 @@ class Variable:
 
 
 class Component:
-    """Base class of a component type. Subclasses set ``type_name`` and ``parameters``."""
+    """Base class of a component type. Subclasses set ``type_name`` and ``parameters``, and
+    ``variables`` when they do not depend on the parameters (else they override ``declare``).
+
+    The docstring gets its parameter and variable tables from those declarations.
+    """
 
     type_name: ClassVar[str] = ""
     parameters: ClassVar[tuple[Parameter, ...]] = ()
+    variables: ClassVar[tuple[Variable, ...] | None] = None
     #: Set by the framework before ``initialize`` and each ``do_step``: for each input fed by a
     #: connection, the time (ns) at which its value was sampled, which is not always t_ns: under
     #: Gauss-Seidel an input from a component earlier in config order holds that component's
@@ -122,10 +68,19 @@ class Component:
     #: start value) is absent.
     input_times_ns: Mapping[str, int] = MappingProxyType({})
 
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        cls.schema = Record(cls.type_name or cls.__name__, tuple(cls.parameters),
+                            noun=f"parameter of {cls.type_name or cls.__name__}", extra=RUN_PARAMETERS)
+        if cls.__dict__.get("__doc__"):   # its own docstring, not an inherited one
+            cls.__doc__ = inspect.cleandoc(cls.__doc__) + "\n\n" + declaration_tables(cls)
+
     @classmethod
     def declare(cls, params: Mapping[str, Any]) -> list[Variable]:
         """Inputs and outputs, given validated parameters. Must be cheap (no heavy imports)."""
-        raise NotImplementedError
+        if cls.variables is None:
+            raise NotImplementedError(f"{cls.__name__} declares neither variables nor declare()")
+        return list(cls.variables)
 
     @classmethod
     def validate(cls, params: Mapping[str, Any]) -> None:
@@ -154,41 +109,37 @@ class Component:
         """Release resources at the end of the run."""
 
 
-# Injected by the orchestrator into every component's parameters; not declared by the types.
-RUN_PARAMETERS = ("_epoch", "_config_dir")
-
-
 def resolve_parameters(cls: type[Component], raw: Mapping[str, Any] | None) -> tuple[dict, list[ConfigError]]:
-    """Validate raw config parameters against ``cls.parameters``.
+    """Validate raw config parameters against the type's declaration (``cls.schema``).
 
-    Returns the converted parameters (defaults filled) and every error found (unknown keys,
+    Returns the converted parameters (defaults filled, SI) and every error found (unknown keys,
     missing required keys, wrong kinds, units, then the type's own ``validate``).
     """
-    raw = dict(raw or {})
-    if not isinstance(raw, dict):
-        return {}, [ConfigError("", f"parameters must be a mapping, got {raw!r}")]
-    declared = {p.name: p for p in cls.parameters}
-    errors: list[ConfigError] = []
-    params: dict[str, Any] = {k: raw.pop(k) for k in RUN_PARAMETERS if k in raw}
-    for key in raw:
-        if key not in declared:
-            errors.append(ConfigError(key, f"unknown parameter of {cls.type_name} (known: {', '.join(declared) or 'none'})"))
-    for name, p in declared.items():
-        if name in raw:
-            try:
-                params[name] = p.convert(raw[name])
-            except ConfigError as e:
-                errors.append(e)
-        elif p.required:
-            errors.append(ConfigError(name, f"missing required parameter of {cls.type_name} ({p.description})"))
-        else:
-            params[name] = p.default
+    params, errors = cls.schema.resolve(raw)
     if not errors:
         try:
             cls.validate(params)
+        except Problems as e:
+            errors += e.problems
         except ConfigError as e:
             errors.append(e)
     return params, errors
+
+
+def declaration_tables(cls: type[Component]) -> str:
+    """Markdown tables of a type's parameters (nested ones too) and, when fixed, its variables."""
+    parts = ["Parameters:", "", markdown(cls.schema) if cls.parameters else "(none)", ""]
+    if cls.variables is None:
+        parts.append(f"Its variables depend on its parameters: ``orchestrator describe {cls.type_name or cls.__name__} "
+                     "--set PARAM=VALUE`` lists them.")
+    else:
+        parts += ["Variables:", "", "| variable | causality | shape | unit | description |", "|---|---|---|---|---|"]
+        parts += [f"| {v.name} | {v.causality} | {v.shape} | {v.unit} | {v.description} |" for v in cls.variables]
+    return "\n".join(parts)
+
+
+# Injected by the orchestrator into every component's parameters; not declared by the types.
+RUN_PARAMETERS = ("_epoch", "_config_dir")
 
 
 @dataclass

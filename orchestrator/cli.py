@@ -172,6 +172,22 @@ def cmd_types(args) -> int:
     return 0
 
 
+def _print_records(record, heading: str = "parameters") -> None:
+    """A declared record's fields, then each record nested in it, as aligned columns."""
+    from components.schema import table
+    for r in record.records():
+        nested = r is not record
+        description = r.description.replace("``", "")
+        print(f"\n{r.name}" + (f": {description}" if description else "") if nested else f"\n{heading}:")
+        rows = [(name, kind, default if default in ("required", "-") else f"default {default}", description)
+                for name, kind, default, description in table(r.fields)]
+        widths = [max([len(row[i]) for row in rows] + [0]) + 2 for i in range(3)]
+        for row in rows:
+            print("  " + "".join(cell.ljust(width) for cell, width in zip(row, widths)) + row[3])
+        if not r.fields:
+            print("  (none)")
+
+
 def cmd_describe(args) -> int:
     import textwrap
 
@@ -179,6 +195,11 @@ def cmd_describe(args) -> int:
     from components.errors import ConfigError
     from components.sdk import REQUIRED, resolve_parameters
     from orchestrator.config import ConfigErrors, apply_overrides
+    if args.type == "config":
+        from orchestrator.config import CONFIG
+        print("config\n  A run config: the YAML file given to run and check (docs/design.md §4).")
+        _print_records(CONFIG, "sections")
+        return 0
     try:
         cls = registry.load(args.type, Path.cwd())
         given: dict = {}
@@ -194,13 +215,7 @@ def cmd_describe(args) -> int:
     print(cls.type_name or args.type)
     if summary := _summary(cls):
         print(textwrap.fill(summary, 100, initial_indent="  ", subsequent_indent="  "))
-    print("\nparameters:")
-    for p in cls.parameters:
-        default = "required" if p.default is REQUIRED else f"default {p.default!r}"
-        unit = f" [{p.unit}]" if p.unit else ""
-        print(f"  {p.name:<22}{p.kind + unit:<16} {default:<22} {p.description}")
-    if not cls.parameters:
-        print("  (none)")
+    _print_records(cls.schema)
     missing = [p.name for p in cls.parameters if p.default is REQUIRED and p.name not in given]
     print("\nvariables" + (" (with default parameters):" if not given else " (with the parameters given):"))
     if missing:

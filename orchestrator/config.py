@@ -5,8 +5,6 @@ started before the whole config is valid. Unknown keys are errors, as are missin
 """
 from __future__ import annotations
 
-import datetime as dt
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -15,23 +13,68 @@ import yaml
 
 from components import registry
 from components.errors import ConfigError
+from components.schema import (Anything, Bool, Duration, Float, ListOf, MapOf, Parameter, Record, Str,
+                               UtcTime, markdown)
 from components.sdk import Component, Layout, Variable, resolve_parameters
-from components.units import duration_ns, duration_text, to_si
+from components.units import duration_text
 
-RUN_KEYS = {"name": True, "epoch": True, "duration": True, "step": True,
-            "algorithm": False, "realtime": False, "step_timeout": False, "start_timeout": False}
-TOP_KEYS = {"run": True, "components": True, "connections": False, "bus": False, "events": False,
-            "viewer": False}
-COMPONENT_KEYS = {"type": True, "step": False, "parameters": False, "launch": False, "dedicated_cpu": False}
-EVENT_KEYS = {"at": True, "swap": True, "type": False, "parameters": False}
-BUS_KEYS = {"listen": False}
-VIEWER_KEYS = {"mode": True, "file": False, "rate": False, "open_browser": False}
-VIEWER_MODES = ("spawn", "web", "save", "off")
 ALGORITHMS = ("jacobi", "gauss-seidel")
-DEFAULTS = {"algorithm": "jacobi", "realtime": 0, "step_timeout": "10 s", "start_timeout": "60 s"}
-NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
-ENDPOINT = re.compile(r"^(tcp|udp|tls|quic)/(\[[0-9a-fA-F:]+\]|[A-Za-z0-9.\-]+):\d{1,5}$")
-RUN_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_\-]*$")
+VIEWER_MODES = ("spawn", "web", "save", "off")
+NAME = r"[A-Za-z][A-Za-z0-9_]*"
+ENDPOINT = r"(tcp|udp|tls|quic)/(\[[0-9a-fA-F:]+\]|[A-Za-z0-9.\-]+):\d{1,5}"
+
+RUN = Record("run", (
+    Parameter("name", Str(pattern=r"[A-Za-z0-9][A-Za-z0-9_\-]*", hint="letters, digits, '_' or '-'"),
+              description="the run's name: its recording folder and bus keys"),
+    Parameter("epoch", UtcTime(), description="UTC time of t = 0, e.g. 2022-09-18T12:00:00Z"),
+    Parameter("duration", Duration(), description="simulated time, a whole number of steps"),
+    Parameter("step", Duration(), description="communication step; components may take multiples of it"),
+    Parameter("algorithm", Str(ALGORITHMS), default="jacobi",
+              description="jacobi: all step on the last outputs; gauss-seidel: in config order, on the newest"),
+    Parameter("realtime", Float(minimum=0.0), default=0.0,
+              description="0: as fast as possible; k: paced at k times the wall clock"),
+    Parameter("step_timeout", Duration(), default="10 s",
+              description="wall time a component may take for one step before the run fails"),
+    Parameter("start_timeout", Duration(), default="60 s",
+              description="wall time a component may take to start and initialize"),
+), description="the run's identity and timing (``run:``)")
+BUS = Record("bus", (
+    Parameter("listen", ListOf(Str(pattern=ENDPOINT, hint="a Zenoh endpoint like tcp/127.0.0.1:0"), min_items=1),
+              default=["tcp/127.0.0.1:0"], description="where the run's Zenoh router listens (loopback by default)"),
+), description="the Zenoh bus (``bus:``)")
+VIEWER = Record("viewer", (
+    Parameter("mode", Str(VIEWER_MODES), description="spawn a Rerun viewer, serve it on the web, save a .rrd, or off"),
+    Parameter("file", Str(pattern=r".+\.rrd", hint="a file name ending in .rrd"), default=None,
+              description="the recording of save, relative to the config file"),
+    Parameter("rate", Float("Hz", positive=True), default=30.0, description="frames per second of simulated time"),
+    Parameter("open_browser", Bool(), default=False, description="web: open the viewer in a browser"),
+), description="the Rerun live view (``viewer:``, or ``--view``)")
+COMPONENT = Record("component", (
+    Parameter("type", Str(hint="a component type name"),
+              description="a built-in type (orchestrator types), module:Class or file.py:Class"),
+    Parameter("step", Duration(), default=None, description="its step, a multiple of run.step (default: run.step)"),
+    Parameter("parameters", Anything(), default={}, description="the type's parameters (orchestrator describe TYPE)"),
+    Parameter("launch", Str(("local", "external")), default="local",
+              description="local: the orchestrator starts it; external: you do (orchestrator ps prints how)"),
+    Parameter("dedicated_cpu", Bool(), default=False,
+              description="its stepping thread on a CPU of its own (speed only, never results)"),
+), description="one component (``components.<name>``)")
+EVENT = Record("event", (
+    Parameter("at", Duration(positive=False), description="simulated time of the swap, on a step of the component"),
+    Parameter("swap", Str(), description="the component replaced"),
+    Parameter("type", Str(hint="a component type name"), default=None, description="the new type (default: the same)"),
+    Parameter("parameters", Anything(), default=None,
+              description="the new parameters (default: the old ones for the same type, none for another)"),
+), description="a swap during the run (``events:``)")
+CONFIG = Record("config", (
+    Parameter("run", RUN, description="identity and timing"),
+    Parameter("components", MapOf(COMPONENT, "component name", key_pattern=NAME), description="the components by name"),
+    Parameter("connections", MapOf(Str(hint="'<component>.<output>'"), "input"), default={},
+              description="'<component>.<input>: <component>.<output>'"),
+    Parameter("bus", BUS, default={}, description="the Zenoh bus"),
+    Parameter("events", ListOf(EVENT), default=[], description="swaps during the run"),
+    Parameter("viewer", VIEWER, default=None, description="the Rerun live view"),
+), description="a run config")
 
 
 class ConfigErrors(Exception):
@@ -74,29 +117,22 @@ def viewer_spec(raw: Any, where: str, errors: list[str], base: Path) -> ViewerSp
     if isinstance(raw, str):
         mode, _, file = raw.partition(":")
         raw = {"mode": mode, **({"file": file} if file else {})}
-    section = _keys(raw, VIEWER_KEYS, where, errors, "")
-    if not section or "mode" not in section:
+    section, problems = VIEWER.resolve(raw, where)
+    if problems:
+        errors += [str(e) for e in problems]
         return None
-    mode = section["mode"]
-    if mode not in VIEWER_MODES:
-        errors.append(f"{where}.mode: expected one of {', '.join(VIEWER_MODES)}, got {mode!r}")
+    return _viewer(section, where, errors, base)
+
+
+def _viewer(section: dict, where: str, errors: list[str], base: Path) -> ViewerSpec | None:
+    if section["mode"] == "off":
         return None
-    if mode == "off":
+    if section["mode"] == "save" and section["file"] is None:
+        errors.append(f"{where}.file: save needs a file name ending in .rrd (e.g. save:run.rrd), got none")
         return None
-    file = section.get("file")
-    if mode == "save" and not (isinstance(file, str) and file.endswith(".rrd")):
-        errors.append(f"{where}.file: save needs a file name ending in .rrd (e.g. save:run.rrd), got {file!r}")
-        return None
-    try:
-        rate = to_si(section.get("rate", 30.0), "Hz", "rate")
-    except ConfigError as e:
-        errors.append(f"{where}.rate: {e.message}")
-        return None
-    if rate <= 0:
-        errors.append(f"{where}.rate: must be positive, got {section.get('rate')!r}")
-        return None
-    return ViewerSpec(mode=mode, file=(base / file) if file else None, rate_hz=rate,
-                      open_browser=bool(section.get("open_browser", False)))
+    file = section["file"]
+    return ViewerSpec(mode=section["mode"], file=(base / file) if file else None, rate_hz=section["rate"],
+                      open_browser=section["open_browser"])
 
 
 @dataclass
@@ -213,66 +249,32 @@ def load(path: str | Path, overrides: list[str] = ()) -> RunConfig:
     return validate(raw, path)
 
 
-def _keys(section: Any, allowed: dict[str, bool], where: str, errors: list[str], file: Path | str) -> dict:
-    at = f"{file}: " if file else ""
-    if not isinstance(section, dict):
-        errors.append(f"{at}{where}: expected a mapping, got {section!r}")
-        return {}
-    for key in section:
-        if key not in allowed:
-            errors.append(f"{at}{where + '.' if where else ''}{key}: unknown key "
-                          f"(expected one of: {', '.join(allowed)})")
-    for key, required in allowed.items():
-        if required and key not in section:
-            errors.append(f"{at}{where + '.' if where else ''}{key}: missing required key")
-    return section
-
-
-def _epoch(value: Any) -> str:
-    if isinstance(value, dt.datetime):
-        moment = value if value.tzinfo else value.replace(tzinfo=dt.timezone.utc)
-    elif isinstance(value, str):
-        moment = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
-        if moment.tzinfo is None:
-            raise ValueError("give the time zone, e.g. 2022-09-18T12:00:00Z")
-    else:
-        raise ValueError(f"expected a UTC time like 2022-09-18T12:00:00Z, got {value!r}")
-    return moment.astimezone(dt.timezone.utc).isoformat().replace("+00:00", "Z")
+def _messages(problems: list[ConfigError], file: Path, prefix: str = "") -> list[str]:
+    return [f"{file}: {prefix}{e.key}: {e.message}" if e.key else f"{file}: {prefix.rstrip('.')}: {e.message}"
+            for e in problems]
 
 
 def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, epoch: str,
                    key: str) -> ComponentSpec:
-    """Build one component's spec; ConfigErrors naming ``key.<...>`` on problems."""
+    """One component's spec from its entry as COMPONENT converts it; ConfigErrors naming ``key.<...>``."""
     errors: list[str] = []
     type_name = entry["type"]
     try:
         cls = registry.load(type_name, config_dir)
     except ConfigError as e:
         raise ConfigErrors([f"{key}.type: {e.message}"]) from None
-    step_ns = run_step_ns
-    if entry.get("step") is not None:
-        try:
-            step_ns = duration_ns(entry["step"], "step")
-        except ConfigError as e:
-            errors.append(f"{key}.step: {e.message}")
-        else:
-            if step_ns <= 0 or step_ns % run_step_ns:
-                errors.append(f"{key}.step: must be a positive integer multiple of run.step "
-                              f"({run_step_ns} ns), got {entry['step']!r} ({step_ns} ns)")
-    params_raw = entry.get("parameters") or {}
+    step_ns = run_step_ns if entry["step"] is None else entry["step"]
+    if step_ns % run_step_ns:
+        errors.append(f"{key}.step: must be a positive integer multiple of run.step "
+                      f"({duration_text(run_step_ns)}), got {duration_text(step_ns)}")
+    params_raw = entry["parameters"]
     if not isinstance(params_raw, dict):
         raise ConfigErrors([f"{key}.parameters: expected a mapping, got {params_raw!r}"])
     raw = {**params_raw, "_epoch": epoch, "_config_dir": str(config_dir)}
     resolved, param_errors = resolve_parameters(cls, raw)
     errors += [f"{key}.parameters.{e.key}: {e.message}" if e.key else f"{key}.parameters: {e.message}"
                for e in param_errors]
-    launch = entry.get("launch", "local")
-    if launch not in ("local", "external"):
-        errors.append(f"{key}.launch: expected local or external, got {launch!r}")
-    dedicated_cpu = entry.get("dedicated_cpu", False)
-    if not isinstance(dedicated_cpu, bool):
-        errors.append(f"{key}.dedicated_cpu: expected true or false, got {dedicated_cpu!r}")
-    elif dedicated_cpu and launch == "external":
+    if entry["dedicated_cpu"] and entry["launch"] == "external":
         errors.append(f"{key}.dedicated_cpu: only for components the orchestrator starts (launch: local); "
                       f"pin an external component where it runs (taskset)")
     if errors:
@@ -285,123 +287,58 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
         raise ConfigErrors([f"{key}.parameters: {type_name} cannot declare its variables: "
                             f"{type(e).__name__}: {e}"]) from None
     return ComponentSpec(name=name, type=type_name, cls=cls, step_ns=step_ns, parameters=params_raw,
-                         resolved=resolved, launch=launch, dedicated_cpu=dedicated_cpu,
+                         resolved=resolved, launch=entry["launch"], dedicated_cpu=entry["dedicated_cpu"],
                          inputs=Layout([v for v in variables if v.causality == "input"]),
                          outputs=Layout([v for v in variables if v.causality == "output"]))
 
 
 def validate(raw: dict, path: Path) -> RunConfig:
-    errors: list[str] = []
+    """The config checked against CONFIG, then across its parts (components, connections, events)."""
     file = path
-    _keys(raw, TOP_KEYS, "", errors, file)
-    run = _keys(raw.get("run", {}), RUN_KEYS, "run", errors, file)
-    run = {**DEFAULTS, **run}
-
-    def field_of(key, convert):
-        if key not in run:
-            return None
-        try:
-            return convert(run[key])
-        except ConfigError as e:
-            errors.append(f"{file}: run.{key}: {e.message}")
-        except ValueError as e:
-            errors.append(f"{file}: run.{key}: {e}")
-        return None
-
-    name = run.get("name")
-    if name is not None and not (isinstance(name, str) and RUN_NAME.match(name)):
-        errors.append(f"{file}: run.name: expected letters, digits, '_' or '-', got {name!r}")
-    epoch = field_of("epoch", _epoch)
-    step_ns = field_of("step", lambda v: duration_ns(v, "step"))
-    total_ns = field_of("duration", lambda v: duration_ns(v, "duration"))
-    step_timeout = field_of("step_timeout", lambda v: duration_ns(v, "step_timeout") / 1e9)
-    start_timeout = field_of("start_timeout", lambda v: duration_ns(v, "start_timeout") / 1e9)
-    for key, value in (("step_timeout", step_timeout), ("start_timeout", start_timeout)):
-        if value is not None and value <= 0:
-            errors.append(f"{file}: run.{key}: must be positive, got {run[key]!r}")
-    if step_ns is not None and step_ns <= 0:
-        errors.append(f"{file}: run.step: must be positive, got {run['step']!r}")
-        step_ns = None
-    if total_ns is not None and total_ns <= 0:
-        errors.append(f"{file}: run.duration: must be positive, got {run['duration']!r}")
+    config, problems = CONFIG.resolve(raw)
+    errors = _messages(problems, file)
+    run = config.get("run", {})
+    step_ns, total_ns, epoch = run.get("step"), run.get("duration"), run.get("epoch")
     if step_ns and total_ns and total_ns % step_ns:
-        errors.append(f"{file}: run.duration: must be a whole number of steps of {run['step']!r}, "
-                      f"got {run['duration']!r}")
-    algorithm = run.get("algorithm")
-    if algorithm not in ALGORITHMS:
-        errors.append(f"{file}: run.algorithm: expected one of {', '.join(ALGORITHMS)}, got {algorithm!r}")
-    realtime = run.get("realtime")
-    if isinstance(realtime, bool) or not isinstance(realtime, (int, float)) or not 0 <= realtime < float("inf"):
-        errors.append(f"{file}: run.realtime: expected 0 (as fast as possible) or a positive "
-                      f"factor of the wall clock, got {realtime!r}")
-
-    bus = _keys(raw.get("bus") or {}, BUS_KEYS, "bus", errors, file)
-    listen = bus.get("listen", ["tcp/127.0.0.1:0"])
-    if not (isinstance(listen, list) and listen and all(isinstance(e, str) and ENDPOINT.match(e) for e in listen)):
-        errors.append(f"{file}: bus.listen: expected a list of Zenoh endpoints like tcp/127.0.0.1:0, got {listen!r}")
-
+        errors.append(f"{file}: run.duration: must be a whole number of steps of {duration_text(step_ns)}, "
+                      f"got {raw['run']['duration']!r}")
     components: dict[str, ComponentSpec] = {}
-    entries = raw.get("components")
-    if entries is not None and not isinstance(entries, dict):
-        errors.append(f"{file}: components: expected a mapping of name -> component, got {entries!r}")
-        entries = {}
     config_dir = path.parent.resolve()
-    for cname, entry in (entries or {}).items():
-        key = f"components.{cname}"
-        if not (isinstance(cname, str) and NAME.match(cname)):
-            errors.append(f"{file}: {key}: component names are identifiers (letters, digits, _), got {cname!r}")
-            continue
-        if not _keys(entry, COMPONENT_KEYS, key, errors, file) or "type" not in entry:
-            continue
-        if step_ns is None or epoch is None:
-            continue
-        try:
-            components[cname] = component_spec(cname, entry, step_ns, config_dir, epoch, key)
-        except ConfigErrors as e:
-            errors += [f"{file}: {m}" for m in e.errors]
-
-    connections = _connections(raw.get("connections") or {}, components, entries or {}, file, errors)
-    events = _events(raw.get("events") or [], components, connections, step_ns, total_ns, config_dir, epoch,
+    entries = config.get("components", {})
+    if step_ns is not None and epoch is not None:
+        for name, entry in entries.items():
+            try:
+                components[name] = component_spec(name, entry, step_ns, config_dir, epoch, f"components.{name}")
+            except ConfigErrors as e:
+                errors += [f"{file}: {m}" for m in e.errors]
+    raw_entries = raw.get("components") if isinstance(raw.get("components"), dict) else {}
+    connections = _connections(config.get("connections", {}), components, raw_entries, file, errors)
+    events = _events(config.get("events", []), components, connections, step_ns, total_ns, config_dir, epoch,
                      file, errors)
     viewer = None
-    if raw.get("viewer") is not None:
-        viewer_errors: list[str] = []
-        viewer = viewer_spec(raw["viewer"], "viewer", viewer_errors, path.parent)
-        errors += [f"{file}: {e}" for e in viewer_errors]
-
+    if config.get("viewer") is not None:
+        problems_of_viewer: list[str] = []
+        viewer = _viewer(config["viewer"], "viewer", problems_of_viewer, path.parent)
+        errors += [f"{file}: {m}" for m in problems_of_viewer]
     if errors:
         raise ConfigErrors(errors)
     resolved = {
-        "run": {"name": name, "epoch": epoch, "duration": duration_text(total_ns), "step": duration_text(step_ns),
-                "algorithm": algorithm, "realtime": realtime, "step_timeout": f"{step_timeout} s",
-                "start_timeout": f"{start_timeout} s"},
-        "bus": {"listen": listen},
-        "components": {n: {"type": s.type, "step": duration_text(s.step_ns), "launch": s.launch,
-                           "dedicated_cpu": s.dedicated_cpu,
-                           "parameters": {k: _plain(v) for k, v in s.resolved.items() if not k.startswith("_")}}
+        "run": RUN.plain(run),
+        "bus": BUS.plain(config["bus"]),
+        "components": {n: {**COMPONENT.plain({"type": s.type, "step": s.step_ns, "launch": s.launch,
+                                              "dedicated_cpu": s.dedicated_cpu}),
+                           "parameters": s.cls.schema.plain(s.resolved)}
                        for n, s in components.items()},
         "connections": {f"{d}.{dv}": f"{s}.{sv}" for d, dv, s, sv in connections},
-        "events": [{"at": duration_text(e.at_ns), "swap": e.swap, "type": e.type, "parameters": e.parameters}
-                   for e in events],
+        "events": [{"at": duration_text(e.at_ns), "swap": e.swap, "type": e.type,
+                    "parameters": e.spec.cls.schema.plain(e.spec.resolved)} for e in events],
     }
     if viewer is not None:
-        resolved["viewer"] = {"mode": viewer.mode, "rate": f"{viewer.rate_hz} Hz",
-                              **({"file": str(viewer.file)} if viewer.file else {})}
-    return RunConfig(path=path, name=name, epoch=epoch, duration_ns=total_ns, step_ns=step_ns,
-                     algorithm=algorithm, realtime=float(realtime), step_timeout_s=step_timeout,
-                     start_timeout_s=start_timeout, components=components, connections=connections,
-                     listen=listen, events=events, viewer=viewer, resolved=resolved)
-
-
-def _plain(value: Any) -> Any:
-    """numpy values to plain YAML-able values."""
-    if hasattr(value, "tolist"):
-        return value.tolist()
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    return value
+        resolved["viewer"] = VIEWER.plain(config["viewer"])
+    return RunConfig(path=path, name=run["name"], epoch=epoch, duration_ns=total_ns, step_ns=step_ns,
+                     algorithm=run["algorithm"], realtime=run["realtime"], step_timeout_s=run["step_timeout"] / 1e9,
+                     start_timeout_s=run["start_timeout"] / 1e9, components=components, connections=connections,
+                     listen=config["bus"]["listen"], events=events, viewer=viewer, resolved=resolved)
 
 
 def check_replacement(spec: ComponentSpec, connections: list[tuple[str, str, str, str]]) -> list[str]:
@@ -459,38 +396,32 @@ def _connections(raw: Any, components: dict[str, ComponentSpec], entries: dict, 
     return result
 
 
-def _events(raw: Any, components: dict[str, ComponentSpec], connections: list, step_ns: int | None,
+def _events(entries: list[dict], components: dict[str, ComponentSpec], connections: list, step_ns: int | None,
             total_ns: int | None, config_dir: Path, epoch: str | None, file: Path, errors: list[str]) -> list[Event]:
-    if not isinstance(raw, list):
-        errors.append(f"{file}: events: expected a list, got {raw!r}")
-        return []
     events = []
-    for i, entry in enumerate(raw):
+    for i, entry in enumerate(entries):
         key = f"events[{i}]"
-        if not _keys(entry, EVENT_KEYS, key, errors, file) or "at" not in entry or "swap" not in entry:
-            continue
-        try:
-            at_ns = duration_ns(entry["at"], "at")
-        except ConfigError as e:
-            errors.append(f"{file}: {key}.at: {e.message}")
-            continue
-        target = entry["swap"]
+        at_ns, target = entry["at"], entry["swap"]
         if target not in components:
             errors.append(f"{file}: {key}.swap: no component named {target!r}")
             continue
         old = components[target]
-        if at_ns < 0 or (total_ns is not None and at_ns >= total_ns):
-            errors.append(f"{file}: {key}.at: must be within the run, 0 <= at < run.duration, got {entry['at']!r}")
+        if total_ns is not None and at_ns >= total_ns:
+            errors.append(f"{file}: {key}.at: must be within the run, 0 <= at < run.duration, "
+                          f"got {duration_text(at_ns)}")
             continue
         if at_ns % old.step_ns:
             errors.append(f"{file}: {key}.at: must fall on a step boundary of {target} "
-                          f"(a multiple of {old.step_ns / 1e6:g} ms), got {entry['at']!r}")
+                          f"(a multiple of {duration_text(old.step_ns)}), got {duration_text(at_ns)}")
             continue
-        new_type = entry.get("type", old.type)
-        params = entry.get("parameters", old.parameters if new_type == old.type else {})
+        new_type = entry["type"] or old.type
+        params = entry["parameters"]
+        if params is None:
+            params = old.parameters if new_type == old.type else {}
         try:
-            spec = component_spec(target, {"type": new_type, "parameters": params,
-                                           "step": duration_text(old.step_ns)}, step_ns, config_dir, epoch, key)
+            spec = component_spec(target, {"type": new_type, "parameters": params, "step": old.step_ns,
+                                           "launch": "local", "dedicated_cpu": False},
+                                  step_ns, config_dir, epoch, key)
         except ConfigErrors as e:
             errors += [f"{file}: {m}" for m in e.errors]
             continue
@@ -500,3 +431,21 @@ def _events(raw: Any, components: dict[str, ComponentSpec], connections: list, s
             continue
         events.append(Event(at_ns=at_ns, swap=target, type=new_type, parameters=params, spec=spec))
     return sorted(events, key=lambda e: e.at_ns)
+
+
+DOCS_START = "<!-- config reference: python -m orchestrator.config --docs -->"
+DOCS_END = "<!-- end of config reference -->"
+
+
+def write_docs(design: Path = Path(__file__).resolve().parents[1] / "docs" / "design.md") -> None:
+    """Write CONFIG's tables into docs/design.md between the markers (they come from the declaration)."""
+    head, rest = design.read_text().split(DOCS_START, 1)
+    tail = rest.split(DOCS_END, 1)[1]
+    design.write_text(f"{head}{DOCS_START}\n{markdown(CONFIG)}\n{DOCS_END}{tail}")
+
+
+if __name__ == "__main__":
+    import sys
+    if sys.argv[1:] != ["--docs"]:
+        raise SystemExit("usage: python -m orchestrator.config --docs   (writes the config tables into docs/design.md)")
+    write_docs()

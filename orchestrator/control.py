@@ -5,7 +5,7 @@ from __future__ import annotations
 import copy
 import json
 
-from orchestrator.config import ConfigErrors, apply_overrides, check_replacement, component_spec
+from orchestrator.config import COMPONENT, ConfigErrors, apply_overrides, check_replacement, component_spec
 
 
 class SwapFailed(Exception):
@@ -74,7 +74,10 @@ class ControlServer:
                 old.parameters if not request.get("type") or request["type"] == old.type else {})}
             try:
                 apply_overrides(entry, [f"parameters.{s}" for s in request.get("set", [])])
-                spec = component_spec(name, {**entry, "step": f"{old.step_ns} ns"}, run.config.step_ns,
+                converted, problems = COMPONENT.resolve(entry, f"components.{name}")
+                if problems:
+                    raise ConfigErrors([str(e) for e in problems])
+                spec = component_spec(name, {**converted, "step": old.step_ns}, run.config.step_ns,
                                       run.config.path.parent.resolve(), run.config.epoch, f"components.{name}")
                 problems = check_replacement(spec, run.config.connections)
                 if problems:

@@ -54,7 +54,7 @@ class Recording:
         self.directory.mkdir(parents=True, exist_ok=True)
         for stale in ("signals.parquet", "events.jsonl"):
             (self.directory / stale).unlink(missing_ok=True)
-        (self.directory / "config.yaml").write_text(yaml.safe_dump(resolved_config, sort_keys=False))
+        (self.directory / "config.yaml").write_text(yaml.dump(resolved_config, Dumper=_ConfigDumper, sort_keys=False))
         self.columns = columns
         self.schema = pa.schema([("step", pa.int64()), ("time", pa.float64())]
                                 + [(c, pa.float64()) for c in columns])
@@ -107,3 +107,15 @@ class Recording:
             raise RecordingError(f"cannot write {self.path}: {error}") from None
         finally:
             self._events.close()
+
+
+class _ConfigDumper(yaml.SafeDumper):
+    """Lists of numbers on one line ([0.0, 0.0, 1.0]), as a person writes vectors in a config."""
+
+
+def _list(dumper: yaml.SafeDumper, value: list):
+    flow = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+    return dumper.represent_sequence("tag:yaml.org,2002:seq", value, flow_style=flow)
+
+
+_ConfigDumper.add_representer(list, _list)

@@ -3,15 +3,8 @@ and :mod:`components.controller.joint_pd`.
 
 Both types read one body of the dynamics (``dynamics.dart``) and drive some of its joints:
 
-| input | shape | unit | description |
-|---|---|---|---|
-| position | (3,) | m | base link origin, W |
-| orientation | (4,) | 1 | q_W_base [x, y, z, w] |
-| twist | (6,) | m/s, rad/s | base origin's linear velocity, then angular velocity, W axes |
-| q | (n,) | rad or m | every non-fixed joint of the URDF, file order (locked ones included) |
-| qd | (n,) | rad/s or m/s | their rates |
-
-Connect them as ``controller.q: dynamics.<body>.q`` etc. and ``dynamics.<body>.tau: controller.tau``.
+the body's position, orientation, twist, q and qd (every non-fixed joint of the URDF, file order,
+locked ones included). Connect them as ``controller.q: dynamics.<body>.q`` etc. and ``dynamics.<body>.tau: controller.tau``.
 ``tau`` covers the same n joints; joints the controller does not drive get zero.
 
 Time: ``do_step(t, h)`` reads the state measured at t (in a Jacobi run, the dynamics' output of
@@ -22,6 +15,7 @@ that measured state at t and the reference at t.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
@@ -29,6 +23,9 @@ import numpy as np
 from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.rotations import continuous
+from components.controller.trajectory import CARTESIAN
+from components.dynamics.component import JOINT_VALUE
+from components.schema import Float, ListOf, MapOf, OneOf, Record, Str, Vector
 from components.sdk import Component, Parameter, Variable
 
 
@@ -47,34 +44,25 @@ def _urdf(params: Mapping[str, Any]):
         raise ConfigError("urdf", str(e)) from None
 
 
-def _names(value: Any, key: str, allowed: list[str], what: str) -> list[str]:
-    """A list of distinct names, each in ``allowed``; ConfigError naming the key otherwise."""
-    if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
-        raise ConfigError(key, f"expected a list of {what} names, got {value!r}")
-    for name in value:
+def _check_names(names: list[str], key: str, allowed: list[str], what: str) -> list[str]:
+    """``names`` (a list the schema checked) each in ``allowed``; ConfigError naming the key otherwise."""
+    for name in names:
         if name not in allowed:
             raise ConfigError(key, f"{name!r} is not a {what} of the URDF (expected one of: {', '.join(allowed)})")
-    duplicates = sorted({v for v in value if list(value).count(v) > 1})
-    if duplicates:
-        raise ConfigError(key, f"{duplicates[0]!r} listed twice")
-    return list(value)
+    return list(names)
 
 
-def _gains(value: Any, n: int, key: str, unit: str, each: str = "one per joint") -> np.ndarray:
-    """One number (the same for all n), or a list of n numbers (``each`` says what they are); all >= 0."""
-    from components.units import to_si
+def _per_item(value: float | np.ndarray, n: int, key: str, each: str = "one per joint") -> np.ndarray:
+    """One number for all n, or n numbers (``each`` says what they are)."""
+    if np.ndim(value) == 0:
+        return np.full(n, float(value))
+    if len(value) != n:
+        raise ConfigError(key, f"expected one number or {n} numbers ({each}), got {len(value)}")
+    return np.array(value, dtype=np.float64)
 
-    if isinstance(value, np.ndarray):
-        value = value.tolist()
-    if isinstance(value, (list, tuple)):
-        if len(value) != n:
-            raise ConfigError(key, f"expected one number or {n} numbers ({each}), got {len(value)}")
-        array = np.array([to_si(v, unit, f"{key}[{i}]") for i, v in enumerate(value)])
-    else:
-        array = np.full(n, to_si(value, unit, key))
-    if not np.all(np.isfinite(array)) or np.any(array < 0.0):
-        raise ConfigError(key, f"expected finite numbers >= 0, got {array.tolist()}")
-    return array
+
+def _gain(unit: str) -> OneOf:
+    return OneOf((Float(unit, minimum=0.0), Vector(None, unit, minimum=0.0)))
 
 
 def _state_inputs(n: int) -> list[Variable]:
@@ -101,6 +89,22 @@ def _kinematic_chain(model, end_effector: str) -> list:
 
 # --------------------------------------------------------------------------- computed torque
 
+@dataclass(frozen=True)
+class ArmSetup:
+    """The computed-torque parameters checked against the URDF: the arm's joints in the
+    config's order, the gains one per axis (6) or per joint, the trajectory in SI (parse_cartesian)
+    and the reach (first moving joint, m) the trajectory was checked against."""
+    model: Any
+    joints: list[str]
+    locked: list[str]
+    trajectory: dict
+    kp: np.ndarray
+    kd: np.ndarray
+    null_kp: np.ndarray
+    null_kd: np.ndarray
+    reach: tuple[str, float]
+
+
 TASK_AXES = "x, y, z, rotation about x, y, z"
 QUATERNION_OUTPUTS = ("ee_orientation", "ee_orientation_desired")
 
@@ -117,32 +121,8 @@ class ComputedTorqueComponent(Component):
     welded at the position measured at ``initialize``). Joints neither driven nor locked are
     modelled as passive (zero torque).
 
-    | parameter | kind | unit | default | description |
-    |---|---|---|---|---|
-    | urdf | str | - | required | the body's URDF (relative to the config file, else to the project root) |
-    | joints | any | - | required | names of the driven joints (the arm) |
-    | end_effector | str | - | required | link (frame) name of the end effector |
-    | locked_joints | any | - | [] | joints welded in the dynamics (same list as there) |
-    | kp | any | 1/s^2 | 100 | K_p: one number for all six axes, or one per axis: x, y, z, then rotation about x, y, z (W) |
-    | kd | any | 1/s | 20 | K_d: one number for all six axes, or one per axis |
-    | null_kp | any | 1/s^2 | 4 | null-space posture stiffness, one number or one per joint |
-    | null_kd | any | 1/s | 4 | null-space joint damping, one number or one per joint |
-    | dls_threshold | float | - | 0.02 | sigma_min(J_g) below which J_g^+ is damped |
-    | dls_damping | float | - | 0.05 | damping lambda at sigma_min = 0 |
-    | base_model | str | - | free_floating | free_floating (paper) or fixed (ignores the base reaction) |
-    | trajectory | any | - | {type: hold} | end-effector trajectory (see above) |
-
-    | variable | causality | shape | unit | description |
-    |---|---|---|---|---|
-    | position, orientation, twist, q, qd | input | | | the body's state (module table) |
-    | tau | output | (n,) | N m | joint torques, zero on joints not driven, clipped to URDF efforts |
-    | ee_position | output | (3,) | m | end-effector frame origin, W |
-    | ee_position_desired | output | (3,) | m | its reference, W |
-    | ee_error | output | (6,) | m, rad | (p_d - p, log(R_d R^T)): position then orientation error, W |
-    | ee_orientation | output | (4,) | 1 | q_W_ee [x, y, z, w], sign continuous from step to step |
-    | ee_orientation_desired | output | (4,) | 1 | its reference |
-    | ee_twist | output | (6,) | m/s, rad/s | end-effector linear and angular velocity, W |
-    | sigma_min | output | () | - | smallest singular value of J_g (of J_m for base_model fixed) |
+    Outputs: ``tau`` (zero on joints not driven, clipped to the URDF efforts), the end effector's
+    pose, reference, error and twist (``ee_*``) and ``sigma_min``; ``describe`` lists them.
 
     The anchor is the state seen at ``initialize``; should the first step see another state (the
     controller was initialized before the dynamics it reads, e.g. listed first in a cycle), the
@@ -156,34 +136,35 @@ class ComputedTorqueComponent(Component):
     type_name = "controller.computed_torque"
     parameters = (
         Parameter("urdf", "str", description="the body's URDF, relative to the config file"),
-        Parameter("joints", "any", description="names of the driven joints (the arm), e.g. [arm_right_1_joint, ...]"),
+        Parameter("joints", ListOf(Str(), min_items=1, unique=True),
+                  description="names of the driven joints (the arm), e.g. [arm_right_1_joint, ...]"),
         Parameter("end_effector", "str", description="link (frame) name of the end effector"),
-        Parameter("locked_joints", "any", default=(), description="joints welded in the dynamics (same list)"),
-        Parameter("kp", "any", default=100.0,
-                  description="K_p (1/s^2), one for all six axes or per axis: x, y, z, rotation x, y, z"),
-        Parameter("kd", "any", default=20.0,
-                  description="K_d (1/s), one for all six axes or per axis: x, y, z, rotation x, y, z"),
-        Parameter("null_kp", "any", default=4.0, description="null-space posture stiffness (1/s^2), one or per joint"),
-        Parameter("null_kd", "any", default=4.0, description="null-space joint damping (1/s), one or per joint"),
-        Parameter("dls_threshold", "float", unit="1", default=0.02,
+        Parameter("locked_joints", ListOf(Str(), unique=True), default=[],
+                  description="joints welded in the dynamics (the same list as there)"),
+        Parameter("kp", _gain("1/s^2"), default=100.0,
+                  description="K_p, one for all six axes or per axis: x, y, z, rotation about x, y, z (W)"),
+        Parameter("kd", _gain("1/s"), default=20.0,
+                  description="K_d, one for all six axes or per axis: x, y, z, rotation about x, y, z (W)"),
+        Parameter("null_kp", _gain("1/s^2"), default=4.0, description="null-space posture stiffness, one or per joint"),
+        Parameter("null_kd", _gain("1/s"), default=4.0, description="null-space joint damping, one or per joint"),
+        Parameter("dls_threshold", Float(minimum=0.0), default=0.02,
                   description="sigma_min(J_g) below which the pseudo-inverse is damped"),
-        Parameter("dls_damping", "float", unit="1", default=0.05, description="damping at sigma_min = 0"),
+        Parameter("dls_damping", Float(minimum=0.0), default=0.05, description="damping at sigma_min = 0"),
         Parameter("base_model", "str", default="free_floating", choices=("free_floating", "fixed"),
                   description="free_floating (Generalized Jacobian) or fixed (ignores the base reaction)"),
-        Parameter("trajectory", "any", default=None, description="end-effector trajectory: hold | parabola | waypoints"),
+        Parameter("trajectory", CARTESIAN, default={"type": "hold"},
+                  description="end-effector trajectory, anchored at the pose measured at initialize"),
     )
 
     @classmethod
-    def _checked(cls, params) -> dict:
-        """Everything validate establishes, for __init__ too."""
+    def setup(cls, params) -> "ArmSetup":
+        """What the parameters mean for this URDF (validate checks it; __init__ uses it)."""
         from components.controller.trajectory import max_offset, parse_cartesian
 
         model = _urdf(params)
         movable = model.movable_joints
-        joints = _names(params["joints"], "joints", movable, "movable joint")
-        if not joints:
-            raise ConfigError("joints", "expected at least one joint name, got an empty list")
-        locked = _names(list(params["locked_joints"] or []), "locked_joints", movable, "movable joint")
+        joints = _check_names(params["joints"], "joints", movable, "movable joint")
+        locked = _check_names(params["locked_joints"], "locked_joints", movable, "movable joint")
         both = [j for j in joints if j in locked]
         if both:
             raise ConfigError("locked_joints", f"{both[0]!r} is also in joints: a driven joint cannot be locked")
@@ -202,24 +183,19 @@ class ComputedTorqueComponent(Component):
         first = min(names.index(j) for j in joints)
         reach = float(sum(math.sqrt(sum(x * x for x in j.xyz)) for j in chain[first + 1:]))
         n = len(joints)
-        for key in ("dls_threshold", "dls_damping"):
-            if not (params[key] >= 0.0 and math.isfinite(params[key])):
-                raise ConfigError(key, f"expected a finite number >= 0, got {params[key]}")
         trajectory = parse_cartesian(params["trajectory"])
         key, size = max_offset(trajectory)
         if size > 2.0 * reach:
             raise ConfigError(f"trajectory.{key}", f"out of reach: {size:.3f} m from the initial end-effector "
                                                    f"position, the arm spans at most {2 * reach:.3f} m")
-        return {"model": model, "joints": joints, "locked": locked, "trajectory": trajectory,
-                "kp": _gains(params["kp"], 6, "kp", "1/s^2", TASK_AXES),
-                "kd": _gains(params["kd"], 6, "kd", "1/s", TASK_AXES),
-                "null_kp": _gains(params["null_kp"], n, "null_kp", "1/s^2"),
-                "null_kd": _gains(params["null_kd"], n, "null_kd", "1/s"),
-                "reach": (chain[first].name, reach)}
+        return ArmSetup(model=model, joints=joints, locked=locked, trajectory=trajectory,
+                        kp=_per_item(params["kp"], 6, "kp", TASK_AXES), kd=_per_item(params["kd"], 6, "kd", TASK_AXES),
+                        null_kp=_per_item(params["null_kp"], n, "null_kp"),
+                        null_kd=_per_item(params["null_kd"], n, "null_kd"), reach=(chain[first].name, reach))
 
     @classmethod
     def validate(cls, params):
-        cls._checked(params)
+        cls.setup(params)
 
     @classmethod
     def declare(cls, params):
@@ -239,7 +215,7 @@ class ComputedTorqueComponent(Component):
 
     def __init__(self, params):
         super().__init__(params)
-        self.checked = self._checked(params)
+        self.arm = self.setup(params)
         self.controller = None
         self._initial_inputs = None
         self.last_quaternions: dict[str, np.ndarray] = {}
@@ -247,16 +223,15 @@ class ComputedTorqueComponent(Component):
     def _build(self, q: np.ndarray):
         from components.controller.computed_torque import ArmController, ComputedTorqueLaw, FreeFloatingArm
 
-        c, p = self.checked, self.params
-        model = c["model"]
-        body = model.movable_joints
-        locked = {j: float(q[body.index(j)]) for j in c["locked"]}
-        arm = FreeFloatingArm(model.path, body, c["joints"], p["end_effector"], locked)
-        effort = np.array([model.joint(j).effort for j in c["joints"]])
-        law = ComputedTorqueLaw(c["kp"], c["kd"], c["null_kp"], c["null_kd"], effort,
+        a, p = self.arm, self.params
+        body = a.model.movable_joints
+        locked = {j: float(q[body.index(j)]) for j in a.locked}
+        arm = FreeFloatingArm(a.model.path, body, a.joints, p["end_effector"], locked)
+        effort = np.array([a.model.joint(j).effort for j in a.joints])
+        law = ComputedTorqueLaw(a.kp, a.kd, a.null_kp, a.null_kd, effort,
                                 dls_threshold=p["dls_threshold"], dls_damping=p["dls_damping"],
                                 base_model=p["base_model"])
-        return ArmController(arm, law, c["trajectory"], reach=c["reach"])
+        return ArmController(arm, law, a.trajectory, reach=a.reach)
 
     def _continuous(self, out: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The output quaternions' signs continued from the last step's."""
@@ -310,6 +285,35 @@ class ComputedTorqueComponent(Component):
 
 # --------------------------------------------------------------------------- joint PID
 
+PID_GAINS = Record("PID gains", (
+    Parameter("p", Float("N*m/rad", minimum=0.0), description="proportional gain (N/m for prismatic)"),
+    Parameter("i", Float("N*m/rad/s", minimum=0.0), default=0.0, description="integral gain"),
+    Parameter("d", Float("N*m*s/rad", minimum=0.0), default=0.0, description="derivative gain"),
+    Parameter("i_clamp", Float("N*m", minimum=0.0), default=None,
+              description="bound of the integral term's torque (default: the URDF effort)"),
+), description="one joint's gains (``gains.<joint>``, ros_control pid style)")
+JOINT_TRAJECTORY = Record("Joint trajectory", (
+    Parameter("start", Float("s", minimum=0.0), default=0.0, description="time the first segment starts"),
+    Parameter("waypoints", ListOf(Record("Joint waypoint", (
+        Parameter("time", Float("s"), description="time it is reached, after the previous one (or start)"),
+        Parameter("q", MapOf(JOINT_VALUE, "joint"), default={},
+                  description="positions of driven joints; joints not named keep their previous value"),
+    ), description="one waypoint of a joint trajectory"), min_items=1), description="reached one after the other"),
+), description="rest-to-rest quintic segments from the initial positions through waypoints")
+
+
+@dataclass(frozen=True)
+class JointSetup:
+    """The joint PID parameters checked against the URDF: the driven joints in URDF order, the
+    gains per joint (arrays by p, i, d, i_clamp), the targets and trajectory in SI."""
+    model: Any
+    joints: list[str]
+    targets: dict[str, float]
+    trajectory: dict | None
+    gains: dict[str, np.ndarray]
+    effort: np.ndarray
+
+
 class JointPDComponent(Component):
     """Per-joint PID on effort, like ros_control's effort_controllers/JointPositionController
     (type ``controller.joint_pd``; law in :mod:`components.controller.joint_pd`).
@@ -323,112 +327,56 @@ class JointPDComponent(Component):
         targets: {arm_right_4_joint: -1.2}
         trajectory: {start: 1 s, waypoints: [{time: 4 s, q: {arm_right_4_joint: -0.8}}, ...]}
 
-    | parameter | kind | unit | default | description |
-    |---|---|---|---|---|
-    | urdf | str | - | required | the body's URDF (relative to the config file, else to the project root) |
-    | gains | any | - | required | joint -> {p (N m/rad), i (N m/(rad s), default 0), d (N m s/rad, default 0), i_clamp (N m, default the URDF effort)} |
-    | targets | any | rad (m) | {} | joint -> fixed target position (within the URDF limits) |
-    | trajectory | any | - | null | {start (s, default 0), waypoints: [{time (s), q: {joint: position}}, ...]}; joints not named keep their previous value |
-
-    | variable | causality | shape | unit | description |
-    |---|---|---|---|---|
-    | position, orientation, twist, q, qd | input | | | the body's state (module table; only q, qd are used) |
-    | tau | output | (n,) | N m (N) | joint torques, zero on joints not driven |
-    | q_desired | output | (n,) | rad (m) | the reference of the driven joints; the measured q elsewhere |
+    Outputs: ``tau`` (zero on joints not driven) and ``q_desired`` (the reference of the driven
+    joints, the measured q elsewhere).
     """
     type_name = "controller.joint_pd"
     parameters = (
         Parameter("urdf", "str", description="the body's URDF, relative to the config file"),
-        Parameter("gains", "any", description="joint -> {p, i, d, i_clamp} (ros_control pid style)"),
-        Parameter("targets", "any", default=None, description="joint -> fixed target position"),
-        Parameter("trajectory", "any", default=None,
-                  description="{start, waypoints: [{time, q: {joint: position}}, ...]} joint-space waypoints"),
+        Parameter("gains", MapOf(PID_GAINS, "joint", min_items=1), description="the driven joints and their gains"),
+        Parameter("targets", MapOf(JOINT_VALUE, "joint"), default={},
+                  description="fixed target positions (rad, m for prismatic); a joint not named holds its initial q"),
+        Parameter("trajectory", JOINT_TRAJECTORY, default=None, description="joint-space waypoints (instead of targets)"),
     )
 
     @classmethod
-    def _checked(cls, params) -> dict:
-        from components.units import to_si
-
+    def setup(cls, params) -> "JointSetup":
+        """What the parameters mean for this URDF (validate checks it; __init__ uses it)."""
         model = _urdf(params)
         movable = model.movable_joints
         gains = params["gains"]
-        if not isinstance(gains, Mapping) or not gains:
-            raise ConfigError("gains", f"expected a mapping joint -> {{p, i, d, i_clamp}}, got {gains!r}")
+        for name in gains:
+            _check_names([name], f"gains.{name}", movable, "movable joint")
         joints = [j for j in movable if j in gains]           # URDF order
-        for name, g in gains.items():
-            key = f"gains.{name}"
-            if name not in movable:
-                raise ConfigError(key, f"{name!r} is not a movable joint of {model.path.name} "
-                                       f"(expected one of: {', '.join(movable)})")
-            if not isinstance(g, Mapping):
-                raise ConfigError(key, f"expected a mapping {{p, i, d, i_clamp}}, got {g!r}")
-            unknown = sorted(set(g) - {"p", "i", "d", "i_clamp"})
-            if unknown:
-                raise ConfigError(f"{key}.{unknown[0]}", "unknown gain (known: p, i, d, i_clamp)")
-            if "p" not in g:
-                raise ConfigError(f"{key}.p", "missing: the proportional gain")
-        units = {"p": "N*m/rad", "i": "N*m/rad/s", "d": "N*m*s/rad", "i_clamp": "N*m"}
-        table = {k: np.zeros(len(joints)) for k in units}
-        for k, name in enumerate(joints):
-            effort = model.joint(name).effort
-            for gain, unit in units.items():
-                key = f"gains.{name}.{gain}"
-                default = effort if gain == "i_clamp" else 0.0
-                value = to_si(gains[name].get(gain, default), unit, key)
-                if not (value >= 0.0) or (gain != "i_clamp" and not np.isfinite(value)):
-                    raise ConfigError(key, f"expected a finite number >= 0, got {gains[name].get(gain)!r}")
-                table[gain][k] = value
+        table = {k: np.array([gains[j][k] if gains[j][k] is not None else model.joint(j).effort for j in joints])
+                 for k in ("p", "i", "d", "i_clamp")}
 
-        def positions(mapping, key: str) -> dict[str, float]:
-            if mapping is None:
-                return {}
-            if not isinstance(mapping, Mapping):
-                raise ConfigError(key, f"expected a mapping joint -> position, got {mapping!r}")
-            out = {}
-            for name, value in mapping.items():
+        def positions(mapping: Mapping[str, float], key: str) -> dict[str, float]:
+            for name, x in mapping.items():
                 if name not in joints:
                     raise ConfigError(f"{key}.{name}", f"{name!r} is not a driven joint (the joints in gains: "
                                                        f"{', '.join(joints)})")
                 j = model.joint(name)
-                x = to_si(value, "rad" if j.type != "prismatic" else "m", f"{key}.{name}")
                 if not (j.lower - 1e-9 <= x <= j.upper + 1e-9):
                     raise ConfigError(f"{key}.{name}", f"expected within the URDF limits [{j.lower}, {j.upper}], got {x}")
-                out[name] = x
-            return out
+            return dict(mapping)
 
         targets = positions(params["targets"], "targets")
-        trajectory = None
-        spec = params["trajectory"]
-        if spec is not None:
-            if not isinstance(spec, Mapping):
-                raise ConfigError("trajectory", f"expected a mapping {{start, waypoints}}, got {spec!r}")
-            unknown = sorted(set(spec) - {"start", "waypoints"})
-            if unknown:
-                raise ConfigError(f"trajectory.{unknown[0]}", "unknown key (known: start, waypoints)")
-            start = to_si(spec.get("start", 0.0), "s", "trajectory.start")
-            if not start >= 0.0:
-                raise ConfigError("trajectory.start", f"expected a time >= 0 s, got {start}")
-            points = spec.get("waypoints")
-            if not isinstance(points, (list, tuple)) or not points:
-                raise ConfigError("trajectory.waypoints", f"expected a non-empty list of {{time, q}}, got {points!r}")
-            times, qs, previous = [], [], start
-            for i, point in enumerate(points):
+        trajectory = params["trajectory"]
+        if trajectory is not None:
+            previous = trajectory["start"]
+            for i, point in enumerate(trajectory["waypoints"]):
                 key = f"trajectory.waypoints[{i}]"
-                if not isinstance(point, Mapping) or set(point) - {"time", "q"} or "time" not in point:
-                    raise ConfigError(key, f"expected a mapping {{time, q: {{joint: position}}}}, got {point!r}")
-                t = to_si(point["time"], "s", f"{key}.time")
-                if not t > previous:
-                    raise ConfigError(f"{key}.time", f"expected a time after {previous:g} s, got {t:g} s")
-                previous = t
-                times.append(t)
-                qs.append(positions(point.get("q"), f"{key}.q"))
-            trajectory = {"start": start, "times": times, "q": qs}
-        return {"model": model, "joints": joints, "targets": targets, "trajectory": trajectory,
-                "gains": table, "effort": np.array([model.joint(j).effort for j in joints])}
+                if not point["time"] > previous:
+                    raise ConfigError(f"{key}.time", f"expected a time after {previous:g} s, got {point['time']:g} s")
+                previous = point["time"]
+                positions(point["q"], f"{key}.q")
+        return JointSetup(model=model, joints=joints, targets=targets, trajectory=trajectory,
+                          gains=table, effort=np.array([model.joint(j).effort for j in joints]))
 
     @classmethod
     def validate(cls, params):
-        cls._checked(params)
+        cls.setup(params)
 
     @classmethod
     def declare(cls, params):
@@ -443,28 +391,27 @@ class JointPDComponent(Component):
         from components.controller.joint_pd import JointPID, PidGains
 
         super().__init__(params)
-        c = self.checked = self._checked(params)
-        body = c["model"].movable_joints
-        self.index = np.array([body.index(j) for j in c["joints"]])
+        c = self.joints = self.setup(params)
+        body = c.model.movable_joints
+        self.index = np.array([body.index(j) for j in c.joints])
         self.n = len(body)
-        g = c["gains"]
-        self.pid = JointPID(PidGains(g["p"], g["i"], g["d"], g["i_clamp"]), c["effort"])
-        self.q_start = np.zeros(len(c["joints"]))
+        g = c.gains
+        self.pid = JointPID(PidGains(g["p"], g["i"], g["d"], g["i_clamp"]), c.effort)
+        self.q_start = np.zeros(len(c.joints))
         self.reference = None
 
     def _build_reference(self):
         from components.controller.trajectory import JointWaypoints
 
-        c = self.checked
-        spec = c["trajectory"]
+        spec = self.joints.trajectory
         if spec is None:
             return JointWaypoints(self.q_start, 0.0, [], [])
         targets, current = [], self.q_start.copy()
-        for mapping in spec["q"]:
-            for name, value in mapping.items():
-                current[c["joints"].index(name)] = value
+        for point in spec["waypoints"]:
+            for name, value in point["q"].items():
+                current[self.joints.joints.index(name)] = value
             targets.append(current.copy())
-        return JointWaypoints(self.q_start, spec["start"], spec["times"], targets)
+        return JointWaypoints(self.q_start, spec["start"], [p["time"] for p in spec["waypoints"]], targets)
 
     def _outputs(self, t: float, dt: float, inputs) -> dict[str, np.ndarray]:
         q, qd = np.asarray(inputs["q"], dtype=float), np.asarray(inputs["qd"], dtype=float)
@@ -476,10 +423,10 @@ class JointPDComponent(Component):
         return {"tau": tau, "q_desired": q_desired}
 
     def initialize(self, t0_ns, inputs):
-        c = self.checked
+        c = self.joints
         self.q_start = np.asarray(inputs["q"], dtype=float)[self.index].copy()
-        for name, value in c["targets"].items():
-            self.q_start[c["joints"].index(name)] = value
+        for name, value in c.targets.items():
+            self.q_start[c.joints.index(name)] = value
         self.reference = self._build_reference()
         return self._outputs(t0_ns / NS_PER_S, 0.0, inputs)
 

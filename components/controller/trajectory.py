@@ -42,9 +42,8 @@ import numpy as np
 
 from components.errors import ConfigError
 from components.rotations import exp_so3, log_so3
-from components.units import to_si
+from components.schema import Float, ListOf, Parameter, Record, Str, Tagged, Vector
 
-TRAJECTORY_TYPES = ("hold", "parabola", "waypoints")
 AXES = ("body", "world")
 
 
@@ -160,79 +159,47 @@ class Waypoints(Hold):
 
 # --------------------------------------------------------------------------- config parsing
 
-def _number(spec: Mapping, key: str, unit: str, prefix: str, default=None) -> float:
-    if key not in spec:
-        if default is None:
-            raise ConfigError(f"{prefix}.{key}", f"missing (expected a quantity in {unit})")
-        return float(default)
-    value = to_si(spec[key], unit, f"{prefix}.{key}")
-    if not math.isfinite(value):
-        raise ConfigError(f"{prefix}.{key}", f"expected a finite number, got {spec[key]!r}")
-    return value
-
-
-def _vector3(value: Any, unit: str, key: str) -> np.ndarray:
-    if not isinstance(value, (list, tuple)) or len(value) != 3:
-        raise ConfigError(key, f"expected 3 values, got {value!r}")
-    return np.array([to_si(v, unit, f"{key}[{i}]") for i, v in enumerate(value)])
-
-
-CARTESIAN_KEYS = {
-    "hold": {"type"},
-    "parabola": {"type", "start", "duration", "displacement", "height", "axes"},
-    "waypoints": {"type", "start", "axes", "waypoints"},
-}
+_START = Parameter("start", Float("s", minimum=0.0), default=0.0, description="time the move starts")
+_AXES = Parameter("axes", Str(AXES), default="body",
+                  description="axes of the offsets: body (the base's initial axes) or world (W)")
+CARTESIAN_WAYPOINT = Record("Cartesian waypoint", (
+    Parameter("time", Float("s"), description="time it is reached, after the previous one (or start)"),
+    Parameter("position", Vector(3, "m"), default=[0.0, 0.0, 0.0],
+              description="offset from the initial end-effector position"),
+    Parameter("rotation", Vector(3, "rad"), default=[0.0, 0.0, 0.0],
+              description="rotation vector applied to the initial orientation"),
+), description="one waypoint of a waypoints trajectory (offsets in its axes)")
+CARTESIAN = Tagged("Trajectory", "type", (
+    Record("hold", (), description="keep the initial pose (type: hold)"),
+    Record("parabola", (
+        _START,
+        Parameter("duration", Float("s", positive=True), description="time from the start to the end of the move"),
+        Parameter("displacement", Float("m"), default=0.5, description="along the x axis of axes"),
+        Parameter("height", Float("m"), default=0.1, description="apex of the parabola, halfway"),
+        _AXES,
+    ), description="the paper's move (type: parabola)"),
+    Record("waypoints", (
+        _START, _AXES,
+        Parameter("waypoints", ListOf(CARTESIAN_WAYPOINT, min_items=1), description="reached one after the other"),
+    ), description="rest-to-rest segments through waypoints (type: waypoints)"),
+))
 
 
 def parse_cartesian(spec: Any, prefix: str = "trajectory") -> dict:
-    """Check a ``trajectory`` config mapping; return it in SI (ConfigError naming the key)."""
-    if spec is None:
-        return {"type": "hold"}
-    if not isinstance(spec, Mapping):
-        raise ConfigError(prefix, f"expected a mapping with a type ({', '.join(TRAJECTORY_TYPES)}), got {spec!r}")
-    kind = spec.get("type")
-    if kind not in TRAJECTORY_TYPES:
-        raise ConfigError(f"{prefix}.type", f"expected one of {', '.join(TRAJECTORY_TYPES)}, got {kind!r}")
-    unknown = sorted(set(spec) - CARTESIAN_KEYS[kind])
-    if unknown:
-        raise ConfigError(f"{prefix}.{unknown[0]}", f"unknown key for a {kind} trajectory "
-                                                    f"(known: {', '.join(sorted(CARTESIAN_KEYS[kind]))})")
-    out: dict = {"type": kind}
-    if kind == "hold":
+    """Check a ``trajectory`` (config mapping, or one CARTESIAN converted); return it in SI, the
+    waypoints as ``times``, ``positions``, ``rotations`` (ConfigError naming the key)."""
+    out = CARTESIAN.convert({"type": "hold"} if spec is None else spec, prefix)
+    if out["type"] != "waypoints":
         return out
-    out["axes"] = spec.get("axes", "body")
-    if out["axes"] not in AXES:
-        raise ConfigError(f"{prefix}.axes", f"expected one of {', '.join(AXES)}, got {out['axes']!r}")
-    out["start"] = _number(spec, "start", "s", prefix, default=0.0)
-    if out["start"] < 0.0:
-        raise ConfigError(f"{prefix}.start", f"expected a time >= 0 s, got {out['start']} s")
-    if kind == "parabola":
-        out["duration"] = _number(spec, "duration", "s", prefix)
-        if out["duration"] <= 0.0:
-            raise ConfigError(f"{prefix}.duration", f"expected a duration > 0 s, got {out['duration']} s")
-        out["displacement"] = _number(spec, "displacement", "m", prefix, default=0.5)
-        out["height"] = _number(spec, "height", "m", prefix, default=0.1)
-        return out
-    points = spec.get("waypoints")
-    if not isinstance(points, (list, tuple)) or not points:
-        raise ConfigError(f"{prefix}.waypoints", f"expected a non-empty list of {{time, position, rotation}}, got {points!r}")
-    times, positions, rotations = [], [], []
     previous = out["start"]
-    for i, point in enumerate(points):
-        key = f"{prefix}.waypoints[{i}]"
-        if not isinstance(point, Mapping):
-            raise ConfigError(key, f"expected a mapping {{time, position, rotation}}, got {point!r}")
-        unknown = sorted(set(point) - {"time", "position", "rotation"})
-        if unknown:
-            raise ConfigError(f"{key}.{unknown[0]}", "unknown key (known: time, position, rotation)")
-        t = _number(point, "time", "s", key)
-        if not t > previous:
-            raise ConfigError(f"{key}.time", f"expected a time after {previous:g} s (the previous waypoint or start), got {t:g} s")
-        previous = t
-        times.append(t)
-        positions.append(_vector3(point.get("position", [0, 0, 0]), "m", f"{key}.position"))
-        rotations.append(_vector3(point.get("rotation", [0, 0, 0]), "rad", f"{key}.rotation"))
-    out.update(times=times, positions=positions, rotations=rotations)
+    for i, point in enumerate(out["waypoints"]):
+        if not point["time"] > previous:
+            raise ConfigError(f"{prefix}.waypoints[{i}].time", f"expected a time after {previous:g} s "
+                                                               f"(the previous waypoint or start), got {point['time']:g} s")
+        previous = point["time"]
+    points = out.pop("waypoints")
+    out.update(times=[p["time"] for p in points], positions=[p["position"] for p in points],
+               rotations=[p["rotation"] for p in points])
     return out
 
 

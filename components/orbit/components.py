@@ -1,16 +1,8 @@
 """Orbit component types: thin wrappers mapping parameters to the orbit models and the models'
 states to the four outputs every orbit component publishes.
 
-Every orbit component has no inputs and these outputs (SI, ECI = GCRF axes):
-
-| variable | causality | shape | unit | description |
-|---|---|---|---|---|
-| r_eci | output | (3,) | m | position of the reference orbit point, ECI |
-| v_eci | output | (3,) | m/s | its velocity, ECI |
-| q_eci_lvlh | output | (4,) | 1 | [x, y, z, w], rotates LVLH vectors into ECI |
-| w_lvlh | output | (3,) | rad/s | angular velocity of LVLH with respect to ECI, in ECI axes |
-
-LVLH: x radial outward, z along r × v, y = z × x. The quaternion's sign is kept continuous
+Every orbit component has no inputs and the four outputs of ``ORBIT_OUTPUTS`` (SI, ECI = GCRF
+axes). LVLH: x radial outward, z along r × v, y = z × x. The quaternion's sign is kept continuous
 from step to step (q and -q are the same rotation); that last sign is the components' only
 state (``get_state`` -> ``q_previous``), so outputs are otherwise a pure function of time.
 The run epoch reaches a component as ``params["_epoch"]`` (ISO-8601 UTC), injected by the
@@ -18,7 +10,6 @@ orchestrator; ``params["_config_dir"]`` likewise, for relative paths.
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -29,19 +20,18 @@ from components.errors import ConfigError
 from components.orbit.frames import lvlh_dcm, lvlh_state
 from components.rotations import continuous
 from components.orbit.kepler import ElementError, KeplerOrbit, check_elements
+from components.schema import Float, ListOf, Record, Str, UtcTime, Vector
 from components.sdk import Component, Parameter, Variable
-from components.units import to_si
 
 
-def _outputs() -> list[Variable]:
-    return [
+ORBIT_OUTPUTS = (
         Variable("r_eci", "output", (3,), "m", [0.0, 0.0, 0.0], "position of the reference orbit point, ECI (GCRF axes)"),
         Variable("v_eci", "output", (3,), "m/s", [0.0, 0.0, 0.0], "velocity of the reference orbit point, ECI"),
         Variable("q_eci_lvlh", "output", (4,), "1", [0.0, 0.0, 0.0, 1.0],
                  "attitude of LVLH: quaternion [x, y, z, w] rotating LVLH vectors into ECI"),
         Variable("w_lvlh", "output", (3,), "rad/s", [0.0, 0.0, 0.0],
                  "angular velocity of LVLH with respect to ECI, in ECI axes"),
-    ]
+)
 
 
 def _epoch(params: Mapping[str, Any]) -> tuple[float, float]:
@@ -60,9 +50,7 @@ def _epoch(params: Mapping[str, Any]) -> tuple[float, float]:
 class _OrbitComponent(Component):
     """Shared lifecycle: subclasses implement ``_sample(t_s) -> (r, v, q, w)``."""
 
-    @classmethod
-    def declare(cls, params):
-        return _outputs()
+    variables = ORBIT_OUTPUTS
 
     def __init__(self, params):
         super().__init__(params)
@@ -101,23 +89,6 @@ class KeplerComponent(_OrbitComponent):
     :class:`components.orbit.kepler.KeplerOrbit`). Earth constants: WGS 84 / EGM96
     (mu = 3.986004418e14 m^3/s^2, R = 6378137 m, J2 = 1.08262668e-3).
 
-    | parameter | kind | unit | default | description |
-    |---|---|---|---|---|
-    | semi_major_axis | float | m | required | a > 0, perigee a(1-e) above Earth's surface |
-    | eccentricity | float | 1 | required | 0 <= e < 1 |
-    | inclination | float | rad | required | 0 to pi |
-    | raan | float | rad | required | right ascension of the ascending node Ω |
-    | arg_perigee | float | rad | required | argument of perigee ω |
-    | mean_anomaly | float | rad | — | M at run.epoch; give this or time_of_perigee |
-    | time_of_perigee | str | UTC | — | a perigee passage, e.g. "2022-09-18T11:30:00Z" |
-    | j2 | bool | — | false | apply the J2 secular rates of Ω, ω, M |
-
-    | variable | causality | shape | unit | description |
-    |---|---|---|---|---|
-    | r_eci | output | (3,) | m | position, ECI |
-    | v_eci | output | (3,) | m/s | velocity, ECI |
-    | q_eci_lvlh | output | (4,) | 1 | LVLH attitude [x, y, z, w], LVLH -> ECI |
-    | w_lvlh | output | (3,) | rad/s | LVLH angular velocity w.r.t. ECI, ECI axes |
     """
     type_name = "orbit.kepler"
     parameters = (
@@ -128,7 +99,7 @@ class KeplerComponent(_OrbitComponent):
         Parameter("arg_perigee", "float", unit="rad", description="argument of perigee"),
         Parameter("mean_anomaly", "float", unit="rad", default=None,
                   description="mean anomaly at run.epoch (or give time_of_perigee)"),
-        Parameter("time_of_perigee", "any", default=None,
+        Parameter("time_of_perigee", UtcTime(), default=None,
                   description="UTC time of a perigee passage, e.g. '2022-09-18T11:30:00Z' (or give mean_anomaly)"),
         Parameter("j2", "bool", default=False, description="apply J2 secular drift of RAAN, argument of perigee, mean anomaly"),
     )
@@ -151,8 +122,6 @@ class KeplerComponent(_OrbitComponent):
                 parse_utc(params["time_of_perigee"])
             except ValueError as e:
                 raise ConfigError("time_of_perigee", str(e)) from None
-        elif not math.isfinite(params["mean_anomaly"]):
-            raise ConfigError("mean_anomaly", f"expected a finite angle, got {params['mean_anomaly']!r}")
 
     def __init__(self, params):
         from components.orbit import timescales
@@ -187,21 +156,11 @@ class SGP4Component(_OrbitComponent):
     A propagation failure (decay, eccentricity out of range) raises RuntimeError with sgp4's
     SGP4_ERRORS text; a failure already at run.epoch is a ConfigError on ``tle``/``tle_file``.
 
-    | parameter | kind | unit | default | description |
-    |---|---|---|---|---|
-    | tle | [str, str] | — | — | the two TLE lines (give this or tle_file) |
-    | tle_file | str | — | — | file holding one TLE (2 lines, optional name line), relative to the config |
-
-    | variable | causality | shape | unit | description |
-    |---|---|---|---|---|
-    | r_eci | output | (3,) | m | position, ECI (GCRF) |
-    | v_eci | output | (3,) | m/s | velocity, ECI (GCRF) |
-    | q_eci_lvlh | output | (4,) | 1 | LVLH attitude [x, y, z, w], LVLH -> ECI |
-    | w_lvlh | output | (3,) | rad/s | LVLH angular velocity w.r.t. ECI, ECI axes |
     """
     type_name = "orbit.sgp4"
     parameters = (
-        Parameter("tle", "any", default=None, description="TLE as [line1, line2] (or give tle_file)"),
+        Parameter("tle", ListOf(Str(), min_items=2, max_items=2), default=None,
+                  description="TLE as [line1, line2] (or give tle_file)"),
         Parameter("tle_file", "str", default=None, description="path of a TLE file, relative to the config (or give tle)"),
     )
     RATE_HALF_STEP = 0.5  # s, half-width of the central difference giving w_lvlh
@@ -216,8 +175,6 @@ class SGP4Component(_OrbitComponent):
             raise ConfigError("tle", "expected either tle: [line1, line2] or tle_file: PATH, got "
                               + ("neither" if tle is None else "both"))
         if tle is not None:
-            if not (isinstance(tle, (list, tuple)) and len(tle) == 2 and all(isinstance(s, str) for s in tle)):
-                raise ConfigError("tle", f"expected a list of the 2 TLE lines (strings), got {tle!r}")
             try:
                 return "tle", check_tle(tle[0], tle[1])
             except TLEFormatError as e:
@@ -279,39 +236,12 @@ class SGP4Component(_OrbitComponent):
         return r, v, matrix_to_quat(lvlh_dcm(r, v)), w
 
 
-def _waypoints(raw) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Waypoint list from the config -> (t s, r m, v m/s, a m/s^2) arrays; ConfigError naming the key."""
-    if not isinstance(raw, (list, tuple)):
-        raise ConfigError("waypoints", f"expected a list of {{time, position, velocity, acceleration}}, got {raw!r}")
-    if len(raw) < 2:
-        raise ConfigError("waypoints", f"expected at least 2 waypoints, got {len(raw)}")
-    fields = (("time", "s", None), ("position", "m", 3), ("velocity", "m/s", 3), ("acceleration", "m/s^2", 3))
-    columns: dict[str, list] = {name: [] for name, _, _ in fields}
-    for k, point in enumerate(raw):
-        where = f"waypoints[{k}]"
-        if not isinstance(point, Mapping):
-            raise ConfigError(where, f"expected a mapping with time, position, velocity, acceleration, got {point!r}")
-        unknown = set(point) - set(columns)
-        if unknown:
-            raise ConfigError(f"{where}.{sorted(unknown)[0]}",
-                              "unknown key (expected time, position, velocity, acceleration)")
-        for name, unit, size in fields:
-            key = f"{where}.{name}"
-            if name not in point:
-                raise ConfigError(key, "missing required key")
-            value = point[name]
-            if size is None:
-                columns[name].append(to_si(value, unit, key))
-                continue
-            if not isinstance(value, (list, tuple)) or len(value) != size:
-                raise ConfigError(key, f"expected {size} values in {unit}, got {value!r}")
-            columns[name].append([to_si(x, unit, f"{key}[{i}]") for i, x in enumerate(value)])
-    arrays = tuple(np.array(columns[name], dtype=np.float64) for name, _, _ in fields)
-    for (name, unit, _), arr in zip(fields, arrays):
-        bad = np.argwhere(~np.isfinite(arr))
-        if bad.size:
-            raise ConfigError(f"waypoints[{bad[0][0]}].{name}", f"expected finite values in {unit}, got {arr[bad[0][0]]}")
-    return arrays
+WAYPOINT = Record("Waypoint", (
+    Parameter("time", Float("s"), description="time since run.epoch"),
+    Parameter("position", Vector(3, "m"), description="position, ECI"),
+    Parameter("velocity", Vector(3, "m/s"), description="velocity, ECI"),
+    Parameter("acceleration", Vector(3, "m/s^2"), description="acceleration, ECI"),
+), description="one point of orbit.custom_path's path")
 
 
 class CustomPathComponent(_OrbitComponent):
@@ -325,21 +255,10 @@ class CustomPathComponent(_OrbitComponent):
     ``hold`` freezes all four outputs at their values at the last waypoint; ``error`` fails the
     step. r and v must not be parallel (LVLH undefined) at any waypoint.
 
-    | parameter | kind | unit | default | description |
-    |---|---|---|---|---|
-    | waypoints | list of {time, position, velocity, acceleration} | s, m, m/s, m/s^2 | required | >= 2, ECI |
-    | after_end | str | — | required | hold or error |
-
-    | variable | causality | shape | unit | description |
-    |---|---|---|---|---|
-    | r_eci | output | (3,) | m | position, ECI |
-    | v_eci | output | (3,) | m/s | velocity, ECI |
-    | q_eci_lvlh | output | (4,) | 1 | LVLH attitude [x, y, z, w], LVLH -> ECI |
-    | w_lvlh | output | (3,) | rad/s | LVLH angular velocity w.r.t. ECI, ECI axes |
     """
     type_name = "orbit.custom_path"
     parameters = (
-        Parameter("waypoints", "any", description="list of {time, position, velocity, acceleration} in ECI (s, m, m/s, m/s^2)"),
+        Parameter("waypoints", ListOf(WAYPOINT, min_items=2), description="at least 2, times increasing"),
         Parameter("after_end", "str", choices=("hold", "error"),
                   description="past the last waypoint: hold the last outputs or fail"),
     )
@@ -348,7 +267,8 @@ class CustomPathComponent(_OrbitComponent):
     def _spline(cls, params):
         from components.orbit.spline import QuinticHermiteSpline, SplineError
 
-        t, r, v, a = _waypoints(params["waypoints"])
+        t, r, v, a = (np.array([point[key] for point in params["waypoints"]])
+                      for key in ("time", "position", "velocity", "acceleration"))
         for k in range(1, len(t)):
             if not t[k] > t[k - 1]:
                 raise ConfigError(f"waypoints[{k}].time", f"expected times strictly increasing, got "
@@ -398,17 +318,6 @@ class FixedComponent(_OrbitComponent):
     Not an orbit: for tests and for scenes away from any orbit. ``q_eci_lvlh`` must be a unit
     quaternion to 1e-3; it is normalized.
 
-    | parameter | kind | unit | default | description |
-    |---|---|---|---|---|
-    | r_eci | vector (3,) | m | required | position, ECI |
-    | q_eci_lvlh | vector (4,) | 1 | [0, 0, 0, 1] | attitude [x, y, z, w] of the "LVLH" frame, LVLH -> ECI |
-
-    | variable | causality | shape | unit | description |
-    |---|---|---|---|---|
-    | r_eci | output | (3,) | m | the parameter r_eci |
-    | v_eci | output | (3,) | m/s | zero |
-    | q_eci_lvlh | output | (4,) | 1 | the parameter q_eci_lvlh, normalized |
-    | w_lvlh | output | (3,) | rad/s | zero |
     """
     type_name = "orbit.fixed"
     parameters = (

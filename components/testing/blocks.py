@@ -12,17 +12,9 @@ from components.sdk import Component, Parameter, Variable
 
 class Counter(Component):
     """Counts its steps.
-
-    | variable | causality | shape | unit | description |
-    |---|---|---|---|---|
-    | n | output | () | 1 | number of steps done |
     """
     type_name = "test.counter"
-    parameters = ()
-
-    @classmethod
-    def declare(cls, params):
-        return [Variable("n", "output", (), "1", 0.0, "number of steps done")]
+    variables = (Variable("n", "output", (), "1", 0.0, "number of steps done"),)
 
     def __init__(self, params):
         self.n = 0
@@ -43,17 +35,13 @@ class Counter(Component):
 
 class Constant(Component):
     """Outputs a constant.
-
-    | variable | causality | shape | unit | description |
-    |---|---|---|---|---|
-    | y | output | () | 1 | the parameter `value` |
     """
     type_name = "test.constant"
     parameters = (Parameter("value", "float", unit="1", description="the constant output"),)
 
     @classmethod
     def declare(cls, params):
-        return [Variable("y", "output", (), "1", params["value"], "the constant")]
+        return [Variable("y", "output", (), "1", params["value"], "the parameter value")]
 
     def __init__(self, params):
         self.value = params["value"]
@@ -73,12 +61,6 @@ class Constant(Component):
 
 class Integrator(Component):
     """x' = gain * u by explicit Euler: x(t + h) = x(t) + gain * u * h.
-
-    | variable | causality | shape | unit | description |
-    |---|---|---|---|---|
-    | u | input | () | 1 | rate (held over the step) |
-    | x | output | () | 1·s | integral |
-    | u_time | output | () | s | when the u it last stepped on was sampled (``input_times_ns``; t if unconnected) |
     """
     type_name = "test.integrator"
     parameters = (
@@ -88,9 +70,10 @@ class Integrator(Component):
 
     @classmethod
     def declare(cls, params):
-        return [Variable("u", "input", (), "1", 0.0, "rate"),
+        return [Variable("u", "input", (), "1", 0.0, "rate (held over the step)"),
                 Variable("x", "output", (), "1", params["x0"], "integral of gain * u"),
-                Variable("u_time", "output", (), "s", 0.0, "when the u it last stepped on was sampled")]
+                Variable("u_time", "output", (), "s", 0.0,
+                         "when the u it last stepped on was sampled (input_times_ns; t if unconnected)")]
 
     def __init__(self, params):
         self.gain, self.x = params["gain"], params["x0"]
@@ -111,11 +94,6 @@ class Integrator(Component):
 
 class NoOp(Component):
     """Does nothing with a small input and output vector; for measuring the lockstep overhead.
-
-    | variable | causality | shape | unit | description |
-    |---|---|---|---|---|
-    | u | input | (n,) | 1 | ignored |
-    | y | output | (n,) | 1 | zeros |
     """
     type_name = "test.noop"
     parameters = (Parameter("size", "int", default=1, description="length of u and y"),)
@@ -144,10 +122,6 @@ class NoOp(Component):
 
 class Faulty(Component):
     """Misbehaves at a chosen step, to test how the orchestrator handles failures.
-
-    | variable | causality | shape | unit | description |
-    |---|---|---|---|---|
-    | y | output | () | 1 | the step count, or NaN when `fault: nan` |
     """
     type_name = "test.faulty"
     parameters = (
@@ -156,9 +130,7 @@ class Faulty(Component):
         Parameter("at_step", "int", description="the step (0-based) at which it goes wrong"),
     )
 
-    @classmethod
-    def declare(cls, params):
-        return [Variable("y", "output", (), "1", 0.0, "step count")]
+    variables = (Variable("y", "output", (), "1", 0.0, "the step count, or NaN at the faulty step with fault: nan"),)
 
     def __init__(self, params):
         self.fault, self.at_step, self.k = params["fault"], params["at_step"], 0

@@ -92,8 +92,8 @@ def test_gains_kp_kd_take_one_number_for_all_six_axes():
     for key in one:
         assert np.array_equal(one[key], six[key]), key
     assert not np.array_equal(one["tau"], default["tau"])
-    checked = computed_torque(kp=50).component.checked
-    assert checked["kp"].tolist() == [50.0] * 6 and checked["kd"].tolist() == [20.0] * 6   # default kd: 20
+    arm = computed_torque(kp=50).component.arm
+    assert arm.kp.tolist() == [50.0] * 6 and arm.kd.tolist() == [20.0] * 6   # default kd: 20
 
 
 def test_swap_hands_the_trajectory_over():

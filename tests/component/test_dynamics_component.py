@@ -85,7 +85,7 @@ def test_declare_does_not_load_dart():
     ({"humanoid": {**HUMANOID, "locked_joints": ["arm_right_1_joint"], "qd": {"arm_right_1_joint": 1.0}}},
      "bodies.humanoid.qd.arm_right_1_joint"),
     ({"humanoid": {**HUMANOID, "drag_area": {"no_link": 1.0}}}, "bodies.humanoid.drag_area.no_link"),
-    ([{"name": "humanoid", **HUMANOID}, {"name": "humanoid", "urdf": "../models/target.urdf"}], "bodies.humanoid"),
+    ([{"name": "humanoid", **HUMANOID}], "bodies"),
     ({"my body": HUMANOID}, "bodies.my body"),
     ({}, "bodies"),
 ])
@@ -110,7 +110,7 @@ def test_bad_urdf_is_a_config_error_naming_the_key(tmp_path):
         assert name in str(errors[0])
     assert errors_of({"bodies": {"humanoid": HUMANOID}, "integrator": "euler"})[0].key == "integrator"
     assert errors_of({"bodies": {"humanoid": HUMANOID}, "substeps": 0})[0].key == "substeps"
-    assert errors_of({"bodies": {"humanoid": HUMANOID}, "atmosphere": {"density": 1}})[0].key == "atmosphere"
+    assert errors_of({"bodies": {"humanoid": HUMANOID}, "atmosphere": {"density": 1}})[0].key == "atmosphere.altitude"
 
 
 def test_urdf_paths_resolve_from_the_config_dir_or_the_project_root():

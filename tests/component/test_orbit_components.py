@@ -191,7 +191,7 @@ def test_sgp4_tle_file_relative_to_config_dir(tmp_path):
 @pytest.mark.parametrize("params,key,match", [
     ({}, "tle", "got neither"),
     ({"tle": ISS_TLE, "tle_file": "x.tle"}, "tle", "got both"),
-    ({"tle": ISS_TLE[:1]}, "tle", "list of the 2 TLE lines"),
+    ({"tle": ISS_TLE[:1]}, "tle", "expected list of 2 str, got 1"),
     ({"tle": [ISS_TLE[0][:68] + "1", ISS_TLE[1]]}, "tle", "line 1, column 69: checksum: expected 8"),
     ({"tle": [ISS_TLE[0], ISS_TLE[1][:26] + "x" + ISS_TLE[1][27:]]}, "tle", "line 2, columns 27-33: eccentricity"),
     ({"tle_file": "missing.tle"}, "tle_file", "cannot read"),
@@ -281,7 +281,7 @@ def _points(times):
 
 
 @pytest.mark.parametrize("params,key,match", [
-    ({"waypoints": _points([0.0])}, "waypoints", "at least 2 waypoints, got 1"),
+    ({"waypoints": _points([0.0])}, "waypoints", "at least 2 items, got 1"),
     ({"waypoints": _points([0.0, 20.0, 10.0])}, "waypoints[2].time", "strictly increasing, got 10.0 s after 20.0 s"),
     ({"waypoints": _points([0.0, 10.0, 10.0])}, "waypoints[2].time", "strictly increasing"),
     ({"waypoints": _points([5.0, 10.0])}, "waypoints[0].time", "expected <= 0 s"),

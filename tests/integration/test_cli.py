@@ -204,3 +204,18 @@ def test_describe_a_user_component_shows_its_variables_once_its_parameters_are_g
     builtin = orchestrator("describe", "dynamics.dart", "--set", "bodies={sat: {urdf: models/target.urdf}}")
     assert builtin.returncode == 0 and "output  sat.orientation" in builtin.stdout, builtin.stderr
     assert ":class:" not in builtin.stdout and "``" not in builtin.stdout
+
+
+def test_describe_shows_nested_parameters_typed_and_the_config_sections():
+    """Nested parameters (bodies, gains, trajectories) are listed with their own typed fields, from the
+    same declaration that validates them; `describe config` lists the config's sections."""
+    dynamics = orchestrator("describe", "dynamics.dart")
+    lines = [line.split() for line in dynamics.stdout.splitlines()]
+    assert ["bodies", "{body", "name:", "Body}", "required"] == lines[[l[:1] for l in lines].index(["bodies"])][:5]
+    assert ["position", "float[3]", "[m]", "default"] == lines[[l[:1] for l in lines].index(["position"])][:4]
+    assert "Body: one free-floating URDF multibody (bodies.<name>)" in dynamics.stdout
+    pid = orchestrator("describe", "controller.joint_pd").stdout
+    assert "PID gains: one joint's gains" in pid and "float [N*m/rad]" in pid
+    config = orchestrator("describe", "config")
+    assert config.returncode == 0 and "step_timeout" in config.stdout and "default 10 s" in config.stdout
+    assert "viewer: the Rerun live view" in config.stdout

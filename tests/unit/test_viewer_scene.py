@@ -148,8 +148,8 @@ def test_absent_or_inconsistent_signals_are_skipped_not_fatal(tmp_path):
     spec = [("dyn.humanoid.position", 3), ("dyn.humanoid.orientation", 4), ("dyn.humanoid.q", 5),   # wrong size
             ("dyn.ghost.position", 3), ("ctrl.ee_error", 6), ("ctrl.ee_position", 2)]           # wrong size
     config = {"components": {
-        "dyn": {"type": "dynamics.dart", "parameters": {"bodies": [
-            {"name": "humanoid", "urdf": str(URDF)}, {"name": "ghost", "urdf": "no/such.urdf"}]}},
+        "dyn": {"type": "dynamics.dart", "parameters": {"bodies": {
+            "humanoid": {"urdf": str(URDF)}, "ghost": {"urdf": "no/such.urdf"}}}},
         "ctrl": {"type": "controller.joint_pd"}}}
     columns = columns_of(spec)
     warnings = []
@@ -188,8 +188,8 @@ def test_module_class_types_are_recognised_by_their_type_name(tmp_path):
 
 
 def test_bodies_and_urdf_paths_are_read_as_the_dynamics_reads_them(tmp_path, monkeypatch):
-    """The viewer draws the URDF dynamics.dart simulates: same body forms (mapping or list with
-    names), same path resolution (config directory first, then the project root; not the cwd)."""
+    """The viewer draws the URDF dynamics.dart simulates: same bodies, same path resolution
+    (config directory first, then the project root; not the cwd)."""
     from components.dynamics.component import load_models
 
     here, there = tmp_path / "config", tmp_path / "cwd"
@@ -198,7 +198,7 @@ def test_bodies_and_urdf_paths_are_read_as_the_dynamics_reads_them(tmp_path, mon
         path.parent.mkdir(parents=True)
         path.write_text((ROOT / "models" / source).read_text())
     monkeypatch.chdir(there)
-    bodies = [{"name": "a", "urdf": "models/robot.urdf"}, {"name": "b", "urdf": "models/humanoid_torso.urdf"}]
+    bodies = {"a": {"urdf": "models/robot.urdf"}, "b": {"urdf": "models/humanoid_torso.urdf"}}
     config = {"components": {"dyn": {"type": "dynamics.dart", "parameters": {"bodies": bodies}}}}
     scene = SceneLogger([], config, here)
     simulated = load_models({"bodies": bodies, "_config_dir": str(here)})

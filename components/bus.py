@@ -31,6 +31,7 @@ from __future__ import annotations
 import io
 import json
 import struct
+from types import MappingProxyType
 from typing import Any, Mapping
 
 import numpy as np
@@ -51,6 +52,16 @@ _OUTPUT_HEADER = struct.Struct("<qq")    # generation, tag
 _BATCH_HEADER = struct.Struct("<qqq")    # generation, number of steps, outputs per step
 _INT = struct.Struct("<q")
 _JSON_LENGTH = struct.Struct("<I")
+
+
+class Malformed(ValueError):
+    """A payload (or key) that is not a well-formed message of the kind expected: dropped, never fatal."""
+
+
+def _expect(payload: bytes, kind: bytes, minimum: int) -> None:
+    if len(payload) < minimum or payload[:1] != kind:
+        raise Malformed(f"expected a {kind.decode()} message of at least {minimum} bytes, got {len(payload)} "
+                        f"bytes starting {bytes(payload[:1])!r}")
 
 
 def run_key(run_id: str, *parts: str) -> str:
@@ -84,7 +95,10 @@ def encode_output(generation: int, tag: int, outputs: np.ndarray) -> bytes:
 
 
 def decode_output(payload: bytes) -> tuple[int, int, np.ndarray]:
-    """(generation, tag, outputs); outputs a read-only view of the payload."""
+    """(generation, tag, outputs); outputs a read-only view of the payload. Malformed otherwise."""
+    _expect(payload, OUTPUT, 1 + _OUTPUT_HEADER.size)
+    if (len(payload) - 1 - _OUTPUT_HEADER.size) % 8:
+        raise Malformed(f"output message of {len(payload)} bytes: not a whole number of float64 values")
     generation, tag = _OUTPUT_HEADER.unpack_from(payload, 1)
     return generation, tag, np.frombuffer(payload, dtype=np.float64, offset=1 + _OUTPUT_HEADER.size)
 
@@ -97,12 +111,18 @@ def encode_batch(generation: int, tags: np.ndarray, timings: np.ndarray, outputs
 
 
 def decode_batch(payload: bytes) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
-    """(generation, tags (n,), timings (n, 2), outputs (n, size)), views of the payload."""
+    """(generation, tags (n,), timings (n, 2), outputs (n, size)), views of the payload; Malformed
+    unless the payload holds exactly that, n >= 1 steps with increasing tags."""
+    _expect(payload, BATCH, 1 + _BATCH_HEADER.size)
     generation, n, size = _BATCH_HEADER.unpack_from(payload, 1)
     offset = 1 + _BATCH_HEADER.size
+    if n < 1 or size < 0 or len(payload) != offset + 8 * n * (3 + size):
+        raise Malformed(f"batch message of {len(payload)} bytes does not hold {n} steps of {size} outputs")
     tags = np.frombuffer(payload, dtype=np.int64, count=n, offset=offset)
     timings = np.frombuffer(payload, dtype=np.float64, count=2 * n, offset=offset + 8 * n).reshape(n, 2)
     outputs = np.frombuffer(payload, dtype=np.float64, count=n * size, offset=offset + 24 * n).reshape(n, size)
+    if n > 1 and not np.all(np.diff(tags) > 0):
+        raise Malformed("batch message with tags not increasing")
     return generation, tags, timings, outputs
 
 
@@ -111,6 +131,7 @@ def encode_sync(generation: int) -> bytes:
 
 
 def decode_sync(payload: bytes) -> int:
+    _expect(payload, SYNC, 1 + _INT.size)
     return _INT.unpack_from(payload, 1)[0]
 
 
@@ -119,6 +140,7 @@ def encode_horizon(horizon: int) -> bytes:
 
 
 def decode_horizon(payload: bytes) -> int:
+    _expect(payload, HORIZON, 1 + _INT.size)
     return _INT.unpack_from(payload, 1)[0]
 
 
@@ -127,10 +149,28 @@ def encode_message(kind: bytes, body: Mapping[str, Any], blob: bytes = b"") -> b
     return kind + _JSON_LENGTH.pack(len(text)) + text + blob
 
 
-def decode_message(payload: bytes) -> tuple[dict, bytes]:
+def decode_message(payload: bytes, fields: Mapping[str, type] = MappingProxyType({"op": str})) -> tuple[dict, bytes]:
+    """(JSON body, blob) of a control, reply or fault message; Malformed unless the body is a JSON
+    object holding ``fields`` of their types."""
+    if len(payload) < 1 + _JSON_LENGTH.size:
+        raise Malformed(f"message of {len(payload)} bytes: too short for a JSON header")
     (n,) = _JSON_LENGTH.unpack_from(payload, 1)
     start = 1 + _JSON_LENGTH.size
-    return json.loads(payload[start:start + n]), payload[start + n:]
+    if start + n > len(payload):
+        raise Malformed(f"message of {len(payload)} bytes announces {n} bytes of JSON")
+    try:
+        body = json.loads(payload[start:start + n])
+    except ValueError as e:   # JSONDecodeError and UnicodeDecodeError
+        raise Malformed(f"message body is not JSON ({e})") from None
+    if not isinstance(body, dict):
+        raise Malformed(f"message body is not a JSON object: {body!r:.60}")
+    for name, kind in fields.items():
+        if not isinstance(body.get(name), kind) or isinstance(body.get(name), bool) and kind is int:
+            raise Malformed(f"message body lacks {name} ({kind.__name__}): {body!r:.80}")
+    return body, payload[start + n:]
+
+
+FAULT_FIELDS = MappingProxyType({"op": str, "k": int, "error": str})
 
 
 def encode_state(state: Mapping[str, Any]) -> bytes:
@@ -141,8 +181,11 @@ def encode_state(state: Mapping[str, Any]) -> bytes:
 
 
 def decode_state(blob: bytes) -> dict[str, np.ndarray]:
-    with np.load(io.BytesIO(blob), allow_pickle=False) as data:
-        return {k: data[k] for k in data.files}
+    try:
+        with np.load(io.BytesIO(blob), allow_pickle=False) as data:
+            return {k: data[k] for k in data.files}
+    except Exception as e:   # np.load raises whatever its parsers meet in a corrupt file
+        raise Malformed(f"state blob of {len(blob)} bytes is not an .npz archive ({type(e).__name__}: {e})") from None
 
 
 def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: bool = False):

@@ -35,6 +35,10 @@ IDLE_FLUSH_S = 0.02  # ... or sooner: at the horizon, before a reply or fault, a
 SLOW_STEP_S = 0.05   # or when a step takes this long (a hung step leaves the steps before it recorded)
 
 
+CONTROL_OPS = ("instantiate", "wire", "initialize", "sync", "start", "rewire", "get_state", "set_state",
+               "terminate")
+
+
 class Halt(Exception):
     """Stop stepping: a fault was reported to the orchestrator, which ends the run."""
 
@@ -64,6 +68,8 @@ class ComponentProcess:
         self.sources: dict[str, int] = {}        # source -> the generation whose outputs count
         self.held: dict[str, collections.deque] = {}   # source -> (tag, outputs), tags increasing
         self.heard: set[str] = set()             # sources whose sync message arrived
+        self.source_sizes: dict[str, int] = {}   # source -> the outputs its routes read
+        self.drops: dict[str, int] = {}          # key -> messages dropped from it
         self.synced = False
         self.next_k = 0
         self.horizon = 0
@@ -86,8 +92,12 @@ class ComponentProcess:
         if payload[:1] == bus.HORIZON:
             self.horizon = bus.decode_horizon(payload)
             return True
+        if payload[:1] != bus.CONTROL:
+            raise bus.Malformed(f"neither a horizon nor a control message: first byte {bytes(payload[:1])!r}")
         body, blob = bus.decode_message(payload)
         op = body["op"]
+        if op not in CONTROL_OPS:
+            raise bus.Malformed(f"unknown control operation {op!r}")
         try:
             return self.control(op, body, blob)
         except Exception as error:  # reported to the orchestrator, which stops the run
@@ -96,19 +106,38 @@ class ComponentProcess:
             return True
 
     def source_output(self, source: str, payload: bytes) -> None:
-        """An output (or sync) message of a source."""
+        """An output (or sync) message of a source; bus.Malformed for one that is not, or that
+        does not come from a source of the live generation with outputs of its size."""
         kind = payload[:1]
         if kind == bus.OUTPUT:
             generation, tag, vector = bus.decode_output(payload)
-            if self.sources.get(source) == generation:
+            if self._accepts(source, generation, vector.size):
                 self.held[source].append((tag, vector))
         elif kind == bus.BATCH:
             generation, tags, _, outputs = bus.decode_batch(payload)
-            if self.sources.get(source) == generation:
+            if self._accepts(source, generation, outputs.shape[1]):
                 self.held[source].extend(zip(tags.tolist(), outputs))
-        elif kind == bus.SYNC and self.sources.get(source) == bus.decode_sync(payload) and not self.synced:
-            self.heard.add(source)
-            self._synced_when_complete()
+        elif kind == bus.SYNC:
+            if self.sources.get(source) == bus.decode_sync(payload) and not self.synced:
+                self.heard.add(source)
+                self._synced_when_complete()
+        else:
+            raise bus.Malformed(f"not an output message: first byte {bytes(payload[:1])!r}")
+
+    def _accepts(self, source: str, generation: int, size: int) -> bool:
+        if source not in self.sources:
+            raise bus.Malformed(f"{source!r} is not a source of {self.name}")
+        if self.sources[source] != generation:
+            return False   # a replaced generation's outputs still in flight
+        if size < self.source_sizes.get(source, 0):
+            raise bus.Malformed(f"{size} outputs from {source!r}, its routes read {self.source_sizes[source]}")
+        return True
+
+    def dropped(self, key: str, reason: str) -> None:
+        """Note a dropped message in the component's log: the 1st, 2nd, 4th, 8th... from each key."""
+        n = self.drops[key] = self.drops.get(key, 0) + 1
+        if n & (n - 1) == 0:
+            print(f"warning: dropped a message on {key}: {reason} ({n} so far)", file=sys.stderr, flush=True)
 
     # ------------------------------------------------------------------ control
 
@@ -177,6 +206,10 @@ class ComponentProcess:
 
     def _set_routes(self, routes: list[dict]) -> None:
         self.routes = [Route.from_json(r) for r in routes]
+        self.source_sizes = {}
+        for route in self.routes:
+            needed = int(route.src.max()) + 1 if route.src.size else 0
+            self.source_sizes[route.source] = max(self.source_sizes.get(route.source, 0), needed)
         self.route_inputs = [fed_inputs(route, self.inputs.offsets) for route in self.routes]
 
     def _set_sources(self, sources: dict[str, int]) -> None:
@@ -338,16 +371,20 @@ def serve(connect: str, run_id: str, name: str, generation: int, listen: str, cp
         while True:
             sample = inbox.recv()
             key = str(sample.key_expr)
-            if key.startswith(output_prefix):
-                process.source_output(key[len(output_prefix):], sample.payload.to_bytes())
-            elif key == command:
-                if not process.command(sample.payload.to_bytes()):
-                    return 0
-            elif key == quit_key:
+            if key == quit_key:
                 print("the orchestrator went away: exiting", file=sys.stderr)
                 return 1
-            else:
-                continue   # for another generation of this component
+            try:
+                if key.startswith(output_prefix):
+                    process.source_output(key[len(output_prefix):], sample.payload.to_bytes())
+                elif key == command:
+                    if not process.command(sample.payload.to_bytes()):
+                        return 0
+                else:
+                    continue   # for another generation of this component
+            except bus.Malformed as e:   # whoever reaches the bus cannot stop this component
+                process.dropped(key, str(e))
+                continue
             try:
                 process.advance()
             except Halt:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import collections
 import datetime as dt
 import json
+import math
 import os
 import queue
 import shutil
@@ -28,6 +29,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import traceback
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -107,6 +109,7 @@ class Run:
         self.order = list(config.components)
         self.pending_events = list(config.events)
         self.controls = ControlServer(self)
+        self.dropped: dict[str, int] = {}   # key -> messages dropped from it (malformed, stranger, stale)
         self.stop_reason: str | None = None
         self.row = 0                           # the last recorded row = the step boundary reached
         self.horizon = 0                       # steps k < horizon are granted
@@ -143,6 +146,8 @@ class Run:
     def _on_liveliness(self, sample) -> None:
         import zenoh
         parts = str(sample.key_expr).split("/")
+        if not parts[-1].isdigit():
+            return   # not a component's token
         alive = sample.kind == zenoh.SampleKind.PUT
         self.inbox.put(("alive" if alive else "dead", parts[-2], int(parts[-1])))
 
@@ -150,15 +155,35 @@ class Run:
         self.inbox.put(("ctl", query, None))
 
     def _handle(self, message, expect: dict[str, str]) -> None:
-        """Apply one inbox message; ``expect`` maps component name -> the reply we wait for."""
+        """Apply one inbox message; ``expect`` maps component name -> the reply we wait for. A
+        malformed message, or one from an unknown component or an old generation, is dropped with
+        a warning: whoever can reach the bus cannot end the run (docs/design.md §7)."""
         kind, a, b = message
+        try:
+            self._apply(kind, a, b, expect)
+        except bus.Malformed as e:
+            self._drop(a if kind in ("o", "r") else kind, str(e))
+
+    def _drop(self, key: str, reason: str) -> None:
+        """Warn of a dropped message in events.jsonl: the 1st, 10th, 100th... from each key."""
+        n = self.dropped[key] = self.dropped.get(key, 0) + 1
+        if n & (n - 1) == 0 or math.log10(n).is_integer():
+            self._log("warning", step=self.row, message=f"dropped a message on {key}: {reason}"
+                                                         + (f" ({n} so far)" if n > 1 else ""))
+
+    def _apply(self, kind: str, a, b, expect: dict[str, str]) -> None:
         if kind == "o":
-            member = self.members.get(a.rpartition("/")[2])
-            if member is None or b[:1] != bus.BATCH:
-                return
+            name = a.rpartition("/")[2]
+            member = self.members.get(name)
+            if member is None:
+                raise bus.Malformed(f"no component {name!r} in this run")
             generation, tags, timings, outputs = bus.decode_batch(b)
             if generation != member.generation:
-                return  # a replaced generation
+                raise bus.Malformed(f"generation {generation}, the live one is {member.generation}")
+            if outputs.shape[1] != member.spec.outputs.size:
+                raise bus.Malformed(f"{outputs.shape[1]} outputs per step, {name} has {member.spec.outputs.size}")
+            if tags[0] < 1:
+                raise bus.Malformed(f"tag {tags[0]}: the outputs of a step are tagged 1 or later")
             member.received.extend(zip(tags.tolist(), outputs))
             # max: a fault message (which raises progress to its step) may overtake the batches
             # sent before it, which travel under another key
@@ -169,20 +194,25 @@ class Run:
             member.steps += len(tags)
         elif kind == "r":
             parts = a.split("/")
+            if len(parts) < 3 or not parts[-2].isdigit():
+                raise bus.Malformed("not a component's reply key")
             member = self._member(parts[-3], int(parts[-2]))
             if member is None:
-                return  # a replaced generation
+                raise bus.Malformed(f"no component {parts[-3]!r} of generation {parts[-2]} in this run")
             tag = b[:1]
-            body, blob = bus.decode_message(b)
             if tag == bus.REPLY:
+                body, blob = bus.decode_message(b)
                 member.reply = {**body, "blob": blob}
                 if expect.get(member.name) == body["op"]:
                     del expect[member.name]
             elif tag == bus.FAULT:
+                body, _ = bus.decode_message(b, bus.FAULT_FIELDS)
                 if body["k"] >= 0:  # it published every output before the failing step's
                     member.progress = max(member.progress, body["k"])
                 self._salvage(member)
                 raise RunFailure(self._fault_message(member, body), member)
+            else:
+                raise bus.Malformed(f"neither a reply nor a fault: first byte {bytes(b[:1])!r}")
         elif kind == "ctl":
             self.controls.add(a)
         else:
@@ -619,6 +649,10 @@ class Run:
         except (KeyboardInterrupt, StopRequested):
             self.stop_reason = "interrupted"
             code = 130
+        except Exception as error:   # a bug of ours: still a clean end, and no "completed" in events.jsonl
+            traceback.print_exc(file=self.out)
+            code, message = 1, f"internal error: {type(error).__name__}: {error}"
+            self._log("fault", step=self.row, message=message)
         finally:
             # no second Ctrl-C/SIGTERM in the middle of the clean-up: it has bounded waits of its own
             for sig in (signal.SIGINT, signal.SIGTERM):

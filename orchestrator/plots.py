@@ -41,7 +41,7 @@ def _load(record_dir: Path) -> tuple[dict, dict[str, np.ndarray]]:
 
     signals, config = record_dir / "signals.parquet", record_dir / "config.yaml"
     for path in (signals, config):
-        if not path.is_file():
+        if not path.exists():
             raise PlotError(f"{path} not found (expected a directory written by `orchestrator run --record`)")
     resolved = yaml.safe_load(config.read_text()) or {}
     table = pq.read_table(signals)

@@ -1,12 +1,15 @@
 """Recording (docs/design.md §6): signals.parquet in chunks, events.jsonl, config.yaml.
 
-Rows go to Parquet one row group per ``chunk_rows`` rows (by count, never by wall time, so two
-runs of one config write identical files). The writer is closed in every exit path of a run, so
-a run that fails midway leaves a readable file up to the failure.
+``signals.parquet`` is a Parquet dataset directory: one complete part file per ``chunk_rows``
+rows (by count, never by wall time, so two runs of one config write identical files), each
+written under a hidden name and renamed into place. Whatever stops the run, a kill -9 or a power
+cut included, what is on disk reads with pyarrow and pandas (``pandas.read_parquet(DIR /
+"signals.parquet")``) and lacks at most the rows of the unfinished chunk.
 """
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from pathlib import Path
 
@@ -52,13 +55,14 @@ class Recording:
         self.directory = Path(directory)
         self.path = self.directory / "signals.parquet"
         self.directory.mkdir(parents=True, exist_ok=True)
-        for stale in ("signals.parquet", "events.jsonl"):
-            (self.directory / stale).unlink(missing_ok=True)
+        for stale in (self.path, self.directory / "events.jsonl"):
+            shutil.rmtree(stale) if stale.is_dir() else stale.unlink(missing_ok=True)
+        self.path.mkdir()
         (self.directory / "config.yaml").write_text(yaml.dump(resolved_config, Dumper=_ConfigDumper, sort_keys=False))
         self.columns = columns
         self.schema = pa.schema([("step", pa.int64()), ("time", pa.float64())]
                                 + [(c, pa.float64()) for c in columns])
-        self._writer = None
+        self._parts = 0
         self._steps = np.empty(chunk_rows, dtype=np.int64)
         self._times = np.empty(chunk_rows)
         self._values = np.empty((chunk_rows, len(columns)))
@@ -74,23 +78,35 @@ class Recording:
             self.flush()
 
     def flush(self) -> None:
+        if self._rows:
+            self._write_part(self._rows)
+            self._rows = 0
+
+    def _write_part(self, n: int) -> None:
+        """Rows [0, n) of the buffer as the next complete part file (renamed into place: atomic)."""
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        if not self._rows:
-            return
-        n = self._rows
         arrays = [pa.array(self._steps[:n]), pa.array(self._times[:n])]
         arrays += [pa.array(self._values[:n, j]) for j in range(len(self.columns))]
+        name = f"part-{self._parts:06d}.parquet"
+        hidden = self.path / f".{name}.tmp"          # readers skip names starting with '.'
         try:
-            if self._writer is None:
-                self._writer = pq.ParquetWriter(self.path, self.schema)
-            elif not self.path.exists():   # writes would still succeed, into a file no one can open
+            if not self.path.is_dir():   # writes would still succeed, into a directory no one can see
                 raise RecordingError(f"cannot write {self.path}: it was removed during the run")
-            self._writer.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
+            with open(hidden, "wb") as file:
+                pq.write_table(pa.Table.from_arrays(arrays, schema=self.schema), file)
+                file.flush()
+                os.fsync(file.fileno())       # the data on disk before the name: a power cut leaves no empty part
+            os.replace(hidden, self.path / name)
+            directory = os.open(self.path, os.O_RDONLY)
+            try:
+                os.fsync(directory)
+            finally:
+                os.close(directory)
         except OSError as error:
             raise RecordingError(f"cannot write {self.path}: {error}") from None
-        self._rows = 0
+        self._parts += 1
 
     def event(self, kind: str, **fields) -> None:
         self._events.write(json.dumps({"event": kind, **fields}) + "\n")
@@ -99,12 +115,8 @@ class Recording:
     def close(self) -> None:
         try:
             self.flush()
-            if self._writer is None:  # no row at all: still leave a readable, empty table
-                import pyarrow.parquet as pq
-                self._writer = pq.ParquetWriter(self.path, self.schema)
-            self._writer.close()
-        except OSError as error:
-            raise RecordingError(f"cannot write {self.path}: {error}") from None
+            if not self._parts:   # no row at all: still leave a readable, empty table
+                self._write_part(0)
         finally:
             self._events.close()
 

@@ -31,6 +31,11 @@ def wait_for_components(run_tag: str, count: int, timeout: float = 60.0) -> list
     return found
 
 
+def signal_files(record: Path) -> dict[str, bytes]:
+    """The bytes of each part file of a recording's signals.parquet (a dataset directory)."""
+    return {part.name: part.read_bytes() for part in sorted((Path(record) / "signals.parquet").iterdir())}
+
+
 def orchestrator(*args, timeout=300, cwd=None, **kw) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "orchestrator.cli", *map(str, args)], capture_output=True,
                           text=True, timeout=timeout, cwd=cwd or ROOT, **kw)

@@ -33,7 +33,7 @@ def read_recording(directory: str | Path) -> tuple[dict, Path | None, str]:
     import yaml
 
     directory = Path(directory)
-    if not (directory / "signals.parquet").is_file():
+    if not (directory / "signals.parquet").exists():
         raise ReplayError(f"{directory}: no signals.parquet here (record one with `orchestrator run CONFIG --record DIR`)")
     try:
         config = yaml.safe_load((directory / "config.yaml").read_text()) or {}
@@ -72,14 +72,15 @@ def replay(directory: str | Path, mode: str = "spawn", file: str | Path | None =
            rate_hz: float = DEFAULT_RATE_HZ, open_browser: bool = False, out=sys.stderr) -> int:
     """Log a recording into Rerun; returns the number of rows logged. Web mode serves until Ctrl-C."""
     import numpy as np
-    import pyarrow.parquet as pq
 
     from components.viewer.scene import SceneLogger
     from components.viewer.sinks import close_stream, open_stream
 
     config, config_dir, run_id = read_recording(directory)
-    parquet = pq.ParquetFile(Path(directory) / "signals.parquet")
-    names = parquet.schema_arrow.names
+    import pyarrow.dataset as ds
+
+    parquet = ds.dataset(Path(directory) / "signals.parquet", format="parquet")   # a file, or a dataset directory
+    names = parquet.schema.names
     if names[:2] != ["step", "time"]:
         raise ReplayError(f"{directory}/signals.parquet: expected the columns step, time first, got {names[:2]}")
     columns = names[2:]
@@ -90,7 +91,7 @@ def replay(directory: str | Path, mode: str = "spawn", file: str | Path | None =
     scene.rec = stream
     try:
         scene.log_static()
-        for batch in parquet.iter_batches(batch_size=BATCH_ROWS):
+        for batch in parquet.to_batches(batch_size=BATCH_ROWS):
             steps = batch.column(0).to_numpy()
             keep = np.flatnonzero(steps % n == 0)
             if not len(keep):

@@ -10,7 +10,7 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 
-from tests.conftest import ROOT, component_processes, orchestrator, start_run, wait_for_components
+from tests.conftest import ROOT, component_processes, orchestrator, signal_files, start_run, wait_for_components
 
 pytestmark = pytest.mark.integration
 
@@ -141,12 +141,12 @@ def test_every_run_ends_with_a_summary_even_off_a_terminal(write_config, tmp_pat
 def test_record_refuses_a_used_directory_unless_overwrite(write_config, tmp_path):
     config, rec = write_config(SHORT), tmp_path / "rec"
     assert orchestrator("run", config, "--record", rec).returncode == 0
-    before = (rec / "signals.parquet").read_bytes()
+    before = signal_files(rec)
     (rec / "logs" / "stale.0.log").write_text("from an earlier run")
 
     again = orchestrator("run", config, "--record", rec, "--set", "components.source.parameters.value=2")
     assert again.returncode == 2 and str(rec) in again.stderr and "--overwrite" in again.stderr, again.stderr
-    assert (rec / "signals.parquet").read_bytes() == before          # nothing lost
+    assert signal_files(rec) == before                                # nothing lost
 
     replaced = orchestrator("run", config, "--record", rec, "--overwrite", "--set", "components.source.parameters.value=2")
     assert replaced.returncode == 0, replaced.stderr

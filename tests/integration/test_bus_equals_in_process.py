@@ -46,7 +46,7 @@ connections: {{spring.force: integral.x, integral.u: spring.x, total.u: push.y}}
     bus = recorded(tmp_path / "rec")
     reference = run_in_process(load(config))
     assert np.array_equal(bus, reference)
-    columns = list(pq.read_schema(tmp_path / "rec" / "signals.parquet").names)[2:]
+    columns = pq.read_table(tmp_path / "rec" / "signals.parquet").column_names[2:]
     spring_x, integral_x = bus[:, columns.index("spring.x")], bus[:, columns.index("integral.x")]
     assert np.ptp(spring_x) > 0.5 and np.ptp(integral_x) > 0.1      # both moved
     # the sample time of integral.u (spring.x): row r holds integral's output of its step k =

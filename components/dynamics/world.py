@@ -630,14 +630,17 @@ class OrbitalWorld:
     # ----------------------------------------------------------------- state
 
     def get_state(self) -> dict[str, np.ndarray]:
-        """Everything needed to continue bit-exactly: per body positions/velocities (DART order)
-        and torques, the orbit inputs and the time since they were set."""
+        """Everything needed to continue bit-exactly: per body positions/velocities (DART order),
+        torques and the joints resting on a limit stop (rk4) with their side, the orbit inputs
+        and the time since they were set."""
         state = {"r_eci": self.r_eci.copy(), "v_eci": self.v_eci.copy(), "q_eci_lvlh": self.q_eci_lvlh.copy(),
                  "w_lvlh": self.w_lvlh.copy(), "elapsed": np.float64(self.elapsed)}
         for name, body in self.bodies.items():
             state[f"{name}.positions"] = np.array(body.skel.getPositions())
             state[f"{name}.velocities"] = np.array(body.skel.getVelocities())
             state[f"{name}.tau"] = body.tau.copy()
+            state[f"{name}.stops"] = body.stops.astype(np.int64)
+            state[f"{name}.stop_sides"] = body.stop_sides.astype(np.float64)
         return state
 
     def set_state(self, state: Mapping[str, np.ndarray]) -> None:
@@ -650,6 +653,11 @@ class OrbitalWorld:
                 if value is None or np.asarray(value).shape != (body.ndofs,):
                     raise ValueError(f"state: {name}.{key} expected {body.ndofs} values, "
                                      f"got {None if value is None else np.asarray(value).shape}")
+            stops, sides = state.get(f"{name}.stops"), state.get(f"{name}.stop_sides")
+            if stops is None or sides is None or np.shape(stops) != np.shape(sides) or np.ndim(stops) != 1 \
+                    or not np.all((0 <= np.asarray(stops)) & (np.asarray(stops) < body.ndofs)):
+                raise ValueError(f"state: {name}.stops and {name}.stop_sides expected two equal lists of "
+                                 f"dof indices (< {body.ndofs}) and sides, got {stops!r}, {sides!r}")
         self.r_eci = np.array(state["r_eci"], dtype=float)
         self.v_eci = np.array(state["v_eci"], dtype=float)
         self.q_eci_lvlh = np.array(state["q_eci_lvlh"], dtype=float)
@@ -660,3 +668,5 @@ class OrbitalWorld:
             body.skel.setPositions(np.array(state[f"{name}.positions"], dtype=float))
             body.skel.setVelocities(np.array(state[f"{name}.velocities"], dtype=float))
             body.tau[:] = np.array(state[f"{name}.tau"], dtype=float)
+            body.stops = np.array(state[f"{name}.stops"], dtype=int)
+            body.stop_sides = np.array(state[f"{name}.stop_sides"], dtype=float)

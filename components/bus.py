@@ -58,6 +58,13 @@ class Malformed(ValueError):
     """A payload (or key) that is not a well-formed message of the kind expected: dropped, never fatal."""
 
 
+def count_drop(counts: dict[str, int], key: str) -> int | None:
+    """Count a message dropped from ``key``; the count when it is worth a warning (the 1st, 2nd,
+    4th, 8th... from each key, so a flood does not flood the log), else None."""
+    n = counts[key] = counts.get(key, 0) + 1
+    return n if n & (n - 1) == 0 else None
+
+
 def _expect(payload: bytes, kind: bytes, minimum: int) -> None:
     if len(payload) < minimum or payload[:1] != kind:
         raise Malformed(f"expected a {kind.decode()} message of at least {minimum} bytes, got {len(payload)} "

@@ -134,9 +134,8 @@ class ComponentProcess:
         return True
 
     def dropped(self, key: str, reason: str) -> None:
-        """Note a dropped message in the component's log: the 1st, 2nd, 4th, 8th... from each key."""
-        n = self.drops[key] = self.drops.get(key, 0) + 1
-        if n & (n - 1) == 0:
+        """Note a dropped message in the component's log (bus.count_drop says when)."""
+        if n := bus.count_drop(self.drops, key):
             print(f"warning: dropped a message on {key}: {reason} ({n} so far)", file=sys.stderr, flush=True)
 
     # ------------------------------------------------------------------ control

@@ -177,8 +177,8 @@ def _print_records(record, heading: str = "parameters") -> None:
     from components.schema import table
     for r in record.records():
         nested = r is not record
-        description = r.description.replace("``", "")
-        print(f"\n{r.name}" + (f": {description}" if description else "") if nested else f"\n{heading}:")
+        about = r.description.replace("``", "")
+        print(f"\n{r.name}" + (f": {about}" if about else "") if nested else f"\n{heading}:")
         rows = [(name, kind, default if default in ("required", "-") else f"default {default}", description)
                 for name, kind, default, description in table(r.fields)]
         widths = [max([len(row[i]) for row in rows] + [0]) + 2 for i in range(3)]

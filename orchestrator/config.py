@@ -249,11 +249,6 @@ def load(path: str | Path, overrides: list[str] = ()) -> RunConfig:
     return validate(raw, path)
 
 
-def _messages(problems: list[ConfigError], file: Path, prefix: str = "") -> list[str]:
-    return [f"{file}: {prefix}{e.key}: {e.message}" if e.key else f"{file}: {prefix.rstrip('.')}: {e.message}"
-            for e in problems]
-
-
 def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, epoch: str,
                    key: str) -> ComponentSpec:
     """One component's spec from its entry as COMPONENT converts it; ConfigErrors naming ``key.<...>``."""
@@ -296,7 +291,7 @@ def validate(raw: dict, path: Path) -> RunConfig:
     """The config checked against CONFIG, then across its parts (components, connections, events)."""
     file = path
     config, problems = CONFIG.resolve(raw)
-    errors = _messages(problems, file)
+    errors = [f"{file}: {e.key}: {e.message}" for e in problems]
     run = config.get("run", {})
     step_ns, total_ns, epoch = run.get("step"), run.get("duration"), run.get("epoch")
     if step_ns and total_ns and total_ns % step_ns:

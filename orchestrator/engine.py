@@ -19,7 +19,6 @@ from __future__ import annotations
 import collections
 import datetime as dt
 import json
-import math
 import os
 import queue
 import shutil
@@ -162,12 +161,11 @@ class Run:
         try:
             self._apply(kind, a, b, expect)
         except bus.Malformed as e:
-            self._drop(a if kind in ("o", "r") else kind, str(e))
+            self._drop(a, str(e))   # only output and reply messages ("o", "r") are decoded
 
     def _drop(self, key: str, reason: str) -> None:
-        """Warn of a dropped message in events.jsonl: the 1st, 10th, 100th... from each key."""
-        n = self.dropped[key] = self.dropped.get(key, 0) + 1
-        if n & (n - 1) == 0 or math.log10(n).is_integer():
+        """Warn of a dropped message in events.jsonl (bus.count_drop says when)."""
+        if n := bus.count_drop(self.dropped, key):
             self._log("warning", step=self.row, message=f"dropped a message on {key}: {reason}"
                                                          + (f" ({n} so far)" if n > 1 else ""))
 

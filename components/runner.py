@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import collections
 import os
+import signal
 import sys
 import threading
 import time
@@ -75,6 +76,7 @@ class ComponentProcess:
         self.horizon = 0
         self.step_ns = 0
         self.ratio = 1
+        self.faults: list[tuple[int, str, float]] = []   # (step, kind, seconds) to inject, in step order
         self.idle_since = time.perf_counter()
 
     # ------------------------------------------------------------------ messages
@@ -162,6 +164,7 @@ class ComponentProcess:
             self.generation, self.step_ns, self.ratio = body["generation"], body["step_ns"], body["ratio"]
             self.consumers = body["consumers"]
             self.batch_outputs = body["batch_outputs"]
+            self.faults = sorted((k, kind, seconds) for k, kind, seconds in body["faults"])
             self.next_k = body["k"]
             self.horizon = body["k"]
             self._set_routes(body["routes"])
@@ -261,9 +264,14 @@ class ComponentProcess:
 
     def _step(self, k: int) -> None:
         started = self.stepping_since = time.perf_counter()
+        fault = self.faults.pop(0)[1:] if self.faults and k >= self.faults[0][0] else None
+        if fault:
+            _inject(*fault)
         try:
             result = self.component.do_step(k * self.step_ns, self.ratio * self.step_ns, self.input_views)
             self.outputs.pack(result, self.output_vector)
+            if fault and fault[0] == "nan":
+                self.output_vector[0] = np.nan
         except Exception as error:
             traceback.print_exc(file=sys.stderr)
             raise Halt(self._report("step", k, f"{type(error).__name__}: {error}")) from None
@@ -314,6 +322,18 @@ class ComponentProcess:
         self.fault(op, k, error)
         self.horizon = self.next_k   # no further step; the orchestrator ends the run
         return error
+
+
+def _inject(kind: str, seconds: float) -> None:
+    """A fault of the config's ``faults:`` (docs/design.md §7), as a real failure would look."""
+    print(f"injecting a fault: {kind}", file=sys.stderr, flush=True)
+    if kind == "crash":
+        os.kill(os.getpid(), signal.SIGKILL)
+    elif kind == "hang":
+        while True:
+            time.sleep(3600)
+    elif kind == "delay":
+        time.sleep(seconds)
 
 
 def _watchdog(process: ComponentProcess) -> None:

@@ -13,7 +13,7 @@ import yaml
 
 from components import registry
 from components.errors import ConfigError
-from components.schema import (Anything, Bool, Duration, Float, ListOf, MapOf, Parameter, Record, Str,
+from components.schema import (Anything, Bool, Duration, Float, Int, ListOf, MapOf, Parameter, Record, Str,
                                UtcTime, markdown)
 from components.sdk import Component, Layout, Variable, resolve_parameters
 from components.units import duration_text
@@ -37,6 +37,11 @@ RUN = Record("run", (
               description="wall time a component may take for one step before the run fails"),
     Parameter("start_timeout", Duration(), default="60 s",
               description="wall time a component may take to start and initialize"),
+    Parameter("checkpoint_every", Duration(), default=None,
+              description="simulated time between checkpoints, when a component has on_failure: restart "
+                          "(none: the start is the only one)"),
+    Parameter("max_restarts", Int(minimum=0), default=3,
+              description="restarts from a checkpoint before a failure ends the run"),
 ), description="the run's identity and timing (``run:``)")
 BUS = Record("bus", (
     Parameter("listen", ListOf(Str(pattern=ENDPOINT, hint="a Zenoh endpoint like tcp/127.0.0.1:0"), min_items=1),
@@ -58,6 +63,8 @@ COMPONENT = Record("component", (
               description="local: the orchestrator starts it; external: you do (orchestrator ps prints how)"),
     Parameter("dedicated_cpu", Bool(), default=False,
               description="its stepping thread on a CPU of its own (speed only, never results)"),
+    Parameter("on_failure", Str(("stop", "restart")), default="stop",
+              description="when it dies or hangs: stop the run, or restart the run from its last checkpoint"),
 ), description="one component (``components.<name>``)")
 EVENT = Record("event", (
     Parameter("at", Duration(positive=False), description="simulated time of the swap, on a step of the component"),
@@ -66,6 +73,14 @@ EVENT = Record("event", (
     Parameter("parameters", Anything(), default=None,
               description="the new parameters (default: the old ones for the same type, none for another)"),
 ), description="a swap during the run (``events:``)")
+FAULT_KINDS = ("crash", "hang", "nan", "delay")
+FAULT = Record("fault", (
+    Parameter("at", Duration(positive=False), description="simulated time: the component's first step at or after it"),
+    Parameter("component", Str(), description="the component that fails"),
+    Parameter("kind", Str(FAULT_KINDS), description="crash: SIGKILL; hang: never finishes the step; "
+                                                    "nan: a NaN output; delay: the step takes longer"),
+    Parameter("duration", Duration(), default=None, description="delay: the wall time the step is held"),
+), description="an injected failure, once per run (``faults:``)")
 CONFIG = Record("config", (
     Parameter("run", RUN, description="identity and timing"),
     Parameter("components", MapOf(COMPONENT, "component name", key_pattern=NAME), description="the components by name"),
@@ -73,6 +88,7 @@ CONFIG = Record("config", (
               description="'<component>.<input>: <component>.<output>'"),
     Parameter("bus", BUS, default={}, description="the Zenoh bus"),
     Parameter("events", ListOf(EVENT), default=[], description="swaps during the run"),
+    Parameter("faults", ListOf(FAULT), default=[], description="injected failures, to test a setup's recovery"),
     Parameter("viewer", VIEWER, default=None, description="the Rerun live view"),
 ), description="a run config")
 
@@ -97,6 +113,7 @@ class ComponentSpec:
     outputs: Layout
     launch: str = "local"
     dedicated_cpu: bool = False   # its stepping thread on a CPU of its own (speed only, never results)
+    on_failure: str = "stop"      # or "restart": the run goes back to its last checkpoint
 
     @property
     def variables(self) -> dict[str, Variable]:
@@ -144,6 +161,15 @@ class Event:
     spec: ComponentSpec | None = None
 
 
+@dataclass(frozen=True)
+class Fault:
+    """An injected failure: ``component`` fails in its first step at or after ``at_ns``."""
+    at_ns: int
+    component: str
+    kind: str
+    duration_ns: int | None = None
+
+
 @dataclass
 class RunConfig:
     path: Path
@@ -159,6 +185,9 @@ class RunConfig:
     connections: list[tuple[str, str, str, str]]  # (dst component, dst var, src component, src var)
     listen: list[str]
     events: list[Event] = field(default_factory=list)
+    faults: list[Fault] = field(default_factory=list)
+    checkpoint_ns: int | None = None
+    max_restarts: int = 3
     viewer: ViewerSpec | None = None
     resolved: dict = field(default_factory=dict)   # the config as written to config.yaml
 
@@ -272,6 +301,8 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
     if entry["dedicated_cpu"] and entry["launch"] == "external":
         errors.append(f"{key}.dedicated_cpu: only for components the orchestrator starts (launch: local); "
                       f"pin an external component where it runs (taskset)")
+    if entry["on_failure"] == "restart" and entry["launch"] == "external":
+        errors.append(f"{key}.on_failure: restart is only for components the orchestrator starts (launch: local)")
     if errors:
         raise ConfigErrors(errors)
     try:
@@ -283,6 +314,7 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
                             f"{type(e).__name__}: {e}"]) from None
     return ComponentSpec(name=name, type=type_name, cls=cls, step_ns=step_ns, parameters=params_raw,
                          resolved=resolved, launch=entry["launch"], dedicated_cpu=entry["dedicated_cpu"],
+                         on_failure=entry["on_failure"],
                          inputs=Layout([v for v in variables if v.causality == "input"]),
                          outputs=Layout([v for v in variables if v.causality == "output"]))
 
@@ -310,6 +342,14 @@ def validate(raw: dict, path: Path) -> RunConfig:
     connections = _connections(config.get("connections", {}), components, raw_entries, file, errors)
     events = _events(config.get("events", []), components, connections, step_ns, total_ns, config_dir, epoch,
                      file, errors)
+    faults = _faults(config.get("faults", []), components, total_ns, file, errors)
+    checkpoint_ns = run.get("checkpoint_every")
+    if checkpoint_ns is not None and components:
+        for name, spec in components.items():
+            if checkpoint_ns % spec.step_ns:
+                errors.append(f"{file}: run.checkpoint_every: must be a multiple of every component's step "
+                              f"(all are at a step boundary then); {name} steps {duration_text(spec.step_ns)}, "
+                              f"got {duration_text(checkpoint_ns)}")
     viewer = None
     if config.get("viewer") is not None:
         problems_of_viewer: list[str] = []
@@ -321,19 +361,22 @@ def validate(raw: dict, path: Path) -> RunConfig:
         "run": RUN.plain(run),
         "bus": BUS.plain(config["bus"]),
         "components": {n: {**COMPONENT.plain({"type": s.type, "step": s.step_ns, "launch": s.launch,
-                                              "dedicated_cpu": s.dedicated_cpu}),
+                                              "dedicated_cpu": s.dedicated_cpu, "on_failure": s.on_failure}),
                            "parameters": s.cls.schema.plain(s.resolved)}
                        for n, s in components.items()},
         "connections": {f"{d}.{dv}": f"{s}.{sv}" for d, dv, s, sv in connections},
         "events": [{"at": duration_text(e.at_ns), "swap": e.swap, "type": e.type,
                     "parameters": e.spec.cls.schema.plain(e.spec.resolved)} for e in events],
+        "faults": [FAULT.plain({"at": f.at_ns, "component": f.component, "kind": f.kind, "duration": f.duration_ns})
+                   for f in faults],
     }
     if viewer is not None:
         resolved["viewer"] = VIEWER.plain(config["viewer"])
     return RunConfig(path=path, name=run["name"], epoch=epoch, duration_ns=total_ns, step_ns=step_ns,
                      algorithm=run["algorithm"], realtime=run["realtime"], step_timeout_s=run["step_timeout"] / 1e9,
                      start_timeout_s=run["start_timeout"] / 1e9, components=components, connections=connections,
-                     listen=config["bus"]["listen"], events=events, viewer=viewer, resolved=resolved)
+                     listen=config["bus"]["listen"], events=events, faults=faults, checkpoint_ns=checkpoint_ns,
+                     max_restarts=run["max_restarts"], viewer=viewer, resolved=resolved)
 
 
 def check_replacement(spec: ComponentSpec, connections: list[tuple[str, str, str, str]]) -> list[str]:
@@ -415,7 +458,7 @@ def _events(entries: list[dict], components: dict[str, ComponentSpec], connectio
             params = old.parameters if new_type == old.type else {}
         try:
             spec = component_spec(target, {"type": new_type, "parameters": params, "step": old.step_ns,
-                                           "launch": "local", "dedicated_cpu": False},
+                                           "launch": "local", "dedicated_cpu": False, "on_failure": old.on_failure},
                                   step_ns, config_dir, epoch, key)
         except ConfigErrors as e:
             errors += [f"{file}: {m}" for m in e.errors]
@@ -426,6 +469,27 @@ def _events(entries: list[dict], components: dict[str, ComponentSpec], connectio
             continue
         events.append(Event(at_ns=at_ns, swap=target, type=new_type, parameters=params, spec=spec))
     return sorted(events, key=lambda e: e.at_ns)
+
+
+def _faults(entries: list[dict], components: dict[str, ComponentSpec], total_ns: int | None, file: Path,
+            errors: list[str]) -> list[Fault]:
+    faults = []
+    for i, entry in enumerate(entries):
+        key = f"faults[{i}]"
+        if entry["component"] not in components:
+            errors.append(f"{file}: {key}.component: no component named {entry['component']!r} "
+                          f"(components: {', '.join(components)})")
+        elif total_ns is not None and entry["at"] >= total_ns:
+            errors.append(f"{file}: {key}.at: must be within the run, 0 <= at < run.duration, "
+                          f"got {duration_text(entry['at'])}")
+        elif entry["kind"] == "nan" and not components[entry["component"]].outputs.size:
+            errors.append(f"{file}: {key}.kind: {entry['component']} has no output to make NaN")
+        elif (entry["kind"] == "delay") != (entry["duration"] is not None):
+            errors.append(f"{file}: {key}.duration: " + ("a delay needs one (e.g. duration: 2 s)"
+                          if entry["kind"] == "delay" else f"only a delay has one, not a {entry['kind']}"))
+        else:
+            faults.append(Fault(entry["at"], entry["component"], entry["kind"], entry["duration"]))
+    return sorted(faults, key=lambda f: f.at_ns)
 
 
 DOCS_START = "<!-- config reference: python -m orchestrator.config --docs -->"

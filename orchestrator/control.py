@@ -71,7 +71,8 @@ class ControlServer:
                         "usage": True}
             old = run.members[name].spec
             entry = {"type": request.get("type") or old.type, "parameters": copy.deepcopy(
-                old.parameters if not request.get("type") or request["type"] == old.type else {})}
+                old.parameters if not request.get("type") or request["type"] == old.type else {}),
+                "on_failure": old.on_failure}
             try:
                 apply_overrides(entry, [f"parameters.{s}" for s in request.get("set", [])])
                 converted, problems = COMPONENT.resolve(entry, f"components.{name}")

@@ -42,6 +42,7 @@ from orchestrator.config import ComponentSpec, RunConfig, ViewerSpec
 from orchestrator.control import ControlServer, SwapFailed
 from orchestrator.recording import Recording, RecordingError
 from orchestrator import wording
+from components.units import duration_ns, duration_text
 
 VIEWER = "_viewer"   # liveliness name of the observer (component names cannot start with _)
 SIGNALS_HEADER = struct.Struct("<qd")  # k, time in s; then the row of every output, float64
@@ -50,11 +51,25 @@ SYNC_ROUND_S = 0.05  # the start-up handshake is repeated at this interval until
 
 
 class RunFailure(Exception):
-    """The run cannot go on: a component crashed, hung, or produced a non-finite value."""
+    """The run cannot go on: a component crashed, hung, or produced a non-finite value.
+    ``lost``: ``member`` died or hung (a restart may cure that), rather than reported a fault."""
 
-    def __init__(self, message: str, member: "Member | None" = None):
+    def __init__(self, message: str, member: "Member | None" = None, lost: bool = False):
         super().__init__(message)
         self.member = member
+        self.lost = lost
+
+
+@dataclass
+class Checkpoint:
+    """Where a restart goes back to: a step boundary, every component's state there and what the
+    orchestrator held (the recorded row, each member's last outputs)."""
+    row: int
+    values: np.ndarray
+    specs: list[ComponentSpec]
+    states: dict[str, bytes]
+    latest: dict[str, tuple[int, np.ndarray]]
+    events: list                        # the config's swaps still to come
 
 
 class StopRequested(Exception):
@@ -107,6 +122,12 @@ class Run:
         self.joining: dict[str, Member] = {}   # a swap's new generation, until it takes over
         self.order = list(config.components)
         self.pending_events = list(config.events)
+        self.pending_faults = list(config.faults)
+        self.tables: dict[str, object] = {}    # component -> its swaps/ table, after a swap to another type
+        # checkpoints, only when a component may restart: at the start, every checkpoint_every, after a swap
+        self.restartable = any(s.on_failure == "restart" for s in config.components.values())
+        self.checkpoint: Checkpoint | None = None
+        self.restarts = 0
         self.controls = ControlServer(self)
         self.dropped: dict[str, int] = {}   # key -> messages dropped from it (malformed, stranger, stale)
         self.stop_reason: str | None = None
@@ -229,7 +250,7 @@ class Run:
                     del expect[name]
                 return
             self._salvage(member)
-            raise RunFailure(self._death(member, "its process disappeared (liveliness lost)"), member)
+            raise RunFailure(self._death(member, "its process disappeared (liveliness lost)"), member, lost=True)
 
     def _fault_message(self, member: Member, body: dict) -> str:
         k = body["k"]
@@ -274,7 +295,8 @@ class Run:
             member = self.joining.get(name) or self.members[name]
             if member.process is not None and member.process.poll() is not None:
                 self._salvage(member)
-                raise RunFailure(self._death(member, f"its process exited with code {member.process.returncode}"), member)
+                raise RunFailure(self._death(member, f"its process exited with code {member.process.returncode}"),
+                                 member, lost=True)
 
     def _death(self, member: Member, how: str) -> str:
         return (f"component {member.name!r} ({member.spec.type}) died at step {member.progress}: {how}"
@@ -343,7 +365,9 @@ class Run:
             "consumers": sorted({d for d, _, s, _ in self.config.connections if s == member.name and d != member.name}),
             "batch_outputs": not schedule.feeds_back(member.name, self.config.connections),
             "routes": [r.to_json() for r in member.routes],
-            "sources": {r.source: members[r.source].generation for r in member.routes}})
+            "sources": {r.source: members[r.source].generation for r in member.routes},
+            "faults": [[-(-f.at_ns // self.config.step_ns), f.kind, (f.duration_ns or 0) / 1e9]
+                       for f in self.pending_faults if f.component == member.name]})
 
     def _initialize(self, member: Member, t_ns: int, members: dict[str, Member]) -> np.ndarray:
         inputs = member.spec.inputs.start_vector()
@@ -405,27 +429,30 @@ class Run:
 
     # ---------------------------------------------------------------- swap
 
-    def swap(self, spec: ComponentSpec) -> None:
-        """Replace a component at the current step boundary, handing over its state (same type).
+    def swap(self, spec: ComponentSpec, planned: bool = False) -> None:
+        """Replace a component at the current step boundary (docs/design.md §5).
 
         Every component is at the boundary (the horizon is held there). The new generation is
-        started, wired, initialized and given the state on the side; only then does it take over
-        and its consumers are rewired to it. If it fails to get there, it is stopped and
-        SwapFailed is raised: the old generation runs on.
+        started and wired on the side. One of the same type takes over the old one's state, never
+        initialized (initialize would re-anchor what the state already holds), and its outputs at
+        this step are the old ones; one of another type is initialized there. Only then does it take
+        over and its consumers are rewired to it. If it fails to get there, it is stopped and
+        SwapFailed is raised: the old generation runs on. ``planned``: an event of the config
+        (else the recorded config gains one, so that it replays the run).
         """
         old = self.members[spec.name]
         t_ns = self.row * self.config.step_ns
         same_type = spec.type == old.spec.type
-        self._ask([old], "get_state", "get_state", self.config.step_timeout_s)
-        state = old.reply["blob"]
         try:
             new = self._start([spec], {spec.name: old.generation + 1}, self.joining)[0]
             members = {**self.members, spec.name: new}
             self._wire(new, members, self.row)
-            outputs = self._initialize(new, t_ns, members)
-            if same_type:  # the state carries over and the outputs at t_k stay the old ones
-                self._ask([new], "set_state", "set_state", self.config.step_timeout_s, {}, state)
+            if same_type:
+                self._ask([old], "get_state", "get_state", self.config.step_timeout_s)
+                self._ask([new], "set_state", "set_state", self.config.step_timeout_s, {}, old.reply["blob"])
                 outputs = old.latest
+            else:
+                outputs = self._initialize(new, t_ns, members)
         except RunFailure as failure:
             if old.process is not None and old.process.poll() is not None:
                 raise  # the old generation is gone too: nothing to run on
@@ -435,6 +462,7 @@ class Run:
             self._log("warning", message=f"swap of {spec.name} to {spec.type} failed: {failure}", step=self.row)
             raise SwapFailed(str(failure)) from None
         new.tag, new.latest, new.progress, new.initialized = self.row, np.array(outputs), self.row, True
+        self.values[old.out_dst] = np.nan   # the old type's columns the new one lacks: NaN from here on
         self.values[new.out_dst] = new.latest[new.out_src]
         self.members[spec.name] = self.joining.pop(spec.name)
         self._terminate(old)  # its late messages carry the old generation: ignored from here on
@@ -448,8 +476,107 @@ class Run:
         self._wait({m.name: "rewire" for m in consumers}, self.config.step_timeout_s, "rewire")
         self._sync([new, *consumers])
         self._go(new)
-        self._log("swap", component=spec.name, type=spec.type, generation=new.generation,
+        parameters = spec.cls.schema.plain(spec.resolved)
+        self._record_swap(new, same_type, parameters, planned)
+        self._log("swap", component=spec.name, type=spec.type, parameters=parameters, generation=new.generation,
                   step=self.row, time=t_ns / 1e9, state_handed_over=same_type)
+        if self.restartable:
+            self._take_checkpoint()   # a restart never goes back across a swap
+
+    def _record_swap(self, new: Member, same_type: bool, parameters: dict, planned: bool) -> None:
+        """The recording's side of a swap: a new type's outputs get a table of their own; a swap
+        from the CLI becomes an event of the recorded config."""
+        name = new.name
+        if self.recording is None:
+            return
+        if not same_type:   # (a same-type swap goes on writing the table its type has, if any)
+            self.tables.pop(name, None)
+            columns = [c for v in new.spec.outputs.variables for c in v.columns(name)]
+            table = self.tables[name] = self.recording.add_table(f"{name}.{new.generation}", columns)
+            table.append(self.row, self.row * self.config.step_ns / 1e9, new.latest)
+        if not planned:
+            resolved = self.config.resolved
+            resolved["events"] = sorted(
+                [*resolved["events"], {"at": duration_text(self.row * self.config.step_ns), "swap": name,
+                                       "type": new.spec.type, "parameters": parameters}],
+                key=lambda e: duration_ns(e["at"], "at"))
+            self.recording.write_config(resolved)
+
+    # ---------------------------------------------------------------- checkpoints and restarts
+
+    def _next_checkpoint(self) -> int | None:
+        """The step of the next periodic checkpoint (run.checkpoint_every), or None."""
+        if self.checkpoint is None or self.config.checkpoint_ns is None:
+            return None
+        every = self.config.checkpoint_ns // self.config.step_ns
+        return (self.checkpoint.row // every + 1) * every
+
+    def _take_checkpoint(self) -> None:
+        """Every component's state at this step boundary, where they all are (docs/design.md §7)."""
+        members = list(self.members.values())
+        self._ask(members, "get_state", "get_state (checkpoint)", self.config.step_timeout_s)
+        self.checkpoint = Checkpoint(self.row, self.values.copy(), [m.spec for m in members],
+                                     {m.name: m.reply["blob"] for m in members},
+                                     {m.name: (m.tag, m.latest.copy()) for m in members}, list(self.pending_events))
+        self._log("checkpoint", step=self.row, time=self.row * self.config.step_ns / 1e9)
+
+    def _may_restart(self, failure: RunFailure) -> bool:
+        member = failure.member
+        if not (failure.lost and member is not None and member.spec.on_failure == "restart"
+                and self.checkpoint is not None and member.name in self.members):
+            return False
+        if self.restarts >= self.config.max_restarts:
+            failure.args = (f"{failure} (after {wording.count(self.restarts, 'restart')}: run.max_restarts)",)
+            return False
+        return True
+
+    def _restart(self, failure: RunFailure) -> None:
+        """Stop every component and start them all again, in new processes, from the last checkpoint."""
+        checkpoint, failed, step_ns = self.checkpoint, failure.member, self.config.step_ns
+        self.restarts += 1
+        self._log("fault", step=self.row, component=failed.name, message=str(failure))
+        print(f"warning: {failure}\nrestarting from step {checkpoint.row} (t = {checkpoint.row * step_ns / 1e9:g} s; "
+              f"restart {self.restarts} of at most {self.config.max_restarts})", file=self.out, flush=True)
+        if failed.process is not None and failed.process.poll() is None:
+            failed.process.kill()   # hung: it would not answer terminate
+        for member in [*self.members.values(), *self.joining.values()]:
+            self._terminate(member, timeout=2.0)
+        self.joining.clear()
+        # an injected fault fires once: the one behind this failure, and those the run went past
+        cause = next((f for f in self.pending_faults if f.component == failed.name and f.kind in ("crash", "hang")
+                      and -(-f.at_ns // step_ns) <= self.horizon), None)
+        self.pending_faults = [f for f in self.pending_faults if f is not cause and -(-f.at_ns // step_ns) >= self.row]
+        while True:   # what the stopped generations sent is stale; requests from the CLI are kept
+            try:
+                kind, a, _ = self.inbox.get_nowait()
+            except queue.Empty:
+                break
+            if kind == "ctl":
+                self.controls.add(a)
+        generations = {n: m.generation + 1 for n, m in self.members.items()}
+        self.members = {}
+        self._start(checkpoint.specs, generations, self.members)
+        for member in self.members.values():
+            self._wire(member, self.members, checkpoint.row)
+        for member in self.members.values():
+            self._control(member, "set_state", {}, checkpoint.states[member.name])
+        self._wait({m: "set_state" for m in self.members}, self.config.step_timeout_s, "set_state (restart)")
+        now = time.monotonic()
+        for member in self.members.values():
+            tag, latest = checkpoint.latest[member.name]
+            member.tag, member.latest, member.initialized = tag, latest.copy(), True
+            member.progress, member.progress_at = checkpoint.row, now
+        self.values[:] = checkpoint.values
+        self.row = self.horizon = checkpoint.row
+        self.horizon_at = now
+        self.pending_events = list(checkpoint.events)
+        if self.recording is not None:
+            self.recording.rewind(checkpoint.row)
+        self._sync(list(self.members.values()))
+        for member in self.members.values():
+            self._go(member)
+        self._log("restart", step=checkpoint.row, time=checkpoint.row * step_ns / 1e9, component=failed.name,
+                  restart=self.restarts)
 
     # ---------------------------------------------------------------- control from the CLI
 
@@ -476,7 +603,7 @@ class Run:
     def _limit(self) -> int:
         """The step boundary the run must stop at next: the end, an event, a swap from the CLI."""
         limit = self.config.steps
-        for boundary in (self._event_step(), self.controls.swap_boundary()):
+        for boundary in (self._event_step(), self.controls.swap_boundary(), self._next_checkpoint()):
             if boundary is not None:
                 limit = min(limit, max(boundary, self.row))
         return limit
@@ -526,6 +653,8 @@ class Run:
             self.row = row
             if self.recording is not None:
                 self.recording.append(row, row * step_ns / 1e9, self.values)
+                for name, table in self.tables.items():
+                    table.append(row, row * step_ns / 1e9, self.members[name].latest)
             if self.decimation and row % self.decimation == 0:
                 self.signals_out.put(SIGNALS_HEADER.pack(row, row * step_ns / 1e9) + self.values.tobytes())
 
@@ -544,7 +673,7 @@ class Run:
             if now - since > timeout:
                 self._salvage(m)
                 raise RunFailure(f"component {m.name!r} did not answer step {k} within {timeout:g} s "
-                                 f"(hung? raise run.step_timeout if it is just slow)", m)
+                                 f"(hung? raise run.step_timeout if it is just slow)", m, lost=True)
 
     def _salvage(self, failed: Member, timeout: float = 1.0) -> None:
         """``failed`` failed: record the rows up to its last output, as far as the others' outputs
@@ -567,7 +696,14 @@ class Run:
         steps = self.config.steps
         wall_start = time.perf_counter()
         try:
-            self._step_until(steps, wall_start)
+            while True:
+                try:
+                    self._step_until(steps, wall_start)
+                    return
+                except RunFailure as failure:
+                    if not self._may_restart(failure):
+                        raise
+                    self._restart(failure)
         finally:
             self.loop_s = time.perf_counter() - wall_start
 
@@ -578,9 +714,11 @@ class Run:
             if self.row == self.horizon:   # everyone is at this boundary: control happens here
                 while self._event_step() is not None and self._event_step() <= self.row:
                     try:
-                        self.swap(self.pending_events.pop(0).spec)
+                        self.swap(self.pending_events.pop(0).spec, planned=True)
                     except SwapFailed as failure:  # a swap the config asks for is part of the experiment
                         raise RunFailure(str(failure)) from None
+                if self.row == self._next_checkpoint():
+                    self._take_checkpoint()
                 self.controls.serve(quiescent=True)
             elif self.controls.queries:
                 self.controls.serve(quiescent=False)
@@ -638,6 +776,8 @@ class Run:
             if self.decimation:
                 self.signals_out.put(SIGNALS_HEADER.pack(0, 0.0) + self.values.tobytes())
             self._sync(list(self.members.values()))
+            if self.restartable:
+                self._take_checkpoint()
             for member in self.members.values():
                 self._go(member)
             self._loop()

@@ -22,7 +22,7 @@ class RecordingError(Exception):
 
 
 # What a run (and `orchestrator plot`) leaves in a recording directory: all that --overwrite removes.
-RECORDING_ENTRIES = frozenset({"signals.parquet", "events.jsonl", "config.yaml", "logs", "plots"})
+RECORDING_ENTRIES = frozenset({"signals.parquet", "swaps", "events.jsonl", "config.yaml", "logs", "plots"})
 
 
 def claim_directory(directory: Path, overwrite: bool) -> None:
@@ -45,29 +45,23 @@ def claim_directory(directory: Path, overwrite: bool) -> None:
     directory.mkdir(parents=True, exist_ok=True)
 
 
-class Recording:
-    """Appends rows (step, time, signals...) and events to a directory."""
+class Table:
+    """A Parquet dataset directory of rows (step, time, columns...), written in complete parts of
+    ``chunk_rows`` rows, each under a hidden name, fsynced and renamed into place."""
 
-    def __init__(self, directory: str | Path, columns: list[str], resolved_config: dict, *,
-                 chunk_rows: int = 1000):
+    def __init__(self, path: Path, columns: list[str], chunk_rows: int):
         import pyarrow as pa
 
-        self.directory = Path(directory)
-        self.path = self.directory / "signals.parquet"
-        self.directory.mkdir(parents=True, exist_ok=True)
-        for stale in (self.path, self.directory / "events.jsonl"):
-            shutil.rmtree(stale) if stale.is_dir() else stale.unlink(missing_ok=True)
-        self.path.mkdir()
-        (self.directory / "config.yaml").write_text(yaml.dump(resolved_config, Dumper=_ConfigDumper, sort_keys=False))
+        self.path = path
+        self.path.mkdir(parents=True)
         self.columns = columns
         self.schema = pa.schema([("step", pa.int64()), ("time", pa.float64())]
                                 + [(c, pa.float64()) for c in columns])
-        self._parts = 0
+        self._parts: list[tuple[int, int]] = []   # (first step, last step) of each part on disk
         self._steps = np.empty(chunk_rows, dtype=np.int64)
         self._times = np.empty(chunk_rows)
         self._values = np.empty((chunk_rows, len(columns)))
         self._rows = 0
-        self._events = open(self.directory / "events.jsonl", "a")
 
     def append(self, step: int, time_s: float, values: np.ndarray) -> None:
         i = self._rows
@@ -82,6 +76,37 @@ class Recording:
             self._write_part(self._rows)
             self._rows = 0
 
+    def rewind(self, step: int) -> None:
+        """Forget the rows after ``step`` (a restart goes back there), on disk too."""
+        import pyarrow.parquet as pq
+
+        self._rows = int(np.searchsorted(self._steps[:self._rows], step, side="right"))
+        if self._rows:
+            return   # the parts on disk all come before the buffer
+        while self._parts and self._parts[-1][0] > step:
+            self._remove_last_part()
+        if self._parts and self._parts[-1][1] > step:
+            table = pq.read_table(self._part_path(len(self._parts) - 1))
+            self._remove_last_part()
+            steps = table.column("step").to_numpy()
+            n = self._rows = int(np.searchsorted(steps, step, side="right"))
+            self._steps[:n], self._times[:n] = steps[:n], table.column("time").to_numpy()[:n]
+            for j, column in enumerate(self.columns):
+                self._values[:n, j] = table.column(column).to_numpy()[:n]
+
+    def close(self) -> None:
+        self.flush()
+        if not self._parts:   # no row at all: still leave a readable, empty table
+            self._write_part(0)
+
+    def _part_path(self, index: int) -> Path:
+        return self.path / f"part-{index:06d}.parquet"
+
+    def _remove_last_part(self) -> None:
+        self._part_path(len(self._parts) - 1).unlink()
+        self._parts.pop()
+        _fsync_directory(self.path)
+
     def _write_part(self, n: int) -> None:
         """Rows [0, n) of the buffer as the next complete part file (renamed into place: atomic)."""
         import pyarrow as pa
@@ -89,8 +114,8 @@ class Recording:
 
         arrays = [pa.array(self._steps[:n]), pa.array(self._times[:n])]
         arrays += [pa.array(self._values[:n, j]) for j in range(len(self.columns))]
-        name = f"part-{self._parts:06d}.parquet"
-        hidden = self.path / f".{name}.tmp"          # readers skip names starting with '.'
+        final = self._part_path(len(self._parts))
+        hidden = self.path / f".{final.name}.tmp"          # readers skip names starting with '.'
         try:
             if not self.path.is_dir():   # writes would still succeed, into a directory no one can see
                 raise RecordingError(f"cannot write {self.path}: it was removed during the run")
@@ -98,15 +123,58 @@ class Recording:
                 pq.write_table(pa.Table.from_arrays(arrays, schema=self.schema), file)
                 file.flush()
                 os.fsync(file.fileno())       # the data on disk before the name: a power cut leaves no empty part
-            os.replace(hidden, self.path / name)
-            directory = os.open(self.path, os.O_RDONLY)
-            try:
-                os.fsync(directory)
-            finally:
-                os.close(directory)
+            os.replace(hidden, final)
+            _fsync_directory(self.path)
         except OSError as error:
             raise RecordingError(f"cannot write {self.path}: {error}") from None
-        self._parts += 1
+        self._parts.append((int(self._steps[0]), int(self._steps[n - 1])) if n else (0, -1))
+
+
+def _fsync_directory(path: Path) -> None:
+    directory = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(directory)
+    finally:
+        os.close(directory)
+
+
+class Recording:
+    """A run's recording directory: ``signals.parquet`` (every component's outputs, one row per
+    step), ``swaps/<component>.<generation>.parquet`` (the outputs of a type swapped in for
+    another, from the swap on), ``events.jsonl`` and the resolved ``config.yaml``."""
+
+    def __init__(self, directory: str | Path, columns: list[str], resolved_config: dict, *,
+                 chunk_rows: int = 1000):
+        self.directory = Path(directory)
+        self.directory.mkdir(parents=True, exist_ok=True)
+        for stale in ("signals.parquet", "swaps", "events.jsonl"):
+            path = self.directory / stale
+            shutil.rmtree(path) if path.is_dir() else path.unlink(missing_ok=True)
+        self.chunk_rows = chunk_rows
+        self.write_config(resolved_config)
+        self.signals = Table(self.directory / "signals.parquet", columns, chunk_rows)
+        self.tables = [self.signals]
+        self._events = open(self.directory / "events.jsonl", "a")
+
+    def write_config(self, resolved_config: dict) -> None:
+        """(Re)write config.yaml, atomically: a swap during the run adds itself to its events."""
+        path = self.directory / "config.yaml"
+        hidden = path.with_name(".config.yaml.tmp")
+        hidden.write_text(yaml.dump(resolved_config, Dumper=_ConfigDumper, sort_keys=False))
+        os.replace(hidden, path)
+
+    def append(self, step: int, time_s: float, values: np.ndarray) -> None:
+        self.signals.append(step, time_s, values)
+
+    def add_table(self, name: str, columns: list[str]) -> Table:
+        """A table of its own, ``swaps/<name>.parquet``, for columns the signals do not have."""
+        table = Table(self.directory / "swaps" / f"{name}.parquet", columns, self.chunk_rows)
+        self.tables.append(table)
+        return table
+
+    def rewind(self, step: int) -> None:
+        for table in self.tables:
+            table.rewind(step)
 
     def event(self, kind: str, **fields) -> None:
         self._events.write(json.dumps({"event": kind, **fields}) + "\n")
@@ -114,9 +182,8 @@ class Recording:
 
     def close(self) -> None:
         try:
-            self.flush()
-            if not self._parts:   # no row at all: still leave a readable, empty table
-                self._write_part(0)
+            for table in self.tables:
+                table.close()
         finally:
             self._events.close()
 

@@ -543,8 +543,8 @@ class Run:
             self._terminate(member, timeout=2.0)
         self.joining.clear()
         # an injected fault fires once: the one behind this failure, and those the run went past
-        cause = next((f for f in self.pending_faults if f.component == failed.name and f.kind in ("crash", "hang")
-                      and -(-f.at_ns // step_ns) <= self.horizon), None)
+        cause = next((f for f in self.pending_faults
+                      if f.component == failed.name and -(-f.at_ns // step_ns) <= self.horizon), None)
         self.pending_faults = [f for f in self.pending_faults if f is not cause and -(-f.at_ns // step_ns) >= self.row]
         while True:   # what the stopped generations sent is stale; requests from the CLI are kept
             try:

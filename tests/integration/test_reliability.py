@@ -11,7 +11,7 @@ import pytest
 
 from components import bus
 from orchestrator import runs
-from tests.conftest import component_processes, start_run, wait_for_components
+from tests.conftest import component_processes, orchestrator, start_run, wait_for_components
 
 PACED = """
 run: {{name: {name}, epoch: 2022-09-18T12:00:00Z, duration: {duration} s, step: 1 ms, realtime: 1.0}}
@@ -104,3 +104,96 @@ def test_kill_9_of_the_orchestrator_leaves_a_readable_recording_and_no_process(w
     assert np.allclose(table["int.x"], 0.5 * 2.0 * steps * 1e-3, rtol=1e-9, atol=1e-12)
     events = _events(record)
     assert events[0]["event"] == "start" and not any(e["event"] == "end" for e in events), events[-1]
+
+
+# ------------------------------------------------------------------ faults and restarts
+
+FAULTED = """
+run: {{name: {name}, epoch: 2022-09-18T12:00:00Z, duration: 2 s, step: 1 ms, step_timeout: 1 s,
+      checkpoint_every: 0.5 s, max_restarts: {max_restarts}}}
+components:
+  src: {{type: test.constant, parameters: {{value: 2.0}}}}
+  int: {{type: test.integrator, parameters: {{gain: 0.5}}, on_failure: {on_failure}}}
+connections:
+  int.u: src.y
+faults: [{faults}]
+"""
+
+
+def _faulted(write_config, tmp_path, name, faults, on_failure="stop", max_restarts=3):
+    config = write_config(FAULTED.format(name=name, faults=faults, on_failure=on_failure, max_restarts=max_restarts),
+                          f"{name}.yaml")
+    result = orchestrator("run", config, "--record", tmp_path / name, timeout=120)
+    assert not component_processes(f"{name}-")
+    return result, tmp_path / name
+
+
+@pytest.fixture(scope="module")
+def undisturbed(tmp_path_factory):
+    """The faulted config's run without its faults: the reference every recovery must equal."""
+    tmp = tmp_path_factory.mktemp("undisturbed")
+    config = tmp / "clean.yaml"
+    config.write_text(FAULTED.format(name="clean", faults="", on_failure="stop", max_restarts=3))
+    assert orchestrator("run", config, "--record", tmp / "rec").returncode == 0
+    return pandas.read_parquet(tmp / "rec" / "signals.parquet")
+
+
+@pytest.mark.parametrize("fault, message", [
+    ("{at: 1.3 s, component: int, kind: crash}", "component 'int' (test.integrator) died at step"),
+    ("{at: 1.3 s, component: int, kind: hang}", "component 'int' did not answer step 1300 within 1 s"),
+    ("{at: 1.3 s, component: int, kind: nan}", "component 'int' produced a non-finite value in output 'x' at step 1300"),
+    ("{at: 1.3 s, component: int, kind: delay, duration: 1.5 s}", "component 'int' did not answer step 1300 within 1 s"),
+])
+def test_each_fault_kind_stops_a_run_that_does_not_restart(write_config, tmp_path, undisturbed, fault, message):
+    result, record = _faulted(write_config, tmp_path, "stopped", fault)
+    assert result.returncode == 1 and f"error: {message}" in result.stderr, result.stderr
+    assert "Traceback" not in result.stderr
+    events = _events(record)
+    assert events[-2]["event"] == "fault" and message in events[-2]["message"]
+    assert events[-1] == {"event": "end", "step": events[-1]["step"], "time": events[-1]["time"], "status": "failed"}
+    table = pandas.read_parquet(record / "signals.parquet")
+    assert 1000 <= len(table) <= 1301                      # what came before the fault, and nothing after it
+    assert table.equals(undisturbed.iloc[:len(table)])
+    assert "injecting a fault" in (record / "logs" / "int.0.log").read_text()
+
+
+def test_a_short_delay_only_slows_the_run(write_config, tmp_path, undisturbed):
+    result, record = _faulted(write_config, tmp_path, "delayed", "{at: 1.3 s, component: int, kind: delay, duration: 0.3 s}")
+    assert result.returncode == 0, result.stderr
+    assert pandas.read_parquet(record / "signals.parquet").equals(undisturbed)
+    assert "injecting a fault: delay" in (record / "logs" / "int.0.log").read_text()
+
+
+@pytest.mark.parametrize("kind", ["crash", "hang", "delay, duration: 1.5 s"])
+def test_a_restart_from_the_last_checkpoint_ends_as_if_nothing_happened(write_config, tmp_path, undisturbed, kind):
+    result, record = _faulted(write_config, tmp_path, "restarted", f"{{at: 1.3 s, component: int, kind: {kind}}}",
+                              on_failure="restart")
+    assert result.returncode == 0, result.stderr
+    assert "restarting from step 1000 (t = 1 s; restart 1 of at most 3)" in result.stderr
+    table = pandas.read_parquet(record / "signals.parquet")
+    assert table.equals(undisturbed)                       # bit for bit, every row once
+    events = _events(record)
+    fault = next(i for i, e in enumerate(events) if e["event"] == "fault")
+    assert events[fault]["component"] == "int" and 1000 <= events[fault]["step"] <= 1301
+    assert events[fault + 1] == {"event": "restart", "step": 1000, "time": 1.0, "component": "int", "restart": 1}
+    assert [e["step"] for e in events if e["event"] == "checkpoint"] == [0, 500, 1000, 1500]
+    assert events[-1]["status"] == "completed"
+    assert sorted(p.name for p in (record / "logs").iterdir()) == ["int.0.log", "int.1.log", "src.0.log", "src.1.log"]
+
+
+def test_restarts_end_at_run_max_restarts(write_config, tmp_path):
+    faults = ", ".join(f"{{at: {t} s, component: int, kind: crash}}" for t in (0.3, 0.6, 0.9))
+    result, record = _faulted(write_config, tmp_path, "doomed", faults, on_failure="restart", max_restarts=2)
+    assert result.returncode == 1
+    assert "(after 2 restarts: run.max_restarts)" in result.stderr, result.stderr
+    events = _events(record)
+    assert [e["step"] for e in events if e["event"] == "restart"] == [0, 500]
+    assert events[-1]["status"] == "failed"
+
+
+def test_a_nan_is_not_restarted(write_config, tmp_path):
+    """A component that reports a fault has judged its own numbers: a restart would repeat them."""
+    result, record = _faulted(write_config, tmp_path, "nan", "{at: 1.3 s, component: int, kind: nan}",
+                              on_failure="restart")
+    assert result.returncode == 1 and "non-finite value in output 'x' at step 1300" in result.stderr
+    assert not any(e["event"] == "restart" for e in _events(record))

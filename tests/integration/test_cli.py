@@ -10,6 +10,7 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 
+from components.units import duration_ns
 from tests.conftest import ROOT, component_processes, orchestrator, signal_files, start_run, wait_for_components
 
 pytestmark = pytest.mark.integration
@@ -219,3 +220,45 @@ def test_describe_shows_nested_parameters_typed_and_the_config_sections():
     config = orchestrator("describe", "config")
     assert config.returncode == 0 and "step_timeout" in config.stdout and "default 10 s" in config.stdout
     assert "viewer: the Rerun live view" in config.stdout
+
+
+def test_a_swap_to_another_type_records_what_is_true(write_config, tmp_path):
+    """The old type's columns go NaN from the swap on, the new type's outputs get a table of their
+    own, and the recorded config names the new type in an event: it replays the run."""
+    import pandas
+
+    run = start_run(write_config(CHAIN.replace("swapme", "retype")), tmp_path / "rec")
+    try:
+        wait_for_components("retype-", 2)
+        time.sleep(0.5)
+        swap = orchestrator("swap", "--run", "retype", "first", "--type", "test.noop", "--set", "size=1")
+        assert swap.returncode == 0, swap.stderr
+        time.sleep(0.3)
+        assert orchestrator("stop", "--run", "retype").returncode == 0
+        _, err = run.communicate(timeout=30)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 0, err
+    record = tmp_path / "rec"
+    events = [json.loads(line) for line in (record / "events.jsonl").read_text().splitlines()]
+    swap_event = next(e for e in events if e["event"] == "swap")
+    s = swap_event["step"]
+    assert swap_event["type"] == "test.noop" and swap_event["parameters"] == {"size": 1}
+    assert swap_event["state_handed_over"] is False
+    signals = pandas.read_parquet(record / "signals.parquet")
+    x = signals["first.x"].to_numpy()
+    assert np.allclose(x[:s + 1], np.arange(s + 1) * 0.01, rtol=0, atol=1e-9) and np.isnan(x[s + 1:]).all()
+    assert len(x) > s + 1 and (signals["source.y"] == 1.0).all()
+    swapped = pandas.read_parquet(record / "swaps" / f"first.{swap_event['generation']}.parquet")
+    assert list(swapped.columns) == ["step", "time", "first.y[0]"]
+    assert swapped["step"].tolist() == signals["step"].tolist()[s:] and (swapped["first.y[0]"] == 0.0).all()
+    recorded = yaml.safe_load((record / "config.yaml").read_text())
+    assert duration_ns(recorded["events"][0].pop("at"), "at") == s * 10_000_000
+    assert recorded["events"] == [{"swap": "first", "type": "test.noop", "parameters": {"size": 1}}]
+    rows = len(signals)
+    replay = orchestrator("run", record / "config.yaml", "--record", tmp_path / "replay",
+                          "--set", f"run.duration={(rows - 1) * 10} ms", "--set", "run.realtime=0")
+    assert replay.returncode == 0, replay.stderr
+    assert pandas.read_parquet(tmp_path / "replay" / "signals.parquet").equals(signals)
+    assert not component_processes("retype-")

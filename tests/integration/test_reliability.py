@@ -197,3 +197,38 @@ def test_a_nan_is_not_restarted(write_config, tmp_path):
                               on_failure="restart")
     assert result.returncode == 1 and "non-finite value in output 'x' at step 1300" in result.stderr
     assert not any(e["event"] == "restart" for e in _events(record))
+
+
+# ------------------------------------------------------------------ the paper's demo, disturbed
+
+DEMO = "configs/humanoid_tracking.yaml"
+
+
+def _demo(record, *overrides):
+    result = orchestrator("run", DEMO, "--record", record, "--set", "run.duration=10 s", *overrides, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert not component_processes("humanoid_tracking-")
+    return pandas.read_parquet(record / "signals.parquet")
+
+
+@pytest.fixture(scope="module")
+def demo_undisturbed(tmp_path_factory):
+    return _demo(tmp_path_factory.mktemp("demo") / "rec")
+
+
+def test_a_same_type_swap_of_the_demo_controller_at_9_s_changes_nothing(tmp_path, demo_undisturbed):
+    """At 9 s the arm is far from where the trajectory was anchored: a restore that re-ran
+    initialize's anchoring would fail its reach check or move the path. It must not run it."""
+    swapped = _demo(tmp_path / "rec", "--set", "events=[{at: 9 s, swap: controller}]")
+    assert swapped.equals(demo_undisturbed)
+    swap = next(e for e in _events(tmp_path / "rec") if e["event"] == "swap")
+    assert swap["step"] == 9000 and swap["state_handed_over"] is True
+
+
+def test_a_sigkill_of_the_demo_dynamics_restarts_and_ends_bit_identical(tmp_path, demo_undisturbed):
+    restarted = _demo(tmp_path / "rec", "--set", "components.dynamics.on_failure=restart",
+                      "--set", "run.checkpoint_every=2 s", "--set", "faults=[{at: 7.5 s, component: dynamics, kind: crash}]")
+    assert restarted.equals(demo_undisturbed)
+    events = _events(tmp_path / "rec")
+    restart = next(e for e in events if e["event"] == "restart")
+    assert restart["step"] == 6000 and restart["component"] == "dynamics"

@@ -107,6 +107,7 @@ class ArmSetup:
 
 TASK_AXES = "x, y, z, rotation about x, y, z"
 QUATERNION_OUTPUTS = ("ee_orientation", "ee_orientation_desired")
+INITIAL = "initial."   # state keys of the inputs seen at an unsampled initialize, until the first step
 
 class ComputedTorqueComponent(Component):
     """Computed-torque control of one arm of a free-floating body with the Generalized Jacobian
@@ -126,7 +127,14 @@ class ComputedTorqueComponent(Component):
 
     The anchor is the state seen at ``initialize``; should the first step see another state (the
     controller was initialized before the dynamics it reads, e.g. listed first in a cycle), the
-    controller re-anchors there. After a same-type swap, ``set_state`` hands the anchor over.
+    controller re-anchors there.
+
+    State (``get_state``): the anchor (end-effector pose and base rotation at the anchoring),
+    the null-space posture, the positions the locked joints are welded at, the last output
+    quaternions (their signs continue) and, between an unsampled ``initialize`` and the first
+    step, the inputs seen there. ``set_state`` on a fresh instance (a swap or a restart: no
+    ``initialize``) rebuilds the model and the trajectory from it; it neither re-anchors nor
+    re-checks the reach, so the continuation is bit for bit.
 
     Errors: unknown joint or end-effector names, gains of the wrong length, a trajectory the
     arm cannot reach -> ConfigError naming the key (the reach is checked against the URDF in
@@ -220,12 +228,18 @@ class ComputedTorqueComponent(Component):
         self._initial_inputs = None
         self.last_quaternions: dict[str, np.ndarray] = {}
 
-    def _build(self, q: np.ndarray):
+    def _locked_at(self, q: np.ndarray) -> np.ndarray:
+        """The positions of ``locked_joints`` (config order) in a measured q of the whole body."""
+        body = self.arm.model.movable_joints
+        return np.array([float(q[body.index(j)]) for j in self.arm.locked], dtype=np.float64)
+
+    def _build(self, locked_q: np.ndarray):
+        """The controller, its model welded at ``locked_q`` (the positions of ``locked_joints``)."""
         from components.controller.computed_torque import ArmController, ComputedTorqueLaw, FreeFloatingArm
 
         a, p = self.arm, self.params
         body = a.model.movable_joints
-        locked = {j: float(q[body.index(j)]) for j in a.locked}
+        locked = {j: float(x) for j, x in zip(a.locked, locked_q)}
         arm = FreeFloatingArm(a.model.path, body, a.joints, p["end_effector"], locked)
         effort = np.array([a.model.joint(j).effort for j in a.joints])
         law = ComputedTorqueLaw(a.kp, a.kd, a.null_kp, a.null_kd, effort,
@@ -240,7 +254,7 @@ class ComputedTorqueComponent(Component):
         return out
 
     def initialize(self, t0_ns, inputs):
-        self.controller = self._build(np.asarray(inputs["q"], dtype=float))
+        self.controller = self._build(self._locked_at(inputs["q"]))
         self.controller.start(inputs)
         # an unsampled state (the dynamics comes later in config order and holds its start values,
         # or a harness said nothing): re-anchor at the first state stepped from, if it differs
@@ -253,7 +267,7 @@ class ComputedTorqueComponent(Component):
         if self._initial_inputs is not None:
             # initialized before the dynamics it reads (config order): anchor at the first real state
             if any(not np.array_equal(inputs[k], v) for k, v in self._initial_inputs.items()):
-                self.controller = self._build(np.asarray(inputs["q"], dtype=float))
+                self.controller = self._build(self._locked_at(inputs["q"]))
                 self.controller.start(inputs)
             self._initial_inputs = None
         # the reference at the time the state was sampled (t_(k+1) under Gauss-Seidel): like with like
@@ -264,23 +278,33 @@ class ComputedTorqueComponent(Component):
         if self.controller is None:
             raise RuntimeError("get_state before initialize: the trajectory is not anchored yet")
         p0, R0, Rb = self.controller.anchor
-        return {"ee_position_0": p0.copy(), "ee_rotation_0": R0.ravel().copy(), "base_rotation_0": Rb.ravel().copy(),
-                "q_posture": self.controller.q_posture.copy(),
-                **{f"last_{k}": q.copy() for k, q in self.last_quaternions.items()}}
+        locked = self.controller.arm.locked
+        state = {"ee_position_0": p0.copy(), "ee_rotation_0": R0.ravel().copy(), "base_rotation_0": Rb.ravel().copy(),
+                 "q_posture": self.controller.q_posture.copy(),
+                 "locked_q": np.array([locked[j] for j in self.arm.locked], dtype=np.float64),
+                 **{f"last_{k}": q.copy() for k, q in self.last_quaternions.items()}}
+        if self._initial_inputs is not None:      # initialized unsampled, not stepped yet
+            state.update({INITIAL + k: v.copy() for k, v in self._initial_inputs.items()})
+        return state
 
     def set_state(self, state):
+        """Restore on a fresh instance (``initialize`` is not called): the model welded at the
+        locked positions and the trajectory anchored as in the state; no re-anchoring and no reach
+        check (both happened once, at the run's ``initialize``)."""
         for key, size in (("ee_position_0", 3), ("ee_rotation_0", 9), ("base_rotation_0", 9),
-                          ("q_posture", self.controller.arm.n)):
+                          ("q_posture", len(self.arm.joints)), ("locked_q", len(self.arm.locked))):
             if key not in state or np.asarray(state[key]).size != size:
                 raise ValueError(f"state: {key} expected {size} values, got "
                                  f"{None if key not in state else np.asarray(state[key]).size}")
-        self._initial_inputs = None
-        self.last_quaternions = {k: np.array(state[f"last_{k}"], dtype=float) for k in QUATERNION_OUTPUTS
-                                 if f"last_{k}" in state}
+        self.controller = self._build(np.asarray(state["locked_q"], dtype=float).ravel())
         self.controller.restore(np.asarray(state["ee_position_0"], float),
                                 np.asarray(state["ee_rotation_0"], float).reshape(3, 3),
                                 np.asarray(state["base_rotation_0"], float).reshape(3, 3),
                                 np.asarray(state["q_posture"], float))
+        self.last_quaternions = {k: np.array(state[f"last_{k}"], dtype=float) for k in QUATERNION_OUTPUTS
+                                 if f"last_{k}" in state}
+        initial = {k[len(INITIAL):]: np.array(v, dtype=float) for k, v in state.items() if k.startswith(INITIAL)}
+        self._initial_inputs = initial or None
 
 
 # --------------------------------------------------------------------------- joint PID
@@ -329,6 +353,10 @@ class JointPDComponent(Component):
 
     Outputs: ``tau`` (zero on joints not driven) and ``q_desired`` (the reference of the driven
     joints, the measured q elsewhere).
+
+    State (``get_state``): the integral terms and the start positions of the reference (the q
+    measured at ``initialize``, targets applied); ``set_state`` rebuilds the reference from them,
+    on a fresh instance too (no ``initialize``).
     """
     type_name = "controller.joint_pd"
     parameters = (

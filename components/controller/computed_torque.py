@@ -379,7 +379,8 @@ class ArmController:
                                                            f"{joint}, the arm reaches at most {reach:.3f} m")
 
     def restore(self, p0, R0, R_base0, q_posture) -> None:
-        """Re-anchor (set_state after a swap): the same trajectory as the generation before."""
+        """Take a saved anchor and posture (the component's set_state): the same trajectory as
+        the instance that saved them, without ``start``'s measurement and reach check."""
         from components.controller.trajectory import build_cartesian
 
         self.anchor = (np.asarray(p0, float), np.asarray(R0, float), np.asarray(R_base0, float))

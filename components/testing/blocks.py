@@ -122,6 +122,8 @@ class NoOp(Component):
 
 class Faulty(Component):
     """Misbehaves at a chosen step, to test how the orchestrator handles failures.
+
+    State: the number of steps done (a restored instance misbehaves at the same step).
     """
     type_name = "test.faulty"
     parameters = (
@@ -153,3 +155,9 @@ class Faulty(Component):
                 return {"y": float("nan")}
         self.k += 1
         return {"y": float(self.k)}
+
+    def get_state(self):
+        return {"k": np.int64(self.k)}
+
+    def set_state(self, state):
+        self.k = int(state["k"])

@@ -11,7 +11,8 @@ t_ns for every input, unless ``h.input_times_ns`` gives another time (ns) for it
 Gauss-Seidel or multi-rate run would; at ``initialize``, only those ``h.input_times_ns`` lists
 (the others count as start values, not yet sampled). Outputs go through the same fixed float64
 layout the bus uses, and get_state/set_state go through the same byte encoding, so a component
-that passes here behaves the same in a run.
+that passes here behaves the same in a run. ``set_state`` stands for ``initialize`` (a restore:
+the next ``step`` continues from the state).
 """
 from __future__ import annotations
 
@@ -81,4 +82,8 @@ class Harness:
         return encode_state(self.component.get_state())
 
     def set_state(self, blob: bytes) -> None:
+        """Restore an encoded state. On an instance never initialized this is a restore as the
+        orchestrator does it (swap, restart): ``set_state`` instead of ``initialize``, and the
+        next ``step`` does not initialize (construct the Harness with the state's ``t0_ns``)."""
         self.component.set_state(decode_state(blob))
+        self._initialized = True

@@ -30,7 +30,9 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import struct
+import tempfile
 from types import MappingProxyType
 from typing import Any, Mapping
 
@@ -195,6 +197,34 @@ def decode_state(blob: bytes) -> dict[str, np.ndarray]:
         raise Malformed(f"state blob of {len(blob)} bytes is not an .npz archive ({type(e).__name__}: {e})") from None
 
 
+SECRET_ENV = "ZENORBIT_SECRET"   # how a run's processes get its secret (never on a command line)
+USER = "zenorbit"
+
+
+def open_session(listen: list[str] = (), connect: list[str] = (), *, mesh: bool = False,
+                 secret: str | None = None):
+    """A Zenoh peer session (see :func:`session_config`). With ``secret``, every link to or from
+    it is authenticated: Zenoh's user/password challenge-response, the secret never sent. Peers
+    without it are refused; they cannot publish, subscribe or query (docs/design.md §7)."""
+    import zenoh
+
+    config = session_config(listen, connect, mesh=mesh)
+    if secret is None:
+        return zenoh.open(config)
+    config.insert_json5("transport/auth/usrpwd/user", json.dumps(USER))
+    config.insert_json5("transport/auth/usrpwd/password", json.dumps(secret))
+    if not listen:   # only who accepts links checks them
+        return zenoh.open(config)
+    fd, path = tempfile.mkstemp(prefix="zenorbit-", suffix=".auth")   # mode 0600
+    try:
+        with os.fdopen(fd, "w") as file:
+            file.write(f"{USER}:{secret}\n")
+        config.insert_json5("transport/auth/usrpwd/dictionary_file", json.dumps(path))
+        return zenoh.open(config)   # reads the dictionary here, once
+    finally:
+        os.unlink(path)
+
+
 def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: bool = False):
     """A Zenoh peer config: explicit endpoints, no multicast scouting.
 
@@ -210,6 +240,8 @@ def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: boo
     config.insert_json5("connect/endpoints", json.dumps(list(connect)))
     config.insert_json5("scouting/multicast/enabled", "false")
     config.insert_json5("scouting/gossip/enabled", "true" if mesh else "false")
+    # one side of each pair connects: with authentication, two links opened at once may both be refused
+    config.insert_json5("scouting/gossip/autoconnect_strategy", '{peer: {to_router: "always", to_peer: "greater-zid"}}')
     return config
 
 

@@ -354,12 +354,14 @@ def _held_values(body: dict, blob: bytes) -> dict[str, collections.deque]:
     return values
 
 
-def serve(connect: str, run_id: str, name: str, generation: int, listen: str, cpu: int | None = None) -> int:
-    """Run component ``name`` of run ``run_id`` until told to exit; ``cpu``: step on that CPU alone
-    (the bus's threads, started before, keep the CPUs this process was given)."""
+def serve(connect: str, run_id: str, name: str, generation: int, listen: str, secret: str,
+          cpu: int | None = None) -> int:
+    """Run component ``name`` of run ``run_id`` until told to exit; ``secret``: the run's (see
+    :func:`bus.open_session`); ``cpu``: step on that CPU alone (the bus's threads, started
+    before, keep the CPUs this process was given)."""
     import zenoh
 
-    session = zenoh.open(bus.session_config(listen=[listen], connect=[connect], mesh=True))
+    session = bus.open_session([listen], [connect], mesh=True, secret=secret)
     keep = []   # subscribers and publishers live as long as the session
     try:
         inbox = session.declare_subscriber(bus.inbox_key(run_id, name, "**"), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
@@ -423,8 +425,12 @@ def main(argv: list[str] | None = None) -> int:
                                          "(default: port 0 on the address used to reach the orchestrator)")
     parser.add_argument("--cpu", type=int, help="step on this CPU alone (the config's dedicated_cpu)")
     args = parser.parse_args(argv)
+    secret = os.environ.get(bus.SECRET_ENV)
+    if not secret:
+        parser.error(f"{bus.SECRET_ENV} is not set: give the run's secret in it, as the orchestrator's "
+                     f"command for an external component does")
     return serve(args.connect, args.run_id, args.name, args.generation,
-                 args.listen or bus.listen_beside(args.connect), args.cpu)
+                 args.listen or bus.listen_beside(args.connect), secret, args.cpu)
 
 
 if __name__ == "__main__":

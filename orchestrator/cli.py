@@ -76,10 +76,9 @@ def cmd_run(args) -> int:
 
 
 def _query(entry: dict, request: dict, timeout: float = 30.0) -> dict:
-    import zenoh
     from components import bus
 
-    session = zenoh.open(bus.session_config(connect=[entry["endpoint"]]))
+    session = bus.open_session(connect=[entry["endpoint"]], secret=entry["secret"])
     try:
         for reply in session.get(bus.run_key(entry["run_id"], "ctl"), payload=json.dumps(request), timeout=timeout):
             if reply.ok is not None:

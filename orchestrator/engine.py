@@ -21,6 +21,7 @@ import datetime as dt
 import json
 import os
 import queue
+import secrets
 import shutil
 import signal
 import struct
@@ -117,6 +118,8 @@ class Run:
         self.progress = progress
         self.out = out
         self.run_id = f"{config.name}-{uuid.uuid4().hex[:8]}"
+        self.secret = secrets.token_hex(32)   # the run's processes hold it; nothing else can join (§7)
+        self.child_env = {**os.environ, bus.SECRET_ENV: self.secret}
         self.inbox: queue.SimpleQueue = queue.SimpleQueue()
         self.members: dict[str, Member] = {}
         self.joining: dict[str, Member] = {}   # a swap's new generation, until it takes over
@@ -319,10 +322,11 @@ class Run:
             log_path = self.log_dir / f"{spec.name}.{generation}.log"
             cpu = self.placement.dedicated.get(spec.name)
             process = supervisor.start_component(args + (["--cpu", str(cpu)] if cpu is not None else []),
-                                                 log_path, self.placement.shared)
+                                                 log_path, self.placement.shared, self.child_env)
         else:
             print(f"waiting for external component {spec.name!r}: start it with\n"
-                  f"    python -m components.runner {' '.join(args)}", file=self.out, flush=True)
+                  f"    {bus.SECRET_ENV}={self.secret} python -m components.runner {' '.join(args)}",
+                  file=self.out, flush=True)
         member = Member(spec=spec, generation=generation, process=process, log_path=log_path,
                         ratio=spec.step_ns // self.config.step_ns, latest=spec.outputs.start_vector())
         member.command = bus.publisher(self.session, bus.command_key(self.run_id, spec.name, generation))
@@ -846,7 +850,7 @@ class Run:
         for attempt in range(3):  # a free port picked here may be taken by another run before Zenoh binds it
             listen, self.endpoint = supervisor.resolve_endpoints(self.config.listen)
             try:
-                self.session = zenoh.open(bus.session_config(listen=listen, mesh=True))
+                self.session = bus.open_session(listen, mesh=True, secret=self.secret)
                 break
             except zenoh.ZError as e:
                 if attempt == 2 or not any(e.endswith(":0") for e in self.config.listen):
@@ -860,7 +864,7 @@ class Run:
             self.session.liveliness().declare_token(bus.run_key(self.run_id, "alive", "orchestrator")),
         ]
         self.signals_out = bus.publisher(self.session, bus.run_key(self.run_id, "signals"), drop=True)
-        runs.register(self.run_id, self.config.name, self.endpoint, self.config.path)
+        runs.register(self.run_id, self.config.name, self.endpoint, self.config.path, self.secret)
 
     def _start_viewer(self) -> int:
         """Start the Rerun observer, if asked; return the decimation (publish every n-th row), or 0."""
@@ -875,7 +879,7 @@ class Run:
         self.viewer_process = subprocess.Popen(
             [sys.executable, "-m", "components.viewer.observer", "--connect", self.endpoint,
              "--run-id", self.run_id, "--setup", str(setup)],
-            stdin=subprocess.DEVNULL, preexec_fn=supervisor.child_setup)
+            stdin=subprocess.DEVNULL, preexec_fn=supervisor.child_setup, env=self.child_env)
         supervisor.keep_to(self.placement.shared, self.viewer_process.pid)
         self._wait({VIEWER: "alive"}, self.config.start_timeout_s, "viewer start-up")
         self._log("viewer", mode=self.viewer.mode, rate_hz=self.viewer.rate_hz)

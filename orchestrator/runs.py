@@ -1,7 +1,8 @@
 """Runs alive on this machine, so that `orchestrator ps`, `stop` and `swap` can find them.
 
-Each run writes a small JSON file (run id, name, Zenoh endpoint, pid) in a per-user runtime
-directory while it lives; the CLI reads them and talks to the run over Zenoh.
+Each run writes a small JSON file (run id, name, Zenoh endpoint, pid, and the run's secret, which
+a process needs to join its bus) in a per-user runtime directory while it lives, readable by that
+user alone; the CLI reads them and talks to the run over Zenoh.
 """
 from __future__ import annotations
 
@@ -14,15 +15,19 @@ from pathlib import Path
 
 def directory() -> Path:
     base = os.environ.get("ZENORBIT_RUNTIME_DIR") or os.environ.get("XDG_RUNTIME_DIR") or tempfile.gettempdir()
-    path = Path(base) / f"zenorbit-{os.getuid()}" / "runs"
-    path.mkdir(parents=True, exist_ok=True)
-    return path
+    path = Path(base) / f"zenorbit-{os.getuid()}"
+    path.mkdir(mode=0o700, parents=True, exist_ok=True)
+    (path / "runs").mkdir(mode=0o700, exist_ok=True)
+    return path / "runs"
 
 
-def register(run_id: str, name: str, endpoint: str, config: Path) -> None:
+def register(run_id: str, name: str, endpoint: str, config: Path, secret: str) -> None:
+    """Make a run findable; its entry holds the run's secret, so only its user may read it."""
     entry = {"run_id": run_id, "name": name, "endpoint": endpoint, "pid": os.getpid(),
-             "config": str(config), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
-    (directory() / f"{run_id}.json").write_text(json.dumps(entry))
+             "config": str(config), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "secret": secret}
+    descriptor = os.open(directory() / f"{run_id}.json", os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(descriptor, "w") as file:
+        file.write(json.dumps(entry))
 
 
 def unregister(run_id: str) -> None:

@@ -75,12 +75,12 @@ def keep_to(cpus: frozenset[int], pid: int = 0) -> None:
     os.sched_setaffinity(pid, cpus)
 
 
-def start_component(arguments: list[str], log_path: Path, cpus: frozenset[int]) -> subprocess.Popen:
-    """``python -m components.runner ARGS`` on ``cpus``, with stdout and stderr in ``log_path``."""
+def start_component(arguments: list[str], log_path: Path, cpus: frozenset[int], env: dict) -> subprocess.Popen:
+    """``python -m components.runner ARGS`` on ``cpus`` in ``env``, with stdout and stderr in ``log_path``."""
     with open(log_path, "wb") as log:
         process = subprocess.Popen([sys.executable, "-m", "components.runner", *arguments],
                                    stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                                   preexec_fn=child_setup)
+                                   preexec_fn=child_setup, env=env)
     keep_to(cpus, process.pid)   # Popen returns after exec: the child has one thread yet, all inherit
     return process
 

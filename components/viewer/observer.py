@@ -96,7 +96,7 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
     mode = setup.get("mode", "save")
     columns = list(setup["columns"])
     config = setup.get("config") or {}
-    session = zenoh.open(bus.session_config(connect=[connect]))
+    session = bus.open_session(connect=[connect], secret=os.environ.get(bus.SECRET_ENV))
     token = watcher = signals = stream = None
     scene = None
     ended = False

@@ -319,7 +319,13 @@ components:
         while "python -m components.runner" not in line:
             line = run.stderr.readline()
             assert line, "the orchestrator printed no command for the external component"
-        external = subprocess.Popen([sys.executable, *line.split()[1:]], cwd=ROOT,
+        secret, python, *arguments = line.split()   # ZENORBIT_SECRET=... python -m components.runner ...
+        variable, _, value = secret.partition("=")
+        assert variable == "ZENORBIT_SECRET" and len(value) == 64 and python == "python"
+        without = subprocess.run([sys.executable, *arguments], cwd=ROOT, capture_output=True, text=True, timeout=60,
+                                 env={k: v for k, v in os.environ.items() if k != variable})
+        assert without.returncode == 2 and "ZENORBIT_SECRET is not set" in without.stderr
+        external = subprocess.Popen([sys.executable, *arguments], cwd=ROOT, env={**os.environ, variable: value},
                                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         time.sleep(2.0)
         assert run.poll() is None and external.poll() is None

@@ -35,9 +35,10 @@ def _registered(name: str, timeout: float = 30.0) -> dict:
     return found[0]
 
 
-def test_a_stranger_publishing_garbage_on_the_run_keys_does_not_end_it(write_config, tmp_path):
-    import zenoh
-
+@pytest.mark.parametrize("secret", ["the run's", None, "wrong"])
+def test_a_stranger_publishing_garbage_on_the_run_keys_does_not_end_it(write_config, tmp_path, secret):
+    """With the run's secret (a buggy process of the run's user) the garbage arrives and is
+    dropped with warnings; without it, or with another, the stranger cannot even join."""
     config, record = write_config(PACED.format(name="stranger", duration=3)), tmp_path / "rec"
     run = start_run(config, record)
     try:
@@ -58,8 +59,12 @@ def test_a_stranger_publishing_garbage_on_the_run_keys_does_not_end_it(write_con
             bus.command_key(rid, "int", 0): [b"\x00\x01\x02", bus.encode_message(bus.CONTROL, {"op": "explode"}),
                                             b"C\x05\x00\x00\x00nope!"],
         }
-        with zenoh.open(bus.session_config(connect=[entry["endpoint"]], mesh=True)) as session:   # reaches every peer
-            time.sleep(0.5)
+        key = entry["secret"] if secret == "the run's" else secret
+        with bus.open_session(["tcp/127.0.0.1:0"], [entry["endpoint"]], mesh=True, secret=key) as session:
+            time.sleep(1.0)   # gossip: the stranger gets to know every peer of the run
+            assert len(list(session.info.peers_zid())) == (3 if key == entry["secret"] else 0)
+            replies = list(session.get(bus.run_key(rid, "ctl"), payload=b'{"op": "status"}', timeout=1.0))
+            assert len(replies) == (1 if key == entry["secret"] else 0)
             for _ in range(3):
                 for key, payloads in garbage.items():
                     for payload in payloads:
@@ -74,13 +79,16 @@ def test_a_stranger_publishing_garbage_on_the_run_keys_does_not_end_it(write_con
     assert table["step"].tolist() == list(range(3001))                           # every row
     assert table["int.x"].iloc[-1] == pytest.approx(0.5 * 2.0 * 3.0, rel=1e-9)   # x = gain u t: untouched
     events = _events(record)
+    assert events[-1]["event"] == "end" and events[-1]["status"] == "completed"
+    assert not component_processes("stranger-")
     dropped = [e["message"] for e in events if e["event"] == "warning" and "dropped a message" in e["message"]]
+    component_log = (record / "logs" / "int.0.log").read_text()
+    if secret != "the run's":
+        assert not dropped and "dropped a message" not in component_log, dropped   # nothing got in
+        return
     assert any("r/int" in m for m in dropped) and any("r/ghost" in m for m in dropped), dropped
     assert any("c/int/99/out" in m for m in dropped) and any("c/int/0/out" in m for m in dropped), dropped
-    assert events[-1]["event"] == "end" and events[-1]["status"] == "completed"
-    component_log = (record / "logs" / "int.0.log").read_text()
     assert "dropped a message" in component_log and "/o/ghost" in component_log and "/c/0" in component_log
-    assert not component_processes("stranger-")
 
 
 def test_kill_9_of_the_orchestrator_leaves_a_readable_recording_and_no_process(write_config, tmp_path):

@@ -108,6 +108,11 @@ class Component:
     def terminate(self) -> None:
         """Release resources at the end of the run."""
 
+    @classmethod
+    def restorable(cls) -> bool:
+        """Whether the type implements get_state and set_state (swaps with state, restarts)."""
+        return cls.get_state is not Component.get_state and cls.set_state is not Component.set_state
+
 
 def resolve_parameters(cls: type[Component], raw: Mapping[str, Any] | None) -> tuple[dict, list[ConfigError]]:
     """Validate raw config parameters against the type's declaration (``cls.schema``).

@@ -343,6 +343,11 @@ def validate(raw: dict, path: Path) -> RunConfig:
     events = _events(config.get("events", []), components, connections, step_ns, total_ns, config_dir, epoch,
                      file, errors)
     faults = _faults(config.get("faults", []), components, total_ns, file, errors)
+    restarting = [n for n, spec in components.items() if spec.on_failure == "restart"]
+    for name, spec in components.items():
+        if restarting and not spec.cls.restorable():
+            errors.append(f"{file}: components.{restarting[0]}.on_failure: restart needs the state of every "
+                          f"component, and {name} ({spec.type}) has no get_state/set_state")
     checkpoint_ns = run.get("checkpoint_every")
     if checkpoint_ns is not None and components:
         for name, spec in components.items():

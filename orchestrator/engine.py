@@ -447,6 +447,7 @@ class Run:
         old = self.members[spec.name]
         t_ns = self.row * self.config.step_ns
         same_type = spec.type == old.spec.type
+        began = time.perf_counter()
         try:
             new = self._start([spec], {spec.name: old.generation + 1}, self.joining)[0]
             members = {**self.members, spec.name: new}
@@ -483,7 +484,8 @@ class Run:
         parameters = spec.cls.schema.plain(spec.resolved)
         self._record_swap(new, same_type, parameters, planned)
         self._log("swap", component=spec.name, type=spec.type, parameters=parameters, generation=new.generation,
-                  step=self.row, time=t_ns / 1e9, state_handed_over=same_type)
+                  step=self.row, time=t_ns / 1e9, state_handed_over=same_type,
+                  wall_s=round(time.perf_counter() - began, 4))
         if self.restartable:
             self._take_checkpoint()   # a restart never goes back across a swap
 
@@ -537,6 +539,7 @@ class Run:
     def _restart(self, failure: RunFailure) -> None:
         """Stop every component and start them all again, in new processes, from the last checkpoint."""
         checkpoint, failed, step_ns = self.checkpoint, failure.member, self.config.step_ns
+        began = time.perf_counter()
         self.restarts += 1
         self._log("fault", step=self.row, component=failed.name, message=str(failure))
         print(f"warning: {failure}\nrestarting from step {checkpoint.row} (t = {checkpoint.row * step_ns / 1e9:g} s; "
@@ -580,7 +583,7 @@ class Run:
         for member in self.members.values():
             self._go(member)
         self._log("restart", step=checkpoint.row, time=checkpoint.row * step_ns / 1e9, component=failed.name,
-                  restart=self.restarts)
+                  restart=self.restarts, wall_s=round(time.perf_counter() - began, 4))
 
     # ---------------------------------------------------------------- control from the CLI
 
@@ -840,6 +843,7 @@ class Run:
         factor = sim_s / stepping if stepping > 0 else 0.0
         rate = f", real-time factor {factor:.{2 if factor < 100 else 0}f}" if factor else ""
         where = f"recording in {self.record_dir}" if self.record_dir is not None else "not recorded (no --record)"
+        status += f" after {wording.count(self.restarts, 'restart')}" if self.restarts else ""
         return (f"run {self.config.name} {status}: {wording.count(self.row, 'step')} of {self.config.steps}, "
                 f"{sim_s:g} s simulated; {wall_s:.1f} s wall ({stepping:.1f} s stepping{rate}); {where}")
 

@@ -288,6 +288,7 @@ def test_swap_event_hands_over_state(write_config, tmp_path):
     expected = np.where(k <= 5, k * (k - 1) / 2, 10 + 2 * (k * (k - 1) / 2 - 10))  # gain 2 from step 5 on
     assert np.array_equal(data["second.x"], expected)
     swaps = [e for e in events(tmp_path / "rec") if e["event"] == "swap"]
+    assert swaps[0].pop("wall_s") > 0
     assert swaps == [{"event": "swap", "component": "second", "type": "test.integrator",
                       "parameters": {"gain": 2.0, "x0": 0.0}, "generation": 1, "step": 5, "time": 5.0,
                       "state_handed_over": True}]

@@ -183,7 +183,9 @@ def test_a_restart_from_the_last_checkpoint_ends_as_if_nothing_happened(write_co
     events = _events(record)
     fault = next(i for i, e in enumerate(events) if e["event"] == "fault")
     assert events[fault]["component"] == "int" and 1000 <= events[fault]["step"] <= 1301
+    assert events[fault + 1].pop("wall_s") > 0
     assert events[fault + 1] == {"event": "restart", "step": 1000, "time": 1.0, "component": "int", "restart": 1}
+    assert "run restarted completed after 1 restart: 2000 steps of 2000" in result.stderr
     assert [e["step"] for e in events if e["event"] == "checkpoint"] == [0, 500, 1000, 1500]
     assert events[-1]["status"] == "completed"
     assert sorted(p.name for p in (record / "logs").iterdir()) == ["int.0.log", "int.1.log", "src.0.log", "src.1.log"]

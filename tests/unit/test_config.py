@@ -114,3 +114,28 @@ def test_a_user_component_file_that_fails_to_load_is_one_config_error(write_conf
     (tmp_path / "broken.py").write_text("raise RuntimeError('half-written component')\n")
     errors = errors_of(write_config, GOOD.replace("type: test.constant", "type: broken.py:Thing"))
     assert any("components.src.type: loading 'broken.py'" in e and "half-written component" in e for e in errors)
+
+
+def test_restart_needs_the_state_of_every_component(tmp_path):
+    from components.testing.blocks import Counter
+    from orchestrator.config import ConfigErrors, load
+
+    (tmp_path / "stateless.py").write_text(
+        "from components.testing.blocks import Counter\n\n"
+        "class Stateless(Counter):\n    get_state = set_state = Counter.__mro__[1].get_state\n")
+    config = tmp_path / "c.yaml"
+    config.write_text("run: {name: r, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 1 ms, checkpoint_every: 3 ms}\n"
+                      "components:\n  a: {type: test.counter, on_failure: restart, step: 2 ms}\n"
+                      "  b: {type: stateless.py:Stateless}\n"
+                      "faults: [{at: 2 s, component: a, kind: crash}, {at: 0 s, component: z, kind: nan},\n"
+                      "         {at: 0 s, component: a, kind: delay}, {at: 0 s, component: a, kind: hang, duration: 1 s}]\n")
+    with pytest.raises(ConfigErrors) as raised:
+        load(config)
+    errors = "\n".join(raised.value.errors)
+    assert "components.a.on_failure: restart needs the state of every component, and b (stateless.py:Stateless)" in errors
+    assert "run.checkpoint_every: must be a multiple of every component's step" in errors
+    assert "faults[0].at: must be within the run" in errors
+    assert "faults[1].component: no component named 'z'" in errors
+    assert "faults[2].duration: a delay needs one" in errors
+    assert "faults[3].duration: only a delay has one, not a hang" in errors
+    assert Counter.restorable()

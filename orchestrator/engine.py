@@ -1,13 +1,14 @@
 """The lockstep master of a run: starts the components, wires them to each other, grants steps,
-records, and stops the run on the first fault.
+records, and stops the run on the first fault (or, for a component with ``on_failure: restart``
+that dies or hangs, sends the whole run back to its last checkpoint).
 
 The orchestrator is off the per-step path. Components exchange their outputs directly (see
 :mod:`components.bus`) and each steps ``k`` as soon as it holds the inputs tagged for ``k`` and
 ``k`` lies below the *horizon* the orchestrator grants (rules: :mod:`components.schedule`). The
 orchestrator receives every output, assembles the recorded rows, and checks for deaths
 (liveliness) and hangs (a component that holds its inputs but does not step within
-``run.step_timeout``). Control (swap, stop, events) happens at a step boundary: the horizon is
-held there until every component has reached it. A component with no input from the loop (an
+``run.step_timeout``). Control (swap, stop, events) and checkpoints happen at a step boundary:
+the horizon is held there until every component has reached it. A component with no input from the loop (an
 orbit) runs ahead up to the horizon, which hides its cost.
 
 Components send the orchestrator their outputs in batches (see :mod:`components.runner`).

@@ -528,14 +528,10 @@ class Run:
         self._log("checkpoint", step=self.row, time=self.row * self.config.step_ns / 1e9)
 
     def _may_restart(self, failure: RunFailure) -> bool:
+        """A live member that died or hung, and asked to be restarted."""
         member = failure.member
-        if not (failure.lost and member is not None and member.spec.on_failure == "restart"
-                and self.checkpoint is not None and member.name in self.members):
-            return False
-        if self.restarts >= self.config.max_restarts:
-            failure.args = (f"{failure} (after {wording.count(self.restarts, 'restart')}: run.max_restarts)",)
-            return False
-        return True
+        return (failure.lost and member is not None and member.spec.on_failure == "restart"
+                and self.checkpoint is not None and member.name in self.members)
 
     def _restart(self, failure: RunFailure) -> None:
         """Stop every component and start them all again, in new processes, from the last checkpoint."""
@@ -711,6 +707,9 @@ class Run:
                 except RunFailure as failure:
                     if not self._may_restart(failure):
                         raise
+                    if self.restarts >= self.config.max_restarts:
+                        raise RunFailure(f"{failure} (after {wording.count(self.restarts, 'restart')}: "
+                                         f"run.max_restarts)", failure.member) from None
                     self._restart(failure)
         finally:
             self.loop_s = time.perf_counter() - wall_start

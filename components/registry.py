@@ -30,7 +30,8 @@ TYPES = {
     # controllers
     "controller.computed_torque": "components.controller.components:ComputedTorqueComponent",
     "controller.joint_pd": "components.controller.components:JointPDComponent",
-    # observers
+    # FMI co-simulation FMUs (FMPy)
+    "fmu": "components.fmi.imported:FMUComponent",
 }
 
 

@@ -113,6 +113,12 @@ class Component:
         """Whether the type implements get_state and set_state (swaps with state, restarts)."""
         return cls.get_state is not Component.get_state and cls.set_state is not Component.set_state
 
+    @classmethod
+    def state_problem(cls, params: Mapping[str, Any]) -> str | None:
+        """Why an instance with these (validated) parameters cannot hand its state over, or None.
+        Swaps to the same type and restarts are refused with this reason."""
+        return None if cls.restorable() else f"{cls.type_name or cls.__name__} has no get_state/set_state"
+
 
 def resolve_parameters(cls: type[Component], raw: Mapping[str, Any] | None) -> tuple[dict, list[ConfigError]]:
     """Validate raw config parameters against the type's declaration (``cls.schema``).

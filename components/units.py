@@ -46,6 +46,21 @@ def _unit(text: str) -> tuple[float, tuple[int, ...]]:
     return factor, tuple(dim)
 
 
+def unit_scale(text: str) -> tuple[float, tuple[int, ...]] | None:
+    """Factor to SI and dimension of a unit expression, or None when it is not one this module reads."""
+    try:
+        return _unit(text)
+    except ValueError:
+        return None
+
+
+def normalized_unit(text: str) -> str:
+    """An FMI/Modelica unit ("N.m", "kg.m2", "m/s2") in this module's notation ("N*m", "kg*m^2",
+    "m/s^2") when it reads so; else the text as given."""
+    candidate = re.sub(r"([A-Za-z])(-?\d+)", r"\1^\2", text.strip().replace(".", "*"))
+    return candidate if unit_scale(candidate) is not None else text
+
+
 def to_si(value, unit: str, key: str) -> float:
     """Convert a config value to SI in the dimension of ``unit``.
 

@@ -16,7 +16,7 @@ from components.errors import ConfigError
 from components.schema import (Anything, Bool, Duration, Float, Int, ListOf, MapOf, Parameter, Record, Str,
                                UtcTime, markdown)
 from components.sdk import Component, Layout, Variable, resolve_parameters
-from components.units import duration_text
+from components.units import duration_text, unit_scale
 
 ALGORITHMS = ("jacobi", "gauss-seidel")
 VIEWER_MODES = ("spawn", "web", "save", "off")
@@ -345,9 +345,10 @@ def validate(raw: dict, path: Path) -> RunConfig:
     faults = _faults(config.get("faults", []), components, total_ns, file, errors)
     restarting = [n for n, spec in components.items() if spec.on_failure == "restart"]
     for name, spec in components.items():
-        if restarting and not spec.cls.restorable():
+        problem = spec.cls.state_problem(spec.resolved) if restarting else None
+        if problem:
             errors.append(f"{file}: components.{restarting[0]}.on_failure: restart needs the state of every "
-                          f"component, and {name} ({spec.type}) has no get_state/set_state")
+                          f"component, and {name} ({spec.type}) cannot give it: {problem}")
     checkpoint_ns = run.get("checkpoint_every")
     if checkpoint_ns is not None and components:
         for name, spec in components.items():
@@ -435,6 +436,11 @@ def _connections(raw: Any, components: dict[str, ComponentSpec], entries: dict, 
             if dv.size != sv.size:
                 errors.append(f"{file}: {key}: shape mismatch: input {dst} is {dv.shape}, output {src} is {sv.shape}")
                 continue
+            scales = unit_scale(dv.unit), unit_scale(sv.unit)
+            if None not in scales and scales[0] != scales[1]:   # units both sides declare, read differently
+                errors.append(f"{file}: {key}: unit mismatch: input {dst} is in {dv.unit}, output {src} in "
+                              f"{sv.unit} (connections do not convert units)")
+                continue
             result.append((d[0], d[1], s[0], s[1]))
     return result
 
@@ -458,6 +464,11 @@ def _events(entries: list[dict], components: dict[str, ComponentSpec], connectio
                           f"(a multiple of {duration_text(old.step_ns)}), got {duration_text(at_ns)}")
             continue
         new_type = entry["type"] or old.type
+        problem = old.cls.state_problem(old.resolved) if new_type == old.type else None
+        if problem:
+            errors.append(f"{file}: {key}.swap: a swap to the same type hands the state over, and {target} "
+                          f"cannot: {problem} (give another type)")
+            continue
         params = entry["parameters"]
         if params is None:
             params = old.parameters if new_type == old.type else {}

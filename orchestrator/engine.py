@@ -448,6 +448,10 @@ class Run:
         old = self.members[spec.name]
         t_ns = self.row * self.config.step_ns
         same_type = spec.type == old.spec.type
+        problem = old.spec.cls.state_problem(old.spec.resolved) if same_type else None
+        if problem:
+            raise SwapFailed(f"a swap to the same type hands the state over, and {spec.name} cannot: {problem} "
+                             f"(give another type)")
         began = time.perf_counter()
         try:
             new = self._start([spec], {spec.name: old.generation + 1}, self.joining)[0]

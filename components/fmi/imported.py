@@ -271,7 +271,7 @@ class FMUComponent(Component):
         file, md = cls._model(params)
         cs = md.coSimulation
         if not (cs.canGetAndSetFMUstate and cs.canSerializeFMUstate):
-            return (f"FMU {file.name} cannot save its state: its modelDescription.xml has canGetAndSetFMUstate="
+            return (f"FMU {Path(params['path']).name} cannot save its state: its modelDescription.xml has canGetAndSetFMUstate="
                     f"{str(cs.canGetAndSetFMUstate).lower()} and canSerializeFMUstate="
                     f"{str(cs.canSerializeFMUstate).lower()}")
         return None
@@ -281,6 +281,7 @@ class FMUComponent(Component):
 
         super().__init__(params)
         self.file, self.md = self._model(params)
+        self.label = Path(params["path"]).name   # as the config names it (not a build cache's file)
         self.fmi3 = self.md.fmiVersion.startswith("3.")
         self.messages: list[str] = []
         self.unzipped = extract(str(self.file), unzipdir=tempfile.mkdtemp(prefix="zenorbit-fmu-"))
@@ -330,7 +331,7 @@ class FMUComponent(Component):
             return function(*args, **kwargs)
         except Exception as e:
             log = ("; FMU log: " + " | ".join(self.messages)) if self.messages else ""
-            raise ComponentError(f"FMU {self.file.name}: {what} failed ({e}){log}") from None
+            raise ComponentError(f"FMU {self.label}: {what} failed ({e}){log}") from None
 
     def _plan(self, group: list[Signal]):
         """(FMPy setter, getter, value references, slice, cast) per FMI type, for the hot path."""
@@ -397,9 +398,10 @@ class FMUComponent(Component):
 
     def do_step(self, t_ns, h_ns, inputs):
         self._set_inputs(inputs)
-        result = self._call(self.fmu.doStep, f"doStep at t = {t_ns / 1e9:.9g} s", t_ns / 1e9, h_ns / 1e9)
+        t_s = t_ns / 1e9   # h as the difference of the two points: t + h is the next point exactly
+        result = self._call(self.fmu.doStep, f"doStep at t = {t_s:.9g} s", t_s, (t_ns + h_ns) / 1e9 - t_s)
         if self.fmi3 and result[1]:
-            raise ComponentError(f"FMU {self.file.name} asked to terminate the simulation at t = "
+            raise ComponentError(f"FMU {self.label} asked to terminate the simulation at t = "
                                  f"{t_ns / 1e9:.9g} s" + (f": {' | '.join(self.messages)}" if self.messages else ""))
         self.t_ns = t_ns + h_ns
         return self._get_outputs()
@@ -420,14 +422,14 @@ class FMUComponent(Component):
             raise ComponentError(problem)
         token = bytes(np.asarray(state["token"], dtype=np.uint8)).decode()
         if token != self._token():   # a swap to another FMU keeps the type: its state would be garbage here
-            raise ComponentError(f"the state comes from another FMU (token {token}), not {self.file.name} "
+            raise ComponentError(f"the state comes from another FMU (token {token}), not {self.label} "
                                  f"({self._token()}): swap with state only to the same FMU")
         if not self.initialized:   # the FMI state machine restores into an initialized instance
             self._layouts()
             self._enter(int(state["t_ns"]) / 1e9)
             self._call(self.fmu.exitInitializationMode, "exitInitializationMode")
             self.initialized = True
-        restored = self._call(self.fmu.deSerializeFMUState, "deSerializeFMUstate", bytes(np.asarray(state["fmu_state"])))
+        restored = self._call(self.fmu.deserializeFMUState, "deSerializeFMUstate", bytes(np.asarray(state["fmu_state"])))
         self._call(self.fmu.setFMUState, "setFMUstate", restored)
         self._call(self.fmu.freeFMUState, "freeFMUstate", restored)
         self.t_ns = int(state["t_ns"])

@@ -162,3 +162,24 @@ def test_bad_start_values_are_refused_naming_the_variable(probe_fmu):
     assert "is of type Integer: expected an integer, got 1.5" in error({"mode": 1.5})
     assert "is of type Real: expected a number, got 'fast'" in error({"gain": "fast"})
     assert error({"u[0]": 1.0, "gain": [1.0, 2.0]}).startswith("start_values.gain: expected 1 value for 'gain', got 2")
+
+
+def test_an_fmi3_fmu_equals_fmpy_simulate_fmu(tmp_path):
+    subprocess.run([sys.executable, "-m", "pythonfmu3", "build", "-f", str(ROOT / "tests" / "fmus" / "integrator3.py"),
+                    "-d", str(tmp_path)], check=True, capture_output=True)
+    path, n = tmp_path / "Integrator3.fmu", 50
+    u = np.cos(np.arange(n + 1) * H_S * 3.0)
+    signal = np.array(list(zip(np.arange(n + 1) * H_S, u)), dtype=[("time", float), ("u", float)])
+    reference = fmpy.simulate_fmu(str(path), stop_time=n * H_S, step_size=H_S, output_interval=H_S,
+                                  start_values={"k": 3.0}, input=signal, output=["y"])
+    h = Harness("fmu", {"path": str(path), "start_values": {"k": 3.0}})
+    assert h.component.md.fmiVersion == "3.0"
+    h.inputs["u"] = u[0]
+    h.initialize()
+    ours = [float(h.outputs["y"])]
+    for k in range(n):
+        h.inputs["u"] = u[k]
+        h.step(H_NS)
+        ours.append(float(h.outputs["y"]))
+    assert np.array_equal(ours, reference["y"])
+    assert ours[-1] == pytest.approx(3.0 * np.sum(u[:n]) * H_S, rel=1e-12)

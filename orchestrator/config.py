@@ -437,7 +437,8 @@ def _connections(raw: Any, components: dict[str, ComponentSpec], entries: dict, 
                 errors.append(f"{file}: {key}: shape mismatch: input {dst} is {dv.shape}, output {src} is {sv.shape}")
                 continue
             scales = unit_scale(dv.unit), unit_scale(sv.unit)
-            if None not in scales and scales[0] != scales[1]:   # units both sides declare, read differently
+            # units both sides declare and read differently ("1", as generic blocks declare, matches any)
+            if None not in scales and "1" not in (dv.unit, sv.unit) and scales[0] != scales[1]:
                 errors.append(f"{file}: {key}: unit mismatch: input {dst} is in {dv.unit}, output {src} in "
                               f"{sv.unit} (connections do not convert units)")
                 continue

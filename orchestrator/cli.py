@@ -238,6 +238,23 @@ def cmd_describe(args) -> int:
     return 0
 
 
+def cmd_export_fmu(args) -> int:
+    from components.fmi.exported import ExportError, export_fmu, fmu_summary
+    if not args.output.endswith(".fmu"):
+        return _fail(f"-o {args.output}: the output must be a .fmu file, e.g. -o {Path(args.output).stem or 'model'}.fmu")
+    try:
+        path = export_fmu(args.type, args.set, Path(args.output), args.epoch, Path.cwd())
+    except ExportError as e:
+        for line in e.problems:
+            print(f"error: {line}", file=sys.stderr)
+        return USAGE_ERROR
+    summary = fmu_summary(path)
+    state = "state: get/set and serialize" if summary["state"] else "no FMU state (the type has no get_state/set_state)"
+    print(f"wrote {args.output} ({count(summary['inputs'], 'input')}, {count(summary['outputs'], 'output')}, "
+          f"FMI {summary['fmi_version']} co-simulation, {state})")
+    return 0
+
+
 def cmd_plot(args) -> int:
     from orchestrator.plots import PlotError, plot_recording
     out = Path(args.out) if args.out else Path(args.recording) / "plots"
@@ -305,6 +322,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="PARAM=VALUE",
                    help="a parameter value (YAML), to see the variables that depend on it (repeatable)")
     p.set_defaults(func=cmd_describe)
+
+    p = sub.add_parser("export-fmu", help="package a component type, its parameters fixed, as an FMI 2.0 "
+                       "co-simulation FMU")
+    p.add_argument("type", help="a type from `orchestrator types`, module:Class or file.py:Class")
+    p.add_argument("--set", action="append", default=[], metavar="PARAM=VALUE",
+                   help="a parameter value (YAML), fixed in the FMU (repeatable); files it names go into the FMU")
+    p.add_argument("--epoch", metavar="UTC", help="the UTC of t = 0 (run.epoch), e.g. 2022-09-18T12:00:00Z, "
+                   "for types that need it")
+    p.add_argument("-o", "--output", required=True, metavar="NAME.fmu", help="the FMU to write; NAME is its model "
+                   "identifier")
+    p.set_defaults(func=cmd_export_fmu)
 
     from components.viewer.replay import add_view_command   # orchestrator view DIR: replay in Rerun
     add_view_command(sub)

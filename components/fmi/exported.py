@@ -1,0 +1,509 @@
+"""Zenorbit component types as FMI 2.0 co-simulation FMUs (``orchestrator export-fmu``).
+
+:func:`export_fmu` fixes a type's parameters at export time and packages it with pythonfmu's
+builder (nothing is compiled: pythonfmu ships its binary). The FMU's resources hold
+``zenorbit.json`` (type, raw parameters, epoch), a copy of the ``components`` package, and under
+``files/`` every file a parameter names (relative paths keep their place; at run time
+``_config_dir`` is that ``files`` directory). :class:`ComponentSlave` is the generic slave that
+runs inside: it maps each element of a Zenorbit variable to one FMI Real (``r_eci`` of shape (3,)
+-> ``r_eci[0]``..``r_eci[2]``), FMI's lifecycle to the component's, and, for a type with
+get_state/set_state, the FMU state to the component's state plus the input and output vectors.
+"""
+from __future__ import annotations
+
+import base64
+import datetime as dt
+import hashlib
+import json
+import os
+import re
+import shutil
+import sys
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Any
+from xml.etree import ElementTree
+
+import numpy as np
+from pythonfmu.enums import Fmi2Causality, Fmi2Status
+from pythonfmu.fmi2slave import Fmi2Slave
+from pythonfmu.variables import Real, ScalarVariable
+
+SPEC_FILE = "zenorbit.json"
+FILES_DIR = "files"
+OUTSIDE_DIR = "_outside"       # files/ place of a parameter's file that lies above the config dir
+STATE_FORMAT = "zenorbit-fmu-state/1"
+IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+EPOCH_EXAMPLE = "2022-09-18T12:00:00Z"
+PACKAGE_DIR = Path(__file__).resolve().parents[1]     # the components package
+
+
+class ExportError(Exception):
+    """The export cannot be done; ``problems`` are one line each, naming the key or option."""
+
+    def __init__(self, problems: list[str] | str):
+        self.problems = [problems] if isinstance(problems, str) else list(problems)
+        super().__init__("; ".join(self.problems))
+
+
+# ---------------------------------------------------------------------------------------------
+# Variables: one FMI Real per element
+
+def element_units(unit: str, size: int) -> list[str | None] | None:
+    """The unit of each element of a variable, or None when its unit text cannot be spread over
+    the elements ("m/s, rad/s" over 6 elements: 3 each; over 5: None)."""
+    units = [u.strip() for u in unit.split(",")] if unit and unit.strip() else []
+    if not units:
+        return [None] * size
+    if size % len(units):
+        return None
+    per_unit = size // len(units)
+    return [units[i // per_unit] for i in range(size)]
+
+
+def element_names(name: str, shape: tuple[int, ...], size: int) -> list[str]:
+    return [name] if shape == () else [f"{name}[{i}]" for i in range(size)]
+
+
+class UnitReal(Real):
+    """An FMI Real with a unit, and a start written so that it reads back to the same double
+    (pythonfmu's Real writes 16 significant digits and no unit)."""
+
+    def __init__(self, name: str, unit: str | None = None, **kwargs):
+        super().__init__(name, **kwargs)
+        self.unit = unit
+
+    def to_xml(self) -> ElementTree.Element:
+        variable = ScalarVariable.to_xml(self)
+        attributes = {}
+        if self.unit:
+            attributes["unit"] = self.unit
+        if self.start is not None:
+            attributes["start"] = repr(float(self.start))
+        ElementTree.SubElement(variable, "Real", attributes)
+        return variable
+
+
+def unit_definition(name: str) -> ElementTree.Element:
+    """<Unit> with its SI base-unit exponents when components.units reads the unit."""
+    from components.units import unit_scale
+
+    unit = ElementTree.Element("Unit", {"name": name})
+    scale = unit_scale(name)
+    if scale is not None:
+        factor, exponents = scale
+        base = {symbol: str(power) for symbol, power in zip(("m", "kg", "s", "rad"), exponents) if power}
+        if factor != 1.0:
+            base["factor"] = repr(factor)
+        ElementTree.SubElement(unit, "BaseUnit", base)
+    return unit
+
+
+# ---------------------------------------------------------------------------------------------
+# Loading the component from a spec (export time and run time alike)
+
+def load_component_type(spec: dict, files_dir: Path):
+    """(class, resolved parameters, variables) of a spec; ExportError naming the key."""
+    from components import registry
+    from components.errors import ConfigError
+    from components.sdk import resolve_parameters
+
+    try:
+        cls = registry.load(spec["type"], files_dir)
+    except ConfigError as e:
+        raise ExportError(e.message) from None
+    raw = {**spec["parameters"], "_config_dir": str(files_dir)}
+    if spec.get("epoch") is not None:
+        raw["_epoch"] = spec["epoch"]
+    params, errors = resolve_parameters(cls, raw)
+    if errors:
+        raise ExportError([_set_problem(e, spec) for e in errors])
+    try:
+        variables = cls.declare(params)
+    except ConfigError as e:
+        raise ExportError(_set_problem(e, spec)) from None
+    except KeyError as e:
+        raise ExportError(_missing_epoch(spec) if e.args == ("_epoch",) else f"declare failed: KeyError {e}") from None
+    return cls, params, variables
+
+
+def instantiate(cls, params: dict, spec: dict):
+    """``cls(params)`` with a ConfigError turned into an ExportError naming the key."""
+    from components.errors import ConfigError
+
+    try:
+        return cls(params)
+    except ConfigError as e:
+        raise ExportError(_set_problem(e, spec)) from None
+    except KeyError as e:
+        if e.args == ("_epoch",):
+            raise ExportError(_missing_epoch(spec)) from None
+        raise
+
+
+def _missing_epoch(spec: dict) -> str:
+    return (f"{spec['type']} needs the run epoch (run.epoch, the UTC of t = 0): pass --epoch UTC, "
+            f"e.g. --epoch {EPOCH_EXAMPLE}")
+
+
+def _set_problem(error, spec: dict) -> str:
+    """One line for a parameter error, as the CLI's describe words it."""
+    if error.key.split(".")[0] == "_epoch":
+        return _missing_epoch(spec) if spec.get("epoch") is None else f"--epoch: {error.message}"
+    return f"--set {error.key}: {error.message}" if error.key else error.message
+
+
+# ---------------------------------------------------------------------------------------------
+# The slave: what runs inside the FMU
+
+_HELD_SCRIPT_GLOBALS: list[dict] = []
+
+
+class ComponentSlave(Fmi2Slave):
+    """A Zenorbit component behind pythonfmu's FMI 2.0 co-simulation interface.
+
+    The exported script subclasses it (pythonfmu instantiates the deepest Fmi2Slave subclass
+    of the script); everything it needs is in ``resources``.
+    """
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        from components.sdk import Layout
+
+        # pythonfmu 0.7's binary drops a reference it does not own to the script module's globals
+        # each time it instantiates the FMU: give one back per instance, or the dict is freed and
+        # the next instantiation in this process crashes
+        script_module = sys.modules.get(type(self).__module__)
+        if script_module is not None:
+            _HELD_SCRIPT_GLOBALS.append(vars(script_module))
+
+        resources = Path(self.resources)
+        self.spec = json.loads((resources / SPEC_FILE).read_text())
+        self.files_dir = resources / FILES_DIR
+        self.cls, self.params, variables = load_component_type(self.spec, self.files_dir)
+        self.modelName = self.spec["model_identifier"]
+        summary = re.sub(r":\w+:`~?([^`]+)`|``([^`]+)``", lambda m: m.group(1) or m.group(2),
+                         " ".join((self.cls.__doc__ or "").strip().split("\n\n")[0].split()))   # rST roles as plain text
+        self.description = f"Zenorbit {self.spec['type']}" + (f": {summary}" if summary else "")
+        self.input_layout = Layout([v for v in variables if v.causality == "input"])
+        self.output_layout = Layout([v for v in variables if v.causality == "output"])
+        self.input_names = [v.name for v in self.input_layout.variables]
+        self.inputs = self.input_layout.start_vector()
+        self.outputs = self.output_layout.start_vector()
+        self.t0_ns = 0
+        self.initialized = False
+        self.component = instantiate(self.cls, self.params, self.spec)
+        self.units: list[str] = []
+        for layout, vector, causality in ((self.input_layout, self.inputs, Fmi2Causality.input),
+                                          (self.output_layout, self.outputs, Fmi2Causality.output)):
+            for v in layout.variables:
+                self._register(v, vector, layout.offsets[v.name].start, causality)
+
+    def _register(self, variable, vector: np.ndarray, offset: int, causality: Fmi2Causality) -> None:
+        units = element_units(variable.unit, variable.size)
+        names = element_names(variable.name, variable.shape, variable.size)
+        for i, name in enumerate(names):
+            description = variable.description if variable.shape == () else f"{variable.description} (element {i})"
+            unit = units[i] if units else None
+            if units is None:   # the unit list does not split evenly: keep it readable in the text
+                description += f" [units: {variable.unit}]"
+            if unit and unit not in self.units:
+                self.units.append(unit)
+            index = offset + i
+            if causality is Fmi2Causality.input:
+                setter = self._input_setter(vector, index)
+            else:
+                setter = self._output_setter(name)
+            # nested=False: names such as robot.tau[0] are not attribute paths
+            self.register_variable(UnitReal(name, unit=unit, causality=causality, description=description,
+                                            getter=self._getter(vector, index), setter=setter), nested=False)
+
+    @staticmethod
+    def _getter(vector: np.ndarray, index: int):
+        return lambda: vector[index]
+
+    @staticmethod
+    def _input_setter(vector: np.ndarray, index: int):
+        def set_input(value):
+            vector[index] = value
+        return set_input
+
+    @staticmethod
+    def _output_setter(name: str):
+        def refuse(value):
+            raise TypeError(f"{name} is an output: it cannot be set")
+        return refuse
+
+    def to_xml(self, model_options: dict[str, str] | None = None) -> ElementTree.Element:
+        """pythonfmu's model description plus the units it cannot write (FMI 2.0 wants every
+        unit used declared in UnitDefinitions) and the outputs as initial unknowns."""
+        root = super().to_xml(model_options or {})
+        if self.units:
+            definitions = ElementTree.Element("UnitDefinitions")
+            definitions.extend(unit_definition(unit) for unit in self.units)
+            after = [i for i, child in enumerate(root) if child.tag in ("ModelExchange", "CoSimulation")]
+            root.insert(after[-1] + 1, definitions)
+        structure = root.find("ModelStructure")
+        outputs = structure.find("Outputs")
+        if outputs is not None:   # outputs are initial="calculated" (the default): list them
+            initial = ElementTree.SubElement(structure, "InitialUnknowns")
+            initial.extend(ElementTree.Element("Unknown", {"index": unknown.get("index")}) for unknown in outputs)
+        return root
+
+    # lifecycle -------------------------------------------------------------------------------
+
+    def _input_views(self) -> dict[str, np.ndarray]:
+        return self.input_layout.unpack(self.inputs.copy())   # the component may keep them
+
+    def _store(self, result) -> str | None:
+        """Pack a result into the outputs; the name of a non-finite output (then nothing changes)."""
+        packed = np.empty(self.output_layout.size)
+        self.output_layout.pack(result, packed)
+        bad = self.output_layout.first_non_finite(packed)
+        if bad is None:
+            self.outputs[:] = packed
+        return bad
+
+    def setup_experiment(self, start_time: float, stop_time=None, tolerance=None):
+        self.t0_ns = round(start_time * 1e9)
+
+    def exit_initialization_mode(self):
+        self.component.input_times_ns = {}
+        try:
+            bad = self._store(self.component.initialize(self.t0_ns, self._input_views()))
+        except Exception as e:
+            message = f"{self.spec['type']}: initialize at t = {self.t0_ns / 1e9:g} s failed: {type(e).__name__}: {e}"
+            self.log(message, Fmi2Status.error)
+            raise RuntimeError(message) from None
+        if bad is not None:
+            message = f"{self.spec['type']}: output {bad} is not finite at initialize"
+            self.log(message, Fmi2Status.error)
+            raise RuntimeError(message)
+        self.initialized = True
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        # communication points come as doubles: the component's clock is integer ns
+        t_ns, h_ns = round(current_time * 1e9), round(step_size * 1e9)
+        if not self.initialized:
+            self.log(f"{self.spec['type']}: do_step before initialization", Fmi2Status.error)
+            return False
+        self.component.input_times_ns = dict.fromkeys(self.input_names, t_ns)   # held over the step
+        try:
+            bad = self._store(self.component.do_step(t_ns, h_ns, self._input_views()))
+        except Exception as e:
+            self.log(f"{self.spec['type']}: step at t = {current_time:g} s failed: {type(e).__name__}: {e}",
+                     Fmi2Status.error)
+            return False
+        if bad is not None:
+            self.log(f"{self.spec['type']}: output {bad} is not finite after the step at t = {current_time:g} s",
+                     Fmi2Status.error)
+            return False
+        return True
+
+    def terminate(self):
+        self.component.terminate()
+
+    # FMU state -------------------------------------------------------------------------------
+
+    def _get_fmu_state(self) -> dict[str, Any]:
+        from components.bus import encode_state
+
+        if not self.cls.restorable():
+            raise NotImplementedError(f"{self.spec['type']} has no get_state/set_state: its FMU state cannot be taken")
+        blob = encode_state(self.component.get_state()) if self.initialized else None
+        return {"format": STATE_FORMAT, "initialized": self.initialized, "t0_ns": self.t0_ns,
+                "component": None if blob is None else base64.b64encode(blob).decode("ascii"),
+                "inputs": _vector_text(self.inputs), "outputs": _vector_text(self.outputs)}
+
+    def _set_fmu_state(self, state: dict[str, Any]) -> None:
+        from components.bus import decode_state
+
+        if not self.cls.restorable():
+            raise NotImplementedError(f"{self.spec['type']} has no get_state/set_state: its FMU state cannot be set")
+        if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
+            raise ValueError(f"not a {STATE_FORMAT} FMU state")
+        # the SDK's contract: set_state restores an instance that was never initialized
+        fresh = instantiate(self.cls, self.params, self.spec)
+        if state["component"] is not None:
+            fresh.set_state(decode_state(base64.b64decode(state["component"])))
+        previous, self.component = self.component, fresh
+        previous.terminate()
+        self.inputs[:] = _vector_from_text(state["inputs"], self.inputs.size)
+        self.outputs[:] = _vector_from_text(state["outputs"], self.outputs.size)
+        self.t0_ns, self.initialized = int(state["t0_ns"]), bool(state["initialized"])
+
+
+def _vector_text(vector: np.ndarray) -> str:
+    """float64 bytes in base64: exact, NaN and -0.0 included (JSON numbers are not)."""
+    return base64.b64encode(np.ascontiguousarray(vector, dtype="<f8").tobytes()).decode("ascii")
+
+
+def _vector_from_text(text: str, size: int) -> np.ndarray:
+    vector = np.frombuffer(base64.b64decode(text), dtype="<f8")
+    if vector.size != size:
+        raise ValueError(f"FMU state holds {vector.size} values where {size} are expected")
+    return vector
+
+
+# ---------------------------------------------------------------------------------------------
+# Export
+
+SCRIPT = '''"""FMU entry point written by orchestrator export-fmu: Zenorbit type {type_name!r}.
+
+The parameters, the Zenorbit code and the files they name are in this FMU's resources.
+"""
+from components.fmi.exported import ComponentSlave
+
+_HELD = [globals()]   # see ComponentSlave.__init__: the first instantiation drops this reference
+
+
+class ZenorbitFmu(ComponentSlave):
+    """{type_name} as an FMI 2.0 co-simulation FMU (see resources/zenorbit.json)."""
+'''
+
+
+def export_fmu(type_name: str, overrides: list[str], out: Path, epoch: str | None, config_dir: Path) -> Path:
+    """Write ``out`` (NAME.fmu, model identifier NAME): type ``type_name`` with its parameters
+    fixed by ``overrides`` (``param=value``, dotted keys for nested ones, values YAML, as
+    ``orchestrator describe --set``), relative paths read from ``config_dir``, ``epoch`` the
+    UTC of t = 0 (needed by types that read run.epoch). ExportError on any problem."""
+    from orchestrator.config import ConfigErrors, apply_overrides
+
+    out, config_dir = Path(out), Path(config_dir).resolve()
+    if out.suffix != ".fmu":
+        raise ExportError(f"-o {out}: the output must be a .fmu file, e.g. -o {out.stem or 'model'}.fmu")
+    identifier = out.stem
+    if not IDENTIFIER.match(identifier):
+        suggestion = re.sub(r"\W", "_", identifier)
+        suggestion = suggestion if IDENTIFIER.match(suggestion) else f"fmu_{suggestion}"
+        raise ExportError(f"-o {out.name}: the file name is the FMU's model identifier and must be a C identifier "
+                          f"(letters, digits and _, not starting with a digit), e.g. -o {suggestion}.fmu")
+    if epoch is not None:
+        epoch = _checked_epoch(epoch)
+    given: dict = {}
+    try:
+        apply_overrides(given, overrides)
+    except ConfigErrors as e:
+        raise ExportError(e.errors) from None
+    given = _jsonable(given)
+
+    with tempfile.TemporaryDirectory(prefix="zenorbit-fmu-") as temporary:
+        staging = Path(temporary) / "resources"
+        files_dir = staging / FILES_DIR
+        files_dir.mkdir(parents=True)
+        type_in_fmu = _copy_type_file(type_name, config_dir, files_dir)
+        parameters = _copy_named_files(given, config_dir, files_dir)
+        spec = {"type": type_in_fmu, "parameters": parameters, "epoch": epoch, "model_identifier": identifier,
+                "exported_type": type_name}
+        # the checks the slave does when the FMU is instantiated, here with errors worth reading
+        cls, params, variables = load_component_type(spec, files_dir)
+        instantiate(cls, params, spec).terminate()
+
+        (staging / SPEC_FILE).write_text(json.dumps(spec, indent=2, sort_keys=True) + "\n")
+        shutil.copytree(PACKAGE_DIR, staging / "components",
+                        ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc"))
+        # pythonfmu imports the script by module name: one name per export, not a cached module
+        digest = hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:12]
+        module = f"zenorbit_fmu_{identifier}_{digest}"
+        script = Path(temporary) / f"{module}.py"
+        script.write_text(SCRIPT.format(type_name=type_name))
+        built = _build(script, Path(temporary) / out.name, staging, cls.restorable())
+        out.parent.mkdir(parents=True, exist_ok=True)
+        shutil.move(built, out)
+    return out
+
+
+def _build(script: Path, destination: Path, staging: Path, restorable: bool) -> Path:
+    from pythonfmu.builder import FmuBuilder
+
+    saved_path = list(sys.path)
+    try:
+        return Path(FmuBuilder.build_FMU(
+            script, dest=destination,
+            project_files=[staging / SPEC_FILE, staging / "components", staging / FILES_DIR],
+            canGetAndSetFMUstate=restorable, canSerializeFMUstate=restorable))
+    finally:
+        sys.path[:] = saved_path   # the builder leaves the script's (temporary) directory on it
+        sys.modules.pop(script.stem, None)
+
+
+def _checked_epoch(epoch: str) -> str:
+    from components.errors import ConfigError
+    from components.schema import UtcTime
+
+    try:
+        return UtcTime().convert(epoch, "--epoch")
+    except ConfigError as e:
+        raise ExportError(f"--epoch: {e.message}") from None
+
+
+def _jsonable(value):
+    """--set values as JSON (YAML gives datetimes for times)."""
+    if isinstance(value, (dt.datetime, dt.date)):
+        return value.isoformat().replace("+00:00", "Z")
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    return value
+
+
+def _place_in_files(relative: str) -> str:
+    """Where a file named by a relative path goes under files/: the same path, or, for one above
+    the config dir (../x), a path under files/_outside (the parameter is rewritten to it)."""
+    normal = os.path.normpath(relative)
+    parts = Path(normal).parts
+    if parts and parts[0] == "..":
+        return Path(OUTSIDE_DIR, *("up" if p == ".." else p for p in parts)).as_posix()
+    return Path(normal).as_posix()
+
+
+def _copy_file(relative: str, config_dir: Path, files_dir: Path) -> str | None:
+    """Copy config_dir/relative into files/ and return its path there, if it is an existing file."""
+    if not relative or Path(relative).is_absolute():
+        return None
+    source = config_dir / relative
+    try:
+        if not source.is_file():
+            return None
+    except OSError:   # a string too long or odd to be a path
+        return None
+    place = _place_in_files(relative)
+    target = files_dir / place
+    target.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copy2(source, target)
+    return place
+
+
+def _copy_named_files(value, config_dir: Path, files_dir: Path):
+    """The parameters with every relative path to an existing file copied under files/ (and
+    rewritten when it had to move); absolute paths and other strings as they are."""
+    if isinstance(value, dict):
+        return {k: _copy_named_files(v, config_dir, files_dir) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_copy_named_files(v, config_dir, files_dir) for v in value]
+    if isinstance(value, str):
+        place = _copy_file(value, config_dir, files_dir)
+        return value if place is None or place == Path(value).as_posix() else place
+    return value
+
+
+def _copy_type_file(type_name: str, config_dir: Path, files_dir: Path) -> str:
+    """A ``file.py:Class`` type's file goes into files/ too (its own imports do not)."""
+    module, sep, class_name = type_name.rpartition(":")
+    if not sep or not module.endswith(".py"):
+        return type_name
+    place = _copy_file(module, config_dir, files_dir)
+    return type_name if place is None else f"{place}:{class_name}"
+
+
+def fmu_summary(path: Path) -> dict[str, Any]:
+    """Counts and options read back from an FMU's modelDescription.xml."""
+    with zipfile.ZipFile(path) as archive:
+        root = ElementTree.fromstring(archive.read("modelDescription.xml"))
+    causalities = [v.get("causality") for v in root.iter("ScalarVariable")]
+    co_simulation = root.find("CoSimulation")
+    return {"fmi_version": root.get("fmiVersion"), "model_identifier": co_simulation.get("modelIdentifier"),
+            "inputs": causalities.count("input"), "outputs": causalities.count("output"),
+            "state": co_simulation.get("canGetAndSetFMUstate") == "true"}

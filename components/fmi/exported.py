@@ -158,6 +158,38 @@ def _set_problem(error, spec: dict) -> str:
 # The slave: what runs inside the FMU
 
 _HELD_SCRIPT_GLOBALS: list[dict] = []
+_HELD_BINARIES: dict[str, Any] = {}
+
+
+def hold_binary_until_exit(resources: Path, model_identifier: str) -> None:
+    """Work around pythonfmu 0.7 crashing a Python process at exit.
+
+    When a C++ library loaded after the FMU's binary binds to it (importing DART does), the
+    binary can no longer be unloaded, and at exit its PyState is deleted twice (a static
+    destructor, then its unload hook): heap corruption, abort. Holding the binary and calling its
+    own finalizePythonInterpreter before the interpreter exits deletes it once. Only where the
+    host process is Python itself: when pythonfmu started the interpreter, it finalizes it.
+    """
+    import ctypes
+
+    if not sys.platform.startswith("linux") or os.path.realpath("/proc/self/exe") != os.path.realpath(sys.executable):
+        return
+    binary = str(resources.parent / "binaries" / "linux64" / f"{model_identifier}.so")
+    if binary in _HELD_BINARIES:
+        return
+    try:   # RTLD_NOLOAD: only the binary already loaded (not the builder's instance)
+        library = ctypes.CDLL(binary, mode=os.RTLD_NOLOAD | os.RTLD_NOW)
+    except OSError:
+        return
+    if not _HELD_BINARIES:
+        import atexit
+        atexit.register(_release_binaries)
+    _HELD_BINARIES[binary] = library
+
+
+def _release_binaries() -> None:
+    for library in _HELD_BINARIES.values():
+        library.finalizePythonInterpreter()
 
 
 class ComponentSlave(Fmi2Slave):
@@ -181,8 +213,9 @@ class ComponentSlave(Fmi2Slave):
         resources = Path(self.resources)
         self.spec = json.loads((resources / SPEC_FILE).read_text())
         self.files_dir = resources / FILES_DIR
-        self.cls, self.params, variables = load_component_type(self.spec, self.files_dir)
         self.modelName = self.spec["model_identifier"]
+        hold_binary_until_exit(resources.resolve(), self.modelName)
+        self.cls, self.params, variables = load_component_type(self.spec, self.files_dir)
         summary = re.sub(r":\w+:`~?([^`]+)`|``([^`]+)``", lambda m: m.group(1) or m.group(2),
                          " ".join((self.cls.__doc__ or "").strip().split("\n\n")[0].split()))   # rST roles as plain text
         self.description = f"Zenorbit {self.spec['type']}" + (f": {summary}" if summary else "")

@@ -14,6 +14,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import weakref
 import zipfile
 from dataclasses import dataclass
 from functools import lru_cache
@@ -286,6 +287,9 @@ class FMUComponent(Component):
         self.messages: list[str] = []
         self.unzipped = extract(str(self.file), unzipdir=tempfile.mkdtemp(prefix="zenorbit-fmu-"))
         self.fmu = self._instantiate()
+        # freed before the interpreter shuts down even if terminate() is never called (a harness):
+        # an FMU that embeds Python (pythonfmu) must not outlive it
+        self._release = weakref.finalize(self, _release, self.fmu, self.unzipped)
         variables = signals(self.md, self.file)
         self.inputs = self._plan([s for s in variables if s.causality == "input"])
         self.outputs = self._plan([s for s in variables if s.causality == "output"])
@@ -438,10 +442,18 @@ class FMUComponent(Component):
         return self.md.instantiationToken if self.fmi3 else self.md.guid
 
     def terminate(self):
-        try:
-            if self.initialized:
+        if self.initialized:
+            try:
                 self.fmu.terminate()
-            self.fmu.freeInstance()
-        except Exception:   # the run is over either way; the files still go
-            pass
-        shutil.rmtree(self.unzipped, ignore_errors=True)
+            except Exception:   # the run is over either way; the instance is freed below
+                pass
+        self._release()
+
+
+def _release(fmu, unzipped: str) -> None:
+    """Free an FMU instance and delete its unzipped files (once; weakref.finalize)."""
+    try:
+        fmu.freeInstance()
+    except Exception:
+        pass
+    shutil.rmtree(unzipped, ignore_errors=True)

@@ -214,7 +214,7 @@ class ComponentSlave(Fmi2Slave):
         self.spec = json.loads((resources / SPEC_FILE).read_text())
         self.files_dir = resources / FILES_DIR
         self.modelName = self.spec["model_identifier"]
-        hold_binary_until_exit(resources.resolve(), self.modelName)
+        hold_binary_until_exit(resources, self.modelName)
         self.cls, self.params, variables = load_component_type(self.spec, self.files_dir)
         summary = re.sub(r":\w+:`~?([^`]+)`|``([^`]+)``", lambda m: m.group(1) or m.group(2),
                          " ".join((self.cls.__doc__ or "").strip().split("\n\n")[0].split()))   # rST roles as plain text
@@ -247,7 +247,7 @@ class ComponentSlave(Fmi2Slave):
             if causality is Fmi2Causality.input:
                 setter = self._input_setter(vector, index)
             else:
-                setter = self._output_setter(name)
+                setter = self._refuse_output(name)
             # nested=False: names such as robot.tau[0] are not attribute paths
             self.register_variable(UnitReal(name, unit=unit, causality=causality, description=description,
                                             getter=self._getter(vector, index), setter=setter), nested=False)
@@ -262,10 +262,10 @@ class ComponentSlave(Fmi2Slave):
             vector[index] = value
         return set_input
 
-    @staticmethod
-    def _output_setter(name: str):
+    def _refuse_output(self, name: str):
+        # logged, not raised: pythonfmu turns an exception into fmi2Fatal and frees the instance
         def refuse(value):
-            raise TypeError(f"{name} is an output: it cannot be set")
+            self.log(f"{name} is an output: setting it to {value!r} is ignored", Fmi2Status.error)
         return refuse
 
     def to_xml(self, model_options: dict[str, str] | None = None) -> ElementTree.Element:
@@ -392,7 +392,7 @@ _HELD = [globals()]   # see ComponentSlave.__init__: the first instantiation dro
 
 
 class ZenorbitFmu(ComponentSlave):
-    """{type_name} as an FMI 2.0 co-simulation FMU (see resources/zenorbit.json)."""
+    """{type_name!r} as an FMI 2.0 co-simulation FMU (see resources/zenorbit.json)."""
 '''
 
 
@@ -430,8 +430,13 @@ def export_fmu(type_name: str, overrides: list[str], out: Path, epoch: str | Non
         spec = {"type": type_in_fmu, "parameters": parameters, "epoch": epoch, "model_identifier": identifier,
                 "exported_type": type_name}
         # the checks the slave does when the FMU is instantiated, here with errors worth reading
-        cls, params, variables = load_component_type(spec, files_dir)
-        instantiate(cls, params, spec).terminate()
+        try:
+            cls, params, variables = load_component_type(spec, files_dir)
+            instantiate(cls, params, spec).terminate()
+        except ExportError:
+            raise
+        except Exception as e:   # the type's own code failed: one line naming it, no traceback
+            raise ExportError(f"{type_name}: instantiating it failed: {type(e).__name__}: {e}") from None
 
         (staging / SPEC_FILE).write_text(json.dumps(spec, indent=2, sort_keys=True) + "\n")
         shutil.copytree(PACKAGE_DIR, staging / "components",
@@ -442,8 +447,11 @@ def export_fmu(type_name: str, overrides: list[str], out: Path, epoch: str | Non
         script = Path(temporary) / f"{module}.py"
         script.write_text(SCRIPT.format(type_name=type_name))
         built = _build(script, Path(temporary) / out.name, staging, cls.restorable())
-        out.parent.mkdir(parents=True, exist_ok=True)
-        shutil.move(built, out)
+        try:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            shutil.move(built, out)
+        except OSError as e:
+            raise ExportError(f"-o {out}: cannot write the FMU there ({e.strerror or e})") from None
     return out
 
 

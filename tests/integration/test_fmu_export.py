@@ -3,7 +3,10 @@ Zenorbit did not write) and compared bit for bit with the native component and a
 from __future__ import annotations
 
 import json
+import os
 import shutil
+import subprocess
+import sys
 import zipfile
 
 import fmpy
@@ -14,7 +17,7 @@ import yaml
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
-from components.fmi.exported import export_fmu
+from components.fmi.exported import element_units, export_fmu
 from components.testing.harness import Harness
 from tests.conftest import ROOT, orchestrator
 
@@ -214,3 +217,114 @@ def test_fmu_state_serialized_mid_run_restores_bit_identically(humanoid_fmu):
             slave.terminate()
             slave.freeInstance()
         shutil.rmtree(unzipped, ignore_errors=True)
+
+
+RAMP = '''"""A component with no get_state/set_state that reads a file a parameter names."""
+from pathlib import Path
+
+import numpy as np
+
+from components.sdk import Component, Parameter, Variable
+
+
+class Ramp(Component):
+    """Five ramps, slopes from a file, plus an offset input; a step ending after fail_at raises."""
+    type_name = "test.ramp"
+    parameters = (Parameter("slopes", "str", description="file of five slopes, relative to the config"),
+                  Parameter("fail_at", "float", unit="s", default=1e9, description="when it breaks"))
+    variables = (Variable("offset.u", "input", (), "m", 0.5, "added to every ramp"),
+                 Variable("y", "output", (5,), "m, s", 0.0, "the ramps"))
+
+    def __init__(self, params):
+        self.slopes = np.loadtxt(Path(params["_config_dir"]) / params["slopes"])
+        self.fail_at = params["fail_at"]
+
+    def initialize(self, t0_ns, inputs):
+        return {"y": self.slopes * (t0_ns / 1e9) + inputs["offset.u"]}
+
+    def do_step(self, t_ns, h_ns, inputs):
+        if (t_ns + h_ns) / 1e9 > self.fail_at:
+            raise RuntimeError("the ramp ran out")
+        return {"y": self.slopes * ((t_ns + h_ns) / 1e9) + inputs["offset.u"]}
+'''
+
+
+def test_type_without_state_travels_with_its_files_and_a_failing_step_fails(tmp_path):
+    (tmp_path / "plant").mkdir()
+    (tmp_path / "plant/ramp.py").write_text(RAMP)
+    (tmp_path / "data").mkdir()
+    (tmp_path / "data/slopes.txt").write_text("1 2 3 4 5\n")
+    out = export_fmu("plant/ramp.py:Ramp", ["slopes=data/slopes.txt", "fail_at=0.35"], tmp_path / "out/ramp.fmu",
+                     None, tmp_path)
+    shutil.rmtree(tmp_path / "plant")   # the FMU carries the type's file and the table
+    shutil.rmtree(tmp_path / "data")
+
+    description = fmpy.read_model_description(out, validate=True)
+    assert not description.coSimulation.canGetAndSetFMUstate and not description.coSimulation.canSerializeFMUstate
+    offset, y0 = description.modelVariables[:2]
+    assert (offset.name, offset.causality, offset.unit, offset.start) == ("offset.u", "input", "m", "0.5")
+    assert (y0.name, y0.unit, y0.description) == ("y[0]", None, "the ramps (element 0) [units: m, s]")
+
+    messages = []
+    result = fmpy.simulate_fmu(out, stop_time=1.0, output_interval=0.1, debug_logging=True,
+                               input=np.array([(0.0, 0.25)], dtype=[("time", float), ("offset.u", float)]),
+                               logger=lambda env, name, status, category, message: messages.append(message))
+    assert result["time"][-1] == pytest.approx(0.3)   # the step to 0.4 failed: the simulation ends there
+    assert result["y[4]"][3] == 5 * 0.3 + 0.25     # the component saw t = 300 000 000 ns
+    assert b"plant/ramp.py:Ramp: step at t = 0.3 s failed: RuntimeError: the ramp ran out" in messages
+
+
+def test_element_units_split_a_unit_list_evenly_or_not_at_all():
+    assert element_units("m/s, rad/s", 6) == ["m/s"] * 3 + ["rad/s"] * 3
+    assert element_units("N*m", 2) == ["N*m", "N*m"]
+    assert element_units("m/s, rad/s", 5) is None
+    assert element_units("", 2) == [None, None]
+
+
+def test_the_fmu_runs_on_its_own_copy_of_zenorbit_in_another_process(humanoid_fmu, tmp_path):
+    """A fresh Python process (not this checkout's code on its path) runs the FMU and exits cleanly."""
+    script = f"""
+import json, sys, fmpy
+result = fmpy.simulate_fmu({str(humanoid_fmu)!r}, stop_time=0.03, output_interval=0.01)
+print(json.dumps({{"components": sys.modules["components"].__file__, "q": result["humanoid.q[0]"].tolist()}}))
+"""
+    done = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True, text=True, timeout=120,
+                          env={k: v for k, v in os.environ.items() if k != "PYTHONPATH"})
+    assert done.returncode == 0, done.stderr[-2000:]   # no crash at exit either
+    answer = json.loads(done.stdout.strip().splitlines()[-1])
+    assert answer["components"].endswith("/resources/components/__init__.py")
+    assert not answer["components"].startswith(str(ROOT))
+    here = fmpy.simulate_fmu(humanoid_fmu, stop_time=0.03, output_interval=0.01)
+    assert answer["q"] == here["humanoid.q[0]"].tolist()
+
+
+def kepler_sets(**changes) -> list[str]:
+    parameters = {**config_parameters("orbit_iss_kepler.yaml", "orbit"), **changes}
+    return ["orbit.kepler", *(f"--set={s}" for s in as_overrides({k: v for k, v in parameters.items() if v is not None}))]
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["orbit.keppler"], "unknown component type 'orbit.keppler'"),
+    (kepler_sets(semi_major_axes="7000 km"), "--set semi_major_axes: unknown parameter of orbit.kepler (known: "),
+    (kepler_sets(eccentricity=None), "--set eccentricity: missing required parameter"),
+    (kepler_sets(mean_anomaly=None, time_of_perigee="2022-09-18T11:30:00Z"),
+     "orbit.kepler needs the run epoch (run.epoch, the UTC of t = 0): pass --epoch UTC"),
+    ([*kepler_sets(), "--epoch", "yesterday"], "--epoch: expected a UTC time like 2022-09-18T12:00:00Z"),
+    (["dynamics.dart", "--set=bodies.robot.urdf=missing.urdf"],
+     "--set bodies.robot.urdf: URDF file 'missing.urdf' not found"),
+], ids=["unknown-type", "unknown-parameter", "missing-parameter", "needs-epoch", "bad-epoch", "missing-file"])
+def test_bad_export_requests_exit_2_naming_the_problem(arguments, message, tmp_path):
+    result = orchestrator("export-fmu", *arguments, "-o", tmp_path / "x.fmu")
+    assert result.returncode == 2 and message in result.stderr, result.stderr
+    assert result.stderr.startswith("error: ") and "Traceback" not in result.stderr
+    assert not list(tmp_path.glob("*.fmu"))
+
+
+@pytest.mark.parametrize("name, message", [
+    ("kepler.zip", "kepler.zip: the output must be a .fmu file, e.g. -o "),
+    ("my-orbit.fmu", "my-orbit.fmu: the file name is the FMU's model identifier and must be a C identifier"),
+])
+def test_output_name_must_be_an_fmu_named_by_an_identifier(name, message, tmp_path):
+    result = orchestrator("export-fmu", *kepler_sets(), "-o", tmp_path / name)
+    assert result.returncode == 2 and message in result.stderr, result.stderr
+    assert "Traceback" not in result.stderr and not list(tmp_path.iterdir())

@@ -181,6 +181,8 @@ def hold_binary_until_exit(resources: Path, model_identifier: str) -> None:
         library = ctypes.CDLL(binary, mode=os.RTLD_NOLOAD | os.RTLD_NOW)
     except OSError:
         return
+    if not hasattr(library, "finalizePythonInterpreter"):   # not a pythonfmu binary
+        return
     if not _HELD_BINARIES:
         import atexit
         atexit.register(_release_binaries)

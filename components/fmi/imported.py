@@ -287,9 +287,11 @@ class FMUComponent(Component):
         self.messages: list[str] = []
         self.unzipped = extract(str(self.file), unzipdir=tempfile.mkdtemp(prefix="zenorbit-fmu-"))
         self.fmu = self._instantiate()
-        # freed before the interpreter shuts down even if terminate() is never called (a harness):
-        # an FMU that embeds Python (pythonfmu) must not outlive it
+        # freed when garbage even if terminate() is never called (a harness)
         self._release = weakref.finalize(self, _release, self.fmu, self.unzipped)
+        self._release.atexit = False   # at exit, pythonfmu's binary is finalized instead (below)
+        from components.fmi.exported import hold_binary_until_exit   # pythonfmu's crash at exit, worked around
+        hold_binary_until_exit(Path(self.unzipped) / "resources", self.md.coSimulation.modelIdentifier)
         variables = signals(self.md, self.file)
         self.inputs = self._plan([s for s in variables if s.causality == "input"])
         self.outputs = self._plan([s for s in variables if s.causality == "output"])

@@ -25,7 +25,7 @@ import numpy as np
 
 from components.errors import ComponentError, ConfigError
 from components.schema import Anything, MapOf, Str
-from components.sdk import Component, Parameter, Variable
+from components.sdk import Component, Layout, Parameter, Variable
 from components.units import normalized_unit
 
 NUMERIC_TYPES = {  # FMI type -> (FMPy setter/getter suffix, numpy dtype of the calls' values)
@@ -292,9 +292,13 @@ class FMUComponent(Component):
         self._release.atexit = False   # at exit, pythonfmu's binary is finalized instead (below)
         from components.fmi.exported import hold_binary_until_exit   # pythonfmu's crash at exit, worked around
         hold_binary_until_exit(Path(self.unzipped) / "resources", self.md.coSimulation.modelIdentifier)
-        variables = signals(self.md, self.file)
-        self.inputs = self._plan([s for s in variables if s.causality == "input"])
-        self.outputs = self._plan([s for s in variables if s.causality == "output"])
+        variables = self.declare(params)
+        self.input_layout = Layout([v for v in variables if v.causality == "input"])
+        self.output_layout = Layout([v for v in variables if v.causality == "output"])
+        self.input_vector = self.input_layout.start_vector()
+        grouped = signals(self.md, self.file)
+        self.inputs = self._plan([s for s in grouped if s.causality == "input"])
+        self.outputs = self._plan([s for s in grouped if s.causality == "output"])
         self.initialized = False
         self.t_ns = None
 
@@ -354,21 +358,21 @@ class FMUComponent(Component):
                  refs, np.array(positions), cast, len(positions)) for suffix, (refs, positions, cast) in plan.items()]
 
     def _set_inputs(self, inputs: Mapping[str, np.ndarray]):
-        vector = np.concatenate([np.ravel(inputs[s]) for s in self._input_names]) if self._input_names else np.empty(0)
+        self.input_layout.pack(inputs, self.input_vector)
         for setter, _, refs, positions, cast, _n in self.inputs:
-            values = vector[positions]
+            values = self.input_vector[positions]
             self._call(setter, "setting the inputs", refs, values.tolist() if cast is float else
                        [cast(round(x)) for x in values])
 
     def _get_outputs(self) -> dict[str, np.ndarray]:
-        vector = np.empty(self._output_size)
+        vector = np.empty(self.output_layout.size)
         for _, getter, refs, positions, _, n in self.outputs:
             if self.fmi3:
                 values = self._call(getter, "getting the outputs", refs, nValues=n)
             else:
                 values = self._call(getter, "getting the outputs", refs)
             vector[positions] = np.asarray(values, dtype=np.float64)
-        return {name: vector[where] for name, where in self._output_slices}
+        return self.output_layout.unpack(vector)
 
     def _enter(self, t0_s: float):
         """Start values set, initialization mode entered (FMI 2: after setupExperiment)."""
@@ -384,18 +388,7 @@ class FMUComponent(Component):
 
     # ------------------------------------------------------------------ lifecycle
 
-    def _layouts(self):
-        variables = self.declare(self.params)
-        self._input_names = [v.name for v in variables if v.causality == "input"]
-        outputs = [v for v in variables if v.causality == "output"]
-        self._output_slices, start = [], 0
-        for v in outputs:
-            self._output_slices.append((v.name, slice(start, start + v.size)))
-            start += v.size
-        self._output_size = start
-
     def initialize(self, t0_ns, inputs):
-        self._layouts()
         self._enter(t0_ns / 1e9)
         self._set_inputs(inputs)
         self._call(self.fmu.exitInitializationMode, "exitInitializationMode")
@@ -431,7 +424,6 @@ class FMUComponent(Component):
             raise ComponentError(f"the state comes from another FMU (token {token}), not {self.label} "
                                  f"({self._token()}): swap with state only to the same FMU")
         if not self.initialized:   # the FMI state machine restores into an initialized instance
-            self._layouts()
             self._enter(int(state["t_ns"]) / 1e9)
             self._call(self.fmu.exitInitializationMode, "exitInitializationMode")
             self.initialized = True

@@ -89,7 +89,7 @@ def main() -> None:
               "raan": "236.55 deg", "arg_perigee": "262.44 deg", "mean_anomaly": "0 deg", "j2": True}
     epoch = "2022-09-18T12:00:00Z"
     with tempfile.TemporaryDirectory() as tmp:
-        out = export_fmu("orbit.kepler", [f"{k}={v}" for k, v in kepler.items()], Path(tmp) / "kepler.fmu",
+        out = export_fmu("orbit.kepler", kepler, Path(tmp) / "kepler.fmu",
                          epoch, ROOT)
         compare("orbit.kepler", lambda: Harness("orbit.kepler", kepler, epoch=epoch),
                 lambda: Harness("fmu", {"path": str(out)}), steps // 4)

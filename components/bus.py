@@ -28,6 +28,7 @@ straight from producer to consumer, one hop.
 """
 from __future__ import annotations
 
+import datetime as dt
 import io
 import json
 import os
@@ -48,6 +49,7 @@ BATCH = b"B"     # component -> orchestrator: several steps' outputs
 SYNC = b"Y"      # component -> consumers: "you hear me" (the start-up handshake)
 REPLY = b"R"     # component -> orchestrator: JSON + blob
 FAULT = b"E"     # component -> orchestrator: JSON {op, k, error}
+EVENT = b"V"     # component -> orchestrator: JSON {op: "events", k, events: [[kind, fields], ...]}
 QUIT = b"Q"      # a component to itself, when the orchestrator's liveliness token is gone
 
 _OUTPUT_HEADER = struct.Struct("<qq")    # generation, tag
@@ -97,6 +99,92 @@ def output_key(run_id: str, consumer: str, source: str) -> str:
 
 def batch_key(run_id: str, name: str) -> str:
     return run_key(run_id, "r", name)
+
+
+def reply_key(run_id: str, name: str, generation: int) -> str:
+    return component_key(run_id, name, generation, "out")
+
+
+def quit_key(run_id: str, name: str, generation: int) -> str:
+    return inbox_key(run_id, name, "q", str(generation))
+
+
+def inbox_pattern(run_id: str, name: str) -> str:
+    """Everything addressed to component ``name``."""
+    return inbox_key(run_id, name, "**")
+
+
+def output_prefix(run_id: str, consumer: str) -> str:
+    """What the keys of the outputs sent to ``consumer`` start with (then the source's name)."""
+    return inbox_key(run_id, consumer, "o", "")
+
+
+ORCHESTRATOR = "orchestrator"   # the orchestrator's liveliness name
+VIEWER = "_viewer"              # the observer's liveliness name (component names cannot start with _)
+
+
+def alive_key(run_id: str, name: str, generation: int) -> str:
+    """The liveliness token of a component's (or the observer's, generation 0) process."""
+    return run_key(run_id, "alive", name, str(generation))
+
+
+def orchestrator_alive_key(run_id: str) -> str:
+    return run_key(run_id, "alive", ORCHESTRATOR)
+
+
+def viewer_alive_key(run_id: str) -> str:
+    return alive_key(run_id, VIEWER, 0)
+
+
+def control_key(run_id: str) -> str:
+    """The orchestrator's queryable for the CLI."""
+    return run_key(run_id, "ctl")
+
+
+def signals_key(run_id: str) -> str:
+    return run_key(run_id, "signals")
+
+
+# what the orchestrator subscribes to
+def batch_pattern(run_id: str) -> str:
+    return run_key(run_id, "r", "*")
+
+
+def reply_pattern(run_id: str) -> str:
+    return run_key(run_id, "c", "*", "*", "out")
+
+
+def alive_pattern(run_id: str) -> str:
+    return run_key(run_id, "alive", "*", "*")
+
+
+def batch_source(key: str) -> str:
+    """The component a key of :func:`batch_pattern` is from."""
+    return key.rpartition("/")[2]
+
+
+def reply_source(key: str) -> tuple[str, int]:
+    """(component, generation) of a key of :func:`reply_pattern`; Malformed for another key."""
+    parts = key.split("/")
+    if len(parts) < 3 or not _is_number(parts[-2]):
+        raise Malformed("not a component's reply key")
+    return parts[-3], int(parts[-2])
+
+
+def alive_source(key: str) -> tuple[str, int] | None:
+    """(name, generation) of a key of :func:`alive_pattern`; None for a token that is not a process's."""
+    parts = key.split("/")
+    if not _is_number(parts[-1]):
+        return None
+    return parts[-2], int(parts[-1])
+
+
+def _is_number(text: str) -> bool:
+    return text.isascii() and text.isdigit()   # str.isdigit alone accepts "²", which int() refuses
+
+
+SIGNALS_HEADER = struct.Struct("<qd")   # a signals row: k, time in s; then one float64 per recorded column
+SIGNALS_END = b"END"                    # on the signals key: the run is over
 
 
 def encode_output(generation: int, tag: int, outputs: np.ndarray) -> bytes:
@@ -180,6 +268,21 @@ def decode_message(payload: bytes, fields: Mapping[str, type] = MappingProxyType
 
 
 FAULT_FIELDS = MappingProxyType({"op": str, "k": int, "error": str})
+EVENT_FIELDS = MappingProxyType({"op": str, "k": int, "events": list})
+
+
+def jsonable(value):
+    """Parameters as JSON values for a message body: YAML gives datetimes (sent as UTC text) and
+    dicts with keys of any type (sent as their str), numpy gives arrays (sent as lists)."""
+    if isinstance(value, (dt.datetime, dt.date)):
+        return value.isoformat().replace("+00:00", "Z")
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    return value
 
 
 def encode_state(state: Mapping[str, Any]) -> bytes:

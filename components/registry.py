@@ -1,4 +1,6 @@
-"""Component types by name.
+"""Component types by name, and :func:`resolve`: the one way from a type and raw parameters
+to a component's validated parameters, layouts and instance (config checks, the runner, the
+in-process loop, the harness and exported FMUs).
 
 A config's ``type`` is a registered name (``orbit.kepler``), an importable ``module:Class``, or a
 Python file relative to the config, ``path/to/file.py:Class``.
@@ -8,10 +10,12 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import sys
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Mapping
 
 from components.errors import ConfigError
-from components.sdk import Component
+from components.sdk import Component, Layout, layouts, resolve_parameters, run_parameters
 
 TYPES = {
     # small blocks for tests and examples
@@ -30,6 +34,10 @@ TYPES = {
     # controllers
     "controller.computed_torque": "components.controller.components:ComputedTorqueComponent",
     "controller.joint_pd": "components.controller.components:JointPDComponent",
+    "controller.capture": "components.controller.capture_component:CaptureComponent",
+    "sensor.imu": "components.sensors.components:ImuComponent",
+    "sensor.force_torque": "components.sensors.components:ForceTorqueComponent",
+    "sensor.relative_pose": "components.sensors.components:RelativePoseComponent",
     # FMI co-simulation FMUs (FMPy)
     "fmu": "components.fmi.imported:FMUComponent",
 }
@@ -66,3 +74,48 @@ def load(type_name: str, config_dir: str | Path | None = None) -> type[Component
     if not (isinstance(cls, type) and issubclass(cls, Component)):
         raise ConfigError("type", f"{target!r} is not a Component subclass")
     return cls
+
+
+@dataclass
+class Resolved:
+    """A component type with validated parameters and the layouts of its variables: all that
+    comes before an instance."""
+    cls: type[Component]
+    params: dict
+    inputs: Layout
+    outputs: Layout
+
+    def build(self) -> Component:
+        """A new instance (FMI's instantiate)."""
+        return self.cls(self.params)
+
+
+class Unresolved(Exception):
+    """Why :func:`resolve` failed. ``stage``: "type" (it cannot be loaded), "parameters"
+    (``errors`` holds every parameter error) or "declare" (``errors[0]`` is what declare raised)."""
+
+    def __init__(self, stage: str, errors: list[Exception]):
+        super().__init__(str(errors[0]))
+        self.stage, self.errors = stage, errors
+
+
+def resolve(component_type: str | type[Component], params: Mapping[str, Any], *, epoch: str | None = None,
+            config_dir: str | Path | None = None) -> Resolved:
+    """The one way from raw parameters to a component: load the type (a name or the class), add
+    the run parameters (``params`` may hold them already, as the instantiate message does),
+    validate, declare and lay out the inputs and outputs. Unresolved when any of it fails."""
+    raw = {**params, **run_parameters(epoch, config_dir)}
+    cls = component_type
+    if isinstance(component_type, str):
+        try:
+            cls = load(component_type, raw.get("_config_dir"))
+        except ConfigError as e:
+            raise Unresolved("type", [e]) from None
+    resolved, errors = resolve_parameters(cls, raw)
+    if errors:
+        raise Unresolved("parameters", errors)
+    try:
+        variables = cls.declare(resolved)
+    except Exception as e:  # a component's own bug too: the caller words it
+        raise Unresolved("declare", [e]) from None
+    return Resolved(cls, resolved, *layouts(variables))

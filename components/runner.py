@@ -28,7 +28,6 @@ import numpy as np
 
 from components import bus, registry
 from components.schedule import Route, fed_inputs
-from components.sdk import Layout, resolve_parameters
 
 INBOX_CAPACITY = 4096   # messages waiting in the inbox FIFO (a full one holds the senders back)
 BATCH_STEPS = 32   # outputs go to the orchestrator in batches of this many steps ...
@@ -144,20 +143,18 @@ class ComponentProcess:
 
     def control(self, op: str, body: dict, blob: bytes) -> bool:
         if op == "instantiate":
-            cls = registry.load(body["type"], body["params"].get("_config_dir"))
-            params, errors = resolve_parameters(cls, body["params"])
-            if errors:
-                raise errors[0]
-            variables = cls.declare(params)
-            self.inputs = Layout([v for v in variables if v.causality == "input"])
-            self.outputs = Layout([v for v in variables if v.causality == "output"])
+            try:
+                resolved = registry.resolve(body["type"], body["params"])   # run parameters included
+            except registry.Unresolved as e:
+                raise e.errors[0] from None
+            self.inputs, self.outputs = resolved.inputs, resolved.outputs
             self.input_vector = self.inputs.start_vector()
             self.output_vector = self.outputs.start_vector()
             self.input_views = self.inputs.unpack(self.input_vector)
             self.batch_tags = np.empty(BATCH_STEPS, dtype=np.int64)
             self.batch_timings = np.empty((BATCH_STEPS, 2))
             self.batch_rows = np.empty((BATCH_STEPS, self.outputs.size))
-            self.component = cls(params)
+            self.component = resolved.build()
             self.component.input_times_ns = self.input_times = {}
             self.reply(op, {"inputs": self.inputs.size, "outputs": self.outputs.size, "pid": os.getpid()})
         elif op == "wire":
@@ -278,6 +275,10 @@ class ComponentProcess:
         finally:
             self.stepping_since = None
         done = time.perf_counter()
+        events = self.component.take_events()
+        if events:
+            self.publish_reply(bus.encode_message(bus.EVENT, {"op": "events", "k": k, "events": bus.jsonable(
+                [[kind, fields] for kind, fields in events])}))
         vector = self.output_vector
         variable = self.outputs.first_non_finite(vector)
         if variable is not None:
@@ -382,7 +383,7 @@ def serve(connect: str, run_id: str, name: str, generation: int, listen: str, se
 
         # the orchestrator gone (killed, machine lost): wake the main loop with a quit message
         keep.append(session.liveliness().declare_subscriber(
-            bus.run_key(run_id, "alive", "orchestrator"),
+            bus.orchestrator_alive_key(run_id),
             lambda s: session.put(quit_key, bus.QUIT) if s.kind == zenoh.SampleKind.DELETE else None))
         keep.append(session.liveliness().declare_token(bus.run_key(run_id, "alive", name, str(generation))))
         process = ComponentProcess(name, replies.put, publish_output, batches.put)

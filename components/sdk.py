@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import inspect
 from dataclasses import dataclass, field
+from pathlib import Path
 from types import MappingProxyType
 from typing import Any, ClassVar, Mapping
 
@@ -108,6 +109,22 @@ class Component:
     def terminate(self) -> None:
         """Release resources at the end of the run."""
 
+    def emit(self, kind: str, **fields: Any) -> None:
+        """Report an event of the step being taken (a capture, say): the orchestrator writes it to
+        ``events.jsonl`` as ``{"event": kind, **fields, "component": ..., "step": ...}`` (step: the
+        step that emitted it). ``kind`` is an identifier that is not one of the orchestrator's own
+        events; fields are JSON values."""
+        if not kind.isidentifier() or kind in ORCHESTRATOR_EVENTS:
+            raise ValueError(f"emit: expected an event name that is an identifier and not one of "
+                             f"{', '.join(ORCHESTRATOR_EVENTS)}, got {kind!r}")
+        if "kind" in fields:
+            raise ValueError("emit: 'kind' cannot be a field name (it is the event's)")
+        self.__dict__.setdefault("pending_events", []).append((kind, fields))
+
+    def take_events(self) -> list[tuple[str, dict]]:
+        """The events emitted since the last call (the framework's side of ``emit``)."""
+        return self.__dict__.pop("pending_events", [])
+
     @classmethod
     def restorable(cls) -> bool:
         """Whether the type implements get_state and set_state (swaps with state, restarts)."""
@@ -149,8 +166,18 @@ def declaration_tables(cls: type[Component]) -> str:
     return "\n".join(parts)
 
 
+# The events the orchestrator itself writes to events.jsonl; a component's emit() cannot use them.
+ORCHESTRATOR_EVENTS = ("start", "end", "fault", "warning", "swap", "checkpoint", "restart", "viewer")
+
 # Injected by the orchestrator into every component's parameters; not declared by the types.
 RUN_PARAMETERS = ("_epoch", "_config_dir")
+
+
+def run_parameters(epoch: str | None, config_dir: str | Path | None) -> dict[str, str]:
+    """RUN_PARAMETERS for a run starting at ``epoch`` (UTC text) whose relative paths start at
+    ``config_dir``; one given as None is left out (a type that needs it says so)."""
+    given = {"_epoch": epoch, "_config_dir": None if config_dir is None else str(config_dir)}
+    return {key: value for key, value in given.items() if value is not None}
 
 
 @dataclass
@@ -196,6 +223,12 @@ class Layout:
     def unpack(self, vector: np.ndarray) -> dict[str, np.ndarray]:
         """Views of ``vector`` by variable name (scalars as 0-d arrays)."""
         return {name: vector[where].reshape(shape) for name, where, _, shape in self._plan}
+
+
+def layouts(variables: list[Variable]) -> tuple[Layout, Layout]:
+    """The input and the output layout of declared variables, each in declaration order."""
+    return (Layout([v for v in variables if v.causality == "input"]),
+            Layout([v for v in variables if v.causality == "output"]))
 
 
 class ComponentOutputError(Exception):

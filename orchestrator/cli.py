@@ -80,7 +80,7 @@ def _query(entry: dict, request: dict, timeout: float = 30.0) -> dict:
 
     session = bus.open_session(connect=[entry["endpoint"]], secret=entry["secret"])
     try:
-        for reply in session.get(bus.run_key(entry["run_id"], "ctl"), payload=json.dumps(request), timeout=timeout):
+        for reply in session.get(bus.control_key(entry["run_id"]), payload=json.dumps(request), timeout=timeout):
             if reply.ok is not None:
                 return json.loads(reply.ok.payload.to_bytes())
         return {"ok": False, "error": f"run {entry['run_id']} did not answer within {timeout:g} s"}
@@ -192,7 +192,7 @@ def cmd_describe(args) -> int:
 
     from components import registry
     from components.errors import ConfigError
-    from components.sdk import REQUIRED, resolve_parameters
+    from components.sdk import REQUIRED, resolve_parameters, run_parameters
     from orchestrator.config import ConfigErrors, apply_overrides
     if args.type == "config":
         from orchestrator.config import CONFIG
@@ -221,7 +221,7 @@ def cmd_describe(args) -> int:
         print(f"  they depend on the required parameters {', '.join(missing)}: give them to see the "
               f"variables, e.g. orchestrator describe {args.type} --set {missing[0]}=VALUE")
         return 0
-    params, errors = resolve_parameters(cls, {**given, "_config_dir": str(Path.cwd()), "_epoch": "2000-01-01T12:00:00Z"})
+    params, errors = resolve_parameters(cls, {**given, **run_parameters("2000-01-01T12:00:00Z", Path.cwd())})
     try:
         variables = cls.declare(params) if not errors else []
     except ConfigError as e:
@@ -240,12 +240,15 @@ def cmd_describe(args) -> int:
 
 def cmd_export_fmu(args) -> int:
     from components.fmi.exported import ExportError, export_fmu, fmu_summary
+    from orchestrator.config import ConfigErrors, apply_overrides
     if not args.output.endswith(".fmu"):
         return _fail(f"-o {args.output}: the output must be a .fmu file, e.g. -o {Path(args.output).stem or 'model'}.fmu")
+    parameters: dict = {}
     try:
-        path = export_fmu(args.type, args.set, Path(args.output), args.epoch, Path.cwd())
-    except ExportError as e:
-        for line in e.problems:
+        apply_overrides(parameters, args.set)
+        path = export_fmu(args.type, parameters, Path(args.output), args.epoch, Path.cwd())
+    except (ConfigErrors, ExportError) as e:
+        for line in e.errors if isinstance(e, ConfigErrors) else e.problems:
             print(f"error: {line}", file=sys.stderr)
         return USAGE_ERROR
     summary = fmu_summary(path)

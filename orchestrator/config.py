@@ -15,7 +15,7 @@ from components import registry
 from components.errors import ConfigError
 from components.schema import (Anything, Bool, Duration, Float, Int, ListOf, MapOf, Parameter, Record, Str,
                                UtcTime, markdown)
-from components.sdk import Component, Layout, Variable, resolve_parameters
+from components.sdk import Component, Layout, Variable, run_parameters
 from components.units import duration_text, unit_scale
 
 ALGORITHMS = ("jacobi", "gauss-seidel")
@@ -195,6 +195,11 @@ class RunConfig:
     def steps(self) -> int:
         return self.duration_ns // self.step_ns
 
+    @property
+    def run_parameters(self) -> dict[str, str]:
+        """What every component gets besides its own parameters (sdk.RUN_PARAMETERS)."""
+        return run_parameters(self.epoch, self.path.parent.resolve())
+
 
 class _UniqueKeyLoader(yaml.SafeLoader):
     """YAML loader that refuses duplicate keys (PyYAML silently keeps the last one)."""
@@ -294,10 +299,14 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
     params_raw = entry["parameters"]
     if not isinstance(params_raw, dict):
         raise ConfigErrors([f"{key}.parameters: expected a mapping, got {params_raw!r}"])
-    raw = {**params_raw, "_epoch": epoch, "_config_dir": str(config_dir)}
-    resolved, param_errors = resolve_parameters(cls, raw)
-    errors += [f"{key}.parameters.{e.key}: {e.message}" if e.key else f"{key}.parameters: {e.message}"
-               for e in param_errors]
+    unresolved = None
+    try:
+        resolved = registry.resolve(cls, params_raw, epoch=epoch, config_dir=config_dir)
+    except registry.Unresolved as e:
+        unresolved = e
+    if unresolved and unresolved.stage == "parameters":
+        errors += [f"{key}.parameters.{e.key}: {e.message}" if e.key else f"{key}.parameters: {e.message}"
+                   for e in unresolved.errors]
     if entry["dedicated_cpu"] and entry["launch"] == "external":
         errors.append(f"{key}.dedicated_cpu: only for components the orchestrator starts (launch: local); "
                       f"pin an external component where it runs (taskset)")
@@ -305,18 +314,13 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
         errors.append(f"{key}.on_failure: restart is only for components the orchestrator starts (launch: local)")
     if errors:
         raise ConfigErrors(errors)
-    try:
-        variables = cls.declare(resolved)
-    except ConfigError as e:
-        raise ConfigErrors([f"{key}.parameters.{e.key}: {e.message}"]) from None
-    except Exception as e:  # a component's own bug or a file it cannot read: still one line, naming the key
-        raise ConfigErrors([f"{key}.parameters: {type_name} cannot declare its variables: "
-                            f"{type(e).__name__}: {e}"]) from None
+    if unresolved:   # declare failed; a component's own bug or a file it cannot read is one line too
+        e = unresolved.errors[0]
+        raise ConfigErrors([f"{key}.parameters.{e.key}: {e.message}" if isinstance(e, ConfigError) else
+                            f"{key}.parameters: {type_name} cannot declare its variables: {type(e).__name__}: {e}"])
     return ComponentSpec(name=name, type=type_name, cls=cls, step_ns=step_ns, parameters=params_raw,
-                         resolved=resolved, launch=entry["launch"], dedicated_cpu=entry["dedicated_cpu"],
-                         on_failure=entry["on_failure"],
-                         inputs=Layout([v for v in variables if v.causality == "input"]),
-                         outputs=Layout([v for v in variables if v.causality == "output"]))
+                         resolved=resolved.params, launch=entry["launch"], dedicated_cpu=entry["dedicated_cpu"],
+                         on_failure=entry["on_failure"], inputs=resolved.inputs, outputs=resolved.outputs)
 
 
 def validate(raw: dict, path: Path) -> RunConfig:

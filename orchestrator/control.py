@@ -4,22 +4,45 @@ from __future__ import annotations
 
 import copy
 import json
+from typing import Mapping, Protocol
 
-from orchestrator.config import COMPONENT, ConfigErrors, apply_overrides, check_replacement, component_spec
+from orchestrator.config import (COMPONENT, ComponentSpec, ConfigErrors, RunConfig, apply_overrides,
+                                 check_replacement, component_spec)
 
 
 class SwapFailed(Exception):
     """A replacement could not start; the component it was to replace runs on."""
 
 
+class StopRequested(Exception):
+    """Ctrl-C, SIGTERM or `orchestrator stop`: end the run cleanly."""
+
+
+def raise_stop(signum, frame):
+    """The SIGTERM handler of a run."""
+    raise StopRequested()
+
+
+class Controlled(Protocol):
+    """What the control server needs of a run."""
+    config: RunConfig
+
+    @property
+    def row(self) -> int: ...   # the step boundary the run is at
+
+    def specs(self) -> Mapping[str, ComponentSpec]: ...   # the live components, in config order
+
+    def status(self) -> dict: ...
+
+    def request_stop(self, reason: str) -> None: ...
+
+    def swap(self, spec: ComponentSpec) -> int: ...   # the new generation; SwapFailed if it cannot start
+
+
 class ControlServer:
-    """Queries queue up as they arrive; ``serve`` answers them at a step boundary.
+    """Queries queue up as they arrive; ``serve`` answers them at a step boundary."""
 
-    ``run`` provides: ``status()``, ``request_stop()``, ``members``, ``config``, ``row`` (the
-    step boundary the run is at) and ``swap(spec)``.
-    """
-
-    def __init__(self, run):
+    def __init__(self, run: Controlled):
         self.run = run
         self.queries: list = []
 
@@ -31,19 +54,24 @@ class ControlServer:
         one of its own step boundaries), or None if no swap waits."""
         for query in self.queries:
             request = _request(query)
-            member = self.run.members.get(request.get("component", "")) if request.get("op") == "swap" else None
-            if member is not None:
-                return -(-self.run.row // member.ratio) * member.ratio
+            spec = self.run.specs().get(request.get("component", "")) if request.get("op") == "swap" else None
+            if spec is not None:
+                return self._boundary(spec)
         return None
+
+    def _boundary(self, spec: ComponentSpec) -> int:
+        """The first step boundary of ``spec``'s component at or after the run's."""
+        ratio = spec.step_ns // self.run.config.step_ns
+        return -(-self.run.row // ratio) * ratio
 
     def serve(self, quiescent: bool) -> None:
         """Answer what can be answered now; swaps only when every component is at the boundary."""
         waiting = []
         for query in self.queries:
             request = _request(query)
-            target = self.run.members.get(request.get("component", ""))
+            target = self.run.specs().get(request.get("component", ""))
             if request.get("op") == "swap" and target is not None and (
-                    not quiescent or self.run.row % target.ratio):
+                    not quiescent or self._boundary(target) != self.run.row):
                 waiting.append(query)
                 continue
             try:
@@ -66,10 +94,11 @@ class ControlServer:
             return {"ok": True}
         if op == "swap":
             name = request["component"]
-            if name not in run.members:
-                return {"ok": False, "error": f"no component {name!r} (components: {', '.join(run.members)})",
+            specs = run.specs()
+            if name not in specs:
+                return {"ok": False, "error": f"no component {name!r} (components: {', '.join(specs)})",
                         "usage": True}
-            old = run.members[name].spec
+            old = specs[name]
             entry = {"type": request.get("type") or old.type, "parameters": copy.deepcopy(
                 old.parameters if not request.get("type") or request["type"] == old.type else {}),
                 "on_failure": old.on_failure}
@@ -85,8 +114,8 @@ class ControlServer:
                     raise ConfigErrors(problems)
             except ConfigErrors as e:
                 return {"ok": False, "error": "; ".join(e.errors), "usage": True}
-            run.swap(spec)
-            return {"ok": True, "step": run.row, "generation": run.members[name].generation}
+            generation = run.swap(spec)
+            return {"ok": True, "step": run.row, "generation": generation}
         return {"ok": False, "error": f"unknown operation {op!r} (status, stop, swap)"}
 
 

@@ -14,10 +14,9 @@ import time
 
 import numpy as np
 
-from components import schedule
-from components.sdk import Layout, resolve_parameters
+from components import bus, schedule
+from components.registry import Unresolved, resolve
 from orchestrator.config import RunConfig
-from orchestrator.engine import _jsonable
 
 
 class _Stepped:
@@ -25,17 +24,15 @@ class _Stepped:
 
     def __init__(self, config: RunConfig, name: str):
         spec = config.components[name]
-        raw = json.loads(json.dumps(_jsonable({**spec.parameters, "_epoch": config.epoch,
-                                               "_config_dir": str(config.path.parent.resolve())})))
-        params, errors = resolve_parameters(spec.cls, raw)
-        if errors:
-            raise errors[0]
-        variables = spec.cls.declare(params)
-        self.inputs = Layout([v for v in variables if v.causality == "input"])
-        self.outputs = Layout([v for v in variables if v.causality == "output"])
+        raw = json.loads(json.dumps(bus.jsonable({**spec.parameters, **config.run_parameters})))
+        try:
+            resolved = resolve(spec.cls, raw)
+        except Unresolved as e:
+            raise e.errors[0] from None
+        self.inputs, self.outputs = resolved.inputs, resolved.outputs
         self.input_vector = self.inputs.start_vector()
         self.input_views = self.inputs.unpack(self.input_vector)
-        self.component = spec.cls(params)
+        self.component = resolved.build()
         self.ratio = spec.step_ns // config.step_ns
         self.by_tag: dict[int, np.ndarray] = {}
         self.routes: list[schedule.Route] = []
@@ -54,10 +51,12 @@ class _Stepped:
         return vector
 
 
-def run_in_process(config: RunConfig, steps: int | None = None, timing: dict | None = None) -> np.ndarray:
+def run_in_process(config: RunConfig, steps: int | None = None, timing: dict | None = None,
+                   events: list | None = None) -> np.ndarray:
     """Rows (steps + 1, number of recorded columns) of the config run for ``steps`` steps
     (default: its duration). ``timing``, if given, gets ``loop_s``: the wall time of the stepping
-    loop (start-up excluded, as a bus run's ``loop_s``), for benchmarks."""
+    loop (start-up excluded, as a bus run's ``loop_s``), for benchmarks. ``events``, if given, gets
+    the components' events as events.jsonl would hold them (dicts)."""
     steps = config.steps if steps is None else steps
     order = list(config.components)
     members = {name: _Stepped(config, name) for name in order}
@@ -80,12 +79,15 @@ def run_in_process(config: RunConfig, steps: int | None = None, timing: dict | N
     rows[0] = np.concatenate([m.by_tag[0] for m in members.values()])
     started = time.perf_counter()
     for k in range(steps):
-        for member in members.values():
+        for name, member in members.items():
             if schedule.is_due(member.ratio, k):
                 member.take_inputs(members, k, config.step_ns)
                 result = member.component.do_step(k * config.step_ns, member.ratio * config.step_ns,
                                                   member.input_views)
                 member.by_tag[k + member.ratio] = member.pack(result)
+                for kind, fields in member.component.take_events():
+                    if events is not None:
+                        events.append({"event": kind, **bus.jsonable(fields), "component": name, "step": k})
         rows[k + 1] = np.concatenate([m.by_tag[schedule.row_tag(m.ratio, k + 1)] for m in members.values()])
         for member in members.values():  # keep only what a later step can still read
             oldest = schedule.row_tag(member.ratio, k + 1)

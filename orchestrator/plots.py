@@ -12,6 +12,7 @@
 | ``<c>_torque.png`` | computed_torque, joint_pd | torques of the driven joints, N m (Fig. 7) |
 | ``<c>_base.png`` | controller.computed_torque | the body's base displacement (mm, W) and rotation (deg) from t0, and sigma_min of J_g |
 | ``<c>_joints.png`` | controller.joint_pd | joint positions and their references |
+| ``<c>_capture.png`` | dynamics.dart with a ``grasp`` | distance and relative rate to the grasp frame, the assembly's rate, wheel rates (joints named ``*wheel*``), the wrist wrench, and the total momentum's change, the capture instant marked |
 
 ``signals=[name, ...]`` plots those columns instead (``signals.png``): a column such as
 ``dynamics.target.q[0]``, or all elements of a vector, ``orbit.r_eci``. ``<c>`` is the component's
@@ -66,17 +67,16 @@ def _source(config: dict, component: str, variable: str) -> str | None:
 
 def _joint_names(record_dir: Path, params: dict, n: int) -> list[str]:
     """Names of the body's n joints (URDF order) if the URDF can be found, else tau[i]. The
-    controller's ``urdf`` is resolved as the run resolved it (:func:`resolve_urdf`: relative to
+    controller's ``urdf`` is resolved as the run resolved it (:func:`read_model`: relative to
     the original config file, found through the recording's start event)."""
-    from components.dynamics.component import resolve_urdf
-    from components.dynamics.urdf import UrdfError, read_urdf
     from components.errors import ConfigError
+    from components.robots.model import read_model
     from components.viewer.replay import ReplayError, read_recording
 
     try:
         config_dir = read_recording(record_dir)[1]
-        names = read_urdf(resolve_urdf(params.get("urdf"), config_dir, "urdf")).movable_joints
-    except (ConfigError, ReplayError, UrdfError, OSError):
+        names = read_model(params.get("urdf"), config_dir, "urdf").movable_joints
+    except (ConfigError, ReplayError, OSError):
         names = []
     return names if len(names) == n else [f"tau[{i}]" for i in range(n)]
 
@@ -318,6 +318,66 @@ def _dynamics(name: str, params: dict, config: dict, columns: dict, t: np.ndarra
     return written
 
 
+def _capture(name: str, params: dict, columns: dict, t: np.ndarray, record_dir: Path) -> list[tuple[str, object]]:
+    """The capture: approach, impact and detumbling on one page."""
+    grasp = params.get("grasp")
+    p = _vector(columns, f"{name}.grasp.p_ee_grasp", 3)
+    if not grasp or p is None:
+        return []
+    chaser, target = grasp["chaser"], grasp["target"]
+    relative = _vector(columns, f"{name}.grasp.twist_ee_grasp", 6)
+    wrench = _vector(columns, f"{name}.grasp.wrench", 6)
+    closed = columns.get(f"{name}.grasp.closed")
+    t_capture = t[np.argmax(closed >= 0.5)] if closed is not None and np.any(closed >= 0.5) else None
+    rates = {body: _vector(columns, f"{name}.{body}.twist", 6) for body in (chaser, target)}
+    qd = _vector(columns, f"{name}.{chaser}.qd")
+    joints = _joint_names(record_dir, {"urdf": (params["bodies"][chaser] or {}).get("urdf")}, qd.shape[1]) \
+        if qd is not None else []
+    wheels = [i for i, j in enumerate(joints) if "wheel" in j] if qd is not None else []
+    total = np.zeros((len(t), 6))
+    for body in params.get("bodies") or {}:
+        momentum, com = _vector(columns, f"{name}.{body}.momentum", 6), _vector(columns, f"{name}.{body}.com", 3)
+        if momentum is None or com is None:
+            total = None
+            break
+        total[:, :3] += momentum[:, :3]
+        total[:, 3:] += momentum[:, 3:] + np.cross(com, momentum[:, :3])
+    fig = _figure(9.0, 14.0)
+    axes = [fig.add_subplot(6, 1, k) for k in range(1, 7)]
+    axes[0].plot(t, 1e3 * np.linalg.norm(p, axis=1), label="distance E to G (mm)")
+    axes[0].set(yscale="log", title=f"{name}: end effector to grasp frame")
+    if relative is not None:
+        axes[1].plot(t, 1e3 * np.linalg.norm(relative[:, :3], axis=1), label="relative velocity (mm/s)")
+        axes[1].plot(t, np.degrees(np.linalg.norm(relative[:, 3:], axis=1)), label="relative rate (deg/s)")
+        axes[1].set(yscale="log", title="grasp frame relative to the end effector")
+    for body, twist in rates.items():
+        if twist is not None:
+            axes[2].plot(t, np.degrees(np.linalg.norm(twist[:, 3:], axis=1)), label=f"{body} (deg/s)")
+    axes[2].axhline(0.1, color="grey", linestyle=":", label="0.1 deg/s")
+    axes[2].set(title="angular rate (inertial)")
+    for i in wheels:
+        axes[3].plot(t, qd[:, i], label=joints[i])
+    axes[3].set(ylabel="rad/s", title=f"{chaser}: wheel rates" if wheels else "no joints named *wheel*")
+    if wrench is not None:
+        axes[4].plot(t, np.linalg.norm(wrench[:, :3], axis=1), label="|force| (N)")
+        axes[4].plot(t, np.linalg.norm(wrench[:, 3:], axis=1), label="|torque| (N m)")
+        axes[4].set(title="wrench at the grasp (what a wrist F/T sensor reads)")
+    if total is not None:
+        change = total - total[0]
+        axes[5].plot(t, np.linalg.norm(change[:, :3], axis=1), label="linear (kg m/s)")
+        axes[5].plot(t, np.linalg.norm(change[:, 3:], axis=1), label="angular about W's origin (kg m^2/s)")
+        axes[5].set(title="total momentum, change from t0 (all bodies, wheels included)")
+    for ax in axes:
+        if t_capture is not None:
+            ax.axvline(t_capture, color="red", linewidth=0.8, label="capture" if ax is axes[0] else None)
+        ax.set_xlabel("time (s)")
+        ax.grid(True, alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="upper right", fontsize="x-small", ncols=2)
+    fig.tight_layout()
+    return [(f"{name}_capture.png", fig)]
+
+
 def _signals(names: list[str], columns: dict, t: np.ndarray) -> list[tuple[str, object]]:
     """One panel per name: a column (``x[0]``) or every element of a vector (``dynamics.b.q``)."""
     series = {}
@@ -365,6 +425,7 @@ def figures(record_dir, signals: list[str] | None = None) -> list[tuple[str, obj
             written += _joint_pd(name, params, config, columns, t, record_dir)
         elif kind == DYNAMICS:
             written += _dynamics(name, params, config, columns, t, record_dir)
+            written += _capture(name, params, columns, t, record_dir)
         elif kind.startswith(ORBIT):
             written += _orbit(name, config, columns, t)
     if not written:

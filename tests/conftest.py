@@ -1,6 +1,8 @@
 """Shared helpers: run the real `orchestrator` CLI in a subprocess and find leftover processes."""
 from __future__ import annotations
 
+import json
+import os
 import subprocess
 import sys
 import time
@@ -12,9 +14,22 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def component_processes(run_tag: str = "") -> list[str]:
-    """Command lines of live component processes (optionally only those of one run)."""
+    """Command lines of live component processes (optionally only those of one run). Only this
+    test's: a test runs its runs with its own ZENORBIT_RUNTIME_DIR, which their processes inherit,
+    so another test session on the machine running the same config is not counted."""
     out = subprocess.run(["ps", "-ww", "-eo", "pid=,args="], capture_output=True, text=True).stdout
-    return [line for line in out.splitlines() if "components.runner" in line and run_tag in line]
+    found = [line for line in out.splitlines() if "components.runner" in line and run_tag in line]
+    runtime = os.environ.get("ZENORBIT_RUNTIME_DIR")
+    if runtime is None:
+        return found
+    mine = f"ZENORBIT_RUNTIME_DIR={runtime}".encode()
+
+    def ours(line: str) -> bool:
+        try:
+            return mine in Path(f"/proc/{line.split()[0]}/environ").read_bytes().split(b"\0")
+        except OSError:          # gone since ps listed it (or not ours to read): not a leftover of this test
+            return False
+    return [line for line in found if ours(line)]
 
 
 def start_run(config, record, **popen) -> subprocess.Popen:
@@ -29,6 +44,51 @@ def wait_for_components(run_tag: str, count: int, timeout: float = 60.0) -> list
     while len(found := component_processes(run_tag)) < count and time.monotonic() < deadline:
         time.sleep(0.2)
     return found
+
+
+def wait_until(condition, what: str, timeout: float = 120.0, run: subprocess.Popen | None = None):
+    """Poll ``condition()`` until it returns something true, and return that. A test waits on an
+    event (a line in a file, a row count, a process state) rather than sleeping for a guess of
+    how long it takes: ``timeout`` is only there to end a test that would hang, and is generous
+    (a machine with every core busy is slow, not broken). ``run``: a run that must not end first."""
+    deadline = time.monotonic() + timeout
+    while True:
+        found = condition()
+        if found:
+            return found
+        if run is not None and run.poll() is not None:
+            raise AssertionError(f"the run ended (exit {run.returncode}) before {what}")
+        if time.monotonic() > deadline:
+            raise AssertionError(f"no {what} within {timeout:g} s")
+        time.sleep(0.1)
+
+
+def wait_for_step(name: str, step: int, timeout: float = 120.0, run: subprocess.Popen | None = None) -> int:
+    """Wait until the live run named ``name`` has recorded row ``step`` (the run's own answer to
+    a status query, as `orchestrator ps` asks it); return the row it had reached."""
+    from components import bus
+    from orchestrator import runs
+
+    entry = wait_until(lambda: runs.find(name), f"run {name} registered", timeout, run)[0]
+    session = bus.open_session(connect=[entry["endpoint"]], secret=entry["secret"])
+
+    def reached():
+        for reply in session.get(bus.run_key(entry["run_id"], "ctl"), payload=b'{"op": "status"}', timeout=10.0):
+            if reply.ok is not None:
+                row = json.loads(reply.ok.payload.to_bytes()).get("step", -1)
+                return row if row >= step else None
+        return None
+    try:
+        return wait_until(reached, f"step {step} of run {name}", timeout, run)
+    finally:
+        session.close()
+
+
+def part_files(parquet: Path) -> list[Path]:
+    """The complete part files of a recording's signals.parquet (a chunk is written under a
+    hidden name, then renamed into place)."""
+    return sorted(p for p in Path(parquet).glob("*.parquet") if not p.name.startswith(".")) \
+        if Path(parquet).is_dir() else []
 
 
 def signal_files(record: Path) -> dict[str, bytes]:

@@ -24,24 +24,17 @@ from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.rotations import continuous
 from components.controller.trajectory import CARTESIAN
-from components.dynamics.component import JOINT_VALUE
+from components.robots.model import JOINT_VALUE, joint_units, read_model
 from components.schema import Float, ListOf, MapOf, OneOf, Record, Str, Vector
 from components.sdk import Component, Parameter, Variable
+from components.signals import BODY_STATE, body_signals, torque_signal
 
 
 # --------------------------------------------------------------------------- shared helpers
 
 def _urdf(params: Mapping[str, Any]):
-    """The parsed URDF of ``params['urdf']``: absolute, else relative to the config file, else to
-    the project root (as ``dynamics.dart`` resolves it); ConfigError naming ``urdf``."""
-    from components.dynamics.component import resolve_urdf
-    from components.dynamics.urdf import UrdfError, read_urdf
-
-    path = resolve_urdf(params["urdf"], params.get("_config_dir"), "urdf")
-    try:
-        return read_urdf(path)
-    except UrdfError as e:
-        raise ConfigError("urdf", str(e)) from None
+    """The parsed URDF of ``params['urdf']``, found as ``dynamics.dart`` finds it; ConfigError naming ``urdf``."""
+    return read_model(params["urdf"], params.get("_config_dir"), "urdf")
 
 
 def _check_names(names: list[str], key: str, allowed: list[str], what: str) -> list[str]:
@@ -65,15 +58,10 @@ def _gain(unit: str) -> OneOf:
     return OneOf((Float(unit, minimum=0.0), Vector(None, unit, minimum=0.0)))
 
 
-def _state_inputs(n: int) -> list[Variable]:
-    return [
-        Variable("position", "input", (3,), "m", [0.0, 0.0, 0.0], "base link origin, W"),
-        Variable("orientation", "input", (4,), "1", [0.0, 0.0, 0.0, 1.0], "q_W_base [x, y, z, w]"),
-        Variable("twist", "input", (6,), "m/s, rad/s", [0.0] * 6,
-                 "base origin linear velocity, then angular velocity, W axes"),
-        Variable("q", "input", (n,), "rad", [0.0] * n, "joint positions, every non-fixed URDF joint, file order"),
-        Variable("qd", "input", (n,), "rad/s", [0.0] * n, "joint rates, same layout as q"),
-    ]
+def _loop_signals(model) -> list[Variable]:
+    """The body state read (inputs) and the joint torques published (output ``tau``)."""
+    return body_signals("input", model, names=BODY_STATE) + [
+        torque_signal("output", model, note="zero on joints not driven")]
 
 
 def _kinematic_chain(model, end_effector: str) -> list:
@@ -207,9 +195,7 @@ class ComputedTorqueComponent(Component):
 
     @classmethod
     def declare(cls, params):
-        n = len(_urdf(params).movable_joints)
-        return _state_inputs(n) + [
-            Variable("tau", "output", (n,), "N*m", [0.0] * n, "joint torques, zero on joints not driven"),
+        return _loop_signals(_urdf(params)) + [
             Variable("ee_position", "output", (3,), "m", [0.0] * 3, "end-effector frame origin, W"),
             Variable("ee_position_desired", "output", (3,), "m", [0.0] * 3, "its reference, W"),
             Variable("ee_error", "output", (6,), "m, rad", [0.0] * 6,
@@ -408,10 +394,10 @@ class JointPDComponent(Component):
 
     @classmethod
     def declare(cls, params):
-        n = len(_urdf(params).movable_joints)
-        return _state_inputs(n) + [
-            Variable("tau", "output", (n,), "N*m", [0.0] * n, "joint torques, zero on joints not driven"),
-            Variable("q_desired", "output", (n,), "rad", [0.0] * n,
+        model = _urdf(params)
+        n = len(model.movable_joints)
+        return _loop_signals(model) + [
+            Variable("q_desired", "output", (n,), joint_units(model)[0], [0.0] * n,
                      "reference of the driven joints; the measured q elsewhere"),
         ]
 

@@ -14,43 +14,23 @@ and the last output quaternions (their signs continue).
 from __future__ import annotations
 
 import re
-from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
 from components.constants import MU_EARTH, NS_PER_S
-from components.dynamics.urdf import UrdfError, UrdfModel, read_urdf
 from components.errors import ComponentError, ConfigError
+from components.robots.model import JOINT_RATE, JOINT_VALUE, body_items, read_model
+from components.robots.urdf import UrdfModel
 from components.rotations import continuous
 from components.schema import Float, Int, ListOf, MapOf, OneOf, Record, Str, Vector
 from components.sdk import Component, Parameter, Variable
+from components.signals import BODY as BODY_OUTPUTS, ORBIT as ORBIT_INPUTS, body_signals, orbit_signals, torque_signal
 
-PROJECT_ROOT = Path(__file__).resolve().parents[2]
 NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-ORBIT_INPUTS = ("r_eci", "v_eci", "q_eci_lvlh", "w_lvlh")
-BODY_OUTPUTS = ("position", "orientation", "twist", "q", "qd", "com", "momentum")
 LINK_OUTPUTS = ("gg_torque", "tidal_force", "drag_force", "link_position", "link_orientation")
 LAST = "last_output."   # state keys of the last output quaternions
 
-
-def resolve_urdf(value: Any, config_dir: str | None, key: str) -> Path:
-    """A URDF path: absolute, else relative to the config file, else to the project root."""
-    if not isinstance(value, str) or not value:
-        raise ConfigError(key, f"expected a URDF file path, got {value!r}")
-    path = Path(value)
-    if path.is_absolute():
-        candidates = [path]
-    else:
-        candidates = [Path(config_dir or ".") / path, PROJECT_ROOT / path]
-    for candidate in candidates:
-        if candidate.is_file():
-            return candidate.resolve()
-    raise ConfigError(key, f"URDF file {value!r} not found (looked in: {', '.join(str(c) for c in candidates)})")
-
-
-JOINT_VALUE = OneOf((Float("rad"), Float("m")))       # revolute (rad) or prismatic (m)
-JOINT_RATE = OneOf((Float("rad/s"), Float("m/s")))
 PER_LINK = "one number for the base link, or link name -> number"
 BODY = Record("Body", (
     Parameter("urdf", Str(hint="a URDF file path"),
@@ -78,27 +58,69 @@ ATMOSPHERE = Record("Atmosphere", (
 ), description="one exponential layer instead of the 0-1000 km table")
 
 
-def body_items(raw: Any) -> list[tuple[str, Mapping]]:
-    """``bodies`` as (name, body) pairs; ConfigError unless a mapping name -> {urdf, ...}."""
-    if not isinstance(raw, Mapping) or not raw:
-        raise ConfigError("bodies", f"expected a mapping body name -> body, got {raw!r}")
-    for name, body in raw.items():
-        if not isinstance(body, Mapping) or "urdf" not in body:
-            raise ConfigError(f"bodies.{name}", f"expected a mapping with at least urdf, got {body!r}")
-    return list(raw.items())
+TOLERANCE = Record("Tolerance", (
+    Parameter("position", Float("m", minimum=0.0), description="distance between the end effector's and the grasp frame's origins"),
+    Parameter("orientation", Float("rad", minimum=0.0), description="angle between their attitudes"),
+    Parameter("linear_velocity", Float("m/s", minimum=0.0), description="target's velocity relative to the chaser at the end effector"),
+    Parameter("angular_velocity", Float("rad/s", minimum=0.0), description="target's angular velocity relative to the chaser"),
+), description="the grasp closes only within all four")
+GRASP = Record("Grasp", (
+    Parameter("chaser", Str(), description="the body whose end effector grasps (the paper's chaser, F_c)"),
+    Parameter("end_effector", Str(), description="link of the chaser: the end-effector frame E"),
+    Parameter("target", Str(), description="the body grasped (the paper's target, F_t)"),
+    Parameter("grasp_frame", Str(), description="link of the target: the grasp frame G that E must meet"),
+    Parameter("tolerance", TOLERANCE, description="pose and velocity errors within which the grasp closes"),
+), description="a capture: E welds to G when grasp.close is set and the errors are within tolerance")
+GRASP_OUTPUTS = ("p_ee_grasp", "q_ee_grasp", "twist_ee_grasp", "closed", "wrench",
+                 "p_c_t", "q_c_t", "v_c_t", "w_c_t")
+FRAME_OUTPUTS = ("p_lvlh_com", "q_lvlh_body", "v_lvlh_com", "w_lvlh_body")
+IMU_OUTPUTS = ("imu_rate", "specific_force")
+
+
+def grasp_variables(grasp: Mapping[str, Any]) -> list[Variable]:
+    """The grasp's input and outputs (``grasp.*``)."""
+    c, t = grasp["chaser"], grasp["target"]
+    return [
+        Variable("grasp.close", "input", (), "1", 0.0,
+                 "close the grasp (>= 0.5) as soon as the errors are within tolerance; unconnected: never"),
+        Variable("grasp.p_ee_grasp", "output", (3,), "m", 0.0, "grasp frame origin in the end-effector frame E"),
+        Variable("grasp.q_ee_grasp", "output", (4,), "1", [0.0, 0.0, 0.0, 1.0], "q_E_G [x, y, z, w], sign continuous"),
+        Variable("grasp.twist_ee_grasp", "output", (6,), "m/s, rad/s", 0.0,
+                 "rate of p_ee_grasp seen in E, then G's angular velocity relative to E, E axes"),
+        Variable("grasp.closed", "output", (), "1", 0.0, "1 once the grasp has closed (the bodies are one assembly)"),
+        Variable("grasp.wrench", "output", (6,), "N, N*m", 0.0,
+                 "wrench the end effector applies to the target: force, torque about the weld point, E axes "
+                 "(what a wrist force/torque sensor reads; 0 while open)"),
+        Variable("grasp.p_c_t", "output", (3,), "m", 0.0, f"{t}'s CoM relative to {c}'s CoM, in {c}'s base axes (F_c)"),
+        Variable("grasp.q_c_t", "output", (4,), "1", [0.0, 0.0, 0.0, 1.0], f"q_Fc_Ft: {t}'s base attitude in {c}'s"),
+        Variable("grasp.v_c_t", "output", (3,), "m/s", 0.0, "rate of p_c_t seen in F_c, F_c axes"),
+        Variable("grasp.w_c_t", "output", (3,), "rad/s", 0.0, f"{t}'s angular velocity relative to {c}, F_c axes"),
+    ]
+
+
+def frame_variables(name: str) -> list[Variable]:
+    """The body's CoM frame (the paper's F_c, F_t: origin at the CoM, base link axes) relative to LVLH."""
+    return [
+        Variable(f"{name}.p_lvlh_com", "output", (3,), "m", 0.0, "CoM relative to the LVLH origin (the orbit point), LVLH axes"),
+        Variable(f"{name}.q_lvlh_body", "output", (4,), "1", [0.0, 0.0, 0.0, 1.0], "q_LVLH_base [x, y, z, w], sign continuous"),
+        Variable(f"{name}.v_lvlh_com", "output", (3,), "m/s", 0.0, "rate of p_lvlh_com seen in LVLH (rotating), LVLH axes"),
+        Variable(f"{name}.w_lvlh_body", "output", (3,), "rad/s", 0.0, "base angular velocity relative to LVLH, LVLH axes"),
+    ]
+
+
+def imu_variables(name: str) -> list[Variable]:
+    """What an IMU at the base link origin senses, true values (a sensor component adds noise)."""
+    return [
+        Variable(f"{name}.imu_rate", "output", (3,), "rad/s", 0.0, "base angular velocity (inertial), base axes"),
+        Variable(f"{name}.specific_force", "output", (3,), "m/s^2", 0.0,
+                 "non-gravitational acceleration of the base origin (acceleration minus gravity there), base axes"),
+    ]
 
 
 def load_models(params: Mapping[str, Any]) -> dict[str, UrdfModel]:
     """Parsed URDF of every body (xml.etree only); ConfigError naming ``bodies.<name>.urdf``."""
-    models = {}
-    for name, body in body_items(params["bodies"]):
-        key = f"bodies.{name}.urdf"
-        path = resolve_urdf(body["urdf"], params.get("_config_dir"), key)
-        try:
-            models[name] = read_urdf(path)
-        except UrdfError as e:
-            raise ConfigError(key, str(e)) from None
-    return models
+    return {name: read_model(body["urdf"], params.get("_config_dir"), f"bodies.{name}.urdf")
+            for name, body in body_items(params["bodies"])}
 
 
 def body_specs(params: Mapping[str, Any], models: Mapping[str, UrdfModel]):
@@ -148,38 +170,23 @@ class DartDynamics(Component):
         Parameter("joint_limits", "bool", default=True, description="enforce the URDF joint position limits"),
         Parameter("link_outputs", "bool", default=False,
                   description="publish the per-link outputs (poses, environment wrenches)"),
+        Parameter("frame_outputs", "bool", default=False,
+                  description="publish each body's CoM frame relative to LVLH (p_lvlh_com, q_lvlh_body, v_lvlh_com, w_lvlh_body)"),
+        Parameter("imu", ListOf(Str(), unique=True), default=[],
+                  description="bodies whose base carries an IMU: their imu_rate and specific_force outputs (true values)"),
+        Parameter("grasp", GRASP, default=None, description="a capture between two bodies; null: none"),
     )
 
     @classmethod
     def declare(cls, params):
-        variables = [
-            Variable("r_eci", "input", (3,), "m", [0.0, 0.0, 0.0],
-                     "reference orbit point (origin of W), ECI; all zero: no orbit, no environment"),
-            Variable("v_eci", "input", (3,), "m/s", [0.0, 0.0, 0.0], "velocity of the reference point, ECI"),
-            Variable("q_eci_lvlh", "input", (4,), "1", [0.0, 0.0, 0.0, 1.0],
-                     "LVLH attitude [x, y, z, w] (LVLH -> ECI); used at initialize for frame: lvlh bodies"),
-            Variable("w_lvlh", "input", (3,), "rad/s", [0.0, 0.0, 0.0],
-                     "LVLH angular velocity, ECI axes; used at initialize for frame: lvlh bodies"),
-        ]
+        lvlh = "used at initialize for frame: lvlh bodies"
+        variables = orbit_signals("input", notes={"r_eci": "the origin of W; all zero: no orbit, no environment",
+                                                  "q_eci_lvlh": lvlh, "w_lvlh": lvlh})
         links = params.get("link_outputs", False)
         for name, model in load_models(params).items():
-            n, m = len(model.movable_joints), len(model.links)
-            joints = ", ".join(model.movable_joints)
+            m = len(model.links)
             link_names = ", ".join(model.link_names)
-            variables += [
-                Variable(f"{name}.tau", "input", (n,), "N*m", 0.0,
-                         f"joint torques (N m, N for prismatic), URDF order: {joints}"),
-                Variable(f"{name}.position", "output", (3,), "m", 0.0, "base link origin in W"),
-                Variable(f"{name}.orientation", "output", (4,), "1", [0.0, 0.0, 0.0, 1.0],
-                         "q_W_base [x, y, z, w], sign continuous from step to step"),
-                Variable(f"{name}.twist", "output", (6,), "m/s, rad/s", 0.0,
-                         "base origin linear velocity then angular velocity, W axes"),
-                Variable(f"{name}.q", "output", (n,), "rad", 0.0, f"joint positions, URDF order: {joints}"),
-                Variable(f"{name}.qd", "output", (n,), "rad/s", 0.0, "joint rates, URDF order"),
-                Variable(f"{name}.com", "output", (3,), "m", 0.0, "body CoM in W"),
-                Variable(f"{name}.momentum", "output", (6,), "kg*m/s, kg*m^2/s", 0.0,
-                         "linear momentum, then angular momentum about the body CoM, W axes"),
-            ]
+            variables += [torque_signal("input", model, name)] + body_signals("output", model, name)
             if not links:
                 continue
             variables += [
@@ -192,32 +199,68 @@ class DartDynamics(Component):
                 Variable(f"{name}.link_orientation", "output", (4 * m,), "1", np.tile([0.0, 0.0, 0.0, 1.0], m),
                          "q_W_link per link [x, y, z, w]"),
             ]
+        for name, model in load_models(params).items():
+            if params.get("frame_outputs", False):
+                variables += frame_variables(name)
+            if name in params.get("imu", ()):
+                variables += imu_variables(name)
+        if params.get("grasp"):
+            variables += grasp_variables(params["grasp"])
         return variables
 
     @classmethod
     def validate(cls, params):
-        body_specs(params, load_models(params))
+        models = load_models(params)
+        body_specs(params, models)
+        for i, name in enumerate(params["imu"]):
+            if name not in models:
+                raise ConfigError(f"imu[{i}]", f"expected a body name ({', '.join(models)}), got {name!r}")
+        grasp = params["grasp"]
+        if grasp is not None:
+            if params["integrator"] != "rk4":
+                raise ConfigError("grasp", f"a capture needs integrator: rk4 (its weld is solved at every "
+                                           f"integrator stage), got {params['integrator']!r}")
+            for key, link_key in (("chaser", "end_effector"), ("target", "grasp_frame")):
+                model = models.get(grasp[key])
+                if model is None:
+                    raise ConfigError(f"grasp.{key}", f"expected a body name ({', '.join(models)}), got {grasp[key]!r}")
+                if grasp[link_key] not in model.link_names:
+                    raise ConfigError(f"grasp.{link_key}", f"expected a link of {grasp[key]} "
+                                                           f"({', '.join(model.link_names)}), got {grasp[link_key]!r}")
+            if grasp["chaser"] == grasp["target"]:
+                raise ConfigError("grasp.target", f"expected another body than the chaser, got {grasp['target']!r}")
 
     def __init__(self, params):
         super().__init__(params)
         from components.dynamics.world import ModelError, OrbitalWorld
 
+        from components.dynamics.capture import GraspSpec, Tolerance
+
         models = load_models(params)
         specs = body_specs(params, models)
+        grasp = params["grasp"]
+        self.grasp = grasp is not None and GraspSpec(
+            chaser=grasp["chaser"], end_effector=grasp["end_effector"], target=grasp["target"],
+            grasp_frame=grasp["grasp_frame"], tolerance=Tolerance(**grasp["tolerance"]))
         try:
             self.world = OrbitalWorld(
                 specs, integrator=params["integrator"], substeps=params["substeps"],
                 tidal_force=params["tidal_force"], gravity_gradient=params["gravity_gradient"],
                 drag=params["drag"], mu=params["mu"], atmosphere=_atmosphere(params["atmosphere"]),
-                joint_limits=params["joint_limits"], models=models)
+                joint_limits=params["joint_limits"], models=models, grasp=self.grasp or None)
         except ModelError as e:
             raise ConfigError(f"bodies.{e.key}", e.message) from None
         self.names = [spec.name for spec in specs]
         self.links = params["link_outputs"]
         self.torque_inputs = [(name, f"{name}.tau") for name in self.names]
         self.output_names = {name: {key: f"{name}.{key}" for key in BODY_OUTPUTS + LINK_OUTPUTS} for name in self.names}
+        self.frames = params["frame_outputs"]
+        self.imu = list(params["imu"])
         self.quaternion_outputs = [f"{name}.{key}" for name in self.names
                                    for key in ("orientation", "link_orientation")[:2 if self.links else 1]]
+        self.quaternion_outputs += [f"{name}.q_lvlh_body" for name in self.names if self.frames]
+        self.quaternion_outputs += ["grasp.q_ee_grasp", "grasp.q_c_t"] if self.grasp else []
+        self.capture_report = None   # the last step's capture, for the event
         self.last_quaternions: dict[str, np.ndarray] = {}
 
     def _inputs(self, inputs: Mapping[str, np.ndarray], torques: bool, t_ns: int) -> None:
@@ -236,6 +279,19 @@ class DartDynamics(Component):
             output_names = self.output_names[name]
             for key, value in self.world.outputs(name, links=self.links).items():
                 out[output_names[key]] = value
+            if self.frames:
+                out.update({f"{name}.{k}": v for k, v in self.world.frame_outputs(name).items()})
+        grasp = self.world.grasp
+        if self.imu or (grasp is not None and grasp.closed):
+            accelerations = self.world.accelerations()   # also the weld's wrench, for grasp.wrench
+            for name in self.imu:
+                out.update({f"{name}.{k}": v for k, v in self.world.imu_outputs(name, accelerations[name]).items()})
+        if grasp is not None:
+            out.update({f"grasp.{k}": v for k, v in grasp.relative().items()})
+            out.update({f"grasp.{k}": v for k, v in
+                        self.world.relative_frames(self.grasp.chaser, self.grasp.target).items()})
+            out["grasp.closed"] = np.float64(grasp.closed)
+            out["grasp.wrench"] = grasp.wrench_on_target() if grasp.closed else np.zeros(6)
         for key in self.quaternion_outputs:
             out[key] = self.last_quaternions[key] = continuous(out[key], self.last_quaternions.get(key))
         return out
@@ -249,6 +305,13 @@ class DartDynamics(Component):
     def do_step(self, t_ns, h_ns, inputs):
         self._inputs(inputs, torques=True, t_ns=t_ns)
         self.world.step(h_ns / NS_PER_S)
+        if self.grasp and inputs["grasp.close"] >= 0.5:
+            report = self.world.capture()
+            if report is not None:
+                self.capture_report = report
+                self.emit("capture", time=(t_ns + h_ns) / NS_PER_S,
+                          relative_twist=report.relative_twist.tolist(), impulse=report.impulse.tolist(),
+                          errors=report.errors)
         return self._outputs()
 
     def get_state(self):

@@ -45,8 +45,10 @@ import numpy as np
 from components.constants import EARTH_RATE, MU_EARTH, R_EARTH
 from components.dynamics import environment as env
 from components.dynamics import link_forces, manifold_rk4
-from components.dynamics.urdf import UrdfModel, dart_urdf_text, read_urdf
+from components.dynamics.capture import CaptureReport, Grasp, GraspSpec
+from components.robots.urdf import UrdfModel, dart_urdf_text, read_urdf
 from components.rotations import cross3, matrix_to_quat, quat_to_matrix, rpy_to_matrix
+from components.signals import ORBIT, orbit_signals
 
 INTEGRATORS = ("rk4", "dart")
 FRAMES = ("world", "lvlh")
@@ -291,7 +293,8 @@ class OrbitalWorld:
     def __init__(self, bodies: list[BodySpec], *, integrator: str = "rk4", substeps: int = 1,
                  tidal_force: bool = True, gravity_gradient: bool = True, drag: bool = False,
                  mu: float = MU_EARTH, atmosphere: env.ExponentialAtmosphere | None = None,
-                 joint_limits: bool = True, models: Mapping[str, UrdfModel] | None = None):
+                 joint_limits: bool = True, models: Mapping[str, UrdfModel] | None = None,
+                 grasp: GraspSpec | None = None):
         import dartpy as dart
 
         if integrator not in INTEGRATORS:
@@ -321,6 +324,7 @@ class OrbitalWorld:
                         joint.setLimitEnforcement(True)
             self.bodies[spec.name] = body
         self._dart = dart
+        self.grasp = self._make_grasp(grasp) if grasp is not None else None
         self.r_eci = np.zeros(3)
         self.v_eci = np.zeros(3)
         self.q_eci_lvlh = np.array([0.0, 0.0, 0.0, 1.0])
@@ -328,6 +332,51 @@ class OrbitalWorld:
         self.elapsed = 0.0          # s since the orbit inputs were sampled (the reference point moved on)
         self._env_now = False
         self._reference_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._compile_kernels()
+
+    def _compile_kernels(self) -> None:
+        """Compile the numba kernels a step calls (or load them from numba's on-disk cache), now.
+
+        A cold compile takes seconds (~6 s on one idle core): done inside step 0 it counted against
+        ``run.step_timeout``; here, at construction (the component's instantiate), it counts against
+        ``run.start_timeout``. The calls pass the argument types the steps pass (the same
+        expressions: DART's Jacobians are Fortran-ordered), so no step compiles another signature;
+        the machine code is the one a first step would have compiled: the numbers do not change.
+        The world's state is untouched: the environment call only fills the per-link scratch arrays
+        (``body.force``, ``body.torque``) that every later use fills again first, and the rk4
+        kernels get zeros and return new arrays."""
+        R, V = np.array([R_EARTH + 400e3, 0.0, 0.0]), np.zeros(3)     # any point off the Earth's centre
+        for body in self.bodies.values():
+            self._environment(body, R, V, self.tidal, self.drag)
+            if self.integrator == "rk4":
+                zeros = np.zeros(body.ndofs)
+                xi, v, rate = manifold_rk4.stage(0.5, zeros, zeros, zeros)
+                xi, v = manifold_rk4.combine(1.0, zeros, rate, rate, rate, rate, zeros, zeros, zeros, zeros)
+                manifold_rk4.moved(zeros, xi)
+
+    def _make_grasp(self, spec: GraspSpec) -> Grasp:
+        if self.integrator != "rk4":
+            raise ModelError("grasp", f"a capture needs integrator rk4 (its weld is solved at every stage), "
+                                      f"got {self.integrator!r}")
+        for key, body_name, link in (("chaser", spec.chaser, spec.end_effector),
+                                     ("target", spec.target, spec.grasp_frame)):
+            body = self.bodies.get(body_name)
+            if body is None:
+                raise ModelError(f"grasp.{key}", f"no body {body_name!r} (bodies: {', '.join(self.bodies)})")
+            if link not in body.link_names:
+                what = "end_effector" if key == "chaser" else "grasp_frame"
+                raise ModelError(f"grasp.{what}", f"{link!r} is not a link of {body_name} "
+                                                  f"(links: {', '.join(body.link_names)})")
+        if spec.chaser == spec.target:
+            raise ModelError("grasp.target", "the chaser cannot grasp itself")
+        return Grasp(spec, self.bodies[spec.chaser], self.bodies[spec.target], self._dart.dynamics.Frame.World())
+
+    def capture(self) -> CaptureReport | None:
+        """Close the grasp if it is open and E is within the tolerances of G: the impact (see
+        :mod:`components.dynamics.capture`); None when it does not close."""
+        if self.grasp is None or self.grasp.closed or not self.grasp.within_tolerance():
+            return None
+        return self.grasp.close()
 
     # ----------------------------------------------------------------- inputs
 
@@ -335,13 +384,13 @@ class OrbitalWorld:
         """Reference orbit point (m, m/s, ECI), LVLH attitude q_ECI_LVLH and rate (rad/s, ECI axes),
         sampled ``age`` seconds before the current time (negative: after it, as a Gauss-Seidel run
         gives the next step's): the reference point is propagated from its own time."""
-        values = {"r_eci": r_eci, "v_eci": v_eci, "q_eci_lvlh": q_eci_lvlh, "w_lvlh": w_lvlh}
-        orbit = np.concatenate(list(values.values()), axis=None, dtype=float)
+        values = (r_eci, v_eci, q_eci_lvlh, w_lvlh)
+        orbit = np.concatenate(values, axis=None, dtype=float)
         if orbit.size != 13 or not np.isfinite(orbit).all():
-            for (key, value), size in zip(values.items(), (3, 3, 4, 3)):
+            for signal, value in zip(orbit_signals("input"), values):
                 value = np.asarray(value, dtype=float)
-                if value.size != size or not np.isfinite(value).all():
-                    raise ValueError(f"input {key}: expected {size} finite values, got {value.tolist()}")
+                if value.size != signal.size or not np.isfinite(value).all():
+                    raise ValueError(f"input {signal.name}: expected {signal.size} finite values, got {value.tolist()}")
         self.r_eci, self.v_eci, self.q_eci_lvlh, self.w_lvlh = orbit[0:3], orbit[3:6], orbit[6:10], orbit[10:13]
         self.elapsed = float(age)
         self._reference_cache = {}
@@ -504,6 +553,64 @@ class OrbitalWorld:
         if self.joint_limits and body.limited:
             self._joint_stops(body)
 
+    def _rk4_welded(self, h: float, s: float) -> None:
+        """One RK4 step of every body, stage by stage, with the grasp's weld wrench in each stage's
+        accelerations (the welded pair is one assembly; the others step as in ``_rk4``)."""
+        grasp = self.grasp
+        bodies = list(self.bodies.values())
+        chaser, target = grasp.ee.body, grasp.grasp.body
+        start = {b.name: (b.skel.getPositions(), b.skel.getVelocities()) for b in bodies}
+        if not self._env_now:
+            for body in bodies:
+                body.skel.setForces(body.tau)
+
+        def accelerations(t: float) -> dict:
+            a = {b.name: self._acceleration(b, t) for b in bodies}
+            a[chaser.name], a[target.name] = grasp.constrain(a[chaser.name], a[target.name], h)
+            return a
+
+        a1 = accelerations(s)
+        d1 = {b.name: start[b.name][1] for b in bodies}
+        stages = [(a1, d1)]
+        for c, t in ((0.5 * h, s + 0.5 * h), (0.5 * h, s + 0.5 * h), (h, s + h)):
+            a_prev, d_prev = stages[-1]
+            d = {}
+            for b in bodies:
+                q0, v0 = start[b.name]
+                xi, v, d[b.name] = manifold_rk4.stage(c, v0, d_prev[b.name], a_prev[b.name])
+                self._set_stage(b.skel, q0, xi, v)
+            stages.append((accelerations(t), d))
+        for b in bodies:
+            q0, v0 = start[b.name]
+            (a1, d1), (a2, d2), (a3, d3), (a4, d4) = [(a[b.name], d[b.name]) for a, d in stages]
+            xi, v = manifold_rk4.combine(h, v0, d1, d2, d3, d4, a1, a2, a3, a4)
+            self._set_stage(b.skel, q0, xi, v)
+        stopped = False
+        if self.joint_limits:
+            for b in bodies:
+                if b.limited:
+                    self._joint_stops(b)
+                    stopped = stopped or b.stops.size > 0
+        if stopped:
+            grasp.project()   # a stop's impulse moved one side of the weld: the other follows, momentum kept
+
+    def accelerations(self) -> dict[str, np.ndarray]:
+        """Every body's accelerations (DART order) at the current state, torques, environment, limit
+        stops and, when closed, the grasp's weld (whose wrench it leaves in ``grasp.wrench``)."""
+        env_now = self._env_now
+        self._env_now = self.environment_on
+        try:
+            for body in self.bodies.values():
+                if not self._env_now:
+                    body.skel.setForces(body.tau)
+            a = {name: self._acceleration(body, self.elapsed) for name, body in self.bodies.items()}
+            if self.grasp is not None and self.grasp.closed:
+                c, t = self.grasp.spec.chaser, self.grasp.spec.target
+                a[c], a[t] = self.grasp.constrain(a[c], a[t], 1.0)
+        finally:
+            self._env_now = env_now
+        return a
+
     @staticmethod
     def _joint_stops(body: _Body) -> None:
         """Inelastic joint stops, for rk4. A joint found past a limit has its outward rate
@@ -533,7 +640,9 @@ class OrbitalWorld:
         self._env_now = self.environment_on
         for k in range(self.substeps):
             s = self.elapsed + k * dt
-            if self.integrator == "rk4":
+            if self.integrator == "rk4" and self.grasp is not None and self.grasp.closed:
+                self._rk4_welded(dt, s)
+            elif self.integrator == "rk4":
                 for body in self.bodies.values():
                     self._rk4(body, dt, s)
             else:
@@ -627,24 +736,72 @@ class OrbitalWorld:
             "link_orientation": matrix_to_quat(T[:, :3, :3]).ravel(),
         }
 
+    def lvlh(self) -> tuple[np.ndarray, np.ndarray]:
+        """R_W_LVLH and LVLH's angular velocity (rad/s, W axes) now, from the reference point as
+        propagated to the current time (the orbit inputs may be a step old)."""
+        R, V = self.reference(self.elapsed)
+        h = np.cross(R, V)
+        x, z = R / np.linalg.norm(R), h / np.linalg.norm(h)
+        return np.column_stack([x, np.cross(z, x), z]), h / np.dot(R, R)
+
+    def frame_outputs(self, name: str) -> dict[str, np.ndarray]:
+        """The body's CoM frame (origin at the CoM, base axes: the paper's F_c / F_t) relative to
+        LVLH: ``p_lvlh_com`` (m), ``q_lvlh_body``, ``v_lvlh_com`` (m/s, the rate seen in LVLH),
+        ``w_lvlh_body`` (rad/s), LVLH axes. Without an orbit (r_eci = 0) LVLH is W."""
+        body = self.bodies[name]
+        skel = body.skel
+        c, v_c = skel.getCOM(), skel.getCOMLinearVelocity()
+        R_base = body.root.getTransform().rotation()
+        w = skel.getVelocities()[:3]
+        R_WL, w_L = self.lvlh() if np.any(self.r_eci != 0.0) else (np.eye(3), np.zeros(3))
+        return {"p_lvlh_com": R_WL.T @ c, "q_lvlh_body": matrix_to_quat(R_WL.T @ R_base),
+                "v_lvlh_com": R_WL.T @ (v_c - np.cross(w_L, c)), "w_lvlh_body": R_WL.T @ (w - w_L)}
+
+    def relative_frames(self, chaser: str, target: str) -> dict[str, np.ndarray]:
+        """Target's CoM frame F_t relative to the chaser's F_c, in F_c axes: ``p_c_t`` (m),
+        ``q_c_t`` (q_Fc_Ft), ``v_c_t`` (m/s, the rate of p_c_t seen in F_c), ``w_c_t`` (rad/s)."""
+        c, t = self.bodies[chaser], self.bodies[target]
+        R_c, R_t = c.root.getTransform().rotation(), t.root.getTransform().rotation()
+        w_c, w_t = c.skel.getVelocities()[:3], t.skel.getVelocities()[:3]
+        d = t.skel.getCOM() - c.skel.getCOM()
+        v = t.skel.getCOMLinearVelocity() - c.skel.getCOMLinearVelocity() - np.cross(w_c, d)
+        return {"p_c_t": R_c.T @ d, "q_c_t": matrix_to_quat(R_c.T @ R_t), "v_c_t": R_c.T @ v,
+                "w_c_t": R_c.T @ (w_t - w_c)}
+
+    def imu_outputs(self, name: str, accelerations: np.ndarray) -> dict[str, np.ndarray]:
+        """An IMU at the base origin: ``imu_rate`` (rad/s) and ``specific_force`` (m/s^2: the
+        origin's acceleration minus the gravity the world applies there, i.e. the tidal
+        acceleration when tidal_force is on), base axes. ``accelerations``: DART order, from
+        ``accelerations()``."""
+        body = self.bodies[name]
+        T = body.root.getTransform()
+        R_base, p = T.rotation(), T.translation()
+        a = np.array(accelerations[3:6], dtype=float)     # classical acceleration of the base origin, W
+        if self.tidal and self.environment_on:
+            R, _ = self.reference(self.elapsed)
+            a = a - env.tidal_acceleration(R, p[None, :], self.mu)[0]
+        return {"imu_rate": R_base.T @ body.skel.getVelocities()[:3], "specific_force": R_base.T @ a}
+
     # ----------------------------------------------------------------- state
 
     def get_state(self) -> dict[str, np.ndarray]:
         """Everything needed to continue bit-exactly: per body positions/velocities (DART order),
         torques and the joints resting on a limit stop (rk4) with their side, the orbit inputs
         and the time since they were set."""
-        state = {"r_eci": self.r_eci.copy(), "v_eci": self.v_eci.copy(), "q_eci_lvlh": self.q_eci_lvlh.copy(),
-                 "w_lvlh": self.w_lvlh.copy(), "elapsed": np.float64(self.elapsed)}
+        orbit = (self.r_eci, self.v_eci, self.q_eci_lvlh, self.w_lvlh)
+        state = {**{key: value.copy() for key, value in zip(ORBIT, orbit)}, "elapsed": np.float64(self.elapsed)}
         for name, body in self.bodies.items():
             state[f"{name}.positions"] = np.array(body.skel.getPositions())
             state[f"{name}.velocities"] = np.array(body.skel.getVelocities())
             state[f"{name}.tau"] = body.tau.copy()
             state[f"{name}.stops"] = body.stops.astype(np.int64)
             state[f"{name}.stop_sides"] = body.stop_sides.astype(np.float64)
+        if self.grasp is not None:
+            state.update(self.grasp.get_state())
         return state
 
     def set_state(self, state: Mapping[str, np.ndarray]) -> None:
-        for key in ("r_eci", "v_eci", "q_eci_lvlh", "w_lvlh", "elapsed"):
+        for key in ORBIT + ("elapsed",):
             if key not in state:
                 raise ValueError(f"state: missing {key!r}")
         for name, body in self.bodies.items():
@@ -658,10 +815,7 @@ class OrbitalWorld:
                     or not np.all((0 <= np.asarray(stops)) & (np.asarray(stops) < body.ndofs)):
                 raise ValueError(f"state: {name}.stops and {name}.stop_sides expected two equal lists of "
                                  f"dof indices (< {body.ndofs}) and sides, got {stops!r}, {sides!r}")
-        self.r_eci = np.array(state["r_eci"], dtype=float)
-        self.v_eci = np.array(state["v_eci"], dtype=float)
-        self.q_eci_lvlh = np.array(state["q_eci_lvlh"], dtype=float)
-        self.w_lvlh = np.array(state["w_lvlh"], dtype=float)
+        self.r_eci, self.v_eci, self.q_eci_lvlh, self.w_lvlh = (np.array(state[key], dtype=float) for key in ORBIT)
         self.elapsed = float(state["elapsed"])
         self._reference_cache = {}
         for name, body in self.bodies.items():
@@ -670,3 +824,5 @@ class OrbitalWorld:
             body.tau[:] = np.array(state[f"{name}.tau"], dtype=float)
             body.stops = np.array(state[f"{name}.stops"], dtype=int)
             body.stop_sides = np.array(state[f"{name}.stop_sides"], dtype=float)
+        if self.grasp is not None:
+            self.grasp.set_state(state)

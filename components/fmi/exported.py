@@ -12,7 +12,6 @@ get_state/set_state, the FMU state to the component's state plus the input and o
 from __future__ import annotations
 
 import base64
-import datetime as dt
 import hashlib
 import json
 import os
@@ -29,6 +28,8 @@ import numpy as np
 from pythonfmu.enums import Fmi2Causality, Fmi2Status
 from pythonfmu.fmi2slave import Fmi2Slave
 from pythonfmu.variables import Real, ScalarVariable
+
+from components.fmi.pythonfmu_exit import hold_binary_until_exit
 
 SPEC_FILE = "zenorbit.json"
 FILES_DIR = "files"
@@ -103,37 +104,33 @@ def unit_definition(name: str) -> ElementTree.Element:
 # ---------------------------------------------------------------------------------------------
 # Loading the component from a spec (export time and run time alike)
 
-def load_component_type(spec: dict, files_dir: Path):
-    """(class, resolved parameters, variables) of a spec; ExportError naming the key."""
+def resolve_spec(spec: dict, files_dir: Path):
+    """The spec's type and parameters resolved (a registry.Resolved); ExportError naming the key."""
     from components import registry
     from components.errors import ConfigError
-    from components.sdk import resolve_parameters
 
     try:
-        cls = registry.load(spec["type"], files_dir)
-    except ConfigError as e:
-        raise ExportError(e.message) from None
-    raw = {**spec["parameters"], "_config_dir": str(files_dir)}
-    if spec.get("epoch") is not None:
-        raw["_epoch"] = spec["epoch"]
-    params, errors = resolve_parameters(cls, raw)
-    if errors:
-        raise ExportError([_set_problem(e, spec) for e in errors])
-    try:
-        variables = cls.declare(params)
-    except ConfigError as e:
-        raise ExportError(_set_problem(e, spec)) from None
-    except KeyError as e:
-        raise ExportError(_missing_epoch(spec) if e.args == ("_epoch",) else f"declare failed: KeyError {e}") from None
-    return cls, params, variables
+        return registry.resolve(spec["type"], spec["parameters"], epoch=spec.get("epoch"), config_dir=files_dir)
+    except registry.Unresolved as unresolved:
+        e = unresolved.errors[0]
+        if unresolved.stage == "type":
+            raise ExportError(e.message) from None
+        if unresolved.stage == "parameters":
+            raise ExportError([_set_problem(p, spec) for p in unresolved.errors]) from None
+        if isinstance(e, ConfigError):
+            raise ExportError(_set_problem(e, spec)) from None
+        if isinstance(e, KeyError):
+            raise ExportError(_missing_epoch(spec) if e.args == ("_epoch",)
+                              else f"declare failed: KeyError {e}") from None
+        raise e from None
 
 
-def instantiate(cls, params: dict, spec: dict):
-    """``cls(params)`` with a ConfigError turned into an ExportError naming the key."""
+def instantiate(resolved, spec: dict):
+    """``resolved.build()`` with a ConfigError turned into an ExportError naming the key."""
     from components.errors import ConfigError
 
     try:
-        return cls(params)
+        return resolved.build()
     except ConfigError as e:
         raise ExportError(_set_problem(e, spec)) from None
     except KeyError as e:
@@ -158,40 +155,6 @@ def _set_problem(error, spec: dict) -> str:
 # The slave: what runs inside the FMU
 
 _HELD_SCRIPT_GLOBALS: list[dict] = []
-_HELD_BINARIES: dict[str, Any] = {}
-
-
-def hold_binary_until_exit(resources: Path, model_identifier: str) -> None:
-    """Work around pythonfmu 0.7 crashing a Python process at exit.
-
-    When a C++ library loaded after the FMU's binary binds to it (importing DART does), the
-    binary can no longer be unloaded, and at exit its PyState is deleted twice (a static
-    destructor, then its unload hook): heap corruption, abort. Holding the binary and calling its
-    own finalizePythonInterpreter before the interpreter exits deletes it once. Only where the
-    host process is Python itself: when pythonfmu started the interpreter, it finalizes it.
-    """
-    import ctypes
-
-    if not sys.platform.startswith("linux") or os.path.realpath("/proc/self/exe") != os.path.realpath(sys.executable):
-        return
-    binary = str(resources.parent / "binaries" / "linux64" / f"{model_identifier}.so")
-    if binary in _HELD_BINARIES:
-        return
-    try:   # RTLD_NOLOAD: only the binary already loaded (not the builder's instance)
-        library = ctypes.CDLL(binary, mode=os.RTLD_NOLOAD | os.RTLD_NOW)
-    except OSError:
-        return
-    if not hasattr(library, "finalizePythonInterpreter"):   # not a pythonfmu binary
-        return
-    if not _HELD_BINARIES:
-        import atexit
-        atexit.register(_release_binaries)
-    _HELD_BINARIES[binary] = library
-
-
-def _release_binaries() -> None:
-    for library in _HELD_BINARIES.values():
-        library.finalizePythonInterpreter()
 
 
 class ComponentSlave(Fmi2Slave):
@@ -203,8 +166,6 @@ class ComponentSlave(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        from components.sdk import Layout
-
         # pythonfmu 0.7's binary drops a reference it does not own to the script module's globals
         # each time it instantiates the FMU: give one back per instance, or the dict is freed and
         # the next instantiation in this process crashes
@@ -217,18 +178,18 @@ class ComponentSlave(Fmi2Slave):
         self.files_dir = resources / FILES_DIR
         self.modelName = self.spec["model_identifier"]
         hold_binary_until_exit(resources, self.modelName)
-        self.cls, self.params, variables = load_component_type(self.spec, self.files_dir)
+        self.resolved = resolve_spec(self.spec, self.files_dir)
+        self.cls = self.resolved.cls
         summary = re.sub(r":\w+:`~?([^`]+)`|``([^`]+)``", lambda m: m.group(1) or m.group(2),
                          " ".join((self.cls.__doc__ or "").strip().split("\n\n")[0].split()))   # rST roles as plain text
         self.description = f"Zenorbit {self.spec['type']}" + (f": {summary}" if summary else "")
-        self.input_layout = Layout([v for v in variables if v.causality == "input"])
-        self.output_layout = Layout([v for v in variables if v.causality == "output"])
+        self.input_layout, self.output_layout = self.resolved.inputs, self.resolved.outputs
         self.input_names = [v.name for v in self.input_layout.variables]
         self.inputs = self.input_layout.start_vector()
         self.outputs = self.output_layout.start_vector()
         self.t0_ns = 0
         self.initialized = False
-        self.component = instantiate(self.cls, self.params, self.spec)
+        self.component = instantiate(self.resolved, self.spec)
         self.units: list[str] = []
         for layout, vector, causality in ((self.input_layout, self.inputs, Fmi2Causality.input),
                                           (self.output_layout, self.outputs, Fmi2Causality.output)):
@@ -359,7 +320,7 @@ class ComponentSlave(Fmi2Slave):
         if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
             raise ValueError(f"not a {STATE_FORMAT} FMU state")
         # the SDK's contract: set_state restores an instance that was never initialized
-        fresh = instantiate(self.cls, self.params, self.spec)
+        fresh = instantiate(self.resolved, self.spec)
         if state["component"] is not None:
             fresh.set_state(decode_state(base64.b64decode(state["component"])))
         previous, self.component = self.component, fresh
@@ -398,12 +359,12 @@ class ZenorbitFmu(ComponentSlave):
 '''
 
 
-def export_fmu(type_name: str, overrides: list[str], out: Path, epoch: str | None, config_dir: Path) -> Path:
-    """Write ``out`` (NAME.fmu, model identifier NAME): type ``type_name`` with its parameters
-    fixed by ``overrides`` (``param=value``, dotted keys for nested ones, values YAML, as
-    ``orchestrator describe --set``), relative paths read from ``config_dir``, ``epoch`` the
-    UTC of t = 0 (needed by types that read run.epoch). ExportError on any problem."""
-    from orchestrator.config import ConfigErrors, apply_overrides
+def export_fmu(type_name: str, parameters: dict, out: Path, epoch: str | None, config_dir: Path) -> Path:
+    """Write ``out`` (NAME.fmu, model identifier NAME): type ``type_name`` with its raw
+    ``parameters`` fixed (as a config gives them; the CLI's ``--set``), relative paths read from
+    ``config_dir``, ``epoch`` the UTC of t = 0 (needed by types that read run.epoch).
+    ExportError on any problem."""
+    from components import bus
 
     out, config_dir = Path(out), Path(config_dir).resolve()
     if out.suffix != ".fmu":
@@ -416,12 +377,7 @@ def export_fmu(type_name: str, overrides: list[str], out: Path, epoch: str | Non
                           f"(letters, digits and _, not starting with a digit), e.g. -o {suggestion}.fmu")
     if epoch is not None:
         epoch = _checked_epoch(epoch)
-    given: dict = {}
-    try:
-        apply_overrides(given, overrides)
-    except ConfigErrors as e:
-        raise ExportError(e.errors) from None
-    given = _jsonable(given)
+    given = bus.jsonable(parameters)
 
     with tempfile.TemporaryDirectory(prefix="zenorbit-fmu-") as temporary:
         staging = Path(temporary) / "resources"
@@ -433,8 +389,8 @@ def export_fmu(type_name: str, overrides: list[str], out: Path, epoch: str | Non
                 "exported_type": type_name}
         # the checks the slave does when the FMU is instantiated, here with errors worth reading
         try:
-            cls, params, variables = load_component_type(spec, files_dir)
-            instantiate(cls, params, spec).terminate()
+            resolved = resolve_spec(spec, files_dir)
+            instantiate(resolved, spec).terminate()
         except ExportError:
             raise
         except Exception as e:   # the type's own code failed: one line naming it, no traceback
@@ -448,7 +404,7 @@ def export_fmu(type_name: str, overrides: list[str], out: Path, epoch: str | Non
         module = f"zenorbit_fmu_{identifier}_{digest}"
         script = Path(temporary) / f"{module}.py"
         script.write_text(SCRIPT.format(type_name=type_name))
-        built = _build(script, Path(temporary) / out.name, staging, cls.restorable())
+        built = _build(script, Path(temporary) / out.name, staging, resolved.cls.restorable())
         try:
             out.parent.mkdir(parents=True, exist_ok=True)
             shutil.move(built, out)
@@ -479,17 +435,6 @@ def _checked_epoch(epoch: str) -> str:
         return UtcTime().convert(epoch, "--epoch")
     except ConfigError as e:
         raise ExportError(f"--epoch: {e.message}") from None
-
-
-def _jsonable(value):
-    """--set values as JSON (YAML gives datetimes for times)."""
-    if isinstance(value, (dt.datetime, dt.date)):
-        return value.isoformat().replace("+00:00", "Z")
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    return value
 
 
 def _place_in_files(relative: str) -> str:

@@ -25,7 +25,8 @@ import numpy as np
 
 from components.errors import ComponentError, ConfigError
 from components.schema import Anything, MapOf, Str
-from components.sdk import Component, Layout, Parameter, Variable
+from components.fmi.pythonfmu_exit import hold_binary_until_exit   # pythonfmu's crash at exit, worked around
+from components.sdk import Component, Parameter, Variable, layouts
 from components.units import normalized_unit
 
 NUMERIC_TYPES = {  # FMI type -> (FMPy setter/getter suffix, numpy dtype of the calls' values)
@@ -290,11 +291,8 @@ class FMUComponent(Component):
         # freed when garbage even if terminate() is never called (a harness)
         self._release = weakref.finalize(self, _release, self.fmu, self.unzipped)
         self._release.atexit = False   # at exit, pythonfmu's binary is finalized instead (below)
-        from components.fmi.exported import hold_binary_until_exit   # pythonfmu's crash at exit, worked around
         hold_binary_until_exit(Path(self.unzipped) / "resources", self.md.coSimulation.modelIdentifier)
-        variables = self.declare(params)
-        self.input_layout = Layout([v for v in variables if v.causality == "input"])
-        self.output_layout = Layout([v for v in variables if v.causality == "output"])
+        self.input_layout, self.output_layout = layouts(self.declare(params))
         self.input_vector = self.input_layout.start_vector()
         grouped = signals(self.md, self.file)
         self.inputs = self._plan([s for s in grouped if s.causality == "input"])

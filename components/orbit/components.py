@@ -1,10 +1,11 @@
 """Orbit component types: thin wrappers mapping parameters to the orbit models and the models'
 states to the four outputs every orbit component publishes.
 
-Every orbit component has no inputs and the four outputs of ``ORBIT_OUTPUTS`` (SI, ECI = GCRF
-axes). LVLH: x radial outward, z along r × v, y = z × x. The quaternion's sign is kept continuous
-from step to step (q and -q are the same rotation); that last sign is the components' only
-state (``get_state`` -> ``q_previous``), so outputs are otherwise a pure function of time.
+Every orbit component has no inputs and the four outputs of ``ORBIT_OUTPUTS`` (declared in
+:func:`components.signals.orbit_signals`; SI, ECI = GCRF axes). LVLH: x radial outward, z along
+r × v, y = z × x. The quaternion's sign is kept continuous from step to step (q and -q are the
+same rotation); that last sign is the components' only state (``get_state`` -> ``q_previous``),
+so outputs are otherwise a pure function of time.
 The run epoch reaches a component as ``params["_epoch"]`` (ISO-8601 UTC), injected by the
 orchestrator; ``params["_config_dir"]`` likewise, for relative paths.
 """
@@ -21,17 +22,11 @@ from components.orbit.frames import lvlh_dcm, lvlh_state
 from components.rotations import continuous
 from components.orbit.kepler import ElementError, KeplerOrbit, check_elements
 from components.schema import Float, ListOf, Record, Str, UtcTime, Vector
-from components.sdk import Component, Parameter, Variable
+from components.sdk import Component, Parameter
+from components.signals import orbit_signals
 
 
-ORBIT_OUTPUTS = (
-        Variable("r_eci", "output", (3,), "m", [0.0, 0.0, 0.0], "position of the reference orbit point, ECI (GCRF axes)"),
-        Variable("v_eci", "output", (3,), "m/s", [0.0, 0.0, 0.0], "velocity of the reference orbit point, ECI"),
-        Variable("q_eci_lvlh", "output", (4,), "1", [0.0, 0.0, 0.0, 1.0],
-                 "attitude of LVLH: quaternion [x, y, z, w] rotating LVLH vectors into ECI"),
-        Variable("w_lvlh", "output", (3,), "rad/s", [0.0, 0.0, 0.0],
-                 "angular velocity of LVLH with respect to ECI, in ECI axes"),
-)
+ORBIT_OUTPUTS = tuple(orbit_signals("output"))
 
 
 def _epoch(params: Mapping[str, Any]) -> tuple[float, float]:

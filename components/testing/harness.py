@@ -24,7 +24,7 @@ import numpy as np
 from components import registry
 from components.bus import decode_state, encode_state
 from components.errors import ConfigError
-from components.sdk import Component, Layout, resolve_parameters
+from components.sdk import Component
 
 
 class Harness:
@@ -32,15 +32,12 @@ class Harness:
 
     def __init__(self, component_type: str | type[Component], params: Mapping[str, Any] | None = None,
                  *, t0_ns: int = 0, epoch: str = "2000-01-01T12:00:00Z", config_dir: str | Path = "."):
-        cls = registry.load(component_type) if isinstance(component_type, str) else component_type
-        raw = {**(params or {}), "_epoch": epoch, "_config_dir": str(config_dir)}
-        self.params, errors = resolve_parameters(cls, raw)
-        if errors:
-            raise errors[0]
-        variables = cls.declare(self.params)
-        self.input_layout = Layout([v for v in variables if v.causality == "input"])
-        self.output_layout = Layout([v for v in variables if v.causality == "output"])
-        self.component = cls(self.params)
+        try:
+            resolved = registry.resolve(component_type, params or {}, epoch=epoch, config_dir=config_dir)
+        except registry.Unresolved as e:
+            raise e.errors[0] from None
+        self.params, self.input_layout, self.output_layout = resolved.params, resolved.inputs, resolved.outputs
+        self.component = resolved.build()
         self.inputs: dict[str, Any] = {v.name: v.start.copy() for v in self.input_layout.variables}
         self._outputs = self.output_layout.start_vector()
         self.t_ns = t0_ns

@@ -23,7 +23,6 @@ import argparse
 import json
 import os
 import signal
-import struct
 import sys
 import time
 from pathlib import Path
@@ -32,9 +31,8 @@ import numpy as np
 
 from components import bus
 
-HEADER = struct.Struct("<qd")        # = orchestrator.engine.SIGNALS_HEADER (k, time in s)
-END = b"END"
-VIEWER_NAME, VIEWER_GENERATION = "_viewer", "0"
+HEADER = bus.SIGNALS_HEADER          # k, time in s
+END = bus.SIGNALS_END
 LIVE_BATCH_S = 0.2                   # live views: log at most 5 times a second (batches are far cheaper per row)
 FILE_BATCH_S = 2.0                   # save: nobody watches, so larger batches still
 MAX_BATCH_ROWS = 4096
@@ -103,10 +101,10 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
     try:
         # subscribe and say so first: rows wait in the FIFO while Rerun and the robots load, and the
         # orchestrator does not wait for that
-        signals = session.declare_subscriber(bus.run_key(run_id, "signals"), zenoh.handlers.FifoChannel(16384))
-        watcher = session.liveliness().declare_subscriber(bus.run_key(run_id, "alive", "orchestrator"),
+        signals = session.declare_subscriber(bus.signals_key(run_id), zenoh.handlers.FifoChannel(16384))
+        watcher = session.liveliness().declare_subscriber(bus.orchestrator_alive_key(run_id),
                                                           zenoh.handlers.FifoChannel(16))
-        token = session.liveliness().declare_token(bus.run_key(run_id, "alive", VIEWER_NAME, VIEWER_GENERATION))
+        token = session.liveliness().declare_token(bus.viewer_alive_key(run_id))
         if mode == "spawn" and spawn_problem():
             log(f"cannot spawn the desktop viewer: {spawn_problem()}")
             return 1

@@ -1,7 +1,7 @@
 """What the viewer needs of a robot: its URDF visuals and its forward kinematics (Pinocchio).
 
-``read_geometry(path)`` reads the URDF with the dynamics' parser
-(:func:`components.dynamics.urdf.read_urdf`: same checks, same link and joint layout) and adds
+``read_geometry(path)`` reads the URDF with the parser the dynamics uses
+(:func:`components.robots.urdf.read_urdf`: same checks, same link and joint layout) and adds
 the links' ``<visual>`` elements (box, cylinder, sphere, mesh) with their colours.
 ``Kinematics`` turns recorded base poses and joint positions into the pose of every link, for a
 whole batch of rows at once: the base is a free flyer (``position`` = base link origin in W,
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from components.dynamics.urdf import read_urdf
+from components.robots.urdf import read_urdf
 
 DEFAULT_COLOR = (150, 150, 155, 255)
 

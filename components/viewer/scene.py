@@ -33,8 +33,8 @@ from typing import Callable
 import numpy as np
 
 from components.constants import R_EARTH
-from components.dynamics.component import body_items, resolve_urdf
 from components.errors import ConfigError
+from components.robots.model import body_items, resolve_urdf
 from components.rotations import matrix_to_quat, rpy_to_matrix
 from components.viewer.robot import Geometry, Kinematics, normalized_quaternions, read_geometry
 

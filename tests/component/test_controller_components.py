@@ -55,11 +55,11 @@ def closed_loop(controller, steps, plant=None, record=None, swap_at=None, make=N
 
 
 def swap_at_boundary(old, make):
-    """What the orchestrator does on a same-type swap: new instance, initialize at the current
-    inputs and time, then hand the old state over."""
+    """What the orchestrator does on a same-type swap: a new instance at the current time, given
+    the old one's state and never initialized (a ``make`` whose set_state ignores the state leaves
+    it to initialize at its first step, as a swap to another type does)."""
     new = make(t0_ns=old.t_ns)
     new.inputs.update(old.inputs)
-    new.initialize()
     new.set_state(old.get_state())
     return new
 
@@ -97,8 +97,8 @@ def test_gains_kp_kd_take_one_number_for_all_six_axes():
 
 
 def test_swap_hands_the_trajectory_over():
-    """A same-type swap mid-move (new instance, initialized at the current state, then set_state)
-    continues bit-identically: the trajectory stays anchored at the run's initial pose."""
+    """A same-type swap mid-move (new instance, set_state, no initialize) continues
+    bit-identically: the trajectory stays anchored at the run's initial pose."""
     reference, _ = closed_loop(computed_torque(), 600)
     swapped, _ = closed_loop(computed_torque(), 600, swap_at=300, make=computed_torque)
     for key in reference:
@@ -138,7 +138,8 @@ def test_a_locked_joint_that_moves_stops_the_controller():
 
 
 def _initialized(t0_ns):
-    """A swap without hand-over: set_state is a no-op."""
+    """A swap without hand-over: set_state is a no-op, so the new instance initializes at its
+    first step, at the current state."""
     h = computed_torque(t0_ns=t0_ns)
     h.set_state = lambda blob: None
     return h

@@ -35,8 +35,9 @@ def circular(a, t):
             "w_lvlh": np.array([0.0, 0.0, n])}
 
 
-def harness(bodies=None, **params):
-    return Harness("dynamics.dart", {"bodies": bodies or {"humanoid": HUMANOID}, **params}, config_dir=CONFIGS)
+def harness(bodies=None, t0_ns=0, **params):
+    return Harness("dynamics.dart", {"bodies": bodies or {"humanoid": HUMANOID}, **params}, config_dir=CONFIGS,
+                   t0_ns=t0_ns)
 
 
 def errors_of(params):
@@ -227,7 +228,8 @@ def test_lvlh_start_and_environment_outputs():
 
 @pytest.mark.parametrize("integrator", ["rk4", "dart"])
 def test_restart_from_state_is_bit_exact(integrator):
-    """State through the harness's byte encoding (as on the bus) into a fresh instance."""
+    """State through the harness's byte encoding (as on the bus) into a fresh instance that is
+    never initialized, as the orchestrator restores one (swap, restart)."""
     bodies = {"humanoid": HUMANOID, "target": {"urdf": "../models/target.urdf", "position": [1.2, 0, 0]}}
     a = 6778e3
 
@@ -245,13 +247,47 @@ def test_restart_from_state_is_bit_exact(integrator):
     steps(first, 0, 30)
     blob = first.get_state()
     expected = steps(first, 30, 30)
-    second = harness(bodies, integrator=integrator)
-    second.inputs.update(circular(a, 0.0))
-    second.initialize()
+    second = harness(bodies, integrator=integrator, t0_ns=30 * MS)
     second.set_state(blob)
     got = steps(second, 30, 30)
     for key, value in expected.items():
         assert np.array_equal(value, got[key]), key
+
+
+@pytest.mark.parametrize("params", [
+    {},                                                                          # the demo's dynamics
+    {"drag": True, "link_outputs": True, "integrator": "rk4", "substeps": 2},
+    {"integrator": "dart"},
+])
+def test_numba_kernels_are_compiled_at_instantiate_not_in_step_0(monkeypatch, params):
+    """The first run after install compiled the numba kernels inside step 0 (seconds), which
+    counts against run.step_timeout: "did not answer step 0 within 10 s" on a loaded machine.
+    With fresh dispatchers (no signature yet; numba's disk cache may still serve them), the
+    instance holds every kernel its steps call compiled once constructed, and the steps (orbit
+    on, torques, drag) compile nothing more: the argument types were the steps' own."""
+    import numba
+
+    from components.dynamics import link_forces, manifold_rk4
+
+    kernels = {}
+    for module, name in ((manifold_rk4, "stage"), (manifold_rk4, "combine"), (manifold_rk4, "moved"),
+                         (link_forces, "generalized_forces")):
+        kernels[name] = numba.njit(cache=True)(getattr(module, name).py_func)
+        monkeypatch.setattr(module, name, kernels[name])
+    assert not any(kernel.signatures for kernel in kernels.values())
+    bodies = {"humanoid": {**HUMANOID, "drag_area": 0.5},
+              "target": {"urdf": "../models/target.urdf", "position": [1.2, 0, 0], "twist": [0, 0, 0, 0.3, 0, 0.2]}}
+    h = harness(bodies, **params)
+    used = ["generalized_forces"] + (["stage", "combine", "moved"] if params.get("integrator", "rk4") == "rk4" else [])
+    compiled = {name: list(kernel.signatures) for name, kernel in kernels.items()}
+    assert all(compiled[name] for name in used), compiled                      # before any initialize or step
+    h.inputs.update(circular(6778e3, 0.0))
+    h.initialize()
+    for k in range(5):
+        h.inputs.update(circular(6778e3, k * 1e-3))
+        h.inputs["humanoid.tau"] = 0.05 * np.sin(0.02 * k + np.arange(14))
+        h.step(MS)
+    assert {name: list(kernel.signatures) for name, kernel in kernels.items()} == compiled
 
 
 @pytest.mark.parametrize("config", ["free_floating_humanoid.yaml", "gravity_gradient_libration.yaml"])
@@ -297,10 +333,9 @@ def test_tumbling_orientation_outputs_keep_their_sign_across_a_restore():
     first = harness(bodies, link_outputs=True)
     first.initialize()
     before = run(first, 200)
-    blob = first.get_state()
+    blob, t_blob = first.get_state(), first.t_ns
     after = run(first, 200)
-    second = harness(bodies, link_outputs=True)
-    second.initialize()
+    second = harness(bodies, link_outputs=True, t0_ns=t_blob)      # never initialized: a restore
     second.set_state(blob)
     assert all(np.array_equal(a["target.orientation"], b["target.orientation"]) for a, b in zip(after, run(second, 200)))
     series = before + after

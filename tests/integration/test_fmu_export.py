@@ -102,8 +102,8 @@ def kepler_fmu(tmp_path_factory):
 def humanoid_fmu(tmp_path_factory):
     """The free-floating humanoid's dynamics; its URDF path (../models/...) is relative to configs/."""
     out = tmp_path_factory.mktemp("humanoid") / "humanoid.fmu"
-    export_fmu("dynamics.dart", as_overrides(config_parameters("free_floating_humanoid.yaml", "dynamics")), out,
-               EPOCH, ROOT / "configs")
+    export_fmu("dynamics.dart", config_parameters("free_floating_humanoid.yaml", "dynamics"), out, EPOCH,
+               ROOT / "configs")
     return out
 
 
@@ -254,7 +254,7 @@ def test_type_without_state_travels_with_its_files_and_a_failing_step_fails(tmp_
     (tmp_path / "plant/ramp.py").write_text(RAMP)
     (tmp_path / "data").mkdir()
     (tmp_path / "data/slopes.txt").write_text("1 2 3 4 5\n")
-    out = export_fmu("plant/ramp.py:Ramp", ["slopes=data/slopes.txt", "fail_at=0.35"], tmp_path / "out/ramp.fmu",
+    out = export_fmu("plant/ramp.py:Ramp", {"slopes": "data/slopes.txt", "fail_at": 0.35}, tmp_path / "out/ramp.fmu",
                      None, tmp_path)
     shutil.rmtree(tmp_path / "plant")   # the FMU carries the type's file and the table
     shutil.rmtree(tmp_path / "data")

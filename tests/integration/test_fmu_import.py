@@ -11,6 +11,8 @@ import yaml
 
 from tests.conftest import ROOT, component_processes, orchestrator
 
+pytestmark = pytest.mark.integration
+
 CONFIG = ROOT / "configs" / "reaction_wheel_fmu.yaml"
 I_BUS_Z, J_WHEEL = 24.4, 0.05   # models/wheel_sat.urdf: bus izz, wheel izz (the FMU's inertia)
 

@@ -2,9 +2,12 @@
 back in Zenorbit as type ``fmu`` give the native run's signals, bit for bit (real processes, real
 Zenoh, FMPy loading pythonfmu's binary)."""
 import pandas
+import pytest
 import yaml
 
 from tests.conftest import ROOT, orchestrator
+
+pytestmark = pytest.mark.integration
 
 NATIVE = f"""
 run: {{name: round_trip, epoch: 2022-09-18T12:00:00Z, duration: 0.5 s, step: 10 ms, algorithm: jacobi}}

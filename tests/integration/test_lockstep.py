@@ -11,7 +11,8 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from tests.conftest import ROOT, component_processes, orchestrator, signal_files, start_run, wait_for_components
+from tests.conftest import (ROOT, component_processes, orchestrator, signal_files, start_run, wait_for_components,
+                            wait_for_step)
 
 pytestmark = pytest.mark.integration
 
@@ -159,9 +160,10 @@ def test_a_failing_component_stops_the_run_with_exit_1(write_config, tmp_path, f
 
 
 def test_component_killed_from_outside_is_seen_quickly(write_config, tmp_path):
-    """SIGKILL from another process midway: liveliness tells the orchestrator within the step."""
+    """SIGKILL from another process midway: liveliness tells the orchestrator, not the step
+    deadline (an hour here: a run that waited for it would outlast the test's wait)."""
     config = write_config("""
-run: {name: victim, epoch: 2022-09-18T12:00:00Z, duration: 600 s, step: 1 ms, realtime: 1.0}
+run: {name: victim, epoch: 2022-09-18T12:00:00Z, duration: 600 s, step: 1 ms, realtime: 1.0, step_timeout: 1 h}
 components:
   a: {type: test.counter}
   b: {type: test.counter}
@@ -169,22 +171,20 @@ components:
     run = start_run(config, tmp_path / "rec")
     try:
         victims = wait_for_components("victim-", 2)
-        time.sleep(1.0)
+        reached = wait_for_step("victim", 100, run=run)
         pid = next((int(line.split()[0]) for line in victims if "--name b " in line), None)
         if pid is None:
             run.kill()
             raise AssertionError(f"no component b: {victims} {run.communicate()}")
-        killed_at = time.monotonic()
         os.kill(pid, signal.SIGKILL)
-        _, err = run.communicate(timeout=30)
-        detected_after = time.monotonic() - killed_at
+        _, err = run.communicate(timeout=120)
     finally:
         if run.poll() is None:
             run.kill()
-    assert run.returncode == 1
-    assert "component 'b' (test.counter) died" in err
-    assert detected_after < 10  # not the 10 s step deadline: the process death itself was seen
-    assert len(signals(tmp_path / "rec")["step"]) > 100
+    assert run.returncode == 1, err
+    assert "component 'b' (test.counter) died" in err and "did not answer" not in err, err
+    steps = signals(tmp_path / "rec")["step"]
+    assert steps == list(range(len(steps))) and len(steps) > reached   # every row up to the death
     assert not component_processes("victim-")
 
 
@@ -203,6 +203,7 @@ components:
                 break
             time.sleep(0.5)
         assert "a:test.counter" in listing.stdout, listing
+        reached = wait_for_step("longrun", 10, run=run)
         stop = orchestrator("stop", "--run", "longrun")
         assert stop.returncode == 0, stop.stderr
         run.communicate(timeout=30)
@@ -211,7 +212,7 @@ components:
             run.kill()
     assert run.returncode == 0
     data = signals(tmp_path / "rec")
-    assert 0 < data["step"][-1] < 1_000_000 and data["a.n"][-1] == data["step"][-1]
+    assert reached <= data["step"][-1] < 1_000_000 and data["a.n"][-1] == data["step"][-1]
     assert events(tmp_path / "rec")[-1]["status"] == "stopped by request"
     assert orchestrator("stop", "--run", "longrun").returncode == 2  # gone now: named, exit 2
 
@@ -246,7 +247,8 @@ components:
         a, b, orchestrator_threads = thread_cpus(pids["a"]), thread_cpus(pids["b"]), thread_cpus(run.pid)
         assert a[pids["a"]] == {dedicated}        # a's stepping (main) thread, alone on its CPU
         others = [c for tid, c in a.items() if tid != pids["a"]] + list(b.values()) + list(orchestrator_threads.values())
-        assert len(others) > 5                    # the bus's threads are among them
+        # the bus's threads are among them: a's own besides its stepping thread, b's, the orchestrator's
+        assert len(a) > 1 and len(b) > 1 and len(orchestrator_threads) > 1, (a, b, orchestrator_threads)
         assert all(dedicated not in c and c for c in others), (dedicated, a, b, orchestrator_threads)
         assert orchestrator("stop", "--run", "pinned").returncode == 0
         run.communicate(timeout=30)
@@ -267,14 +269,17 @@ components:
   a: {type: test.counter}
 """)
     run = start_run(config, tmp_path / "rec", start_new_session=True)
-    wait_for_components("interrupted-", 1)
-    time.sleep(1.0)
-    os.killpg(run.pid, signal.SIGINT)
-    _, err = run.communicate(timeout=30)
+    try:
+        reached = wait_for_step("interrupted", 10, run=run)
+        os.killpg(run.pid, signal.SIGINT)
+        _, err = run.communicate(timeout=60)
+    finally:
+        if run.poll() is None:
+            run.kill()
     assert run.returncode == 130, err
     assert "Traceback" not in err
     data = signals(tmp_path / "rec")
-    assert data["a.n"][-1] == data["step"][-1] > 0
+    assert data["a.n"][-1] == data["step"][-1] >= reached
     assert not component_processes("interrupted-")
 
 
@@ -328,11 +333,11 @@ components:
         assert without.returncode == 2 and "ZENORBIT_SECRET is not set" in without.stderr
         external = subprocess.Popen([sys.executable, *arguments], cwd=ROOT, env={**os.environ, variable: value},
                                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-        time.sleep(2.0)
+        wait_for_step("remote", 10, run=run)            # it joined: the run steps with it
         assert run.poll() is None and external.poll() is None
         run.kill()
-        run.wait(timeout=10)
-        _, err = external.communicate(timeout=20)
+        run.wait(timeout=30)
+        _, err = external.communicate(timeout=60)
     finally:
         for p in (run, external):
             if p is not None and p.poll() is None:
@@ -352,8 +357,7 @@ components:
 """)
     run = start_run(config, tmp_path / "rec")
     try:
-        wait_for_components("unrecorded-", 1)
-        time.sleep(1.5)
+        wait_for_step("unrecorded", 10, run=run)
         shutil.rmtree(tmp_path / "rec")
         _, err = run.communicate(timeout=60)
     finally:

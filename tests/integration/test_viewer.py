@@ -13,7 +13,6 @@ import queue
 import shutil
 import signal
 import socket
-import struct
 import subprocess
 import sys
 import tempfile
@@ -131,12 +130,19 @@ def saved_run(tmp_path_factory):
 
 
 def test_saved_view_has_robot_orbit_and_plots_at_the_viewer_rate(saved_run):
+    """Rows reach the viewer through a publisher that drops rather than hold up a step: on a busy
+    machine (the observer runs niced) some may be lost. What arrives is at the viewer rate, every
+    entity has each row that arrived, and the values are the recorded ones."""
     rec, rrd, stderr = saved_run
     data = pq.read_table(rec / "signals.parquet").to_pydict()
     steps = np.array(data["step"])
     shown = steps[steps % 3 == 0]            # 30 Hz of sim time at 10 ms steps: every 3rd step, from step 0
     assert len(shown) == 34
     entities = read_rrd(rrd)
+    signal_entity = entities["/signals/orbit/v_eci"]["data"]
+    logged = signal_entity["step"]           # the rows that reached the viewer
+    assert 0 < len(logged) <= len(shown) and set(logged) <= set(shown) and logged == sorted(set(logged)), logged
+    at = np.isin(steps, logged)
     from components.viewer.robot import read_geometry
     links = read_geometry(ROOT / "models" / "humanoid_torso.urdf").links
     expected = [f"/world/dynamics/humanoid/links/{link}" for link in links] + [
@@ -150,21 +156,19 @@ def test_saved_view_has_robot_orbit_and_plots_at_the_viewer_rate(saved_run):
         "/signals/orbit/v_eci", "/signals/dynamics/humanoid.q", "/signals/dynamics/humanoid.twist"]
     for path in expected:
         assert path in entities, f"{path} missing; entities: {sorted(entities)}"
-        assert entities[path]["rows"] == len(shown), path
+        assert entities[path]["rows"] == len(logged), path
         assert entities[path]["timelines"] == {"sim_time", "step"}, path
     for path in ("/orbit/earth", "/orbit/orbit/spacecraft/lvlh", "/notes"):
         assert entities[path]["static"], path
     # the rows are the recorded ones: same steps, same times, same values
-    signal_entity = entities["/signals/orbit/v_eci"]["data"]
-    assert signal_entity["step"] == list(shown)
-    assert signal_entity["sim_time"] == [int(k) * 10_000_000 for k in shown]
-    v = np.column_stack([np.array(data[f"orbit.v_eci[{i}]"])[steps % 3 == 0] for i in range(3)])
+    assert signal_entity["sim_time"] == [int(k) * 10_000_000 for k in logged]
+    v = np.column_stack([np.array(data[f"orbit.v_eci[{i}]"])[at] for i in range(3)])
     assert np.array_equal(np.array(signal_entity["Scalars:scalars"]), v)
-    desired = np.column_stack([np.array(data[f"controller.ee_position_desired[{i}]"])[steps % 3 == 0] for i in range(3)])
-    logged = np.array([p[0] for p in entities["/world/controller/ee_desired"]["data"]["Points3D:positions"]])
-    assert np.allclose(logged, desired, atol=1e-6)
+    desired = np.column_stack([np.array(data[f"controller.ee_position_desired[{i}]"])[at] for i in range(3)])
+    points = np.array([p[0] for p in entities["/world/controller/ee_desired"]["data"]["Points3D:positions"]])
+    assert np.allclose(points, desired, atol=1e-6)
     assert RrdReader(rrd).blueprints(), "the layout is saved with the data"
-    assert "saved 34 rows" in stderr
+    assert f"saved {len(logged)} rows" in stderr
     assert not component_processes("viewer_save") and not viewer_processes("viewer_save")
 
 
@@ -175,7 +179,11 @@ def test_replay_of_the_recording_shows_what_the_live_view_showed(saved_run, tmp_
     assert result.returncode == 0, result.stderr
     live_rows = {path: e["rows"] for path, e in read_rrd(live).items() if e["rows"]}
     replay_rows = {path: e["rows"] for path, e in read_rrd(replayed).items() if e["rows"]}
-    assert replay_rows == live_rows
+    # the same entities; the replay reads the recording, so it has every row at the viewer rate
+    # (34 of the 101 steps), the live view those the publisher did not drop
+    assert set(replay_rows) == set(live_rows)
+    assert set(replay_rows.values()) == {34}, replay_rows
+    assert all(live_rows[path] <= 34 for path in live_rows), live_rows
     assert orchestrator("view", tmp_path / "nothing_here").returncode == 2
     assert orchestrator("view", rec, "--view", "save:no_suffix").returncode == 2
 
@@ -207,13 +215,13 @@ def test_observer_follows_the_bus_contract(tmp_path):
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         assert seen.get(timeout=30) == zenoh.SampleKind.PUT
-        header = struct.Struct("<qd")
+        header = bus.SIGNALS_HEADER
         for k in range(50):
             out.put(header.pack(k, k * 1e-3) + np.array([k, -k, 0.5 * k], dtype=np.float64).tobytes())
         out.put(b"junk")                                    # a malformed row is counted, not fatal
         out.put(b"END")
         assert process.wait(timeout=30) == 0
-        assert seen.get(timeout=10) == zenoh.SampleKind.DELETE
+        assert seen.get(timeout=30) == zenoh.SampleKind.DELETE
     finally:
         if process.poll() is None:
             process.kill()
@@ -248,7 +256,7 @@ def test_observer_exits_when_the_orchestrator_goes_away(tmp_path):
     try:
         assert seen.get(timeout=30) == zenoh.SampleKind.PUT
         token.undeclare()
-        assert process.wait(timeout=20) == 0
+        assert process.wait(timeout=60) == 0
     finally:
         if process.poll() is None:
             process.kill()
@@ -297,8 +305,13 @@ def test_spawn_mode_streams_to_a_listening_desktop_viewer(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")              # a streamed .rrd has no footer
         entities = read_rrd(received)
-    assert entities["/world/dynamics/humanoid/links/torso"]["rows"] == 34
-    assert entities["/plots/controller/tau"]["rows"] == 34
+    # streamed through the publisher that drops rather than waits: the rows that arrived, at the
+    # viewer rate (every 3rd of the 101 steps: 34 at most), in both entities
+    torso = entities["/world/dynamics/humanoid/links/torso"]
+    streamed = torso["data"]["step"]
+    assert 0 < len(streamed) <= 34 and all(k % 3 == 0 for k in streamed) and streamed == sorted(set(streamed)), streamed
+    assert torso["rows"] == entities["/plots/controller/tau"]["rows"] == len(streamed)
+    assert entities["/plots/controller/tau"]["data"]["step"] == streamed
     assert not viewer_processes("viewer_spawn")
 
 

@@ -16,7 +16,7 @@ import pytest
 
 from components.controller.computed_torque import FreeFloatingArm, dls_inverse
 from components.rotations import log_so3
-from components.dynamics.urdf import read_urdf
+from components.robots.urdf import read_urdf
 from components.dynamics.world import BodySpec, OrbitalWorld
 from tests import validation
 

@@ -18,9 +18,21 @@ def test_integrator_closed_form_through_the_harness():
 
 
 def test_unconnected_input_holds_its_start_value():
-    h = Harness("test.integrator", {})
-    h.step(1_000_000_000)
-    assert h.outputs["x"] == 0.0  # u starts at 0
+    """u unconnected with a start value of 2.5 and x from x0 = 1: each 1 s step adds gain * 2.5. An
+    input ignored, or fed 0 instead of its start value, would leave x at 1; x0 ignored, at 5 and 10."""
+    from dataclasses import replace
+
+    from components.testing.blocks import Integrator
+
+    class StartsAt2_5(Integrator):
+        @classmethod
+        def declare(cls, params):
+            return [replace(v, start=2.5) if v.name == "u" else v for v in super().declare(params)]
+
+    h = Harness(StartsAt2_5, {"gain": 2.0, "x0": 1.0})
+    assert h.inputs["u"] == 2.5
+    assert h.step(1_000_000_000)["x"] == 6.0      # 1 + 2 * 2.5 * 1
+    assert h.step(1_000_000_000)["x"] == 11.0     # held over the next step too
 
 
 def test_state_round_trip_restarts_exactly():
@@ -28,9 +40,8 @@ def test_state_round_trip_restarts_exactly():
     a.inputs["u"] = 0.7
     for _ in range(3):
         a.step(1_000_000)
-    b = Harness("test.integrator", {"gain": 0.1})
-    b.initialize()
-    b.set_state(a.get_state())
+    b = Harness("test.integrator", {"gain": 0.1}, t0_ns=a.t_ns)
+    b.set_state(a.get_state())                    # never initialized: a restore, as a swap or restart does
     b.inputs["u"] = 0.7
     assert a.step(1_000_000)["x"] == b.step(1_000_000)["x"]
 

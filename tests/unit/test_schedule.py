@@ -124,24 +124,67 @@ def test_fed_inputs_names_the_variables_a_route_feeds():
     assert fed_inputs(route, offsets) == ["b", "c"]
 
 
+def test_inbox_entries_decode_to_typed_messages():
+    from components import bus
+    from orchestrator.messages import LIVELINESS, OUTPUTS, REPLY, Fault, Liveliness, Outputs, Reply, decode
+
+    rid = "demo-1a2b3c4d"
+    batch = bus.encode_batch(3, np.array([4, 5]), np.array([[1.0, 2.0], [3.0, 4.0]]), np.array([[7.0, 6.0], [8.0, 5.0]]))
+    outputs = decode(OUTPUTS, bus.batch_key(rid, "int"), batch)
+    assert type(outputs) is Outputs and (outputs.name, outputs.generation) == ("int", 3)
+    assert outputs.tags.tolist() == [4, 5] and outputs.outputs.tolist() == [[7.0, 6.0], [8.0, 5.0]]
+    assert outputs.timings.tolist() == [[1.0, 2.0], [3.0, 4.0]]   # (compute, idle) of each step
+    out_key = bus.reply_key(rid, "int", 12)
+    assert decode(REPLY, out_key, bus.encode_message(bus.REPLY, {"op": "wire", "n": 2}, b"\x01\x02")) == \
+        Reply("int", 12, {"op": "wire", "n": 2}, b"\x01\x02")
+    assert decode(REPLY, out_key, bus.encode_message(bus.FAULT, {"op": "step", "k": 9, "error": "boom"})) == \
+        Fault("int", 12, "step", 9, "boom")
+    assert decode(LIVELINESS, bus.alive_key(rid, "int", 7), False) == Liveliness("int", 7, False)
+    assert decode(LIVELINESS, bus.viewer_alive_key(rid), True) == Liveliness(bus.VIEWER, 0, True)
+    assert decode(LIVELINESS, bus.run_key(rid, "alive", "int", "x"), True) is None   # not a process's token
+
+
+@pytest.mark.parametrize("kind, key, payload, reason", [
+    ("o", "r/int", b"junk", "expected a B message"),
+    ("o", "r/int", "tag 0", "tag 0: the outputs of a step are tagged 1 or later"),
+    ("r", "c/int/x/out", "reply", "not a component's reply key"),
+    ("r", "c/int/\u00b2/out", "reply", "not a component's reply key"),   # "²".isdigit(), but no number
+    ("r", "out", "reply", "not a component's reply key"),
+    ("r", "c/int/0/out", b"X" + bytes(8), "neither a reply, a fault nor events"),
+    ("r", "c/int/0/out", "fault without k", "lacks k"),
+    ("r", "c/int/0/out", b"R\xff\xff\xff\xff{", "announces"),
+])
+def test_malformed_inbox_entries_are_refused_with_a_reason(kind, key, payload, reason):
+    from components import bus
+    from orchestrator.messages import decode
+
+    payload = {"tag 0": bus.encode_batch(0, np.array([0, 1]), np.zeros((2, 2)), np.zeros((2, 1))),
+               "reply": bus.encode_message(bus.REPLY, {"op": "wire"}),
+               "fault without k": bus.encode_message(bus.FAULT, {"op": "step", "error": "x"})}.get(payload, payload)
+    with pytest.raises(bus.Malformed, match=reason):
+        decode(kind, bus.run_key("demo-1a2b3c4d", *key.split("/")), payload)
+
+
 def test_a_fault_overtaking_earlier_batches_keeps_the_progress_it_reported(tmp_path):
     """A fault message (progress raised to its step) can arrive before the batches sent ahead of it
     under another key; a late batch must not lower the progress, or the salvage of the rows up to
     the fault stops short (seen: a run recording rows 0-32 of 0-50)."""
-    import shutil
-
     from components import bus
-    from orchestrator.engine import Member, Run
+    from orchestrator.members import Member
+    from orchestrator.messages import OUTPUTS, decode
 
     path = tmp_path / "one.yaml"
     path.write_text("run: {name: one, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 10 ms}\n"
                     "components: {bad: {type: test.counter}}\n")
-    config = load(path)
-    run = Run(config)
-    member = run.members["bad"] = Member(spec=config.components["bad"], generation=0, process=None,
-                                         log_path=None, ratio=1, progress=50)
+    spec = load(path).components["bad"]
+    member = Member(spec=spec, generation=0, process=None, log_path=None, ratio=1, progress=50)
     tags = np.arange(1, 33)
-    batch = bus.encode_batch(0, tags, np.zeros((32, 2)), np.zeros((32, member.spec.outputs.size)))
-    run._handle(("o", bus.batch_key(run.run_id, "bad"), batch), {})
-    shutil.rmtree(run.log_dir)
+    batch = bus.encode_batch(0, tags, np.full((32, 2), 0.5), np.zeros((32, spec.outputs.size)))
+    member.receive(decode(OUTPUTS, bus.batch_key("one-1a2b3c4d", "bad"), batch))
     assert member.progress == 50 and [t for t, _ in member.received] == tags.tolist()
+    assert (member.steps, member.compute_s, member.idle_s) == (32, 16.0, 16.0)
+    for stale in (bus.encode_batch(1, tags, np.zeros((32, 2)), np.zeros((32, 1))),   # another generation
+                  bus.encode_batch(0, tags, np.zeros((32, 2)), np.zeros((32, 2)))):  # another size
+        with pytest.raises(bus.Malformed):
+            member.receive(decode(OUTPUTS, bus.batch_key("one-1a2b3c4d", "bad"), stale))
+    assert member.steps == 32

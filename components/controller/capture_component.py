@@ -1,0 +1,309 @@
+"""The ``controller.capture`` component type: a thin wrapper around
+:mod:`components.controller.capture` (the estimator, the phases, the limits and the detumbling are
+described there).
+
+Connections (a capture run): the servicer's state from the dynamics (``position``,
+``orientation``, ``twist``, ``q``, ``qd`` as for ``controller.computed_torque``), the relative-pose
+sensor (``grasp_p``, ``grasp_q``, ``grasp_t``, ``grasp_valid``), the dynamics' ``captured``, the
+IMU's ``rate_imu`` and the wrist force-torque sensor's ``wrench``; ``tau`` goes to the dynamics'
+``<servicer>.tau`` and ``close`` to whatever closes the grasp.
+
+Time: ``do_step(t, h)`` reads the state measured at t (its sample time, ``input_times_ns``) and
+returns the torques to apply from t + h on, as ``controller.computed_torque`` does.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from components.constants import NS_PER_S
+from components.errors import ConfigError
+from components.robots.model import read_model
+from components.rotations import rpy_to_matrix
+from components.schema import Float, Int, ListOf, OneOf, Str, Vector
+from components.sdk import Component, Parameter, Variable
+from components.signals import BODY_STATE, body_signals, torque_signal
+
+TASK_AXES = "x, y, z, rotation about x, y, z"
+
+
+def _gain(unit: str) -> OneOf:
+    return OneOf((Float(unit, minimum=0.0), Vector(None, unit, minimum=0.0)))
+
+
+def _per_item(value, n: int, key: str, each: str = "one per arm joint") -> np.ndarray:
+    if np.ndim(value) == 0:
+        return np.full(n, float(value))
+    if len(value) != n:
+        raise ConfigError(key, f"expected one number or {n} numbers ({each}), got {len(value)}")
+    return np.array(value, dtype=np.float64)
+
+
+def _chain(model, link: str) -> list:
+    """URDF joints from the root link down to ``link`` (root first)."""
+    by_child = {j.child: j for j in model.joints}
+    chain = []
+    while link in by_child:
+        chain.append(by_child[link])
+        link = by_child[link].parent
+    return chain[::-1]
+
+
+@dataclass(frozen=True)
+class CaptureSetup:
+    """The parameters checked against the URDF: arm and wheel joints, the wheels' axes in the base
+    frame (columns) and limits, the arm's limits, the shoulder and reach, the gains per axis or joint."""
+    model: Any
+    joints: list[str]
+    wheels: list[str]
+    wheel_axes: np.ndarray
+    wheel_effort: np.ndarray
+    wheel_velocity: np.ndarray
+    effort: np.ndarray
+    velocity: np.ndarray
+    shoulder: str
+    reach: float
+    kp: np.ndarray
+    kd: np.ndarray
+    null_kp: np.ndarray
+    null_kd: np.ndarray
+    hold_kp: np.ndarray
+    hold_kd: np.ndarray
+    captured_kp: np.ndarray
+    captured_kd: np.ndarray
+
+
+class CaptureComponent(Component):
+    """Capture of a tumbling target by a free-floating servicer's arm, then detumbling of the
+    assembly with reaction wheels (type ``controller.capture``; issue 23, see
+    :mod:`components.controller.capture` for the estimator and the laws).
+
+    From measurements of the target's grasp frame relative to the end effector (delayed: each
+    carries its time), it estimates the grasp frame's motion in W (fading-memory least squares
+    over the last ``estimator_window`` measurements, the end-effector pose taken at each
+    measurement's time), blends the end effector onto the moving grasp frame over
+    ``approach_time`` (phase 0), tracks it (phase 1) with the Generalized-Jacobian computed-torque
+    law and feed-forward, and sets ``close`` once the estimated errors have stayed within the
+    tolerances for ``tolerance_time``. When ``captured`` is 1 (phase 2) the arm holds its joint
+    configuration (a joint PD in torque units, ``captured_kp``/``captured_kd``: the target's
+    inertia is not in the servicer's model) and the wheels damp the bus rate measured by the IMU,
+    within their effort and speed limits and scaled down to keep the wrist wrench within the grasp
+    limits. Before the first estimate the arm holds its initial joint configuration.
+
+    A grasp point beyond the arm's reach (from the shoulder, the first joint of ``joints``), or
+    one whose following needs joint rates beyond the URDF velocity limits or torques beyond the
+    effort limits for longer than ``limit_window``, stops the run with a message naming the limit,
+    the figure and the limit.
+
+    Outputs: ``tau`` (arm and wheels; zero elsewhere), ``close``, ``phase``, ``grasp_distance``,
+    ``ee_error`` (the reference minus the end effector: the blend in approach, the estimated grasp
+    frame in track and after capture), the estimated grasp frame's position, velocity and angular
+    velocity (W); ``describe`` lists them.
+
+    State (``get_state``): the estimator's measurements and fit, the end-effector pose history,
+    the phase, ``close``, the approach's anchor, the hold configurations, the tolerance and limit
+    timers and the wheel-torque factor: ``set_state`` on a fresh instance continues bit for bit.
+    """
+    type_name = "controller.capture"
+    parameters = (
+        Parameter("urdf", "str", description="the servicer's URDF, relative to the config file"),
+        Parameter("joints", ListOf(Str(), min_items=1, unique=True),
+                  description="the arm's joints (driven), e.g. [arm_1_joint, ..., arm_6_joint]"),
+        Parameter("wheels", ListOf(Str(), unique=True),
+                  description="the reaction wheels' joints (continuous joints on the base link), "
+                              "e.g. [wheel_x_joint, wheel_y_joint, wheel_z_joint]"),
+        Parameter("end_effector", "str",
+                  description="link whose frame is brought onto the grasp frame (z out of the tool)"),
+        Parameter("approach_time", Float("s", positive=True),
+                  description="duration of the blend from the end effector's pose onto the moving grasp frame"),
+        Parameter("position_tolerance", Float("m", positive=True),
+                  description="close when the estimated position error stays below this (and the other tolerances)"),
+        Parameter("attitude_tolerance", Float("rad", positive=True),
+                  description="bound of the estimated attitude error angle for closing"),
+        Parameter("velocity_tolerance", Float("m/s", positive=True),
+                  description="bound of the estimated relative linear velocity for closing"),
+        Parameter("rate_tolerance", Float("rad/s", positive=True),
+                  description="bound of the estimated relative angular velocity for closing"),
+        Parameter("tolerance_time", Float("s", minimum=0.0),
+                  description="how long the errors must stay within the tolerances before close goes to 1"),
+        Parameter("grasp_force_limit", Float("N", positive=True),
+                  description="bound of the measured wrist force while detumbling (the wheel torques are scaled down)"),
+        Parameter("grasp_torque_limit", Float("N*m", positive=True),
+                  description="bound of the measured wrist torque while detumbling"),
+        Parameter("detumble_gain", Float("N*m*s/rad", minimum=0.0),
+                  description="bus torque per unit of IMU rate (rate damping) after capture"),
+        Parameter("captured_kp", _gain("N*m/rad"),
+                  description="joint stiffness holding the arm after capture (torque units: the target's inertia "
+                              "is not in the model), one or per arm joint"),
+        Parameter("captured_kd", _gain("N*m*s/rad"),
+                  description="joint damping holding the arm after capture, one or per arm joint (stable for "
+                              "kd * step well below the smallest joint-space inertia of the assembly)"),
+        Parameter("wrench_recovery_time", Float("s", positive=True), default=2.0,
+                  description="time for the wheel-torque factor to recover from 0 to 1 once the wrench is "
+                              "within limits"),
+        Parameter("kp", _gain("1/s^2"), default=100.0,
+                  description="Cartesian K_p, one for all six axes or per axis: x, y, z, rotation about x, y, z (W)"),
+        Parameter("kd", _gain("1/s"), default=20.0,
+                  description="Cartesian K_d, one for all six axes or per axis: x, y, z, rotation about x, y, z (W)"),
+        Parameter("null_kp", _gain("1/s^2"), default=4.0,
+                  description="null-space posture stiffness (initial configuration), one or per arm joint"),
+        Parameter("null_kd", _gain("1/s"), default=4.0, description="null-space joint damping, one or per arm joint"),
+        Parameter("dls_threshold", Float(minimum=0.0), default=0.02,
+                  description="sigma_min(J_g) below which the pseudo-inverse is damped"),
+        Parameter("dls_damping", Float(minimum=0.0), default=0.05, description="damping at sigma_min = 0"),
+        Parameter("hold_kp", _gain("1/s^2"), default=25.0,
+                  description="computed-torque joint hold stiffness before the first estimate, one or per arm joint"),
+        Parameter("hold_kd", _gain("1/s"), default=10.0,
+                  description="computed-torque joint hold damping before the first estimate, one or per arm joint"),
+        Parameter("estimator_window", Int(minimum=3), default=10,
+                  description="measurements in the least-squares fit; the approach starts when it is full"),
+        Parameter("estimator_memory", Float("s", positive=True), default=0.5,
+                  description="fading-memory time constant: a measurement tau seconds older weighs exp(-tau/memory)"),
+        Parameter("pose_history", Float("s", positive=True), default=1.0,
+                  description="end-effector poses kept by time: the longest measurement latency handled"),
+        Parameter("limit_window", Float("s", minimum=0.0), default=0.2,
+                  description="how long needed joint rates or torques may exceed the URDF limits before the run stops"),
+    )
+
+    @classmethod
+    def setup(cls, params) -> CaptureSetup:
+        """What the parameters mean for this URDF (validate checks it; __init__ uses it)."""
+        model = read_model(params["urdf"], params.get("_config_dir"), "urdf")
+        movable = model.movable_joints
+        for key in ("joints", "wheels"):
+            for name in params[key]:
+                if name not in movable:
+                    raise ConfigError(key, f"{name!r} is not a movable joint of the URDF "
+                                           f"(expected one of: {', '.join(movable)})")
+        joints, wheels = list(params["joints"]), list(params["wheels"])
+        both = [j for j in wheels if j in joints]
+        if both:
+            raise ConfigError("wheels", f"{both[0]!r} is also in joints")
+        ee = params["end_effector"]
+        if ee not in model.link_names:
+            raise ConfigError("end_effector", f"{ee!r} is not a link of {model.path.name} "
+                                              f"(links: {', '.join(model.link_names)})")
+        chain = _chain(model, ee)
+        names = [j.name for j in chain]
+        for j in joints:
+            if j not in names:
+                raise ConfigError("joints", f"{j!r} does not move end_effector {ee!r} (its chain: "
+                                            f"{', '.join(n for n in names if n in movable)})")
+        first = min(names.index(j) for j in joints)
+        reach = float(sum(math.sqrt(sum(x * x for x in j.xyz)) for j in chain[first + 1:]))
+        axes = []
+        for name in wheels:
+            joint = model.joint(name)
+            if joint.type != "continuous" or joint.parent != model.root:
+                raise ConfigError("wheels", f"{name!r} is a {joint.type} joint on {joint.parent!r}: expected a "
+                                            f"continuous joint on the base link {model.root!r}")
+            axes.append(rpy_to_matrix(joint.rpy) @ np.array(joint.axis))
+            if not math.isfinite(joint.effort):
+                raise ConfigError("wheels", f"{name!r} has no effort limit in the URDF: the wheel torques need one")
+        n = len(joints)
+        return CaptureSetup(
+            model=model, joints=joints, wheels=wheels,
+            wheel_axes=np.array(axes, dtype=float).reshape(-1, 3).T,
+            wheel_effort=np.array([model.joint(j).effort for j in wheels]),
+            wheel_velocity=np.array([model.joint(j).velocity for j in wheels]),
+            effort=np.array([model.joint(j).effort for j in joints]),
+            velocity=np.array([model.joint(j).velocity for j in joints]),
+            shoulder=chain[first].name, reach=reach,
+            kp=_per_item(params["kp"], 6, "kp", TASK_AXES), kd=_per_item(params["kd"], 6, "kd", TASK_AXES),
+            null_kp=_per_item(params["null_kp"], n, "null_kp"), null_kd=_per_item(params["null_kd"], n, "null_kd"),
+            hold_kp=_per_item(params["hold_kp"], n, "hold_kp"), hold_kd=_per_item(params["hold_kd"], n, "hold_kd"),
+            captured_kp=_per_item(params["captured_kp"], n, "captured_kp"),
+            captured_kd=_per_item(params["captured_kd"], n, "captured_kd"))
+
+    @classmethod
+    def validate(cls, params):
+        cls.setup(params)
+
+    @classmethod
+    def declare(cls, params):
+        model = read_model(params["urdf"], params.get("_config_dir"), "urdf")
+        return body_signals("input", model, names=BODY_STATE) + [
+            Variable("grasp_p", "input", (3,), "m", [0.0] * 3,
+                     "measured position of the grasp frame's origin relative to the end effector, EE axes"),
+            Variable("grasp_q", "input", (4,), "1", [0.0, 0.0, 0.0, 1.0],
+                     "measured orientation of the grasp frame, q_ee_grasp [x, y, z, w]"),
+            Variable("grasp_t", "input", (), "s", -1.0, "time the measurement was taken (it arrives late)"),
+            Variable("grasp_valid", "input", (), "1", 0.0, "1 when the measurement is valid, else 0"),
+            Variable("captured", "input", (), "1", 0.0, "1 once the grasp holds the target (from the dynamics)"),
+            Variable("rate_imu", "input", (3,), "rad/s", [0.0] * 3,
+                     "the bus's angular rate measured by the IMU, bus axes"),
+            Variable("wrench", "input", (6,), "N, N*m", [0.0] * 6,
+                     "wrench measured at the wrist: force then torque, EE axes"),
+            torque_signal("output", model, note="arm and wheels; zero on other joints"),
+            Variable("close", "output", (), "1", 0.0,
+                     "1: close the grasp (the estimated errors stayed within tolerance)"),
+            Variable("phase", "output", (), "1", 0.0, "0 approach (or waiting for the estimate), 1 track, 2 captured"),
+            Variable("grasp_distance", "output", (), "m", 0.0,
+                     "estimated distance from the end effector to the grasp frame (the last measured one before "
+                     "the first estimate)"),
+            Variable("ee_error", "output", (6,), "m, rad", [0.0] * 6,
+                     "reference minus end effector: position (m), then log(R_ref R_ee^T) (rad), W; the reference "
+                     "is the blend in approach, the estimated grasp frame after"),
+            Variable("grasp_position_est", "output", (3,), "m", [0.0] * 3, "estimated grasp frame origin, W"),
+            Variable("grasp_velocity_est", "output", (3,), "m/s", [0.0] * 3, "its estimated velocity, W"),
+            Variable("grasp_rate_est", "output", (3,), "rad/s", [0.0] * 3,
+                     "estimated angular velocity of the grasp frame, W"),
+        ]
+
+    def __init__(self, params):
+        super().__init__(params)
+        self.config = self.setup(params)
+        self.controller = self._build()
+
+    def _build(self):
+        from components.controller.capture import CaptureController, CaptureSettings
+        from components.controller.computed_torque import ComputedTorqueLaw, FreeFloatingArm
+
+        c, p = self.config, self.params
+        arm = FreeFloatingArm(c.model.path, c.model.movable_joints, c.joints, p["end_effector"])
+        law = ComputedTorqueLaw(c.kp, c.kd, c.null_kp, c.null_kd, c.effort,
+                                dls_threshold=p["dls_threshold"], dls_damping=p["dls_damping"])
+        settings = CaptureSettings(
+            approach_time=p["approach_time"], position_tolerance=p["position_tolerance"],
+            attitude_tolerance=p["attitude_tolerance"], velocity_tolerance=p["velocity_tolerance"],
+            rate_tolerance=p["rate_tolerance"], tolerance_time=p["tolerance_time"],
+            grasp_force_limit=p["grasp_force_limit"], grasp_torque_limit=p["grasp_torque_limit"],
+            detumble_gain=p["detumble_gain"], wrench_recovery_time=p["wrench_recovery_time"],
+            hold_kp=c.hold_kp, hold_kd=c.hold_kd, captured_kp=c.captured_kp, captured_kd=c.captured_kd,
+            estimator_window=p["estimator_window"],
+            estimator_memory=p["estimator_memory"], pose_history=p["pose_history"], limit_window=p["limit_window"],
+            shoulder=c.shoulder, reach=c.reach, arm_velocity=c.velocity, wheel_axes=c.wheel_axes,
+            wheel_effort=c.wheel_effort, wheel_velocity=c.wheel_velocity)
+        return CaptureController(arm, law, settings, c.wheels)
+
+    def _idle_outputs(self) -> dict[str, np.ndarray]:
+        z3 = np.zeros(3)
+        return {"tau": np.zeros(self.controller.arm.n_body), "close": 0.0, "phase": 0.0, "grasp_distance": 0.0,
+                "ee_error": np.zeros(6), "grasp_position_est": z3, "grasp_velocity_est": z3, "grasp_rate_est": z3}
+
+    def initialize(self, t0_ns, inputs):
+        self.controller = self._build()
+        if "q" not in self.input_times_ns:
+            # the state holds its start values (the dynamics initializes later in config order, or a
+            # harness said nothing): take the initial configuration at the first step
+            return self._idle_outputs()
+        self.controller.start(inputs)
+        return self.controller.step(self.input_times_ns["q"] / NS_PER_S, 0.0, inputs)
+
+    def do_step(self, t_ns, h_ns, inputs):
+        if not self.controller.started:
+            self.controller.start(inputs)
+        t_state = self.input_times_ns.get("q", t_ns)
+        return self.controller.step(t_state / NS_PER_S, h_ns / NS_PER_S, inputs)
+
+    def get_state(self):
+        return self.controller.get_state()
+
+    def set_state(self, state):
+        """Restore on a fresh instance (``initialize`` is not called): the estimator, the history,
+        the phase and every timer as they were; the next steps are those of the saved instance."""
+        self.controller = self._build()
+        self.controller.set_state(state)

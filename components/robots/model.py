@@ -1,0 +1,61 @@
+"""What components make of a URDF: its path in a config, the ``bodies`` of a multibody
+component, and the units of a body's joint variables (no physics engine, xml.etree only)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Mapping
+
+from components.errors import ConfigError
+from components.robots.urdf import UrdfError, UrdfModel, read_urdf
+from components.schema import Float, OneOf
+
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
+
+# a joint's value in a config: revolute (rad) or prismatic (m); its rate likewise
+JOINT_VALUE = OneOf((Float("rad"), Float("m")))
+JOINT_RATE = OneOf((Float("rad/s"), Float("m/s")))
+# units of a joint's position, rate and effort, by URDF joint type
+JOINT_UNITS = {"revolute": ("rad", "rad/s", "N*m"), "continuous": ("rad", "rad/s", "N*m"),
+               "prismatic": ("m", "m/s", "N")}
+
+
+def resolve_urdf(value: Any, config_dir: str | Path | None, key: str) -> Path:
+    """A URDF path: absolute, else relative to the config file, else to the project root."""
+    if not isinstance(value, str) or not value:
+        raise ConfigError(key, f"expected a URDF file path, got {value!r}")
+    path = Path(value)
+    if path.is_absolute():
+        candidates = [path]
+    else:
+        candidates = [Path(config_dir or ".") / path, PROJECT_ROOT / path]
+    for candidate in candidates:
+        if candidate.is_file():
+            return candidate.resolve()
+    raise ConfigError(key, f"URDF file {value!r} not found (looked in: {', '.join(str(c) for c in candidates)})")
+
+
+def read_model(value: Any, config_dir: str | Path | None, key: str) -> UrdfModel:
+    """The parsed URDF a config names (see ``resolve_urdf``); ConfigError naming ``key``."""
+    path = resolve_urdf(value, config_dir, key)
+    try:
+        return read_urdf(path)
+    except UrdfError as e:
+        raise ConfigError(key, str(e)) from None
+
+
+def body_items(raw: Any) -> list[tuple[str, Mapping]]:
+    """A ``bodies`` parameter as (name, body) pairs; ConfigError unless a mapping name -> {urdf, ...}."""
+    if not isinstance(raw, Mapping) or not raw:
+        raise ConfigError("bodies", f"expected a mapping body name -> body, got {raw!r}")
+    for name, body in raw.items():
+        if not isinstance(body, Mapping) or "urdf" not in body:
+            raise ConfigError(f"bodies.{name}", f"expected a mapping with at least urdf, got {body!r}")
+    return list(raw.items())
+
+
+def joint_units(model: UrdfModel) -> tuple[str, str, str]:
+    """Units of a body's q, qd and tau (its movable joints, URDF order): one unit when every joint
+    has it (rad, rad/s, N*m when there are none), else one per joint, comma separated, which the
+    SDK spreads over the elements (as ``m/s, rad/s`` over a twist)."""
+    per_joint = [JOINT_UNITS[j.type] for j in model.joints if j.movable] or [JOINT_UNITS["revolute"]]
+    return tuple(units[0] if len(set(units)) == 1 else ", ".join(units) for units in zip(*per_joint))

@@ -1,0 +1,165 @@
+"""The run's component processes: a live member, starting one (launch, wait for its liveliness
+token, instantiate), asking it something, stopping it, and how their deaths and faults read."""
+from __future__ import annotations
+
+import collections
+import subprocess
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from components import bus
+from components.schedule import Route
+from orchestrator import supervisor
+from orchestrator.config import ComponentSpec, RunConfig
+from orchestrator.messages import Fault, Outputs
+
+
+class RunFailure(Exception):
+    """The run cannot go on: a component crashed, hung, or produced a non-finite value.
+    ``lost``: ``member`` died or hung (a restart may cure that), rather than reported a fault."""
+
+    def __init__(self, message: str, member: "Member | None" = None, lost: bool = False):
+        super().__init__(message)
+        self.member = member
+        self.lost = lost
+
+
+@dataclass
+class Member:
+    """A live component: its spec, its process, its routes, and the outputs seen from it."""
+    spec: ComponentSpec
+    generation: int
+    process: subprocess.Popen | None
+    log_path: Path | None
+    ratio: int                             # its step in run steps
+    command: object = None                 # Zenoh publisher of its command key
+    routes: list[Route] = field(default_factory=list)
+    out_dst: np.ndarray = None             # where its outputs go in the recorded row ...
+    out_src: np.ndarray = None             # ... from these indices of its output vector
+    tag: int = 0                           # the tag of ``latest``: what the recorded rows hold now
+    latest: np.ndarray = None
+    initialized: bool = False              # ``latest`` holds its outputs (not its start values)
+    received: collections.deque = field(default_factory=collections.deque)  # (tag, outputs), not yet recorded
+    progress: int = 0                      # the highest tag it has published
+    progress_at: float = 0.0               # wall time of its last output
+    compute_s: float = 0.0
+    idle_s: float = 0.0
+    steps: int = 0
+    reply: dict | None = field(default=None, repr=False)
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    def control(self, op: str, body: dict | None = None, blob: bytes = b"") -> None:
+        self.command.put(bus.encode_message(bus.CONTROL, {"op": op, **(body or {})}, blob))
+
+    def receive(self, message: Outputs) -> None:
+        """Take a batch of its outputs (to be recorded); Malformed if not of this generation and size."""
+        if message.generation != self.generation:
+            raise bus.Malformed(f"generation {message.generation}, the live one is {self.generation}")
+        tags, outputs = message.tags, message.outputs
+        if outputs.shape[1] != self.spec.outputs.size:
+            raise bus.Malformed(f"{outputs.shape[1]} outputs per step, {self.name} has {self.spec.outputs.size}")
+        tags = tags.tolist()
+        self.received.extend(zip(tags, outputs))
+        # max: a fault message (which raises progress to its step) may overtake the batches
+        # sent before it, which travel under another key
+        self.progress, self.progress_at = max(self.progress, tags[-1]), time.monotonic()
+        compute_s, idle_s = message.timings.sum(axis=0).tolist()   # Python floats: cheaper to add up
+        self.compute_s += compute_s
+        self.idle_s += idle_s
+        self.steps += len(tags)
+
+
+Wait = Callable[[dict, float, str], None]
+
+
+class Crew:
+    """Starts, asks and stops members. ``wait(expect, timeout, what)`` is the engine's: it handles
+    inbox messages until every member named in ``expect`` (name -> op) has answered, or raises
+    RunFailure. ``place(spec)`` says where a member's outputs go in the recorded row."""
+
+    def __init__(self, config: RunConfig, *, run_id: str, session, endpoint: str, secret: str, env: dict,
+                 log_dir: Path, placement: supervisor.Placement, out,
+                 place: Callable[[ComponentSpec], tuple[np.ndarray, np.ndarray]], wait: Wait):
+        self.config, self.run_id, self.session, self.endpoint = config, run_id, session, endpoint
+        self.secret, self.env, self.log_dir, self.placement, self.out = secret, env, log_dir, placement, out
+        self.place, self.wait = place, wait
+
+    def launch(self, spec: ComponentSpec, generation: int) -> Member:
+        """Start the process of a member (or ask the user to, for an external one)."""
+        process = log_path = None
+        args = supervisor.runner_arguments(self.endpoint, self.run_id, spec.name, generation)
+        if spec.launch == "local":
+            log_path = self.log_dir / f"{spec.name}.{generation}.log"
+            cpu = self.placement.dedicated.get(spec.name)
+            process = supervisor.start_component(args + (["--cpu", str(cpu)] if cpu is not None else []),
+                                                 log_path, self.placement.shared, self.env)
+        else:
+            print(f"waiting for external component {spec.name!r}: start it with\n"
+                  f"    {bus.SECRET_ENV}={self.secret} python -m components.runner {' '.join(args)}",
+                  file=self.out, flush=True)
+        member = Member(spec=spec, generation=generation, process=process, log_path=log_path,
+                        ratio=spec.step_ns // self.config.step_ns, latest=spec.outputs.start_vector())
+        member.command = bus.publisher(self.session, bus.command_key(self.run_id, spec.name, generation))
+        member.out_dst, member.out_src = self.place(spec)
+        return member
+
+    def start(self, specs: list[ComponentSpec], generation: dict[str, int], into: dict[str, Member]) -> list[Member]:
+        """Launch, wait for and instantiate members, registered in ``into`` (the engine's members,
+        or those joining) as soon as launched, so that their messages are taken."""
+        started = []
+        for spec in specs:
+            member = self.launch(spec, generation[spec.name])
+            into[member.name] = member
+            started.append(member)
+        timeout = self.config.start_timeout_s
+        self.wait({m.name: "alive" for m in started}, timeout, "start-up")
+        for member in started:
+            member.control("instantiate", instantiate_body(member.spec, self.config))
+        self.wait({m.name: "instantiate" for m in started}, timeout, "instantiate")
+        return started
+
+    def ask(self, members: list[Member], op: str, what: str, timeout: float, body=None, blob=b"") -> None:
+        """Send each member the same request and wait for every answer (in ``member.reply``)."""
+        for member in members:
+            member.control(op, body, blob)
+        self.wait({m.name: op for m in members}, timeout, what)
+
+
+def instantiate_body(spec: ComponentSpec, config: RunConfig) -> dict:
+    """The instantiate message: the type and its parameters, with the run's own."""
+    return {"type": spec.type, "params": bus.jsonable(
+        {**spec.parameters, "_epoch": config.epoch, "_config_dir": str(config.path.parent.resolve())})}
+
+
+def terminate(member: Member, timeout: float = 5.0) -> None:
+    """Ask a member to terminate and make sure its process is gone (killed after ``timeout``)."""
+    member.control("terminate")
+    supervisor.reap(member.process, timeout)
+    member.command.undeclare()
+
+
+def exited(member: Member) -> str | None:
+    """How the member's process ended, if it has; None while it runs (or is not ours)."""
+    if member.process is not None and member.process.poll() is not None:
+        return f"its process exited with code {member.process.returncode}"
+    return None
+
+
+def death(member: Member, how: str) -> str:
+    return (f"component {member.name!r} ({member.spec.type}) died at step {member.progress}: {how}"
+            f"{supervisor.last_words(member.log_path)}")
+
+
+def fault_message(member: Member, fault: Fault, step_ns: int) -> str:
+    when = f"step {fault.k} (t = {fault.k * step_ns / 1e9:g} s)"
+    if fault.op == "nan":
+        return f"component {member.name!r} produced a non-finite value in output {fault.error!r} at {when}"
+    where = when if fault.op == "step" else fault.op
+    return f"component {member.name!r} ({member.spec.type}) failed in {where}: {fault.error}"

@@ -1,0 +1,115 @@
+"""What reaches the orchestrator's inbox: the subscriptions that put it there as (kind, key,
+payload), and :func:`decode`, a pure function from that to a typed message, or
+:class:`components.bus.Malformed`. Whether the message is from a live member is for the engine to
+check; here only its form is."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from components import bus
+
+# inbox kinds: what the subscription callbacks enqueue, with the key and the payload
+OUTPUTS = "o"      # a batch of step outputs (payload: bytes)
+REPLY = "r"        # a reply or a fault (payload: bytes)
+LIVELINESS = "l"   # a liveliness token came (payload: True) or went (False)
+CONTROL = "ctl"    # a query from the CLI (key: the query; not decoded here)
+
+
+@dataclass(slots=True)
+class Outputs:
+    name: str
+    generation: int
+    tags: np.ndarray        # (n,), increasing, >= 1
+    timings: np.ndarray     # (n, 2): compute and idle seconds of each step
+    outputs: np.ndarray     # (n, size)
+
+
+@dataclass(slots=True)
+class Reply:
+    name: str
+    generation: int
+    body: dict              # holds "op", the request answered
+    blob: bytes
+
+
+@dataclass(slots=True)
+class Fault:
+    name: str
+    generation: int
+    op: str                 # where it failed: "step", "nan" (a non-finite output), or a control op
+    k: int                  # the failing step; < 0 if not in a step
+    error: str
+
+
+@dataclass(slots=True)
+class Events:
+    name: str
+    generation: int
+    k: int                  # the step that emitted them
+    events: list            # [kind, fields] pairs (Component.emit)
+
+
+@dataclass(slots=True)
+class Liveliness:
+    name: str
+    generation: int
+    alive: bool
+
+
+def decode(kind: str, key: str, payload) -> Outputs | Reply | Fault | Events | Liveliness | None:
+    """The message of an inbox entry; None for a liveliness token that is not a process's."""
+    if kind == OUTPUTS:
+        generation, tags, timings, outputs = bus.decode_batch(payload)
+        if tags[0] < 1:
+            raise bus.Malformed(f"tag {tags[0]}: the outputs of a step are tagged 1 or later")
+        return Outputs(bus.batch_source(key), generation, tags, timings, outputs)
+    if kind == REPLY:
+        name, generation = bus.reply_source(key)
+        tag = payload[:1]
+        if tag == bus.REPLY:
+            body, blob = bus.decode_message(payload)
+            return Reply(name, generation, body, blob)
+        if tag == bus.FAULT:
+            body, _ = bus.decode_message(payload, bus.FAULT_FIELDS)
+            return Fault(name, generation, body["op"], body["k"], body["error"])
+        if tag == bus.EVENT:
+            body, _ = bus.decode_message(payload, bus.EVENT_FIELDS)
+            events = body["events"]
+            if not all(isinstance(e, list) and len(e) == 2 and isinstance(e[0], str) and isinstance(e[1], dict)
+                       for e in events):
+                raise bus.Malformed("events: expected [kind, fields] pairs")
+            return Events(name, generation, body["k"], events)
+        raise bus.Malformed(f"neither a reply, a fault nor events: first byte {bytes(payload[:1])!r}")
+    if kind == LIVELINESS:
+        source = bus.alive_source(key)
+        return None if source is None else Liveliness(*source, payload)
+    raise ValueError(f"no inbox kind {kind!r}")
+
+
+def subscribe(session, run_id: str, put) -> list:
+    """The orchestrator's subscriptions on ``session``, each callback only enqueuing with ``put``,
+    and its liveliness token; they last as long as the list is held."""
+    import zenoh
+    put_kind = zenoh.SampleKind.PUT
+
+    def outputs(sample) -> None:
+        put((OUTPUTS, str(sample.key_expr), sample.payload.to_bytes()))
+
+    def reply(sample) -> None:
+        put((REPLY, str(sample.key_expr), sample.payload.to_bytes()))
+
+    def liveliness(sample) -> None:
+        put((LIVELINESS, str(sample.key_expr), sample.kind == put_kind))
+
+    def control(query) -> None:
+        put((CONTROL, query, None))
+
+    return [
+        session.declare_subscriber(bus.batch_pattern(run_id), outputs),
+        session.declare_subscriber(bus.reply_pattern(run_id), reply),
+        session.liveliness().declare_subscriber(bus.alive_pattern(run_id), liveliness),
+        session.declare_queryable(bus.control_key(run_id), control),
+        session.liveliness().declare_token(bus.orchestrator_alive_key(run_id)),
+    ]

@@ -1,0 +1,252 @@
+"""Changing the run's members under way: a swap, a checkpoint, a restart from it; and what leads to
+them: a hung member, the rows salvaged from a failed one, the restart policy (docs/design.md §5, §7).
+
+The procedures act at a step boundary, where every component is (the horizon is held there), and
+drive the run through its members, its inbox (``run.wait``, ``run.sync``, ``run.handle``) and its
+rows; the decisions are pure functions.
+"""
+from __future__ import annotations
+
+import queue
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from components.units import duration_ns, duration_text
+from orchestrator import messages, wiring, wording
+from orchestrator.config import ComponentSpec, Fault
+from orchestrator.control import SwapFailed
+from orchestrator.members import Member, RunFailure, terminate
+
+if TYPE_CHECKING:
+    from orchestrator.engine import Run
+
+
+@dataclass
+class Checkpoint:
+    """Where a restart goes back to: a step boundary, every component's state there and what the
+    orchestrator held (the recorded row, each member's last outputs)."""
+    row: int
+    values: np.ndarray
+    specs: list[ComponentSpec]
+    states: dict[str, bytes]
+    latest: dict[str, tuple[int, np.ndarray]]
+    events: list                        # the config's swaps still to come
+
+
+def next_checkpoint(last: Checkpoint | None, checkpoint_ns: int | None, step_ns: int) -> int | None:
+    """The step of the next periodic checkpoint (run.checkpoint_every), or None."""
+    if last is None or checkpoint_ns is None:
+        return None
+    every = checkpoint_ns // step_ns
+    return (last.row // every + 1) * every
+
+
+def may_restart(failure: RunFailure, checkpoint: Checkpoint | None, live: dict[str, Member]) -> bool:
+    """A live member that died or hung, and asked to be restarted."""
+    member = failure.member
+    return (failure.lost and member is not None and member.spec.on_failure == "restart"
+            and checkpoint is not None and member.name in live)
+
+
+def faults_left(faults: list[Fault], failed: str, horizon: int, row: int, step_ns: int) -> list[Fault]:
+    """The injected faults still to come after a restart from ``row``: an injected fault fires
+    once, so neither the one behind this failure (of ``failed``, below ``horizon``) nor those the
+    run went past (before ``row``) are left."""
+    def step(f: Fault) -> int:
+        return -(-f.at_ns // step_ns)
+    cause = next((f for f in faults if f.component == failed and step(f) <= horizon), None)
+    return [f for f in faults if f is not cause and step(f) >= row]
+
+
+def hung(live: dict[str, Member], horizon: int, horizon_at: float, now: float, timeout: float) -> Member | None:
+    """A member that has held every input of its next step for ``timeout`` seconds (since its own,
+    its sources' last output or the last grant, the latest of them) without stepping."""
+    for m in live.values():
+        k = m.progress
+        if k >= horizon:
+            continue
+        sources = [live[r.source] for r in m.routes]
+        if any(s.progress < r.tag(k) for s, r in zip(sources, m.routes)):
+            continue
+        since = max([m.progress_at, horizon_at, *(s.progress_at for s in sources)])
+        if now - since > timeout:
+            return m
+    return None
+
+
+class Recovery:
+    """The run's checkpoint and restarts, and its swaps. ``restartable``: a component may restart,
+    so checkpoints are taken: at the start, every run.checkpoint_every, after a swap."""
+
+    def __init__(self, run: "Run"):
+        self.run = run
+        self.restartable = any(s.on_failure == "restart" for s in run.config.components.values())
+        self.checkpoint: Checkpoint | None = None
+        self.restarts = 0
+
+    def next_checkpoint(self) -> int | None:
+        return next_checkpoint(self.checkpoint, self.run.config.checkpoint_ns, self.run.config.step_ns)
+
+    def take_checkpoint(self) -> None:
+        """Every component's state at this step boundary, where they all are (docs/design.md §7)."""
+        run = self.run
+        live = list(run.members.values())
+        run.crew.ask(live, "get_state", "get_state (checkpoint)", run.config.step_timeout_s)
+        self.checkpoint = Checkpoint(run.rows.row, run.rows.values.copy(), [m.spec for m in live],
+                                     {m.name: m.reply["blob"] for m in live},
+                                     {m.name: (m.tag, m.latest.copy()) for m in live}, list(run.pending_events))
+        run.log("checkpoint", step=run.rows.row, time=run.rows.row * run.config.step_ns / 1e9)
+
+    def may_restart(self, failure: RunFailure) -> bool:
+        return may_restart(failure, self.checkpoint, self.run.members)
+
+    def restart(self, failure: RunFailure) -> None:
+        """Stop every component and start them all again, in new processes, from the last checkpoint;
+        RunFailure after run.max_restarts."""
+        run, checkpoint, failed = self.run, self.checkpoint, failure.member
+        config = run.config
+        step_ns = config.step_ns
+        if self.restarts >= config.max_restarts:
+            raise RunFailure(f"{failure} (after {wording.count(self.restarts, 'restart')}: run.max_restarts)",
+                             failed) from None
+        began = time.perf_counter()
+        self.restarts += 1
+        run.log("fault", step=run.rows.row, component=failed.name, message=str(failure))
+        print(f"warning: {failure}\nrestarting from step {checkpoint.row} (t = {checkpoint.row * step_ns / 1e9:g} s; "
+              f"restart {self.restarts} of at most {config.max_restarts})", file=run.out, flush=True)
+        if failed.process is not None and failed.process.poll() is None:
+            failed.process.kill()   # hung: it would not answer terminate
+        for member in [*run.members.values(), *run.joining.values()]:
+            terminate(member, timeout=2.0)
+        run.joining.clear()
+        run.pending_faults = faults_left(run.pending_faults, failed.name, run.horizon, run.rows.row, step_ns)
+        while True:   # what the stopped generations sent is stale; requests from the CLI are kept
+            try:
+                kind, a, _ = run.inbox.get_nowait()
+            except queue.Empty:
+                break
+            if kind == messages.CONTROL:
+                run.controls.add(a)
+        generations = {n: m.generation + 1 for n, m in run.members.items()}
+        run.members = {}
+        run.crew.start(checkpoint.specs, generations, run.members)
+        for member in run.members.values():
+            wiring.wire(run.crew, member, run.members, run.pending_faults, checkpoint.row)
+        for member in run.members.values():
+            member.control("set_state", {}, checkpoint.states[member.name])
+        run.wait({m: "set_state" for m in run.members}, config.step_timeout_s, "set_state (restart)")
+        now = time.monotonic()
+        for member in run.members.values():
+            tag, latest = checkpoint.latest[member.name]
+            member.tag, member.latest, member.initialized = tag, latest.copy(), True
+            member.progress, member.progress_at = checkpoint.row, now
+        run.rows.rewind(checkpoint.row, checkpoint.values)
+        run.horizon, run.horizon_at = checkpoint.row, now
+        run.pending_events = list(checkpoint.events)
+        run.sync(list(run.members.values()))
+        for member in run.members.values():
+            wiring.go(member, run.members, run.horizon)
+        run.log("restart", step=checkpoint.row, time=checkpoint.row * step_ns / 1e9, component=failed.name,
+                restart=self.restarts, wall_s=round(time.perf_counter() - began, 4))
+
+    def check_hung(self) -> None:
+        """Fail with a member that hung (see :func:`hung`), after salvaging the rows it completes."""
+        run = self.run
+        timeout = run.config.step_timeout_s
+        m = hung(run.members, run.horizon, run.horizon_at, time.monotonic(), timeout)
+        if m is not None:
+            k = m.progress
+            self.salvage(m)
+            raise RunFailure(f"component {m.name!r} did not answer step {k} within {timeout:g} s "
+                             f"(hung? raise run.step_timeout if it is just slow)", m, lost=True)
+
+    def salvage(self, failed: Member, timeout: float = 1.0) -> None:
+        """``failed`` failed: record the rows up to its last output, as far as the others' outputs
+        (some still on their way) complete them within ``timeout``."""
+        run = self.run
+        if failed.name not in run.members:
+            return
+        deadline = time.monotonic() + timeout
+        run.rows.advance(run.members, run.horizon)   # outputs handled before the failure may still wait
+        while run.rows.row < min(failed.progress, run.horizon) and time.monotonic() < deadline:
+            try:
+                kind, key, payload = run.inbox.get(timeout=0.05)
+            except queue.Empty:
+                continue
+            if kind == messages.OUTPUTS:
+                run.handle((kind, key, payload), {})
+                run.rows.advance(run.members, run.horizon)
+
+    def swap(self, spec: ComponentSpec, planned: bool = False) -> int:
+        """Replace a component at the current step boundary (docs/design.md §5); the new generation.
+
+        Every component is at the boundary (the horizon is held there). The new generation is
+        started and wired on the side. One of the same type takes over the old one's state, never
+        initialized (initialize would re-anchor what the state already holds), and its outputs at
+        this step are the old ones; one of another type is initialized there. Only then does it take
+        over and its consumers are rewired to it. If it fails to get there, it is stopped and
+        SwapFailed is raised: the old generation runs on. ``planned``: an event of the config
+        (else the recorded config gains one, so that it replays the run).
+        """
+        run, config = self.run, self.run.config
+        old, row = run.members[spec.name], run.rows.row
+        t_ns = row * config.step_ns
+        same_type = spec.type == old.spec.type
+        problem = old.spec.cls.state_problem(old.spec.resolved) if same_type else None
+        if problem:
+            raise SwapFailed(f"a swap to the same type hands the state over, and {spec.name} cannot: {problem} "
+                             f"(give another type)")
+        began = time.perf_counter()
+        try:
+            new = run.crew.start([spec], {spec.name: old.generation + 1}, run.joining)[0]
+            joined = {**run.members, spec.name: new}
+            wiring.wire(run.crew, new, joined, run.pending_faults, row)
+            if same_type:
+                run.crew.ask([old], "get_state", "get_state", config.step_timeout_s)
+                run.crew.ask([new], "set_state", "set_state", config.step_timeout_s, {}, old.reply["blob"])
+                outputs = old.latest
+            else:
+                outputs = wiring.initialize(run.crew, new, joined, t_ns)
+        except RunFailure as failure:
+            if old.process is not None and old.process.poll() is not None:
+                raise  # the old generation is gone too: nothing to run on
+            joining = run.joining.pop(spec.name, None)
+            if joining is not None:
+                terminate(joining, timeout=2.0)
+            run.log("warning", message=f"swap of {spec.name} to {spec.type} failed: {failure}", step=row)
+            raise SwapFailed(str(failure)) from None
+        new.tag, new.latest, new.progress, new.initialized = row, np.array(outputs), row, True
+        run.rows.values[old.out_dst] = np.nan   # the old type's columns the new one lacks: NaN from here on
+        run.rows.take(new)
+        run.members[spec.name] = run.joining.pop(spec.name)
+        terminate(old)  # its late messages carry the old generation: ignored from here on
+        consumers = [m for m in run.members.values() if m is not new and any(r.source == spec.name for r in m.routes)]
+        for consumer in consumers:
+            wiring.rewire(consumer, run.members, config, spec.name)
+        run.wait({m.name: "rewire" for m in consumers}, config.step_timeout_s, "rewire")
+        run.sync([new, *consumers])
+        wiring.go(new, run.members, run.horizon)
+        parameters = spec.cls.schema.plain(spec.resolved)
+        if run.rows.recording is not None:
+            if not same_type:   # (a same-type swap goes on writing the table its type has, if any)
+                run.rows.new_table(new)
+            if not planned:
+                self._record_event(new, parameters)
+        run.log("swap", component=spec.name, type=spec.type, parameters=parameters, generation=new.generation,
+                step=row, time=t_ns / 1e9, state_handed_over=same_type, wall_s=round(time.perf_counter() - began, 4))
+        if self.restartable:
+            self.take_checkpoint()   # a restart never goes back across a swap
+        return new.generation
+
+    def _record_event(self, new: Member, parameters: dict) -> None:
+        """A swap from the CLI becomes an event of the recorded config, so that it replays the run."""
+        run = self.run
+        resolved = run.config.resolved
+        resolved["events"] = sorted(
+            [*resolved["events"], {"at": duration_text(run.rows.row * run.config.step_ns), "swap": new.name,
+                                   "type": new.spec.type, "parameters": parameters}],
+            key=lambda e: duration_ns(e["at"], "at"))
+        run.rows.recording.write_config(resolved)

@@ -1,0 +1,95 @@
+"""Who feeds whom: the routes of a member's inputs, and the wire, initialize, start and rewire
+messages that tell a member about them. The bodies are pure functions of the members and the
+config; the few functions that send them say so."""
+from __future__ import annotations
+
+import numpy as np
+
+from components import schedule
+from components.schedule import Route
+from orchestrator.config import ComponentSpec, RunConfig
+from orchestrator.config import Fault as Injected   # an injected fault (not a reported one)
+from orchestrator.members import Crew, Member, RunFailure
+
+
+def routes(consumer: ComponentSpec, members: dict[str, Member], config: RunConfig) -> list[Route]:
+    return schedule.routes(consumer.name, consumer.inputs.offsets, config.connections,
+                           {n: m.spec.outputs.offsets for n, m in members.items()},
+                           {n: m.ratio for n, m in members.items()}, list(config.components), config.algorithm)
+
+
+def wire_body(member: Member, members: dict[str, Member], config: RunConfig, faults: list[Injected], k: int) -> dict:
+    """Which sources feed which of ``member``'s inputs (its routes, set), whom it feeds, from step
+    ``k``, and the faults to inject into it."""
+    name, step_ns = member.name, config.step_ns
+    return {
+        "generation": member.generation, "step_ns": step_ns, "ratio": member.ratio, "k": k,
+        "consumers": sorted({d for d, _, s, _ in config.connections if s == name and d != name}),
+        "batch_outputs": not schedule.feeds_back(name, config.connections),
+        "routes": [r.to_json() for r in member.routes],
+        "sources": sources(member, members),
+        "faults": [[-(-f.at_ns // step_ns), f.kind, (f.duration_ns or 0) / 1e9] for f in faults if f.component == name]}
+
+
+def sources(member: Member, members: dict[str, Member]) -> dict[str, int]:
+    """The generation of each of ``member``'s sources."""
+    return {r.source: members[r.source].generation for r in member.routes}
+
+
+def held(member: Member, members: dict[str, Member], only: str | None = None) -> tuple[dict, bytes]:
+    """What ``member``'s sources (or just ``only``) hold now: the recorded outputs and any
+    published ahead of them, as a ``start``/``rewire`` body part and blob."""
+    entries, blobs = [], []
+    for name in {r.source for r in member.routes if only in (None, r.source)}:
+        source = members[name]
+        for tag, vector in [(source.tag, source.latest), *source.received]:
+            entries.append([name, tag, int(vector.size)])
+            blobs.append(vector.tobytes())
+    return {"held": entries}, b"".join(blobs)
+
+
+def initial_inputs(member: Member, members: dict[str, Member], step_ns: int) -> tuple[np.ndarray, dict]:
+    """``member``'s inputs at initialization, from what its sources hold, and when each was sampled
+    (only inputs from an initialized source have a time)."""
+    inputs = member.spec.inputs.start_vector()
+    times = {}
+    for route in member.routes:
+        source = members[route.source]
+        inputs[route.dst] = source.latest[route.src]
+        if source.initialized:
+            times.update(dict.fromkeys(schedule.fed_inputs(route, member.spec.inputs.offsets), source.tag * step_ns))
+    return inputs, times
+
+
+def wire(crew: Crew, member: Member, members: dict[str, Member], faults: list[Injected], k: int) -> None:
+    """Route ``member``'s inputs and send it the wire message; wait for its answer."""
+    config = crew.config
+    member.routes = routes(member.spec, members, config)
+    crew.ask([member], "wire", "wire", config.start_timeout_s, wire_body(member, members, config, faults, k))
+
+
+def initialize(crew: Crew, member: Member, members: dict[str, Member], t_ns: int) -> np.ndarray:
+    """Initialize ``member`` at ``t_ns``; its outputs there, all finite (else RunFailure)."""
+    inputs, times = initial_inputs(member, members, crew.config.step_ns)
+    crew.ask([member], "initialize", "initialize", crew.config.start_timeout_s,
+             {"t0_ns": t_ns, "input_times_ns": times}, inputs.tobytes())
+    vector = np.frombuffer(member.reply["blob"], dtype=np.float64)
+    variable = member.spec.outputs.first_non_finite(vector)
+    if variable is not None:
+        raise RunFailure(f"component {member.name!r} produced a non-finite value in output {variable!r} "
+                         f"after initialize (t = {t_ns / 1e9:g} s)")
+    return vector
+
+
+def go(member: Member, members: dict[str, Member], horizon: int) -> None:
+    """Let ``member`` step, from what its sources hold, below ``horizon``."""
+    body, blob = held(member, members)
+    member.control("start", {**body, "horizon": horizon}, blob)
+
+
+def rewire(consumer: Member, members: dict[str, Member], config: RunConfig, source: str) -> None:
+    """Tell ``consumer`` that ``source`` has a new generation (its routes may change with the type)."""
+    consumer.routes = routes(consumer.spec, members, config)
+    body, blob = held(consumer, members, only=source)
+    consumer.control("rewire", {**body, "routes": [r.to_json() for r in consumer.routes],
+                                "sources": sources(consumer, members)}, blob)

@@ -365,12 +365,12 @@ def serve(connect: str, run_id: str, name: str, generation: int, listen: str, se
     session = bus.open_session([listen], [connect], mesh=True, secret=secret)
     keep = []   # subscribers and publishers live as long as the session
     try:
-        inbox = session.declare_subscriber(bus.inbox_key(run_id, name, "**"), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
+        inbox = session.declare_subscriber(bus.inbox_pattern(run_id, name), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
         keep.append(inbox)
         command = bus.command_key(run_id, name, generation)
-        quit_key = bus.inbox_key(run_id, name, "q", str(generation))
-        output_prefix = bus.inbox_key(run_id, name, "o", "")
-        replies = bus.publisher(session, bus.component_key(run_id, name, generation, "out"))
+        quit_key = bus.quit_key(run_id, name, generation)
+        output_prefix = bus.output_prefix(run_id, name)
+        replies = bus.publisher(session, bus.reply_key(run_id, name, generation))
         batches = bus.publisher(session, bus.batch_key(run_id, name))
         outputs: dict[str, object] = {}
 
@@ -385,7 +385,7 @@ def serve(connect: str, run_id: str, name: str, generation: int, listen: str, se
         keep.append(session.liveliness().declare_subscriber(
             bus.orchestrator_alive_key(run_id),
             lambda s: session.put(quit_key, bus.QUIT) if s.kind == zenoh.SampleKind.DELETE else None))
-        keep.append(session.liveliness().declare_token(bus.run_key(run_id, "alive", name, str(generation))))
+        keep.append(session.liveliness().declare_token(bus.alive_key(run_id, name, generation)))
         process = ComponentProcess(name, replies.put, publish_output, batches.put)
         threading.Thread(target=_watchdog, args=(process,), daemon=True).start()
         if cpu is not None:

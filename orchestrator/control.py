@@ -53,11 +53,18 @@ class ControlServer:
         """The step at which the first waiting swap can happen (a slower component is replaced at
         one of its own step boundaries), or None if no swap waits."""
         for query in self.queries:
-            request = _request(query)
-            spec = self.run.specs().get(request.get("component", "")) if request.get("op") == "swap" else None
+            spec = self._swap_target(_request(query))
             if spec is not None:
                 return self._boundary(spec)
         return None
+
+    def _swap_target(self, request: dict) -> ComponentSpec | None:
+        """The spec of the live component a swap request names, or None (not a swap, or no such
+        component: the request is answered at once, with an error if it is one)."""
+        component = request.get("component")
+        if request.get("op") != "swap" or not isinstance(component, str):
+            return None
+        return self.run.specs().get(component)
 
     def _boundary(self, spec: ComponentSpec) -> int:
         """The first step boundary of ``spec``'s component at or after the run's."""
@@ -69,8 +76,8 @@ class ControlServer:
         waiting = []
         for query in self.queries:
             request = _request(query)
-            target = self.run.specs().get(request.get("component", ""))
-            if request.get("op") == "swap" and target is not None and (
+            target = self._swap_target(request)
+            if target is not None and (
                     not quiescent or self._boundary(target) != self.run.row):
                 waiting.append(query)
                 continue
@@ -95,7 +102,7 @@ class ControlServer:
         if op == "swap":
             name = request["component"]
             specs = run.specs()
-            if name not in specs:
+            if not isinstance(name, str) or name not in specs:
                 return {"ok": False, "error": f"no component {name!r} (components: {', '.join(specs)})",
                         "usage": True}
             old = specs[name]

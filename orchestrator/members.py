@@ -134,8 +134,7 @@ class Crew:
 
 def instantiate_body(spec: ComponentSpec, config: RunConfig) -> dict:
     """The instantiate message: the type and its parameters, with the run's own."""
-    return {"type": spec.type, "params": bus.jsonable(
-        {**spec.parameters, "_epoch": config.epoch, "_config_dir": str(config.path.parent.resolve())})}
+    return {"type": spec.type, "params": bus.jsonable({**spec.parameters, **config.run_parameters})}
 
 
 def terminate(member: Member, timeout: float = 5.0) -> None:

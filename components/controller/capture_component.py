@@ -21,7 +21,7 @@ import numpy as np
 
 from components.constants import NS_PER_S
 from components.errors import ConfigError
-from components.robots.model import read_model
+from components.robots.model import arm_reach, read_model
 from components.rotations import rpy_to_matrix
 from components.schema import Float, Int, ListOf, OneOf, Str, Vector
 from components.sdk import Component, Parameter, Variable
@@ -40,16 +40,6 @@ def _per_item(value, n: int, key: str, each: str = "one per arm joint") -> np.nd
     if len(value) != n:
         raise ConfigError(key, f"expected one number or {n} numbers ({each}), got {len(value)}")
     return np.array(value, dtype=np.float64)
-
-
-def _chain(model, link: str) -> list:
-    """URDF joints from the root link down to ``link`` (root first)."""
-    by_child = {j.child: j for j in model.joints}
-    chain = []
-    while link in by_child:
-        chain.append(by_child[link])
-        link = by_child[link].parent
-    return chain[::-1]
 
 
 @dataclass(frozen=True)
@@ -182,18 +172,7 @@ class CaptureComponent(Component):
         both = [j for j in wheels if j in joints]
         if both:
             raise ConfigError("wheels", f"{both[0]!r} is also in joints")
-        ee = params["end_effector"]
-        if ee not in model.link_names:
-            raise ConfigError("end_effector", f"{ee!r} is not a link of {model.path.name} "
-                                              f"(links: {', '.join(model.link_names)})")
-        chain = _chain(model, ee)
-        names = [j.name for j in chain]
-        for j in joints:
-            if j not in names:
-                raise ConfigError("joints", f"{j!r} does not move end_effector {ee!r} (its chain: "
-                                            f"{', '.join(n for n in names if n in movable)})")
-        first = min(names.index(j) for j in joints)
-        reach = float(sum(math.sqrt(sum(x * x for x in j.xyz)) for j in chain[first + 1:]))
+        shoulder, reach = arm_reach(model, joints, params["end_effector"])
         axes = []
         for name in wheels:
             joint = model.joint(name)
@@ -211,7 +190,7 @@ class CaptureComponent(Component):
             wheel_velocity=np.array([model.joint(j).velocity for j in wheels]),
             effort=np.array([model.joint(j).effort for j in joints]),
             velocity=np.array([model.joint(j).velocity for j in joints]),
-            shoulder=chain[first].name, reach=reach,
+            shoulder=shoulder, reach=reach,
             kp=_per_item(params["kp"], 6, "kp", TASK_AXES), kd=_per_item(params["kd"], 6, "kd", TASK_AXES),
             null_kp=_per_item(params["null_kp"], n, "null_kp"), null_kd=_per_item(params["null_kd"], n, "null_kd"),
             hold_kp=_per_item(params["hold_kp"], n, "hold_kp"), hold_kd=_per_item(params["hold_kd"], n, "hold_kd"),

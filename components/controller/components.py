@@ -14,7 +14,6 @@ that measured state at t and the reference at t.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
@@ -24,7 +23,7 @@ from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.rotations import continuous
 from components.controller.trajectory import CARTESIAN
-from components.robots.model import JOINT_VALUE, joint_units, read_model
+from components.robots.model import JOINT_VALUE, arm_reach, joint_units, read_model
 from components.schema import Float, ListOf, MapOf, OneOf, Record, Str, Vector
 from components.sdk import Component, Parameter, Variable
 from components.signals import BODY_STATE, body_signals, torque_signal
@@ -62,17 +61,6 @@ def _loop_signals(model) -> list[Variable]:
     """The body state read (inputs) and the joint torques published (output ``tau``)."""
     return body_signals("input", model, names=BODY_STATE) + [
         torque_signal("output", model, note="zero on joints not driven")]
-
-
-def _kinematic_chain(model, end_effector: str) -> list:
-    """URDF joints from the root link down to ``end_effector`` (root first)."""
-    by_child = {j.child: j for j in model.joints}
-    chain, link = [], end_effector
-    while link in by_child:
-        joint = by_child[link]
-        chain.append(joint)
-        link = joint.parent
-    return chain[::-1]
 
 
 # --------------------------------------------------------------------------- computed torque
@@ -164,20 +152,7 @@ class ComputedTorqueComponent(Component):
         both = [j for j in joints if j in locked]
         if both:
             raise ConfigError("locked_joints", f"{both[0]!r} is also in joints: a driven joint cannot be locked")
-        ee = params["end_effector"]
-        if ee not in model.link_names:
-            raise ConfigError("end_effector", f"{ee!r} is not a link of {model.path.name} "
-                                              f"(links: {', '.join(model.link_names)})")
-        chain = _kinematic_chain(model, ee)
-        if not chain:
-            raise ConfigError("end_effector", f"{ee!r} is the base link: expected a link the joints move")
-        names = [j.name for j in chain]
-        for j in joints:
-            if j not in names:
-                raise ConfigError("joints", f"{j!r} does not move end_effector {ee!r} (its chain: "
-                                            f"{', '.join(n for n in names if n in movable)})")
-        first = min(names.index(j) for j in joints)
-        reach = float(sum(math.sqrt(sum(x * x for x in j.xyz)) for j in chain[first + 1:]))
+        shoulder, reach = arm_reach(model, joints, params["end_effector"])
         n = len(joints)
         trajectory = parse_cartesian(params["trajectory"])
         key, size = max_offset(trajectory)
@@ -187,7 +162,7 @@ class ComputedTorqueComponent(Component):
         return ArmSetup(model=model, joints=joints, locked=locked, trajectory=trajectory,
                         kp=_per_item(params["kp"], 6, "kp", TASK_AXES), kd=_per_item(params["kd"], 6, "kd", TASK_AXES),
                         null_kp=_per_item(params["null_kp"], n, "null_kp"),
-                        null_kd=_per_item(params["null_kd"], n, "null_kd"), reach=(chain[first].name, reach))
+                        null_kd=_per_item(params["null_kd"], n, "null_kd"), reach=(shoulder, reach))
 
     @classmethod
     def validate(cls, params):

@@ -2,6 +2,7 @@
 component, and the units of a body's joint variables (no physics engine, xml.etree only)."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -59,3 +60,33 @@ def joint_units(model: UrdfModel) -> tuple[str, str, str]:
     SDK spreads over the elements (as ``m/s, rad/s`` over a twist)."""
     per_joint = [JOINT_UNITS[j.type] for j in model.joints if j.movable] or [JOINT_UNITS["revolute"]]
     return tuple(units[0] if len(set(units)) == 1 else ", ".join(units) for units in zip(*per_joint))
+
+
+def kinematic_chain(model: UrdfModel, link: str) -> list:
+    """URDF joints from the root link down to ``link`` (root first)."""
+    by_child = {j.child: j for j in model.joints}
+    chain = []
+    while link in by_child:
+        chain.append(by_child[link])
+        link = by_child[link].parent
+    return chain[::-1]
+
+
+def arm_reach(model: UrdfModel, joints: list[str], end_effector: str) -> tuple[str, float]:
+    """The shoulder (the first of ``joints`` along the chain to ``end_effector``) and the arm's
+    reach from it (m: the sum of the joint offsets after it, an upper bound); ConfigError naming
+    ``end_effector`` or ``joints`` when the link is not in the URDF or a joint does not move it."""
+    if end_effector not in model.link_names:
+        raise ConfigError("end_effector", f"{end_effector!r} is not a link of {model.path.name} "
+                                          f"(links: {', '.join(model.link_names)})")
+    chain = kinematic_chain(model, end_effector)
+    if not chain:
+        raise ConfigError("end_effector", f"{end_effector!r} is the base link: expected a link the joints move")
+    names = [j.name for j in chain]
+    movable = model.movable_joints
+    for j in joints:
+        if j not in names:
+            raise ConfigError("joints", f"{j!r} does not move end_effector {end_effector!r} (its chain: "
+                                        f"{', '.join(n for n in names if n in movable)})")
+    first = min(names.index(j) for j in joints)
+    return chain[first].name, float(sum(math.sqrt(sum(x * x for x in j.xyz)) for j in chain[first + 1:]))

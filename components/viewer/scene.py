@@ -14,11 +14,16 @@ Entities (SI units; W = the dynamics world frame, ECI = GCRF axes):
 | ``/world/<dyn>/<body>/com`` | the body's CoM (``com``) |
 | ``/world/<dyn>/<body>/gg_torque`` (``tidal_force``, ``drag_force``) | per-link arrows at the link CoMs, scaled (see ``/notes``) |
 | ``/world/<ctrl>/ee_desired``, ``ee_actual`` | end-effector paths (trails: the blueprint shows all past points) |
+| ``/world/<dyn>/<chaser>/links/<ee>/grasp_E`` | a ``grasp``'s end-effector frame E (axes, children of the link) |
+| ``/world/<dyn>/<chaser>/links/<ee>/grasp_line`` | E to G (``grasp.p_ee_grasp``, E axes) while the grasp is open |
+| ``/world/<dyn>/<target>/links/<grasp_frame>/grasp_G``, ``grasp_G/marker`` | the grasp frame G (axes); the marker turns green and larger at the capture |
 | ``/world/lvlh/axes`` | LVLH axes at the W origin (``q_eci_lvlh``; W axes are ECI axes) |
 | ``/orbit/earth`` | the Earth, R = 6378.137 km |
 | ``/orbit/<orbit>/trail``, ``/orbit/<orbit>/spacecraft/lvlh`` | ``r_eci`` trail, LVLH axes at the spacecraft |
 | ``/plots/<ctrl>/ee_position/{actual,desired}``, ``ee_error/{position,orientation}``, ``tau`` | paper Figs. 5, 6, 7 |
 | ``/plots/<dyn>/<body>/momentum/{linear,angular}``, ``gg_torque_norm`` | momentum, per-link gravity-gradient torque magnitude |
+| ``/plots/<dyn>/grasp/distance`` (``/capture``), ``grasp/wrench/{force,torque}`` | \|p_ee_grasp\| (a point at the capture), \|force\| and \|torque\| of ``grasp.wrench`` |
+| ``/events/<dyn>/grasp`` | text log: "capture at t = ... s" on the row where ``grasp.closed`` turns 1 |
 | ``/signals/<component>/<name>`` | every other recorded variable, one plot series per element |
 | ``/notes`` | run summary and arrow scales (text) |
 """
@@ -51,6 +56,10 @@ VECTOR_FIELDS = {            # per-link 3-vectors drawn as arrows: colour, label
 BULK = ("link_position", "link_orientation")      # drawn through the link poses, never plotted
 ARROW_LENGTH = 0.25                                # m, the longest arrow of a field when first seen
 ROBOT_EYE = (1.9, -1.6, 1.0)                       # m, initial camera of the robot view
+BODY_REACH = 1.5                                   # m, about a body's extent around its base (the camera's margin)
+GRASP_AXES = {"E": (0.15, AXIS_COLORS, -2.0), "G": (0.25, LIGHT_AXIS_COLORS, -1.5)}   # m, colours, radius (ui)
+GRASP_OPEN = ((250, 170, 40), 0.02, "G")           # G marker while open: colour, radius (m), label
+GRASP_CLOSED = ((60, 220, 90), 0.07, "G captured")  # ... once the grasp has closed
 
 
 def parse_columns(columns: list[str]) -> dict[tuple[str, str], np.ndarray]:
@@ -80,6 +89,21 @@ def transform_columns(translation=None, quaternion=None) -> list:
     return columns
 
 
+def _indexes(steps: np.ndarray, times: np.ndarray) -> list:
+    """The two timelines of rows: ``sim_time`` (a duration, from ``times`` in s) and ``step``."""
+    import rerun as rr
+    return [rr.TimeColumn(TIMELINE, duration=times), rr.TimeColumn(STEP_TIMELINE, sequence=steps)]
+
+
+def _start(spec: dict) -> tuple[str, np.ndarray] | None:
+    """A body's initial base position as configured (``frame``, ``position`` in m; defaults world,
+    origin); None when not plain numbers (a raw config with units)."""
+    try:
+        return str(spec.get("frame", "world")), np.asarray(spec.get("position", (0.0, 0.0, 0.0)), dtype=float).reshape(3)
+    except (TypeError, ValueError):
+        return None
+
+
 def _path(*parts: str) -> str:
     import rerun as rr
     return "/" + "/".join(rr.escape_entity_path_part(p) for p in parts)
@@ -97,10 +121,16 @@ class _Body:
     com: np.ndarray | None
     momentum: np.ndarray | None
     fields: dict[str, np.ndarray] = field(default_factory=dict)
+    start: tuple[str, np.ndarray] | None = None     # its initial base position: (frame, m), None if unreadable
 
     @property
     def base(self) -> str:
         return _path("world", self.dynamics, self.name)
+
+    @property
+    def drawn(self) -> bool:
+        """Its link poses are logged per row (kinematics, base position and orientation known)."""
+        return self.kinematics is not None and self.position is not None and self.orientation is not None
 
 
 @dataclass
@@ -111,6 +141,28 @@ class _Controller:
     ee_error: np.ndarray | None
     tau: np.ndarray | None
     joints: list[str] | None
+
+
+@dataclass
+class _Grasp:
+    """A dynamics' ``grasp``: E (``end_effector``, a link of ``chaser``) meets G (``grasp_frame``, a
+    link of ``target``). ``ee_link``/``grasp_link``: the link entities, None when that body is not drawn."""
+    dynamics: str
+    ee_link: str | None
+    grasp_link: str | None
+    p_ee_grasp: np.ndarray | None
+    closed: np.ndarray | None
+    wrench: np.ndarray | None
+    label: str
+    was_closed: bool | None = None      # grasp.closed at the last row logged (None: no row yet)
+
+    @property
+    def plots(self) -> str:
+        return _path("plots", self.dynamics, "grasp")
+
+    @property
+    def events(self) -> str:
+        return _path("events", self.dynamics, "grasp")
 
 
 @dataclass
@@ -143,6 +195,8 @@ class SceneLogger:
                        for body in self._bodies(name, components[name])]
         self.controllers = [self._controller(name) for name, t in types.items() if t.startswith("controller.")]
         self.orbits = [self._orbit(name) for name, t in types.items() if t.startswith("orbit.")]
+        self.grasps = [grasp for name, t in types.items() if t.startswith("dynamics.")
+                       for grasp in self._grasps(name, components[name])]
         self.world_lvlh = self._world_lvlh()
         for key in self.variables:
             if key[1].split(".")[-1] in BULK:
@@ -208,7 +262,7 @@ class SceneLogger:
                          orientation=self._find(dynamics, f"{name}.orientation", 4),
                          q=self.variables.get((dynamics, f"{name}.q")),
                          com=self._take(dynamics, f"{name}.com", 3),
-                         momentum=self._take(dynamics, f"{name}.momentum", 6))
+                         momentum=self._take(dynamics, f"{name}.momentum", 6), start=_start(spec))
             if body.q is not None and n_joints is not None and len(body.q) != n_joints:
                 self.warn(f"{dynamics}.{name}.q has {len(body.q)} values, the URDF {n_joints} joints; "
                           "the robot is not drawn")
@@ -220,6 +274,30 @@ class SceneLogger:
                         body.fields[key] = index
             bodies.append(body)
         return bodies
+
+    def _grasps(self, dynamics: str, entry: dict) -> list[_Grasp]:
+        """The dynamics' ``grasp`` (none or one), as ``dynamics.dart`` declares it: E and G are links of
+        the chaser and the target; its ``grasp.*`` outputs stay under /signals as well."""
+        spec = ((entry or {}).get("parameters") or {}).get("grasp")
+        if not isinstance(spec, dict):
+            return []
+        chaser, ee, target, frame = (str(spec.get(k, "")) for k in ("chaser", "end_effector", "target", "grasp_frame"))
+        return [_Grasp(dynamics, self._link_entity(dynamics, chaser, ee), self._link_entity(dynamics, target, frame),
+                       p_ee_grasp=self._find(dynamics, "grasp.p_ee_grasp", 3),
+                       closed=self._find(dynamics, "grasp.closed", 1),
+                       wrench=self._find(dynamics, "grasp.wrench", 6), label=f"{chaser}.{ee} -> {target}.{frame}")]
+
+    def _link_entity(self, dynamics: str, body_name: str, link: str) -> str | None:
+        """The entity of ``link`` of a drawn body (its pose logged per row), else None."""
+        import rerun as rr
+
+        for body in self.bodies:
+            if body.dynamics != dynamics or body.name != body_name or not body.drawn:
+                continue
+            if link in body.geometry.links:
+                return f"{body.base}/links/{rr.escape_entity_path_part(link)}"
+            self.warn(f"{dynamics}.grasp: {link!r} is not a link of {body_name}; that grasp frame is not drawn")
+        return None
 
     def _controlled_body(self, controller: str) -> _Body | None:
         """The body whose ``tau`` input the controller's ``tau`` feeds (from the connections)."""
@@ -262,11 +340,33 @@ class SceneLogger:
         return rrb.VisibleTimeRanges(timeline=TIMELINE, start=rrb.TimeRangeBoundary.infinite(),
                                      end=rrb.TimeRangeBoundary.cursor_relative())
 
+    def _camera(self) -> tuple[np.ndarray, np.ndarray]:
+        """Eye and look target of the robot view: ROBOT_EYE on the origin, unless the bodies start apart
+        (initial positions in the view's axes: LVLH-framed ones in the LVLH view, all in the W view);
+        then looking at their centre from the side of the line through them, far enough to see them all."""
+        frames = ("lvlh",) if self.world_lvlh is not None else ("lvlh", "world")
+        starts = [b.start for b in self.bodies]
+        eye, target = np.array(ROBOT_EYE), np.zeros(3)
+        if len(starts) < 2 or any(s is None or s[0] not in frames for s in starts):
+            return eye, target
+        points = np.array([position for _, position in starts])
+        center = (points.min(axis=0) + points.max(axis=0)) / 2
+        offsets = points - center
+        spread = float(np.linalg.norm(offsets, axis=1).max())
+        if spread < 0.5:
+            return eye, target
+        axis = offsets[np.argmax(np.linalg.norm(offsets, axis=1))] / spread
+        side = eye / np.linalg.norm(eye)
+        side = side - (side @ axis) * axis                    # at right angles to the line of the bodies
+        side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-6 else eye / np.linalg.norm(eye)
+        return center + max(np.linalg.norm(eye), 2.0 * (spread + BODY_REACH)) * side, center
+
     def blueprint(self):
         """The layout: robots and orbit in 3D on the left, the paper's plots in the middle, the rest in tabs."""
         import rerun.blueprint as rrb
 
         spatial = []
+        eye, target = self._camera()
         if self.bodies or any(c.ee_position is not None or c.ee_desired is not None for c in self.controllers):
             trails = {}
             for c in self.controllers:
@@ -277,11 +377,10 @@ class SceneLogger:
             if self.world_lvlh is not None:   # seen from LVLH (z orbit normal up): a steady camera
                 spatial.append(rrb.Spatial3DView(
                     origin="/world/lvlh", contents="/world/**", name="Robots (W, seen in LVLH axes)",
-                    overrides=trails, eye_controls=rrb.EyeControls3D(position=ROBOT_EYE, look_target=(0, 0, 0))))
+                    overrides=trails, eye_controls=rrb.EyeControls3D(position=eye, look_target=target)))
             else:
                 spatial.append(rrb.Spatial3DView(origin="/world", name="Robots (W frame)", overrides=trails,
-                                                 eye_controls=rrb.EyeControls3D(position=ROBOT_EYE,
-                                                                                look_target=(0, 0, 0))))
+                                                 eye_controls=rrb.EyeControls3D(position=eye, look_target=target)))
         if self.orbits:
             trails = {_path("orbit", o.name, "trail"): self._trail() for o in self.orbits if o.r_eci is not None}
             spatial.append(rrb.Spatial3DView(origin="/orbit", name="Orbit (ECI)", overrides=trails,
@@ -298,6 +397,13 @@ class SceneLogger:
                 figures.append(rrb.TimeSeriesView(origin=_path("plots", c.name, "tau"),
                                                   name=f"{c.name}: joint torques (N m)",
                                                   plot_legend=rrb.PlotLegend(visible=len(c.tau) <= 6)))
+        for g in self.grasps:
+            if g.p_ee_grasp is not None:
+                figures.append(rrb.TimeSeriesView(origin=g.plots + "/distance",
+                                                  name=f"{g.dynamics}: grasp, E to G distance (m)"))
+            if g.wrench is not None:
+                figures.append(rrb.TimeSeriesView(origin=g.plots + "/wrench",
+                                                  name=f"{g.dynamics}: grasp wrench on the target (N, N m)"))
         tabs = []
         for b in self.bodies:
             if b.momentum is not None:
@@ -308,6 +414,8 @@ class SceneLogger:
                                                name=f"{b.name}: gravity-gradient torque per link (N m)"))
         for component in dict.fromkeys(c for c, _ in self.signals):
             tabs.append(rrb.TimeSeriesView(origin=_path("signals", component), name=f"{component} signals"))
+        if any(g.closed is not None for g in self.grasps):
+            tabs.append(rrb.TextLogView(origin="/events", name="Events"))
         tabs.append(rrb.TextDocumentView(origin="/notes", name="Run"))
         columns = []
         if spatial:
@@ -333,6 +441,8 @@ class SceneLogger:
             self._log(root, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         for body in self.bodies:
             self._log_body_static(body)
+        for grasp in self.grasps:
+            self._log_grasp_static(grasp)
         for c in self.controllers:
             if c.ee_desired is not None:
                 self._log(_path("world", c.name, "ee_desired"),
@@ -414,6 +524,28 @@ class SceneLogger:
             color, _ = VECTOR_FIELDS[key]
             self._log(f"{body.base}/{key}", rr.Arrows3D.from_fields(colors=[color], radii=[-1.5]), static=True)
 
+    def _log_grasp_static(self, g: _Grasp) -> None:
+        """E and G axes (children of their links), the E-G line's style, the grasp plots' series."""
+        import rerun as rr
+
+        for link, frame in ((g.ee_link, "E"), (g.grasp_link, "G")):
+            if link is not None:
+                length, colors, radius = GRASP_AXES[frame]
+                self._log(f"{link}/grasp_{frame}", rr.Arrows3D(origins=np.zeros((3, 3)), vectors=length * np.eye(3),
+                                                              colors=colors, radii=[radius]), static=True)
+        if g.ee_link is not None and g.p_ee_grasp is not None:
+            self._log(f"{g.ee_link}/grasp_line", rr.LineStrips3D.from_fields(colors=[GRASP_OPEN[0]], radii=[-1.5]),
+                      static=True)
+        if g.p_ee_grasp is not None:
+            self._series(g.plots + "/distance", ["|p_ee_grasp| (m)"], [GRASP_OPEN[0]])
+            if g.closed is not None:
+                self._log(g.plots + "/distance/capture", rr.SeriesPoints(colors=[GRASP_CLOSED[0]], names=["capture"],
+                                                                          markers=["circle"], marker_sizes=[6.0]),
+                          static=True)
+        if g.wrench is not None:
+            self._series(g.plots + "/wrench/force", ["|force| (N)"])
+            self._series(g.plots + "/wrench/torque", ["|torque| (N m)"], AXIS_COLORS[2:])
+
     def _notes(self) -> None:
         import rerun as rr
 
@@ -441,7 +573,7 @@ class SceneLogger:
             return
         steps = np.asarray(steps, dtype=np.int64)
         times = np.asarray(times, dtype=np.float64)
-        indexes = [rr.TimeColumn(TIMELINE, duration=times), rr.TimeColumn(STEP_TIMELINE, sequence=steps)]
+        indexes = _indexes(steps, times)
 
         def send(path, columns):
             rr.send_columns(path, indexes=indexes, columns=columns, recording=self.rec)
@@ -452,6 +584,8 @@ class SceneLogger:
         notes_changed = False
         for body in self.bodies:
             notes_changed |= self._log_body(body, rows, send)
+        for grasp in self.grasps:
+            self._log_grasp(grasp, steps, times, rows, send)
         for c in self.controllers:
             if c.ee_desired is not None:
                 send(_path("world", c.name, "ee_desired"), rr.Points3D.columns(positions=rows[:, c.ee_desired]))
@@ -523,3 +657,71 @@ class SceneLogger:
                 send(f"{body.base}/{key}", rr.Arrows3D.columns(
                     origins=origins.reshape(-1, 3), vectors=scale * vectors.reshape(-1, 3)).partition([L] * n))
         return changed
+
+    def _log_grasp(self, g: _Grasp, steps: np.ndarray, times: np.ndarray, rows: np.ndarray, send) -> None:
+        """The E-G line while open, the distance and wrench magnitudes, and the changes of ``grasp.closed``."""
+        import rerun as rr
+
+        n = len(rows)
+        closed = rows[:, g.closed[0]] >= 0.5 if g.closed is not None else np.zeros(n, dtype=bool)
+        if g.p_ee_grasp is not None:
+            p = rows[:, g.p_ee_grasp]
+            send(g.plots + "/distance", rr.Scalars.columns(scalars=np.linalg.norm(p, axis=1, keepdims=True)))
+            if g.ee_link is not None:      # in E's axes: a child of E's link; no line once closed
+                strips = np.stack([np.zeros_like(p), p], axis=1)[~closed]
+                send(f"{g.ee_link}/grasp_line", rr.LineStrips3D.columns(strips=strips).partition(
+                    (~closed).astype(np.int32)))
+        if g.wrench is not None:
+            w = rows[:, g.wrench]
+            send(g.plots + "/wrench/force", rr.Scalars.columns(scalars=np.linalg.norm(w[:, :3], axis=1, keepdims=True)))
+            send(g.plots + "/wrench/torque", rr.Scalars.columns(scalars=np.linalg.norm(w[:, 3:], axis=1, keepdims=True)))
+        if g.closed is not None:
+            self._log_grasp_changes(g, steps, times, rows, closed)
+
+    def _log_grasp_changes(self, g: _Grasp, steps: np.ndarray, times: np.ndarray, rows: np.ndarray,
+                           closed: np.ndarray) -> None:
+        """G's marker on the first row and wherever ``grasp.closed`` changes; each capture (0 -> 1)
+        once in the text log and as a point on the distance plot."""
+        import rerun as rr
+
+        before = np.concatenate([[bool(g.was_closed)], closed[:-1]])
+        changed = closed != before
+        if g.was_closed is None:
+            changed[0] = True
+        first_row = g.was_closed is None
+        g.was_closed = bool(closed[-1])
+        at = np.flatnonzero(changed)
+        if not len(at):
+            return
+        if g.grasp_link is not None:
+            looks = [GRASP_CLOSED if closed[i] else GRASP_OPEN for i in at]
+            self._send_at(f"{g.grasp_link}/grasp_G/marker", steps[at], times[at], rr.Points3D.columns(
+                positions=np.zeros((len(at), 3)), colors=[look[0] for look in looks],
+                radii=[look[1] for look in looks], labels=[look[2] for look in looks]))
+        texts = [self._grasp_text(g, steps[i], times[i], rows[i], closed[i], first_row and i == 0) for i in at]
+        texts = [(i, text) for i, text in zip(at, texts) if text]
+        if texts:
+            rows_at = np.array([i for i, _ in texts])
+            self._send_at(g.events, steps[rows_at], times[rows_at], rr.TextLog.columns(
+                text=[text for _, text in texts], level=["INFO" if closed[i] else "WARN" for i, _ in texts]))
+        captures = at[closed[at]]
+        if len(captures) and g.p_ee_grasp is not None:
+            self._send_at(g.plots + "/distance/capture", steps[captures], times[captures], rr.Scalars.columns(
+                scalars=np.linalg.norm(rows[captures][:, g.p_ee_grasp], axis=1, keepdims=True)))
+
+    @staticmethod
+    def _grasp_text(g: _Grasp, step: int, time: float, row: np.ndarray, closed: bool, first_row: bool) -> str | None:
+        """The text log line of a change of ``grasp.closed`` (None: an open grasp at the first row)."""
+        if not closed:
+            return None if first_row else f"grasp open again at t = {time:.6g} s (step {step}): {g.label}"
+        text = f"capture at t = {time:.6g} s (step {step}): {g.label} closed"
+        if first_row:
+            text += " (already at the first row shown)"
+        if g.p_ee_grasp is not None:
+            text += f", E-G distance {1e3 * np.linalg.norm(row[g.p_ee_grasp]):.3g} mm"
+        return text
+
+    def _send_at(self, path: str, steps: np.ndarray, times: np.ndarray, columns) -> None:
+        """``send_columns`` for some of the rows (their steps and times)."""
+        import rerun as rr
+        rr.send_columns(path, indexes=_indexes(steps, times), columns=columns, recording=self.rec)

@@ -63,3 +63,20 @@ def test_a_swap_waits_for_the_components_own_step_boundary(tmp_path):
     server.add(unknown)
     server.serve(quiescent=True)
     assert unknown.answer["ok"] is False and "components: fast, slow" in unknown.answer["error"]
+
+
+def test_a_swap_naming_no_component_by_a_string_is_refused_not_fatal(tmp_path):
+    """A request whose component is a list (or a number) is answered with an error; the run, which
+    asks swap_boundary on every loop, is not ended by it."""
+    path = tmp_path / "one.yaml"
+    path.write_text("run: {name: one, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 10 ms}\n"
+                    "components: {c: {type: test.counter}}\n")
+    run = StandIn(load(path))
+    server = ControlServer(run)
+    bad = [Query({"op": "swap", "component": ["c"]}), Query({"op": "swap", "component": 3})]
+    for query in bad:
+        server.add(query)
+    assert server.swap_boundary() is None
+    server.serve(quiescent=True)
+    assert all(q.answer is not None and q.answer["ok"] is False for q in bad)
+    assert run.swapped == []

@@ -378,7 +378,7 @@ class Run:
         config, rows = self.config, self.rows
         if self.record_dir is not None:
             rows.recording = Recording(self.record_dir, rows.columns, config.resolved)
-        self.log("start", run_id=self.run_id, config=str(config.path), steps=config.steps,
+        self.log("start", run_id=self.run_id, config=str(config.path.resolve()), steps=config.steps,
                  step_ns=config.step_ns, algorithm=config.algorithm,
                  components={n: s.type for n, s in config.components.items()},
                  cpus={**self.placement.dedicated, "shared": sorted(self.placement.shared)})

@@ -7,8 +7,9 @@ Reads ``DIR/config.yaml`` (the resolved config: which components, which URDFs) a
 n = round(1 / (rate * step)), default 30 Hz of sim time) and logs them with the same
 ``SceneLogger`` as the live observer: same entities, same layout. URDF paths in the config are
 resolved as ``dynamics.dart`` resolves them: relative to the original config file, found through
-``DIR/events.jsonl`` (its ``start`` event; the current directory without one), else to the
-project root.
+``DIR/events.jsonl`` (its ``start`` event, whose path may be relative to where the run was
+started: looked up from the current directory, then from the project root; the current directory
+without one), else to the project root.
 """
 from __future__ import annotations
 
@@ -46,11 +47,23 @@ def read_recording(directory: str | Path) -> tuple[dict, Path | None, str]:
             if event.get("event") == "start":
                 run_id = event.get("run_id", run_id)
                 if event.get("config"):
-                    config_dir = Path(event["config"]).resolve().parent
+                    config_dir = _config_dir(event["config"])
                 break
     except (OSError, ValueError):
         pass
     return config, config_dir, run_id
+
+
+def _config_dir(path: str) -> Path:
+    """The directory of the run's config file as the start event names it: absolute, or relative to
+    the current directory, else to the project root (a run started there); the first if none exists."""
+    from components.robots.model import PROJECT_ROOT
+
+    recorded = Path(path)
+    for candidate in (recorded, PROJECT_ROOT / recorded):
+        if candidate.is_file():
+            return candidate.resolve().parent
+    return recorded.resolve().parent
 
 
 def decimation(config: dict, rate_hz: float, times=None) -> int:

@@ -22,7 +22,7 @@ Entities (SI units; W = the dynamics world frame, ECI = GCRF axes):
 | ``/orbit/<orbit>/trail``, ``/orbit/<orbit>/spacecraft/lvlh`` | ``r_eci`` trail, LVLH axes at the spacecraft |
 | ``/plots/<ctrl>/ee_position/{actual,desired}``, ``ee_error/{position,orientation}``, ``tau`` | paper Figs. 5, 6, 7 |
 | ``/plots/<dyn>/<body>/momentum/{linear,angular}``, ``gg_torque_norm`` | momentum, per-link gravity-gradient torque magnitude |
-| ``/plots/<dyn>/grasp/distance`` (``/capture``), ``grasp/wrench/{force,torque}`` | \|p_ee_grasp\| (a point at the capture), \|force\| and \|torque\| of ``grasp.wrench`` |
+| ``/plots/<dyn>/grasp/distance`` (``/capture``), ``grasp/wrench`` | norm of ``grasp.p_ee_grasp`` (a point at the capture); norms of the force and of the torque of ``grasp.wrench`` |
 | ``/events/<dyn>/grasp`` | text log: "capture at t = ... s" on the row where ``grasp.closed`` turns 1 |
 | ``/signals/<component>/<name>`` | every other recorded variable, one plot series per element |
 | ``/notes`` | run summary and arrow scales (text) |
@@ -543,8 +543,7 @@ class SceneLogger:
                                                                           markers=["circle"], marker_sizes=[6.0]),
                           static=True)
         if g.wrench is not None:
-            self._series(g.plots + "/wrench/force", ["|force| (N)"])
-            self._series(g.plots + "/wrench/torque", ["|torque| (N m)"], AXIS_COLORS[2:])
+            self._series(g.plots + "/wrench", ["|force| (N)", "|torque| (N m)"], AXIS_COLORS[::2])
 
     def _notes(self) -> None:
         import rerun as rr
@@ -672,9 +671,8 @@ class SceneLogger:
                 send(f"{g.ee_link}/grasp_line", rr.LineStrips3D.columns(strips=strips).partition(
                     (~closed).astype(np.int32)))
         if g.wrench is not None:
-            w = rows[:, g.wrench]
-            send(g.plots + "/wrench/force", rr.Scalars.columns(scalars=np.linalg.norm(w[:, :3], axis=1, keepdims=True)))
-            send(g.plots + "/wrench/torque", rr.Scalars.columns(scalars=np.linalg.norm(w[:, 3:], axis=1, keepdims=True)))
+            norms = np.linalg.norm(rows[:, g.wrench].reshape(n, 2, 3), axis=2)     # force, torque
+            send(g.plots + "/wrench", rr.Scalars.columns(scalars=norms))
         if g.closed is not None:
             self._log_grasp_changes(g, steps, times, rows, closed)
 
@@ -684,11 +682,9 @@ class SceneLogger:
         once in the text log and as a point on the distance plot."""
         import rerun as rr
 
-        before = np.concatenate([[bool(g.was_closed)], closed[:-1]])
-        changed = closed != before
-        if g.was_closed is None:
-            changed[0] = True
-        first_row = g.was_closed is None
+        first = g.was_closed is None               # the first row of all: the marker's initial look
+        changed = closed != np.concatenate([[bool(g.was_closed)], closed[:-1]])
+        changed[0] |= first
         g.was_closed = bool(closed[-1])
         at = np.flatnonzero(changed)
         if not len(at):
@@ -698,12 +694,11 @@ class SceneLogger:
             self._send_at(f"{g.grasp_link}/grasp_G/marker", steps[at], times[at], rr.Points3D.columns(
                 positions=np.zeros((len(at), 3)), colors=[look[0] for look in looks],
                 radii=[look[1] for look in looks], labels=[look[2] for look in looks]))
-        texts = [self._grasp_text(g, steps[i], times[i], rows[i], closed[i], first_row and i == 0) for i in at]
-        texts = [(i, text) for i, text in zip(at, texts) if text]
-        if texts:
-            rows_at = np.array([i for i, _ in texts])
-            self._send_at(g.events, steps[rows_at], times[rows_at], rr.TextLog.columns(
-                text=[text for _, text in texts], level=["INFO" if closed[i] else "WARN" for i, _ in texts]))
+        texts = {i: self._grasp_text(g, steps[i], times[i], rows[i], closed[i], first and i == 0) for i in at}
+        logged = np.array([i for i, text in texts.items() if text], dtype=np.int64)
+        if len(logged):
+            self._send_at(g.events, steps[logged], times[logged], rr.TextLog.columns(
+                text=[texts[i] for i in logged], level=["INFO" if closed[i] else "WARN" for i in logged]))
         captures = at[closed[at]]
         if len(captures) and g.p_ee_grasp is not None:
             self._send_at(g.plots + "/distance/capture", steps[captures], times[captures], rr.Scalars.columns(

@@ -110,20 +110,20 @@ ROWS: dict[str, Row] = {
     "capture_momentum": Row(
         "dynamics.dart (grasp)", "total momentum through the capture impact and 1-2 s welded (arm free, wheels spinning), relative",
         "conservation (no environment)", 1e-11, "",
-        ("tests/unit/test_capture.py::test_impact_and_weld_conserve_momentum",
-         "tests/unit/test_capture.py::test_capture_with_spinning_wheels_conserves_momentum")),
+        ("tests/unit/test_grasp.py::test_impact_and_weld_conserve_momentum",
+         "tests/unit/test_grasp.py::test_capture_with_spinning_wheels_conserves_momentum")),
     "capture_rate": Row(
         "dynamics.dart (grasp)", "assembly rate and CoM velocity after the impact (arm locked)",
         "I_sys^-1 H and L / m from the momentum before it and the links' inertias", 1e-12, "rad/s, m/s",
-        ("tests/unit/test_capture.py::test_post_capture_rate_is_momentum_over_assembly_inertia",)),
+        ("tests/unit/test_grasp.py::test_post_capture_rate_is_momentum_over_assembly_inertia",)),
     "capture_wrench": Row(
         "dynamics.dart (grasp)", "wrist wrench on a welded payload, relative",
         "Newton-Euler m a, I alpha + w x I w (central differences of the payload's motion)", 1e-6, "",
-        ("tests/unit/test_capture.py::test_wrist_wrench_is_the_payloads_inertial_wrench",)),
+        ("tests/unit/test_grasp.py::test_wrist_wrench_is_the_payloads_inertial_wrench",)),
     "imu_specific_force": Row(
         "dynamics.dart (imu)", "specific force at the base origin, in orbit and not, relative",
         "central differences of the base velocity minus the tidal gravity there", 1e-6, "",
-        ("tests/unit/test_capture.py::test_imu_reads_the_base_rate_and_non_gravitational_acceleration",)),
+        ("tests/unit/test_grasp.py::test_imu_reads_the_base_rate_and_non_gravitational_acceleration",)),
 }
 
 _measured: dict[str, list[float]] = {}

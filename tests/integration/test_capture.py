@@ -7,7 +7,7 @@ component processes over Zenoh on loopback), against closed forms and conservati
   tolerance, the weld then holds (relative twist ~0, relative pose frozen).
 - Momentum, environment off: total linear and angular momentum of the two bodies through approach,
   impact and detumbling; the target's momentum ends in the wheels.
-- Detumble, environment on (the shipped scenario, 14 s): the assembly's inertial rate ends below
+- Detumble, environment on (the shipped scenario, 18 s): the assembly's inertial rate ends below
   0.1 deg/s.
 - Determinism (bit-identical part files; another sensor seed changes the measurements and nothing
   the controller has not yet used), a same-type swap of the dynamics after the capture and a

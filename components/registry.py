@@ -100,11 +100,11 @@ class Unresolved(Exception):
 
 
 def resolve(component_type: str | type[Component], params: Mapping[str, Any], *, epoch: str | None = None,
-            config_dir: str | Path | None = None) -> Resolved:
+            config_dir: str | Path | None = None, packages: Mapping[str, str] | None = None) -> Resolved:
     """The one way from raw parameters to a component: load the type (a name or the class), add
     the run parameters (``params`` may hold them already, as the instantiate message does),
     validate, declare and lay out the inputs and outputs. Unresolved when any of it fails."""
-    raw = {**params, **run_parameters(epoch, config_dir)}
+    raw = {**params, **run_parameters(epoch, config_dir, packages)}
     cls = component_type
     if isinstance(component_type, str):
         try:

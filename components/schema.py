@@ -154,6 +154,9 @@ class Str(Kind):
         return isinstance(value, str)
 
 
+MAX_DURATION_NS = 100 * 31_557_600 * 10 ** 9   # 100 Julian years: well inside int64 nanoseconds
+
+
 @dataclass(frozen=True)
 class Duration(Kind):
     """A time span, exact integer nanoseconds ("1 ms", "20 s", or a number of seconds)."""
@@ -164,6 +167,8 @@ class Duration(Kind):
         ns = duration_ns(value, key)
         if ns < 0 or (self.positive and ns == 0):
             raise ConfigError(key, f"expected a duration {'>' if self.positive else '>='} 0, got {value!r}")
+        if ns > MAX_DURATION_NS:
+            raise ConfigError(key, f"expected a duration of at most 100 years (times are int64 nanoseconds), got {value!r}")
         return ns
 
     def plain(self, value):

@@ -87,6 +87,14 @@ class Component:
     def validate(cls, params: Mapping[str, Any]) -> None:
         """Checks across parameters beyond their kinds; raise ConfigError(key, message)."""
 
+    @classmethod
+    def preflight(cls, params: Mapping[str, Any], step_s: float, full: bool = False) -> list[str]:
+        """What the orchestrator warns about before a run with these (validated) parameters and
+        this step (s): physics that runs but is suspect, one line each naming the figure. With
+        ``full`` (``orchestrator check``) it may also load what ``__init__`` would (a physics
+        engine's model), raising ConfigError(key, message) for what fails. Default: nothing."""
+        return []
+
     def __init__(self, params: Mapping[str, Any]):
         self.params = params
 
@@ -170,13 +178,16 @@ def declaration_tables(cls: type[Component]) -> str:
 ORCHESTRATOR_EVENTS = ("start", "end", "fault", "warning", "swap", "checkpoint", "restart", "viewer")
 
 # Injected by the orchestrator into every component's parameters; not declared by the types.
-RUN_PARAMETERS = ("_epoch", "_config_dir")
+RUN_PARAMETERS = ("_epoch", "_config_dir", "_packages")
 
 
-def run_parameters(epoch: str | None, config_dir: str | Path | None) -> dict[str, str]:
+def run_parameters(epoch: str | None, config_dir: str | Path | None,
+                   packages: Mapping[str, str] | None = None) -> dict[str, Any]:
     """RUN_PARAMETERS for a run starting at ``epoch`` (UTC text) whose relative paths start at
-    ``config_dir``; one given as None is left out (a type that needs it says so)."""
-    given = {"_epoch": epoch, "_config_dir": None if config_dir is None else str(config_dir)}
+    ``config_dir``, with ``packages`` (``run.packages``: ROS package name -> absolute directory);
+    one given as None (or empty) is left out (a type that needs it says so)."""
+    given = {"_epoch": epoch, "_config_dir": None if config_dir is None else str(config_dir),
+             "_packages": {str(k): str(v) for k, v in packages.items()} if packages else None}
     return {key: value for key, value in given.items() if value is not None}
 
 

@@ -21,20 +21,22 @@ def _fail(message: str, code: int = USAGE_ERROR) -> int:
     return code
 
 
-def _load(path: str, overrides: list[str]):
+def _load(path: str, overrides: list[str], full: bool = False):
     from orchestrator.config import ConfigErrors, load
     try:
-        return load(path, overrides), None
+        return load(path, overrides, full), None
     except ConfigErrors as e:
         return None, e.errors
 
 
 def cmd_check(args) -> int:
-    config, errors = _load(args.config, args.set)
+    config, errors = _load(args.config, args.set, full=True)
     if errors:
         for line in errors:
             print(f"error: {line}", file=sys.stderr)
         return USAGE_ERROR
+    for line in config.notes:
+        print(f"warning: {line}", file=sys.stderr)
     print(f"{args.config}: ok — {count(len(config.components), 'component')}, "
           f"{count(len(config.connections), 'connection')}, {count(config.steps, 'step')} of "
           f"{config.step_ns / 1e6:g} ms ({config.algorithm})")
@@ -47,10 +49,11 @@ def cmd_run(args) -> int:
         for line in errors:
             print(f"error: {line}", file=sys.stderr)
         return USAGE_ERROR
+    lock = None   # held (open, flock'ed) until this process ends: the directory is this run's
     if args.record:
         from orchestrator.recording import RecordingError, claim_directory
         try:
-            claim_directory(Path(args.record), args.overwrite)
+            lock = claim_directory(Path(args.record), args.overwrite, config.name)
         except RecordingError as e:
             return _fail(str(e))
         except OSError as e:
@@ -72,7 +75,11 @@ def cmd_run(args) -> int:
             return _fail(f"viewer spawn: {spawn_problem()}")
     from orchestrator.engine import Run
     run = Run(config, record=args.record, profile=args.profile, progress=sys.stderr.isatty(), viewer=viewer)
-    return run.execute()
+    try:
+        return run.execute()
+    finally:
+        if lock is not None:
+            lock.close()
 
 
 def _query(entry: dict, request: dict, timeout: float = 30.0) -> dict:
@@ -273,6 +280,30 @@ def cmd_plot(args) -> int:
     return 0
 
 
+def cmd_sweep(args) -> int:
+    from orchestrator.campaign_runner import CampaignError, sweep
+    from orchestrator.sweep import CampaignErrors, load_campaign
+    only = None
+    if args.only is not None:
+        try:
+            only = sorted({int(x) for x in args.only.split(",") if x.strip()})
+        except ValueError:
+            return _fail(f"--only {args.only}: expected case numbers, e.g. --only 17 or --only 3,17")
+    if args.jobs is not None and args.jobs < 1:
+        return _fail(f"--jobs {args.jobs}: expected 1 or more")
+    try:
+        campaign = load_campaign(args.campaign, check_cases=True if only is None else only)
+    except CampaignErrors as e:
+        for line in e.errors:
+            print(f"error: {line}", file=sys.stderr)
+        return USAGE_ERROR
+    try:
+        return sweep(campaign, Path(args.out), jobs=args.jobs, cluster=args.cluster, resume=args.resume, only=only,
+                     retries=args.retries)
+    except CampaignError as e:
+        return _fail(str(e))
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="orchestrator", description="Zenorbit: lockstep co-simulation over Zenoh.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -316,6 +347,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--signals", metavar="NAME,NAME", help="plot these columns instead (orbit.r_eci, "
                    "dynamics.target.q[0], ...)")
     p.set_defaults(func=cmd_plot)
+
+    p = sub.add_parser("sweep", help="run a campaign: a grid and dispersions over a config's keys, many cases")
+    p.add_argument("campaign", metavar="CAMPAIGN.yaml")
+    p.add_argument("--out", required=True, metavar="DIR", help="where cases.parquet and the cases go")
+    p.add_argument("--jobs", type=int, metavar="N", help="cases at once on this machine (default: the CPUs)")
+    p.add_argument("--cluster", metavar="tcp://HOST:8786", help="run the cases on this dask.distributed scheduler")
+    p.add_argument("--retries", type=int, default=2, metavar="N",
+                   help="--cluster: times a case is retried after an error on its worker (default 2)")
+    p.add_argument("--resume", action="store_true", help="finish an interrupted campaign in DIR")
+    p.add_argument("--only", metavar="N[,N]", help="run only these cases (numbered from 0)")
+    p.set_defaults(func=cmd_sweep)
 
     p = sub.add_parser("types", help="list the component types, with a line each")
     p.set_defaults(func=cmd_types)

@@ -19,6 +19,7 @@ from components.sdk import Component, Layout, Variable, run_parameters
 from components.units import duration_text, unit_scale
 
 ALGORITHMS = ("jacobi", "gauss-seidel")
+MAX_STEPS = 10 ** 12   # steps in a run: beyond, a typo (a duration in the wrong unit), not an experiment
 VIEWER_MODES = ("spawn", "web", "save", "off")
 NAME = r"[A-Za-z][A-Za-z0-9_]*"
 ENDPOINT = r"(tcp|udp|tls|quic)/(\[[0-9a-fA-F:]+\]|[A-Za-z0-9.\-]+):\d{1,5}"
@@ -42,6 +43,9 @@ RUN = Record("run", (
                           "(none: the start is the only one)"),
     Parameter("max_restarts", Int(minimum=0), default=3,
               description="restarts from a checkpoint before a failure ends the run"),
+    Parameter("packages", MapOf(Str(hint="a directory"), "package name"), default={},
+              description="ROS packages by name -> directory (relative to the config file), for package:// URIs "
+                          "and $(find NAME) in URDFs; looked up before ROS_PACKAGE_PATH and installed packages"),
 ), description="the run's identity and timing (``run:``)")
 BUS = Record("bus", (
     Parameter("listen", ListOf(Str(pattern=ENDPOINT, hint="a Zenoh endpoint like tcp/127.0.0.1:0"), min_items=1),
@@ -190,6 +194,8 @@ class RunConfig:
     max_restarts: int = 3
     viewer: ViewerSpec | None = None
     resolved: dict = field(default_factory=dict)   # the config as written to config.yaml
+    packages: dict = field(default_factory=dict)   # run.packages: name -> absolute directory
+    notes: list = field(default_factory=list)      # warnings found by the check (physics), one line each
 
     @property
     def steps(self) -> int:
@@ -198,7 +204,7 @@ class RunConfig:
     @property
     def run_parameters(self) -> dict[str, str]:
         """What every component gets besides its own parameters (sdk.RUN_PARAMETERS)."""
-        return run_parameters(self.epoch, self.path.parent.resolve())
+        return run_parameters(self.epoch, self.path.parent.resolve(), self.packages)
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
@@ -263,9 +269,13 @@ def _yaml_problem(error: yaml.YAMLError, text: str) -> str:
 
 def read_yaml(path: Path) -> dict:
     try:
-        text = path.read_text()
+        text = path.read_bytes().decode("utf-8")
     except OSError as e:
         raise ConfigErrors([f"{path}: cannot read config ({e.strerror})"]) from None
+    except UnicodeDecodeError as e:
+        line = path.read_bytes()[:e.start].count(b"\n") + 1
+        raise ConfigErrors([f"{path}: not UTF-8 text (byte 0x{e.object[e.start]:02x} at line {line}); "
+                            f"save the config as UTF-8"]) from None
     try:
         raw = yaml.load(text, Loader=_UniqueKeyLoader)
     except yaml.YAMLError as e:
@@ -275,16 +285,18 @@ def read_yaml(path: Path) -> dict:
     return raw
 
 
-def load(path: str | Path, overrides: list[str] = ()) -> RunConfig:
-    """Read, override and validate ``path``; raises ConfigErrors listing every problem."""
+def load(path: str | Path, overrides: list[str] = (), full: bool = False) -> RunConfig:
+    """Read, override and validate ``path``; raises ConfigErrors listing every problem. ``full``
+    (``orchestrator check``): the components also load what they would at the start (URDFs into
+    DART), so that what fails there fails here."""
     path = Path(path)
     raw = read_yaml(path)
     apply_overrides(raw, list(overrides))
-    return validate(raw, path)
+    return validate(raw, path, full)
 
 
 def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, epoch: str,
-                   key: str) -> ComponentSpec:
+                   key: str, packages: dict | None = None) -> ComponentSpec:
     """One component's spec from its entry as COMPONENT converts it; ConfigErrors naming ``key.<...>``."""
     errors: list[str] = []
     type_name = entry["type"]
@@ -301,7 +313,7 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
         raise ConfigErrors([f"{key}.parameters: expected a mapping, got {params_raw!r}"])
     unresolved = None
     try:
-        resolved = registry.resolve(cls, params_raw, epoch=epoch, config_dir=config_dir)
+        resolved = registry.resolve(cls, params_raw, epoch=epoch, config_dir=config_dir, packages=packages)
     except registry.Unresolved as e:
         unresolved = e
     if unresolved and unresolved.stage == "parameters":
@@ -323,7 +335,7 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
                          on_failure=entry["on_failure"], inputs=resolved.inputs, outputs=resolved.outputs)
 
 
-def validate(raw: dict, path: Path) -> RunConfig:
+def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
     """The config checked against CONFIG, then across its parts (components, connections, events)."""
     file = path
     config, problems = CONFIG.resolve(raw)
@@ -333,19 +345,38 @@ def validate(raw: dict, path: Path) -> RunConfig:
     if step_ns and total_ns and total_ns % step_ns:
         errors.append(f"{file}: run.duration: must be a whole number of steps of {duration_text(step_ns)}, "
                       f"got {raw['run']['duration']!r}")
+    elif step_ns and total_ns and total_ns // step_ns > MAX_STEPS:
+        errors.append(f"{file}: run.duration: {total_ns // step_ns:.3g} steps of {duration_text(step_ns)}; at most "
+                      f"{MAX_STEPS:.0e} steps (at a million steps per second, 11 days of wall time)")
     components: dict[str, ComponentSpec] = {}
     config_dir = path.parent.resolve()
+    packages = {}
+    for package, directory in (run.get("packages") or {}).items():
+        where = (config_dir / directory).resolve()
+        if not where.is_dir():
+            errors.append(f"{file}: run.packages.{package}: directory {directory!r} not found ({where})")
+        packages[package] = str(where)
     entries = config.get("components", {})
     if step_ns is not None and epoch is not None:
         for name, entry in entries.items():
             try:
-                components[name] = component_spec(name, entry, step_ns, config_dir, epoch, f"components.{name}")
+                components[name] = component_spec(name, entry, step_ns, config_dir, epoch, f"components.{name}",
+                                                  packages)
             except ConfigErrors as e:
                 errors += [f"{file}: {m}" for m in e.errors]
+    notes = []
+    for name, spec in components.items():
+        key = f"components.{name}.parameters"
+        try:
+            notes += [f"{file}: {key}.{note}" for note in spec.cls.preflight(spec.resolved, spec.step_ns / 1e9, full)]
+        except ConfigError as e:
+            errors.append(f"{file}: {key}.{e.key}: {e.message}" if e.key else f"{file}: {key}: {e.message}")
+        except Exception as e:   # a component's own check failing is a line too, not a traceback
+            errors.append(f"{file}: {key}: {spec.type} cannot load its model: {type(e).__name__}: {e}")
     raw_entries = raw.get("components") if isinstance(raw.get("components"), dict) else {}
     connections = _connections(config.get("connections", {}), components, raw_entries, file, errors)
     events = _events(config.get("events", []), components, connections, step_ns, total_ns, config_dir, epoch,
-                     file, errors)
+                     file, errors, packages)
     faults = _faults(config.get("faults", []), components, total_ns, file, errors)
     restarting = [n for n, spec in components.items() if spec.on_failure == "restart"]
     for name, spec in components.items():
@@ -386,7 +417,7 @@ def validate(raw: dict, path: Path) -> RunConfig:
                      algorithm=run["algorithm"], realtime=run["realtime"], step_timeout_s=run["step_timeout"] / 1e9,
                      start_timeout_s=run["start_timeout"] / 1e9, components=components, connections=connections,
                      listen=config["bus"]["listen"], events=events, faults=faults, checkpoint_ns=checkpoint_ns,
-                     max_restarts=run["max_restarts"], viewer=viewer, resolved=resolved)
+                     max_restarts=run["max_restarts"], viewer=viewer, resolved=resolved, packages=packages, notes=notes)
 
 
 def check_replacement(spec: ComponentSpec, connections: list[tuple[str, str, str, str]]) -> list[str]:
@@ -451,7 +482,8 @@ def _connections(raw: Any, components: dict[str, ComponentSpec], entries: dict, 
 
 
 def _events(entries: list[dict], components: dict[str, ComponentSpec], connections: list, step_ns: int | None,
-            total_ns: int | None, config_dir: Path, epoch: str | None, file: Path, errors: list[str]) -> list[Event]:
+            total_ns: int | None, config_dir: Path, epoch: str | None, file: Path, errors: list[str],
+            packages: dict | None = None) -> list[Event]:
     events = []
     for i, entry in enumerate(entries):
         key = f"events[{i}]"
@@ -480,7 +512,7 @@ def _events(entries: list[dict], components: dict[str, ComponentSpec], connectio
         try:
             spec = component_spec(target, {"type": new_type, "parameters": params, "step": old.step_ns,
                                            "launch": "local", "dedicated_cpu": False, "on_failure": old.on_failure},
-                                  step_ns, config_dir, epoch, key)
+                                  step_ns, config_dir, epoch, key, packages)
         except ConfigErrors as e:
             errors += [f"{file}: {m}" for m in e.errors]
             continue

@@ -115,7 +115,8 @@ class ControlServer:
                 if problems:
                     raise ConfigErrors([str(e) for e in problems])
                 spec = component_spec(name, {**converted, "step": old.step_ns}, run.config.step_ns,
-                                      run.config.path.parent.resolve(), run.config.epoch, f"components.{name}")
+                                      run.config.path.parent.resolve(), run.config.epoch, f"components.{name}",
+                                      run.config.packages)
                 problems = check_replacement(spec, run.config.connections)
                 if problems:
                     raise ConfigErrors(problems)

@@ -311,6 +311,9 @@ class Run:
     def execute(self) -> int:
         """Run to the end (0), or until a failure (1) or an interruption (130); clean up in every case."""
         previous = {sig: signal.signal(sig, raise_stop) for sig in (signal.SIGTERM,)}
+        # Ctrl-C is ours whatever was inherited: a run started with `&` from a script has SIGINT
+        # ignored (POSIX), and would otherwise go on under a Ctrl-C or `kill -INT`
+        previous[signal.SIGINT] = signal.signal(signal.SIGINT, signal.default_int_handler)
         code, message = 0, None
         own_cpus = os.sched_getaffinity(0)
         run_start = time.perf_counter()
@@ -346,7 +349,8 @@ class Run:
         if self.profile:
             print("\n".join(report.profile(self.members.values(), self.rows.row, self.config.step_ns, self.loop_s,
                                            self.config.algorithm)), file=self.out)
-        status = {0: "completed", 1: "failed"}.get(code) or self.stop_reason or "interrupted"
+        # as events.jsonl's end line says it ("stopped by request" ends with exit code 0 too)
+        status = "failed" if code == 1 else (self.stop_reason or ("completed" if code == 0 else "interrupted"))
         print(report.summary(self.config.name, status, self.rows.row, self.config.steps, self.config.step_ns,
                              time.perf_counter() - run_start, self.loop_s, self.recovery.restarts, self.record_dir),
               file=self.out, flush=True)
@@ -382,6 +386,9 @@ class Run:
                  step_ns=config.step_ns, algorithm=config.algorithm,
                  components={n: s.type for n, s in config.components.items()},
                  cpus={**self.placement.dedicated, "shared": sorted(self.placement.shared)})
+        for note in config.notes:       # suspect physics the check found (orchestrator check shows them too)
+            print(f"warning: {note}", file=self.out)
+            self.log("warning", message=note, step=0)
         if self.placement.unplaced:
             message = (f"no CPU to spare for {', '.join(self.placement.unplaced)} (dedicated_cpu; "
                        f"{cpus} CPU(s) available): they share the others'")

@@ -409,6 +409,9 @@ def figures(record_dir, signals: list[str] | None = None) -> list[tuple[str, obj
     to plot.
     """
     record_dir = Path(record_dir)
+    if (record_dir / "cases.parquet").exists() and not signals:   # a campaign (orchestrator sweep --out DIR)
+        from orchestrator.campaign_plots import campaign_figures
+        return campaign_figures(record_dir)
     config, columns = _load(record_dir)
     if "time" not in columns:
         raise PlotError(f"{record_dir / 'signals.parquet'}: no time column")

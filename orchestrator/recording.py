@@ -21,28 +21,68 @@ class RecordingError(Exception):
     """The recording cannot be written (its directory removed, the disk full, ...)."""
 
 
+# The lock of a recording directory: a live run holds an flock on it (see ``claim_directory``).
+LOCK_FILE = ".lock"
 # What a run (and `orchestrator plot`) leaves in a recording directory: all that --overwrite removes.
-RECORDING_ENTRIES = frozenset({"signals.parquet", "swaps", "events.jsonl", "config.yaml", "logs", "plots"})
+RECORDING_ENTRIES = frozenset({"signals.parquet", "swaps", "events.jsonl", "config.yaml", "logs", "plots", LOCK_FILE})
 
 
-def claim_directory(directory: Path, overwrite: bool) -> None:
+def _holder(lock) -> str:
+    """Who holds a lock file, from what it says: 'run NAME (pid P, started ...)'."""
+    try:
+        lock.seek(0)
+        info = json.loads(lock.read() or "{}")
+    except (OSError, ValueError):
+        info = {}
+    if not info:
+        return "another run"
+    return f"run {info.get('run', '?')} (pid {info.get('pid', '?')}, started {info.get('started', '?')})"
+
+
+def claim_directory(directory: Path, overwrite: bool, run: str = "") -> object:
     """Make ``directory`` ready for a new recording: create it, or, with ``overwrite``, empty an
-    earlier recording there. RecordingError for a directory in use without ``overwrite``, and for
-    one holding anything a run does not write (``overwrite`` never deletes a user's own files)."""
+    earlier recording there; lock it for this run. RecordingError for a directory a live run
+    records into (``overwrite`` or not), for one in use without ``overwrite``, and for one holding
+    anything a run does not write (``overwrite`` never deletes a user's own files).
+
+    Returns the lock: an open file ``DIR/.lock`` with an exclusive ``flock`` on it, naming
+    ``run`` and this process. Keep it open for the run's life: the kernel drops the lock when
+    the process ends, however it ends, so a crashed run never blocks the directory."""
+    import datetime
+    import fcntl
+
     if directory.exists() and not directory.is_dir():
         raise RecordingError(f"--record {directory}: exists and is not a directory")
-    entries = sorted(directory.iterdir()) if directory.is_dir() else []
-    if entries and not overwrite:
-        raise RecordingError(f"--record {directory}: the directory is in use (it holds "
-                             f"{', '.join(e.name for e in entries[:4])}{', ...' if len(entries) > 4 else ''}); "
-                             f"give another directory, or --overwrite to replace the recording there")
-    foreign = [e.name for e in entries if e.name not in RECORDING_ENTRIES]
-    if foreign:
-        raise RecordingError(f"--record {directory} --overwrite: the directory holds more than a recording "
-                             f"({', '.join(foreign[:4])}); not deleting it: give another directory")
-    for entry in entries:
-        shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
     directory.mkdir(parents=True, exist_ok=True)
+    lock = open(directory / LOCK_FILE, "a+")
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        holder = _holder(lock)
+        lock.close()
+        raise RecordingError(f"--record {directory}: {holder} is recording into this directory now; "
+                             f"give another directory (it stays locked until that run ends)") from None
+    try:
+        entries = sorted(e for e in directory.iterdir() if e.name != LOCK_FILE)
+        if entries and not overwrite:
+            raise RecordingError(f"--record {directory}: the directory is in use (it holds "
+                                 f"{', '.join(e.name for e in entries[:4])}{', ...' if len(entries) > 4 else ''}); "
+                                 f"give another directory, or --overwrite to replace the recording there")
+        foreign = [e.name for e in entries if e.name not in RECORDING_ENTRIES]
+        if foreign:
+            raise RecordingError(f"--record {directory} --overwrite: the directory holds more than a recording "
+                                 f"({', '.join(foreign[:4])}); not deleting it: give another directory")
+        for entry in entries:
+            shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
+        lock.seek(0)
+        lock.truncate()
+        lock.write(json.dumps({"run": run, "pid": os.getpid(), "started": datetime.datetime.now(
+            datetime.timezone.utc).isoformat(timespec="seconds").replace("+00:00", "Z")}))
+        lock.flush()
+    except BaseException:
+        lock.close()
+        raise
+    return lock
 
 
 class Table:

@@ -119,8 +119,50 @@ def _isolated_runtime_dir(tmp_path, monkeypatch):
 
 _exit_status = {}
 
+# what the suite starts and must not leave behind: component runners, orchestrators, viewers
+LEFTOVER_MARKS = ("components.runner", "orchestrator", "components.viewer.observer", "rerun")
+
+
+def suite_processes(root: str) -> list[str]:
+    """'pid args' of live processes this test session started: their environment carries a
+    ZENORBIT_RUNTIME_DIR under the session's base temporary directory ``root`` (every test sets
+    one there, and the processes of its runs inherit it: those of another session, or of a
+    user's runs, do not), and their command line is one of LEFTOVER_MARKS."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            environ = (entry / "environ").read_bytes().split(b"\0")
+            args = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace").strip()
+        except OSError:           # gone, or not ours to read
+            continue
+        runtime = next((v[len(b"ZENORBIT_RUNTIME_DIR="):].decode(errors="replace") for v in environ
+                        if v.startswith(b"ZENORBIT_RUNTIME_DIR=")), None)
+        if runtime and runtime.startswith(root) and args and any(mark in args for mark in LEFTOVER_MARKS):
+            found.append(f"{entry.name} {args}")
+    return found
+
 
 def pytest_sessionfinish(session, exitstatus):
+    """The suite leaves no process behind: a component runner, orchestrator or viewer that a test
+    started and that is still alive (after 15 s of grace for those ending now) fails the run; it
+    is listed, then killed."""
+    factory = getattr(session.config, "_tmp_path_factory", None)
+    if factory is not None and not hasattr(session.config, "workerinput"):
+        root = str(factory.getbasetemp())
+        deadline = time.monotonic() + 15.0
+        while (left := suite_processes(root)) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        if left:
+            print("\nerror: the test session left these processes running (failing the run):\n  "
+                  + "\n  ".join(left), file=sys.stderr)
+            for line in left:
+                try:
+                    os.kill(int(line.split()[0]), 9)
+                except OSError:
+                    pass
+            session.exitstatus = exitstatus = 1
     _exit_status["code"] = int(exitstatus)
 
 

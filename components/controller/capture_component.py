@@ -161,7 +161,7 @@ class CaptureComponent(Component):
     @classmethod
     def setup(cls, params) -> CaptureSetup:
         """What the parameters mean for this URDF (validate checks it; __init__ uses it)."""
-        model = read_model(params["urdf"], params.get("_config_dir"), "urdf")
+        model = read_model(params["urdf"], params.get("_config_dir"), "urdf", params.get("_packages"))
         movable = model.movable_joints
         for key in ("joints", "wheels"):
             for name in params[key]:
@@ -203,7 +203,7 @@ class CaptureComponent(Component):
 
     @classmethod
     def declare(cls, params):
-        model = read_model(params["urdf"], params.get("_config_dir"), "urdf")
+        model = read_model(params["urdf"], params.get("_config_dir"), "urdf", params.get("_packages"))
         return body_signals("input", model, names=BODY_STATE) + [
             Variable("grasp_p", "input", (3,), "m", [0.0] * 3,
                      "measured position of the grasp frame's origin relative to the end effector, EE axes"),
@@ -242,7 +242,7 @@ class CaptureComponent(Component):
         from components.controller.computed_torque import ComputedTorqueLaw, FreeFloatingArm
 
         c, p = self.config, self.params
-        arm = FreeFloatingArm(c.model.path, c.model.movable_joints, c.joints, p["end_effector"])
+        arm = FreeFloatingArm(c.model, c.model.movable_joints, c.joints, p["end_effector"])
         law = ComputedTorqueLaw(c.kp, c.kd, c.null_kp, c.null_kd, c.effort,
                                 dls_threshold=p["dls_threshold"], dls_damping=p["dls_damping"])
         settings = CaptureSettings(

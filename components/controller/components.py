@@ -33,7 +33,7 @@ from components.signals import BODY_STATE, body_signals, torque_signal
 
 def _urdf(params: Mapping[str, Any]):
     """The parsed URDF of ``params['urdf']``, found as ``dynamics.dart`` finds it; ConfigError naming ``urdf``."""
-    return read_model(params["urdf"], params.get("_config_dir"), "urdf")
+    return read_model(params["urdf"], params.get("_config_dir"), "urdf", params.get("_packages"))
 
 
 def _check_names(names: list[str], key: str, allowed: list[str], what: str) -> list[str]:
@@ -169,6 +169,16 @@ class ComputedTorqueComponent(Component):
         cls.setup(params)
 
     @classmethod
+    def preflight(cls, params, step_s, full=False):
+        """``full``: Pinocchio builds the model (mimic joints, locked joints at 0) as at initialize."""
+        if full:
+            try:
+                cls(params)._build(np.zeros(len(params["locked_joints"])))
+            except ValueError as e:
+                raise ConfigError("urdf", f"Pinocchio cannot build the controller's model: {e}") from None
+        return []
+
+    @classmethod
     def declare(cls, params):
         return _loop_signals(_urdf(params)) + [
             Variable("ee_position", "output", (3,), "m", [0.0] * 3, "end-effector frame origin, W"),
@@ -201,7 +211,7 @@ class ComputedTorqueComponent(Component):
         a, p = self.arm, self.params
         body = a.model.movable_joints
         locked = {j: float(x) for j, x in zip(a.locked, locked_q)}
-        arm = FreeFloatingArm(a.model.path, body, a.joints, p["end_effector"], locked)
+        arm = FreeFloatingArm(a.model, body, a.joints, p["end_effector"], locked)
         effort = np.array([a.model.joint(j).effort for j in a.joints])
         law = ComputedTorqueLaw(a.kp, a.kd, a.null_kp, a.null_kd, effort,
                                 dls_threshold=p["dls_threshold"], dls_damping=p["dls_damping"],
@@ -280,7 +290,7 @@ PID_GAINS = Record("PID gains", (
 JOINT_TRAJECTORY = Record("Joint trajectory", (
     Parameter("start", Float("s", minimum=0.0), default=0.0, description="time the first segment starts"),
     Parameter("waypoints", ListOf(Record("Joint waypoint", (
-        Parameter("time", Float("s"), description="time it is reached, after the previous one (or start)"),
+        Parameter("time", Float("s"), description="the run time (s from t = 0, not from the previous waypoint) at which it is reached; later than the previous one (or start)"),
         Parameter("q", MapOf(JOINT_VALUE, "joint"), default={},
                   description="positions of driven joints; joints not named keep their previous value"),
     ), description="one waypoint of a joint trajectory"), min_items=1), description="reached one after the other"),

@@ -108,7 +108,7 @@ class FreeFloatingArm:
 
     | argument | meaning |
     |---|---|
-    | urdf | path of the URDF (the body's root link is the free base) |
+    | urdf | the parsed URDF (``UrdfModel``: package URIs resolved, xacro expanded) or a URDF path (the body's root link is the free base); mimic joints follow their joint (Pinocchio's mimic joints) |
     | body_joints | the body's non-fixed joints in URDF order: the layout of q, qd, tau |
     | arm_joints | the joints this controller drives (names) |
     | end_effector | a link (or frame) name of the URDF |
@@ -118,12 +118,20 @@ class FreeFloatingArm:
     model would be wrong).
     """
 
-    def __init__(self, urdf: str | Path, body_joints: Sequence[str], arm_joints: Sequence[str],
+    def __init__(self, urdf, body_joints: Sequence[str], arm_joints: Sequence[str],
                  end_effector: str, locked: Mapping[str, float] | None = None):
         import pinocchio as pin
 
         self.pin = pin
-        full = pin.buildModelFromUrdf(str(urdf), pin.JointModelFreeFlyer())
+        mimics = {}
+        if hasattr(urdf, "text"):      # a UrdfModel: the text as parsed, package URIs resolved
+            mimics = urdf.mimics
+            # Pinocchio's own mimic joints are not in computeAllTerms: the mimic joints are
+            # independent in the model, and the constraint is applied to M, c and J (compute)
+            full = pin.buildModelFromXML(urdf.text, pin.JointModelFreeFlyer())
+            urdf = urdf.path
+        else:
+            full = pin.buildModelFromUrdf(str(urdf), pin.JointModelFreeFlyer())
         locked = dict(locked or {})
         if locked:
             reference = pin.neutral(full)
@@ -146,6 +154,8 @@ class FreeFloatingArm:
             if name in locked:
                 continue
             joint = model.joints[model.getJointId(name)]
+            if joint.nv == 0:        # a mimic joint: Pinocchio moves it with the joint it follows
+                continue
             if joint.nq == 2:
                 self._q2.append((joint.idx_q, k))
             else:
@@ -160,7 +170,7 @@ class FreeFloatingArm:
         self.body_arm = np.array([self.body_joints.index(j) for j in self.arm_joints])
         self.arm_v = np.array([model.joints[model.getJointId(j)].idx_v for j in self.arm_joints])
         passive = [model.joints[model.getJointId(j)].idx_v for j in self.body_joints
-                   if j not in locked and j not in self.arm_joints]
+                   if j not in locked and j not in self.arm_joints and model.joints[model.getJointId(j)].nv > 0]
         self.base_v = np.array(list(range(6)) + sorted(passive))
         # (base, arm) ordering of the velocity coordinates, and index grids to read M's upper
         # triangle in that order: entry (i, j) of the reordered M is M[min, max] of the originals
@@ -168,6 +178,21 @@ class FreeFloatingArm:
         if self._perm.size != model.nv:
             raise ValueError(f"joints: the model has {model.nv - 6} free joints, {self.arm_v.size} driven "
                              f"and {len(passive)} passive")
+        # mimic joints (v_k = multiplier v_f, both passive): v_b = G v_b', M_bb' = G^T M_bb G,
+        # [M_bm, c_b]' = G^T [M_bm, c_b], J_b' = J_b G (the constraint's Jacobian is constant)
+        self._G = None
+        pairs = [(j, f, m) for j, (f, m, _) in mimics.items() if j not in locked and f not in locked]
+        for j, f, _ in pairs:
+            if j in self.arm_joints or f in self.arm_joints:
+                raise ValueError(f"joints: {j!r} mimics {f!r}; a driven joint can neither mimic nor be mimicked")
+        if pairs:
+            base = list(self.base_v)
+            drop = [base.index(model.joints[model.getJointId(j)].idx_v) for j, _, _ in pairs]
+            G = np.eye(len(base))
+            for (j, f, m), k in zip(pairs, drop):
+                G[k, :] = 0.0
+                G[k, base.index(model.joints[model.getJointId(f)].idx_v)] = m
+            self._G = np.ascontiguousarray(np.delete(G, drop, axis=1))
         rows, cols = np.meshgrid(self._perm, self._perm, indexing="ij")
         self._perm_rows, self._perm_cols = np.minimum(rows, cols), np.maximum(rows, cols)
         if not model.existFrame(end_effector):
@@ -252,6 +277,13 @@ class FreeFloatingArm:
         Ja = np.empty((6, n + 1))
         Ja[:, :-1] = J[:, self.arm_v]
         Ja[:, -1] = a_0.vector
+        J_b = J[:, self.base_v]
+        if self._G is not None:                            # mimic joints: the reduced coordinates
+            G = self._G
+            Mc = np.vstack([np.hstack([G.T @ Mc[:nb, :nb] @ G, G.T @ Mc[:nb, nb:]]),
+                            np.hstack([Mc[nb:, :nb] @ G, Mc[nb:, nb:]])])
+            J_b = J_b @ G
+            nb = G.shape[1]
         if base_model == "fixed":
             terms, task = Mc[nb:, nb:], Ja
         else:
@@ -261,7 +293,7 @@ class FreeFloatingArm:
                 raise np.linalg.LinAlgError(f"M_bb is not positive definite (LAPACK dposv info {info})")
             terms = Mc[nb:, nb:] - Mc[:nb, nb:-1].T @ X    # [M*, C*]
             # a_drift = a_0 - J_b M_bb^-1 c_b (module doc)
-            task = Ja - J[:, self.base_v] @ X              # [J_g, a_drift]
+            task = Ja - J_b @ X                            # [J_g, a_drift]
         M_star = terms[:, :n]
         return ArmState(0.5 * (M_star + M_star.T), terms[:, n], task[:, :n], task[:, n],
                         pose[:3], np.array(frame.rotation), pose[3:], xdot, self._q_arm.copy(), self._qd_arm.copy())

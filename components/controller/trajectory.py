@@ -163,7 +163,7 @@ _START = Parameter("start", Float("s", minimum=0.0), default=0.0, description="t
 _AXES = Parameter("axes", Str(AXES), default="body",
                   description="axes of the offsets: body (the base's initial axes) or world (W)")
 CARTESIAN_WAYPOINT = Record("Cartesian waypoint", (
-    Parameter("time", Float("s"), description="time it is reached, after the previous one (or start)"),
+    Parameter("time", Float("s"), description="the run time (s from t = 0, not from the previous waypoint) at which it is reached; later than the previous one (or start)"),
     Parameter("position", Vector(3, "m"), default=[0.0, 0.0, 0.0],
               description="offset from the initial end-effector position"),
     Parameter("rotation", Vector(3, "rad"), default=[0.0, 0.0, 0.0],

@@ -32,6 +32,11 @@ LINK_OUTPUTS = ("gg_torque", "tidal_force", "drag_force", "link_position", "link
 LAST = "last_output."   # state keys of the last output quaternions
 
 PER_LINK = "one number for the base link, or link name -> number"
+# preflight: the rotation per (sub)step above which a step is too coarse (rk4's error in the
+# attitude grows as its fifth power: 60 s at the orbit's rate, 0.07 rad, is right to 1e-6 deg;
+# 1 h, 4 rad, ends 174 deg off), and the mean motion of the lowest orbit (at Earth's radius)
+MAX_ROTATION_PER_STEP = 0.1
+ORBIT_RATE_MAX = float(np.sqrt(MU_EARTH / 6378137.0 ** 3))
 BODY = Record("Body", (
     Parameter("urdf", Str(hint="a URDF file path"),
               description="URDF file, relative to the config file (else to the project root); its root link is the free base"),
@@ -119,7 +124,7 @@ def imu_variables(name: str) -> list[Variable]:
 
 def load_models(params: Mapping[str, Any]) -> dict[str, UrdfModel]:
     """Parsed URDF of every body (xml.etree only); ConfigError naming ``bodies.<name>.urdf``."""
-    return {name: read_model(body["urdf"], params.get("_config_dir"), f"bodies.{name}.urdf")
+    return {name: read_model(body["urdf"], params.get("_config_dir"), f"bodies.{name}.urdf", params.get("_packages"))
             for name, body in body_items(params["bodies"])}
 
 
@@ -229,6 +234,36 @@ class DartDynamics(Component):
                                                            f"({', '.join(model.link_names)}), got {grasp[link_key]!r}")
             if grasp["chaser"] == grasp["target"]:
                 raise ConfigError("grasp.target", f"expected another body than the chaser, got {grasp['target']!r}")
+
+    @classmethod
+    def preflight(cls, params, step_s, full=False):
+        """Zero-mass links a joint moves; a step too coarse for the rotation the bodies see (the
+        largest of: a body's initial angular rate, its joints' rates, and the orbit's mean motion
+        when the body co-rotates with LVLH or the environment is on, taken at the lowest orbit,
+        ORBIT_RATE_MAX) against MAX_ROTATION_PER_STEP. ``full``: DART loads every body."""
+        models = load_models(params)
+        notes = [f"bodies.{name}: {note}" for name, model in models.items() for note in model.notes()]
+        h = step_s / params["substeps"]
+        environment = params["tidal_force"] or params["gravity_gradient"]
+        for name, body in body_items(params["bodies"]):
+            model = models[name]
+            figures = [(float(np.linalg.norm(np.asarray(body["twist"], dtype=float)[3:])), "its initial angular rate")]
+            revolute = [abs(float(v)) for j, v in body["qd"].items() if model.joint(j).type != "prismatic"]
+            if revolute:
+                figures.append((max(revolute), "its fastest joint's initial rate"))
+            if body["frame"] == "lvlh" or environment:
+                figures.append((ORBIT_RATE_MAX, "the orbit's rate (mean motion at the lowest orbit)"))
+            rate, what = max(figures)
+            if rate * h > MAX_ROTATION_PER_STEP:
+                notes.append(
+                    f"bodies.{name}: the step is too coarse for the dynamics: {what}, {rate:.3g} rad/s, turns it "
+                    f"{rate * h:.3g} rad ({np.degrees(rate * h):.3g} deg) per step of {h:g} s; above "
+                    f"{MAX_ROTATION_PER_STEP:g} rad ({np.degrees(MAX_ROTATION_PER_STEP):.2g} deg) per step the "
+                    f"integration is wrong by whole degrees: use a step of at most {MAX_ROTATION_PER_STEP / rate:.3g} s "
+                    f"(or substeps)")
+        if full:
+            cls(params)      # DART loads every body: what it refuses is an error now, not at the start
+        return notes
 
     def __init__(self, params):
         super().__init__(params)

@@ -32,6 +32,13 @@ Per body (see ``BodySpec``): the base pose and twist and the joint positions/rat
 ``reset_bodies``, in W or in LVLH (``frame: lvlh``: relative to LVLH, including its rotation:
 a zero twist co-rotates with LVLH). ``locked_joints`` are welded at their initial position.
 Joint torques are clipped to the URDF effort limits. URDF joint damping/friction is ignored.
+
+Mimic joints (URDF ``<mimic>``: q = multiplier q_followed + offset) are a holonomic constraint.
+``rk4``: each stage's accelerations are projected onto it with a joint-space constraint force
+(``a - M^-1 J^T (J M^-1 J^T)^-1 J a``; internal, so momentum is kept), and ``reset_bodies`` puts
+the mimic joint where the constraint says. ``dart``: DART's own mimic constraint (the loader sets
+the joint's actuator to MIMIC). The mimic joint's q, qd are outputs like any joint's; a torque on
+it acts through the constraint.
 """
 from __future__ import annotations
 
@@ -115,6 +122,11 @@ def check_spec(spec: BodySpec, model: UrdfModel) -> None:
                                                        f"(joints: {', '.join(movable) or 'none'})")
             if not math.isfinite(value):
                 raise ModelError(f"{n}.{key}.{joint}", f"expected a finite number, got {value!r}")
+    for key in ("q", "qd"):
+        for joint in getattr(spec, key):
+            if joint in model.mimics:
+                raise ModelError(f"{n}.{key}.{joint}", f"a mimic joint: it follows {model.mimics[joint][0]!r}; "
+                                                       f"set {key} of that joint instead")
     for joint, value in spec.q.items():
         j = model.joint(joint)
         if not j.lower - 1e-9 <= value <= j.upper + 1e-9:
@@ -148,7 +160,7 @@ def check_spec(spec: BodySpec, model: UrdfModel) -> None:
 class _Body:
     """A body's DART skeleton and the index maps between it and the URDF's variable layout."""
 
-    def __init__(self, spec: BodySpec, model: UrdfModel, dart):
+    def __init__(self, spec: BodySpec, model: UrdfModel, dart, integrator: str = "rk4"):
         self.spec, self.model, self.name = spec, model, spec.name
         self.joints = model.movable_joints                     # URDF order: layout of q, qd, tau
         self.locked = {j: float(spec.q.get(j, 0.0)) for j in spec.locked_joints}
@@ -193,9 +205,24 @@ class _Body:
                 lower[k], upper[k] = model.joint(j).lower, model.joint(j).upper
         self.lower, self.upper = lower, upper
         self.limited = bool(np.any(np.isfinite(lower) | np.isfinite(upper)))
+        # mimic joints: rows of J (J a = 0) over DART's dofs; both joints free (a locked one
+        # holds the other through the weld, or the mimic joint is locked itself)
+        dof_of = dict(zip(self.joints, self.dof_index.tolist()))
+        self.mimic = []                                        # (mimic dof, followed dof, multiplier, offset)
+        for j, (followed, multiplier, offset) in model.mimics.items():
+            if dof_of.get(j, -1) >= 0 and dof_of.get(followed, -1) >= 0:
+                self.mimic.append((dof_of[j], dof_of[followed], multiplier, offset))
+        self.mimic_J = np.zeros((len(self.mimic), self.ndofs))
+        for row, (k, f, multiplier, _) in enumerate(self.mimic):
+            self.mimic_J[row, k], self.mimic_J[row, f] = 1.0, -multiplier
+        mimic_joints = {j for j in model.mimics if dof_of.get(j, -1) >= 0}
+        for joint in (skel.getJoint(j) for j in mimic_joints):  # rk4 projects; dart keeps DART's MIMIC actuator
+            if joint.getActuatorType() == dart.dynamics.ActuatorType.MIMIC and integrator == "rk4":
+                joint.setActuatorType(dart.dynamics.ActuatorType.FORCE)
         # links: DART body nodes with mass (environment), URDF link order (outputs)
         nodes = {skel.getBodyNode(i).getName(): skel.getBodyNode(i) for i in range(skel.getNumBodyNodes())}
         self.nodes = [bn for bn in nodes.values() if bn.getMass() > 0.0]
+        self.has_massless = len(self.nodes) < len(nodes)
         self.mass = np.array([bn.getMass() for bn in self.nodes])
         self.local_com = np.array([bn.getLocalCOM() for bn in self.nodes]).reshape(-1, 3)
         self.local_inertia = np.array([bn.getInertia().getMoment() for bn in self.nodes]).reshape(-1, 3, 3)
@@ -254,6 +281,13 @@ class _Body:
         self.tau = np.zeros(self.ndofs)                        # generalized forces, DART order
         self.stops = np.zeros(0, dtype=int)                    # rk4: dofs resting on a limit stop
         self.stop_sides = np.zeros(0)                          # +1 upper, -1 lower
+
+    def inverse_mass(self) -> np.ndarray:
+        """M^-1 at the skeleton's state. DART's getInvMassMatrix is wrong (off by O(1)) when a body
+        node has zero mass (a URDF's massless flange between two links, say): then M is inverted."""
+        if self.has_massless:
+            return np.linalg.inv(self.skel.getMassMatrix())
+        return self.skel.getInvMassMatrix()
 
     # -- state in variable layout
     def joint_positions(self, positions: np.ndarray | None = None) -> np.ndarray:
@@ -314,7 +348,7 @@ class OrbitalWorld:
                 raise ModelError(spec.name, "duplicate body name")
             model = (models or {}).get(spec.name) or read_urdf(spec.urdf)
             check_spec(spec, model)
-            body = _Body(spec, model, dart)
+            body = _Body(spec, model, dart, integrator)
             self.world.addSkeleton(body.skel)
             body.skel.setGravity(np.zeros(3))
             if integrator == "dart" and joint_limits:
@@ -442,6 +476,9 @@ class OrbitalWorld:
             if k >= 0:
                 positions[k] = q.get(j, 0.0)
                 velocities[k] = qd.get(j, 0.0)
+        for k, f, multiplier, offset in body.mimic:          # where the constraint puts them
+            positions[k] = multiplier * positions[f] + offset
+            velocities[k] = multiplier * velocities[f]
         body.skel.setPositions(positions)
         body.skel.setVelocities(velocities)
 
@@ -505,9 +542,20 @@ class OrbitalWorld:
             self._apply_environment(body, s)
         skel.computeForwardDynamics()
         a = skel.getAccelerations()
+        if body.mimic:
+            a = self._hold_mimic(body, a)
         if body.stops.size:
             a = self._hold_stops(body, a)
         return a
+
+    @staticmethod
+    def _hold_mimic(body: _Body, a: np.ndarray) -> np.ndarray:
+        """Accelerations that keep the mimic constraints (J a = 0; J is constant, so J qd stays 0
+        too): the joint-space constraint force M^-1 J^T lambda, internal to the body."""
+        Minv = body.inverse_mass()
+        J = body.mimic_J
+        MJ = Minv @ J.T
+        return a - MJ @ np.linalg.solve(J @ MJ, J @ a)
 
     @staticmethod
     def _set_stage(skel, q0, xi, v) -> None:
@@ -518,7 +566,7 @@ class OrbitalWorld:
     def _hold_stops(body: _Body, a: np.ndarray) -> np.ndarray:
         """Joints resting on a limit stop: a joint-space constraint torque (internal, momentum-
         free) cancels their outward acceleration; a stop that would have to pull lets go."""
-        Minv = body.skel.getInvMassMatrix()
+        Minv = body.inverse_mass()
         dofs, sides = body.stops, body.stop_sides
         keep = np.ones(dofs.size, dtype=bool)
         for _ in range(dofs.size):
@@ -628,7 +676,7 @@ class OrbitalWorld:
         v = skel.getVelocities()
         outward = stops[body.stop_sides * v[stops] > 0.0]
         if outward.size:
-            Minv = skel.getInvMassMatrix()
+            Minv = body.inverse_mass()
             impulse = np.linalg.solve(Minv[np.ix_(outward, outward)], -v[outward])
             skel.setVelocities(v + Minv[:, outward] @ impulse)
 
@@ -667,6 +715,8 @@ class OrbitalWorld:
             skel.setForces(body.tau)
         skel.computeForwardDynamics()
         a = np.array(skel.getAccelerations())
+        if body.mimic:
+            a = self._hold_mimic(body, a)
         qdd = np.zeros(len(body.joints))
         qdd[body.free] = a[body.free_dofs]
         return {"dv_W_base": np.concatenate([a[3:6], a[:3]]), "qdd": qdd}

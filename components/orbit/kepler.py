@@ -54,7 +54,13 @@ def check_elements(semi_major_axis: float, eccentricity: float, inclination: flo
         return
     perigee = a * (1.0 - e)
     if perigee <= min_perigee:
-        hint = f"; did you mean '{a:g} km'?" if a * 1e3 * (1.0 - e) > min_perigee else ""
+        if a * 1e3 * (1.0 - e) > min_perigee and a < 1e5:   # a bare number in km: 6778 for 6778 km
+            hint = f"; did you mean '{a:g} km'?"
+        elif a > 0.5 * min_perigee:     # an altitude where the radius belongs: 6000 km for 6000 km up
+            hint = (f"; a is measured from Earth's centre, not its surface: for an altitude of "
+                    f"{a / 1e3:g} km, a = '{(a + min_perigee) / 1e3:g} km'")
+        else:
+            hint = ""
         raise ElementError("semi_major_axis",
                            f"expected a perigee radius a(1-e) above Earth's surface ({min_perigee:.0f} m), "
                            f"got a = {a:.9g} m, e = {e:g} -> {perigee:.9g} m{hint}")

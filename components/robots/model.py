@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from components.errors import ConfigError
+from components.robots.packages import PackageError, resolve_uri
 from components.robots.urdf import UrdfError, UrdfModel, read_urdf
 from components.schema import Float, OneOf
 
@@ -20,10 +21,16 @@ JOINT_UNITS = {"revolute": ("rad", "rad/s", "N*m"), "continuous": ("rad", "rad/s
                "prismatic": ("m", "m/s", "N")}
 
 
-def resolve_urdf(value: Any, config_dir: str | Path | None, key: str) -> Path:
-    """A URDF path: absolute, else relative to the config file, else to the project root."""
+def resolve_urdf(value: Any, config_dir: str | Path | None, key: str, packages: Mapping | None = None) -> Path:
+    """A URDF (or .xacro) path: ``package://NAME/...`` (see :mod:`components.robots.packages`),
+    absolute, else relative to the config file, else to the project root."""
     if not isinstance(value, str) or not value:
         raise ConfigError(key, f"expected a URDF file path, got {value!r}")
+    if value.startswith("package://"):
+        try:
+            return resolve_uri(value, Path(config_dir or "."), packages)
+        except PackageError as e:
+            raise ConfigError(key, str(e)) from None
     path = Path(value)
     if path.is_absolute():
         candidates = [path]
@@ -35,11 +42,13 @@ def resolve_urdf(value: Any, config_dir: str | Path | None, key: str) -> Path:
     raise ConfigError(key, f"URDF file {value!r} not found (looked in: {', '.join(str(c) for c in candidates)})")
 
 
-def read_model(value: Any, config_dir: str | Path | None, key: str) -> UrdfModel:
-    """The parsed URDF a config names (see ``resolve_urdf``); ConfigError naming ``key``."""
-    path = resolve_urdf(value, config_dir, key)
+def read_model(value: Any, config_dir: str | Path | None, key: str, packages: Mapping | None = None) -> UrdfModel:
+    """The parsed URDF a config names (see ``resolve_urdf``), its ``package://`` URIs resolved
+    through ``packages`` (the run parameter ``_packages``) and the rest of the search path;
+    ConfigError naming ``key``."""
+    path = resolve_urdf(value, config_dir, key, packages)
     try:
-        return read_urdf(path)
+        return read_urdf(path, packages)
     except UrdfError as e:
         raise ConfigError(key, str(e)) from None
 

@@ -8,8 +8,16 @@ initial position, massless frame links (tool frames) left out of the multibody.
 Conventions (URDF): a joint's ``origin`` places its frame in the parent link frame, rpy is
 R = Rz(yaw) Ry(pitch) Rx(roll); ``axis`` is in the joint frame. Units: m, rad, kg, kg m^2, N m.
 
-Supported joint types: revolute, continuous, prismatic (one degree of freedom each) and fixed.
-The root link is the free-floating base. ``UrdfError`` says what is wrong and where.
+Supported joint types: revolute, continuous, prismatic (one degree of freedom each) and fixed;
+a movable joint may ``<mimic>`` another (q = multiplier q_other + offset). The root link is the
+free-floating base. ``UrdfError`` says what is wrong and where.
+
+Files as ROS packages ship them: a ``.xacro`` is expanded first (``$(find NAME)`` resolved), and
+every mesh ``filename`` (``package://NAME/...``, ``file://``, relative) is resolved
+(:mod:`components.robots.packages`) and rewritten as an absolute path in the parsed tree, so the
+text handed to DART and Pinocchio (``UrdfModel.text``, ``dart_urdf_text``) needs no package
+lookup of its own. A mesh not found, an inertia that is not positive definite or breaks the
+triangle inequality (ixx <= iyy + izz, ...) are errors naming the link.
 """
 from __future__ import annotations
 
@@ -20,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from components.robots.packages import PackageError, process_xacro, resolve_uri
 from components.rotations import exp_so3, matrix_to_rpy, rpy_to_matrix
 
 MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
@@ -45,6 +54,7 @@ class UrdfJoint:
     upper: float
     effort: float
     velocity: float
+    mimic: tuple[str, float, float] | None = None   # (joint followed, multiplier, offset)
 
     @property
     def movable(self) -> bool:
@@ -92,6 +102,34 @@ class UrdfModel:
                 return link
         raise KeyError(name)
 
+    @property
+    def text(self) -> str:
+        """The URDF as parsed: xacro expanded, mesh file names absolute paths."""
+        return ET.tostring(self.tree.getroot(), encoding="unicode")
+
+    @property
+    def mimics(self) -> dict[str, tuple[str, float, float]]:
+        """Mimic joints: name -> (joint followed, multiplier, offset)."""
+        return {j.name: j.mimic for j in self.joints if j.mimic is not None}
+
+    def notes(self) -> list[str]:
+        """What loads but is suspect: a movable joint whose child, with everything welded to it
+        (fixed joints), has no mass (an infinite acceleration under any torque)."""
+        by_parent: dict[str, list[UrdfJoint]] = {}
+        for j in self.joints:
+            by_parent.setdefault(j.parent, []).append(j)
+
+        def welded_mass(link: str) -> float:
+            return self.link(link).mass + sum(welded_mass(j.child) for j in by_parent.get(link, ())
+                                              if j.type == "fixed")
+
+        notes = []
+        for j in self.joints:
+            if j.movable and j.mimic is None and welded_mass(j.child) <= 0.0:
+                notes.append(f"{self.path.name}: link {j.child!r} has no mass (nor anything welded to it), "
+                             f"but joint {j.name!r} moves it: a torque on it has nothing to accelerate")
+        return notes
+
     def frame_links(self) -> dict[str, UrdfJoint]:
         """Links that are pure frames: no mass, no collision, no children, attached by a fixed
         joint (tool frames). They are left out of the DART multibody; maps link -> its joint."""
@@ -131,13 +169,62 @@ def _float(element: ET.Element, attribute: str, default: float | None, where: st
         raise UrdfError(f"{where}: {attribute} expected a number, got {text!r}") from None
 
 
-def read_urdf(path: str | Path) -> UrdfModel:
-    """Parse and check a URDF file (tree of links, supported joints, positive base mass)."""
+def _check_inertia(inertia: ET.Element, mass: float, where: str) -> None:
+    """Positive definite and the triangle inequality (each principal moment at most the sum of
+    the other two), with a relative tolerance of 1e-9; an all-zero inertia is a point mass."""
+    values = {a: _float(inertia, a, 0.0, f"{where} inertia") for a in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+    if not all(math.isfinite(v) for v in values.values()):
+        raise UrdfError(f"{where}: inertia values must be finite, got {values}")
+    I = np.array([[values["ixx"], values["ixy"], values["ixz"]],
+                  [values["ixy"], values["iyy"], values["iyz"]],
+                  [values["ixz"], values["iyz"], values["izz"]]])
+    if not np.any(I):   # a point mass (a sensor frame's, say): DART and Pinocchio take it
+        return
+    moments = np.linalg.eigvalsh(I)
+    scale = max(float(np.abs(moments).max()), 1e-300)
+    if moments[0] <= 1e-12 * scale:
+        raise UrdfError(f"{where}: the inertia is not positive definite (principal moments "
+                        f"{', '.join(f'{m:.6g}' for m in moments)} kg m^2; ixx {values['ixx']:g}, iyy {values['iyy']:g}, "
+                        f"izz {values['izz']:g})")
+    a, b, c = moments
+    if c > a + b + 1e-9 * scale:
+        raise UrdfError(f"{where}: the inertia breaks the triangle inequality: principal moment {c:.6g} > "
+                        f"{a:.6g} + {b:.6g} kg m^2 (no rigid body has it; ixx {values['ixx']:g}, "
+                        f"iyy {values['iyy']:g}, izz {values['izz']:g})")
+
+
+def _resolve_meshes(robot: ET.Element, path: Path, packages) -> None:
+    """Every mesh file name made an absolute path; UrdfError naming the link and the URI."""
+    for link in robot.findall("link"):
+        for kind in ("visual", "collision"):
+            for element in link.findall(kind):
+                for mesh in element.iter("mesh"):
+                    uri = mesh.get("filename")
+                    if not uri:
+                        raise UrdfError(f"{path.name}: link {link.get('name')!r} {kind} mesh has no filename")
+                    try:
+                        mesh.set("filename", str(resolve_uri(uri, path.parent, packages)))
+                    except PackageError as e:
+                        raise UrdfError(f"{path.name}: link {link.get('name')!r} {kind} mesh {e}") from None
+
+
+def read_urdf(path: str | Path, packages=None) -> UrdfModel:
+    """Parse and check a URDF (or .xacro) file: tree of links, supported joints, positive base
+    mass, physical inertias, mesh files found. ``packages``: name -> directory (``run.packages``)."""
     path = Path(path)
     if not path.is_file():
         raise UrdfError(f"URDF file {path} not found")
     try:
-        tree = ET.parse(path)
+        if path.suffix == ".xacro":
+            text = process_xacro(path, packages)
+        else:
+            text = path.read_bytes()          # bytes: the XML declaration's encoding applies
+    except PackageError as e:
+        raise UrdfError(str(e)) from None
+    except ValueError as e:
+        raise UrdfError(str(e)) from None
+    try:
+        tree = ET.ElementTree(ET.fromstring(text))
     except ET.ParseError as e:
         raise UrdfError(f"{path} is not valid XML: {e}") from None
     robot = tree.getroot()
@@ -168,8 +255,7 @@ def read_urdf(path: str | Path) -> UrdfModel:
             if inertia is None and mass > 0.0:
                 raise UrdfError(f"{where}: <inertial> without <inertia>")
             if inertia is not None:
-                for a in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"):
-                    _float(inertia, a, 0.0, f"{where} inertia")
+                _check_inertia(inertia, mass, where)
         links.append(UrdfLink(name, mass, com, inertial is not None, element.find("collision") is not None))
     if not links:
         raise UrdfError(f"{path.name}: no <link> elements")
@@ -187,8 +273,13 @@ def read_urdf(path: str | Path) -> UrdfModel:
             raise UrdfError(f"{path.name}: duplicate joint name {name!r}")
         if kind not in SUPPORTED_TYPES:
             raise UrdfError(f"{where}: unsupported joint type {kind!r} (expected one of {', '.join(SUPPORTED_TYPES)})")
-        if element.find("mimic") is not None:
-            raise UrdfError(f"{where}: mimic joints are not supported")
+        mimic = None
+        mimic_el = element.find("mimic")
+        if mimic_el is not None and kind in MOVABLE_TYPES:   # on a fixed joint it means nothing (as in ROS)
+            if not mimic_el.get("joint"):
+                raise UrdfError(f"{where}: <mimic> needs joint=...")
+            mimic = (mimic_el.get("joint"), _float(mimic_el, "multiplier", 1.0, f"{where} mimic"),
+                     _float(mimic_el, "offset", 0.0, f"{where} mimic"))
         parent_el, child_el = element.find("parent"), element.find("child")
         if parent_el is None or child_el is None:
             raise UrdfError(f"{where}: expected <parent link=...> and <child link=...>")
@@ -223,7 +314,19 @@ def read_urdf(path: str | Path) -> UrdfModel:
                     raise UrdfError(f"{where}: limit lower {lower} > upper {upper}")
         elif kind in ("revolute", "prismatic"):
             raise UrdfError(f"{where}: a {kind} joint needs a <limit> element")
-        joints.append(UrdfJoint(name, kind, parent, child, xyz, rpy, axis, lower, upper, effort, velocity))
+        joints.append(UrdfJoint(name, kind, parent, child, xyz, rpy, axis, lower, upper, effort, velocity, mimic))
+    by_name = {j.name: j for j in joints}
+    for j in joints:
+        if j.mimic is None:
+            continue
+        followed = by_name.get(j.mimic[0])
+        if followed is None or not followed.movable:
+            raise UrdfError(f"{path.name}: joint {j.name!r} mimics {j.mimic[0]!r}, which is not a movable joint of the file")
+        if followed.mimic is not None:
+            raise UrdfError(f"{path.name}: joint {j.name!r} mimics {followed.name!r}, itself a mimic joint "
+                            f"(make both follow {followed.mimic[0]!r})")
+        if not all(math.isfinite(v) for v in j.mimic[1:]):
+            raise UrdfError(f"{path.name}: joint {j.name!r}: mimic multiplier and offset must be finite")
 
     roots = [link.name for link in links if link.name not in children]
     if len(roots) != 1:
@@ -247,7 +350,8 @@ def read_urdf(path: str | Path) -> UrdfModel:
     root_link = next(link for link in links if link.name == root)
     if root_link.mass <= 0.0:
         raise UrdfError(f"{path.name}: the base link {root!r} needs a positive mass, got {root_link.mass} kg")
-    return UrdfModel(path, robot.get("name") or path.stem, links, joints, root, tree)
+    _resolve_meshes(robot, path, packages)
+    return UrdfModel(path, robot.get("name") or path.stem.removesuffix(".urdf"), links, joints, root, tree)
 
 
 def dart_urdf_text(model: UrdfModel, locked: dict[str, float]) -> str:

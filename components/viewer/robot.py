@@ -2,7 +2,11 @@
 
 ``read_geometry(path)`` reads the URDF with the parser the dynamics uses
 (:func:`components.robots.urdf.read_urdf`: same checks, same link and joint layout) and adds
-the links' ``<visual>`` elements (box, cylinder, sphere, mesh) with their colours.
+the links' ``<visual>`` elements (box, cylinder, sphere, mesh) with their colours, and their
+``<collision>`` shapes (drawn instead of a visual mesh that cannot be read). Mesh file names are
+those the parser resolved (``package://`` included): absolute paths of files that exist.
+``mesh_arrays`` reads any mesh trimesh reads (``.dae`` through pycollada, ``.obj``, ``.stl``, ``.glb``,
+``.ply`` ...) into vertex and triangle arrays for Rerun.
 ``Kinematics`` turns recorded base poses and joint positions into the pose of every link, for a
 whole batch of rows at once: the base is a free flyer (``position`` = base link origin in W,
 ``orientation`` = q_W_base [x, y, z, w]) and ``q`` follows the movable joints in URDF file order,
@@ -45,6 +49,8 @@ class Geometry:
     coms: np.ndarray                         # (n_links, 3), m, link frame
     joints: list[str]                        # movable joints, file order (layout of q and tau)
     visuals: list[Visual] = field(default_factory=list)
+    collisions: list[Visual] = field(default_factory=list)
+    text: str = ""                           # the URDF as parsed (xacro expanded, mesh paths absolute)
 
 
 def _floats(text: str | None, n: int, default: tuple[float, ...]) -> tuple[float, ...]:
@@ -64,53 +70,71 @@ def _color(element: ET.Element | None) -> tuple[int, int, int, int] | None:
     return tuple(int(round(255 * min(max(c, 0.0), 1.0))) for c in (r, g, b, a))
 
 
-def _mesh_path(filename: str, urdf_dir: Path) -> Path | None:
-    """A mesh file: ``package://pkg/rest`` and ``file://`` forms are looked up next to the URDF."""
-    name = filename
-    for prefix in ("file://", "package://"):
-        if name.startswith(prefix):
-            name = name[len(prefix):]
-    candidates = [Path(name)] if Path(name).is_absolute() else []
-    parts = Path(name).parts
-    for start in range(len(parts)):
-        candidates += [urdf_dir / Path(*parts[start:]), urdf_dir.parent / Path(*parts[start:])]
-    return next((c for c in candidates if c.is_file()), None)
+def mesh_arrays(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """Vertices (n, 3), triangles (m, 3), vertex normals (n, 3) and vertex colours (n, 4, uint8;
+    None when the file has none) of a mesh file, every part of a scene merged (trimesh; COLLADA
+    through pycollada). Raises whatever trimesh raises for a file it cannot read."""
+    import trimesh
+
+    mesh = trimesh.load(str(path), force="mesh")
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise ValueError(f"{path.name}: no triangles")
+    colors = None
+    try:
+        if mesh.visual is not None and mesh.visual.kind is not None:
+            colors = np.asarray(mesh.visual.to_color().vertex_colors, dtype=np.uint8)
+            if colors.shape != (len(mesh.vertices), 4):
+                colors = None
+    except Exception:   # a texture trimesh cannot bake into colours: the URDF's colour instead
+        colors = None
+    return (np.asarray(mesh.vertices, dtype=np.float32), np.asarray(mesh.faces, dtype=np.uint32),
+            np.asarray(mesh.vertex_normals, dtype=np.float32), colors)
 
 
-def read_geometry(path: str | Path) -> Geometry:
-    """Links, CoMs, movable joints (from :func:`read_urdf`) and visuals of a URDF; ValueError
-    (``UrdfError``) naming the file when it is missing or broken."""
-    model = read_urdf(path)
+def _shape(name: str, element: ET.Element, color) -> Visual | None:
+    origin = element.find("origin")
+    xyz = _floats(origin.get("xyz") if origin is not None else None, 3, (0.0, 0.0, 0.0))
+    rpy = _floats(origin.get("rpy") if origin is not None else None, 3, (0.0, 0.0, 0.0))
+    geometry = element.find("geometry")
+    shape = geometry[0] if geometry is not None and len(geometry) else None
+    if shape is None:
+        return None
+    if shape.tag == "box":
+        return Visual(name, "box", _floats(shape.get("size"), 3, (0.1, 0.1, 0.1)), xyz, rpy, color)
+    if shape.tag == "cylinder":
+        return Visual(name, "cylinder", (float(shape.get("radius", 0.05)), float(shape.get("length", 0.1))), xyz, rpy, color)
+    if shape.tag == "sphere":
+        return Visual(name, "sphere", (float(shape.get("radius", 0.05)),), xyz, rpy, color)
+    if shape.tag == "mesh" and shape.get("filename"):
+        mesh = Path(shape.get("filename"))      # resolved by read_urdf: an absolute path that exists
+        return Visual(name, "mesh", _floats(shape.get("scale"), 3, (1.0, 1.0, 1.0)), xyz, rpy, color,
+                      mesh if mesh.is_file() else None)
+    return None
+
+
+def read_geometry(path: str | Path, packages=None) -> Geometry:
+    """Links, CoMs, movable joints (from :func:`read_urdf`), visuals and collision shapes of a
+    URDF (or .xacro); ValueError (``UrdfError``) naming the file when it is missing or broken.
+    ``packages``: ``run.packages`` (name -> directory) for ``package://`` URIs."""
+    model = read_urdf(path, packages)
     root = model.tree.getroot()
     materials = {m.get("name"): _color(m) for m in root.findall("material")}
-    visuals = []
+    visuals, collisions = [], []
     for link in root.findall("link"):
         name = link.get("name")
+        for collision in link.findall("collision"):
+            shape = _shape(name, collision, DEFAULT_COLOR)
+            if shape is not None:
+                collisions.append(shape)
         for visual in link.findall("visual"):
-            origin = visual.find("origin")
-            xyz = _floats(origin.get("xyz") if origin is not None else None, 3, (0.0, 0.0, 0.0))
-            rpy = _floats(origin.get("rpy") if origin is not None else None, 3, (0.0, 0.0, 0.0))
             material = visual.find("material")
             color = _color(material) or (materials.get(material.get("name")) if material is not None else None)
-            color = color or DEFAULT_COLOR
-            geometry = visual.find("geometry")
-            shape = geometry[0] if geometry is not None and len(geometry) else None
-            if shape is None:
-                continue
-            if shape.tag == "box":
-                visuals.append(Visual(name, "box", _floats(shape.get("size"), 3, (0.1, 0.1, 0.1)), xyz, rpy, color))
-            elif shape.tag == "cylinder":
-                size = (float(shape.get("radius", 0.05)), float(shape.get("length", 0.1)))
-                visuals.append(Visual(name, "cylinder", size, xyz, rpy, color))
-            elif shape.tag == "sphere":
-                visuals.append(Visual(name, "sphere", (float(shape.get("radius", 0.05)),), xyz, rpy, color))
-            elif shape.tag == "mesh" and shape.get("filename"):
-                scale = _floats(shape.get("scale"), 3, (1.0, 1.0, 1.0))
-                visuals.append(Visual(name, "mesh", scale, xyz, rpy, color,
-                                      _mesh_path(shape.get("filename"), model.path.parent)))
+            shape = _shape(name, visual, color or DEFAULT_COLOR)
+            if shape is not None:
+                visuals.append(shape)
     return Geometry(path=model.path, name=model.name, links=model.link_names,
                     coms=np.array([link.com for link in model.links], dtype=float).reshape(-1, 3),
-                    joints=model.movable_joints, visuals=visuals)
+                    joints=model.movable_joints, visuals=visuals, collisions=collisions, text=model.text)
 
 
 def normalized_quaternions(q: np.ndarray) -> np.ndarray:
@@ -131,7 +155,10 @@ class Kinematics:
 
         self._pin = pin
         self.geometry = geometry
-        self.model = pin.buildModelFromUrdf(str(geometry.path), pin.JointModelFreeFlyer())
+        if geometry.text:     # as parsed: xacro expanded, package URIs resolved
+            self.model = pin.buildModelFromXML(geometry.text, pin.JointModelFreeFlyer())
+        else:
+            self.model = pin.buildModelFromUrdf(str(geometry.path), pin.JointModelFreeFlyer())
         self.data = self.model.createData()
         self.frames = [self.model.getFrameId(link, pin.FrameType.BODY) for link in geometry.links]
         # where each URDF movable joint sits in Pinocchio's configuration vector (nq 2: cos, sin)

@@ -29,6 +29,7 @@ Entities (SI units; W = the dynamics world frame, ECI = GCRF axes):
 """
 from __future__ import annotations
 
+import dataclasses
 import re
 import sys
 from dataclasses import dataclass, field
@@ -41,7 +42,7 @@ from components.constants import R_EARTH
 from components.errors import ConfigError
 from components.robots.model import body_items, resolve_urdf
 from components.rotations import matrix_to_quat, rpy_to_matrix
-from components.viewer.robot import Geometry, Kinematics, normalized_quaternions, read_geometry
+from components.viewer.robot import Geometry, Kinematics, mesh_arrays, normalized_quaternions, read_geometry
 
 TIMELINE = "sim_time"
 STEP_TIMELINE = "step"
@@ -184,6 +185,10 @@ class SceneLogger:
         self.columns = list(columns)
         self.config = config or {}
         self.config_dir = Path(config_dir) if config_dir else None
+        # run.packages as the run resolved them: relative to the config's directory
+        packages = (self.config.get("run") or {}).get("packages") or {}
+        self.packages = {str(k): str((self.config_dir or Path(".")) / str(v)) for k, v in packages.items()} \
+            if isinstance(packages, dict) else {}
         self.rec = recording
         self.warn = warn or (lambda message: print(f"viewer: {message}", file=sys.stderr, flush=True))
         self.variables = parse_columns(self.columns)
@@ -244,13 +249,13 @@ class SceneLogger:
         for name, spec in items:
             geometry = kinematics = None
             try:
-                urdf = resolve_urdf(spec["urdf"], self.config_dir, f"bodies.{name}.urdf")
+                urdf = resolve_urdf(spec["urdf"], self.config_dir, f"bodies.{name}.urdf", self.packages)
             except ConfigError as e:
                 urdf = None
                 self.warn(f"{dynamics}.{name}: {e.message}; the robot is not drawn")
             if urdf is not None:
                 try:
-                    geometry = read_geometry(urdf)
+                    geometry = read_geometry(urdf, self.packages)
                     kinematics = Kinematics(geometry)
                 except Exception as e:  # a URDF Pinocchio cannot load: the plots still work
                     self.warn(f"{dynamics}.{name}: cannot build the kinematics of {urdf} ({e}); the robot is not drawn")
@@ -513,16 +518,57 @@ class SceneLogger:
             elif visual.kind == "sphere":
                 self._log(path, rr.Ellipsoids3D(half_sizes=[[visual.size[0]] * 3], **common), static=True)
             elif visual.kind == "mesh":
-                if visual.mesh is None or visual.mesh.suffix.lower() not in (".stl", ".obj", ".glb", ".gltf"):
-                    self.warn(f"{body.name}: mesh of link {visual.link} not found or not supported; not drawn")
+                problem = self._log_mesh(path, visual, quaternion)
+                if problem is None:
                     continue
-                self._log(path, rr.Transform3D(translation=visual.xyz, quaternion=quaternion, scale=visual.size),
-                          rr.Asset3D(path=visual.mesh), static=True)
+                fallback = [c for c in body.geometry.collisions if c.link == visual.link]
+                drawn = 0
+                for i, shape in enumerate(fallback):
+                    q = matrix_to_quat(rpy_to_matrix(shape.rpy))
+                    where = f"{path}_collision_{i}"
+                    style = dict(centers=[shape.xyz], quaternions=[q], colors=[visual.color], fill_mode="solid")
+                    if shape.kind == "box":
+                        self._log(where, rr.Boxes3D(half_sizes=[np.array(shape.size) / 2], **style), static=True)
+                    elif shape.kind == "cylinder":
+                        self._log(where, rr.Cylinders3D(radii=[shape.size[0]], lengths=[shape.size[1]], **style), static=True)
+                    elif shape.kind == "sphere":
+                        self._log(where, rr.Ellipsoids3D(half_sizes=[[shape.size[0]] * 3], **style), static=True)
+                    elif shape.kind == "mesh" and self._log_mesh(where, dataclasses.replace(shape, color=visual.color),
+                                                                 q) is not None:
+                        continue
+                    drawn += 1
+                if drawn:
+                    self.warn(f"{body.name}: visual mesh of link {visual.link} cannot be drawn ({problem}); "
+                              f"drawn from its collision geometry instead")
+                else:
+                    self.warn(f"{body.name}: visual mesh of link {visual.link} cannot be drawn ({problem}) and the link "
+                              f"has no collision geometry that can; not drawn")
         if body.com is not None:
             self._log(f"{body.base}/com", rr.Points3D.from_fields(colors=[(255, 230, 0)], radii=[-4.0]), static=True)
         for key, index in body.fields.items():
             color, _ = VECTOR_FIELDS[key]
             self._log(f"{body.base}/{key}", rr.Arrows3D.from_fields(colors=[color], radii=[-1.5]), static=True)
+
+    def _log_mesh(self, path: str, visual, quaternion) -> str | None:
+        """A mesh visual at ``path``: .stl/.obj/.glb/.gltf as Rerun reads them, anything else (.dae
+        ...) converted with trimesh into a Mesh3D; None when drawn, else why not."""
+        import rerun as rr
+
+        if visual.mesh is None:
+            return "file not found"
+        transform = rr.Transform3D(translation=visual.xyz, quaternion=quaternion, scale=visual.size)
+        if visual.mesh.suffix.lower() in (".stl", ".obj", ".glb", ".gltf"):
+            self._log(path, transform, rr.Asset3D(path=visual.mesh), static=True)
+            return None
+        try:
+            vertices, triangles, normals, colors = mesh_arrays(visual.mesh)
+        except Exception as e:   # trimesh's and pycollada's own exceptions for a file they cannot read
+            return f"{visual.mesh.name}: {type(e).__name__}: {e}"
+        if colors is None:
+            colors = np.tile(np.array(visual.color, dtype=np.uint8), (len(vertices), 1))
+        self._log(path, transform, rr.Mesh3D(vertex_positions=vertices, triangle_indices=triangles,
+                                             vertex_normals=normals, vertex_colors=colors), static=True)
+        return None
 
     def _log_grasp_static(self, g: _Grasp) -> None:
         """E and G axes (children of their links), the E-G line's style, the grasp plots' series."""

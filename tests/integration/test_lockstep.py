@@ -128,7 +128,7 @@ def test_user_component_from_the_readme(tmp_path):
 
 
 FAULTY = """
-run: {{name: faulty, epoch: 2022-09-18T12:00:00Z, duration: 10 s, step: 10 ms, step_timeout: 2 s}}
+run: {{name: faulty, epoch: 2022-09-18T12:00:00Z, duration: 10 s, step: 10 ms, step_timeout: 5 s}}
 components:
   counter: {{type: test.counter}}
   bad: {{type: test.faulty, parameters: {{fault: {fault}, at_step: 50}}}}
@@ -139,12 +139,12 @@ components:
     ("raise", "component 'bad' (test.faulty) failed in step 50 (t = 0.5 s): RuntimeError: deliberate failure"),
     ("kill", "component 'bad' (test.faulty) died at step "),
     ("exit", "component 'bad' (test.faulty) died at step "),
-    ("hang", "component 'bad' did not answer step 50 within 2 s"),
+    ("hang", "component 'bad' did not answer step 50 within 5 s"),
     ("nan", "component 'bad' produced a non-finite value in output 'y' at step 50"),
 ])
 def test_a_failing_component_stops_the_run_with_exit_1(write_config, tmp_path, fault, message):
     config = write_config(FAULTY.format(fault=fault))
-    result = orchestrator("run", config, "--record", tmp_path / "rec", timeout=60)
+    result = orchestrator("run", config, "--record", tmp_path / "rec", timeout=120)
     assert result.returncode == 1
     assert message in result.stderr, result.stderr
     assert "Traceback" not in result.stderr

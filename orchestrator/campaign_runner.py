@@ -1,0 +1,608 @@
+"""Running a campaign (``orchestrator sweep``): its cases in parallel on this machine, or on a
+dask.distributed cluster, into ``DIR``:
+
+| path | what |
+|---|---|
+| ``campaign.yaml`` | the campaign as given |
+| ``campaign.json`` | its fingerprint (``--resume`` refuses another campaign), keys, metrics, case count |
+| ``cases/NNNN.yaml`` | case NNNN's config: runs by itself with ``orchestrator run`` |
+| ``cases/NNNN/`` | its recording, as ``keep`` says |
+| ``cases/NNNN.json`` | its result, once it completed or failed (``--resume`` skips it) |
+| ``cases.parquet`` | one row per case: case, status, error, parameters, metrics, wall_time, attempts, host, recording |
+
+Every case is one ``orchestrator run`` process of its own (own run id, own bus on a free port,
+own component processes), started with the case's config file, so a case's numbers are those of
+a plain ``orchestrator run`` of that file, wherever it runs.
+"""
+from __future__ import annotations
+
+import concurrent.futures as futures
+import io
+import json
+import math
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tarfile
+import tempfile
+import threading
+import time
+import uuid
+from pathlib import Path
+
+import numpy as np
+
+from orchestrator.sweep import Campaign, Metric, case_yaml, si_value
+
+STOP_GRACE_S = 20.0      # a stopped case's run gets this long to stop cleanly before it is killed
+FIXED_COLUMNS = ("case", "status", "error")
+TAIL_COLUMNS = ("wall_time", "attempts", "host", "recording")
+
+
+class CampaignError(Exception):
+    """The campaign cannot run (DIR in use by another campaign, the cluster unreachable...)."""
+
+
+# ---------------------------------------------------------------- one case (here or on a worker)
+
+
+def _libc_prctl():
+    try:
+        import ctypes
+        return ctypes.CDLL("libc.so.6", use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+
+
+_PRCTL = _libc_prctl()   # resolved here, not in the forked child (which must not import or load anything)
+
+
+def _die_with_parent() -> None:
+    """In the child: SIGTERM if the process that started it dies (a Dask worker killed outright)."""
+    if _PRCTL is not None:
+        _PRCTL(1, signal.SIGTERM)   # PR_SET_PDEATHSIG
+
+
+def _affinity(cpus):
+    def setup():
+        _die_with_parent()
+        if cpus:
+            try:
+                os.sched_setaffinity(0, cpus)
+            except OSError:
+                pass
+    return setup
+
+
+def metric_values(recording: Path, metrics: list[Metric]) -> dict[str, float]:
+    """Each metric of a recording (NaN for all when it has no rows)."""
+    import pyarrow.parquet as pq
+
+    if not metrics:
+        return {}
+    columns = sorted({"time", *(c for m in metrics for c in m.columns)})
+    table = pq.read_table(recording / "signals.parquet", columns=columns)
+    data = {name: table.column(name).to_numpy() for name in table.column_names}
+    t = data["time"]
+    return {m.name: m.value(t, data) for m in metrics}
+
+
+def execute_case(index: int, config_file: Path, record_dir: Path, metrics: list[Metric], keep: str,
+                 stop: threading.Event | None = None, cpus=None, stopped=None) -> dict:
+    """Run one case as ``orchestrator run CONFIG --record DIR``; its result: status (completed,
+    failed, interrupted), error, metrics, wall_time, host. ``stop`` set: the run is stopped
+    cleanly (SIGINT), then killed after STOP_GRACE_S. The recording is removed unless ``keep``
+    wants it."""
+    if record_dir.exists():
+        shutil.rmtree(record_dir)
+    record_dir.parent.mkdir(parents=True, exist_ok=True)
+    command = [sys.executable, "-m", "orchestrator.cli", "run", str(config_file), "--record", str(record_dir)]
+    start = time.perf_counter()
+    process = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                               start_new_session=True, preexec_fn=_affinity(cpus))
+    chunks: list[bytes] = []
+    reader = threading.Thread(target=lambda: chunks.extend(iter(lambda: process.stderr.read(4096), b"")), daemon=True)
+    reader.start()
+    interrupted = False
+    while True:
+        try:
+            rc = process.wait(timeout=0.2)
+            break
+        except subprocess.TimeoutExpired:
+            pass
+        if (stop is not None and stop.is_set()) or (stopped is not None and stopped()):
+            interrupted = True
+            _stop(process)
+    reader.join(timeout=5)
+    wall = time.perf_counter() - start
+    stderr = b"".join(chunks).decode(errors="replace")
+    if rc == 0 and not interrupted:
+        status, error = "completed", ""
+    elif interrupted or rc == 130:
+        status, error = "interrupted", "stopped (Ctrl-C)"
+    else:
+        lines = [ln.strip() for ln in stderr.splitlines() if ln.strip().startswith("error:")]
+        error = lines[0][len("error:"):].strip() if lines else (
+            f"killed by signal {-rc}" if rc < 0 else f"exit code {rc}: {stderr.strip().splitlines()[-1:] or ''}")
+        status = "failed"
+    values = {m.name: math.nan for m in metrics}
+    if status == "completed":
+        try:
+            values = metric_values(record_dir, metrics)
+        except Exception as e:   # an unreadable recording: the case failed, the campaign goes on
+            status, error = "failed", f"metrics: {type(e).__name__}: {e}"
+    kept = status != "interrupted" and (keep == "all" or (keep == "failed" and status == "failed"))
+    if not kept and record_dir.exists():
+        shutil.rmtree(record_dir, ignore_errors=True)
+    return {"case": index, "status": status, "error": error, "metrics": values, "wall_time": wall,
+            "host": socket.gethostname(), "kept": kept, "attempts": 1}
+
+
+def _stop(process: subprocess.Popen) -> None:
+    """SIGINT (the run stops cleanly and stops its components), then the whole group killed."""
+    try:
+        process.send_signal(signal.SIGINT)
+        process.wait(timeout=STOP_GRACE_S)
+    except subprocess.TimeoutExpired:
+        try:
+            os.killpg(process.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        process.wait()
+    except ProcessLookupError:
+        pass
+
+
+def remote_case(payload: dict) -> dict:
+    """A case on a Dask worker: its config written to a temporary directory, run there, the
+    recording shipped back (a tar.gz in ``files``) when ``keep`` wants it."""
+    stop_event = None
+    try:
+        from distributed import Event, get_worker
+        worker = get_worker().address
+        stop_event = Event(payload["stop_event"])
+    except Exception:   # run outside a worker (tests): no stop event
+        worker = "local"
+    work = Path(tempfile.mkdtemp(prefix=f"zenorbit-case{payload['case']}-"))
+    last_check = [0.0, False]
+
+    def stopped() -> bool:
+        if stop_event is None:
+            return False
+        now = time.monotonic()
+        if now - last_check[0] > 1.0:
+            last_check[0] = now
+            try:
+                last_check[1] = bool(stop_event.is_set())
+            except Exception:
+                pass
+        return last_check[1]
+
+    try:
+        config_file = work / f"{payload['case']:04d}.yaml"
+        config_file.write_text(payload["config"])
+        record = work / f"{payload['case']:04d}"
+        result = execute_case(payload["case"], config_file, record, payload["metrics"], payload["keep"],
+                              stopped=stopped)
+        if result["kept"] and record.exists():
+            buffer = io.BytesIO()
+            with tarfile.open(fileobj=buffer, mode="w:gz") as tar:
+                tar.add(record, arcname=".")
+            result["files"] = buffer.getvalue()
+        result["host"] = f"{result['host']} ({worker})"
+        return result
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+# ---------------------------------------------------------------- the campaign directory
+
+
+class CampaignDir:
+    def __init__(self, out: Path, campaign: Campaign):
+        self.out, self.campaign = out, campaign
+        self.cases = out / "cases"
+
+    def config_file(self, index: int) -> Path:
+        return self.cases / f"{index:04d}.yaml"
+
+    def record_dir(self, index: int) -> Path:
+        return self.cases / f"{index:04d}"
+
+    def result_file(self, index: int) -> Path:
+        return self.cases / f"{index:04d}.json"
+
+    def prepare(self, resume: bool, only: list[int] | None) -> None:
+        """Claim DIR: new or empty; the same campaign with --resume or --only; else CampaignError."""
+        meta = self.out / "campaign.json"
+        fingerprint = self.campaign.fingerprint()
+        if self.out.exists() and not self.out.is_dir():
+            raise CampaignError(f"--out {self.out}: exists and is not a directory")
+        if self.out.is_dir() and any(self.out.iterdir()):
+            if not meta.exists():
+                raise CampaignError(f"--out {self.out}: the directory is in use and holds no campaign; "
+                                    f"give a new or empty directory")
+            stored = json.loads(meta.read_text())
+            if stored.get("fingerprint") != fingerprint:
+                raise CampaignError(f"--out {self.out}: holds another campaign (or this one changed since); "
+                                    f"give a new directory")
+            if not resume and only is None:
+                raise CampaignError(f"--out {self.out}: holds this campaign already: --resume finishes it, "
+                                    f"--only N reruns a case")
+        elif resume:
+            raise CampaignError(f"--resume: {self.out} holds no campaign to resume")
+        self.cases.mkdir(parents=True, exist_ok=True)
+        if self.campaign.path.exists():
+            shutil.copyfile(self.campaign.path, self.out / "campaign.yaml")
+        c = self.campaign
+        meta.write_text(json.dumps({
+            "fingerprint": fingerprint, "campaign": str(c.path.resolve()), "cases": c.count,
+            "grid": list(c.grid), "dispersed": [d.key for d in c.dispersions],
+            "metrics": {m.name: {"signal": m.signal, "reduce": m.reduce} for m in c.metrics}, "keep": c.keep},
+            indent=2))
+
+    def done(self, index: int) -> dict | None:
+        path = self.result_file(index)
+        try:
+            return json.loads(path.read_text()) if path.exists() else None
+        except ValueError:
+            return None
+
+    def store(self, result: dict) -> None:
+        """A finished case's result, written atomically (a resume trusts it)."""
+        files = result.pop("files", None)
+        index = result["case"]
+        if files is not None:
+            target = self.record_dir(index)
+            shutil.rmtree(target, ignore_errors=True)
+            target.mkdir(parents=True)
+            with tarfile.open(fileobj=io.BytesIO(files), mode="r:gz") as tar:
+                tar.extractall(target, filter="data")
+        record = f"cases/{index:04d}" if result.get("kept") and self.record_dir(index).exists() else ""
+        result["recording"] = record
+        if result["status"] == "interrupted":
+            return
+        path = self.result_file(index)
+        tmp = path.with_suffix(".json.tmp")
+        tmp.write_text(json.dumps(result, default=float))
+        os.replace(tmp, path)
+
+    def table(self, indexes: list[int], pending_status: str = "interrupted"):
+        """cases.parquet's rows for these cases: results on disk; the others ``pending_status``."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        c = self.campaign
+        rows = []
+        for index in indexes:
+            params = c.case(index).params
+            result = self.done(index) or {"case": index, "status": pending_status, "error": "", "metrics": {},
+                                          "wall_time": math.nan, "attempts": 0, "host": "", "recording": ""}
+            row = {"case": index, "status": result["status"], "error": result.get("error", "")}
+            row.update({k: params[k] for k in c.keys})
+            row.update({m.name: float(result["metrics"].get(m.name, math.nan)) for m in c.metrics})
+            row.update({"wall_time": float(result["wall_time"]), "attempts": int(result.get("attempts", 1)),
+                        "host": result.get("host", ""), "recording": result.get("recording", "")})
+            rows.append(row)
+        columns = {}
+        for name in [*FIXED_COLUMNS, *c.keys, *(m.name for m in c.metrics), *TAIL_COLUMNS]:
+            values = [r[name] for r in rows]
+            if name in c.keys:
+                converted = [si_value(v) for v in values]
+                values = converted if all(isinstance(v, float) for v in converted) else \
+                    [v if isinstance(v, str) else json.dumps(v) for v in values]
+            columns[name] = values
+        schema_types = {"case": pa.int64(), "attempts": pa.int64(), "wall_time": pa.float64()}
+        arrays = {n: pa.array(v, type=schema_types.get(n)) for n, v in columns.items()}
+        table = pa.table(arrays)
+        tmp = self.out / ".cases.parquet.tmp"
+        pq.write_table(table, tmp)
+        os.replace(tmp, self.out / "cases.parquet")
+        return rows
+
+
+# ---------------------------------------------------------------- the pools
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+class Progress:
+    """The progress line on a terminal: cases done, completed and failed, running, rate, time left."""
+
+    def __init__(self, total: int, out, tty: bool, running: str = "running"):
+        self.total, self.out, self.tty, self.label = total, out, tty, running
+        self.counts = {"completed": 0, "failed": 0, "interrupted": 0}
+        self.start = time.perf_counter()
+        self.last = 0.0
+        self.running = 0
+
+    def add(self, status: str) -> None:
+        self.counts[status] = self.counts.get(status, 0) + 1
+        self.show()
+
+    def show(self, force: bool = False) -> None:
+        if not self.tty:
+            return
+        now = time.perf_counter()
+        if not force and now - self.last < 0.3:
+            return
+        self.last = now
+        done = self.counts["completed"] + self.counts["failed"]
+        elapsed = now - self.start
+        rate = done / elapsed * 60 if elapsed > 0 else 0.0
+        eta = (self.total - done) / (done / elapsed) if done else math.nan
+        print(f"\r  {done}/{self.total} cases ({self.counts['completed']} completed, {self.counts['failed']} failed)"
+              f", {self.running} {self.label}, {rate:.1f} cases/min" + (f", about {eta:.0f} s left" if done else "")
+              + "   ", end="", file=self.out, flush=True)
+
+    def end(self) -> None:
+        if self.tty:
+            print(file=self.out, flush=True)
+
+
+def _slots(jobs: int, dedicated: bool) -> list:
+    """CPU sets for the parallel cases: when the config asks for a ``dedicated_cpu``, disjoint ones
+    (so that one case's dedicated CPU is not another's: with two or more CPUs a case pins its
+    component within its own set, with one it runs unpinned there); else none (the OS shares them)."""
+    cpus = sorted(os.sched_getaffinity(0))
+    if jobs < 2 or not dedicated or len(cpus) < jobs:
+        return [None] * jobs
+    per = len(cpus) // jobs
+    return [frozenset(cpus[i * per:(i + 1) * per]) for i in range(jobs)]
+
+
+def _dedicated(campaign: Campaign, todo: list[int]) -> int:
+    """How many components of a case ask for a CPU of their own (dedicated_cpu)."""
+    if not todo:
+        return 0
+    components = campaign.case(todo[0]).raw.get("components") or {}
+    return sum(1 for c in components.values() if isinstance(c, dict) and c.get("dedicated_cpu") is True)
+
+
+def default_jobs(campaign: Campaign, todo: list[int]) -> int:
+    """Cases at once by default: one per CPU; for a config with dedicated_cpu components, as many
+    as can each have those CPUs plus one to share (the demo on 2 CPUs: one at a time)."""
+    cpus = len(os.sched_getaffinity(0))
+    return max(1, cpus // (1 + _dedicated(campaign, todo)) if _dedicated(campaign, todo) else cpus)
+
+
+def run_local(directory: CampaignDir, todo: list[int], jobs: int, progress: Progress) -> bool:
+    """The cases on this machine, ``jobs`` at a time; False when interrupted (Ctrl-C)."""
+    campaign = directory.campaign
+    stop = threading.Event()
+    slots = _slots(jobs, _dedicated(campaign, todo) > 0)
+    free = list(range(jobs))
+    lock = threading.Lock()
+
+    def one(index: int) -> dict:
+        with lock:
+            slot = free.pop()
+        try:
+            if stop.is_set():
+                return {"case": index, "status": "interrupted"}
+            return execute_case(index, directory.config_file(index), directory.record_dir(index), campaign.metrics,
+                                campaign.keep, stop=stop, cpus=slots[slot])
+        finally:
+            with lock:
+                free.append(slot)
+
+    pool = futures.ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="case")
+    pending = {pool.submit(one, i): i for i in todo}
+    completed = True
+    try:
+        while pending:
+            done, _ = futures.wait(pending, timeout=0.3, return_when=futures.FIRST_COMPLETED)
+            progress.running = min(jobs, len(pending) - len(done))
+            for future in done:
+                pending.pop(future)
+                result = future.result()
+                if result["status"] != "interrupted":
+                    directory.store(result)
+                    progress.add(result["status"])
+            progress.show()
+    except KeyboardInterrupt:
+        completed = False
+        stop.set()
+        for future in pending:
+            future.cancel()
+        _ignore_interrupts(lambda: _finish(pending, directory))
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+    return completed
+
+
+def _ignore_interrupts(action) -> None:
+    """Run ``action`` with a second Ctrl-C ignored: the clean-up has bounded waits of its own."""
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        action()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _finish(pending: dict, directory: CampaignDir) -> None:
+    """After a stop: store what finished anyway (a case that completed as the stop came)."""
+    for future in pending:
+        if future.cancelled():
+            continue
+        try:
+            result = future.result(timeout=STOP_GRACE_S + 10)
+        except Exception:
+            continue
+        if result["status"] != "interrupted":
+            directory.store(result)
+
+
+def run_dask(directory: CampaignDir, todo: list[int], address: str, retries: int, progress: Progress) -> bool:
+    """The cases on a dask.distributed scheduler at ``address``; False when interrupted."""
+    from distributed import Client, Event, as_completed
+
+    campaign = directory.campaign
+    try:
+        client = Client(address, timeout="15s")
+    except (OSError, TimeoutError) as e:
+        raise CampaignError(f"--cluster {address}: cannot reach the scheduler ({e})") from None
+    token = uuid.uuid4().hex[:8]
+    stop_name = f"zenorbit-stop-{token}"
+    stop = Event(stop_name, client=client)
+    keys = {}
+    try:
+        submitted = []
+        for index in todo:
+            payload = {"case": index, "config": directory.config_file(index).read_text(),
+                       "metrics": campaign.metrics, "keep": campaign.keep, "stop_event": stop_name}
+            key = f"zenorbit-case-{campaign.fingerprint()}-{index:04d}-{token}"
+            future = client.submit(remote_case, payload, key=key, retries=retries, pure=False)
+            keys[future.key] = index
+            submitted.append(future)
+        completed = True
+        pending = set(submitted)
+        try:
+            for future in as_completed(submitted):
+                pending.discard(future)
+                index = keys[future.key]
+                try:
+                    result = future.result()
+                except Exception as e:   # the task raised on every try, or its workers kept dying
+                    result = {"case": index, "status": "failed", "error": f"dask: {type(e).__name__}: {e}",
+                              "metrics": {m.name: math.nan for m in campaign.metrics}, "wall_time": math.nan,
+                              "host": "", "kept": False, "attempts": retries + 1}
+                result["attempts"] = max(result.get("attempts", 1), _attempts(client, future.key))
+                if result["status"] != "interrupted":
+                    directory.store(result)
+                    progress.add(result["status"])
+                progress.running = sum(1 for f in pending if f.status == "pending")
+                progress.show()
+        except KeyboardInterrupt:
+            completed = False
+
+            def wind_down():
+                stop.set()
+                queued = [f for f in pending if keys[f.key] not in _processing(client)]
+                client.cancel(queued)
+                deadline = time.monotonic() + STOP_GRACE_S + 10
+                for future in pending:
+                    if future in queued:
+                        continue
+                    try:
+                        result = future.result(timeout=max(deadline - time.monotonic(), 0.1))
+                    except Exception:
+                        continue
+                    if result["status"] != "interrupted":
+                        directory.store(result)
+                client.cancel(list(pending))
+            _ignore_interrupts(wind_down)
+        return completed
+    finally:
+        client.close()
+
+
+def _processing(client) -> set[int]:
+    try:
+        keys = {k for ks in client.processing().values() for k in ks}
+    except Exception:
+        return set()
+    return {int(str(k).rsplit("-", 2)[-2]) for k in keys if str(k).startswith("zenorbit-case-")}
+
+
+def _attempts(client, key: str) -> int:
+    """How many times the scheduler started the task (a worker that died while running it: one more)."""
+    try:
+        story = client.story(key)
+    except Exception:
+        return 1
+    starts = 0
+    for entry in story:   # the scheduler's transitions: (origin, key, start, finish, ...)
+        fields = entry if isinstance(entry, (tuple, list)) else ()
+        if len(fields) >= 4 and fields[0] == "scheduler" and fields[1] == key and fields[3] == "processing":
+            starts += 1
+    return max(starts, 1)
+
+
+# ---------------------------------------------------------------- the whole sweep
+
+
+def summary(rows: list[dict], campaign: Campaign, wall: float, out, ran: int | None = None) -> None:
+    """What the campaign gave: counts, each metric's spread over the completed cases, the failures."""
+    statuses: dict[str, int] = {}
+    for row in rows:
+        statuses[row["status"]] = statuses.get(row["status"], 0) + 1
+    counts = ", ".join(f"{n} {s}" for s, n in statuses.items())
+    finished = statuses.get("completed", 0) + statuses.get("failed", 0) if ran is None else ran
+    print(f"campaign: {len(rows)} cases: {counts}; {wall:.1f} s wall"
+          + (f", {finished / wall * 60:.1f} cases/min" if wall > 0 and finished else ""), file=out)
+    ok = [r for r in rows if r["status"] == "completed"]
+    if campaign.metrics and ok:
+        print(f"  {'metric':<24}{'mean':>13}{'std':>13}{'min':>13}{'max':>13}", file=out)
+        for m in campaign.metrics:
+            values = np.array([r[m.name] for r in ok], dtype=float)
+            finite = values[np.isfinite(values)]
+            if not len(finite):
+                print(f"  {m.name:<24}{'(no finite value)':>13}", file=out)
+                continue
+            print(f"  {m.name:<24}{np.mean(finite):>13.6g}{np.std(finite):>13.6g}{np.min(finite):>13.6g}"
+                  f"{np.max(finite):>13.6g}" + (f"   ({len(values) - len(finite)} NaN)" if len(finite) < len(values)
+                                                 else ""), file=out)
+    failed = [r for r in rows if r["status"] == "failed"]
+    for r in failed[:10]:
+        print(f"  case {r['case']} failed: {r['error']}", file=out)
+    if len(failed) > 10:
+        print(f"  ... and {len(failed) - 10} more failed cases (cases.parquet)", file=out)
+    retried = [r for r in rows if r.get("attempts", 1) > 1]
+    if retried:
+        listed = ", ".join(f"case {r['case']} ({r['attempts']} attempts)" for r in retried[:10])
+        print(f"  retried: {listed}", file=out)
+
+
+def sweep(campaign: Campaign, out: Path, *, jobs: int | None = None, cluster: str | None = None,
+          resume: bool = False, only: list[int] | None = None, retries: int = 2, stream=sys.stderr) -> int:
+    """Run a validated campaign into ``out``: 0 when every case in scope ran (completed or
+    failed), 130 when interrupted."""
+    directory = CampaignDir(out, campaign)
+    directory.prepare(resume, only)
+    scope = list(only) if only is not None else list(range(campaign.count))
+    for index in scope:   # each case's config beside its recording, written before any runs
+        path = directory.config_file(index)
+        text = case_yaml(campaign.case(index), campaign)
+        if not path.exists() or path.read_text() != text:
+            path.write_text(text)
+    if only is not None:
+        todo = scope
+        for index in todo:
+            directory.result_file(index).unlink(missing_ok=True)
+    else:
+        todo = [i for i in scope if directory.done(i) is None]
+    skipped = len(scope) - len(todo)
+    if skipped:
+        print(f"resuming: {skipped} of {len(scope)} cases already finished, {len(todo)} to run", file=stream)
+    jobs = jobs or default_jobs(campaign, todo)
+    where = f"on {cluster}" if cluster else f"{jobs} at a time"
+    print(f"campaign {campaign.path}: {len(todo)} cases {where}, into {out}", file=stream, flush=True)
+    progress = Progress(len(todo), stream, stream.isatty(), "queued or running" if cluster else "running")
+    start = time.perf_counter()
+    completed = True
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _interrupt) if main else None   # a SIGTERM (a batch system's stop) is a Ctrl-C
+    try:
+        if todo:
+            if cluster:
+                completed = run_dask(directory, todo, cluster, retries, progress)
+            else:
+                completed = run_local(directory, todo, jobs, progress)
+    finally:
+        if main:
+            signal.signal(signal.SIGTERM, previous)
+        progress.end()
+        rows_scope = scope if only is None else sorted(
+            set(scope) | {i for i in range(campaign.count) if directory.result_file(i).exists()})
+        rows = directory.table(rows_scope)
+    ran = sum(1 for i in todo if directory.done(i) is not None)
+    summary(rows, campaign, time.perf_counter() - start, stream, ran)
+    print(f"results in {out / 'cases.parquet'}" + ("" if completed else
+          f"; interrupted: orchestrator sweep {campaign.path} --out {out} --resume finishes it"), file=stream)
+    return 0 if completed else 130

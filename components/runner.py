@@ -73,6 +73,7 @@ class ComponentProcess:
         self.synced = False
         self.next_k = 0
         self.horizon = 0
+        self.halted = False   # a step failed: no further step, whatever horizon comes (the run ends or restarts)
         self.step_ns = 0
         self.ratio = 1
         self.faults: list[tuple[int, str, float]] = []   # (step, kind, seconds) to inject, in step order
@@ -235,7 +236,7 @@ class ComponentProcess:
 
     def advance(self) -> None:
         """Do every step whose inputs are all held and which lies below the horizon."""
-        while True:
+        while not self.halted:
             if self.next_k >= self.horizon:
                 self.flush()   # the orchestrator needs these outputs to grant more steps
                 return
@@ -321,7 +322,7 @@ class ComponentProcess:
 
     def _report(self, op: str, k: int, error: str) -> str:
         self.fault(op, k, error)
-        self.horizon = self.next_k   # no further step; the orchestrator ends the run
+        self.halted = True   # a horizon granted later must not run the failed step again
         return error
 
 

@@ -1,0 +1,81 @@
+"""A component process's step logic (components/runner.py ComponentProcess) without the bus: its
+three publish callbacks are lists, and the orchestrator's messages are handed to it directly."""
+from __future__ import annotations
+
+from components import bus
+from components.runner import ComponentProcess, Halt
+
+
+class Transport:
+    """What a ComponentProcess publishes: replies and faults, outputs, batches."""
+
+    def __init__(self):
+        self.replies, self.outputs, self.batches = [], [], []
+
+    def process(self, name: str) -> ComponentProcess:
+        return ComponentProcess(name, self.replies.append, lambda consumers, payload: self.outputs.append(payload),
+                                self.batches.append)
+
+    def faults(self) -> list[dict]:
+        return [bus.decode_message(p, bus.FAULT_FIELDS)[0] for p in self.replies if p[:1] == bus.FAULT]
+
+    def tags(self) -> list[int]:
+        return [t for b in self.batches for t in bus.decode_batch(b)[1].tolist()]
+
+
+def control(op: str, body: dict | None = None, blob: bytes = b"") -> bytes:
+    return bus.encode_message(bus.CONTROL, {"op": op, **(body or {})}, blob)
+
+
+def started(transport: Transport, params: dict) -> ComponentProcess:
+    """test.faulty instantiated, wired (no inputs), initialized and started with horizon 0."""
+    p = transport.process("f")
+    p.command(control("instantiate", {"type": "test.faulty", "params": params}))
+    p.command(control("wire", {"generation": 0, "step_ns": 1_000_000, "ratio": 1, "k": 0, "consumers": [],
+                               "batch_outputs": True, "routes": [], "sources": {}, "faults": []}))
+    p.command(control("initialize", {"t0_ns": 0, "input_times_ns": {}}))
+    p.command(control("start", {"held": [], "horizon": 0}))
+    return p
+
+
+def step_until_halt(p: ComponentProcess) -> bool:
+    try:
+        p.advance()
+    except Halt:
+        return True
+    return False
+
+
+def test_a_step_that_failed_is_never_run_again_whatever_horizon_comes():
+    """test.faulty raises at step 3: one fault for step 3, steps 0-2 published; a larger horizon
+    granted after the fault (the orchestrator had sent it before it heard of the fault) runs no
+    step, so the failed step is not retried past its injected fault and the run ends where it
+    failed."""
+    t = Transport()
+    p = started(t, {"fault": "raise", "at_step": 3})
+    p.command(bus.encode_horizon(10))
+    assert step_until_halt(p)
+    assert [(f["op"], f["k"]) for f in t.faults()] == [("step", 3)]
+    assert t.tags() == [1, 2, 3]
+    p.command(bus.encode_horizon(20))
+    assert not step_until_halt(p)
+    assert len(t.faults()) == 1 and t.tags() == [1, 2, 3] and p.component.k == 3
+
+
+def test_nan_output_halts_at_that_step():
+    t = Transport()
+    p = started(t, {"fault": "nan", "at_step": 2})
+    p.command(bus.encode_horizon(10))
+    assert step_until_halt(p)
+    assert [(f["op"], f["k"], f["error"]) for f in t.faults()] == [("nan", 2, "y")]
+    p.command(bus.encode_horizon(30))
+    p.advance()
+    assert t.tags() == [1, 2] and len(t.faults()) == 1
+
+
+def test_a_healthy_component_steps_to_the_horizon_and_no_further():
+    t = Transport()
+    p = started(t, {"fault": "raise", "at_step": 100})
+    p.command(bus.encode_horizon(5))
+    assert not step_until_halt(p)
+    assert t.tags() == [1, 2, 3, 4, 5] and not t.faults()

@@ -23,179 +23,23 @@ import math
 import os
 import shutil
 import signal
-import socket
-import subprocess
 import sys
 import tarfile
-import tempfile
 import threading
 import time
-import uuid
 from pathlib import Path
 
 import numpy as np
 
-from orchestrator.sweep import Campaign, Metric, case_yaml, si_value
+from orchestrator.campaign_case import STOP_GRACE_S, execute_case
+from orchestrator.sweep import Campaign, case_yaml, si_value
 
-STOP_GRACE_S = 20.0      # a stopped case's run gets this long to stop cleanly before it is killed
 FIXED_COLUMNS = ("case", "status", "error")
 TAIL_COLUMNS = ("wall_time", "attempts", "host", "recording")
 
 
 class CampaignError(Exception):
     """The campaign cannot run (DIR in use by another campaign, the cluster unreachable...)."""
-
-
-# ---------------------------------------------------------------- one case (here or on a worker)
-
-
-def _libc_prctl():
-    try:
-        import ctypes
-        return ctypes.CDLL("libc.so.6", use_errno=True).prctl
-    except (OSError, AttributeError):
-        return None
-
-
-_PRCTL = _libc_prctl()   # resolved here, not in the forked child (which must not import or load anything)
-
-
-def _die_with_parent() -> None:
-    """In the child: SIGTERM if the process that started it dies (a Dask worker killed outright)."""
-    if _PRCTL is not None:
-        _PRCTL(1, signal.SIGTERM)   # PR_SET_PDEATHSIG
-
-
-def _affinity(cpus):
-    def setup():
-        _die_with_parent()
-        if cpus:
-            try:
-                os.sched_setaffinity(0, cpus)
-            except OSError:
-                pass
-    return setup
-
-
-def metric_values(recording: Path, metrics: list[Metric]) -> dict[str, float]:
-    """Each metric of a recording (NaN for all when it has no rows)."""
-    import pyarrow.parquet as pq
-
-    if not metrics:
-        return {}
-    columns = sorted({"time", *(c for m in metrics for c in m.columns)})
-    table = pq.read_table(recording / "signals.parquet", columns=columns)
-    data = {name: table.column(name).to_numpy() for name in table.column_names}
-    t = data["time"]
-    return {m.name: m.value(t, data) for m in metrics}
-
-
-def execute_case(index: int, config_file: Path, record_dir: Path, metrics: list[Metric], keep: str,
-                 stop: threading.Event | None = None, cpus=None, stopped=None) -> dict:
-    """Run one case as ``orchestrator run CONFIG --record DIR``; its result: status (completed,
-    failed, interrupted), error, metrics, wall_time, host. ``stop`` set: the run is stopped
-    cleanly (SIGINT), then killed after STOP_GRACE_S. The recording is removed unless ``keep``
-    wants it."""
-    if record_dir.exists():
-        shutil.rmtree(record_dir)
-    record_dir.parent.mkdir(parents=True, exist_ok=True)
-    command = [sys.executable, "-m", "orchestrator.cli", "run", str(config_file), "--record", str(record_dir)]
-    start = time.perf_counter()
-    process = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                               start_new_session=True, preexec_fn=_affinity(cpus))
-    chunks: list[bytes] = []
-    reader = threading.Thread(target=lambda: chunks.extend(iter(lambda: process.stderr.read(4096), b"")), daemon=True)
-    reader.start()
-    interrupted = False
-    while True:
-        try:
-            rc = process.wait(timeout=0.2)
-            break
-        except subprocess.TimeoutExpired:
-            pass
-        if (stop is not None and stop.is_set()) or (stopped is not None and stopped()):
-            interrupted = True
-            _stop(process)
-    reader.join(timeout=5)
-    wall = time.perf_counter() - start
-    stderr = b"".join(chunks).decode(errors="replace")
-    if rc == 0 and not interrupted:
-        status, error = "completed", ""
-    elif interrupted or rc == 130:
-        status, error = "interrupted", "stopped (Ctrl-C)"
-    else:
-        lines = [ln.strip() for ln in stderr.splitlines() if ln.strip().startswith("error:")]
-        error = lines[0][len("error:"):].strip() if lines else (
-            f"killed by signal {-rc}" if rc < 0 else f"exit code {rc}: {stderr.strip().splitlines()[-1:] or ''}")
-        status = "failed"
-    values = {m.name: math.nan for m in metrics}
-    if status == "completed":
-        try:
-            values = metric_values(record_dir, metrics)
-        except Exception as e:   # an unreadable recording: the case failed, the campaign goes on
-            status, error = "failed", f"metrics: {type(e).__name__}: {e}"
-    kept = status != "interrupted" and (keep == "all" or (keep == "failed" and status == "failed"))
-    if not kept and record_dir.exists():
-        shutil.rmtree(record_dir, ignore_errors=True)
-    return {"case": index, "status": status, "error": error, "metrics": values, "wall_time": wall,
-            "host": socket.gethostname(), "kept": kept, "attempts": 1}
-
-
-def _stop(process: subprocess.Popen) -> None:
-    """SIGINT (the run stops cleanly and stops its components), then the whole group killed."""
-    try:
-        process.send_signal(signal.SIGINT)
-        process.wait(timeout=STOP_GRACE_S)
-    except subprocess.TimeoutExpired:
-        try:
-            os.killpg(process.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-        process.wait()
-    except ProcessLookupError:
-        pass
-
-
-def remote_case(payload: dict) -> dict:
-    """A case on a Dask worker: its config written to a temporary directory, run there, the
-    recording shipped back (a tar.gz in ``files``) when ``keep`` wants it."""
-    stop_event = None
-    try:
-        from distributed import Event, get_worker
-        worker = get_worker().address
-        stop_event = Event(payload["stop_event"])
-    except Exception:   # run outside a worker (tests): no stop event
-        worker = "local"
-    work = Path(tempfile.mkdtemp(prefix=f"zenorbit-case{payload['case']}-"))
-    last_check = [0.0, False]
-
-    def stopped() -> bool:
-        if stop_event is None:
-            return False
-        now = time.monotonic()
-        if now - last_check[0] > 1.0:
-            last_check[0] = now
-            try:
-                last_check[1] = bool(stop_event.is_set())
-            except Exception:
-                pass
-        return last_check[1]
-
-    try:
-        config_file = work / f"{payload['case']:04d}.yaml"
-        config_file.write_text(payload["config"])
-        record = work / f"{payload['case']:04d}"
-        result = execute_case(payload["case"], config_file, record, payload["metrics"], payload["keep"],
-                              stopped=stopped)
-        if result["kept"] and record.exists():
-            buffer = io.BytesIO()
-            with tarfile.open(fileobj=buffer, mode="w:gz") as tar:
-                tar.add(record, arcname=".")
-            result["files"] = buffer.getvalue()
-        result["host"] = f"{result['host']} ({worker})"
-        return result
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
 
 
 # ---------------------------------------------------------------- the campaign directory
@@ -438,92 +282,6 @@ def _finish(pending: dict, directory: CampaignDir) -> None:
             directory.store(result)
 
 
-def run_dask(directory: CampaignDir, todo: list[int], address: str, retries: int, progress: Progress) -> bool:
-    """The cases on a dask.distributed scheduler at ``address``; False when interrupted."""
-    from distributed import Client, Event, as_completed
-
-    campaign = directory.campaign
-    try:
-        client = Client(address, timeout="15s")
-    except (OSError, TimeoutError) as e:
-        raise CampaignError(f"--cluster {address}: cannot reach the scheduler ({e})") from None
-    token = uuid.uuid4().hex[:8]
-    stop_name = f"zenorbit-stop-{token}"
-    stop = Event(stop_name, client=client)
-    keys = {}
-    try:
-        submitted = []
-        for index in todo:
-            payload = {"case": index, "config": directory.config_file(index).read_text(),
-                       "metrics": campaign.metrics, "keep": campaign.keep, "stop_event": stop_name}
-            key = f"zenorbit-case-{campaign.fingerprint()}-{index:04d}-{token}"
-            future = client.submit(remote_case, payload, key=key, retries=retries, pure=False)
-            keys[future.key] = index
-            submitted.append(future)
-        completed = True
-        pending = set(submitted)
-        try:
-            for future in as_completed(submitted):
-                pending.discard(future)
-                index = keys[future.key]
-                try:
-                    result = future.result()
-                except Exception as e:   # the task raised on every try, or its workers kept dying
-                    result = {"case": index, "status": "failed", "error": f"dask: {type(e).__name__}: {e}",
-                              "metrics": {m.name: math.nan for m in campaign.metrics}, "wall_time": math.nan,
-                              "host": "", "kept": False, "attempts": retries + 1}
-                result["attempts"] = max(result.get("attempts", 1), _attempts(client, future.key))
-                if result["status"] != "interrupted":
-                    directory.store(result)
-                    progress.add(result["status"])
-                progress.running = sum(1 for f in pending if f.status == "pending")
-                progress.show()
-        except KeyboardInterrupt:
-            completed = False
-
-            def wind_down():
-                stop.set()
-                queued = [f for f in pending if keys[f.key] not in _processing(client)]
-                client.cancel(queued)
-                deadline = time.monotonic() + STOP_GRACE_S + 10
-                for future in pending:
-                    if future in queued:
-                        continue
-                    try:
-                        result = future.result(timeout=max(deadline - time.monotonic(), 0.1))
-                    except Exception:
-                        continue
-                    if result["status"] != "interrupted":
-                        directory.store(result)
-                client.cancel(list(pending))
-            _ignore_interrupts(wind_down)
-        return completed
-    finally:
-        client.close()
-
-
-def _processing(client) -> set[int]:
-    try:
-        keys = {k for ks in client.processing().values() for k in ks}
-    except Exception:
-        return set()
-    return {int(str(k).rsplit("-", 2)[-2]) for k in keys if str(k).startswith("zenorbit-case-")}
-
-
-def _attempts(client, key: str) -> int:
-    """How many times the scheduler started the task (a worker that died while running it: one more)."""
-    try:
-        story = client.story(key)
-    except Exception:
-        return 1
-    starts = 0
-    for entry in story:   # the scheduler's transitions: (origin, key, start, finish, ...)
-        fields = entry if isinstance(entry, (tuple, list)) else ()
-        if len(fields) >= 4 and fields[0] == "scheduler" and fields[1] == key and fields[3] == "processing":
-            starts += 1
-    return max(starts, 1)
-
-
 # ---------------------------------------------------------------- the whole sweep
 
 
@@ -591,6 +349,7 @@ def sweep(campaign: Campaign, out: Path, *, jobs: int | None = None, cluster: st
     try:
         if todo:
             if cluster:
+                from orchestrator.campaign_dask import run_dask
                 completed = run_dask(directory, todo, cluster, retries, progress)
             else:
                 completed = run_local(directory, todo, jobs, progress)

@@ -200,7 +200,8 @@ def cmd_describe(args) -> int:
     from components import registry
     from components.errors import ConfigError
     from components.sdk import REQUIRED, resolve_parameters, run_parameters
-    from orchestrator.config import ConfigErrors, apply_overrides
+    from orchestrator.config import ConfigErrors
+    from orchestrator.config_file import apply_overrides
     if args.type == "config":
         from orchestrator.config import CONFIG
         print("config\n  A run config: the YAML file given to run and check (docs/design.md §4).")
@@ -247,7 +248,8 @@ def cmd_describe(args) -> int:
 
 def cmd_export_fmu(args) -> int:
     from components.fmi.exported import ExportError, export_fmu, fmu_summary
-    from orchestrator.config import ConfigErrors, apply_overrides
+    from orchestrator.config import ConfigErrors
+    from orchestrator.config_file import apply_overrides
     if not args.output.endswith(".fmu"):
         return _fail(f"-o {args.output}: the output must be a .fmu file, e.g. -o {Path(args.output).stem or 'model'}.fmu")
     parameters: dict = {}

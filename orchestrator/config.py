@@ -9,14 +9,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
 
 from components import registry
 from components.errors import ConfigError
 from components.schema import (Anything, Bool, Duration, Float, Int, ListOf, MapOf, Parameter, Record, Str,
                                UtcTime, markdown)
 from components.sdk import Component, Layout, Variable, run_parameters
-from components.units import duration_text, unit_scale
+from components.units import duration_text
+from orchestrator.config_file import ConfigErrors, apply_overrides, read_yaml
+from orchestrator.connections import _connections, check_replacement
 
 ALGORITHMS = ("jacobi", "gauss-seidel")
 MAX_STEPS = 10 ** 12   # steps in a run: beyond, a typo (a duration in the wrong unit), not an experiment
@@ -95,14 +96,6 @@ CONFIG = Record("config", (
     Parameter("faults", ListOf(FAULT), default=[], description="injected failures, to test a setup's recovery"),
     Parameter("viewer", VIEWER, default=None, description="the Rerun live view"),
 ), description="a run config")
-
-
-class ConfigErrors(Exception):
-    """All problems found in one config, each ``file: key: message``."""
-
-    def __init__(self, errors: list[str]):
-        super().__init__("\n".join(errors))
-        self.errors = errors
 
 
 @dataclass
@@ -205,84 +198,6 @@ class RunConfig:
     def run_parameters(self) -> dict[str, str]:
         """What every component gets besides its own parameters (sdk.RUN_PARAMETERS)."""
         return run_parameters(self.epoch, self.path.parent.resolve(), self.packages)
-
-
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """YAML loader that refuses duplicate keys (PyYAML silently keeps the last one)."""
-
-
-def _mapping(loader, node, deep=False):
-    seen = set()
-    for key_node, _ in node.value:
-        key = loader.construct_object(key_node, deep=deep)
-        if key in seen:
-            raise yaml.constructor.ConstructorError(None, None, f"duplicate key {key!r}", key_node.start_mark)
-        seen.add(key)
-    return loader.construct_mapping(node, deep)
-
-
-_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping)
-
-
-def parse_override(text: str) -> tuple[list[str], Any]:
-    """``a.b.c=VALUE`` -> (["a", "b", "c"], VALUE parsed as YAML)."""
-    key, sep, value = text.partition("=")
-    if not sep or not key.strip():
-        raise ConfigErrors([f"--set {text!r}: expected KEY=VALUE, e.g. run.duration=2s"])
-    try:
-        parsed = yaml.load(value, Loader=_UniqueKeyLoader) if value.strip() else ""
-    except yaml.YAMLError as e:
-        raise ConfigErrors([f"--set {text!r}: value is not valid YAML ({e})"]) from None
-    return key.strip().split("."), parsed
-
-
-def apply_overrides(raw: dict, overrides: list[str]) -> None:
-    for text in overrides:
-        path, value = parse_override(text)
-        components = raw.get("components")
-        if path[0] == "components" and len(path) > 2 and isinstance(components, dict) and path[1] not in components:
-            raise ConfigErrors([f"--set {text!r}: no component {path[1]!r} (components: "
-                                f"{', '.join(map(str, components)) or 'none'})"])
-        node = raw
-        for i, part in enumerate(path[:-1]):
-            child = node.get(part) if isinstance(node, dict) else None
-            if child is None:
-                child = node[part] = {}
-            if not isinstance(child, dict):
-                raise ConfigErrors([f"--set {text!r}: {'.'.join(path[:i + 1])} is not a mapping"])
-            node = child
-        node[path[-1]] = value
-
-
-def _yaml_problem(error: yaml.YAMLError, text: str) -> str:
-    """' at line L, column C: problem', then the line and a caret under the column, each on its own line."""
-    mark = getattr(error, "problem_mark", None)
-    problem = " ".join(str(getattr(error, "problem", None) or error).split())
-    if mark is None:
-        return f": {problem}"
-    context = getattr(error, "context", None)
-    lines = text.splitlines()
-    source = lines[mark.line] if mark.line < len(lines) else ""
-    return (f" at line {mark.line + 1}, column {mark.column + 1}: {problem}"
-            + (f" ({context})" if context else "") + f"\n    {source}\n    {' ' * mark.column}^")
-
-
-def read_yaml(path: Path) -> dict:
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except OSError as e:
-        raise ConfigErrors([f"{path}: cannot read config ({e.strerror})"]) from None
-    except UnicodeDecodeError as e:
-        line = path.read_bytes()[:e.start].count(b"\n") + 1
-        raise ConfigErrors([f"{path}: not UTF-8 text (byte 0x{e.object[e.start]:02x} at line {line}); "
-                            f"save the config as UTF-8"]) from None
-    try:
-        raw = yaml.load(text, Loader=_UniqueKeyLoader)
-    except yaml.YAMLError as e:
-        raise ConfigErrors([f"{path}: not valid YAML{_yaml_problem(e, text)}"]) from None
-    if not isinstance(raw, dict):
-        raise ConfigErrors([f"{path}: expected a mapping with run, components, connections"])
-    return raw
 
 
 def load(path: str | Path, overrides: list[str] = (), full: bool = False) -> RunConfig:
@@ -418,67 +333,6 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
                      start_timeout_s=run["start_timeout"] / 1e9, components=components, connections=connections,
                      listen=config["bus"]["listen"], events=events, faults=faults, checkpoint_ns=checkpoint_ns,
                      max_restarts=run["max_restarts"], viewer=viewer, resolved=resolved, packages=packages, notes=notes)
-
-
-def check_replacement(spec: ComponentSpec, connections: list[tuple[str, str, str, str]]) -> list[str]:
-    """Problems that keep ``spec`` from replacing the component of that name in these connections."""
-    problems = []
-    for d, dv, s, sv in connections:
-        for comp, var, layout, causality in ((d, dv, spec.inputs, "input"), (s, sv, spec.outputs, "output")):
-            if comp == spec.name and var not in layout.offsets:
-                problems.append(f"{spec.type} has no {causality} {var!r}, which the connection "
-                                f"{d}.{dv}: {s}.{sv} uses")
-    return problems
-
-
-def _split(ref: Any) -> tuple[str, str] | None:
-    if not isinstance(ref, str) or "." not in ref:
-        return None
-    component, _, variable = ref.partition(".")
-    return component, variable
-
-
-def _connections(raw: Any, components: dict[str, ComponentSpec], entries: dict, file: Path,
-                 errors: list[str]) -> list[tuple[str, str, str, str]]:
-    if not isinstance(raw, dict):
-        errors.append(f"{file}: connections: expected a mapping input: output, got {raw!r}")
-        return []
-    result = []
-    for dst, src in raw.items():
-        key = f"connections.{dst}"
-        d, s = _split(dst), _split(src)
-        if d is None or s is None:
-            errors.append(f"{file}: {key}: expected '<component>.<input>: <component>.<output>', got {dst!r}: {src!r}")
-            continue
-        problem = None
-        for (comp, var), causality in ((d, "input"), (s, "output")):
-            if comp not in entries:
-                problem = f"no component named {comp!r} (components: {', '.join(entries)})"
-            elif comp in components:
-                spec = components[comp]
-                v = spec.variables.get(var)
-                if v is None or v.causality != causality:
-                    names = [x.name for x in (spec.inputs if causality == "input" else spec.outputs).variables]
-                    problem = (f"{comp} ({spec.type}) has no {causality} {var!r} "
-                               f"(its {causality}s: {', '.join(names) or 'none'})")
-            if problem:
-                break
-        if problem:
-            errors.append(f"{file}: {key}: {problem}")
-            continue
-        if d[0] in components and s[0] in components:
-            dv, sv = components[d[0]].variables[d[1]], components[s[0]].variables[s[1]]
-            if dv.size != sv.size:
-                errors.append(f"{file}: {key}: shape mismatch: input {dst} is {dv.shape}, output {src} is {sv.shape}")
-                continue
-            scales = unit_scale(dv.unit), unit_scale(sv.unit)
-            # units both sides declare and read differently ("1", as generic blocks declare, matches any)
-            if None not in scales and "1" not in (dv.unit, sv.unit) and scales[0] != scales[1]:
-                errors.append(f"{file}: {key}: unit mismatch: input {dst} is in {dv.unit}, output {src} in "
-                              f"{sv.unit} (connections do not convert units)")
-                continue
-            result.append((d[0], d[1], s[0], s[1]))
-    return result
 
 
 def _events(entries: list[dict], components: dict[str, ComponentSpec], connections: list, step_ns: int | None,

@@ -6,8 +6,9 @@ import copy
 import json
 from typing import Mapping, Protocol
 
-from orchestrator.config import (COMPONENT, ComponentSpec, ConfigErrors, RunConfig, apply_overrides,
-                                 check_replacement, component_spec)
+from orchestrator.config import COMPONENT, ComponentSpec, ConfigErrors, RunConfig, component_spec
+from orchestrator.config_file import apply_overrides
+from orchestrator.connections import check_replacement
 
 
 class SwapFailed(Exception):

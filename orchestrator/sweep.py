@@ -2,7 +2,8 @@
 metrics reduced from each case's signals (README "Parameter sweeps and Monte Carlo campaigns").
 
 This module is the pure part: reading and validating a campaign file, generating its cases and
-reducing metrics from a recording. Running them is :mod:`orchestrator.campaign_runner`.
+reducing metrics from a recording (:mod:`orchestrator.dispersions`, :mod:`orchestrator.campaign_metrics`).
+Running them is :mod:`orchestrator.campaign_runner`.
 
 A campaign file::
 
@@ -29,25 +30,21 @@ import copy
 import hashlib
 import itertools
 import json
-import math
 import re
-import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import yaml
 
 from components.errors import ConfigError
-from components.units import _QUANTITY, _unit, to_si
-from orchestrator.config import ConfigErrors, RunConfig, read_yaml, validate
+from components.units import _QUANTITY, _unit
+from orchestrator.campaign_metrics import Metric, metric, signals_of
+from orchestrator.config import ConfigErrors, validate
+from orchestrator.config_file import read_yaml
+from orchestrator.dispersions import Dispersion, dispersion
 
 CAMPAIGN_KEYS = ("config", "grid", "disperse", "samples", "seed", "metrics", "keep")
-DISTRIBUTIONS = {"normal": 2, "uniform": 2, "truncated_normal": 4, "choice": None}
-DISTRIBUTION_ARGS = {"normal": "[mean, sigma]", "uniform": "[low, high]",
-                     "truncated_normal": "[mean, sigma, low, high]", "choice": "[value, value, ...]"}
-REDUCERS = ("final", "min", "max", "mean", "rms", "max_abs", "first_crossing")
 KEEP = ("all", "failed", "none")
 _KEY_PART = re.compile(r"^([A-Za-z0-9_\-]+)((?:\[\d+\])*)$")
 
@@ -133,201 +130,6 @@ def si_value(value: Any) -> Any:
             except ValueError:
                 return value
     return value
-
-
-def _quantity(value: Any, key: str) -> tuple[float, str | None]:
-    """(number, unit or None) of a bare number or ``"<number> <unit>"``; ConfigError otherwise."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-        raise ConfigError(key, f"expected a number or a quantity like '0.1 rad/s', got {value!r}")
-    if isinstance(value, str):
-        m = _QUANTITY.match(value)
-        if not m:
-            raise ConfigError(key, f"expected a number or a quantity like '0.1 rad/s', got {value!r}")
-        number, unit = float(m.group(1)), m.group(2)
-        if unit is not None:
-            try:
-                _unit(unit)
-            except ValueError:
-                raise ConfigError(key, f"unknown unit {unit!r} in {value!r}") from None
-    else:
-        number, unit = float(value), None
-    if not math.isfinite(number):
-        raise ConfigError(key, f"expected a finite number, got {value!r}")
-    return number, unit
-
-
-# ---------------------------------------------------------------- distributions
-
-
-@dataclass(frozen=True)
-class Dispersion:
-    """One dispersed key: ``kind`` over ``args`` (numbers in ``unit``; choice: the values as given)."""
-    key: str
-    kind: str
-    args: tuple
-    unit: str | None = None
-
-    def draw(self, seed: int, sample: int) -> Any:
-        """The value of draw ``sample``: a number (with its unit, as text) or a choice's value."""
-        rng = np.random.Generator(np.random.PCG64(
-            np.random.SeedSequence(seed, spawn_key=(sample, zlib.crc32(self.key.encode())))))
-        if self.kind == "choice":
-            return copy.deepcopy(self.args[int(rng.integers(len(self.args)))])
-        if self.kind == "normal":
-            x = float(rng.normal(self.args[0], self.args[1]))
-        elif self.kind == "uniform":
-            x = float(rng.uniform(self.args[0], self.args[1]))
-        else:   # truncated normal by the inverse CDF: one uniform draw, no rejection loop
-            from scipy.special import ndtr, ndtri
-            mean, sigma, low, high = self.args
-            a, b = ndtr((low - mean) / sigma), ndtr((high - mean) / sigma)
-            x = float(min(max(mean + sigma * ndtri(a + (b - a) * rng.random()), low), high))
-        return x if self.unit is None else f"{x!r} {self.unit}"
-
-
-def dispersion(key: str, spec: Any, where: str) -> Dispersion:
-    """Parse ``{normal: [mean, sigma]}`` and the like; ConfigError naming ``where``."""
-    if not isinstance(spec, dict) or len(spec) != 1:
-        raise ConfigError(where, f"expected one distribution, e.g. {{normal: [0 rad/s, 0.001 rad/s]}} "
-                                 f"({', '.join(DISTRIBUTIONS)}), got {spec!r}")
-    (kind, args), = spec.items()
-    if kind not in DISTRIBUTIONS:
-        raise ConfigError(f"{where}.{kind}", f"unknown distribution (known: {', '.join(DISTRIBUTIONS)})")
-    here = f"{where}.{kind}"
-    count = DISTRIBUTIONS[kind]
-    if not isinstance(args, list) or (count is not None and len(args) != count) or not args:
-        raise ConfigError(here, f"expected {DISTRIBUTION_ARGS[kind]}, got {args!r}")
-    if kind == "choice":
-        return Dispersion(key, kind, tuple(args))
-    parsed = [_quantity(a, f"{here}[{i}]") for i, a in enumerate(args)]
-    unit = next((u for _, u in parsed if u is not None), None)
-    numbers = []
-    for i, ((number, u), arg) in enumerate(zip(parsed, args)):
-        if unit is None or u == unit:
-            numbers.append(number)
-            continue
-        factor = _unit(unit)[0]
-        if u is None:      # a bare number is SI
-            numbers.append(number / factor)
-            continue
-        try:
-            numbers.append(to_si(arg, unit, f"{here}[{i}]") / factor)
-        except ConfigError:
-            raise ConfigError(f"{here}[{i}]", f"unit {u!r} does not measure what {args[0]!r} does "
-                                              f"(the values of one distribution share a unit)") from None
-    if kind in ("normal", "truncated_normal") and not numbers[1] > 0:
-        raise ConfigError(f"{here}[1]", f"sigma must be positive, got {args[1]!r}")
-    if kind == "uniform" and not numbers[0] < numbers[1]:
-        raise ConfigError(here, f"low must be below high, got {args!r}")
-    if kind == "truncated_normal" and not numbers[2] < numbers[3]:
-        raise ConfigError(here, f"low must be below high, got {args[2]!r}, {args[3]!r}")
-    return Dispersion(key, kind, tuple(numbers), unit)
-
-
-# ---------------------------------------------------------------- metrics
-
-
-@dataclass(frozen=True)
-class Metric:
-    """``name``: ``reduce`` of the columns ``columns`` (several: the row-wise norm)."""
-    name: str
-    signal: str
-    reduce: str
-    columns: tuple[str, ...]
-    threshold: float | None = None
-
-    def value(self, time: np.ndarray, table: dict[str, np.ndarray]) -> float:
-        """The metric of a recording (``table``: column -> values); NaN if it has no rows."""
-        if not len(time):
-            return math.nan
-        if len(self.columns) == 1:
-            x = np.asarray(table[self.columns[0]], dtype=float)
-        else:
-            x = np.sqrt(np.sum(np.column_stack([table[c] for c in self.columns]) ** 2, axis=1))
-        return reduce_signal(self.reduce, np.asarray(time, dtype=float), x, self.threshold)
-
-
-def reduce_signal(how: str, t: np.ndarray, x: np.ndarray, threshold: float | None = None) -> float:
-    """One number from a signal: final, min, max, mean, rms, max_abs, or first_crossing: the first
-    time (s) at which ``x`` reaches ``threshold`` from the side it starts on (NaN if never)."""
-    if how == "final":
-        return float(x[-1])
-    if how == "min":
-        return float(np.min(x))
-    if how == "max":
-        return float(np.max(x))
-    if how == "mean":
-        return float(np.mean(x))
-    if how == "rms":
-        return float(np.sqrt(np.mean(x * x)))
-    if how == "max_abs":
-        return float(np.max(np.abs(x)))
-    if how == "first_crossing":
-        above = x >= threshold
-        crossed = np.flatnonzero(above != above[0]) if x[0] != threshold else np.array([0])
-        return float(t[crossed[0]]) if len(crossed) else math.nan
-    raise ValueError(f"unknown reducer {how!r}")
-
-
-def signals_of(config: RunConfig) -> dict[str, tuple[tuple[str, ...], str]]:
-    """Every signal a recording of ``config`` holds: ``<component>.<output>`` and each element
-    ``...[i]`` -> (its columns, its unit)."""
-    out: dict[str, tuple[tuple[str, ...], str]] = {}
-    for spec in config.components.values():
-        for v in spec.outputs.variables:
-            columns = tuple(v.columns(spec.name))
-            if not columns:
-                continue
-            out[f"{spec.name}.{v.name}"] = (columns, v.unit)
-            if len(columns) > 1 or columns[0] != f"{spec.name}.{v.name}":
-                for c in columns:
-                    out[c] = ((c,), v.unit)
-    return out
-
-
-def metric(name: str, spec: Any, signals: dict[str, tuple[tuple[str, ...], str]] | None, where: str) -> Metric:
-    """Parse ``{signal, reduce[, threshold]}`` against the signals of the base config."""
-    if not isinstance(spec, dict):
-        raise ConfigError(where, f"expected {{signal: COMPONENT.OUTPUT, reduce: ...}}, got {spec!r}")
-    unknown = [k for k in spec if k not in ("signal", "reduce", "threshold")]
-    if unknown:
-        raise ConfigError(f"{where}.{unknown[0]}", "unknown key (known: signal, reduce, threshold)")
-    for k in ("signal", "reduce"):
-        if k not in spec:
-            raise ConfigError(f"{where}.{k}", "missing")
-    how = spec["reduce"]
-    if how not in REDUCERS:
-        raise ConfigError(f"{where}.reduce", f"expected one of {', '.join(REDUCERS)}, got {how!r}")
-    signal = spec["signal"]
-    unit = "1"
-    columns: tuple[str, ...] = (str(signal),)
-    if signals is not None:
-        if signal not in signals:
-            near = sorted(k for k in signals if "[" not in k)
-            raise ConfigError(f"{where}.signal", f"no signal {signal!r} in a recording of the config "
-                                                 f"(signals: {', '.join(near)})")
-        columns, unit = signals[signal]
-    threshold = None
-    if how == "first_crossing":
-        if "threshold" not in spec:
-            raise ConfigError(f"{where}.threshold", "first_crossing needs a threshold, e.g. threshold: 0.1 rad/s")
-        value = spec["threshold"]
-        if unit not in (None, "1") and _unit_known(unit):
-            threshold = to_si(value, unit, f"{where}.threshold")
-        else:
-            number, given = _quantity(value, f"{where}.threshold")
-            threshold = number * (_unit(given)[0] if given else 1.0)
-    elif "threshold" in spec:
-        raise ConfigError(f"{where}.threshold", f"only first_crossing takes a threshold, not {how}")
-    return Metric(name, str(signal), how, columns, threshold)
-
-
-def _unit_known(unit: str) -> bool:
-    try:
-        _unit(unit)
-        return True
-    except ValueError:
-        return False
 
 
 # ---------------------------------------------------------------- the campaign

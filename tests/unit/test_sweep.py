@@ -8,8 +8,9 @@ import pytest
 import yaml
 
 from orchestrator.config import validate
-from orchestrator.sweep import (CampaignErrors, dispersion, key_path, load_campaign, reduce_signal, set_key,
-                                si_value)
+from orchestrator.campaign_metrics import reduce_signal
+from orchestrator.dispersions import dispersion
+from orchestrator.sweep import CampaignErrors, key_path, load_campaign, set_key, si_value
 
 BASE = {
     "run": {"name": "sweepme", "epoch": "2022-09-18T12:00:00Z", "duration": "50 ms", "step": "10 ms"},
@@ -133,7 +134,7 @@ def test_vector_metric_is_the_norm_and_parameters_read_in_si(tmp_path):
         "n": {"signal": "total.x", "reduce": "max"}}}))
     m = campaign.metrics[0]
     assert m.columns == ("total.x",)
-    from orchestrator.sweep import Metric
+    from orchestrator.campaign_metrics import Metric
     norm = Metric("n", "v", "final", ("v[0]", "v[1]"))
     assert norm.value(np.array([0.0, 1.0]), {"v[0]": np.array([0.0, 3.0]), "v[1]": np.array([1.0, 4.0])}) == 5.0
     assert si_value("2 km") == 2000.0 and si_value(3) == 3.0 and si_value("rk4") == "rk4"

@@ -1,0 +1,124 @@
+"""One case of a campaign: its own ``orchestrator run`` process, stopped cleanly, its metrics read."""
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+from orchestrator.campaign_metrics import Metric
+
+STOP_GRACE_S = 20.0      # a stopped case's run gets this long to stop cleanly before it is killed
+
+
+def _libc_prctl():
+    try:
+        import ctypes
+        return ctypes.CDLL("libc.so.6", use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+
+
+_PRCTL = _libc_prctl()   # resolved here, not in the forked child (which must not import or load anything)
+
+
+def _die_with_parent() -> None:
+    """In the child: SIGTERM if the process that started it dies (a Dask worker killed outright)."""
+    if _PRCTL is not None:
+        _PRCTL(1, signal.SIGTERM)   # PR_SET_PDEATHSIG
+
+
+def _affinity(cpus):
+    def setup():
+        _die_with_parent()
+        if cpus:
+            try:
+                os.sched_setaffinity(0, cpus)
+            except OSError:
+                pass
+    return setup
+
+
+def metric_values(recording: Path, metrics: list[Metric]) -> dict[str, float]:
+    """Each metric of a recording (NaN for all when it has no rows)."""
+    import pyarrow.parquet as pq
+
+    if not metrics:
+        return {}
+    columns = sorted({"time", *(c for m in metrics for c in m.columns)})
+    table = pq.read_table(recording / "signals.parquet", columns=columns)
+    data = {name: table.column(name).to_numpy() for name in table.column_names}
+    t = data["time"]
+    return {m.name: m.value(t, data) for m in metrics}
+
+
+def execute_case(index: int, config_file: Path, record_dir: Path, metrics: list[Metric], keep: str,
+                 stop: threading.Event | None = None, cpus=None, stopped=None) -> dict:
+    """Run one case as ``orchestrator run CONFIG --record DIR``; its result: status (completed,
+    failed, interrupted), error, metrics, wall_time, host. ``stop`` set: the run is stopped
+    cleanly (SIGINT), then killed after STOP_GRACE_S. The recording is removed unless ``keep``
+    wants it."""
+    if record_dir.exists():
+        shutil.rmtree(record_dir)
+    record_dir.parent.mkdir(parents=True, exist_ok=True)
+    command = [sys.executable, "-m", "orchestrator.cli", "run", str(config_file), "--record", str(record_dir)]
+    start = time.perf_counter()
+    process = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                               start_new_session=True, preexec_fn=_affinity(cpus))
+    chunks: list[bytes] = []
+    reader = threading.Thread(target=lambda: chunks.extend(iter(lambda: process.stderr.read(4096), b"")), daemon=True)
+    reader.start()
+    interrupted = False
+    while True:
+        try:
+            rc = process.wait(timeout=0.2)
+            break
+        except subprocess.TimeoutExpired:
+            pass
+        if (stop is not None and stop.is_set()) or (stopped is not None and stopped()):
+            interrupted = True
+            _stop(process)
+    reader.join(timeout=5)
+    wall = time.perf_counter() - start
+    stderr = b"".join(chunks).decode(errors="replace")
+    if rc == 0 and not interrupted:
+        status, error = "completed", ""
+    elif interrupted or rc == 130:
+        status, error = "interrupted", "stopped (Ctrl-C)"
+    else:
+        lines = [ln.strip() for ln in stderr.splitlines() if ln.strip().startswith("error:")]
+        error = lines[0][len("error:"):].strip() if lines else (
+            f"killed by signal {-rc}" if rc < 0 else f"exit code {rc}: {stderr.strip().splitlines()[-1:] or ''}")
+        status = "failed"
+    values = {m.name: math.nan for m in metrics}
+    if status == "completed":
+        try:
+            values = metric_values(record_dir, metrics)
+        except Exception as e:   # an unreadable recording: the case failed, the campaign goes on
+            status, error = "failed", f"metrics: {type(e).__name__}: {e}"
+    kept = status != "interrupted" and (keep == "all" or (keep == "failed" and status == "failed"))
+    if not kept and record_dir.exists():
+        shutil.rmtree(record_dir, ignore_errors=True)
+    return {"case": index, "status": status, "error": error, "metrics": values, "wall_time": wall,
+            "host": socket.gethostname(), "kept": kept, "attempts": 1}
+
+
+def _stop(process: subprocess.Popen) -> None:
+    """SIGINT (the run stops cleanly and stops its components), then the whole group killed."""
+    try:
+        process.send_signal(signal.SIGINT)
+        process.wait(timeout=STOP_GRACE_S)
+    except subprocess.TimeoutExpired:
+        try:
+            os.killpg(process.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        process.wait()
+    except ProcessLookupError:
+        pass

@@ -1,0 +1,71 @@
+"""Checking connections between components: both ends exist, shapes and units agree."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from components.units import unit_scale
+
+if TYPE_CHECKING:
+    from orchestrator.config import ComponentSpec
+
+
+def check_replacement(spec: ComponentSpec, connections: list[tuple[str, str, str, str]]) -> list[str]:
+    """Problems that keep ``spec`` from replacing the component of that name in these connections."""
+    problems = []
+    for d, dv, s, sv in connections:
+        for comp, var, layout, causality in ((d, dv, spec.inputs, "input"), (s, sv, spec.outputs, "output")):
+            if comp == spec.name and var not in layout.offsets:
+                problems.append(f"{spec.type} has no {causality} {var!r}, which the connection "
+                                f"{d}.{dv}: {s}.{sv} uses")
+    return problems
+
+
+def _split(ref: Any) -> tuple[str, str] | None:
+    if not isinstance(ref, str) or "." not in ref:
+        return None
+    component, _, variable = ref.partition(".")
+    return component, variable
+
+
+def _connections(raw: Any, components: dict[str, ComponentSpec], entries: dict, file: Path,
+                 errors: list[str]) -> list[tuple[str, str, str, str]]:
+    if not isinstance(raw, dict):
+        errors.append(f"{file}: connections: expected a mapping input: output, got {raw!r}")
+        return []
+    result = []
+    for dst, src in raw.items():
+        key = f"connections.{dst}"
+        d, s = _split(dst), _split(src)
+        if d is None or s is None:
+            errors.append(f"{file}: {key}: expected '<component>.<input>: <component>.<output>', got {dst!r}: {src!r}")
+            continue
+        problem = None
+        for (comp, var), causality in ((d, "input"), (s, "output")):
+            if comp not in entries:
+                problem = f"no component named {comp!r} (components: {', '.join(entries)})"
+            elif comp in components:
+                spec = components[comp]
+                v = spec.variables.get(var)
+                if v is None or v.causality != causality:
+                    names = [x.name for x in (spec.inputs if causality == "input" else spec.outputs).variables]
+                    problem = (f"{comp} ({spec.type}) has no {causality} {var!r} "
+                               f"(its {causality}s: {', '.join(names) or 'none'})")
+            if problem:
+                break
+        if problem:
+            errors.append(f"{file}: {key}: {problem}")
+            continue
+        if d[0] in components and s[0] in components:
+            dv, sv = components[d[0]].variables[d[1]], components[s[0]].variables[s[1]]
+            if dv.size != sv.size:
+                errors.append(f"{file}: {key}: shape mismatch: input {dst} is {dv.shape}, output {src} is {sv.shape}")
+                continue
+            scales = unit_scale(dv.unit), unit_scale(sv.unit)
+            # units both sides declare and read differently ("1", as generic blocks declare, matches any)
+            if None not in scales and "1" not in (dv.unit, sv.unit) and scales[0] != scales[1]:
+                errors.append(f"{file}: {key}: unit mismatch: input {dst} is in {dv.unit}, output {src} in "
+                              f"{sv.unit} (connections do not convert units)")
+                continue
+            result.append((d[0], d[1], s[0], s[1]))
+    return result

@@ -56,8 +56,8 @@ class ComponentProcess:
         self.publish_reply = publish_reply
         self.publish_output = publish_output
         self.publish_batch = publish_batch
-        self.consumers: list[str] = []
-        self.batch_outputs = False    # consumers get outputs in batches too (they never hold it up)
+        self.consumers: list[str] = []         # get its outputs at every step (they feed it back)
+        self.batch_consumers: list[str] = []   # get them in batches, as the orchestrator does (they never hold it up)
         self.batched = 0
         self.batch_lock = threading.Lock()
         self.stepping_since: float | None = None   # perf_counter at the start of a running do_step
@@ -160,8 +160,7 @@ class ComponentProcess:
             self.reply(op, {"inputs": self.inputs.size, "outputs": self.outputs.size, "pid": os.getpid()})
         elif op == "wire":
             self.generation, self.step_ns, self.ratio = body["generation"], body["step_ns"], body["ratio"]
-            self.consumers = body["consumers"]
-            self.batch_outputs = body["batch_outputs"]
+            self.consumers, self.batch_consumers = body["consumers"], body["batch_consumers"]
             self.faults = sorted((k, kind, seconds) for k, kind, seconds in body["faults"])
             self.next_k = body["k"]
             self.horizon = body["k"]
@@ -177,7 +176,7 @@ class ComponentProcess:
             self.reply(op, {}, self.output_vector.tobytes())
         elif op == "sync":
             # our outputs now reach every consumer that subscribed before this message
-            self.publish_output(self.consumers, bus.encode_sync(self.generation))
+            self.publish_output(self.consumers + self.batch_consumers, bus.encode_sync(self.generation))
             if self.synced:
                 self.reply("synced")
         elif op == "start":
@@ -285,7 +284,7 @@ class ComponentProcess:
         if variable is not None:
             raise Halt(self._report("nan", k, variable))
         tag = k + self.ratio
-        if self.consumers and not self.batch_outputs:
+        if self.consumers:
             self.publish_output(self.consumers, bus.encode_output(self.generation, tag, vector))
         if self.name in self.held:   # a component fed by its own outputs
             self.held[self.name].append((tag, vector.copy()))
@@ -316,8 +315,8 @@ class ComponentProcess:
         if n:
             batch = bus.encode_batch(self.generation, self.batch_tags[:n], self.batch_timings[:n], self.batch_rows[:n])
             self.publish_batch(batch)
-            if self.consumers and self.batch_outputs:
-                self.publish_output(self.consumers, batch)
+            if self.batch_consumers:
+                self.publish_output(self.batch_consumers, batch)
             self.batched = 0
 
     def _report(self, op: str, k: int, error: str) -> str:

@@ -105,19 +105,22 @@ def initialization_order(names: list[str], connections) -> list[str]:
     return done
 
 
-def feeds_back(name: str, connections) -> bool:
-    """Is ``name`` on a loop with one of the components it feeds (a self-connection aside)?
-    If not, its consumers never hold it up, and it may send them its outputs in batches."""
+def batch_consumers(name: str, connections) -> list[str]:
+    """The consumers of ``name`` that are on no loop back to it (a self-connection aside): they
+    never hold it up, so it may send them its outputs in batches; the others get every step's."""
     consumers: dict[str, set[str]] = {}
     for d, _, s, _ in connections:
         if d != s:
             consumers.setdefault(s, set()).add(d)
-    seen, stack = set(), list(consumers.get(name, ()))
-    while stack:
-        node = stack.pop()
-        if node == name:
-            return True
-        if node not in seen:
-            seen.add(node)
-            stack.extend(consumers.get(node, ()))
-    return False
+
+    def reaches(start: str) -> bool:
+        seen, stack = set(), [start]
+        while stack:
+            node = stack.pop()
+            if node == name:
+                return True
+            if node not in seen:
+                seen.add(node)
+                stack.extend(consumers.get(node, ()))
+        return False
+    return sorted(c for c in consumers.get(name, ()) if not reaches(c))

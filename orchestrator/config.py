@@ -18,6 +18,7 @@ from components.sdk import Component, Layout, Variable, run_parameters
 from components.units import duration_text
 from orchestrator.config_file import ConfigErrors, apply_overrides, read_yaml
 from orchestrator.connections import _connections, check_replacement
+from orchestrator.shadows import connections_of, mismatches, shadow_spec
 
 ALGORITHMS = ("jacobi", "gauss-seidel")
 MAX_STEPS = 10 ** 12   # steps in a run: beyond, a typo (a duration in the wrong unit), not an experiment
@@ -59,6 +60,12 @@ VIEWER = Record("viewer", (
     Parameter("rate", Float("Hz", positive=True), default=30.0, description="frames per second of simulated time"),
     Parameter("open_browser", Bool(), default=False, description="web: open the viewer in a browser"),
 ), description="the Rerun live view (``viewer:``, or ``--view``)")
+SHADOW = Record("shadow", (
+    Parameter("type", Str(hint="a component type name"),
+              description="any type with the component's connected inputs and all its outputs, same shapes and units"),
+    Parameter("parameters", Anything(), default={}, description="the type's parameters (orchestrator describe TYPE)"),
+), description="a second instance on the component's inputs at every step, in a process of its own; recorded "
+               "as ``<component>_shadow.<output>``, it feeds nothing (``components.<name>.shadow``)")
 COMPONENT = Record("component", (
     Parameter("type", Str(hint="a component type name"),
               description="a built-in type (orchestrator types), module:Class or file.py:Class"),
@@ -70,6 +77,8 @@ COMPONENT = Record("component", (
               description="its stepping thread on a CPU of its own (speed only, never results)"),
     Parameter("on_failure", Str(("stop", "restart")), default="stop",
               description="when it dies or hangs: stop the run, or restart the run from its last checkpoint"),
+    Parameter("shadow", SHADOW, default=None,
+              description="a second instance run beside it on the same inputs, recorded, never fed back"),
 ), description="one component (``components.<name>``)")
 EVENT = Record("event", (
     Parameter("at", Duration(positive=False), description="simulated time of the swap, on a step of the component"),
@@ -111,6 +120,12 @@ class ComponentSpec:
     launch: str = "local"
     dedicated_cpu: bool = False   # its stepping thread on a CPU of its own (speed only, never results)
     on_failure: str = "stop"      # or "restart": the run goes back to its last checkpoint
+    shadow_of: str | None = None  # the component this one shadows (orchestrator/shadows.py)
+
+    @property
+    def key(self) -> str:
+        """Its entry in the config file."""
+        return f"components.{self.shadow_of}.shadow" if self.shadow_of else f"components.{self.name}"
 
     @property
     def variables(self) -> dict[str, Variable]:
@@ -272,16 +287,20 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
             errors.append(f"{file}: run.packages.{package}: directory {directory!r} not found ({where})")
         packages[package] = str(where)
     entries = config.get("components", {})
+    shadows: dict[str, ComponentSpec] = {}   # main's name -> its shadow
     if step_ns is not None and epoch is not None:
         for name, entry in entries.items():
             try:
                 components[name] = component_spec(name, entry, step_ns, config_dir, epoch, f"components.{name}",
                                                   packages)
+                if entry["shadow"] is not None:
+                    shadows[name] = shadow_spec(components[name], entry["shadow"], entries, lambda n, e, key: (
+                        component_spec(n, e, step_ns, config_dir, epoch, key, packages)))
             except ConfigErrors as e:
                 errors += [f"{file}: {m}" for m in e.errors]
     notes = []
-    for name, spec in components.items():
-        key = f"components.{name}.parameters"
+    for spec in [*components.values(), *shadows.values()]:
+        key = f"{spec.key}.parameters"
         try:
             notes += [f"{file}: {key}.{note}" for note in spec.cls.preflight(spec.resolved, spec.step_ns / 1e9, full)]
         except ConfigError as e:
@@ -290,6 +309,12 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
             errors.append(f"{file}: {key}: {spec.type} cannot load its model: {type(e).__name__}: {e}")
     raw_entries = raw.get("components") if isinstance(raw.get("components"), dict) else {}
     connections = _connections(config.get("connections", {}), components, raw_entries, file, errors)
+    for name, shadow in shadows.items():
+        errors += [f"{file}: {shadow.key}: {p}" for p in mismatches(components[name], shadow, connections)]
+    # each shadow right after its main: Gauss-Seidel gives it the main's inputs (schedule.routes)
+    components = {n: s for name, spec in components.items()
+                  for n, s in [(name, spec), *([(shadows[name].name, shadows[name])] if name in shadows else [])]}
+    connections += [c for name in shadows for c in connections_of(name, connections)]
     events = _events(config.get("events", []), components, connections, step_ns, total_ns, config_dir, epoch,
                      file, errors, packages)
     faults = _faults(config.get("faults", []), components, total_ns, file, errors)
@@ -316,11 +341,8 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
     resolved = {
         "run": RUN.plain(run),
         "bus": BUS.plain(config["bus"]),
-        "components": {n: {**COMPONENT.plain({"type": s.type, "step": s.step_ns, "launch": s.launch,
-                                              "dedicated_cpu": s.dedicated_cpu, "on_failure": s.on_failure}),
-                           "parameters": s.cls.schema.plain(s.resolved)}
-                       for n, s in components.items()},
-        "connections": {f"{d}.{dv}": f"{s}.{sv}" for d, dv, s, sv in connections},
+        "components": {n: _resolved_entry(s, shadows.get(n)) for n, s in components.items() if not s.shadow_of},
+        "connections": {f"{d}.{dv}": f"{s}.{sv}" for d, dv, s, sv in connections if not components[d].shadow_of},
         "events": [{"at": duration_text(e.at_ns), "swap": e.swap, "type": e.type,
                     "parameters": e.spec.cls.schema.plain(e.spec.resolved)} for e in events],
         "faults": [FAULT.plain({"at": f.at_ns, "component": f.component, "kind": f.kind, "duration": f.duration_ns})
@@ -333,6 +355,17 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
                      start_timeout_s=run["start_timeout"] / 1e9, components=components, connections=connections,
                      listen=config["bus"]["listen"], events=events, faults=faults, checkpoint_ns=checkpoint_ns,
                      max_restarts=run["max_restarts"], viewer=viewer, resolved=resolved, packages=packages, notes=notes)
+
+
+def _resolved_entry(spec: ComponentSpec, shadow: ComponentSpec | None) -> dict:
+    """A component's entry in the resolved config.yaml, its shadow nested in it."""
+    entry = {**COMPONENT.plain({"type": spec.type, "step": spec.step_ns, "launch": spec.launch,
+                                "dedicated_cpu": spec.dedicated_cpu, "on_failure": spec.on_failure}),
+             "parameters": spec.cls.schema.plain(spec.resolved)}
+    del entry["shadow"]
+    if shadow is not None:
+        entry["shadow"] = {"type": shadow.type, "parameters": shadow.cls.schema.plain(shadow.resolved)}
+    return entry
 
 
 def _events(entries: list[dict], components: dict[str, ComponentSpec], connections: list, step_ns: int | None,

@@ -21,6 +21,12 @@ def check_replacement(spec: ComponentSpec, connections: list[tuple[str, str, str
     return problems
 
 
+def units_differ(a: str, b: str) -> bool:
+    """Units both declared and read differently ("1", as generic blocks declare, matches any)."""
+    scales = unit_scale(a), unit_scale(b)
+    return None not in scales and "1" not in (a, b) and scales[0] != scales[1]
+
+
 def _split(ref: Any) -> tuple[str, str] | None:
     if not isinstance(ref, str) or "." not in ref:
         return None
@@ -61,9 +67,7 @@ def _connections(raw: Any, components: dict[str, ComponentSpec], entries: dict, 
             if dv.size != sv.size:
                 errors.append(f"{file}: {key}: shape mismatch: input {dst} is {dv.shape}, output {src} is {sv.shape}")
                 continue
-            scales = unit_scale(dv.unit), unit_scale(sv.unit)
-            # units both sides declare and read differently ("1", as generic blocks declare, matches any)
-            if None not in scales and "1" not in (dv.unit, sv.unit) and scales[0] != scales[1]:
+            if units_differ(dv.unit, sv.unit):
                 errors.append(f"{file}: {key}: unit mismatch: input {dst} is in {dv.unit}, output {src} in "
                               f"{sv.unit} (connections do not convert units)")
                 continue

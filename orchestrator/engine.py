@@ -34,8 +34,8 @@ import traceback
 import uuid
 from pathlib import Path
 
-from components import bus, schedule
-from orchestrator import pacing, recovery, report, runs, supervisor, wiring
+from components import bus
+from orchestrator import pacing, recovery, report, runs, shadows, supervisor, wiring
 from orchestrator.config import ComponentSpec, RunConfig, ViewerSpec
 from orchestrator.control import ControlServer, StopRequested, SwapFailed, raise_stop
 from orchestrator.members import Crew, Member, RunFailure, death, exited, fault_message, terminate
@@ -96,7 +96,8 @@ class Run:
     def status(self) -> dict:
         return {"run_id": self.run_id, "name": self.config.name, "step": self.rows.row,
                 "steps": self.config.steps, "time": self.rows.row * self.config.step_ns / 1e9,
-                "components": {n: {"type": m.spec.type, "generation": m.generation}
+                "components": {n: {"type": m.spec.type, "generation": m.generation,
+                                   **({"shadow_of": m.spec.shadow_of} if m.spec.shadow_of else {})}
                                for n, m in self.members.items()}}
 
     def request_stop(self, reason: str) -> None:
@@ -385,6 +386,7 @@ class Run:
         self.log("start", run_id=self.run_id, config=str(config.path.resolve()), steps=config.steps,
                  step_ns=config.step_ns, algorithm=config.algorithm,
                  components={n: s.type for n, s in config.components.items()},
+                 shadows={n: s.shadow_of for n, s in config.components.items() if s.shadow_of},
                  cpus={**self.placement.dedicated, "shared": sorted(self.placement.shared)})
         for note in config.notes:       # suspect physics the check found (orchestrator check shows them too)
             print(f"warning: {note}", file=self.out)
@@ -397,7 +399,7 @@ class Run:
         self.crew.start(list(config.components.values()), {n: 0 for n in config.components}, self.members)
         for member in self.members.values():
             wiring.wire(self.crew, member, self.members, self.pending_faults, 0)
-        for name in schedule.initialization_order(list(config.components), config.connections):
+        for name in shadows.initialization_order(config.components, config.connections):
             member = self.members[name]
             member.latest = wiring.initialize(self.crew, member, self.members, 0)
             member.initialized = True

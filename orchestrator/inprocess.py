@@ -16,6 +16,7 @@ import numpy as np
 
 from components import bus, schedule
 from components.registry import Unresolved, resolve
+from orchestrator import shadows
 from orchestrator.config import RunConfig
 
 
@@ -66,7 +67,7 @@ def run_in_process(config: RunConfig, steps: int | None = None, timing: dict | N
         member.routes = schedule.routes(name, member.inputs.offsets, config.connections, offsets, ratios,
                                         order, config.algorithm)
         member.route_inputs = [schedule.fed_inputs(r, member.inputs.offsets) for r in member.routes]
-    for name in schedule.initialization_order(order, config.connections):
+    for name in shadows.initialization_order(config.components, config.connections):
         member = members[name]
         for route, names in zip(member.routes, member.route_inputs):  # sources not initialized yet
             source = members[route.source]                              # hold their start values

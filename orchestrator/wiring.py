@@ -22,10 +22,11 @@ def wire_body(member: Member, members: dict[str, Member], config: RunConfig, fau
     """Which sources feed which of ``member``'s inputs (its routes, set), whom it feeds, from step
     ``k``, and the faults to inject into it."""
     name, step_ns = member.name, config.step_ns
+    batched = schedule.batch_consumers(name, config.connections)
     return {
         "generation": member.generation, "step_ns": step_ns, "ratio": member.ratio, "k": k,
-        "consumers": sorted({d for d, _, s, _ in config.connections if s == name and d != name}),
-        "batch_outputs": not schedule.feeds_back(name, config.connections),
+        "consumers": sorted({d for d, _, s, _ in config.connections if s == name and d != name} - set(batched)),
+        "batch_consumers": batched,
         "routes": [r.to_json() for r in member.routes],
         "sources": sources(member, members),
         "faults": [[-(-f.at_ns // step_ns), f.kind, (f.duration_ns or 0) / 1e9] for f in faults if f.component == name]}

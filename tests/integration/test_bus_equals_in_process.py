@@ -31,11 +31,16 @@ def test_the_papers_demo_over_the_bus_equals_the_in_process_loop_bit_for_bit(tmp
 
 @pytest.mark.parametrize("algorithm", ["jacobi", "gauss-seidel"])
 def test_a_multi_rate_loop_with_a_cycle_over_the_bus_equals_the_in_process_loop(write_config, tmp_path, algorithm):
-    # an oscillator pushed by a slower integrator of its own position: a feedback loop across rates
+    # an oscillator pushed by a slower integrator of its own position: a feedback loop across rates;
+    # the spring has a shadow of its own type and parameters, fed by integral, which comes after it
+    # in config order: it equals the spring bit for bit only if it steps on the very same inputs
     config = write_config(f"""
 run: {{name: loop, epoch: 2022-09-18T12:00:00Z, duration: 2 s, step: 1 ms, algorithm: {algorithm}}}
 components:
-  spring: {{type: components.examples.oscillator:Oscillator, parameters: {{mass: 2 kg, stiffness: 8 N/m, x0: 1 m}}}}
+  spring:
+    type: components.examples.oscillator:Oscillator
+    parameters: {{mass: 2 kg, stiffness: 8 N/m, x0: 1 m}}
+    shadow: {{type: components.examples.oscillator:Oscillator, parameters: {{mass: 2 kg, stiffness: 8 N/m, x0: 1 m}}}}
   integral: {{type: test.integrator, step: 7 ms, parameters: {{gain: -3.0}}}}
   push: {{type: test.constant, parameters: {{value: 0.5}}}}
   total: {{type: test.integrator}}
@@ -49,6 +54,9 @@ connections: {{spring.force: integral.x, integral.u: spring.x, total.u: push.y}}
     columns = pq.read_table(tmp_path / "rec" / "signals.parquet").column_names[2:]
     spring_x, integral_x = bus[:, columns.index("spring.x")], bus[:, columns.index("integral.x")]
     assert np.ptp(spring_x) > 0.5 and np.ptp(integral_x) > 0.1      # both moved
+    spring = [c for c in columns if c.startswith("spring.")]
+    assert len(spring) >= 2 and all(np.array_equal(bus[:, columns.index(c)], bus[:, columns.index(f"spring_shadow{c[6:]}")])
+                                    for c in spring)
     # the sample time of integral.u (spring.x): row r holds integral's output of its step k =
     # floor(r / 7) * 7 - 7, which read spring.x at t_k (Jacobi) or t_(k+1) (Gauss-Seidel: spring first)
     k = np.arange(len(bus)) // 7 * 7 - 7

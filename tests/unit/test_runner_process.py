@@ -32,7 +32,7 @@ def started(transport: Transport, params: dict) -> ComponentProcess:
     p = transport.process("f")
     p.command(control("instantiate", {"type": "test.faulty", "params": params}))
     p.command(control("wire", {"generation": 0, "step_ns": 1_000_000, "ratio": 1, "k": 0, "consumers": [],
-                               "batch_outputs": True, "routes": [], "sources": {}, "faults": []}))
+                               "batch_consumers": [], "routes": [], "sources": {}, "faults": []}))
     p.command(control("initialize", {"t0_ns": 0, "input_times_ns": {}}))
     p.command(control("start", {"held": [], "horizon": 0}))
     return p

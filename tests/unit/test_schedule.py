@@ -92,15 +92,18 @@ connections: {{sum.u: slow.n}}
     assert np.allclose(column(config, rows, "sum.x"), np.concatenate([[0.0], np.cumsum(0.01 * u)]), rtol=0, atol=1e-12)
 
 
-def test_only_components_off_every_loop_batch_their_outputs():
-    from components.schedule import feeds_back
+def test_consumers_off_every_loop_back_get_batches():
+    from components.schedule import batch_consumers
     # the paper's demo: orbit -> dynamics <-> controller; a self-connection is not a loop
     demo = [("dynamics", "r_eci", "orbit", "r_eci"), ("dynamics", "tau", "controller", "tau"),
             ("controller", "q", "dynamics", "q"), ("orbit", "u", "orbit", "y")]
-    assert [feeds_back(n, demo) for n in ("orbit", "dynamics", "controller")] == [False, True, True]
+    assert [batch_consumers(n, demo) for n in ("orbit", "dynamics", "controller")] == [["dynamics"], [], []]
+    # with a shadow of the controller (fed by dynamics, feeding nothing): dynamics batches to it alone
+    shadowed = demo + [("controller_shadow", "q", "dynamics", "q")]
+    assert batch_consumers("dynamics", shadowed) == ["controller_shadow"]
     ring = [("b", "u", "a", "y"), ("c", "u", "b", "y"), ("a", "u", "c", "y")]
-    assert all(feeds_back(n, ring) for n in "abc")
-    assert not any(feeds_back(n, ring[:2]) for n in "abc")
+    assert not any(batch_consumers(n, ring) for n in "abc")
+    assert [batch_consumers(n, ring[:2]) for n in "abc"] == [["b"], ["c"], []]
 
 
 def test_dedicated_cpus_are_handed_out_from_the_top_keeping_one_for_the_rest():

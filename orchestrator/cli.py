@@ -37,8 +37,10 @@ def cmd_check(args) -> int:
         return USAGE_ERROR
     for line in config.notes:
         print(f"warning: {line}", file=sys.stderr)
-    print(f"{args.config}: ok — {count(len(config.components), 'component')}, "
-          f"{count(len(config.connections), 'connection')}, {count(config.steps, 'step')} of "
+    shadows = [n for n, s in config.components.items() if s.shadow_of]
+    print(f"{args.config}: ok — {count(len(config.components) - len(shadows), 'component')}"
+          + (f" and {count(len(shadows), 'shadow')}" if shadows else "") + ", "
+          f"{count(len(config.resolved['connections']), 'connection')}, {count(config.steps, 'step')} of "
           f"{config.step_ns / 1e6:g} ms ({config.algorithm})")
     return 0
 

@@ -403,7 +403,9 @@ def _events(entries: list[dict], components: dict[str, ComponentSpec], connectio
         except ConfigErrors as e:
             errors += [f"{file}: {m}" for m in e.errors]
             continue
-        problems = check_replacement(spec, connections)
+        spec.shadow_of = old.shadow_of
+        problems = check_replacement(spec, connections) + (
+            mismatches(components[old.shadow_of], spec, connections) if old.shadow_of else [])
         if problems:
             errors += [f"{file}: {key}: {p}" for p in problems]
             continue

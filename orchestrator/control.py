@@ -9,6 +9,7 @@ from typing import Mapping, Protocol
 from orchestrator.config import COMPONENT, ComponentSpec, ConfigErrors, RunConfig, component_spec
 from orchestrator.config_file import apply_overrides
 from orchestrator.connections import check_replacement
+from orchestrator.shadows import mismatches
 
 
 class SwapFailed(Exception):
@@ -118,7 +119,9 @@ class ControlServer:
                 spec = component_spec(name, {**converted, "step": old.step_ns}, run.config.step_ns,
                                       run.config.path.parent.resolve(), run.config.epoch, f"components.{name}",
                                       run.config.packages)
-                problems = check_replacement(spec, run.config.connections)
+                spec.shadow_of = old.shadow_of   # a shadow swapped stays one, and fits its main
+                problems = check_replacement(spec, run.config.connections) + (
+                    mismatches(specs[old.shadow_of], spec, run.config.connections) if old.shadow_of else [])
                 if problems:
                     raise ConfigErrors(problems)
             except ConfigErrors as e:

@@ -139,3 +139,56 @@ def test_restart_needs_the_state_of_every_component(tmp_path):
     assert "faults[2].duration: a delay needs one" in errors
     assert "faults[3].duration: only a delay has one, not a hang" in errors
     assert Counter.restorable()
+
+
+SHADOWS = """
+run: {name: s, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 1 ms}
+components:
+  src: {type: test.noop, parameters: {size: 3}}
+  b: {type: test.noop, parameters: {size: 3}, shadow: {type: orbit.warp_drive}}
+  c: {type: test.noop, parameters: {size: 3}, shadow: {type: test.noop, parameters: {size: 2}}}
+  d: {type: test.noop, parameters: {size: 3}, shadow: {type: test.integrator}}
+  e: {type: test.noop, parameters: {size: 3}, shadow: {type: test.noop, parameters: {size: 3}}}
+  e_shadow: {type: test.constant, parameters: {value: 1}}
+  f: {type: test.integrator, shadow: {type: milli.py:Milli}}
+  g: {type: test.integrator, shadow: {type: test.integrator, parameters: {gain: 3}}}
+connections: {b.u: src.y, c.u: src.y, d.u: src.y, e.u: src.y}
+"""
+
+
+def test_a_shadow_is_checked_like_a_component_and_against_its_main(write_config, tmp_path, capsys):
+    from orchestrator.cli import main
+
+    # u_time in ms where test.integrator has it in s
+    (tmp_path / "milli.py").write_text(
+        "from components.sdk import Variable\nfrom components.testing.blocks import Integrator\n\n"
+        "class Milli(Integrator):\n    @classmethod\n    def declare(cls, params):\n"
+        "        return [Variable('u', 'input', (), '1', 0.0, 'rate'), Variable('x', 'output', (), '1', 0.0, 'x'),\n"
+        "                Variable('u_time', 'output', (), 'ms', 0.0, 'when')]\n")
+    unknown = SHADOWS.replace("{type: orbit.warp_drive}", "{type: test.noop, colour: red}")
+    assert main(["check", str(write_config(unknown))]) == 2    # the schema first, as for a component
+    assert "components.b.shadow.colour: unknown key (known: type, parameters)" in capsys.readouterr().err
+    assert main(["check", str(write_config(SHADOWS))]) == 2
+    errors = capsys.readouterr().err.splitlines()
+    expected = {
+        "components.b.shadow.type: unknown component type 'orbit.warp_drive'": 1,
+        "components.c.shadow: input 'u': expected shape (3,) in 1 (as c, test.noop), got shape (2,) in 1": 1,
+        "components.c.shadow: output 'y': expected shape (3,) in 1 (as c, test.noop), got shape (2,)": 1,
+        "components.d.shadow: input 'u': expected shape (3,) in 1 (as d, test.noop), got shape () in 1": 1,
+        "components.d.shadow: output 'y': expected shape (3,) in 1 (as d, test.noop), test.integrator has no such output": 1,
+        "components.e.shadow: its outputs are recorded as e_shadow.<output>, and a component is named 'e_shadow'": 1,
+        "components.f.shadow: output 'u_time': expected shape () in s (as f, test.integrator), got shape () in ms": 1,
+    }
+    assert {k: sum(k in e for e in errors) for k in expected} == expected, errors
+    assert len(errors) == len(expected) and not any("components.g" in e for e in errors), errors
+
+
+def test_a_shadow_takes_its_mains_inputs_right_after_it_and_stays_nested_in_the_resolved_config(write_config):
+    text = SHADOWS.split("  b:")[0] + "  g: {type: test.integrator, shadow: {type: test.integrator, parameters: {gain: 3}}}\n" \
+        "  h: {type: test.integrator}\nconnections: {g.u: h.x, h.u: g.x}\n"
+    config = load(write_config(text))
+    assert list(config.components) == ["src", "g", "g_shadow", "h"]
+    assert config.components["g_shadow"].shadow_of == "g" and config.components["g_shadow"].resolved["gain"] == 3.0
+    assert config.connections == [("g", "u", "h", "x"), ("h", "u", "g", "x"), ("g_shadow", "u", "h", "x")]
+    assert config.resolved["components"]["g"]["shadow"] == {"type": "test.integrator", "parameters": {"gain": 3.0, "x0": 0.0}}
+    assert "g_shadow" not in config.resolved["components"] and "g_shadow.u" not in config.resolved["connections"]

@@ -12,6 +12,7 @@
 | ``<c>_torque.png`` | computed_torque, joint_pd | torques of the driven joints, N m (Fig. 7) |
 | ``<c>_base.png`` | controller.computed_torque | the body's base displacement (mm, W) and rotation (deg) from t0, and sigma_min of J_g |
 | ``<c>_joints.png`` | controller.joint_pd | joint positions and their references |
+| ``<c>_shadow.png`` | a component with a ``shadow`` | main - shadow over time for each output both record (orchestrator/shadow_plots.py) |
 | ``<c>_capture.png`` | dynamics.dart with a ``grasp`` | distance and relative rate to the grasp frame, the assembly's rate, wheel rates (joints named ``*wheel*``), the wrist wrench, and the total momentum's change, the capture instant marked |
 
 ``signals=[name, ...]`` plots those columns instead (``signals.png``): a column such as
@@ -25,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from components.rotations import quat_to_matrix
+from orchestrator.shadow_plots import shadow_figures
 
 COMPUTED_TORQUE = "controller.computed_torque"
 JOINT_PD = "controller.joint_pd"
@@ -431,6 +433,7 @@ def figures(record_dir, signals: list[str] | None = None) -> list[tuple[str, obj
             written += _capture(name, params, columns, t, record_dir)
         elif kind.startswith(ORBIT):
             written += _orbit(name, config, columns, t)
+    written += shadow_figures(config, columns, t)
     if not written:
         types = ", ".join(sorted({(s or {}).get("type", "?") for s in (config.get("components") or {}).values()}))
         raise PlotError(f"nothing to plot in {record_dir}: no figures for its component types ({types}); "

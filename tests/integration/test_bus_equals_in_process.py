@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+import yaml
 
 from orchestrator.config import load
 from orchestrator.inprocess import run_in_process
@@ -65,14 +66,20 @@ connections: {{spring.force: integral.x, integral.u: spring.x, total.u: push.y}}
 
 
 def test_same_type_swaps_in_the_demo_continue_exactly(tmp_path):
-    """Swapping the controller (in the loop) and the orbit (running ahead, batched) mid-run hands
-    their state over without a trace: the numbers equal an undisturbed in-process run."""
+    """Swapping the controller (in the loop), its shadow and the orbit (running ahead, batched)
+    mid-run hands their state over without a trace: the numbers equal an undisturbed in-process
+    run (the shadow, of other gains, goes on beside a swapped main and through its own swap)."""
+    raw = yaml.safe_load((ROOT / "configs" / "humanoid_tracking.yaml").read_text().replace("../models/", f"{ROOT}/models/"))
+    controller = raw["components"]["controller"]
+    controller["shadow"] = {"type": controller["type"], "parameters": {**controller["parameters"], "kp": [64] * 6}}
+    reference = tmp_path / "shadowed.yaml"
+    reference.write_text(yaml.safe_dump(raw, sort_keys=False))
+    raw["events"] = [{"at": "0.1 s", "swap": "controller"}, {"at": "0.15 s", "swap": "controller_shadow"},
+                     {"at": "0.2 s", "swap": "orbit"}]
     config = tmp_path / "swaps.yaml"
-    text = (ROOT / "configs" / "humanoid_tracking.yaml").read_text().replace("../models/", f"{ROOT}/models/")
-    config.write_text(text + "events:\n  - {at: 0.1 s, swap: controller}\n  - {at: 0.2 s, swap: orbit}\n")
+    config.write_text(yaml.safe_dump(raw, sort_keys=False))
     result = orchestrator("run", config, "--record", tmp_path / "rec", "--set", "run.duration=0.3 s")
     assert result.returncode == 0, result.stderr
     swaps = [line for line in (tmp_path / "rec" / "events.jsonl").read_text().splitlines() if '"swap"' in line]
-    assert len(swaps) == 2
-    reference = run_in_process(load(ROOT / "configs" / "humanoid_tracking.yaml", ["run.duration=0.3 s"]))
-    assert np.array_equal(recorded(tmp_path / "rec"), reference)
+    assert len(swaps) == 3
+    assert np.array_equal(recorded(tmp_path / "rec"), run_in_process(load(reference, ["run.duration=0.3 s"])))

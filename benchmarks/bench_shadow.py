@@ -1,16 +1,22 @@
 """The cost of a shadow: the paper's demo over the bus with and without a shadow controller
 (controller.computed_torque with softer gains), runs alternated so that a busy machine weighs on
-both alike.
+all alike.
 
-    python benchmarks/bench_shadow.py [--seconds 5] [--pairs 3]
+    python benchmarks/bench_shadow.py [--seconds 5] [--rounds 3] [--nice 10 0]
 
-Prints each pair's real-time factors (stepping loop only, start-up excluded), their ratio, the
-median ratio, and the compute per step of the controller and its shadow.
+Each round runs the demo without a shadow, then with one at each ``--nice`` (the shadow's nice
+increment, orchestrator/supervisor.py SHADOW_NICE; default: as shipped). Prints each run's
+real-time factor (stepping loop only, start-up excluded) and CPU time (all its processes,
+start-up included: on a busy machine a steadier figure of the cost than the wall time), then
+the medians: the ratio of the real-time factors with / without, the extra CPU time, and the
+compute per step of the dynamics, the controller and the shadow (wall time of do_step,
+preemption included).
 """
 from __future__ import annotations
 
 import argparse
 import os
+import resource
 import sys
 from pathlib import Path
 
@@ -30,39 +36,56 @@ def shadow_override() -> str:
     return "components.controller.shadow=" + yaml.safe_dump(shadow, default_flow_style=True, width=10**6).strip()
 
 
-def demo(seconds: float, more: list[str]) -> tuple[float, dict[str, float]]:
-    """(real-time factor, {component: compute per step, s}) of one bus run of the demo."""
+def cpu_s() -> float:
+    """CPU time of this process and its children that have ended (the run's component processes)."""
+    return sum(r.ru_utime + r.ru_stime for r in map(resource.getrusage, (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)))
+
+
+def demo(seconds: float, more: list[str]) -> tuple[float, float, dict[str, float]]:
+    """(real-time factor, CPU seconds, {component: compute per step, s}) of one bus run of the demo."""
     from orchestrator.config import load
     from orchestrator.engine import Run
 
+    before = cpu_s()
     run = Run(load(ROOT / "configs" / "humanoid_tracking.yaml", [f"run.duration={seconds} s", *more]),
               out=open(os.devnull, "w"))
     if run.execute() != 0:
         raise RuntimeError("the demo failed over the bus")
-    return seconds / run.loop_s, {m.name: m.compute_s / max(m.steps, 1) for m in run.members.values()}
+    return (seconds / run.loop_s, cpu_s() - before,
+            {m.name: m.compute_s / max(m.steps, 1) for m in run.members.values()})
 
 
 def main() -> None:
     from bench_performance import machine
+    from orchestrator import supervisor
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=5.0, help="simulated time of each run")
-    parser.add_argument("--pairs", type=int, default=3, help="pairs of runs, without and with a shadow")
+    parser.add_argument("--rounds", type=int, default=3, help="rounds of runs, without and with a shadow")
+    parser.add_argument("--nice", type=int, nargs="+", default=[supervisor.SHADOW_NICE],
+                        help="the shadow's nice increments to run (each round runs them all)")
     args = parser.parse_args()
     print(f"machine: {machine()}; load average {os.getloadavg()[0]:.2f} at the start")
-    shadowed = [shadow_override()]
-    ratios, compute = [], []
-    for i in range(args.pairs):
-        plain, _ = demo(args.seconds, [])
-        shadow, per_step = demo(args.seconds, shadowed)
-        ratios.append(shadow / plain)
-        compute.append(per_step)
-        print(f"pair {i + 1}: real-time factor {plain:.2f} without, {shadow:.2f} with a shadow "
-              f"(ratio {shadow / plain:.2f})", flush=True)
-    print(f"median ratio with / without a shadow: {np.median(ratios):.2f} "
-          f"(load average {os.getloadavg()[0]:.2f} at the end)")
-    for name in ("dynamics", "controller", "controller_shadow"):
-        print(f"  {name}: {np.median([c[name] for c in compute]) * 1e6:.0f} us compute per step")
+    variants = {"without": None, **{f"shadow at nice +{n}": n for n in args.nice}}
+    results: dict[str, list] = {name: [] for name in variants}
+    for i in range(args.rounds):
+        for name, nice in variants.items():
+            if nice is not None:
+                supervisor.SHADOW_NICE = nice
+            results[name].append(demo(args.seconds, [] if nice is None else [shadow_override()]))
+            factor, cpu, _ = results[name][-1]
+            print(f"round {i + 1}, {name}: real-time factor {factor:.2f}, CPU {cpu:.1f} s", flush=True)
+    print(f"medians over {args.rounds} rounds (load average {os.getloadavg()[0]:.2f} at the end):")
+    plain = results["without"]
+    for name, runs in results.items():
+        line = f"  {name}: real-time factor {np.median([r[0] for r in runs]):.2f}, CPU {np.median([r[1] for r in runs]):.1f} s"
+        if variants[name] is not None:
+            ratio = np.median([r[0] / p[0] for r, p in zip(runs, plain)])
+            extra = np.median([r[1] - p[1] for r, p in zip(runs, plain)])
+            compute = {c: np.median([r[2][c] for r in runs]) * 1e6 for c in ("dynamics", "controller", "controller_shadow")}
+            line += (f"; ratio to without {ratio:.2f} (same round), +{extra:.1f} CPU s; compute per step: "
+                     + ", ".join(f"{c} {us:.0f} us" for c, us in compute.items()))
+        print(line)
 
 
 if __name__ == "__main__":

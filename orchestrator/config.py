@@ -18,7 +18,7 @@ from components.sdk import Component, Layout, Variable, run_parameters
 from components.units import duration_text
 from orchestrator.config_file import ConfigErrors, apply_overrides, read_yaml
 from orchestrator.connections import _connections, check_replacement
-from orchestrator.shadows import connections_of, mismatches, shadow_spec
+from orchestrator.shadows import mismatches, shadow_spec, with_shadows
 
 ALGORITHMS = ("jacobi", "gauss-seidel")
 MAX_STEPS = 10 ** 12   # steps in a run: beyond, a typo (a duration in the wrong unit), not an experiment
@@ -311,10 +311,7 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
     connections = _connections(config.get("connections", {}), components, raw_entries, file, errors)
     for name, shadow in shadows.items():
         errors += [f"{file}: {shadow.key}: {p}" for p in mismatches(components[name], shadow, connections)]
-    # each shadow right after its main: Gauss-Seidel gives it the main's inputs (schedule.routes)
-    components = {n: s for name, spec in components.items()
-                  for n, s in [(name, spec), *([(shadows[name].name, shadows[name])] if name in shadows else [])]}
-    connections += [c for name in shadows for c in connections_of(name, connections)]
+    components, connections = with_shadows(components, shadows, connections)
     events = _events(config.get("events", []), components, connections, step_ns, total_ns, config_dir, epoch,
                      file, errors, packages)
     faults = _faults(config.get("faults", []), components, total_ns, file, errors)

@@ -70,6 +70,19 @@ def connections_of(main: str, connections) -> list[tuple[str, str, str, str]]:
     return [(shadow, dv, shadow if s == main else s, sv) for d, dv, s, sv in connections if d == main]
 
 
+def with_shadows(components: dict[str, ComponentSpec], shadows: dict[str, ComponentSpec],
+                 connections: list) -> tuple[dict[str, ComponentSpec], list]:
+    """The components with each shadow (``shadows``: main name -> spec) right after its main, so
+    that Gauss-Seidel gives it the main's inputs (schedule.routes reads the order), and the
+    connections with the shadows'."""
+    ordered = {}
+    for name, spec in components.items():
+        ordered[name] = spec
+        if name in shadows:
+            ordered[shadows[name].name] = shadows[name]
+    return ordered, connections + [c for name in shadows for c in connections_of(name, connections)]
+
+
 def initialization_order(components: dict[str, ComponentSpec], connections) -> list[str]:
     """schedule.initialization_order, each shadow right after its main: it initializes on the very
     inputs the main did (a shadow is a source of nothing, so nothing waits for it)."""

@@ -192,3 +192,7 @@ def test_a_shadow_takes_its_mains_inputs_right_after_it_and_stays_nested_in_the_
     assert config.connections == [("g", "u", "h", "x"), ("h", "u", "g", "x"), ("g_shadow", "u", "h", "x")]
     assert config.resolved["components"]["g"]["shadow"] == {"type": "test.integrator", "parameters": {"gain": 3.0, "x0": 0.0}}
     assert "g_shadow" not in config.resolved["components"] and "g_shadow.u" not in config.resolved["connections"]
+    from orchestrator.shadows import connections_of
+    # a main fed by itself: its shadow is fed by itself (its own loop is part of what is shadowed)
+    assert connections_of("a", [("a", "u", "a", "x"), ("a", "v", "b", "y"), ("b", "u", "a", "x")]) == [
+        ("a_shadow", "u", "a_shadow", "x"), ("a_shadow", "v", "b", "y")]

@@ -2,11 +2,9 @@
 (controller.computed_torque with softer gains), runs alternated so that a busy machine weighs on
 all alike.
 
-    python benchmarks/bench_shadow.py [--seconds 5] [--rounds 3] [--nice 10 0]
+    python benchmarks/bench_shadow.py [--seconds 5] [--rounds 3]
 
-Each round runs the demo without a shadow, then with one at each ``--nice`` (the shadow's nice
-increment, orchestrator/supervisor.py SHADOW_NICE; default: as shipped). Prints each run's
-real-time factor (stepping loop only, start-up excluded) and CPU time (all its processes,
+Each round runs the demo without a shadow, then with one. Prints each run's real-time factor (stepping loop only, start-up excluded) and CPU time (all its processes,
 start-up included: on a busy machine a steadier figure of the cost than the wall time), then
 the medians: the ratio of the real-time factors with / without, the extra CPU time, and the
 compute per step of the dynamics, the controller and the shadow (wall time of do_step,
@@ -57,29 +55,24 @@ def demo(seconds: float, more: list[str]) -> tuple[float, float, dict[str, float
 
 def main() -> None:
     from bench_performance import machine
-    from orchestrator import supervisor
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=5.0, help="simulated time of each run")
     parser.add_argument("--rounds", type=int, default=3, help="rounds of runs, without and with a shadow")
-    parser.add_argument("--nice", type=int, nargs="+", default=[supervisor.SHADOW_NICE],
-                        help="the shadow's nice increments to run (each round runs them all)")
     args = parser.parse_args()
     print(f"machine: {machine()}; load average {os.getloadavg()[0]:.2f} at the start")
-    variants = {"without": None, **{f"shadow at nice +{n}": n for n in args.nice}}
+    variants = {"without": [], "with a shadow": [shadow_override()]}
     results: dict[str, list] = {name: [] for name in variants}
     for i in range(args.rounds):
-        for name, nice in variants.items():
-            if nice is not None:
-                supervisor.SHADOW_NICE = nice
-            results[name].append(demo(args.seconds, [] if nice is None else [shadow_override()]))
+        for name, overrides in variants.items():
+            results[name].append(demo(args.seconds, overrides))
             factor, cpu, _ = results[name][-1]
             print(f"round {i + 1}, {name}: real-time factor {factor:.2f}, CPU {cpu:.1f} s", flush=True)
     print(f"medians over {args.rounds} rounds (load average {os.getloadavg()[0]:.2f} at the end):")
     plain = results["without"]
     for name, runs in results.items():
         line = f"  {name}: real-time factor {np.median([r[0] for r in runs]):.2f}, CPU {np.median([r[1] for r in runs]):.1f} s"
-        if variants[name] is not None:
+        if variants[name]:
             ratio = np.median([r[0] / p[0] for r, p in zip(runs, plain)])
             extra = np.median([r[1] - p[1] for r, p in zip(runs, plain)])
             compute = {c: np.median([r[2][c] for r in runs]) * 1e6 for c in ("dynamics", "controller", "controller_shadow")}

@@ -99,8 +99,7 @@ class Crew:
             log_path = self.log_dir / f"{spec.name}.{generation}.log"
             cpu = self.placement.dedicated.get(spec.name)
             process = supervisor.start_component(args + (["--cpu", str(cpu)] if cpu is not None else []),
-                                                 log_path, self.placement.shared, self.env,
-                                                 nice=supervisor.SHADOW_NICE if spec.shadow_of else 0)
+                                                 log_path, self.placement.shared, self.env)
         else:
             print(f"waiting for external component {spec.name!r}: start it with\n"
                   f"    {bus.SECRET_ENV}={self.secret} python -m components.runner {' '.join(args)}",

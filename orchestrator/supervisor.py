@@ -10,12 +10,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 
-# A shadow (orchestrator/shadows.py) yields the CPU to the run's loop: it steps in the gaps the loop
-# leaves (a component waiting for its inputs), up to pacing.WINDOW steps behind, instead of
-# preempting a component on the loop's critical path. Speed only, never results.
-SHADOW_NICE = 10
-
-
 def child_setup() -> None:
     """In a component process: leave Ctrl-C to the orchestrator (which stops everyone in order),
     and die with the orchestrator even if it is SIGKILLed (Linux PR_SET_PDEATHSIG)."""
@@ -81,17 +75,13 @@ def keep_to(cpus: frozenset[int], pid: int = 0) -> None:
     os.sched_setaffinity(pid, cpus)
 
 
-def start_component(arguments: list[str], log_path: Path, cpus: frozenset[int], env: dict,
-                    nice: int = 0) -> subprocess.Popen:
-    """``python -m components.runner ARGS`` on ``cpus`` in ``env``, with stdout and stderr in ``log_path``,
-    ``nice`` added to its nice value."""
+def start_component(arguments: list[str], log_path: Path, cpus: frozenset[int], env: dict) -> subprocess.Popen:
+    """``python -m components.runner ARGS`` on ``cpus`` in ``env``, with stdout and stderr in ``log_path``."""
     with open(log_path, "wb") as log:
         process = subprocess.Popen([sys.executable, "-m", "components.runner", *arguments],
                                    stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
                                    preexec_fn=child_setup, env=env)
     keep_to(cpus, process.pid)   # Popen returns after exec: the child has one thread yet, all inherit
-    if nice:
-        os.setpriority(os.PRIO_PROCESS, process.pid, os.getpriority(os.PRIO_PROCESS, 0) + nice)
     return process
 
 

@@ -139,3 +139,25 @@ def test_restart_needs_the_state_of_every_component(tmp_path):
     assert "faults[2].duration: a delay needs one" in errors
     assert "faults[3].duration: only a delay has one, not a hang" in errors
     assert Counter.restorable()
+
+
+def test_a_swap_to_a_type_that_takes_the_state_keeps_the_parameters_and_the_outputs():
+    """dynamics.dart -> dynamics.pinocchio hands the state over (Component.takes_state_of): the
+    event's parameters default to the old ones, as for the same type; new parameters that change
+    the outputs are refused at check, naming the event; to a type that does not take the state
+    (test.*) nothing is handed over and nothing is refused for it."""
+    from pathlib import Path
+
+    from components import registry
+    from orchestrator.connections import hands_over
+
+    demo = Path(__file__).resolve().parents[2] / "configs" / "humanoid_tracking.yaml"
+    config = load(demo, ["events=[{at: 5 s, swap: dynamics, type: dynamics.pinocchio}]"])
+    old, event = config.components["dynamics"], config.events[0]
+    assert event.parameters == old.parameters and hands_over(old, event.type, event.spec.cls)
+    assert not hands_over(old, "test.noop", registry.load("test.noop"))
+    with pytest.raises(ConfigErrors) as e:
+        load(demo, ["events=[{at: 5 s, swap: dynamics, type: dynamics.pinocchio, parameters: "
+                    "{link_outputs: true, bodies: {humanoid: {urdf: ../models/humanoid_torso.urdf}}}}]"])
+    assert len(e.value.errors) == 1 and "events[0]: a swap from dynamics.dart to dynamics.pinocchio hands the state " \
+                                         "over, so the new outputs must be the old ones" in e.value.errors[0]

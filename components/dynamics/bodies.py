@@ -32,6 +32,7 @@ import numpy as np
 from components.dynamics import environment as env
 from components.dynamics import manifold_rk4
 from components.robots.urdf import UrdfModel
+from components.rotations import matrix_to_quat
 
 FRAMES = ("world", "lvlh")
 DEFAULT_CD = 2.2
@@ -230,6 +231,10 @@ class Body:
     def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """(R_W_base, base origin in W)."""
         raise NotImplementedError
+
+    def orientation(self, R: np.ndarray) -> np.ndarray:
+        """q_W_base [x, y, z, w], w >= 0, of the base's attitude R (from ``base_pose``)."""
+        return matrix_to_quat(R)
 
     def com(self) -> np.ndarray:
         raise NotImplementedError

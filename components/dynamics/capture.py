@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from components.dynamics import manifold_rk4
-from components.rotations import matrix_to_quat
+from components.rotations import cross3, matrix_to_quat
 
 #: Baumgarte stabilization: w_n = BAUMGARTE / dt, critically damped. It only removes integration
 #: drift (~1e-12 m per step), so its value barely matters; w_n dt = 0.1 keeps RK4 well inside its
@@ -126,7 +126,7 @@ class Grasp:
         w_E, v_E = np.split(_twist(self.ee, self.ee.point_in_link(p_E)), 2)
         w_G, v_G = np.split(_twist(self.grasp, self.grasp.point_in_link(p_G)), 2)
         d = p_G - p_E
-        linear = v_G - v_E - np.cross(w_E, d)
+        linear = v_G - v_E - cross3(w_E, d)
         return {"p_ee_grasp": R_E.T @ d, "q_ee_grasp": matrix_to_quat(R_E.T @ R_G),
                 "twist_ee_grasp": np.concatenate([R_E.T @ linear, R_E.T @ (w_G - w_E)])}
 

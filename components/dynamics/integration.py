@@ -47,6 +47,9 @@ def compile_kernels(world: "OrbitalWorld") -> None:
             body.set_stage(zeros, xi, v)
             body.forward_dynamics((R, V))
             body.forward_dynamics(None)
+            body.inverse_mass()                     # (limit stops, mimic joints, a grasp)
+            body.point_jacobian(body.link_names[0], zeros[:3])
+            body.point_bias(body.link_names[0], zeros[:3])
         body.set_state(*state)
 
 
@@ -95,10 +98,13 @@ def joint_stops(body: Body) -> None:
     (positions are not projected, which would change the momentum)."""
     q = body.positions()
     over, under = q >= body.upper, q <= body.lower
-    stops = np.flatnonzero(over | under)
-    body.stops, body.stop_sides = stops, np.where(over[stops], 1.0, -1.0)
-    if stops.size == 0:
+    hit = over | under
+    if not hit.any():                               # the common case, quickly
+        if body.stops.size:
+            body.stops, body.stop_sides = np.zeros(0, dtype=int), np.zeros(0)
         return
+    stops = np.flatnonzero(hit)
+    body.stops, body.stop_sides = stops, np.where(over[stops], 1.0, -1.0)
     v = body.velocities()
     outward = stops[body.stop_sides * v[stops] > 0.0]
     if outward.size:

@@ -100,6 +100,70 @@ def from_pinocchio(ddq, v_pin, rotation, idx_v):
     return a
 
 
+@numba.njit(cache=True)
+def velocity_map(rotation, idx_v, nv):
+    """T (nv, n): v_pin = T v, from the world's coordinates to Pinocchio's velocity (orthogonal)."""
+    T = np.zeros((nv, 6 + idx_v.shape[0]))
+    for i in range(3):
+        for k in range(3):
+            T[i, 3 + k] = rotation[k, i]                  # v_b = R^T v
+            T[3 + i, k] = rotation[k, i]                  # omega_b = R^T omega
+    for m in range(idx_v.shape[0]):
+        T[idx_v[m], 6 + m] = 1.0
+    return T
+
+
+@numba.njit(cache=True)
+def world_inverse_mass(upper, rotation, idx_v):
+    """The world's M^-1 = T^T M_pin^-1 T from the upper triangle Pinocchio fills."""
+    nv = upper.shape[0]
+    M = np.empty((nv, nv))
+    for i in range(nv):
+        for j in range(i, nv):
+            M[i, j] = M[j, i] = upper[i, j]
+    T = velocity_map(rotation, idx_v, nv)
+    return T.T @ M @ T
+
+
+@numba.njit(cache=True)
+def world_point_jacobian(J, r, rotation, idx_v):
+    """(6, n) (angular; linear) over the world's coordinates, of a point at r (W) from a frame's
+    origin, from the frame's Jacobian J (6, nv: linear; angular, world axes, Pinocchio's velocity)."""
+    nv = J.shape[1]
+    point = np.empty((6, nv))
+    for c in range(nv):
+        w0, w1, w2 = J[3, c], J[4, c], J[5, c]
+        point[0, c], point[1, c], point[2, c] = w0, w1, w2
+        point[3, c] = J[0, c] - (r[1] * w2 - r[2] * w1)     # v + omega x r
+        point[4, c] = J[1, c] - (r[2] * w0 - r[0] * w2)
+        point[5, c] = J[2, c] - (r[0] * w1 - r[1] * w0)
+    return point @ velocity_map(rotation, idx_v, nv)
+
+
+@numba.njit(cache=True)
+def zero_world_acceleration(v_pin):
+    """Pinocchio's acceleration where the world's is zero: (dv_b/dt, domega_b/dt) = (-omega_b x v_b, 0),
+    joints 0 (v_b = R^T v: d(v_b)/dt = R^T dv/dt - omega_b x v_b)."""
+    a = np.zeros(v_pin.shape[0])
+    a[0] = -(v_pin[4] * v_pin[2] - v_pin[5] * v_pin[1])
+    a[1] = -(v_pin[5] * v_pin[0] - v_pin[3] * v_pin[2])
+    a[2] = -(v_pin[3] * v_pin[1] - v_pin[4] * v_pin[0])
+    return a
+
+
+@numba.njit(cache=True)
+def point_acceleration(linear, alpha, w, r):
+    """(alpha; a + alpha x r + w x (w x r)): the acceleration of a point at r from a frame's origin
+    whose classical acceleration is a, angular acceleration alpha, angular velocity w (all W)."""
+    out = np.empty(6)
+    wr = np.array([w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2], w[0] * r[1] - w[1] * r[0]])
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        out[i] = alpha[i]
+        out[3 + i] = linear[i] + (alpha[j] * r[k] - alpha[k] * r[j]) + (w[j] * wr[k] - w[k] * wr[j])
+    return out
+
+
 class PinocchioBody(Body):
     """A body as a Pinocchio model; the state is held here, in the world's coordinates (``x``, ``v``)."""
     engine = "pinocchio"
@@ -172,6 +236,7 @@ class PinocchioBody(Body):
         self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [pm.nq, pm.nq + pm.nv])   # views
         self.synced = False                                    # q_pin, v_pin, rotation hold x, v
         self.centroidal = False                                # data holds the centroidal momentum there
+        self.jacobians = False                                 # data holds the joints' Jacobians there
 
     # -- state
     def positions(self) -> np.ndarray:
@@ -205,7 +270,7 @@ class PinocchioBody(Body):
         pinocchio_inputs(q0, xi, self.x, self.v, self.tau, environment, R, V, self.tree_joints, self.tree_frames,
                          self.tree_links, self.link_joint, self.constants, self.atmosphere, self.wrenches,
                          self.pin_index, self.rotation, self.buffer)
-        self.stage, self.synced, self.centroidal = None, True, False
+        self.stage, self.synced, self.centroidal, self.jacobians = None, True, False, False
 
     def forward_dynamics(self, reference) -> np.ndarray:
         if reference is None:
@@ -215,26 +280,23 @@ class PinocchioBody(Body):
         ddq = self.pin.aba(self.pm, self.data, self.q_pin, self.v_pin, self.tau_pin)
         return from_pinocchio(ddq, self.v_pin, self.rotation, self.idx_v)
 
-    def _velocity_map(self) -> np.ndarray:
-        """T: v_pin = T v (orthogonal)."""
-        T = np.zeros((self.pm.nv, self.ndofs))
-        T[0:3, 3:6] = T[3:6, 0:3] = self.rotation.T
-        T[self.idx_v, np.arange(6, self.ndofs)] = 1.0
-        return T
-
     def inverse_mass(self) -> np.ndarray:
         if not self.synced:
             self._sync(False)
-        upper = self.pin.computeMinverse(self.pm, self.data, self.q_pin)
-        Minv = np.triu(upper) + np.triu(upper, 1).T            # Pinocchio fills the upper triangle
-        T = self._velocity_map()
-        return T.T @ Minv @ T
+        return world_inverse_mass(self.pin.computeMinverse(self.pm, self.data, self.q_pin), self.rotation, self.idx_v)
 
     # -- outputs
     def base_pose(self):
         if not self.synced:
             self._sync(False)
         return self.rotation.copy(), self.x[3:6]                # (an x is never written once formed)
+
+    def orientation(self, R: np.ndarray) -> np.ndarray:
+        """The configuration's quaternion (w = cos(|phi|/2), made >= 0)."""
+        if not self.synced:
+            self._sync(False)
+        q = self.q_pin[3:7].copy()
+        return -q if q[3] < 0.0 else q
 
     def _centroidal(self):
         if not self.synced:
@@ -288,27 +350,24 @@ class PinocchioBody(Body):
         pin = self.pin
         if not self.synced:
             self._sync(False)
-        pin.computeJointJacobians(self.pm, self.data, self.q_pin)
-        pin.updateFramePlacements(self.pm, self.data)
+        if not self.jacobians:                                 # the joints' Jacobians, once per state
+            pin.computeJointJacobians(self.pm, self.data, self.q_pin)
+            self.jacobians = True
         frame = self.frame_id[link]
         J = pin.getFrameJacobian(self.pm, self.data, frame, pin.LOCAL_WORLD_ALIGNED)   # [linear; angular]
-        r = self.data.oMf[frame].rotation @ point
-        linear = J[:3] - np.cross(r, J[3:].T).T                # v + omega x r
-        return np.vstack([J[3:], linear]) @ self._velocity_map()
+        r = pin.updateFramePlacement(self.pm, self.data, frame).rotation @ point
+        return world_point_jacobian(J, r, self.rotation, self.idx_v)
 
     def point_bias(self, link: str, point: np.ndarray) -> np.ndarray:
         """Pinocchio's forward kinematics at the acceleration that is zero in the world's
-        coordinates: (dv_b/dt, domega_b/dt) = (-omega_b x v_b, 0), joints 0."""
+        coordinates (``zero_world_acceleration``)."""
         pin = self.pin
         if not self.synced:
             self._sync(False)
-        a = np.zeros(self.pm.nv)
-        a[:3] = -cross3(self.v_pin[3:6], self.v_pin[:3])
-        pin.forwardKinematics(self.pm, self.data, self.q_pin, self.v_pin, a)
+        a = zero_world_acceleration(self.v_pin)
+        pin.forwardKinematics(self.pm, self.data, self.q_pin, self.v_pin, a)   # (the same q: data.J holds)
         frame = self.frame_id[link]
-        pin.updateFramePlacement(self.pm, self.data, frame)
+        r = pin.updateFramePlacement(self.pm, self.data, frame).rotation @ point
         acceleration = pin.getFrameClassicalAcceleration(self.pm, self.data, frame, pin.LOCAL_WORLD_ALIGNED)
         w = pin.getFrameVelocity(self.pm, self.data, frame, pin.LOCAL_WORLD_ALIGNED).angular
-        alpha = acceleration.angular
-        r = self.data.oMf[frame].rotation @ point
-        return np.concatenate([alpha, acceleration.linear + cross3(alpha, r) + cross3(w, cross3(w, r))])
+        return point_acceleration(acceleration.linear, acceleration.angular, w, r)

@@ -62,7 +62,7 @@ from components.dynamics import integration, link_forces
 from components.dynamics.bodies import Body, BodySpec, Environment, ModelError, check_spec  # noqa: F401 (re-exported)
 from components.dynamics.capture import CaptureReport, Grasp, GraspSpec
 from components.robots.urdf import UrdfModel, read_urdf
-from components.rotations import matrix_to_quat, quat_to_matrix
+from components.rotations import cross3, matrix_to_quat, quat_to_matrix
 from components.signals import ORBIT, orbit_signals
 
 INTEGRATORS = ("rk4", "dart")
@@ -195,7 +195,7 @@ class OrbitalWorld:
 
     def _orbit_changed(self) -> None:
         self._reference_cache = {}
-        self.environment_on = (self.tidal or self.gg or self.drag) and bool(self.r_eci.any())
+        self.environment_on = (self.tidal or self.gg or self.drag) and any(self.r_eci.tolist())
 
     def set_torques(self, name: str, tau) -> None:
         """Joint torques/forces (N m or N) of body ``name`` in URDF joint order; clipped to the
@@ -224,7 +224,7 @@ class OrbitalWorld:
             if spec.frame == "lvlh":
                 p, R = R_WL @ p, R_WL @ R
                 w = self.w_lvlh + R_WL @ w
-                v = R_WL @ v + np.cross(self.w_lvlh, p)
+                v = R_WL @ v + cross3(self.w_lvlh, p)
             self._set_base(body, p, R, v, w, spec.q, spec.qd)
 
     def set_body_state(self, name: str, p_W_base, q_W_base, twist_W, q=None, qd=None) -> None:
@@ -325,7 +325,7 @@ class OrbitalWorld:
         com = body.com()
         out = {
             "position": position,
-            "orientation": matrix_to_quat(R_base),
+            "orientation": body.orientation(R_base),
             "twist": np.concatenate([velocities[3:6], velocities[:3]]),
             "q": body.joint_positions(body.positions()),
             "qd": body.joint_velocities(velocities),
@@ -355,10 +355,14 @@ class OrbitalWorld:
     def lvlh(self) -> tuple[np.ndarray, np.ndarray]:
         """R_W_LVLH and LVLH's angular velocity (rad/s, W axes) now, from the reference point as
         propagated to the current time (the orbit inputs may be a step old)."""
-        R, V = self.reference(self.elapsed)
-        h = np.cross(R, V)
-        x, z = R / np.linalg.norm(R), h / np.linalg.norm(h)
-        return np.column_stack([x, np.cross(z, x), z]), h / np.dot(R, R)
+        cached = self._reference_cache.get(("lvlh", self.elapsed))     # (every body's frame outputs ask)
+        if cached is None:
+            R, V = self.reference(self.elapsed)
+            h = cross3(R, V)
+            x, z = R / np.linalg.norm(R), h / np.linalg.norm(h)
+            cached = np.column_stack([x, cross3(z, x), z]), h / np.dot(R, R)
+            self._reference_cache[("lvlh", self.elapsed)] = cached
+        return cached
 
     def frame_outputs(self, name: str) -> dict[str, np.ndarray]:
         """The body's CoM frame (origin at the CoM, base axes: the paper's F_c / F_t) relative to
@@ -368,9 +372,9 @@ class OrbitalWorld:
         c, v_c = body.com(), body.com_velocity()
         R_base = body.base_pose()[0]
         w = body.velocities()[:3]
-        R_WL, w_L = self.lvlh() if self.r_eci.any() else (np.eye(3), np.zeros(3))
+        R_WL, w_L = self.lvlh() if any(self.r_eci.tolist()) else (np.eye(3), np.zeros(3))
         return {"p_lvlh_com": R_WL.T @ c, "q_lvlh_body": matrix_to_quat(R_WL.T @ R_base),
-                "v_lvlh_com": R_WL.T @ (v_c - np.cross(w_L, c)), "w_lvlh_body": R_WL.T @ (w - w_L)}
+                "v_lvlh_com": R_WL.T @ (v_c - cross3(w_L, c)), "w_lvlh_body": R_WL.T @ (w - w_L)}
 
     def relative_frames(self, chaser: str, target: str) -> dict[str, np.ndarray]:
         """Target's CoM frame F_t relative to the chaser's F_c, in F_c axes: ``p_c_t`` (m),
@@ -379,7 +383,7 @@ class OrbitalWorld:
         R_c, R_t = c.base_pose()[0], t.base_pose()[0]
         w_c, w_t = c.velocities()[:3], t.velocities()[:3]
         d = t.com() - c.com()
-        v = t.com_velocity() - c.com_velocity() - np.cross(w_c, d)
+        v = t.com_velocity() - c.com_velocity() - cross3(w_c, d)
         return {"p_c_t": R_c.T @ d, "q_c_t": matrix_to_quat(R_c.T @ R_t), "v_c_t": R_c.T @ v,
                 "w_c_t": R_c.T @ (w_t - w_c)}
 

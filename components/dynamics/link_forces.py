@@ -208,6 +208,25 @@ def _cross(a, b, out):
 
 
 @numba.njit(cache=True)
+def _axis_rotation(u, angle, out):
+    """out = exp([u]x angle) for a unit axis u: cos I + sin [u]x + (1 - cos) u u^T (1 - cos as
+    2 sin^2(angle / 2): no cancellation at small angles)."""
+    c, s = math.cos(angle), math.sin(angle)
+    h = math.sin(0.5 * angle)
+    k = 2.0 * h * h
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = k * u[i] * u[j]
+        out[i, i] += c
+    out[0, 1] -= s * u[2]
+    out[1, 0] += s * u[2]
+    out[0, 2] += s * u[1]
+    out[2, 0] -= s * u[1]
+    out[1, 2] -= s * u[0]
+    out[2, 1] += s * u[0]
+
+
+@numba.njit(cache=True)
 def tree_kinematics(x, v, joints, frames, with_velocity, rotation, position, joint_axis, angular, linear):
     """Joint frames in W over a tree whose joint 1 is the free base, from the world's coordinates
     x, v (base rotation vector, base origin, joints): ``rotation``, ``position`` (nj, 3, 3),
@@ -221,9 +240,10 @@ def tree_kinematics(x, v, joints, frames, with_velocity, rotation, position, joi
     if with_velocity:
         angular[1] = v[0:3]
         linear[1] = v[3:6]
-    Rj = np.empty((3, 3))
-    lever = np.empty(3)
-    w_x_lever = np.empty(3)
+    matrices = np.empty((2, 3, 3))
+    Rj, E = matrices[0], matrices[1]
+    vectors = np.empty((2, 3))
+    lever, w_x_lever = vectors[0], vectors[1]
     for j in range(2, joints.shape[0]):
         p, kind, k = joints[j, 0], joints[j, 1], joints[j, 2]
         f = frames[j]
@@ -236,7 +256,7 @@ def tree_kinematics(x, v, joints, frames, with_velocity, rotation, position, joi
         _rotate(Rj, f[12:15], u)
         value = x[k]
         if kind == REVOLUTE:
-            E = exp_so3(f[12:15] * value)
+            _axis_rotation(f[12:15], value, E)
             for r in range(3):
                 for c in range(3):
                     rotation[j, r, c] = Rj[r, 0] * E[0, c] + Rj[r, 1] * E[1, c] + Rj[r, 2] * E[2, c]
@@ -264,26 +284,17 @@ def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, 
     Fills ``force``, ``torque`` (n, 3): each link's environment force at its CoM and torque about
     it, W axes."""
     nj = joints.shape[0]
+    per_joint = np.zeros((6, nj, 3))              # one allocation (a call's few microseconds count)
     rotation = np.empty((nj, 3, 3))
-    position = np.zeros((nj, 3))
-    joint_axis = np.zeros((nj, 3))
-    angular = np.zeros((nj, 3))
-    linear = np.zeros((nj, 3))
+    position, joint_axis, angular, linear = per_joint[0], per_joint[1], per_joint[2], per_joint[3]
+    total_force, total_torque = per_joint[4], per_joint[5]      # per joint: its links' wrench about the W origin
     tree_kinematics(x, v, joints, frames, drag, rotation, position, joint_axis, angular, linear)
     r2 = R[0] * R[0] + R[1] * R[1] + R[2] * R[2]
     r = math.sqrt(r2)
-    total_force = np.zeros((nj, 3))               # per joint: the wrench of its links, about the W origin
-    total_torque = np.zeros((nj, 3))
-    f = np.empty(3)
-    t = np.empty(3)
-    d = np.empty(3)
-    c_W = np.empty(3)
-    RI = np.empty((3, 3))
-    inertia_W = np.empty((3, 3))
-    v_rel = np.empty(3)
-    x_earth = np.empty(3)
-    v_com = np.empty(3)
-    lever = np.empty(3)
+    scratch = np.empty((13, 3))
+    f, t, d, c_W, v_rel, x_earth, v_com, lever = (scratch[0], scratch[1], scratch[2], scratch[3], scratch[4],
+                                                   scratch[5], scratch[6], scratch[7])
+    about, R_local, d_local, f_local, t_local = scratch[8], scratch[9], scratch[10], scratch[11], scratch[12]
     for n in range(link_joint.shape[0]):
         j = link_joint[n]
         Rj = rotation[j]
@@ -291,13 +302,13 @@ def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, 
         _rotate(Rj, link[0:3], c_W)
         for i in range(3):
             d[i] = c_W[i] + position[j, i]        # CoM from the reference point, W
-        for a in range(3):                        # R_j I R_j^T
-            for b in range(3):
-                RI[a, b] = Rj[a, 0] * link[3 + b] + Rj[a, 1] * link[6 + b] + Rj[a, 2] * link[9 + b]
-        for a in range(3):
-            for b in range(3):
-                inertia_W[a, b] = RI[a, 0] * Rj[b, 0] + RI[a, 1] * Rj[b, 1] + RI[a, 2] * Rj[b, 2]
-        link_environment(R, d, link[12], inertia_W, r2, r, mu, tidal, gravity_gradient, f, t)
+        for i in range(3):                        # R and d in the joint's frame, where the inertia is given
+            R_local[i] = Rj[0, i] * R[0] + Rj[1, i] * R[1] + Rj[2, i] * R[2]
+            d_local[i] = Rj[0, i] * d[0] + Rj[1, i] * d[1] + Rj[2, i] * d[2]
+        link_environment(R_local, d_local, link[12], link[3:12].reshape((3, 3)), r2, r, mu, tidal, gravity_gradient,
+                         f_local, t_local)
+        _rotate(Rj, f_local, f)
+        _rotate(Rj, t_local, t)
         if drag and link[13] > 0.0:
             _cross(angular[j], c_W, lever)
             for i in range(3):
@@ -319,7 +330,6 @@ def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, 
             total_force[joints[j, 0], i] += total_force[j, i]
             total_torque[joints[j, 0], i] += total_torque[j, i]
     out = tau.copy()
-    about = np.empty(3)
     for j in range(1, nj):
         F, T = total_force[j], total_torque[j]
         _cross(position[j], F, about)

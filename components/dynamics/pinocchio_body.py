@@ -273,10 +273,12 @@ class PinocchioBody(Body):
         self.stage, self.synced, self.centroidal, self.jacobians = None, True, False, False
 
     def forward_dynamics(self, reference) -> np.ndarray:
-        if reference is None:
-            self._sync(False)
-        else:
-            self._sync(True, reference[0], reference[1])
+        q0, xi = self.stage or (self.x, NO_STAGE)          # (_sync inlined: four times a step)
+        R, V = (NO_STAGE, NO_STAGE) if reference is None else reference
+        pinocchio_inputs(q0, xi, self.x, self.v, self.tau, reference is not None, R, V, self.tree_joints,
+                         self.tree_frames, self.tree_links, self.link_joint, self.constants, self.atmosphere,
+                         self.wrenches, self.pin_index, self.rotation, self.buffer)
+        self.stage, self.synced, self.centroidal, self.jacobians = None, True, False, False
         ddq = self.pin.aba(self.pm, self.data, self.q_pin, self.v_pin, self.tau_pin)
         return from_pinocchio(ddq, self.v_pin, self.rotation, self.idx_v)
 

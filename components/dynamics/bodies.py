@@ -17,8 +17,9 @@ An engine's body (:class:`components.dynamics.dart_body.DartBody`,
 the state last set (``set_state``, ``set_stage``, ``set_velocities``), in these coordinates:
 ``positions()``, ``velocities()``, ``forward_dynamics(reference)`` (the accelerations under
 ``tau`` and, with ``reference`` = (R, V), the orbital environment), ``inverse_mass()``; for the
-outputs ``base_pose()``, ``com()``, ``com_velocity()``, ``momentum()``, ``link_transforms()``,
-``environment_wrenches(R, V)``; for a grasp ``link_pose``, ``point_jacobian``, ``point_bias``.
+outputs ``base_pose()``, ``orientation()``, ``com()``, ``com_velocity()``, ``momentum()``,
+``link_transforms()``, ``environment_wrenches(R, V)``; for a grasp ``link_pose``,
+``point_jacobian``, ``point_bias``; ``base_coordinates(R, p)`` for an initial state.
 """
 from __future__ import annotations
 

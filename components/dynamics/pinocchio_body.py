@@ -28,7 +28,6 @@ from components.constants import EARTH_RATE, R_EARTH
 from components.dynamics import link_forces, manifold_rk4
 from components.dynamics.bodies import Body, BodySpec, Environment, ModelError
 from components.robots.urdf import UrdfModel
-from components.rotations import cross3
 
 NO_STAGE = np.zeros(0)     # pinocchio_inputs' xi when x is formed (and its R, V without environment)
 

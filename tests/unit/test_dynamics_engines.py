@@ -23,6 +23,7 @@ import pytest
 import yaml
 
 from components.testing.harness import Harness
+from tests import validation
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIGS, MODELS = ROOT / "configs", ROOT / "models"
@@ -97,7 +98,7 @@ def test_demo_humanoid_every_output_agrees():
     params = {**DEMO, "link_outputs": True, "frame_outputs": True, "imu": ["humanoid"]}
     dart, pinocchio = both(params, 3000)
     assert np.abs(dart[-1]["humanoid.qd"]).max() > 0.05 and np.abs(dart[-1]["humanoid.gg_torque"]).max() > 0.0
-    assert_agree(pinocchio, dart, "humanoid")
+    validation.check("pinocchio_dart", assert_agree(pinocchio, dart, "humanoid"))
 
 
 def test_servicer_with_wheels_and_drag_agrees():
@@ -109,7 +110,7 @@ def test_servicer_with_wheels_and_drag_agrees():
                                       "qd": {"wheel_z_joint": 20.0}, "twist": [0, 0, 0, 0.01, -0.02, 0.03]}}}
     dart, pinocchio = both(params, 2000)
     assert np.abs(dart[-1]["servicer.drag_force"]).max() > 0.0
-    assert_agree(pinocchio, dart, "servicer")
+    validation.check("pinocchio_dart", assert_agree(pinocchio, dart, "servicer"))
 
 
 def slider_urdf(tmp_path: Path) -> Path:
@@ -146,7 +147,7 @@ def test_prismatic_joints_and_a_mimic_finger_agree(tmp_path):
     dart, pinocchio = both(params, 2000)
     q = pinocchio[-1]["s.q"]
     assert q[3] == pytest.approx(q[2], abs=1e-12) and abs(dart[-1]["s.q"][0]) > 0.01
-    assert_agree(pinocchio, dart, "slider")
+    validation.check("pinocchio_dart", assert_agree(pinocchio, dart, "slider"))
 
 
 def test_a_joint_resting_on_its_limit_agrees():
@@ -165,7 +166,7 @@ def test_a_joint_resting_on_its_limit_agrees():
     from components.bus import decode_state
     for h in hs.values():
         assert decode_state(h.get_state())["humanoid.stop_side"][wrist] == 1.0
-    assert_agree(runs["pinocchio"], runs["dart"], "wrist on its stop")
+    validation.check("pinocchio_dart", assert_agree(runs["pinocchio"], runs["dart"], "wrist on its stop"))
 
 
 def test_capture_grasp_and_weld_agree():
@@ -182,7 +183,7 @@ def test_capture_grasp_and_weld_agree():
                                                                "linear_velocity": "1 m/s", "angular_velocity": "1 rad/s"}}}
     dart, pinocchio = both(params, 1000, close_at=1)
     assert dart[1]["grasp.closed"] == 1.0 and np.abs(dart[-1]["grasp.wrench"]).max() > 0.1
-    assert_agree(pinocchio, dart, "capture")
+    validation.check("pinocchio_dart", assert_agree(pinocchio, dart, "capture"))
 
 
 @pytest.mark.parametrize("first, second", [("dart", "pinocchio"), ("pinocchio", "dart")])

@@ -296,6 +296,14 @@ def test_numba_kernels_are_compiled_at_instantiate_not_in_step_0(monkeypatch, en
     assert {name: list(kernel.signatures) for name, kernel in kernels.items()} == compiled
 
 
+def test_check_refuses_the_dart_integrator_with_pinocchio():
+    """dynamics.pinocchio has no contact solver: integrator: dart is a config error (exit 2) naming the key."""
+    done = orchestrator("check", CONFIGS / "humanoid_tracking.yaml", "--set", "components.dynamics.type=dynamics.pinocchio",
+                        "--set", "components.dynamics.parameters.integrator=dart")
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    assert "components.dynamics.parameters.integrator: dynamics.pinocchio has no contact solver" in done.stderr
+
+
 @pytest.mark.parametrize("config", ["free_floating_humanoid.yaml", "gravity_gradient_libration.yaml"])
 def test_shipped_configs_check(config):
     done = orchestrator("check", CONFIGS / config)

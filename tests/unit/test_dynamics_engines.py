@@ -198,15 +198,6 @@ def test_state_handed_over_between_engines_continues(first, second):
     assert_agree(run(b, 1000), run(a, 1000), f"{first} -> {second}")
 
 
-def test_pinocchio_refuses_the_dart_integrator():
-    from components.dynamics.component import PinocchioDynamics
-    from components.sdk import resolve_parameters
-
-    _, errors = resolve_parameters(PinocchioDynamics, {"bodies": {"b": {"urdf": str(MODELS / "target.urdf")}},
-                                                       "integrator": "dart"})
-    assert [e.key for e in errors] == ["integrator"] and "no contact solver" in errors[0].message
-
-
 def shipped_configs_for_both_engines():
     """(config, dynamics component) of every shipped config whose dynamics suits both engines (rk4)."""
     for path in sorted(CONFIGS.glob("*.yaml")):

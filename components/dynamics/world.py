@@ -44,10 +44,8 @@ Mimic joints (URDF ``<mimic>``: q = multiplier q_followed + offset) are a holono
 says. ``dart``: DART's own mimic constraint. The mimic joint's q, qd are outputs like any joint's;
 a torque on it acts through the constraint.
 
-The state (``get_state``) has one form for both engines: per body the base pose and twist in W,
-the joint positions, rates and torques in URDF order and the joints resting on a limit stop; the
-orbit inputs and the time since they were sampled; the grasp's weld. A world of either engine
-continues bit-exactly from its own state and, to the engines' rounding, from the other's.
+The state (``get_state``) has one form for both engines: a world continues bit-exactly from its
+own engine's state and, to the engines' rounding, from the other's.
 """
 from __future__ import annotations
 

@@ -31,6 +31,7 @@ TYPES = {
     "orbit.fixed": "components.orbit.components:FixedComponent",
     # dynamics
     "dynamics.dart": "components.dynamics.component:DartDynamics",
+    "dynamics.pinocchio": "components.dynamics.component:PinocchioDynamics",
     # controllers
     "controller.computed_torque": "components.controller.components:ComputedTorqueComponent",
     "controller.joint_pd": "components.controller.components:JointPDComponent",

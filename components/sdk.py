@@ -68,6 +68,10 @@ class Component:
     #: last step. At ``initialize`` an input whose source is not initialized yet (it holds its
     #: start value) is absent.
     input_times_ns: Mapping[str, int] = MappingProxyType({})
+    #: The form of the state ``get_state`` returns, when other types share it: a swap from a type
+    #: of the same ``state_form`` hands the state over (``set_state``, no ``initialize``) as a swap
+    #: to the same type does. None: the state is the type's own.
+    state_form: ClassVar[str | None] = None
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -139,9 +143,15 @@ class Component:
         return cls.get_state is not Component.get_state and cls.set_state is not Component.set_state
 
     @classmethod
+    def takes_state_of(cls, other: type["Component"]) -> bool:
+        """Whether an instance of this type continues from the state of an ``other`` (a swap
+        hands it over instead of initializing): the same type, or one of the same ``state_form``."""
+        return other is cls or (cls.state_form is not None and cls.state_form == other.state_form)
+
+    @classmethod
     def state_problem(cls, params: Mapping[str, Any]) -> str | None:
         """Why an instance with these (validated) parameters cannot hand its state over, or None.
-        Swaps to the same type and restarts are refused with this reason."""
+        Swaps that hand the state over (``takes_state_of``) and restarts are refused with this reason."""
         return None if cls.restorable() else f"{cls.type_name or cls.__name__} has no get_state/set_state"
 
 

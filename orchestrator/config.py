@@ -17,7 +17,7 @@ from components.schema import (Anything, Bool, Duration, Float, Int, ListOf, Map
 from components.sdk import Component, Layout, Variable, run_parameters
 from components.units import duration_text
 from orchestrator.config_file import ConfigErrors, apply_overrides, read_yaml
-from orchestrator.connections import _connections, check_replacement
+from orchestrator.connections import _connections, check_replacement, hands_over, handover_problem
 from orchestrator.shadows import mismatches, shadow_spec, with_shadows
 
 ALGORITHMS = ("jacobi", "gauss-seidel")
@@ -85,7 +85,8 @@ EVENT = Record("event", (
     Parameter("swap", Str(), description="the component replaced"),
     Parameter("type", Str(hint="a component type name"), default=None, description="the new type (default: the same)"),
     Parameter("parameters", Anything(), default=None,
-              description="the new parameters (default: the old ones for the same type, none for another)"),
+              description="the new parameters (default: the old ones when the state is handed over: the same "
+                          "type or one that takes its state; none for another)"),
 ), description="a swap during the run (``events:``)")
 FAULT_KINDS = ("crash", "hang", "nan", "delay")
 FAULT = Record("fault", (
@@ -385,20 +386,30 @@ def _events(entries: list[dict], components: dict[str, ComponentSpec], connectio
                           f"(a multiple of {duration_text(old.step_ns)}), got {duration_text(at_ns)}")
             continue
         new_type = entry["type"] or old.type
-        problem = old.cls.state_problem(old.resolved) if new_type == old.type else None
+        try:
+            handed_over = hands_over(old, new_type, registry.load(new_type, config_dir))
+        except ConfigError as e:
+            errors.append(f"{file}: {key}.type: {e.message}")
+            continue
+        problem = old.cls.state_problem(old.resolved) if handed_over else None
         if problem:
-            errors.append(f"{file}: {key}.swap: a swap to the same type hands the state over, and {target} "
+            what = "the same type" if new_type == old.type else new_type
+            errors.append(f"{file}: {key}.swap: a swap to {what} hands the state over, and {target} "
                           f"cannot: {problem} (give another type)")
             continue
         params = entry["parameters"]
         if params is None:
-            params = old.parameters if new_type == old.type else {}
+            params = old.parameters if handed_over else {}
         try:
             spec = component_spec(target, {"type": new_type, "parameters": params, "step": old.step_ns,
                                            "launch": "local", "dedicated_cpu": False, "on_failure": old.on_failure},
                                   step_ns, config_dir, epoch, key, packages)
         except ConfigErrors as e:
             errors += [f"{file}: {m}" for m in e.errors]
+            continue
+        problem = handover_problem(old, spec) if handed_over else None
+        if problem:
+            errors.append(f"{file}: {key}: {problem}")
             continue
         spec.shadow_of = old.shadow_of
         problems = check_replacement(spec, connections) + (

@@ -1,4 +1,6 @@
-"""Checking connections between components: both ends exist, shapes and units agree."""
+"""Checking connections between components (both ends exist, shapes and units agree) and what a
+component's replacement (a swap) must keep: the connected variables, and, when the swap hands the
+state over, the state's form and the outputs."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -25,6 +27,31 @@ def units_differ(a: str, b: str) -> bool:
     """Units both declared and read differently ("1", as generic blocks declare, matches any)."""
     scales = unit_scale(a), unit_scale(b)
     return None not in scales and "1" not in (a, b) and scales[0] != scales[1]
+
+
+def hands_over(old: ComponentSpec, new_type: str, new_cls) -> bool:
+    """Whether a swap of ``old`` to ``new_type`` (its class ``new_cls``) hands the state over
+    (``set_state``, no ``initialize``): the same type, or one that takes the old type's state
+    (``Component.takes_state_of``)."""
+    return new_type == old.type or new_cls.takes_state_of(old.cls)
+
+
+def handover_problem(old: ComponentSpec, new: ComponentSpec) -> str | None:
+    """Why ``new`` cannot take over ``old``'s state, or None: the old instance cannot give it
+    (``Component.state_problem``), or, for another type, the outputs differ (the new generation
+    starts from the old one's outputs)."""
+    what = "the same type" if new.type == old.type else new.type
+    problem = old.cls.state_problem(old.resolved)
+    if problem:
+        return f"a swap to {what} hands the state over, and {old.name} cannot: {problem} (give another type)"
+    ours = [(v.name, v.shape) for v in old.outputs.variables]
+    theirs = [(v.name, v.shape) for v in new.outputs.variables]
+    if ours != theirs:
+        differ = [f"{n}{list(s)}" for n, s in theirs if (n, s) not in ours][:3] + \
+                 [f"no {n}{list(s)}" for n, s in ours if (n, s) not in theirs][:3]
+        return (f"a swap from {old.type} to {what} hands the state over, so the new outputs must be the old ones "
+                f"(the same parameters), got {', '.join(differ) or 'them in another order'}")
+    return None
 
 
 def _split(ref: Any) -> tuple[str, str] | None:

@@ -6,9 +6,11 @@ import copy
 import json
 from typing import Mapping, Protocol
 
+from components import registry
+from components.errors import ConfigError
 from orchestrator.config import COMPONENT, ComponentSpec, ConfigErrors, RunConfig, component_spec
 from orchestrator.config_file import apply_overrides
-from orchestrator.connections import check_replacement
+from orchestrator.connections import check_replacement, hands_over
 from orchestrator.shadows import mismatches
 
 
@@ -108,9 +110,13 @@ class ControlServer:
                 return {"ok": False, "error": f"no component {name!r} (components: {', '.join(specs)})",
                         "usage": True}
             old = specs[name]
-            entry = {"type": request.get("type") or old.type, "parameters": copy.deepcopy(
-                old.parameters if not request.get("type") or request["type"] == old.type else {}),
-                "on_failure": old.on_failure}
+            new_type = request.get("type") or old.type
+            try:
+                handed_over = hands_over(old, new_type, registry.load(new_type, run.config.path.parent.resolve()))
+            except ConfigError as e:
+                return {"ok": False, "error": f"--type: {e.message}", "usage": True}
+            entry = {"type": new_type, "parameters": copy.deepcopy(old.parameters if handed_over else {}),
+                     "on_failure": old.on_failure}
             try:
                 apply_overrides(entry, [f"parameters.{s}" for s in request.get("set", [])])
                 converted, problems = COMPONENT.resolve(entry, f"components.{name}")

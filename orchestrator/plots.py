@@ -6,14 +6,14 @@
 | file | for | content |
 |---|---|---|
 | ``<c>_track.png`` | orbit.* | altitude, ground track (spherical Earth, UT1 = UTC), r_eci and v_eci over time |
-| ``<c>_<body>.png`` | dynamics.dart | per body: attitude against LVLH as a rotation vector (about z: the pitch of a libration; against the body's t0 attitude if q_eci_lvlh is not connected), momentum change from t0, joint positions |
+| ``<c>_<body>.png`` | dynamics.dart, dynamics.pinocchio | per body: attitude against LVLH as a rotation vector (about z: the pitch of a libration; against the body's t0 attitude if q_eci_lvlh is not connected), momentum change from t0, joint positions |
 | ``<c>_path.png`` | controller.computed_torque | desired (black) and obtained (red) 3D end-effector path relative to its start, in the axes of the base at t0 (inertial; W axes if the base orientation is not recorded) (paper Fig. 5) |
 | ``<c>_error.png`` | controller.computed_torque | position error (mm) and orientation error (mrad) per W axis and norm, over time (Fig. 6) |
 | ``<c>_torque.png`` | computed_torque, joint_pd | torques of the driven joints, N m (Fig. 7) |
 | ``<c>_base.png`` | controller.computed_torque | the body's base displacement (mm, W) and rotation (deg) from t0, and sigma_min of J_g |
 | ``<c>_joints.png`` | controller.joint_pd | joint positions and their references |
 | ``<c>_shadow.png`` | a component with a ``shadow`` | main - shadow over time for each output both record (orchestrator/shadow_plots.py) |
-| ``<c>_capture.png`` | dynamics.dart with a ``grasp`` | distance and relative rate to the grasp frame, the assembly's rate, wheel rates (joints named ``*wheel*``), the wrist wrench, and the total momentum's change, the capture instant marked |
+| ``<c>_capture.png`` | dynamics.* with a ``grasp`` | distance and relative rate to the grasp frame, the assembly's rate, wheel rates (joints named ``*wheel*``), the wrist wrench, and the total momentum's change, the capture instant marked |
 
 ``signals=[name, ...]`` plots those columns instead (``signals.png``): a column such as
 ``dynamics.target.q[0]``, or all elements of a vector, ``orbit.r_eci``. ``<c>`` is the component's
@@ -30,7 +30,7 @@ from orchestrator.shadow_plots import shadow_figures
 
 COMPUTED_TORQUE = "controller.computed_torque"
 JOINT_PD = "controller.joint_pd"
-DYNAMICS = "dynamics.dart"
+DYNAMICS = ("dynamics.dart", "dynamics.pinocchio")      # the engines: the same outputs
 ORBIT = "orbit."
 
 
@@ -428,7 +428,7 @@ def figures(record_dir, signals: list[str] | None = None) -> list[tuple[str, obj
             written += _computed_torque(name, params, config, columns, t, record_dir)
         elif kind == JOINT_PD:
             written += _joint_pd(name, params, config, columns, t, record_dir)
-        elif kind == DYNAMICS:
+        elif kind in DYNAMICS:
             written += _dynamics(name, params, config, columns, t, record_dir)
             written += _capture(name, params, columns, t, record_dir)
         elif kind.startswith(ORBIT):

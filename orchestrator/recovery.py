@@ -17,6 +17,7 @@ import numpy as np
 from components.units import duration_ns, duration_text
 from orchestrator import messages, wiring, wording
 from orchestrator.config import ComponentSpec, Fault
+from orchestrator.connections import handover_problem, hands_over
 from orchestrator.control import SwapFailed
 from orchestrator.members import Member, RunFailure, terminate
 
@@ -184,9 +185,11 @@ class Recovery:
         """Replace a component at the current step boundary (docs/design.md §5); the new generation.
 
         Every component is at the boundary (the horizon is held there). The new generation is
-        started and wired on the side. One of the same type takes over the old one's state, never
-        initialized (initialize would re-anchor what the state already holds), and its outputs at
-        this step are the old ones; one of another type is initialized there. Only then does it take
+        started and wired on the side. One of the same type, or of a type that takes its state
+        (``Component.takes_state_of``: another engine of the same ``state_form``), takes over the
+        old one's state, never initialized (initialize would re-anchor what the state already
+        holds), and its outputs at this step are the old ones; one of another type is initialized
+        there. Only then does it take
         over and its consumers are rewired to it. If it fails to get there, it is stopped and
         SwapFailed is raised: the old generation runs on. ``planned``: an event of the config
         (else the recorded config gains one, so that it replays the run).
@@ -195,16 +198,16 @@ class Recovery:
         old, row = run.members[spec.name], run.rows.row
         t_ns = row * config.step_ns
         same_type = spec.type == old.spec.type
-        problem = old.spec.cls.state_problem(old.spec.resolved) if same_type else None
+        handed_over = hands_over(old.spec, spec.type, spec.cls)
+        problem = handover_problem(old.spec, spec) if handed_over else None
         if problem:
-            raise SwapFailed(f"a swap to the same type hands the state over, and {spec.name} cannot: {problem} "
-                             f"(give another type)")
+            raise SwapFailed(problem)
         began = time.perf_counter()
         try:
             new = run.crew.start([spec], {spec.name: old.generation + 1}, run.joining)[0]
             joined = {**run.members, spec.name: new}
             wiring.wire(run.crew, new, joined, run.pending_faults, row)
-            if same_type:
+            if handed_over:
                 run.crew.ask([old], "get_state", "get_state", config.step_timeout_s)
                 run.crew.ask([new], "set_state", "set_state", config.step_timeout_s, {}, old.reply["blob"])
                 outputs = old.latest
@@ -236,7 +239,7 @@ class Recovery:
             if not planned:
                 self._record_event(new, parameters)
         run.log("swap", component=spec.name, type=spec.type, parameters=parameters, generation=new.generation,
-                step=row, time=t_ns / 1e9, state_handed_over=same_type, wall_s=round(time.perf_counter() - began, 4))
+                step=row, time=t_ns / 1e9, state_handed_over=handed_over, wall_s=round(time.perf_counter() - began, 4))
         if self.restartable:
             self.take_checkpoint()   # a restart never goes back across a swap
         return new.generation

@@ -120,6 +120,14 @@ ROWS: dict[str, Row] = {
         "dynamics.dart (grasp)", "wrist wrench on a welded payload, relative",
         "Newton-Euler m a, I alpha + w x I w (central differences of the payload's motion)", 1e-6, "",
         ("tests/unit/test_grasp.py::test_wrist_wrench_is_the_payloads_inertial_wrench",)),
+    "pinocchio_dart": Row(
+        "dynamics.pinocchio", "every output, 1-3 s in orbit: the demo's humanoid (links, LVLH frame, IMU), the "
+        "servicer (wheels, drag), prismatic and mimic joints, a joint on its stop, a capture's weld; relative",
+        "dynamics.dart (DART's forward dynamics, the same integrator)", 1e-9, "",
+        tuple(f"tests/unit/test_dynamics_engines.py::{t}" for t in (
+            "test_demo_humanoid_every_output_agrees", "test_servicer_with_wheels_and_drag_agrees",
+            "test_prismatic_joints_and_a_mimic_finger_agree", "test_a_joint_resting_on_its_limit_agrees",
+            "test_capture_grasp_and_weld_agree"))),
     "imu_specific_force": Row(
         "dynamics.dart (imu)", "specific force at the base origin, in orbit and not, relative",
         "central differences of the base velocity minus the tidal gravity there", 1e-6, "",

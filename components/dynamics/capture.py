@@ -1,7 +1,7 @@
 """The grasp of a capture: a chaser's end effector welded to a target's grasp frame.
 
-Two free-floating bodies (DART skeletons of their own) become one rigid assembly when the grasp
-closes. The weld is a bilateral constraint between a point P fixed in both bodies (the end
+Two free-floating bodies (of any engine: components/dynamics/bodies.py) become one rigid assembly
+when the grasp closes. The weld is a bilateral constraint between a point P fixed in both bodies (the end
 effector's origin at the capture instant) and their relative attitude, solved at every
 integrator stage by a constraint wrench lambda (torque, force about P; W axes) on the chaser and
 its opposite on the target:
@@ -20,7 +20,8 @@ impulse that cancels the relative twist at P, again equal and opposite (momentum
 exactly, whatever the residual relative velocity).
 
 Frames: the end effector E and the grasp frame G are URDF links (a frame link on a fixed joint is
-fine). Outputs use E's axes: ``p_ee_grasp`` (G's origin in E), ``q_ee_grasp`` (q_E_G) and the
+fine); the weld's state (P, the relative attitude) is held in their frames, the same for every
+engine. Outputs use E's axes: ``p_ee_grasp`` (G's origin in E), ``q_ee_grasp`` (q_E_G) and the
 relative twist of G seen from E.
 """
 from __future__ import annotations
@@ -31,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from components.dynamics import manifold_rk4
-from components.rotations import matrix_to_quat
+from components.rotations import cross3, matrix_to_quat
 
 #: Baumgarte stabilization: w_n = BAUMGARTE / dt, critically damped. It only removes integration
 #: drift (~1e-12 m per step), so its value barely matters; w_n dt = 0.1 keeps RK4 well inside its
@@ -69,37 +70,33 @@ class CaptureReport:
 
 
 class _Frame:
-    """A URDF link of a body as DART sees it: its body node and the link's pose in that node."""
+    """A URDF link of a body (any engine's: components/dynamics/bodies.py)."""
 
     def __init__(self, body, link: str):
-        index = body.link_names.index(link)
-        node, _, offset = body.link_source[index]
-        self.body, self.node = body, node
-        self.offset = np.eye(4) if offset is None else np.asarray(offset, dtype=float)
+        self.body, self.link = body, link
 
     def pose(self) -> tuple[np.ndarray, np.ndarray]:
         """(p, R) of the link in W."""
-        T = self.node.getTransform().matrix() @ self.offset
-        return T[:3, 3].copy(), T[:3, :3].copy()
+        return self.body.link_pose(self.link)
 
-    def jacobian(self, point_in_node: np.ndarray) -> np.ndarray:
-        """World Jacobian (rows: angular, linear) of the node's material point over all of the
-        body's dofs (a node's own Jacobian spans only the dofs it depends on: not the wheels)."""
-        return self.body.skel.getWorldJacobian(self.node, point_in_node)
+    def jacobian(self, point: np.ndarray) -> np.ndarray:
+        """World Jacobian (rows: angular, linear) of the link's material point over all of the
+        body's coordinates."""
+        return self.body.point_jacobian(self.link, point)
 
-    def bias_jacobian(self, point_in_node: np.ndarray, world_frame) -> np.ndarray:
-        """The classical time derivative of ``jacobian``, W axes, over all of the body's dofs."""
-        return self.body.skel.getJacobianClassicDeriv(self.node, point_in_node, world_frame)
+    def bias(self, point: np.ndarray) -> np.ndarray:
+        """That point's acceleration at zero accelerations: Jdot v (angular, linear; W)."""
+        return self.body.point_bias(self.link, point)
 
-    def point_in_node(self, p_W: np.ndarray) -> np.ndarray:
-        """A point given in W, in the node's frame."""
-        T = self.node.getTransform().matrix()
-        return T[:3, :3].T @ (p_W - T[:3, 3])
+    def point_in_link(self, p_W: np.ndarray) -> np.ndarray:
+        """A point given in W, in the link's frame."""
+        p, R = self.pose()
+        return R.T @ (p_W - p)
 
 
-def _twist(frame: _Frame, point_in_node: np.ndarray) -> np.ndarray:
-    """World (angular, linear) velocity of the node's material point (DART's row order)."""
-    return frame.jacobian(point_in_node) @ frame.body.skel.getVelocities()
+def _twist(frame: _Frame, point: np.ndarray) -> np.ndarray:
+    """World (angular, linear) velocity of the link's material point."""
+    return frame.jacobian(point) @ frame.body.velocities()
 
 
 class Grasp:
@@ -109,15 +106,14 @@ class Grasp:
     ``constrain(accelerations, dt)`` adds the constraint to the bodies' stage accelerations and
     ``project()`` restores the velocity constraint after a joint-stop impulse."""
 
-    def __init__(self, spec: GraspSpec, chaser, target, world_frame):
+    def __init__(self, spec: GraspSpec, chaser, target):
         self.spec = spec
-        self.world_frame = world_frame      # DART's World frame: the Jacobian derivatives' axes
         self.ee = _Frame(chaser, spec.end_effector)
         self.grasp = _Frame(target, spec.grasp_frame)
         self.closed = False
-        self.p_in_chaser = np.zeros(3)      # P in the end effector's node
-        self.p_in_target = np.zeros(3)      # P in the grasp frame's node
-        self.R_target_chaser = np.eye(3)    # the chaser node's attitude in the target node's, welded
+        self.p_in_chaser = np.zeros(3)      # P in the end effector's link frame E
+        self.p_in_target = np.zeros(3)      # P in the grasp frame G
+        self.R_target_chaser = np.eye(3)    # E's attitude in G's, welded
         self.wrench = np.zeros(6)           # last constraint wrench on the chaser (angular, linear; W, about P)
 
     # ------------------------------------------------------------------ measuring
@@ -127,10 +123,10 @@ class Grasp:
         (the rate of p_ee_grasp in E (m/s), then G's angular velocity relative to E (rad/s), E axes)."""
         p_E, R_E = self.ee.pose()
         p_G, R_G = self.grasp.pose()
-        w_E, v_E = np.split(_twist(self.ee, self.ee.point_in_node(p_E)), 2)
-        w_G, v_G = np.split(_twist(self.grasp, self.grasp.point_in_node(p_G)), 2)
+        w_E, v_E = np.split(_twist(self.ee, self.ee.point_in_link(p_E)), 2)
+        w_G, v_G = np.split(_twist(self.grasp, self.grasp.point_in_link(p_G)), 2)
         d = p_G - p_E
-        linear = v_G - v_E - np.cross(w_E, d)
+        linear = v_G - v_E - cross3(w_E, d)
         return {"p_ee_grasp": R_E.T @ d, "q_ee_grasp": matrix_to_quat(R_E.T @ R_G),
                 "twist_ee_grasp": np.concatenate([R_E.T @ linear, R_E.T @ (w_G - w_E)])}
 
@@ -153,18 +149,17 @@ class Grasp:
 
     def _relative_twist(self, p_W: np.ndarray) -> np.ndarray:
         """Target minus chaser velocity at the point p_W (angular, linear; W)."""
-        return _twist(self.grasp, self.grasp.point_in_node(p_W)) - _twist(self.ee, self.ee.point_in_node(p_W))
+        return _twist(self.grasp, self.grasp.point_in_link(p_W)) - _twist(self.ee, self.ee.point_in_link(p_W))
 
     # ------------------------------------------------------------------ the weld
 
     def close(self) -> CaptureReport:
         """Weld E to G where they are now, with the impact that cancels their relative twist."""
         errors = self.errors()
-        p_E, _ = self.ee.pose()
-        self.p_in_chaser = self.ee.point_in_node(p_E)
-        self.p_in_target = self.grasp.point_in_node(p_E)
-        R_c = self.ee.node.getTransform().rotation()
-        R_t = self.grasp.node.getTransform().rotation()
+        p_E, R_c = self.ee.pose()
+        _, R_t = self.grasp.pose()
+        self.p_in_chaser = self.ee.point_in_link(p_E)
+        self.p_in_target = self.grasp.point_in_link(p_E)
         self.R_target_chaser = R_t.T @ R_c
         relative = self._relative_twist(p_E)
         impulse = self.project()
@@ -174,41 +169,37 @@ class Grasp:
                              impulse=-np.concatenate([impulse[3:], impulse[:3]]), errors=errors)
 
     def _terms(self):
-        chaser, target = self.ee.body.skel, self.grasp.body.skel
         J_c = self.ee.jacobian(self.p_in_chaser)
         J_t = self.grasp.jacobian(self.p_in_target)
-        M_c, M_t = chaser.getInvMassMatrix(), target.getInvMassMatrix()
+        M_c, M_t = self.ee.body.inverse_mass(), self.grasp.body.inverse_mass()
         MJ_c, MJ_t = M_c @ J_c.T, M_t @ J_t.T
         return J_c, J_t, MJ_c, MJ_t, J_c @ MJ_c + J_t @ MJ_t
 
     def project(self) -> np.ndarray:
         """Cancel the relative twist at P by an equal and opposite impulse; the chaser's (angular,
         linear; N m s, N s; W)."""
-        chaser, target = self.ee.body.skel, self.grasp.body.skel
-        v_c, v_t = chaser.getVelocities(), target.getVelocities()
+        chaser, target = self.ee.body, self.grasp.body
+        v_c, v_t = chaser.velocities(), target.velocities()
         J_c, J_t, MJ_c, MJ_t, K = self._terms()
         impulse = np.linalg.solve(K, -(J_c @ v_c - J_t @ v_t))
-        chaser.setVelocities(v_c + MJ_c @ impulse)
-        target.setVelocities(v_t - MJ_t @ impulse)
+        chaser.set_velocities(v_c + MJ_c @ impulse)
+        target.set_velocities(v_t - MJ_t @ impulse)
         return impulse
 
     def pose_error(self) -> np.ndarray:
         """(rotation vector, position) of the chaser's side of the weld relative to the target's, W."""
-        T_c = self.ee.node.getTransform().matrix()
-        T_t = self.grasp.node.getTransform().matrix()
-        R_err = T_c[:3, :3] @ (T_t[:3, :3] @ self.R_target_chaser).T
-        p_c = T_c[:3, :3] @ self.p_in_chaser + T_c[:3, 3]
-        p_t = T_t[:3, :3] @ self.p_in_target + T_t[:3, 3]
+        p_E, R_E = self.ee.pose()
+        p_G, R_G = self.grasp.pose()
+        R_err = R_E @ (R_G @ self.R_target_chaser).T
+        p_c = R_E @ self.p_in_chaser + p_E
+        p_t = R_G @ self.p_in_target + p_G
         return np.concatenate([manifold_rk4.log_so3(np.ascontiguousarray(R_err)), p_c - p_t])
 
     def constrain(self, a_chaser: np.ndarray, a_target: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """The stage accelerations with the weld's wrench added (the skeletons hold the stage state)."""
-        chaser, target = self.ee.body.skel, self.grasp.body.skel
-        v_c, v_t = chaser.getVelocities(), target.getVelocities()
+        v_c, v_t = self.ee.body.velocities(), self.grasp.body.velocities()
         J_c, J_t, MJ_c, MJ_t, K = self._terms()
-        world = self.world_frame
-        bias = (self.ee.bias_jacobian(self.p_in_chaser, world) @ v_c
-                - self.grasp.bias_jacobian(self.p_in_target, world) @ v_t)
+        bias = self.ee.bias(self.p_in_chaser) - self.grasp.bias(self.p_in_target)
         w_n = BAUMGARTE / dt
         e_v = J_c @ v_c - J_t @ v_t
         rhs = -(J_c @ a_chaser - J_t @ a_target + bias) - 2.0 * w_n * e_v - w_n * w_n * self.pose_error()

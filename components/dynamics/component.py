@@ -1,15 +1,14 @@
-"""Free-floating URDF multibodies in orbit, simulated with DART (type ``dynamics.dart``; a thin
-wrapper of :class:`components.dynamics.world.OrbitalWorld`).
+"""Free-floating URDF multibodies in orbit: types ``dynamics.dart`` and ``dynamics.pinocchio``
+(thin wrappers of :class:`components.dynamics.world.OrbitalWorld`, one per engine).
 
-Zero gravity in the free-falling, non-rotating world frame W (origin at the reference orbit point
-r_eci(t), axes parallel to ECI), plus per link and each switchable: tidal force, gravity-gradient
-torque, atmospheric drag. ``integrator: rk4`` (default) is fourth-order Runge-Kutta on the
-configuration manifold over DART's forward dynamics (no contacts); ``integrator: dart`` is DART's
-own step with its constraint solver (contacts between bodies). Quaternions [x, y, z, w].
+The two types have the same parameters, inputs, outputs and state; only the engine that computes
+the bodies' forward dynamics differs, so a swap from one to the other mid-run hands the state over
+(``state_form``). ``dynamics.pinocchio`` has no contact solver: ``integrator: dart`` is refused.
 
-``declare`` reads the URDFs with xml.etree only (joint and link counts); DART loads at instantiate.
-State (``get_state``): the DART positions and velocities of every body, torques, orbit inputs,
-and the last output quaternions (their signs continue).
+``declare`` reads the URDFs with xml.etree only (joint and link counts); the engine loads at
+instantiate. State (``get_state``): the world's (per body base pose and twist, joint positions,
+rates, torques and limit stops; orbit inputs; the grasp's weld) and the last output quaternions
+(their signs continue).
 """
 from __future__ import annotations
 
@@ -157,14 +156,16 @@ def _atmosphere(layer: Mapping | None):
     return ExponentialAtmosphere(single=(layer["altitude"], layer["density"], layer["scale_height"]))
 
 
-class DartDynamics(Component):
-    __doc__ = __doc__
-    type_name = "dynamics.dart"
+class OrbitalDynamics(Component):
+    """What both dynamics types share: everything but the engine (``engine``)."""
+    engine = ""
+    state_form = "dynamics"
     parameters = (
         Parameter("bodies", MapOf(BODY, "body name", key_pattern=NAME.pattern[1:-1], min_items=1),
                   description="the bodies by name"),
         Parameter("integrator", "str", default="rk4", choices=("rk4", "dart"),
-                  description="rk4: manifold RK4 on DART forward dynamics (no contacts); dart: DART step with contacts"),
+                  description="rk4: manifold RK4 on the engine's forward dynamics (no contacts); "
+                              "dart: DART's step with contacts (dynamics.dart only)"),
         Parameter("substeps", Int(minimum=1), default=1, description="internal steps per communication step"),
         Parameter("tidal_force", "bool", default=True, description="tidal (differential gravity) force per link"),
         Parameter("gravity_gradient", "bool", default=True, description="gravity-gradient torque per link"),
@@ -279,7 +280,7 @@ class DartDynamics(Component):
             grasp_frame=grasp["grasp_frame"], tolerance=Tolerance(**grasp["tolerance"]))
         try:
             self.world = OrbitalWorld(
-                specs, integrator=params["integrator"], substeps=params["substeps"],
+                specs, engine=self.engine, integrator=params["integrator"], substeps=params["substeps"],
                 tidal_force=params["tidal_force"], gravity_gradient=params["gravity_gradient"],
                 drag=params["drag"], mu=params["mu"], atmosphere=_atmosphere(params["atmosphere"]),
                 joint_limits=params["joint_limits"], models=models, grasp=self.grasp or None)
@@ -359,3 +360,36 @@ class DartDynamics(Component):
             raise ComponentError(str(e)) from None
         self.last_quaternions = {k[len(LAST):]: np.array(v, dtype=np.float64) for k, v in state.items()
                                  if k.startswith(LAST)}
+
+
+class DartDynamics(OrbitalDynamics):
+    """Free-floating URDF multibodies in orbit, their dynamics by DART.
+
+    Zero gravity in the free-falling, non-rotating world frame W (origin at the reference orbit
+    point r_eci(t), axes parallel to ECI), plus per link and each switchable: tidal force,
+    gravity-gradient torque, atmospheric drag. ``integrator: rk4`` (default) is fourth-order
+    Runge-Kutta on the configuration manifold over DART's forward dynamics (no contacts);
+    ``integrator: dart`` is DART's own step with its constraint solver (contacts between bodies).
+    Quaternions [x, y, z, w]. Takes the state of ``dynamics.pinocchio`` (a swap hands it over).
+    """
+    type_name = "dynamics.dart"
+    engine = "dart"
+
+
+class PinocchioDynamics(OrbitalDynamics):
+    """Free-floating URDF multibodies in orbit, their dynamics by Pinocchio (ABA).
+
+    The same world, environment, integrator, joint stops, mimic joints, grasp, outputs and state as
+    ``dynamics.dart`` (components/dynamics/world.py); Pinocchio computes the forward dynamics
+    (components/dynamics/pinocchio_body.py). No contacts: ``integrator`` must be rk4. Takes the
+    state of ``dynamics.dart`` (a swap hands it over). Quaternions [x, y, z, w].
+    """
+    type_name = "dynamics.pinocchio"
+    engine = "pinocchio"
+
+    @classmethod
+    def validate(cls, params):
+        if params["integrator"] != "rk4":
+            raise ConfigError("integrator", f"dynamics.pinocchio has no contact solver: expected rk4 (DART's own "
+                                            f"step with contacts is dynamics.dart's), got {params['integrator']!r}")
+        super().validate(params)

@@ -1,12 +1,23 @@
-"""The orbital environment on a body's links, as the generalized forces DART takes: one compiled loop.
+"""The orbital environment on a body's links, as generalized forces: compiled loops, one per engine.
 
 The formulas are those of :mod:`components.dynamics.environment` (tidal force, gravity-gradient
-torque, drag), evaluated per link in its anchor's axes and mapped to generalized forces through the
-anchors' Jacobians (Q = sum_a J_a^T W_a). This runs at each of the four rk4 stages of every step;
-written with numpy it cost ~60 us a stage in ~40 calls on arrays of a few rows, so the loop over
-the links is compiled with numba (nopython, no fastmath: IEEE arithmetic, the same bits on every
-run on a machine). ``tests/unit/test_dynamics_world.py`` and ``test_dynamics_pinocchio.py`` check
-it against DART's and Pinocchio's own handling of the same per-link wrenches.
+torque, drag), evaluated per link by the two functions both engines share, ``link_environment``
+(tidal force and gravity-gradient torque, in whichever axes its vectors are given) and
+``drag_factor``. They run at each of the four rk4 stages of every step; written with numpy they
+cost ~60 us a stage in ~40 calls on arrays of a few rows, so the loops over the links are
+compiled with numba (nopython, no fastmath: IEEE arithmetic, the same bits on every run on a
+machine). ``tests/unit/test_dynamics_world.py`` and ``test_dynamics_pinocchio.py`` check them
+against DART's and Pinocchio's own handling of the same per-link wrenches.
+
+Two ways to generalized forces, in the world's coordinates (the base's rotation, then its origin,
+then the joints; forces dual to the world-frame angular velocity and the base origin's velocity):
+
+- ``generalized_forces`` (DART): the links in their anchor's axes (a link welded to its parent
+  moves with the nearest ancestor that is not welded: its anchor), mapped through the anchors'
+  body Jacobians (Q = sum_a J_a^T W_a), which also give the anchors' poses;
+- ``tree_generalized_forces`` (Pinocchio): the joint frames by forward kinematics over the
+  model's tree, the links in W axes, and the joint forces by a backward pass over the tree
+  (Q_j = s_j . the wrench of everything beyond joint j).
 
 Inputs of ``generalized_forces`` (all float64 or int64 arrays, SI units):
 
@@ -14,7 +25,7 @@ Inputs of ``generalized_forces`` (all float64 or int64 arrays, SI units):
 |---|---|---|
 | J | (6, c) | the anchors' body Jacobians side by side, [angular; linear], anchor axes |
 | rotation_columns | (k, 3) | columns of J that hold the base rotation dofs of each anchor |
-| jacobian_anchor, jacobian_dofs | (c,) | anchor and DART dof of each column of J |
+| jacobian_anchor, jacobian_dofs | (c,) | anchor and dof of each column of J |
 | anchor_slot | (n,) | anchor of each massive link |
 | com, inertia, mass | (n, 3), (n, 3, 3), (n,) | link CoM and inertia about it in anchor axes, kg |
 | R, V | (3,) | reference point from the Earth's centre (m) and its velocity (m/s), W axes |
@@ -25,7 +36,7 @@ Inputs of ``generalized_forces`` (all float64 or int64 arrays, SI units):
 | v_com | (n, 3) | CoM velocity in W, m/s (read only with drag) |
 | h0, rho0, scale_height | (b,) | the atmosphere's bands: base altitude m, density kg/m^3, scale height m |
 | earth_rate, earth_radius | - | rad/s about W z, m |
-| tau | (ndofs,) | joint generalized forces, DART order (added to the result) |
+| tau | (ndofs,) | joint generalized forces (added to the result) |
 | force, torque | (n, 3) | filled with each link's environment force at its CoM and torque about it, anchor axes |
 
 Frames: the base rotation columns of anchor a's Jacobian are R_a^T (angular rows) and
@@ -38,6 +49,80 @@ import math
 
 import numba
 import numpy as np
+
+from components.dynamics.manifold_rk4 import exp_so3
+
+REVOLUTE, PRISMATIC = 1, 2     # tree joint kinds (0: the free base)
+
+
+@numba.njit(cache=True)
+def link_environment(R, d, mass, inertia, r2, r, mu, tidal, gravity_gradient, f, t):
+    """Tidal force ``f`` (at the CoM) and gravity-gradient torque ``t`` (about it) of one link, all
+    in one set of axes: R the reference point from the Earth's centre, d the link's CoM from R,
+    inertia about the CoM, r2 = |R|^2, r = |R|. A term switched off is left zero.
+
+    m (g(R + d) - g(R)) = -mu m [d / s^3 + R (r - s)(r^2 + r s + s^2) / (r^3 s^3)], s = |R + d|,
+    r - s = -(2 R.d + d.d) / (r + s): no cancellation of two ~9 m/s^2 vectors;
+    torque 3 mu / s^5 (rho x I rho), rho = R + d."""
+    rho0, rho1, rho2 = R[0] + d[0], R[1] + d[1], R[2] + d[2]
+    w = 0.0
+    w += d[0] * (rho0 + R[0])                 # 2 R.d + d.d = s^2 - r^2
+    w += d[1] * (rho1 + R[1])
+    w += d[2] * (rho2 + R[2])
+    s2 = w + r2
+    s = math.sqrt(s2)
+    s3 = s2 * s
+    f[0], f[1], f[2] = 0.0, 0.0, 0.0
+    t[0], t[1], t[2] = 0.0, 0.0, 0.0
+    if tidal:
+        scale = mass / s3 * -mu
+        factor = scale * w * (s + r2 / (s + r)) / (r2 * r)      # (r s + s^2 + r^2) / (r + s) = s + r^2 / (r + s)
+        for i in range(3):
+            f[i] = scale * d[i] - factor * R[i]
+    if gravity_gradient:
+        i0 = inertia[0, 0] * rho0 + inertia[0, 1] * rho1 + inertia[0, 2] * rho2
+        i1 = inertia[1, 0] * rho0 + inertia[1, 1] * rho1 + inertia[1, 2] * rho2
+        i2 = inertia[2, 0] * rho0 + inertia[2, 1] * rho1 + inertia[2, 2] * rho2
+        g = 3.0 * mu / (s2 * s3)
+        t[0] = g * (rho1 * i2 - rho2 * i1)
+        t[1] = g * (rho2 * i0 - rho0 * i2)
+        t[2] = g * (rho0 * i1 - rho1 * i0)
+
+
+@numba.njit(cache=True)
+def drag_factor(x, V, v_com, drag_k, h0, rho0, scale_height, earth_rate, earth_radius, v_rel):
+    """Drag on a link whose CoM is at x (from the Earth's centre, W) moving at V + v_com (W):
+    fills ``v_rel``, the velocity against an atmosphere turning with the Earth (W), and returns c
+    with the force c v_rel = -1/2 rho(h) Cd A |v_rel| v_rel."""
+    v_rel[0] = V[0] + v_com[0] + earth_rate * x[1]
+    v_rel[1] = V[1] + v_com[1] - earth_rate * x[0]
+    v_rel[2] = V[2] + v_com[2]
+    altitude = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) - earth_radius
+    band = 0
+    while band + 1 < h0.shape[0] and h0[band + 1] <= altitude:
+        band += 1
+    density = rho0[band] * math.exp(-(altitude - h0[band]) / scale_height[band])
+    speed = math.sqrt(v_rel[0] * v_rel[0] + v_rel[1] * v_rel[1] + v_rel[2] * v_rel[2])
+    return -density * drag_k * speed
+
+
+@numba.njit(cache=True)
+def propagate_reference(R0, V0, s, mu):
+    """The compiled twin of :func:`components.dynamics.environment.propagate_reference` (the same
+    operations in the same order: the same bits): the reference point (R, V) s seconds on."""
+    if s == 0.0:
+        return R0.copy(), V0.copy()
+    x, y, z = R0[0], R0[1], R0[2]
+    u, v, w = V0[0], V0[1], V0[2]
+    r2 = x * x + y * y + z * z
+    k = mu / (r2 * math.sqrt(r2))
+    c = 3.0 * (x * u + y * v + z * w) / r2
+    gx, gy, gz = -k * x, -k * y, -k * z
+    jx, jy, jz = -k * (u - c * x), -k * (v - c * y), -k * (w - c * z)
+    a, b = 0.5 * s, s / 6.0
+    return (np.array([x + s * (u + s * (0.5 * gx + b * jx)), y + s * (v + s * (0.5 * gy + b * jy)),
+                      z + s * (w + s * (0.5 * gz + b * jz))]),
+            np.array([u + s * (gx + a * jx), v + s * (gy + a * jy), w + s * (gz + a * jz)]))
 
 
 @numba.njit(cache=True)
@@ -69,65 +154,32 @@ def generalized_forces(J, rotation_columns, jacobian_anchor, jacobian_dofs, anch
     r = math.sqrt(r2)
     wrench = np.zeros((k, 6))                     # per anchor, about its origin: [torque; force]
     d = np.empty(3)
-    rho = np.empty(3)
     f = np.empty(3)
+    t = np.empty(3)
+    x = np.empty(3)
+    v_rel = np.empty(3)
     for n in range(anchor_slot.shape[0]):
         a = anchor_slot[n]
-        w = 0.0
         for i in range(3):
             d[i] = base_local[a, i] + com[n, i]   # link CoM from the reference point
-            rho[i] = R_local[a, i] + d[i]         # and from the Earth's centre
-            w += d[i] * (rho[i] + R_local[a, i])  # 2 R.d + d.d = s^2 - r^2 (no cancellation)
-        s2 = w + r2
-        s = math.sqrt(s2)
-        s3 = s2 * s
-        for i in range(3):
-            f[i] = 0.0
-        if tidal:
-            # m (g(R + d) - g(R)) = -mu m [d / s^3 + R (r - s)(r^2 + r s + s^2) / (r^3 s^3)]
-            scale = mass[n] / s3 * -mu
-            factor = scale * w * (s + r2 / (s + r)) / (r2 * r)
-            for i in range(3):
-                f[i] = scale * d[i] - factor * R_local[a, i]
+        link_environment(R_local[a], d, mass[n], inertia[n], r2, r, mu, tidal, gravity_gradient, f, t)
         if drag and drag_k[n] > 0.0:
-            # -1/2 rho(h) Cd A |v_rel| v_rel, v_rel against an atmosphere turning with the Earth
-            x = np.empty(3)
             for i in range(3):
                 x[i] = R[i]
                 for j in range(3):
                     x[i] += rotation_T[a, j, i] * d[j]
-            v_rel = np.empty(3)
-            v_rel[0] = V[0] + v_com[n, 0] + earth_rate * x[1]
-            v_rel[1] = V[1] + v_com[n, 1] - earth_rate * x[0]
-            v_rel[2] = V[2] + v_com[n, 2]
-            altitude = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) - earth_radius
-            band = 0
-            while band + 1 < h0.shape[0] and h0[band + 1] <= altitude:
-                band += 1
-            density = rho0[band] * math.exp(-(altitude - h0[band]) / scale_height[band])
-            speed = math.sqrt(v_rel[0] * v_rel[0] + v_rel[1] * v_rel[1] + v_rel[2] * v_rel[2])
-            c = -density * drag_k[n] * speed
+            c = drag_factor(x, V, v_com[n], drag_k[n], h0, rho0, scale_height, earth_rate, earth_radius, v_rel)
             for i in range(3):
                 value = 0.0
                 for j in range(3):
                     value += rotation_T[a, i, j] * v_rel[j]
                 f[i] += c * value
-        t0, t1, t2 = 0.0, 0.0, 0.0
-        if gravity_gradient:
-            # 3 mu / |rho|^5 (rho x I rho)
-            i0 = inertia[n, 0, 0] * rho[0] + inertia[n, 0, 1] * rho[1] + inertia[n, 0, 2] * rho[2]
-            i1 = inertia[n, 1, 0] * rho[0] + inertia[n, 1, 1] * rho[1] + inertia[n, 1, 2] * rho[2]
-            i2 = inertia[n, 2, 0] * rho[0] + inertia[n, 2, 1] * rho[1] + inertia[n, 2, 2] * rho[2]
-            g = 3.0 * mu / (s2 * s3)
-            t0 = g * (rho[1] * i2 - rho[2] * i1)
-            t1 = g * (rho[2] * i0 - rho[0] * i2)
-            t2 = g * (rho[0] * i1 - rho[1] * i0)
         force[n, 0], force[n, 1], force[n, 2] = f[0], f[1], f[2]
-        torque[n, 0], torque[n, 1], torque[n, 2] = t0, t1, t2
+        torque[n, 0], torque[n, 1], torque[n, 2] = t[0], t[1], t[2]
         c0, c1, c2 = com[n, 0], com[n, 1], com[n, 2]
-        wrench[a, 0] += t0 + c1 * f[2] - c2 * f[1]
-        wrench[a, 1] += t1 + c2 * f[0] - c0 * f[2]
-        wrench[a, 2] += t2 + c0 * f[1] - c1 * f[0]
+        wrench[a, 0] += t[0] + c1 * f[2] - c2 * f[1]
+        wrench[a, 1] += t[1] + c2 * f[0] - c0 * f[2]
+        wrench[a, 2] += t[2] + c0 * f[1] - c1 * f[0]
         wrench[a, 3] += f[0]
         wrench[a, 4] += f[1]
         wrench[a, 5] += f[2]
@@ -138,4 +190,159 @@ def generalized_forces(J, rotation_columns, jacobian_anchor, jacobian_dofs, anch
         for i in range(6):
             value += J[i, c] * wrench[a, i]
         out[jacobian_dofs[c]] += value
+    return out
+
+
+@numba.njit(cache=True)
+def _rotate(A, b, out):
+    """out = A b (3x3 by 3)."""
+    for i in range(3):
+        out[i] = A[i, 0] * b[0] + A[i, 1] * b[1] + A[i, 2] * b[2]
+
+
+@numba.njit(cache=True)
+def _cross(a, b, out):
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@numba.njit(cache=True)
+def _axis_rotation(u, angle, out):
+    """out = exp([u]x angle) for a unit axis u: cos I + sin [u]x + (1 - cos) u u^T (1 - cos as
+    2 sin^2(angle / 2): no cancellation at small angles)."""
+    c, s = math.cos(angle), math.sin(angle)
+    h = math.sin(0.5 * angle)
+    k = 2.0 * h * h
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = k * u[i] * u[j]
+        out[i, i] += c
+    out[0, 1] -= s * u[2]
+    out[1, 0] += s * u[2]
+    out[0, 2] += s * u[1]
+    out[2, 0] -= s * u[1]
+    out[1, 2] -= s * u[0]
+    out[2, 1] += s * u[0]
+
+
+@numba.njit(cache=True)
+def tree_kinematics(x, v, joints, frames, with_velocity, rotation, position, joint_axis, angular, linear):
+    """Joint frames in W over a tree whose joint 1 is the free base, from the world's coordinates
+    x, v (base rotation vector, base origin, joints): ``rotation``, ``position`` (nj, 3, 3),
+    (nj, 3); ``joint_axis`` (nj, 3), W; with ``with_velocity`` also each joint frame's
+    ``angular`` velocity and its origin's ``linear`` one (W). ``joints`` (nj, 3): parent, kind
+    (REVOLUTE, PRISMATIC; 0 for the base), coordinate; ``frames`` (nj, 15): the joint's placement
+    in its parent's frame (rotation row-major, translation), its axis in its own frame. Parents
+    come first."""
+    rotation[1] = exp_so3(x[0:3])
+    position[1] = x[3:6]
+    if with_velocity:
+        angular[1] = v[0:3]
+        linear[1] = v[3:6]
+    matrices = np.empty((2, 3, 3))
+    Rj, E = matrices[0], matrices[1]
+    vectors = np.empty((2, 3))
+    lever, w_x_lever = vectors[0], vectors[1]
+    for j in range(2, joints.shape[0]):
+        p, kind, k = joints[j, 0], joints[j, 1], joints[j, 2]
+        f = frames[j]
+        Rp = rotation[p]
+        for r in range(3):                        # Rj = R_p placement_R, origin = R_p placement_p + p_p
+            for c in range(3):
+                Rj[r, c] = Rp[r, 0] * f[c] + Rp[r, 1] * f[3 + c] + Rp[r, 2] * f[6 + c]
+            position[j, r] = Rp[r, 0] * f[9] + Rp[r, 1] * f[10] + Rp[r, 2] * f[11] + position[p, r]
+        u = joint_axis[j]
+        _rotate(Rj, f[12:15], u)
+        value = x[k]
+        if kind == REVOLUTE:
+            _axis_rotation(f[12:15], value, E)
+            for r in range(3):
+                for c in range(3):
+                    rotation[j, r, c] = Rj[r, 0] * E[0, c] + Rj[r, 1] * E[1, c] + Rj[r, 2] * E[2, c]
+        else:
+            rotation[j] = Rj
+            for r in range(3):
+                position[j, r] += u[r] * value
+        if with_velocity:
+            rate = v[k]
+            for r in range(3):
+                lever[r] = position[j, r] - position[p, r]
+            _cross(angular[p], lever, w_x_lever)
+            for r in range(3):
+                angular[j, r] = angular[p, r] + (u[r] * rate if kind == REVOLUTE else 0.0)
+                linear[j, r] = linear[p, r] + w_x_lever[r] + (u[r] * rate if kind == PRISMATIC else 0.0)
+
+
+@numba.njit(cache=True)
+def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, mu, tidal, gravity_gradient, drag,
+                            atmosphere, earth_rate, earth_radius, force, torque):
+    """``tau`` plus the environment's generalized forces (world coordinates) of a body given as a
+    tree (``joints``, ``frames``: see ``tree_kinematics``). Links: ``links`` (n, 14) their CoM (3)
+    and inertia about it (9, row-major) in their joint's frame, mass, 1/2 Cd A; ``link_joint``
+    (n,) their joint. ``atmosphere`` (3, b): the bands' base altitude, density, scale height.
+    Fills ``force``, ``torque`` (n, 3): each link's environment force at its CoM and torque about
+    it, W axes."""
+    nj = joints.shape[0]
+    per_joint = np.zeros((6, nj, 3))              # one allocation (a call's few microseconds count)
+    rotation = np.empty((nj, 3, 3))
+    position, joint_axis, angular, linear = per_joint[0], per_joint[1], per_joint[2], per_joint[3]
+    total_force, total_torque = per_joint[4], per_joint[5]      # per joint: its links' wrench about the W origin
+    tree_kinematics(x, v, joints, frames, drag, rotation, position, joint_axis, angular, linear)
+    r2 = R[0] * R[0] + R[1] * R[1] + R[2] * R[2]
+    r = math.sqrt(r2)
+    scratch = np.empty((13, 3))
+    f, t, d, c_W, v_rel, x_earth, v_com, lever = (scratch[0], scratch[1], scratch[2], scratch[3], scratch[4],
+                                                   scratch[5], scratch[6], scratch[7])
+    about, R_local, d_local, f_local, t_local = scratch[8], scratch[9], scratch[10], scratch[11], scratch[12]
+    for n in range(link_joint.shape[0]):
+        j = link_joint[n]
+        Rj = rotation[j]
+        link = links[n]
+        _rotate(Rj, link[0:3], c_W)
+        for i in range(3):
+            d[i] = c_W[i] + position[j, i]        # CoM from the reference point, W
+        for i in range(3):                        # R and d in the joint's frame, where the inertia is given
+            R_local[i] = Rj[0, i] * R[0] + Rj[1, i] * R[1] + Rj[2, i] * R[2]
+            d_local[i] = Rj[0, i] * d[0] + Rj[1, i] * d[1] + Rj[2, i] * d[2]
+        link_environment(R_local, d_local, link[12], link[3:12].reshape((3, 3)), r2, r, mu, tidal, gravity_gradient,
+                         f_local, t_local)
+        _rotate(Rj, f_local, f)
+        _rotate(Rj, t_local, t)
+        if drag and link[13] > 0.0:
+            _cross(angular[j], c_W, lever)
+            for i in range(3):
+                v_com[i] = linear[j, i] + lever[i]
+                x_earth[i] = R[i] + d[i]
+            c = drag_factor(x_earth, V, v_com, link[13], atmosphere[0], atmosphere[1], atmosphere[2],
+                            earth_rate, earth_radius, v_rel)
+            for i in range(3):
+                f[i] += c * v_rel[i]
+        for i in range(3):
+            force[n, i] = f[i]
+            torque[n, i] = t[i]
+            total_force[j, i] += f[i]
+        total_torque[j, 0] += t[0] + d[1] * f[2] - d[2] * f[1]
+        total_torque[j, 1] += t[1] + d[2] * f[0] - d[0] * f[2]
+        total_torque[j, 2] += t[2] + d[0] * f[1] - d[1] * f[0]
+    for j in range(nj - 1, 1, -1):                # children before parents
+        for i in range(3):
+            total_force[joints[j, 0], i] += total_force[j, i]
+            total_torque[joints[j, 0], i] += total_torque[j, i]
+    out = tau.copy()
+    for j in range(1, nj):
+        F, T = total_force[j], total_torque[j]
+        _cross(position[j], F, about)
+        for i in range(3):
+            about[i] = T[i] - about[i]            # about the joint's origin
+        if j == 1:
+            for i in range(3):
+                out[i] += about[i]
+                out[3 + i] += F[i]
+        elif joints[j, 1] == REVOLUTE:
+            u = joint_axis[j]
+            out[joints[j, 2]] += u[0] * about[0] + u[1] * about[1] + u[2] * about[2]
+        else:
+            u = joint_axis[j]
+            out[joints[j, 2]] += u[0] * F[0] + u[1] * F[1] + u[2] * F[2]
     return out

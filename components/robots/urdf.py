@@ -63,12 +63,15 @@ class UrdfJoint:
 
 @dataclass(frozen=True)
 class UrdfLink:
-    """One URDF link: mass (0 without ``<inertial>``), CoM in the link frame, has collision shapes."""
+    """One URDF link: mass (0 without ``<inertial>``), CoM in the link frame, has collision shapes,
+    and the inertia about the CoM in the link's axes (kg m^2, row-major 3x3: the inertial origin's
+    rpy applied, R I R^T)."""
     name: str
     mass: float
     com: tuple[float, float, float]
     has_inertial: bool
     has_collision: bool
+    inertia: tuple[float, ...] = (0.0,) * 9
 
 
 @dataclass
@@ -169,9 +172,10 @@ def _float(element: ET.Element, attribute: str, default: float | None, where: st
         raise UrdfError(f"{where}: {attribute} expected a number, got {text!r}") from None
 
 
-def _check_inertia(inertia: ET.Element, mass: float, where: str) -> None:
-    """Positive definite and the triangle inequality (each principal moment at most the sum of
-    the other two), with a relative tolerance of 1e-9; an all-zero inertia is a point mass."""
+def _check_inertia(inertia: ET.Element, mass: float, where: str) -> np.ndarray:
+    """The inertia matrix, checked: positive definite and the triangle inequality (each principal
+    moment at most the sum of the other two), with a relative tolerance of 1e-9; an all-zero
+    inertia is a point mass."""
     values = {a: _float(inertia, a, 0.0, f"{where} inertia") for a in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
     if not all(math.isfinite(v) for v in values.values()):
         raise UrdfError(f"{where}: inertia values must be finite, got {values}")
@@ -179,7 +183,7 @@ def _check_inertia(inertia: ET.Element, mass: float, where: str) -> None:
                   [values["ixy"], values["iyy"], values["iyz"]],
                   [values["ixz"], values["iyz"], values["izz"]]])
     if not np.any(I):   # a point mass (a sensor frame's, say): DART and Pinocchio take it
-        return
+        return I
     moments = np.linalg.eigvalsh(I)
     scale = max(float(np.abs(moments).max()), 1e-300)
     if moments[0] <= 1e-12 * scale:
@@ -191,6 +195,7 @@ def _check_inertia(inertia: ET.Element, mass: float, where: str) -> None:
         raise UrdfError(f"{where}: the inertia breaks the triangle inequality: principal moment {c:.6g} > "
                         f"{a:.6g} + {b:.6g} kg m^2 (no rigid body has it; ixx {values['ixx']:g}, "
                         f"iyy {values['iyy']:g}, izz {values['izz']:g})")
+    return I
 
 
 def _resolve_meshes(robot: ET.Element, path: Path, packages) -> None:
@@ -240,7 +245,7 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
         if any(link.name == name for link in links):
             raise UrdfError(f"{path.name}: duplicate link name {name!r}")
         inertial = element.find("inertial")
-        mass, com = 0.0, (0.0, 0.0, 0.0)
+        mass, com, I = 0.0, (0.0, 0.0, 0.0), np.zeros((3, 3))
         if inertial is not None:
             mass_el = inertial.find("mass")
             if mass_el is None:
@@ -249,14 +254,18 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
             if not (mass >= 0.0 and math.isfinite(mass)):
                 raise UrdfError(f"{where}: expected a mass >= 0 kg, got {mass}")
             origin = inertial.find("origin")
+            rpy = (0.0, 0.0, 0.0)
             if origin is not None:
                 com = _floats(origin.get("xyz"), 3, com, f"{where} inertial origin xyz")
+                rpy = _floats(origin.get("rpy"), 3, rpy, f"{where} inertial origin rpy")
             inertia = inertial.find("inertia")
             if inertia is None and mass > 0.0:
                 raise UrdfError(f"{where}: <inertial> without <inertia>")
             if inertia is not None:
-                _check_inertia(inertia, mass, where)
-        links.append(UrdfLink(name, mass, com, inertial is not None, element.find("collision") is not None))
+                R = rpy_to_matrix(rpy)
+                I = R @ _check_inertia(inertia, mass, where) @ R.T
+        links.append(UrdfLink(name, mass, com, inertial is not None, element.find("collision") is not None,
+                              tuple(I.ravel().tolist())))
     if not links:
         raise UrdfError(f"{path.name}: no <link> elements")
     link_names = {link.name for link in links}

@@ -254,12 +254,14 @@ def test_restart_from_state_is_bit_exact(integrator):
         assert np.array_equal(value, got[key]), key
 
 
-@pytest.mark.parametrize("params", [
-    {},                                                                          # the demo's dynamics
-    {"drag": True, "link_outputs": True, "integrator": "rk4", "substeps": 2},
-    {"integrator": "dart"},
+@pytest.mark.parametrize("engine, params", [
+    ("dart", {}),                                                                  # the demo's dynamics
+    ("dart", {"drag": True, "link_outputs": True, "integrator": "rk4", "substeps": 2}),
+    ("dart", {"integrator": "dart"}),
+    ("pinocchio", {}),
+    ("pinocchio", {"drag": True, "link_outputs": True, "substeps": 2}),
 ])
-def test_numba_kernels_are_compiled_at_instantiate_not_in_step_0(monkeypatch, params):
+def test_numba_kernels_are_compiled_at_instantiate_not_in_step_0(monkeypatch, engine, params):
     """The first run after install compiled the numba kernels inside step 0 (seconds), which
     counts against run.step_timeout: "did not answer step 0 within 10 s" on a loaded machine.
     With fresh dispatchers (no signature yet; numba's disk cache may still serve them), the
@@ -267,18 +269,22 @@ def test_numba_kernels_are_compiled_at_instantiate_not_in_step_0(monkeypatch, pa
     on, torques, drag) compile nothing more: the argument types were the steps' own."""
     import numba
 
-    from components.dynamics import link_forces, manifold_rk4
+    from components.dynamics import link_forces, manifold_rk4, pinocchio_body
 
+    names = {"dart": [(link_forces, "generalized_forces"), (manifold_rk4, "moved")],
+             "pinocchio": [(link_forces, "tree_generalized_forces"), (pinocchio_body, "pinocchio_inputs"),
+                           (pinocchio_body, "from_pinocchio")]}[engine]
+    names += [(manifold_rk4, "stage"), (manifold_rk4, "combine"), (link_forces, "propagate_reference")]
     kernels = {}
-    for module, name in ((manifold_rk4, "stage"), (manifold_rk4, "combine"), (manifold_rk4, "moved"),
-                         (link_forces, "generalized_forces")):
+    for module, name in names:
         kernels[name] = numba.njit(cache=True)(getattr(module, name).py_func)
         monkeypatch.setattr(module, name, kernels[name])
     assert not any(kernel.signatures for kernel in kernels.values())
     bodies = {"humanoid": {**HUMANOID, "drag_area": 0.5},
               "target": {"urdf": "../models/target.urdf", "position": [1.2, 0, 0], "twist": [0, 0, 0, 0.3, 0, 0.2]}}
-    h = harness(bodies, **params)
-    used = ["generalized_forces"] + (["stage", "combine", "moved"] if params.get("integrator", "rk4") == "rk4" else [])
+    h = Harness(f"dynamics.{engine}", {"bodies": bodies, **params}, config_dir=CONFIGS)
+    rk4 = params.get("integrator", "rk4") == "rk4"
+    used = [name for name in kernels if rk4 or name in ("generalized_forces", "propagate_reference")]
     compiled = {name: list(kernel.signatures) for name, kernel in kernels.items()}
     assert all(compiled[name] for name in used), compiled                      # before any initialize or step
     h.inputs.update(circular(6778e3, 0.0))
@@ -288,6 +294,14 @@ def test_numba_kernels_are_compiled_at_instantiate_not_in_step_0(monkeypatch, pa
         h.inputs["humanoid.tau"] = 0.05 * np.sin(0.02 * k + np.arange(14))
         h.step(MS)
     assert {name: list(kernel.signatures) for name, kernel in kernels.items()} == compiled
+
+
+def test_check_refuses_the_dart_integrator_with_pinocchio():
+    """dynamics.pinocchio has no contact solver: integrator: dart is a config error (exit 2) naming the key."""
+    done = orchestrator("check", CONFIGS / "humanoid_tracking.yaml", "--set", "components.dynamics.type=dynamics.pinocchio",
+                        "--set", "components.dynamics.parameters.integrator=dart")
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    assert "components.dynamics.parameters.integrator: dynamics.pinocchio has no contact solver" in done.stderr
 
 
 @pytest.mark.parametrize("config", ["free_floating_humanoid.yaml", "gravity_gradient_libration.yaml"])

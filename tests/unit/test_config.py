@@ -196,3 +196,25 @@ def test_a_shadow_takes_its_mains_inputs_right_after_it_and_stays_nested_in_the_
     # a main fed by itself: its shadow is fed by itself (its own loop is part of what is shadowed)
     assert connections_of("a", [("a", "u", "a", "x"), ("a", "v", "b", "y"), ("b", "u", "a", "x")]) == [
         ("a_shadow", "u", "a_shadow", "x"), ("a_shadow", "v", "b", "y")]
+
+
+def test_a_swap_to_a_type_that_takes_the_state_keeps_the_parameters_and_the_outputs():
+    """dynamics.dart -> dynamics.pinocchio hands the state over (Component.takes_state_of): the
+    event's parameters default to the old ones, as for the same type; new parameters that change
+    the outputs are refused at check, naming the event; to a type that does not take the state
+    (test.*) nothing is handed over and nothing is refused for it."""
+    from pathlib import Path
+
+    from components import registry
+    from orchestrator.connections import hands_over
+
+    demo = Path(__file__).resolve().parents[2] / "configs" / "humanoid_tracking.yaml"
+    config = load(demo, ["events=[{at: 5 s, swap: dynamics, type: dynamics.pinocchio}]"])
+    old, event = config.components["dynamics"], config.events[0]
+    assert event.parameters == old.parameters and hands_over(old, event.type, event.spec.cls)
+    assert not hands_over(old, "test.noop", registry.load("test.noop"))
+    with pytest.raises(ConfigErrors) as e:
+        load(demo, ["events=[{at: 5 s, swap: dynamics, type: dynamics.pinocchio, parameters: "
+                    "{link_outputs: true, bodies: {humanoid: {urdf: ../models/humanoid_torso.urdf}}}}]"])
+    assert len(e.value.errors) == 1 and "events[0]: a swap from dynamics.dart to dynamics.pinocchio hands the state " \
+                                         "over, so the new outputs must be the old ones" in e.value.errors[0]

@@ -136,9 +136,8 @@ def test_wrist_wrench_is_the_payloads_inertial_wrench():
         if i == 1:
             w.accelerations()
             wrench = w.grasp.wrench_on_target()
-            _, R_E = w.grasp.ee.pose()
-            node = w.grasp.ee.node.getTransform()
-            P = node.rotation() @ w.grasp.p_in_chaser + node.translation()
+            p_E, R_E = w.grasp.ee.pose()
+            P = R_E @ w.grasp.p_in_chaser + p_E
             c = np.asarray(target.skel.getCOM())
             R_t = target.root.getTransform().rotation()
             I = R_t @ target.local_inertia[0] @ R_t.T

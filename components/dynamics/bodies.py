@@ -1,0 +1,274 @@
+"""One free-floating body, engine-neutral: its specification, its coordinates, and what an engine gives.
+
+The world (:mod:`components.dynamics.world`) integrates every body in ONE set of coordinates,
+whatever engine computes its dynamics (DART's FreeJoint chart):
+
+| | layout |
+|---|---|
+| positions x | base rotation vector phi (R_W_base = exp(phi)), base origin p (m, W), then the free joints in URDF order (rad or m) |
+| velocities v | base angular velocity omega (rad/s, W axes), base origin velocity (m/s, W), then the joint rates |
+| forces Q | torque about the base origin (N m, W), force (N, W), then the joint torques / forces (dual to v) |
+
+Free joints: the URDF's movable joints less the locked ones (welded at their initial position).
+Mimic joints are coordinates like any joint; the world holds them to their joint by a constraint.
+
+An engine's body (:class:`components.dynamics.dart_body.DartBody`,
+:class:`components.dynamics.pinocchio_body.PinocchioBody`) subclasses :class:`Body` and gives, at
+the state last set (``set_state``, ``set_stage``, ``set_velocities``), in these coordinates:
+``positions()``, ``velocities()``, ``forward_dynamics(reference)`` (the accelerations under
+``tau`` and, with ``reference`` = (R, V), the orbital environment), ``inverse_mass()``; for the
+outputs ``base_pose()``, ``orientation()``, ``com()``, ``com_velocity()``, ``momentum()``,
+``link_transforms()``, ``environment_wrenches(R, V)``; for a grasp ``link_pose``,
+``point_jacobian``, ``point_bias``; ``base_coordinates(R, p)`` for an initial state.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from components.dynamics import environment as env
+from components.dynamics import manifold_rk4
+from components.robots.urdf import UrdfModel
+from components.rotations import matrix_to_quat
+
+FRAMES = ("world", "lvlh")
+DEFAULT_CD = 2.2
+
+
+class ModelError(ValueError):
+    """A body specification that does not fit its URDF; ``key`` is relative to ``bodies``."""
+
+    def __init__(self, key: str, message: str):
+        super().__init__(f"{key}: {message}")
+        self.key = key
+        self.message = message
+
+
+@dataclass
+class BodySpec:
+    """One free-floating body.
+
+    | field | unit | meaning |
+    |---|---|---|
+    | name | - | body name (variables ``<name>.q`` ...) |
+    | urdf | - | URDF path; its root link is the free base |
+    | frame | - | ``world`` (W) or ``lvlh``: frame of position/orientation/twist |
+    | position | m | base link origin |
+    | orientation | - | base orientation [x, y, z, w] (q_W_base or q_LVLH_base) |
+    | twist | m/s, rad/s | base origin linear velocity, then angular velocity |
+    | q, qd | rad or m, per s | initial joint positions/rates by joint name (others 0) |
+    | locked_joints | - | joints welded at their initial q |
+    | drag_area | m^2 | link name -> reference area (links not named: no drag) |
+    | drag_cd | - | drag coefficient, one number or link name -> Cd (default 2.2) |
+    """
+    name: str
+    urdf: str | Path
+    frame: str = "world"
+    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    orientation: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
+    twist: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    q: Mapping[str, float] = field(default_factory=dict)
+    qd: Mapping[str, float] = field(default_factory=dict)
+    locked_joints: tuple[str, ...] = ()
+    drag_area: Mapping[str, float] = field(default_factory=dict)
+    drag_cd: float | Mapping[str, float] = DEFAULT_CD
+
+
+def check_spec(spec: BodySpec, model: UrdfModel) -> None:
+    """Check a spec against its parsed URDF (cheap, no DART); ModelError naming the key."""
+    n = spec.name
+    if spec.frame not in FRAMES:
+        raise ModelError(f"{n}.frame", f"expected one of {', '.join(FRAMES)}, got {spec.frame!r}")
+    for key, value, size in (("position", spec.position, 3), ("orientation", spec.orientation, 4),
+                             ("twist", spec.twist, 6)):
+        array = np.asarray(value, dtype=float)
+        if array.shape != (size,) or not np.all(np.isfinite(array)):
+            raise ModelError(f"{n}.{key}", f"expected {size} finite numbers, got {value!r}")
+    if not 0.5 < np.linalg.norm(spec.orientation) < 2.0:
+        raise ModelError(f"{n}.orientation", f"expected a unit quaternion [x, y, z, w], got {list(spec.orientation)}")
+    movable = model.movable_joints
+    for key in ("q", "qd"):
+        for joint, value in getattr(spec, key).items():
+            if joint not in movable:
+                raise ModelError(f"{n}.{key}.{joint}", f"not a movable joint of {Path(spec.urdf).name} "
+                                                       f"(joints: {', '.join(movable) or 'none'})")
+            if not math.isfinite(value):
+                raise ModelError(f"{n}.{key}.{joint}", f"expected a finite number, got {value!r}")
+    for key in ("q", "qd"):
+        for joint in getattr(spec, key):
+            if joint in model.mimics:
+                raise ModelError(f"{n}.{key}.{joint}", f"a mimic joint: it follows {model.mimics[joint][0]!r}; "
+                                                       f"set {key} of that joint instead")
+    for joint, value in spec.q.items():
+        j = model.joint(joint)
+        if not j.lower - 1e-9 <= value <= j.upper + 1e-9:
+            raise ModelError(f"{n}.q.{joint}", f"expected within the URDF limits [{j.lower}, {j.upper}], got {value}")
+    seen = set()
+    for joint in spec.locked_joints:
+        if joint not in movable:
+            raise ModelError(f"{n}.locked_joints", f"{joint!r} is not a movable joint of {Path(spec.urdf).name}")
+        if joint in seen:
+            raise ModelError(f"{n}.locked_joints", f"{joint!r} listed twice")
+        seen.add(joint)
+        if spec.qd.get(joint, 0.0) != 0.0:
+            raise ModelError(f"{n}.qd.{joint}", "the joint is locked: expected no initial rate")
+    links = model.link_names
+    for link, area in spec.drag_area.items():
+        if link not in links:
+            raise ModelError(f"{n}.drag_area.{link}", f"not a link of {Path(spec.urdf).name}")
+        if not (area >= 0.0 and math.isfinite(area)):
+            raise ModelError(f"{n}.drag_area.{link}", f"expected an area >= 0 m^2, got {area}")
+    cds = spec.drag_cd.items() if isinstance(spec.drag_cd, Mapping) else [(None, spec.drag_cd)]
+    for link, cd in cds:
+        key = f"{n}.drag_cd" + (f".{link}" if link is not None else "")
+        if link is not None and link not in links:
+            raise ModelError(key, f"not a link of {Path(spec.urdf).name}")
+        if not (cd >= 0.0 and math.isfinite(cd)):
+            raise ModelError(key, f"expected a drag coefficient >= 0, got {cd}")
+
+
+@dataclass(frozen=True)
+class Environment:
+    """The orbital environment's settings, shared by a world's bodies."""
+    mu: float
+    tidal: bool
+    gravity_gradient: bool
+    drag: bool
+    atmosphere: env.ExponentialAtmosphere
+
+
+class Body:
+    """A body's layout in the world's coordinates (see the module docstring) and the engine's interface.
+
+    | attribute | meaning |
+    |---|---|
+    | joints | the URDF's movable joints, in file order: the layout of q, qd, tau |
+    | dof_index | per joint: its coordinate (6...), -1 when locked |
+    | lower, upper | per coordinate: the URDF position limits (+-inf for the base and unlimited joints) |
+    | mimic | (mimic coordinate, followed coordinate, multiplier, offset) of each mimic pair, both free |
+    | tau | generalized forces of the joints (coordinates), clipped to the URDF efforts |
+    | stops, stop_sides | coordinates resting on a limit stop (rk4), +1 upper, -1 lower |
+    """
+
+    def __init__(self, spec: BodySpec, model: UrdfModel, environment: Environment):
+        self.spec, self.model, self.name, self.environment = spec, model, spec.name, environment
+        self.joints = model.movable_joints
+        self.locked = {j: float(spec.q.get(j, 0.0)) for j in spec.locked_joints}
+        self.free_joints = [j for j in self.joints if j not in self.locked]
+        self.ndofs = 6 + len(self.free_joints)
+        coordinate = {j: 6 + i for i, j in enumerate(self.free_joints)}
+        self.dof_index = np.array([coordinate.get(j, -1) for j in self.joints], dtype=int)
+        self.free = self.dof_index >= 0
+        self.free_dofs = self.dof_index[self.free]
+        self.effort = np.array([model.joint(j).effort for j in self.joints])
+        self.negative_effort = -self.effort
+        self.locked_q = np.array([self.locked.get(j, 0.0) for j in self.joints])
+        self.lower = np.full(self.ndofs, -np.inf)
+        self.upper = np.full(self.ndofs, np.inf)
+        for j, k in coordinate.items():
+            self.lower[k], self.upper[k] = model.joint(j).lower, model.joint(j).upper
+        self.limited = bool(np.any(np.isfinite(self.lower) | np.isfinite(self.upper)))
+        # mimic pairs: rows of J (J a = 0); both joints free (a locked one holds the other through
+        # the weld, or the mimic joint is locked itself)
+        self.mimic = [(coordinate[j], coordinate[followed], multiplier, offset)
+                      for j, (followed, multiplier, offset) in model.mimics.items()
+                      if j in coordinate and followed in coordinate]
+        self.mimic_J = np.zeros((len(self.mimic), self.ndofs))
+        for row, (k, f, multiplier, _) in enumerate(self.mimic):
+            self.mimic_J[row, k], self.mimic_J[row, f] = 1.0, -multiplier
+        self.link_names = model.link_names
+        cd = spec.drag_cd
+        self.drag_k = {link: 0.5 * (float(cd.get(link, DEFAULT_CD)) if isinstance(cd, Mapping) else float(cd))
+                       * float(spec.drag_area.get(link, 0.0)) for link in self.link_names}
+        self.has_drag = any(k > 0.0 for k in self.drag_k.values())
+        self.tau = np.zeros(self.ndofs)
+        self.stops = np.zeros(0, dtype=int)
+        self.stop_sides = np.zeros(0)
+
+    def joint_positions(self, positions: np.ndarray | None = None) -> np.ndarray:
+        """URDF-order joint positions from the coordinates (the body's by default); locked joints at their lock."""
+        q = self.locked_q.copy()
+        q[self.free] = (self.positions() if positions is None else positions)[self.free_dofs]
+        return q
+
+    def joint_velocities(self, velocities: np.ndarray | None = None) -> np.ndarray:
+        """URDF-order joint rates from the coordinates' rates (the body's by default); locked joints 0."""
+        qd = np.zeros(len(self.joints))
+        qd[self.free] = (self.velocities() if velocities is None else velocities)[self.free_dofs]
+        return qd
+
+    # -- what an engine gives (see the module docstring); arrays in the world's coordinates
+    def positions(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def velocities(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def set_state(self, positions: np.ndarray, velocities: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def set_stage(self, q0: np.ndarray, xi: np.ndarray, velocities: np.ndarray) -> None:
+        """The state q0 (+) xi (see ``manifold_rk4.moved``) with these velocities."""
+        raise NotImplementedError
+
+    def set_velocities(self, velocities: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def torques_changed(self) -> None:
+        """``tau`` was written."""
+
+    def forward_dynamics(self, reference) -> np.ndarray:
+        """Accelerations (the time derivative of v) under ``tau`` and, unless ``reference`` is None,
+        the environment with the reference point at (R, V) (m, m/s, W axes from the Earth's centre)."""
+        raise NotImplementedError
+
+    def inverse_mass(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """(R_W_base, base origin in W)."""
+        raise NotImplementedError
+
+    def orientation(self, R: np.ndarray) -> np.ndarray:
+        """q_W_base [x, y, z, w], w >= 0, of the base's attitude R (from ``base_pose``)."""
+        return matrix_to_quat(R)
+
+    def com(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def com_velocity(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def momentum(self, com: np.ndarray, base_position: np.ndarray) -> np.ndarray:
+        """(linear kg m/s, angular kg m^2/s about the CoM), W axes (the CoM and base origin at hand)."""
+        raise NotImplementedError
+
+    def link_transforms(self) -> np.ndarray:
+        """(links, 4, 4): each URDF link's pose in W, file order."""
+        raise NotImplementedError
+
+    def environment_wrenches(self, R: np.ndarray, V: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per URDF link (file order; zero for links without mass), with the reference point at
+        (R, V): tidal force, drag force (N), gravity-gradient torque about the CoM (N m), W axes."""
+        raise NotImplementedError
+
+    def link_pose(self, link: str) -> tuple[np.ndarray, np.ndarray]:
+        """(p, R) of a URDF link in W."""
+        raise NotImplementedError
+
+    def point_jacobian(self, link: str, point: np.ndarray) -> np.ndarray:
+        """(6, ndofs): the world velocity (angular; linear) of a point fixed in the link (given in
+        its frame), over the coordinates' rates."""
+        raise NotImplementedError
+
+    def point_bias(self, link: str, point: np.ndarray) -> np.ndarray:
+        """(6,): that point's acceleration (angular; linear, classical, W) at zero accelerations."""
+        raise NotImplementedError
+
+    def base_coordinates(self, R: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """The base's coordinates (rotation vector, origin) of the pose (R, p)."""
+        return np.concatenate([manifold_rk4.log_so3(np.ascontiguousarray(R, dtype=float)), p])

@@ -1,0 +1,172 @@
+"""The manifold RK4 step of an OrbitalWorld's bodies, with joint stops, mimic joints and the grasp's weld.
+
+Engine-neutral: a body (components/dynamics/bodies.py) gives its state, forward dynamics and
+inverse mass matrix in the world's coordinates; the stage arithmetic is compiled in
+:mod:`components.dynamics.manifold_rk4`. A stage state is q0 (+) xi with velocities v; the base
+rotation moves as R = exp(xi_w) R0 at world angular velocity omega, so d(xi_w)/dt =
+J_l(xi_w)^-1 omega, every other coordinate has d(xi)/dt = v.
+
+Joint stops (rk4): a joint found past a limit has its outward rate cancelled by a joint-space
+impulse and rests on the stop until its acceleration points back inside; mimic joints: each
+stage's accelerations projected onto the constraint. Both act through joint-space forces, internal
+to the body: its momentum is unchanged.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from components.constants import R_EARTH
+from components.dynamics import link_forces, manifold_rk4
+from components.dynamics.bodies import Body
+
+if TYPE_CHECKING:
+    from components.dynamics.world import OrbitalWorld
+
+
+def compile_kernels(world: "OrbitalWorld") -> None:
+    """Compile the numba kernels a step calls (or load them from numba's on-disk cache), now.
+
+    A cold compile takes seconds (~6 s on one idle core): done inside step 0 it counted against
+    ``run.step_timeout``; here, at construction (the component's instantiate), it counts against
+    ``run.start_timeout``. The calls pass the argument types the steps pass (the same
+    expressions), so no step compiles another signature; the machine code is the one a first step
+    would have compiled: the numbers do not change. The bodies' states are kept: the environment
+    calls only fill per-link scratch arrays that every later use fills again first, and the rk4
+    kernels get zeros and return new arrays."""
+    R, V = np.array([R_EARTH + 400e3, 0.0, 0.0]), np.zeros(3)     # any point off the Earth's centre
+    link_forces.propagate_reference(R, V, 0.5, world.mu)
+    for body in world.bodies.values():
+        state = body.positions().copy(), body.velocities().copy()
+        body.environment_wrenches(R, V)
+        if world.integrator == "rk4":
+            zeros = np.zeros(body.ndofs)
+            xi, v, rate = manifold_rk4.stage(0.5, zeros, zeros, zeros)
+            xi, v = manifold_rk4.combine(1.0, zeros, rate, rate, rate, rate, zeros, zeros, zeros, zeros)
+            body.set_stage(zeros, xi, v)
+            body.forward_dynamics((R, V))
+            body.forward_dynamics(None)
+            body.inverse_mass()                     # (limit stops, mimic joints, a grasp)
+            body.point_jacobian(body.link_names[0], zeros[:3])
+            body.point_bias(body.link_names[0], zeros[:3])
+        body.set_state(*state)
+
+
+def acceleration(world: "OrbitalWorld", body: Body, s: float) -> np.ndarray:
+    """Accelerations at the body's current state, torques and (when it applies) the environment
+    at s seconds after the orbit inputs; mimic joints and limit stops held."""
+    a = body.forward_dynamics(world.reference(s) if world.env_now else None)
+    if body.mimic:
+        a = hold_mimic(body, a)
+    if body.stops.size:
+        a = hold_stops(body, a)
+    return a
+
+
+def hold_mimic(body: Body, a: np.ndarray) -> np.ndarray:
+    """Accelerations that keep the mimic constraints (J a = 0; J is constant, so J qd stays 0
+    too): the joint-space constraint force M^-1 J^T lambda, internal to the body."""
+    Minv = body.inverse_mass()
+    J = body.mimic_J
+    MJ = Minv @ J.T
+    return a - MJ @ np.linalg.solve(J @ MJ, J @ a)
+
+
+def hold_stops(body: Body, a: np.ndarray) -> np.ndarray:
+    """Joints resting on a limit stop: a joint-space constraint torque (internal, momentum-free)
+    cancels their outward acceleration; a stop that would have to pull lets go."""
+    Minv = body.inverse_mass()
+    dofs, sides = body.stops, body.stop_sides
+    keep = np.ones(dofs.size, dtype=bool)
+    for _ in range(dofs.size):
+        S = dofs[keep]
+        if S.size == 0:
+            return a
+        torque = np.linalg.solve(Minv[np.ix_(S, S)], -a[S])
+        pulling = sides[keep] * torque > 0.0
+        if not np.any(pulling):
+            return a + Minv[:, S] @ torque
+        keep[np.flatnonzero(keep)[pulling]] = False
+    return a
+
+
+def joint_stops(body: Body) -> None:
+    """Inelastic joint stops, after a step. A joint found past a limit has its outward rate
+    cancelled by a joint-space impulse and rests on the stop (``hold_stops``) until its
+    acceleration points back inside. The joint stays past the limit by at most one step's travel
+    (positions are not projected, which would change the momentum)."""
+    q = body.positions()
+    over, under = q >= body.upper, q <= body.lower
+    hit = over | under
+    if not hit.any():                               # the common case, quickly
+        if body.stops.size:
+            body.stops, body.stop_sides = np.zeros(0, dtype=int), np.zeros(0)
+        return
+    stops = np.flatnonzero(hit)
+    body.stops, body.stop_sides = stops, np.where(over[stops], 1.0, -1.0)
+    v = body.velocities()
+    outward = stops[body.stop_sides * v[stops] > 0.0]
+    if outward.size:
+        Minv = body.inverse_mass()
+        impulse = np.linalg.solve(Minv[np.ix_(outward, outward)], -v[outward])
+        body.set_velocities(v + Minv[:, outward] @ impulse)
+
+
+def rk4(world: "OrbitalWorld", body: Body, h: float, s: float) -> None:
+    """One RK4 step of h seconds of one body, from s seconds after the orbit inputs."""
+    q0, v0 = body.positions(), body.velocities()
+    a1 = acceleration(world, body, s)               # at (q0, v0), the current state
+    d1 = v0
+    xi2, v2, d2 = manifold_rk4.stage(0.5 * h, v0, d1, a1)
+    body.set_stage(q0, xi2, v2)
+    a2 = acceleration(world, body, s + 0.5 * h)
+    xi3, v3, d3 = manifold_rk4.stage(0.5 * h, v0, d2, a2)
+    body.set_stage(q0, xi3, v3)
+    a3 = acceleration(world, body, s + 0.5 * h)
+    xi4, v4, d4 = manifold_rk4.stage(h, v0, d3, a3)
+    body.set_stage(q0, xi4, v4)
+    a4 = acceleration(world, body, s + h)
+    xi, v = manifold_rk4.combine(h, v0, d1, d2, d3, d4, a1, a2, a3, a4)
+    body.set_stage(q0, xi, v)
+    if world.joint_limits and body.limited:
+        joint_stops(body)
+
+
+def rk4_welded(world: "OrbitalWorld", h: float, s: float) -> None:
+    """One RK4 step of every body, stage by stage, with the grasp's weld wrench in each stage's
+    accelerations (the welded pair is one assembly; the others step as in ``rk4``)."""
+    grasp = world.grasp
+    bodies = list(world.bodies.values())
+    chaser, target = grasp.ee.body, grasp.grasp.body
+    start = {b.name: (b.positions(), b.velocities()) for b in bodies}
+
+    def accelerations(t: float) -> dict:
+        a = {b.name: acceleration(world, b, t) for b in bodies}
+        a[chaser.name], a[target.name] = grasp.constrain(a[chaser.name], a[target.name], h)
+        return a
+
+    a1 = accelerations(s)
+    d1 = {b.name: start[b.name][1] for b in bodies}
+    stages = [(a1, d1)]
+    for c, t in ((0.5 * h, s + 0.5 * h), (0.5 * h, s + 0.5 * h), (h, s + h)):
+        a_prev, d_prev = stages[-1]
+        d = {}
+        for b in bodies:
+            q0, v0 = start[b.name]
+            xi, v, d[b.name] = manifold_rk4.stage(c, v0, d_prev[b.name], a_prev[b.name])
+            b.set_stage(q0, xi, v)
+        stages.append((accelerations(t), d))
+    for b in bodies:
+        q0, v0 = start[b.name]
+        (a1, d1), (a2, d2), (a3, d3), (a4, d4) = [(a[b.name], d[b.name]) for a, d in stages]
+        xi, v = manifold_rk4.combine(h, v0, d1, d2, d3, d4, a1, a2, a3, a4)
+        b.set_stage(q0, xi, v)
+    stopped = False
+    if world.joint_limits:
+        for b in bodies:
+            if b.limited:
+                joint_stops(b)
+                stopped = stopped or b.stops.size > 0
+    if stopped:
+        grasp.project()   # a stop's impulse moved one side of the weld: the other follows, momentum kept

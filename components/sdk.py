@@ -206,6 +206,7 @@ class Layout:
         self.size = start
         # (name, slice, size, shape) once, for the per-step pack/unpack
         self._plan = [(v.name, self.offsets[v.name], v.size, v.shape) for v in self.variables]
+        self._zeros = np.zeros(self.size)
 
     def start_vector(self) -> np.ndarray:
         out = np.empty(self.size)
@@ -220,12 +221,19 @@ class Layout:
                 value = values[name]
             except KeyError:
                 raise ComponentOutputError(f"output {name!r} missing from the step's result") from None
+            # per step and per output: an array's own size and ravel (numpy's functions of the
+            # same name cost a dispatch more), anything else through numpy
+            if value.__class__ is np.ndarray and value.size == size:
+                into[where] = value.ravel()
+                continue
             if np.size(value) != size:
                 raise ComponentOutputError(f"output {name!r} has {np.size(value)} values, declared shape {shape}")
             into[where] = np.ravel(value)
 
     def first_non_finite(self, vector: np.ndarray) -> str | None:
         """The name of the first variable holding a NaN or infinity in ``vector``, or None."""
+        if vector.dot(self._zeros) == 0.0:   # 0 * x is 0 for every finite x, NaN for NaN and inf: one BLAS call
+            return None
         if np.isfinite(vector).all():
             return None
         bad = int(np.flatnonzero(~np.isfinite(vector))[0])

@@ -1,7 +1,8 @@
 """What paces the paper's demo over the bus: its real-time factor with a dynamics of a chosen
 per-step cost, and where each step's CPU time goes, process by process and thread by thread.
 
-    python benchmarks/bench_pace.py [--cost 100 ...] [--dart] [--seconds 10] [--rounds 3] [--baseline DIR]
+    python benchmarks/bench_pace.py [--cost 100 ...] [--dart] [--dedicated true process false]
+                                    [--seconds 10] [--rounds 3] [--baseline DIR]
 
 Each variant runs configs/humanoid_tracking.yaml over the bus (``orchestrator run``, Jacobi, 1 ms)
 for ``--seconds`` simulated:
@@ -11,6 +12,8 @@ for ``--seconds`` simulated:
   beforehand (so the controller computes on the demo's states; its torques are ignored): the demo
   as it would run with an engine of that cost;
 - ``dynamics.dart`` (``--dart``): the demo as it is;
+- with ``--dedicated``, each of them with the dynamics' ``dedicated_cpu`` set to each mode given
+  (true: its stepping thread on a CPU of its own; process: its whole process; false: none);
 - each of them again on the Zenorbit tree ``--baseline DIR`` (a copy of another commit), for a
   before/after on the same machine.
 
@@ -26,7 +29,6 @@ import argparse
 import collections
 import os
 import platform
-import re
 import subprocess
 import sys
 import tempfile
@@ -166,6 +168,8 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=10.0, help="simulated seconds per run (10)")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--baseline", type=Path, help="another Zenorbit tree to run each variant on as well")
+    parser.add_argument("--dedicated", nargs="*", choices=("true", "process", "false"), default=[],
+                        help="run each variant with the dynamics' dedicated_cpu set to each of these (default: the config's)")
     parser.add_argument("--child", nargs="*", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child is not None:
@@ -180,6 +184,9 @@ def main() -> None:
                                        f"components.dynamics.parameters.cost={c:g} us"] for c in args.cost}
     if args.dart:
         variants["dynamics.dart"] = [duration]
+    if args.dedicated:
+        variants = {f"{label}, dedicated_cpu {mode}": [*overrides, f"components.dynamics.dedicated_cpu={mode}"]
+                    for label, overrides in variants.items() for mode in args.dedicated}
     trees = {"": ROOT} if args.baseline is None else {"": ROOT, " (baseline)": args.baseline.resolve()}
     results = collections.defaultdict(list)
     for r in range(args.rounds):
@@ -187,7 +194,7 @@ def main() -> None:
             for suffix, tree in trees.items():
                 factor, budget = bus_run(overrides, tree)
                 results[variant + suffix].append((factor, budget))
-                print(f"  round {r + 1}: {variant + suffix:<32} real-time factor {factor:5.2f}   "
+                print(f"  round {r + 1}: {variant + suffix:<48} real-time factor {factor:5.2f}   "
                       f"(load average {load()})", flush=True)
     print(f"\nthe demo over the bus, {args.seconds:g} s simulated, medians of {args.rounds} rounds "
           f"(CPU per step between {WINDOW[0]:.0%} and {WINDOW[1]:.0%} of the run):")

@@ -172,6 +172,12 @@ def main() -> None:
     parser.add_argument("--venv", type=Path, default=ROOT / "benchmarks" / ".venv-basilisk",
                         help="Basilisk's virtual environment (made on first use)")
     args = parser.parse_args()
+    from components.errors import ConfigError
+    from components.registry import load as load_type
+    try:
+        load_type(args.type)
+    except ConfigError as e:
+        parser.error(f"--type: {e.message}")
     python = basilisk_python(args.venv)
     scenario = Scenario(args.type, round(args.step * 1e9), args.orbits)
     print(f"machine: {machine()}; load average {load()}")

@@ -67,7 +67,7 @@ def place(asking: list[str], available: set[int]) -> Placement:
     demo's dynamics computes a step in 330 us on a CPU of its own against 400 us shared. Its own
     bus threads follow it there with ``dedicated_cpu: process`` (members.Crew): a hand-over
     between its threads then wakes no other CPU, which pays when it idles much of each step
-    (benchmarks/bench_pace.py: the demo with a 100 us dynamics 2.9 against 1.4 real time)."""
+    (benchmarks/bench_pace.py: the demo with a 100 us dynamics 3.0x real time against 2.6x)."""
     cpus = sorted(available, reverse=True)
     spare = max(len(cpus) - 1, 0)
     dedicated = dict(zip(asking[:spare], cpus))

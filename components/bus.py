@@ -328,14 +328,26 @@ def open_session(listen: list[str] = (), connect: list[str] = (), *, mesh: bool 
         os.unlink(path)
 
 
+# Zenoh's tasks (links' transmit and receive, accepting, the rest) on one thread of one runtime,
+# not five runtimes of their own: a message then crosses fewer threads, and each hand-over
+# between threads is a wake-up that costs tens of microseconds on a busy or virtual machine.
+# Measured on 2 cores: the pub/sub round trip between two processes 0.6-0.75x, the Zenoh threads'
+# CPU time per step ~0.9x (benchmarks/bench_pace.py). Every callback of ours only enqueues, so
+# one thread cannot deadlock on them. A ZENOH_RUNTIME set by the user wins.
+RUNTIME = "(app: (worker_threads: 1), rx: (handover: app), tx: (handover: app), acc: (handover: app), net: (handover: app))"
+
+
 def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: bool = False):
-    """A Zenoh peer config: explicit endpoints, no multicast scouting.
+    """A Zenoh peer config: explicit endpoints, no multicast scouting; Zenoh's runtime as
+    ``RUNTIME`` in a process that has not started it yet.
 
     ``mesh``: gossip on, so the peers of a run (all connected to the orchestrator's session)
     learn each other's listen endpoints and connect directly; a run never meets another run's
     peers, since nothing connects the two meshes.
     """
     import zenoh
+
+    os.environ.setdefault("ZENOH_RUNTIME", RUNTIME)   # read once, when the first session starts Zenoh's runtime
 
     config = zenoh.Config()
     config.insert_json5("mode", '"peer"')

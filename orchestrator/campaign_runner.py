@@ -205,7 +205,7 @@ def _dedicated(campaign: Campaign, todo: list[int]) -> int:
     if not todo:
         return 0
     components = campaign.case(todo[0]).raw.get("components") or {}
-    return sum(1 for c in components.values() if isinstance(c, dict) and c.get("dedicated_cpu") is True)
+    return sum(1 for c in components.values() if isinstance(c, dict) and c.get("dedicated_cpu") in (True, "process"))
 
 
 def default_jobs(campaign: Campaign, todo: list[int]) -> int:

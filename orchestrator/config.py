@@ -12,8 +12,8 @@ from typing import Any
 
 from components import registry
 from components.errors import ConfigError
-from components.schema import (Anything, Bool, Duration, Float, Int, ListOf, MapOf, Parameter, Record, Str,
-                               UtcTime, markdown)
+from components.schema import (Anything, Bool, Duration, Float, Int, ListOf, MapOf, OneOf, Parameter, Record,
+                               Str, UtcTime, markdown)
 from components.sdk import Component, Layout, Variable, run_parameters
 from components.units import duration_text
 from orchestrator.config_file import ConfigErrors, apply_overrides, read_yaml
@@ -73,8 +73,10 @@ COMPONENT = Record("component", (
     Parameter("parameters", Anything(), default={}, description="the type's parameters (orchestrator describe TYPE)"),
     Parameter("launch", Str(("local", "external")), default="local",
               description="local: the orchestrator starts it; external: you do (orchestrator ps prints how)"),
-    Parameter("dedicated_cpu", Bool(), default=False,
-              description="its stepping thread on a CPU of its own (speed only, never results)"),
+    Parameter("dedicated_cpu", OneOf((Bool(), Str(("process",)))), default=False,
+              description="true: its stepping thread on a CPU of its own, for a component that computes most of "
+                          "each step; process: its whole process there, its bus threads too, for one that waits "
+                          "for its inputs much of each step (speed only, never results)"),
     Parameter("on_failure", Str(("stop", "restart")), default="stop",
               description="when it dies or hangs: stop the run, or restart the run from its last checkpoint"),
     Parameter("shadow", SHADOW, default=None,
@@ -119,7 +121,7 @@ class ComponentSpec:
     inputs: Layout
     outputs: Layout
     launch: str = "local"
-    dedicated_cpu: bool = False   # its stepping thread on a CPU of its own (speed only, never results)
+    dedicated_cpu: bool | str = False   # true: its stepping thread on a CPU of its own; "process": all its threads
     on_failure: str = "stop"      # or "restart": the run goes back to its last checkpoint
     shadow_of: str | None = None  # the component this one shadows (orchestrator/shadows.py)
 

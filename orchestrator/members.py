@@ -98,8 +98,9 @@ class Crew:
         if spec.launch == "local":
             log_path = self.log_dir / f"{spec.name}.{generation}.log"
             cpu = self.placement.dedicated.get(spec.name)
+            whole = cpu is not None and spec.dedicated_cpu == "process"   # its bus threads on its CPU too
             process = supervisor.start_component(args + (["--cpu", str(cpu)] if cpu is not None else []),
-                                                 log_path, self.placement.shared, self.env)
+                                                 log_path, frozenset({cpu}) if whole else self.placement.shared, self.env)
         else:
             print(f"waiting for external component {spec.name!r}: start it with\n"
                   f"    {bus.SECRET_ENV}={self.secret} python -m components.runner {' '.join(args)}",

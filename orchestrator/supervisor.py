@@ -49,9 +49,10 @@ def runner_arguments(endpoint: str, run_id: str, name: str, generation: int) -> 
 @dataclass(frozen=True)
 class Placement:
     """Which CPUs the processes of a run use: ``dedicated`` {component: cpu} for the stepping
-    threads of the components that asked for a CPU of their own; ``shared`` for every other
-    thread of the run (orchestrator, other components, Zenoh's threads, the viewer);
-    ``unplaced``: components that asked but found no CPU to spare."""
+    threads of the components that asked for a CPU of their own (with ``dedicated_cpu: process``
+    their whole processes); ``shared`` for every other thread of the run (orchestrator, other
+    components, Zenoh's threads, the viewer); ``unplaced``: components that asked but found no
+    CPU to spare."""
     dedicated: dict[str, int]
     shared: frozenset[int]
     unplaced: tuple[str, ...]
@@ -63,7 +64,10 @@ def place(asking: list[str], available: set[int]) -> Placement:
 
     Why: on a loaded machine each wake-up of another thread on a component's CPU costs it far more
     than the wake-up itself (caches and branch predictors go cold); measured on 2 cores, the
-    demo's dynamics computes a step in 330 us on a CPU of its own against 400 us shared."""
+    demo's dynamics computes a step in 330 us on a CPU of its own against 400 us shared. Its own
+    bus threads follow it there with ``dedicated_cpu: process`` (members.Crew): a hand-over
+    between its threads then wakes no other CPU, which pays when it idles much of each step
+    (benchmarks/bench_pace.py: the demo with a 100 us dynamics 3.0x real time against 2.6x)."""
     cpus = sorted(available, reverse=True)
     spare = max(len(cpus) - 1, 0)
     dedicated = dict(zip(asking[:spare], cpus))

@@ -68,8 +68,9 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
-from scipy.linalg.lapack import dgesdd, dposv
+from scipy.linalg.lapack import dgesdd
 
+from components.controller import kernels
 from components.controller.trajectory import PoseSample
 from components.rotations import matrix_to_quat
 
@@ -172,8 +173,7 @@ class FreeFloatingArm:
         passive = [model.joints[model.getJointId(j)].idx_v for j in self.body_joints
                    if j not in locked and j not in self.arm_joints and model.joints[model.getJointId(j)].nv > 0]
         self.base_v = np.array(list(range(6)) + sorted(passive))
-        # (base, arm) ordering of the velocity coordinates, and index grids to read M's upper
-        # triangle in that order: entry (i, j) of the reordered M is M[min, max] of the originals
+        # (base, arm) ordering of the velocity coordinates (kernels.gather reads M's upper triangle in it)
         self._perm = np.concatenate([self.base_v, self.arm_v])
         if self._perm.size != model.nv:
             raise ValueError(f"joints: the model has {model.nv - 6} free joints, {self.arm_v.size} driven "
@@ -193,8 +193,6 @@ class FreeFloatingArm:
                 G[k, :] = 0.0
                 G[k, base.index(model.joints[model.getJointId(f)].idx_v)] = m
             self._G = np.ascontiguousarray(np.delete(G, drop, axis=1))
-        rows, cols = np.meshgrid(self._perm, self._perm, indexing="ij")
-        self._perm_rows, self._perm_cols = np.minimum(rows, cols), np.maximum(rows, cols)
         if not model.existFrame(end_effector):
             raise ValueError(f"end_effector: {end_effector!r} is not a frame of {Path(urdf).name}")
         self.ee = model.getFrameId(end_effector)
@@ -268,35 +266,21 @@ class FreeFloatingArm:
         velocity = pin.getFrameVelocity(model, data, ee, pin.LOCAL_WORLD_ALIGNED)
         a_0 = pin.getFrameClassicalAcceleration(model, data, ee, pin.LOCAL_WORLD_ALIGNED)
         xdot = velocity.vector.copy()                       # a view of the Motion's memory until copied
-        nb, n = self.base_v.size, self.n
         # [M | c] reordered (b, m), from crba's upper triangle, and [J_m | a_0]: each pair of
-        # blocks below then takes one product
-        Mc = np.empty((model.nv, model.nv + 1))
-        Mc[:, :-1] = data.M[self._perm_rows, self._perm_cols]
-        Mc[:, -1] = data.nle[self._perm]
-        Ja = np.empty((6, n + 1))
-        Ja[:, :-1] = J[:, self.arm_v]
-        Ja[:, -1] = a_0.vector
-        J_b = J[:, self.base_v]
+        # blocks then takes one product (kernels.py: the arithmetic, compiled)
+        Mc, Ja, J_b = kernels.gather(data.M, data.nle, J, a_0.vector, self._perm, self.base_v, self.arm_v)
         if self._G is not None:                            # mimic joints: the reduced coordinates
-            G = self._G
+            G, nb = self._G, self.base_v.size
             Mc = np.vstack([np.hstack([G.T @ Mc[:nb, :nb] @ G, G.T @ Mc[:nb, nb:]]),
                             np.hstack([Mc[nb:, :nb] @ G, Mc[nb:, nb:]])])
             J_b = J_b @ G
-            nb = G.shape[1]
-        if base_model == "fixed":
-            terms, task = Mc[nb:, nb:], Ja
-        else:
-            # M_bb^-1 [M_bm, c_b] by Cholesky (M_bb is symmetric positive definite)
-            _, X, info = dposv(Mc[:nb, :nb], Mc[:nb, nb:])
-            if info != 0:
-                raise np.linalg.LinAlgError(f"M_bb is not positive definite (LAPACK dposv info {info})")
-            terms = Mc[nb:, nb:] - Mc[:nb, nb:-1].T @ X    # [M*, C*]
-            # a_drift = a_0 - J_b M_bb^-1 c_b (module doc)
-            task = Ja - J_b @ X                            # [J_g, a_drift]
-        M_star = terms[:, :n]
-        return ArmState(0.5 * (M_star + M_star.T), terms[:, n], task[:, :n], task[:, n],
-                        pose[:3], np.array(frame.rotation), pose[3:], xdot, self._q_arm.copy(), self._qd_arm.copy())
+        # free floating: M_bb^-1 [M_bm, c_b] by Cholesky (M_bb is symmetric positive definite), then
+        # [M*, C*] = [M_mm, c_m] - M_bm^T X and [J_g, a_drift] = [J_m, a_0] - J_b X (module doc)
+        M_star, C_star, J_g, a_drift, info = kernels.schur(Mc, Ja, J_b, base_model == "fixed")
+        if info != 0:
+            raise np.linalg.LinAlgError(f"M_bb is not positive definite (LAPACK dposv info {info})")
+        return ArmState(M_star, C_star, J_g, a_drift, pose[:3], np.array(frame.rotation), pose[3:], xdot,
+                        self._q_arm.copy(), self._qd_arm.copy())
 
 
 def dls_inverse(J: np.ndarray, eps: float, lambda_max: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -305,6 +289,13 @@ def dls_inverse(J: np.ndarray, eps: float, lambda_max: float) -> tuple[np.ndarra
     Damping ``lambda^2 = lambda_max^2 (1 - (s_min/eps)^2)`` only when s_min < eps (Chiaverini's
     variable damping); the projector ``I - V_m V_m^T`` is exact whatever the damping.
     """
+    U, s, Vt, s_min, lam2 = damped_svd(J, eps, lambda_max)
+    J_plus, N = kernels.pseudo_inverse(U, s, Vt, lam2)
+    return J_plus, N, s_min
+
+
+def damped_svd(J: np.ndarray, eps: float, lambda_max: float):
+    """(U, s, Vt, s_min, lambda^2): J's thin SVD and the damping of ``dls_inverse``."""
     # LAPACK's gesdd (as numpy's svd) called directly: numpy's wrapper costs more than the
     # decomposition of a 6x7 matrix
     U, s, Vt, info = dgesdd(J, compute_uv=1, full_matrices=0)     # Vt: the first m rows of V^T
@@ -312,11 +303,7 @@ def dls_inverse(J: np.ndarray, eps: float, lambda_max: float) -> tuple[np.ndarra
         raise np.linalg.LinAlgError(f"SVD did not converge (LAPACK dgesdd info {info})")
     s_min = float(s[-1])
     lam2 = lambda_max ** 2 * (1.0 - (s_min / eps) ** 2) if s_min < eps else 0.0
-    inv = s / (s * s + lam2)
-    V = Vt.T
-    J_plus = V @ (inv[:, None] * U.T)
-    N = np.eye(J.shape[1]) - V @ Vt
-    return J_plus, N, s_min
+    return U, s, Vt, s_min, lam2
 
 
 @dataclass
@@ -365,14 +352,14 @@ class ComputedTorqueLaw:
         self._log3 = pin.log3           # log of SO(3): on one 3x3 a tenth of rotations.log_so3's cost
 
     def control(self, s: ArmState, d: PoseSample, q_posture: np.ndarray) -> ControlOutput:
-        error = np.concatenate([d.p - s.p, self._log3(d.R @ s.R.T)])
-        error_rate = np.concatenate([d.v, d.w]) - s.xdot
-        xdd_r = np.concatenate([d.a, d.dw]) + self.kd * error_rate + self.kp * error
-        J_plus, N, s_min = dls_inverse(s.J_g, self.eps, self.lam)
-        qdd_0 = self.null_kp * (q_posture - s.q) - self.null_kd * s.qd
-        qdd = J_plus @ (xdd_r - s.a_drift) + N @ qdd_0
-        tau = s.M_star @ qdd + s.C_star
-        return ControlOutput(np.minimum(np.maximum(tau, -self.effort), self.effort), error, s_min, qdd)
+        """error = (p_d - p, log(R_d R^T)); xdd_r = xdd_d + K_d edot + K_p e;
+        qdd = J_g^+ (xdd_r - a_drift) + N qdd_0 with qdd_0 = k_np (q_posture - q) - k_nd qd;
+        tau = M* qdd + C*, clipped to the efforts (kernels.law)."""
+        U, sv, Vt, s_min, lam2 = damped_svd(s.J_g, self.eps, self.lam)
+        tau, error, qdd = kernels.law(U, sv, Vt, lam2, d.p, s.p, self._log3(d.R @ s.R.T), d.v, d.w, d.a, d.dw, s.xdot,
+                                      self.kp, self.kd, s.a_drift, self.null_kp, self.null_kd, q_posture, s.q, s.qd,
+                                      s.M_star, s.C_star, self.effort)
+        return ControlOutput(tau, error, s_min, qdd)
 
 
 class ArmController:

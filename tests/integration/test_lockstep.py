@@ -229,27 +229,31 @@ def thread_cpus(pid: int) -> dict[int, set[int]]:
 
 
 @pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs 2 CPUs")
-def test_dedicated_cpu_keeps_every_other_thread_of_the_run_off_it(write_config, tmp_path):
-    config = write_config("""
-run: {name: pinned, epoch: 2022-09-18T12:00:00Z, duration: 1000 s, step: 1 ms, realtime: 1.0}
+@pytest.mark.parametrize("mode", ["true", "process"])
+def test_dedicated_cpu_keeps_every_other_thread_of_the_run_off_it(write_config, tmp_path, mode):
+    """true: a's stepping thread alone on its CPU, a's bus threads with the rest of the run;
+    process: every thread of a's process on its CPU; either way no thread of b or the orchestrator."""
+    config = write_config(f"""
+run: {{name: pinned, epoch: 2022-09-18T12:00:00Z, duration: 1000 s, step: 1 ms, realtime: 1.0}}
 components:
-  a: {type: test.counter, dedicated_cpu: true}
-  b: {type: test.counter}
+  a: {{type: test.counter, dedicated_cpu: {mode}}}
+  b: {{type: test.counter}}
 """)
     dedicated = max(os.sched_getaffinity(0))
     run = start_run(config, tmp_path / "rec")
     try:
         lines = wait_for_components("pinned-", 2)
         pids = {line.split("--name ")[1].split()[0]: int(line.split()[0]) for line in lines}
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and thread_cpus(pids["a"])[pids["a"]] != {dedicated}:
-            time.sleep(0.2)
+        wait_for_step("pinned", 10, run=run)     # stepping: every process has its bus threads
         a, b, orchestrator_threads = thread_cpus(pids["a"]), thread_cpus(pids["b"]), thread_cpus(run.pid)
         assert a[pids["a"]] == {dedicated}        # a's stepping (main) thread, alone on its CPU
-        others = [c for tid, c in a.items() if tid != pids["a"]] + list(b.values()) + list(orchestrator_threads.values())
-        # the bus's threads are among them: a's own besides its stepping thread, b's, the orchestrator's
+        a_bus = [c for tid, c in a.items() if tid != pids["a"]]
+        others = list(b.values()) + list(orchestrator_threads.values()) + (a_bus if mode == "true" else [])
+        # the bus's threads are among them: a's own besides its stepping thread (true), b's, the orchestrator's
         assert len(a) > 1 and len(b) > 1 and len(orchestrator_threads) > 1, (a, b, orchestrator_threads)
         assert all(dedicated not in c and c for c in others), (dedicated, a, b, orchestrator_threads)
+        if mode == "process":
+            assert all(c == {dedicated} for c in a_bus), a
         assert orchestrator("stop", "--run", "pinned").returncode == 0
         run.communicate(timeout=30)
     finally:

@@ -68,8 +68,12 @@ def test_overrides_reach_any_key(write_config):
     (GOOD + "bus: {listen: [foo/bar]}\n", "bus.listen[0]: expected a Zenoh endpoint like tcp/127.0.0.1:0"),
     (GOOD.replace("type: test.constant", "type: 5"), "components.src.type: expected a component type name"),
     (GOOD.replace("{value: 1.0}}", "{value: 1.0}, dedicated_cpu: yes please}"),
-     "components.src.dedicated_cpu: expected true or false"),
+     "components.src.dedicated_cpu: expected one of process, got 'yes please'"),
+    (GOOD.replace("{value: 1.0}}", "{value: 1.0}, dedicated_cpu: 1}"),
+     "components.src.dedicated_cpu: expected bool or process, got 1"),
     (GOOD.replace("{value: 1.0}}", "{value: 1.0}, launch: external, dedicated_cpu: true}"),
+     "components.src.dedicated_cpu: only for components the orchestrator starts"),
+    (GOOD.replace("{value: 1.0}}", "{value: 1.0}, launch: external, dedicated_cpu: process}"),
      "components.src.dedicated_cpu: only for components the orchestrator starts"),
 ])
 def test_each_error_names_its_key_and_file(write_config, text, key):

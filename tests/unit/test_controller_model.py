@@ -238,3 +238,57 @@ def test_damped_least_squares_inverse():
     assert s_min < 1e-12
     assert np.abs(J_plus).max() < 1.0 / 0.05
     assert np.allclose(J @ N, 0.0, atol=1e-12)
+
+
+def test_compiled_kernels_equal_the_numpy_expressions_bit_for_bit(setup):
+    """components/controller/kernels.py against the numpy expressions it replaced, on random states
+    (free floating and fixed base, damped and undamped pseudo-inverse): equal bit for bit, so the
+    controller's torques are those of the numpy controller (the same IEEE operations, BLAS and LAPACK)."""
+    import pinocchio as pin
+    from scipy.linalg.lapack import dgesdd, dposv
+
+    from components.controller import kernels
+
+    rng = np.random.default_rng(5)
+    arm = setup.arm
+    n, nb, nv = arm.n, arm.base_v.size, arm.model.nv
+    rows, cols = np.meshgrid(arm._perm, arm._perm, indexing="ij")
+    for _ in range(20):
+        setup.set(*setup.random_state(rng))
+        pin.computeAllTerms(arm.model, arm.data, arm.q_pin, arm.v_pin)
+        J = pin.getFrameJacobian(arm.model, arm.data, arm.ee, pin.LOCAL_WORLD_ALIGNED)
+        a_0 = pin.getFrameClassicalAcceleration(arm.model, arm.data, arm.ee, pin.LOCAL_WORLD_ALIGNED).vector
+        Mc = np.empty((nv, nv + 1))
+        Mc[:, :-1] = arm.data.M[np.minimum(rows, cols), np.maximum(rows, cols)]
+        Mc[:, -1] = arm.data.nle[arm._perm]
+        Ja = np.empty((6, n + 1))
+        Ja[:, :-1], Ja[:, -1] = J[:, arm.arm_v], a_0
+        J_b = J[:, arm.base_v]
+        gathered = kernels.gather(arm.data.M, arm.data.nle, J, a_0, arm._perm, arm.base_v, arm.arm_v)
+        assert all(np.array_equal(a, b) for a, b in zip(gathered, (Mc, Ja, J_b)))
+        _, X, _ = dposv(Mc[:nb, :nb], Mc[:nb, nb:])
+        for fixed, terms, task in ((False, Mc[nb:, nb:] - Mc[:nb, nb:-1].T @ X, Ja - J_b @ X), (True, Mc[nb:, nb:], Ja)):
+            M_star = terms[:, :n]
+            expected = (0.5 * (M_star + M_star.T), terms[:, n], task[:, :n], task[:, n])
+            got = kernels.schur(Mc, Ja, J_b, fixed)
+            assert got[4] == 0 and all(np.array_equal(a, b) for a, b in zip(got[:4], expected))
+        J_g, a_drift = (Ja - J_b @ X)[:, :n], (Ja - J_b @ X)[:, n]
+        U, s, Vt, _ = dgesdd(J_g, compute_uv=1, full_matrices=0)
+        for lam2 in (0.0, rng.uniform(1e-4, 1e-2)):
+            inv = s / (s * s + lam2)
+            J_plus, N = Vt.T @ (inv[:, None] * U.T), np.eye(n) - Vt.T @ Vt
+            assert all(np.array_equal(a, b) for a, b in zip(kernels.pseudo_inverse(U, s, Vt, lam2), (J_plus, N)))
+            p_d, p, rotation, v_d, w_d, a_d, dw_d = rng.normal(size=(7, 3))
+            xdot, kp, kd = rng.normal(size=6), rng.uniform(1, 100, 6), rng.uniform(1, 20, 6)
+            q_posture, q, qd, null_kp, null_kd = rng.normal(size=(5, n))
+            M_s, C_s = kernels.schur(Mc, Ja, J_b, False)[:2]
+            error = np.concatenate([p_d - p, rotation])
+            xdd_r = np.concatenate([a_d, dw_d]) + kd * (np.concatenate([v_d, w_d]) - xdot) + kp * error
+            qdd = J_plus @ (xdd_r - a_drift) + N @ (null_kp * (q_posture - q) - null_kd * qd)
+            tau = M_s @ qdd + C_s
+            effort = np.abs(tau) * np.where(np.arange(n) % 2, 0.5, 2.0)   # every other torque clipped
+            got = kernels.law(U, s, Vt, lam2, p_d, p, rotation, v_d, w_d, a_d, dw_d, xdot, kp, kd, a_drift,
+                              null_kp, null_kd, q_posture, q, qd, M_s, C_s, effort)
+            expected = (np.minimum(np.maximum(tau, -effort), effort), error, qdd)
+            assert all(np.array_equal(a, b) for a, b in zip(got, expected))
+            assert np.array_equal(np.abs(got[0]) < np.abs(tau), np.arange(n) % 2 == 1)

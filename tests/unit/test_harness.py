@@ -63,3 +63,22 @@ def test_layout_packs_and_checks_sizes():
         layout.pack({"a": 1.0, "b": [1, 2]}, vector)
     with pytest.raises(ComponentOutputError, match="'a' missing"):
         layout.pack({"b": [1, 2, 3]}, vector)
+    # arrays (the fast path) of the right size in any shape, of the wrong size refused
+    layout.pack({"a": np.array(7.0), "b": np.array([[4.0], [5.0], [6.0]])}, vector)
+    assert list(vector) == [7.0, 4.0, 5.0, 6.0]
+    with pytest.raises(ComponentOutputError, match="'b' has 4 values"):
+        layout.pack({"a": 1.0, "b": np.zeros(4)}, vector)
+
+
+@pytest.mark.filterwarnings("ignore:invalid value encountered in dot")   # as components.sdk's own filter
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_layout_names_the_first_variable_holding_a_non_finite_value(bad):
+    layout = Layout([Variable("a", "output", (), "1", 1.0, ""), Variable("b", "output", (3,), "m", 0.0, ""),
+                     Variable("c", "output", (2,), "m", 0.0, "")])
+    vector = np.array([1e308, -1e308, 1e308, 5e-324, 0.0, -0.0])   # finite, however large or small
+    assert layout.first_non_finite(vector) is None
+    for index, name in ((0, "a"), (3, "b"), (5, "c")):
+        broken = vector.copy()
+        broken[index] = bad
+        assert layout.first_non_finite(broken) == name
+    assert layout.first_non_finite(np.full(6, bad)) == "a"

@@ -305,13 +305,23 @@ USER = "zenorbit"
 
 
 def open_session(listen: list[str] = (), connect: list[str] = (), *, mesh: bool = False,
-                 secret: str | None = None):
-    """A Zenoh peer session (see :func:`session_config`). With ``secret``, every link to or from
+                 secret: str | None = None, settings: dict | None = None, connect_timeout_s: float | None = None):
+    """A Zenoh session (see :func:`session_config`). With ``secret``, every link to or from
     it is authenticated: Zenoh's user/password challenge-response, the secret never sent. Peers
-    without it are refused; they cannot publish, subscribe or query (docs/design.md §7)."""
+    without it are refused; they cannot publish, subscribe or query (docs/design.md §7).
+    ``settings``: the run's bus settings (TLS, access control, lease, mode:
+    :mod:`components.bus_security`). ``connect_timeout_s``: fail (ZError) unless a link to one of
+    ``connect`` is up within it, rather than go on trying in the background."""
     import zenoh
 
-    config = session_config(listen, connect, mesh=mesh)
+    from components import bus_security
+
+    settings = settings or {}
+    config = session_config(listen, connect, mesh=mesh, mode=settings.get("mode", "peer"))
+    bus_security.apply(config, settings, listening=bool(listen))
+    if connect and connect_timeout_s is not None:
+        config.insert_json5("connect/timeout_ms", json.dumps(int(connect_timeout_s * 1000)))
+        config.insert_json5("connect/exit_on_failure", "true")
     if secret is None:
         return zenoh.open(config)
     config.insert_json5("transport/auth/usrpwd/user", json.dumps(USER))
@@ -328,8 +338,8 @@ def open_session(listen: list[str] = (), connect: list[str] = (), *, mesh: bool 
         os.unlink(path)
 
 
-def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: bool = False):
-    """A Zenoh peer config: explicit endpoints, no multicast scouting.
+def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: bool = False, mode: str = "peer"):
+    """A Zenoh config: explicit endpoints, no multicast scouting; ``mode`` peer, client or router.
 
     ``mesh``: gossip on, so the peers of a run (all connected to the orchestrator's session)
     learn each other's listen endpoints and connect directly; a run never meets another run's
@@ -338,11 +348,11 @@ def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: boo
     import zenoh
 
     config = zenoh.Config()
-    config.insert_json5("mode", '"peer"')
+    config.insert_json5("mode", json.dumps(mode))
     config.insert_json5("listen/endpoints", json.dumps(list(listen)))
     config.insert_json5("connect/endpoints", json.dumps(list(connect)))
     config.insert_json5("scouting/multicast/enabled", "false")
-    config.insert_json5("scouting/gossip/enabled", "true" if mesh else "false")
+    config.insert_json5("scouting/gossip/enabled", "true" if mesh or mode == "router" else "false")
     # one side of each pair connects: with authentication, two links opened at once may both be refused
     config.insert_json5("scouting/gossip/autoconnect_strategy", '{peer: {to_router: "always", to_peer: "greater-zid"}}')
     return config

@@ -26,7 +26,7 @@ import traceback
 
 import numpy as np
 
-from components import bus, registry
+from components import bus, bus_security, registry
 from components.schedule import Route, fed_inputs
 
 INBOX_CAPACITY = 4096   # messages waiting in the inbox FIFO (a full one holds the senders back)
@@ -73,6 +73,7 @@ class ComponentProcess:
         self.synced = False
         self.next_k = 0
         self.horizon = 0
+        self.final = True     # terminated because the run is over
         self.halted = False   # a step failed: no further step, whatever horizon comes (the run ends or restarts)
         self.step_ns = 0
         self.ratio = 1
@@ -196,6 +197,7 @@ class ComponentProcess:
             self.component.set_state(bus.decode_state(blob))
             self.reply(op)
         elif op == "terminate":
+            self.final = bool(body.get("final"))   # the run is over (else: a restart may want this component again)
             if self.component is not None:
                 self.component.terminate()
             self.reply(op)
@@ -338,9 +340,8 @@ def _inject(kind: str, seconds: float) -> None:
         time.sleep(seconds)
 
 
-def _watchdog(process: ComponentProcess) -> None:
-    while True:
-        time.sleep(IDLE_FLUSH_S)
+def _watchdog(process: ComponentProcess, stop: threading.Event) -> None:
+    while not stop.wait(IDLE_FLUSH_S):
         process.flush_if_due()
 
 
@@ -356,15 +357,42 @@ def _held_values(body: dict, blob: bytes) -> dict[str, collections.deque]:
     return values
 
 
-def serve(connect: str, run_id: str, name: str, generation: int, listen: str, secret: str,
-          cpu: int | None = None) -> int:
+TERMINATED, RELEASED, ORPHANED = "terminated", "released", "orphaned"   # how serving a generation ended
+
+
+def serve(connect: str, run_id: str, name: str, generation: int, listen: str | None, secret: str,
+          cpu: int | None = None, settings: dict | None = None) -> str:
     """Run component ``name`` of run ``run_id`` until told to exit; ``secret``: the run's (see
-    :func:`bus.open_session`); ``cpu``: step on that CPU alone (the bus's threads, started
-    before, keep the CPUs this process was given)."""
+    :func:`bus.open_session`); ``settings``: the run's bus settings (TLS, access control, lease,
+    mode: :mod:`components.bus_security`); ``cpu``: step on that CPU alone (the bus's threads,
+    started before, keep the CPUs this process was given). How it ended (:func:`serve_session`)."""
+    session = open_component_session(connect, listen, secret, settings)
+    try:
+        return serve_session(session, run_id, name, generation, cpu)
+    finally:
+        session.close()
+
+
+def open_component_session(connect: str | list[str], listen: str | None, secret: str, settings: dict | None,
+                           connect_timeout_s: float | None = None):
+    """A component's session: a peer of the run's mesh listening on ``listen``, or (settings'
+    mode ``client``) a client of the run's router, listening nowhere."""
+    settings = settings or {}
+    connect = [connect] if isinstance(connect, str) else list(connect)
+    peer = settings.get("mode", "peer") == "peer"
+    listen_on = [listen or bus.listen_beside(connect[0])] if peer else []
+    return bus.open_session(listen_on, connect, mesh=peer, secret=secret, settings=settings,
+                            connect_timeout_s=connect_timeout_s)
+
+
+def serve_session(session, run_id: str, name: str, generation: int, cpu: int | None = None) -> str:
+    """Serve one generation of component ``name`` on an open session until it ends:
+    TERMINATED (the run is over), RELEASED (terminated for a restart: the run may want this
+    component again, in a new generation) or ORPHANED (the orchestrator's liveliness token went
+    away: the orchestrator died, or the link to it was cut)."""
     import zenoh
 
-    session = bus.open_session([listen], [connect], mesh=True, secret=secret)
-    keep = []   # subscribers and publishers live as long as the session
+    keep = []   # subscribers and publishers live as long as this generation
     try:
         inbox = session.declare_subscriber(bus.inbox_pattern(run_id, name), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
         keep.append(inbox)
@@ -373,6 +401,7 @@ def serve(connect: str, run_id: str, name: str, generation: int, listen: str, se
         output_prefix = bus.output_prefix(run_id, name)
         replies = bus.publisher(session, bus.reply_key(run_id, name, generation))
         batches = bus.publisher(session, bus.batch_key(run_id, name))
+        keep += [replies, batches]
         outputs: dict[str, object] = {}
 
         def publish_output(consumers: list[str], payload: bytes) -> None:
@@ -380,6 +409,7 @@ def serve(connect: str, run_id: str, name: str, generation: int, listen: str, se
                 publisher = outputs.get(consumer)
                 if publisher is None:
                     publisher = outputs[consumer] = bus.publisher(session, bus.output_key(run_id, consumer, name))
+                    keep.append(publisher)
                 publisher.put(payload)
 
         # the orchestrator gone (killed, machine lost): wake the main loop with a quit message
@@ -388,21 +418,23 @@ def serve(connect: str, run_id: str, name: str, generation: int, listen: str, se
             lambda s: session.put(quit_key, bus.QUIT) if s.kind == zenoh.SampleKind.DELETE else None))
         keep.append(session.liveliness().declare_token(bus.alive_key(run_id, name, generation)))
         process = ComponentProcess(name, replies.put, publish_output, batches.put)
-        threading.Thread(target=_watchdog, args=(process,), daemon=True).start()
+        stop_watchdog = threading.Event()
+        threading.Thread(target=_watchdog, args=(process, stop_watchdog), daemon=True).start()
+        keep.append(stop_watchdog)
         if cpu is not None:
             os.sched_setaffinity(0, {cpu})   # this thread only
         while True:
             sample = inbox.recv()
             key = str(sample.key_expr)
             if key == quit_key:
-                print("the orchestrator went away: exiting", file=sys.stderr)
-                return 1
+                print("the orchestrator went away: exiting", file=sys.stderr, flush=True)
+                return ORPHANED
             try:
                 if key.startswith(output_prefix):
                     process.source_output(key[len(output_prefix):], sample.payload.to_bytes())
                 elif key == command:
                     if not process.command(sample.payload.to_bytes()):
-                        return 0
+                        return TERMINATED if process.final else RELEASED
                 else:
                     continue   # for another generation of this component
             except bus.Malformed as e:   # whoever reaches the bus cannot stop this component
@@ -413,8 +445,11 @@ def serve(connect: str, run_id: str, name: str, generation: int, listen: str, se
             except Halt:
                 pass
     finally:
-        keep.clear()
-        session.close()
+        for held in keep:
+            if isinstance(held, threading.Event):
+                held.set()
+            else:
+                held.undeclare()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -431,8 +466,9 @@ def main(argv: list[str] | None = None) -> int:
     if not secret:
         parser.error(f"{bus.SECRET_ENV} is not set: give the run's secret in it, as the orchestrator's "
                      f"command for an external component does")
-    return serve(args.connect, args.run_id, args.name, args.generation,
-                 args.listen or bus.listen_beside(args.connect), secret, args.cpu)
+    ended = serve(args.connect, args.run_id, args.name, args.generation, args.listen, secret, args.cpu,
+                  bus_security.from_env())
+    return 1 if ended == ORPHANED else 0
 
 
 if __name__ == "__main__":

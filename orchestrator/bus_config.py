@@ -51,18 +51,18 @@ def check(section: dict, config_dir: Path, errors: list[str], file) -> BusSpec |
     if router:
         named.append(("router", None, router))
     beyond = [e for _, _, e in named if not is_loopback(e)]
-    tls = section["tls"] == "on" or (section["tls"] == "auto" and bool(beyond))
+    asked = {True: "true", False: "false"}.get(section["tls"], "auto")
+    tls = asked == "true" or (asked == "auto" and bool(beyond))
     for key, i, endpoint in named:
         where = f"bus.{key}" + (f"[{i}]" if i is not None else "")
         protocol = endpoint.partition("/")[0]
         if tls and protocol not in ("tcp", "tls"):
-            errors.append(f"{file}: {where}: {endpoint} cannot carry TLS (bus.tls is on"
-                          f"{' since the bus leaves loopback' if section['tls'] == 'auto' else ''}); "
-                          f"expected tcp/ or tls/")
+            errors.append(f"{file}: {where}: {endpoint} cannot carry TLS (bus.tls is {asked}"
+                          f"{', and the bus leaves loopback' if asked == 'auto' else ''}); expected tcp/ or tls/")
         if not tls and protocol == "tls":
-            errors.append(f"{file}: {where}: {endpoint} is TLS, and bus.tls is {section['tls']}"
-                          f"{' (the bus stays on loopback)' if section['tls'] == 'auto' else ''}; "
-                          f"write tcp/, or set bus.tls: on")
+            errors.append(f"{file}: {where}: {endpoint} is TLS, and bus.tls is {asked}"
+                          f"{' (the bus stays on loopback)' if asked == 'auto' else ''}; "
+                          f"write tcp/, or set bus.tls: true")
     if section["mode"] == "client" and not router:
         errors.append(f"{file}: bus.mode: client sends everything through a router; give bus.router "
                       f"(started with orchestrator router)")
@@ -72,7 +72,7 @@ def check(section: dict, config_dir: Path, errors: list[str], file) -> BusSpec |
     ca = None
     if section["ca"] is not None:
         if not tls:
-            errors.append(f"{file}: bus.ca: a CA is for TLS, and bus.tls is {section['tls']}")
+            errors.append(f"{file}: bus.ca: a CA is for TLS, and bus.tls is {asked}")
         paths = []
         for part in ("certificate", "key"):
             path = (config_dir / section["ca"][part]).resolve()

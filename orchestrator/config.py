@@ -12,7 +12,7 @@ from typing import Any
 
 from components import registry
 from components.errors import ConfigError
-from components.schema import (Anything, Bool, Duration, Float, Int, ListOf, MapOf, Parameter, Record, Str,
+from components.schema import (Anything, Bool, Duration, Float, Int, ListOf, MapOf, OneOf, Parameter, Record, Str,
                                UtcTime, markdown)
 from components.sdk import Component, Layout, Variable, run_parameters
 from components.units import duration_text
@@ -67,9 +67,9 @@ BUS = Record("bus", (
                           "cannot reach each other"),
     Parameter("lease", Duration(), default="10 s",
               description="a link silent this long counts as dead: its component is lost (keep-alives every quarter)"),
-    Parameter("tls", Str(("auto", "on", "off")), default="auto",
-              description="mutual TLS on every link; auto: on when the bus leaves loopback (bus.listen, "
-                          "bus.connect or bus.router)"),
+    Parameter("tls", OneOf((Bool(), Str(("auto",)))), default="auto",
+              description="mutual TLS on every link (true | false); auto: on when the bus leaves loopback "
+                          "(bus.listen, bus.connect or bus.router)"),
     Parameter("ca", Record("ca", (
         Parameter("certificate", Str(hint="a PEM file"), description="the CA's certificate (PEM)"),
         Parameter("key", Str(hint="a PEM file"), description="its private key (PEM)"),

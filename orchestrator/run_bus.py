@@ -93,7 +93,7 @@ class RunBus:
         spec = self.spec
         connect = ([spec.router] if spec.router else []) + spec.connect
         if spec.router:
-            path = self._write("router", self.join_dir / "router.join", [spec.router])
+            path = self._write("router", self.join_dir.resolve() / "router.join", [spec.router])
             print(f"the run goes through the router at {spec.router}: start it there with\n"
                   f"    orchestrator router --listen {_any_host(spec.router)} --join {path}",
                   file=self.out, flush=True)
@@ -127,7 +127,7 @@ class RunBus:
 
     def invite(self, member) -> Path:
         """Write the join file of an external member, say where it is, and wait for its join."""
-        path = self._write("component", self.join_dir / f"{member.name}.join", self.endpoints, member)
+        path = self._write("component", self.join_dir.resolve() / f"{member.name}.join", self.endpoints, member)
         self.desk.invite(member)
         print(f"waiting for external component {member.name!r} (generation {member.generation}, up to "
               f"{self.config.join_timeout_s:g} s): on its host, run\n    orchestrator join {path}",

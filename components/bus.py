@@ -14,7 +14,7 @@ message is already waiting). Keys, under ``zenorbit/<run_id>/``:
 | ``i/<name>/c/<gen>`` | orchestrator -> component | control (JSON + blob) or horizon |
 | ``i/<name>/q/<gen>`` | component -> itself | quit: the orchestrator's liveliness token went away |
 | ``r/<name>`` | component -> orchestrator | a batch of step outputs (binary), for recording |
-| ``c/<name>/<gen>/out`` | component -> orchestrator | reply (JSON + blob) or fault |
+| ``c/<name>/<gen>/out`` | component -> orchestrator | reply (JSON + blob), fault, events or heartbeat |
 | ``alive/<name>/<gen>`` | component | liveliness token, gone when the process dies |
 | ``alive/orchestrator`` | orchestrator | liveliness token; components exit when it goes |
 | ``signals`` | orchestrator -> observers | one recorded row per step (binary), may drop |
@@ -51,6 +51,7 @@ REPLY = b"R"     # component -> orchestrator: JSON + blob
 FAULT = b"E"     # component -> orchestrator: JSON {op, k, error}
 EVENT = b"V"     # component -> orchestrator: JSON {op: "events", k, events: [[kind, fields], ...]}
 QUIT = b"Q"      # a component to itself, when the orchestrator's liveliness token is gone
+BEAT = b"K"      # component -> orchestrator: "still here" (every quarter of bus.lease, on the reply key)
 
 _OUTPUT_HEADER = struct.Struct("<qq")    # generation, tag
 _BATCH_HEADER = struct.Struct("<qqq")    # generation, number of steps, outputs per step

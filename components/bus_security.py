@@ -46,6 +46,9 @@ def apply(config, settings: dict, *, listening: bool) -> None:
 
     if settings.get("lease_ms"):
         put("transport/link/tx/lease", int(settings["lease_ms"]))
+        # a link whose sending has been blocked for a lease is dead too (Zenoh's default: 5 s), so
+        # that a cut link closes within the lease even while we send on it
+        put("transport/link/tx/queue/congestion_control/block/wait_before_close", int(settings["lease_ms"]) * 1000)
     tls = settings.get("tls")
     if tls:
         base = "transport/link/tls/"

@@ -340,9 +340,15 @@ def _inject(kind: str, seconds: float) -> None:
         time.sleep(seconds)
 
 
-def _watchdog(process: ComponentProcess, stop: threading.Event) -> None:
+def _watchdog(process: ComponentProcess, stop: threading.Event, beat_s: float | None) -> None:
+    """Flush batches when due; and every ``beat_s`` a heartbeat, so that the orchestrator tells a
+    silent link (cut: Zenoh may take long to close a link it cannot send on) within bus.lease."""
+    beat_at = time.monotonic()
     while not stop.wait(IDLE_FLUSH_S):
         process.flush_if_due()
+        if beat_s is not None and time.monotonic() >= beat_at:
+            beat_at = time.monotonic() + beat_s
+            process.publish_reply(bus.BEAT)
 
 
 def _held_values(body: dict, blob: bytes) -> dict[str, collections.deque]:
@@ -361,14 +367,14 @@ TERMINATED, RELEASED, ORPHANED = "terminated", "released", "orphaned"   # how se
 
 
 def serve(connect: str, run_id: str, name: str, generation: int, listen: str | None, secret: str,
-          cpu: int | None = None, settings: dict | None = None) -> str:
+          cpu: int | None = None, settings: dict | None = None, orchestrator: str | None = None) -> str:
     """Run component ``name`` of run ``run_id`` until told to exit; ``secret``: the run's (see
     :func:`bus.open_session`); ``settings``: the run's bus settings (TLS, access control, lease,
     mode: :mod:`components.bus_security`); ``cpu``: step on that CPU alone (the bus's threads,
     started before, keep the CPUs this process was given). How it ended (:func:`serve_session`)."""
     session = open_component_session(connect, listen, secret, settings)
     try:
-        return serve_session(session, run_id, name, generation, cpu)
+        return serve_session(session, run_id, name, generation, cpu, orchestrator, beat_interval(settings))
     finally:
         session.close()
 
@@ -385,11 +391,21 @@ def open_component_session(connect: str | list[str], listen: str | None, secret:
                             connect_timeout_s=connect_timeout_s)
 
 
-def serve_session(session, run_id: str, name: str, generation: int, cpu: int | None = None) -> str:
+def beat_interval(settings: dict | None) -> float | None:
+    """A quarter of the run's lease (bus.lease), in seconds; None without one."""
+    lease_ms = (settings or {}).get("lease_ms")
+    return lease_ms / 4000 if lease_ms else None
+
+
+def serve_session(session, run_id: str, name: str, generation: int, cpu: int | None = None,
+                  orchestrator: str | None = None, beat_s: float | None = None) -> str:
     """Serve one generation of component ``name`` on an open session until it ends:
     TERMINATED (the run is over), RELEASED (terminated for a restart: the run may want this
-    component again, in a new generation) or ORPHANED (the orchestrator's liveliness token went
-    away: the orchestrator died, or the link to it was cut)."""
+    component again, in a new generation) or ORPHANED (the orchestrator died, or the link to it
+    was cut). ``orchestrator``: the Zenoh id of the orchestrator's session; when this session
+    links to it directly, the closing of that link says the orchestrator is gone (its liveliness
+    token may be dropped with another peer's link), else its liveliness token does. ``beat_s``:
+    send a heartbeat that often."""
     import zenoh
 
     keep = []   # subscribers and publishers live as long as this generation
@@ -413,13 +429,18 @@ def serve_session(session, run_id: str, name: str, generation: int, cpu: int | N
                 publisher.put(payload)
 
         # the orchestrator gone (killed, machine lost): wake the main loop with a quit message
-        keep.append(session.liveliness().declare_subscriber(
-            bus.orchestrator_alive_key(run_id),
-            lambda s: session.put(quit_key, bus.QUIT) if s.kind == zenoh.SampleKind.DELETE else None))
+        if orchestrator in {str(t.zid) for t in session.info.transports()}:
+            keep.append(session.info.declare_transport_events_listener(
+                lambda e: session.put(quit_key, bus.QUIT)
+                if e.kind == zenoh.SampleKind.DELETE and str(e.transport.zid) == orchestrator else None))
+        else:
+            keep.append(session.liveliness().declare_subscriber(
+                bus.orchestrator_alive_key(run_id),
+                lambda s: session.put(quit_key, bus.QUIT) if s.kind == zenoh.SampleKind.DELETE else None))
         keep.append(session.liveliness().declare_token(bus.alive_key(run_id, name, generation)))
         process = ComponentProcess(name, replies.put, publish_output, batches.put)
         stop_watchdog = threading.Event()
-        threading.Thread(target=_watchdog, args=(process, stop_watchdog), daemon=True).start()
+        threading.Thread(target=_watchdog, args=(process, stop_watchdog, beat_s), daemon=True).start()
         keep.append(stop_watchdog)
         if cpu is not None:
             os.sched_setaffinity(0, {cpu})   # this thread only
@@ -461,13 +482,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--listen", help="where the other components reach this one directly "
                                          "(default: port 0 on the address used to reach the orchestrator)")
     parser.add_argument("--cpu", type=int, help="step on this CPU alone (the config's dedicated_cpu)")
+    parser.add_argument("--orchestrator", metavar="ZID", help="the Zenoh id of the orchestrator's session: "
+                                                              "exit when the link to it closes")
     args = parser.parse_args(argv)
     secret = os.environ.get(bus.SECRET_ENV)
     if not secret:
         parser.error(f"{bus.SECRET_ENV} is not set: give the run's secret in it, as the orchestrator's "
                      f"command for an external component does")
     ended = serve(args.connect, args.run_id, args.name, args.generation, args.listen, secret, args.cpu,
-                  bus_security.from_env())
+                  bus_security.from_env(), args.orchestrator)
     return 1 if ended == ORPHANED else 0
 
 

@@ -39,7 +39,7 @@ from orchestrator import pacing, recovery, report, runs, supervisor, wiring
 from orchestrator.config import ComponentSpec, RunConfig, ViewerSpec
 from orchestrator.control import ControlServer, StopRequested, SwapFailed, raise_stop
 from orchestrator.members import Crew, Member, RunFailure, death, exited, fault_message, terminate
-from orchestrator.messages import CONTROL, Events, Liveliness, Outputs, Reply, decode, subscribe
+from orchestrator.messages import CONTROL, Beat, Events, LinkLost, Liveliness, Outputs, Reply, decode, subscribe
 from orchestrator.recording import Recording, RecordingError
 from orchestrator.rows import Rows
 from orchestrator.run_bus import RunBus
@@ -140,6 +140,13 @@ class Run:
             if member is None:
                 raise bus.Malformed(f"no component {message.name!r} in this run")
             member.receive(message)
+            member.heard_at = member.progress_at
+            return
+        if type(message) is LinkLost:
+            member = next((m for g in (self.members, self.joining) for m in g.values() if m.zid == message.zid), None)
+            if member is not None and not member.ended:
+                self.recovery.salvage(member)
+                raise RunFailure(death(member, self.hosts.lost(member)), member, lost=True)
             return
         name = message.name
         if type(message) is Liveliness:
@@ -156,11 +163,17 @@ class Run:
                 if expect.get(name) == "alive":
                     del expect[name]
                 return
-            self.recovery.salvage(member)
-            raise RunFailure(death(member, self.hosts.lost(member)), member, lost=True)
+            how = exited(member)   # a token lost with another peer's link is no death: the process or link tells
+            if how is not None:
+                self.recovery.salvage(member)
+                raise RunFailure(death(member, how), member, lost=True)
+            return
         member = self._member(name, message.generation)
         if member is None:
             raise bus.Malformed(f"no component {name!r} of generation {message.generation} in this run")
+        member.heard_at = time.monotonic()
+        if type(message) is Beat:
+            return
         if type(message) is Reply:
             member.reply = {**message.body, "blob": message.blob}
             if expect.get(name) == message.body["op"]:
@@ -226,7 +239,7 @@ class Run:
                     raise RunFailure(problem)
                 continue
             member = self.joining.get(name) or self.members[name]
-            if how := exited(member):
+            if how := exited(member) or self.hosts.silent(member):
                 self.recovery.salvage(member)
                 raise RunFailure(death(member, how), member, lost=True)
 

@@ -45,6 +45,7 @@ class JoinDesk:
         self.run_id, self.out = run_id, out
         self.lock = threading.Lock()
         self.entries: dict[str, dict] = {}   # name -> {generation, member, joined, host}
+        self.zid = str(session.zid())
         self.over = False
         self.queryable = session.declare_queryable(bus.run_key(run_id, "join", "*"), self._answer)
 
@@ -70,8 +71,8 @@ class JoinDesk:
         if entry["joined"]:
             return {"status": "wait"}   # terminated: a restart will invite the next generation
         entry["joined"], entry["host"] = True, request_host(request)
-        member.host = entry["host"]
-        return {"status": "granted", "generation": entry["generation"]}
+        member.host, member.zid = entry["host"], str(request.get("zid", ""))
+        return {"status": "granted", "generation": entry["generation"], "orchestrator": self.zid}
 
     def _answer(self, query) -> None:
         name = str(query.key_expr).rpartition("/")[2]

@@ -86,7 +86,8 @@ def own_address(endpoint: str) -> str:
 
 
 def _ask(session, body: dict, endpoint: str) -> dict | None:
-    request = {"address": own_address(endpoint), "hostname": socket.gethostname(), "pid": os.getpid()}
+    request = {"address": own_address(endpoint), "hostname": socket.gethostname(), "pid": os.getpid(),
+               "zid": str(session.zid())}
     for reply in session.get(join_key(body["run_id"], body["component"]), payload=json.dumps(request),
                              timeout=ASK_TIMEOUT_S):
         if reply.ok is not None:
@@ -120,7 +121,7 @@ def _connect(body: dict, endpoints: list[str], listen: str | None, settings: dic
 def join(path: Path, connect: list[str] | None = None, listen: str | None = None, cpu: int | None = None,
          out=sys.stderr) -> int:
     """Serve the component of a join file for as long as the run wants it; the exit code."""
-    from components.runner import ORPHANED, RELEASED, serve_session
+    from components.runner import ORPHANED, RELEASED, beat_interval, serve_session
 
     body = read_join_file(path, "component")
     name, endpoints = body["component"], connect or body["connect"]
@@ -138,7 +139,8 @@ def join(path: Path, connect: list[str] | None = None, listen: str | None = None
                     if status == "granted":
                         print(f"joined run {body['run']!r} ({body['run_id']}) at {endpoint} as {name!r}, "
                               f"generation {answer['generation']}", file=out, flush=True)
-                        ended = serve_session(session, body["run_id"], name, answer["generation"], cpu)
+                        ended = serve_session(session, body["run_id"], name, answer["generation"], cpu,
+                                              answer.get("orchestrator"), beat_interval(settings))
                         served = True
                         deadline = time.monotonic() + timeout
                         if ended == ORPHANED:
@@ -160,7 +162,15 @@ def join(path: Path, connect: list[str] | None = None, listen: str | None = None
                                         f"{timeout:g} s (run.join_timeout)")
                     time.sleep(0.2)
             finally:
-                session.close()
+                _close(session)
+
+
+def _close(session) -> None:
+    import zenoh
+    try:
+        session.close()
+    except zenoh.ZError:   # a link that cannot be closed cleanly (cut): it goes with the process
+        pass
 
 
 def _orchestrator_alive(session, body: dict) -> bool:

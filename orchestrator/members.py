@@ -51,6 +51,8 @@ class Member:
     steps: int = 0
     reply: dict | None = field(default=None, repr=False)
     host: str = ""                         # where an external member joined from
+    zid: str = ""                          # the Zenoh id of its session, when linked to ours directly
+    heard_at: float = 0.0                  # wall time of its last message (heartbeats included)
     ended: bool = False                    # asked to terminate
 
     @property
@@ -98,6 +100,7 @@ class Crew:
         process = log_path = None
         if spec.launch == "local":
             args = supervisor.runner_arguments(self.endpoint, self.run_id, spec.name, generation)
+            args += ["--orchestrator", str(self.session.zid())]
             listen = self.hosts.component_listen()
             cpu = self.placement.dedicated.get(spec.name)
             args += (["--listen", listen] if listen else []) + (["--cpu", str(cpu)] if cpu is not None else [])

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import fcntl
 import json
+import time
 import shutil
 import socket
 import struct
@@ -155,6 +156,15 @@ class RunBus:
             return (f"lost: nothing heard from it within bus.lease ({self.spec.lease_ns / 1e9:g} s), its link "
                     f"was cut, its host went down or its process ended")
         return "its process disappeared (liveliness lost)"
+
+    def silent(self, member) -> str | None:
+        """How a joined external member whose link went silent for bus.lease is lost; None while
+        it is heard (its heartbeats come every quarter of the lease)."""
+        if member.spec.launch != "external" or not member.heard_at or member.ended:
+            return None
+        if time.monotonic() - member.heard_at <= self.spec.lease_ns / 1e9:
+            return None
+        return self.lost(member)
 
     def late(self, names: list[str]) -> str:
         return (f"component {', '.join(map(repr, names))} did not join within {self.config.join_timeout_s:g} s "

@@ -59,7 +59,7 @@ class RunBus:
         spec: BusSpec = config.bus
         self.config, self.spec, self.run_id, self.secret = config, spec, run_id, secret
         self.directory, self.join_dir, self.out = directory, join_dir, out
-        self.certificates = self.acl = self.desk = None
+        self.certificates = self.acl = self.desk = self.watch = None
         self.base = {"mode": spec.mode, "lease_ms": spec.lease_ms}
         self.endpoints: list[str] = []      # where other hosts reach the run
         self.local: str = ""                # where processes of this host (and the CLI) connect
@@ -92,6 +92,9 @@ class RunBus:
         from orchestrator.members import RunFailure
 
         spec = self.spec
+        if spec.tls or any(c.launch == "external" for c in self.config.components.values()):
+            from orchestrator.link_watch import LinkWatch
+            self.watch = LinkWatch(self.out)   # says so when a link with a wrong secret or certificate is refused
         connect = ([spec.router] if spec.router else []) + spec.connect
         if spec.router:
             path = self._write("router", self.join_dir.resolve() / "router.join", [spec.router])
@@ -177,6 +180,9 @@ class RunBus:
     def remove(self, join_files: bool) -> None:
         """The certificate files of this host's processes, and ``join_files`` (the run is over)."""
         shutil.rmtree(self.directory, ignore_errors=True)
+        if self.watch is not None:
+            self.watch.close()
+            self.watch = None
         if join_files:
             shutil.rmtree(self.join_dir, ignore_errors=True)
 

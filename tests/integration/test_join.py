@@ -124,6 +124,8 @@ def test_a_wrong_secret_a_foreign_certificate_and_a_second_join_are_refused(writ
                 p.kill()
     assert run.returncode == 0, err
     assert "warning: refused a join for 'a'" in err and "has joined already" in err
+    assert "warning: refused a link to the run's bus: wrong secret" in err, err
+    assert "warning: refused a link to the run's bus: a certificate not of this run's CA" in err, err
     assert first.returncode == 0
     data = table(record)
     assert np.allclose(data["a.x"], 0.37 * 1234.5678 * data["time"], rtol=1e-9)   # a stepped on, untouched

@@ -142,11 +142,8 @@ class Run:
             member.receive(message)
             member.heard_at = member.progress_at
             return
-        if type(message) is LinkLost:
-            member = next((m for g in (self.members, self.joining) for m in g.values() if m.zid == message.zid), None)
-            if member is not None and not member.ended:
-                self.recovery.salvage(member)
-                raise RunFailure(death(member, self.hosts.lost(member)), member, lost=True)
+        if type(message) is LinkLost:   # the member it was is lost: _check_processes says so (hosts.silent)
+            self.hosts.link_closed(message.zid, [*self.members.values(), *self.joining.values()])
             return
         name = message.name
         if type(message) is Liveliness:
@@ -163,13 +160,11 @@ class Run:
                 if expect.get(name) == "alive":
                     del expect[name]
                 return
-            how = exited(member)   # a token lost with another peer's link is no death: the process or link tells
-            if how is not None:
-                self.recovery.salvage(member)
-                raise RunFailure(death(member, how), member, lost=True)
-            return
+            return   # a token may go with another peer's link: its process or link tells (_check_processes)
         member = self._member(name, message.generation)
         if member is None:
+            if type(message) is Beat:
+                return   # a generation just replaced may still beat once
             raise bus.Malformed(f"no component {name!r} of generation {message.generation} in this run")
         member.heard_at = time.monotonic()
         if type(message) is Beat:
@@ -372,9 +367,7 @@ class Run:
 
     def _open_bus(self) -> None:
         """The orchestrator's Zenoh session, its subscriptions, and the run's entry for `ps`."""
-        join_dir = (self.record_dir / "join") if self.record_dir else runs.directory().parent / "join" / self.run_id
-        self.hosts = RunBus(self.config, self.run_id, self.secret, runs.directory() / f"{self.run_id}.bus", join_dir,
-                            self.out)
+        self.hosts = RunBus(self.config, self.run_id, self.secret, self.record_dir, self.out)
         self.child_env.update(self.hosts.child_env(None))
         self.session = session = self.hosts.open()
         run_id = self.run_id

@@ -100,7 +100,7 @@ def _ask(session, body: dict, endpoint: str) -> dict | None:
 
 def _connect(body: dict, endpoints: list[str], listen: str | None, settings: dict, deadline: float):
     """A session with the run (retried until ``deadline``), and the endpoint it went to."""
-    from components.runner import open_component_session
+    from components.serving import open_component_session
     import zenoh
 
     while True:
@@ -121,7 +121,7 @@ def _connect(body: dict, endpoints: list[str], listen: str | None, settings: dic
 def join(path: Path, connect: list[str] | None = None, listen: str | None = None, cpu: int | None = None,
          out=sys.stderr) -> int:
     """Serve the component of a join file for as long as the run wants it; the exit code."""
-    from components.runner import ORPHANED, RELEASED, beat_interval, serve_session
+    from components.serving import ORPHANED, RELEASED, beat_interval, serve_session
 
     body = read_join_file(path, "component")
     name, endpoints = body["component"], connect or body["connect"]

@@ -53,6 +53,7 @@ class Member:
     host: str = ""                         # where an external member joined from
     zid: str = ""                          # the Zenoh id of its session, when linked to ours directly
     heard_at: float = 0.0                  # wall time of its last message (heartbeats included)
+    cut: bool = False                      # Zenoh closed the link to it
     ended: bool = False                    # asked to terminate
 
     @property

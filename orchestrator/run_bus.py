@@ -55,10 +55,13 @@ class RunBus:
     files and the desk that answers joins. With TLS, ``directory`` (0700, removed by
     :meth:`close`) holds the run's certificates for the processes of this host."""
 
-    def __init__(self, config, run_id: str, secret: str, directory: Path, join_dir: Path, out):
+    def __init__(self, config, run_id: str, secret: str, record_dir: Path | None, out):
+        from orchestrator import runs
         spec: BusSpec = config.bus
-        self.config, self.spec, self.run_id, self.secret = config, spec, run_id, secret
-        self.directory, self.join_dir, self.out = directory, join_dir, out
+        self.config, self.spec, self.run_id, self.secret, self.out = config, spec, run_id, secret, out
+        self.directory = runs.directory() / f"{run_id}.bus"
+        # join files go with the recording, else with the run's entry in the runtime directory
+        self.join_dir = (record_dir / "join") if record_dir else runs.directory().parent / "join" / run_id
         self.certificates = self.acl = self.desk = self.watch = None
         self.base = {"mode": spec.mode, "lease_ms": spec.lease_ms}
         self.endpoints: list[str] = []      # where other hosts reach the run
@@ -70,7 +73,7 @@ class RunBus:
             holders = {"orchestrator": bus_security.ORCHESTRATOR_NAME, "cli": bus_security.CLI_NAME,
                        "router": bus_security.ROUTER_NAME,
                        **{f"component.{n}": bus_security.component_name(n) for n in components}}
-            self.certificates = RunCertificates(directory, holders, spec.ca, run_id)
+            self.certificates = RunCertificates(self.directory, holders, spec.ca, run_id)
             self.acl = bus_security.access_control(run_id, components)
 
     def settings(self, holder: str, portable: bool = False) -> dict:
@@ -154,18 +157,22 @@ class RunBus:
         return f"{endpoint.partition('/')[0]}/{endpoint.partition('/')[2].rpartition(':')[0]}:0"
 
     def lost(self, member) -> str:
-        """How a member lost its liveliness reads."""
-        if member.spec.launch == "external":
-            return (f"lost: nothing heard from it within bus.lease ({self.spec.lease_ns / 1e9:g} s), its link "
-                    f"was cut, its host went down or its process ended")
-        return "its process disappeared (liveliness lost)"
+        """How losing an external member (its link closed, or silent for a lease) reads."""
+        return (f"lost: nothing heard from it within bus.lease ({self.spec.lease_ns / 1e9:g} s), its link "
+                f"was cut, its host went down or its process ended")
+
+    def link_closed(self, zid: str, members) -> None:
+        """Zenoh closed the link to session ``zid``: the live member it was is lost."""
+        for member in members:
+            if member.zid == zid and not member.ended:
+                member.cut = True
 
     def silent(self, member) -> str | None:
-        """How a joined external member whose link went silent for bus.lease is lost; None while
-        it is heard (its heartbeats come every quarter of the lease)."""
+        """How a joined external member is lost, its link closed or silent for bus.lease; None
+        while it is heard (its heartbeats come every quarter of the lease)."""
         if member.spec.launch != "external" or not member.heard_at or member.ended:
             return None
-        if time.monotonic() - member.heard_at <= self.spec.lease_ns / 1e9:
+        if not member.cut and time.monotonic() - member.heard_at <= self.spec.lease_ns / 1e9:
             return None
         return self.lost(member)
 

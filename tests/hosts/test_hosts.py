@@ -52,7 +52,7 @@ def network():
 @pytest.fixture
 def reference(tmp_path_factory):
     """The same run, every component local, on loopback (no TLS)."""
-    def run(duration="2 s") -> "pandas.DataFrame":
+    def run(duration="2 s"):
         directory = tmp_path_factory.mktemp("reference")
         path = directory / "config.yaml"
         path.write_text(config("reference", duration=duration, listen="tcp/127.0.0.1:0", tls="false", launch="local"))

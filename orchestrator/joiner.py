@@ -24,6 +24,7 @@ from orchestrator.tls import write_pem_files
 
 ASK_TIMEOUT_S = 5.0
 PROBE_TIMEOUT_S = 2.0
+CONNECT_TIMEOUT_S = 4.0   # a reachable run that does not take the link by then refused it (Zenoh retries meanwhile)
 
 
 class JoinError(Exception):
@@ -107,7 +108,7 @@ def _connect(body: dict, endpoints: list[str], listen: str | None, settings: dic
         endpoint = reachable(endpoints)
         if endpoint is not None:
             try:
-                session = open_component_session(endpoint, listen, body["secret"], settings, connect_timeout_s=10.0)
+                session = open_component_session(endpoint, listen, body["secret"], settings, connect_timeout_s=CONNECT_TIMEOUT_S)
                 return session, endpoint
             except zenoh.ZError:
                 raise JoinError(f"the run at {endpoint} refused the link: wrong secret or certificate (is {body['run']!r} "

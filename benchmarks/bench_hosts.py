@@ -86,21 +86,22 @@ def detection(network, directory: Path, lease: str) -> float:
             time.sleep(0.05)
         joins.append(subprocess.Popen(cli(network[host], "join", path), cwd=ROOT, stdout=subprocess.DEVNULL,
                                       stderr=subprocess.DEVNULL))
-    time.sleep(3.0)
+    signals = record / "signals.parquet"
+    while not any(p.suffix == ".parquet" and not p.name.startswith(".") for p in signals.glob("*")):
+        time.sleep(0.05)   # stepping: the first 1000 rows are in
     network.cut("a")
     cut = time.monotonic()
-    for line in orchestrator.stderr:
-        if line.startswith("error:"):
-            seen = time.monotonic() - cut
-            break
-    else:
+    try:
+        for line in orchestrator.stderr:
+            if line.startswith("error:"):
+                return time.monotonic() - cut
         raise SystemExit("the run ended without an error")
-    orchestrator.wait(timeout=60)
-    network.mend("a")
-    for join in joins:
-        join.kill()
-        join.wait()
-    return seen
+    finally:
+        orchestrator.wait(timeout=60)
+        network.mend("a")
+        for join in joins:
+            join.kill()
+            join.wait()
 
 
 def median(values: list[float]) -> float:
@@ -113,6 +114,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--steps", type=int, default=5000)
     parser.add_argument("--demo", default="3 s", help="simulated time of each demo run")
+    parser.add_argument("--only", choices=("ring", "demo", "cut"), help="this figure alone")
     args = parser.parse_args()
     if missing():
         raise SystemExit(f"cannot run: {missing()}")
@@ -121,47 +123,56 @@ def main() -> None:
     directory = Path(tempfile.mkdtemp(prefix="bench-hosts-"))
     os.environ["ZENORBIT_RUNTIME_DIR"] = str(directory / "runtime")
     with Network(["orch", "a", "b"]) as network:
-        ring = {}
-        for name, listen, tls, launch in (("loopback", "tcp/127.0.0.1:0", "false", "local"),
-                                          ("hosts, TLS", "tcp/0.0.0.0:0", "auto", "external"),
-                                          ("hosts, plain TCP", "tcp/0.0.0.0:0", "false", "external")):
-            path = directory / f"ring-{len(ring)}.yaml"
-            path.write_text(RING.format(steps=args.steps, listen=listen, tls=tls, launch=launch))
-            ring[name] = (path, ["b", "c"] if launch == "external" else [])
-        rates: dict[str, list[float]] = {name: [] for name in ring}
-        for _ in range(args.repeats):
-            for name, (path, external) in ring.items():
-                steps, stepping, _ = run(network if external else None, [path], external, directory)
-                rates[name].append(steps / stepping)
-        base = median(rates["loopback"])
-        print(f"\nlockstep, 3 no-op components in a ring (b and c on hosts a and b), {args.steps} steps of 1 ms:")
-        for name, values in rates.items():
-            print(f"  {name:<18} {median(values):7.0f} steps/s ({1e6 / median(values):5.0f} us/step), "
-                  f"x{median(values) / base:.2f} of loopback")
-        tls_cost = 1e6 / median(rates["hosts, TLS"]) - 1e6 / median(rates["hosts, plain TCP"])
-        print(f"  TLS per step (hosts, TLS against hosts, plain TCP): {tls_cost:+.0f} us")
+        if args.only in (None, "ring"):
+            ring_figures(network, directory, args)
+        if args.only in (None, "demo"):
+            demo_figures(network, directory, args)
+        if args.only in (None, "cut"):
+            seen = [detection(network, directory, "1 s") for _ in range(args.repeats)]
+            print(f"\ncut link (bus.lease 1 s): seen after {', '.join(f'{s:.2f}' for s in seen)} s "
+                  f"(median {median(seen):.2f} s)")
 
-        demo = ROOT / "configs" / "humanoid_tracking.yaml"
-        common = ["--set", f"run.duration={args.demo}", "--set", "components.dynamics.dedicated_cpu=false"]
-        variants = {
-            "loopback": common,
-            "hosts, TLS": common + ["--set", "bus.listen=[tcp/0.0.0.0:0]",
-                                    "--set", "components.dynamics.launch=external",
-                                    "--set", "components.controller.launch=external"],
-        }
-        factors: dict[str, list[float]] = {name: [] for name in variants}
-        for _ in range(args.repeats):
-            for name, extra in variants.items():
-                external = ["dynamics", "controller"] if name != "loopback" else []
-                factors[name].append(run(network if external else None, [demo, *extra], external, directory)[2])
-        print(f"\ndemo (configs/humanoid_tracking.yaml, {args.demo}; dynamics and controller on hosts a and b):")
-        for name, values in factors.items():
-            print(f"  {name:<18} real-time factor {median(values):5.2f} (x{median(values) / median(factors['loopback']):.2f} "
-                  f"of loopback; runs: {', '.join(f'{v:.2f}' for v in values)})")
 
-        seen = [detection(network, directory, "1 s") for _ in range(args.repeats)]
-        print(f"\ncut link (bus.lease 1 s): seen after {', '.join(f'{s:.2f}' for s in seen)} s "
-              f"(median {median(seen):.2f} s)")
+def ring_figures(network, directory: Path, args) -> None:
+    ring = {}
+    for name, listen, tls, launch in (("loopback", "tcp/127.0.0.1:0", "false", "local"),
+                                      ("hosts, TLS", "tcp/0.0.0.0:0", "auto", "external"),
+                                      ("hosts, plain TCP", "tcp/0.0.0.0:0", "false", "external")):
+        path = directory / f"ring-{len(ring)}.yaml"
+        path.write_text(RING.format(steps=args.steps, listen=listen, tls=tls, launch=launch))
+        ring[name] = (path, ["b", "c"] if launch == "external" else [])
+    rates: dict[str, list[float]] = {name: [] for name in ring}
+    for _ in range(args.repeats):
+        for name, (path, external) in ring.items():
+            steps, stepping, _ = run(network if external else None, [path], external, directory)
+            rates[name].append(steps / stepping)
+    base = median(rates["loopback"])
+    print(f"\nlockstep, 3 no-op components in a ring (b and c on hosts a and b), {args.steps} steps of 1 ms:")
+    for name, values in rates.items():
+        print(f"  {name:<18} {median(values):7.0f} steps/s ({1e6 / median(values):5.0f} us/step), "
+              f"x{median(values) / base:.2f} of loopback")
+    tls_cost = 1e6 / median(rates["hosts, TLS"]) - 1e6 / median(rates["hosts, plain TCP"])
+    print(f"  TLS per step (hosts, TLS against hosts, plain TCP): {tls_cost:+.0f} us", flush=True)
+
+
+def demo_figures(network, directory: Path, args) -> None:
+    demo = ROOT / "configs" / "humanoid_tracking.yaml"
+    common = ["--set", f"run.duration={args.demo}", "--set", "components.dynamics.dedicated_cpu=false"]
+    variants = {
+        "loopback": common,
+        "hosts, TLS": common + ["--set", "bus.listen=[tcp/0.0.0.0:0]",
+                                "--set", "components.dynamics.launch=external",
+                                "--set", "components.controller.launch=external"],
+    }
+    factors: dict[str, list[float]] = {name: [] for name in variants}
+    for _ in range(args.repeats):
+        for name, extra in variants.items():
+            external = ["dynamics", "controller"] if name != "loopback" else []
+            factors[name].append(run(network if external else None, [demo, *extra], external, directory)[2])
+    print(f"\ndemo (configs/humanoid_tracking.yaml, {args.demo}; dynamics and controller on hosts a and b):")
+    for name, values in factors.items():
+        print(f"  {name:<18} real-time factor {median(values):5.2f} (x{median(values) / median(factors['loopback']):.2f} "
+              f"of loopback; runs: {', '.join(f'{v:.2f}' for v in values)})", flush=True)
 
 
 if __name__ == "__main__":

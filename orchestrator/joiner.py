@@ -108,7 +108,8 @@ def _connect(body: dict, endpoints: list[str], listen: str | None, settings: dic
         endpoint = reachable(endpoints)
         if endpoint is not None:
             try:
-                session = open_component_session(endpoint, listen, body["secret"], settings, connect_timeout_s=CONNECT_TIMEOUT_S)
+                session = open_component_session(endpoint, listen, body["secret"], settings,
+                                                 connect_timeout_s=CONNECT_TIMEOUT_S)
                 return session, endpoint
             except zenoh.ZError:
                 raise JoinError(f"the run at {endpoint} refused the link: wrong secret or certificate (is {body['run']!r} "

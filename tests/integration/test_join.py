@@ -165,7 +165,8 @@ def test_only_the_orchestrator_sends_control_messages(write_config, tmp_path):
 
 
 def test_a_component_that_does_not_join_fails_the_run_naming_it(write_config, tmp_path):
-    result = orchestrator("run", write_config(chain(name="nojoin", join_timeout="2 s")), "--record", tmp_path / "rec")
+    text = chain(name="nojoin", join_timeout="2 s").replace("join_timeout:", "start_timeout: 2 s, join_timeout:")
+    result = orchestrator("run", write_config(text), "--record", tmp_path / "rec")
     assert result.returncode == 1
     assert "component 'a' did not join within 2 s (run.join_timeout)" in result.stderr, result.stderr
     assert "Traceback" not in result.stderr

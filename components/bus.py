@@ -14,7 +14,7 @@ message is already waiting). Keys, under ``zenorbit/<run_id>/``:
 | ``i/<name>/c/<gen>`` | orchestrator -> component | control (JSON + blob) or horizon |
 | ``i/<name>/q/<gen>`` | component -> itself | quit: the orchestrator's liveliness token went away |
 | ``r/<name>`` | component -> orchestrator | a batch of step outputs (binary), for recording |
-| ``c/<name>/<gen>/out`` | component -> orchestrator | reply (JSON + blob) or fault |
+| ``c/<name>/<gen>/out`` | component -> orchestrator | reply (JSON + blob), fault, events or heartbeat |
 | ``alive/<name>/<gen>`` | component | liveliness token, gone when the process dies |
 | ``alive/orchestrator`` | orchestrator | liveliness token; components exit when it goes |
 | ``signals`` | orchestrator -> observers | one recorded row per step (binary), may drop |
@@ -51,6 +51,7 @@ REPLY = b"R"     # component -> orchestrator: JSON + blob
 FAULT = b"E"     # component -> orchestrator: JSON {op, k, error}
 EVENT = b"V"     # component -> orchestrator: JSON {op: "events", k, events: [[kind, fields], ...]}
 QUIT = b"Q"      # a component to itself, when the orchestrator's liveliness token is gone
+BEAT = b"K"      # component -> orchestrator: "still here" (every quarter of bus.lease, on the reply key)
 
 _OUTPUT_HEADER = struct.Struct("<qq")    # generation, tag
 _BATCH_HEADER = struct.Struct("<qqq")    # generation, number of steps, outputs per step
@@ -305,13 +306,23 @@ USER = "zenorbit"
 
 
 def open_session(listen: list[str] = (), connect: list[str] = (), *, mesh: bool = False,
-                 secret: str | None = None):
-    """A Zenoh peer session (see :func:`session_config`). With ``secret``, every link to or from
+                 secret: str | None = None, settings: dict | None = None, connect_timeout_s: float | None = None):
+    """A Zenoh session (see :func:`session_config`). With ``secret``, every link to or from
     it is authenticated: Zenoh's user/password challenge-response, the secret never sent. Peers
-    without it are refused; they cannot publish, subscribe or query (docs/design.md §7)."""
+    without it are refused; they cannot publish, subscribe or query (docs/design.md §7).
+    ``settings``: the run's bus settings (TLS, access control, lease, mode:
+    :mod:`components.bus_security`). ``connect_timeout_s``: fail (ZError) unless a link to one of
+    ``connect`` is up within it, rather than go on trying in the background."""
     import zenoh
 
-    config = session_config(listen, connect, mesh=mesh)
+    from components import bus_security
+
+    settings = settings or {}
+    config = session_config(listen, connect, mesh=mesh, mode=settings.get("mode", "peer"))
+    bus_security.apply(config, settings, listening=bool(listen))
+    if connect and connect_timeout_s is not None:
+        config.insert_json5("connect/timeout_ms", json.dumps(int(connect_timeout_s * 1000)))
+        config.insert_json5("connect/exit_on_failure", "true")
     if secret is None:
         return zenoh.open(config)
     config.insert_json5("transport/auth/usrpwd/user", json.dumps(USER))
@@ -337,9 +348,9 @@ def open_session(listen: list[str] = (), connect: list[str] = (), *, mesh: bool 
 RUNTIME = "(app: (worker_threads: 1), rx: (handover: app), tx: (handover: app), acc: (handover: app), net: (handover: app))"
 
 
-def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: bool = False):
-    """A Zenoh peer config: explicit endpoints, no multicast scouting; Zenoh's runtime as
-    ``RUNTIME`` in a process that has not started it yet.
+def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: bool = False, mode: str = "peer"):
+    """A Zenoh config: explicit endpoints, no multicast scouting; ``mode`` peer, client or router;
+    Zenoh's runtime as ``RUNTIME`` in a process that has not started it yet.
 
     ``mesh``: gossip on, so the peers of a run (all connected to the orchestrator's session)
     learn each other's listen endpoints and connect directly; a run never meets another run's
@@ -350,11 +361,11 @@ def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: boo
     os.environ.setdefault("ZENOH_RUNTIME", RUNTIME)   # read once, when the first session starts Zenoh's runtime
 
     config = zenoh.Config()
-    config.insert_json5("mode", '"peer"')
+    config.insert_json5("mode", json.dumps(mode))
     config.insert_json5("listen/endpoints", json.dumps(list(listen)))
     config.insert_json5("connect/endpoints", json.dumps(list(connect)))
     config.insert_json5("scouting/multicast/enabled", "false")
-    config.insert_json5("scouting/gossip/enabled", "true" if mesh else "false")
+    config.insert_json5("scouting/gossip/enabled", "true" if mesh or mode == "router" else "false")
     # one side of each pair connects: with authentication, two links opened at once may both be refused
     config.insert_json5("scouting/gossip/autoconnect_strategy", '{peer: {to_router: "always", to_peer: "greater-zid"}}')
     return config

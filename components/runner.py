@@ -26,7 +26,7 @@ import traceback
 
 import numpy as np
 
-from components import bus, registry
+from components import bus, bus_security, registry
 from components.schedule import Route, fed_inputs
 
 INBOX_CAPACITY = 4096   # messages waiting in the inbox FIFO (a full one holds the senders back)
@@ -73,6 +73,7 @@ class ComponentProcess:
         self.synced = False
         self.next_k = 0
         self.horizon = 0
+        self.final = True     # terminated because the run is over
         self.halted = False   # a step failed: no further step, whatever horizon comes (the run ends or restarts)
         self.step_ns = 0
         self.ratio = 1
@@ -195,6 +196,7 @@ class ComponentProcess:
             self.component.set_state(bus.decode_state(blob))
             self.reply(op)
         elif op == "terminate":
+            self.final = bool(body.get("final"))   # the run is over (else: a restart may want this component again)
             if self.component is not None:
                 self.component.terminate()
             self.reply(op)
@@ -337,12 +339,6 @@ def _inject(kind: str, seconds: float) -> None:
         time.sleep(seconds)
 
 
-def _watchdog(process: ComponentProcess) -> None:
-    while True:
-        time.sleep(IDLE_FLUSH_S)
-        process.flush_if_due()
-
-
 def _held_values(body: dict, blob: bytes) -> dict[str, collections.deque]:
     """Source outputs sent by the orchestrator, {source: deque of (tag, outputs)}, from the body's
     ``held`` list of [source, tag, size] and the outputs packed in ``blob`` in that order."""
@@ -355,67 +351,6 @@ def _held_values(body: dict, blob: bytes) -> dict[str, collections.deque]:
     return values
 
 
-def serve(connect: str, run_id: str, name: str, generation: int, listen: str, secret: str,
-          cpu: int | None = None) -> int:
-    """Run component ``name`` of run ``run_id`` until told to exit; ``secret``: the run's (see
-    :func:`bus.open_session`); ``cpu``: step on that CPU alone (the bus's threads, started
-    before, keep the CPUs this process was given)."""
-    import zenoh
-
-    session = bus.open_session([listen], [connect], mesh=True, secret=secret)
-    keep = []   # subscribers and publishers live as long as the session
-    try:
-        inbox = session.declare_subscriber(bus.inbox_pattern(run_id, name), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
-        keep.append(inbox)
-        command = bus.command_key(run_id, name, generation)
-        quit_key = bus.quit_key(run_id, name, generation)
-        output_prefix = bus.output_prefix(run_id, name)
-        replies = bus.publisher(session, bus.reply_key(run_id, name, generation))
-        batches = bus.publisher(session, bus.batch_key(run_id, name))
-        outputs: dict[str, object] = {}
-
-        def publish_output(consumers: list[str], payload: bytes) -> None:
-            for consumer in consumers:
-                publisher = outputs.get(consumer)
-                if publisher is None:
-                    publisher = outputs[consumer] = bus.publisher(session, bus.output_key(run_id, consumer, name))
-                publisher.put(payload)
-
-        # the orchestrator gone (killed, machine lost): wake the main loop with a quit message
-        keep.append(session.liveliness().declare_subscriber(
-            bus.orchestrator_alive_key(run_id),
-            lambda s: session.put(quit_key, bus.QUIT) if s.kind == zenoh.SampleKind.DELETE else None))
-        keep.append(session.liveliness().declare_token(bus.alive_key(run_id, name, generation)))
-        process = ComponentProcess(name, replies.put, publish_output, batches.put)
-        threading.Thread(target=_watchdog, args=(process,), daemon=True).start()
-        if cpu is not None:
-            os.sched_setaffinity(0, {cpu})   # this thread only
-        while True:
-            sample = inbox.recv()
-            key = str(sample.key_expr)
-            if key == quit_key:
-                print("the orchestrator went away: exiting", file=sys.stderr)
-                return 1
-            try:
-                if key.startswith(output_prefix):
-                    process.source_output(key[len(output_prefix):], sample.payload.to_bytes())
-                elif key == command:
-                    if not process.command(sample.payload.to_bytes()):
-                        return 0
-                else:
-                    continue   # for another generation of this component
-            except bus.Malformed as e:   # whoever reaches the bus cannot stop this component
-                process.dropped(key, str(e))
-                continue
-            try:
-                process.advance()
-            except Halt:
-                pass
-    finally:
-        keep.clear()
-        session.close()
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m components.runner", description=__doc__.splitlines()[0])
     parser.add_argument("--connect", required=True, help="the orchestrator's Zenoh endpoint, e.g. tcp/127.0.0.1:7447")
@@ -425,13 +360,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--listen", help="where the other components reach this one directly "
                                          "(default: port 0 on the address used to reach the orchestrator)")
     parser.add_argument("--cpu", type=int, help="step on this CPU alone (the config's dedicated_cpu)")
+    parser.add_argument("--orchestrator", metavar="ZID", help="the Zenoh id of the orchestrator's session: "
+                                                              "exit when the link to it closes")
     args = parser.parse_args(argv)
     secret = os.environ.get(bus.SECRET_ENV)
     if not secret:
         parser.error(f"{bus.SECRET_ENV} is not set: give the run's secret in it, as the orchestrator's "
                      f"command for an external component does")
-    return serve(args.connect, args.run_id, args.name, args.generation,
-                 args.listen or bus.listen_beside(args.connect), secret, args.cpu)
+    from components.serving import ORPHANED, serve
+
+    ended = serve(args.connect, args.run_id, args.name, args.generation, args.listen, secret, args.cpu,
+                  bus_security.from_env(), args.orchestrator)
+    return 1 if ended == ORPHANED else 0
 
 
 if __name__ == "__main__":

@@ -87,7 +87,7 @@ def cmd_run(args) -> int:
 def _query(entry: dict, request: dict, timeout: float = 30.0) -> dict:
     from components import bus
 
-    session = bus.open_session(connect=[entry["endpoint"]], secret=entry["secret"])
+    session = bus.open_session(connect=[entry["endpoint"]], secret=entry["secret"], settings=entry.get("settings"))
     try:
         for reply in session.get(bus.control_key(entry["run_id"]), payload=json.dumps(request), timeout=timeout):
             if reply.ok is not None:
@@ -308,6 +308,27 @@ def cmd_sweep(args) -> int:
         return _fail(str(e))
 
 
+def cmd_join(args) -> int:
+    from orchestrator.joiner import JoinError, join
+    try:
+        return join(Path(args.file), args.connect or None, args.listen, args.cpu)
+    except JoinError as e:
+        return _fail(str(e), e.code)
+
+
+def cmd_router(args) -> int:
+    from orchestrator.config import ENDPOINT
+    import re
+    from orchestrator.joiner import JoinError, route
+    for endpoint in args.listen:
+        if not re.fullmatch(ENDPOINT, endpoint):
+            return _fail(f"--listen {endpoint}: expected a Zenoh endpoint like tls/0.0.0.0:7447")
+    try:
+        return route(Path(args.join), args.listen)
+    except JoinError as e:
+        return _fail(str(e), e.code)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="orchestrator", description="Zenorbit: lockstep co-simulation over Zenoh.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -362,6 +383,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true", help="finish an interrupted campaign in DIR")
     p.add_argument("--only", metavar="N[,N]", help="run only these cases (numbered from 0)")
     p.set_defaults(func=cmd_sweep)
+
+    p = sub.add_parser("join", help="on another host: serve a launch: external component of a run, from the "
+                       "join file the orchestrator wrote")
+    p.add_argument("file", metavar="FILE.join", help="DIR/join/<component>.join (copy it over; it holds the run's "
+                   "secret: keep it private)")
+    p.add_argument("--connect", action="append", metavar="ENDPOINT", help="reach the run here instead of the "
+                   "file's endpoints (repeatable)")
+    p.add_argument("--listen", metavar="ENDPOINT", help="where the run's other components reach this one "
+                   "(default: a free port on every interface)")
+    p.add_argument("--cpu", type=int, help="step on this CPU alone")
+    p.set_defaults(func=cmd_join)
+
+    p = sub.add_parser("router", help="the run's Zenoh router (bus.router), for hosts that cannot reach each other")
+    p.add_argument("--listen", action="append", required=True, metavar="ENDPOINT",
+                   help="where the run's processes reach it, e.g. tls/0.0.0.0:7447 (repeatable)")
+    p.add_argument("--join", required=True, metavar="FILE", help="DIR/join/router.join, which the orchestrator wrote")
+    p.set_defaults(func=cmd_router)
 
     p = sub.add_parser("types", help="list the component types, with a line each")
     p.set_defaults(func=cmd_types)

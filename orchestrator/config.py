@@ -16,6 +16,8 @@ from components.schema import (Anything, Bool, Duration, Float, Int, ListOf, Map
                                Str, UtcTime, markdown)
 from components.sdk import Component, Layout, Variable, run_parameters
 from components.units import duration_text
+from orchestrator import bus_config
+from orchestrator.bus_config import BusSpec
 from orchestrator.config_file import ConfigErrors, apply_overrides, read_yaml
 from orchestrator.connections import _connections, check_replacement, hands_over, handover_problem
 from orchestrator.shadows import mismatches, shadow_spec, with_shadows
@@ -40,6 +42,9 @@ RUN = Record("run", (
               description="wall time a component may take for one step before the run fails"),
     Parameter("start_timeout", Duration(), default="60 s",
               description="wall time a component may take to start and initialize"),
+    Parameter("join_timeout", Duration(), default="5 min",
+              description="wall time a launch: external component may take to join (orchestrator join), "
+                          "and to join again after it was lost"),
     Parameter("checkpoint_every", Duration(), default=None,
               description="simulated time between checkpoints, when a component has on_failure: restart "
                           "(none: the start is the only one)"),
@@ -51,7 +56,26 @@ RUN = Record("run", (
 ), description="the run's identity and timing (``run:``)")
 BUS = Record("bus", (
     Parameter("listen", ListOf(Str(pattern=ENDPOINT, hint="a Zenoh endpoint like tcp/127.0.0.1:0"), min_items=1),
-              default=["tcp/127.0.0.1:0"], description="where the run's Zenoh router listens (loopback by default)"),
+              default=["tcp/127.0.0.1:0"], description="where the orchestrator listens (loopback by default; "
+                                                       "another address is for components on other hosts)"),
+    Parameter("connect", ListOf(Str(pattern=ENDPOINT, hint="a Zenoh endpoint like tcp/192.0.2.7:7447")), default=[],
+              description="endpoints the orchestrator links to besides the router (other peers)"),
+    Parameter("mode", Str(("peer", "client")), default="peer",
+              description="peer: the run's processes link to each other directly; client: everything goes "
+                          "through bus.router"),
+    Parameter("router", Str(pattern=ENDPOINT, hint="a Zenoh endpoint like tcp/192.0.2.7:7447"), default=None,
+              description="a router every process of the run links to (orchestrator router), for hosts that "
+                          "cannot reach each other"),
+    Parameter("lease", Duration(), default="10 s",
+              description="a link silent this long counts as dead: its component is lost (keep-alives every quarter)"),
+    Parameter("tls", OneOf((Bool(), Str(("auto",)))), default="auto",
+              description="mutual TLS on every link (true | false); auto: on when the bus leaves loopback "
+                          "(bus.listen, bus.connect or bus.router)"),
+    Parameter("ca", Record("ca", (
+        Parameter("certificate", Str(hint="a PEM file"), description="the CA's certificate (PEM)"),
+        Parameter("key", Str(hint="a PEM file"), description="its private key (PEM)"),
+    ), description="your CA, to issue the run's certificates (``bus.ca``)"), default=None,
+              description="issue the run's certificates from your CA (default: a CA made for the run)"),
 ), description="the Zenoh bus (``bus:``)")
 VIEWER = Record("viewer", (
     Parameter("mode", Str(VIEWER_MODES), description="spawn a Rerun viewer, serve it on the web, save a .rrd, or off"),
@@ -199,6 +223,8 @@ class RunConfig:
     components: dict[str, ComponentSpec]
     connections: list[tuple[str, str, str, str]]  # (dst component, dst var, src component, src var)
     listen: list[str]
+    bus: BusSpec
+    join_timeout_s: float
     events: list[Event] = field(default_factory=list)
     faults: list[Fault] = field(default_factory=list)
     checkpoint_ns: int | None = None
@@ -255,8 +281,6 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
     if entry["dedicated_cpu"] and entry["launch"] == "external":
         errors.append(f"{key}.dedicated_cpu: only for components the orchestrator starts (launch: local); "
                       f"pin an external component where it runs (taskset)")
-    if entry["on_failure"] == "restart" and entry["launch"] == "external":
-        errors.append(f"{key}.on_failure: restart is only for components the orchestrator starts (launch: local)")
     if errors:
         raise ConfigErrors(errors)
     if unresolved:   # declare failed; a component's own bug or a file it cannot read is one line too
@@ -331,6 +355,7 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
                 errors.append(f"{file}: run.checkpoint_every: must be a multiple of every component's step "
                               f"(all are at a step boundary then); {name} steps {duration_text(spec.step_ns)}, "
                               f"got {duration_text(checkpoint_ns)}")
+    bus_spec = bus_config.check(config["bus"], config_dir, errors, file) if "bus" in config else None
     viewer = None
     if config.get("viewer") is not None:
         problems_of_viewer: list[str] = []
@@ -353,7 +378,8 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
     return RunConfig(path=path, name=run["name"], epoch=epoch, duration_ns=total_ns, step_ns=step_ns,
                      algorithm=run["algorithm"], realtime=run["realtime"], step_timeout_s=run["step_timeout"] / 1e9,
                      start_timeout_s=run["start_timeout"] / 1e9, components=components, connections=connections,
-                     listen=config["bus"]["listen"], events=events, faults=faults, checkpoint_ns=checkpoint_ns,
+                     listen=config["bus"]["listen"], bus=bus_spec, join_timeout_s=run["join_timeout"] / 1e9,
+                     events=events, faults=faults, checkpoint_ns=checkpoint_ns,
                      max_restarts=run["max_restarts"], viewer=viewer, resolved=resolved, packages=packages, notes=notes)
 
 

@@ -39,9 +39,10 @@ from orchestrator import pacing, recovery, report, runs, shadows, supervisor, wi
 from orchestrator.config import ComponentSpec, RunConfig, ViewerSpec
 from orchestrator.control import ControlServer, StopRequested, SwapFailed, raise_stop
 from orchestrator.members import Crew, Member, RunFailure, death, exited, fault_message, terminate
-from orchestrator.messages import CONTROL, Events, Liveliness, Outputs, Reply, decode, subscribe
+from orchestrator.messages import CONTROL, Beat, Events, LinkLost, Liveliness, Outputs, Reply, decode, subscribe
 from orchestrator.recording import Recording, RecordingError
 from orchestrator.rows import Rows
+from orchestrator.run_bus import RunBus
 from orchestrator.viewer_link import ViewerLink
 
 SYNC_ROUND_S = 0.05  # the start-up handshake is repeated at this interval until everyone hears everyone
@@ -80,7 +81,7 @@ class Run:
         self.loop_s = 0.0
         self.placement = supervisor.place([n for n, c in config.components.items() if c.dedicated_cpu],
                                           os.sched_getaffinity(0))
-        self.session = self.crew = self.viewer_link = None
+        self.session = self.crew = self.viewer_link = self.hosts = None
         self._subscriptions: list = []
 
     # ---------------------------------------------------------------- what the control server sees
@@ -140,6 +141,10 @@ class Run:
             if member is None:
                 raise bus.Malformed(f"no component {message.name!r} in this run")
             member.receive(message)
+            member.heard_at = member.progress_at
+            return
+        if type(message) is LinkLost:   # the member it was is lost: _check_processes says so (hosts.silent)
+            self.hosts.link_closed(message.zid, [*self.members.values(), *self.joining.values()])
             return
         name = message.name
         if type(message) is Liveliness:
@@ -156,11 +161,15 @@ class Run:
                 if expect.get(name) == "alive":
                     del expect[name]
                 return
-            self.recovery.salvage(member)
-            raise RunFailure(death(member, "its process disappeared (liveliness lost)"), member, lost=True)
+            return   # a token may go with another peer's link: its process or link tells (_check_processes)
         member = self._member(name, message.generation)
         if member is None:
+            if type(message) is Beat:
+                return   # a generation just replaced may still beat once
             raise bus.Malformed(f"no component {name!r} of generation {message.generation} in this run")
+        member.heard_at = time.monotonic()
+        if type(message) is Beat:
+            return
         if type(message) is Reply:
             member.reply = {**message.body, "blob": message.blob}
             if expect.get(name) == message.body["op"]:
@@ -226,7 +235,7 @@ class Run:
                     raise RunFailure(problem)
                 continue
             member = self.joining.get(name) or self.members[name]
-            if how := exited(member):
+            if how := exited(member) or self.hosts.silent(member):
                 self.recovery.salvage(member)
                 raise RunFailure(death(member, how), member, lost=True)
 
@@ -359,23 +368,17 @@ class Run:
 
     def _open_bus(self) -> None:
         """The orchestrator's Zenoh session, its subscriptions, and the run's entry for `ps`."""
-        import zenoh
-
-        for attempt in range(3):  # a free port picked here may be taken by another run before Zenoh binds it
-            listen, endpoint = supervisor.resolve_endpoints(self.config.listen)
-            try:
-                self.session = bus.open_session(listen, mesh=True, secret=self.secret)
-                break
-            except zenoh.ZError as e:
-                if attempt == 2 or not any(e.endswith(":0") for e in self.config.listen):
-                    raise RunFailure(f"cannot open the bus on {', '.join(listen)} (bus.listen): {e}") from None
-        session, run_id = self.session, self.run_id
+        self.hosts = RunBus(self.config, self.run_id, self.secret, self.record_dir, self.out)
+        self.child_env.update(self.hosts.child_env(None))
+        self.session = session = self.hosts.open()
+        run_id = self.run_id
         self._subscriptions = subscribe(session, run_id, self.inbox.put)
         self.viewer_link = ViewerLink(self.viewer, session, run_id)
-        self.crew = Crew(self.config, run_id=run_id, session=session, endpoint=endpoint, secret=self.secret,
+        self.crew = Crew(self.config, run_id=run_id, session=session, endpoint=self.hosts.local, secret=self.secret,
                          env=self.child_env, log_dir=self.log_dir, placement=self.placement, out=self.out,
-                         place=self.rows.placement, wait=self.wait)
-        runs.register(run_id, self.config.name, endpoint, self.config.path, self.secret)
+                         place=self.rows.placement, wait=self.wait, hosts=self.hosts)
+        runs.register(run_id, self.config.name, self.hosts.local, self.config.path, self.secret,
+                      self.hosts.settings("cli"))
 
     def _start(self, cpus: int) -> None:
         """Start, wire and initialize every component, the recording and the viewer; let them go.
@@ -424,8 +427,10 @@ class Run:
         which a recording that cannot be closed changes."""
         if self.progress:
             print(file=self.out)
+        if self.hosts is not None:
+            self.hosts.close()   # joins from now on are told the run is over
         for member in list(self.members.values()) + list(self.joining.values()):
-            terminate(member, timeout=2.0 if code else 5.0)
+            terminate(member, timeout=2.0 if code else 5.0, final=True)
         if self.viewer_link is not None:
             self.viewer_link.stop(self.stop_reason == "interrupted", self.out)
         self.log("end", step=self.rows.row, time=self.rows.row * self.config.step_ns / 1e9,
@@ -439,6 +444,8 @@ class Run:
         self._subscriptions.clear()
         if self.session is not None:
             self.session.close()
+        if self.hosts is not None:
+            self.hosts.remove(join_files=self.record_dir is None)
         if code == 0 and self.record_dir is None:
             shutil.rmtree(self.log_dir, ignore_errors=True)
         return code, message

@@ -50,6 +50,11 @@ class Member:
     idle_s: float = 0.0
     steps: int = 0
     reply: dict | None = field(default=None, repr=False)
+    host: str = ""                         # where an external member joined from
+    zid: str = ""                          # the Zenoh id of its session, when linked to ours directly
+    heard_at: float = 0.0                  # wall time of its last message (heartbeats included)
+    cut: bool = False                      # Zenoh closed the link to it
+    ended: bool = False                    # asked to terminate
 
     @property
     def name(self) -> str:
@@ -86,27 +91,28 @@ class Crew:
 
     def __init__(self, config: RunConfig, *, run_id: str, session, endpoint: str, secret: str, env: dict,
                  log_dir: Path, placement: supervisor.Placement, out,
-                 place: Callable[[ComponentSpec], tuple[np.ndarray, np.ndarray]], wait: Wait):
+                 place: Callable[[ComponentSpec], tuple[np.ndarray, np.ndarray]], wait: Wait, hosts):
         self.config, self.run_id, self.session, self.endpoint = config, run_id, session, endpoint
         self.secret, self.env, self.log_dir, self.placement, self.out = secret, env, log_dir, placement, out
-        self.place, self.wait = place, wait
+        self.place, self.wait, self.hosts = place, wait, hosts   # hosts: the run's bus (orchestrator.run_bus)
 
     def launch(self, spec: ComponentSpec, generation: int) -> Member:
         """Start the process of a member (or ask the user to, for an external one)."""
         process = log_path = None
-        args = supervisor.runner_arguments(self.endpoint, self.run_id, spec.name, generation)
         if spec.launch == "local":
-            log_path = self.log_dir / f"{spec.name}.{generation}.log"
+            args = supervisor.runner_arguments(self.endpoint, self.run_id, spec.name, generation)
+            args += ["--orchestrator", str(self.session.zid())]
+            listen = self.hosts.component_listen()
             cpu = self.placement.dedicated.get(spec.name)
+            args += (["--listen", listen] if listen else []) + (["--cpu", str(cpu)] if cpu is not None else [])
+            log_path = self.log_dir / f"{spec.name}.{generation}.log"
             whole = cpu is not None and spec.dedicated_cpu == "process"   # its bus threads on its CPU too
-            process = supervisor.start_component(args + (["--cpu", str(cpu)] if cpu is not None else []),
-                                                 log_path, frozenset({cpu}) if whole else self.placement.shared, self.env)
-        else:
-            print(f"waiting for external component {spec.name!r}: start it with\n"
-                  f"    {bus.SECRET_ENV}={self.secret} python -m components.runner {' '.join(args)}",
-                  file=self.out, flush=True)
+            process = supervisor.start_component(args, log_path, frozenset({cpu}) if whole else self.placement.shared,
+                                                 {**self.env, **self.hosts.child_env(spec.name)})
         member = Member(spec=spec, generation=generation, process=process, log_path=log_path,
                         ratio=spec.step_ns // self.config.step_ns, latest=spec.outputs.start_vector())
+        if spec.launch != "local":
+            self.hosts.invite(member)   # writes its join file and says where
         member.command = bus.publisher(self.session, bus.command_key(self.run_id, spec.name, generation))
         member.out_dst, member.out_src = self.place(spec)
         return member
@@ -120,7 +126,15 @@ class Crew:
             into[member.name] = member
             started.append(member)
         timeout = self.config.start_timeout_s
-        self.wait({m.name: "alive" for m in started}, timeout, "start-up")
+        expect = {m.name: "alive" for m in started}
+        external = any(m.spec.launch == "external" for m in started)
+        try:
+            self.wait(expect, max(timeout, self.config.join_timeout_s) if external else timeout, "start-up")
+        except RunFailure as failure:
+            late = [n for n in expect if into[n].spec.launch == "external"]
+            if late and "did not answer" in str(failure):
+                raise RunFailure(self.hosts.late(late)) from None
+            raise
         for member in started:
             member.control("instantiate", instantiate_body(member.spec, self.config))
         self.wait({m.name: "instantiate" for m in started}, timeout, "instantiate")
@@ -138,9 +152,11 @@ def instantiate_body(spec: ComponentSpec, config: RunConfig) -> dict:
     return {"type": spec.type, "params": bus.jsonable({**spec.parameters, **config.run_parameters})}
 
 
-def terminate(member: Member, timeout: float = 5.0) -> None:
-    """Ask a member to terminate and make sure its process is gone (killed after ``timeout``)."""
-    member.control("terminate")
+def terminate(member: Member, timeout: float = 5.0, final: bool = False) -> None:
+    """Ask a member to terminate and make sure its process is gone (killed after ``timeout``).
+    ``final``: the run is over (an external member's `orchestrator join` then exits)."""
+    member.ended = True
+    member.control("terminate", {"final": final})
     supervisor.reap(member.process, timeout)
     member.command.undeclare()
 
@@ -153,7 +169,8 @@ def exited(member: Member) -> str | None:
 
 
 def death(member: Member, how: str) -> str:
-    return (f"component {member.name!r} ({member.spec.type}) died at step {member.progress}: {how}"
+    where = f" on {member.host}" if member.host else ""
+    return (f"component {member.name!r} ({member.spec.type}){where} died at step {member.progress}: {how}"
             f"{supervisor.last_words(member.log_path)}")
 
 

@@ -14,6 +14,7 @@ from components import bus
 OUTPUTS = "o"      # a batch of step outputs (payload: bytes)
 REPLY = "r"        # a reply or a fault (payload: bytes)
 LIVELINESS = "l"   # a liveliness token came (payload: True) or went (False)
+LINK = "t"         # the link to a session closed (key: its Zenoh id): lease expired, or the session ended
 CONTROL = "ctl"    # a query from the CLI (key: the query; not decoded here)
 
 
@@ -58,7 +59,18 @@ class Liveliness:
     alive: bool
 
 
-def decode(kind: str, key: str, payload) -> Outputs | Reply | Fault | Events | Liveliness | None:
+@dataclass(slots=True)
+class LinkLost:
+    zid: str
+
+
+@dataclass(slots=True)
+class Beat:
+    name: str
+    generation: int
+
+
+def decode(kind: str, key: str, payload) -> Outputs | Reply | Fault | Events | Beat | Liveliness | LinkLost | None:
     """The message of an inbox entry; None for a liveliness token that is not a process's."""
     if kind == OUTPUTS:
         generation, tags, timings, outputs = bus.decode_batch(payload)
@@ -68,6 +80,8 @@ def decode(kind: str, key: str, payload) -> Outputs | Reply | Fault | Events | L
     if kind == REPLY:
         name, generation = bus.reply_source(key)
         tag = payload[:1]
+        if tag == bus.BEAT:
+            return Beat(name, generation)
         if tag == bus.REPLY:
             body, blob = bus.decode_message(payload)
             return Reply(name, generation, body, blob)
@@ -85,6 +99,8 @@ def decode(kind: str, key: str, payload) -> Outputs | Reply | Fault | Events | L
     if kind == LIVELINESS:
         source = bus.alive_source(key)
         return None if source is None else Liveliness(*source, payload)
+    if kind == LINK:
+        return LinkLost(key)
     raise ValueError(f"no inbox kind {kind!r}")
 
 
@@ -106,10 +122,15 @@ def subscribe(session, run_id: str, put) -> list:
     def control(query) -> None:
         put((CONTROL, query, None))
 
+    def link(event) -> None:   # the one sure sign of a cut link: a token may stay known through another peer
+        if event.kind != put_kind:
+            put((LINK, str(event.transport.zid), None))
+
     return [
         session.declare_subscriber(bus.batch_pattern(run_id), outputs),
         session.declare_subscriber(bus.reply_pattern(run_id), reply),
         session.liveliness().declare_subscriber(bus.alive_pattern(run_id), liveliness),
         session.declare_queryable(bus.control_key(run_id), control),
         session.liveliness().declare_token(bus.orchestrator_alive_key(run_id)),
+        session.info.declare_transport_events_listener(link),
     ]

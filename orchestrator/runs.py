@@ -21,10 +21,12 @@ def directory() -> Path:
     return path / "runs"
 
 
-def register(run_id: str, name: str, endpoint: str, config: Path, secret: str) -> None:
-    """Make a run findable; its entry holds the run's secret, so only its user may read it."""
+def register(run_id: str, name: str, endpoint: str, config: Path, secret: str, settings: dict | None = None) -> None:
+    """Make a run findable; its entry holds the run's secret and the CLI's bus settings (with
+    TLS, the paths of its certificate and key), so only its user may read it."""
     entry = {"run_id": run_id, "name": name, "endpoint": endpoint, "pid": os.getpid(),
-             "config": str(config), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "secret": secret}
+             "config": str(config), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "secret": secret,
+             "settings": settings or {}}
     descriptor = os.open(directory() / f"{run_id}.json", os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
     with os.fdopen(descriptor, "w") as file:
         file.write(json.dumps(entry))

@@ -70,7 +70,7 @@ def wait_for_step(name: str, step: int, timeout: float = 120.0, run: subprocess.
     from orchestrator import runs
 
     entry = wait_until(lambda: runs.find(name), f"run {name} registered", timeout, run)[0]
-    session = bus.open_session(connect=[entry["endpoint"]], secret=entry["secret"])
+    session = bus.open_session(connect=[entry["endpoint"]], secret=entry["secret"], settings=entry.get("settings"))
 
     def reached():
         for reply in session.get(bus.run_key(entry["run_id"], "ctl"), payload=b'{"op": "status"}', timeout=10.0):

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from components import bus
+from components import bus, bus_security
 
 HEADER = bus.SIGNALS_HEADER          # k, time in s
 END = bus.SIGNALS_END
@@ -94,7 +94,8 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
     mode = setup.get("mode", "save")
     columns = list(setup["columns"])
     config = setup.get("config") or {}
-    session = bus.open_session(connect=[connect], secret=os.environ.get(bus.SECRET_ENV))
+    settings = bus_security.from_env()
+    session = bus.open_session(connect=[connect], secret=os.environ.get(bus.SECRET_ENV), settings=settings)
     token = watcher = signals = stream = None
     scene = None
     ended = False

@@ -313,42 +313,6 @@ def test_bad_config_exits_2_before_starting_anything(write_config):
     assert not component_processes("bad-")
 
 
-def test_external_component_joins_and_leaves_with_the_orchestrator(write_config, tmp_path):
-    """`launch: external`: the orchestrator prints the command; the component exits when the
-    orchestrator is killed (SIGKILL: no goodbye, only its liveliness token disappears)."""
-    config = write_config("""
-run: {name: remote, epoch: 2022-09-18T12:00:00Z, duration: 600 s, step: 1 ms, realtime: 1.0}
-components:
-  here: {type: test.counter}
-  there: {type: test.counter, launch: external}
-""")
-    run = start_run(config, tmp_path / "rec")
-    external = None
-    try:
-        line = ""
-        while "python -m components.runner" not in line:
-            line = run.stderr.readline()
-            assert line, "the orchestrator printed no command for the external component"
-        secret, python, *arguments = line.split()   # ZENORBIT_SECRET=... python -m components.runner ...
-        variable, _, value = secret.partition("=")
-        assert variable == "ZENORBIT_SECRET" and len(value) == 64 and python == "python"
-        without = subprocess.run([sys.executable, *arguments], cwd=ROOT, capture_output=True, text=True, timeout=60,
-                                 env={k: v for k, v in os.environ.items() if k != variable})
-        assert without.returncode == 2 and "ZENORBIT_SECRET is not set" in without.stderr
-        external = subprocess.Popen([sys.executable, *arguments], cwd=ROOT, env={**os.environ, variable: value},
-                                    stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-        wait_for_step("remote", 10, run=run)            # it joined: the run steps with it
-        assert run.poll() is None and external.poll() is None
-        run.kill()
-        run.wait(timeout=30)
-        _, err = external.communicate(timeout=60)
-    finally:
-        for p in (run, external):
-            if p is not None and p.poll() is None:
-                p.kill()
-    assert external.returncode == 1 and "the orchestrator went away" in err
-
-
 def test_a_recording_directory_removed_mid_run_fails_the_run_cleanly(write_config, tmp_path):
     """The directory deleted under a running recording: exit 1 naming the file, no traceback, and
     no process left (the orchestrator used to hang at exit on the bus's threads)."""

@@ -1,0 +1,96 @@
+"""Components joining from other hosts, the orchestrator's side: the join files and the desk that
+answers joins (docs/design.md §7).
+
+For each ``launch: external`` component the orchestrator writes a join file (mode 0600): the
+endpoints to reach the run, the run id, the secret, the component's name and generation, the bus
+settings (with TLS, the component's certificate and key and the run's CA). ``orchestrator join
+FILE`` (:mod:`orchestrator.joiner`) opens a session with them and asks the desk, on
+``join/<component>``, which generation to serve: the desk grants a generation it waits for, and
+refuses a second join while the first one's process serves.
+"""
+from __future__ import annotations
+
+import json
+import threading
+from pathlib import Path
+
+from components import bus
+from orchestrator.tls import write_private
+
+FORMAT = "zenorbit join 1"   # the file's first key, so that a wrong file is told apart
+
+
+def join_key(run_id: str, name: str) -> str:
+    return bus.run_key(run_id, "join", name)
+
+
+def write_join_file(path: Path, *, role: str, run_id: str, run_name: str, connect: list[str], secret: str,
+                    settings: dict, join_timeout_s: float, component: str | None = None,
+                    generation: int | None = None) -> Path:
+    """A join file (mode 0600) for a component (``role`` component) or the run's router."""
+    path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+    body = {"format": FORMAT, "role": role, "run_id": run_id, "run": run_name, "component": component,
+            "generation": generation, "connect": connect, "join_timeout_s": join_timeout_s,
+            "secret": secret, "settings": settings}
+    return write_private(path, json.dumps(body, indent=1).encode())
+
+
+class JoinDesk:
+    """Answers joins on ``join/*`` (from Zenoh's threads, under a lock): a component the run waits
+    for (:meth:`invite`) is granted its generation; one whose process serves is refused a second
+    join; one between generations (a restart under way) is told to wait; once the run ends
+    (:meth:`close`), every join is told it is over."""
+
+    def __init__(self, session, run_id: str, out):
+        self.run_id, self.out = run_id, out
+        self.lock = threading.Lock()
+        self.entries: dict[str, dict] = {}   # name -> {generation, member, joined, host}
+        self.zid = str(session.zid())
+        self.over = False
+        self.queryable = session.declare_queryable(bus.run_key(run_id, "join", "*"), self._answer)
+
+    def invite(self, member) -> None:
+        """Wait for a join of this generation of an external member."""
+        with self.lock:
+            self.entries[member.name] = {"generation": member.generation, "member": member, "joined": False}
+
+    def close(self) -> None:
+        with self.lock:
+            self.over = True
+
+    def _decide(self, name: str, request: dict) -> dict:
+        if self.over:
+            return {"status": "over"}
+        entry = self.entries.get(name)
+        if entry is None:
+            return {"status": "refused", "error": f"no component {name!r} of this run joins from another host"}
+        member = entry["member"]
+        if entry["joined"] and not member.ended:
+            return {"status": "joined", "error": f"component {name!r} has joined already (generation "
+                                                 f"{entry['generation']}, {entry['host']}): a second join is refused"}
+        if entry["joined"]:
+            return {"status": "wait"}   # terminated: a restart will invite the next generation
+        entry["joined"], entry["host"] = True, request_host(request)
+        member.host, member.zid = entry["host"], str(request.get("zid", ""))
+        return {"status": "granted", "generation": entry["generation"], "orchestrator": self.zid}
+
+    def _answer(self, query) -> None:
+        name = str(query.key_expr).rpartition("/")[2]
+        try:
+            request = json.loads(query.payload.to_bytes()) if query.payload is not None else {}
+            if not isinstance(request, dict):
+                raise ValueError("not an object")
+        except ValueError:
+            request = {}
+        with self.lock:
+            answer = self._decide(name, request)
+        if answer["status"] in ("joined", "refused"):
+            print(f"warning: refused a join for {name!r} from {request_host(request)}: {answer['error']}",
+                  file=self.out, flush=True)
+        query.reply(query.key_expr, json.dumps(answer))
+
+
+def request_host(request: dict) -> str:
+    """How a join names where it comes from: 'host ADDRESS (NAME), pid PID'."""
+    address, name, pid = (str(request.get(k, "?"))[:80] for k in ("address", "hostname", "pid"))
+    return f"host {address} ({name}), pid {pid}"

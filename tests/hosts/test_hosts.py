@@ -1,0 +1,213 @@
+"""Runs across hosts: the orchestrator in one network namespace, components joining from two
+others (`orchestrator join`), all on one shared link (tests/hosts/netns.py) that a fourth host
+reads. Real processes, real Zenoh, real TCP between hosts; the reference is the same run with
+every component local, on loopback. Needs root and iproute2 (CI has both); skips otherwise."""
+from __future__ import annotations
+
+import json
+import signal
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from tests.conftest import ROOT, orchestrator, part_files, wait_until
+from tests.hosts.netns import Network, missing
+
+pytestmark = [pytest.mark.integration, pytest.mark.skipif(missing() is not None, reason=str(missing()))]
+
+VALUE = 1234.5678           # src's output: its float64 bytes travel in every message src sends
+LEASE = "2 s"             # short, to see a cut soon; long enough for a loaded machine
+
+CONFIG = """
+run: {{name: {name}, epoch: 2022-09-18T12:00:00Z, duration: {duration}, step: 5 ms, realtime: {realtime},
+       step_timeout: 10 min, join_timeout: 1 min{run_extra}}}
+bus: {{listen: [{listen}], tls: {tls}, lease: {lease}{bus_extra}}}
+components:
+  src: {{type: test.constant, parameters: {{value: {value}}}}}
+  a: {{type: test.integrator, launch: {launch}, on_failure: {on_failure}, parameters: {{gain: 0.37}}}}
+  b: {{type: test.integrator, launch: {launch}, parameters: {{gain: 1.3}}}}
+connections:
+  a.u: src.y
+  b.u: a.x
+"""
+
+
+def config(name, *, duration="2 s", realtime=0, listen="tcp/0.0.0.0:0", tls="auto", launch="external",
+           on_failure="stop", run_extra="", bus_extra="") -> str:
+    return CONFIG.format(name=name, duration=duration, realtime=realtime, listen=listen, tls=tls, lease=LEASE,
+                         launch=launch, on_failure=on_failure, value=VALUE, run_extra=run_extra, bus_extra=bus_extra)
+
+
+@pytest.fixture
+def network():
+    with Network(["orch", "a", "b", "tap", "router"]) as hosts:
+        yield hosts
+
+
+@pytest.fixture
+def reference(tmp_path_factory):
+    """The same run, every component local, on loopback (no TLS)."""
+    def run(duration="2 s"):
+        directory = tmp_path_factory.mktemp("reference")
+        path = directory / "config.yaml"
+        path.write_text(config("reference", duration=duration, listen="tcp/127.0.0.1:0", tls="false", launch="local"))
+        result = orchestrator("run", path, "--record", directory / "rec")
+        assert result.returncode == 0, result.stderr
+        return table(directory / "rec")
+    return run
+
+
+def table(record: Path):
+    return pq.read_table(record / "signals.parquet").to_pandas()
+
+
+class Processes:
+    """Processes started in the hosts, each stopped at the end (killed if it has to be)."""
+
+    def __init__(self):
+        self.started: list[subprocess.Popen] = []
+
+    def start(self, host, *args: str) -> subprocess.Popen:
+        process = subprocess.Popen(host.command(sys.executable, "-m", "orchestrator.cli", *args), cwd=ROOT,
+                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.started.append(process)
+        return process
+
+    def stop(self) -> None:
+        for process in self.started:
+            if process.poll() is None:
+                process.send_signal(signal.SIGINT)
+        for process in self.started:
+            try:
+                process.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+
+
+@pytest.fixture
+def processes():
+    started = Processes()
+    yield started
+    started.stop()
+
+
+def join_file(record: Path, name: str) -> Path:
+    path = record / "join" / f"{name}.join"
+    return wait_until(lambda: path if path.exists() else None, f"the join file {path}")
+
+
+def start_spread(network, processes, tmp_path, text: str):
+    """The orchestrator on host orch, a on host a, b on host b; (orchestrator, joins, record)."""
+    (tmp_path / "config.yaml").write_text(text)
+    record = tmp_path / "rec"
+    run = processes.start(network["orch"], "run", str(tmp_path / "config.yaml"), "--record", str(record))
+    joins = {name: processes.start(network[name], "join", str(join_file(record, name))) for name in ("a", "b")}
+    return run, joins, record
+
+
+@pytest.mark.parametrize("tls", ["auto", "false"])
+def test_a_run_across_hosts_equals_the_local_run_and_a_reader_on_the_link_sees_nothing_over_tls(
+        network, processes, reference, tmp_path, tls):
+    """Signals bit-identical to the loopback run. A host on the same link captures every frame:
+    over TLS (bus.tls auto: the bus leaves loopback) the bytes of src's float64 output never show
+    in it; over plain TCP they do (so the capture sees the run's traffic)."""
+    capture = tmp_path / "capture.bin"
+    subprocess.run(network["tap"].command("ip", "link", "set", "eth0", "promisc", "on"), check=True)
+    sniffer = subprocess.Popen(network["tap"].command(sys.executable, "-m", "tests.hosts.sniff", "eth0", str(capture)),
+                               cwd=ROOT, stdout=subprocess.PIPE, text=True)
+    try:
+        assert sniffer.stdout.readline().strip() == "capturing"
+        run, joins, record = start_spread(network, processes, tmp_path, config(f"spread{tls}", tls=tls))
+        _, err = run.communicate(timeout=240)
+        assert run.returncode == 0, err
+        for name, process in joins.items():
+            _, joined = process.communicate(timeout=60)
+            assert process.returncode == 0 and f"as {name!r}" in joined, joined
+    finally:
+        sniffer.send_signal(signal.SIGTERM)
+        sniffer.wait(timeout=30)
+    assert table(record).equals(reference())
+    bytes_seen = capture.read_bytes()
+    assert len(bytes_seen) > 20_000, len(bytes_seen)   # the run's traffic went past the reader
+    payload = struct.pack("<d", VALUE)
+    if tls == "false":
+        assert payload in bytes_seen
+    else:
+        assert b"\x17\x03\x03" in bytes_seen             # TLS 1.2/1.3 application data records
+        assert payload not in bytes_seen
+
+
+def test_a_cut_link_is_detected_within_the_lease_and_reported(network, processes, reference, tmp_path):
+    """Host a's cable pulled midway (its port down: its TCP links just go silent): the
+    orchestrator sees it within bus.lease (step_timeout is 10 min, so nothing else can have seen
+    it), fails the run naming the component and its host, and the recording keeps every row it
+    had, equal to the reference's."""
+    run, joins, record = start_spread(network, processes, tmp_path, config("cut", duration="60 s", realtime=1.0))
+    wait_until(lambda: part_files(record / "signals.parquet"), "the first 1000 rows recorded", run=run)
+    network.cut("a")
+    cut_at = time.monotonic()
+    _, err = run.communicate(timeout=120)
+    noticed_s = time.monotonic() - cut_at
+    assert run.returncode == 1, err
+    assert f"component 'a' (test.integrator) on host {network['a'].address}" in err, err
+    assert f"nothing heard from it within bus.lease ({LEASE})" in err, err
+    assert noticed_s < 60, noticed_s   # the lease, not the 10 min step_timeout
+    recorded = table(record)
+    assert len(recorded) >= 1000
+    assert recorded.equals(reference("60 s").iloc[:len(recorded)])
+    fault = [json.loads(line) for line in (record / "events.jsonl").read_text().splitlines()
+             if '"fault"' in line]
+    assert fault and network["a"].address in fault[-1]["message"]
+
+
+def test_a_component_whose_link_was_cut_joins_again_and_the_run_restarts_from_its_checkpoint(
+        network, processes, reference, tmp_path):
+    """a (external, on_failure: restart) loses its link; once it is back, a's `orchestrator join`
+    joins again, every component restarts from the last checkpoint and the run ends with the
+    signals of a run that never failed."""
+    text = config("rejoin", duration="8 s", realtime=1.0, on_failure="restart", run_extra=", checkpoint_every: 1 s")
+    run, joins, record = start_spread(network, processes, tmp_path, text)
+    wait_until(lambda: part_files(record / "signals.parquet"), "the first 1000 rows recorded", run=run)
+    network.cut("a")
+    line = ""
+    while "restarting from step" not in line:
+        line = run.stderr.readline()
+        assert line, "the run ended without restarting"
+    network.mend("a")
+    _, err = run.communicate(timeout=240)
+    assert run.returncode == 0, err
+    for process in joins.values():
+        process.communicate(timeout=60)
+        assert process.returncode == 0
+    events = [json.loads(line) for line in (record / "events.jsonl").read_text().splitlines()]
+    assert [e["component"] for e in events if e["event"] == "restart"] == ["a"]
+    assert table(record).equals(reference("8 s"))
+
+
+def test_a_run_through_the_router(network, processes, reference, tmp_path):
+    """bus.mode client: every process of the run (the orchestrator and src on host orch, a and
+    b on their hosts) links only to the router on host router, started with `orchestrator
+    router` from the join file the orchestrator wrote; over TLS; same signals."""
+    router = network["router"]
+    text = config("routed", listen="tcp/127.0.0.1:0", bus_extra=f", mode: client, router: tcp/{router.address}:7447")
+    (tmp_path / "config.yaml").write_text(text)
+    record = tmp_path / "rec"
+    run = processes.start(network["orch"], "run", str(tmp_path / "config.yaml"), "--record", str(record))
+    routing = processes.start(router, "router", "--listen", "tls/0.0.0.0:7447", "--join",
+                              str(join_file(record, "router")))
+    joins = {name: processes.start(network[name], "join", str(join_file(record, name))) for name in ("a", "b")}
+    _, err = run.communicate(timeout=240)
+    assert run.returncode == 0, err
+    assert f"orchestrator router --listen tls/0.0.0.0:7447 --join {record.resolve()}/join/router.join" in err
+    for process in joins.values():
+        process.communicate(timeout=60)
+        assert process.returncode == 0
+    _, routed = routing.communicate(timeout=60)   # it ends with the run
+    assert routing.returncode == 0 and "router of run 'routed'" in routed, routed
+    assert table(record).equals(reference())

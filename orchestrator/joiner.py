@@ -184,6 +184,10 @@ def route(path: Path, listen: list[str]) -> int:
     import zenoh
 
     body = read_join_file(path, "router")
+    # a router forwards every link's traffic: Zenoh's own runtime (a thread per task kind), not the
+    # one thread a component's session runs on (bus.RUNTIME), on which one TLS link blocked sending
+    # holds up every other
+    os.environ.setdefault("ZENOH_RUNTIME", "()")
     with tempfile.TemporaryDirectory(prefix="zenorbit-router-") as directory:
         settings = {**local_settings(body, Path(directory)), "mode": "router"}
         try:

@@ -218,6 +218,29 @@ class Body:
     def set_velocities(self, velocities: np.ndarray) -> None:
         raise NotImplementedError
 
+    # -- the manifold RK4 step (components/dynamics/integration.py), through these three: an
+    # engine may form a stage lazily, inside its next evaluation (PinocchioBody: one call)
+    def begin_step(self) -> None:
+        """A step starts from the current state (q0, v0)."""
+        self.step_start = self.positions(), self.velocities()
+        self.step_rates = [self.step_start[1]]                 # d(xi)/dt of each stage: d1 = v0
+        self.step_accelerations = []
+
+    def next_stage(self, stage: int, c: float, a: np.ndarray) -> None:
+        """Stage ``stage`` (2 to 4 of RK4: 1 to 3 here) from the last one's accelerations ``a``:
+        q0 (+) c rate, v0 + c a (``manifold_rk4.stage``)."""
+        q0, v0 = self.step_start
+        xi, v, rate = manifold_rk4.stage(c, v0, self.step_rates[-1], a)
+        self.step_rates.append(rate)
+        self.step_accelerations.append(a)
+        self.set_stage(q0, xi, v)
+
+    def finish_step(self, h: float, a: np.ndarray) -> None:
+        """The step's end from the four stages (``a``: the last one's accelerations)."""
+        q0, v0 = self.step_start
+        xi, v = manifold_rk4.combine(h, v0, *self.step_rates, *self.step_accelerations, a)
+        self.set_stage(q0, xi, v)
+
     def torques_changed(self) -> None:
         """``tau`` was written."""
 

@@ -29,7 +29,7 @@ from components.dynamics import link_forces, manifold_rk4
 from components.dynamics.bodies import Body, BodySpec, Environment, ModelError
 from components.robots.urdf import UrdfModel
 
-NO_STAGE = np.zeros(0)     # pinocchio_inputs' xi when x is formed (and its R, V without environment)
+NO_STAGE = np.zeros(0)     # pinocchio_inputs' a when x, v are formed (and its R, V without environment)
 
 
 @numba.njit(cache=True)
@@ -63,17 +63,44 @@ def to_pinocchio(x, v, Q, idx_q, nq, idx_v, rotation, q_pin, v_pin, tau_pin):
 
 
 @numba.njit(cache=True)
-def pinocchio_inputs(q0, xi, x, v, tau, environment, R, V, joints, frames, links, link_joint, constants, atmosphere,
-                     wrenches, pin_index, rotation, buffer):
-    """One evaluation's inputs in one call (a call's cost grows with its arguments: they are few):
-    the state x = q0 (+) xi (written into ``x``; xi empty: x as it is), the generalized forces
-    (tau, plus with ``environment`` the orbital environment with the reference point at (R, V):
-    ``link_forces.tree_generalized_forces``; ``constants``: mu, the Earth's rate and radius, and
-    the terms on (tidal, gravity gradient, drag); it fills ``wrenches``: force, torque per link),
-    and Pinocchio's q, v, tau, one after the other in ``buffer`` (``to_pinocchio``;
-    ``pin_index`` (3, n): idx_q, nq, idx_v of each joint coordinate)."""
-    if xi.shape[0]:
-        x[:] = manifold_rk4.moved(q0, xi)
+def form_stage(stage, c, a, q0, v0, work, x, v):
+    """The RK4 stage ``stage`` (1 to 3) from the step's start (q0, v0) and the last stage's
+    derivatives, or with ``stage`` 4 the step's end (h = c); into x, v. ``work`` (7, n) holds the
+    rates of stages 2 to 4 (rows 0-2, each written here) and the accelerations a1 to a4 (rows 3-6:
+    ``a``, the last stage's, is written here). The arithmetic of ``manifold_rk4.stage`` and
+    ``combine``, in the same order (the same bits)."""
+    n = v0.shape[0]
+    work[2 + stage] = a
+    xi = np.empty(n)
+    if stage < 4:
+        rate = v0 if stage == 1 else work[stage - 2]
+        for i in range(n):
+            xi[i] = c * rate[i]
+            v[i] = v0[i] + c * a[i]
+        next_rate = work[stage - 1]
+        next_rate[:] = v
+        next_rate[:3] = manifold_rk4.so3_left_jacobian_inverse_times(xi[:3], v[:3])
+    else:
+        w = c / 6.0
+        for i in range(n):
+            xi[i] = w * (v0[i] + 2.0 * work[0, i] + 2.0 * work[1, i] + work[2, i])
+            v[i] = v0[i] + w * (work[3, i] + 2.0 * work[4, i] + 2.0 * work[5, i] + work[6, i])
+    x[:] = manifold_rk4.moved(q0, xi)
+
+
+@numba.njit(cache=True)
+def pinocchio_inputs(stage, c, a, q0, v0, work, x, v, tau, environment, R, V, joints, frames, links, link_joint,
+                     constants, atmosphere, wrenches, pin_index, rotation, buffer):
+    """One evaluation's inputs in one call (a call's cost grows with its arguments and every call
+    costs ~1 us: the RK4's stage arithmetic is here too): the state (``stage`` > 0: x, v formed by
+    ``form_stage``; 0: x, v as they are), the generalized forces (tau, plus with ``environment``
+    the orbital environment with the reference point at (R, V): ``link_forces.tree_generalized_forces``;
+    ``constants``: mu, the Earth's rate and radius, and the terms on (tidal, gravity gradient,
+    drag); it fills ``wrenches``: force, torque per link), and Pinocchio's q, v, tau, one after
+    the other in ``buffer`` (``to_pinocchio``; ``pin_index`` (3, n): idx_q, nq, idx_v of each
+    joint coordinate)."""
+    if stage:
+        form_stage(stage, c, a, q0, v0, work, x, v)
     if environment:
         Q = link_forces.tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, constants[0],
                                                 constants[3] != 0.0, constants[4] != 0.0, constants[5] != 0.0,
@@ -229,7 +256,11 @@ class PinocchioBody(Body):
         self.constants = np.array([e.mu, EARTH_RATE, R_EARTH, *self.terms])
         self.atmosphere = np.array([e.atmosphere.h0, e.atmosphere.rho0, e.atmosphere.scale])
         self.x, self.v = np.zeros(self.ndofs), np.zeros(self.ndofs)
-        self.stage = None                                      # (q0, xi): x is q0 (+) xi, not formed yet
+        # the RK4 step: its start (q0, v0), the stage not formed yet (stage, c, a: pinocchio_inputs
+        # forms it at the next evaluation; 0: none), the rates and accelerations (form_stage)
+        self.q0, self.v0 = self.x, self.v
+        self.stage, self.stage_c, self.stage_a = 0, 0.0, NO_STAGE
+        self.work = np.zeros((7, self.ndofs))
         self.rotation = np.eye(3)
         self.buffer = np.concatenate([pin.neutral(pm), np.zeros(2 * pm.nv)])
         self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [pm.nq, pm.nq + pm.nv])   # views
@@ -239,45 +270,56 @@ class PinocchioBody(Body):
 
     # -- state
     def positions(self) -> np.ndarray:
-        if self.stage is not None:
+        if self.stage:
             self._sync(False)
         return self.x
 
     def velocities(self) -> np.ndarray:
+        if self.stage:
+            self._sync(False)
         return self.v
 
     def set_state(self, positions, velocities) -> None:
         self.x, self.v = np.array(positions, dtype=float), np.array(velocities, dtype=float)
-        self.stage, self.synced = None, False
+        self.stage, self.synced = 0, False
 
     def set_stage(self, q0, xi, velocities) -> None:
-        self.x, self.v = np.empty(self.ndofs), velocities      # a new array: q0 may be the last x
-        self.stage, self.synced = (q0, xi), False
+        self.set_state(manifold_rk4.moved(q0, xi), velocities)
 
     def set_velocities(self, velocities) -> None:
-        if self.stage is not None:
+        if self.stage:
             self._sync(False)
         self.v = np.array(velocities, dtype=float)
         self.synced = False
 
+    # -- the RK4 step: each stage formed inside the next evaluation's one compiled call
+    def begin_step(self) -> None:
+        if self.stage:
+            self._sync(False)
+        self.q0, self.v0 = self.x, self.v
+
+    def next_stage(self, stage: int, c: float, a: np.ndarray) -> None:
+        self.x, self.v = np.empty(self.ndofs), np.empty(self.ndofs)     # (an x, v is never written once formed)
+        self.stage, self.stage_c, self.stage_a, self.synced = stage, c, a, False
+
+    def finish_step(self, h: float, a: np.ndarray) -> None:
+        self.next_stage(4, h, a)
+
     # -- dynamics
-    def _sync(self, environment: bool, R=None, V=None) -> None:
-        """x formed, Pinocchio's q, v, tau and R_W_base at it; tau with the environment at (R, V)."""
-        q0, xi = self.stage or (self.x, NO_STAGE)
-        if R is None:
-            R = V = NO_STAGE
-        pinocchio_inputs(q0, xi, self.x, self.v, self.tau, environment, R, V, self.tree_joints, self.tree_frames,
-                         self.tree_links, self.link_joint, self.constants, self.atmosphere, self.wrenches,
-                         self.pin_index, self.rotation, self.buffer)
-        self.stage, self.synced, self.centroidal, self.jacobians = None, True, False, False
+    def _sync(self, environment: bool, R=NO_STAGE, V=NO_STAGE) -> None:
+        """x, v formed, Pinocchio's q, v, tau and R_W_base at them; tau with the environment at (R, V)."""
+        pinocchio_inputs(self.stage, self.stage_c, self.stage_a, self.q0, self.v0, self.work, self.x, self.v, self.tau,
+                         environment, R, V, self.tree_joints, self.tree_frames, self.tree_links, self.link_joint,
+                         self.constants, self.atmosphere, self.wrenches, self.pin_index, self.rotation, self.buffer)
+        self.stage, self.synced, self.centroidal, self.jacobians = 0, True, False, False
 
     def forward_dynamics(self, reference) -> np.ndarray:
-        q0, xi = self.stage or (self.x, NO_STAGE)          # (_sync inlined: four times a step)
-        R, V = (NO_STAGE, NO_STAGE) if reference is None else reference
-        pinocchio_inputs(q0, xi, self.x, self.v, self.tau, reference is not None, R, V, self.tree_joints,
-                         self.tree_frames, self.tree_links, self.link_joint, self.constants, self.atmosphere,
-                         self.wrenches, self.pin_index, self.rotation, self.buffer)
-        self.stage, self.synced, self.centroidal, self.jacobians = None, True, False, False
+        R, V = (NO_STAGE, NO_STAGE) if reference is None else reference   # (_sync inlined: four times a step)
+        pinocchio_inputs(self.stage, self.stage_c, self.stage_a, self.q0, self.v0, self.work, self.x, self.v, self.tau,
+                         reference is not None, R, V, self.tree_joints, self.tree_frames, self.tree_links,
+                         self.link_joint, self.constants, self.atmosphere, self.wrenches, self.pin_index,
+                         self.rotation, self.buffer)
+        self.stage, self.synced, self.centroidal, self.jacobians = 0, True, False, False
         ddq = self.pin.aba(self.pm, self.data, self.q_pin, self.v_pin, self.tau_pin)
         return from_pinocchio(ddq, self.v_pin, self.rotation, self.idx_v)
 
@@ -327,7 +369,7 @@ class PinocchioBody(Body):
 
     def environment_wrenches(self, R, V):
         R, V = np.asarray(R, dtype=float), np.asarray(V, dtype=float)
-        if self.stage is not None:
+        if self.stage:
             self._sync(False)
         out = [np.zeros((len(self.link_names), 3)) for _ in range(3)]
         for terms, parts in (((True, True, False), (0, 2)), ((False, False, True), (1,))):

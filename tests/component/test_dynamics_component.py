@@ -271,10 +271,11 @@ def test_numba_kernels_are_compiled_at_instantiate_not_in_step_0(monkeypatch, en
 
     from components.dynamics import link_forces, manifold_rk4, pinocchio_body
 
-    names = {"dart": [(link_forces, "generalized_forces"), (manifold_rk4, "moved")],
+    names = {"dart": [(link_forces, "generalized_forces"), (manifold_rk4, "moved"), (manifold_rk4, "stage"),
+                      (manifold_rk4, "combine")],
              "pinocchio": [(link_forces, "tree_generalized_forces"), (pinocchio_body, "pinocchio_inputs"),
-                           (pinocchio_body, "from_pinocchio")]}[engine]
-    names += [(manifold_rk4, "stage"), (manifold_rk4, "combine"), (link_forces, "propagate_reference")]
+                           (pinocchio_body, "from_pinocchio")]}[engine]     # (its stages: in pinocchio_inputs)
+    names += [(link_forces, "propagate_reference")]
     kernels = {}
     for module, name in names:
         kernels[name] = numba.njit(cache=True)(getattr(module, name).py_func)

@@ -16,7 +16,8 @@ An engine's body (:class:`components.dynamics.dart_body.DartBody`,
 :class:`components.dynamics.pinocchio_body.PinocchioBody`) subclasses :class:`Body` and gives, at
 the state last set (``set_state``, ``set_stage``, ``set_velocities``), in these coordinates:
 ``positions()``, ``velocities()``, ``forward_dynamics(reference)`` (the accelerations under
-``tau`` and, with ``reference`` = (R, V), the orbital environment), ``inverse_mass()``; for the
+``tau`` and, with ``reference`` = (point, s), the orbital environment with the reference point
+``link_forces.propagate_reference``'d s seconds on from point = (R, V)), ``inverse_mass()``; for the
 outputs ``base_pose()``, ``orientation()``, ``com()``, ``com_velocity()``, ``momentum()``,
 ``link_transforms()``, ``environment_wrenches(R, V)``; for a grasp ``link_pose``,
 ``point_jacobian``, ``point_bias``; ``base_coordinates(R, p)`` for an initial state.
@@ -246,7 +247,9 @@ class Body:
 
     def forward_dynamics(self, reference) -> np.ndarray:
         """Accelerations (the time derivative of v) under ``tau`` and, unless ``reference`` is None,
-        the environment with the reference point at (R, V) (m, m/s, W axes from the Earth's centre)."""
+        the environment with the reference point s seconds after it was at (R, V) (m, m/s, ECI, from
+        the Earth's centre), ``reference`` = (point (6,): R then V, s): an engine propagates it
+        (``link_forces.propagate_reference``), inside its own compiled call if it likes."""
         raise NotImplementedError
 
     def inverse_mass(self) -> np.ndarray:

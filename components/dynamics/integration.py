@@ -46,7 +46,7 @@ def compile_kernels(world: "OrbitalWorld") -> None:
             body.begin_step()
             for stage in (1, 2, 3):
                 body.next_stage(stage, 0.5, zeros)
-                body.forward_dynamics((R, V))
+                body.forward_dynamics((np.concatenate([R, V]), 0.5))
             body.finish_step(1.0, zeros)
             body.forward_dynamics(None)
             body.inverse_mass()                     # (limit stops, mimic joints, a grasp)
@@ -58,7 +58,7 @@ def compile_kernels(world: "OrbitalWorld") -> None:
 def acceleration(world: "OrbitalWorld", body: Body, s: float) -> np.ndarray:
     """Accelerations at the body's current state, torques and (when it applies) the environment
     at s seconds after the orbit inputs; mimic joints and limit stops held."""
-    a = body.forward_dynamics(world.reference(s) if world.env_now else None)
+    a = body.forward_dynamics((world.orbit_point, s) if world.env_now else None)
     if body.mimic:
         a = hold_mimic(body, a)
     if body.stops.size:

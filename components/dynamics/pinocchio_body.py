@@ -89,12 +89,13 @@ def form_stage(stage, c, a, q0, v0, work, x, v):
 
 
 @numba.njit(cache=True)
-def pinocchio_inputs(stage, c, a, q0, v0, work, x, v, tau, environment, R, V, joints, frames, links, link_joint,
+def pinocchio_inputs(stage, c, a, q0, v0, work, x, v, tau, environment, point, s, joints, frames, links, link_joint,
                      constants, atmosphere, wrenches, pin_index, rotation, buffer):
     """One evaluation's inputs in one call (a call's cost grows with its arguments and every call
     costs ~1 us: the RK4's stage arithmetic is here too): the state (``stage`` > 0: x, v formed by
     ``form_stage``; 0: x, v as they are), the generalized forces (tau, plus with ``environment``
-    the orbital environment with the reference point at (R, V): ``link_forces.tree_generalized_forces``;
+    the orbital environment with the reference point s seconds after it was at ``point`` (R, V:
+    ``link_forces.propagate_reference``, here): ``link_forces.tree_generalized_forces``;
     ``constants``: mu, the Earth's rate and radius, and the terms on (tidal, gravity gradient,
     drag); it fills ``wrenches``: force, torque per link), and Pinocchio's q, v, tau, one after
     the other in ``buffer`` (``to_pinocchio``; ``pin_index`` (3, n): idx_q, nq, idx_v of each
@@ -102,6 +103,7 @@ def pinocchio_inputs(stage, c, a, q0, v0, work, x, v, tau, environment, R, V, jo
     if stage:
         form_stage(stage, c, a, q0, v0, work, x, v)
     if environment:
+        R, V = link_forces.propagate_reference(point[0:3], point[3:6], s, constants[0])
         Q = link_forces.tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, constants[0],
                                                 constants[3] != 0.0, constants[4] != 0.0, constants[5] != 0.0,
                                                 atmosphere, constants[1], constants[2], wrenches[0], wrenches[1])
@@ -271,12 +273,12 @@ class PinocchioBody(Body):
     # -- state
     def positions(self) -> np.ndarray:
         if self.stage:
-            self._sync(False)
+            self._sync()
         return self.x
 
     def velocities(self) -> np.ndarray:
         if self.stage:
-            self._sync(False)
+            self._sync()
         return self.v
 
     def set_state(self, positions, velocities) -> None:
@@ -288,14 +290,14 @@ class PinocchioBody(Body):
 
     def set_velocities(self, velocities) -> None:
         if self.stage:
-            self._sync(False)
+            self._sync()
         self.v = np.array(velocities, dtype=float)
         self.synced = False
 
     # -- the RK4 step: each stage formed inside the next evaluation's one compiled call
     def begin_step(self) -> None:
         if self.stage:
-            self._sync(False)
+            self._sync()
         self.q0, self.v0 = self.x, self.v
 
     def next_stage(self, stage: int, c: float, a: np.ndarray) -> None:
@@ -306,17 +308,17 @@ class PinocchioBody(Body):
         self.next_stage(4, h, a)
 
     # -- dynamics
-    def _sync(self, environment: bool, R=NO_STAGE, V=NO_STAGE) -> None:
-        """x, v formed, Pinocchio's q, v, tau and R_W_base at them; tau with the environment at (R, V)."""
+    def _sync(self) -> None:
+        """x, v formed, Pinocchio's q, v, tau and R_W_base at them."""
         pinocchio_inputs(self.stage, self.stage_c, self.stage_a, self.q0, self.v0, self.work, self.x, self.v, self.tau,
-                         environment, R, V, self.tree_joints, self.tree_frames, self.tree_links, self.link_joint,
+                         False, NO_STAGE, 0.0, self.tree_joints, self.tree_frames, self.tree_links, self.link_joint,
                          self.constants, self.atmosphere, self.wrenches, self.pin_index, self.rotation, self.buffer)
         self.stage, self.synced, self.centroidal, self.jacobians = 0, True, False, False
 
     def forward_dynamics(self, reference) -> np.ndarray:
-        R, V = (NO_STAGE, NO_STAGE) if reference is None else reference   # (_sync inlined: four times a step)
+        point, s = (NO_STAGE, 0.0) if reference is None else reference    # (_sync inlined: four times a step)
         pinocchio_inputs(self.stage, self.stage_c, self.stage_a, self.q0, self.v0, self.work, self.x, self.v, self.tau,
-                         reference is not None, R, V, self.tree_joints, self.tree_frames, self.tree_links,
+                         reference is not None, point, float(s), self.tree_joints, self.tree_frames, self.tree_links,
                          self.link_joint, self.constants, self.atmosphere, self.wrenches, self.pin_index,
                          self.rotation, self.buffer)
         self.stage, self.synced, self.centroidal, self.jacobians = 0, True, False, False
@@ -325,25 +327,25 @@ class PinocchioBody(Body):
 
     def inverse_mass(self) -> np.ndarray:
         if not self.synced:
-            self._sync(False)
+            self._sync()
         return world_inverse_mass(self.pin.computeMinverse(self.pm, self.data, self.q_pin), self.rotation, self.idx_v)
 
     # -- outputs
     def base_pose(self):
         if not self.synced:
-            self._sync(False)
+            self._sync()
         return self.rotation.copy(), self.x[3:6]                # (an x is never written once formed)
 
     def orientation(self, R: np.ndarray) -> np.ndarray:
         """The configuration's quaternion (w = cos(|phi|/2), made >= 0)."""
         if not self.synced:
-            self._sync(False)
+            self._sync()
         q = self.q_pin[3:7].copy()
         return -q if q[3] < 0.0 else q
 
     def _centroidal(self):
         if not self.synced:
-            self._sync(False)
+            self._sync()
         if not self.centroidal:
             self.pin.computeCentroidalMomentum(self.pm, self.data, self.q_pin, self.v_pin)
             self.centroidal = True
@@ -360,7 +362,7 @@ class PinocchioBody(Body):
 
     def _frames(self) -> None:
         if not self.synced:
-            self._sync(False)
+            self._sync()
         self.pin.framesForwardKinematics(self.pm, self.data, self.q_pin)
 
     def link_transforms(self) -> np.ndarray:
@@ -370,7 +372,7 @@ class PinocchioBody(Body):
     def environment_wrenches(self, R, V):
         R, V = np.asarray(R, dtype=float), np.asarray(V, dtype=float)
         if self.stage:
-            self._sync(False)
+            self._sync()
         out = [np.zeros((len(self.link_names), 3)) for _ in range(3)]
         for terms, parts in (((True, True, False), (0, 2)), ((False, False, True), (1,))):
             terms = self.terms & np.array(terms)
@@ -392,7 +394,7 @@ class PinocchioBody(Body):
     def point_jacobian(self, link: str, point: np.ndarray) -> np.ndarray:
         pin = self.pin
         if not self.synced:
-            self._sync(False)
+            self._sync()
         if not self.jacobians:                                 # the joints' Jacobians, once per state
             pin.computeJointJacobians(self.pm, self.data, self.q_pin)
             self.jacobians = True
@@ -406,7 +408,7 @@ class PinocchioBody(Body):
         coordinates (``zero_world_acceleration``)."""
         pin = self.pin
         if not self.synced:
-            self._sync(False)
+            self._sync()
         a = zero_world_acceleration(self.v_pin)
         pin.forwardKinematics(self.pm, self.data, self.q_pin, self.v_pin, a)   # (the same q: data.J holds)
         frame = self.frame_id[link]

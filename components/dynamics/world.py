@@ -189,9 +189,10 @@ class OrbitalWorld:
                     raise ValueError(f"input {signal.name}: expected {signal.size} finite values, got {value.tolist()}")
         self.r_eci, self.v_eci, self.q_eci_lvlh, self.w_lvlh = orbit[0:3], orbit[3:6], orbit[6:10], orbit[10:13]
         self.elapsed = float(age)
-        self._orbit_changed()
+        self._orbit_changed(orbit[0:6])
 
-    def _orbit_changed(self) -> None:
+    def _orbit_changed(self, point=None) -> None:
+        self.orbit_point = np.concatenate([self.r_eci, self.v_eci]) if point is None else point   # (r_eci, v_eci)
         self._reference_cache = {}
         self.environment_on = (self.tidal or self.gg or self.drag) and any(self.r_eci.tolist())
 
@@ -276,7 +277,7 @@ class OrbitalWorld:
                     integration.rk4(self, body, dt, s)
             else:
                 for body in self.bodies.values():
-                    body.set_forces(self.reference(s) if self.env_now else None)
+                    body.set_forces((self.orbit_point, s) if self.env_now else None)
                 self.dart_world.setTimeStep(dt)
                 self.dart_world.step()
         self.elapsed += h
@@ -300,7 +301,7 @@ class OrbitalWorld:
         contacts, no joint stops): ``dv_W_base`` (6: classical linear acceleration of the base
         origin m/s^2, then angular acceleration rad/s^2, W axes) and ``qdd`` (URDF joint order)."""
         body = self.bodies[name]
-        a = body.forward_dynamics(self.reference(self.elapsed) if self.environment_on else None)
+        a = body.forward_dynamics((self.orbit_point, self.elapsed) if self.environment_on else None)
         if body.mimic:
             a = integration.hold_mimic(body, a)
         qdd = np.zeros(len(body.joints))

@@ -236,6 +236,18 @@ class Body:
         self.step_accelerations.append(a)
         self.set_stage(q0, xi, v)
 
+    def rk4_step(self, h: float, reference) -> None:
+        """One RK4 step of h seconds when nothing acts between its stages (no mimic joint, no limit
+        stop, no grasp): ``reference`` as ``forward_dynamics``' at the step's start (None: no
+        environment). An engine may do it all in fewer calls (PinocchioBody)."""
+        point, s = reference if reference is not None else (None, 0.0)
+        at = (lambda t: None) if reference is None else (lambda t: (point, t))
+        self.begin_step()
+        self.next_stage(1, 0.5 * h, self.forward_dynamics(at(s)))
+        self.next_stage(2, 0.5 * h, self.forward_dynamics(at(s + 0.5 * h)))
+        self.next_stage(3, h, self.forward_dynamics(at(s + 0.5 * h)))
+        self.finish_step(h, self.forward_dynamics(at(s + h)))
+
     def finish_step(self, h: float, a: np.ndarray) -> None:
         """The step's end from the four stages (``a``: the last one's accelerations)."""
         q0, v0 = self.step_start

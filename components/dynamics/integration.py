@@ -49,6 +49,8 @@ def compile_kernels(world: "OrbitalWorld") -> None:
                 body.forward_dynamics((np.concatenate([R, V]), 0.5))
             body.finish_step(1.0, zeros)
             body.forward_dynamics(None)
+            body.rk4_step(1.0, (np.concatenate([R, V]), 0.5))
+            body.rk4_step(1.0, None)
             body.inverse_mass()                     # (limit stops, mimic joints, a grasp)
             body.point_jacobian(body.link_names[0], zeros[:3])
             body.point_bias(body.link_names[0], zeros[:3])
@@ -117,6 +119,16 @@ def joint_stops(body: Body) -> None:
 
 def rk4(world: "OrbitalWorld", body: Body, h: float, s: float) -> None:
     """One RK4 step of h seconds of one body, from s seconds after the orbit inputs."""
+    if not body.mimic and not body.stops.size:     # nothing acts between the stages: the body steps itself
+        body.rk4_step(h, (world.orbit_point, s) if world.env_now else None)
+    else:
+        rk4_held(world, body, h, s)
+    if world.joint_limits and body.limited:
+        joint_stops(body)
+
+
+def rk4_held(world: "OrbitalWorld", body: Body, h: float, s: float) -> None:
+    """``rk4`` with each stage's accelerations held to the mimic joints and limit stops."""
     body.begin_step()
     a = acceleration(world, body, s)                # at (q0, v0), the current state
     body.next_stage(1, 0.5 * h, a)
@@ -125,8 +137,6 @@ def rk4(world: "OrbitalWorld", body: Body, h: float, s: float) -> None:
     a = acceleration(world, body, s + 0.5 * h)
     body.next_stage(3, h, a)
     body.finish_step(h, acceleration(world, body, s + h))
-    if world.joint_limits and body.limited:
-        joint_stops(body)
 
 
 def rk4_welded(world: "OrbitalWorld", h: float, s: float) -> None:

@@ -65,13 +65,13 @@ def to_pinocchio(x, v, Q, idx_q, nq, idx_v, rotation, q_pin, v_pin, tau_pin):
 @numba.njit(cache=True)
 def form_stage(stage, c, a, q0, v0, work, x, v):
     """The RK4 stage ``stage`` (1 to 3) from the step's start (q0, v0) and the last stage's
-    derivatives, or with ``stage`` 4 the step's end (h = c); into x, v. ``work`` (7, n) holds the
-    rates of stages 2 to 4 (rows 0-2, each written here) and the accelerations a1 to a4 (rows 3-6:
-    ``a``, the last stage's, is written here). The arithmetic of ``manifold_rk4.stage`` and
+    derivatives, or with ``stage`` 4 the step's end (h = c); into x, v. ``work`` (8, n) holds the
+    rates of stages 2 to 4 (rows 0-2, each written here), the accelerations a1 to a4 (rows 3-6:
+    ``a``, the last stage's, is written here) and xi (row 7). The arithmetic of ``manifold_rk4.stage`` and
     ``combine``, in the same order (the same bits)."""
     n = v0.shape[0]
     work[2 + stage] = a
-    xi = np.empty(n)
+    xi = work[7]
     if stage < 4:
         rate = v0 if stage == 1 else work[stage - 2]
         for i in range(n):
@@ -115,17 +115,32 @@ def pinocchio_inputs(stage, c, a, q0, v0, work, x, v, tau, environment, point, s
 
 
 @numba.njit(cache=True)
-def from_pinocchio(ddq, v_pin, rotation, idx_v):
-    """The world's accelerations from Pinocchio's (the free flyer's spatial acceleration made classical)."""
-    a = np.empty(6 + idx_v.shape[0])
+def from_pinocchio(ddq, v_pin, rotation, idx_v, a):
+    """The world's accelerations (into ``a``, which it returns) from Pinocchio's (the free
+    flyer's spatial acceleration made classical)."""
     vb0, vb1, vb2, w0, w1, w2 = v_pin[0], v_pin[1], v_pin[2], v_pin[3], v_pin[4], v_pin[5]
-    lin = np.array([ddq[0] + w1 * vb2 - w2 * vb1, ddq[1] + w2 * vb0 - w0 * vb2, ddq[2] + w0 * vb1 - w1 * vb0])
+    lin0, lin1, lin2 = ddq[0] + w1 * vb2 - w2 * vb1, ddq[1] + w2 * vb0 - w0 * vb2, ddq[2] + w0 * vb1 - w1 * vb0
     for i in range(3):
         a[i] = rotation[i, 0] * ddq[3] + rotation[i, 1] * ddq[4] + rotation[i, 2] * ddq[5]
-        a[3 + i] = rotation[i, 0] * lin[0] + rotation[i, 1] * lin[1] + rotation[i, 2] * lin[2]
+        a[3 + i] = rotation[i, 0] * lin0 + rotation[i, 1] * lin1 + rotation[i, 2] * lin2
     for i in range(idx_v.shape[0]):
         a[6 + i] = ddq[idx_v[i]]
     return a
+
+
+@numba.njit(cache=True)
+def rk4_evaluation(stage, h, s, ddq, q0, v0, work, x, v, tau, environment, point, joints, frames, links, link_joint,
+                   constants, atmosphere, wrenches, pin_index, rotation, buffer):
+    """Evaluation ``stage`` (0 to 3) of an RK4 step of h seconds from s seconds after the orbit
+    inputs, or with ``stage`` 4 its end: the last evaluation's accelerations from Pinocchio's
+    ``ddq`` (``from_pinocchio``, at the q, v, rotation still in ``buffer``), then
+    ``pinocchio_inputs`` at the stage (the environment at its time; none at the end, which is
+    only formed). One call per evaluation and no other: the body's own step (``PinocchioBody.rk4_step``)."""
+    nq, nv = buffer.shape[0] - 2 * v.shape[0], v.shape[0]
+    a = from_pinocchio(ddq, buffer[nq:nq + nv], rotation, pin_index[2], work[2 + stage]) if stage else ddq
+    c = 0.5 * h if stage < 3 else h
+    pinocchio_inputs(stage, c, a, q0, v0, work, x, v, tau, environment and stage < 4, point, s + c if stage else s,
+                     joints, frames, links, link_joint, constants, atmosphere, wrenches, pin_index, rotation, buffer)
 
 
 @numba.njit(cache=True)
@@ -262,7 +277,8 @@ class PinocchioBody(Body):
         # forms it at the next evaluation; 0: none), the rates and accelerations (form_stage)
         self.q0, self.v0 = self.x, self.v
         self.stage, self.stage_c, self.stage_a = 0, 0.0, NO_STAGE
-        self.work = np.zeros((7, self.ndofs))
+        self.work = np.zeros((8, self.ndofs))
+        self.stage_x, self.stage_v = np.zeros(self.ndofs), np.zeros(self.ndofs)   # (rk4_step's stages)
         self.rotation = np.eye(3)
         self.buffer = np.concatenate([pin.neutral(pm), np.zeros(2 * pm.nv)])
         self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [pm.nq, pm.nq + pm.nv])   # views
@@ -307,6 +323,27 @@ class PinocchioBody(Body):
     def finish_step(self, h: float, a: np.ndarray) -> None:
         self.next_stage(4, h, a)
 
+    def rk4_step(self, h: float, reference) -> None:
+        """The whole RK4 step in five compiled calls and Pinocchio's four ABAs (``rk4_evaluation``);
+        the stages' states in scratch arrays, the end's in new ones (as ``next_stage``)."""
+        if self.stage:
+            self._sync()
+        point, s = (NO_STAGE, 0.0) if reference is None else reference
+        s, environment, pin, pm, data = float(s), reference is not None, self.pin, self.pm, self.data
+        self.q0, self.v0 = x, v = self.x, self.v
+        ddq = NO_STAGE
+        for stage in range(5):
+            if stage == 1:
+                x, v = self.stage_x, self.stage_v
+            elif stage == 4:
+                x, v = self.x, self.v = np.empty(self.ndofs), np.empty(self.ndofs)
+            rk4_evaluation(stage, h, s, ddq, self.q0, self.v0, self.work, x, v, self.tau, environment, point,
+                           self.tree_joints, self.tree_frames, self.tree_links, self.link_joint, self.constants,
+                           self.atmosphere, self.wrenches, self.pin_index, self.rotation, self.buffer)
+            if stage < 4:
+                ddq = pin.aba(pm, data, self.q_pin, self.v_pin, self.tau_pin)
+        self.stage, self.synced, self.centroidal, self.jacobians = 0, True, False, False
+
     # -- dynamics
     def _sync(self) -> None:
         """x, v formed, Pinocchio's q, v, tau and R_W_base at them."""
@@ -323,7 +360,7 @@ class PinocchioBody(Body):
                          self.rotation, self.buffer)
         self.stage, self.synced, self.centroidal, self.jacobians = 0, True, False, False
         ddq = self.pin.aba(self.pm, self.data, self.q_pin, self.v_pin, self.tau_pin)
-        return from_pinocchio(ddq, self.v_pin, self.rotation, self.idx_v)
+        return from_pinocchio(ddq, self.v_pin, self.rotation, self.idx_v, np.empty(self.ndofs))
 
     def inverse_mass(self) -> np.ndarray:
         if not self.synced:

@@ -19,6 +19,7 @@ the links' inertia from the URDF): one compiled call, ABA, one compiled call per
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numba
@@ -129,13 +130,14 @@ def from_pinocchio(ddq, v_pin, rotation, idx_v, a):
 
 
 @numba.njit(cache=True)
-def rk4_evaluation(stage, h, s, ddq, q0, v0, work, x, v, tau, environment, point, joints, frames, links, link_joint,
-                   constants, atmosphere, wrenches, pin_index, rotation, buffer):
+def rk4_evaluation(joints, frames, links, link_joint, constants, atmosphere, wrenches, pin_index, rotation, buffer,
+                   work, tau, q0, v0, environment, point, h, s, stage, ddq, x, v):
     """Evaluation ``stage`` (0 to 3) of an RK4 step of h seconds from s seconds after the orbit
     inputs, or with ``stage`` 4 its end: the last evaluation's accelerations from Pinocchio's
     ``ddq`` (``from_pinocchio``, at the q, v, rotation still in ``buffer``), then
     ``pinocchio_inputs`` at the stage (the environment at its time; none at the end, which is
-    only formed). One call per evaluation and no other: the body's own step (``PinocchioBody.rk4_step``)."""
+    only formed). One call per evaluation and no other: the body's own step (``PinocchioBody.rk4_step``;
+    the arguments from the body's own, fixed, to the stage's, so that a step binds them once)."""
     nq, nv = buffer.shape[0] - 2 * v.shape[0], v.shape[0]
     a = from_pinocchio(ddq, buffer[nq:nq + nv], rotation, pin_index[2], work[2 + stage]) if stage else ddq
     c = 0.5 * h if stage < 3 else h
@@ -282,6 +284,9 @@ class PinocchioBody(Body):
         self.rotation = np.eye(3)
         self.buffer = np.concatenate([pin.neutral(pm), np.zeros(2 * pm.nv)])
         self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [pm.nq, pm.nq + pm.nv])   # views
+        self.evaluate = functools.partial(rk4_evaluation, self.tree_joints, self.tree_frames, self.tree_links,
+                                          self.link_joint, self.constants, self.atmosphere, self.wrenches,
+                                          self.pin_index, self.rotation, self.buffer, self.work, self.tau)
         self.synced = False                                    # q_pin, v_pin, rotation hold x, v
         self.centroidal = False                                # data holds the centroidal momentum there
         self.jacobians = False                                 # data holds the joints' Jacobians there
@@ -329,19 +334,16 @@ class PinocchioBody(Body):
         if self.stage:
             self._sync()
         point, s = (NO_STAGE, 0.0) if reference is None else reference
-        s, environment, pin, pm, data = float(s), reference is not None, self.pin, self.pm, self.data
         self.q0, self.v0 = x, v = self.x, self.v
-        ddq = NO_STAGE
-        for stage in range(5):
-            if stage == 1:
-                x, v = self.stage_x, self.stage_v
-            elif stage == 4:
-                x, v = self.x, self.v = np.empty(self.ndofs), np.empty(self.ndofs)
-            rk4_evaluation(stage, h, s, ddq, self.q0, self.v0, self.work, x, v, self.tau, environment, point,
-                           self.tree_joints, self.tree_frames, self.tree_links, self.link_joint, self.constants,
-                           self.atmosphere, self.wrenches, self.pin_index, self.rotation, self.buffer)
-            if stage < 4:
-                ddq = pin.aba(pm, data, self.q_pin, self.v_pin, self.tau_pin)
+        evaluate = functools.partial(self.evaluate, x, v, reference is not None, point, h, float(s))
+        aba, pm, data, q_pin, v_pin, tau_pin = self.pin.aba, self.pm, self.data, self.q_pin, self.v_pin, self.tau_pin
+        evaluate(0, NO_STAGE, x, v)
+        x, v = self.stage_x, self.stage_v
+        evaluate(1, aba(pm, data, q_pin, v_pin, tau_pin), x, v)
+        evaluate(2, aba(pm, data, q_pin, v_pin, tau_pin), x, v)
+        evaluate(3, aba(pm, data, q_pin, v_pin, tau_pin), x, v)
+        self.x, self.v = np.empty(self.ndofs), np.empty(self.ndofs)
+        evaluate(4, aba(pm, data, q_pin, v_pin, tau_pin), self.x, self.v)
         self.stage, self.synced, self.centroidal, self.jacobians = 0, True, False, False
 
     # -- dynamics

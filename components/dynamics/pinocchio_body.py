@@ -37,8 +37,10 @@ NO_STAGE = np.zeros(0)     # pinocchio_inputs' a when x, v are formed (and its R
 def to_pinocchio(x, v, Q, idx_q, nq, idx_v, rotation, q_pin, v_pin, tau_pin):
     """Pinocchio's configuration, velocity and generalized forces from the world's coordinates
     (written into q_pin, v_pin, tau_pin), and R_W_base into ``rotation``."""
-    R = manifold_rk4.exp_so3(x[0:3])
-    rotation[:, :] = R
+    m = manifold_rk4.exp_entries(x[0], x[1], x[2])
+    for i in range(3):
+        rotation[i, 0], rotation[i, 1], rotation[i, 2] = m[3 * i], m[3 * i + 1], m[3 * i + 2]
+    R = rotation
     px, py, pz = x[0], x[1], x[2]
     t = math.sqrt(px * px + py * py + pz * pz)
     s = 0.5 - t * t / 48.0 if t < 1e-6 else math.sin(0.5 * t) / t     # sin(t/2) / t
@@ -80,13 +82,13 @@ def form_stage(stage, c, a, q0, v0, work, x, v):
             v[i] = v0[i] + c * a[i]
         next_rate = work[stage - 1]
         next_rate[:] = v
-        next_rate[:3] = manifold_rk4.so3_left_jacobian_inverse_times(xi[:3], v[:3])
+        next_rate[0], next_rate[1], next_rate[2] = manifold_rk4.rate_entries(xi, v)
     else:
         w = c / 6.0
         for i in range(n):
             xi[i] = w * (v0[i] + 2.0 * work[0, i] + 2.0 * work[1, i] + work[2, i])
             v[i] = v0[i] + w * (work[3, i] + 2.0 * work[4, i] + 2.0 * work[5, i] + work[6, i])
-    x[:] = manifold_rk4.moved(q0, xi)
+    manifold_rk4.move(q0, xi, x)
 
 
 @numba.njit(cache=True)

@@ -192,12 +192,16 @@ class Body:
 
     def joint_positions(self, positions: np.ndarray | None = None) -> np.ndarray:
         """URDF-order joint positions from the coordinates (the body's by default); locked joints at their lock."""
+        if not self.locked:                                    # the joints are the coordinates 6...
+            return (self.positions() if positions is None else positions)[6:].copy()
         q = self.locked_q.copy()
         q[self.free] = (self.positions() if positions is None else positions)[self.free_dofs]
         return q
 
     def joint_velocities(self, velocities: np.ndarray | None = None) -> np.ndarray:
         """URDF-order joint rates from the coordinates' rates (the body's by default); locked joints 0."""
+        if not self.locked:
+            return (self.velocities() if velocities is None else velocities)[6:].copy()
         qd = np.zeros(len(self.joints))
         qd[self.free] = (self.velocities() if velocities is None else velocities)[self.free_dofs]
         return qd

@@ -237,6 +237,7 @@ class PinocchioBody(Body):
             pm = full
         pm.gravity = pin.Motion.Zero()
         self.pm, self.data = pm, pm.createData()
+        self.data_com = self.data.com                  # (a view of data's vector: its size is the model's)
         joints = [pm.joints[pm.getJointId(j)] for j in self.free_joints]
         self.idx_q = np.array([j.idx_q for j in joints], dtype=np.int64)
         self.nq = np.array([j.nq for j in joints], dtype=np.int64)
@@ -388,18 +389,20 @@ class PinocchioBody(Body):
         if not self.synced:
             self._sync()
         if not self.centroidal:
-            self.pin.computeCentroidalMomentum(self.pm, self.data, self.q_pin, self.v_pin)
+            self.hg = self.pin.computeCentroidalMomentum(self.pm, self.data, self.q_pin, self.v_pin)
             self.centroidal = True
         return self.data
 
     def com(self) -> np.ndarray:
-        return self._centroidal().com[0].copy()
+        self._centroidal()
+        return self.data_com[0].copy()          # (data.com fetched once: each fetch costs a microsecond)
 
     def com_velocity(self) -> np.ndarray:
         return self._centroidal().vcom[0].copy()
 
     def momentum(self, com=None, base_position=None) -> np.ndarray:
-        return self._centroidal().hg.vector.copy()             # (linear, angular about the CoM), W axes
+        self._centroidal()
+        return self.hg.vector.copy()             # (linear, angular about the CoM), W axes
 
     def _frames(self) -> None:
         if not self.synced:

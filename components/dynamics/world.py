@@ -66,6 +66,7 @@ from components.signals import ORBIT, orbit_signals
 INTEGRATORS = ("rk4", "dart")
 ENGINES = ("dart", "pinocchio")
 BODY_STATE = {"position": 3, "rotation_vector": 3, "twist": 6}     # + q, qd, tau, stop_side: one per joint
+TWIST_ORDER = np.array([3, 4, 5, 0, 1, 2])                         # (omega, v) coordinates -> the twist output (v, omega)
 
 
 class OrbitalWorld:
@@ -182,7 +183,7 @@ class OrbitalWorld:
         gives the next step's): the reference point is propagated from its own time."""
         values = (r_eci, v_eci, q_eci_lvlh, w_lvlh)
         orbit = np.concatenate(values, axis=None, dtype=float)
-        if orbit.size != 13 or not math.isfinite(orbit @ orbit):     # (one product: finite unless one is not)
+        if orbit.size != 13 or not math.isfinite(orbit.dot(orbit)):  # (one product: finite unless one is not; .dot: half @'s cost)
             for signal, value in zip(orbit_signals("input"), values):
                 value = np.asarray(value, dtype=float)
                 if value.size != signal.size or not np.isfinite(value).all():
@@ -325,7 +326,7 @@ class OrbitalWorld:
         out = {
             "position": position,
             "orientation": body.orientation(R_base),
-            "twist": np.concatenate([velocities[3:6], velocities[:3]]),
+            "twist": velocities[TWIST_ORDER],
             "q": body.joint_positions(body.positions()),
             "qd": body.joint_velocities(velocities),
             "com": com,

@@ -132,15 +132,32 @@ def from_pinocchio(ddq, v_pin, rotation, idx_v, a):
 
 
 @numba.njit(cache=True)
-def rk4_evaluation(joints, frames, links, link_joint, constants, atmosphere, wrenches, pin_index, rotation, buffer,
-                   work, tau, q0, v0, environment, point, h, s, stage, ddq, x, v):
+def rk4_evaluation(ints, model, scratch, tau, q0, v0, environment, point, h, s, stage, ddq, x, v):
     """Evaluation ``stage`` (0 to 3) of an RK4 step of h seconds from s seconds after the orbit
     inputs, or with ``stage`` 4 its end: the last evaluation's accelerations from Pinocchio's
     ``ddq`` (``from_pinocchio``, at the q, v, rotation still in ``buffer``), then
     ``pinocchio_inputs`` at the stage (the environment at its time; none at the end, which is
     only formed). One call per evaluation and no other: the body's own step (``PinocchioBody.rk4_step``;
-    the arguments from the body's own, fixed, to the stage's, so that a step binds them once)."""
-    nq, nv = buffer.shape[0] - 2 * v.shape[0], v.shape[0]
+    the arguments from the body's own, fixed, to the stage's, so that a step binds them once; the
+    body's arrays in three, ``PinocchioBody.pool``: a call's cost grows with its arguments)."""
+    nv = v.shape[0]
+    nj, nl, m, b, nq = ints[0], ints[1], ints[2], ints[3], ints[4]
+    joints = ints[5:5 + 3 * nj].reshape((nj, 3))
+    o = 5 + 3 * nj
+    link_joint = ints[o:o + nl]
+    pin_index = ints[o + nl:o + nl + 3 * m].reshape((3, m))
+    frames = model[:15 * nj].reshape((nj, 15))
+    o = 15 * nj
+    links = model[o:o + 14 * nl].reshape((nl, 14))
+    o += 14 * nl
+    constants = model[o:o + 6]
+    atmosphere = model[o + 6:o + 6 + 3 * b].reshape((3, b))
+    wrenches = scratch[:6 * nl].reshape((2, nl, 3))
+    o = 6 * nl
+    rotation = scratch[o:o + 9].reshape((3, 3))
+    buffer = scratch[o + 9:o + 9 + nq + 2 * nv]
+    o += 9 + nq + 2 * nv
+    work = scratch[o:o + 8 * nv].reshape((8, nv))
     a = from_pinocchio(ddq, buffer[nq:nq + nv], rotation, pin_index[2], work[2 + stage]) if stage else ddq
     c = 0.5 * h if stage < 3 else h
     pinocchio_inputs(stage, c, a, q0, v0, work, x, v, tau, environment and stage < 4, point, s + c if stage else s,
@@ -287,12 +304,31 @@ class PinocchioBody(Body):
         self.rotation = np.eye(3)
         self.buffer = np.concatenate([pin.neutral(pm), np.zeros(2 * pm.nv)])
         self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [pm.nq, pm.nq + pm.nv])   # views
-        self.evaluate = functools.partial(rk4_evaluation, self.tree_joints, self.tree_frames, self.tree_links,
-                                          self.link_joint, self.constants, self.atmosphere, self.wrenches,
-                                          self.pin_index, self.rotation, self.buffer, self.work, self.tau)
+        self.pool()
+        self.evaluate = functools.partial(rk4_evaluation, self.ints, self.model_values, self.scratch, self.tau)
         self.synced = False                                    # q_pin, v_pin, rotation hold x, v
         self.centroidal = False                                # data holds the centroidal momentum there
         self.jacobians = False                                 # data holds the joints' Jacobians there
+
+    def pool(self) -> None:
+        """The fixed arrays made views of three (``rk4_evaluation`` takes those): ints (nj, links,
+        joints, atmosphere bands, nq; tree_joints, link_joint, pin_index), model values
+        (tree_frames, tree_links, constants, atmosphere), scratch (wrenches, rotation, buffer, work)."""
+        header = [len(self.tree_joints), len(self.link_joint), self.pin_index.shape[1], self.atmosphere.shape[1],
+                  len(self.q_pin)]
+        for pool, names in (("ints", ("tree_joints", "link_joint", "pin_index")),
+                            ("model_values", ("tree_frames", "tree_links", "constants", "atmosphere")),
+                            ("scratch", ("wrenches", "rotation", "buffer", "work"))):
+            arrays = [getattr(self, name) for name in names]
+            start = [np.array(header, dtype=np.int64)] if pool == "ints" else []
+            values = np.concatenate(start + [a.ravel() for a in arrays])
+            setattr(self, pool, values)
+            offset = len(header) if pool == "ints" else 0
+            for name, a in zip(names, arrays):
+                setattr(self, name, values[offset:offset + a.size].reshape(a.shape))
+                offset += a.size
+        self.force, self.torque = self.wrenches
+        self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [self.pm.nq, self.pm.nq + self.pm.nv])   # views
 
     # -- state
     def positions(self) -> np.ndarray:

@@ -68,10 +68,10 @@ def to_pinocchio(x, v, Q, idx_q, nq, idx_v, rotation, q_pin, v_pin, tau_pin):
 @numba.njit(cache=True)
 def form_stage(stage, c, a, q0, v0, work, x, v):
     """The RK4 stage ``stage`` (1 to 3) from the step's start (q0, v0) and the last stage's
-    derivatives, or with ``stage`` 4 the step's end (h = c); into x, v. ``work`` (8, n) holds the
+    derivatives, or with ``stage`` 4 the step's end (h = c); into x, v. ``work`` (10, n) holds the
     rates of stages 2 to 4 (rows 0-2, each written here), the accelerations a1 to a4 (rows 3-6:
-    ``a``, the last stage's, is written here) and xi (row 7). The arithmetic of ``manifold_rk4.stage`` and
-    ``combine``, in the same order (the same bits)."""
+    ``a``, the last stage's, is written here) and xi (row 7; rows 8, 9: ``rk4_begin``'s). The
+    arithmetic of ``manifold_rk4.stage`` and ``combine``, in the same order (the same bits)."""
     n = v0.shape[0]
     work[2 + stage] = a
     xi = work[7]
@@ -132,15 +132,11 @@ def from_pinocchio(ddq, v_pin, rotation, idx_v, a):
 
 
 @numba.njit(cache=True)
-def rk4_evaluation(ints, model, scratch, tau, q0, v0, environment, point, h, s, stage, ddq, x, v):
-    """Evaluation ``stage`` (0 to 3) of an RK4 step of h seconds from s seconds after the orbit
-    inputs, or with ``stage`` 4 its end: the last evaluation's accelerations from Pinocchio's
-    ``ddq`` (``from_pinocchio``, at the q, v, rotation still in ``buffer``), then
-    ``pinocchio_inputs`` at the stage (the environment at its time; none at the end, which is
-    only formed). One call per evaluation and no other: the body's own step (``PinocchioBody.rk4_step``;
-    the arguments from the body's own, fixed, to the stage's, so that a step binds them once; the
-    body's arrays in three, ``PinocchioBody.pool``: a call's cost grows with its arguments)."""
-    nv = v.shape[0]
+def unpool(ints, model, scratch, nv):
+    """The body's arrays from its three pools (``PinocchioBody.pool``): joints, link_joint,
+    pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work (10, nv: the
+    rates and accelerations of ``form_stage``, xi, then the step's q0 and v0) and the step's
+    values (environment, h, s, the reference point)."""
     nj, nl, m, b, nq = ints[0], ints[1], ints[2], ints[3], ints[4]
     joints = ints[5:5 + 3 * nj].reshape((nj, 3))
     o = 5 + 3 * nj
@@ -157,10 +153,43 @@ def rk4_evaluation(ints, model, scratch, tau, q0, v0, environment, point, h, s, 
     rotation = scratch[o:o + 9].reshape((3, 3))
     buffer = scratch[o + 9:o + 9 + nq + 2 * nv]
     o += 9 + nq + 2 * nv
-    work = scratch[o:o + 8 * nv].reshape((8, nv))
-    a = from_pinocchio(ddq, buffer[nq:nq + nv], rotation, pin_index[2], work[2 + stage]) if stage else ddq
+    work = scratch[o:o + 10 * nv].reshape((10, nv))
+    step = scratch[o + 10 * nv:o + 10 * nv + 9]
+    return joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step
+
+
+@numba.njit(cache=True)
+def rk4_begin(ints, model, scratch, tau, x, v, environment, point, h, s):
+    """Evaluation 0 of an RK4 step of h seconds from s seconds after the orbit inputs, at (x, v),
+    with the environment at ``point`` (``pinocchio_inputs``); keeps the step's start and values
+    for ``rk4_evaluation``. The body's arrays in three pools (``PinocchioBody.pool``): a call's
+    cost grows with its arguments."""
+    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step = \
+        unpool(ints, model, scratch, v.shape[0])
+    work[8] = x
+    work[9] = v
+    step[0], step[1], step[2] = 1.0 if environment else 0.0, h, s
+    if environment:
+        step[3:9] = point
+    pinocchio_inputs(0, 0.0, v, x, v, work, x, v, tau, environment, point, s, joints, frames, links, link_joint,
+                     constants, atmosphere, wrenches, pin_index, rotation, buffer)
+
+
+@numba.njit(cache=True)
+def rk4_evaluation(ints, model, scratch, tau, stage, ddq, x, v):
+    """Evaluation ``stage`` (1 to 3) of the RK4 step ``rk4_begin`` began, or with ``stage`` 4 its
+    end, into (x, v): the last evaluation's accelerations from Pinocchio's ``ddq``
+    (``from_pinocchio``, at the q, v, rotation still in ``buffer``), then ``pinocchio_inputs`` at
+    the stage (the environment at its time; none at the end, which is only formed). With
+    ``rk4_begin``, one call per evaluation and no other (``PinocchioBody.rk4_step``)."""
+    nv = v.shape[0]
+    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step = \
+        unpool(ints, model, scratch, nv)
+    nq = ints[4]
+    h, s = step[1], step[2]
+    a = from_pinocchio(ddq, buffer[nq:nq + nv], rotation, pin_index[2], work[2 + stage])
     c = 0.5 * h if stage < 3 else h
-    pinocchio_inputs(stage, c, a, q0, v0, work, x, v, tau, environment and stage < 4, point, s + c if stage else s,
+    pinocchio_inputs(stage, c, a, work[8], work[9], work, x, v, tau, step[0] != 0.0 and stage < 4, step[3:9], s + c,
                      joints, frames, links, link_joint, constants, atmosphere, wrenches, pin_index, rotation, buffer)
 
 
@@ -299,12 +328,14 @@ class PinocchioBody(Body):
         # forms it at the next evaluation; 0: none), the rates and accelerations (form_stage)
         self.q0, self.v0 = self.x, self.v
         self.stage, self.stage_c, self.stage_a = 0, 0.0, NO_STAGE
-        self.work = np.zeros((8, self.ndofs))
+        self.work = np.zeros((10, self.ndofs))
         self.stage_x, self.stage_v = np.zeros(self.ndofs), np.zeros(self.ndofs)   # (rk4_step's stages)
         self.rotation = np.eye(3)
         self.buffer = np.concatenate([pin.neutral(pm), np.zeros(2 * pm.nv)])
         self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [pm.nq, pm.nq + pm.nv])   # views
+        self.step_values = np.zeros(9)                        # (rk4_begin's: environment, h, s, point)
         self.pool()
+        self.begin = functools.partial(rk4_begin, self.ints, self.model_values, self.scratch, self.tau)
         self.evaluate = functools.partial(rk4_evaluation, self.ints, self.model_values, self.scratch, self.tau)
         self.synced = False                                    # q_pin, v_pin, rotation hold x, v
         self.centroidal = False                                # data holds the centroidal momentum there
@@ -313,12 +344,13 @@ class PinocchioBody(Body):
     def pool(self) -> None:
         """The fixed arrays made views of three (``rk4_evaluation`` takes those): ints (nj, links,
         joints, atmosphere bands, nq; tree_joints, link_joint, pin_index), model values
-        (tree_frames, tree_links, constants, atmosphere), scratch (wrenches, rotation, buffer, work)."""
+        (tree_frames, tree_links, constants, atmosphere), scratch (wrenches, rotation, buffer, work,
+        step_values); see ``unpool``."""
         header = [len(self.tree_joints), len(self.link_joint), self.pin_index.shape[1], self.atmosphere.shape[1],
                   len(self.q_pin)]
         for pool, names in (("ints", ("tree_joints", "link_joint", "pin_index")),
                             ("model_values", ("tree_frames", "tree_links", "constants", "atmosphere")),
-                            ("scratch", ("wrenches", "rotation", "buffer", "work"))):
+                            ("scratch", ("wrenches", "rotation", "buffer", "work", "step_values"))):
             arrays = [getattr(self, name) for name in names]
             start = [np.array(header, dtype=np.int64)] if pool == "ints" else []
             values = np.concatenate(start + [a.ravel() for a in arrays])
@@ -373,11 +405,9 @@ class PinocchioBody(Body):
         if self.stage:
             self._sync()
         point, s = (NO_STAGE, 0.0) if reference is None else reference
-        self.q0, self.v0 = x, v = self.x, self.v
-        evaluate = functools.partial(self.evaluate, x, v, reference is not None, point, h, float(s))
+        self.begin(self.x, self.v, reference is not None, point, h, float(s))
+        evaluate, x, v = self.evaluate, self.stage_x, self.stage_v
         aba, pm, data, q_pin, v_pin, tau_pin = self.pin.aba, self.pm, self.data, self.q_pin, self.v_pin, self.tau_pin
-        evaluate(0, NO_STAGE, x, v)
-        x, v = self.stage_x, self.stage_v
         evaluate(1, aba(pm, data, q_pin, v_pin, tau_pin), x, v)
         evaluate(2, aba(pm, data, q_pin, v_pin, tau_pin), x, v)
         evaluate(3, aba(pm, data, q_pin, v_pin, tau_pin), x, v)

@@ -28,8 +28,8 @@ def so3_left_jacobian_inverse_times(phi: np.ndarray, omega: np.ndarray) -> np.nd
 
 @numba.njit(cache=True)
 def rate_entries(phi: np.ndarray, omega: np.ndarray):
-    """J_l(phi)^-1 omega, three floats (no array: a compiled caller allocates nothing): the rate of phi for R = exp(phi) R0 turning at world angular velocity
-    omega. J_l^-1 = I - [phi]x / 2 + (1 - (t/2) cot(t/2)) / t^2 [phi]x^2, t = |phi| (the
+    """J_l(phi)^-1 omega, three floats (no array: a compiled caller allocates nothing): the rate
+    of phi for R = exp(phi) R0 turning at world angular velocity omega. J_l^-1 = I - [phi]x / 2 + (1 - (t/2) cot(t/2)) / t^2 [phi]x^2, t = |phi| (the
     coefficient by its series below t^2 = 1e-6, where the closed form loses digits)."""
     px, py, pz = phi[0], phi[1], phi[2]
     wx, wy, wz = omega[0], omega[1], omega[2]

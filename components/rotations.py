@@ -127,7 +127,8 @@ def continuous(q, q_previous) -> np.ndarray:
     if q_previous is None:
         return q
     if q.size == 4:       # the common case, in plain floats (a step's budget is microseconds)
-        a, b = q.tolist(), np.asarray(q_previous, dtype=np.float64).tolist()
+        a = q.tolist()
+        b = q_previous.tolist() if q_previous.__class__ is np.ndarray else np.asarray(q_previous, dtype=np.float64).tolist()
         if a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] < 0.0:
             q *= -1.0
         return q

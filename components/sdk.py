@@ -218,6 +218,9 @@ class Layout:
         self.size = start
         # (name, slice, size, shape) once, for the per-step pack/unpack
         self._plan = [(v.name, self.offsets[v.name], v.size, v.shape) for v in self.variables]
+        # unpack's: the shape to reshape a slice to, None for a vector (its slice has its shape)
+        self._views = [(v.name, self.offsets[v.name], None if tuple(v.shape) == (v.size,) else v.shape)
+                       for v in self.variables]
         self._zeros = np.zeros(self.size)
 
     def start_vector(self) -> np.ndarray:
@@ -236,7 +239,7 @@ class Layout:
             # per step and per output: an array's own size and ravel (numpy's functions of the
             # same name cost a dispatch more), anything else through numpy
             if value.__class__ is np.ndarray and value.size == size:
-                into[where] = value.ravel()
+                into[where] = value if value.ndim == 1 else value.ravel()
                 continue
             if np.size(value) != size:
                 raise ComponentOutputError(f"output {name!r} has {np.size(value)} values, declared shape {shape}")
@@ -253,7 +256,8 @@ class Layout:
 
     def unpack(self, vector: np.ndarray) -> dict[str, np.ndarray]:
         """Views of ``vector`` by variable name (scalars as 0-d arrays)."""
-        return {name: vector[where].reshape(shape) for name, where, _, shape in self._plan}
+        return {name: vector[where] if shape is None else vector[where].reshape(shape)
+                for name, where, shape in self._views}
 
 
 def layouts(variables: list[Variable]) -> tuple[Layout, Layout]:

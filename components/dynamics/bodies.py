@@ -16,7 +16,8 @@ An engine's body (:class:`components.dynamics.dart_body.DartBody`,
 :class:`components.dynamics.pinocchio_body.PinocchioBody`) subclasses :class:`Body` and gives, at
 the state last set (``set_state``, ``set_stage``, ``set_velocities``), in these coordinates:
 ``positions()``, ``velocities()``, ``forward_dynamics(reference)`` (the accelerations under
-``tau`` and, with ``reference`` = (R, V), the orbital environment), ``inverse_mass()``; for the
+``tau`` and, with ``reference`` = (point, s), the orbital environment with the reference point
+``link_forces.propagate_reference``'d s seconds on from point = (R, V)), ``inverse_mass()``; for the
 outputs ``base_pose()``, ``orientation()``, ``com()``, ``com_velocity()``, ``momentum()``,
 ``link_transforms()``, ``environment_wrenches(R, V)``; for a grasp ``link_pose``,
 ``point_jacobian``, ``point_bias``; ``base_coordinates(R, p)`` for an initial state.
@@ -191,12 +192,16 @@ class Body:
 
     def joint_positions(self, positions: np.ndarray | None = None) -> np.ndarray:
         """URDF-order joint positions from the coordinates (the body's by default); locked joints at their lock."""
+        if not self.locked:                                    # the joints are the coordinates 6...
+            return (self.positions() if positions is None else positions)[6:].copy()
         q = self.locked_q.copy()
         q[self.free] = (self.positions() if positions is None else positions)[self.free_dofs]
         return q
 
     def joint_velocities(self, velocities: np.ndarray | None = None) -> np.ndarray:
         """URDF-order joint rates from the coordinates' rates (the body's by default); locked joints 0."""
+        if not self.locked:
+            return (self.velocities() if velocities is None else velocities)[6:].copy()
         qd = np.zeros(len(self.joints))
         qd[self.free] = (self.velocities() if velocities is None else velocities)[self.free_dofs]
         return qd
@@ -218,12 +223,49 @@ class Body:
     def set_velocities(self, velocities: np.ndarray) -> None:
         raise NotImplementedError
 
+    # -- the manifold RK4 step (components/dynamics/integration.py), through these three: an
+    # engine may form a stage lazily, inside its next evaluation (PinocchioBody: one call)
+    def begin_step(self) -> None:
+        """A step starts from the current state (q0, v0)."""
+        self.step_start = self.positions(), self.velocities()
+        self.step_rates = [self.step_start[1]]                 # d(xi)/dt of each stage: d1 = v0
+        self.step_accelerations = []
+
+    def next_stage(self, stage: int, c: float, a: np.ndarray) -> None:
+        """Stage ``stage`` (2 to 4 of RK4: 1 to 3 here) from the last one's accelerations ``a``:
+        q0 (+) c rate, v0 + c a (``manifold_rk4.stage``)."""
+        q0, v0 = self.step_start
+        xi, v, rate = manifold_rk4.stage(c, v0, self.step_rates[-1], a)
+        self.step_rates.append(rate)
+        self.step_accelerations.append(a)
+        self.set_stage(q0, xi, v)
+
+    def rk4_step(self, h: float, reference) -> None:
+        """One RK4 step of h seconds when nothing acts between its stages (no mimic joint, no limit
+        stop, no grasp): ``reference`` as ``forward_dynamics``' at the step's start (None: no
+        environment). An engine may do it all in fewer calls (PinocchioBody)."""
+        point, s = reference if reference is not None else (None, 0.0)
+        at = (lambda t: None) if reference is None else (lambda t: (point, t))
+        self.begin_step()
+        self.next_stage(1, 0.5 * h, self.forward_dynamics(at(s)))
+        self.next_stage(2, 0.5 * h, self.forward_dynamics(at(s + 0.5 * h)))
+        self.next_stage(3, h, self.forward_dynamics(at(s + 0.5 * h)))
+        self.finish_step(h, self.forward_dynamics(at(s + h)))
+
+    def finish_step(self, h: float, a: np.ndarray) -> None:
+        """The step's end from the four stages (``a``: the last one's accelerations)."""
+        q0, v0 = self.step_start
+        xi, v = manifold_rk4.combine(h, v0, *self.step_rates, *self.step_accelerations, a)
+        self.set_stage(q0, xi, v)
+
     def torques_changed(self) -> None:
         """``tau`` was written."""
 
     def forward_dynamics(self, reference) -> np.ndarray:
         """Accelerations (the time derivative of v) under ``tau`` and, unless ``reference`` is None,
-        the environment with the reference point at (R, V) (m, m/s, W axes from the Earth's centre)."""
+        the environment with the reference point s seconds after it was at (R, V) (m, m/s, ECI, from
+        the Earth's centre), ``reference`` = (point (6,): R then V, s): an engine propagates it
+        (``link_forces.propagate_reference``), inside its own compiled call if it likes."""
         raise NotImplementedError
 
     def inverse_mass(self) -> np.ndarray:

@@ -13,6 +13,7 @@ rates, torques and limit stops; orbit inputs; the grasp's weld) and the last out
 from __future__ import annotations
 
 import re
+from operator import itemgetter
 from typing import Any, Mapping
 
 import numpy as np
@@ -25,6 +26,8 @@ from components.rotations import continuous
 from components.schema import Float, Int, ListOf, MapOf, OneOf, Record, Str, Vector
 from components.sdk import Component, Parameter, Variable
 from components.signals import BODY as BODY_OUTPUTS, ORBIT as ORBIT_INPUTS, body_signals, orbit_signals, torque_signal
+
+ORBIT_VALUES = itemgetter(*ORBIT_INPUTS)      # inputs -> the orbit inputs' values, in set_orbit's order
 
 NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 LINK_OUTPUTS = ("gg_torque", "tidal_force", "drag_force", "link_position", "link_orientation")
@@ -302,7 +305,7 @@ class OrbitalDynamics(Component):
     def _inputs(self, inputs: Mapping[str, np.ndarray], torques: bool, t_ns: int) -> None:
         age = (t_ns - self.input_times_ns.get("r_eci", t_ns)) / NS_PER_S   # < 0 under Gauss-Seidel
         try:
-            self.world.set_orbit(*(inputs[k] for k in ORBIT_INPUTS), age=age)
+            self.world.set_orbit(*ORBIT_VALUES(inputs), age=age)
             if torques:
                 for name, key in self.torque_inputs:
                     self.world.set_torques(name, inputs[key])

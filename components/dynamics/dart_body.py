@@ -173,7 +173,9 @@ class DartBody(Body):
     def set_forces(self, reference) -> None:
         """The skeleton's generalized forces: tau, and the environment unless ``reference`` is None."""
         if reference is not None:
-            forces, _ = self._environment(reference[0], reference[1], self.environment.tidal, self.environment.drag)
+            point, s = reference
+            R, V = link_forces.propagate_reference(point[:3], point[3:], s, self.environment.mu)
+            forces, _ = self._environment(R, V, self.environment.tidal, self.environment.drag)
             self.skel.setForces(forces)
             self.forces_are_tau = False
         elif not self.forces_are_tau:                          # forward dynamics leaves them: set once

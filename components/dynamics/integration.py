@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from components.constants import R_EARTH
-from components.dynamics import link_forces, manifold_rk4
+from components.dynamics import link_forces
 from components.dynamics.bodies import Body
 
 if TYPE_CHECKING:
@@ -42,11 +42,15 @@ def compile_kernels(world: "OrbitalWorld") -> None:
         body.environment_wrenches(R, V)
         if world.integrator == "rk4":
             zeros = np.zeros(body.ndofs)
-            xi, v, rate = manifold_rk4.stage(0.5, zeros, zeros, zeros)
-            xi, v = manifold_rk4.combine(1.0, zeros, rate, rate, rate, rate, zeros, zeros, zeros, zeros)
-            body.set_stage(zeros, xi, v)
-            body.forward_dynamics((R, V))
+            body.set_state(zeros, zeros)
+            body.begin_step()
+            for stage in (1, 2, 3):
+                body.next_stage(stage, 0.5, zeros)
+                body.forward_dynamics((np.concatenate([R, V]), 0.5))
+            body.finish_step(1.0, zeros)
             body.forward_dynamics(None)
+            body.rk4_step(1.0, (np.concatenate([R, V]), 0.5))
+            body.rk4_step(1.0, None)
             body.inverse_mass()                     # (limit stops, mimic joints, a grasp)
             body.point_jacobian(body.link_names[0], zeros[:3])
             body.point_bias(body.link_names[0], zeros[:3])
@@ -56,7 +60,7 @@ def compile_kernels(world: "OrbitalWorld") -> None:
 def acceleration(world: "OrbitalWorld", body: Body, s: float) -> np.ndarray:
     """Accelerations at the body's current state, torques and (when it applies) the environment
     at s seconds after the orbit inputs; mimic joints and limit stops held."""
-    a = body.forward_dynamics(world.reference(s) if world.env_now else None)
+    a = body.forward_dynamics((world.orbit_point, s) if world.env_now else None)
     if body.mimic:
         a = hold_mimic(body, a)
     if body.stops.size:
@@ -115,22 +119,24 @@ def joint_stops(body: Body) -> None:
 
 def rk4(world: "OrbitalWorld", body: Body, h: float, s: float) -> None:
     """One RK4 step of h seconds of one body, from s seconds after the orbit inputs."""
-    q0, v0 = body.positions(), body.velocities()
-    a1 = acceleration(world, body, s)               # at (q0, v0), the current state
-    d1 = v0
-    xi2, v2, d2 = manifold_rk4.stage(0.5 * h, v0, d1, a1)
-    body.set_stage(q0, xi2, v2)
-    a2 = acceleration(world, body, s + 0.5 * h)
-    xi3, v3, d3 = manifold_rk4.stage(0.5 * h, v0, d2, a2)
-    body.set_stage(q0, xi3, v3)
-    a3 = acceleration(world, body, s + 0.5 * h)
-    xi4, v4, d4 = manifold_rk4.stage(h, v0, d3, a3)
-    body.set_stage(q0, xi4, v4)
-    a4 = acceleration(world, body, s + h)
-    xi, v = manifold_rk4.combine(h, v0, d1, d2, d3, d4, a1, a2, a3, a4)
-    body.set_stage(q0, xi, v)
+    if not body.mimic and not body.stops.size:     # nothing acts between the stages: the body steps itself
+        body.rk4_step(h, (world.orbit_point, s) if world.env_now else None)
+    else:
+        rk4_held(world, body, h, s)
     if world.joint_limits and body.limited:
         joint_stops(body)
+
+
+def rk4_held(world: "OrbitalWorld", body: Body, h: float, s: float) -> None:
+    """``rk4`` with each stage's accelerations held to the mimic joints and limit stops."""
+    body.begin_step()
+    a = acceleration(world, body, s)                # at (q0, v0), the current state
+    body.next_stage(1, 0.5 * h, a)
+    a = acceleration(world, body, s + 0.5 * h)
+    body.next_stage(2, 0.5 * h, a)
+    a = acceleration(world, body, s + 0.5 * h)
+    body.next_stage(3, h, a)
+    body.finish_step(h, acceleration(world, body, s + h))
 
 
 def rk4_welded(world: "OrbitalWorld", h: float, s: float) -> None:
@@ -139,29 +145,21 @@ def rk4_welded(world: "OrbitalWorld", h: float, s: float) -> None:
     grasp = world.grasp
     bodies = list(world.bodies.values())
     chaser, target = grasp.ee.body, grasp.grasp.body
-    start = {b.name: (b.positions(), b.velocities()) for b in bodies}
 
     def accelerations(t: float) -> dict:
         a = {b.name: acceleration(world, b, t) for b in bodies}
         a[chaser.name], a[target.name] = grasp.constrain(a[chaser.name], a[target.name], h)
         return a
 
-    a1 = accelerations(s)
-    d1 = {b.name: start[b.name][1] for b in bodies}
-    stages = [(a1, d1)]
-    for c, t in ((0.5 * h, s + 0.5 * h), (0.5 * h, s + 0.5 * h), (h, s + h)):
-        a_prev, d_prev = stages[-1]
-        d = {}
-        for b in bodies:
-            q0, v0 = start[b.name]
-            xi, v, d[b.name] = manifold_rk4.stage(c, v0, d_prev[b.name], a_prev[b.name])
-            b.set_stage(q0, xi, v)
-        stages.append((accelerations(t), d))
     for b in bodies:
-        q0, v0 = start[b.name]
-        (a1, d1), (a2, d2), (a3, d3), (a4, d4) = [(a[b.name], d[b.name]) for a, d in stages]
-        xi, v = manifold_rk4.combine(h, v0, d1, d2, d3, d4, a1, a2, a3, a4)
-        b.set_stage(q0, xi, v)
+        b.begin_step()
+    a = accelerations(s)
+    for stage, c, t in ((1, 0.5 * h, s + 0.5 * h), (2, 0.5 * h, s + 0.5 * h), (3, h, s + h)):
+        for b in bodies:
+            b.next_stage(stage, c, a[b.name])
+        a = accelerations(t)
+    for b in bodies:
+        b.finish_step(h, a[b.name])
     stopped = False
     if world.joint_limits:
         for b in bodies:

@@ -50,7 +50,7 @@ import math
 import numba
 import numpy as np
 
-from components.dynamics.manifold_rk4 import exp_so3
+from components.dynamics.manifold_rk4 import exp_entries
 
 REVOLUTE, PRISMATIC = 1, 2     # tree joint kinds (0: the free base)
 
@@ -227,22 +227,24 @@ def _axis_rotation(u, angle, out):
 
 
 @numba.njit(cache=True)
-def tree_kinematics(x, v, joints, frames, with_velocity, rotation, position, joint_axis, angular, linear):
+def tree_kinematics(x, v, joints, frames, with_velocity, rotation, position, joint_axis, angular, linear, work):
     """Joint frames in W over a tree whose joint 1 is the free base, from the world's coordinates
     x, v (base rotation vector, base origin, joints): ``rotation``, ``position`` (nj, 3, 3),
     (nj, 3); ``joint_axis`` (nj, 3), W; with ``with_velocity`` also each joint frame's
     ``angular`` velocity and its origin's ``linear`` one (W). ``joints`` (nj, 3): parent, kind
     (REVOLUTE, PRISMATIC; 0 for the base), coordinate; ``frames`` (nj, 15): the joint's placement
     in its parent's frame (rotation row-major, translation), its axis in its own frame. Parents
-    come first."""
-    rotation[1] = exp_so3(x[0:3])
+    come first. ``work``: 24 floats of scratch."""
+    m = exp_entries(x[0], x[1], x[2])
+    for r in range(3):
+        rotation[1, r, 0], rotation[1, r, 1], rotation[1, r, 2] = m[3 * r], m[3 * r + 1], m[3 * r + 2]
     position[1] = x[3:6]
     if with_velocity:
         angular[1] = v[0:3]
         linear[1] = v[3:6]
-    matrices = np.empty((2, 3, 3))
+    matrices = work[:18].reshape((2, 3, 3))
     Rj, E = matrices[0], matrices[1]
-    vectors = np.empty((2, 3))
+    vectors = work[18:24].reshape((2, 3))
     lever, w_x_lever = vectors[0], vectors[1]
     for j in range(2, joints.shape[0]):
         p, kind, k = joints[j, 0], joints[j, 1], joints[j, 2]
@@ -284,14 +286,16 @@ def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, 
     Fills ``force``, ``torque`` (n, 3): each link's environment force at its CoM and torque about
     it, W axes."""
     nj = joints.shape[0]
-    per_joint = np.zeros((6, nj, 3))              # one allocation (a call's few microseconds count)
-    rotation = np.empty((nj, 3, 3))
+    block = np.zeros(27 * nj + 63)                # one allocation (a call's few microseconds count)
+    per_joint = block[:18 * nj].reshape((6, nj, 3))
+    rotation = block[18 * nj:27 * nj].reshape((nj, 3, 3))
     position, joint_axis, angular, linear = per_joint[0], per_joint[1], per_joint[2], per_joint[3]
     total_force, total_torque = per_joint[4], per_joint[5]      # per joint: its links' wrench about the W origin
-    tree_kinematics(x, v, joints, frames, drag, rotation, position, joint_axis, angular, linear)
+    tree_kinematics(x, v, joints, frames, drag, rotation, position, joint_axis, angular, linear,
+                    block[27 * nj + 39:])
     r2 = R[0] * R[0] + R[1] * R[1] + R[2] * R[2]
     r = math.sqrt(r2)
-    scratch = np.empty((13, 3))
+    scratch = block[27 * nj:27 * nj + 39].reshape((13, 3))
     f, t, d, c_W, v_rel, x_earth, v_com, lever = (scratch[0], scratch[1], scratch[2], scratch[3], scratch[4],
                                                    scratch[5], scratch[6], scratch[7])
     about, R_local, d_local, f_local, t_local = scratch[8], scratch[9], scratch[10], scratch[11], scratch[12]

@@ -66,6 +66,7 @@ from components.signals import ORBIT, orbit_signals
 INTEGRATORS = ("rk4", "dart")
 ENGINES = ("dart", "pinocchio")
 BODY_STATE = {"position": 3, "rotation_vector": 3, "twist": 6}     # + q, qd, tau, stop_side: one per joint
+TWIST_ORDER = np.array([3, 4, 5, 0, 1, 2])                         # (omega, v) coordinates -> the twist output (v, omega)
 
 
 class OrbitalWorld:
@@ -182,16 +183,17 @@ class OrbitalWorld:
         gives the next step's): the reference point is propagated from its own time."""
         values = (r_eci, v_eci, q_eci_lvlh, w_lvlh)
         orbit = np.concatenate(values, axis=None, dtype=float)
-        if orbit.size != 13 or not math.isfinite(orbit @ orbit):     # (one product: finite unless one is not)
+        if orbit.size != 13 or not math.isfinite(orbit.dot(orbit)):  # (one product: finite unless one is not; .dot: half @'s cost)
             for signal, value in zip(orbit_signals("input"), values):
                 value = np.asarray(value, dtype=float)
                 if value.size != signal.size or not np.isfinite(value).all():
                     raise ValueError(f"input {signal.name}: expected {signal.size} finite values, got {value.tolist()}")
         self.r_eci, self.v_eci, self.q_eci_lvlh, self.w_lvlh = orbit[0:3], orbit[3:6], orbit[6:10], orbit[10:13]
         self.elapsed = float(age)
-        self._orbit_changed()
+        self._orbit_changed(orbit[0:6])
 
-    def _orbit_changed(self) -> None:
+    def _orbit_changed(self, point=None) -> None:
+        self.orbit_point = np.concatenate([self.r_eci, self.v_eci]) if point is None else point   # (r_eci, v_eci)
         self._reference_cache = {}
         self.environment_on = (self.tidal or self.gg or self.drag) and any(self.r_eci.tolist())
 
@@ -276,7 +278,7 @@ class OrbitalWorld:
                     integration.rk4(self, body, dt, s)
             else:
                 for body in self.bodies.values():
-                    body.set_forces(self.reference(s) if self.env_now else None)
+                    body.set_forces((self.orbit_point, s) if self.env_now else None)
                 self.dart_world.setTimeStep(dt)
                 self.dart_world.step()
         self.elapsed += h
@@ -300,7 +302,7 @@ class OrbitalWorld:
         contacts, no joint stops): ``dv_W_base`` (6: classical linear acceleration of the base
         origin m/s^2, then angular acceleration rad/s^2, W axes) and ``qdd`` (URDF joint order)."""
         body = self.bodies[name]
-        a = body.forward_dynamics(self.reference(self.elapsed) if self.environment_on else None)
+        a = body.forward_dynamics((self.orbit_point, self.elapsed) if self.environment_on else None)
         if body.mimic:
             a = integration.hold_mimic(body, a)
         qdd = np.zeros(len(body.joints))
@@ -324,7 +326,7 @@ class OrbitalWorld:
         out = {
             "position": position,
             "orientation": body.orientation(R_base),
-            "twist": np.concatenate([velocities[3:6], velocities[:3]]),
+            "twist": velocities[TWIST_ORDER],
             "q": body.joint_positions(body.positions()),
             "qd": body.joint_velocities(velocities),
             "com": com,

@@ -269,12 +269,14 @@ def test_numba_kernels_are_compiled_at_instantiate_not_in_step_0(monkeypatch, en
     on, torques, drag) compile nothing more: the argument types were the steps' own."""
     import numba
 
-    from components.dynamics import link_forces, manifold_rk4, pinocchio_body
+    from components.dynamics import link_forces, manifold_rk4, pinocchio_kernels
 
-    names = {"dart": [(link_forces, "generalized_forces"), (manifold_rk4, "moved")],
-             "pinocchio": [(link_forces, "tree_generalized_forces"), (pinocchio_body, "pinocchio_inputs"),
-                           (pinocchio_body, "from_pinocchio")]}[engine]
-    names += [(manifold_rk4, "stage"), (manifold_rk4, "combine"), (link_forces, "propagate_reference")]
+    names = {"dart": [(link_forces, "generalized_forces"), (manifold_rk4, "moved"), (manifold_rk4, "stage"),
+                      (manifold_rk4, "combine")],
+             "pinocchio": [(link_forces, "tree_generalized_forces"), (pinocchio_kernels, "pinocchio_inputs"),
+                           (pinocchio_kernels, "from_pinocchio"), (pinocchio_kernels, "rk4_begin"),
+                           (pinocchio_kernels, "rk4_evaluation")]}[engine]     # (its stages: in these)
+    names += [(link_forces, "propagate_reference")]
     kernels = {}
     for module, name in names:
         kernels[name] = numba.njit(cache=True)(getattr(module, name).py_func)

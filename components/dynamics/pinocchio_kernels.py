@@ -1,0 +1,239 @@
+"""The compiled kernels of :mod:`components.dynamics.pinocchio_body`: the conversions between the
+world's coordinates and Pinocchio's (see that module's docstring), and the RK4 evaluations of a
+body that steps itself (``rk4_begin``, ``rk4_evaluation``: one call per evaluation, the stage
+arithmetic, the environment and Pinocchio's inputs in it; a call's cost grows with its arguments,
+so the body's arrays come in three pools, ``unpool``). numba, no fastmath: IEEE arithmetic, the
+same bits at every run.
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from components.dynamics import link_forces, manifold_rk4
+
+
+@numba.njit(cache=True)
+def to_pinocchio(x, v, Q, idx_q, nq, idx_v, rotation, q_pin, v_pin, tau_pin):
+    """Pinocchio's configuration, velocity and generalized forces from the world's coordinates
+    (written into q_pin, v_pin, tau_pin), and R_W_base into ``rotation``."""
+    m = manifold_rk4.exp_entries(x[0], x[1], x[2])
+    for i in range(3):
+        rotation[i, 0], rotation[i, 1], rotation[i, 2] = m[3 * i], m[3 * i + 1], m[3 * i + 2]
+    R = rotation
+    px, py, pz = x[0], x[1], x[2]
+    t = math.sqrt(px * px + py * py + pz * pz)
+    s = 0.5 - t * t / 48.0 if t < 1e-6 else math.sin(0.5 * t) / t     # sin(t/2) / t
+    q_pin[0], q_pin[1], q_pin[2] = x[3], x[4], x[5]
+    q_pin[3], q_pin[4], q_pin[5], q_pin[6] = s * px, s * py, s * pz, math.cos(0.5 * t)
+    for i in range(3):
+        vb, wb, fb, tb = 0.0, 0.0, 0.0, 0.0
+        for j in range(3):
+            vb += R[j, i] * v[3 + j]
+            wb += R[j, i] * v[j]
+            fb += R[j, i] * Q[3 + j]
+            tb += R[j, i] * Q[j]
+        v_pin[i], v_pin[3 + i], tau_pin[i], tau_pin[3 + i] = vb, wb, fb, tb
+    for i in range(idx_q.shape[0]):
+        k = 6 + i
+        if nq[i] == 1:
+            q_pin[idx_q[i]] = x[k]
+        else:
+            q_pin[idx_q[i]] = math.cos(x[k])
+            q_pin[idx_q[i] + 1] = math.sin(x[k])
+        v_pin[idx_v[i]] = v[k]
+        tau_pin[idx_v[i]] = Q[k]
+
+
+@numba.njit(cache=True)
+def form_stage(stage, c, a, q0, v0, work, x, v):
+    """The RK4 stage ``stage`` (1 to 3) from the step's start (q0, v0) and the last stage's
+    derivatives, or with ``stage`` 4 the step's end (h = c); into x, v. ``work`` (10, n) holds the
+    rates of stages 2 to 4 (rows 0-2, each written here), the accelerations a1 to a4 (rows 3-6:
+    ``a``, the last stage's, is written here) and xi (row 7; rows 8, 9: ``rk4_begin``'s). The
+    arithmetic of ``manifold_rk4.stage`` and ``combine``, in the same order (the same bits)."""
+    n = v0.shape[0]
+    work[2 + stage] = a
+    xi = work[7]
+    if stage < 4:
+        rate = v0 if stage == 1 else work[stage - 2]
+        for i in range(n):
+            xi[i] = c * rate[i]
+            v[i] = v0[i] + c * a[i]
+        next_rate = work[stage - 1]
+        next_rate[:] = v
+        next_rate[0], next_rate[1], next_rate[2] = manifold_rk4.rate_entries(xi, v)
+    else:
+        w = c / 6.0
+        for i in range(n):
+            xi[i] = w * (v0[i] + 2.0 * work[0, i] + 2.0 * work[1, i] + work[2, i])
+            v[i] = v0[i] + w * (work[3, i] + 2.0 * work[4, i] + 2.0 * work[5, i] + work[6, i])
+    manifold_rk4.move(q0, xi, x)
+
+
+@numba.njit(cache=True)
+def pinocchio_inputs(stage, c, a, q0, v0, work, x, v, tau, environment, point, s, joints, frames, links, link_joint,
+                     constants, atmosphere, wrenches, pin_index, rotation, buffer):
+    """One evaluation's inputs in one call (a call's cost grows with its arguments and every call
+    costs ~1 us: the RK4's stage arithmetic is here too): the state (``stage`` > 0: x, v formed by
+    ``form_stage``; 0: x, v as they are), the generalized forces (tau, plus with ``environment``
+    the orbital environment with the reference point s seconds after it was at ``point`` (R, V:
+    ``link_forces.propagate_reference``, here): ``link_forces.tree_generalized_forces``;
+    ``constants``: mu, the Earth's rate and radius, and the terms on (tidal, gravity gradient,
+    drag); it fills ``wrenches``: force, torque per link), and Pinocchio's q, v, tau, one after
+    the other in ``buffer`` (``to_pinocchio``; ``pin_index`` (3, n): idx_q, nq, idx_v of each
+    joint coordinate)."""
+    if stage:
+        form_stage(stage, c, a, q0, v0, work, x, v)
+    if environment:
+        R, V = link_forces.propagate_reference(point[0:3], point[3:6], s, constants[0])
+        Q = link_forces.tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, constants[0],
+                                                constants[3] != 0.0, constants[4] != 0.0, constants[5] != 0.0,
+                                                atmosphere, constants[1], constants[2], wrenches[0], wrenches[1])
+    else:
+        Q = tau
+    nq, nv = buffer.shape[0] - 2 * v.shape[0], v.shape[0]
+    to_pinocchio(x, v, Q, pin_index[0], pin_index[1], pin_index[2], rotation, buffer[:nq], buffer[nq:nq + nv],
+                 buffer[nq + nv:])
+
+
+@numba.njit(cache=True)
+def from_pinocchio(ddq, v_pin, rotation, idx_v, a):
+    """The world's accelerations (into ``a``, which it returns) from Pinocchio's (the free
+    flyer's spatial acceleration made classical)."""
+    vb0, vb1, vb2, w0, w1, w2 = v_pin[0], v_pin[1], v_pin[2], v_pin[3], v_pin[4], v_pin[5]
+    lin0, lin1, lin2 = ddq[0] + w1 * vb2 - w2 * vb1, ddq[1] + w2 * vb0 - w0 * vb2, ddq[2] + w0 * vb1 - w1 * vb0
+    for i in range(3):
+        a[i] = rotation[i, 0] * ddq[3] + rotation[i, 1] * ddq[4] + rotation[i, 2] * ddq[5]
+        a[3 + i] = rotation[i, 0] * lin0 + rotation[i, 1] * lin1 + rotation[i, 2] * lin2
+    for i in range(idx_v.shape[0]):
+        a[6 + i] = ddq[idx_v[i]]
+    return a
+
+
+@numba.njit(cache=True)
+def unpool(ints, model, scratch, nv):
+    """The body's arrays from its three pools (``PinocchioBody.pool``): joints, link_joint,
+    pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work (10, nv: the
+    rates and accelerations of ``form_stage``, xi, then the step's q0 and v0) and the step's
+    values (environment, h, s, the reference point)."""
+    nj, nl, m, b, nq = ints[0], ints[1], ints[2], ints[3], ints[4]
+    joints = ints[5:5 + 3 * nj].reshape((nj, 3))
+    o = 5 + 3 * nj
+    link_joint = ints[o:o + nl]
+    pin_index = ints[o + nl:o + nl + 3 * m].reshape((3, m))
+    frames = model[:15 * nj].reshape((nj, 15))
+    o = 15 * nj
+    links = model[o:o + 14 * nl].reshape((nl, 14))
+    o += 14 * nl
+    constants = model[o:o + 6]
+    atmosphere = model[o + 6:o + 6 + 3 * b].reshape((3, b))
+    wrenches = scratch[:6 * nl].reshape((2, nl, 3))
+    o = 6 * nl
+    rotation = scratch[o:o + 9].reshape((3, 3))
+    buffer = scratch[o + 9:o + 9 + nq + 2 * nv]
+    o += 9 + nq + 2 * nv
+    work = scratch[o:o + 10 * nv].reshape((10, nv))
+    step = scratch[o + 10 * nv:o + 10 * nv + 9]
+    return joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step
+
+
+@numba.njit(cache=True)
+def rk4_begin(ints, model, scratch, tau, x, v, environment, point, h, s):
+    """Evaluation 0 of an RK4 step of h seconds from s seconds after the orbit inputs, at (x, v),
+    with the environment at ``point`` (``pinocchio_inputs``); keeps the step's start and values
+    for ``rk4_evaluation``. The body's arrays in three pools (``PinocchioBody.pool``): a call's
+    cost grows with its arguments."""
+    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step = \
+        unpool(ints, model, scratch, v.shape[0])
+    work[8] = x
+    work[9] = v
+    step[0], step[1], step[2] = 1.0 if environment else 0.0, h, s
+    if environment:
+        step[3:9] = point
+    pinocchio_inputs(0, 0.0, v, x, v, work, x, v, tau, environment, point, s, joints, frames, links, link_joint,
+                     constants, atmosphere, wrenches, pin_index, rotation, buffer)
+
+
+@numba.njit(cache=True)
+def rk4_evaluation(ints, model, scratch, tau, stage, ddq, x, v):
+    """Evaluation ``stage`` (1 to 3) of the RK4 step ``rk4_begin`` began, or with ``stage`` 4 its
+    end, into (x, v): the last evaluation's accelerations from Pinocchio's ``ddq``
+    (``from_pinocchio``, at the q, v, rotation still in ``buffer``), then ``pinocchio_inputs`` at
+    the stage (the environment at its time; none at the end, which is only formed). With
+    ``rk4_begin``, one call per evaluation and no other (``PinocchioBody.rk4_step``)."""
+    nv = v.shape[0]
+    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step = \
+        unpool(ints, model, scratch, nv)
+    nq = ints[4]
+    h, s = step[1], step[2]
+    a = from_pinocchio(ddq, buffer[nq:nq + nv], rotation, pin_index[2], work[2 + stage])
+    c = 0.5 * h if stage < 3 else h
+    pinocchio_inputs(stage, c, a, work[8], work[9], work, x, v, tau, step[0] != 0.0 and stage < 4, step[3:9], s + c,
+                     joints, frames, links, link_joint, constants, atmosphere, wrenches, pin_index, rotation, buffer)
+
+
+@numba.njit(cache=True)
+def velocity_map(rotation, idx_v, nv):
+    """T (nv, n): v_pin = T v, from the world's coordinates to Pinocchio's velocity (orthogonal)."""
+    T = np.zeros((nv, 6 + idx_v.shape[0]))
+    for i in range(3):
+        for k in range(3):
+            T[i, 3 + k] = rotation[k, i]                  # v_b = R^T v
+            T[3 + i, k] = rotation[k, i]                  # omega_b = R^T omega
+    for m in range(idx_v.shape[0]):
+        T[idx_v[m], 6 + m] = 1.0
+    return T
+
+
+@numba.njit(cache=True)
+def world_inverse_mass(upper, rotation, idx_v):
+    """The world's M^-1 = T^T M_pin^-1 T from the upper triangle Pinocchio fills."""
+    nv = upper.shape[0]
+    M = np.empty((nv, nv))
+    for i in range(nv):
+        for j in range(i, nv):
+            M[i, j] = M[j, i] = upper[i, j]
+    T = velocity_map(rotation, idx_v, nv)
+    return T.T @ M @ T
+
+
+@numba.njit(cache=True)
+def world_point_jacobian(J, r, rotation, idx_v):
+    """(6, n) (angular; linear) over the world's coordinates, of a point at r (W) from a frame's
+    origin, from the frame's Jacobian J (6, nv: linear; angular, world axes, Pinocchio's velocity)."""
+    nv = J.shape[1]
+    point = np.empty((6, nv))
+    for c in range(nv):
+        w0, w1, w2 = J[3, c], J[4, c], J[5, c]
+        point[0, c], point[1, c], point[2, c] = w0, w1, w2
+        point[3, c] = J[0, c] - (r[1] * w2 - r[2] * w1)     # v + omega x r
+        point[4, c] = J[1, c] - (r[2] * w0 - r[0] * w2)
+        point[5, c] = J[2, c] - (r[0] * w1 - r[1] * w0)
+    return point @ velocity_map(rotation, idx_v, nv)
+
+
+@numba.njit(cache=True)
+def zero_world_acceleration(v_pin):
+    """Pinocchio's acceleration where the world's is zero: (dv_b/dt, domega_b/dt) = (-omega_b x v_b, 0),
+    joints 0 (v_b = R^T v: d(v_b)/dt = R^T dv/dt - omega_b x v_b)."""
+    a = np.zeros(v_pin.shape[0])
+    a[0] = -(v_pin[4] * v_pin[2] - v_pin[5] * v_pin[1])
+    a[1] = -(v_pin[5] * v_pin[0] - v_pin[3] * v_pin[2])
+    a[2] = -(v_pin[3] * v_pin[1] - v_pin[4] * v_pin[0])
+    return a
+
+
+@numba.njit(cache=True)
+def point_acceleration(linear, alpha, w, r):
+    """(alpha; a + alpha x r + w x (w x r)): the acceleration of a point at r from a frame's origin
+    whose classical acceleration is a, angular acceleration alpha, angular velocity w (all W)."""
+    out = np.empty(6)
+    wr = np.array([w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2], w[0] * r[1] - w[1] * r[0]])
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        out[i] = alpha[i]
+        out[3 + i] = linear[i] + (alpha[j] * r[k] - alpha[k] * r[j]) + (w[j] * wr[k] - w[k] * wr[j])
+    return out

@@ -51,7 +51,10 @@ def compile_kernels(world: "OrbitalWorld") -> None:
             body.forward_dynamics(None)
             body.rk4_step(1.0, (np.concatenate([R, V]), 0.5))
             body.rk4_step(1.0, None)
-            body.inverse_mass()                     # (limit stops, mimic joints, a grasp)
+            try:
+                body.inverse_mass()                 # (limit stops, mimic joints, a grasp)
+            except np.linalg.LinAlgError:
+                pass   # singular at zero q (a massless link a joint moves, warned at check): compiled at first use
             body.point_jacobian(body.link_names[0], zeros[:3])
             body.point_bias(body.link_names[0], zeros[:3])
         body.set_state(*state)

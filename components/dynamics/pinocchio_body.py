@@ -60,7 +60,6 @@ class PinocchioBody(Body):
             pm = full
         pm.gravity = pin.Motion.Zero()
         self.pm, self.data = pm, pm.createData()
-        self.data_com = self.data.com                  # (a view of data's vector: its size is the model's)
         joints = [pm.joints[pm.getJointId(j)] for j in self.free_joints]
         self.idx_q = np.array([j.idx_q for j in joints], dtype=np.int64)
         self.nq = np.array([j.nq for j in joints], dtype=np.int64)
@@ -111,23 +110,24 @@ class PinocchioBody(Body):
         self.buffer = np.concatenate([pin.neutral(pm), np.zeros(2 * pm.nv)])
         self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [pm.nq, pm.nq + pm.nv])   # views
         self.step_values = np.zeros(9)                        # (rk4_begin's: environment, h, s, point)
+        self.centroid = np.zeros(12)                          # (kernels.centroidal's: CoM, its velocity, momentum)
         self.pool()
         self.begin = functools.partial(kernels.rk4_begin, self.ints, self.model_values, self.scratch, self.tau)
         self.evaluate = functools.partial(kernels.rk4_evaluation, self.ints, self.model_values, self.scratch, self.tau)
         self.synced = False                                    # q_pin, v_pin, rotation hold x, v
-        self.centroidal = False                                # data holds the centroidal momentum there
+        self.centroidal = False                                # centroid holds the CoM and momentum there
         self.jacobians = False                                 # data holds the joints' Jacobians there
 
     def pool(self) -> None:
         """The fixed arrays made views of three (``rk4_evaluation`` takes those): ints (nj, links,
         joints, atmosphere bands, nq; tree_joints, link_joint, pin_index), model values
         (tree_frames, tree_links, constants, atmosphere), scratch (wrenches, rotation, buffer, work,
-        step_values); see ``unpool``."""
+        step_values, centroid); see ``unpool``."""
         header = [len(self.tree_joints), len(self.link_joint), self.pin_index.shape[1], self.atmosphere.shape[1],
                   len(self.q_pin)]
         for pool, names in (("ints", ("tree_joints", "link_joint", "pin_index")),
                             ("model_values", ("tree_frames", "tree_links", "constants", "atmosphere")),
-                            ("scratch", ("wrenches", "rotation", "buffer", "work", "step_values"))):
+                            ("scratch", ("wrenches", "rotation", "buffer", "work", "step_values", "centroid"))):
             arrays = [getattr(self, name) for name in names]
             start = [np.array(header, dtype=np.int64)] if pool == "ints" else []
             values = np.concatenate(start + [a.ravel() for a in arrays])
@@ -230,24 +230,22 @@ class PinocchioBody(Body):
         q = self.q_pin[3:7].copy()
         return -q if q[3] < 0.0 else q
 
-    def _centroidal(self):
-        if not self.synced:
+    def _centroidal(self) -> np.ndarray:
+        if self.stage:
             self._sync()
         if not self.centroidal:
-            self.hg = self.pin.computeCentroidalMomentum(self.pm, self.data, self.q_pin, self.v_pin)
+            kernels.centroidal(self.ints, self.model_values, self.scratch, self.x, self.v)
             self.centroidal = True
-        return self.data
+        return self.centroid
 
     def com(self) -> np.ndarray:
-        self._centroidal()
-        return self.data_com[0].copy()          # (data.com fetched once: each fetch costs a microsecond)
+        return self._centroidal()[0:3].copy()
 
     def com_velocity(self) -> np.ndarray:
-        return self._centroidal().vcom[0].copy()
+        return self._centroidal()[3:6].copy()
 
     def momentum(self, com=None, base_position=None) -> np.ndarray:
-        self._centroidal()
-        return self.hg.vector.copy()             # (linear, angular about the CoM), W axes
+        return self._centroidal()[6:12].copy()             # (linear, angular about the CoM), W axes
 
     def _frames(self) -> None:
         if not self.synced:

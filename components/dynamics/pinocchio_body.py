@@ -189,8 +189,8 @@ class PinocchioBody(Body):
         evaluate(2, aba(pm, data, q_pin, v_pin, tau_pin), x, v)
         evaluate(3, aba(pm, data, q_pin, v_pin, tau_pin), x, v)
         self.x, self.v = np.empty(self.ndofs), np.empty(self.ndofs)
-        evaluate(4, aba(pm, data, q_pin, v_pin, tau_pin), self.x, self.v)
-        self.stage, self.synced, self.centroidal, self.jacobians = 0, True, False, False
+        evaluate(4, aba(pm, data, q_pin, v_pin, tau_pin), self.x, self.v)    # (and the centroid)
+        self.stage, self.synced, self.centroidal, self.jacobians = 0, True, True, False
 
     # -- dynamics
     def _sync(self) -> None:

@@ -142,11 +142,17 @@ def unpool(ints, model, scratch, nv):
 
 @numba.njit(cache=True)
 def centroidal(ints, model, scratch, x, v):
-    """The body's CoM, its velocity and the momentum (linear, angular about the CoM), W, at (x, v)
-    into the scratch pool's last 12 values (``PinocchioBody.pool``): forward kinematics over the
-    tree (``link_forces.tree_kinematics``), then per link with mass m, CoM c, inertia I (about c,
-    W axes) and angular velocity w: p = sum m v_c, L = sum (I w + m (c - com) x v_c)."""
+    """``tree_centroidal`` at (x, v) into the scratch pool's last 12 values (``PinocchioBody.pool``)."""
     joints, link_joint, _, frames, links, _, _, _, _, _, _, _ = unpool(ints, model, scratch, v.shape[0])
+    tree_centroidal(x, v, joints, frames, links, link_joint, scratch[scratch.shape[0] - 12:])
+
+
+@numba.njit(cache=True)
+def tree_centroidal(x, v, joints, frames, links, link_joint, out):
+    """The body's CoM, its velocity and the momentum (linear, angular about the CoM), W, at (x, v)
+    into ``out`` (12): forward kinematics over the tree (``link_forces.tree_kinematics``), then per
+    link with mass m, CoM c, inertia I (about c, W axes) and angular velocity w: p = sum m v_c,
+    L = sum (I w + m (c - com) x v_c)."""
     nj, nl = joints.shape[0], link_joint.shape[0]
     block = np.zeros(21 * nj + 12 * nl + 24)
     per_joint = block[:12 * nj].reshape((4, nj, 3))
@@ -154,7 +160,6 @@ def centroidal(ints, model, scratch, x, v):
     link_values = block[21 * nj:21 * nj + 12 * nl].reshape((nl, 4, 3))     # per link: c, v_c, I w, R^T w
     link_forces.tree_kinematics(x, v, joints, frames, True, rotation, per_joint[0], per_joint[1], per_joint[2],
                                 per_joint[3], block[21 * nj + 12 * nl:21 * nj + 12 * nl + 24])
-    out = scratch[scratch.shape[0] - 12:]
     out[:] = 0.0
     mass = 0.0
     for n in range(nl):
@@ -214,7 +219,8 @@ def rk4_evaluation(ints, model, scratch, tau, stage, ddq, x, v):
     """Evaluation ``stage`` (1 to 3) of the RK4 step ``rk4_begin`` began, or with ``stage`` 4 its
     end, into (x, v): the last evaluation's accelerations from Pinocchio's ``ddq``
     (``from_pinocchio``, at the q, v, rotation still in ``buffer``), then ``pinocchio_inputs`` at
-    the stage (the environment at its time; none at the end, which is only formed). With
+    the stage (the environment at its time; none at the end, which is only formed, with its CoM
+    and momentum: ``tree_centroidal``). With
     ``rk4_begin``, one call per evaluation and no other (``PinocchioBody.rk4_step``)."""
     nv = v.shape[0]
     joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step = \
@@ -225,6 +231,8 @@ def rk4_evaluation(ints, model, scratch, tau, stage, ddq, x, v):
     c = 0.5 * h if stage < 3 else h
     pinocchio_inputs(stage, c, a, work[8], work[9], work, x, v, tau, step[0] != 0.0 and stage < 4, step[3:9], s + c,
                      joints, frames, links, link_joint, constants, atmosphere, wrenches, pin_index, rotation, buffer)
+    if stage == 4:                                # the outputs' CoM and momentum at the end, in the same call
+        tree_centroidal(x, v, joints, frames, links, link_joint, scratch[scratch.shape[0] - 12:])
 
 
 @numba.njit(cache=True)

@@ -37,6 +37,7 @@ from components.robots.urdf import UrdfModel
 from components.rotations import matrix_to_quat
 
 FRAMES = ("world", "lvlh")
+TWIST_ORDER = np.array([3, 4, 5, 0, 1, 2])      # (omega, v) coordinates -> the twist output (v, omega)
 DEFAULT_CD = 2.2
 
 
@@ -278,6 +279,22 @@ class Body:
     def orientation(self, R: np.ndarray) -> np.ndarray:
         """q_W_base [x, y, z, w], w >= 0, of the base's attitude R (from ``base_pose``)."""
         return matrix_to_quat(R)
+
+    def state_outputs(self) -> dict[str, np.ndarray]:
+        """The body's outputs at the current state (new arrays): position, orientation, twist, q,
+        qd, com, momentum (see the component's table)."""
+        R_base, position = self.base_pose()
+        velocities = self.velocities()
+        com = self.com()
+        return {
+            "position": position,
+            "orientation": self.orientation(R_base),
+            "twist": velocities[TWIST_ORDER],
+            "q": self.joint_positions(self.positions()),
+            "qd": self.joint_velocities(velocities),
+            "com": com,
+            "momentum": self.momentum(com, position),
+        }
 
     def com(self) -> np.ndarray:
         raise NotImplementedError

@@ -110,24 +110,24 @@ class PinocchioBody(Body):
         self.buffer = np.concatenate([pin.neutral(pm), np.zeros(2 * pm.nv)])
         self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [pm.nq, pm.nq + pm.nv])   # views
         self.step_values = np.zeros(9)                        # (rk4_begin's: environment, h, s, point)
-        self.centroid = np.zeros(12)                          # (kernels.centroidal's: CoM, its velocity, momentum)
+        self.summary = np.zeros(25)                           # (kernels.body_summary's: pose, twist, CoM, momentum)
         self.pool()
         self.begin = functools.partial(kernels.rk4_begin, self.ints, self.model_values, self.scratch, self.tau)
         self.evaluate = functools.partial(kernels.rk4_evaluation, self.ints, self.model_values, self.scratch, self.tau)
         self.synced = False                                    # q_pin, v_pin, rotation hold x, v
-        self.centroidal = False                                # centroid holds the CoM and momentum there
+        self.summarized = False                                # summary holds the outputs there
         self.jacobians = False                                 # data holds the joints' Jacobians there
 
     def pool(self) -> None:
         """The fixed arrays made views of three (``rk4_evaluation`` takes those): ints (nj, links,
         joints, atmosphere bands, nq; tree_joints, link_joint, pin_index), model values
         (tree_frames, tree_links, constants, atmosphere), scratch (wrenches, rotation, buffer, work,
-        step_values, centroid); see ``unpool``."""
+        step_values, summary); see ``unpool``."""
         header = [len(self.tree_joints), len(self.link_joint), self.pin_index.shape[1], self.atmosphere.shape[1],
                   len(self.q_pin)]
         for pool, names in (("ints", ("tree_joints", "link_joint", "pin_index")),
                             ("model_values", ("tree_frames", "tree_links", "constants", "atmosphere")),
-                            ("scratch", ("wrenches", "rotation", "buffer", "work", "step_values", "centroid"))):
+                            ("scratch", ("wrenches", "rotation", "buffer", "work", "step_values", "summary"))):
             arrays = [getattr(self, name) for name in names]
             start = [np.array(header, dtype=np.int64)] if pool == "ints" else []
             values = np.concatenate(start + [a.ravel() for a in arrays])
@@ -189,8 +189,8 @@ class PinocchioBody(Body):
         evaluate(2, aba(pm, data, q_pin, v_pin, tau_pin), x, v)
         evaluate(3, aba(pm, data, q_pin, v_pin, tau_pin), x, v)
         self.x, self.v = np.empty(self.ndofs), np.empty(self.ndofs)
-        evaluate(4, aba(pm, data, q_pin, v_pin, tau_pin), self.x, self.v)    # (and the centroid)
-        self.stage, self.synced, self.centroidal, self.jacobians = 0, True, True, False
+        evaluate(4, aba(pm, data, q_pin, v_pin, tau_pin), self.x, self.v)    # (and the summary)
+        self.stage, self.synced, self.summarized, self.jacobians = 0, True, True, False
 
     # -- dynamics
     def _sync(self) -> None:
@@ -199,7 +199,7 @@ class PinocchioBody(Body):
                                  self.tau, False, NO_STAGE, 0.0, self.tree_joints, self.tree_frames, self.tree_links,
                                  self.link_joint, self.constants, self.atmosphere, self.wrenches, self.pin_index,
                                  self.rotation, self.buffer)
-        self.stage, self.synced, self.centroidal, self.jacobians = 0, True, False, False
+        self.stage, self.synced, self.summarized, self.jacobians = 0, True, False, False
 
     def forward_dynamics(self, reference) -> np.ndarray:
         point, s = (NO_STAGE, 0.0) if reference is None else reference    # (_sync inlined: four times a step)
@@ -207,7 +207,7 @@ class PinocchioBody(Body):
                                  self.tau, reference is not None, point, float(s), self.tree_joints, self.tree_frames,
                                  self.tree_links, self.link_joint, self.constants, self.atmosphere, self.wrenches,
                                  self.pin_index, self.rotation, self.buffer)
-        self.stage, self.synced, self.centroidal, self.jacobians = 0, True, False, False
+        self.stage, self.synced, self.summarized, self.jacobians = 0, True, False, False
         ddq = self.pin.aba(self.pm, self.data, self.q_pin, self.v_pin, self.tau_pin)
         return kernels.from_pinocchio(ddq, self.v_pin, self.rotation, self.idx_v, np.empty(self.ndofs))
 
@@ -230,22 +230,27 @@ class PinocchioBody(Body):
         q = self.q_pin[3:7].copy()
         return -q if q[3] < 0.0 else q
 
-    def _centroidal(self) -> np.ndarray:
-        if self.stage:
+    def _summary(self) -> np.ndarray:
+        if not self.synced:
             self._sync()
-        if not self.centroidal:
-            kernels.centroidal(self.ints, self.model_values, self.scratch, self.x, self.v)
-            self.centroidal = True
-        return self.centroid
+        if not self.summarized:
+            kernels.summary(self.ints, self.model_values, self.scratch, self.x, self.v)
+            self.summarized = True
+        return self.summary
+
+    def state_outputs(self) -> dict[str, np.ndarray]:
+        o = self._summary().copy()
+        return {"position": o[0:3], "orientation": o[3:7], "twist": o[7:13], "q": self.joint_positions(self.x),
+                "qd": self.joint_velocities(self.v), "com": o[13:16], "momentum": o[19:25]}
 
     def com(self) -> np.ndarray:
-        return self._centroidal()[0:3].copy()
+        return self._summary()[13:16].copy()
 
     def com_velocity(self) -> np.ndarray:
-        return self._centroidal()[3:6].copy()
+        return self._summary()[16:19].copy()
 
     def momentum(self, com=None, base_position=None) -> np.ndarray:
-        return self._centroidal()[6:12].copy()             # (linear, angular about the CoM), W axes
+        return self._summary()[19:25].copy()             # (linear, angular about the CoM), W axes
 
     def _frames(self) -> None:
         if not self.synced:

@@ -16,6 +16,14 @@ from components.dynamics import link_forces, manifold_rk4
 
 
 @numba.njit(cache=True)
+def quaternion_entries(px, py, pz):
+    """The quaternion [x, y, z, w] of the rotation vector (px, py, pz), w = cos(|phi|/2)."""
+    t = math.sqrt(px * px + py * py + pz * pz)
+    s = 0.5 - t * t / 48.0 if t < 1e-6 else math.sin(0.5 * t) / t     # sin(t/2) / t
+    return s * px, s * py, s * pz, math.cos(0.5 * t)
+
+
+@numba.njit(cache=True)
 def to_pinocchio(x, v, Q, idx_q, nq, idx_v, rotation, q_pin, v_pin, tau_pin):
     """Pinocchio's configuration, velocity and generalized forces from the world's coordinates
     (written into q_pin, v_pin, tau_pin), and R_W_base into ``rotation``."""
@@ -23,11 +31,8 @@ def to_pinocchio(x, v, Q, idx_q, nq, idx_v, rotation, q_pin, v_pin, tau_pin):
     for i in range(3):
         rotation[i, 0], rotation[i, 1], rotation[i, 2] = m[3 * i], m[3 * i + 1], m[3 * i + 2]
     R = rotation
-    px, py, pz = x[0], x[1], x[2]
-    t = math.sqrt(px * px + py * py + pz * pz)
-    s = 0.5 - t * t / 48.0 if t < 1e-6 else math.sin(0.5 * t) / t     # sin(t/2) / t
     q_pin[0], q_pin[1], q_pin[2] = x[3], x[4], x[5]
-    q_pin[3], q_pin[4], q_pin[5], q_pin[6] = s * px, s * py, s * pz, math.cos(0.5 * t)
+    q_pin[3], q_pin[4], q_pin[5], q_pin[6] = quaternion_entries(x[0], x[1], x[2])
     for i in range(3):
         vb, wb, fb, tb = 0.0, 0.0, 0.0, 0.0
         for j in range(3):
@@ -141,10 +146,23 @@ def unpool(ints, model, scratch, nv):
 
 
 @numba.njit(cache=True)
-def centroidal(ints, model, scratch, x, v):
-    """``tree_centroidal`` at (x, v) into the scratch pool's last 12 values (``PinocchioBody.pool``)."""
+def summary(ints, model, scratch, x, v):
+    """``body_summary`` at (x, v) into the scratch pool's last 25 values (``PinocchioBody.pool``)."""
     joints, link_joint, _, frames, links, _, _, _, _, _, _, _ = unpool(ints, model, scratch, v.shape[0])
-    tree_centroidal(x, v, joints, frames, links, link_joint, scratch[scratch.shape[0] - 12:])
+    body_summary(x, v, joints, frames, links, link_joint, scratch[scratch.shape[0] - 25:])
+
+
+@numba.njit(cache=True)
+def body_summary(x, v, joints, frames, links, link_joint, out):
+    """The body's outputs at (x, v) into ``out`` (25): base position, quaternion (w >= 0), twist
+    (v, omega), then ``tree_centroidal``'s CoM, its velocity, momentum."""
+    out[0], out[1], out[2] = x[3], x[4], x[5]
+    qx, qy, qz, qw = quaternion_entries(x[0], x[1], x[2])
+    if qw < 0.0:
+        qx, qy, qz, qw = -qx, -qy, -qz, -qw
+    out[3], out[4], out[5], out[6] = qx, qy, qz, qw
+    out[7], out[8], out[9], out[10], out[11], out[12] = v[3], v[4], v[5], v[0], v[1], v[2]
+    tree_centroidal(x, v, joints, frames, links, link_joint, out[13:25])
 
 
 @numba.njit(cache=True)
@@ -219,8 +237,8 @@ def rk4_evaluation(ints, model, scratch, tau, stage, ddq, x, v):
     """Evaluation ``stage`` (1 to 3) of the RK4 step ``rk4_begin`` began, or with ``stage`` 4 its
     end, into (x, v): the last evaluation's accelerations from Pinocchio's ``ddq``
     (``from_pinocchio``, at the q, v, rotation still in ``buffer``), then ``pinocchio_inputs`` at
-    the stage (the environment at its time; none at the end, which is only formed, with its CoM
-    and momentum: ``tree_centroidal``). With
+    the stage (the environment at its time; none at the end, which is only formed, with the
+    body's outputs there: ``body_summary``). With
     ``rk4_begin``, one call per evaluation and no other (``PinocchioBody.rk4_step``)."""
     nv = v.shape[0]
     joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step = \
@@ -231,8 +249,8 @@ def rk4_evaluation(ints, model, scratch, tau, stage, ddq, x, v):
     c = 0.5 * h if stage < 3 else h
     pinocchio_inputs(stage, c, a, work[8], work[9], work, x, v, tau, step[0] != 0.0 and stage < 4, step[3:9], s + c,
                      joints, frames, links, link_joint, constants, atmosphere, wrenches, pin_index, rotation, buffer)
-    if stage == 4:                                # the outputs' CoM and momentum at the end, in the same call
-        tree_centroidal(x, v, joints, frames, links, link_joint, scratch[scratch.shape[0] - 12:])
+    if stage == 4:                                # the outputs at the end, in the same call
+        body_summary(x, v, joints, frames, links, link_joint, scratch[scratch.shape[0] - 25:])
 
 
 @numba.njit(cache=True)

@@ -112,22 +112,22 @@ class PinocchioBody(Body):
         self.step_values = np.zeros(9)                        # (rk4_begin's: environment, h, s, point)
         self.summary = np.zeros(25)                           # (kernels.body_summary's: pose, twist, CoM, momentum)
         self.pool()
-        self.begin = functools.partial(kernels.rk4_begin, self.ints, self.model_values, self.scratch, self.tau)
-        self.evaluate = functools.partial(kernels.rk4_evaluation, self.ints, self.model_values, self.scratch, self.tau)
+        self.begin = functools.partial(kernels.rk4_begin, self.ints, self.values)
+        self.evaluate = functools.partial(kernels.rk4_evaluation, self.ints, self.values)
         self.synced = False                                    # q_pin, v_pin, rotation hold x, v
         self.summarized = False                                # summary holds the outputs there
         self.jacobians = False                                 # data holds the joints' Jacobians there
 
     def pool(self) -> None:
-        """The fixed arrays made views of three (``rk4_evaluation`` takes those): ints (nj, links,
-        joints, atmosphere bands, nq; tree_joints, link_joint, pin_index), model values
-        (tree_frames, tree_links, constants, atmosphere), scratch (wrenches, rotation, buffer, work,
-        step_values, summary); see ``unpool``."""
+        """The fixed arrays made views of two (``rk4_evaluation`` takes those: a call's cost grows
+        with its arguments): ints (nj, links, joints, atmosphere bands, nq; tree_joints, link_joint,
+        pin_index) and values (the model's tree_frames, tree_links, constants, atmosphere; then
+        wrenches, rotation, buffer, work, step_values, tau, summary); see ``unpool``."""
         header = [len(self.tree_joints), len(self.link_joint), self.pin_index.shape[1], self.atmosphere.shape[1],
                   len(self.q_pin)]
         for pool, names in (("ints", ("tree_joints", "link_joint", "pin_index")),
-                            ("model_values", ("tree_frames", "tree_links", "constants", "atmosphere")),
-                            ("scratch", ("wrenches", "rotation", "buffer", "work", "step_values", "summary"))):
+                            ("values", ("tree_frames", "tree_links", "constants", "atmosphere", "wrenches", "rotation",
+                                        "buffer", "work", "step_values", "tau", "summary"))):
             arrays = [getattr(self, name) for name in names]
             start = [np.array(header, dtype=np.int64)] if pool == "ints" else []
             values = np.concatenate(start + [a.ravel() for a in arrays])
@@ -234,7 +234,7 @@ class PinocchioBody(Body):
         if not self.synced:
             self._sync()
         if not self.summarized:
-            kernels.summary(self.ints, self.model_values, self.scratch, self.x, self.v)
+            kernels.summary(self.ints, self.values, self.x, self.v)
             self.summarized = True
         return self.summary
 

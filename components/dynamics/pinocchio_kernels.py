@@ -2,7 +2,7 @@
 world's coordinates and Pinocchio's (see that module's docstring), and the RK4 evaluations of a
 body that steps itself (``rk4_begin``, ``rk4_evaluation``: one call per evaluation, the stage
 arithmetic, the environment and Pinocchio's inputs in it; a call's cost grows with its arguments,
-so the body's arrays come in three pools, ``unpool``). numba, no fastmath: IEEE arithmetic, the
+so the body's arrays come in two pools, ``unpool``). numba, no fastmath: IEEE arithmetic, the
 same bits at every run.
 """
 from __future__ import annotations
@@ -119,37 +119,42 @@ def from_pinocchio(ddq, v_pin, rotation, idx_v, a):
 
 
 @numba.njit(cache=True)
-def unpool(ints, model, scratch, nv):
-    """The body's arrays from its three pools (``PinocchioBody.pool``): joints, link_joint,
+def unpool(ints, values, nv):
+    """The body's arrays from its two pools (``PinocchioBody.pool``): joints, link_joint,
     pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work (10, nv: the
-    rates and accelerations of ``form_stage``, xi, then the step's q0 and v0) and the step's
-    values (environment, h, s, the reference point)."""
+    rates and accelerations of ``form_stage``, xi, then the step's q0 and v0), the step's values
+    (environment, h, s, the reference point), tau and the summary (``body_summary``)."""
     nj, nl, m, b, nq = ints[0], ints[1], ints[2], ints[3], ints[4]
     joints = ints[5:5 + 3 * nj].reshape((nj, 3))
     o = 5 + 3 * nj
     link_joint = ints[o:o + nl]
     pin_index = ints[o + nl:o + nl + 3 * m].reshape((3, m))
-    frames = model[:15 * nj].reshape((nj, 15))
+    frames = values[:15 * nj].reshape((nj, 15))
     o = 15 * nj
-    links = model[o:o + 14 * nl].reshape((nl, 14))
+    links = values[o:o + 14 * nl].reshape((nl, 14))
     o += 14 * nl
-    constants = model[o:o + 6]
-    atmosphere = model[o + 6:o + 6 + 3 * b].reshape((3, b))
-    wrenches = scratch[:6 * nl].reshape((2, nl, 3))
-    o = 6 * nl
-    rotation = scratch[o:o + 9].reshape((3, 3))
-    buffer = scratch[o + 9:o + 9 + nq + 2 * nv]
+    constants = values[o:o + 6]
+    atmosphere = values[o + 6:o + 6 + 3 * b].reshape((3, b))
+    o += 6 + 3 * b
+    wrenches = values[o:o + 6 * nl].reshape((2, nl, 3))
+    o += 6 * nl
+    rotation = values[o:o + 9].reshape((3, 3))
+    buffer = values[o + 9:o + 9 + nq + 2 * nv]
     o += 9 + nq + 2 * nv
-    work = scratch[o:o + 10 * nv].reshape((10, nv))
-    step = scratch[o + 10 * nv:o + 10 * nv + 9]
-    return joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step
+    work = values[o:o + 10 * nv].reshape((10, nv))
+    o += 10 * nv
+    step = values[o:o + 9]
+    tau = values[o + 9:o + 9 + nv]
+    summary = values[o + 9 + nv:o + 34 + nv]
+    return (joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step,
+            tau, summary)
 
 
 @numba.njit(cache=True)
-def summary(ints, model, scratch, x, v):
-    """``body_summary`` at (x, v) into the scratch pool's last 25 values (``PinocchioBody.pool``)."""
-    joints, link_joint, _, frames, links, _, _, _, _, _, _, _ = unpool(ints, model, scratch, v.shape[0])
-    body_summary(x, v, joints, frames, links, link_joint, scratch[scratch.shape[0] - 25:])
+def summary(ints, values, x, v):
+    """``body_summary`` at (x, v) into the pool's summary (``PinocchioBody.pool``)."""
+    joints, link_joint, _, frames, links, _, _, _, _, _, _, _, _, summary = unpool(ints, values, v.shape[0])
+    body_summary(x, v, joints, frames, links, link_joint, summary)
 
 
 @numba.njit(cache=True)
@@ -216,13 +221,13 @@ def tree_centroidal(x, v, joints, frames, links, link_joint, out):
 
 
 @numba.njit(cache=True)
-def rk4_begin(ints, model, scratch, tau, x, v, environment, point, h, s):
+def rk4_begin(ints, values, x, v, environment, point, h, s):
     """Evaluation 0 of an RK4 step of h seconds from s seconds after the orbit inputs, at (x, v),
     with the environment at ``point`` (``pinocchio_inputs``); keeps the step's start and values
-    for ``rk4_evaluation``. The body's arrays in three pools (``PinocchioBody.pool``): a call's
+    for ``rk4_evaluation``. The body's arrays in two pools (``PinocchioBody.pool``): a call's
     cost grows with its arguments."""
-    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step = \
-        unpool(ints, model, scratch, v.shape[0])
+    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step, tau, \
+        _ = unpool(ints, values, v.shape[0])
     work[8] = x
     work[9] = v
     step[0], step[1], step[2] = 1.0 if environment else 0.0, h, s
@@ -233,7 +238,7 @@ def rk4_begin(ints, model, scratch, tau, x, v, environment, point, h, s):
 
 
 @numba.njit(cache=True)
-def rk4_evaluation(ints, model, scratch, tau, stage, ddq, x, v):
+def rk4_evaluation(ints, values, stage, ddq, x, v):
     """Evaluation ``stage`` (1 to 3) of the RK4 step ``rk4_begin`` began, or with ``stage`` 4 its
     end, into (x, v): the last evaluation's accelerations from Pinocchio's ``ddq``
     (``from_pinocchio``, at the q, v, rotation still in ``buffer``), then ``pinocchio_inputs`` at
@@ -241,8 +246,8 @@ def rk4_evaluation(ints, model, scratch, tau, stage, ddq, x, v):
     body's outputs there: ``body_summary``). With
     ``rk4_begin``, one call per evaluation and no other (``PinocchioBody.rk4_step``)."""
     nv = v.shape[0]
-    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step = \
-        unpool(ints, model, scratch, nv)
+    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step, tau, \
+        summary = unpool(ints, values, nv)
     nq = ints[4]
     h, s = step[1], step[2]
     a = from_pinocchio(ddq, buffer[nq:nq + nv], rotation, pin_index[2], work[2 + stage])
@@ -250,7 +255,7 @@ def rk4_evaluation(ints, model, scratch, tau, stage, ddq, x, v):
     pinocchio_inputs(stage, c, a, work[8], work[9], work, x, v, tau, step[0] != 0.0 and stage < 4, step[3:9], s + c,
                      joints, frames, links, link_joint, constants, atmosphere, wrenches, pin_index, rotation, buffer)
     if stage == 4:                                # the outputs at the end, in the same call
-        body_summary(x, v, joints, frames, links, link_joint, scratch[scratch.shape[0] - 25:])
+        body_summary(x, v, joints, frames, links, link_joint, summary)
 
 
 @numba.njit(cache=True)

@@ -18,7 +18,8 @@ the state last set (``set_state``, ``set_stage``, ``set_velocities``), in these 
 ``positions()``, ``velocities()``, ``forward_dynamics(reference)`` (the accelerations under
 ``tau`` and, with ``reference`` = (point, s), the orbital environment with the reference point
 ``link_forces.propagate_reference``'d s seconds on from point = (R, V)), ``inverse_mass()``; for the
-outputs ``base_pose()``, ``orientation()``, ``com()``, ``com_velocity()``, ``momentum()``,
+outputs ``base_pose()``, ``orientation()``, ``com()``, ``com_velocity()``, ``momentum()`` (and
+``state_outputs()``, the body's outputs at once: from those unless an engine has them at hand),
 ``link_transforms()``, ``environment_wrenches(R, V)``; for a grasp ``link_pose``,
 ``point_jacobian``, ``point_bias``; ``base_coordinates(R, p)`` for an initial state.
 """

@@ -16,7 +16,9 @@ locked joints welded at their positions (``pinocchio.buildReducedModel``); mimic
 independent joints (the world holds them). The environment goes in as generalized forces
 (``link_forces.tree_generalized_forces``: forward kinematics over the model's tree, compiled,
 the links' inertia from the URDF). The compiled kernels are in
-:mod:`components.dynamics.pinocchio_kernels`: an evaluation is one compiled call and one ABA.
+:mod:`components.dynamics.pinocchio_kernels`: an evaluation is one compiled call and one ABA, and
+the step's last call also forms the outputs (pose, twist, CoM and momentum over the same tree:
+``body_summary``, which agrees with Pinocchio's centroidal momentum to rounding).
 """
 from __future__ import annotations
 

@@ -18,7 +18,8 @@ the state last set (``set_state``, ``set_stage``, ``set_velocities``), in these 
 ``positions()``, ``velocities()``, ``forward_dynamics(reference)`` (the accelerations under
 ``tau`` and, with ``reference`` = (point, s), the orbital environment with the reference point
 ``link_forces.propagate_reference``'d s seconds on from point = (R, V)), ``inverse_mass()``; for the
-outputs ``base_pose()``, ``orientation()``, ``com()``, ``com_velocity()``, ``momentum()``,
+outputs ``base_pose()``, ``orientation()``, ``com()``, ``com_velocity()``, ``momentum()`` (and
+``state_outputs()``, the body's outputs at once: from those unless an engine has them at hand),
 ``link_transforms()``, ``environment_wrenches(R, V)``; for a grasp ``link_pose``,
 ``point_jacobian``, ``point_bias``; ``base_coordinates(R, p)`` for an initial state.
 """
@@ -37,6 +38,7 @@ from components.robots.urdf import UrdfModel
 from components.rotations import matrix_to_quat
 
 FRAMES = ("world", "lvlh")
+TWIST_ORDER = np.array([3, 4, 5, 0, 1, 2])      # (omega, v) coordinates -> the twist output (v, omega)
 DEFAULT_CD = 2.2
 
 
@@ -278,6 +280,22 @@ class Body:
     def orientation(self, R: np.ndarray) -> np.ndarray:
         """q_W_base [x, y, z, w], w >= 0, of the base's attitude R (from ``base_pose``)."""
         return matrix_to_quat(R)
+
+    def state_outputs(self) -> dict[str, np.ndarray]:
+        """The body's outputs at the current state (new arrays): position, orientation, twist, q,
+        qd, com, momentum (see the component's table)."""
+        R_base, position = self.base_pose()
+        velocities = self.velocities()
+        com = self.com()
+        return {
+            "position": position,
+            "orientation": self.orientation(R_base),
+            "twist": velocities[TWIST_ORDER],
+            "q": self.joint_positions(self.positions()),
+            "qd": self.joint_velocities(velocities),
+            "com": com,
+            "momentum": self.momentum(com, position),
+        }
 
     def com(self) -> np.ndarray:
         raise NotImplementedError

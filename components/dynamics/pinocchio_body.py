@@ -16,7 +16,9 @@ locked joints welded at their positions (``pinocchio.buildReducedModel``); mimic
 independent joints (the world holds them). The environment goes in as generalized forces
 (``link_forces.tree_generalized_forces``: forward kinematics over the model's tree, compiled,
 the links' inertia from the URDF). The compiled kernels are in
-:mod:`components.dynamics.pinocchio_kernels`: an evaluation is one compiled call and one ABA.
+:mod:`components.dynamics.pinocchio_kernels`: an evaluation is one compiled call and one ABA, and
+the step's last call also forms the outputs (pose, twist, CoM and momentum over the same tree:
+``body_summary``, which agrees with Pinocchio's centroidal momentum to rounding).
 """
 from __future__ import annotations
 
@@ -60,7 +62,6 @@ class PinocchioBody(Body):
             pm = full
         pm.gravity = pin.Motion.Zero()
         self.pm, self.data = pm, pm.createData()
-        self.data_com = self.data.com                  # (a view of data's vector: its size is the model's)
         joints = [pm.joints[pm.getJointId(j)] for j in self.free_joints]
         self.idx_q = np.array([j.idx_q for j in joints], dtype=np.int64)
         self.nq = np.array([j.nq for j in joints], dtype=np.int64)
@@ -111,23 +112,24 @@ class PinocchioBody(Body):
         self.buffer = np.concatenate([pin.neutral(pm), np.zeros(2 * pm.nv)])
         self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [pm.nq, pm.nq + pm.nv])   # views
         self.step_values = np.zeros(9)                        # (rk4_begin's: environment, h, s, point)
+        self.summary = np.zeros(25)                           # (kernels.body_summary's: pose, twist, CoM, momentum)
         self.pool()
-        self.begin = functools.partial(kernels.rk4_begin, self.ints, self.model_values, self.scratch, self.tau)
-        self.evaluate = functools.partial(kernels.rk4_evaluation, self.ints, self.model_values, self.scratch, self.tau)
+        self.begin = functools.partial(kernels.rk4_begin, self.ints, self.values)
+        self.evaluate = functools.partial(kernels.rk4_evaluation, self.ints, self.values)
         self.synced = False                                    # q_pin, v_pin, rotation hold x, v
-        self.centroidal = False                                # data holds the centroidal momentum there
+        self.summarized = False                                # summary holds the outputs there
         self.jacobians = False                                 # data holds the joints' Jacobians there
 
     def pool(self) -> None:
-        """The fixed arrays made views of three (``rk4_evaluation`` takes those): ints (nj, links,
-        joints, atmosphere bands, nq; tree_joints, link_joint, pin_index), model values
-        (tree_frames, tree_links, constants, atmosphere), scratch (wrenches, rotation, buffer, work,
-        step_values); see ``unpool``."""
+        """The fixed arrays made views of two (``rk4_evaluation`` takes those: a call's cost grows
+        with its arguments): ints (nj, links, joints, atmosphere bands, nq; tree_joints, link_joint,
+        pin_index) and values (the model's tree_frames, tree_links, constants, atmosphere; then
+        wrenches, rotation, buffer, work, step_values, tau, summary); see ``unpool``."""
         header = [len(self.tree_joints), len(self.link_joint), self.pin_index.shape[1], self.atmosphere.shape[1],
                   len(self.q_pin)]
         for pool, names in (("ints", ("tree_joints", "link_joint", "pin_index")),
-                            ("model_values", ("tree_frames", "tree_links", "constants", "atmosphere")),
-                            ("scratch", ("wrenches", "rotation", "buffer", "work", "step_values"))):
+                            ("values", ("tree_frames", "tree_links", "constants", "atmosphere", "wrenches", "rotation",
+                                        "buffer", "work", "step_values", "tau", "summary"))):
             arrays = [getattr(self, name) for name in names]
             start = [np.array(header, dtype=np.int64)] if pool == "ints" else []
             values = np.concatenate(start + [a.ravel() for a in arrays])
@@ -189,8 +191,8 @@ class PinocchioBody(Body):
         evaluate(2, aba(pm, data, q_pin, v_pin, tau_pin), x, v)
         evaluate(3, aba(pm, data, q_pin, v_pin, tau_pin), x, v)
         self.x, self.v = np.empty(self.ndofs), np.empty(self.ndofs)
-        evaluate(4, aba(pm, data, q_pin, v_pin, tau_pin), self.x, self.v)
-        self.stage, self.synced, self.centroidal, self.jacobians = 0, True, False, False
+        evaluate(4, aba(pm, data, q_pin, v_pin, tau_pin), self.x, self.v)    # (and the summary)
+        self.stage, self.synced, self.summarized, self.jacobians = 0, True, True, False
 
     # -- dynamics
     def _sync(self) -> None:
@@ -199,7 +201,7 @@ class PinocchioBody(Body):
                                  self.tau, False, NO_STAGE, 0.0, self.tree_joints, self.tree_frames, self.tree_links,
                                  self.link_joint, self.constants, self.atmosphere, self.wrenches, self.pin_index,
                                  self.rotation, self.buffer)
-        self.stage, self.synced, self.centroidal, self.jacobians = 0, True, False, False
+        self.stage, self.synced, self.summarized, self.jacobians = 0, True, False, False
 
     def forward_dynamics(self, reference) -> np.ndarray:
         point, s = (NO_STAGE, 0.0) if reference is None else reference    # (_sync inlined: four times a step)
@@ -207,7 +209,7 @@ class PinocchioBody(Body):
                                  self.tau, reference is not None, point, float(s), self.tree_joints, self.tree_frames,
                                  self.tree_links, self.link_joint, self.constants, self.atmosphere, self.wrenches,
                                  self.pin_index, self.rotation, self.buffer)
-        self.stage, self.synced, self.centroidal, self.jacobians = 0, True, False, False
+        self.stage, self.synced, self.summarized, self.jacobians = 0, True, False, False
         ddq = self.pin.aba(self.pm, self.data, self.q_pin, self.v_pin, self.tau_pin)
         return kernels.from_pinocchio(ddq, self.v_pin, self.rotation, self.idx_v, np.empty(self.ndofs))
 
@@ -230,24 +232,27 @@ class PinocchioBody(Body):
         q = self.q_pin[3:7].copy()
         return -q if q[3] < 0.0 else q
 
-    def _centroidal(self):
+    def _summary(self) -> np.ndarray:
         if not self.synced:
             self._sync()
-        if not self.centroidal:
-            self.hg = self.pin.computeCentroidalMomentum(self.pm, self.data, self.q_pin, self.v_pin)
-            self.centroidal = True
-        return self.data
+        if not self.summarized:
+            kernels.summary(self.ints, self.values, self.x, self.v)
+            self.summarized = True
+        return self.summary
+
+    def state_outputs(self) -> dict[str, np.ndarray]:
+        o = self._summary().copy()
+        return {"position": o[0:3], "orientation": o[3:7], "twist": o[7:13], "q": self.joint_positions(self.x),
+                "qd": self.joint_velocities(self.v), "com": o[13:16], "momentum": o[19:25]}
 
     def com(self) -> np.ndarray:
-        self._centroidal()
-        return self.data_com[0].copy()          # (data.com fetched once: each fetch costs a microsecond)
+        return self._summary()[13:16].copy()
 
     def com_velocity(self) -> np.ndarray:
-        return self._centroidal().vcom[0].copy()
+        return self._summary()[16:19].copy()
 
     def momentum(self, com=None, base_position=None) -> np.ndarray:
-        self._centroidal()
-        return self.hg.vector.copy()             # (linear, angular about the CoM), W axes
+        return self._summary()[19:25].copy()             # (linear, angular about the CoM), W axes
 
     def _frames(self) -> None:
         if not self.synced:

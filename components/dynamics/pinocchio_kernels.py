@@ -2,7 +2,7 @@
 world's coordinates and Pinocchio's (see that module's docstring), and the RK4 evaluations of a
 body that steps itself (``rk4_begin``, ``rk4_evaluation``: one call per evaluation, the stage
 arithmetic, the environment and Pinocchio's inputs in it; a call's cost grows with its arguments,
-so the body's arrays come in three pools, ``unpool``). numba, no fastmath: IEEE arithmetic, the
+so the body's arrays come in two pools, ``unpool``). numba, no fastmath: IEEE arithmetic, the
 same bits at every run.
 """
 from __future__ import annotations
@@ -16,6 +16,14 @@ from components.dynamics import link_forces, manifold_rk4
 
 
 @numba.njit(cache=True)
+def quaternion_entries(px, py, pz):
+    """The quaternion [x, y, z, w] of the rotation vector (px, py, pz), w = cos(|phi|/2)."""
+    t = math.sqrt(px * px + py * py + pz * pz)
+    s = 0.5 - t * t / 48.0 if t < 1e-6 else math.sin(0.5 * t) / t     # sin(t/2) / t
+    return s * px, s * py, s * pz, math.cos(0.5 * t)
+
+
+@numba.njit(cache=True)
 def to_pinocchio(x, v, Q, idx_q, nq, idx_v, rotation, q_pin, v_pin, tau_pin):
     """Pinocchio's configuration, velocity and generalized forces from the world's coordinates
     (written into q_pin, v_pin, tau_pin), and R_W_base into ``rotation``."""
@@ -23,11 +31,8 @@ def to_pinocchio(x, v, Q, idx_q, nq, idx_v, rotation, q_pin, v_pin, tau_pin):
     for i in range(3):
         rotation[i, 0], rotation[i, 1], rotation[i, 2] = m[3 * i], m[3 * i + 1], m[3 * i + 2]
     R = rotation
-    px, py, pz = x[0], x[1], x[2]
-    t = math.sqrt(px * px + py * py + pz * pz)
-    s = 0.5 - t * t / 48.0 if t < 1e-6 else math.sin(0.5 * t) / t     # sin(t/2) / t
     q_pin[0], q_pin[1], q_pin[2] = x[3], x[4], x[5]
-    q_pin[3], q_pin[4], q_pin[5], q_pin[6] = s * px, s * py, s * pz, math.cos(0.5 * t)
+    q_pin[3], q_pin[4], q_pin[5], q_pin[6] = quaternion_entries(x[0], x[1], x[2])
     for i in range(3):
         vb, wb, fb, tb = 0.0, 0.0, 0.0, 0.0
         for j in range(3):
@@ -114,40 +119,115 @@ def from_pinocchio(ddq, v_pin, rotation, idx_v, a):
 
 
 @numba.njit(cache=True)
-def unpool(ints, model, scratch, nv):
-    """The body's arrays from its three pools (``PinocchioBody.pool``): joints, link_joint,
+def unpool(ints, values, nv):
+    """The body's arrays from its two pools (``PinocchioBody.pool``): joints, link_joint,
     pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work (10, nv: the
-    rates and accelerations of ``form_stage``, xi, then the step's q0 and v0) and the step's
-    values (environment, h, s, the reference point)."""
+    rates and accelerations of ``form_stage``, xi, then the step's q0 and v0), the step's values
+    (environment, h, s, the reference point), tau and the summary (``body_summary``)."""
     nj, nl, m, b, nq = ints[0], ints[1], ints[2], ints[3], ints[4]
     joints = ints[5:5 + 3 * nj].reshape((nj, 3))
     o = 5 + 3 * nj
     link_joint = ints[o:o + nl]
     pin_index = ints[o + nl:o + nl + 3 * m].reshape((3, m))
-    frames = model[:15 * nj].reshape((nj, 15))
+    frames = values[:15 * nj].reshape((nj, 15))
     o = 15 * nj
-    links = model[o:o + 14 * nl].reshape((nl, 14))
+    links = values[o:o + 14 * nl].reshape((nl, 14))
     o += 14 * nl
-    constants = model[o:o + 6]
-    atmosphere = model[o + 6:o + 6 + 3 * b].reshape((3, b))
-    wrenches = scratch[:6 * nl].reshape((2, nl, 3))
-    o = 6 * nl
-    rotation = scratch[o:o + 9].reshape((3, 3))
-    buffer = scratch[o + 9:o + 9 + nq + 2 * nv]
+    constants = values[o:o + 6]
+    atmosphere = values[o + 6:o + 6 + 3 * b].reshape((3, b))
+    o += 6 + 3 * b
+    wrenches = values[o:o + 6 * nl].reshape((2, nl, 3))
+    o += 6 * nl
+    rotation = values[o:o + 9].reshape((3, 3))
+    buffer = values[o + 9:o + 9 + nq + 2 * nv]
     o += 9 + nq + 2 * nv
-    work = scratch[o:o + 10 * nv].reshape((10, nv))
-    step = scratch[o + 10 * nv:o + 10 * nv + 9]
-    return joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step
+    work = values[o:o + 10 * nv].reshape((10, nv))
+    o += 10 * nv
+    step = values[o:o + 9]
+    tau = values[o + 9:o + 9 + nv]
+    summary = values[o + 9 + nv:o + 34 + nv]
+    return (joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step,
+            tau, summary)
 
 
 @numba.njit(cache=True)
-def rk4_begin(ints, model, scratch, tau, x, v, environment, point, h, s):
+def summary(ints, values, x, v):
+    """``body_summary`` at (x, v) into the pool's summary (``PinocchioBody.pool``)."""
+    joints, link_joint, _, frames, links, _, _, _, _, _, _, _, _, summary = unpool(ints, values, v.shape[0])
+    body_summary(x, v, joints, frames, links, link_joint, summary)
+
+
+@numba.njit(cache=True)
+def body_summary(x, v, joints, frames, links, link_joint, out):
+    """The body's outputs at (x, v) into ``out`` (25): base position, quaternion (w >= 0), twist
+    (v, omega), then ``tree_centroidal``'s CoM, its velocity, momentum."""
+    out[0], out[1], out[2] = x[3], x[4], x[5]
+    qx, qy, qz, qw = quaternion_entries(x[0], x[1], x[2])
+    if qw < 0.0:
+        qx, qy, qz, qw = -qx, -qy, -qz, -qw
+    out[3], out[4], out[5], out[6] = qx, qy, qz, qw
+    out[7], out[8], out[9], out[10], out[11], out[12] = v[3], v[4], v[5], v[0], v[1], v[2]
+    tree_centroidal(x, v, joints, frames, links, link_joint, out[13:25])
+
+
+@numba.njit(cache=True)
+def tree_centroidal(x, v, joints, frames, links, link_joint, out):
+    """The body's CoM, its velocity and the momentum (linear, angular about the CoM), W, at (x, v)
+    into ``out`` (12): forward kinematics over the tree (``link_forces.tree_kinematics``), then per
+    link with mass m, CoM c, inertia I (about c, W axes) and angular velocity w: p = sum m v_c,
+    L = sum (I w + m (c - com) x v_c)."""
+    nj, nl = joints.shape[0], link_joint.shape[0]
+    block = np.zeros(21 * nj + 12 * nl + 24)
+    per_joint = block[:12 * nj].reshape((4, nj, 3))
+    rotation = block[12 * nj:21 * nj].reshape((nj, 3, 3))
+    link_values = block[21 * nj:21 * nj + 12 * nl].reshape((nl, 4, 3))     # per link: c, v_c, I w, R^T w
+    link_forces.tree_kinematics(x, v, joints, frames, True, rotation, per_joint[0], per_joint[1], per_joint[2],
+                                per_joint[3], block[21 * nj + 12 * nl:21 * nj + 12 * nl + 24])
+    out[:] = 0.0
+    mass = 0.0
+    for n in range(nl):
+        j = link_joint[n]
+        Rj, link, c, v_c, Iw = rotation[j], links[n], link_values[n, 0], link_values[n, 1], link_values[n, 2]
+        w = per_joint[2, j]
+        m = link[12]
+        mass += m
+        for i in range(3):
+            c[i] = Rj[i, 0] * link[0] + Rj[i, 1] * link[1] + Rj[i, 2] * link[2]    # CoM from the joint's origin
+        v_c[0] = per_joint[3, j, 0] + w[1] * c[2] - w[2] * c[1]
+        v_c[1] = per_joint[3, j, 1] + w[2] * c[0] - w[0] * c[2]
+        v_c[2] = per_joint[3, j, 2] + w[0] * c[1] - w[1] * c[0]
+        for i in range(3):
+            c[i] += per_joint[0, j, i]
+            out[i] += m * c[i]
+            out[6 + i] += m * v_c[i]
+        local = link_values[n, 3]                # I w = Rj I_local Rj^T w
+        for i in range(3):
+            local[i] = Rj[0, i] * w[0] + Rj[1, i] * w[1] + Rj[2, i] * w[2]
+        t0 = link[3] * local[0] + link[4] * local[1] + link[5] * local[2]
+        t1 = link[6] * local[0] + link[7] * local[1] + link[8] * local[2]
+        t2 = link[9] * local[0] + link[10] * local[1] + link[11] * local[2]
+        for i in range(3):
+            Iw[i] = Rj[i, 0] * t0 + Rj[i, 1] * t1 + Rj[i, 2] * t2
+    for i in range(3):
+        out[i] /= mass
+        out[3 + i] = out[6 + i] / mass
+    for n in range(nl):
+        c, v_c, Iw = link_values[n, 0], link_values[n, 1], link_values[n, 2]
+        m = links[n, 12]
+        d0, d1, d2 = c[0] - out[0], c[1] - out[1], c[2] - out[2]
+        out[9] += Iw[0] + m * (d1 * v_c[2] - d2 * v_c[1])
+        out[10] += Iw[1] + m * (d2 * v_c[0] - d0 * v_c[2])
+        out[11] += Iw[2] + m * (d0 * v_c[1] - d1 * v_c[0])
+
+
+@numba.njit(cache=True)
+def rk4_begin(ints, values, x, v, environment, point, h, s):
     """Evaluation 0 of an RK4 step of h seconds from s seconds after the orbit inputs, at (x, v),
     with the environment at ``point`` (``pinocchio_inputs``); keeps the step's start and values
-    for ``rk4_evaluation``. The body's arrays in three pools (``PinocchioBody.pool``): a call's
+    for ``rk4_evaluation``. The body's arrays in two pools (``PinocchioBody.pool``): a call's
     cost grows with its arguments."""
-    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step = \
-        unpool(ints, model, scratch, v.shape[0])
+    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step, tau, \
+        _ = unpool(ints, values, v.shape[0])
     work[8] = x
     work[9] = v
     step[0], step[1], step[2] = 1.0 if environment else 0.0, h, s
@@ -158,21 +238,24 @@ def rk4_begin(ints, model, scratch, tau, x, v, environment, point, h, s):
 
 
 @numba.njit(cache=True)
-def rk4_evaluation(ints, model, scratch, tau, stage, ddq, x, v):
+def rk4_evaluation(ints, values, stage, ddq, x, v):
     """Evaluation ``stage`` (1 to 3) of the RK4 step ``rk4_begin`` began, or with ``stage`` 4 its
     end, into (x, v): the last evaluation's accelerations from Pinocchio's ``ddq``
     (``from_pinocchio``, at the q, v, rotation still in ``buffer``), then ``pinocchio_inputs`` at
-    the stage (the environment at its time; none at the end, which is only formed). With
+    the stage (the environment at its time; none at the end, which is only formed, with the
+    body's outputs there: ``body_summary``). With
     ``rk4_begin``, one call per evaluation and no other (``PinocchioBody.rk4_step``)."""
     nv = v.shape[0]
-    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step = \
-        unpool(ints, model, scratch, nv)
+    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step, tau, \
+        summary = unpool(ints, values, nv)
     nq = ints[4]
     h, s = step[1], step[2]
     a = from_pinocchio(ddq, buffer[nq:nq + nv], rotation, pin_index[2], work[2 + stage])
     c = 0.5 * h if stage < 3 else h
     pinocchio_inputs(stage, c, a, work[8], work[9], work, x, v, tau, step[0] != 0.0 and stage < 4, step[3:9], s + c,
                      joints, frames, links, link_joint, constants, atmosphere, wrenches, pin_index, rotation, buffer)
+    if stage == 4:                                # the outputs at the end, in the same call
+        body_summary(x, v, joints, frames, links, link_joint, summary)
 
 
 @numba.njit(cache=True)

@@ -66,7 +66,6 @@ from components.signals import ORBIT, orbit_signals
 INTEGRATORS = ("rk4", "dart")
 ENGINES = ("dart", "pinocchio")
 BODY_STATE = {"position": 3, "rotation_vector": 3, "twist": 6}     # + q, qd, tau, stop_side: one per joint
-TWIST_ORDER = np.array([3, 4, 5, 0, 1, 2])                         # (omega, v) coordinates -> the twist output (v, omega)
 
 
 class OrbitalWorld:
@@ -319,19 +318,7 @@ class OrbitalWorld:
     def outputs(self, name: str, links: bool = True) -> dict[str, np.ndarray]:
         """Every output of body ``name`` at the current state (see the component's table);
         ``links=False`` leaves out the per-link ones (poses and environment wrenches)."""
-        body = self.bodies[name]
-        R_base, position = body.base_pose()
-        velocities = body.velocities()
-        com = body.com()
-        out = {
-            "position": position,
-            "orientation": body.orientation(R_base),
-            "twist": velocities[TWIST_ORDER],
-            "q": body.joint_positions(body.positions()),
-            "qd": body.joint_velocities(velocities),
-            "com": com,
-            "momentum": body.momentum(com, position),
-        }
+        out = self.bodies[name].state_outputs()
         if links:
             out.update(self.link_outputs(name))
         return out

@@ -125,26 +125,3 @@ def row_cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise a x b of two (n, 3) arrays (four gathers: ~3x faster than rotations.cross for
     the few rows of a body's links)."""
     return a.take(_NEXT, axis=1) * b.take(_PREVIOUS, axis=1) - a.take(_PREVIOUS, axis=1) * b.take(_NEXT, axis=1)
-
-
-def propagate_reference(R0: np.ndarray, V0: np.ndarray, s: float, mu: float = MU_EARTH):
-    """Two-body reference point after s seconds from (R0, V0), by its Taylor series to third
-    order in s: R(s) = R0 + V0 s + g s^2/2 + j s^3/6, V(s) = V0 + g s + j s^2/2 with g = g(R0) and
-    the jerk j = -mu/r^3 (V0 - 3 (R0.V0) R0 / r^2). Position error ~ (mu/r^3)^2 r s^4 / 24
-    (5 mm at s = 10 s in LEO). Used inside a communication step, where the orbit inputs are held."""
-    R0 = np.asarray(R0, dtype=float)
-    V0 = np.asarray(V0, dtype=float)
-    if s == 0.0:
-        return R0.copy(), V0.copy()
-    # plain floats: a handful of numpy calls on 3-vectors would cost ~5x more
-    x, y, z = R0.tolist()
-    u, v, w = V0.tolist()
-    r2 = x * x + y * y + z * z
-    k = mu / (r2 * math.sqrt(r2))
-    c = 3.0 * (x * u + y * v + z * w) / r2
-    gx, gy, gz = -k * x, -k * y, -k * z
-    jx, jy, jz = -k * (u - c * x), -k * (v - c * y), -k * (w - c * z)
-    a, b = 0.5 * s, s / 6.0
-    return (np.array([x + s * (u + s * (0.5 * gx + b * jx)), y + s * (v + s * (0.5 * gy + b * jy)),
-                      z + s * (w + s * (0.5 * gz + b * jz))]),
-            np.array([u + s * (gx + a * jx), v + s * (gy + a * jy), w + s * (gz + a * jz)]))

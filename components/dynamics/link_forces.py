@@ -108,8 +108,11 @@ def drag_factor(x, V, v_com, drag_k, h0, rho0, scale_height, earth_rate, earth_r
 
 @numba.njit(cache=True)
 def propagate_reference(R0, V0, s, mu):
-    """The compiled twin of :func:`components.dynamics.environment.propagate_reference` (the same
-    operations in the same order: the same bits): the reference point (R, V) s seconds on."""
+    """Two-body reference point (R, V) after s seconds from (R0, V0) (m, m/s, s, m^3/s^2), by its
+    Taylor series to third order in s: R(s) = R0 + V0 s + g s^2/2 + j s^3/6, V(s) = V0 + g s + j s^2/2
+    with g = g(R0) and the jerk j = -mu/r^3 (V0 - 3 (R0.V0) R0 / r^2). Position error
+    ~ (mu/r^3)^2 r s^4 / 24 (5 mm at s = 10 s in LEO). Used inside a communication step, where the
+    orbit inputs are held."""
     if s == 0.0:
         return R0.copy(), V0.copy()
     x, y, z = R0[0], R0[1], R0[2]

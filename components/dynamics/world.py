@@ -29,7 +29,7 @@ Integrators (``integrator``):
 
 Each communication step ``step(h)`` runs ``substeps`` internal steps of h / substeps. Within a
 step the orbit inputs are held, but the reference point moves along its Kepler arc
-(:func:`environment.propagate_reference`) from the time the inputs were sampled (``set_orbit``'s
+(:func:`link_forces.propagate_reference`) from the time the inputs were sampled (``set_orbit``'s
 ``age``), so neither a long step, a slower orbit component nor Gauss-Seidel's one-step lead
 shifts the tidal field in time.
 

@@ -1,7 +1,7 @@
 """What paces the paper's demo over the bus: its real-time factor with a dynamics of a chosen
 per-step cost, and where each step's CPU time goes, process by process and thread by thread.
 
-    python benchmarks/bench_pace.py [--cost 100 ...] [--dart] [--dedicated true process false]
+    python benchmarks/bench_pace.py [--cost 100 ...] [--dart] [--pinocchio] [--dedicated true process false]
                                     [--seconds 10] [--rounds 3] [--baseline DIR]
 
 Each variant runs configs/humanoid_tracking.yaml over the bus (``orchestrator run``, Jacobi, 1 ms)
@@ -12,6 +12,8 @@ for ``--seconds`` simulated:
   beforehand (so the controller computes on the demo's states; its torques are ignored): the demo
   as it would run with an engine of that cost;
 - ``dynamics.dart`` (``--dart``): the demo as it is;
+- ``dynamics.pinocchio`` (``--pinocchio``): the demo with the other engine (``--cost`` with no
+  value leaves the stand-in out);
 - with ``--dedicated``, each of them with the dynamics' ``dedicated_cpu`` set to each mode given
   (true: its stepping thread on a CPU of its own; process: its whole process; false: none);
 - each of them again on the Zenorbit tree ``--baseline DIR`` (a copy of another commit), for a
@@ -165,6 +167,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cost", type=float, nargs="*", default=[100.0], help="stand-in costs, us per step (100)")
     parser.add_argument("--dart", action="store_true", help="also the demo with dynamics.dart")
+    parser.add_argument("--pinocchio", action="store_true", help="also the demo with dynamics.pinocchio")
     parser.add_argument("--seconds", type=float, default=10.0, help="simulated seconds per run (10)")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--baseline", type=Path, help="another Zenorbit tree to run each variant on as well")
@@ -184,6 +187,8 @@ def main() -> None:
                                        f"components.dynamics.parameters.cost={c:g} us"] for c in args.cost}
     if args.dart:
         variants["dynamics.dart"] = [duration]
+    if args.pinocchio:
+        variants["dynamics.pinocchio"] = [duration, "components.dynamics.type=dynamics.pinocchio"]
     if args.dedicated:
         variants = {f"{label}, dedicated_cpu {mode}": [*overrides, f"components.dynamics.dedicated_cpu={mode}"]
                     for label, overrides in variants.items() for mode in args.dedicated}

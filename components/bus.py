@@ -34,6 +34,7 @@ import json
 import os
 import struct
 import tempfile
+import threading
 from types import MappingProxyType
 from typing import Any, Mapping
 
@@ -369,6 +370,28 @@ def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: boo
     # one side of each pair connects: with authentication, two links opened at once may both be refused
     config.insert_json5("scouting/gossip/autoconnect_strategy", '{peer: {to_router: "always", to_peer: "greater-zid"}}')
     return config
+
+
+CLOSE_WAIT_S = 2.0
+
+
+def close_session(session, wait_s: float = CLOSE_WAIT_S) -> bool:
+    """Close a Zenoh session, waiting at most ``wait_s`` seconds: Zenoh sends each link a close
+    and waits for it to drain, which on a cut link (a pulled cable: nothing acknowledged) takes
+    ~17 s. True if it closed in time; else the close goes on in a daemon thread and the links go
+    with the process (so Ctrl-C on a component whose link was cut ends it at once)."""
+    import zenoh
+
+    def close() -> None:
+        try:
+            session.close()
+        except zenoh.ZError:   # a link that cannot be closed cleanly: it goes with the process
+            pass
+
+    closer = threading.Thread(target=close, name="zenorbit-close", daemon=True)
+    closer.start()
+    closer.join(wait_s)
+    return not closer.is_alive()
 
 
 def listen_beside(connect: str) -> str:

@@ -16,12 +16,17 @@ from components.runner import INBOX_CAPACITY, IDLE_FLUSH_S, ComponentProcess, Ha
 def _watchdog(process: ComponentProcess, stop: threading.Event, beat_s: float | None) -> None:
     """Flush batches when due; and every ``beat_s`` a heartbeat, so that the orchestrator tells a
     silent link (cut: Zenoh may take long to close a link it cannot send on) within bus.lease."""
+    import zenoh
+
     beat_at = time.monotonic()
-    while not stop.wait(IDLE_FLUSH_S):
-        process.flush_if_due()
-        if beat_s is not None and time.monotonic() >= beat_at:
-            beat_at = time.monotonic() + beat_s
-            process.publish_reply(bus.BEAT)
+    try:
+        while not stop.wait(IDLE_FLUSH_S):
+            process.flush_if_due()
+            if beat_s is not None and time.monotonic() >= beat_at:
+                beat_at = time.monotonic() + beat_s
+                process.publish_reply(bus.BEAT)
+    except zenoh.ZError:   # the session closed under it (Ctrl-C, a cut link): the main loop ends too
+        pass
 
 
 TERMINATED, RELEASED, ORPHANED = "terminated", "released", "orphaned"   # how serving a generation ended
@@ -37,7 +42,7 @@ def serve(connect: str, run_id: str, name: str, generation: int, listen: str | N
     try:
         return serve_session(session, run_id, name, generation, cpu, orchestrator, beat_interval(settings))
     finally:
-        session.close()
+        bus.close_session(session)
 
 
 def open_component_session(connect: str | list[str], listen: str | None, secret: str, settings: dict | None,
@@ -70,6 +75,7 @@ def serve_session(session, run_id: str, name: str, generation: int, cpu: int | N
     import zenoh
 
     keep = []   # subscribers and publishers live as long as this generation
+    stop_watchdog = threading.Event()
     try:
         inbox = session.declare_subscriber(bus.inbox_pattern(run_id, name), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
         keep.append(inbox)
@@ -100,9 +106,7 @@ def serve_session(session, run_id: str, name: str, generation: int, cpu: int | N
                 lambda s: session.put(quit_key, bus.QUIT) if s.kind == zenoh.SampleKind.DELETE else None))
         keep.append(session.liveliness().declare_token(bus.alive_key(run_id, name, generation)))
         process = ComponentProcess(name, replies.put, publish_output, batches.put)
-        stop_watchdog = threading.Event()
         threading.Thread(target=_watchdog, args=(process, stop_watchdog, beat_s), daemon=True).start()
-        keep.append(stop_watchdog)
         if cpu is not None:
             os.sched_setaffinity(0, {cpu})   # this thread only
         while True:
@@ -127,10 +131,11 @@ def serve_session(session, run_id: str, name: str, generation: int, cpu: int | N
             except Halt:
                 pass
     finally:
+        stop_watchdog.set()
         for held in keep:
-            if isinstance(held, threading.Event):
-                held.set()
-            else:
+            try:
                 held.undeclare()
+            except (zenoh.ZError, RuntimeError):   # the session is gone, or (PyO3: "Already borrowed") the
+                pass                               # watchdog's send is blocked on a cut link: it goes with the session
 
 

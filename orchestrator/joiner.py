@@ -164,15 +164,7 @@ def join(path: Path, connect: list[str] | None = None, listen: str | None = None
                                         f"{timeout:g} s (run.join_timeout)")
                     time.sleep(0.2)
             finally:
-                _close(session)
-
-
-def _close(session) -> None:
-    import zenoh
-    try:
-        session.close()
-    except zenoh.ZError:   # a link that cannot be closed cleanly (cut): it goes with the process
-        pass
+                bus.close_session(session)
 
 
 def _orchestrator_alive(session, body: dict) -> bool:
@@ -212,7 +204,7 @@ def route(path: Path, listen: list[str]) -> int:
                 pass
         finally:
             watch.undeclare()
-            session.close()
+            bus.close_session(session)
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
     return 0

@@ -46,6 +46,7 @@ from orchestrator.run_bus import RunBus
 from orchestrator.viewer_link import ViewerLink
 
 SYNC_ROUND_S = 0.05  # the start-up handshake is repeated at this interval until everyone hears everyone
+SLOW_START_S = 5.0   # an instantiate this long gets a note (a first run on a machine compiles the kernels)
 
 
 class Run:
@@ -194,13 +195,21 @@ class Run:
 
     def wait(self, expect: dict[str, str], timeout: float, what: str) -> None:
         """Process inbox messages until every expectation is met, or fail naming the laggards."""
-        deadline = time.monotonic() + timeout
+        started = time.monotonic()
+        deadline = started + timeout
+        noted = what != "instantiate"
         while expect:
             remaining = deadline - time.monotonic()
+            late = ", ".join(f"{n!r}" for n in expect)
             if remaining <= 0:
-                late = ", ".join(f"{n!r}" for n in expect)
                 raise RunFailure(f"component {late} did not answer {what} within {timeout:g} s "
                                  f"(hung? raise run.step_timeout / run.start_timeout if it is just slow)")
+            if not noted and time.monotonic() - started > SLOW_START_S:
+                noted = True
+                print(f"note: waiting for {late} to instantiate: the first run on a machine compiles "
+                      f"{'its' if len(expect) == 1 else 'their'} kernels (numba; 20-40 s on 2 cores), later runs "
+                      f"load them from the cache "
+                      f"(run.start_timeout: {timeout:g} s)", file=self.out, flush=True)
             try:
                 message = self.inbox.get(timeout=min(remaining, 0.2))
             except queue.Empty:

@@ -334,3 +334,45 @@ components:
     assert run.returncode == 1, err
     assert "cannot write" in err and "signals.parquet" in err and "Traceback" not in err
     assert not component_processes("unrecorded-")
+
+
+SLOW_START = """
+run: {name: slow-start, epoch: 2022-09-18T12:00:00Z, duration: 2 s, step: 1 s}
+components:
+  quick: {type: test.constant, parameters: {value: 1.0}}
+  slow: {type: slow_start.py:SlowStart, parameters: {value: 2.0}}
+"""
+
+SLOW_COMPONENT = '''
+import time
+from components.testing.blocks import Constant
+
+class SlowStart(Constant):
+    """A constant that takes 2 s to instantiate, as a component compiling its kernels would."""
+    type_name = "test.slow_start"
+
+    def __init__(self, params):
+        time.sleep(2.0)
+        super().__init__(params)
+'''
+
+
+def test_a_slow_instantiate_gets_a_note_naming_the_component(write_config, monkeypatch):
+    """A first run on a machine compiles the kernels at instantiate (20-40 s on 2 cores): the run
+    says what it waits for instead of sitting silent; a quick start says nothing."""
+    import io
+
+    from orchestrator import engine
+    from orchestrator.config import load
+
+    monkeypatch.setattr(engine, "SLOW_START_S", 1.0)
+    config = write_config(SLOW_START)
+    (config.parent / "slow_start.py").write_text(SLOW_COMPONENT)
+    out = io.StringIO()
+    assert engine.Run(load(config), out=out).execute() == 0, out.getvalue()
+    notes = [line for line in out.getvalue().splitlines() if line.startswith("note: waiting for")]
+    assert notes == ["note: waiting for 'slow' to instantiate: the first run on a machine compiles its kernels "
+                     "(numba; 20-40 s on 2 cores), later runs load them from the cache (run.start_timeout: 60 s)"]
+    out = io.StringIO()
+    assert engine.Run(load(write_config(CHAIN.format(name="quick", steps=2, algorithm="jacobi"))), out=out).execute() == 0
+    assert "note: waiting for" not in out.getvalue()

@@ -40,8 +40,9 @@ RUN = Record("run", (
               description="0: as fast as possible; k: paced at k times the wall clock"),
     Parameter("step_timeout", Duration(), default="10 s",
               description="wall time a component may take for one step before the run fails"),
-    Parameter("start_timeout", Duration(), default="60 s",
-              description="wall time a component may take to start and initialize"),
+    Parameter("start_timeout", Duration(), default="3 min",
+              description="wall time a component may take to start and initialize (a first run on a "
+                          "machine compiles the kernels: 20-45 s on 2 cores)"),
     Parameter("join_timeout", Duration(), default="5 min",
               description="wall time a launch: external component may take to join (orchestrator join), "
                           "and to join again after it was lost"),

@@ -207,7 +207,7 @@ class Run:
             if not noted and time.monotonic() - started > SLOW_START_S:
                 noted = True
                 print(f"note: waiting for {late} to instantiate: the first run on a machine compiles "
-                      f"{'its' if len(expect) == 1 else 'their'} kernels (numba; 20-40 s on 2 cores), later runs "
+                      f"{'its' if len(expect) == 1 else 'their'} kernels (numba; 20-45 s on 2 cores), later runs "
                       f"load them from the cache "
                       f"(run.start_timeout: {timeout:g} s)", file=self.out, flush=True)
             try:

@@ -372,7 +372,7 @@ def test_a_slow_instantiate_gets_a_note_naming_the_component(write_config, monke
     assert engine.Run(load(config), out=out).execute() == 0, out.getvalue()
     notes = [line for line in out.getvalue().splitlines() if line.startswith("note: waiting for")]
     assert notes == ["note: waiting for 'slow' to instantiate: the first run on a machine compiles its kernels "
-                     "(numba; 20-40 s on 2 cores), later runs load them from the cache (run.start_timeout: 60 s)"]
+                     "(numba; 20-45 s on 2 cores), later runs load them from the cache (run.start_timeout: 180 s)"]
     out = io.StringIO()
     assert engine.Run(load(write_config(CHAIN.format(name="quick", steps=2, algorithm="jacobi"))), out=out).execute() == 0
     assert "note: waiting for" not in out.getvalue()

@@ -375,11 +375,11 @@ def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: boo
 CLOSE_WAIT_S = 2.0
 
 
-def close_session(session, wait_s: float = CLOSE_WAIT_S) -> bool:
+def close_session(session, wait_s: float = CLOSE_WAIT_S) -> None:
     """Close a Zenoh session, waiting at most ``wait_s`` seconds: Zenoh sends each link a close
     and waits for it to drain, which on a cut link (a pulled cable: nothing acknowledged) takes
-    ~17 s. True if it closed in time; else the close goes on in a daemon thread and the links go
-    with the process (so Ctrl-C on a component whose link was cut ends it at once)."""
+    ~17 s. A close not done by then goes on in a daemon thread and the links go with the process
+    (so Ctrl-C on a component whose link was cut ends it at once)."""
     import zenoh
 
     def close() -> None:
@@ -391,7 +391,6 @@ def close_session(session, wait_s: float = CLOSE_WAIT_S) -> bool:
     closer = threading.Thread(target=close, name="zenorbit-close", daemon=True)
     closer.start()
     closer.join(wait_s)
-    return not closer.is_alive()
 
 
 def listen_beside(connect: str) -> str:

@@ -200,16 +200,14 @@ class Run:
         noted = what != "instantiate"
         while expect:
             remaining = deadline - time.monotonic()
-            late = ", ".join(f"{n!r}" for n in expect)
             if remaining <= 0:
-                raise RunFailure(f"component {late} did not answer {what} within {timeout:g} s "
+                raise RunFailure(f"component {_names(expect)} did not answer {what} within {timeout:g} s "
                                  f"(hung? raise run.step_timeout / run.start_timeout if it is just slow)")
             if not noted and time.monotonic() - started > SLOW_START_S:
                 noted = True
-                print(f"note: waiting for {late} to instantiate: the first run on a machine compiles "
+                print(f"note: waiting for {_names(expect)} to instantiate: the first run on a machine compiles "
                       f"{'its' if len(expect) == 1 else 'their'} kernels (numba; 20-45 s on 2 cores), later runs "
-                      f"load them from the cache "
-                      f"(run.start_timeout: {timeout:g} s)", file=self.out, flush=True)
+                      f"load them from the cache (run.start_timeout: {timeout:g} s)", file=self.out, flush=True)
             try:
                 message = self.inbox.get(timeout=min(remaining, 0.2))
             except queue.Empty:
@@ -458,3 +456,8 @@ class Run:
         if code == 0 and self.record_dir is None:
             shutil.rmtree(self.log_dir, ignore_errors=True)
         return code, message
+
+
+def _names(names) -> str:
+    """'a', 'b': the components a wait is still on."""
+    return ", ".join(f"{n!r}" for n in names)

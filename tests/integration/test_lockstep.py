@@ -358,7 +358,7 @@ class SlowStart(Constant):
 
 
 def test_a_slow_instantiate_gets_a_note_naming_the_component(write_config, monkeypatch):
-    """A first run on a machine compiles the kernels at instantiate (20-40 s on 2 cores): the run
+    """A first run on a machine compiles the kernels at instantiate (20-45 s on 2 cores): the run
     says what it waits for instead of sitting silent; a quick start says nothing."""
     import io
 

@@ -1,16 +1,19 @@
 """What paces the paper's demo over the bus: its real-time factor with a dynamics of a chosen
 per-step cost, and where each step's CPU time goes, process by process and thread by thread.
 
-    python benchmarks/bench_pace.py [--cost 100 ...] [--dart] [--pinocchio] [--dedicated true process false]
-                                    [--seconds 10] [--rounds 3] [--baseline DIR]
+    python benchmarks/bench_pace.py [--cost 100 ...] [--dart] [--pinocchio] [--floor]
+                                    [--dedicated true process false] [--seconds 10] [--rounds 3] [--baseline DIR]
 
 Each variant runs configs/humanoid_tracking.yaml over the bus (``orchestrator run``, Jacobi, 1 ms)
 for ``--seconds`` simulated:
 
-- ``stand-in C us``: the dynamics replaced by benchmarks/paced_dynamics.py, which spends C us of
+- ``stand-in C us``: the dynamics replaced by benchmarks/paced_stand_ins.py, which spends C us of
   CPU time per step and returns the states of a dynamics.dart run of the demo recorded in process
   beforehand (so the controller computes on the demo's states; its torques are ignored): the demo
   as it would run with an engine of that cost;
+- ``both stand-ins at 0 us`` (``--floor``): the controller replaced too, by a stand-in returning the
+  recorded run's torques at no cost: what the bus, the runner and the orbit allow on their own, the
+  ceiling of any engine and controller;
 - ``dynamics.dart`` (``--dart``): the demo as it is;
 - ``dynamics.pinocchio`` (``--pinocchio``): the demo with the other engine (``--cost`` with no
   value leaves the stand-in out);
@@ -44,7 +47,8 @@ if "--child" not in sys.argv:   # a child runs on the tree its PYTHONPATH names
     sys.path.insert(0, str(ROOT))
 
 DEMO = ROOT / "configs" / "humanoid_tracking.yaml"
-STAND_IN = "benchmarks.paced_dynamics:PacedDynamics"
+STAND_IN = "benchmarks.paced_stand_ins:PacedDynamics"
+CONTROLLER_STAND_IN = "benchmarks.paced_stand_ins:PacedController"
 TICKS = os.sysconf("SC_CLK_TCK")
 ZENOH_THREADS = ("app", "rx", "tx", "acc", "net")   # Zenoh's runtime threads are named <runtime>-<n>
 WINDOW = (0.25, 0.85)   # the part of the run whose CPU time is counted
@@ -59,8 +63,9 @@ def machine() -> str:
     return f"{model}, {os.cpu_count()} cores, Python {platform.python_version()}"
 
 
-def record_demo(seconds: float, path: Path) -> None:
-    """dynamics.dart's outputs of the demo's first ``seconds``, run in this process, as rows."""
+def record_demo(seconds: float, folder: Path) -> None:
+    """The outputs of the demo's first ``seconds``, run in this process, as rows: dynamics.dart's
+    in ``folder``/dynamics.npy, the controller's in ``folder``/controller.npy."""
     from components.registry import resolve
     from orchestrator.config import load
     from orchestrator.inprocess import run_in_process
@@ -70,9 +75,8 @@ def record_demo(seconds: float, path: Path) -> None:
     start = 0
     for name, spec in config.components.items():
         size = resolve(spec.cls, {**spec.parameters, **config.run_parameters}).outputs.size
-        if name == "dynamics":
-            np.save(path, rows[:, start:start + size])
-            return
+        if name in ("dynamics", "controller"):
+            np.save(folder / f"{name}.npy", rows[:, start:start + size])
         start += size
 
 
@@ -168,6 +172,7 @@ def main() -> None:
     parser.add_argument("--cost", type=float, nargs="*", default=[100.0], help="stand-in costs, us per step (100)")
     parser.add_argument("--dart", action="store_true", help="also the demo with dynamics.dart")
     parser.add_argument("--pinocchio", action="store_true", help="also the demo with dynamics.pinocchio")
+    parser.add_argument("--floor", action="store_true", help="also both the dynamics and the controller as stand-ins at 0 us")
     parser.add_argument("--seconds", type=float, default=10.0, help="simulated seconds per run (10)")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--baseline", type=Path, help="another Zenorbit tree to run each variant on as well")
@@ -179,12 +184,20 @@ def main() -> None:
         child(args.child)
         return
     print(f"machine: {machine()}; load average {load()}")
-    replay = Path(tempfile.mkdtemp(prefix="zenorbit-pace-")) / "dart_outputs.npy"
-    record_demo(args.seconds, replay)
+    recorded = Path(tempfile.mkdtemp(prefix="zenorbit-pace-"))
+    record_demo(args.seconds, recorded)
+    replay = recorded / "dynamics.npy"
     duration = f"run.duration={args.seconds:g} s"
     variants = {f"stand-in {c:g} us": [duration, f"components.dynamics.type={STAND_IN}",
                                        f"components.dynamics.parameters.replay={replay}",
                                        f"components.dynamics.parameters.cost={c:g} us"] for c in args.cost}
+    if args.floor:
+        variants["both stand-ins at 0 us"] = [duration, f"components.dynamics.type={STAND_IN}",
+                                              f"components.dynamics.parameters.replay={replay}",
+                                              "components.dynamics.parameters.cost=0 us",
+                                              f"components.controller.type={CONTROLLER_STAND_IN}",
+                                              f"components.controller.parameters.replay={recorded / 'controller.npy'}",
+                                              "components.controller.parameters.cost=0 us"]
     if args.dart:
         variants["dynamics.dart"] = [duration]
     if args.pinocchio:

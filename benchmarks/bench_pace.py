@@ -186,18 +186,17 @@ def main() -> None:
     print(f"machine: {machine()}; load average {load()}")
     recorded = Path(tempfile.mkdtemp(prefix="zenorbit-pace-"))
     record_demo(args.seconds, recorded)
-    replay = recorded / "dynamics.npy"
     duration = f"run.duration={args.seconds:g} s"
-    variants = {f"stand-in {c:g} us": [duration, f"components.dynamics.type={STAND_IN}",
-                                       f"components.dynamics.parameters.replay={replay}",
-                                       f"components.dynamics.parameters.cost={c:g} us"] for c in args.cost}
+
+    def stand_in(name: str, kind: str, cost: float) -> list[str]:
+        """The overrides that put stand-in ``kind`` of ``cost`` us per step in place of ``name``."""
+        return [f"components.{name}.type={kind}", f"components.{name}.parameters.replay={recorded / f'{name}.npy'}",
+                f"components.{name}.parameters.cost={cost:g} us"]
+
+    variants = {f"stand-in {c:g} us": [duration, *stand_in("dynamics", STAND_IN, c)] for c in args.cost}
     if args.floor:
-        variants["both stand-ins at 0 us"] = [duration, f"components.dynamics.type={STAND_IN}",
-                                              f"components.dynamics.parameters.replay={replay}",
-                                              "components.dynamics.parameters.cost=0 us",
-                                              f"components.controller.type={CONTROLLER_STAND_IN}",
-                                              f"components.controller.parameters.replay={recorded / 'controller.npy'}",
-                                              "components.controller.parameters.cost=0 us"]
+        variants["both stand-ins at 0 us"] = [duration, *stand_in("dynamics", STAND_IN, 0),
+                                              *stand_in("controller", CONTROLLER_STAND_IN, 0)]
     if args.dart:
         variants["dynamics.dart"] = [duration]
     if args.pinocchio:

@@ -85,6 +85,7 @@ class Float(Kind):
     unit: str = "1"
     minimum: float | None = None      # inclusive
     positive: bool = False
+    maximum: float | None = None      # inclusive
 
     @property
     def text(self) -> str:
@@ -96,6 +97,8 @@ class Float(Kind):
             raise ConfigError(key, f"expected a quantity > 0, got {value!r}")
         if self.minimum is not None and not x >= self.minimum:
             raise ConfigError(key, f"expected a quantity >= {self.minimum:g}, got {value!r}")
+        if self.maximum is not None and not x <= self.maximum:
+            raise ConfigError(key, f"expected a quantity <= {self.maximum:g}, got {value!r}")
         return x
 
     def accepts(self, value):

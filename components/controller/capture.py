@@ -1,5 +1,5 @@
 r"""Capture of a tumbling target by a free-floating servicer, and the detumbling of the assembly
-(issue 23). Plain classes, no bus, no I/O; ``controller.capture``
+(issues 23 and 33). Plain classes, no bus, no I/O; ``controller.capture``
 (:mod:`components.controller.capture_component`) wraps them.
 
 Frames and measurements
@@ -38,29 +38,47 @@ least squares on the same numbers).
 
 Phases (``phase`` output)
 -------------------------
-0, approach: until the estimator holds N measurements the arm holds its initial joint
-configuration (joint PD with the computed-torque terms below). At the first estimate (time t_0, EE
-pose p_0, R_0) a quintic blend ``s(t)`` (components.controller.trajectory.quintic) over
-``approach_time`` takes the reference from the EE's pose onto the moving grasp frame:
+The approach is planned in joint space and the close is made in Cartesian space, as servicing
+arms do (:mod:`components.controller.capture_plan` has the prediction, the inverse kinematics and
+the joint move):
 
-    p_d = p_0 + s (p_g - p_0),  v_d = s' (p_g - p_0) + s v_g,  a_d = s'' (p_g - p_0) + 2 s' v_g + s a_g
-    R_d = exp(r) R_0,  r = s phi,  phi = log(R_g R_0^T)
-    w_d = J_l(r) r',  dw_d = J_l(r) r'' + J_l(r)' r',  r' = s' phi + s phi',  r'' = s'' phi + 2 s' phi' + s phi''
+0, wait: the arm holds its initial configuration (the *posture*; joint PD with the computed-torque
+terms below). Once the estimator holds N measurements, every ``replan_period`` the planner
+predicts the grapple's motion (a rigid tumble at the estimated rate) and looks for the earliest
+meeting time, from 1 s on, after which the arm can follow the grapple for ``closing_time +
+tolerance_time`` and half a second more: an inverse-kinematics solution at every half second of
+that window (from the arm's configuration, its posture, and each with the wrist turned over),
+inside the joint limits by ``joint_margin``, with the smallest singular value of the Jacobian above
+``singularity_margin`` and the rates that follow the grapple within ``rate_fraction`` of the URDF
+limits; and the pre-grasp configuration must be reachable by then within 0.8 of the rate limits.
+A meeting within ``approach_time`` starts the approach; a later one is waited for (the arm waits
+for the grapple to come round), re-planned as the estimate improves.
 
-with ``J_l(phi) phi' = w_g`` and ``J_l(phi) phi'' = dw_g - J_l(phi)' phi'`` (``left_jacobian_rate``):
-the reference's derivatives are exact. The rotation blend assumes the EE and the grasp frame stay
-less than 180 deg apart.
+1, approach: a quintic joint move from the arm's configuration and rates to the *pre-grasp*
+configuration at the meeting time (the predicted grasp frame moved back ``standoff`` along its z)
+with the rates that follow it, tracked by joint-space computed torque ``tau = M* qdd + C*`` (the
+base's reaction is in M* and C*).
 
-1, track: the reference is the estimated grasp frame (pose, velocity, acceleration). Both phases use
-:class:`ComputedTorqueLaw` (eqs. 6 and 8, Generalized Jacobian, null-space posture at the initial
-configuration); the wheels are passive joints of its model (they get no torque before capture).
-The blend is a straight line in W and a geodesic in SO(3): from a start pose on the other side of
-a singularity (a stretched elbow, a flipped wrist) the arm cannot follow it, and the limits below
-stop the run. ``close`` goes to 1 (and stays) once the estimated errors of the EE relative to the
-grasp frame (position, attitude angle, linear velocity, angular velocity) have stayed within
-their tolerances for ``tolerance_time``.
+2, closing: the Cartesian law (below) on the estimated grasp frame carrying the end effector's
+offset at the end of the approach (position and rotation vector, both in the grasp frame's axes),
+shrunk to zero by a quintic over ``closing_time``: a straight line along the grapple's axis from the
+pre-grasp pose, with every derivative of the reference exact (the grasp frame's velocity and
+acceleration carried through the offset).
 
-2, captured (the ``captured`` input is 1; latched): the arm holds the joint configuration it had at
+3, track: the reference is the estimated grasp frame (pose, velocity, acceleration). Closing and
+track use :class:`ComputedTorqueLaw` (eqs. 6 and 8, Generalized Jacobian, null-space posture at the
+initial configuration); the wheels are passive joints of its model (they get no torque before
+capture). ``close`` goes to 1 once the estimated errors of the EE relative to the grasp frame
+(position, attitude angle, linear velocity, angular velocity: the ``close_errors`` output) have
+stayed within their tolerances for ``tolerance_time``.
+
+4, retreat: when, in closing or track, the grapple leaves the arm's reach, or following it needs
+joint rates or torques beyond the URDF limits for longer than ``limit_window``, or the tolerances
+were not met within ``track_time``, or after a capture the grasp opens again (the dynamics released
+an overloaded weld), a quintic joint move takes the arm back to its posture over ``approach_time``
+(an event ``capture_retreat`` says why) and the planner looks for the next window.
+
+5, captured (the ``captured`` input is 1; latched): the arm holds the joint configuration it had at
 capture with a joint PD in torque units and the servicer's Coriolis terms,
 ``tau = K_p (q_hold - q) - K_d qd + C*``: the welded target's inertia, which the model lacks (an
 uncooperative target), dwarfs the servicer's M* at the wrist (M* times a gain in 1/s^2 would hold
@@ -77,12 +95,12 @@ within ``grasp_force_limit``/``grasp_torque_limit``: whenever the wrench exceeds
 ratio r > 1 the factor is divided by r; otherwise it recovers linearly to 1 over
 ``wrench_recovery_time``. Total momentum is never an input.
 
-Beyond the arm (``BeyondArmError``, approach and track only): the estimated grasp point farther
-from the shoulder (the first joint of the arm) than the arm's reach (the sum of the joint offsets
-from there to the EE); joint rates needed to follow the reference (``J_g^+ (xdot_d - xdot_h)``,
-``xdot_h = xdot - J_g qdot`` the momentum's share of the EE twist), or measured, beyond the URDF
-velocity limits, or torques (before clipping) beyond the URDF effort limits, either for longer than
-``limit_window``. The message says which limit, the figure and the limit.
+6, aborted: the capture is given up and the arm holds its posture, the target free; an event
+``capture_aborted`` gives the time and a reason a person can act on. It comes after ``attempts``
+retreats (the reason of the last), when a whole turn of the predicted tumble offers no window (the
+check that failed at the best sample, with its figure), or at ``capture_timeout`` without an
+approach under way (no window, or no estimate). Not capturing is an outcome: the run goes on and
+ends normally.
 """
 from __future__ import annotations
 
@@ -92,18 +110,15 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from components.controller.capture_plan import ArmKinematics, JointMove, Limits, RigidPrediction
 from components.controller.computed_torque import ArmState, ComputedTorqueLaw, FreeFloatingArm, dls_inverse
 from components.controller.trajectory import PoseSample, quintic
 from components.errors import ComponentError
 from components.rotations import exp_so3, log_so3, quat_to_matrix, skew
 
-APPROACH, TRACK, CAPTURED = 0, 1, 2
+WAIT, APPROACH, CLOSING, TRACK, RETREAT, CAPTURED, ABORTED = range(7)
+PHASES = ("wait", "approach", "closing", "track", "retreat", "captured", "aborted")
 EMPTY = np.zeros(0)
-
-
-class BeyondArmError(ComponentError):
-    """The grasp point cannot be followed: out of reach, or it needs joint rates or torques beyond
-    the URDF limits. The message names the limit, the figure and the limit."""
 
 
 # --------------------------------------------------------------------------- SO(3)
@@ -321,14 +336,23 @@ class CaptureSettings:
 
     | field | unit | meaning |
     |---|---|---|
-    | approach_time | s | duration of the blend onto the grasp frame |
+    | approach_time | s | duration of the joint-space move onto the pre-grasp pose (and of a retreat) |
+    | closing_time | s | duration of the straight-line close from the pre-grasp pose onto the grapple |
+    | standoff | m | the pre-grasp pose: the grasp frame moved back along its z (out of the target) |
     | position_tolerance, attitude_tolerance | m, rad | close when the estimated errors stay below... |
     | velocity_tolerance, rate_tolerance | m/s, rad/s | ...these (linear and angular velocity)... |
     | tolerance_time | s | ...for this long |
+    | track_time | s | how long tracking may wait for the tolerances before the arm retreats |
+    | attempts | - | approaches before the capture is given up |
+    | capture_timeout | s | time (from t = 0) after which a capture not under way is given up |
+    | replan_period | s | how often the planner looks for a window while the arm waits |
+    | singularity_margin | - | the planner's lowest smallest singular value of the arm's Jacobian |
+    | rate_fraction | - | the planner's share of the URDF velocity limits for following the grapple |
+    | joint_margin | rad | the planner's distance from the URDF position limits |
     | grasp_force_limit, grasp_torque_limit | N, N m | bounds of the measured wrist wrench while detumbling |
     | detumble_gain | N m s/rad | bus torque per bus rate |
     | wrench_recovery_time | s | time for the wheel-torque factor to recover from 0 to 1 |
-    | hold_kp, hold_kd | 1/s^2, 1/s (n) | joint hold gains before the first estimate (computed torque) |
+    | hold_kp, hold_kd | 1/s^2, 1/s (n) | joint gains of the holds and the joint-space moves (computed torque) |
     | captured_kp, captured_kd | N m/rad, N m s/rad (n) | joint hold gains after capture (torque units) |
     | estimator_window | - | measurements in the fit |
     | estimator_memory | s | fading-memory time constant of the fit |
@@ -336,15 +360,25 @@ class CaptureSettings:
     | limit_window | s | how long joint rates or torques may exceed the URDF limits |
     | shoulder, reach | -, m | centre and radius of the reach sphere |
     | arm_velocity | rad/s (n) | URDF velocity limits of the arm joints |
+    | arm_lower, arm_upper | rad (n) | URDF position limits of the arm joints |
     | wheel_axes | - (3, m) | wheel spin axes in bus axes (columns) |
     | wheel_effort, wheel_velocity | N m, rad/s (m) | URDF limits of the wheels |
     """
     approach_time: float
+    closing_time: float
+    standoff: float
     position_tolerance: float
     attitude_tolerance: float
     velocity_tolerance: float
     rate_tolerance: float
     tolerance_time: float
+    track_time: float
+    attempts: int
+    capture_timeout: float
+    replan_period: float
+    singularity_margin: float
+    rate_fraction: float
+    joint_margin: float
     grasp_force_limit: float
     grasp_torque_limit: float
     detumble_gain: float
@@ -360,16 +394,28 @@ class CaptureSettings:
     shoulder: str
     reach: float
     arm_velocity: np.ndarray
+    arm_lower: np.ndarray
+    arm_upper: np.ndarray
     wheel_axes: np.ndarray
     wheel_effort: np.ndarray
     wheel_velocity: np.ndarray
 
 
+#: the estimated errors behind ``close``, in the order of the ``close_errors`` output
+CLOSE_ERRORS = ("position", "attitude", "velocity", "rate")
+PLAN_STEP = 0.5           # s between the planner's samples of the predicted grapple motion
+WINDOW_MARGIN = 0.5       # s of following beyond closing_time + tolerance_time a window must offer
+LONGEST_SCAN = 180.0      # s: the planner looks no further ahead than this
+SHORTEST_APPROACH = 1.0   # s: the quickest joint move onto the pre-grasp pose
+MOVE_RATE_FRACTION = 0.8  # share of the URDF velocity limits a joint move may reach
+
+
 class CaptureController:
     """The capture controller of one servicer (module doc): arm model, Cartesian law, estimator,
-    phases, detumbling. ``start(state)`` takes the arm's initial configuration (the posture and the
-    hold before the first estimate); ``step(t, h, inputs)`` returns the outputs for the inputs
-    measured at t (h: the control period, s). ``wheels`` are the wheel joints' names (body joints)."""
+    planner, phases, detumbling. ``start(state)`` takes the arm's initial configuration (the
+    posture it waits and retreats to); ``step(t, h, inputs)`` returns the outputs for the inputs
+    measured at t (h: the control period, s). ``wheels`` are the wheel joints' names (body joints).
+    ``take_events()`` returns the events of the steps since the last call (name, fields)."""
 
     def __init__(self, arm: FreeFloatingArm, law: ComputedTorqueLaw, settings: CaptureSettings,
                  wheels: Sequence[str]):
@@ -381,14 +427,26 @@ class CaptureController:
             self.wheel_map = np.zeros((0, 3))
         self.shoulder_id = arm.model.getJointId(settings.shoulder)
         self.arm_names = list(arm.arm_joints)
+        arm_q = np.array([arm.model.joints[arm.model.getJointId(j)].idx_q for j in self.arm_names])
+        self.kinematics = ArmKinematics(arm.model, arm.arm_v, arm_q, arm.ee, self.shoulder_id, self.arm_names, Limits(
+            np.asarray(settings.arm_lower, float), np.asarray(settings.arm_upper, float),
+            np.asarray(settings.arm_velocity, float), settings.joint_margin, settings.singularity_margin,
+            settings.rate_fraction, settings.reach))
         self.estimator = GraspEstimator(settings.estimator_window, settings.estimator_memory)
         self.history = PoseHistory(settings.pose_history)
         n = arm.n
         self.started = False
         self.q_posture = np.zeros(n)
-        self.phase = APPROACH
+        self.phase = WAIT
         self.close = False
-        self.anchor: tuple[float, np.ndarray, np.ndarray] | None = None
+        self.move: JointMove | None = None
+        self.closing = (math.nan, np.zeros(3), np.zeros(3))      # start time, offset and rotation in G
+        self.track_since = math.nan
+        self.track_stats = np.zeros(9)        # track: steps, steps above each tolerance, sums of the errors
+        self.attempt = 0
+        self.next_plan = -math.inf
+        self.reason = ""                                          # why the last attempt or plan failed
+        self.errors = np.zeros(4)
         self.q_hold = np.zeros(n)
         self.within_since = math.nan
         self.rate_since = np.full(n, math.nan)
@@ -396,6 +454,7 @@ class CaptureController:
         self.wheel_scale = 1.0
         self.last_seen = -math.inf            # time of the last measurement looked at
         self.last_distance = 0.0              # |grasp_p| of the last measurement taken
+        self.events: list[tuple[str, dict]] = []
 
     # ------------------------------------------------------------ lifecycle
 
@@ -403,32 +462,45 @@ class CaptureController:
         self.q_posture = np.asarray(state["q"], dtype=float)[self.arm.body_arm].copy()
         self.started = True
 
+    def take_events(self) -> list[tuple[str, dict]]:
+        events, self.events = self.events, []
+        return events
+
     def step(self, t: float, h: float, x: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         arm = self.arm
         arm.set_state(x["position"], x["orientation"], x["twist"], x["q"], x["qd"])
         s = arm.compute(self.law.base_model)
         self.history.record(t, s.p, s.R, s.xdot[:3], s.xdot[3:])
         self._measure(t, x)
-        if self.phase != CAPTURED and float(x["captured"]) > 0.5:
+        captured = float(x["captured"]) > 0.5
+        if self.phase != CAPTURED and captured:
             self.phase, self.close, self.q_hold = CAPTURED, True, s.q.copy()
+            self.events.append(("capture_closed", {"time": t, "attempt": self.attempt}))
+        elif self.phase == CAPTURED and not captured:
+            self._retreat(t, s, "the grasp opened after the capture (the dynamics' grasp_overload event: the wrist "
+                                "loads exceeded the fixture's limits)")
         estimate = self.estimator.fit.sample(t) if self.estimator.ready else None
         tau = np.zeros(arm.n_body)
-        reference = estimate
+        reference = None
         if self.phase == CAPTURED:
             tau_arm = self._captured_hold(s)
             tau[self.wheel_index] = self._detumble(h, x)
-        elif estimate is None:
-            tau_arm = self._joint_hold(s, self.q_posture)
         else:
-            if self.anchor is None:
-                self.anchor = (t, s.p.copy(), s.R.copy())
-            reference = self._reference(t, estimate)
-            self._check_reach(t, estimate.p)
-            out = self.law.control(s, reference, self.q_posture)
-            self._check_limits(t, s, reference, out.qdd)
-            tau_arm = out.tau
-            if self.phase == TRACK:
-                self._update_close(t, s, estimate)
+            if self.phase == WAIT:
+                self._wait(t, s, estimate, x)
+            if self.phase in (APPROACH, RETREAT) and t >= self.move.t0 + self.move.T:
+                self._arrive(t, s, estimate)
+            if self.phase in (CLOSING, TRACK):
+                reference = self._reference(t, estimate)
+                out = self.law.control(s, reference, self.q_posture)
+                problem = self._limits(t, s, estimate, reference, out.qdd) or self._update_close(t, s, estimate)
+                tau_arm = out.tau
+                if problem:
+                    self._retreat(t, s, problem)
+            if self.phase in (APPROACH, RETREAT):
+                tau_arm = self._joint_move(t, s)
+            elif self.phase in (WAIT, ABORTED):
+                tau_arm = self._joint_hold(s, self.q_posture)
         tau[arm.body_arm] = tau_arm
         return self._outputs(s, tau, estimate, reference)
 
@@ -457,41 +529,174 @@ class CaptureController:
         self.estimator.add(t_m, p_ee + R_ee @ p, R_ee @ quat_to_matrix(q))
         self.last_distance = float(np.linalg.norm(p))
 
-    # ------------------------------------------------------------ approach and track
+    # ------------------------------------------------------------ waiting and planning
+
+    def _wait(self, t: float, s: ArmState, g: PoseSample | None, x: Mapping[str, np.ndarray]) -> None:
+        """Look for a window at most every replan_period; go, wait, or give up."""
+        cfg = self.cfg
+        if t < self.next_plan:
+            return
+        if g is None:
+            if t >= cfg.capture_timeout:
+                self._abort(t, f"no estimate of the grapple's motion by capture_timeout = {cfg.capture_timeout:g} s: "
+                               f"{self.estimator.t.size} of the estimator_window = {self.estimator.window} "
+                               f"measurements arrived (is the pose sensor connected and is the grapple in view?)")
+            return
+        self.next_plan = t + cfg.replan_period
+        base_v, base_w = np.asarray(x["twist"][:3], dtype=float), np.asarray(x["twist"][3:], dtype=float)
+        prediction = RigidPrediction(t, g, x["position"], base_v, base_w)
+        distance = self.kinematics.shoulder_distance(self.arm.q_pin, prediction.c)
+        turn = 2.0 * math.pi / prediction.rate if prediction.rate > 1e-9 else math.inf
+        horizon = min(turn, LONGEST_SCAN, max(cfg.capture_timeout - t - SHORTEST_APPROACH, 0.0))
+        plan, reason, found = self._plan(t, s, prediction, horizon)
+        if plan is not None:
+            duration, q1, qd1 = plan
+            self.attempt += 1
+            self.move = JointMove(t, duration, s.q, s.qd, q1, qd1)
+            self.phase = APPROACH
+            self.events.append(("capture_approach", {"time": t, "attempt": self.attempt, "meet_time": t + duration}))
+            return
+        self.reason = reason
+        if t >= cfg.capture_timeout or (not found and horizon >= turn):
+            scope = ("in a whole turn of the tumble" if horizon >= turn
+                     else f"by capture_timeout = {cfg.capture_timeout:g} s")
+            self._abort(t, f"the grapple never comes where the arm can follow it {scope} "
+                           f"({math.degrees(prediction.rate):.3g} deg/s, its centre of rotation {distance:.3g} m from "
+                           f"the shoulder, reach {cfg.reach:.3g} m): {reason}")
+
+    def _plan(self, t: float, s: ArmState, prediction: RigidPrediction, horizon: float):
+        """(the approach: (duration, q, qd) of the pre-grasp configuration, or None; the reason of
+        the best infeasible sample when there is none; whether a window exists within the horizon).
+
+        The meeting time runs from SHORTEST_APPROACH on in steps of PLAN_STEP; the first at which
+        the arm can follow the grapple for the window, and reach its pre-grasp pose in time
+        within the rate limits, is taken if it is at most approach_time away."""
+        cfg, kin = self.cfg, self.kinematics
+        q_pin = self.arm.q_pin.copy()
+        window = int(math.ceil((cfg.closing_time + cfg.tolerance_time + WINDOW_MARGIN) / PLAN_STEP))
+        samples = int(horizon / PLAN_STEP) + window + 1
+        best_reason, best_score, found = "", -math.inf, False
+        for seed in self._seeds(s.q):
+            q_prev, run = seed, 0
+            for k in range(samples):
+                g = prediction.sample(t + SHORTEST_APPROACH + k * PLAN_STEP)
+                target = _se3(g.R, g.p)
+                q = kin.solve(q_pin, target, q_prev)
+                if q is None and q_prev is not seed:
+                    q = kin.solve(q_pin, target, seed)
+                verdict = kin.judge(q_pin, q, np.concatenate([g.v, g.w]))
+                if verdict.feasible:
+                    q_prev, run = verdict.q, run + 1
+                else:
+                    q_prev, run = seed, 0
+                    if verdict.score > best_score:
+                        best_score, best_reason = verdict.score, verdict.reason
+                if run > window:
+                    found = True
+                    start = k - window                   # the window's first sample: the meeting time
+                    duration = SHORTEST_APPROACH + start * PLAN_STEP
+                    if duration > cfg.approach_time:
+                        break                            # further than approach_time: wait for it
+                    plan = self._pre_grasp(q_pin, prediction.sample(t + duration), seed, s, duration)
+                    if plan is not None:
+                        return (duration, *plan), "", True
+                    run -= 1                             # too far to reach in time: a later meeting
+        return None, best_reason or "no window", found
+
+    def _seeds(self, q: np.ndarray) -> list[np.ndarray]:
+        """Starting configurations for the inverse kinematics: the arm now, its posture, and
+        each with the wrist turned over (the last three joints: q4 + pi, -q5, q6 + pi)."""
+        seeds = [q.copy(), self.q_posture.copy()]
+        for base in list(seeds):
+            if base.size >= 3:
+                flipped = base.copy()
+                flipped[-3] += math.pi
+                flipped[-2] = -flipped[-2]
+                flipped[-1] += math.pi
+                seeds.append((flipped + math.pi) % (2.0 * math.pi) - math.pi)
+        return seeds
+
+    def _pre_grasp(self, q_pin, g: PoseSample, seed: np.ndarray, s: ArmState, duration: float):
+        """(q, qd) at the pre-grasp pose of the predicted grapple g, or None when the move there
+        in ``duration`` would exceed the rate limits or the configuration is not feasible."""
+        cfg, kin = self.cfg, self.kinematics
+        z = g.R[:, 2]
+        p = g.p - cfg.standoff * z
+        v = g.v - cfg.standoff * np.cross(g.w, z)
+        q = kin.solve(q_pin, _se3(g.R, p), seed)
+        verdict = kin.judge(q_pin, q, np.concatenate([v, g.w]))
+        if not verdict.feasible:
+            return None
+        move = JointMove(0.0, duration, s.q, s.qd, verdict.q, verdict.qd)
+        if np.any(move.peak_rate() > MOVE_RATE_FRACTION * cfg.arm_velocity):
+            return None
+        return verdict.q, verdict.qd
+
+    # ------------------------------------------------------------ moves, closing and tracking
+
+    def _arrive(self, t: float, s: ArmState, g: PoseSample | None) -> None:
+        """End of a joint move: an approach goes on to closing (the offset of the end effector
+        from the estimated grasp frame, in its axes, shrinks to zero); a retreat waits again."""
+        if self.phase == RETREAT:
+            self.phase, self.move = WAIT, None
+            if self.attempt >= self.cfg.attempts:
+                self._abort(t, f"{self.attempt} attempts: {self.reason}")
+            return
+        d = g.R.T @ (s.p - g.p)
+        psi = log_so3(g.R.T @ s.R)
+        self.closing = (t, d, psi)
+        self.phase, self.move = CLOSING, None
+        self.track_since, self.track_stats = math.nan, np.zeros(9)
 
     def _reference(self, t: float, g: PoseSample) -> PoseSample:
-        """The blend onto the grasp frame (approach) or the grasp frame itself (track)."""
-        t0, p0, R0 = self.anchor
-        T = self.cfg.approach_time
-        if t >= t0 + T:
-            self.phase = TRACK
+        """Closing: the grasp frame with the offset of the approach's end shrinking by a quintic
+        (a straight line and a fixed axis in the grasp frame); track: the grasp frame."""
+        t0, d0, psi0 = self.closing
+        T = self.cfg.closing_time
+        if self.phase == CLOSING and t >= t0 + T:
+            self.phase, self.track_since = TRACK, t
+        if self.phase == TRACK:
             return g
-        self.phase = APPROACH
         s, ds, dds = quintic(t, t0, T)
-        d = g.p - p0
-        phi = log_so3(g.R @ R0.T)
-        J = left_jacobian(phi)
-        dphi = np.linalg.solve(J, g.w)                                        # J_l(phi) phi' = w_g
-        ddphi = np.linalg.solve(J, g.dw - left_jacobian_rate(phi, dphi) @ dphi)
-        r, dr, ddr = s * phi, ds * phi + s * dphi, dds * phi + 2.0 * ds * dphi + s * ddphi
-        J_r = left_jacobian(r)
-        return PoseSample(p0 + s * d, ds * d + s * g.v, dds * d + 2.0 * ds * g.v + s * g.a,
-                          exp_so3(r) @ R0, J_r @ dr, J_r @ ddr + left_jacobian_rate(r, dr) @ dr)
+        f, df, ddf = 1.0 - s, -ds, -dds
+        r, dr, ddr = g.R @ (f * d0), g.R @ (df * d0), g.R @ (ddf * d0)
+        u, du = g.R @ (df * psi0), g.R @ (ddf * psi0)
+        return PoseSample(g.p + r, g.v + np.cross(g.w, r) + dr,
+                          g.a + np.cross(g.dw, r) + np.cross(g.w, np.cross(g.w, r)) + 2.0 * np.cross(g.w, dr) + ddr,
+                          g.R @ exp_so3(f * psi0), g.w + u, g.dw + np.cross(g.w, u) + du)
 
-    def _check_reach(self, t: float, p_grasp: np.ndarray) -> None:
-        centre = np.array(self.arm.data.oMi[self.shoulder_id].translation)
-        distance = float(np.linalg.norm(p_grasp - centre))
-        if distance > self.cfg.reach:
-            raise BeyondArmError(f"the grasp point is {distance:.2f} m from the shoulder; the arm reaches "
-                                 f"{self.cfg.reach:.2f} m (estimated at t = {t:.3f} s, from {self.cfg.shoulder})")
+    def _joint_move(self, t: float, s: ArmState) -> np.ndarray:
+        """Computed torque on the joint move (M*, C*: the base's reaction included)."""
+        q_d, qd_d, qdd_d = self.move.sample(t)
+        qdd = qdd_d + self.cfg.hold_kd * (qd_d - s.qd) + self.cfg.hold_kp * (q_d - s.q)
+        tau = s.M_star @ qdd + s.C_star
+        return np.minimum(np.maximum(tau, -self.law.effort), self.law.effort)
 
-    def _check_limits(self, t: float, s: ArmState, d: PoseSample, qdd: np.ndarray) -> None:
-        """Joint rates needed to follow the reference and torques needed by the law, against the
-        URDF limits, each allowed beyond them for ``limit_window``."""
+    def _retreat(self, t: float, s: ArmState, reason: str) -> None:
+        """Back to the posture over approach_time; the planner looks for another window after."""
+        cfg = self.cfg
+        self.reason, self.close, self.within_since = reason, False, math.nan
+        self.rate_since[:], self.torque_since[:] = math.nan, math.nan
+        self.move = JointMove(t, cfg.approach_time, s.q, s.qd, self.q_posture, np.zeros_like(s.q))
+        self.phase = RETREAT
+        self.events.append(("capture_retreat", {"time": t, "attempt": self.attempt, "reason": reason}))
+
+    def _abort(self, t: float, reason: str) -> None:
+        self.phase, self.close, self.reason = ABORTED, False, reason
+        self.events.append(("capture_aborted", {"time": t, "attempts": self.attempt, "reason": reason}))
+
+    def _limits(self, t: float, s: ArmState, g: PoseSample, d: PoseSample, qdd: np.ndarray) -> str:
+        """Why the arm cannot go on following the grasp frame ('' when it can): the grapple out
+        of reach, or joint rates (needed or measured) or torques beyond the URDF limits for longer
+        than limit_window."""
         law, cfg = self.law, self.cfg
+        centre = np.array(self.arm.data.oMi[self.shoulder_id].translation)
+        distance = float(np.linalg.norm(g.p - centre))
+        if distance > cfg.reach:
+            return (f"the grasp point is {distance:.2f} m from the shoulder; the arm reaches "
+                    f"{cfg.reach:.2f} m (estimated at t = {t:.3f} s, from {cfg.shoulder})")
         J_plus, _, _ = dls_inverse(s.J_g, law.eps, law.lam)
         momentum_share = s.xdot - s.J_g @ s.qd
-        # the rates the reference needs, or the arm's measured rates when higher (the feedback's)
         qd_needed = J_plus @ (np.concatenate([d.v, d.w]) - momentum_share)
         qd_needed = np.where(np.abs(s.qd) > np.abs(qd_needed), s.qd, qd_needed)
         tau_needed = s.M_star @ qdd + s.C_star
@@ -506,30 +711,43 @@ class CaptureController:
                 i = int(np.flatnonzero(late)[np.argmax((np.abs(needed) / limit)[late])])
                 doing = (f"following the grasp point needs {self.arm_names[i]} at" if what == "velocity" else
                          f"the arm's torques saturate: {self.arm_names[i]} needs")
-                raise BeyondArmError(
-                    f"{doing} {abs(needed[i]):.3g} {unit} for {t - since[i]:.3g} s (longer than limit_window = "
-                    f"{cfg.limit_window:g} s); its URDF {what} limit is {limit[i]:.3g} {unit}")
+                return (f"{doing} {abs(needed[i]):.3g} {unit} for {t - since[i]:.3g} s (longer than limit_window = "
+                        f"{cfg.limit_window:g} s); its URDF {what} limit is {limit[i]:.3g} {unit}")
+        return ""
 
-    def _update_close(self, t: float, s: ArmState, g: PoseSample) -> None:
-        if self.close:
-            return
+    def _update_close(self, t: float, s: ArmState, g: PoseSample) -> str:
+        """Track: close once the estimated errors have stayed within the tolerances for
+        tolerance_time; '' or, after track_time without that, the error that blocked it."""
         cfg = self.cfg
-        within = (float(np.linalg.norm(g.p - s.p)) < cfg.position_tolerance
-                  and float(np.linalg.norm(log_so3(g.R @ s.R.T))) < cfg.attitude_tolerance
-                  and float(np.linalg.norm(g.v - s.xdot[:3])) < cfg.velocity_tolerance
-                  and float(np.linalg.norm(g.w - s.xdot[3:])) < cfg.rate_tolerance)
-        if not within:
-            self.within_since = math.nan
-            return
-        if math.isnan(self.within_since):
-            self.within_since = t
-        if t - self.within_since >= cfg.tolerance_time:
-            self.close = True
+        self.errors = np.array([float(np.linalg.norm(g.p - s.p)), float(np.linalg.norm(log_so3(g.R @ s.R.T))),
+                                float(np.linalg.norm(g.v - s.xdot[:3])), float(np.linalg.norm(g.w - s.xdot[3:]))])
+        if self.phase != TRACK or self.close:
+            return ""
+        tolerance = np.array([cfg.position_tolerance, cfg.attitude_tolerance, cfg.velocity_tolerance,
+                              cfg.rate_tolerance])
+        ratio = self.errors / tolerance
+        self.track_stats += np.concatenate([[1.0], ratio >= 1.0, self.errors])
+        if np.all(ratio < 1.0):
+            if math.isnan(self.within_since):
+                self.within_since = t
+            if t - self.within_since >= cfg.tolerance_time:
+                self.close = True
+            return ""
+        self.within_since = math.nan
+        if t - self.track_since < cfg.track_time:
+            return ""
+        steps, above, total = self.track_stats[0], self.track_stats[1:5], self.track_stats[5:]
+        i = int(np.argmax(above))
+        unit, scale = ("mm", 1e3), ("deg", 180.0 / math.pi), ("mm/s", 1e3), ("deg/s", 180.0 / math.pi)[i]
+        return (f"the estimated errors did not stay within the tolerances for tolerance_time = {cfg.tolerance_time:g} s "
+                f"in track_time = {cfg.track_time:g} s: the {CLOSE_ERRORS[i]} error was above "
+                f"{CLOSE_ERRORS[i]}_tolerance = {tolerance[i] * scale:.3g} {unit} {100.0 * above[i] / steps:.0f}% of the "
+                f"time (mean {total[i] / steps * scale:.3g} {unit})")
 
     # ------------------------------------------------------------ hold and detumble
 
     def _joint_hold(self, s: ArmState, q_hold: np.ndarray) -> np.ndarray:
-        """Computed-torque joint hold of the servicer alone (before the first estimate)."""
+        """Computed-torque joint hold of the servicer alone (waiting, or given up)."""
         qdd = self.cfg.hold_kp * (q_hold - s.q) - self.cfg.hold_kd * s.qd
         tau = s.M_star @ qdd + s.C_star
         return np.minimum(np.maximum(tau, -self.law.effort), self.law.effort)
@@ -565,19 +783,29 @@ class CaptureController:
     def _outputs(self, s: ArmState, tau: np.ndarray, g: PoseSample | None, d: PoseSample | None) -> dict:
         zero = np.zeros(3)
         error = np.zeros(6) if d is None else np.concatenate([d.p - s.p, log_so3(d.R @ s.R.T)])
+        tolerance = np.array([self.cfg.position_tolerance, self.cfg.attitude_tolerance, self.cfg.velocity_tolerance,
+                              self.cfg.rate_tolerance])
+        errors = self.errors if self.phase in (TRACK, CLOSING) else np.zeros(4)
         return {"tau": tau, "close": np.float64(1.0 if self.close else 0.0), "phase": np.float64(self.phase),
+                "attempt": np.float64(self.attempt),
                 "grasp_distance": np.float64(self.last_distance if g is None else np.linalg.norm(g.p - s.p)),
-                "ee_error": error,
+                "ee_error": error, "close_errors": errors.copy(),
+                "close_within": (errors < tolerance).astype(np.float64) if self.phase in (TRACK, CLOSING)
+                else np.zeros(4),
                 "grasp_position_est": zero if g is None else g.p,
                 "grasp_velocity_est": zero.copy() if g is None else g.v,
                 "grasp_rate_est": zero.copy() if g is None else g.w}
 
     def get_state(self) -> dict[str, np.ndarray]:
-        t0, p0, R0 = self.anchor if self.anchor is not None else (math.nan, EMPTY, EMPTY)
+        t0, d0, psi0 = self.closing
         return {"started": np.float64(self.started), "q_posture": self.q_posture.copy(),
                 "phase": np.float64(self.phase), "close": np.float64(self.close),
-                "anchor_t": np.float64(t0), "anchor_p": np.array(p0, dtype=float),
-                "anchor_R": np.array(R0, dtype=float).ravel(), "q_hold": self.q_hold.copy(),
+                "move": self.move.to_array() if self.move is not None else EMPTY.copy(),
+                "closing_t": np.float64(t0), "closing_d": d0.copy(), "closing_psi": psi0.copy(),
+                "track_since": np.float64(self.track_since), "track_stats": self.track_stats.copy(),
+                "attempt": np.float64(self.attempt), "next_plan": np.float64(self.next_plan),
+                "reason": np.frombuffer(self.reason.encode(), dtype=np.uint8).astype(float),
+                "errors": self.errors.copy(), "q_hold": self.q_hold.copy(),
                 "within_since": np.float64(self.within_since), "rate_since": self.rate_since.copy(),
                 "torque_since": self.torque_since.copy(), "wheel_scale": np.float64(self.wheel_scale),
                 "last_seen": np.float64(self.last_seen), "last_distance": np.float64(self.last_distance),
@@ -598,8 +826,15 @@ class CaptureController:
         self.q_posture = vector("q_posture", n)
         self.phase = int(vector("phase", 1)[0])
         self.close = bool(vector("close", 1)[0])
-        p0, R0 = vector("anchor_p", None), vector("anchor_R", None)
-        self.anchor = None if p0.size == 0 else (float(vector("anchor_t", 1)[0]), p0.reshape(3), R0.reshape(3, 3))
+        move = vector("move", None)
+        self.move = JointMove.from_array(move, n) if move.size else None
+        self.closing = (float(vector("closing_t", 1)[0]), vector("closing_d", 3), vector("closing_psi", 3))
+        self.track_since = float(vector("track_since", 1)[0])
+        self.track_stats = vector("track_stats", 9)
+        self.attempt = int(vector("attempt", 1)[0])
+        self.next_plan = float(vector("next_plan", 1)[0])
+        self.reason = bytes(vector("reason", None).astype(np.uint8)).decode()
+        self.errors = vector("errors", 4)
         self.q_hold = vector("q_hold", n)
         self.within_since = float(vector("within_since", 1)[0])
         self.rate_since, self.torque_since = vector("rate_since", n), vector("torque_since", n)
@@ -608,3 +843,9 @@ class CaptureController:
         self.last_distance = float(vector("last_distance", 1)[0])
         self.estimator.set_state(state, "estimator.")
         self.history.set_state(state, "history.")
+
+
+def _se3(R: np.ndarray, p: np.ndarray):
+    import pinocchio as pin
+
+    return pin.SE3(np.ascontiguousarray(R), np.asarray(p, dtype=float))

@@ -54,6 +54,8 @@ class CaptureSetup:
     wheel_velocity: np.ndarray
     effort: np.ndarray
     velocity: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
     shoulder: str
     reach: float
     kp: np.ndarray
@@ -108,7 +110,25 @@ class CaptureComponent(Component):
         Parameter("end_effector", "str",
                   description="link whose frame is brought onto the grasp frame (z out of the tool)"),
         Parameter("approach_time", Float("s", positive=True),
-                  description="duration of the blend from the end effector's pose onto the moving grasp frame"),
+                  description="duration of the joint-space move onto the pre-grasp pose (and of a retreat)"),
+        Parameter("closing_time", Float("s", positive=True), default=1.5,
+                  description="duration of the straight-line close from the pre-grasp pose onto the grapple"),
+        Parameter("standoff", Float("m", minimum=0.0), default=0.1,
+                  description="the pre-grasp pose: the grasp frame moved back this far along its z (out of the target)"),
+        Parameter("track_time", Float("s", positive=True), default=4.0,
+                  description="how long tracking may wait for the tolerances before the arm retreats and tries again"),
+        Parameter("attempts", Int(minimum=1), default=3,
+                  description="approaches before the capture is given up (capture_aborted)"),
+        Parameter("capture_timeout", Float("s", positive=True), default=300.0,
+                  description="time from t = 0 after which a capture not under way is given up (capture_aborted)"),
+        Parameter("replan_period", Float("s", positive=True), default=0.5,
+                  description="how often the planner looks for a window while the arm waits"),
+        Parameter("singularity_margin", Float(positive=True), default=0.1,
+                  description="the planner's lowest smallest singular value of the arm's Jacobian (m/rad and 1, W axes)"),
+        Parameter("rate_fraction", Float(positive=True, maximum=1.0), default=0.5,
+                  description="share of the URDF velocity limits the planner allows for following the grapple"),
+        Parameter("joint_margin", Float("rad", minimum=0.0), default=0.15,
+                  description="the planner keeps the arm this far inside the URDF position limits"),
         Parameter("position_tolerance", Float("m", positive=True),
                   description="close when the estimated position error stays below this (and the other tolerances)"),
         Parameter("attitude_tolerance", Float("rad", positive=True),
@@ -190,6 +210,8 @@ class CaptureComponent(Component):
             wheel_velocity=np.array([model.joint(j).velocity for j in wheels]),
             effort=np.array([model.joint(j).effort for j in joints]),
             velocity=np.array([model.joint(j).velocity for j in joints]),
+            lower=np.array([model.joint(j).lower for j in joints]),
+            upper=np.array([model.joint(j).upper for j in joints]),
             shoulder=shoulder, reach=reach,
             kp=_per_item(params["kp"], 6, "kp", TASK_AXES), kd=_per_item(params["kd"], 6, "kd", TASK_AXES),
             null_kp=_per_item(params["null_kp"], n, "null_kp"), null_kd=_per_item(params["null_kd"], n, "null_kd"),
@@ -219,7 +241,14 @@ class CaptureComponent(Component):
             torque_signal("output", model, note="arm and wheels; zero on other joints"),
             Variable("close", "output", (), "1", 0.0,
                      "1: close the grasp (the estimated errors stayed within tolerance)"),
-            Variable("phase", "output", (), "1", 0.0, "0 approach (or waiting for the estimate), 1 track, 2 captured"),
+            Variable("phase", "output", (), "1", 0.0,
+                     "0 wait, 1 approach, 2 closing, 3 track, 4 retreat, 5 captured, 6 aborted"),
+            Variable("attempt", "output", (), "1", 0.0, "approaches started so far"),
+            Variable("close_errors", "output", (4,), "m, rad, m/s, rad/s", [0.0] * 4,
+                     "estimated errors behind close (closing and track; else 0): position, attitude angle, "
+                     "linear velocity, angular velocity"),
+            Variable("close_within", "output", (4,), "1", [0.0] * 4,
+                     "1 where close_errors is within its tolerance (position, attitude, velocity, rate)"),
             Variable("grasp_distance", "output", (), "m", 0.0,
                      "estimated distance from the end effector to the grasp frame (the last measured one before "
                      "the first estimate)"),
@@ -246,7 +275,11 @@ class CaptureComponent(Component):
         law = ComputedTorqueLaw(c.kp, c.kd, c.null_kp, c.null_kd, c.effort,
                                 dls_threshold=p["dls_threshold"], dls_damping=p["dls_damping"])
         settings = CaptureSettings(
-            approach_time=p["approach_time"], position_tolerance=p["position_tolerance"],
+            approach_time=p["approach_time"], closing_time=p["closing_time"], standoff=p["standoff"],
+            track_time=p["track_time"], attempts=p["attempts"], capture_timeout=p["capture_timeout"],
+            replan_period=p["replan_period"], singularity_margin=p["singularity_margin"],
+            rate_fraction=p["rate_fraction"], joint_margin=p["joint_margin"],
+            position_tolerance=p["position_tolerance"],
             attitude_tolerance=p["attitude_tolerance"], velocity_tolerance=p["velocity_tolerance"],
             rate_tolerance=p["rate_tolerance"], tolerance_time=p["tolerance_time"],
             grasp_force_limit=p["grasp_force_limit"], grasp_torque_limit=p["grasp_torque_limit"],
@@ -254,14 +287,15 @@ class CaptureComponent(Component):
             hold_kp=c.hold_kp, hold_kd=c.hold_kd, captured_kp=c.captured_kp, captured_kd=c.captured_kd,
             estimator_window=p["estimator_window"],
             estimator_memory=p["estimator_memory"], pose_history=p["pose_history"], limit_window=p["limit_window"],
-            shoulder=c.shoulder, reach=c.reach, arm_velocity=c.velocity, wheel_axes=c.wheel_axes,
+            shoulder=c.shoulder, reach=c.reach, arm_velocity=c.velocity, arm_lower=c.lower, arm_upper=c.upper,
+            wheel_axes=c.wheel_axes,
             wheel_effort=c.wheel_effort, wheel_velocity=c.wheel_velocity)
         return CaptureController(arm, law, settings, c.wheels)
 
     def _idle_outputs(self) -> dict[str, np.ndarray]:
         z3 = np.zeros(3)
-        return {"tau": np.zeros(self.controller.arm.n_body), "close": 0.0, "phase": 0.0, "grasp_distance": 0.0,
-                "ee_error": np.zeros(6), "grasp_position_est": z3, "grasp_velocity_est": z3, "grasp_rate_est": z3}
+        return {"tau": np.zeros(self.controller.arm.n_body), "close": 0.0, "phase": 0.0, "attempt": 0.0,
+                "grasp_distance": 0.0, "ee_error": np.zeros(6), "close_errors": np.zeros(4), "close_within": np.zeros(4), "grasp_position_est": z3, "grasp_velocity_est": z3, "grasp_rate_est": z3}
 
     def initialize(self, t0_ns, inputs):
         self.controller = self._build()
@@ -270,13 +304,19 @@ class CaptureComponent(Component):
             # harness said nothing): take the initial configuration at the first step
             return self._idle_outputs()
         self.controller.start(inputs)
-        return self.controller.step(self.input_times_ns["q"] / NS_PER_S, 0.0, inputs)
+        return self._step(self.input_times_ns["q"] / NS_PER_S, 0.0, inputs)
 
     def do_step(self, t_ns, h_ns, inputs):
         if not self.controller.started:
             self.controller.start(inputs)
         t_state = self.input_times_ns.get("q", t_ns)
-        return self.controller.step(t_state / NS_PER_S, h_ns / NS_PER_S, inputs)
+        return self._step(t_state / NS_PER_S, h_ns / NS_PER_S, inputs)
+
+    def _step(self, t, h, inputs):
+        outputs = self.controller.step(t, h, inputs)
+        for kind, fields in self.controller.take_events():
+            self.emit(kind, **fields)
+        return outputs
 
     def get_state(self):
         return self.controller.get_state()

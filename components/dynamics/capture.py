@@ -49,14 +49,22 @@ class Tolerance:
     angular_velocity: float
 
 
+OVERLOAD_ACTIONS = ("release", "hold")
+
+
 @dataclass(frozen=True)
 class GraspSpec:
-    """``chaser``'s link ``end_effector`` grasps ``target``'s link ``grasp_frame``."""
+    """``chaser``'s link ``end_effector`` grasps ``target``'s link ``grasp_frame``. The fixture
+    carries at most ``force_limit`` (N) and ``torque_limit`` (N m, about the grasp point); beyond
+    either the weld opens (``on_overload: release``) or stays closed (``hold``)."""
     chaser: str
     end_effector: str
     target: str
     grasp_frame: str
     tolerance: Tolerance
+    force_limit: float = math.inf
+    torque_limit: float = math.inf
+    on_overload: str = "release"
 
 
 @dataclass
@@ -115,6 +123,9 @@ class Grasp:
         self.p_in_target = np.zeros(3)      # P in the grasp frame G
         self.R_target_chaser = np.eye(3)    # E's attitude in G's, welded
         self.wrench = np.zeros(6)           # last constraint wrench on the chaser (angular, linear; W, about P)
+        self.peak = np.zeros(2)             # largest |force| (N) and |torque| (N m) of the weld since reset_peak
+        self.armed = True                   # closes when asked; False after a release until close is lowered
+        self.overloaded = False             # the last step was beyond the load limits
 
     # ------------------------------------------------------------------ measuring
 
@@ -205,6 +216,7 @@ class Grasp:
         rhs = -(J_c @ a_chaser - J_t @ a_target + bias) - 2.0 * w_n * e_v - w_n * w_n * self.pose_error()
         wrench = np.linalg.solve(K, rhs)
         self.wrench = wrench
+        self.peak = np.maximum(self.peak, (math.hypot(*wrench[3:]), math.hypot(*wrench[:3])))
         return a_chaser + MJ_c @ wrench, a_target - MJ_t @ wrench
 
     def wrench_on_target(self) -> np.ndarray:
@@ -213,16 +225,45 @@ class Grasp:
         _, R_E = self.ee.pose()
         return np.concatenate([R_E.T @ -self.wrench[3:], R_E.T @ -self.wrench[:3]])
 
+    # ------------------------------------------------------------------ load limits
+
+    def reset_peak(self) -> None:
+        self.peak = np.zeros(2)
+
+    def check_overload(self) -> dict | None:
+        """After a step: the overload that began in it (the peaks of the weld's force and torque
+        over its stages, the limits and what was done), or None. A release opens the weld (no
+        impulse: the momentum of the bodies is untouched) and disarms the grasp until ``close``
+        is lowered; ``hold`` keeps it closed. One report per overload: it must fall back within
+        the limits before another."""
+        spec = self.spec
+        over = self.closed and (self.peak[0] > spec.force_limit or self.peak[1] > spec.torque_limit)
+        began = over and not self.overloaded
+        self.overloaded = over
+        if not began:
+            return None
+        if spec.on_overload == "release":
+            self.closed, self.armed, self.overloaded = False, False, False
+        return {"force": float(self.peak[0]), "torque": float(self.peak[1]), "force_limit": spec.force_limit,
+                "torque_limit": spec.torque_limit, "action": spec.on_overload}
+
+    def rearm(self, close: bool) -> None:
+        """A released grasp closes again only once ``close`` has been lowered."""
+        if not close:
+            self.armed = True
+
     # ------------------------------------------------------------------ state
 
     def get_state(self) -> dict[str, np.ndarray]:
         return {"grasp.closed": np.float64(self.closed), "grasp.p_in_chaser": self.p_in_chaser.copy(),
                 "grasp.p_in_target": self.p_in_target.copy(),
-                "grasp.R_target_chaser": self.R_target_chaser.ravel().copy(), "grasp.wrench": self.wrench.copy()}
+                "grasp.R_target_chaser": self.R_target_chaser.ravel().copy(), "grasp.wrench": self.wrench.copy(),
+                "grasp.armed": np.float64(self.armed), "grasp.overloaded": np.float64(self.overloaded)}
 
     def set_state(self, state) -> None:
         for key, size in (("grasp.closed", 1), ("grasp.p_in_chaser", 3), ("grasp.p_in_target", 3),
-                          ("grasp.R_target_chaser", 9), ("grasp.wrench", 6)):
+                          ("grasp.R_target_chaser", 9), ("grasp.wrench", 6), ("grasp.armed", 1),
+                          ("grasp.overloaded", 1)):
             if key not in state or np.size(state[key]) != size:
                 raise ValueError(f"state: {key} expected {size} values")
         self.closed = bool(float(state["grasp.closed"]))
@@ -230,3 +271,5 @@ class Grasp:
         self.p_in_target = np.array(state["grasp.p_in_target"], dtype=float)
         self.R_target_chaser = np.array(state["grasp.R_target_chaser"], dtype=float).reshape(3, 3)
         self.wrench = np.array(state["grasp.wrench"], dtype=float)
+        self.armed = bool(float(state["grasp.armed"]))
+        self.overloaded = bool(float(state["grasp.overloaded"]))

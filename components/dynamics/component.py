@@ -19,6 +19,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from components.constants import MU_EARTH, NS_PER_S
+from components.dynamics.capture import OVERLOAD_ACTIONS
 from components.errors import ComponentError, ConfigError
 from components.robots.model import JOINT_RATE, JOINT_VALUE, body_items, read_model
 from components.robots.urdf import UrdfModel
@@ -77,6 +78,13 @@ GRASP = Record("Grasp", (
     Parameter("target", Str(), description="the body grasped (the paper's target, F_t)"),
     Parameter("grasp_frame", Str(), description="link of the target: the grasp frame G that E must meet"),
     Parameter("tolerance", TOLERANCE, description="pose and velocity errors within which the grasp closes"),
+    Parameter("force_limit", Float("N", positive=True),
+              description="the largest force the fixture carries (the weld's force at the grasp point)"),
+    Parameter("torque_limit", Float("N*m", positive=True),
+              description="the largest torque the fixture carries (about the grasp point)"),
+    Parameter("on_overload", Str(OVERLOAD_ACTIONS), default="release",
+              description="beyond a limit: release (the weld opens, momentum kept) or hold (stays closed); "
+                          "either way a grasp_overload event"),
 ), description="a capture: E welds to G when grasp.close is set and the errors are within tolerance")
 GRASP_OUTPUTS = ("p_ee_grasp", "q_ee_grasp", "twist_ee_grasp", "closed", "wrench",
                  "p_c_t", "q_c_t", "v_c_t", "w_c_t")
@@ -280,7 +288,8 @@ class OrbitalDynamics(Component):
         grasp = params["grasp"]
         self.grasp = grasp is not None and GraspSpec(
             chaser=grasp["chaser"], end_effector=grasp["end_effector"], target=grasp["target"],
-            grasp_frame=grasp["grasp_frame"], tolerance=Tolerance(**grasp["tolerance"]))
+            grasp_frame=grasp["grasp_frame"], tolerance=Tolerance(**grasp["tolerance"]),
+            force_limit=grasp["force_limit"], torque_limit=grasp["torque_limit"], on_overload=grasp["on_overload"])
         try:
             self.world = OrbitalWorld(
                 specs, engine=self.engine, integrator=params["integrator"], substeps=params["substeps"],
@@ -344,6 +353,12 @@ class OrbitalDynamics(Component):
     def do_step(self, t_ns, h_ns, inputs):
         self._inputs(inputs, torques=True, t_ns=t_ns)
         self.world.step(h_ns / NS_PER_S)
+        grasp = self.world.grasp
+        if grasp is not None:
+            overload = grasp.check_overload()
+            if overload is not None:
+                self.emit("grasp_overload", time=(t_ns + h_ns) / NS_PER_S, **overload)
+            grasp.rearm(inputs["grasp.close"] >= 0.5)
         if self.grasp and inputs["grasp.close"] >= 0.5:
             report = self.world.capture()
             if report is not None:

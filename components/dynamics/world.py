@@ -170,7 +170,7 @@ class OrbitalWorld:
     def capture(self) -> CaptureReport | None:
         """Close the grasp if it is open and E is within the tolerances of G: the impact (see
         :mod:`components.dynamics.capture`); None when it does not close."""
-        if self.grasp is None or self.grasp.closed or not self.grasp.within_tolerance():
+        if self.grasp is None or self.grasp.closed or not self.grasp.armed or not self.grasp.within_tolerance():
             return None
         return self.grasp.close()
 
@@ -268,6 +268,8 @@ class OrbitalWorld:
             raise ValueError(f"step: expected a positive duration, got {h} s")
         dt = h / self.substeps
         self.env_now = self.environment_on
+        if self.grasp is not None:
+            self.grasp.reset_peak()
         for k in range(self.substeps):
             s = self.elapsed + k * dt
             if self.integrator == "rk4" and self.grasp is not None and self.grasp.closed:

@@ -12,9 +12,12 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
+
 from orchestrator.campaign_metrics import Metric
 
 STOP_GRACE_S = 20.0      # a stopped case's run gets this long to stop cleanly before it is killed
+MAX_EVENTS = 1000        # event names kept per case (the outcome is decided from them)
 
 
 def _libc_prctl():
@@ -45,23 +48,43 @@ def _affinity(cpus):
     return setup
 
 
-def metric_values(recording: Path, metrics: list[Metric]) -> dict[str, float]:
-    """Each metric of a recording (NaN for all when it has no rows)."""
+def read_events(recording: Path) -> list[dict]:
+    """events.jsonl of a recording ([] when there is none; a line cut short by a kill is skipped)."""
+    import json
+
+    path = recording / "events.jsonl"
+    events = []
+    if path.exists():
+        for line in path.read_text().splitlines():
+            try:
+                events.append(json.loads(line))
+            except ValueError:
+                continue
+    return events
+
+
+def metric_values(recording: Path, metrics: list[Metric]) -> dict[str, float | str]:
+    """Each metric of a recording (NaN for a signal's when it has no rows)."""
     import pyarrow.parquet as pq
 
     if not metrics:
         return {}
+    events = read_events(recording)
     columns = sorted({"time", *(c for m in metrics for c in m.columns)})
-    table = pq.read_table(recording / "signals.parquet", columns=columns)
-    data = {name: table.column(name).to_numpy() for name in table.column_names}
+    if any(m.event is None for m in metrics):
+        table = pq.read_table(recording / "signals.parquet", columns=columns)
+        data = {name: table.column(name).to_numpy() for name in table.column_names}
+    else:
+        data = {"time": np.zeros(0)}
     t = data["time"]
-    return {m.name: m.value(t, data) for m in metrics}
+    return {m.name: m.value(t, data, events) for m in metrics}
 
 
 def execute_case(index: int, config_file: Path, record_dir: Path, metrics: list[Metric], keep: str,
                  stop: threading.Event | None = None, cpus=None, stopped=None) -> dict:
     """Run one case as ``orchestrator run CONFIG --record DIR``; its result: status (completed,
-    failed, interrupted), error, metrics, wall_time, host. ``stop`` set: the run is stopped
+    failed, interrupted), error, metrics (from the recording, failed or not), the names of its
+    events in order, wall_time, host. ``stop`` set: the run is stopped
     cleanly (SIGINT), then killed after STOP_GRACE_S. The recording is removed unless ``keep``
     wants it."""
     if record_dir.exists():
@@ -97,15 +120,20 @@ def execute_case(index: int, config_file: Path, record_dir: Path, metrics: list[
             f"killed by signal {-rc}" if rc < 0 else f"exit code {rc}: {stderr.strip().splitlines()[-1:] or ''}")
         status = "failed"
     values = {m.name: math.nan for m in metrics}
-    if status == "completed":
+    events: list[str] = []
+    if status != "interrupted" and record_dir.exists():
+        # a failed run's recording holds its rows up to the failure: its metrics are read too
+        events = [e.get("event", "") for e in read_events(record_dir)][-MAX_EVENTS:]
         try:
             values = metric_values(record_dir, metrics)
         except Exception as e:   # an unreadable recording: the case failed, the campaign goes on
-            status, error = "failed", f"metrics: {type(e).__name__}: {e}"
+            values = {m.name: math.nan for m in metrics}
+            if status == "completed":
+                status, error = "failed", f"metrics: {type(e).__name__}: {e}"
     kept = status != "interrupted" and (keep == "all" or (keep == "failed" and status == "failed"))
     if not kept and record_dir.exists():
         shutil.rmtree(record_dir, ignore_errors=True)
-    return {"case": index, "status": status, "error": error, "metrics": values, "wall_time": wall,
+    return {"case": index, "status": status, "error": error, "metrics": values, "events": events, "wall_time": wall,
             "host": socket.gethostname(), "kept": kept, "attempts": 1}
 
 

@@ -1,7 +1,18 @@
-"""Campaign metrics: parsing ``{signal, reduce[, threshold]}`` and reducing a recording's signal to one number."""
+"""Campaign metrics: parsing ``{signal, reduce[, threshold]}`` or ``{event, field, reduce}`` and reducing a
+recording's signal, or its events, to one value.
+
+| form | value |
+|---|---|
+| ``{signal: C.OUT, reduce: R}`` | R over the signal (a vector: its row-wise norm) |
+| ``{signal: C.OUT[i:j], reduce: R}`` | R over the norm of elements i..j-1 (a force out of a wrench) |
+| ``{event: NAME, field: F}`` | F of the first NAME event (NaN, or '' for text, when there is none) |
+| ``{event: NAME, field: F, reduce: first, last, min, max}`` | over the NAME events |
+| ``{event: NAME, reduce: count}`` | how many NAME events |
+"""
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -13,19 +24,28 @@ from orchestrator.config import RunConfig
 from orchestrator.dispersions import _quantity
 
 REDUCERS = ("final", "min", "max", "mean", "rms", "max_abs", "first_crossing")
+EVENT_REDUCERS = ("first", "last", "min", "max", "count")
+_SLICE = re.compile(r"^(.+)\[(\d+):(\d+)\]$")
 
 
 @dataclass(frozen=True)
 class Metric:
-    """``name``: ``reduce`` of the columns ``columns`` (several: the row-wise norm)."""
+    """``name``: ``reduce`` of the columns ``columns`` (several: the row-wise norm), or of the
+    field ``field`` of the events ``event``."""
     name: str
     signal: str
     reduce: str
     columns: tuple[str, ...]
     threshold: float | None = None
+    event: str | None = None
+    field: str | None = None
+    unit: str = "1"
 
-    def value(self, time: np.ndarray, table: dict[str, np.ndarray]) -> float:
-        """The metric of a recording (``table``: column -> values); NaN if it has no rows."""
+    def value(self, time: np.ndarray, table: dict[str, np.ndarray], events: list[dict] = ()) -> float | str:
+        """The metric of a recording (``table``: column -> values, ``events``: events.jsonl's
+        records); NaN if it has no rows (or no such event)."""
+        if self.event is not None:
+            return event_value(self, [e for e in events if e.get("event") == self.event])
         if not len(time):
             return math.nan
         if len(self.columns) == 1:
@@ -73,28 +93,77 @@ def signals_of(config: RunConfig) -> dict[str, tuple[tuple[str, ...], str]]:
     return out
 
 
+def event_value(m: Metric, events: list[dict]) -> float | str:
+    if m.reduce == "count":
+        return float(len(events))
+    values = [e[m.field] for e in events if m.field in e]
+    if not values:
+        return math.nan
+    if m.reduce in ("first", "last"):
+        value = values[0] if m.reduce == "first" else values[-1]
+        return value if isinstance(value, str) else float(value) if isinstance(value, (int, float)) else json_text(value)
+    numbers = [float(v) for v in values if isinstance(v, (int, float)) and not isinstance(v, bool)]
+    if not numbers:
+        return math.nan
+    return min(numbers) if m.reduce == "min" else max(numbers)
+
+
+def json_text(value: Any) -> str:
+    import json
+    return json.dumps(value)
+
+
 def metric(name: str, spec: Any, signals: dict[str, tuple[tuple[str, ...], str]] | None, where: str) -> Metric:
-    """Parse ``{signal, reduce[, threshold]}`` against the signals of the base config."""
+    """Parse ``{signal, reduce[, threshold]}`` (against the signals of the base config) or
+    ``{event, field, reduce}``."""
     if not isinstance(spec, dict):
-        raise ConfigError(where, f"expected {{signal: COMPONENT.OUTPUT, reduce: ...}}, got {spec!r}")
+        raise ConfigError(where, f"expected {{signal: COMPONENT.OUTPUT, reduce: ...}} or {{event: NAME, field: "
+                                 f"FIELD}}, got {spec!r}")
+    if "event" in spec:
+        unknown = [k for k in spec if k not in ("event", "field", "reduce")]
+        if unknown:
+            raise ConfigError(f"{where}.{unknown[0]}", "unknown key (known for an event metric: event, field, reduce)")
+        how = spec.get("reduce", "first")
+        if how not in EVENT_REDUCERS:
+            raise ConfigError(f"{where}.reduce", f"expected one of {', '.join(EVENT_REDUCERS)} for an event metric, "
+                                                 f"got {how!r}")
+        if how != "count" and "field" not in spec:
+            raise ConfigError(f"{where}.field", f"missing: which field of the {spec['event']!r} events "
+                                                f"(e.g. time), or reduce: count")
+        if not isinstance(spec["event"], str) or not spec["event"]:
+            raise ConfigError(f"{where}.event", f"expected an event name, got {spec['event']!r}")
+        field = spec.get("field")
+        return Metric(name, "", how, (), event=spec["event"], field=None if field is None else str(field),
+                      unit="s" if field == "time" else "1")
     unknown = [k for k in spec if k not in ("signal", "reduce", "threshold")]
     if unknown:
-        raise ConfigError(f"{where}.{unknown[0]}", "unknown key (known: signal, reduce, threshold)")
+        raise ConfigError(f"{where}.{unknown[0]}", "unknown key (known: signal, reduce, threshold; or event, field, "
+                                                   "reduce)")
     for k in ("signal", "reduce"):
         if k not in spec:
             raise ConfigError(f"{where}.{k}", "missing")
     how = spec["reduce"]
     if how not in REDUCERS:
         raise ConfigError(f"{where}.reduce", f"expected one of {', '.join(REDUCERS)}, got {how!r}")
-    signal = spec["signal"]
+    signal = str(spec["signal"])
     unit = "1"
-    columns: tuple[str, ...] = (str(signal),)
+    columns: tuple[str, ...] = (signal,)
+    sliced = _SLICE.match(signal)
     if signals is not None:
-        if signal not in signals:
+        whole = sliced.group(1) if sliced else signal
+        if whole not in signals:
             near = sorted(k for k in signals if "[" not in k)
-            raise ConfigError(f"{where}.signal", f"no signal {signal!r} in a recording of the config "
+            raise ConfigError(f"{where}.signal", f"no signal {whole!r} in a recording of the config "
                                                  f"(signals: {', '.join(near)})")
-        columns, unit = signals[signal]
+        columns, unit = signals[whole]
+        if sliced:
+            i, j = int(sliced.group(2)), int(sliced.group(3))
+            if not 0 <= i < j <= len(columns):
+                raise ConfigError(f"{where}.signal", f"expected a slice [i:j] with 0 <= i < j <= {len(columns)} "
+                                                     f"(the size of {whole}), got [{i}:{j}]")
+            columns = columns[i:j]
+            parts = [u.strip() for u in unit.split(",")]
+            unit = parts[0] if len(set(parts)) == 1 else unit        # "N, N*m": the slice's own is not known here
     threshold = None
     if how == "first_crossing":
         if "threshold" not in spec:
@@ -107,7 +176,7 @@ def metric(name: str, spec: Any, signals: dict[str, tuple[tuple[str, ...], str]]
             threshold = number * (_unit(given)[0] if given else 1.0)
     elif "threshold" in spec:
         raise ConfigError(f"{where}.threshold", f"only first_crossing takes a threshold, not {how}")
-    return Metric(name, str(signal), how, columns, threshold)
+    return Metric(name, signal, how, columns, threshold, unit=unit)
 
 
 def _unit_known(unit: str) -> bool:

@@ -2,22 +2,93 @@
 
 | file | content |
 |---|---|
-| ``metrics_histograms.png`` | a histogram of each metric over the completed cases |
-| ``<metric>_vs_parameters.png`` | the metric against each dispersed (or grid) parameter; failed cases marked as red crosses at the bottom of the panel |
+| ``metrics_histograms.png`` | a histogram of each numeric metric over the cases that have it |
+| ``<metric>_vs_parameters.png`` | the metric against each swept or dispersed quantity (a vector by its parts), every case coloured by its outcome |
+| ``outcomes.png`` | the envelope: each case's outcome against each quantity, and a vector's direction as azimuth and elevation |
+
+A quantity that has one value over the campaign (a grid of one point) is not drawn against; the
+figures say which were left out. Axes carry the unit the campaign file gives (a dispersion's, or
+the grid's first value's), metrics their signal's SI unit.
 """
 from __future__ import annotations
 
 import json
 import math
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from components.units import _QUANTITY, unit_scale
+
+OUTCOME_COLOURS = {"completed": "tab:blue", "failed": "tab:red", "interrupted": "tab:grey"}
+PALETTE = ("tab:green", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """One axis a campaign varies: a number per case, in ``unit`` (as the campaign file gives it)."""
+    label: str
+    values: np.ndarray
+    unit: str
 
 
 def _figure(*size):
     from matplotlib.figure import Figure
     return Figure(figsize=size, layout="constrained")
+
+
+def _unit_of(key: str, values: list, meta: dict) -> tuple[str, float]:
+    """(unit, its factor to SI) of a parameter: the dispersion's, else the first grid value's text."""
+    unit = (meta.get("units") or {}).get(key)
+    if unit is None:
+        for raw in (meta.get("grid_values") or {}).get(key, []):
+            m = _QUANTITY.match(raw) if isinstance(raw, str) else None
+            if m and m.group(2):
+                unit = m.group(2)
+                break
+    scale = unit_scale(unit) if unit else None
+    return (unit, scale[0]) if scale else ("SI", 1.0)
+
+
+def quantities(columns: dict[str, list], keys: list[str], meta: dict) -> tuple[list[Quantity], list[str], dict]:
+    """The numeric quantities of the campaign's keys (a vector split into its parts), the keys left
+    out (one value only, or not numbers), and each vector key's (n, 3) values."""
+    out, left_out, vectors = [], [], {}
+    for key in keys:
+        values = columns[key]
+        short = key.rsplit(".", 1)[-1] if "." in key else key
+        if all(isinstance(v, (int, float)) for v in values):
+            x = np.array(values, dtype=float)
+            if len(set(x.tolist())) < 2:
+                left_out.append(f"{key} (one value)")
+                continue
+            unit, factor = _unit_of(key, values, meta)
+            out.append(Quantity(short, x / factor, unit))
+            continue
+        try:
+            parsed = np.array([json.loads(v) for v in values], dtype=float)
+        except (TypeError, ValueError):
+            left_out.append(f"{key} (not numbers)")
+            continue
+        if parsed.ndim != 2:
+            left_out.append(f"{key} (not numbers)")
+            continue
+        if parsed.shape[1] == 3:
+            vectors[short] = parsed
+        for i in range(parsed.shape[1]):
+            part = parsed[:, i]
+            if len(set(part.tolist())) >= 2:
+                out.append(Quantity(f"{short}[{i}]", part, _unit_of(key, values, meta)[0]))
+    return out, left_out, vectors
+
+
+def _outcome_colours(outcomes: list[str]) -> dict[str, str]:
+    colours, free = {}, iter(PALETTE)
+    for name in dict.fromkeys(outcomes):
+        colours[name] = OUTCOME_COLOURS.get(name) or next(free, "black")
+    return colours
 
 
 def campaign_figures(directory: Path) -> list[tuple[str, object]]:
@@ -29,42 +100,95 @@ def campaign_figures(directory: Path) -> list[tuple[str, object]]:
     columns = {name: table.column(name).to_pylist() for name in table.column_names}
     meta_path = directory / "campaign.json"
     meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
-    metrics = [m for m in (meta.get("metrics") or {}) if m in columns]
-    params = [k for k in (meta.get("dispersed") or []) + (meta.get("grid") or []) if k in columns]
-    if not metrics:
+    metric_meta = meta.get("metrics") or {}
+    metrics = [m for m in metric_meta if m in columns and all(isinstance(v, (int, float)) or v is None
+                                                              for v in columns[m])]
+    keys = [k for k in (meta.get("dispersed") or []) + (meta.get("grid") or []) if k in columns]
+    if not metrics and "outcome" not in columns:
         raise PlotError(f"{directory}: the campaign has no metrics to plot (metrics: in the campaign file)")
-    status = np.array(columns["status"])
-    ok, failed = status == "completed", status == "failed"
+    outcome = columns.get("outcome") or columns["status"]
+    colours = _outcome_colours(outcome)
+    outcome = np.array(outcome)
     out: list[tuple[str, object]] = []
-    cols = min(3, len(metrics))
-    rows = math.ceil(len(metrics) / cols)
-    fig = _figure(4.2 * cols, 3.2 * rows)
-    for i, name in enumerate(metrics, start=1):
-        ax = fig.add_subplot(rows, cols, i)
-        values = np.array(columns[name], dtype=float)[ok]
-        values = values[np.isfinite(values)]
-        if len(values):
-            ax.hist(values, bins=max(5, min(50, int(np.sqrt(len(values))) + 1)), color="tab:blue", alpha=0.8)
-        ax.set(title=f"{name} ({len(values)} completed, {int(failed.sum())} failed)", xlabel=name, ylabel="cases")
-        ax.grid(True, alpha=0.3)
-    out.append(("metrics_histograms.png", fig))
-    numeric = [p for p in params if all(isinstance(v, (int, float)) for v in columns[p])]
-    for name in metrics if numeric else []:
-        y = np.array(columns[name], dtype=float)
-        cols = min(3, len(numeric))
-        rows = math.ceil(len(numeric) / cols)
+    if metrics:
+        cols = min(3, len(metrics))
+        rows = math.ceil(len(metrics) / cols)
         fig = _figure(4.2 * cols, 3.2 * rows)
-        for i, param in enumerate(numeric, start=1):
+        for i, name in enumerate(metrics, start=1):
             ax = fig.add_subplot(rows, cols, i)
-            x = np.array(columns[param], dtype=float)
-            ax.plot(x[ok], y[ok], "o", markersize=3, color="tab:blue", label="completed")
-            if failed.any():
-                finite = y[ok & np.isfinite(y)]
-                floor = float(np.min(finite)) if len(finite) else 0.0
-                ax.plot(x[failed], np.full(int(failed.sum()), floor), "x", color="tab:red", markersize=7,
-                        label="failed")
-                ax.legend(fontsize="x-small")
-            ax.set(xlabel=f"{param} (SI)", ylabel=name)
+            values = np.array([math.nan if v is None else v for v in columns[name]], dtype=float)
+            values = values[np.isfinite(values)]
+            if len(values):
+                ax.hist(values, bins=max(5, min(50, int(np.sqrt(len(values))) + 1)), color="tab:blue", alpha=0.8)
+            ax.set(title=f"{name} ({len(values)} of {len(outcome)} cases)", xlabel=_metric_label(name, metric_meta),
+                   ylabel="cases")
             ax.grid(True, alpha=0.3)
+        out.append(("metrics_histograms.png", fig))
+    axes, left_out, vectors = quantities(columns, keys, meta)
+    note = f"not drawn against: {', '.join(left_out)}" if left_out else ""
+    for name in metrics if axes else []:
+        y = np.array([math.nan if v is None else v for v in columns[name]], dtype=float)
+        fig = _grid_figure(len(axes))
+        for i, q in enumerate(axes, start=1):
+            ax = fig.add_subplot(math.ceil(len(axes) / min(3, len(axes))), min(3, len(axes)), i)
+            for kind, colour in colours.items():
+                chosen = outcome == kind
+                if chosen.any():
+                    ax.plot(q.values[chosen], y[chosen], "o", markersize=3, color=colour, label=f"{kind} ({chosen.sum()})")
+            ax.set(xlabel=f"{q.label} ({q.unit})", ylabel=_metric_label(name, metric_meta))
+            ax.grid(True, alpha=0.3)
+            ax.legend(fontsize="x-small")
+        if note:
+            fig.suptitle(note, fontsize="small")
         out.append((f"{re.sub(r'[^A-Za-z0-9_.-]', '_', name)}_vs_parameters.png", fig))
+    if axes or vectors:
+        out.append(("outcomes.png", _outcomes_figure(axes, vectors, outcome, colours, note)))
     return out
+
+
+def _grid_figure(panels: int):
+    cols = min(3, panels)
+    return _figure(4.2 * cols, 3.2 * math.ceil(panels / cols))
+
+
+def _metric_label(name: str, metric_meta: dict) -> str:
+    unit = (metric_meta.get(name) or {}).get("unit") or "1"
+    return name if unit == "1" else f"{name} ({unit})"
+
+
+def _outcomes_figure(axes: list[Quantity], vectors: dict, outcome: np.ndarray, colours: dict, note: str):
+    """Each case's outcome against each quantity (one row per outcome), and each 3-vector's
+    direction as azimuth and elevation (a unit axis over the sphere), coloured by outcome."""
+    kinds = list(colours)
+    panels = len(axes) + len(vectors)
+    fig = _grid_figure(panels)
+    cols = min(3, panels)
+    rows = math.ceil(panels / cols)
+    for i, q in enumerate(axes, start=1):
+        ax = fig.add_subplot(rows, cols, i)
+        for row, kind in enumerate(kinds):
+            chosen = outcome == kind
+            if chosen.any():
+                ax.plot(q.values[chosen], np.full(chosen.sum(), row), "o", markersize=4, color=colours[kind],
+                        alpha=0.7, label=f"{kind} ({chosen.sum()})")
+        ax.set(xlabel=f"{q.label} ({q.unit})", yticks=range(len(kinds)), yticklabels=kinds,
+               ylim=(-0.5, len(kinds) - 0.5), title=f"outcome against {q.label}")
+        ax.grid(True, axis="x", alpha=0.3)
+    for j, (label, v) in enumerate(vectors.items(), start=len(axes) + 1):
+        ax = fig.add_subplot(rows, cols, j)
+        norm = np.linalg.norm(v, axis=1)
+        unit = v / np.where(norm > 0, norm, 1.0)[:, None]
+        azimuth = np.degrees(np.arctan2(unit[:, 1], unit[:, 0]))
+        elevation = np.degrees(np.arcsin(np.clip(unit[:, 2], -1.0, 1.0)))
+        for kind in kinds:
+            chosen = outcome == kind
+            if chosen.any():
+                ax.plot(azimuth[chosen], elevation[chosen], "o", markersize=5, color=colours[kind],
+                        label=f"{kind} ({chosen.sum()})")
+        ax.set(xlabel=f"{label}: azimuth (deg)", ylabel=f"{label}: elevation (deg)", xlim=(-180, 180),
+               ylim=(-90, 90), title=f"outcome over the direction of {label}")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize="x-small")
+    if note:
+        fig.suptitle(note, fontsize="small")
+    return fig

@@ -34,7 +34,7 @@ import numpy as np
 from orchestrator.campaign_case import STOP_GRACE_S, execute_case
 from orchestrator.sweep import Campaign, case_yaml, si_value
 
-FIXED_COLUMNS = ("case", "status", "error")
+FIXED_COLUMNS = ("case", "status", "outcome", "error")
 TAIL_COLUMNS = ("wall_time", "attempts", "host", "recording")
 
 
@@ -85,7 +85,10 @@ class CampaignDir:
         meta.write_text(json.dumps({
             "fingerprint": fingerprint, "campaign": str(c.path.resolve()), "cases": c.count,
             "grid": list(c.grid), "dispersed": [d.key for d in c.dispersions],
-            "metrics": {m.name: {"signal": m.signal, "reduce": m.reduce} for m in c.metrics}, "keep": c.keep},
+            "metrics": {m.name: {"signal": m.signal, "event": m.event, "field": m.field, "reduce": m.reduce,
+                                 "unit": m.unit} for m in c.metrics},
+            "units": {d.key: d.unit for d in c.dispersions if d.unit}, "grid_values": c.grid, "outcomes": c.outcomes,
+            "keep": c.keep},
             indent=2))
 
     def done(self, index: int) -> dict | None:
@@ -125,9 +128,10 @@ class CampaignDir:
             params = c.case(index).params
             result = self.done(index) or {"case": index, "status": pending_status, "error": "", "metrics": {},
                                           "wall_time": math.nan, "attempts": 0, "host": "", "recording": ""}
-            row = {"case": index, "status": result["status"], "error": result.get("error", "")}
+            row = {"case": index, "status": result["status"],
+                   "outcome": c.outcome(result["status"], result.get("events", [])), "error": result.get("error", "")}
             row.update({k: params[k] for k in c.keys})
-            row.update({m.name: float(result["metrics"].get(m.name, math.nan)) for m in c.metrics})
+            row.update({m.name: _metric_value(result["metrics"].get(m.name, math.nan)) for m in c.metrics})
             row.update({"wall_time": float(result["wall_time"]), "attempts": int(result.get("attempts", 1)),
                         "host": result.get("host", ""), "recording": result.get("recording", "")})
             rows.append(row)
@@ -138,6 +142,8 @@ class CampaignDir:
                 converted = [si_value(v) for v in values]
                 values = converted if all(isinstance(v, float) for v in converted) else \
                     [v if isinstance(v, str) else json.dumps(v) for v in values]
+            elif any(isinstance(v, str) for v in values) and name not in FIXED_COLUMNS + TAIL_COLUMNS:
+                values = [v if isinstance(v, str) else "" for v in values]     # a text metric: '' for none
             columns[name] = values
         schema_types = {"case": pa.int64(), "attempts": pa.int64(), "wall_time": pa.float64()}
         arrays = {n: pa.array(v, type=schema_types.get(n)) for n, v in columns.items()}
@@ -149,6 +155,11 @@ class CampaignDir:
 
 
 # ---------------------------------------------------------------- the pools
+
+
+def _metric_value(value):
+    """A metric as cases.parquet holds it: a number (NaN for none) or a text (an event's reason)."""
+    return value if isinstance(value, str) else float(value)
 
 
 def _interrupt(signum, frame):
@@ -294,10 +305,17 @@ def summary(rows: list[dict], campaign: Campaign, wall: float, out, ran: int | N
     finished = statuses.get("completed", 0) + statuses.get("failed", 0) if ran is None else ran
     print(f"campaign: {len(rows)} cases: {counts}; {wall:.1f} s wall"
           + (f", {finished / wall * 60:.1f} cases/min" if wall > 0 and finished else ""), file=out)
+    if campaign.outcomes:
+        outcomes: dict[str, int] = {}
+        for row in rows:
+            outcomes[row["outcome"]] = outcomes.get(row["outcome"], 0) + 1
+        print("  outcomes: " + ", ".join(f"{n} {o} ({100.0 * n / len(rows):.0f}%)" for o, n in outcomes.items()),
+              file=out)
     ok = [r for r in rows if r["status"] == "completed"]
-    if campaign.metrics and ok:
+    numeric = [m for m in campaign.metrics if not any(isinstance(r[m.name], str) for r in ok)]
+    if numeric and ok:
         print(f"  {'metric':<24}{'mean':>13}{'std':>13}{'min':>13}{'max':>13}", file=out)
-        for m in campaign.metrics:
+        for m in numeric:
             values = np.array([r[m.name] for r in ok], dtype=float)
             finite = values[np.isfinite(values)]
             if not len(finite):

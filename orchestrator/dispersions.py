@@ -12,9 +12,10 @@ import numpy as np
 from components.errors import ConfigError
 from components.units import _QUANTITY, _unit, to_si
 
-DISTRIBUTIONS = {"normal": 2, "uniform": 2, "truncated_normal": 4, "choice": None}
+DISTRIBUTIONS = {"normal": 2, "uniform": 2, "truncated_normal": 4, "choice": None, "direction": 0}
 DISTRIBUTION_ARGS = {"normal": "[mean, sigma]", "uniform": "[low, high]",
-                     "truncated_normal": "[mean, sigma, low, high]", "choice": "[value, value, ...]"}
+                     "truncated_normal": "[mean, sigma, low, high]", "choice": "[value, value, ...]",
+                     "direction": "uniform (a unit 3-vector, uniform on the sphere)"}
 
 
 def _quantity(value: Any, key: str) -> tuple[float, str | None]:
@@ -55,6 +56,9 @@ class Dispersion:
             np.random.SeedSequence(seed, spawn_key=(sample, zlib.crc32(self.key.encode())))))
         if self.kind == "choice":
             return copy.deepcopy(self.args[int(rng.integers(len(self.args)))])
+        if self.kind == "direction":       # three normal draws, normalized: uniform on the sphere
+            v = rng.normal(size=3)
+            return [float(x) for x in v / np.linalg.norm(v)]
         if self.kind == "normal":
             x = float(rng.normal(self.args[0], self.args[1]))
         elif self.kind == "uniform":
@@ -76,6 +80,10 @@ def dispersion(key: str, spec: Any, where: str) -> Dispersion:
     if kind not in DISTRIBUTIONS:
         raise ConfigError(f"{where}.{kind}", f"unknown distribution (known: {', '.join(DISTRIBUTIONS)})")
     here = f"{where}.{kind}"
+    if kind == "direction":
+        if args != "uniform":
+            raise ConfigError(here, f"expected {DISTRIBUTION_ARGS[kind]}, got {args!r}")
+        return Dispersion(key, kind, ())
     count = DISTRIBUTIONS[kind]
     if not isinstance(args, list) or (count is not None and len(args) != count) or not args:
         raise ConfigError(here, f"expected {DISTRIBUTION_ARGS[kind]}, got {args!r}")

@@ -16,6 +16,9 @@ A campaign file::
     metrics:
       final_rate: {signal: dynamics.target.twist, reduce: final}      # a vector: its norm
       t_cross: {signal: dynamics.target.twist[5], reduce: first_crossing, threshold: 1e-4 rad/s}
+      force: {signal: dynamics.grasp.wrench[0:3], reduce: max}        # a slice: the norm of the force
+      t_capture: {event: capture, field: time}                        # an event's field (NaN: no event)
+    outcomes: {captured: capture, aborted: capture_aborted}   # the last of these events names the outcome
     keep: failed                                          # all | failed | none
 
 Cases: each grid point (in order) times ``samples`` draws; case ``i`` is grid point
@@ -44,7 +47,8 @@ from orchestrator.config import ConfigErrors, validate
 from orchestrator.config_file import read_yaml
 from orchestrator.dispersions import Dispersion, dispersion
 
-CAMPAIGN_KEYS = ("config", "grid", "disperse", "samples", "seed", "metrics", "keep")
+CAMPAIGN_KEYS = ("config", "grid", "disperse", "samples", "seed", "metrics", "outcomes", "keep")
+RESERVED_OUTCOMES = ("completed", "failed", "interrupted")
 KEEP = ("all", "failed", "none")
 _KEY_PART = re.compile(r"^([A-Za-z0-9_\-]+)((?:\[\d+\])*)$")
 
@@ -154,6 +158,18 @@ class Campaign:
     metrics: list[Metric]
     keep: str
     raw: dict = field(default_factory=dict)   # the campaign as read
+    outcomes: dict[str, str] = field(default_factory=dict)   # outcome name -> the event that makes it
+
+    def outcome(self, status: str, events: list[str]) -> str:
+        """A case's outcome: failed (or interrupted) as its run; else the outcome whose event came
+        last among ``outcomes``; else completed."""
+        if status != "completed":
+            return status
+        by_event = {event: name for name, event in self.outcomes.items()}
+        for event in reversed(events):
+            if event in by_event:
+                return by_event[event]
+        return status
 
     @property
     def count(self) -> int:
@@ -186,7 +202,8 @@ class Campaign:
         """A hash of what decides the cases and their results (for --resume)."""
         text = json.dumps({"base": self.base, "grid": self.grid, "disperse": [repr(d) for d in self.dispersions],
                            "samples": self.samples, "seed": self.seed,
-                           "metrics": [repr(m) for m in self.metrics], "keep": self.keep},
+                           "metrics": [repr(m) for m in self.metrics], "keep": self.keep,
+                           "outcomes": self.outcomes},
                           sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
@@ -280,6 +297,21 @@ def load_campaign(path: str | Path, *, check_cases: bool | list[int] = True) -> 
         fail("samples", "samples > 1 repeat draws of disperse:, and there is none (the cases would be identical)")
     if dispersions and "seed" not in raw:
         fail("seed", "missing: disperse needs a seed (every case's draws come from it and the case's index)")
+    outcomes: dict[str, str] = {}
+    raw_outcomes = raw.get("outcomes") or {}
+    if not isinstance(raw_outcomes, dict):
+        fail("outcomes", f"expected OUTCOME: EVENT pairs (e.g. captured: capture), got {raw_outcomes!r}")
+        raw_outcomes = {}
+    for name, event in raw_outcomes.items():
+        if str(name) in RESERVED_OUTCOMES:
+            fail(f"outcomes.{name}", f"{', '.join(RESERVED_OUTCOMES)} are the outcomes of a run itself: give another name")
+        elif not isinstance(event, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", event):
+            fail(f"outcomes.{name}", f"expected an event name (e.g. capture), got {event!r}")
+        elif event in outcomes.values():
+            fail(f"outcomes.{name}", f"event {event!r} already makes outcome "
+                                     f"{next(k for k, v in outcomes.items() if v == event)!r}")
+        else:
+            outcomes[str(name)] = event
     keep = raw.get("keep", "failed")
     if keep not in KEEP:
         fail("keep", f"expected one of {', '.join(KEEP)}, got {keep!r}")
@@ -306,7 +338,7 @@ def load_campaign(path: str | Path, *, check_cases: bool | list[int] = True) -> 
     signals = None
     if base is not None and not bad_keys:   # the cases and metrics are checked even when other keys are wrong
         campaign = Campaign(path=path, base=base, base_path=base_path, grid=grid, dispersions=dispersions,
-                            samples=samples or 1, seed=seed or 0, metrics=[], keep=keep, raw=raw)
+                            samples=samples or 1, seed=seed or 0, metrics=[], keep=keep, raw=raw, outcomes=outcomes)
         indexes = range(campaign.count) if check_cases is True else (check_cases or [])
         seen: dict[str, list[int]] = {}   # a config key's problem: reported for its first case, counted after
         for index in indexes:
@@ -342,7 +374,7 @@ def load_campaign(path: str | Path, *, check_cases: bool | list[int] = True) -> 
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.\-]*", str(name)):
             fail(f"metrics.{name}", "a metric's name is letters, digits, '_', '-' or '.'")
             continue
-        if str(name) in ("case", "status", "error", "wall_time", "attempts", "host", "recording") \
+        if str(name) in ("case", "status", "outcome", "error", "wall_time", "attempts", "host", "recording") \
                 or str(name) in grid or str(name) in raw_disperse:
             fail(f"metrics.{name}", "the name of a column cases.parquet has already: give another")
             continue

@@ -70,7 +70,8 @@ track use :class:`ComputedTorqueLaw` (eqs. 6 and 8, Generalized Jacobian, null-s
 initial configuration); the wheels are passive joints of its model (they get no torque before
 capture). ``close`` goes to 1 once the estimated errors of the EE relative to the grasp frame
 (position, attitude angle, linear velocity, angular velocity: the ``close_errors`` output) have
-stayed within their tolerances for ``tolerance_time``.
+stayed within their tolerances, and the arm away from singularities (``singularity_margin``), for
+``tolerance_time``.
 
 4, retreat: when, in closing or track, the grapple leaves the arm's reach, or following it needs
 joint rates or torques beyond the URDF limits for longer than ``limit_window``, or the tolerances
@@ -110,7 +111,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from components.controller.capture_plan import ArmKinematics, JointMove, Limits, RigidPrediction
+from components.controller.capture_plan import ArmKinematics, JointMove, Limits, RigidPrediction, Verdict
 from components.controller.computed_torque import ArmState, ComputedTorqueLaw, FreeFloatingArm, dls_inverse
 from components.controller.trajectory import PoseSample, quintic
 from components.errors import ComponentError
@@ -408,6 +409,7 @@ WINDOW_MARGIN = 0.5       # s of following beyond closing_time + tolerance_time 
 LONGEST_SCAN = 180.0      # s: the planner looks no further ahead than this
 SHORTEST_APPROACH = 1.0   # s: the quickest joint move onto the pre-grasp pose
 MOVE_RATE_FRACTION = 0.8  # share of the URDF velocity limits a joint move may reach
+CONTINUITY = 0.5          # rad: the largest joint change between two samples of one window
 
 
 class CaptureController:
@@ -442,7 +444,7 @@ class CaptureController:
         self.move: JointMove | None = None
         self.closing = (math.nan, np.zeros(3), np.zeros(3))      # start time, offset and rotation in G
         self.track_since = math.nan
-        self.track_stats = np.zeros(9)        # track: steps, steps above each tolerance, sums of the errors
+        self.track_stats = np.zeros(10)       # track: steps, steps above each tolerance, sums of the errors, singular steps
         self.attempt = 0
         self.next_plan = -math.inf
         self.reason = ""                                          # why the last attempt or plan failed
@@ -493,7 +495,8 @@ class CaptureController:
             if self.phase in (CLOSING, TRACK):
                 reference = self._reference(t, estimate)
                 out = self.law.control(s, reference, self.q_posture)
-                problem = self._limits(t, s, estimate, reference, out.qdd) or self._update_close(t, s, estimate)
+                problem = (self._limits(t, s, estimate, reference, out.qdd)
+                           or self._update_close(t, s, estimate, out.sigma_min))
                 tau_arm = out.tau
                 if problem:
                     self._retreat(t, s, problem)
@@ -546,7 +549,7 @@ class CaptureController:
         base_v, base_w = np.asarray(x["twist"][:3], dtype=float), np.asarray(x["twist"][3:], dtype=float)
         prediction = RigidPrediction(t, g, x["position"], base_v, base_w)
         distance = self.kinematics.shoulder_distance(self.arm.q_pin, prediction.c)
-        turn = 2.0 * math.pi / prediction.rate if prediction.rate > 1e-9 else math.inf
+        turn = 2.0 * math.pi / prediction.rate if prediction.rate > 1e-9 else 0.0   # still: one pose
         horizon = min(turn, LONGEST_SCAN, max(cfg.capture_timeout - t - SHORTEST_APPROACH, 0.0))
         plan, reason, found = self._plan(t, s, prediction, horizon)
         if plan is not None:
@@ -558,63 +561,84 @@ class CaptureController:
             return
         self.reason = reason
         if t >= cfg.capture_timeout or (not found and horizon >= turn):
-            scope = ("in a whole turn of the tumble" if horizon >= turn
-                     else f"by capture_timeout = {cfg.capture_timeout:g} s")
-            self._abort(t, f"the grapple never comes where the arm can follow it {scope} "
-                           f"({math.degrees(prediction.rate):.3g} deg/s, its centre of rotation {distance:.3g} m from "
-                           f"the shoulder, reach {cfg.reach:.3g} m): {reason}")
+            if turn == 0.0:
+                scope = "(it does not turn)"
+            else:
+                scope = (f"{'in a whole turn of the tumble' if horizon >= turn else 'by capture_timeout'} "
+                         f"({math.degrees(prediction.rate):.3g} deg/s about a centre {distance:.3g} m from the "
+                         f"shoulder; the arm reaches {cfg.reach:.3g} m)")
+            self._abort(t, f"the grapple never comes where the arm can follow it {scope}: {reason}")
 
     def _plan(self, t: float, s: ArmState, prediction: RigidPrediction, horizon: float):
         """(the approach: (duration, q, qd) of the pre-grasp configuration, or None; the reason of
         the best infeasible sample when there is none; whether a window exists within the horizon).
 
-        The meeting time runs from SHORTEST_APPROACH on in steps of PLAN_STEP; the first at which
-        the arm can follow the grapple for the window, and reach its pre-grasp pose in time
-        within the rate limits, is taken if it is at most approach_time away."""
+        The meeting time runs from SHORTEST_APPROACH on in steps of PLAN_STEP. At each the grapple's
+        pose is solved from the last feasible solution, or, after an infeasible one, from every
+        seed (the best is kept); a window is a run of feasible solutions that move continuously.
+        The first meeting time at which the window starts and the pre-grasp pose can be reached in
+        time within the rate limits is taken if it is at most approach_time away."""
         cfg, kin = self.cfg, self.kinematics
         q_pin = self.arm.q_pin.copy()
         window = int(math.ceil((cfg.closing_time + cfg.tolerance_time + WINDOW_MARGIN) / PLAN_STEP))
         samples = int(horizon / PLAN_STEP) + window + 1
-        best_reason, best_score, found = "", -math.inf, False
-        for seed in self._seeds(s.q):
-            q_prev, run = seed, 0
-            for k in range(samples):
-                g = prediction.sample(t + SHORTEST_APPROACH + k * PLAN_STEP)
-                target = _se3(g.R, g.p)
-                q = kin.solve(q_pin, target, q_prev)
-                if q is None and q_prev is not seed:
-                    q = kin.solve(q_pin, target, seed)
-                verdict = kin.judge(q_pin, q, np.concatenate([g.v, g.w]))
-                if verdict.feasible:
-                    q_prev, run = verdict.q, run + 1
-                else:
-                    q_prev, run = seed, 0
-                    if verdict.score > best_score:
-                        best_score, best_reason = verdict.score, verdict.reason
-                if run > window:
-                    found = True
-                    start = k - window                   # the window's first sample: the meeting time
-                    duration = SHORTEST_APPROACH + start * PLAN_STEP
-                    if duration > cfg.approach_time:
-                        break                            # further than approach_time: wait for it
-                    plan = self._pre_grasp(q_pin, prediction.sample(t + duration), seed, s, duration)
-                    if plan is not None:
-                        return (duration, *plan), "", True
-                    run -= 1                             # too far to reach in time: a later meeting
-        return None, best_reason or "no window", found
+        seeds = self._seeds(s.q)
+        best, q_prev, run, chain = None, None, 0, []
+        for k in range(samples):
+            g = prediction.sample(t + SHORTEST_APPROACH + k * PLAN_STEP)
+            verdict = self._solve(q_pin, g, q_prev, seeds, s.q)
+            chain.append(verdict.q)
+            if verdict.feasible and (q_prev is None or np.max(np.abs(verdict.q - q_prev)) < CONTINUITY):
+                run += 1
+            else:
+                run = 1 if verdict.feasible else 0
+                if not verdict.feasible and (best is None or verdict.score > best.score):
+                    best = verdict
+            q_prev = verdict.q if verdict.feasible else None
+            if run > window:
+                start = k - window                   # the window's first sample: the meeting time
+                duration = SHORTEST_APPROACH + start * PLAN_STEP
+                if duration > cfg.approach_time:
+                    return None, best.reason if best else "", True      # further away: wait for it
+                plan = self._pre_grasp(q_pin, prediction.sample(t + duration), chain[start], s, duration)
+                if plan is not None:
+                    return (duration, *plan), "", True
+                run -= 1                             # too far to reach in time: a later meeting
+        return None, best.reason if best else "no window", False
+
+    def _solve(self, q_pin, g: PoseSample, q_prev, seeds, q_now) -> Verdict:
+        """The grapple's pose solved from q_prev (when feasible), else from every seed: of the
+        feasible solutions the one the arm reaches soonest from ``q_now`` (the largest joint
+        change over its rate limit), or the best infeasible one (its reason)."""
+        kin = self.kinematics
+        twist = np.concatenate([g.v, g.w])
+        target = _se3(g.R, g.p)
+        if q_prev is not None:
+            verdict = kin.judge(q_pin, kin.solve(q_pin, target, q_prev), twist, g.p)
+            if verdict.feasible:
+                return verdict
+        if kin.shoulder_distance(q_pin, g.p) > self.cfg.reach:
+            return kin.judge(q_pin, None, twist, g.p)
+        verdicts = [kin.judge(q_pin, kin.solve(q_pin, target, seed), twist, g.p) for seed in seeds]
+        feasible = [v for v in verdicts if v.feasible]
+        if feasible:
+            return min(feasible, key=lambda v: float(np.max(np.abs(v.q - q_now) / self.cfg.arm_velocity)))
+        return max(verdicts, key=lambda v: v.score)
 
     def _seeds(self, q: np.ndarray) -> list[np.ndarray]:
-        """Starting configurations for the inverse kinematics: the arm now, its posture, and
-        each with the wrist turned over (the last three joints: q4 + pi, -q5, q6 + pi)."""
+        """Starting configurations for the inverse kinematics: the arm now and its posture, each
+        also with the elbow and the wrist turned over (a 6-joint arm of the UR kind: elbow q2 + q3,
+        -q3, q4 + q3; wrist q4 + pi, -q5, q6 + pi), wrapped to (-pi, pi]."""
+        def elbow(x):
+            return np.array([x[0], x[1] + x[2], -x[2], x[3] + x[2], x[4], x[5]])
+
+        def wrist(x):
+            return np.array([x[0], x[1], x[2], x[3] + math.pi, -x[4], x[5] + math.pi])
+
         seeds = [q.copy(), self.q_posture.copy()]
-        for base in list(seeds):
-            if base.size >= 3:
-                flipped = base.copy()
-                flipped[-3] += math.pi
-                flipped[-2] = -flipped[-2]
-                flipped[-1] += math.pi
-                seeds.append((flipped + math.pi) % (2.0 * math.pi) - math.pi)
-        return seeds
+        if q.size == 6:
+            seeds += [f(x) for x in seeds for f in (elbow, wrist, lambda y: wrist(elbow(y)))]
+        return [(x + math.pi) % (2.0 * math.pi) - math.pi for x in seeds]
 
     def _pre_grasp(self, q_pin, g: PoseSample, seed: np.ndarray, s: ArmState, duration: float):
         """(q, qd) at the pre-grasp pose of the predicted grapple g, or None when the move there
@@ -624,7 +648,7 @@ class CaptureController:
         p = g.p - cfg.standoff * z
         v = g.v - cfg.standoff * np.cross(g.w, z)
         q = kin.solve(q_pin, _se3(g.R, p), seed)
-        verdict = kin.judge(q_pin, q, np.concatenate([v, g.w]))
+        verdict = kin.judge(q_pin, q, np.concatenate([v, g.w]), p)
         if not verdict.feasible:
             return None
         move = JointMove(0.0, duration, s.q, s.qd, verdict.q, verdict.qd)
@@ -646,7 +670,7 @@ class CaptureController:
         psi = log_so3(g.R.T @ s.R)
         self.closing = (t, d, psi)
         self.phase, self.move = CLOSING, None
-        self.track_since, self.track_stats = math.nan, np.zeros(9)
+        self.track_since, self.track_stats = math.nan, np.zeros(10)
 
     def _reference(self, t: float, g: PoseSample) -> PoseSample:
         """Closing: the grasp frame with the offset of the approach's end shrinking by a quintic
@@ -715,9 +739,12 @@ class CaptureController:
                         f"{cfg.limit_window:g} s); its URDF {what} limit is {limit[i]:.3g} {unit}")
         return ""
 
-    def _update_close(self, t: float, s: ArmState, g: PoseSample) -> str:
-        """Track: close once the estimated errors have stayed within the tolerances for
-        tolerance_time; '' or, after track_time without that, the error that blocked it."""
+    def _update_close(self, t: float, s: ArmState, g: PoseSample, sigma: float) -> str:
+        """Track: close once the estimated errors have stayed within the tolerances, and the arm
+        away from singularities (the smallest singular value ``sigma`` of J_g at least
+        singularity_margin: a weld on a singular arm carries the target's tumble in the singular
+        direction as a load), for tolerance_time; '' or, after track_time without that, what
+        blocked it most of the time."""
         cfg = self.cfg
         self.errors = np.array([float(np.linalg.norm(g.p - s.p)), float(np.linalg.norm(log_so3(g.R @ s.R.T))),
                                 float(np.linalg.norm(g.v - s.xdot[:3])), float(np.linalg.norm(g.w - s.xdot[3:]))])
@@ -726,8 +753,9 @@ class CaptureController:
         tolerance = np.array([cfg.position_tolerance, cfg.attitude_tolerance, cfg.velocity_tolerance,
                               cfg.rate_tolerance])
         ratio = self.errors / tolerance
-        self.track_stats += np.concatenate([[1.0], ratio >= 1.0, self.errors])
-        if np.all(ratio < 1.0):
+        singular = sigma < cfg.singularity_margin
+        self.track_stats += np.concatenate([[1.0], ratio >= 1.0, self.errors, [singular]])
+        if np.all(ratio < 1.0) and not singular:
             if math.isnan(self.within_since):
                 self.within_since = t
             if t - self.within_since >= cfg.tolerance_time:
@@ -736,8 +764,12 @@ class CaptureController:
         self.within_since = math.nan
         if t - self.track_since < cfg.track_time:
             return ""
-        steps, above, total = self.track_stats[0], self.track_stats[1:5], self.track_stats[5:]
+        steps, above, total, singular = self.track_stats[0], self.track_stats[1:5], self.track_stats[5:9], self.track_stats[9]
         i = int(np.argmax(above))
+        if singular > above[i]:
+            return (f"the arm stayed near a singularity on the grapple (the smallest singular value of J_g below "
+                    f"singularity_margin = {cfg.singularity_margin:g}) {100.0 * singular / steps:.0f}% of "
+                    f"track_time = {cfg.track_time:g} s")
         unit, scale = ("mm", 1e3), ("deg", 180.0 / math.pi), ("mm/s", 1e3), ("deg/s", 180.0 / math.pi)[i]
         return (f"the estimated errors did not stay within the tolerances for tolerance_time = {cfg.tolerance_time:g} s "
                 f"in track_time = {cfg.track_time:g} s: the {CLOSE_ERRORS[i]} error was above "
@@ -830,7 +862,7 @@ class CaptureController:
         self.move = JointMove.from_array(move, n) if move.size else None
         self.closing = (float(vector("closing_t", 1)[0]), vector("closing_d", 3), vector("closing_psi", 3))
         self.track_since = float(vector("track_since", 1)[0])
-        self.track_stats = vector("track_stats", 9)
+        self.track_stats = vector("track_stats", 10)
         self.attempt = int(vector("attempt", 1)[0])
         self.next_plan = float(vector("next_plan", 1)[0])
         self.reason = bytes(vector("reason", None).astype(np.uint8)).decode()

@@ -25,7 +25,8 @@ Inverse kinematics (``ArmKinematics``)
 --------------------------------------
 The servicer's Pinocchio model (the controller's own, a free-flyer base) with the base held at a
 predicted pose: damped Newton steps on the arm joints, ``dq = J^T (J J^T + mu^2 I)^-1 e`` with
-``e = log6(T_ee^-1 T_des)`` and J the frame Jacobian in the end effector's axes. A solution is
+``e = log6(T_ee^-1 T_des)`` and J the frame Jacobian in the end effector's axes, each step at most
+0.5 rad per joint (so that a far seed converges instead of jumping about). A solution is
 *feasible* when it converged, stays ``joint_margin`` inside the URDF position limits, the smallest
 singular value of the arm's Jacobian (W axes, m/rad and 1) is at least ``sigma_min``, and the joint
 rates that follow the grapple's twist (``J^-1 (v_g, w_g)``) stay below ``rate_fraction`` of the
@@ -114,9 +115,10 @@ class ArmKinematics:
     """Inverse kinematics of one arm of a free-flyer Pinocchio model with the base held still
     (module doc). ``names`` are the arm joints (for messages)."""
 
-    ITERATIONS = 40
+    ITERATIONS = 30
     TOLERANCE = 1e-7         # |log6| (m, rad) at convergence
     DAMPING = 1e-3
+    MAX_STEP = 0.5           # rad: the largest joint change of one Newton step (far seeds converge)
 
     def __init__(self, model, arm_v: np.ndarray, arm_q: np.ndarray, ee: int, shoulder: int,
                  names: list[str], limits: Limits):
@@ -144,15 +146,22 @@ class ArmKinematics:
             if float(e @ e) < self.TOLERANCE ** 2:
                 return q
             J = pin.computeFrameJacobian(model, data, x, self.ee, pin.LOCAL)[:, self.arm_v]
-            q = q + J.T @ np.linalg.solve(J @ J.T + self.DAMPING ** 2 * np.eye(6), e)
+            dq = J.T @ np.linalg.solve(J @ J.T + self.DAMPING ** 2 * np.eye(6), e)
+            size = float(np.max(np.abs(dq)))
+            q = q + (dq if size <= self.MAX_STEP else dq * (self.MAX_STEP / size))
         return None
 
-    def judge(self, q_pin: np.ndarray, q: np.ndarray | None, twist: np.ndarray) -> Verdict:
-        """Feasibility of ``q`` (from ``solve``) for following ``twist`` (v, w of the grapple, W)."""
+    def judge(self, q_pin: np.ndarray, q: np.ndarray | None, twist: np.ndarray, point: np.ndarray) -> Verdict:
+        """Feasibility of ``q`` (from ``solve``) for following ``twist`` (v, w of the grapple, W)
+        at ``point`` (W)."""
         n, L = self.arm_q.size, self.limits
         if q is None:
             nan = np.full(n, math.nan)
-            return Verdict(nan, nan, False, "no inverse kinematics solution (out of the arm's workspace)", 0.0)
+            distance = self.shoulder_distance(q_pin, point)
+            where = ("the arm reaches" if distance > L.reach else
+                     "within the arm's reach but not in this orientation; the arm reaches")
+            return Verdict(nan, nan, False, f"no inverse kinematics solution: the grasp point is {distance:.2f} m "
+                                            f"from the shoulder, {where} {L.reach:.2f} m", 0.0)
         pin, model, data = self.pin, self.model, self.data
         x = self._configure(q_pin, q)
         pin.computeJointJacobians(model, data, x)

@@ -40,6 +40,13 @@ PER_LINK = "one number for the base link, or link name -> number"
 # 1 h, 4 rad, ends 174 deg off), and the mean motion of the lowest orbit (at Earth's radius)
 MAX_ROTATION_PER_STEP = 0.1
 ORBIT_RATE_MAX = float(np.sqrt(MU_EARTH / 6378137.0 ** 3))
+SPIN = Record("Spin", (
+    Parameter("rate", Float("rad/s", minimum=0.0), description="angular rate about the axis"),
+    Parameter("axis", Vector(3), description="the axis (any length but zero; normalized)"),
+    Parameter("axes", Str(("body", "frame")),
+              description="axes of the axis: the body's own (turned by orientation) or the frame's"),
+    Parameter("linear", Vector(3, "m/s"), default=[0.0, 0.0, 0.0], description="base origin linear velocity"),
+), description="a twist from parts: rate times axis, and a linear velocity")
 BODY = Record("Body", (
     Parameter("urdf", Str(hint="a URDF file path"),
               description="URDF file, relative to the config file (else to the project root); its root link is the free base"),
@@ -47,8 +54,9 @@ BODY = Record("Body", (
               description="frame of position, orientation and twist (lvlh: LVLH at t0, its rotation included)"),
     Parameter("position", Vector(3, "m"), default=[0.0, 0.0, 0.0], description="base link origin"),
     Parameter("orientation", Vector(4), default=[0.0, 0.0, 0.0, 1.0], description="base attitude [x, y, z, w]"),
-    Parameter("twist", Vector(6, units=("m/s",) * 3 + ("rad/s",) * 3), default=[0.0] * 6,
-              description="base origin linear velocity (m/s), then angular velocity (rad/s)"),
+    Parameter("twist", OneOf((Vector(6, units=("m/s",) * 3 + ("rad/s",) * 3), SPIN)), default=[0.0] * 6,
+              description="base origin linear velocity (m/s), then angular velocity (rad/s); or built from parts: "
+                          "{rate, axis, axes, linear} (a tumble rate about an axis, each sweepable)"),
     Parameter("q", MapOf(JOINT_VALUE, "joint"), default={},
               description="initial joint positions (rad, m for prismatic); joints not named start at 0"),
     Parameter("qd", MapOf(JOINT_RATE, "joint"), default={},
@@ -138,6 +146,31 @@ def load_models(params: Mapping[str, Any]) -> dict[str, UrdfModel]:
             for name, body in body_items(params["bodies"])}
 
 
+def initial_twist(body: Mapping[str, Any]) -> list[float]:
+    """A body's ``twist`` as the 6-vector (linear, angular) in its ``frame``: given so, or from its
+    parts ``{rate, axis, axes, linear}`` (the axis normalized, in the body's own axes turned into
+    the frame by ``orientation`` for ``axes: body``)."""
+    twist = body["twist"]
+    if not isinstance(twist, Mapping):
+        return list(twist)
+    axis = np.asarray(twist["axis"], dtype=float)
+    norm = float(np.linalg.norm(axis))
+    if not norm > 0.0:
+        raise ConfigError("twist.axis", f"expected a direction (a vector that is not zero), got {list(twist['axis'])}")
+    axis = axis / norm
+    if twist["axes"] == "body":
+        from components.rotations import quat_to_matrix
+        axis = quat_to_matrix(np.asarray(body["orientation"], dtype=float)) @ axis
+    return [float(x) for x in twist["linear"]] + [float(x) for x in twist["rate"] * axis]
+
+
+def _twist(name: str, body: Mapping[str, Any]) -> list[float]:
+    try:
+        return initial_twist(body)
+    except ConfigError as e:
+        raise ConfigError(f"bodies.{name}.{e.key}", e.message) from None
+
+
 def body_specs(params: Mapping[str, Any], models: Mapping[str, UrdfModel]):
     """BodySpec of every body, values in SI; ConfigError naming the key."""
     from components.dynamics.world import BodySpec, ModelError, check_spec
@@ -148,7 +181,7 @@ def body_specs(params: Mapping[str, Any], models: Mapping[str, UrdfModel]):
         area, cd = body["drag_area"], body["drag_cd"]
         spec = BodySpec(
             name=name, urdf=model.path, frame=body["frame"], position=body["position"],
-            orientation=body["orientation"], twist=body["twist"], q=dict(body["q"]), qd=dict(body["qd"]),
+            orientation=body["orientation"], twist=_twist(name, body), q=dict(body["q"]), qd=dict(body["qd"]),
             locked_joints=tuple(body["locked_joints"]), drag_area=area if isinstance(area, Mapping) else {model.root: area},
             drag_cd=cd)
         try:
@@ -259,7 +292,8 @@ class OrbitalDynamics(Component):
         environment = params["tidal_force"] or params["gravity_gradient"]
         for name, body in body_items(params["bodies"]):
             model = models[name]
-            figures = [(float(np.linalg.norm(np.asarray(body["twist"], dtype=float)[3:])), "its initial angular rate")]
+            figures = [(float(np.linalg.norm(np.asarray(_twist(name, body), dtype=float)[3:])),
+                        "its initial angular rate")]
             revolute = [abs(float(v)) for j, v in body["qd"].items() if model.joint(j).type != "prismatic"]
             if revolute:
                 figures.append((max(revolute), "its fastest joint's initial rate"))

@@ -229,7 +229,8 @@ def test_component_capture_event_and_outputs():
               "tidal_force": False, "gravity_gradient": False, "imu": ["servicer"], "frame_outputs": True,
               "grasp": {"chaser": "servicer", "end_effector": "arm_tool_link", "target": "target",
                         "grasp_frame": "target", "tolerance": {"position": "2 m", "orientation": "180 deg",
-                                                               "linear_velocity": "1 m/s", "angular_velocity": "1 rad/s"}}}
+                                                               "linear_velocity": "1 m/s", "angular_velocity": "1 rad/s"},
+                        "force_limit": "1000 N", "torque_limit": "1000 N*m"}}
     h = Harness("dynamics.dart", params)
     h.initialize()
     out = h.step(1_000_000)
@@ -244,3 +245,93 @@ def test_component_capture_event_and_outputs():
     assert np.abs(out["grasp.twist_ee_grasp"]).max() < 1e-9
     out = h.step(1_000_000)
     assert not h.component.take_events()
+
+
+# --------------------------------------------------------------------------- load limits
+
+def overload_world(action: str, force_limit: float, torque_limit: float) -> OrbitalWorld:
+    """The arm welded to the target (no environment), the grasp with these load limits."""
+    w = OrbitalWorld([BodySpec("servicer", SERVICER, q=ARM),
+                      BodySpec("target", TARGET, position=np.array((1.6, 0.3, 2.6)), orientation=unit((0.1, 0.2, 0.05, 1.0)),
+                               twist=np.array((0.01, -0.02, 0.005, 0.03, -0.02, 0.04)))],
+                     grasp=GraspSpec("servicer", "arm_tool_link", "target", "target", ANYWHERE,
+                                     force_limit=force_limit, torque_limit=torque_limit, on_overload=action),
+                     tidal_force=False, gravity_gradient=False)
+    w.reset_bodies()
+    w.grasp.close()
+    return w
+
+
+@pytest.mark.parametrize("action", ["release", "hold"])
+def test_an_overloaded_weld_reports_its_peak_and_releases_or_holds(action):
+    """The arm's shoulder and elbow torqued at 40 and -25 N m with the target welded. The weld's
+    force on the target is the rate of the target's linear momentum (the weld is the only force on
+    it): over a 1 ms step the reported peak force is at least the mean |dp/dt| and within 1% of it.
+    Limits below it: one grasp_overload report with that peak; ``release`` opens the weld (no
+    impulse: the total momentum after equals the one before to 1e-12 relative, and the bodies
+    then move apart) and re-closes only after close is lowered; ``hold`` stays closed and reports
+    once until the load falls back within the limits."""
+    w = overload_world(action, 1e6, 1e6)
+    torques = np.zeros(len(w.bodies["servicer"].joints))
+    torques[:2] = 40.0, -25.0
+    w.set_torques("servicer", torques)
+    p0 = w.momentum("target")[:3].copy()
+    w.step(1e-3)
+    mean_force = float(np.linalg.norm(w.momentum("target")[:3] - p0) / 1e-3)
+    peak = w.grasp.peak.copy()
+    assert w.grasp.check_overload() is None                    # within the large limits: nothing
+    print(f"mean weld force {mean_force:.3f} N, peak over the stages {peak[0]:.3f} N, torque {peak[1]:.3f} N m")
+    assert mean_force * (1 - 1e-9) <= peak[0] <= 1.01 * mean_force
+    w = overload_world(action, 0.5 * mean_force, 1e6)
+    w.set_torques("servicer", torques)
+    before = total_momentum(w)
+    w.step(1e-3)
+    report = w.grasp.check_overload()
+    assert report is not None and report["action"] == action and report["force_limit"] == 0.5 * mean_force
+    assert report["force"] == pytest.approx(peak[0], rel=1e-9)
+    assert np.abs(total_momentum(w) - before).max() < 1e-12 * np.abs(before).max()
+    if action == "release":
+        assert not w.grasp.closed
+        w.set_torques("servicer", np.zeros_like(torques))
+        w.step(1e-3)
+        assert w.grasp.check_overload() is None and w.capture() is None      # disarmed: no re-close
+        w.grasp.rearm(False)
+        assert w.capture() is not None and w.grasp.closed                    # close lowered, then raised
+    else:
+        assert w.grasp.closed
+        w.step(1e-3)
+        assert w.grasp.check_overload() is None                              # the same overload: one report
+        w.set_torques("servicer", np.zeros_like(torques))
+        for _ in range(3):
+            w.step(1e-3)
+            w.grasp.check_overload()
+        assert not w.grasp.overloaded                                        # back within the limits
+
+
+def test_component_grasp_overload_event_names_the_peaks_and_limits():
+    """dynamics.dart: after the capture, torques on the arm beyond what the fixture carries give one
+    grasp_overload event (time, peak force and torque, the limits, the action) and grasp.closed
+    back to 0 (release, the default)."""
+    params = {"bodies": {"servicer": {"urdf": str(SERVICER), "q": ARM},
+                         "target": {"urdf": str(TARGET), "position": [1.6, 0.3, 2.6]}},
+              "tidal_force": False, "gravity_gradient": False,
+              "grasp": {"chaser": "servicer", "end_effector": "arm_tool_link", "target": "target",
+                        "grasp_frame": "target", "tolerance": {"position": "2 m", "orientation": "180 deg",
+                                                               "linear_velocity": "1 m/s", "angular_velocity": "1 rad/s"},
+                        "force_limit": "5 N", "torque_limit": "5 N*m"}}
+    h = Harness("dynamics.dart", params)
+    h.initialize()
+    h.inputs["grasp.close"] = 1.0
+    assert h.step(1_000_000)["grasp.closed"] == 1.0
+    h.component.take_events()
+    tau = np.zeros(h.inputs["servicer.tau"].size)
+    tau[:2] = 40.0, -25.0
+    h.inputs["servicer.tau"] = tau
+    out = h.step(1_000_000)
+    events = h.component.take_events()
+    assert [kind for kind, _ in events] == ["grasp_overload"], events
+    fields = events[0][1]
+    assert fields["time"] == pytest.approx(0.002) and fields["action"] == "release"
+    assert fields["force_limit"] == 5.0 and fields["torque_limit"] == 5.0
+    assert fields["force"] > 5.0 or fields["torque"] > 5.0
+    assert out["grasp.closed"] == 0.0

@@ -49,7 +49,7 @@ def _unit_of(key: str, values: list, meta: dict) -> tuple[str, float]:
                 unit = m.group(2)
                 break
     scale = unit_scale(unit) if unit else None
-    return (unit, scale[0]) if scale else ("SI", 1.0)
+    return (unit, scale[0]) if scale else ("", 1.0)
 
 
 def quantities(columns: dict[str, list], keys: list[str], meta: dict) -> tuple[list[Quantity], list[str], dict]:
@@ -58,7 +58,7 @@ def quantities(columns: dict[str, list], keys: list[str], meta: dict) -> tuple[l
     out, left_out, vectors = [], [], {}
     for key in keys:
         values = columns[key]
-        short = key.rsplit(".", 1)[-1] if "." in key else key
+        short = ".".join([p for p in key.split(".") if p not in ("components", "parameters")][-2:])
         if all(isinstance(v, (int, float)) for v in values):
             x = np.array(values, dtype=float)
             if len(set(x.tolist())) < 2:
@@ -135,7 +135,7 @@ def campaign_figures(directory: Path) -> list[tuple[str, object]]:
                 chosen = outcome == kind
                 if chosen.any():
                     ax.plot(q.values[chosen], y[chosen], "o", markersize=3, color=colour, label=f"{kind} ({chosen.sum()})")
-            ax.set(xlabel=f"{q.label} ({q.unit})", ylabel=_metric_label(name, metric_meta))
+            ax.set(xlabel=_label(q), ylabel=_metric_label(name, metric_meta))
             ax.grid(True, alpha=0.3)
             ax.legend(fontsize="x-small")
         if note:
@@ -149,6 +149,10 @@ def campaign_figures(directory: Path) -> list[tuple[str, object]]:
 def _grid_figure(panels: int):
     cols = min(3, panels)
     return _figure(4.2 * cols, 3.2 * math.ceil(panels / cols))
+
+
+def _label(q: Quantity) -> str:
+    return f"{q.label} ({q.unit})" if q.unit else q.label
 
 
 def _metric_label(name: str, metric_meta: dict) -> str:
@@ -171,7 +175,7 @@ def _outcomes_figure(axes: list[Quantity], vectors: dict, outcome: np.ndarray, c
             if chosen.any():
                 ax.plot(q.values[chosen], np.full(chosen.sum(), row), "o", markersize=4, color=colours[kind],
                         alpha=0.7, label=f"{kind} ({chosen.sum()})")
-        ax.set(xlabel=f"{q.label} ({q.unit})", yticks=range(len(kinds)), yticklabels=kinds,
+        ax.set(xlabel=_label(q), yticks=range(len(kinds)), yticklabels=kinds,
                ylim=(-0.5, len(kinds) - 0.5), title=f"outcome against {q.label}")
         ax.grid(True, axis="x", alpha=0.3)
     for j, (label, v) in enumerate(vectors.items(), start=len(axes) + 1):

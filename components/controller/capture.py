@@ -234,19 +234,24 @@ def fit_motion(times, positions, rotations, memory: float) -> MotionFit:
 
 
 class GraspEstimator:
-    """The last ``window`` grasp poses (W) and their ``fit_motion`` (refitted at each new one)."""
+    """The last ``window`` grasp poses (W) and their ``fit_motion`` (refitted at each new one),
+    used once it holds ``minimum`` of them."""
 
-    def __init__(self, window: int, memory: float):
+    def __init__(self, window: int, memory: float, minimum: int | None = None):
         if window < 1:
             raise ValueError(f"estimator_window: expected at least 1 measurement, got {window}")
         self.window, self.memory = int(window), float(memory)
+        self.minimum = self.window if minimum is None else int(minimum)
+        if not 1 <= self.minimum <= self.window:
+            raise ValueError(f"estimator_minimum: expected 1 to estimator_window = {self.window} measurements, "
+                             f"got {self.minimum}")
         self.t, self.p, self.R = np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3, 3))
         self.fit: MotionFit | None = None
 
     @property
     def ready(self) -> bool:
-        """The window is full: the estimate is used from then on."""
-        return self.t.size >= self.window
+        """It holds ``minimum`` measurements: the estimate is used from then on."""
+        return self.t.size >= self.minimum
 
     def add(self, t: float, p, R) -> None:
         if self.t.size and not t > self.t[-1]:
@@ -355,7 +360,8 @@ class CaptureSettings:
     | wrench_recovery_time | s | time for the wheel-torque factor to recover from 0 to 1 |
     | hold_kp, hold_kd | 1/s^2, 1/s (n) | joint gains of the holds and the joint-space moves (computed torque) |
     | captured_kp, captured_kd | N m/rad, N m s/rad (n) | joint hold gains after capture (torque units) |
-    | estimator_window | - | measurements in the fit |
+    | estimator_window | - | measurements in the fit (the latest) |
+    | estimator_minimum | - | measurements before the estimate is first used |
     | estimator_memory | s | fading-memory time constant of the fit |
     | pose_history | s | end-effector poses kept: the longest measurement latency |
     | limit_window | s | how long joint rates or torques may exceed the URDF limits |
@@ -389,6 +395,7 @@ class CaptureSettings:
     captured_kp: np.ndarray
     captured_kd: np.ndarray
     estimator_window: int
+    estimator_minimum: int
     estimator_memory: float
     pose_history: float
     limit_window: float
@@ -434,7 +441,7 @@ class CaptureController:
             np.asarray(settings.arm_lower, float), np.asarray(settings.arm_upper, float),
             np.asarray(settings.arm_velocity, float), settings.joint_margin, settings.singularity_margin,
             settings.rate_fraction, settings.reach))
-        self.estimator = GraspEstimator(settings.estimator_window, settings.estimator_memory)
+        self.estimator = GraspEstimator(settings.estimator_window, settings.estimator_memory, settings.estimator_minimum)
         self.history = PoseHistory(settings.pose_history)
         n = arm.n
         self.started = False
@@ -542,7 +549,7 @@ class CaptureController:
         if g is None:
             if t >= cfg.capture_timeout:
                 self._abort(t, f"no estimate of the grapple's motion by capture_timeout = {cfg.capture_timeout:g} s: "
-                               f"{self.estimator.t.size} of the estimator_window = {self.estimator.window} "
+                               f"{self.estimator.t.size} of the estimator_minimum = {self.estimator.minimum} "
                                f"measurements arrived (is the pose sensor connected and is the grapple in view?)")
             return
         self.next_plan = t + cfg.replan_period

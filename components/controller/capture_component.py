@@ -169,7 +169,10 @@ class CaptureComponent(Component):
         Parameter("hold_kd", _gain("1/s"), default=10.0,
                   description="computed-torque joint hold damping before the first estimate, one or per arm joint"),
         Parameter("estimator_window", Int(minimum=3), default=10,
-                  description="measurements in the least-squares fit; the approach starts when it is full"),
+                  description="measurements in the least-squares fit (the latest)"),
+        Parameter("estimator_minimum", Int(minimum=3), default=None,
+                  description="measurements before the estimate is first used (the first plan); null: estimator_window. "
+                              "Fewer plan sooner, more keep the estimate steadier while the arm tracks"),
         Parameter("estimator_memory", Float("s", positive=True), default=0.5,
                   description="fading-memory time constant: a measurement tau seconds older weighs exp(-tau/memory)"),
         Parameter("pose_history", Float("s", positive=True), default=1.0,
@@ -222,6 +225,10 @@ class CaptureComponent(Component):
     @classmethod
     def validate(cls, params):
         cls.setup(params)
+        minimum = params["estimator_minimum"]
+        if minimum is not None and minimum > params["estimator_window"]:
+            raise ConfigError("estimator_minimum", f"expected at most estimator_window = {params['estimator_window']} "
+                                                   f"measurements, got {minimum}")
 
     @classmethod
     def declare(cls, params):
@@ -286,6 +293,7 @@ class CaptureComponent(Component):
             detumble_gain=p["detumble_gain"], wrench_recovery_time=p["wrench_recovery_time"],
             hold_kp=c.hold_kp, hold_kd=c.hold_kd, captured_kp=c.captured_kp, captured_kd=c.captured_kd,
             estimator_window=p["estimator_window"],
+            estimator_minimum=p["estimator_window"] if p["estimator_minimum"] is None else p["estimator_minimum"],
             estimator_memory=p["estimator_memory"], pose_history=p["pose_history"], limit_window=p["limit_window"],
             shoulder=c.shoulder, reach=c.reach, arm_velocity=c.velocity, arm_lower=c.lower, arm_upper=c.upper,
             wheel_axes=c.wheel_axes,

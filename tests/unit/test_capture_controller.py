@@ -389,7 +389,8 @@ def test_restore_continues_bit_for_bit_in_every_phase():
         if CAPTURED in entered and k >= entered[CAPTURED] + 40:
             break
     print("restored at steps", [k for k, _, _ in restored], "in phases", [phase for _, _, phase in restored])
-    assert [phase for _, _, phase in restored] == [WAIT, APPROACH, CLOSING, TRACK, CAPTURED]
+    assert list(dict.fromkeys(phase for _, _, phase in restored)) == [WAIT, APPROACH, CLOSING, TRACK, CAPTURED]
+    assert TRACK + 0.5 in entered                              # one restore had the tolerance timer running
     assert restored[-1][1].component.controller.wheel_scale < 1.0
 
 

@@ -138,3 +138,82 @@ def test_vector_metric_is_the_norm_and_parameters_read_in_si(tmp_path):
     norm = Metric("n", "v", "final", ("v[0]", "v[1]"))
     assert norm.value(np.array([0.0, 1.0]), {"v[0]": np.array([0.0, 3.0]), "v[1]": np.array([1.0, 4.0])}) == 5.0
     assert si_value("2 km") == 2000.0 and si_value(3) == 3.0 and si_value("rk4") == "rk4"
+
+
+# --------------------------------------------------------------------------- capture studies (issue 33)
+
+def test_a_direction_is_uniform_on_the_sphere():
+    """{direction: uniform}: unit 3-vectors whose mean over 4000 draws is within 3 sigma of 0
+    (sigma = 1/sqrt(3 n) per axis) and whose z is uniform on [-1, 1] (Archimedes: a sphere's area
+    is uniform in height): the quartiles of z within 0.04 of -0.5, 0, 0.5. A draw depends on the
+    seed, the draw and the key alone."""
+    d = dispersion("components.dynamics.parameters.bodies.target.twist.axis", {"direction": "uniform"}, "disperse.x")
+    v = np.array([d.draw(7, i) for i in range(4000)])
+    assert np.allclose(np.linalg.norm(v, axis=1), 1.0, atol=1e-15)
+    assert np.all(np.abs(v.mean(axis=0)) < 3.0 / math.sqrt(3 * 4000))
+    assert np.allclose(np.quantile(v[:, 2], [0.25, 0.5, 0.75]), [-0.5, 0.0, 0.5], atol=0.04)
+    assert d.draw(7, 11) == d.draw(7, 11) and d.draw(7, 11) != d.draw(8, 11)
+    with pytest.raises(Exception, match="uniform"):
+        dispersion("k", {"direction": [0, 1]}, "disperse.k")
+
+
+def test_slice_and_event_metrics():
+    """A slice [i:j] is the norm of those elements alone (a wrench's force); an event metric reads
+    a field of the first (or last, min, max) event of its name, counts them, and is NaN when there
+    is none."""
+    from orchestrator.campaign_metrics import metric
+
+    signals = {"dyn.wrench": (tuple(f"dyn.wrench[{i}]" for i in range(6)), "N, N*m")}
+    force = metric("f", {"signal": "dyn.wrench[0:3]", "reduce": "max"}, signals, "metrics.f")
+    torque = metric("tq", {"signal": "dyn.wrench[3:6]", "reduce": "max"}, signals, "metrics.tq")
+    table = {f"dyn.wrench[{i}]": np.array(col) for i, col in enumerate(
+        [[3.0, 0.0], [4.0, 0.0], [0.0, 0.0], [0.0, 1.0], [0.0, 2.0], [0.0, 2.0]])}
+    t = np.array([0.0, 1.0])
+    assert force.value(t, table) == 5.0 and torque.value(t, table) == 3.0
+    with pytest.raises(Exception, match=r"0 <= i < j <= 6"):
+        metric("f", {"signal": "dyn.wrench[4:9]", "reduce": "max"}, signals, "metrics.f")
+    events = [{"event": "capture", "time": 4.15}, {"event": "grasp_overload", "torque": 31.0},
+              {"event": "grasp_overload", "torque": 45.0}, {"event": "capture_aborted", "reason": "out of reach"}]
+    at = metric("at", {"event": "capture", "field": "time"}, None, "metrics.at")
+    peak = metric("peak", {"event": "grasp_overload", "field": "torque", "reduce": "max"}, None, "metrics.peak")
+    count = metric("n", {"event": "grasp_overload", "reduce": "count"}, None, "metrics.n")
+    why = metric("why", {"event": "capture_aborted", "field": "reason"}, None, "metrics.why")
+    assert at.value(t, {}, events) == 4.15 and peak.value(t, {}, events) == 45.0 and count.value(t, {}, events) == 2.0
+    assert why.value(t, {}, events) == "out of reach"
+    assert math.isnan(at.value(t, {}, events[1:]))
+    with pytest.raises(Exception, match="field"):
+        metric("x", {"event": "capture"}, None, "metrics.x")
+
+
+def test_outcomes_come_from_the_last_listed_event(tmp_path):
+    """outcomes: {captured: capture, aborted: capture_aborted}: a run that failed is 'failed'
+    whatever its events; else the outcome of the last listed event; else 'completed'. The names
+    of a run's own states are refused."""
+    campaign = load_campaign(write(tmp_path, {"outcomes": {"captured": "capture", "aborted": "capture_aborted"}}))
+    assert campaign.outcome("completed", ["start", "capture", "end"]) == "captured"
+    assert campaign.outcome("completed", ["capture", "grasp_overload", "capture_aborted"]) == "aborted"
+    assert campaign.outcome("completed", ["start", "end"]) == "completed"
+    assert campaign.outcome("failed", ["capture"]) == "failed"
+    assert "outcomes.failed: completed, failed, interrupted are the outcomes of a run itself" in \
+        errors_of(tmp_path, {"outcomes": {"failed": "capture"}})
+
+
+def test_a_twist_from_rate_and_axis(tmp_path):
+    """bodies.<b>.twist: {rate, axis, axes, linear}: rate times the normalized axis, in the body's
+    own axes turned by its orientation (axes: body) or as given (axes: frame); a zero axis is
+    refused naming the key."""
+    from components.dynamics.component import initial_twist
+    from components.errors import ConfigError
+    from components.rotations import quat_to_matrix
+
+    q = np.array([0.1, -0.3, 0.2, 0.9]) / np.linalg.norm([0.1, -0.3, 0.2, 0.9])
+    body = {"orientation": q.tolist(), "twist": {"rate": 0.07, "axis": [1.0, 2.0, 2.0], "axes": "body",
+                                                 "linear": [0.0, 0.01, 0.0]}}
+    twist = np.array(initial_twist(body))
+    assert np.allclose(twist[:3], [0.0, 0.01, 0.0], atol=0.0)
+    assert np.allclose(twist[3:], quat_to_matrix(q) @ np.array([1.0, 2.0, 2.0]) / 3.0 * 0.07, atol=1e-16)
+    body["twist"]["axes"] = "frame"
+    assert np.allclose(np.array(initial_twist(body))[3:], [0.07 / 3, 0.14 / 3, 0.14 / 3], atol=1e-16)
+    body["twist"]["axis"] = [0.0, 0.0, 0.0]
+    with pytest.raises(ConfigError, match="twist.axis"):
+        initial_twist(body)

@@ -169,6 +169,7 @@ class MotionFit:
     | p, v, a | m, m/s, m/s^2 | position, velocity, acceleration at t (W) |
     | R | - | the latest measured rotation R_W_grasp, the origin of the rotation vectors |
     | phi, dphi, ddphi | rad, rad/s, rad/s^2 | fitted rotation vector relative to R and its rates at t |
+    | rate_sigma | rad/s | standard error of |dphi| from the fit's residuals (NaN: too few measurements) |
     """
     t: float
     p: np.ndarray
@@ -178,6 +179,7 @@ class MotionFit:
     phi: np.ndarray
     dphi: np.ndarray
     ddphi: np.ndarray
+    rate_sigma: float = math.nan
 
     def sample(self, t: float) -> PoseSample:
         """The motion extrapolated to time t (W): p, v, a, R, w, dw."""
@@ -190,15 +192,16 @@ class MotionFit:
                           J @ dphi, J @ self.ddphi + left_jacobian_rate(phi, dphi) @ dphi)
 
     def to_array(self) -> np.ndarray:
-        return np.concatenate([[self.t], self.p, self.v, self.a, self.R.ravel(), self.phi, self.dphi, self.ddphi])
+        return np.concatenate([[self.t], self.p, self.v, self.a, self.R.ravel(), self.phi, self.dphi, self.ddphi,
+                               [self.rate_sigma]])
 
     @classmethod
     def from_array(cls, x) -> "MotionFit":
         x = np.asarray(x, dtype=float)
-        if x.size != 28:
-            raise ValueError(f"state: a motion fit has 28 values, got {x.size}")
+        if x.size != 29:
+            raise ValueError(f"state: a motion fit has 29 values, got {x.size}")
         return cls(float(x[0]), x[1:4].copy(), x[4:7].copy(), x[7:10].copy(), x[10:19].reshape(3, 3).copy(),
-                   x[19:22].copy(), x[22:25].copy(), x[25:28].copy())
+                   x[19:22].copy(), x[22:25].copy(), x[25:28].copy(), float(x[28]))
 
 
 def fit_motion(times, positions, rotations, memory: float) -> MotionFit:
@@ -225,12 +228,20 @@ def fit_motion(times, positions, rotations, memory: float) -> MotionFit:
     order = min(2, k - 1)
     A = np.column_stack([np.ones(k), u, 0.5 * u * u][:order + 1])
     sw = np.sqrt(np.exp(tau / memory)) if math.isfinite(memory) else np.ones(k)
-    coef = np.linalg.lstsq(A * sw[:, None], Y * sw[:, None], rcond=None)[0]
+    Aw = A * sw[:, None]
+    coef = np.linalg.lstsq(Aw, Y * sw[:, None], rcond=None)[0]
+    rate_sigma = math.nan
+    if k > order + 1:
+        # the slope's standard error: residual variance (weighted, per rotation component) times
+        # the slope's entry of (A^T W A)^-1, over the three components
+        residual = (Y[:, 3:] - A @ coef[:, 3:]) * sw[:, None]
+        variance = float(np.sum(residual * residual)) / (3.0 * (k - order - 1))
+        rate_sigma = math.sqrt(3.0 * variance * np.linalg.inv(Aw.T @ Aw)[1, 1]) / span
     c = np.zeros((3, 6))
     c[:order + 1] = coef
     c[1] /= span
     c[2] /= span * span
-    return MotionFit(t_ref, c[0, :3], c[1, :3], c[2, :3], R_ref, c[0, 3:], c[1, 3:], c[2, 3:])
+    return MotionFit(t_ref, c[0, :3], c[1, :3], c[2, :3], R_ref, c[0, 3:], c[1, 3:], c[2, 3:], rate_sigma)
 
 
 class GraspEstimator:
@@ -252,6 +263,11 @@ class GraspEstimator:
     def ready(self) -> bool:
         """It holds ``minimum`` measurements: the estimate is used from then on."""
         return self.t.size >= self.minimum
+
+    @property
+    def full(self) -> bool:
+        """It holds ``window`` measurements: the estimate is as good as it gets."""
+        return self.t.size >= self.window
 
     def add(self, t: float, p, R) -> None:
         if self.t.size and not t > self.t[-1]:
@@ -415,6 +431,7 @@ PLAN_STEP = 0.5           # s between the planner's samples of the predicted gra
 WINDOW_MARGIN = 0.5       # s of following beyond closing_time + tolerance_time a window must offer
 LONGEST_SCAN = 180.0      # s: the planner looks no further ahead than this
 SHORTEST_APPROACH = 1.0   # s: the quickest joint move onto the pre-grasp pose
+STILL = 0.02              # rad over LONGEST_SCAN: a grapple turning less is taken as still
 MOVE_RATE_FRACTION = 0.8  # share of the URDF velocity limits a joint move may reach
 CONTINUITY = 0.5          # rad: the largest joint change between two samples of one window
 
@@ -556,7 +573,14 @@ class CaptureController:
         base_v, base_w = np.asarray(x["twist"][:3], dtype=float), np.asarray(x["twist"][3:], dtype=float)
         prediction = RigidPrediction(t, g, x["position"], base_v, base_w)
         distance = self.kinematics.shoulder_distance(self.arm.q_pin, prediction.c)
-        turn = 2.0 * math.pi / prediction.rate if prediction.rate > 1e-9 else 0.0   # still: one pose
+        # the tumble relative to the servicer (both co-rotate with LVLH); one that turns the grapple
+        # by less than STILL over the longest scan is still: its one pose is its whole turn
+        relative_rate = float(np.linalg.norm(prediction.w - base_w))
+        fit = self.estimator.fit
+        negligible = relative_rate * LONGEST_SCAN < STILL
+        unresolved = not negligible and self.estimator.full and relative_rate < 3.0 * fit.rate_sigma   # noise
+        still = negligible or unresolved
+        turn = 0.0 if still else 2.0 * math.pi / relative_rate
         horizon = min(turn, LONGEST_SCAN, max(cfg.capture_timeout - t - SHORTEST_APPROACH, 0.0))
         plan, reason, found = self._plan(t, s, prediction, horizon)
         if plan is not None:
@@ -569,10 +593,12 @@ class CaptureController:
         self.reason = reason
         if t >= cfg.capture_timeout or (not found and horizon >= turn):
             if turn == 0.0:
-                scope = "(it does not turn)"
+                scope = ("(it does not turn)" if not unresolved else
+                         f"(it does not turn that the estimator can tell: {math.degrees(relative_rate):.2g} deg/s, "
+                         f"standard error {math.degrees(fit.rate_sigma):.2g} deg/s)")
             else:
                 scope = (f"{'in a whole turn of the tumble' if horizon >= turn else 'by capture_timeout'} "
-                         f"({math.degrees(prediction.rate):.3g} deg/s about a centre {distance:.3g} m from the "
+                         f"({math.degrees(relative_rate):.3g} deg/s about a centre {distance:.3g} m from the "
                          f"shoulder; the arm reaches {cfg.reach:.3g} m)")
             self._abort(t, f"the grapple never comes where the arm can follow it {scope}: {reason}")
 
@@ -671,7 +697,7 @@ class CaptureController:
         if self.phase == RETREAT:
             self.phase, self.move = WAIT, None
             if self.attempt >= self.cfg.attempts:
-                self._abort(t, f"{self.attempt} attempts: {self.reason}")
+                self._abort(t, f"{self.attempt} approach{'es' if self.attempt != 1 else ''}: {self.reason}")
             return
         d = g.R.T @ (s.p - g.p)
         psi = log_so3(g.R.T @ s.R)
@@ -777,7 +803,7 @@ class CaptureController:
             return (f"the arm stayed near a singularity on the grapple (the smallest singular value of J_g below "
                     f"singularity_margin = {cfg.singularity_margin:g}) {100.0 * singular / steps:.0f}% of "
                     f"track_time = {cfg.track_time:g} s")
-        unit, scale = ("mm", 1e3), ("deg", 180.0 / math.pi), ("mm/s", 1e3), ("deg/s", 180.0 / math.pi)[i]
+        unit, scale = (("mm", 1e3), ("deg", 180.0 / math.pi), ("mm/s", 1e3), ("deg/s", 180.0 / math.pi))[i]
         return (f"the estimated errors did not stay within the tolerances for tolerance_time = {cfg.tolerance_time:g} s "
                 f"in track_time = {cfg.track_time:g} s: the {CLOSE_ERRORS[i]} error was above "
                 f"{CLOSE_ERRORS[i]}_tolerance = {tolerance[i] * scale:.3g} {unit} {100.0 * above[i] / steps:.0f}% of the "

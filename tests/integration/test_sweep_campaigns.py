@@ -63,7 +63,7 @@ def test_each_case_is_the_plain_run_of_its_config(tmp_path):
     assert "3 completed" in result.stderr and "final" in result.stderr
     table = cases(out)
     assert list(table["case"]) == [0, 1, 2] and set(table["status"]) == {"completed"}
-    assert list(table.columns[:5]) == ["case", "status", "error", "components.push.parameters.value",
+    assert list(table.columns[:6]) == ["case", "status", "outcome", "error", "components.push.parameters.value",
                                        "components.total.parameters.gain"]
     for index in range(3):
         plain = tmp_path / f"plain{index}"
@@ -104,7 +104,11 @@ def test_a_failing_case_is_recorded_and_the_campaign_goes_on(tmp_path):
     assert "deliberate failure at step 4" in table["error"][1]
     assert table["recording"][0] == "" and table["recording"][1] == "cases/0001"   # keep: failed
     assert not (out / "cases" / "0000").exists() and (out / "cases" / "0001" / "signals.parquet").exists()
-    assert table["final"].isna()[1] and not table["final"].isna()[0]
+    # a failed case's metrics come from its recording too (its rows up to the failure)
+    kept = pq.read_table(out / "cases" / "0001" / "signals.parquet")
+    column = "total.x"                 # the metric "final" of campaign_file
+    assert table["final"][1] == kept.column(column).to_numpy()[-1] and not table["final"].isna()[0]
+    assert list(table["outcome"]) == ["completed", "failed"]
     assert "case 1 failed: " in result.stderr
 
 

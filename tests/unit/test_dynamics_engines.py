@@ -180,7 +180,8 @@ def test_capture_grasp_and_weld_agree():
               "imu": ["servicer"], "frame_outputs": True,
               "grasp": {"chaser": "servicer", "end_effector": "arm_tool_link", "target": "target",
                         "grasp_frame": "target", "tolerance": {"position": "2 m", "orientation": "180 deg",
-                                                               "linear_velocity": "1 m/s", "angular_velocity": "1 rad/s"}}}
+                                                               "linear_velocity": "1 m/s", "angular_velocity": "1 rad/s"},
+                        "force_limit": "1e6 N", "torque_limit": "1e6 N*m"}}
     dart, pinocchio = both(params, 1000, close_at=1)
     assert dart[1]["grasp.closed"] == 1.0 and np.abs(dart[-1]["grasp.wrench"]).max() > 0.1
     validation.check("pinocchio_dart", assert_agree(pinocchio, dart, "capture"))

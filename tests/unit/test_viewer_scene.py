@@ -223,7 +223,8 @@ CAPTURE_PARAMS = {      # configs/capture_tumbling_target.yaml's bodies and gras
     "tidal_force": False, "gravity_gradient": False,
     "grasp": {"chaser": "servicer", "end_effector": "ee", "target": "target", "grasp_frame": "grapple",
               "tolerance": {"position": "2 m", "orientation": "180 deg", "linear_velocity": "1 m/s",
-                            "angular_velocity": "1 rad/s"}}}
+                            "angular_velocity": "1 rad/s"},
+              "force_limit": "1e6 N", "torque_limit": "1e6 N*m"}}
 CAPTURE_CONFIG = {"run": {"name": "capture_view", "step": "10 ms"},
                   "components": {"dyn": {"type": "dynamics.dart", "parameters": CAPTURE_PARAMS}}}
 CLOSE_AT = 7          # grasp.close set for this step on

@@ -75,7 +75,8 @@ stayed within their tolerances, and the arm away from singularities (``singulari
 
 4, retreat: when, in closing or track, the grapple leaves the arm's reach, or following it needs
 joint rates or torques beyond the URDF limits for longer than ``limit_window``, or the tolerances
-were not met within ``track_time``, or after a capture the grasp opens again (the dynamics released
+were not met within ``track_time`` (or were, and the grasp still has not closed ``track_time``
+after close), or after a capture the grasp opens again (the dynamics released
 an overloaded weld), a quintic joint move takes the arm back to its posture over ``approach_time``
 (an event ``capture_retreat`` says why) and the planner looks for the next window.
 
@@ -781,8 +782,14 @@ class CaptureController:
         cfg = self.cfg
         self.errors = np.array([float(np.linalg.norm(g.p - s.p)), float(np.linalg.norm(log_so3(g.R @ s.R.T))),
                                 float(np.linalg.norm(g.v - s.xdot[:3])), float(np.linalg.norm(g.w - s.xdot[3:]))])
-        if self.phase != TRACK or self.close:
+        if self.phase != TRACK:
             return ""
+        if self.close:          # asked for: the dynamics closes when the true errors are within its tolerance
+            if t - self.within_since - cfg.tolerance_time <= cfg.track_time:
+                return ""
+            return (f"close was asked for track_time = {cfg.track_time:g} s and the grasp did not close: the true "
+                    f"errors stayed outside the dynamics' grasp.tolerance while the estimated ones were within the "
+                    f"controller's (tighter tolerances, or a better sensor, would tell)")
         tolerance = np.array([cfg.position_tolerance, cfg.attitude_tolerance, cfg.velocity_tolerance,
                               cfg.rate_tolerance])
         ratio = self.errors / tolerance

@@ -26,10 +26,38 @@ def _load(path: str, overrides: list[str], full: bool = False):
     try:
         return load(path, overrides, full), None
     except ConfigErrors as e:
+        if _is_campaign(path):
+            return None, [f"{path}: a campaign file (config:, disperse:, metrics:), not a run's config: "
+                          f"orchestrator sweep {path} --out DIR runs it"]
         return None, e.errors
 
 
+def _is_campaign(path: str) -> bool:
+    """A YAML mapping with the campaign's ``config`` key and none of a run config's."""
+    import yaml
+    try:
+        raw = yaml.safe_load(Path(path).read_text())
+    except (OSError, ValueError, yaml.YAMLError):
+        return False
+    return isinstance(raw, dict) and "config" in raw and not {"run", "components"} & set(raw)
+
+
+def _check_campaign(path: str) -> int:
+    from orchestrator.sweep import CampaignErrors, load_campaign
+    try:
+        campaign = load_campaign(path)
+    except CampaignErrors as e:
+        for line in e.errors:
+            print(f"error: {line}", file=sys.stderr)
+        return USAGE_ERROR
+    print(f"{path}: ok — a campaign of {count(campaign.count, 'case')}, {count(len(campaign.metrics), 'metric')} "
+          f"(orchestrator sweep {path} --out DIR runs it)")
+    return 0
+
+
 def cmd_check(args) -> int:
+    if not args.set and _is_campaign(args.config):
+        return _check_campaign(args.config)
     config, errors = _load(args.config, args.set, full=True)
     if errors:
         for line in errors:

@@ -30,7 +30,8 @@ predicted pose: damped Newton steps on the arm joints, ``dq = J^T (J J^T + mu^2 
 *feasible* when it converged, stays ``joint_margin`` inside the URDF position limits, the smallest
 singular value of the arm's Jacobian (W axes, m/rad and 1) is at least ``sigma_min``, and the joint
 rates that follow the grapple's twist (``J^-1 (v_g, w_g)``) stay below ``rate_fraction`` of the
-URDF velocity limits. ``Verdict.reason`` says which of these failed first, with its figure.
+URDF velocity limits. ``Verdict.reason`` names the first of these (in that order) that fails, with
+its figure.
 
 Joint move (``JointMove``)
 --------------------------
@@ -175,8 +176,8 @@ class ArmKinematics:
                    (float(np.min(L.rate_fraction * L.velocity / np.maximum(np.abs(qd), 1e-12))), "joint rate", qd)]
         score = min(m for m, _, _ in margins)
         reason = ""
-        if score < 1.0:
-            ratio, what, values = min(margins, key=lambda m: m[0])
+        if score < 1.0:     # the first that fails, in this order: a singular arm's rates follow from it
+            ratio, what, values = next(m for m in margins if m[0] < 1.0)
             if what == "joint position":
                 gap = np.minimum(q - L.lower, L.upper - q)
                 i = int(np.argmin(gap))

@@ -10,8 +10,10 @@
   measured from DART's body nodes at 20 Hz with 30 ms latency, the torques applied one control
   step late (as a Jacobi run): the end effector converges onto the moving grasp frame and
   ``close`` goes to 1, for two tumbles and offsets no parameter was tuned on.
-- Beyond the arm: out of reach, and joint-rate limits, refused with a message naming the figure.
-- State: a restore into a fresh instance continues bit for bit (approach, track, captured).
+- Beyond the arm: out of reach, and joint-rate limits, given up (capture_aborted) with a reason
+  naming the figure.
+- State: a restore into a fresh instance continues bit for bit (wait, approach, closing, track,
+  captured).
 - Detumbling after capture: wheel torques within the URDF efforts, the bus rate damped (DART),
   the torques scaled down when the wrist wrench exceeds its limits.
 """

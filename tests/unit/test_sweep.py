@@ -217,3 +217,21 @@ def test_a_twist_from_rate_and_axis(tmp_path):
     body["twist"]["axis"] = [0.0, 0.0, 0.0]
     with pytest.raises(ConfigError, match="twist.axis"):
         initial_twist(body)
+
+
+def test_check_validates_a_campaign_and_run_points_to_sweep(tmp_path, capsys):
+    """`orchestrator check CAMPAIGN` validates the campaign (its cases counted; a bad key refused
+    with exit 2 naming it); `orchestrator run CAMPAIGN` says it is a campaign and what runs it."""
+    from orchestrator.cli import main
+
+    path = write(tmp_path, {"samples": 4, "seed": 3, "disperse": {"components.push.parameters.value":
+                                                                  {"uniform": [0.0, 1.0]}}})
+    assert main(["check", str(path)]) == 0
+    assert "ok — a campaign of 4 cases" in capsys.readouterr().out
+    assert main(["run", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: a campaign file" in err and f"orchestrator sweep {path} --out DIR runs it" in err
+    bad = write(tmp_path, {"samples": 4, "seed": 3, "disperse": {"components.push.parameters.valu":
+                                                                 {"uniform": [0.0, 1.0]}}}, name="bad.yaml")
+    assert main(["check", str(bad)]) == 2
+    assert "components.push.parameters.valu" in capsys.readouterr().err

@@ -161,9 +161,12 @@ def metric(name: str, spec: Any, signals: dict[str, tuple[tuple[str, ...], str]]
             if not 0 <= i < j <= len(columns):
                 raise ConfigError(f"{where}.signal", f"expected a slice [i:j] with 0 <= i < j <= {len(columns)} "
                                                      f"(the size of {whole}), got [{i}:{j}]")
-            columns = columns[i:j]
             parts = [u.strip() for u in unit.split(",")]
-            unit = parts[0] if len(set(parts)) == 1 else unit        # "N, N*m": the slice's own is not known here
+            if len(columns) % len(parts) == 0:       # "N, N*m" over 6 elements: each unit covers a half
+                per = len(columns) // len(parts)
+                covered = {parts[k // per] for k in range(i, j)}
+                unit = covered.pop() if len(covered) == 1 else unit
+            columns = columns[i:j]
     threshold = None
     if how == "first_crossing":
         if "threshold" not in spec:

@@ -170,6 +170,7 @@ def test_slice_and_event_metrics():
         [[3.0, 0.0], [4.0, 0.0], [0.0, 0.0], [0.0, 1.0], [0.0, 2.0], [0.0, 2.0]])}
     t = np.array([0.0, 1.0])
     assert force.value(t, table) == 5.0 and torque.value(t, table) == 3.0
+    assert (force.unit, torque.unit) == ("N", "N*m")
     with pytest.raises(Exception, match=r"0 <= i < j <= 6"):
         metric("f", {"signal": "dyn.wrench[4:9]", "reduce": "max"}, signals, "metrics.f")
     events = [{"event": "capture", "time": 4.15}, {"event": "grasp_overload", "torque": 31.0},

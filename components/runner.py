@@ -375,10 +375,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    code = main()
-    if getattr(sys.modules.get("components.fmi.exported"), "_HELD_BINARIES", None):
-        # pythonfmu 0.7's binary can corrupt the heap in its static destructors at exit: skip them
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code or 0)
-    sys.exit(code)
+    sys.exit(main())

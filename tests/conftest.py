@@ -117,8 +117,6 @@ def _isolated_runtime_dir(tmp_path, monkeypatch):
     monkeypatch.setenv("ZENORBIT_RUNTIME_DIR", str(tmp_path / "runtime"))
 
 
-_exit_status = {}
-
 # what the suite starts and must not leave behind: component runners, orchestrators, viewers
 LEFTOVER_MARKS = ("components.runner", "orchestrator", "components.viewer.observer", "rerun")
 
@@ -162,19 +160,6 @@ def pytest_sessionfinish(session, exitstatus):
                     os.kill(int(line.split()[0]), 9)
                 except OSError:
                     pass
-            session.exitstatus = exitstatus = 1
-    _exit_status["code"] = int(exitstatus)
+            session.exitstatus = 1
 
 
-def pytest_unconfigure(config):
-    """pythonfmu 0.7's binary, loaded into this process by the FMU tests, can corrupt the heap in
-    its static destructors at exit once another C++ library (DART) bound to it (abort, exit 134,
-    after every test passed). End the process without running them."""
-    import os
-    import sys
-
-    held = getattr(sys.modules.get("components.fmi.exported"), "_HELD_BINARIES", None)
-    if held and "code" in _exit_status:
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(_exit_status["code"])

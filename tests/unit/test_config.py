@@ -1,9 +1,10 @@
 """Config validation: every error names its key and file, all errors at once, before any process."""
 import textwrap
+from pathlib import Path
 
 import pytest
 
-from orchestrator.config import ConfigErrors, load
+from orchestrator.config import ConfigErrors, load, validate
 
 GOOD = """
 run: {name: chain, epoch: 2022-09-18T12:00:00Z, duration: 2 s, step: 1 ms}
@@ -222,3 +223,21 @@ def test_a_swap_to_a_type_that_takes_the_state_keeps_the_parameters_and_the_outp
                     "{link_outputs: true, bodies: {humanoid: {urdf: ../models/humanoid_torso.urdf}}}}]"])
     assert len(e.value.errors) == 1 and "events[0]: a swap from dynamics.dart to dynamics.pinocchio hands the state " \
                                          "over, so the new outputs must be the old ones" in e.value.errors[0]
+
+
+def test_messages_show_numbers_not_numpy_reprs():
+    """A zero quaternion (checked after the values became numpy floats) is refused showing the
+    numbers as written, not np.float64(...) (issue 34); the same for a component's runtime error."""
+    from components.errors import ComponentError
+
+    raw = {"run": {"name": "q", "epoch": "2022-09-18T12:00:00Z", "duration": "1 s", "step": "10 ms"},
+           "components": {"dynamics": {"type": "dynamics.dart", "parameters": {"bodies": {"target": {
+               "urdf": str(Path(__file__).resolve().parents[2] / "models" / "capture" / "target.urdf"),
+               "orientation": [0, 0, 0, 0]}}}}}}
+    with pytest.raises(ConfigErrors) as caught:
+        validate(raw, Path("q.yaml"), full=True)
+    text = "\n".join(caught.value.errors)
+    assert "orientation: expected a unit quaternion [x, y, z, w], got [0.0, 0.0, 0.0, 0.0]" in text, text
+    assert "np." not in text
+    import numpy as np
+    assert str(ComponentError(f"got {[np.float64(1.5), np.int64(2)]}")) == "got [1.5, 2]"

@@ -165,8 +165,8 @@ class Run:
             return   # a token may go with another peer's link: its process or link tells (_check_processes)
         member = self._member(name, message.generation)
         if member is None:
-            if type(message) is Beat:
-                return   # a generation just replaced may still beat once
+            if type(message) is Beat or self._replaced(name, message.generation):
+                return   # a generation swapped out (or restarted) on purpose may still say its last
             raise bus.Malformed(f"no component {name!r} of generation {message.generation} in this run")
         member.heard_at = time.monotonic()
         if type(message) is Beat:
@@ -192,6 +192,11 @@ class Run:
             if member is not None and member.generation == generation:
                 return member
         return None
+
+    def _replaced(self, name: str, generation: int) -> bool:
+        """An older generation of a component of this run: one this run replaced."""
+        live = [m.generation for m in (self.members.get(name), self.joining.get(name)) if m is not None]
+        return bool(live) and generation < max(live)
 
     def wait(self, expect: dict[str, str], timeout: float, what: str) -> None:
         """Process inbox messages until every expectation is met, or fail naming the laggards."""

@@ -297,7 +297,14 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
             if link not in link_names:
                 raise UrdfError(f"{where}: {role} link {link!r} is not a <link> of the file")
         if child in children:
-            raise UrdfError(f"{where}: link {child!r} has two parent joints")
+            first = next(j for j in joints if j.child == child)
+            held = {c.get("link") for c in robot.findall("joint/child")}
+            own_root = next((p for p in (first.parent, parent) if p not in held), None)
+            mount = parent if own_root == first.parent else first.parent
+            hint = (f"; {own_root!r} is a root of the file already: mount the robot by it (a joint from "
+                    f"{mount!r} to {own_root!r}), or leave {own_root!r} and its joint out") if own_root else ""
+            raise UrdfError(f"{where}: link {child!r} has two parent joints, {first.name!r} (from {first.parent!r}) and "
+                            f"{name!r} (from {parent!r}){hint}")
         children.add(child)
         origin = element.find("origin")
         xyz = _floats(origin.get("xyz") if origin is not None else None, 3, (0.0, 0.0, 0.0), f"{where} origin xyz")

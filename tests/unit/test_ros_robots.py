@@ -305,3 +305,22 @@ def test_a_visual_mesh_that_cannot_be_read_is_drawn_from_the_collision_geometry(
                for w in warnings), warnings
     box = next(entry for p, entry in rrd.items() if p.endswith("/links/base/visual_0_collision_0"))
     assert any(name.endswith("half_sizes") for name in box["static"])
+
+
+def test_a_robot_mounted_below_its_own_root_is_told_which_link_to_mount(tmp_path):
+    """A wrapper that joins its bus to the UR5's base_link, which the UR5's file already holds from
+    its own root world (issue 34): the error names both joints and their parents, and says to
+    mount the robot by world."""
+    urdf = tmp_path / "mounted.urdf"
+    inertial = '<inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>'
+    urdf.write_text(f"""<robot name="r">
+  <link name="bus">{inertial}</link><link name="world"/><link name="base_link">{inertial}</link>
+  <joint name="world_joint" type="fixed"><parent link="world"/><child link="base_link"/></joint>
+  <joint name="mount" type="fixed"><parent link="bus"/><child link="base_link"/></joint>
+</robot>""")
+    with pytest.raises(UrdfError) as error:
+        read_urdf(urdf)
+    assert str(error.value) == (
+        "mounted.urdf: joint 'mount': link 'base_link' has two parent joints, 'world_joint' (from 'world') and "
+        "'mount' (from 'bus'); 'world' is a root of the file already: mount the robot by it (a joint from 'bus' "
+        "to 'world'), or leave 'world' and its joint out")

@@ -122,13 +122,16 @@ def test_bad_campaign_files_stop_before_anything_runs(tmp_path):
 
 
 def test_resume_after_ctrl_c_runs_only_what_is_left(tmp_path):
+    """The sweep is started with SIGINT ignored, as `&` from a script leaves it (issue 34): a
+    Ctrl-C (SIGINT) still stops it cleanly, exit 130 with the --resume hint, what finished kept."""
     out = tmp_path / "out"
     slow = {**CONFIG, "run": {**CONFIG["run"], "realtime": 1.0, "duration": "1 s"}}
     path = tmp_path / "slow.yaml"
     path.write_text(yaml.safe_dump({"config": slow, "samples": 6, "seed": 3, "metrics": METRICS, "keep": "none",
                                     "disperse": {"components.push.parameters.value": {"uniform": [0, 1]}}}))
     process = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "sweep", str(path), "--out", str(out),
-                                "--jobs", "1"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                "--jobs", "1"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
     try:
         deadline = time.monotonic() + 120
         while len(list((out / "cases").glob("*.json"))) < 2 and time.monotonic() < deadline:

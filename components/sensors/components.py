@@ -226,6 +226,13 @@ class RelativePoseComponent(_SeededSensor):
     )
     DRAWS = 6
 
+    @classmethod
+    def preflight(cls, params, step_s, full=False):
+        """The latency must be a whole number of the component's steps: refused before the run
+        (check and run alike), not at its first step."""
+        latency_samples(int(params["latency"]), round(step_s * NS_PER_S), "latency")
+        return []
+
     def __init__(self, params):
         super().__init__(params)
         self.position_noise, self.angle_noise = per_axis(params["position_noise"]), per_axis(params["angle_noise"])

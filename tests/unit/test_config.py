@@ -241,3 +241,15 @@ def test_messages_show_numbers_not_numpy_reprs():
     assert "np." not in text
     import numpy as np
     assert str(ComponentError(f"got {[np.float64(1.5), np.int64(2)]}")) == "got [1.5, 2]"
+
+
+def test_a_latency_that_is_not_a_whole_number_of_steps_is_refused_before_the_run():
+    """sensor.relative_pose with latency 70 ms and step 50 ms: refused by check (and run) naming
+    the key, not at the run's first step (issue 34)."""
+    root = Path(__file__).resolve().parents[2]
+    with pytest.raises(ConfigErrors) as caught:
+        load(root / "configs" / "capture_tumbling_target.yaml", ["components.pose_sensor.parameters.latency=70 ms"],
+             full=True)
+    text = "\n".join(caught.value.errors)
+    assert ("components.pose_sensor.parameters.latency: must be a non-negative integer multiple of the component's "
+            "step (50 ms") in text, text

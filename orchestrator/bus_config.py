@@ -16,6 +16,7 @@ class BusSpec:
     lease_ns: int
     tls: bool
     ca: tuple[Path, Path] | None   # the user's CA (certificate, key), else one made for the run
+    plaintext_beyond: tuple[str, ...] = ()   # endpoints beyond loopback in plain TCP (bus.plaintext allowed it)
 
     @property
     def lease_ms(self) -> int:
@@ -63,6 +64,10 @@ def check(section: dict, config_dir: Path, errors: list[str], file) -> BusSpec |
             errors.append(f"{file}: {where}: {endpoint} is TLS, and bus.tls is {asked}"
                           f"{' (the bus stays on loopback)' if asked == 'auto' else ''}; "
                           f"write tcp/, or set bus.tls: true")
+    if beyond and not tls and section["plaintext"] != "accept-the-risk":
+        errors.append(f"{file}: bus.tls: false, and the bus leaves loopback ({', '.join(beyond)}): every process "
+                      f"would listen there in plain TCP, the run's traffic and secret readable on that network; "
+                      f"set bus.tls: true (or auto), or say bus.plaintext: accept-the-risk")
     if section["mode"] == "client" and not router:
         errors.append(f"{file}: bus.mode: client sends everything through a router; give bus.router "
                       f"(started with orchestrator router)")
@@ -94,4 +99,4 @@ def check(section: dict, config_dir: Path, errors: list[str], file) -> BusSpec |
         return with_protocol(endpoint, protocol) if endpoint.startswith(("tcp/", "tls/")) else endpoint
     return BusSpec(listen=[tcp_as(e) for e in section["listen"]], connect=[tcp_as(e) for e in section["connect"]],
                    mode=section["mode"], router=tcp_as(router) if router else None, lease_ns=section["lease"],
-                   tls=tls, ca=ca)
+                   tls=tls, ca=ca, plaintext_beyond=tuple(beyond) if not tls else ())

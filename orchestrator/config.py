@@ -72,6 +72,9 @@ BUS = Record("bus", (
     Parameter("tls", OneOf((Bool(), Str(("auto",)))), default="auto",
               description="mutual TLS on every link (true | false); auto: on when the bus leaves loopback "
                           "(bus.listen, bus.connect or bus.router)"),
+    Parameter("plaintext", Str(("refuse", "accept-the-risk")), default="refuse",
+              description="tls: false with the bus beyond loopback is refused unless this says accept-the-risk "
+                          "(then every process listens in plain TCP, and the run warns at start)"),
     Parameter("ca", Record("ca", (
         Parameter("certificate", Str(hint="a PEM file"), description="the CA's certificate (PEM)"),
         Parameter("key", Str(hint="a PEM file"), description="its private key (PEM)"),
@@ -357,6 +360,9 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
                               f"(all are at a step boundary then); {name} steps {duration_text(spec.step_ns)}, "
                               f"got {duration_text(checkpoint_ns)}")
     bus_spec = bus_config.check(config["bus"], config_dir, errors, file) if "bus" in config else None
+    if bus_spec is not None and bus_spec.plaintext_beyond:
+        notes.append(f"{file}: bus: plain TCP beyond loopback ({', '.join(bus_spec.plaintext_beyond)}), as "
+                     f"bus.plaintext: accept-the-risk allows: anyone on those networks can read the run's traffic")
     viewer = None
     if config.get("viewer") is not None:
         problems_of_viewer: list[str] = []

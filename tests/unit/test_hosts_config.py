@@ -42,8 +42,15 @@ def test_leaving_loopback_turns_tls_on_and_tcp_endpoints_into_tls(write_config):
     spec = bus_of(write_config, "bus: {listen: [tcp/0.0.0.0:7447], lease: 2 s}\n")
     assert spec.tls and spec.listen == ["tls/0.0.0.0:7447"] and spec.lease_ms == 2000
     assert bus_of(write_config, "bus: {router: tcp/192.0.2.9:7447, mode: client}\n").router == "tls/192.0.2.9:7447"
-    plain = bus_of(write_config, "bus: {listen: [tcp/0.0.0.0:7447], tls: false}\n")   # asked for: no TLS
-    assert not plain.tls and plain.listen == ["tcp/0.0.0.0:7447"]
+    # no TLS beyond loopback only when asked for in words: refused naming the way out, else a warning
+    refused = errors_of(write_config, "bus: {listen: [tcp/0.0.0.0:7447], tls: false}\n")
+    assert any("bus.tls: false, and the bus leaves loopback (tcp/0.0.0.0:7447): every process would listen there "
+               "in plain TCP" in line and "bus.plaintext: accept-the-risk" in line for line in refused), refused
+    config = load(write_config(BASE + "bus: {listen: [tcp/0.0.0.0:7447], tls: false, plaintext: accept-the-risk}\n"))
+    plain = config.bus
+    assert not plain.tls and plain.listen == ["tcp/0.0.0.0:7447"] and plain.plaintext_beyond == ("tcp/0.0.0.0:7447",)
+    assert any("bus: plain TCP beyond loopback (tcp/0.0.0.0:7447)" in note for note in config.notes), config.notes
+    assert not load(write_config(BASE + "bus: {tls: false}\n")).notes          # loopback in plain: no word
     assert bus_of(write_config, "bus: {tls: true}\n").listen == ["tls/127.0.0.1:0"]
 
 

@@ -25,6 +25,7 @@ from orchestrator.tls import write_pem_files
 ASK_TIMEOUT_S = 5.0
 PROBE_TIMEOUT_S = 2.0
 CONNECT_TIMEOUT_S = 4.0   # a reachable run that does not take the link by then refused it (Zenoh retries meanwhile)
+DEAD_AFTER_S = 10.0       # every endpoint refusing TCP this long: nothing listens, the run has ended
 
 
 class JoinError(Exception):
@@ -36,6 +37,13 @@ class JoinError(Exception):
 
 
 def read_join_file(path: Path, role: str) -> dict:
+    try:
+        mode = Path(path).stat().st_mode
+    except OSError as e:
+        raise JoinError(f"{path}: cannot read it ({e.strerror})", 2) from None
+    if mode & 0o077:        # it holds the run's secret and key: as ssh refuses such a key file
+        raise JoinError(f"{path}: readable or writable by others (mode {mode & 0o777:o}), and it holds the run's "
+                        f"secret: chmod 600 {path}", 2)
     try:
         body = json.loads(Path(path).read_text())
     except OSError as e:
@@ -64,15 +72,19 @@ def split(endpoint: str) -> tuple[str, int]:
     return host.strip("[]"), int(port)
 
 
-def reachable(endpoints: list[str]) -> str | None:
-    """The first endpoint a TCP connection reaches (the run's TLS and secret not yet asked)."""
+def reachable(endpoints: list[str]) -> tuple[str | None, bool]:
+    """The first endpoint a TCP connection reaches (the run's TLS and secret not yet asked), and
+    whether every endpoint refused the connection outright (nothing listens there)."""
+    refused = True
     for endpoint in endpoints:
         try:
             with socket.create_connection(split(endpoint), timeout=PROBE_TIMEOUT_S):
-                return endpoint
-        except OSError:
+                return endpoint, False
+        except ConnectionRefusedError:
             continue
-    return None
+        except OSError:
+            refused = False          # a timeout or no route: something may be there, out of reach
+    return None, refused
 
 
 def own_address(endpoint: str) -> str:
@@ -104,8 +116,9 @@ def _connect(body: dict, endpoints: list[str], listen: str | None, settings: dic
     from components.serving import open_component_session
     import zenoh
 
+    refused_since = None
     while True:
-        endpoint = reachable(endpoints)
+        endpoint, refused = reachable(endpoints)
         if endpoint is not None:
             try:
                 session = open_component_session(endpoint, listen, body["secret"], settings,
@@ -114,9 +127,16 @@ def _connect(body: dict, endpoints: list[str], listen: str | None, settings: dic
             except zenoh.ZError:
                 raise JoinError(f"the run at {endpoint} refused the link: wrong secret or certificate (is {body['run']!r} "
                                 f"still the run this join file is from?)") from None
-        if time.monotonic() > deadline:
+        now = time.monotonic()
+        refused_since = (refused_since or now) if refused else None
+        if refused_since is not None and now - refused_since >= DEAD_AFTER_S:
+            raise JoinError(f"the run {body['run']!r} at {', '.join(endpoints)} is not alive: nothing has listened "
+                            f"there for {DEAD_AFTER_S:g} s (it has ended, or the join file is from an earlier run)")
+        if now > deadline:
             raise JoinError(f"cannot reach the run {body['run']!r} at {', '.join(endpoints)} "
-                            f"(run.join_timeout, {body['join_timeout_s']:g} s)")
+                            f"(run.join_timeout, {body['join_timeout_s']:g} s)"
+                            + ("" if refused else ": something answers slowly or not at all there (alive but out of "
+                                                  "reach: a firewall, a route?)"))
         time.sleep(1.0)
 
 

@@ -190,3 +190,30 @@ def test_a_joined_component_gives_up_when_its_orchestrator_is_gone(write_config,
                 p.kill()
     assert joined.returncode == 1, err
     assert "lost the run 'gone'" in err and "cannot reach the run 'gone'" in err, err
+
+
+def test_the_join_file_of_a_run_that_ended_says_it_is_not_alive(write_config, tmp_path):
+    """A run stopped (SIGINT) before its external component joined: its join file then finds
+    nothing listening where the run was, and `orchestrator join` ends (exit 1) saying the run is not
+    alive, told apart from a run out of reach (issue 34). A copy readable by others is refused
+    before anything else (exit 2), with the chmod that fixes it."""
+    record = tmp_path / "rec"
+    run = start_run(write_config(chain(name="ended", duration="600 s", realtime=1.0, join_timeout="300 s")), record)
+    try:
+        path = join_file(record)
+        copy = tmp_path / "a.join"
+        copy.write_bytes(path.read_bytes())
+        copy.chmod(0o600)
+        run.send_signal(signal.SIGINT)
+        run.wait(timeout=60)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    joined = join(copy)
+    _, err = joined.communicate(timeout=120)
+    assert joined.returncode == 1, err
+    assert "the run 'ended' at " in err and "is not alive: nothing has listened there for 10 s" in err, err
+    copy.chmod(0o644)
+    shared = join(copy)
+    _, err = shared.communicate(timeout=60)
+    assert shared.returncode == 2 and f"readable or writable by others (mode 644)" in err and f"chmod 600 {copy}" in err, err

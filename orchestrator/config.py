@@ -11,6 +11,7 @@ from typing import Any
 
 
 from components import registry
+from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.schema import (Anything, Bool, Duration, Float, Int, ListOf, MapOf, OneOf, Parameter, Record,
                                Str, UtcTime, markdown)
@@ -51,6 +52,9 @@ RUN = Record("run", (
                           "(none: the start is the only one)"),
     Parameter("max_restarts", Int(minimum=0), default=3,
               description="restarts from a checkpoint before a failure ends the run"),
+    Parameter("record_flush", Duration(), default="1 s",
+              description="wall time at most between the recording's writes to disk (besides every 1000 rows): "
+                          "a full disk or a kill loses no more than this"),
     Parameter("packages", MapOf(Str(hint="a directory"), "package name"), default={},
               description="ROS packages by name -> directory (relative to the config file), for package:// URIs "
                           "and $(find NAME) in URDFs; looked up before ROS_PACKAGE_PATH and installed packages"),
@@ -237,6 +241,7 @@ class RunConfig:
     resolved: dict = field(default_factory=dict)   # the config as written to config.yaml
     packages: dict = field(default_factory=dict)   # run.packages: name -> absolute directory
     notes: list = field(default_factory=list)      # warnings found by the check (physics), one line each
+    record_flush_s: float = 1.0                    # run.record_flush
 
     @property
     def steps(self) -> int:
@@ -387,7 +392,8 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
                      start_timeout_s=run["start_timeout"] / 1e9, components=components, connections=connections,
                      listen=config["bus"]["listen"], bus=bus_spec, join_timeout_s=run["join_timeout"] / 1e9,
                      events=events, faults=faults, checkpoint_ns=checkpoint_ns,
-                     max_restarts=run["max_restarts"], viewer=viewer, resolved=resolved, packages=packages, notes=notes)
+                     max_restarts=run["max_restarts"], viewer=viewer, resolved=resolved, packages=packages, notes=notes,
+                     record_flush_s=run["record_flush"] / NS_PER_S)
 
 
 def _resolved_entry(spec: ComponentSpec, shadow: ComponentSpec | None) -> dict:

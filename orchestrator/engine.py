@@ -397,7 +397,7 @@ class Run:
         ``cpus``: how many the run may use."""
         config, rows = self.config, self.rows
         if self.record_dir is not None:
-            rows.recording = Recording(self.record_dir, rows.columns, config.resolved)
+            rows.recording = Recording(self.record_dir, rows.columns, config.resolved, flush_s=config.record_flush_s)
         self.log("start", run_id=self.run_id, config=str(config.path.resolve()), steps=config.steps,
                  step_ns=config.step_ns, algorithm=config.algorithm,
                  components={n: s.type for n, s in config.components.items()},

@@ -415,8 +415,8 @@ def figures(record_dir, signals: list[str] | None = None) -> list[tuple[str, obj
         from orchestrator.campaign_plots import campaign_figures
         return campaign_figures(record_dir)
     config, columns = _load(record_dir)
-    if "time" not in columns:
-        raise PlotError(f"{record_dir / 'signals.parquet'}: no time column")
+    if "time" not in columns or not len(columns["time"]):
+        raise PlotError(f"{record_dir / 'signals.parquet'}: the recording holds no rows (the run wrote none before it ended: its events.jsonl says why)")
     t = np.asarray(columns["time"], dtype=float)
     if signals:
         return _signals(signals, columns, t)

@@ -1,16 +1,20 @@
 """Recording (docs/design.md §6): signals.parquet in chunks, events.jsonl, config.yaml.
 
 ``signals.parquet`` is a Parquet dataset directory: one complete part file per ``chunk_rows``
-rows (by count, never by wall time, so two runs of one config write identical files), each
-written under a hidden name and renamed into place. Whatever stops the run, a kill -9 or a power
-cut included, what is on disk reads with pyarrow and pandas (``pandas.read_parquet(DIR /
-"signals.parquet")``) and lacks at most the rows of the unfinished chunk.
+rows (by count, so two runs of one config end with identical files), each written under a hidden
+name, fsynced and renamed into place. The unfinished chunk is made durable too, at least every
+``flush_s`` seconds of wall time (``run.record_flush``, 1 s by default): the rows so far are
+written as that part, replaced as it grows. Whatever stops the run (a kill -9, a power cut, a
+full disk), what is on disk reads with pyarrow and pandas (``pandas.read_parquet(DIR /
+"signals.parquet")``) and lacks at most the rows of the last ``flush_s``; a failed write leaves
+no partial file and its error names the path and the rows kept.
 """
 from __future__ import annotations
 
 import json
 import os
 import shutil
+import time
 from pathlib import Path
 
 import numpy as np
@@ -87,9 +91,11 @@ def claim_directory(directory: Path, overwrite: bool, run: str = "") -> object:
 
 class Table:
     """A Parquet dataset directory of rows (step, time, columns...), written in complete parts of
-    ``chunk_rows`` rows, each under a hidden name, fsynced and renamed into place."""
+    ``chunk_rows`` rows, each under a hidden name, fsynced and renamed into place; the unfinished
+    part is written the same way at least every ``flush_s`` seconds of wall time (a recording's
+    durability is not physics: the clock only decides when bytes reach the disk)."""
 
-    def __init__(self, path: Path, columns: list[str], chunk_rows: int):
+    def __init__(self, path: Path, columns: list[str], chunk_rows: int, flush_s: float = 1.0):
         import pyarrow as pa
 
         self.path = path
@@ -102,6 +108,14 @@ class Table:
         self._times = np.empty(chunk_rows)
         self._values = np.empty((chunk_rows, len(columns)))
         self._rows = 0
+        self._durable = 0                         # rows of the unfinished chunk on disk (its part, partial)
+        self.flush_s = float(flush_s)
+        self._flushed_at = time.monotonic()
+
+    @property
+    def rows_kept(self) -> int:
+        """Rows on disk: the complete parts and the unfinished one as last written."""
+        return sum(last - first + 1 for first, last in self._parts) + self._durable
 
     def append(self, step: int, time_s: float, values: np.ndarray) -> None:
         i = self._rows
@@ -110,6 +124,8 @@ class Table:
         self._rows += 1
         if self._rows == len(self._steps):
             self.flush()
+        elif time.monotonic() - self._flushed_at >= self.flush_s:
+            self._write_part(self._rows, complete=False)
 
     def flush(self) -> None:
         if self._rows:
@@ -121,6 +137,8 @@ class Table:
         import pyarrow.parquet as pq
 
         self._rows = int(np.searchsorted(self._steps[:self._rows], step, side="right"))
+        if self._durable > self._rows:           # the unfinished part on disk holds rows after step
+            self._write_part(self._rows, complete=False) if self._rows else self._remove_partial()
         if self._rows:
             return   # the parts on disk all come before the buffer
         while self._parts and self._parts[-1][0] > step:
@@ -133,11 +151,18 @@ class Table:
             self._steps[:n], self._times[:n] = steps[:n], table.column("time").to_numpy()[:n]
             for j, column in enumerate(self.columns):
                 self._values[:n, j] = table.column(column).to_numpy()[:n]
+            if n:
+                self._write_part(n, complete=False)     # the rows kept stay on disk
 
     def close(self) -> None:
         self.flush()
         if not self._parts:   # no row at all: still leave a readable, empty table
             self._write_part(0)
+
+    def _remove_partial(self) -> None:
+        self._part_path(len(self._parts)).unlink(missing_ok=True)
+        self._durable = 0
+        _fsync_directory(self.path)
 
     def _part_path(self, index: int) -> Path:
         return self.path / f"part-{index:06d}.parquet"
@@ -147,8 +172,9 @@ class Table:
         self._parts.pop()
         _fsync_directory(self.path)
 
-    def _write_part(self, n: int) -> None:
-        """Rows [0, n) of the buffer as the next complete part file (renamed into place: atomic)."""
+    def _write_part(self, n: int, complete: bool = True) -> None:
+        """Rows [0, n) of the buffer as the next part file (renamed into place: atomic); an
+        unfinished one (``complete`` False) is replaced by the next write of the same part."""
         import pyarrow as pa
         import pyarrow.parquet as pq
 
@@ -166,8 +192,20 @@ class Table:
             os.replace(hidden, final)
             _fsync_directory(self.path)
         except OSError as error:
-            raise RecordingError(f"cannot write {self.path}: {error}") from None
-        self._parts.append((int(self._steps[0]), int(self._steps[n - 1])) if n else (0, -1))
+            hidden.unlink(missing_ok=True)       # no partial file left behind (a full disk, say)
+            kept = self.rows_kept
+            last = f", to step {self._last_step_kept()}" if kept else ""
+            raise RecordingError(f"cannot write {self.path}: {error.strerror or error}; the recording keeps "
+                                 f"{kept} rows{last}") from None
+        self._flushed_at = time.monotonic()
+        if complete:
+            self._parts.append((int(self._steps[0]), int(self._steps[n - 1])) if n else (0, -1))
+            self._durable = 0
+        else:
+            self._durable = n
+
+    def _last_step_kept(self) -> int:
+        return int(self._steps[self._durable - 1]) if self._durable else self._parts[-1][1]
 
 
 def _fsync_directory(path: Path) -> None:
@@ -184,15 +222,15 @@ class Recording:
     another, from the swap on), ``events.jsonl`` and the resolved ``config.yaml``."""
 
     def __init__(self, directory: str | Path, columns: list[str], resolved_config: dict, *,
-                 chunk_rows: int = 1000):
+                 chunk_rows: int = 1000, flush_s: float = 1.0):
         self.directory = Path(directory)
         self.directory.mkdir(parents=True, exist_ok=True)
         for stale in ("signals.parquet", "swaps", "events.jsonl"):
             path = self.directory / stale
             shutil.rmtree(path) if path.is_dir() else path.unlink(missing_ok=True)
-        self.chunk_rows = chunk_rows
+        self.chunk_rows, self.flush_s = chunk_rows, flush_s
         self.write_config(resolved_config)
-        self.signals = Table(self.directory / "signals.parquet", columns, chunk_rows)
+        self.signals = Table(self.directory / "signals.parquet", columns, chunk_rows, flush_s)
         self.tables = [self.signals]
         self._events = open(self.directory / "events.jsonl", "a")
 
@@ -208,7 +246,7 @@ class Recording:
 
     def add_table(self, name: str, columns: list[str]) -> Table:
         """A table of its own, ``swaps/<name>.parquet``, for columns the signals do not have."""
-        table = Table(self.directory / "swaps" / f"{name}.parquet", columns, self.chunk_rows)
+        table = Table(self.directory / "swaps" / f"{name}.parquet", columns, self.chunk_rows, self.flush_s)
         self.tables.append(table)
         return table
 

@@ -94,6 +94,8 @@ def replay(directory: str | Path, mode: str = "spawn", file: str | Path | None =
 
     parquet = ds.dataset(Path(directory) / "signals.parquet", format="parquet")   # a file, or a dataset directory
     names = parquet.schema.names
+    if not names or not parquet.count_rows():
+        raise ReplayError(f"{directory}/signals.parquet: the recording holds no rows (the run wrote none before it ended: its events.jsonl says why)")
     if names[:2] != ["step", "time"]:
         raise ReplayError(f"{directory}/signals.parquet: expected the columns step, time first, got {names[:2]}")
     columns = names[2:]

@@ -307,11 +307,11 @@ class OrbitalDynamics(Component):
                     f"{MAX_ROTATION_PER_STEP:g} rad ({np.degrees(MAX_ROTATION_PER_STEP):.2g} deg) per step the "
                     f"integration is wrong by whole degrees: use a step of at most {MAX_ROTATION_PER_STEP / rate:.3g} s "
                     f"(or substeps)")
-        if full:
-            cls(params)      # DART loads every body: what it refuses is an error now, not at the start
+        if full:             # the engine loads every body: what it refuses is an error now, not at the start
+            cls(params, compile_kernels=False)      # (the kernels compile at the run's instantiate)
         return notes
 
-    def __init__(self, params):
+    def __init__(self, params, *, compile_kernels: bool = True):
         super().__init__(params)
         from components.dynamics.world import ModelError, OrbitalWorld
 
@@ -329,7 +329,8 @@ class OrbitalDynamics(Component):
                 specs, engine=self.engine, integrator=params["integrator"], substeps=params["substeps"],
                 tidal_force=params["tidal_force"], gravity_gradient=params["gravity_gradient"],
                 drag=params["drag"], mu=params["mu"], atmosphere=_atmosphere(params["atmosphere"]),
-                joint_limits=params["joint_limits"], models=models, grasp=self.grasp or None)
+                joint_limits=params["joint_limits"], models=models, grasp=self.grasp or None,
+                compile_kernels=compile_kernels)
         except ModelError as e:
             raise ConfigError(f"bodies.{e.key}", e.message) from None
         self.names = [spec.name for spec in specs]

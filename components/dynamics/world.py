@@ -94,7 +94,7 @@ class OrbitalWorld:
                  tidal_force: bool = True, gravity_gradient: bool = True, drag: bool = False,
                  mu: float = MU_EARTH, atmosphere: env.ExponentialAtmosphere | None = None,
                  joint_limits: bool = True, models: Mapping[str, UrdfModel] | None = None,
-                 grasp: GraspSpec | None = None, engine: str = "dart"):
+                 grasp: GraspSpec | None = None, engine: str = "dart", compile_kernels: bool = True):
         if engine not in ENGINES:
             raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
         integrators = INTEGRATORS if engine == "dart" else ("rk4",)     # contacts: DART's own step only
@@ -129,7 +129,8 @@ class OrbitalWorld:
         self.elapsed = 0.0          # s since the orbit inputs were sampled (the reference point moved on)
         self.env_now = False        # the environment applies in this step
         self._orbit_changed()       # environment_on: the environment applies (r_eci = 0: no orbit, none)
-        integration.compile_kernels(self)
+        if compile_kernels:         # not for a check of the models (orchestrator check stays quick)
+            integration.compile_kernels(self)
 
     def _body(self, spec: BodySpec, model: UrdfModel) -> Body:
         if self.engine == "pinocchio":

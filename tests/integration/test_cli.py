@@ -2,7 +2,10 @@
 from __future__ import annotations
 
 import json
+import os
 import signal
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -277,3 +280,17 @@ def test_a_swap_to_another_type_records_what_is_true(write_config, tmp_path):
     assert replay.returncode == 0, replay.stderr
     assert pandas.read_parquet(tmp_path / "replay" / "signals.parquet").equals(signals)
     assert not component_processes("retype-")
+
+
+def test_check_compiles_no_kernel(tmp_path):
+    """`orchestrator check` of every shipped config on a cold numba cache (an empty
+    NUMBA_CACHE_DIR) compiles nothing: no kernel lands in the cache (a first run compiles them, at
+    its instantiate, with its note); each check passes (issue 34)."""
+    cache = tmp_path / "numba"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache)}
+    for config in sorted((ROOT / "configs").glob("*.yaml")):
+        result = subprocess.run([sys.executable, "-m", "orchestrator.cli", "check", str(config)], cwd=ROOT, env=env,
+                                capture_output=True, text=True, timeout=300)
+        assert result.returncode == 0, (config.name, result.stderr)
+    compiled = [p.name for p in cache.rglob("*") if p.is_file()]
+    assert not compiled, compiled

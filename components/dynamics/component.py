@@ -308,7 +308,11 @@ class OrbitalDynamics(Component):
                     f"integration is wrong by whole degrees: use a step of at most {MAX_ROTATION_PER_STEP / rate:.3g} s "
                     f"(or substeps)")
         if full:             # the engine loads every body: what it refuses is an error now, not at the start
-            cls(params, compile_kernels=False)      # (the kernels compile at the run's instantiate)
+            world = cls(params, compile_kernels=False).world      # (the kernels compile at the run's instantiate)
+            world.reset_bodies()
+            notes += [f"bodies.{a} and bodies.{b} overlap at the start: {a}'s link {la!r} and {b}'s link {lb!r} "
+                      f"by {depth * 1e3:.3g} mm (their collision geometry); the rk4 integrator has no contacts: "
+                      f"they pass through each other" for a, la, b, lb, depth in world.overlaps()]
         return notes
 
     def __init__(self, params, *, compile_kernels: bool = True):

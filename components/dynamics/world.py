@@ -132,6 +132,36 @@ class OrbitalWorld:
         if compile_kernels:         # not for a check of the models (orchestrator check stays quick)
             integration.compile_kernels(self)
 
+    def overlaps(self) -> list[tuple[str, str, str, str, float]]:
+        """Pairs of bodies whose collision geometry overlaps now (DART engine; Bullet's narrow
+        phase): (body, link, other body, its link, penetration depth m), the deepest contact of
+        each pair. rk4 has no contacts: such bodies pass through each other."""
+        if self.engine != "dart":
+            return []
+        import dartpy as dart
+
+        detector = dart.collision.BulletCollisionDetector()
+        groups = {}
+        for name, body in self.bodies.items():
+            group = detector.createCollisionGroup()
+            for i in range(body.skel.getNumBodyNodes()):
+                group.addShapeFramesOf(body.skel.getBodyNode(i))
+            groups[name] = group
+        names, found = list(groups), []
+        option = dart.collision.CollisionOption()
+        option.enableContact, option.maxNumContacts = True, 100
+        for i, a in enumerate(names):
+            for b in names[i + 1:]:
+                result = dart.collision.CollisionResult()
+                if not groups[a].collide(groups[b], option, result) or not result.getNumContacts():
+                    continue
+                deepest = max((result.getContact(k) for k in range(result.getNumContacts())),
+                              key=lambda c: c.penetrationDepth)
+                found.append((a, deepest.collisionObject1.getShapeFrame().getBodyNode().getName(), b,
+                              deepest.collisionObject2.getShapeFrame().getBodyNode().getName(),
+                              float(deepest.penetrationDepth)))
+        return found
+
     def _body(self, spec: BodySpec, model: UrdfModel) -> Body:
         if self.engine == "pinocchio":
             from components.dynamics.pinocchio_body import PinocchioBody

@@ -253,3 +253,20 @@ def test_a_latency_that_is_not_a_whole_number_of_steps_is_refused_before_the_run
     text = "\n".join(caught.value.errors)
     assert ("components.pose_sensor.parameters.latency: must be a non-negative integer multiple of the component's "
             "step (50 ms") in text, text
+
+
+def test_bodies_that_overlap_at_the_start_are_warned_at_check():
+    """The capture target's CoM 0.3 m from the servicer's bus centre (inside it): check warns,
+    naming both bodies and links and the depth (Bullet's narrow phase on the URDFs' collision
+    geometry: the 1.2 m bus and the 1.67 m target box overlap by 0.6 + 0.835 - 0.3 = 1.135 m along
+    x, less along the deepest contact's normal); the shipped placement, 2.4 m apart, gets no word."""
+    root = Path(__file__).resolve().parents[2]
+    config = root / "configs" / "capture_tumbling_target.yaml"
+    inside = load(config, ["components.dynamics.parameters.bodies.target.position=[0.3, 0, 0]"], full=True)
+    found = [n for n in inside.notes if "overlap at the start" in n]
+    assert len(found) == 1, inside.notes
+    assert ("bodies.servicer and bodies.target overlap at the start: servicer's link 'bus' and target's link "
+            "'target' by ") in found[0] and "they pass through each other" in found[0]
+    depth = float(found[0].split(" by ")[1].split(" mm")[0]) / 1e3
+    assert 0.0 < depth <= 1.135 + 1e-6
+    assert not [n for n in load(config, full=True).notes if "overlap" in n]

@@ -310,6 +310,8 @@ class OrbitalDynamics(Component):
         if full:             # the engine loads every body: what it refuses is an error now, not at the start
             world = cls(params, compile_kernels=False).world      # (the kernels compile at the run's instantiate)
             world.reset_bodies()
+            notes += [f"bodies.{name}: {note}" for name, body in world.bodies.items()
+                      for note in getattr(body, "engine_notes", ())]
             notes += [f"bodies.{a} and bodies.{b} overlap at the start: {a}'s link {la!r} and {b}'s link {lb!r} "
                       f"by {depth * 1e3:.3g} mm (their collision geometry); the rk4 integrator has no contacts: "
                       f"they pass through each other" for a, la, b, lb, depth in world.overlaps()]

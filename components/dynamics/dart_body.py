@@ -12,6 +12,11 @@ forces (``link_forces.generalized_forces``: no DART call per link and wrench).
 """
 from __future__ import annotations
 
+import contextlib
+import os
+import re
+import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -43,7 +48,15 @@ class DartBody(Body):
             options.mDefaultInertia = massless
         loader.setOptions(options)
         uri = dart.common.Uri.createFromPath(str(Path(spec.urdf).resolve()))
-        skel = loader.parseSkeletonString(dart_urdf_text(model, self.locked), uri)
+        with _captured_stderr() as said:           # DART's C++ warnings: one note instead of raw lines
+            skel = loader.parseSkeletonString(dart_urdf_text(model, self.locked), uri)
+        massless = re.findall(r"zero mass \[[^\]]*\] is set to BodyNode \[([^\]]+)\]", said.text)
+        other = [line for line in said.text.splitlines() if line.strip() and "zero mass" not in line]
+        if other:
+            print("\n".join(other), file=sys.stderr)
+        self.engine_notes = [f"{len(massless)} link(s) without mass, as the URDF gives them (no <inertial>): "
+                             f"{', '.join(massless)}; DART warns of them, which is harmless for links a fixed "
+                             f"joint holds"] if massless else []
         if skel is None:
             raise ModelError(f"{spec.name}.urdf", f"DART could not load {spec.urdf}")
         skel.setName(spec.name)
@@ -263,3 +276,24 @@ class DartBody(Body):
     def point_bias(self, link: str, point: np.ndarray) -> np.ndarray:
         node, point = self._node_point(link, point)
         return self.skel.getJacobianClassicDeriv(node, point, self.world_frame) @ self.skel.getVelocities()
+
+
+class _Said:
+    text = ""
+
+
+@contextlib.contextmanager
+def _captured_stderr():
+    """What C++ writes to file descriptor 2 meanwhile, as ``.text`` after the block."""
+    said = _Said()
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield said
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            said.text = re.sub(r"\x1b\[[0-9;]*m", "", sink.read().decode(errors="replace"))

@@ -313,13 +313,20 @@ def summary(rows: list[dict], campaign: Campaign, wall: float, out, ran: int | N
               file=out)
     ok = [r for r in rows if r["status"] == "completed"]
     numeric = [m for m in campaign.metrics if not any(isinstance(r[m.name], str) for r in ok)]
+    for m in campaign.metrics:
+        texts = sorted({r[m.name] for r in ok if isinstance(r[m.name], str) and r[m.name]})
+        if texts:                            # a text metric (an event's reason): how often each
+            counts = {t: sum(1 for r in ok if r[m.name] == t) for t in texts}
+            print(f"  {m.name}: " + "; ".join(f"{n} x {t[:160]}" for t, n in sorted(counts.items(), key=lambda x: -x[1])[:5]),
+                  file=out)
     if numeric and ok:
         print(f"  {'metric':<24}{'mean':>13}{'std':>13}{'min':>13}{'max':>13}", file=out)
         for m in numeric:
             values = np.array([r[m.name] for r in ok], dtype=float)
             finite = values[np.isfinite(values)]
             if not len(finite):
-                print(f"  {m.name:<24}{'(no finite value)':>13}", file=out)
+                print(f"  {m.name:<24}" + (f"no case had a {m.event} event" if m.event else "(no finite value)"),
+                      file=out)
                 continue
             print(f"  {m.name:<24}{np.mean(finite):>13.6g}{np.std(finite):>13.6g}{np.min(finite):>13.6g}"
                   f"{np.max(finite):>13.6g}" + (f"   ({len(values) - len(finite)} NaN)" if len(finite) < len(values)

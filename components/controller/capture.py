@@ -612,7 +612,7 @@ class CaptureController:
         seed (the best is kept); a window is a run of feasible solutions that move continuously.
         The first meeting time at which the window starts and the pre-grasp pose can be reached in
         time within the rate limits is taken if it is at most approach_time away."""
-        cfg, kin = self.cfg, self.kinematics
+        cfg = self.cfg
         q_pin = self.arm.q_pin.copy()
         window = int(math.ceil((cfg.closing_time + cfg.tolerance_time + WINDOW_MARGIN) / PLAN_STEP))
         samples = int(horizon / PLAN_STEP) + window + 1

@@ -216,4 +216,4 @@ def test_the_join_file_of_a_run_that_ended_says_it_is_not_alive(write_config, tm
     copy.chmod(0o644)
     shared = join(copy)
     _, err = shared.communicate(timeout=60)
-    assert shared.returncode == 2 and f"readable or writable by others (mode 644)" in err and f"chmod 600 {copy}" in err, err
+    assert shared.returncode == 2 and "readable or writable by others (mode 644)" in err and f"chmod 600 {copy}" in err, err

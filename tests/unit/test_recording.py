@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas
-import pyarrow.parquet as pq
 import pytest
 
 from orchestrator.recording import RecordingError, Table

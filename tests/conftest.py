@@ -85,10 +85,19 @@ def wait_for_step(name: str, step: int, timeout: float = 120.0, run: subprocess.
 
 
 def part_files(parquet: Path) -> list[Path]:
-    """The complete part files of a recording's signals.parquet (a chunk is written under a
-    hidden name, then renamed into place)."""
+    """The part files of a recording's signals.parquet (each written under a hidden name, then
+    renamed into place; the last may be the unfinished chunk, replaced as it grows)."""
     return sorted(p for p in Path(parquet).glob("*.parquet") if not p.name.startswith(".")) \
         if Path(parquet).is_dir() else []
+
+
+def recorded_rows(parquet: Path) -> int:
+    """The rows on disk in a recording's signals.parquet now (0 while a part is being replaced)."""
+    import pyarrow.parquet as pq
+    try:
+        return sum(pq.ParquetFile(path).metadata.num_rows for path in part_files(parquet))
+    except (OSError, ValueError):
+        return 0
 
 
 def signal_files(record: Path) -> dict[str, bytes]:

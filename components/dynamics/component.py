@@ -309,7 +309,6 @@ class OrbitalDynamics(Component):
                     f"(or substeps)")
         if full:             # the engine loads every body: what it refuses is an error now, not at the start
             world = cls(params, compile_kernels=False).world      # (the kernels compile at the run's instantiate)
-            world.reset_bodies()
             notes += [f"bodies.{name}: {note}" for name, body in world.bodies.items()
                       for note in getattr(body, "engine_notes", ())]
             notes += [f"bodies.{a} and bodies.{b} overlap at the start: {a}'s link {la!r} and {b}'s link {lb!r} "

@@ -133,12 +133,29 @@ class OrbitalWorld:
             integration.compile_kernels(self)
 
     def overlaps(self) -> list[tuple[str, str, str, str, float]]:
-        """Pairs of bodies whose collision geometry overlaps now (DART engine; Bullet's narrow
-        phase): (body, link, other body, its link, penetration depth m), the deepest contact of
-        each pair. rk4 has no contacts: such bodies pass through each other."""
+        """Pairs of bodies whose collision geometry overlaps in their initial poses (DART engine;
+        Bullet's narrow phase): (body, link, other body, its link, penetration depth m), the
+        deepest contact of each pair. rk4 has no contacts: such bodies pass through each other.
+        The skeletons are posed by DART's own conversions (no kernel compiles for a check)."""
         if self.engine != "dart":
             return []
         import dartpy as dart
+
+        R_WL = quat_to_matrix(self.q_eci_lvlh)
+        for body in self.bodies.values():
+            spec = body.spec
+            p, R = np.asarray(spec.position, dtype=float), quat_to_matrix(spec.orientation)
+            if spec.frame == "lvlh":
+                p, R = R_WL @ p, R_WL @ R
+            T = dart.math.Isometry3()
+            T.set_rotation(R)
+            T.set_translation(p)
+            positions = np.zeros(body.ndofs)
+            positions[:6] = dart.dynamics.FreeJoint.convertToPositions(T)
+            for j, k in zip(body.joints, body.dof_index):
+                if k >= 0:
+                    positions[k] = spec.q.get(j, 0.0)
+            body.skel.setPositions(body._dart(positions))
 
         detector = dart.collision.BulletCollisionDetector()
         groups = {}

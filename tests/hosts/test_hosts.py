@@ -15,7 +15,7 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
-from tests.conftest import ROOT, orchestrator, part_files, wait_until
+from tests.conftest import ROOT, orchestrator, recorded_rows, wait_until
 from tests.hosts.netns import Network, missing
 
 pytestmark = [pytest.mark.integration, pytest.mark.skipif(missing() is not None, reason=str(missing()))]
@@ -123,7 +123,8 @@ def test_a_run_across_hosts_equals_the_local_run_and_a_reader_on_the_link_sees_n
                                cwd=ROOT, stdout=subprocess.PIPE, text=True)
     try:
         assert sniffer.stdout.readline().strip() == "capturing"
-        run, joins, record = start_spread(network, processes, tmp_path, config(f"spread{tls}", tls=tls))
+        plain = ", plaintext: accept-the-risk" if tls == "false" else ""     # said in words (issue 34)
+        run, joins, record = start_spread(network, processes, tmp_path, config(f"spread{tls}", tls=tls, bus_extra=plain))
         _, err = run.communicate(timeout=240)
         assert run.returncode == 0, err
         for name, process in joins.items():
@@ -149,7 +150,7 @@ def test_a_cut_link_is_detected_within_the_lease_and_reported(network, processes
     it), fails the run naming the component and its host, and the recording keeps every row it
     had, equal to the reference's."""
     run, joins, record = start_spread(network, processes, tmp_path, config("cut", duration="60 s", realtime=1.0))
-    wait_until(lambda: part_files(record / "signals.parquet"), "the first 1000 rows recorded", run=run)
+    wait_until(lambda: recorded_rows(record / "signals.parquet") >= 1000, "the first 1000 rows recorded", run=run)
     network.cut("a")
     cut_at = time.monotonic()
     _, err = run.communicate(timeout=120)
@@ -176,7 +177,7 @@ def test_a_component_whose_link_was_cut_joins_again_and_the_run_restarts_from_it
     signals of a run that never failed."""
     text = config("rejoin", duration="8 s", realtime=1.0, on_failure="restart", run_extra=", checkpoint_every: 1 s")
     run, joins, record = start_spread(network, processes, tmp_path, text)
-    wait_until(lambda: part_files(record / "signals.parquet"), "the first 1000 rows recorded", run=run)
+    wait_until(lambda: recorded_rows(record / "signals.parquet") >= 1000, "the first 1000 rows recorded", run=run)
     network.cut("a")
     line = ""
     while "restarting from step" not in line:

@@ -90,6 +90,7 @@ def _tampered(path, tmp_path, name, change) -> str:
     change(body)
     out = tmp_path / f"{name}.join"
     out.write_text(json.dumps(body))
+    out.chmod(0o600)             # a join file others can read is refused before anything else
     return str(out)
 
 

@@ -11,6 +11,7 @@ recording's signal, or its events, to one value.
 """
 from __future__ import annotations
 
+import json
 import math
 import re
 from dataclasses import dataclass
@@ -101,16 +102,11 @@ def event_value(m: Metric, events: list[dict]) -> float | str:
         return math.nan
     if m.reduce in ("first", "last"):
         value = values[0] if m.reduce == "first" else values[-1]
-        return value if isinstance(value, str) else float(value) if isinstance(value, (int, float)) else json_text(value)
+        return value if isinstance(value, str) else float(value) if isinstance(value, (int, float)) else json.dumps(value)
     numbers = [float(v) for v in values if isinstance(v, (int, float)) and not isinstance(v, bool)]
     if not numbers:
         return math.nan
     return min(numbers) if m.reduce == "min" else max(numbers)
-
-
-def json_text(value: Any) -> str:
-    import json
-    return json.dumps(value)
 
 
 def metric(name: str, spec: Any, signals: dict[str, tuple[tuple[str, ...], str]] | None, where: str) -> Metric:

@@ -425,6 +425,12 @@ class CaptureSettings:
     wheel_effort: np.ndarray
     wheel_velocity: np.ndarray
 
+    @property
+    def close_tolerances(self) -> np.ndarray:
+        """The tolerances of the close, in the order of CLOSE_ERRORS (m, rad, m/s, rad/s)."""
+        return np.array([self.position_tolerance, self.attitude_tolerance, self.velocity_tolerance,
+                         self.rate_tolerance])
+
 
 #: the estimated errors behind ``close``, in the order of the ``close_errors`` output
 CLOSE_ERRORS = ("position", "attitude", "velocity", "rate")
@@ -790,8 +796,7 @@ class CaptureController:
             return (f"close was asked for track_time = {cfg.track_time:g} s and the grasp did not close: the true "
                     f"errors stayed outside the dynamics' grasp.tolerance while the estimated ones were within the "
                     f"controller's (tighter tolerances, or a better sensor, would tell)")
-        tolerance = np.array([cfg.position_tolerance, cfg.attitude_tolerance, cfg.velocity_tolerance,
-                              cfg.rate_tolerance])
+        tolerance = cfg.close_tolerances
         ratio = self.errors / tolerance
         singular = sigma < cfg.singularity_margin
         self.track_stats += np.concatenate([[1.0], ratio >= 1.0, self.errors, [singular]])
@@ -855,8 +860,7 @@ class CaptureController:
     def _outputs(self, s: ArmState, tau: np.ndarray, g: PoseSample | None, d: PoseSample | None) -> dict:
         zero = np.zeros(3)
         error = np.zeros(6) if d is None else np.concatenate([d.p - s.p, log_so3(d.R @ s.R.T)])
-        tolerance = np.array([self.cfg.position_tolerance, self.cfg.attitude_tolerance, self.cfg.velocity_tolerance,
-                              self.cfg.rate_tolerance])
+        tolerance = self.cfg.close_tolerances
         errors = self.errors if self.phase in (TRACK, CLOSING) else np.zeros(4)
         return {"tau": tau, "close": np.float64(1.0 if self.close else 0.0), "phase": np.float64(self.phase),
                 "attempt": np.float64(self.attempt),

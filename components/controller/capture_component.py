@@ -303,7 +303,8 @@ class CaptureComponent(Component):
     def _idle_outputs(self) -> dict[str, np.ndarray]:
         z3 = np.zeros(3)
         return {"tau": np.zeros(self.controller.arm.n_body), "close": 0.0, "phase": 0.0, "attempt": 0.0,
-                "grasp_distance": 0.0, "ee_error": np.zeros(6), "close_errors": np.zeros(4), "close_within": np.zeros(4), "grasp_position_est": z3, "grasp_velocity_est": z3, "grasp_rate_est": z3}
+                "grasp_distance": 0.0, "ee_error": np.zeros(6), "close_errors": np.zeros(4), "close_within": np.zeros(4),
+                "grasp_position_est": z3, "grasp_velocity_est": z3, "grasp_rate_est": z3}
 
     def initialize(self, t0_ns, inputs):
         self.controller = self._build()

@@ -137,8 +137,10 @@ class Table:
         import pyarrow.parquet as pq
 
         self._rows = int(np.searchsorted(self._steps[:self._rows], step, side="right"))
-        if self._durable > self._rows:           # the unfinished part on disk holds rows after step
-            self._write_part(self._rows, complete=False) if self._rows else self._remove_partial()
+        if self._durable > self._rows and self._rows:     # the unfinished part on disk holds rows after step
+            self._write_part(self._rows, complete=False)
+        elif self._durable > self._rows:
+            self._remove_partial()
         if self._rows:
             return   # the parts on disk all come before the buffer
         while self._parts and self._parts[-1][0] > step:

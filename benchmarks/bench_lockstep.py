@@ -43,7 +43,7 @@ def round_trip(n: int) -> np.ndarray:
     import queue
     import zenoh
     from components import bus
-    from orchestrator.supervisor import resolve_endpoints
+    from orchestrator.run.supervisor import resolve_endpoints
 
     listen, endpoint = resolve_endpoints(["tcp/127.0.0.1:0"])
     session = zenoh.open(bus.session_config(listen=listen))
@@ -77,8 +77,8 @@ def round_trip(n: int) -> np.ndarray:
 
 def lockstep(steps: int) -> float:
     """Steps per second of the orchestrator with 3 no-op components (jacobi)."""
-    from orchestrator.config import load
-    from orchestrator.engine import Run
+    from orchestrator.config.load import load
+    from orchestrator.run.engine import Run
 
     config = Path(tempfile.mkdtemp()) / "noop.yaml"
     config.write_text(

@@ -67,8 +67,8 @@ def record_demo(seconds: float, folder: Path) -> None:
     """The outputs of the demo's first ``seconds``, run in this process, as rows: dynamics.dart's
     in ``folder``/dynamics.npy, the controller's in ``folder``/controller.npy."""
     from components.registry import resolve
-    from orchestrator.config import load
-    from orchestrator.inprocess import run_in_process
+    from orchestrator.config.load import load
+    from orchestrator.run.inprocess import run_in_process
 
     config = load(DEMO, [f"run.duration={seconds} s"])
     rows = run_in_process(config)
@@ -136,8 +136,8 @@ def child(overrides: list[str]) -> None:
     import json
     import threading
 
-    from orchestrator.config import load
-    from orchestrator.engine import Run
+    from orchestrator.config.load import load
+    from orchestrator.run.engine import Run
 
     run = Run(load(DEMO, overrides), out=open(os.devnull, "w"))
     samples: list = []

@@ -6,7 +6,7 @@
 
 Rows:
 - the paper's demo (configs/humanoid_tracking.yaml) over the bus: real-time factor;
-- the same components stepped one after another in this process (orchestrator/inprocess.py), no bus;
+- the same components stepped one after another in this process (orchestrator/run/inprocess.py), no bus;
 - the demo over the bus again, its dynamics sharing the CPUs (``dedicated_cpu`` off);
 - 3 no-op components in a loop (a -> b -> c -> a, Jacobi) next to the raw Zenoh pub/sub round trip;
 - the no-op chain a -> b -> c against mosaik 3 (one process per simulator; mosaik is installed in
@@ -46,8 +46,8 @@ def machine() -> str:
 
 def run_config(text: str, name: str = "bench.yaml") -> float:
     """Steps/s of the stepping loop of a config given as YAML text."""
-    from orchestrator.config import load
-    from orchestrator.engine import Run
+    from orchestrator.config.load import load
+    from orchestrator.run.engine import Run
 
     path = Path(tempfile.mkdtemp()) / name
     path.write_text(text)
@@ -70,9 +70,9 @@ def noop_loop(count: int, steps: int, size: int = 1, closed: bool = True) -> str
 def demo(seconds: float, repeat: int, more: list[str] = ()) -> tuple[float, float]:
     """(real-time factor over the bus, real-time factor of the in-process loop); ``more``: extra
     overrides of the bus runs."""
-    from orchestrator.config import load
-    from orchestrator.engine import Run
-    from orchestrator.inprocess import run_in_process
+    from orchestrator.config.load import load
+    from orchestrator.run.engine import Run
+    from orchestrator.run.inprocess import run_in_process
 
     config_path = ROOT / "configs" / "humanoid_tracking.yaml"
     overrides = [f"run.duration={seconds} s"]

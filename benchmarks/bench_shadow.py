@@ -41,8 +41,8 @@ def cpu_s() -> float:
 
 def demo(seconds: float, more: list[str]) -> tuple[float, float, dict[str, float]]:
     """(real-time factor, CPU seconds, {component: compute per step, s}) of one bus run of the demo."""
-    from orchestrator.config import load
-    from orchestrator.engine import Run
+    from orchestrator.config.load import load
+    from orchestrator.run.engine import Run
 
     before = cpu_s()
     run = Run(load(ROOT / "configs" / "humanoid_tracking.yaml", [f"run.duration={seconds} s", *more]),

@@ -1,7 +1,7 @@
 """Serving a component on the run's bus: its session (a peer of the run's mesh, or a client of its
 router), its keys, and the loop that feeds :class:`components.runner.ComponentProcess` from its
 inbox, one generation at a time (``python -m components.runner`` serves one; ``orchestrator
-join`` serves one after another, see :mod:`orchestrator.joiner`)."""
+join`` serves one after another, see :mod:`orchestrator.hosts.joiner`)."""
 from __future__ import annotations
 
 import os

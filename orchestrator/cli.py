@@ -13,7 +13,7 @@ import sys
 import threading
 from pathlib import Path
 
-from orchestrator.wording import count
+from orchestrator.run.wording import count
 
 USAGE_ERROR = 2
 
@@ -24,7 +24,8 @@ def _fail(message: str, code: int = USAGE_ERROR) -> int:
 
 
 def _load(path: str, overrides: list[str], full: bool = False):
-    from orchestrator.config import ConfigErrors, load
+    from orchestrator.config.yaml_file import ConfigErrors
+    from orchestrator.config.load import load
     try:
         return load(path, overrides, full), None
     except ConfigErrors as e:
@@ -45,7 +46,7 @@ def _is_campaign(path: str) -> bool:
 
 
 def _check_campaign(path: str) -> int:
-    from orchestrator.sweep import CampaignErrors, load_campaign
+    from orchestrator.campaigns.campaign import CampaignErrors, load_campaign
     try:
         campaign = load_campaign(path)
     except CampaignErrors as e:
@@ -83,7 +84,7 @@ def cmd_run(args) -> int:
         return USAGE_ERROR
     lock = None   # held (open, flock'ed) until this process ends: the directory is this run's
     if args.record:
-        from orchestrator.recording import RecordingError, claim_directory
+        from orchestrator.run.recording import RecordingError, claim_directory
         try:
             lock = claim_directory(Path(args.record), args.overwrite, config.name)
         except RecordingError as e:
@@ -96,7 +97,7 @@ def cmd_run(args) -> int:
     if args.view == "off":
         config.viewer = None
     elif args.view:
-        from orchestrator.config import viewer_spec
+        from orchestrator.config.load import viewer_spec
         errors: list[str] = []
         viewer = viewer_spec(args.view, "--view", errors, Path.cwd())
         if errors or viewer is None:
@@ -105,7 +106,7 @@ def cmd_run(args) -> int:
         from components.viewer.sinks import spawn_problem
         if spawn_problem():
             return _fail(f"viewer spawn: {spawn_problem()}")
-    from orchestrator.engine import Run
+    from orchestrator.run.engine import Run
     run = Run(config, record=args.record, profile=args.profile, progress=sys.stderr.isatty(), viewer=viewer)
     try:
         return run.execute()
@@ -128,7 +129,7 @@ def _query(entry: dict, request: dict, timeout: float = 30.0) -> dict:
 
 
 def _one_run(name: str):
-    from orchestrator import runs
+    from orchestrator.run import runs
     found = runs.find(name)
     if not found:
         names = ", ".join(r["name"] for r in runs.alive()) or "none"
@@ -139,7 +140,7 @@ def _one_run(name: str):
 
 
 def cmd_ps(args) -> int:
-    from orchestrator import runs
+    from orchestrator.run import runs
     entries = runs.alive()
     if not entries:
         print("no runs alive")
@@ -232,10 +233,10 @@ def cmd_describe(args) -> int:
     from components import registry
     from components.errors import ConfigError
     from components.sdk import REQUIRED, resolve_parameters, run_parameters
-    from orchestrator.config import ConfigErrors
-    from orchestrator.config_file import apply_overrides
+    from orchestrator.config.yaml_file import ConfigErrors
+    from orchestrator.config.yaml_file import apply_overrides
     if args.type == "config":
-        from orchestrator.config import CONFIG
+        from orchestrator.config.schema import CONFIG
         print("config\n  A run config: the YAML file given to run and check (docs/design.md §4).")
         _print_records(CONFIG, "sections")
         return 0
@@ -280,8 +281,8 @@ def cmd_describe(args) -> int:
 
 def cmd_export_fmu(args) -> int:
     from components.fmi.exported import ExportError, export_fmu, fmu_summary
-    from orchestrator.config import ConfigErrors
-    from orchestrator.config_file import apply_overrides
+    from orchestrator.config.yaml_file import ConfigErrors
+    from orchestrator.config.yaml_file import apply_overrides
     if not args.output.endswith(".fmu"):
         return _fail(f"-o {args.output}: the output must be a .fmu file, e.g. -o {Path(args.output).stem or 'model'}.fmu")
     parameters: dict = {}
@@ -300,7 +301,8 @@ def cmd_export_fmu(args) -> int:
 
 
 def cmd_plot(args) -> int:
-    from orchestrator.plots import PlotError, plot_recording
+    from orchestrator.plots.figure import PlotError
+    from orchestrator.plots.recording import plot_recording
     out = Path(args.out) if args.out else Path(args.recording) / "plots"
     signals = [name.strip() for name in args.signals.split(",") if name.strip()] if args.signals else None
     try:
@@ -315,8 +317,9 @@ def cmd_plot(args) -> int:
 
 
 def cmd_sweep(args) -> int:
-    from orchestrator.campaign_runner import CampaignError, sweep
-    from orchestrator.sweep import CampaignErrors, load_campaign
+    from orchestrator.campaigns.directory import CampaignError
+    from orchestrator.campaigns.runner import sweep
+    from orchestrator.campaigns.campaign import CampaignErrors, load_campaign
     only = None
     if args.only is not None:
         try:
@@ -339,7 +342,7 @@ def cmd_sweep(args) -> int:
 
 
 def cmd_join(args) -> int:
-    from orchestrator.joiner import JoinError, join
+    from orchestrator.hosts.joiner import JoinError, join
     try:
         return join(Path(args.file), args.connect or None, args.listen, args.cpu)
     except JoinError as e:
@@ -347,9 +350,9 @@ def cmd_join(args) -> int:
 
 
 def cmd_router(args) -> int:
-    from orchestrator.config import ENDPOINT
+    from orchestrator.config.schema import ENDPOINT
     import re
-    from orchestrator.joiner import JoinError, route
+    from orchestrator.hosts.joiner import JoinError, route
     for endpoint in args.listen:
         if not re.fullmatch(ENDPOINT, endpoint):
             return _fail(f"--listen {endpoint}: expected a Zenoh endpoint like tls/0.0.0.0:7447")

@@ -67,7 +67,7 @@ def wait_for_step(name: str, step: int, timeout: float = 120.0, run: subprocess.
     """Wait until the live run named ``name`` has recorded row ``step`` (the run's own answer to
     a status query, as `orchestrator ps` asks it); return the row it had reached."""
     from components import bus
-    from orchestrator import runs
+    from orchestrator.run import runs
 
     entry = wait_until(lambda: runs.find(name), f"run {name} registered", timeout, run)[0]
     session = bus.open_session(connect=[entry["endpoint"]], secret=entry["secret"], settings=entry.get("settings"))

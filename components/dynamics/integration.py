@@ -13,19 +13,28 @@ to the body: its momentum is unchanged.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Mapping, Protocol
 
 import numpy as np
 
 from components.constants import R_EARTH
 from components.dynamics import link_forces
 from components.dynamics.bodies import Body
-
-if TYPE_CHECKING:
-    from components.dynamics.world import OrbitalWorld
+from components.dynamics.capture import Grasp
 
 
-def compile_kernels(world: "OrbitalWorld") -> None:
+class SteppedWorld(Protocol):
+    """What a step reads of its world (an OrbitalWorld)."""
+    bodies: Mapping[str, Body]
+    integrator: str              # "rk4" or "euler"
+    mu: float                    # m^3/s^2
+    orbit_point: object          # the reference orbit's state at the stage (None before the first)
+    env_now: bool                # the environment's forces act
+    joint_limits: bool
+    grasp: Grasp | None
+
+
+def compile_kernels(world: SteppedWorld) -> None:
     """Compile the numba kernels a step calls (or load them from numba's on-disk cache), now.
 
     A cold compile takes seconds (~6 s on one idle core): done inside step 0 it counted against
@@ -60,7 +69,7 @@ def compile_kernels(world: "OrbitalWorld") -> None:
         body.set_state(*state)
 
 
-def acceleration(world: "OrbitalWorld", body: Body, s: float) -> np.ndarray:
+def acceleration(world: SteppedWorld, body: Body, s: float) -> np.ndarray:
     """Accelerations at the body's current state, torques and (when it applies) the environment
     at s seconds after the orbit inputs; mimic joints and limit stops held."""
     a = body.forward_dynamics((world.orbit_point, s) if world.env_now else None)
@@ -120,7 +129,7 @@ def joint_stops(body: Body) -> None:
         body.set_velocities(v + Minv[:, outward] @ impulse)
 
 
-def rk4(world: "OrbitalWorld", body: Body, h: float, s: float) -> None:
+def rk4(world: SteppedWorld, body: Body, h: float, s: float) -> None:
     """One RK4 step of h seconds of one body, from s seconds after the orbit inputs."""
     if not body.mimic and not body.stops.size:     # nothing acts between the stages: the body steps itself
         body.rk4_step(h, (world.orbit_point, s) if world.env_now else None)
@@ -130,7 +139,7 @@ def rk4(world: "OrbitalWorld", body: Body, h: float, s: float) -> None:
         joint_stops(body)
 
 
-def rk4_held(world: "OrbitalWorld", body: Body, h: float, s: float) -> None:
+def rk4_held(world: SteppedWorld, body: Body, h: float, s: float) -> None:
     """``rk4`` with each stage's accelerations held to the mimic joints and limit stops."""
     body.begin_step()
     a = acceleration(world, body, s)                # at (q0, v0), the current state
@@ -142,7 +151,7 @@ def rk4_held(world: "OrbitalWorld", body: Body, h: float, s: float) -> None:
     body.finish_step(h, acceleration(world, body, s + h))
 
 
-def rk4_welded(world: "OrbitalWorld", h: float, s: float) -> None:
+def rk4_welded(world: SteppedWorld, h: float, s: float) -> None:
     """One RK4 step of every body, stage by stage, with the grasp's weld wrench in each stage's
     accelerations (the welded pair is one assembly; the others step as in ``rk4``)."""
     grasp = world.grasp

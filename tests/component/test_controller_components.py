@@ -253,8 +253,8 @@ def test_under_gauss_seidel_the_reference_is_taken_at_the_states_sample_time():
     t_(k+1) (the dynamics comes first), so it samples its reference there: its desired pose at row
     r equals the Jacobi run's at row r + 1, bit for bit, through the start of the move (t > 1 s);
     and it keeps the anchor of the initial state (no re-anchoring on the first step's new state)."""
-    from orchestrator.config import load
-    from orchestrator.inprocess import run_in_process
+    from orchestrator.config.load import load
+    from orchestrator.run.inprocess import run_in_process
 
     desired = {}
     for algorithm in ("jacobi", "gauss-seidel"):

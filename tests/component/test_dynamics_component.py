@@ -373,8 +373,8 @@ def test_libration_matches_the_closed_form_under_every_schedule(algorithm, orbit
     period and amplitude within 1 %. (Taking the inputs as sampled at t_k, Gauss-Seidel librated
     about +0.6 deg with 0.4 deg amplitude: the one-step lead n h.)"""
     from components.rotations import quat_to_matrix as matrix
-    from orchestrator.config import load
-    from orchestrator.inprocess import run_in_process
+    from orchestrator.config.load import load
+    from orchestrator.run.inprocess import run_in_process
 
     config = load(CONFIGS / "gravity_gradient_libration.yaml",
                   [f"run.algorithm={algorithm}", f"components.orbit.step={orbit_step}"])
@@ -432,8 +432,8 @@ def test_clohessy_wiltshire_under_every_schedule(tmp_path, algorithm, orbit_step
     with the orbit at the dynamics' 5 s or every 30 s. (With the inputs taken as sampled at t_k:
     5.7e-3 under Gauss-Seidel, 1.4e-2 with the slower orbit.)"""
     from components.rotations import quat_to_matrix as matrix
-    from orchestrator.config import load
-    from orchestrator.inprocess import run_in_process
+    from orchestrator.config.load import load
+    from orchestrator.run.inprocess import run_in_process
 
     x0, a = 10.0, 6778e3
     n = math.sqrt(MU / a**3)

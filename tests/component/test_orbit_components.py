@@ -368,9 +368,9 @@ def test_shipped_configs_validate_and_start(name, r_tol, v_tol):
     orbit its file describes: r and v as vectors, the LVLH frame of that r and v (x radial, z
     along r x v) and its rate (the in-plane h / r^2 about z, plus J2's out-of-plane ~1e-6 rad/s)."""
     from components.orbit.frames import lvlh_dcm
-    from orchestrator import config
+    from orchestrator.config.load import load
 
-    cfg = config.load(CONFIGS / name)
+    cfg = load(CONFIGS / name)
     (spec,) = cfg.components.values()
     assert cfg.epoch == EPOCH and (name != "orbit_iss_sgp4.yaml" or spec.parameters["tle"] == ISS_TLE)
     h = Harness(spec.type, spec.parameters, epoch=cfg.epoch, config_dir=CONFIGS)

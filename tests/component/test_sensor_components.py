@@ -246,8 +246,9 @@ def test_in_a_run_at_its_own_slower_step_it_equals_the_harness(tmp_path):
     """run.step 1 ms, the sensor's step 10 ms, latency 30 ms: its outputs hold between its
     steps, the sample of its step at 0 is published by its step at 30 ms and recorded from
     t = 40 ms (the end of that step) on; the values equal the harness stepped at 10 ms."""
-    from orchestrator.config import ConfigErrors, load
-    from orchestrator.inprocess import run_in_process
+    from orchestrator.config.yaml_file import ConfigErrors
+    from orchestrator.config.load import load
+    from orchestrator.run.inprocess import run_in_process
 
     config = tmp_path / "sensor.yaml"
     config.write_text(textwrap.dedent("""\

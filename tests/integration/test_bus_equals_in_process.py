@@ -6,8 +6,8 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 
-from orchestrator.config import load
-from orchestrator.inprocess import run_in_process
+from orchestrator.config.load import load
+from orchestrator.run.inprocess import run_in_process
 from tests.conftest import ROOT, orchestrator
 
 pytestmark = pytest.mark.integration

@@ -20,8 +20,9 @@ import yaml
 
 from components.errors import ComponentError, ConfigError
 from components.schema import Bool, Duration, Float, Int, ListOf, Str, Vector
-from orchestrator.config import ConfigErrors, load
-from orchestrator.inprocess import run_in_process
+from orchestrator.config.yaml_file import ConfigErrors
+from orchestrator.config.load import load
+from orchestrator.run.inprocess import run_in_process
 from tests.conftest import ROOT
 
 CONFIGS = sorted((ROOT / "configs").glob("*.yaml"))

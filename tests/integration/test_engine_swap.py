@@ -3,7 +3,7 @@ dynamics.dart to dynamics.pinocchio at t = 5 s, over the bus: the new engine tak
 state (never initialized; events.jsonl says so), the run ends within 1e-9 of the undisturbed DART
 run, and the recorded config.yaml replays it bit for bit.
 
-The undisturbed reference is the same config stepped in process (orchestrator/inprocess.py),
+The undisturbed reference is the same config stepped in process (orchestrator/run/inprocess.py),
 which a bus run equals bit for bit (tests/integration/test_bus_equals_in_process.py).
 """
 from __future__ import annotations
@@ -14,9 +14,9 @@ import numpy as np
 import pandas
 import pytest
 
-from orchestrator.config import load
-from orchestrator.inprocess import run_in_process
-from orchestrator.rows import Rows
+from orchestrator.config.load import load
+from orchestrator.run.inprocess import run_in_process
+from orchestrator.run.rows import Rows
 from tests.conftest import ROOT, component_processes, orchestrator
 
 pytestmark = pytest.mark.integration

@@ -122,7 +122,7 @@ def test_fixed_base_controller_tracks_worse(runs):
 
 
 def test_plots_of_the_recording(runs, tmp_path):
-    from orchestrator.plots import plot_recording
+    from orchestrator.plots.recording import plot_recording
 
     written = plot_recording(runs["dir"] / "free_floating", tmp_path / "plots")
     assert [p.name for p in written] == ["orbit_track.png", "dynamics_humanoid.png", "controller_path.png",

@@ -15,8 +15,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from components import bus
-from orchestrator import runs
-from orchestrator.tls import make_ca, issue, _pem_certificate, _pem_key
+from orchestrator.run import runs
+from orchestrator.hosts.tls import make_ca, issue, _pem_certificate, _pem_key
 from tests.conftest import ROOT, orchestrator, start_run, wait_for_step, wait_until
 
 pytestmark = pytest.mark.integration

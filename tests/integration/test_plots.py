@@ -9,7 +9,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from components.constants import MU_EARTH, R_EARTH
-from orchestrator.plots import figures
+from orchestrator.plots.recording import figures
 from tests.conftest import ROOT, orchestrator
 
 pytestmark = pytest.mark.integration

@@ -10,7 +10,7 @@ import pandas
 import pytest
 
 from components import bus
-from orchestrator import runs
+from orchestrator.run import runs
 from tests.conftest import (component_processes, orchestrator, recorded_rows, start_run, wait_for_components,
                             wait_for_step, wait_until)
 

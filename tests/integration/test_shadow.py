@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from components.testing.harness import Harness
-from orchestrator.plots import figures
+from orchestrator.plots.recording import figures
 from tests.conftest import ROOT, component_processes, orchestrator
 
 pytestmark = pytest.mark.integration

@@ -4,7 +4,8 @@ from pathlib import Path
 
 import pytest
 
-from orchestrator.config import ConfigErrors, load, validate
+from orchestrator.config.yaml_file import ConfigErrors
+from orchestrator.config.load import load, validate
 
 GOOD = """
 run: {name: chain, epoch: 2022-09-18T12:00:00Z, duration: 2 s, step: 1 ms}
@@ -123,7 +124,8 @@ def test_a_user_component_file_that_fails_to_load_is_one_config_error(write_conf
 
 def test_restart_needs_the_state_of_every_component(tmp_path):
     from components.testing.blocks import Counter
-    from orchestrator.config import ConfigErrors, load
+    from orchestrator.config.yaml_file import ConfigErrors
+    from orchestrator.config.load import load
 
     (tmp_path / "stateless.py").write_text(
         "from components.testing.blocks import Counter\n\n"
@@ -197,7 +199,7 @@ def test_a_shadow_takes_its_mains_inputs_right_after_it_and_stays_nested_in_the_
     assert config.connections == [("g", "u", "h", "x"), ("h", "u", "g", "x"), ("g_shadow", "u", "h", "x")]
     assert config.resolved["components"]["g"]["shadow"] == {"type": "test.integrator", "parameters": {"gain": 3.0, "x0": 0.0}}
     assert "g_shadow" not in config.resolved["components"] and "g_shadow.u" not in config.resolved["connections"]
-    from orchestrator.shadows import connections_of
+    from orchestrator.config.shadows import connections_of
     # a main fed by itself: its shadow is fed by itself (its own loop is part of what is shadowed)
     assert connections_of("a", [("a", "u", "a", "x"), ("a", "v", "b", "y"), ("b", "u", "a", "x")]) == [
         ("a_shadow", "u", "a_shadow", "x"), ("a_shadow", "v", "b", "y")]
@@ -211,7 +213,7 @@ def test_a_swap_to_a_type_that_takes_the_state_keeps_the_parameters_and_the_outp
     from pathlib import Path
 
     from components import registry
-    from orchestrator.connections import hands_over
+    from orchestrator.config.connections import hands_over
 
     demo = Path(__file__).resolve().parents[2] / "configs" / "humanoid_tracking.yaml"
     config = load(demo, ["events=[{at: 5 s, swap: dynamics, type: dynamics.pinocchio}]"])

@@ -1,11 +1,11 @@
-"""The control server (orchestrator/control.py) against a stand-in run: all it needs of a run is
+"""The control server (orchestrator/run/control.py) against a stand-in run: all it needs of a run is
 the small Controlled interface."""
 from __future__ import annotations
 
 import json
 
-from orchestrator.config import load
-from orchestrator.control import ControlServer
+from orchestrator.config.load import load
+from orchestrator.run.control import ControlServer
 
 
 class Query:

@@ -209,11 +209,11 @@ def shipped_configs_for_both_engines():
 
 @pytest.mark.parametrize("config, component", list(shipped_configs_for_both_engines()))
 def test_shipped_config_runs_with_both_engines(config, component):
-    """The config stepped in process (orchestrator/inprocess.py, as a bus run would), 200 steps
+    """The config stepped in process (orchestrator/run/inprocess.py, as a bus run would), 200 steps
     with its dynamics' type as shipped and with ``--set components.<dynamics>.type=dynamics.pinocchio``:
     every recorded column agrees."""
-    from orchestrator.config import load
-    from orchestrator.inprocess import run_in_process
+    from orchestrator.config.load import load
+    from orchestrator.run.inprocess import run_in_process
 
     rows = {engine: run_in_process(load(CONFIGS / config, [f"components.{component}.type=dynamics.{engine}"]), steps=200)
             for engine in ("dart", "pinocchio")}

@@ -167,8 +167,8 @@ def test_demo_humanoid_under_recorded_torques_matches_pinocchio_aba_and_dop853()
     from scipy.integrate import solve_ivp
 
     from components.constants import MU_EARTH
-    from orchestrator.config import load
-    from orchestrator.inprocess import run_in_process
+    from orchestrator.config.load import load
+    from orchestrator.run.inprocess import run_in_process
 
     config = load(ROOT / "configs" / "humanoid_tracking.yaml", ["run.duration=3 s"])
     rows = run_in_process(config)

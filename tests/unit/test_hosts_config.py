@@ -7,9 +7,10 @@ import types
 import pytest
 
 from components import bus_security
-from orchestrator.bus_config import is_loopback
-from orchestrator.config import ConfigErrors, load
-from orchestrator.run_bus import interface_addresses, reachable_endpoints
+from orchestrator.hosts.bus_config import is_loopback
+from orchestrator.config.yaml_file import ConfigErrors
+from orchestrator.config.load import load
+from orchestrator.hosts.run_bus import interface_addresses, reachable_endpoints
 
 BASE = """
 run: {name: spread, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 1 ms}
@@ -80,7 +81,7 @@ def test_the_run_certificates_come_from_the_users_ca_and_name_their_holders(writ
     from cryptography import x509
     from cryptography.hazmat.primitives.asymmetric import ec
 
-    from orchestrator.tls import RunCertificates, _pem_certificate, _pem_key, issue, make_ca
+    from orchestrator.hosts.tls import RunCertificates, _pem_certificate, _pem_key, issue, make_ca
 
     ca_key, ca_certificate = make_ca("my lab")
     (tmp_path / "ca.pem").write_bytes(_pem_certificate(ca_certificate))
@@ -133,7 +134,7 @@ def test_the_join_desk_grants_a_waited_generation_once_and_refuses_a_second_join
     import zenoh
 
     from components import bus
-    from orchestrator.join import JoinDesk
+    from orchestrator.hosts.join import JoinDesk
 
     session = zenoh.open(bus.session_config())
     try:

@@ -1,9 +1,9 @@
-"""The step horizon (orchestrator/pacing.py): how far ahead, in which chunks, how fast in real time."""
+"""The step horizon (orchestrator/run/pacing.py): how far ahead, in which chunks, how fast in real time."""
 from __future__ import annotations
 
 import pytest
 
-from orchestrator.pacing import WINDOW, grant
+from orchestrator.run.pacing import WINDOW, grant
 
 MS = 1_000_000
 

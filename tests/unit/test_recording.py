@@ -1,4 +1,4 @@
-"""The recording's durability (orchestrator/recording.py, issue 34): rows reach the disk at least
+"""The recording's durability (orchestrator/run/recording.py, issue 34): rows reach the disk at least
 every run.record_flush of wall time, a full disk keeps every row written before it and leaves
 no partial file, and the parts a run ends with do not depend on when the flushes came."""
 from __future__ import annotations
@@ -11,7 +11,7 @@ import numpy as np
 import pandas
 import pytest
 
-from orchestrator.recording import RecordingError, Table
+from orchestrator.run.recording import RecordingError, Table
 
 COLUMNS = [f"c{i}" for i in range(40)]
 
@@ -89,7 +89,8 @@ def test_plot_and_view_of_a_recording_with_no_rows_say_so(tmp_path):
     """A recording whose run wrote no row (its table closed empty, as a disk full at once leaves
     it): plot and view both say the recording holds no rows, not a missing column."""
     from components.viewer.replay import ReplayError, replay
-    from orchestrator.plots import PlotError, figures
+    from orchestrator.plots.figure import PlotError
+    from orchestrator.plots.recording import figures
 
     record = tmp_path / "rec"
     Table(record / "signals.parquet", COLUMNS, 1000).close()

@@ -1,4 +1,4 @@
-"""The decisions behind checkpoints, restarts and hang detection (orchestrator/recovery.py)."""
+"""The decisions behind checkpoints, restarts and hang detection (orchestrator/run/recovery.py)."""
 from __future__ import annotations
 
 from types import SimpleNamespace
@@ -6,8 +6,8 @@ from types import SimpleNamespace
 import numpy as np
 
 from components.schedule import Route
-from orchestrator.config import Fault
-from orchestrator.recovery import Checkpoint, faults_left, hung, next_checkpoint
+from orchestrator.config.specs import Fault
+from orchestrator.run.recovery import Checkpoint, faults_left, hung, next_checkpoint
 
 MS = 1_000_000
 

@@ -13,7 +13,8 @@ from components.robots.model import joint_units
 from components.robots.urdf import read_urdf
 from components.sdk import resolve_parameters
 from components.signals import BODY_STATE
-from orchestrator.config import ConfigErrors, load
+from orchestrator.config.yaml_file import ConfigErrors
+from orchestrator.config.load import load
 
 MODELS = Path(__file__).resolve().parents[2] / "models"
 LINK = '<link name="{0}"><inertial><mass value="{1}"/><inertia ixx="1" iyy="1" izz="1"/></inertial></link>'

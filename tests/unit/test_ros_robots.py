@@ -259,7 +259,7 @@ def test_dae_visuals_become_triangles():
 # ---------------------------------------------------------------- the recording directory's lock
 
 def _hold_lock(directory, ready):
-    from orchestrator.recording import claim_directory
+    from orchestrator.run.recording import claim_directory
 
     lock = claim_directory(Path(directory), False, "holder")   # noqa: F841 (held until killed)
     ready.set()
@@ -267,7 +267,7 @@ def _hold_lock(directory, ready):
 
 
 def test_a_live_run_locks_its_directory_and_the_lock_dies_with_it(tmp_path):
-    from orchestrator.recording import RecordingError, claim_directory
+    from orchestrator.run.recording import RecordingError, claim_directory
 
     directory = tmp_path / "rec"
     ready = multiprocessing.get_context("fork").Event()

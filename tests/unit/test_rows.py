@@ -1,13 +1,13 @@
-"""Assembling the recorded rows (orchestrator/rows.py) from the batches members send, no bus."""
+"""Assembling the recorded rows (orchestrator/run/rows.py) from the batches members send, no bus."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from components import bus
-from orchestrator.config import load
-from orchestrator.members import Member
-from orchestrator.rows import Rows
+from orchestrator.config.load import load
+from orchestrator.run.members import Member
+from orchestrator.run.rows import Rows
 
 CONFIG = """
 run: {name: rows, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 10 ms}

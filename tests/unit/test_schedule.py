@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from components.schedule import Route, initialization_order, next_due, routes, row_tag
-from orchestrator.config import load
-from orchestrator.inprocess import run_in_process
+from orchestrator.config.load import load
+from orchestrator.run.inprocess import run_in_process
 
 
 def route(ratio: int, ahead: int) -> Route:
@@ -107,7 +107,7 @@ def test_consumers_off_every_loop_back_get_batches():
 
 
 def test_dedicated_cpus_are_handed_out_from_the_top_keeping_one_for_the_rest():
-    from orchestrator.supervisor import place
+    from orchestrator.run.supervisor import place
     two = place(["dynamics"], {0, 1})
     assert two.dedicated == {"dynamics": 1} and two.shared == {0} and two.unplaced == ()
     four = place(["a", "b"], {0, 1, 2, 3})
@@ -129,7 +129,7 @@ def test_fed_inputs_names_the_variables_a_route_feeds():
 
 def test_inbox_entries_decode_to_typed_messages():
     from components import bus
-    from orchestrator.messages import LIVELINESS, OUTPUTS, REPLY, Fault, Liveliness, Outputs, Reply, decode
+    from orchestrator.run.messages import LIVELINESS, OUTPUTS, REPLY, Fault, Liveliness, Outputs, Reply, decode
 
     rid = "demo-1a2b3c4d"
     batch = bus.encode_batch(3, np.array([4, 5]), np.array([[1.0, 2.0], [3.0, 4.0]]), np.array([[7.0, 6.0], [8.0, 5.0]]))
@@ -159,7 +159,7 @@ def test_inbox_entries_decode_to_typed_messages():
 ])
 def test_malformed_inbox_entries_are_refused_with_a_reason(kind, key, payload, reason):
     from components import bus
-    from orchestrator.messages import decode
+    from orchestrator.run.messages import decode
 
     payload = {"tag 0": bus.encode_batch(0, np.array([0, 1]), np.zeros((2, 2)), np.zeros((2, 1))),
                "reply": bus.encode_message(bus.REPLY, {"op": "wire"}),
@@ -173,8 +173,8 @@ def test_a_fault_overtaking_earlier_batches_keeps_the_progress_it_reported(tmp_p
     under another key; a late batch must not lower the progress, or the salvage of the rows up to
     the fault stops short (seen: a run recording rows 0-32 of 0-50)."""
     from components import bus
-    from orchestrator.members import Member
-    from orchestrator.messages import OUTPUTS, decode
+    from orchestrator.run.members import Member
+    from orchestrator.run.messages import OUTPUTS, decode
 
     path = tmp_path / "one.yaml"
     path.write_text("run: {name: one, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 10 ms}\n"

@@ -110,7 +110,7 @@ def test_shipped_types_declare_every_parameter_typed_and_their_docstrings_carry_
 
 
 def test_design_doc_holds_the_current_config_reference():
-    from orchestrator.config import CONFIG, DOCS_END, DOCS_START
+    from orchestrator.config.schema import CONFIG, DOCS_END, DOCS_START
     design = (ROOT / "docs" / "design.md").read_text()
     assert f"{DOCS_START}\n{markdown(CONFIG)}\n{DOCS_END}" in design, \
         "docs/design.md is out of date: run python -m orchestrator.config --docs"

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 import yaml
 
-from orchestrator.config import validate
-from orchestrator.campaign_metrics import reduce_signal
-from orchestrator.dispersions import dispersion
-from orchestrator.sweep import CampaignErrors, key_path, load_campaign, set_key, si_value
+from orchestrator.config.load import validate
+from orchestrator.campaigns.metrics import reduce_signal
+from orchestrator.campaigns.dispersions import dispersion
+from orchestrator.campaigns.campaign import CampaignErrors, key_path, load_campaign, set_key, si_value
 
 BASE = {
     "run": {"name": "sweepme", "epoch": "2022-09-18T12:00:00Z", "duration": "50 ms", "step": "10 ms"},
@@ -134,7 +134,7 @@ def test_vector_metric_is_the_norm_and_parameters_read_in_si(tmp_path):
         "n": {"signal": "total.x", "reduce": "max"}}}))
     m = campaign.metrics[0]
     assert m.columns == ("total.x",)
-    from orchestrator.campaign_metrics import Metric
+    from orchestrator.campaigns.metrics import Metric
     norm = Metric("n", "v", "final", ("v[0]", "v[1]"))
     assert norm.value(np.array([0.0, 1.0]), {"v[0]": np.array([0.0, 3.0]), "v[1]": np.array([1.0, 4.0])}) == 5.0
     assert si_value("2 km") == 2000.0 and si_value(3) == 3.0 and si_value("rk4") == "rk4"
@@ -161,7 +161,7 @@ def test_slice_and_event_metrics():
     """A slice [i:j] is the norm of those elements alone (a wrench's force); an event metric reads
     a field of the first (or last, min, max) event of its name, counts them, and is NaN when there
     is none."""
-    from orchestrator.campaign_metrics import metric
+    from orchestrator.campaigns.metrics import metric
 
     signals = {"dyn.wrench": (tuple(f"dyn.wrench[{i}]" for i in range(6)), "N, N*m")}
     force = metric("f", {"signal": "dyn.wrench[0:3]", "reduce": "max"}, signals, "metrics.f")

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from orchestrator.plots.figure import PlotError, new_figure
 from components.units import _QUANTITY, unit_scale
 
 OUTCOME_COLOURS = {"completed": "tab:blue", "failed": "tab:red", "interrupted": "tab:grey"}
@@ -32,11 +33,6 @@ class Quantity:
     label: str
     values: np.ndarray
     unit: str
-
-
-def _figure(*size):
-    from matplotlib.figure import Figure
-    return Figure(figsize=size, layout="constrained")
 
 
 def _unit_of(key: str, values: list, meta: dict) -> tuple[str, float]:
@@ -94,7 +90,6 @@ def _outcome_colours(outcomes: list[str]) -> dict[str, str]:
 def campaign_figures(directory: Path) -> list[tuple[str, object]]:
     import pyarrow.parquet as pq
 
-    from orchestrator.plots import PlotError
 
     table = pq.read_table(directory / "cases.parquet")
     columns = {name: table.column(name).to_pylist() for name in table.column_names}
@@ -113,7 +108,7 @@ def campaign_figures(directory: Path) -> list[tuple[str, object]]:
     if metrics:
         cols = min(3, len(metrics))
         rows = math.ceil(len(metrics) / cols)
-        fig = _figure(4.2 * cols, 3.2 * rows)
+        fig = new_figure(4.2 * cols, 3.2 * rows)
         for i, name in enumerate(metrics, start=1):
             ax = fig.add_subplot(rows, cols, i)
             values = np.array([math.nan if v is None else v for v in columns[name]], dtype=float)
@@ -128,7 +123,7 @@ def campaign_figures(directory: Path) -> list[tuple[str, object]]:
     note = f"not drawn against: {', '.join(left_out)}" if left_out else ""
     for name in metrics if axes else []:
         y = np.array([math.nan if v is None else v for v in columns[name]], dtype=float)
-        fig = _grid_figure(len(axes))
+        fig = _gridnew_figure(len(axes))
         for i, q in enumerate(axes, start=1):
             ax = fig.add_subplot(math.ceil(len(axes) / min(3, len(axes))), min(3, len(axes)), i)
             for kind, colour in colours.items():
@@ -142,13 +137,13 @@ def campaign_figures(directory: Path) -> list[tuple[str, object]]:
             fig.suptitle(note, fontsize="small")
         out.append((f"{re.sub(r'[^A-Za-z0-9_.-]', '_', name)}_vs_parameters.png", fig))
     if axes or vectors:
-        out.append(("outcomes.png", _outcomes_figure(axes, vectors, outcome, colours, note)))
+        out.append(("outcomes.png", _outcomesnew_figure(axes, vectors, outcome, colours, note)))
     return out
 
 
-def _grid_figure(panels: int):
+def _gridnew_figure(panels: int):
     cols = min(3, panels)
-    return _figure(4.2 * cols, 3.2 * math.ceil(panels / cols))
+    return new_figure(4.2 * cols, 3.2 * math.ceil(panels / cols))
 
 
 def _label(q: Quantity) -> str:
@@ -160,12 +155,12 @@ def _metric_label(name: str, metric_meta: dict) -> str:
     return name if unit == "1" else f"{name} ({unit})"
 
 
-def _outcomes_figure(axes: list[Quantity], vectors: dict, outcome: np.ndarray, colours: dict, note: str):
+def _outcomesnew_figure(axes: list[Quantity], vectors: dict, outcome: np.ndarray, colours: dict, note: str):
     """Each case's outcome against each quantity (one row per outcome), and each 3-vector's
     direction as azimuth and elevation (a unit axis over the sphere), coloured by outcome."""
     kinds = list(colours)
     panels = len(axes) + len(vectors)
-    fig = _grid_figure(panels)
+    fig = _gridnew_figure(panels)
     cols = min(3, panels)
     rows = math.ceil(panels / cols)
     for i, q in enumerate(axes, start=1):

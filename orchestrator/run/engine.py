@@ -35,15 +35,16 @@ import uuid
 from pathlib import Path
 
 from components import bus
-from orchestrator import pacing, recovery, report, runs, shadows, supervisor, wiring
-from orchestrator.config import ComponentSpec, RunConfig, ViewerSpec
-from orchestrator.control import ControlServer, StopRequested, SwapFailed, raise_stop
-from orchestrator.members import Crew, Member, RunFailure, death, exited, fault_message, terminate
-from orchestrator.messages import CONTROL, Beat, Events, LinkLost, Liveliness, Outputs, Reply, decode, subscribe
-from orchestrator.recording import Recording, RecordingError
-from orchestrator.rows import Rows
-from orchestrator.run_bus import RunBus
-from orchestrator.viewer_link import ViewerLink
+from orchestrator.run import pacing, recovery, report, runs, supervisor, wiring
+from orchestrator.config import shadows
+from orchestrator.config.specs import ComponentSpec, RunConfig, ViewerSpec
+from orchestrator.run.control import ControlServer, StopRequested, SwapFailed, raise_stop
+from orchestrator.run.members import Crew, Member, RunFailure, death, exited, fault_message, terminate
+from orchestrator.run.messages import CONTROL, Beat, Events, LinkLost, Liveliness, Outputs, Reply, decode, subscribe
+from orchestrator.run.recording import Recording, RecordingError
+from orchestrator.run.rows import Rows
+from orchestrator.hosts.run_bus import RunBus
+from orchestrator.run.viewer_link import ViewerLink
 
 SYNC_ROUND_S = 0.05  # the start-up handshake is repeated at this interval until everyone hears everyone
 SLOW_START_S = 5.0   # an instantiate this long gets a note (a first run on a machine compiles the kernels)

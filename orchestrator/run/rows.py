@@ -8,7 +8,7 @@ from typing import Callable, Iterable
 import numpy as np
 
 from components import bus
-from orchestrator.config import ComponentSpec
+from orchestrator.config.specs import ComponentSpec
 
 _SIGNALS = bus.SIGNALS_HEADER
 

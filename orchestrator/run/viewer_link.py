@@ -8,10 +8,10 @@ import subprocess
 import sys
 
 from components import bus
-from orchestrator import supervisor
-from orchestrator.config import RunConfig, ViewerSpec
-from orchestrator.control import StopRequested, raise_stop
-from orchestrator.members import Wait
+from orchestrator.run import supervisor
+from orchestrator.config.specs import RunConfig, ViewerSpec
+from orchestrator.run.control import StopRequested, raise_stop
+from orchestrator.run.members import Wait
 
 
 class ViewerLink:

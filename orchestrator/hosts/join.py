@@ -4,7 +4,7 @@ answers joins (docs/design.md §7).
 For each ``launch: external`` component the orchestrator writes a join file (mode 0600): the
 endpoints to reach the run, the run id, the secret, the component's name and generation, the bus
 settings (with TLS, the component's certificate and key and the run's CA). ``orchestrator join
-FILE`` (:mod:`orchestrator.joiner`) opens a session with them and asks the desk, on
+FILE`` (:mod:`orchestrator.hosts.joiner`) opens a session with them and asks the desk, on
 ``join/<component>``, which generation to serve: the desk grants a generation it waits for, and
 refuses a second join while the first one's process serves.
 """
@@ -15,7 +15,7 @@ import threading
 from pathlib import Path
 
 from components import bus
-from orchestrator.tls import write_private
+from orchestrator.hosts.tls import write_private
 
 FORMAT = "zenorbit join 1"   # the file's first key, so that a wrong file is told apart
 

@@ -19,8 +19,8 @@ import time
 from pathlib import Path
 
 from components import bus
-from orchestrator.join import FORMAT, join_key
-from orchestrator.tls import write_pem_files
+from orchestrator.hosts.join import FORMAT, join_key
+from orchestrator.hosts.tls import write_pem_files
 
 ASK_TIMEOUT_S = 5.0
 PROBE_TIMEOUT_S = 2.0

@@ -13,10 +13,10 @@ from typing import TYPE_CHECKING, Callable
 
 from components import schedule
 from components.units import unit_scale
-from orchestrator.config_file import ConfigErrors
+from orchestrator.config.yaml_file import ConfigErrors
 
 if TYPE_CHECKING:
-    from orchestrator.config import ComponentSpec
+    from orchestrator.config.specs import ComponentSpec
 
 SUFFIX = "_shadow"
 

@@ -8,10 +8,13 @@ from typing import Mapping, Protocol
 
 from components import registry
 from components.errors import ConfigError
-from orchestrator.config import COMPONENT, ComponentSpec, ConfigErrors, RunConfig, component_spec
-from orchestrator.config_file import apply_overrides
-from orchestrator.connections import check_replacement, hands_over
-from orchestrator.shadows import mismatches
+from orchestrator.config.schema import COMPONENT
+from orchestrator.config.specs import ComponentSpec, RunConfig
+from orchestrator.config.yaml_file import ConfigErrors
+from orchestrator.config.load import component_spec
+from orchestrator.config.yaml_file import apply_overrides
+from orchestrator.config.connections import check_replacement, hands_over
+from orchestrator.config.shadows import mismatches
 
 
 class SwapFailed(Exception):

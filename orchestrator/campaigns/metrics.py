@@ -21,8 +21,8 @@ import numpy as np
 
 from components.errors import ConfigError
 from components.units import _unit, to_si
-from orchestrator.config import RunConfig
-from orchestrator.dispersions import _quantity
+from orchestrator.config.specs import RunConfig
+from orchestrator.campaigns.dispersions import _quantity
 
 REDUCERS = ("final", "min", "max", "mean", "rms", "max_abs", "first_crossing")
 EVENT_REDUCERS = ("first", "last", "min", "max", "count")

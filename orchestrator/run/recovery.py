@@ -15,14 +15,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from components.units import duration_ns, duration_text
-from orchestrator import messages, wiring, wording
-from orchestrator.config import ComponentSpec, Fault
-from orchestrator.connections import handover_problem, hands_over
-from orchestrator.control import SwapFailed
-from orchestrator.members import Member, RunFailure, terminate
+from orchestrator.run import messages, wiring, wording
+from orchestrator.config.specs import ComponentSpec, Fault
+from orchestrator.config.connections import handover_problem, hands_over
+from orchestrator.run.control import SwapFailed
+from orchestrator.run.members import Member, RunFailure, terminate
 
 if TYPE_CHECKING:
-    from orchestrator.engine import Run
+    from orchestrator.run.engine import Run
 
 
 @dataclass

@@ -16,8 +16,8 @@ import numpy as np
 
 from components import bus, schedule
 from components.registry import Unresolved, resolve
-from orchestrator import shadows
-from orchestrator.config import RunConfig
+from orchestrator.config import shadows
+from orchestrator.config.specs import RunConfig
 
 
 class _Stepped:

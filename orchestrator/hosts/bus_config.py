@@ -86,7 +86,7 @@ def check(section: dict, config_dir: Path, errors: list[str], file) -> BusSpec |
             paths.append(path)
         ca = tuple(paths)
         if len(errors) == before:
-            from orchestrator.tls import load_ca
+            from orchestrator.hosts.tls import load_ca
             try:
                 load_ca(*ca)
             except ValueError as e:

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 from components.units import unit_scale
 
 if TYPE_CHECKING:
-    from orchestrator.config import ComponentSpec
+    from orchestrator.config.specs import ComponentSpec
 
 
 def check_replacement(spec: ComponentSpec, connections: list[tuple[str, str, str, str]]) -> list[str]:

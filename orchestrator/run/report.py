@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from orchestrator import wording
+from orchestrator.run import wording
 
 
 def summary(name: str, status: str, row: int, steps: int, step_ns: int, wall_s: float, loop_s: float,

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from orchestrator.campaign_metrics import Metric
+from orchestrator.campaigns.metrics import Metric
 
 STOP_GRACE_S = 20.0      # a stopped case's run gets this long to stop cleanly before it is killed
 MAX_EVENTS = 1000        # event names kept per case (the outcome is decided from them)

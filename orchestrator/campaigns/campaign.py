@@ -2,8 +2,8 @@
 metrics reduced from each case's signals (README "Parameter sweeps and Monte Carlo campaigns").
 
 This module is the pure part: reading and validating a campaign file, generating its cases and
-reducing metrics from a recording (:mod:`orchestrator.dispersions`, :mod:`orchestrator.campaign_metrics`).
-Running them is :mod:`orchestrator.campaign_runner`.
+reducing metrics from a recording (:mod:`orchestrator.campaigns.dispersions`, :mod:`orchestrator.campaigns.metrics`).
+Running them is :mod:`orchestrator.campaigns.runner`.
 
 A campaign file::
 
@@ -42,10 +42,11 @@ import yaml
 
 from components.errors import ConfigError
 from components.units import _QUANTITY, _unit
-from orchestrator.campaign_metrics import Metric, metric, signals_of
-from orchestrator.config import ConfigErrors, validate
-from orchestrator.config_file import read_yaml
-from orchestrator.dispersions import Dispersion, dispersion
+from orchestrator.campaigns.metrics import Metric, metric, signals_of
+from orchestrator.config.yaml_file import ConfigErrors
+from orchestrator.config.load import validate
+from orchestrator.config.yaml_file import read_yaml
+from orchestrator.campaigns.dispersions import Dispersion, dispersion
 
 CAMPAIGN_KEYS = ("config", "grid", "disperse", "samples", "seed", "metrics", "outcomes", "keep")
 RESERVED_OUTCOMES = ("completed", "failed", "interrupted")

@@ -10,8 +10,8 @@ import time
 import uuid
 from pathlib import Path
 
-from orchestrator.campaign_case import STOP_GRACE_S, execute_case
-from orchestrator.campaign_runner import CampaignDir, CampaignError, Progress, _ignore_interrupts
+from orchestrator.campaigns.case import STOP_GRACE_S, execute_case
+from orchestrator.campaigns.directory import CampaignDir, CampaignError, Progress, _ignore_interrupts
 
 
 def remote_case(payload: dict) -> dict:

@@ -12,7 +12,7 @@ import struct
 from pathlib import Path
 
 from components import bus, bus_security
-from orchestrator.bus_config import BusSpec, host_of, is_loopback
+from orchestrator.hosts.bus_config import BusSpec, host_of, is_loopback
 
 SIOCGIFADDR = 0x8915
 
@@ -56,7 +56,7 @@ class RunBus:
     :meth:`close`) holds the run's certificates for the processes of this host."""
 
     def __init__(self, config, run_id: str, secret: str, record_dir: Path | None, out):
-        from orchestrator import runs
+        from orchestrator.run import runs
         spec: BusSpec = config.bus
         self.config, self.spec, self.run_id, self.secret, self.out = config, spec, run_id, secret, out
         self.directory = runs.directory() / f"{run_id}.bus"
@@ -68,7 +68,7 @@ class RunBus:
         self.local: str = ""                # where processes of this host (and the CLI) connect
         self.listen: list[str] = []
         if spec.tls:
-            from orchestrator.tls import RunCertificates
+            from orchestrator.hosts.tls import RunCertificates
             components = list(config.components)
             holders = {"orchestrator": bus_security.ORCHESTRATOR_NAME, "cli": bus_security.CLI_NAME,
                        "router": bus_security.ROUTER_NAME,
@@ -90,13 +90,13 @@ class RunBus:
         waits for the router (run.join_timeout)."""
         import zenoh
 
-        from orchestrator import supervisor
-        from orchestrator.join import JoinDesk
-        from orchestrator.members import RunFailure
+        from orchestrator.run import supervisor
+        from orchestrator.hosts.join import JoinDesk
+        from orchestrator.run.members import RunFailure
 
         spec = self.spec
         if spec.tls or any(c.launch == "external" for c in self.config.components.values()):
-            from orchestrator.link_watch import LinkWatch
+            from orchestrator.hosts.link_watch import LinkWatch
             self.watch = LinkWatch(self.out)   # says so when a link with a wrong secret or certificate is refused
         connect = ([spec.router] if spec.router else []) + spec.connect
         if spec.router:
@@ -124,7 +124,7 @@ class RunBus:
         return session
 
     def _write(self, role: str, path: Path, connect: list[str], member=None) -> Path:
-        from orchestrator.join import write_join_file
+        from orchestrator.hosts.join import write_join_file
         holder = f"component.{member.name}" if member is not None else "router"
         return write_join_file(path, role=role, run_id=self.run_id, run_name=self.config.name, connect=connect,
                                secret=self.secret, settings=self.settings(holder, portable=True),

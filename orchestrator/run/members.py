@@ -13,9 +13,9 @@ import numpy as np
 
 from components import bus
 from components.schedule import Route
-from orchestrator import supervisor
-from orchestrator.config import ComponentSpec, RunConfig
-from orchestrator.messages import Fault, Outputs
+from orchestrator.run import supervisor
+from orchestrator.config.specs import ComponentSpec, RunConfig
+from orchestrator.run.messages import Fault, Outputs
 
 
 class RunFailure(Exception):
@@ -94,7 +94,7 @@ class Crew:
                  place: Callable[[ComponentSpec], tuple[np.ndarray, np.ndarray]], wait: Wait, hosts):
         self.config, self.run_id, self.session, self.endpoint = config, run_id, session, endpoint
         self.secret, self.env, self.log_dir, self.placement, self.out = secret, env, log_dir, placement, out
-        self.place, self.wait, self.hosts = place, wait, hosts   # hosts: the run's bus (orchestrator.run_bus)
+        self.place, self.wait, self.hosts = place, wait, hosts   # hosts: the run's bus (orchestrator.hosts.run_bus)
 
     def launch(self, spec: ComponentSpec, generation: int) -> Member:
         """Start the process of a member (or ask the user to, for an external one)."""

@@ -7,9 +7,9 @@ import numpy as np
 
 from components import schedule
 from components.schedule import Route
-from orchestrator.config import ComponentSpec, RunConfig
-from orchestrator.config import Fault as Injected   # an injected fault (not a reported one)
-from orchestrator.members import Crew, Member, RunFailure
+from orchestrator.config.specs import ComponentSpec, RunConfig
+from orchestrator.config.specs import Fault as Injected   # an injected fault (not a reported one)
+from orchestrator.run.members import Crew, Member, RunFailure
 
 
 def routes(consumer: ComponentSpec, members: dict[str, Member], config: RunConfig) -> list[Route]:

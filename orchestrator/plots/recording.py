@@ -12,7 +12,7 @@
 | ``<c>_torque.png`` | computed_torque, joint_pd | torques of the driven joints, N m (Fig. 7) |
 | ``<c>_base.png`` | controller.computed_torque | the body's base displacement (mm, W) and rotation (deg) from t0, and sigma_min of J_g |
 | ``<c>_joints.png`` | controller.joint_pd | joint positions and their references |
-| ``<c>_shadow.png`` | a component with a ``shadow`` | main - shadow over time for each output both record (orchestrator/shadow_plots.py) |
+| ``<c>_shadow.png`` | a component with a ``shadow`` | main - shadow over time for each output both record (orchestrator/plots/shadows.py) |
 | ``<c>_capture.png`` | dynamics.* with a ``grasp`` | distance and relative rate to the grasp frame, the assembly's rate, wheel rates (joints named ``*wheel*``), the wrist wrench, and the total momentum's change, the capture instant marked |
 
 ``signals=[name, ...]`` plots those columns instead (``signals.png``): a column such as
@@ -26,16 +26,13 @@ from pathlib import Path
 import numpy as np
 
 from components.rotations import quat_to_matrix
-from orchestrator.shadow_plots import shadow_figures
+from orchestrator.plots.figure import PlotError, new_figure
+from orchestrator.plots.shadows import shadow_figures
 
 COMPUTED_TORQUE = "controller.computed_torque"
 JOINT_PD = "controller.joint_pd"
 DYNAMICS = ("dynamics.dart", "dynamics.pinocchio")      # the engines: the same outputs
 ORBIT = "orbit."
-
-
-class PlotError(Exception):
-    """A recording that cannot be plotted (missing files or columns)."""
 
 
 def _load(record_dir: Path) -> tuple[dict, dict[str, np.ndarray]]:
@@ -83,12 +80,6 @@ def _joint_names(record_dir: Path, params: dict, n: int) -> list[str]:
     return names if len(names) == n else [f"tau[{i}]" for i in range(n)]
 
 
-def _figure(*size):
-    from matplotlib.figure import Figure
-
-    return Figure(figsize=size, layout="constrained")
-
-
 def _driven(tau: np.ndarray) -> np.ndarray:
     """Indices of the torque columns that are not identically zero."""
     return np.flatnonzero(np.any(tau != 0.0, axis=0))
@@ -113,7 +104,7 @@ def _computed_torque(name: str, params: dict, config: dict, columns: dict, t: np
         p, p_d, frame = p @ R0, p_d @ R0, "the base's initial frame"
         origin = p_d[0]
 
-    fig = _figure(7.0, 6.0)
+    fig = new_figure(7.0, 6.0)
     ax = fig.add_subplot(projection="3d")
     ax.plot(*(p_d - origin).T, color="black", linestyle="--", linewidth=1.5, label="desired")
     ax.plot(*(p - origin).T, color="red", linewidth=1.0, label="obtained")
@@ -130,7 +121,7 @@ def _computed_torque(name: str, params: dict, config: dict, columns: dict, t: np
     ax.set_zlim(centre[2] - span, centre[2] + span)
     written.append((f"{name}_path.png", fig))
 
-    fig = _figure(8.0, 6.0)
+    fig = new_figure(8.0, 6.0)
     axes = fig.subplots(2, 1, sharex=True)
     for ax, part, scale, unit, title in ((axes[0], error[:, :3], 1e3, "mm", "a) position error p_d - p"),
                                          (axes[1], error[:, 3:], 1e3, "mrad", "b) orientation error log(R_d R^T)")):
@@ -151,7 +142,7 @@ def _computed_torque(name: str, params: dict, config: dict, columns: dict, t: np
     base = _vector(columns, base_source, 3) if base_source else None
     sigma = columns.get(f"{name}.sigma_min")
     if base is not None or sigma is not None:
-        fig = _figure(8.0, 7.5)
+        fig = new_figure(8.0, 7.5)
         axes = fig.subplots(3, 1, sharex=True)
         if q_base is not None:
             q0 = q_base[0] / np.linalg.norm(q_base[0])
@@ -179,7 +170,7 @@ def _computed_torque(name: str, params: dict, config: dict, columns: dict, t: np
 
 def _torques(name, params, tau, t, record_dir) -> tuple[str, object]:
     names = _joint_names(record_dir, params, tau.shape[1])
-    fig = _figure(8.0, 4.5)
+    fig = new_figure(8.0, 4.5)
     ax = fig.add_subplot()
     driven = _driven(tau)
     for i in driven:
@@ -205,7 +196,7 @@ def _joint_pd(name, params, config, columns, t, record_dir) -> list[tuple[str, o
     q = _vector(columns, source) if source else None
     names = _joint_names(record_dir, params, tau.shape[1])
     driven = [names.index(j) for j in (params.get("gains") or {}) if j in names] or list(_driven(tau))
-    fig = _figure(8.0, 4.5)
+    fig = new_figure(8.0, 4.5)
     ax = fig.add_subplot()
     for k, i in enumerate(driven):
         color = f"C{k % 10}"
@@ -237,7 +228,7 @@ def _orbit(name: str, config: dict, columns: dict, t: np.ndarray) -> list[tuple[
     x = np.cos(angle) * r[:, 0] + np.sin(angle) * r[:, 1]                      # Earth-fixed
     y = -np.sin(angle) * r[:, 0] + np.cos(angle) * r[:, 1]
     radius = np.linalg.norm(r, axis=1)
-    fig = _figure(11.0, 7.0)
+    fig = new_figure(11.0, 7.0)
     ax = fig.add_subplot(2, 2, 1)
     altitude = (radius - R_EARTH) / 1e3
     ax.plot(t, altitude, color="k", linewidth=1.0)
@@ -293,7 +284,7 @@ def _dynamics(name: str, params: dict, config: dict, columns: dict, t: np.ndarra
         panels = [panel for panel, data in found.items() if data is not None]
         if not panels:
             continue
-        fig = _figure(9.0, 3.2 * len(panels))
+        fig = new_figure(9.0, 3.2 * len(panels))
         for row, panel in enumerate(panels, start=1):
             ax = fig.add_subplot(len(panels), 1, row)
             if panel == "attitude":
@@ -344,7 +335,7 @@ def _capture(name: str, params: dict, columns: dict, t: np.ndarray, record_dir: 
             break
         total[:, :3] += momentum[:, :3]
         total[:, 3:] += momentum[:, 3:] + np.cross(com, momentum[:, :3])
-    fig = _figure(9.0, 14.0)
+    fig = new_figure(9.0, 14.0)
     axes = [fig.add_subplot(6, 1, k) for k in range(1, 7)]
     axes[0].plot(t, 1e3 * np.linalg.norm(p, axis=1), label="distance E to G (mm)")
     axes[0].set(yscale="log", title=f"{name}: end effector to grasp frame")
@@ -391,7 +382,7 @@ def _signals(names: list[str], columns: dict, t: np.ndarray) -> list[tuple[str, 
         else:
             near = sorted({c.split("[")[0] for c in columns if c not in ("step", "time")})
             raise PlotError(f"--signals: no column {name!r} in the recording (signals: {', '.join(near)})")
-    fig = _figure(9.0, 2.6 * len(series))
+    fig = new_figure(9.0, 2.6 * len(series))
     for row, (name, values) in enumerate(series.items(), start=1):
         ax = fig.add_subplot(len(series), 1, row)
         for k in range(values.shape[1]):
@@ -412,7 +403,7 @@ def figures(record_dir, signals: list[str] | None = None) -> list[tuple[str, obj
     """
     record_dir = Path(record_dir)
     if (record_dir / "cases.parquet").exists() and not signals:   # a campaign (orchestrator sweep --out DIR)
-        from orchestrator.campaign_plots import campaign_figures
+        from orchestrator.plots.campaigns import campaign_figures
         return campaign_figures(record_dir)
     config, columns = _load(record_dir)
     if "time" not in columns or not len(columns["time"]):

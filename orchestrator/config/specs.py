@@ -1,0 +1,96 @@
+"""What a valid run config is, as typed structures: a run, its components, events and faults."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from components.sdk import Component, Layout, Variable, run_parameters
+from orchestrator.hosts.bus_config import BusSpec
+
+
+@dataclass
+class ComponentSpec:
+    name: str
+    type: str
+    cls: type[Component]
+    step_ns: int
+    parameters: dict        # raw, as in the config (+ injected run parameters)
+    resolved: dict          # validated, SI
+    inputs: Layout
+    outputs: Layout
+    launch: str = "local"
+    dedicated_cpu: bool | str = False   # true: its stepping thread on a CPU of its own; "process": all its threads
+    on_failure: str = "stop"      # or "restart": the run goes back to its last checkpoint
+    shadow_of: str | None = None  # the component this one shadows (orchestrator/config/shadows.py)
+
+    @property
+    def key(self) -> str:
+        """Its entry in the config file."""
+        return f"components.{self.shadow_of}.shadow" if self.shadow_of else f"components.{self.name}"
+
+    @property
+    def variables(self) -> dict[str, Variable]:
+        return {v.name: v for v in self.inputs.variables + self.outputs.variables}
+
+
+@dataclass
+class ViewerSpec:
+    """The Rerun live view: ``mode`` spawn | web | save; ``file`` for save; ``rate_hz`` of sim time."""
+    mode: str
+    file: Path | None
+    rate_hz: float
+    open_browser: bool = False
+
+
+@dataclass
+class Event:
+    at_ns: int
+    swap: str
+    type: str
+    parameters: dict
+    spec: ComponentSpec | None = None
+
+
+@dataclass(frozen=True)
+class Fault:
+    """An injected failure: ``component`` fails in its first step at or after ``at_ns``."""
+    at_ns: int
+    component: str
+    kind: str
+    duration_ns: int | None = None
+
+
+@dataclass
+class RunConfig:
+    path: Path
+    name: str
+    epoch: str
+    duration_ns: int
+    step_ns: int
+    algorithm: str
+    realtime: float
+    step_timeout_s: float
+    start_timeout_s: float
+    components: dict[str, ComponentSpec]
+    connections: list[tuple[str, str, str, str]]  # (dst component, dst var, src component, src var)
+    listen: list[str]
+    bus: BusSpec
+    join_timeout_s: float
+    events: list[Event] = field(default_factory=list)
+    faults: list[Fault] = field(default_factory=list)
+    checkpoint_ns: int | None = None
+    max_restarts: int = 3
+    viewer: ViewerSpec | None = None
+    resolved: dict = field(default_factory=dict)   # the config as written to config.yaml
+    packages: dict = field(default_factory=dict)   # run.packages: name -> absolute directory
+    notes: list = field(default_factory=list)      # warnings found by the check (physics), one line each
+    record_flush_s: float = 1.0                    # run.record_flush
+
+    @property
+    def steps(self) -> int:
+        return self.duration_ns // self.step_ns
+
+    @property
+    def run_parameters(self) -> dict[str, str]:
+        """What every component gets besides its own parameters (sdk.RUN_PARAMETERS)."""
+        return run_parameters(self.epoch, self.path.parent.resolve(), self.packages)

@@ -26,7 +26,7 @@ from components.dynamics.capture import Grasp
 class SteppedWorld(Protocol):
     """What a step reads of its world (an OrbitalWorld)."""
     bodies: Mapping[str, Body]
-    integrator: str              # "rk4" or "euler"
+    integrator: str              # "rk4" or "dart"
     mu: float                    # m^3/s^2
     orbit_point: object          # the reference orbit's state at the stage (None before the first)
     env_now: bool                # the environment's forces act

@@ -34,3 +34,55 @@ def test_running_an_fmu_does_not_import_pythonfmu():
             "assert not loaded, loaded")
     done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
+
+
+def project_modules() -> dict[str, Path]:
+    modules = {}
+    for top in ("components", "orchestrator"):
+        for path in (ROOT / top).rglob("*.py"):
+            parts = path.relative_to(ROOT).with_suffix("").parts
+            modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return modules
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Module -> the project modules it imports anywhere in it (function-level and TYPE_CHECKING too)."""
+    modules = project_modules()
+    graph = {}
+    for module, path in modules.items():
+        edges = set()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                edges |= {a.name for a in node.names if a.name in modules}
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module in modules:
+                submodules = {f"{node.module}.{a.name}" for a in node.names} & modules.keys()
+                edges |= submodules or {node.module}
+        graph[module] = edges - {module}
+    return graph
+
+
+def test_no_two_modules_import_each_other():
+    graph = import_graph()
+    circles = []
+    for start in graph:   # a path back to itself, found depth-first
+        stack, seen = [(start, (start,))], set()
+        while stack:
+            module, path = stack.pop()
+            for nxt in graph[module]:
+                if nxt == start:
+                    circles.append(" -> ".join(path + (start,)))
+                elif nxt not in seen:
+                    seen.add(nxt)
+                    stack.append((nxt, path + (nxt,)))
+    assert not circles, "\n".join(sorted(set(circles)))
+
+
+def test_the_circle_check_finds_a_circle(monkeypatch):
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
+    monkeypatch.setattr(sys.modules[__name__], "import_graph", lambda: graph)
+    try:
+        test_no_two_modules_import_each_other()
+    except AssertionError as e:
+        assert "a -> b -> c -> a" in str(e)
+    else:
+        raise AssertionError("the circle a -> b -> c -> a was not found")

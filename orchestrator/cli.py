@@ -377,7 +377,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help="replace the recording already in --record DIR")
     with_set(p)
     p.add_argument("--view", metavar="{spawn,web,save:FILE.rrd}", help="live view in Rerun")
-    p.add_argument("--profile", action="store_true", help="print compute time, barrier wait and bus overhead")
+    p.add_argument("--profile", action="store_true", help="print, at the end, each component's compute time and "
+                   "waiting time per step (waiting: for its inputs or the horizon, the bus included) and the share "
+                   "of the wall time it computes")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("check", help="validate a config without running it")

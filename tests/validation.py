@@ -1,7 +1,7 @@
 """The validation table: each physics module against an independent reference.
 
     python -m tests.validation            # run the checks, print the table (Markdown), ~2 min
-    python -m tests.validation --readme   # and write it into README.md
+    python -m tests.validation --readme   # and write it into docs/reference/validation.md
 
 Each row is declared once, here: what is compared, against what, and the tolerance. The tests
 that measure a row call :func:`check`, which records the figure and fails the test when it is
@@ -164,7 +164,7 @@ def table(measured: dict[str, list[float]]) -> str:
     return "\n".join(lines)
 
 
-def write_readme(text: str, readme: Path = ROOT / "README.md") -> None:
+def write_readme(text: str, readme: Path = ROOT / "docs" / "reference" / "validation.md") -> None:
     content = readme.read_text()
     if README_START not in content or README_END not in content:
         raise SystemExit(f"{readme}: no '{README_START}' ... '{README_END}' markers to write the table between")
@@ -175,7 +175,7 @@ def write_readme(text: str, readme: Path = ROOT / "README.md") -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tests.validation", description=__doc__.splitlines()[0])
-    parser.add_argument("--readme", action="store_true", help="write the table into README.md")
+    parser.add_argument("--readme", action="store_true", help="write the table into docs/reference/validation.md")
     args = parser.parse_args(argv)
     import pytest
 
@@ -193,7 +193,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"rows not measured: {', '.join(missing)}", file=sys.stderr)
     if args.readme and status == 0 and not missing:
         write_readme(text)
-        print("written into README.md")
+        print("written into docs/reference/validation.md")
     return 0 if status == 0 and not missing else 1
 
 

@@ -1,0 +1,50 @@
+"""The documentation stays true to the code: the site builds strictly, its generated pages are
+current, the design's module map names every module, and the README's commands are CI's."""
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+from tools import docs
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_the_site_builds_with_warnings_as_errors(tmp_path):
+    """mkdocs build --strict: every page in the nav, every relative link and anchor resolves."""
+    build = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path / "site")],
+                           cwd=ROOT, capture_output=True, text=True, timeout=240,
+                           env={**os.environ, "NO_MKDOCS_2_WARNING": "1"})
+    assert build.returncode == 0, f"mkdocs build --strict failed:\n{build.stdout}\n{build.stderr}"
+    assert (tmp_path / "site" / "reference" / "components" / "index.html").is_file()
+
+
+def test_the_generated_pages_equal_what_the_code_gives():
+    for page, make in docs.PAGES.items():
+        assert page.read_text() == make(), \
+            f"{page.relative_to(ROOT)} is out of date: run python -m tools.docs"
+
+
+def _module_map() -> str:
+    design = (ROOT / "docs" / "design.md").read_text()
+    return design.split("### Module map", 1)[1].split("\n## ", 1)[0]
+
+
+def test_the_module_map_names_every_module_and_only_modules_that_exist():
+    named = set(re.findall(r"`((?:orchestrator|components)/[\w/]+\.py)`", _module_map()))
+    modules = {str(p.relative_to(ROOT)) for package in ("orchestrator", "components")
+               for p in (ROOT / package).rglob("*.py") if p.name != "__init__.py"}
+    assert not modules - named, f"docs/design.md's module map lacks {sorted(modules - named)}"
+    assert not named - modules, f"docs/design.md's module map names modules that do not exist: {sorted(named - modules)}"
+
+
+def test_the_readme_gives_what_ci_runs_and_its_links_resolve():
+    readme = (ROOT / "README.md").read_text()
+    ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]   # pip install -q -e ".[test]" && ...
+    tests = 'pip install -e ".[test]" && ' + ci.split(" && ", 1)[1]
+    assert tests in readme, f"the README's test command is not .ci/run's: {tests}"
+    assert 'pip install -e ".[test]" && orchestrator run configs/humanoid_tracking.yaml --record runs/demo' in readme
+    for target in re.findall(r"\]\(([^)\s]+)\)", readme):
+        if not re.match(r"\w+://", target):
+            assert (ROOT / target.split("#")[0]).exists(), f"README.md links to {target}, which does not exist"

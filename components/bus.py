@@ -1,4 +1,4 @@
-"""The wire protocol of a run, over Zenoh.
+"""A run's bus: its Zenoh sessions, and the step data on it.
 
 Components exchange their outputs directly: each publishes its outputs once per step into the
 inbox of each component it feeds. The orchestrator is off the per-step path: it grants a step
@@ -6,19 +6,9 @@ horizon, receives the outputs in batches (one wake-up per batch, not per step), 
 watches for faults; control goes through it. Everything addressed to a component lands in its
 one inbox, ``i/<name>/**``, read by one subscriber into a Zenoh FIFO: the component's main thread
 takes messages there without a Python callback (no GIL hand-over per message, no wake-up when a
-message is already waiting). Keys, under ``zenorbit/<run_id>/``:
-
-| key | from -> to | payload |
-|---|---|---|
-| ``i/<consumer>/o/<name>`` | component -> a consumer | step outputs (binary, tagged), a batch of them, or sync |
-| ``i/<name>/c/<gen>`` | orchestrator -> component | control (JSON + blob) or horizon |
-| ``i/<name>/q/<gen>`` | component -> itself | quit: the orchestrator's liveliness token went away |
-| ``r/<name>`` | component -> orchestrator | a batch of step outputs (binary), for recording |
-| ``c/<name>/<gen>/out`` | component -> orchestrator | reply (JSON + blob), fault, events or heartbeat |
-| ``alive/<name>/<gen>`` | component | liveliness token, gone when the process dies |
-| ``alive/orchestrator`` | orchestrator | liveliness token; components exit when it goes |
-| ``signals`` | orchestrator -> observers | one recorded row per step (binary), may drop |
-| ``ctl`` | CLI -> orchestrator | queryable: status, stop, swap |
+message is already waiting). The keys and the control messages are declared in
+:mod:`components.protocol`; here the sessions, and the step data: outputs, batches, sync and
+signals rows.
 
 Every output message carries its generation and tag (the step index of the time it holds, see
 :mod:`components.schedule`), so a consumer takes exactly the values meant for each step and
@@ -35,33 +25,16 @@ import os
 import struct
 import tempfile
 import threading
-from types import MappingProxyType
 from typing import Any, Mapping
 
 import numpy as np
 
-ROOT = "zenorbit"
-
-# message kinds (first byte)
-CONTROL = b"C"   # orchestrator -> component: JSON + blob
-HORIZON = b"H"   # orchestrator -> component: steps k < horizon may run
-OUTPUT = b"O"    # component -> consumers: header + outputs
-BATCH = b"B"     # component -> orchestrator: several steps' outputs
-SYNC = b"Y"      # component -> consumers: "you hear me" (the start-up handshake)
-REPLY = b"R"     # component -> orchestrator: JSON + blob
-FAULT = b"E"     # component -> orchestrator: JSON {op, k, error}
-EVENT = b"V"     # component -> orchestrator: JSON {op: "events", k, events: [[kind, fields], ...]}
-QUIT = b"Q"      # a component to itself, when the orchestrator's liveliness token is gone
-BEAT = b"K"      # component -> orchestrator: "still here" (every quarter of bus.lease, on the reply key)
+from components import protocol
+from components.protocol import BATCH, OUTPUT, SYNC, Malformed
 
 _OUTPUT_HEADER = struct.Struct("<qq")    # generation, tag
 _BATCH_HEADER = struct.Struct("<qqq")    # generation, number of steps, outputs per step
 _INT = struct.Struct("<q")
-_JSON_LENGTH = struct.Struct("<I")
-
-
-class Malformed(ValueError):
-    """A payload (or key) that is not a well-formed message of the kind expected: dropped, never fatal."""
 
 
 def count_drop(counts: dict[str, int], key: str) -> int | None:
@@ -78,60 +51,50 @@ def _expect(payload: bytes, kind: bytes, minimum: int) -> None:
 
 
 def run_key(run_id: str, *parts: str) -> str:
-    return "/".join((ROOT, run_id, *parts))
-
-
-def component_key(run_id: str, name: str, generation: int, leaf: str) -> str:
-    return run_key(run_id, "c", name, str(generation), leaf)
-
-
-def inbox_key(run_id: str, name: str, *parts: str) -> str:
-    """The inbox of component ``name`` (``parts`` empty: the prefix of all of it)."""
-    return run_key(run_id, "i", name, *parts)
+    return "/".join((protocol.ROOT, run_id, *parts))
 
 
 def command_key(run_id: str, name: str, generation: int) -> str:
-    return inbox_key(run_id, name, "c", str(generation))
+    return protocol.COMMANDS.key(run_id, name=name, generation=generation)
 
 
 def output_key(run_id: str, consumer: str, source: str) -> str:
     """Where ``source`` sends its outputs for ``consumer``."""
-    return inbox_key(run_id, consumer, "o", source)
+    return protocol.OUTPUTS.key(run_id, name=consumer, source=source)
 
 
 def batch_key(run_id: str, name: str) -> str:
-    return run_key(run_id, "r", name)
+    return protocol.BATCHES.key(run_id, name=name)
 
 
 def reply_key(run_id: str, name: str, generation: int) -> str:
-    return component_key(run_id, name, generation, "out")
+    return protocol.REPLIES.key(run_id, name=name, generation=generation)
 
 
 def quit_key(run_id: str, name: str, generation: int) -> str:
-    return inbox_key(run_id, name, "q", str(generation))
+    return protocol.QUITS.key(run_id, name=name, generation=generation)
 
 
 def inbox_pattern(run_id: str, name: str) -> str:
     """Everything addressed to component ``name``."""
-    return inbox_key(run_id, name, "**")
+    return protocol.INBOX.key(run_id, name=name)
 
 
 def output_prefix(run_id: str, consumer: str) -> str:
     """What the keys of the outputs sent to ``consumer`` start with (then the source's name)."""
-    return inbox_key(run_id, consumer, "o", "")
+    return protocol.OUTPUTS.key(run_id, name=consumer, source="")
 
 
-ORCHESTRATOR = "orchestrator"   # the orchestrator's liveliness name
 VIEWER = "_viewer"              # the observer's liveliness name (component names cannot start with _)
 
 
 def alive_key(run_id: str, name: str, generation: int) -> str:
     """The liveliness token of a component's (or the observer's, generation 0) process."""
-    return run_key(run_id, "alive", name, str(generation))
+    return protocol.ALIVE.key(run_id, name=name, generation=generation)
 
 
 def orchestrator_alive_key(run_id: str) -> str:
-    return run_key(run_id, "alive", ORCHESTRATOR)
+    return protocol.ORCHESTRATOR_ALIVE.key(run_id)
 
 
 def viewer_alive_key(run_id: str) -> str:
@@ -140,24 +103,24 @@ def viewer_alive_key(run_id: str) -> str:
 
 def control_key(run_id: str) -> str:
     """The orchestrator's queryable for the CLI."""
-    return run_key(run_id, "ctl")
+    return protocol.CTL.key(run_id)
 
 
 def signals_key(run_id: str) -> str:
-    return run_key(run_id, "signals")
+    return protocol.SIGNALS.key(run_id)
 
 
 # what the orchestrator subscribes to
 def batch_pattern(run_id: str) -> str:
-    return run_key(run_id, "r", "*")
+    return protocol.BATCHES.pattern(run_id)
 
 
 def reply_pattern(run_id: str) -> str:
-    return run_key(run_id, "c", "*", "*", "out")
+    return protocol.REPLIES.pattern(run_id)
 
 
 def alive_pattern(run_id: str) -> str:
-    return run_key(run_id, "alive", "*", "*")
+    return protocol.ALIVE.pattern(run_id)
 
 
 def batch_source(key: str) -> str:
@@ -232,45 +195,6 @@ def encode_sync(generation: int) -> bytes:
 def decode_sync(payload: bytes) -> int:
     _expect(payload, SYNC, 1 + _INT.size)
     return _INT.unpack_from(payload, 1)[0]
-
-
-def encode_horizon(horizon: int) -> bytes:
-    return HORIZON + _INT.pack(horizon)
-
-
-def decode_horizon(payload: bytes) -> int:
-    _expect(payload, HORIZON, 1 + _INT.size)
-    return _INT.unpack_from(payload, 1)[0]
-
-
-def encode_message(kind: bytes, body: Mapping[str, Any], blob: bytes = b"") -> bytes:
-    text = json.dumps(body).encode()
-    return kind + _JSON_LENGTH.pack(len(text)) + text + blob
-
-
-def decode_message(payload: bytes, fields: Mapping[str, type] = MappingProxyType({"op": str})) -> tuple[dict, bytes]:
-    """(JSON body, blob) of a control, reply or fault message; Malformed unless the body is a JSON
-    object holding ``fields`` of their types."""
-    if len(payload) < 1 + _JSON_LENGTH.size:
-        raise Malformed(f"message of {len(payload)} bytes: too short for a JSON header")
-    (n,) = _JSON_LENGTH.unpack_from(payload, 1)
-    start = 1 + _JSON_LENGTH.size
-    if start + n > len(payload):
-        raise Malformed(f"message of {len(payload)} bytes announces {n} bytes of JSON")
-    try:
-        body = json.loads(payload[start:start + n])
-    except ValueError as e:   # JSONDecodeError and UnicodeDecodeError
-        raise Malformed(f"message body is not JSON ({e})") from None
-    if not isinstance(body, dict):
-        raise Malformed(f"message body is not a JSON object: {body!r:.60}")
-    for name, kind in fields.items():
-        if not isinstance(body.get(name), kind) or isinstance(body.get(name), bool) and kind is int:
-            raise Malformed(f"message body lacks {name} ({kind.__name__}): {body!r:.80}")
-    return body, payload[start + n:]
-
-
-FAULT_FIELDS = MappingProxyType({"op": str, "k": int, "error": str})
-EVENT_FIELDS = MappingProxyType({"op": str, "k": int, "events": list})
 
 
 def jsonable(value):

@@ -21,6 +21,8 @@ from __future__ import annotations
 import json
 import os
 
+from components import protocol
+
 BUS_ENV = "ZENORBIT_BUS"   # the settings, for the processes the orchestrator starts
 
 ORCHESTRATOR_NAME = "zenorbit orchestrator"   # the certificates' common names: who holds them
@@ -71,19 +73,18 @@ def access_control(run_id: str, components: list[str]) -> dict:
     messages (commands, horizons), holds the orchestrator's liveliness token and answers joins
     and CLI queries; nobody sends another process its quit message. Enforced where a message
     comes in, by every process of the run and its router."""
-    root = f"zenorbit/{run_id}"
     others = [component_name(n) for n in components] + [CLI_NAME]
     return {
         "enabled": True,
         "default_permission": "allow",
         "rules": [
             {"id": "control", "permission": "deny", "flows": ["ingress"], "messages": ["put", "delete"],
-             "key_exprs": [f"{root}/i/*/c/**"]},
+             "key_exprs": [protocol.COMMANDS.covering(run_id)]},
             {"id": "orchestrator", "permission": "deny", "flows": ["ingress"],
              "messages": ["liveliness_token", "declare_queryable"],
-             "key_exprs": [f"{root}/alive/orchestrator", f"{root}/join/**", f"{root}/ctl"]},
+             "key_exprs": [t.covering(run_id) for t in (protocol.ORCHESTRATOR_ALIVE, protocol.JOIN, protocol.CTL)]},
             {"id": "quit", "permission": "deny", "flows": ["ingress"], "messages": ["put", "delete"],
-             "key_exprs": [f"{root}/i/*/q/**"]},
+             "key_exprs": [protocol.QUITS.covering(run_id)]},
         ],
         "subjects": [
             {"id": "not the orchestrator", "cert_common_names": others},

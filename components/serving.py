@@ -1,5 +1,5 @@
 """Serving a component on the run's bus: its session (a peer of the run's mesh, or a client of its
-router), its keys, and the loop that feeds :class:`components.runner.ComponentProcess` from its
+router), its keys, and the loop that feeds :class:`components.process.ComponentProcess` from its
 inbox, one generation at a time (``python -m components.runner`` serves one; ``orchestrator
 join`` serves one after another, see :mod:`orchestrator.hosts.joiner`)."""
 from __future__ import annotations
@@ -9,8 +9,12 @@ import sys
 import threading
 import time
 
-from components import bus
-from components.runner import INBOX_CAPACITY, IDLE_FLUSH_S, ComponentProcess, Halt
+from components import bus, protocol
+from components.process import IDLE_FLUSH_S, ComponentProcess, Halt
+
+INBOX_CAPACITY = 4096   # messages waiting in the inbox FIFO (a full one holds the senders back)
+_BEAT = protocol.Beat().encode()   # the same bytes every time
+_QUIT = protocol.Quit().encode()
 
 
 def _watchdog(process: ComponentProcess, stop: threading.Event, beat_s: float | None) -> None:
@@ -24,7 +28,7 @@ def _watchdog(process: ComponentProcess, stop: threading.Event, beat_s: float | 
             process.flush_if_due()
             if beat_s is not None and time.monotonic() >= beat_at:
                 beat_at = time.monotonic() + beat_s
-                process.publish_reply(bus.BEAT)
+                process.publish_reply(_BEAT)
     except zenoh.ZError:   # the session closed under it (Ctrl-C, a cut link): the main loop ends too
         pass
 
@@ -98,12 +102,12 @@ def serve_session(session, run_id: str, name: str, generation: int, cpu: int | N
         # the orchestrator gone (killed, machine lost): wake the main loop with a quit message
         if orchestrator in {str(t.zid) for t in session.info.transports()}:
             keep.append(session.info.declare_transport_events_listener(
-                lambda e: session.put(quit_key, bus.QUIT)
+                lambda e: session.put(quit_key, _QUIT)
                 if e.kind == zenoh.SampleKind.DELETE and str(e.transport.zid) == orchestrator else None))
         else:
             keep.append(session.liveliness().declare_subscriber(
                 bus.orchestrator_alive_key(run_id),
-                lambda s: session.put(quit_key, bus.QUIT) if s.kind == zenoh.SampleKind.DELETE else None))
+                lambda s: session.put(quit_key, _QUIT) if s.kind == zenoh.SampleKind.DELETE else None))
         keep.append(session.liveliness().declare_token(bus.alive_key(run_id, name, generation)))
         process = ComponentProcess(name, replies.put, publish_output, batches.put)
         threading.Thread(target=_watchdog, args=(process, stop_watchdog, beat_s), daemon=True).start()

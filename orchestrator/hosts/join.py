@@ -14,14 +14,14 @@ import json
 import threading
 from pathlib import Path
 
-from components import bus
+from components import protocol
 from orchestrator.hosts.tls import write_private
 
 FORMAT = "zenorbit join 1"   # the file's first key, so that a wrong file is told apart
 
 
 def join_key(run_id: str, name: str) -> str:
-    return bus.run_key(run_id, "join", name)
+    return protocol.JOIN.key(run_id, name=name)
 
 
 def write_join_file(path: Path, *, role: str, run_id: str, run_name: str, connect: list[str], secret: str,
@@ -47,7 +47,7 @@ class JoinDesk:
         self.entries: dict[str, dict] = {}   # name -> {generation, member, joined, host}
         self.zid = str(session.zid())
         self.over = False
-        self.queryable = session.declare_queryable(bus.run_key(run_id, "join", "*"), self._answer)
+        self.queryable = session.declare_queryable(protocol.JOIN.pattern(run_id), self._answer)
 
     def invite(self, member) -> None:
         """Wait for a join of this generation of an external member."""

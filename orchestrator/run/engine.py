@@ -34,7 +34,7 @@ import traceback
 import uuid
 from pathlib import Path
 
-from components import bus
+from components import bus, protocol
 from orchestrator.run import pacing, recovery, report, runs, supervisor, wiring
 from orchestrator.config import shadows
 from orchestrator.config.specs import ComponentSpec, RunConfig, ViewerSpec
@@ -231,7 +231,7 @@ class Run:
                 raise RunFailure(f"component {', '.join(map(repr, expect))} did not hear its sources within "
                                  f"{self.config.start_timeout_s:g} s (run.start_timeout)")
             for member in self.members.values():
-                member.control("sync")
+                member.control(protocol.Sync())
             round_end = time.monotonic() + SYNC_ROUND_S
             while expect and time.monotonic() < round_end:
                 try:
@@ -324,7 +324,7 @@ class Run:
                                      time.perf_counter() - wall_start if realtime > 0 else 0.0)
         if horizon is not None:
             self.horizon, self.horizon_at = horizon, time.monotonic()
-            grant = bus.encode_horizon(horizon)
+            grant = protocol.Horizon(horizon).encode()
             for member in self.members.values():
                 member.command.put(grant)
         return wake

@@ -11,7 +11,7 @@ from typing import Callable
 
 import numpy as np
 
-from components import bus
+from components import bus, protocol
 from components.schedule import Route
 from orchestrator.run import supervisor
 from orchestrator.config.specs import ComponentSpec, RunConfig
@@ -60,8 +60,8 @@ class Member:
     def name(self) -> str:
         return self.spec.name
 
-    def control(self, op: str, body: dict | None = None, blob: bytes = b"") -> None:
-        self.command.put(bus.encode_message(bus.CONTROL, {"op": op, **(body or {})}, blob))
+    def control(self, message: protocol.Message) -> None:
+        self.command.put(message.encode())
 
     def receive(self, message: Outputs) -> None:
         """Take a batch of its outputs (to be recorded); Malformed if not of this generation and size."""
@@ -136,27 +136,27 @@ class Crew:
                 raise RunFailure(self.hosts.late(late)) from None
             raise
         for member in started:
-            member.control("instantiate", instantiate_body(member.spec, self.config))
+            member.control(instantiate_message(member.spec, self.config))
         self.wait({m.name: "instantiate" for m in started}, timeout, "instantiate")
         return started
 
-    def ask(self, members: list[Member], op: str, what: str, timeout: float, body=None, blob=b"") -> None:
-        """Send each member the same request and wait for every answer (in ``member.reply``)."""
+    def ask(self, members: list[Member], message: protocol.Message, what: str, timeout: float) -> None:
+        """Send each member the same command and wait for every answer (in ``member.reply``)."""
         for member in members:
-            member.control(op, body, blob)
-        self.wait({m.name: op for m in members}, timeout, what)
+            member.control(message)
+        self.wait({m.name: message.OP for m in members}, timeout, what)
 
 
-def instantiate_body(spec: ComponentSpec, config: RunConfig) -> dict:
+def instantiate_message(spec: ComponentSpec, config: RunConfig) -> protocol.Instantiate:
     """The instantiate message: the type and its parameters, with the run's own."""
-    return {"type": spec.type, "params": bus.jsonable({**spec.parameters, **config.run_parameters})}
+    return protocol.Instantiate(spec.type, bus.jsonable({**spec.parameters, **config.run_parameters}))
 
 
 def terminate(member: Member, timeout: float = 5.0, final: bool = False) -> None:
     """Ask a member to terminate and make sure its process is gone (killed after ``timeout``).
     ``final``: the run is over (an external member's `orchestrator join` then exits)."""
     member.ended = True
-    member.control("terminate", {"final": final})
+    member.control(protocol.Terminate(final))
     supervisor.reap(member.process, timeout)
     member.command.undeclare()
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from components import bus
+from components import bus, protocol
 
 # inbox kinds: what the subscription callbacks enqueue, with the key and the payload
 OUTPUTS = "o"      # a batch of step outputs (payload: bytes)
@@ -79,23 +79,14 @@ def decode(kind: str, key: str, payload) -> Outputs | Reply | Fault | Events | B
         return Outputs(bus.batch_source(key), generation, tags, timings, outputs)
     if kind == REPLY:
         name, generation = bus.reply_source(key)
-        tag = payload[:1]
-        if tag == bus.BEAT:
+        report = protocol.decode_report(payload)
+        if type(report) is protocol.Beat:
             return Beat(name, generation)
-        if tag == bus.REPLY:
-            body, blob = bus.decode_message(payload)
-            return Reply(name, generation, body, blob)
-        if tag == bus.FAULT:
-            body, _ = bus.decode_message(payload, bus.FAULT_FIELDS)
-            return Fault(name, generation, body["op"], body["k"], body["error"])
-        if tag == bus.EVENT:
-            body, _ = bus.decode_message(payload, bus.EVENT_FIELDS)
-            events = body["events"]
-            if not all(isinstance(e, list) and len(e) == 2 and isinstance(e[0], str) and isinstance(e[1], dict)
-                       for e in events):
-                raise bus.Malformed("events: expected [kind, fields] pairs")
-            return Events(name, generation, body["k"], events)
-        raise bus.Malformed(f"neither a reply, a fault nor events: first byte {bytes(payload[:1])!r}")
+        if type(report) is protocol.Reply:
+            return Reply(name, generation, {"op": report.op, **report.details}, report.blob)
+        if type(report) is protocol.Fault:
+            return Fault(name, generation, report.op, report.k, report.error)
+        return Events(name, generation, report.k, report.events)
     if kind == LIVELINESS:
         source = bus.alive_source(key)
         return None if source is None else Liveliness(*source, payload)

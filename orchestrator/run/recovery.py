@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from components import protocol
 from components.units import duration_ns, duration_text
 from orchestrator.run import messages, wiring, wording
 from orchestrator.config.specs import ComponentSpec, Fault
@@ -95,7 +96,7 @@ class Recovery:
         """Every component's state at this step boundary, where they all are (docs/design.md §7)."""
         run = self.run
         live = list(run.members.values())
-        run.crew.ask(live, "get_state", "get_state (checkpoint)", run.config.step_timeout_s)
+        run.crew.ask(live, protocol.GetState(), "get_state (checkpoint)", run.config.step_timeout_s)
         self.checkpoint = Checkpoint(run.rows.row, run.rows.values.copy(), [m.spec for m in live],
                                      {m.name: m.reply["blob"] for m in live},
                                      {m.name: (m.tag, m.latest.copy()) for m in live}, list(run.pending_events))
@@ -137,7 +138,7 @@ class Recovery:
         for member in run.members.values():
             wiring.wire(run.crew, member, run.members, run.pending_faults, checkpoint.row)
         for member in run.members.values():
-            member.control("set_state", {}, checkpoint.states[member.name])
+            member.control(protocol.SetState(checkpoint.states[member.name]))
         run.wait({m: "set_state" for m in run.members}, config.step_timeout_s, "set_state (restart)")
         now = time.monotonic()
         for member in run.members.values():
@@ -208,8 +209,8 @@ class Recovery:
             joined = {**run.members, spec.name: new}
             wiring.wire(run.crew, new, joined, run.pending_faults, row)
             if handed_over:
-                run.crew.ask([old], "get_state", "get_state", config.step_timeout_s)
-                run.crew.ask([new], "set_state", "set_state", config.step_timeout_s, {}, old.reply["blob"])
+                run.crew.ask([old], protocol.GetState(), "get_state", config.step_timeout_s)
+                run.crew.ask([new], protocol.SetState(old.reply["blob"]), "set_state", config.step_timeout_s)
                 outputs = old.latest
             else:
                 outputs = wiring.initialize(run.crew, new, joined, t_ns)

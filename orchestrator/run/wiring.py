@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from components import schedule
+from components import protocol, schedule
 from components.schedule import Route
 from orchestrator.config.specs import ComponentSpec, RunConfig
 from orchestrator.config.specs import Fault as Injected   # an injected fault (not a reported one)
@@ -18,18 +18,19 @@ def routes(consumer: ComponentSpec, members: dict[str, Member], config: RunConfi
                            {n: m.ratio for n, m in members.items()}, list(config.components), config.algorithm)
 
 
-def wire_body(member: Member, members: dict[str, Member], config: RunConfig, faults: list[Injected], k: int) -> dict:
+def wire_message(member: Member, members: dict[str, Member], config: RunConfig, faults: list[Injected],
+                 k: int) -> protocol.Wire:
     """Which sources feed which of ``member``'s inputs (its routes, set), whom it feeds, from step
     ``k``, and the faults to inject into it."""
     name, step_ns = member.name, config.step_ns
     batched = schedule.batch_consumers(name, config.connections)
-    return {
-        "generation": member.generation, "step_ns": step_ns, "ratio": member.ratio, "k": k,
-        "consumers": sorted({d for d, _, s, _ in config.connections if s == name and d != name} - set(batched)),
-        "batch_consumers": batched,
-        "routes": [r.to_json() for r in member.routes],
-        "sources": sources(member, members),
-        "faults": [[-(-f.at_ns // step_ns), f.kind, (f.duration_ns or 0) / 1e9] for f in faults if f.component == name]}
+    return protocol.Wire(
+        generation=member.generation, step_ns=step_ns, ratio=member.ratio, k=k,
+        consumers=sorted({d for d, _, s, _ in config.connections if s == name and d != name} - set(batched)),
+        batch_consumers=batched,
+        routes=member.routes,
+        sources=sources(member, members),
+        faults=[(-(-f.at_ns // step_ns), f.kind, (f.duration_ns or 0) / 1e9) for f in faults if f.component == name])
 
 
 def sources(member: Member, members: dict[str, Member]) -> dict[str, int]:
@@ -37,16 +38,15 @@ def sources(member: Member, members: dict[str, Member]) -> dict[str, int]:
     return {r.source: members[r.source].generation for r in member.routes}
 
 
-def held(member: Member, members: dict[str, Member], only: str | None = None) -> tuple[dict, bytes]:
+def held(member: Member, members: dict[str, Member], only: str | None = None) -> list[tuple[str, int, np.ndarray]]:
     """What ``member``'s sources (or just ``only``) hold now: the recorded outputs and any
-    published ahead of them, as a ``start``/``rewire`` body part and blob."""
-    entries, blobs = [], []
+    published ahead of them, as (source, tag, outputs) for a ``start``/``rewire`` message."""
+    entries = []
     for name in {r.source for r in member.routes if only in (None, r.source)}:
         source = members[name]
         for tag, vector in [(source.tag, source.latest), *source.received]:
-            entries.append([name, tag, int(vector.size)])
-            blobs.append(vector.tobytes())
-    return {"held": entries}, b"".join(blobs)
+            entries.append((name, tag, vector))
+    return entries
 
 
 def initial_inputs(member: Member, members: dict[str, Member], step_ns: int) -> tuple[np.ndarray, dict]:
@@ -66,14 +66,13 @@ def wire(crew: Crew, member: Member, members: dict[str, Member], faults: list[In
     """Route ``member``'s inputs and send it the wire message; wait for its answer."""
     config = crew.config
     member.routes = routes(member.spec, members, config)
-    crew.ask([member], "wire", "wire", config.start_timeout_s, wire_body(member, members, config, faults, k))
+    crew.ask([member], wire_message(member, members, config, faults, k), "wire", config.start_timeout_s)
 
 
 def initialize(crew: Crew, member: Member, members: dict[str, Member], t_ns: int) -> np.ndarray:
     """Initialize ``member`` at ``t_ns``; its outputs there, all finite (else RunFailure)."""
     inputs, times = initial_inputs(member, members, crew.config.step_ns)
-    crew.ask([member], "initialize", "initialize", crew.config.start_timeout_s,
-             {"t0_ns": t_ns, "input_times_ns": times}, inputs.tobytes())
+    crew.ask([member], protocol.Initialize(t_ns, times, inputs), "initialize", crew.config.start_timeout_s)
     vector = np.frombuffer(member.reply["blob"], dtype=np.float64)
     variable = member.spec.outputs.first_non_finite(vector)
     if variable is not None:
@@ -84,13 +83,12 @@ def initialize(crew: Crew, member: Member, members: dict[str, Member], t_ns: int
 
 def go(member: Member, members: dict[str, Member], horizon: int) -> None:
     """Let ``member`` step, from what its sources hold, below ``horizon``."""
-    body, blob = held(member, members)
-    member.control("start", {**body, "horizon": horizon}, blob)
+    entries, values = protocol.holding(held(member, members))
+    member.control(protocol.Start(entries, horizon, values))
 
 
 def rewire(consumer: Member, members: dict[str, Member], config: RunConfig, source: str) -> None:
     """Tell ``consumer`` that ``source`` has a new generation (its routes may change with the type)."""
     consumer.routes = routes(consumer.spec, members, config)
-    body, blob = held(consumer, members, only=source)
-    consumer.control("rewire", {**body, "routes": [r.to_json() for r in consumer.routes],
-                                "sources": sources(consumer, members)}, blob)
+    entries, values = protocol.holding(held(consumer, members, only=source))
+    consumer.control(protocol.Rewire(entries, consumer.routes, sources(consumer, members), values))

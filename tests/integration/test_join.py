@@ -14,7 +14,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from components import bus
+from components import bus, protocol
 from orchestrator.run import runs
 from orchestrator.hosts.tls import make_ca, issue, _pem_certificate, _pem_key
 from tests.conftest import ROOT, orchestrator, start_run, wait_for_step, wait_until
@@ -153,8 +153,8 @@ def test_only_the_orchestrator_sends_control_messages(write_config, tmp_path):
             for name in ("src", "a", "b"):
                 for generation in (0, 1):
                     session.put(bus.command_key(rid, name, generation),
-                                bus.encode_message(bus.CONTROL, {"op": "terminate", "final": True}))
-            session.put(bus.quit_key(rid, "b", 0), bus.QUIT)
+                                protocol.Terminate(final=True).encode())
+            session.put(bus.quit_key(rid, "b", 0), protocol.Quit().encode())
             row = wait_for_step("acl", 20, run=run)
             wait_for_step("acl", row + 200, run=run)   # still stepping: nothing was taken
         assert orchestrator("stop", "--run", "acl").returncode == 0

@@ -3,13 +3,14 @@ garbage on a run's keys does not end it, and a kill -9 of the orchestrator leave
 that reads with pandas and no process behind."""
 import json
 import signal
+import struct
 import time
 
 import numpy as np
 import pandas
 import pytest
 
-from components import bus
+from components import bus, protocol
 from orchestrator.run import runs
 from tests.conftest import (component_processes, orchestrator, recorded_rows, start_run, wait_for_components,
                             wait_for_step, wait_until)
@@ -50,6 +51,12 @@ GARBAGE_WARNINGS = ("r/int", "r/ghost", "c/int/99/out", "c/int/0/out")   # in ev
 GARBAGE_LOGGED = ("dropped a message", "/o/ghost", "/c/0")                # in the integrator's log
 
 
+def _framed(kind: bytes, body: dict) -> bytes:
+    """A JSON message framed as protocol's are, whatever its body holds (garbage the encoders do not make)."""
+    text = json.dumps(body).encode()
+    return kind + struct.pack("<I", len(text)) + text
+
+
 @pytest.mark.parametrize("secret", ["the run's", None, "wrong"])
 def test_a_stranger_publishing_garbage_on_the_run_keys_does_not_end_it(write_config, tmp_path, secret):
     """With the run's secret (a buggy process of the run's user) the garbage arrives and is
@@ -67,13 +74,12 @@ def test_a_stranger_publishing_garbage_on_the_run_keys_does_not_end_it(write_con
             bus.batch_key(rid, "int"): [b"\x00\x01\x02", b"B" + bytes(30), bus.encode_batch(7, np.array([1]), good[:, :2], good),
                                          bus.encode_batch(0, np.array([1]), good[:, :2], np.zeros((1, 5)))],
             bus.batch_key(rid, "ghost"): [bus.encode_batch(0, np.array([1]), good[:, :2], good)],
-            bus.component_key(rid, "int", 0, "out"): [b"R\xff\xff\xff\xff{", b"E" + bytes(8),
-                                                      bus.encode_message(bus.FAULT, {"op": "step"})],
-            bus.component_key(rid, "int", 99, "out"): [bus.encode_message(bus.FAULT, {"op": "step", "k": 1, "error": "x"})],
+            bus.reply_key(rid, "int", 0): [b"R\xff\xff\xff\xff{", b"E" + bytes(8), _framed(b"E", {"op": "step"})],
+            bus.reply_key(rid, "int", 99): [protocol.Fault("step", 1, "x").encode()],
             bus.run_key(rid, "c", "int", "x", "out"): [b"junk"],
             bus.output_key(rid, "int", "src"): [b"\x00\x01\x02", bus.encode_output(0, 5, np.zeros(0)), b"Qxx"],
             bus.output_key(rid, "int", "ghost"): [bus.encode_output(0, 5, np.zeros(1))],
-            bus.command_key(rid, "int", 0): [b"\x00\x01\x02", bus.encode_message(bus.CONTROL, {"op": "explode"}),
+            bus.command_key(rid, "int", 0): [b"\x00\x01\x02", _framed(b"C", {"op": "explode"}),
                                             b"C\x05\x00\x00\x00nope!"],
         }
         key = entry["secret"] if secret == "the run's" else secret

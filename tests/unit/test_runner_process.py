@@ -1,9 +1,11 @@
-"""A component process's step logic (components/runner.py ComponentProcess) without the bus: its
+"""A component process's step logic (components/process.py ComponentProcess) without the bus: its
 three publish callbacks are lists, and the orchestrator's messages are handed to it directly."""
 from __future__ import annotations
 
-from components import bus
-from components.runner import ComponentProcess, Halt
+import numpy as np
+
+from components import bus, protocol
+from components.process import ComponentProcess, Halt
 
 
 class Transport:
@@ -17,24 +19,20 @@ class Transport:
                                 self.batches.append)
 
     def faults(self) -> list[dict]:
-        return [bus.decode_message(p, bus.FAULT_FIELDS)[0] for p in self.replies if p[:1] == bus.FAULT]
+        return [protocol.Fault.decode(p) for p in self.replies if p[:1] == protocol.FAULT]
 
     def tags(self) -> list[int]:
         return [t for b in self.batches for t in bus.decode_batch(b)[1].tolist()]
 
 
-def control(op: str, body: dict | None = None, blob: bytes = b"") -> bytes:
-    return bus.encode_message(bus.CONTROL, {"op": op, **(body or {})}, blob)
-
-
 def started(transport: Transport, params: dict) -> ComponentProcess:
     """test.faulty instantiated, wired (no inputs), initialized and started with horizon 0."""
     p = transport.process("f")
-    p.command(control("instantiate", {"type": "test.faulty", "params": params}))
-    p.command(control("wire", {"generation": 0, "step_ns": 1_000_000, "ratio": 1, "k": 0, "consumers": [],
-                               "batch_consumers": [], "routes": [], "sources": {}, "faults": []}))
-    p.command(control("initialize", {"t0_ns": 0, "input_times_ns": {}}))
-    p.command(control("start", {"held": [], "horizon": 0}))
+    p.command(protocol.Instantiate("test.faulty", params).encode())
+    p.command(protocol.Wire(generation=0, step_ns=1_000_000, ratio=1, k=0, consumers=[], batch_consumers=[],
+                            routes=[], sources={}, faults=[]).encode())
+    p.command(protocol.Initialize(0, {}, np.empty(0)).encode())
+    p.command(protocol.Start([], 0, np.empty(0)).encode())
     return p
 
 
@@ -53,11 +51,11 @@ def test_a_step_that_failed_is_never_run_again_whatever_horizon_comes():
     failed."""
     t = Transport()
     p = started(t, {"fault": "raise", "at_step": 3})
-    p.command(bus.encode_horizon(10))
+    p.command(protocol.Horizon(10).encode())
     assert step_until_halt(p)
-    assert [(f["op"], f["k"]) for f in t.faults()] == [("step", 3)]
+    assert [(f.op, f.k) for f in t.faults()] == [("step", 3)]
     assert t.tags() == [1, 2, 3]
-    p.command(bus.encode_horizon(20))
+    p.command(protocol.Horizon(20).encode())
     assert not step_until_halt(p)
     assert len(t.faults()) == 1 and t.tags() == [1, 2, 3] and p.component.k == 3
 
@@ -65,10 +63,10 @@ def test_a_step_that_failed_is_never_run_again_whatever_horizon_comes():
 def test_nan_output_halts_at_that_step():
     t = Transport()
     p = started(t, {"fault": "nan", "at_step": 2})
-    p.command(bus.encode_horizon(10))
+    p.command(protocol.Horizon(10).encode())
     assert step_until_halt(p)
-    assert [(f["op"], f["k"], f["error"]) for f in t.faults()] == [("nan", 2, "y")]
-    p.command(bus.encode_horizon(30))
+    assert [(f.op, f.k, f.error) for f in t.faults()] == [("nan", 2, "y")]
+    p.command(protocol.Horizon(30).encode())
     p.advance()
     assert t.tags() == [1, 2] and len(t.faults()) == 1
 
@@ -76,6 +74,6 @@ def test_nan_output_halts_at_that_step():
 def test_a_healthy_component_steps_to_the_horizon_and_no_further():
     t = Transport()
     p = started(t, {"fault": "raise", "at_step": 100})
-    p.command(bus.encode_horizon(5))
+    p.command(protocol.Horizon(5).encode())
     assert not step_until_halt(p)
     assert t.tags() == [1, 2, 3, 4, 5] and not t.faults()

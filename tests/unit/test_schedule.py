@@ -1,6 +1,8 @@
 """The lockstep rules (components/schedule.py) and the in-process loop built on them, no processes."""
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 import pytest
 
@@ -128,7 +130,7 @@ def test_fed_inputs_names_the_variables_a_route_feeds():
 
 
 def test_inbox_entries_decode_to_typed_messages():
-    from components import bus
+    from components import bus, protocol
     from orchestrator.run.messages import LIVELINESS, OUTPUTS, REPLY, Fault, Liveliness, Outputs, Reply, decode
 
     rid = "demo-1a2b3c4d"
@@ -138,9 +140,9 @@ def test_inbox_entries_decode_to_typed_messages():
     assert outputs.tags.tolist() == [4, 5] and outputs.outputs.tolist() == [[7.0, 6.0], [8.0, 5.0]]
     assert outputs.timings.tolist() == [[1.0, 2.0], [3.0, 4.0]]   # (compute, idle) of each step
     out_key = bus.reply_key(rid, "int", 12)
-    assert decode(REPLY, out_key, bus.encode_message(bus.REPLY, {"op": "wire", "n": 2}, b"\x01\x02")) == \
+    assert decode(REPLY, out_key, protocol.Reply("wire", {"n": 2}, b"\x01\x02").encode()) == \
         Reply("int", 12, {"op": "wire", "n": 2}, b"\x01\x02")
-    assert decode(REPLY, out_key, bus.encode_message(bus.FAULT, {"op": "step", "k": 9, "error": "boom"})) == \
+    assert decode(REPLY, out_key, protocol.Fault("step", 9, "boom").encode()) == \
         Fault("int", 12, "step", 9, "boom")
     assert decode(LIVELINESS, bus.alive_key(rid, "int", 7), False) == Liveliness("int", 7, False)
     assert decode(LIVELINESS, bus.viewer_alive_key(rid), True) == Liveliness(bus.VIEWER, 0, True)
@@ -153,17 +155,19 @@ def test_inbox_entries_decode_to_typed_messages():
     ("r", "c/int/x/out", "reply", "not a component's reply key"),
     ("r", "c/int/\u00b2/out", "reply", "not a component's reply key"),   # "²".isdigit(), but no number
     ("r", "out", "reply", "not a component's reply key"),
-    ("r", "c/int/0/out", b"X" + bytes(8), "neither a reply, a fault nor events"),
-    ("r", "c/int/0/out", "fault without k", "lacks k"),
+    ("r", "c/int/0/out", b"X" + bytes(8), "expected first byte one of"),
+    ("r", "c/int/0/out", "fault without k", "expected a field 'k'"),
     ("r", "c/int/0/out", b"R\xff\xff\xff\xff{", "announces"),
 ])
 def test_malformed_inbox_entries_are_refused_with_a_reason(kind, key, payload, reason):
-    from components import bus
+    from components import bus, protocol
     from orchestrator.run.messages import decode
 
+    text = b'{"op": "step", "error": "x"}'
+
     payload = {"tag 0": bus.encode_batch(0, np.array([0, 1]), np.zeros((2, 2)), np.zeros((2, 1))),
-               "reply": bus.encode_message(bus.REPLY, {"op": "wire"}),
-               "fault without k": bus.encode_message(bus.FAULT, {"op": "step", "error": "x"})}.get(payload, payload)
+               "reply": protocol.Reply("wire").encode(),
+               "fault without k": b"E" + struct.pack("<I", len(text)) + text}.get(payload, payload)
     with pytest.raises(bus.Malformed, match=reason):
         decode(kind, bus.run_key("demo-1a2b3c4d", *key.split("/")), payload)
 

@@ -1,0 +1,323 @@
+"""A component's process, its step logic: the commands of :mod:`components.protocol` applied to
+the component, its inputs gathered from its sources' outputs, its steps run in order below the
+horizon (see :mod:`components.schedule`), its outputs sent once per step to each consumer and in
+batches to the orchestrator. Nothing here touches Zenoh (:mod:`components.serving` feeds it from
+the component's inbox), so the step logic is tested without the bus.
+"""
+from __future__ import annotations
+
+import collections
+import os
+import signal
+import sys
+import threading
+import time
+import traceback
+
+import numpy as np
+
+from components import bus, protocol, registry
+from components.schedule import Route, fed_inputs
+
+BATCH_STEPS = 32   # outputs go to the orchestrator in batches of this many steps ...
+IDLE_FLUSH_S = 0.02  # ... or sooner: at the horizon, before a reply or fault, after this long idle,
+SLOW_STEP_S = 0.05   # or when a step takes this long (a hung step leaves the steps before it recorded)
+
+
+class Halt(Exception):
+    """Stop stepping: a fault was reported to the orchestrator, which ends the run."""
+
+
+class ComponentProcess:
+    """The adapter's state: the component, its layouts, its routes and the inputs it holds.
+
+    ``publish_reply`` and ``publish_batch`` send bytes on the component's reply and batch keys,
+    ``publish_output(consumers, payload)`` to the inboxes of the named consumers. Nothing here
+    touches Zenoh, so the step logic is tested without the bus.
+    """
+
+    def __init__(self, name: str, publish_reply, publish_output, publish_batch):
+        self.name = name
+        self.publish_reply = publish_reply
+        self.publish_output = publish_output
+        self.publish_batch = publish_batch
+        self.consumers: list[str] = []         # get its outputs at every step (they feed it back)
+        self.batch_consumers: list[str] = []   # get them in batches, as the orchestrator does (they never hold it up)
+        self.batched = 0
+        self.batch_lock = threading.Lock()
+        self.stepping_since: float | None = None   # perf_counter at the start of a running do_step
+        self.component = None
+        self.generation = 0
+        self.routes = []
+        self.route_inputs: list[list[str]] = []   # the input variables each route feeds
+        self.sources: dict[str, int] = {}        # source -> the generation whose outputs count
+        self.held: dict[str, collections.deque] = {}   # source -> (tag, outputs), tags increasing
+        self.heard: set[str] = set()             # sources whose sync message arrived
+        self.source_sizes: dict[str, int] = {}   # source -> the outputs its routes read
+        self.drops: dict[str, int] = {}          # key -> messages dropped from it
+        self.synced = False
+        self.next_k = 0
+        self.horizon = 0
+        self.final = True     # terminated because the run is over
+        self.halted = False   # a step failed: no further step, whatever horizon comes (the run ends or restarts)
+        self.step_ns = 0
+        self.ratio = 1
+        self.faults: list[tuple[int, str, float]] = []   # (step, kind, seconds) to inject, in step order
+        self.idle_since = time.perf_counter()
+
+    # ------------------------------------------------------------------ messages
+
+    def reply(self, op: str, details: dict | None = None, blob: bytes = b"") -> None:
+        self.flush()
+        self.publish_reply(protocol.Reply(op, details or {}, blob).encode())
+
+    def fault(self, op: str, k: int, error: str) -> None:
+        self.flush()
+        self.publish_reply(protocol.Fault(op, k, error).encode())
+
+    def command(self, payload: bytes) -> bool:
+        """A message from the orchestrator; False when the process should exit."""
+        message = protocol.decode_command(payload)
+        if type(message) is protocol.Horizon:
+            self.horizon = message.horizon
+            return True
+        try:
+            return self.control(message)
+        except Exception as error:  # reported to the orchestrator, which stops the run
+            traceback.print_exc(file=sys.stderr)
+            self.fault(message.OP, -1, f"{type(error).__name__}: {error}")
+            return True
+
+    def source_output(self, source: str, payload: bytes) -> None:
+        """An output (or sync) message of a source; bus.Malformed for one that is not, or that
+        does not come from a source of the live generation with outputs of its size."""
+        kind = payload[:1]
+        if kind == bus.OUTPUT:
+            generation, tag, vector = bus.decode_output(payload)
+            if self._accepts(source, generation, vector.size):
+                self.held[source].append((tag, vector))
+        elif kind == bus.BATCH:
+            generation, tags, _, outputs = bus.decode_batch(payload)
+            if self._accepts(source, generation, outputs.shape[1]):
+                self.held[source].extend(zip(tags.tolist(), outputs))
+        elif kind == bus.SYNC:
+            if self.sources.get(source) == bus.decode_sync(payload) and not self.synced:
+                self.heard.add(source)
+                self._synced_when_complete()
+        else:
+            raise bus.Malformed(f"not an output message: first byte {bytes(payload[:1])!r}")
+
+    def _accepts(self, source: str, generation: int, size: int) -> bool:
+        if source not in self.sources:
+            raise bus.Malformed(f"{source!r} is not a source of {self.name}")
+        if self.sources[source] != generation:
+            return False   # a replaced generation's outputs still in flight
+        if size < self.source_sizes.get(source, 0):
+            raise bus.Malformed(f"{size} outputs from {source!r}, its routes read {self.source_sizes[source]}")
+        return True
+
+    def dropped(self, key: str, reason: str) -> None:
+        """Note a dropped message in the component's log (bus.count_drop says when)."""
+        if n := bus.count_drop(self.drops, key):
+            print(f"warning: dropped a message on {key}: {reason} ({n} so far)", file=sys.stderr, flush=True)
+
+    # ------------------------------------------------------------------ control
+
+    def control(self, message: protocol.Message) -> bool:
+        op, kind = message.OP, type(message)
+        if kind is protocol.Instantiate:
+            try:
+                resolved = registry.resolve(message.type, message.params)   # run parameters included
+            except registry.Unresolved as e:
+                raise e.errors[0] from None
+            self.inputs, self.outputs = resolved.inputs, resolved.outputs
+            self.input_vector = self.inputs.start_vector()
+            self.output_vector = self.outputs.start_vector()
+            self.input_views = self.inputs.unpack(self.input_vector)
+            self.batch_tags = np.empty(BATCH_STEPS, dtype=np.int64)
+            self.batch_timings = np.empty((BATCH_STEPS, 2))
+            self.batch_rows = np.empty((BATCH_STEPS, self.outputs.size))
+            self.component = resolved.build()
+            self.component.input_times_ns = self.input_times = {}
+            self.reply(op, {"inputs": self.inputs.size, "outputs": self.outputs.size, "pid": os.getpid()})
+        elif kind is protocol.Wire:
+            self.generation, self.step_ns, self.ratio = message.generation, message.step_ns, message.ratio
+            self.consumers, self.batch_consumers = message.consumers, message.batch_consumers
+            self.faults = sorted(message.faults)
+            self.next_k = message.k
+            self.horizon = message.k
+            self._set_routes(message.routes)
+            self._set_sources(message.sources)
+            self.reply(op)
+        elif kind is protocol.Initialize:
+            self.input_vector[:] = message.inputs
+            self.input_times.clear()
+            self.input_times.update(message.input_times_ns)
+            result = self.component.initialize(message.t0_ns, self.input_views)
+            self.outputs.pack(result, self.output_vector)
+            self.reply(op, {}, self.output_vector.tobytes())
+        elif kind is protocol.Sync:
+            # our outputs now reach every consumer that subscribed before this message
+            self.publish_output(self.consumers + self.batch_consumers, bus.encode_sync(self.generation))
+            if self.synced:
+                self.reply("synced")
+        elif kind is protocol.Start:
+            # the values each source holds at the first step (its later outputs arrive on the bus)
+            self._hold(message.held_values())
+            self.horizon = message.horizon
+            self.idle_since = time.perf_counter()
+        elif kind is protocol.Rewire:
+            self._set_routes(message.routes)
+            self._set_sources(message.sources)
+            self._hold(message.held_values())
+            self.reply(op)
+        elif kind is protocol.GetState:
+            self.reply(op, {}, bus.encode_state(self.component.get_state()))
+        elif kind is protocol.SetState:
+            self.component.set_state(bus.decode_state(message.state))
+            self.reply(op)
+        elif kind is protocol.Terminate:
+            self.final = message.final   # the run is over (else: a restart may want this component again)
+            if self.component is not None:
+                self.component.terminate()
+            self.reply(op)
+            return False
+        else:
+            raise ValueError(f"not a command: {message!r:.60}")
+        return True
+
+    def _set_routes(self, routes: list[Route]) -> None:
+        self.routes = list(routes)
+        self.source_sizes = {}
+        for route in self.routes:
+            needed = int(route.src.max()) + 1 if route.src.size else 0
+            self.source_sizes[route.source] = max(self.source_sizes.get(route.source, 0), needed)
+        self.route_inputs = [fed_inputs(route, self.inputs.offsets) for route in self.routes]
+
+    def _set_sources(self, sources: dict[str, int]) -> None:
+        for source in sources:
+            self.held.setdefault(source, collections.deque())
+        self.sources = dict(sources)
+        self.heard = set()
+        self.synced = not any(s != self.name for s in self.sources)
+
+    def _hold(self, held: list[tuple[str, int, np.ndarray]]) -> None:
+        """Take source outputs from the orchestrator, (source, tag, outputs) in tag order per
+        source, keeping any newer ones that came on the bus first (a source may step as soon as
+        it is started, before this message arrives)."""
+        values: dict[str, collections.deque] = {}
+        for source, tag, vector in held:
+            values.setdefault(source, collections.deque()).append((tag, vector))
+        for source, entries in values.items():
+            last = entries[-1][0]
+            entries.extend(entry for entry in self.held.get(source, ()) if entry[0] > last)
+            self.held[source] = entries
+
+    def _synced_when_complete(self) -> None:
+        if not self.synced and all(s in self.heard for s in self.sources if s != self.name):
+            self.synced = True
+            self.reply("synced")
+
+    # ------------------------------------------------------------------ stepping
+
+    def advance(self) -> None:
+        """Do every step whose inputs are all held and which lies below the horizon."""
+        while not self.halted:
+            if self.next_k >= self.horizon:
+                self.flush()   # the orchestrator needs these outputs to grant more steps
+                return
+            k = self.next_k
+            vectors, tags = [], []
+            for route in self.routes:
+                held = self.held[route.source]
+                tag = route.tag(k)
+                tags.append(tag)
+                while held and held[0][0] < tag:
+                    held.popleft()
+                if not held:
+                    return
+                if held[0][0] != tag:
+                    raise Halt(self._report("step", k, f"input from {route.source!r} for step {k} "
+                                                         f"(tag {tag}) never arrived; got tag {held[0][0]}"))
+                vectors.append(held[0][1])
+            for route, names, vector, tag in zip(self.routes, self.route_inputs, vectors, tags):
+                self.input_vector[route.dst] = vector[route.src]
+                for name in names:
+                    self.input_times[name] = tag * self.step_ns
+            self._step(k)
+
+    def _step(self, k: int) -> None:
+        started = self.stepping_since = time.perf_counter()
+        fault = self.faults.pop(0)[1:] if self.faults and k >= self.faults[0][0] else None
+        if fault:
+            _inject(*fault)
+        try:
+            result = self.component.do_step(k * self.step_ns, self.ratio * self.step_ns, self.input_views)
+            self.outputs.pack(result, self.output_vector)
+            if fault and fault[0] == "nan":
+                self.output_vector[0] = np.nan
+        except Exception as error:
+            traceback.print_exc(file=sys.stderr)
+            raise Halt(self._report("step", k, f"{type(error).__name__}: {error}")) from None
+        finally:
+            self.stepping_since = None
+        done = time.perf_counter()
+        events = self.component.take_events()
+        if events:
+            self.publish_reply(protocol.Events(k, bus.jsonable([[kind, fields] for kind, fields in events])).encode())
+        vector = self.output_vector
+        variable = self.outputs.first_non_finite(vector)
+        if variable is not None:
+            raise Halt(self._report("nan", k, variable))
+        tag = k + self.ratio
+        if self.consumers:
+            self.publish_output(self.consumers, bus.encode_output(self.generation, tag, vector))
+        if self.name in self.held:   # a component fed by its own outputs
+            self.held[self.name].append((tag, vector.copy()))
+        with self.batch_lock:
+            i = self.batched
+            self.batch_tags[i] = tag
+            self.batch_timings[i] = done - started, started - self.idle_since
+            self.batch_rows[i] = vector
+            self.batched = i + 1
+        if self.batched == BATCH_STEPS:
+            self.flush()
+        self.next_k = tag
+        self.idle_since = time.perf_counter()
+
+    def flush(self) -> None:
+        """Send the outputs not yet sent to the orchestrator (from any thread)."""
+        with self.batch_lock:
+            self._flush()
+
+    def flush_if_due(self) -> None:
+        """From a watchdog thread: flush when idle for long, or while a step has been running for long."""
+        since, now = self.stepping_since, time.perf_counter()
+        if self.batched and (now - since > SLOW_STEP_S if since is not None else now - self.idle_since > IDLE_FLUSH_S):
+            self.flush()
+
+    def _flush(self) -> None:
+        n = self.batched
+        if n:
+            batch = bus.encode_batch(self.generation, self.batch_tags[:n], self.batch_timings[:n], self.batch_rows[:n])
+            self.publish_batch(batch)
+            if self.batch_consumers:
+                self.publish_output(self.batch_consumers, batch)
+            self.batched = 0
+
+    def _report(self, op: str, k: int, error: str) -> str:
+        self.fault(op, k, error)
+        self.halted = True   # a horizon granted later must not run the failed step again
+        return error
+
+
+def _inject(kind: str, seconds: float) -> None:
+    """A fault of the config's ``faults:`` (docs/design.md §7), as a real failure would look."""
+    print(f"injecting a fault: {kind}", file=sys.stderr, flush=True)
+    if kind == "crash":
+        os.kill(os.getpid(), signal.SIGKILL)
+    elif kind == "hang":
+        while True:
+            time.sleep(3600)
+    elif kind == "delay":
+        time.sleep(seconds)

@@ -16,7 +16,7 @@ from orchestrator.hosts import bus_config
 from orchestrator.config.schema import BUS, COMPONENT, CONFIG, FAULT, MAX_STEPS, RUN, VIEWER
 from orchestrator.config.specs import ComponentSpec, Event, Fault, RunConfig, ViewerSpec
 from orchestrator.config.yaml_file import ConfigErrors, apply_overrides, read_yaml
-from orchestrator.config.connections import _connections, check_replacement, hands_over, handover_problem
+from orchestrator.config.connections import check_replacement, hands_over, handover_problem, parse_connections
 from orchestrator.config.shadows import mismatches, shadow_spec, with_shadows
 
 def viewer_spec(raw: Any, where: str, errors: list[str], base: Path) -> ViewerSpec | None:
@@ -133,7 +133,7 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
         except Exception as e:   # a component's own check failing is a line too, not a traceback
             errors.append(f"{file}: {key}: {spec.type} cannot load its model: {type(e).__name__}: {e}")
     raw_entries = raw.get("components") if isinstance(raw.get("components"), dict) else {}
-    connections = _connections(config.get("connections", {}), components, raw_entries, file, errors)
+    connections = parse_connections(config.get("connections", {}), components, raw_entries, file, errors)
     for name, shadow in shadows.items():
         errors += [f"{file}: {shadow.key}: {p}" for p in mismatches(components[name], shadow, connections)]
     components, connections = with_shadows(components, shadows, connections)

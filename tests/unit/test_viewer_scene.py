@@ -4,13 +4,12 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import pytest
-
-rr = pytest.importorskip("rerun")
-from rerun.chunk import RrdReader  # noqa: E402
+import rerun as rr
+from rerun.chunk import RrdReader
 
 from components.constants import NS_PER_S
-from components.viewer.robot import Kinematics, read_geometry  # noqa: E402
-from components.viewer.scene import SceneLogger, parse_columns  # noqa: E402
+from components.viewer.robot import Kinematics, read_geometry
+from components.viewer.scene import SceneLogger, parse_columns
 
 ROOT = Path(__file__).resolve().parents[2]
 URDF = ROOT / "models" / "humanoid_torso.urdf"

@@ -43,7 +43,7 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from components.constants import MU_EARTH  # noqa: E402
+from components.constants import MU_EARTH, NS_PER_S  # noqa: E402
 from components.testing.harness import Harness  # noqa: E402
 
 CONFIG = ROOT / "configs" / "gravity_gradient_libration.yaml"
@@ -179,7 +179,7 @@ def main() -> None:
     except ConfigError as e:
         parser.error(f"--type: {e.message}")
     python = basilisk_python(args.venv)
-    scenario = Scenario(args.type, round(args.step * 1e9), args.orbits)
+    scenario = Scenario(args.type, round(args.step * NS_PER_S), args.orbits)
     print(f"machine: {machine()}; load average {load()}")
     print(f"{scenario.body} ({scenario.mass:g} kg, I = diag{tuple(round(scenario.inertia[i][i], 2) for i in range(3))} "
           f"kg m^2) from {CONFIG.name}, {scenario.steps} steps of {args.step:g} s ({args.orbits:g} orbits), "

@@ -23,6 +23,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from components.constants import NS_PER_S  # noqa: E402
 from components.sdk import Component, Parameter, Variable  # noqa: E402
 from components.testing.harness import Harness  # noqa: E402
 
@@ -44,7 +45,7 @@ class NativeWheel(Component):
         return {"motor_torque": 0.0, "reaction_torque": 0.0, "wheel_speed": 0.0}
 
     def do_step(self, t_ns, h_ns, inputs):
-        p, h = self.params, h_ns / 1e9
+        p, h = self.params, h_ns / NS_PER_S
         self.w += self.tau / p["inertia"] * h
         target = max(-p["max_torque"], min(p["max_torque"], float(inputs["torque_command"])))
         self.tau += (target - self.tau) * (1.0 - math.exp(-h / p["time_constant"]))

@@ -46,6 +46,8 @@ ROOT = Path(__file__).resolve().parents[1]
 if "--child" not in sys.argv:   # a child runs on the tree its PYTHONPATH names
     sys.path.insert(0, str(ROOT))
 
+from components.constants import NS_PER_S  # noqa: E402
+
 DEMO = ROOT / "configs" / "humanoid_tracking.yaml"
 STAND_IN = "benchmarks.paced_stand_ins:PacedDynamics"
 CONTROLLER_STAND_IN = "benchmarks.paced_stand_ins:PacedController"
@@ -151,7 +153,7 @@ def child(overrides: list[str]) -> None:
     if len(samples) == 2:
         (a, ka), (b, kb) = samples
         budget = {"/".join(key): (b[key] - a.get(key, 0.0)) / (kb - ka) * 1e6 for key in b}
-    json.dump({"factor": run.config.steps * run.config.step_ns / 1e9 / run.loop_s, "budget": budget}, sys.stdout)
+    json.dump({"factor": run.config.steps * run.config.step_ns / NS_PER_S / run.loop_s, "budget": budget}, sys.stdout)
 
 
 def bus_run(overrides: list[str], tree: Path) -> tuple[float, dict]:

@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 
+from components.constants import NS_PER_S
 from components.controller.components import ComputedTorqueComponent
 from components.dynamics.component import DartDynamics
 from components.schema import Float
@@ -38,7 +39,7 @@ class _Paced(Component):
         self.layout = layouts(self.declare(params))[1]
         if self.rows.shape[1] != self.layout.size:
             raise ValueError(f"replay: rows of {self.rows.shape[1]} values, the outputs hold {self.layout.size}")
-        self.cost_ns = round(params["cost"] * 1e9)
+        self.cost_ns = round(params["cost"] * NS_PER_S)
 
     def _row(self, k: int) -> dict[str, np.ndarray]:
         return self.layout.unpack(self.rows[min(k, len(self.rows) - 1)])

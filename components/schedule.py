@@ -89,6 +89,12 @@ def next_due(ratio: int, k: int) -> int:
     return -(-k // ratio) * ratio
 
 
+def first_step_at(t_ns: int, step_ns: int) -> int:
+    """The first run step at or after time ``t_ns``: the step of an event or a fault at ``t_ns``
+    (ceiling division in integers, exact)."""
+    return -(-t_ns // step_ns)
+
+
 def row_tag(ratio: int, row: int) -> int:
     """The output tag of a component with this ratio that row ``row`` of the recording holds."""
     return row // ratio * ratio

@@ -24,12 +24,17 @@ _SYMBOLS: dict[str, tuple[float, tuple[int, int, int, int]]] = {
     "rad": (1.0, (0, 0, 0, 1)), "deg": (3.141592653589793 / 180.0, (0, 0, 0, 1)),
     "N": (1.0, (1, 1, -2, 0)), "Hz": (1.0, (0, 0, -1, 0)),
 }
+# what a unit expression may be, for messages
+_UNIT_FORM = f"symbols among {', '.join(_SYMBOLS)}, joined by * and / with integer powers as in kg*m^2"
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _QUANTITY = re.compile(rf"^\s*({_NUMBER})\s*([A-Za-z][A-Za-z0-9*/^\-]*)?\s*$")
 
 
-def _unit(text: str) -> tuple[float, tuple[int, ...]]:
-    """Factor to SI and dimension of a unit expression such as ``km/s`` or ``kg*m^2``."""
+def parse_unit(text: str) -> tuple[float, tuple[int, ...]]:
+    """Factor to SI and dimension (exponents over m, kg, s, rad) of a unit expression such as
+    ``km/s`` or ``kg*m^2``: the symbols m km cm mm, kg g, s ms us ns min h d day, rad deg, N, Hz
+    and 1, joined by ``*`` and ``/``, each with an optional integer power ``^n``. Raises ValueError
+    naming the symbols it reads otherwise."""
     factor, dim = 1.0, [0, 0, 0, 0]
     sign = 1
     for token in re.split(r"([*/])", text.replace(" ", "")):
@@ -38,7 +43,7 @@ def _unit(text: str) -> tuple[float, tuple[int, ...]]:
             continue
         name, _, power = token.partition("^")
         if name not in _SYMBOLS or (power and not re.fullmatch(r"-?\d+", power)):
-            raise ValueError(f"unknown unit {text!r}")
+            raise ValueError(f"unknown unit {text!r} (expected {_UNIT_FORM})")
         f, d = _SYMBOLS[name]
         p = sign * (int(power) if power else 1)
         factor *= f ** p
@@ -46,10 +51,34 @@ def _unit(text: str) -> tuple[float, tuple[int, ...]]:
     return factor, tuple(dim)
 
 
+def parse_quantity(value, key: str) -> tuple[float, str | None]:
+    """The number and the unit of a config value, the number as written (not converted to SI):
+    ``"0.1 rad/s"`` -> (0.1, "rad/s"), ``"20s"`` -> (20.0, "s"), ``3`` or ``"3"`` -> (3.0, None)
+    (no unit: the number is already SI). :func:`parse_unit` reads the unit; :func:`to_si` converts.
+
+    Raises ConfigError naming ``key``, with what was expected next to what was given, for a value
+    that is not a number or ``"<number> <unit>"``, an unknown unit or a number that is not finite.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise ConfigError(key, f"expected a number or a quantity like '0.1 rad/s', got {value!r}")
+    if isinstance(value, str):
+        m = _QUANTITY.match(value)
+        if not m:
+            raise ConfigError(key, f"expected a number or a quantity like '0.1 rad/s', got {value!r}")
+        number, unit = float(m.group(1)), m.group(2)
+        if unit is not None and unit_scale(unit) is None:
+            raise ConfigError(key, f"unknown unit {unit!r} in {value!r} (expected {_UNIT_FORM})")
+    else:
+        number, unit = float(value), None
+    if not math.isfinite(number):
+        raise ConfigError(key, f"expected a finite number, got {value!r}")
+    return number, unit
+
+
 def unit_scale(text: str) -> tuple[float, tuple[int, ...]] | None:
     """Factor to SI and dimension of a unit expression, or None when it is not one this module reads."""
     try:
-        return _unit(text)
+        return parse_unit(text)
     except ValueError:
         return None
 
@@ -84,10 +113,10 @@ def to_si(value, unit: str, key: str) -> float:
     if given is None:
         return number
     try:
-        factor, dim = _unit(given)
+        factor, dim = parse_unit(given)
     except ValueError:
         raise ConfigError(key, f"unknown unit {given!r} in {value!r} (expected a unit of {unit})") from None
-    _, want = _unit(unit)
+    _, want = parse_unit(unit)
     if dim != want:
         raise ConfigError(key, f"unit {given!r} does not measure {unit} (got {value!r})")
     return number * factor

@@ -232,7 +232,7 @@ def cmd_describe(args) -> int:
 
     from components import registry
     from components.errors import ConfigError
-    from components.sdk import REQUIRED, resolve_parameters, run_parameters
+    from components.sdk import REQUIRED
     from orchestrator.config.yaml_file import ConfigErrors
     from orchestrator.config.yaml_file import apply_overrides
     if args.type == "config":
@@ -262,11 +262,11 @@ def cmd_describe(args) -> int:
         print(f"  they depend on the required parameters {', '.join(missing)}: give them to see the "
               f"variables, e.g. orchestrator describe {args.type} --set {missing[0]}=VALUE")
         return 0
-    params, errors = resolve_parameters(cls, {**given, **run_parameters("2000-01-01T12:00:00Z", Path.cwd())})
-    try:
-        variables = cls.declare(params) if not errors else []
-    except ConfigError as e:
-        errors = [e]
+    try:   # as a run resolves it (epoch: any will do for the variables)
+        resolved = registry.resolve(cls, given, epoch="2000-01-01T12:00:00Z", config_dir=Path.cwd())
+        variables, errors = resolved.inputs.variables + resolved.outputs.variables, []
+    except registry.Unresolved as e:
+        variables, errors = [], e.errors
     if errors and not given:   # the defaults alone do not make a valid instance (one of two needed...)
         print(f"  they depend on the parameters ({errors[0]}): give them with --set PARAM=VALUE")
         return 0

@@ -20,27 +20,13 @@ from typing import Any
 import numpy as np
 
 from components.constants import NS_PER_S
+from components.controller.gains import CARTESIAN_GAINS, TASK_AXES, gain, per_item
 from components.errors import ConfigError
 from components.robots.model import arm_reach, read_model
 from components.rotations import rpy_to_matrix
-from components.schema import Float, Int, ListOf, OneOf, Str, Vector
+from components.schema import Float, Int, ListOf, Str
 from components.sdk import Component, Parameter, Variable
 from components.signals import BODY_STATE, body_signals, torque_signal
-
-TASK_AXES = "x, y, z, rotation about x, y, z"
-
-
-def _gain(unit: str) -> OneOf:
-    return OneOf((Float(unit, minimum=0.0), Vector(None, unit, minimum=0.0)))
-
-
-def _per_item(value, n: int, key: str, each: str = "one per arm joint") -> np.ndarray:
-    if np.ndim(value) == 0:
-        return np.full(n, float(value))
-    if len(value) != n:
-        raise ConfigError(key, f"expected one number or {n} numbers ({each}), got {len(value)}")
-    return np.array(value, dtype=np.float64)
-
 
 @dataclass(frozen=True)
 class CaptureSetup:
@@ -145,28 +131,19 @@ class CaptureComponent(Component):
                   description="bound of the measured wrist torque while detumbling"),
         Parameter("detumble_gain", Float("N*m*s/rad", minimum=0.0),
                   description="bus torque per unit of IMU rate (rate damping) after capture"),
-        Parameter("captured_kp", _gain("N*m/rad"),
+        Parameter("captured_kp", gain("N*m/rad"),
                   description="joint stiffness holding the arm after capture (torque units: the target's inertia "
                               "is not in the model), one or per arm joint"),
-        Parameter("captured_kd", _gain("N*m*s/rad"),
+        Parameter("captured_kd", gain("N*m*s/rad"),
                   description="joint damping holding the arm after capture, one or per arm joint (stable for "
                               "kd * step well below the smallest joint-space inertia of the assembly)"),
         Parameter("wrench_recovery_time", Float("s", positive=True), default=2.0,
                   description="time for the wheel-torque factor to recover from 0 to 1 once the wrench is "
                               "within limits"),
-        Parameter("kp", _gain("1/s^2"), default=100.0,
-                  description="Cartesian K_p, one for all six axes or per axis: x, y, z, rotation about x, y, z (W)"),
-        Parameter("kd", _gain("1/s"), default=20.0,
-                  description="Cartesian K_d, one for all six axes or per axis: x, y, z, rotation about x, y, z (W)"),
-        Parameter("null_kp", _gain("1/s^2"), default=4.0,
-                  description="null-space posture stiffness (initial configuration), one or per arm joint"),
-        Parameter("null_kd", _gain("1/s"), default=4.0, description="null-space joint damping, one or per arm joint"),
-        Parameter("dls_threshold", Float(minimum=0.0), default=0.02,
-                  description="sigma_min(J_g) below which the pseudo-inverse is damped"),
-        Parameter("dls_damping", Float(minimum=0.0), default=0.05, description="damping at sigma_min = 0"),
-        Parameter("hold_kp", _gain("1/s^2"), default=25.0,
+        *CARTESIAN_GAINS,
+        Parameter("hold_kp", gain("1/s^2"), default=25.0,
                   description="computed-torque joint hold stiffness before the first estimate, one or per arm joint"),
-        Parameter("hold_kd", _gain("1/s"), default=10.0,
+        Parameter("hold_kd", gain("1/s"), default=10.0,
                   description="computed-torque joint hold damping before the first estimate, one or per arm joint"),
         Parameter("estimator_window", Int(minimum=3), default=10,
                   description="measurements in the least-squares fit (the latest)"),
@@ -216,11 +193,11 @@ class CaptureComponent(Component):
             lower=np.array([model.joint(j).lower for j in joints]),
             upper=np.array([model.joint(j).upper for j in joints]),
             shoulder=shoulder, reach=reach,
-            kp=_per_item(params["kp"], 6, "kp", TASK_AXES), kd=_per_item(params["kd"], 6, "kd", TASK_AXES),
-            null_kp=_per_item(params["null_kp"], n, "null_kp"), null_kd=_per_item(params["null_kd"], n, "null_kd"),
-            hold_kp=_per_item(params["hold_kp"], n, "hold_kp"), hold_kd=_per_item(params["hold_kd"], n, "hold_kd"),
-            captured_kp=_per_item(params["captured_kp"], n, "captured_kp"),
-            captured_kd=_per_item(params["captured_kd"], n, "captured_kd"))
+            kp=per_item(params["kp"], 6, "kp", TASK_AXES), kd=per_item(params["kd"], 6, "kd", TASK_AXES),
+            null_kp=per_item(params["null_kp"], n, "null_kp"), null_kd=per_item(params["null_kd"], n, "null_kd"),
+            hold_kp=per_item(params["hold_kp"], n, "hold_kp"), hold_kd=per_item(params["hold_kd"], n, "hold_kd"),
+            captured_kp=per_item(params["captured_kp"], n, "captured_kp"),
+            captured_kd=per_item(params["captured_kd"], n, "captured_kd"))
 
     @classmethod
     def validate(cls, params):

@@ -22,9 +22,10 @@ import numpy as np
 from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.rotations import continuous
+from components.controller.gains import CARTESIAN_GAINS, TASK_AXES, per_item
 from components.controller.trajectory import CARTESIAN
 from components.robots.model import JOINT_VALUE, arm_reach, joint_units, read_model
-from components.schema import Float, ListOf, MapOf, OneOf, Record, Str, Vector
+from components.schema import Float, ListOf, MapOf, Record, Str
 from components.sdk import Component, Parameter, Variable
 from components.signals import BODY_STATE, body_signals, torque_signal
 
@@ -42,19 +43,6 @@ def _check_names(names: list[str], key: str, allowed: list[str], what: str) -> l
         if name not in allowed:
             raise ConfigError(key, f"{name!r} is not a {what} of the URDF (expected one of: {', '.join(allowed)})")
     return list(names)
-
-
-def _per_item(value: float | np.ndarray, n: int, key: str, each: str = "one per joint") -> np.ndarray:
-    """One number for all n, or n numbers (``each`` says what they are)."""
-    if np.ndim(value) == 0:
-        return np.full(n, float(value))
-    if len(value) != n:
-        raise ConfigError(key, f"expected one number or {n} numbers ({each}), got {len(value)}")
-    return np.array(value, dtype=np.float64)
-
-
-def _gain(unit: str) -> OneOf:
-    return OneOf((Float(unit, minimum=0.0), Vector(None, unit, minimum=0.0)))
 
 
 def _loop_signals(model) -> list[Variable]:
@@ -81,7 +69,6 @@ class ArmSetup:
     reach: tuple[str, float]
 
 
-TASK_AXES = "x, y, z, rotation about x, y, z"
 QUATERNION_OUTPUTS = ("ee_orientation", "ee_orientation_desired")
 INITIAL = "initial."   # state keys of the inputs seen at an unsampled initialize, until the first step
 
@@ -125,15 +112,7 @@ class ComputedTorqueComponent(Component):
         Parameter("end_effector", "str", description="link (frame) name of the end effector"),
         Parameter("locked_joints", ListOf(Str(), unique=True), default=[],
                   description="joints welded in the dynamics (the same list as there)"),
-        Parameter("kp", _gain("1/s^2"), default=100.0,
-                  description="K_p, one for all six axes or per axis: x, y, z, rotation about x, y, z (W)"),
-        Parameter("kd", _gain("1/s"), default=20.0,
-                  description="K_d, one for all six axes or per axis: x, y, z, rotation about x, y, z (W)"),
-        Parameter("null_kp", _gain("1/s^2"), default=4.0, description="null-space posture stiffness, one or per joint"),
-        Parameter("null_kd", _gain("1/s"), default=4.0, description="null-space joint damping, one or per joint"),
-        Parameter("dls_threshold", Float(minimum=0.0), default=0.02,
-                  description="sigma_min(J_g) below which the pseudo-inverse is damped"),
-        Parameter("dls_damping", Float(minimum=0.0), default=0.05, description="damping at sigma_min = 0"),
+        *CARTESIAN_GAINS,
         Parameter("base_model", "str", default="free_floating", choices=("free_floating", "fixed"),
                   description="free_floating (Generalized Jacobian) or fixed (ignores the base reaction)"),
         Parameter("trajectory", CARTESIAN, default={"type": "hold"},
@@ -160,9 +139,9 @@ class ComputedTorqueComponent(Component):
             raise ConfigError(f"trajectory.{key}", f"out of reach: {size:.3f} m from the initial end-effector "
                                                    f"position, the arm spans at most {2 * reach:.3f} m")
         return ArmSetup(model=model, joints=joints, locked=locked, trajectory=trajectory,
-                        kp=_per_item(params["kp"], 6, "kp", TASK_AXES), kd=_per_item(params["kd"], 6, "kd", TASK_AXES),
-                        null_kp=_per_item(params["null_kp"], n, "null_kp"),
-                        null_kd=_per_item(params["null_kd"], n, "null_kd"), reach=(shoulder, reach))
+                        kp=per_item(params["kp"], 6, "kp", TASK_AXES), kd=per_item(params["kd"], 6, "kd", TASK_AXES),
+                        null_kp=per_item(params["null_kp"], n, "null_kp"),
+                        null_kd=per_item(params["null_kd"], n, "null_kd"), reach=(shoulder, reach))
 
     @classmethod
     def validate(cls, params):

@@ -29,6 +29,7 @@ from pythonfmu.enums import Fmi2Causality, Fmi2Status
 from pythonfmu.fmi2slave import Fmi2Slave
 from pythonfmu.variables import Real, ScalarVariable
 
+from components.constants import NS_PER_S
 from components.fmi.pythonfmu_exit import hold_binary_until_exit
 
 SPEC_FILE = "zenorbit.json"
@@ -262,14 +263,14 @@ class ComponentSlave(Fmi2Slave):
         return bad
 
     def setup_experiment(self, start_time: float, stop_time=None, tolerance=None):
-        self.t0_ns = round(start_time * 1e9)
+        self.t0_ns = round(start_time * NS_PER_S)
 
     def exit_initialization_mode(self):
         self.component.input_times_ns = {}
         try:
             bad = self._store(self.component.initialize(self.t0_ns, self._input_views()))
         except Exception as e:
-            message = f"{self.spec['type']}: initialize at t = {self.t0_ns / 1e9:g} s failed: {type(e).__name__}: {e}"
+            message = f"{self.spec['type']}: initialize at t = {self.t0_ns / NS_PER_S:g} s failed: {type(e).__name__}: {e}"
             self.log(message, Fmi2Status.error)
             raise RuntimeError(message) from None
         if bad is not None:
@@ -280,7 +281,7 @@ class ComponentSlave(Fmi2Slave):
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         # communication points come as doubles: the component's clock is integer ns
-        t_ns, h_ns = round(current_time * 1e9), round(step_size * 1e9)
+        t_ns, h_ns = round(current_time * NS_PER_S), round(step_size * NS_PER_S)
         if not self.initialized:
             self.log(f"{self.spec['type']}: do_step before initialization", Fmi2Status.error)
             return False

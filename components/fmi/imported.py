@@ -23,6 +23,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from components.constants import NS_PER_S
 from components.errors import ComponentError, ConfigError
 from components.schema import Anything, MapOf, Str
 from components.fmi.pythonfmu_exit import hold_binary_until_exit   # pythonfmu's crash at exit, worked around
@@ -387,7 +388,7 @@ class FMUComponent(Component):
     # ------------------------------------------------------------------ lifecycle
 
     def initialize(self, t0_ns, inputs):
-        self._enter(t0_ns / 1e9)
+        self._enter(t0_ns / NS_PER_S)
         self._set_inputs(inputs)
         self._call(self.fmu.exitInitializationMode, "exitInitializationMode")
         self.initialized, self.t_ns = True, t0_ns
@@ -395,11 +396,11 @@ class FMUComponent(Component):
 
     def do_step(self, t_ns, h_ns, inputs):
         self._set_inputs(inputs)
-        t_s = t_ns / 1e9   # h as the difference of the two points: t + h is the next point exactly
-        result = self._call(self.fmu.doStep, f"doStep at t = {t_s:.9g} s", t_s, (t_ns + h_ns) / 1e9 - t_s)
+        t_s = t_ns / NS_PER_S   # h as the difference of the two points: t + h is the next point exactly
+        result = self._call(self.fmu.doStep, f"doStep at t = {t_s:.9g} s", t_s, (t_ns + h_ns) / NS_PER_S - t_s)
         if self.fmi3 and result[1]:
             raise ComponentError(f"FMU {self.label} asked to terminate the simulation at t = "
-                                 f"{t_ns / 1e9:.9g} s" + (f": {' | '.join(self.messages)}" if self.messages else ""))
+                                 f"{t_ns / NS_PER_S:.9g} s" + (f": {' | '.join(self.messages)}" if self.messages else ""))
         self.t_ns = t_ns + h_ns
         return self._get_outputs()
 
@@ -422,7 +423,7 @@ class FMUComponent(Component):
             raise ComponentError(f"the state comes from another FMU (token {token}), not {self.label} "
                                  f"({self._token()}): swap with state only to the same FMU")
         if not self.initialized:   # the FMI state machine restores into an initialized instance
-            self._enter(int(state["t_ns"]) / 1e9)
+            self._enter(int(state["t_ns"]) / NS_PER_S)
             self._call(self.fmu.exitInitializationMode, "exitInitializationMode")
             self.initialized = True
         restored = self._call(self.fmu.deserializeFMUState, "deSerializeFMUstate", bytes(np.asarray(state["fmu_state"])))

@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 
+from components.constants import NS_PER_S
 from components.sdk import Component, Parameter, Variable
 
 
@@ -79,11 +80,11 @@ class Integrator(Component):
         self.gain, self.x = params["gain"], params["x0"]
 
     def initialize(self, t0_ns, inputs):
-        return {"x": self.x, "u_time": self.input_times_ns.get("u", t0_ns) / 1e9}
+        return {"x": self.x, "u_time": self.input_times_ns.get("u", t0_ns) / NS_PER_S}
 
     def do_step(self, t_ns, h_ns, inputs):
-        self.x += self.gain * float(inputs["u"]) * (h_ns / 1e9)
-        return {"x": self.x, "u_time": self.input_times_ns.get("u", t_ns) / 1e9}
+        self.x += self.gain * float(inputs["u"]) * (h_ns / NS_PER_S)
+        return {"x": self.x, "u_time": self.input_times_ns.get("u", t_ns) / NS_PER_S}
 
     def get_state(self):
         return {"x": np.float64(self.x)}

@@ -20,6 +20,8 @@ import sys
 import time
 from pathlib import Path
 
+from components.constants import NS_PER_S
+
 USAGE_ERROR = 2
 DEFAULT_RATE_HZ = 30.0
 BATCH_ROWS = 8192
@@ -75,10 +77,10 @@ def decimation(config: dict, rate_hz: float, times=None) -> int:
         step_ns = duration_ns((config.get("run") or {}).get("step"), "step")
     except Exception:
         if times is not None and len(times) > 1:
-            step_ns = int(round((times[1] - times[0]) * 1e9))
+            step_ns = int(round((times[1] - times[0]) * NS_PER_S))
     if not step_ns:
         return 1
-    return max(1, round(1e9 / (rate_hz * step_ns)))
+    return max(1, round(NS_PER_S / (rate_hz * step_ns)))
 
 
 def replay(directory: str | Path, mode: str = "spawn", file: str | Path | None = None, *,

@@ -41,7 +41,7 @@ from typing import Any
 import yaml
 
 from components.errors import ConfigError
-from components.units import _QUANTITY, _unit
+from components.units import parse_quantity, parse_unit
 from orchestrator.campaigns.metrics import Metric, metric, signals_of
 from orchestrator.config.yaml_file import ConfigErrors
 from orchestrator.config.load import validate
@@ -128,12 +128,11 @@ def si_value(value: Any) -> Any:
     if isinstance(value, (int, float)):
         return float(value)
     if isinstance(value, str):
-        m = _QUANTITY.match(value)
-        if m:
-            try:
-                return float(m.group(1)) * (_unit(m.group(2))[0] if m.group(2) else 1.0)
-            except ValueError:
-                return value
+        try:
+            number, unit = parse_quantity(value, "")
+        except ConfigError:
+            return value
+        return number * (parse_unit(unit)[0] if unit else 1.0)
     return value
 
 

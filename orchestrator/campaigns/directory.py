@@ -187,7 +187,7 @@ class Progress:
             print(file=self.out, flush=True)
 
 
-def _ignore_interrupts(action) -> None:
+def ignore_interrupts(action) -> None:
     """Run ``action`` with a second Ctrl-C ignored: the clean-up has bounded waits of its own."""
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import copy
-import math
 import zlib
 from dataclasses import dataclass
 from typing import Any
@@ -10,33 +9,12 @@ from typing import Any
 import numpy as np
 
 from components.errors import ConfigError
-from components.units import _QUANTITY, _unit, to_si
+from components.units import parse_quantity, parse_unit, to_si
 
 DISTRIBUTIONS = {"normal": 2, "uniform": 2, "truncated_normal": 4, "choice": None, "direction": 0}
 DISTRIBUTION_ARGS = {"normal": "[mean, sigma]", "uniform": "[low, high]",
                      "truncated_normal": "[mean, sigma, low, high]", "choice": "[value, value, ...]",
                      "direction": "uniform (a unit 3-vector, uniform on the sphere)"}
-
-
-def _quantity(value: Any, key: str) -> tuple[float, str | None]:
-    """(number, unit or None) of a bare number or ``"<number> <unit>"``; ConfigError otherwise."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-        raise ConfigError(key, f"expected a number or a quantity like '0.1 rad/s', got {value!r}")
-    if isinstance(value, str):
-        m = _QUANTITY.match(value)
-        if not m:
-            raise ConfigError(key, f"expected a number or a quantity like '0.1 rad/s', got {value!r}")
-        number, unit = float(m.group(1)), m.group(2)
-        if unit is not None:
-            try:
-                _unit(unit)
-            except ValueError:
-                raise ConfigError(key, f"unknown unit {unit!r} in {value!r}") from None
-    else:
-        number, unit = float(value), None
-    if not math.isfinite(number):
-        raise ConfigError(key, f"expected a finite number, got {value!r}")
-    return number, unit
 
 
 # ---------------------------------------------------------------- distributions
@@ -89,14 +67,14 @@ def dispersion(key: str, spec: Any, where: str) -> Dispersion:
         raise ConfigError(here, f"expected {DISTRIBUTION_ARGS[kind]}, got {args!r}")
     if kind == "choice":
         return Dispersion(key, kind, tuple(args))
-    parsed = [_quantity(a, f"{here}[{i}]") for i, a in enumerate(args)]
+    parsed = [parse_quantity(a, f"{here}[{i}]") for i, a in enumerate(args)]
     unit = next((u for _, u in parsed if u is not None), None)
     numbers = []
     for i, ((number, u), arg) in enumerate(zip(parsed, args)):
         if unit is None or u == unit:
             numbers.append(number)
             continue
-        factor = _unit(unit)[0]
+        factor = parse_unit(unit)[0]
         if u is None:      # a bare number is SI
             numbers.append(number / factor)
             continue

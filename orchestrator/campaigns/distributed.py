@@ -11,7 +11,7 @@ import uuid
 from pathlib import Path
 
 from orchestrator.campaigns.case import STOP_GRACE_S, execute_case
-from orchestrator.campaigns.directory import CampaignDir, CampaignError, Progress, _ignore_interrupts
+from orchestrator.campaigns.directory import CampaignDir, CampaignError, Progress, ignore_interrupts
 
 
 def remote_case(payload: dict) -> dict:
@@ -114,7 +114,7 @@ def run_dask(directory: CampaignDir, todo: list[int], address: str, retries: int
                     if result["status"] != "interrupted":
                         directory.store(result)
                 client.cancel(list(pending))
-            _ignore_interrupts(wind_down)
+            ignore_interrupts(wind_down)
         return completed
     finally:
         client.close()

@@ -20,9 +20,8 @@ from typing import Any
 import numpy as np
 
 from components.errors import ConfigError
-from components.units import _unit, to_si
+from components.units import parse_quantity, parse_unit, to_si, unit_scale
 from orchestrator.config.specs import RunConfig
-from orchestrator.campaigns.dispersions import _quantity
 
 REDUCERS = ("final", "min", "max", "mean", "rms", "max_abs", "first_crossing")
 EVENT_REDUCERS = ("first", "last", "min", "max", "count")
@@ -168,19 +167,13 @@ def metric(name: str, spec: Any, signals: dict[str, tuple[tuple[str, ...], str]]
         if "threshold" not in spec:
             raise ConfigError(f"{where}.threshold", "first_crossing needs a threshold, e.g. threshold: 0.1 rad/s")
         value = spec["threshold"]
-        if unit not in (None, "1") and _unit_known(unit):
+        if unit not in (None, "1") and unit_scale(unit) is not None:
             threshold = to_si(value, unit, f"{where}.threshold")
         else:
-            number, given = _quantity(value, f"{where}.threshold")
-            threshold = number * (_unit(given)[0] if given else 1.0)
+            number, given = parse_quantity(value, f"{where}.threshold")
+            threshold = number * (parse_unit(given)[0] if given else 1.0)
     elif "threshold" in spec:
         raise ConfigError(f"{where}.threshold", f"only first_crossing takes a threshold, not {how}")
     return Metric(name, signal, how, columns, threshold, unit=unit)
 
 
-def _unit_known(unit: str) -> bool:
-    try:
-        _unit(unit)
-        return True
-    except ValueError:
-        return False

@@ -28,7 +28,7 @@ import numpy as np
 
 from orchestrator.campaigns.case import STOP_GRACE_S, execute_case
 from orchestrator.campaigns.campaign import Campaign, case_yaml
-from orchestrator.campaigns.directory import CampaignDir, Progress, _ignore_interrupts
+from orchestrator.campaigns.directory import CampaignDir, Progress, ignore_interrupts
 
 
 
@@ -104,7 +104,7 @@ def run_local(directory: CampaignDir, todo: list[int], jobs: int, progress: Prog
         stop.set()
         for future in pending:
             future.cancel()
-        _ignore_interrupts(lambda: _finish(pending, directory))
+        ignore_interrupts(lambda: _finish(pending, directory))
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
     return completed

@@ -61,8 +61,10 @@ def _split(ref: Any) -> tuple[str, str] | None:
     return component, variable
 
 
-def _connections(raw: Any, components: dict[str, ComponentSpec], entries: dict, file: Path,
-                 errors: list[str]) -> list[tuple[str, str, str, str]]:
+def parse_connections(raw: Any, components: dict[str, ComponentSpec], entries: dict, file: Path,
+                      errors: list[str]) -> list[tuple[str, str, str, str]]:
+    """The config's ``connections`` as (input component, input, output component, output); each
+    problem (unknown names, shapes or units that differ) appended to ``errors``."""
     if not isinstance(raw, dict):
         errors.append(f"{file}: connections: expected a mapping input: output, got {raw!r}")
         return []

@@ -16,7 +16,7 @@ from orchestrator.hosts import bus_config
 from orchestrator.config.schema import BUS, COMPONENT, CONFIG, FAULT, MAX_STEPS, RUN, VIEWER
 from orchestrator.config.specs import ComponentSpec, Event, Fault, RunConfig, ViewerSpec
 from orchestrator.config.yaml_file import ConfigErrors, apply_overrides, read_yaml
-from orchestrator.config.connections import _connections, check_replacement, hands_over, handover_problem
+from orchestrator.config.connections import check_replacement, hands_over, handover_problem, parse_connections
 from orchestrator.config.shadows import mismatches, shadow_spec, with_shadows
 
 def viewer_spec(raw: Any, where: str, errors: list[str], base: Path) -> ViewerSpec | None:
@@ -127,13 +127,13 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
     for spec in [*components.values(), *shadows.values()]:
         key = f"{spec.key}.parameters"
         try:
-            notes += [f"{file}: {key}.{note}" for note in spec.cls.preflight(spec.resolved, spec.step_ns / 1e9, full)]
+            notes += [f"{file}: {key}.{note}" for note in spec.cls.preflight(spec.resolved, spec.step_ns / NS_PER_S, full)]
         except ConfigError as e:
             errors.append(f"{file}: {key}.{e.key}: {e.message}" if e.key else f"{file}: {key}: {e.message}")
         except Exception as e:   # a component's own check failing is a line too, not a traceback
             errors.append(f"{file}: {key}: {spec.type} cannot load its model: {type(e).__name__}: {e}")
     raw_entries = raw.get("components") if isinstance(raw.get("components"), dict) else {}
-    connections = _connections(config.get("connections", {}), components, raw_entries, file, errors)
+    connections = parse_connections(config.get("connections", {}), components, raw_entries, file, errors)
     for name, shadow in shadows.items():
         errors += [f"{file}: {shadow.key}: {p}" for p in mismatches(components[name], shadow, connections)]
     components, connections = with_shadows(components, shadows, connections)
@@ -177,9 +177,9 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
     if viewer is not None:
         resolved["viewer"] = VIEWER.plain(config["viewer"])
     return RunConfig(path=path, name=run["name"], epoch=epoch, duration_ns=total_ns, step_ns=step_ns,
-                     algorithm=run["algorithm"], realtime=run["realtime"], step_timeout_s=run["step_timeout"] / 1e9,
-                     start_timeout_s=run["start_timeout"] / 1e9, components=components, connections=connections,
-                     listen=config["bus"]["listen"], bus=bus_spec, join_timeout_s=run["join_timeout"] / 1e9,
+                     algorithm=run["algorithm"], realtime=run["realtime"], step_timeout_s=run["step_timeout"] / NS_PER_S,
+                     start_timeout_s=run["start_timeout"] / NS_PER_S, components=components, connections=connections,
+                     listen=config["bus"]["listen"], bus=bus_spec, join_timeout_s=run["join_timeout"] / NS_PER_S,
                      events=events, faults=faults, checkpoint_ns=checkpoint_ns,
                      max_restarts=run["max_restarts"], viewer=viewer, resolved=resolved, packages=packages, notes=notes,
                      record_flush_s=run["record_flush"] / NS_PER_S)

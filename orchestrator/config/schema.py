@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from components.schedule import ALGORITHMS
 from components.schema import (Anything, Bool, Duration, Float, Int, ListOf, MapOf, OneOf, Parameter, Record,
                                Str, UtcTime, markdown)
 
-ALGORITHMS = ("jacobi", "gauss-seidel")
 MAX_STEPS = 10 ** 12   # steps in a run: beyond, a typo (a duration in the wrong unit), not an experiment
 VIEWER_MODES = ("spawn", "web", "save", "off")
 NAME = r"[A-Za-z][A-Za-z0-9_]*"

@@ -12,6 +12,7 @@ import struct
 from pathlib import Path
 
 from components import bus, bus_security
+from components.constants import NS_PER_S
 from orchestrator.hosts.bus_config import BusSpec, host_of, is_loopback
 
 SIOCGIFADDR = 0x8915
@@ -158,7 +159,7 @@ class RunBus:
 
     def lost(self, member) -> str:
         """How losing an external member (its link closed, or silent for a lease) reads."""
-        return (f"lost: nothing heard from it within bus.lease ({self.spec.lease_ns / 1e9:g} s), its link "
+        return (f"lost: nothing heard from it within bus.lease ({self.spec.lease_ns / NS_PER_S:g} s), its link "
                 f"was cut, its host went down or its process ended")
 
     def link_closed(self, zid: str, members) -> None:
@@ -172,7 +173,7 @@ class RunBus:
         while it is heard (its heartbeats come every quarter of the lease)."""
         if member.spec.launch != "external" or not member.heard_at or member.ended:
             return None
-        if not member.cut and time.monotonic() - member.heard_at <= self.spec.lease_ns / 1e9:
+        if not member.cut and time.monotonic() - member.heard_at <= self.spec.lease_ns / NS_PER_S:
             return None
         return self.lost(member)
 

@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from orchestrator.plots.figure import PlotError, new_figure
-from components.units import _QUANTITY, unit_scale
+from components.errors import ConfigError
+from components.units import parse_quantity, unit_scale
 
 OUTCOME_COLOURS = {"completed": "tab:blue", "failed": "tab:red", "interrupted": "tab:grey"}
 PALETTE = ("tab:green", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
@@ -40,9 +41,11 @@ def _unit_of(key: str, values: list, meta: dict) -> tuple[str, float]:
     unit = (meta.get("units") or {}).get(key)
     if unit is None:
         for raw in (meta.get("grid_values") or {}).get(key, []):
-            m = _QUANTITY.match(raw) if isinstance(raw, str) else None
-            if m and m.group(2):
-                unit = m.group(2)
+            try:
+                unit = parse_quantity(raw, key)[1] if isinstance(raw, str) else None
+            except ConfigError:
+                continue
+            if unit:
                 break
     scale = unit_scale(unit) if unit else None
     return (unit, scale[0]) if scale else ("", 1.0)

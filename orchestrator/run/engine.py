@@ -34,7 +34,8 @@ import traceback
 import uuid
 from pathlib import Path
 
-from components import bus, protocol
+from components import bus, protocol, schedule
+from components.constants import NS_PER_S
 from orchestrator.run import pacing, recovery, report, runs, supervisor, wiring
 from orchestrator.config import shadows
 from orchestrator.config.specs import ComponentSpec, RunConfig, ViewerSpec
@@ -98,7 +99,7 @@ class Run:
 
     def status(self) -> dict:
         return {"run_id": self.run_id, "name": self.config.name, "step": self.rows.row,
-                "steps": self.config.steps, "time": self.rows.row * self.config.step_ns / 1e9,
+                "steps": self.config.steps, "time": self.rows.row * self.config.step_ns / NS_PER_S,
                 "components": {n: {"type": m.spec.type, "generation": m.generation,
                                    **({"shadow_of": m.spec.shadow_of} if m.spec.shadow_of else {})}
                                for n, m in self.members.items()}}
@@ -307,7 +308,7 @@ class Run:
     def _event_step(self) -> int | None:
         if not self.pending_events:
             return None
-        return -(-self.pending_events[0].at_ns // self.config.step_ns)
+        return schedule.first_step_at(self.pending_events[0].at_ns, self.config.step_ns)
 
     def _next_checkpoint(self) -> int | None:
         return recovery.next_checkpoint(self.recovery.checkpoint, self.config.checkpoint_ns, self.config.step_ns)
@@ -446,7 +447,7 @@ class Run:
             terminate(member, timeout=2.0 if code else 5.0, final=True)
         if self.viewer_link is not None:
             self.viewer_link.stop(self.stop_reason == "interrupted", self.out)
-        self.log("end", step=self.rows.row, time=self.rows.row * self.config.step_ns / 1e9,
+        self.log("end", step=self.rows.row, time=self.rows.row * self.config.step_ns / NS_PER_S,
                  status="failed" if code == 1 else (self.stop_reason or "completed"))
         if self.rows.recording is not None:
             try:

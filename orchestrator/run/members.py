@@ -12,6 +12,7 @@ from typing import Callable
 import numpy as np
 
 from components import bus, protocol
+from components.constants import NS_PER_S
 from components.schedule import Route
 from orchestrator.run import supervisor
 from orchestrator.config.specs import ComponentSpec, RunConfig
@@ -175,7 +176,7 @@ def death(member: Member, how: str) -> str:
 
 
 def fault_message(member: Member, fault: Fault, step_ns: int) -> str:
-    when = f"step {fault.k} (t = {fault.k * step_ns / 1e9:g} s)"
+    when = f"step {fault.k} (t = {fault.k * step_ns / NS_PER_S:g} s)"
     if fault.op == "nan":
         return f"component {member.name!r} produced a non-finite value in output {fault.error!r} at {when}"
     where = when if fault.op == "step" else fault.op

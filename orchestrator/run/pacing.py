@@ -4,6 +4,8 @@ Granting is in chunks, so that a fast run sends few horizon messages; a realtime
 start once k steps' worth of time has passed on the wall clock."""
 from __future__ import annotations
 
+from components.constants import NS_PER_S
+
 WINDOW = 256         # steps a component may run ahead of the recorded rows
 IDLE_WAKE_S = 0.2    # the loop looks again at least this often
 REALTIME_CHUNK_S = 0.005
@@ -19,7 +21,7 @@ def grant(row: int, horizon: int, limit: int, realtime: float, step_ns: int,
     chunk = WINDOW // 2
     wake = IDLE_WAKE_S
     if realtime > 0:
-        step_s = step_ns / 1e9 / realtime
+        step_s = step_ns / NS_PER_S / realtime
         target = min(target, int(elapsed_s / step_s) + 1)
         chunk = max(1, int(REALTIME_CHUNK_S / step_s))
         wake = min(wake, max(step_s * chunk - (elapsed_s % (step_s * chunk)), 0.0005))

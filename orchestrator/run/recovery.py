@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from components import protocol
+from components import protocol, schedule
+from components.constants import NS_PER_S
 from components.units import duration_ns, duration_text
 from orchestrator.run import messages, wiring, wording
 from orchestrator.config.specs import ComponentSpec, Fault
@@ -58,7 +59,7 @@ def faults_left(faults: list[Fault], failed: str, horizon: int, row: int, step_n
     once, so neither the one behind this failure (of ``failed``, below ``horizon``) nor those the
     run went past (before ``row``) are left."""
     def step(f: Fault) -> int:
-        return -(-f.at_ns // step_ns)
+        return schedule.first_step_at(f.at_ns, step_ns)
     cause = next((f for f in faults if f.component == failed and step(f) <= horizon), None)
     return [f for f in faults if f is not cause and step(f) >= row]
 
@@ -100,7 +101,7 @@ class Recovery:
         self.checkpoint = Checkpoint(run.rows.row, run.rows.values.copy(), [m.spec for m in live],
                                      {m.name: m.reply["blob"] for m in live},
                                      {m.name: (m.tag, m.latest.copy()) for m in live}, list(run.pending_events))
-        run.log("checkpoint", step=run.rows.row, time=run.rows.row * run.config.step_ns / 1e9)
+        run.log("checkpoint", step=run.rows.row, time=run.rows.row * run.config.step_ns / NS_PER_S)
 
     def may_restart(self, failure: RunFailure) -> bool:
         return may_restart(failure, self.checkpoint, self.run.members)
@@ -117,7 +118,7 @@ class Recovery:
         began = time.perf_counter()
         self.restarts += 1
         run.log("fault", step=run.rows.row, component=failed.name, message=str(failure))
-        print(f"warning: {failure}\nrestarting from step {checkpoint.row} (t = {checkpoint.row * step_ns / 1e9:g} s; "
+        print(f"warning: {failure}\nrestarting from step {checkpoint.row} (t = {checkpoint.row * step_ns / NS_PER_S:g} s; "
               f"restart {self.restarts} of at most {config.max_restarts})", file=run.out, flush=True)
         if failed.process is not None and failed.process.poll() is None:
             failed.process.kill()   # hung: it would not answer terminate
@@ -151,7 +152,7 @@ class Recovery:
         run.sync(list(run.members.values()))
         for member in run.members.values():
             wiring.go(member, run.members, run.horizon)
-        run.log("restart", step=checkpoint.row, time=checkpoint.row * step_ns / 1e9, component=failed.name,
+        run.log("restart", step=checkpoint.row, time=checkpoint.row * step_ns / NS_PER_S, component=failed.name,
                 restart=self.restarts, wall_s=round(time.perf_counter() - began, 4))
 
     def check_hung(self) -> None:
@@ -240,7 +241,7 @@ class Recovery:
             if not planned:
                 self._record_event(new, parameters)
         run.log("swap", component=spec.name, type=spec.type, parameters=parameters, generation=new.generation,
-                step=row, time=t_ns / 1e9, state_handed_over=handed_over, wall_s=round(time.perf_counter() - began, 4))
+                step=row, time=t_ns / NS_PER_S, state_handed_over=handed_over, wall_s=round(time.perf_counter() - began, 4))
         if self.restartable:
             self.take_checkpoint()   # a restart never goes back across a swap
         return new.generation

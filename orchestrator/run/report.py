@@ -3,13 +3,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from components.constants import NS_PER_S
 from orchestrator.run import wording
 
 
 def summary(name: str, status: str, row: int, steps: int, step_ns: int, wall_s: float, loop_s: float,
             restarts: int, record_dir: Path | None) -> str:
     """One line for the end of every run: how it ended, how far it got, how fast, where it went."""
-    sim_s = row * step_ns / 1e9
+    sim_s = row * step_ns / NS_PER_S
     factor = sim_s / loop_s if loop_s > 0 else 0.0
     rate = f", real-time factor {factor:.{2 if factor < 100 else 0}f}" if factor else ""
     where = f"recording in {record_dir}" if record_dir is not None else "not recorded (no --record)"
@@ -19,8 +20,8 @@ def summary(name: str, status: str, row: int, steps: int, step_ns: int, wall_s: 
 
 
 def progress(row: int, step_ns: int, duration_ns: int, wall_s: float) -> str:
-    sim = row * step_ns / 1e9
-    return (f"\r  t = {sim:9.3f} / {duration_ns / 1e9:g} s   {row / wall_s:8.0f} steps/s   "
+    sim = row * step_ns / NS_PER_S
+    return (f"\r  t = {sim:9.3f} / {duration_ns / NS_PER_S:g} s   {row / wall_s:8.0f} steps/s   "
             f"real-time factor {sim / wall_s:6.2f}")
 
 
@@ -28,7 +29,7 @@ def profile(members, row: int, step_ns: int, loop_s: float, algorithm: str) -> l
     """Lines: the stepping rate, then each member's compute and waiting time per step."""
     wall = loop_s
     lines = [f"profile: {row} steps in {wall:.3f} s wall ({row / wall if wall else 0:.0f} steps/s, "
-             f"real-time factor {row * step_ns / 1e9 / wall if wall else 0:.2f}), {algorithm}",
+             f"real-time factor {row * step_ns / NS_PER_S / wall if wall else 0:.2f}), {algorithm}",
              f"  {'component':<16}{'compute/step':>14}{'waiting/step':>14}{'busy':>8}"]
     for m in members:
         steps = max(m.steps, 1)

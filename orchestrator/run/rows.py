@@ -8,6 +8,7 @@ from typing import Callable, Iterable
 import numpy as np
 
 from components import bus
+from components.constants import NS_PER_S
 from orchestrator.config.specs import ComponentSpec
 
 _SIGNALS = bus.SIGNALS_HEADER
@@ -57,7 +58,7 @@ class Rows:
 
     def publish(self) -> None:
         """Send the current row to the viewer."""
-        self.signals(_SIGNALS.pack(self.row, self.row * self.step_ns / 1e9) + self.values.tobytes())
+        self.signals(_SIGNALS.pack(self.row, self.row * self.step_ns / NS_PER_S) + self.values.tobytes())
 
     def advance(self, members: dict, horizon: int) -> None:
         """Record every row up to ``horizon`` whose outputs have all arrived (in ``received`` of
@@ -83,11 +84,11 @@ class Rows:
                 self.values[m.out_dst] = m.latest[m.out_src]
             self.row = row
             if self.recording is not None:
-                self.recording.append(row, row * step_ns / 1e9, self.values)
+                self.recording.append(row, row * step_ns / NS_PER_S, self.values)
                 for name, table in self.tables.items():
-                    table.append(row, row * step_ns / 1e9, members[name].latest)
+                    table.append(row, row * step_ns / NS_PER_S, members[name].latest)
             if self.decimation and row % self.decimation == 0:
-                self.signals(_SIGNALS.pack(row, row * step_ns / 1e9) + self.values.tobytes())
+                self.signals(_SIGNALS.pack(row, row * step_ns / NS_PER_S) + self.values.tobytes())
 
     def new_table(self, member) -> None:
         """From this row on, ``member`` (of a swapped-in type) is also recorded in a table of its own."""
@@ -95,7 +96,7 @@ class Rows:
         self.tables.pop(name, None)
         columns = [c for v in member.spec.outputs.variables for c in v.columns(name)]
         table = self.tables[name] = self.recording.add_table(f"{name}.{member.generation}", columns)
-        table.append(self.row, self.row * self.step_ns / 1e9, member.latest)
+        table.append(self.row, self.row * self.step_ns / NS_PER_S, member.latest)
 
     def rewind(self, row: int, values: np.ndarray) -> None:
         """Back to ``row`` (a checkpoint's), whose values were ``values``."""

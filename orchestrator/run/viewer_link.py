@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 from components import bus
+from components.constants import NS_PER_S
 from orchestrator.run import supervisor
 from orchestrator.config.specs import RunConfig, ViewerSpec
 from orchestrator.run.control import StopRequested, raise_stop
@@ -39,7 +40,7 @@ class ViewerLink:
             stdin=subprocess.DEVNULL, preexec_fn=supervisor.child_setup, env=env)
         supervisor.keep_to(cpus, self.process.pid)
         wait({bus.VIEWER: "alive"}, config.start_timeout_s, "viewer start-up")
-        return max(1, round(1e9 / (self.spec.rate_hz * config.step_ns)))
+        return max(1, round(NS_PER_S / (self.spec.rate_hz * config.step_ns)))
 
     def exited(self) -> str | None:
         """Why the run cannot start, if the observer has exited."""

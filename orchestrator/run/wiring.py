@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from components import protocol, schedule
+from components.constants import NS_PER_S
 from components.schedule import Route
 from orchestrator.config.specs import ComponentSpec, RunConfig
 from orchestrator.config.specs import Fault as Injected   # an injected fault (not a reported one)
@@ -30,7 +31,7 @@ def wire_message(member: Member, members: dict[str, Member], config: RunConfig, 
         batch_consumers=batched,
         routes=member.routes,
         sources=sources(member, members),
-        faults=[(-(-f.at_ns // step_ns), f.kind, (f.duration_ns or 0) / 1e9) for f in faults if f.component == name])
+        faults=[(schedule.first_step_at(f.at_ns, step_ns), f.kind, (f.duration_ns or 0) / NS_PER_S) for f in faults if f.component == name])
 
 
 def sources(member: Member, members: dict[str, Member]) -> dict[str, int]:
@@ -77,7 +78,7 @@ def initialize(crew: Crew, member: Member, members: dict[str, Member], t_ns: int
     variable = member.spec.outputs.first_non_finite(vector)
     if variable is not None:
         raise RunFailure(f"component {member.name!r} produced a non-finite value in output {variable!r} "
-                         f"after initialize (t = {t_ns / 1e9:g} s)")
+                         f"after initialize (t = {t_ns / NS_PER_S:g} s)")
     return vector
 
 

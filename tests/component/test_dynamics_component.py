@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from components import registry
+from components.constants import NS_PER_S
 from components.dynamics.component import DartDynamics
 from components.errors import ComponentError
 from components.sdk import resolve_parameters
@@ -390,7 +391,7 @@ def test_libration_matches_the_closed_form_under_every_schedule(algorithm, orbit
     q_body, q_lvlh = column("dynamics.target.orientation", 4)[fresh], column("orbit.q_eci_lvlh", 4)[fresh]
     x_L = np.array([matrix(l).T @ matrix(b)[:, 0] for b, l in zip(q_body, q_lvlh)])
     theta = np.arctan2(x_L[:, 1], x_L[:, 0])
-    t = fresh * config.step_ns / 1e9
+    t = fresh * config.step_ns / NS_PER_S
     crossings = [t[i] - theta[i] * (t[i + 1] - t[i]) / (theta[i + 1] - theta[i])
                  for i in range(len(theta) - 1) if theta[i] * theta[i + 1] < 0]
     n = math.sqrt(MU / 6778e3**3)

@@ -10,13 +10,14 @@ import fmpy
 import numpy as np
 import pytest
 
+from components.constants import NS_PER_S
 from components.errors import ComponentError, ConfigError
 from components.fmi.imported import FMUComponent, build_python_model
 from components.testing.harness import Harness
 from tests.conftest import ROOT
 
 H_NS = 15_625_000            # 1/64 s: n h is exact in binary, so FMPy's times and Zenorbit's are the same floats
-H_S = H_NS / 1e9
+H_S = H_NS / NS_PER_S
 WHEEL = {"inertia": 0.05, "max_torque": 0.2, "max_speed": 5.0, "time_constant": 0.05}
 
 

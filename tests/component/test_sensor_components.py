@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from components.bus import decode_state
+from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.rotations import exp_so3, log_so3, matrix_to_quat, quat_to_matrix
 from components.testing.harness import Harness
@@ -180,7 +181,7 @@ def test_latency_publishes_the_truth_of_latency_over_step_steps_before(step_ms, 
         truth = pose_truth(k - n)
         assert np.array_equal(out["p"][k], truth["p_true"])
         assert np.allclose(out["q"][k], truth["q_true"] * np.sign(out["q"][k] @ truth["q_true"]), rtol=0, atol=1e-15)
-        assert out["t_measured"][k] == (k - n) * step_ms * MS / 1e9
+        assert out["t_measured"][k] == (k - n) * step_ms * MS / NS_PER_S
 
 
 def test_t_measured_is_when_the_truth_was_sampled():

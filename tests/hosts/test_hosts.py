@@ -9,7 +9,6 @@ import signal
 import struct
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pyarrow.parquet as pq
@@ -152,15 +151,13 @@ def test_a_cut_link_is_detected_within_the_lease_and_reported(network, processes
     run, joins, record = start_spread(network, processes, tmp_path, config("cut", duration="60 s", realtime=1.0))
     wait_until(lambda: recorded_rows(record / "signals.parquet") >= 1000, "the first 1000 rows recorded", run=run)
     network.cut("a")
-    cut_at = time.monotonic()
     _, err = run.communicate(timeout=120)
-    noticed_s = time.monotonic() - cut_at
     assert run.returncode == 1, err
     assert f"component 'a' (test.integrator) on host {network['a'].address}" in err, err
     assert f"nothing heard from it within bus.lease ({LEASE})" in err, err
-    assert noticed_s < 60, noticed_s   # the lease, not the 10 min step_timeout
+    assert "step_timeout" not in err, err   # the lease found it, not the 10 min step_timeout
     recorded = table(record)
-    assert len(recorded) >= 1000
+    assert 1000 <= len(recorded) < 60 / 0.005   # failed before the run's end
     assert recorded.equals(reference("60 s").iloc[:len(recorded)])
     fault = [json.loads(line) for line in (record / "events.jsonl").read_text().splitlines()
              if '"fault"' in line]

@@ -6,6 +6,7 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 
+from components.constants import NS_PER_S
 from orchestrator.config.load import load
 from orchestrator.run.inprocess import run_in_process
 from tests.conftest import ROOT, orchestrator
@@ -62,7 +63,7 @@ connections: {{spring.force: integral.x, integral.u: spring.x, total.u: push.y}}
     # floor(r / 7) * 7 - 7, which read spring.x at t_k (Jacobi) or t_(k+1) (Gauss-Seidel: spring first)
     k = np.arange(len(bus)) // 7 * 7 - 7
     ahead = int(algorithm == "gauss-seidel")
-    assert np.array_equal(bus[7:, columns.index("integral.u_time")], ((k + ahead) * 1_000_000 / 1e9)[7:])
+    assert np.array_equal(bus[7:, columns.index("integral.u_time")], ((k + ahead) * 1_000_000 / NS_PER_S)[7:])
 
 
 def test_same_type_swaps_in_the_demo_continue_exactly(tmp_path):

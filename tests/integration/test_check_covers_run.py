@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from components.constants import NS_PER_S
 from components.errors import ComponentError, ConfigError
 from components.schema import Bool, Duration, Float, Int, ListOf, Str, Vector
 from orchestrator.config.yaml_file import ConfigErrors
@@ -46,7 +47,7 @@ def refused_value(kind, step_ns: int):
     if isinstance(kind, Vector) and kind.size is not None:
         return [0.0] * (kind.size + 1)
     if isinstance(kind, Duration):
-        return f"{step_ns * 1.5 / 1e9!r} s"      # not a whole number of steps
+        return f"{step_ns * 1.5 / NS_PER_S!r} s"      # not a whole number of steps
     if isinstance(kind, ListOf) and kind.min_items:
         return []
     return None

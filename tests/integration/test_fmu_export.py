@@ -17,6 +17,7 @@ import yaml
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
+from components.constants import NS_PER_S
 from components.fmi.exported import element_units, export_fmu
 from components.testing.harness import Harness
 from tests.conftest import ROOT, orchestrator
@@ -115,7 +116,7 @@ def test_kepler_fmu_in_fmpy_equals_native_and_orchestrator_run(kepler_fmu, tmp_p
     from_fmu = fmu_rows(result, names)
     assert from_fmu.shape == (KEPLER_STEPS + 1, 13)
     assert np.array_equal(result["time"], np.arange(KEPLER_STEPS + 1) * KEPLER_STEP)
-    assert np.array_equal(from_fmu, native_rows(harness, KEPLER_STEPS, round(KEPLER_STEP * 1e9)))
+    assert np.array_equal(from_fmu, native_rows(harness, KEPLER_STEPS, round(KEPLER_STEP * NS_PER_S)))
 
     run = orchestrator("run", "configs/orbit_iss_kepler.yaml", "--set", f"run.duration={KEPLER_STEPS} s",
                        "--record", tmp_path / "rec")
@@ -133,7 +134,7 @@ def test_dynamics_fmu_with_constant_inputs_equals_native(humanoid_fmu):
     stop = HUMANOID_STEPS * HUMANOID_STEP
     result = fmpy.simulate_fmu(humanoid_fmu, start_time=0.0, stop_time=stop, output_interval=HUMANOID_STEP,
                                input=constant_inputs(harness, values))
-    native = native_rows(harness, HUMANOID_STEPS, round(HUMANOID_STEP * 1e9))
+    native = native_rows(harness, HUMANOID_STEPS, round(HUMANOID_STEP * NS_PER_S))
     from_fmu = fmu_rows(result, output_names(harness))
     assert from_fmu.shape == native.shape == (HUMANOID_STEPS + 1, harness.output_layout.size)
     assert np.array_equal(from_fmu, native)
@@ -224,6 +225,7 @@ from pathlib import Path
 
 import numpy as np
 
+from components.constants import NS_PER_S
 from components.sdk import Component, Parameter, Variable
 
 
@@ -240,12 +242,12 @@ class Ramp(Component):
         self.fail_at = params["fail_at"]
 
     def initialize(self, t0_ns, inputs):
-        return {"y": self.slopes * (t0_ns / 1e9) + inputs["offset.u"]}
+        return {"y": self.slopes * (t0_ns / NS_PER_S) + inputs["offset.u"]}
 
     def do_step(self, t_ns, h_ns, inputs):
-        if (t_ns + h_ns) / 1e9 > self.fail_at:
+        if (t_ns + h_ns) / NS_PER_S > self.fail_at:
             raise RuntimeError("the ramp ran out")
-        return {"y": self.slopes * ((t_ns + h_ns) / 1e9) + inputs["offset.u"]}
+        return {"y": self.slopes * ((t_ns + h_ns) / NS_PER_S) + inputs["offset.u"]}
 '''
 
 

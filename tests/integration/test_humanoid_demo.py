@@ -121,14 +121,48 @@ def test_fixed_base_controller_tracks_worse(runs):
     assert o_fixed.max() > 3 * o_free.max()
 
 
-def test_plots_of_the_recording(runs, tmp_path):
-    from orchestrator.plots.recording import plot_recording
+def plotted(fig, title_part: str, label: str | None = None) -> list:
+    """The data of the lines (all, or the one labelled ``label``) on the axes whose title holds ``title_part``."""
+    ax = next(a for a in fig.axes if any(title_part in a.get_title(loc) for loc in ("center", "left")))
+    return [line for line in ax.get_lines() if label is None or line.get_label() == label]
 
-    written = plot_recording(runs["dir"] / "free_floating", tmp_path / "plots")
+
+def test_plots_of_the_recording(runs, tmp_path):
+    """The plots show the recording: the lines' data read back against its columns."""
+    from orchestrator.plots.recording import figures, plot_recording
+
+    record = runs["dir"] / "free_floating"
+    written = plot_recording(record, tmp_path / "plots")
     assert [p.name for p in written] == ["orbit_track.png", "dynamics_humanoid.png", "controller_path.png",
                                          "controller_error.png", "controller_torque.png", "controller_base.png"]
-    for path in written:
-        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 10_000
+    assert all(path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for path in written)
+    made, data = dict(figures(record)), runs["free_floating"]
+    t, error = data["time"], vector(data, "controller.ee_error", 6)
+    # tracking error, in mm and mrad, per axis and its norm
+    for title, part in (("position error", error[:, :3]), ("orientation error", error[:, 3:])):
+        for i, axis in enumerate("xyz"):
+            (line,) = plotted(made["controller_error.png"], title, axis)
+            assert np.array_equal(line.get_xdata(), t) and np.array_equal(line.get_ydata(), part[:, i] * 1e3)
+        (norm,) = plotted(made["controller_error.png"], title, "norm")
+        assert np.allclose(norm.get_ydata(), np.linalg.norm(part, axis=1) * 1e3, rtol=1e-12, atol=0)
+    # joint torques: one line per driven joint, each a tau column
+    tau = vector(data, "controller.tau", sum(name.startswith("controller.tau[") for name in data))
+    lines = plotted(made["controller_torque.png"], "joint torques")
+    driven = np.flatnonzero(np.any(tau != 0.0, axis=0))
+    assert len(lines) == len(driven) > 0
+    for line, i in zip(lines, driven):
+        assert np.array_equal(line.get_ydata(), tau[:, i]), line.get_label()
+    # the path (in the base's initial frame: a rotation, so the distances are the recording's)
+    (desired,), (obtained,) = (plotted(made["controller_path.png"], "end-effector path", label)
+                               for label in ("desired", "obtained"))
+    p_d, p = (np.column_stack(line.get_data_3d()) for line in (desired, obtained))
+    recorded_p, recorded_p_d = vector(data, "controller.ee_position", 3), vector(data, "controller.ee_position_desired", 3)
+    assert np.allclose(np.linalg.norm(p - p_d, axis=1), np.linalg.norm(recorded_p - recorded_p_d, axis=1), atol=1e-12)
+    assert np.allclose(p_d[0], 0.0) and np.linalg.norm(p_d[-1]) == pytest.approx(0.5, abs=1e-9)   # the 0.5 m move
+    # the base's reaction: its displacement in mm
+    base = vector(data, "dynamics.humanoid.position", 3)
+    (x,) = plotted(made["controller_base.png"], "base displacement", "x")
+    assert np.array_equal(x.get_ydata(), (base[:, 0] - base[0, 0]) * 1e3) and np.ptp(x.get_ydata()) > 0
 
 
 @pytest.mark.parametrize("override, key", [

@@ -12,7 +12,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from tests.conftest import (ROOT, component_processes, orchestrator, signal_files, start_run, wait_for_components,
-                            wait_for_step)
+                            wait_for_step, wait_until)
 
 pytestmark = pytest.mark.integration
 
@@ -345,34 +345,63 @@ components:
 
 SLOW_COMPONENT = '''
 import time
+from pathlib import Path
 from components.testing.blocks import Constant
 
 class SlowStart(Constant):
-    """A constant that takes 2 s to instantiate, as a component compiling its kernels would."""
+    """A constant whose instantiate lasts until the test lets it go (the file GATE appears), as a
+    component compiling its kernels would take long."""
     type_name = "test.slow_start"
 
     def __init__(self, params):
-        time.sleep(2.0)
+        while not Path(GATE).exists():
+            time.sleep(0.05)
         super().__init__(params)
 '''
 
 
 def test_a_slow_instantiate_gets_a_note_naming_the_component(write_config, monkeypatch):
     """A first run on a machine compiles the kernels at instantiate (20-45 s on 2 cores): the run
-    says what it waits for instead of sitting silent; a quick start says nothing."""
+    says what it waits for instead of sitting silent, naming only the component still instantiating;
+    a start within SLOW_START_S says nothing. Driven by events, not by how long anything takes:
+    the threshold drops to 0 once 'quick' has answered, and 'slow' goes on once the note is out."""
     import io
+    import math
+    import threading
 
     from orchestrator.run import engine
     from orchestrator.config.load import load
 
-    monkeypatch.setattr(engine, "SLOW_START_S", 1.0)
     config = write_config(SLOW_START)
-    (config.parent / "slow_start.py").write_text(SLOW_COMPONENT)
+    gate = config.parent / "go"
+    (config.parent / "slow_start.py").write_text(SLOW_COMPONENT.replace("GATE", repr(str(gate))))
+    waits: list[dict] = []                          # the instantiate wait's expectations, as the run meets them
+    wait = engine.Run.wait
+
+    def watched_wait(self, expect, timeout, what):
+        if what == "instantiate":
+            waits.append(expect)
+        return wait(self, expect, timeout, what)
+
+    def conduct():   # quick answered -> no more patience; the note out -> slow may finish
+        try:
+            wait_until(lambda: waits and list(waits[0]) == ["slow"], "quick instantiated, slow still waited for")
+            monkeypatch.setattr(engine, "SLOW_START_S", 0.0)
+            wait_until(lambda: "note: waiting for" in out.getvalue(), "the note")
+        finally:
+            gate.touch()
+
+    monkeypatch.setattr(engine.Run, "wait", watched_wait)
+    monkeypatch.setattr(engine, "SLOW_START_S", math.inf)
     out = io.StringIO()
+    conductor = threading.Thread(target=conduct, daemon=True)
+    conductor.start()
     assert engine.Run(load(config), out=out).execute() == 0, out.getvalue()
+    conductor.join(timeout=60)
     notes = [line for line in out.getvalue().splitlines() if line.startswith("note: waiting for")]
     assert notes == ["note: waiting for 'slow' to instantiate: the first run on a machine compiles its kernels "
                      "(numba; 20-45 s on 2 cores), later runs load them from the cache (run.start_timeout: 180 s)"]
+    monkeypatch.setattr(engine, "SLOW_START_S", math.inf)   # every start is quick against it: no note
     out = io.StringIO()
     assert engine.Run(load(write_config(CHAIN.format(name="quick", steps=2, algorithm="jacobi"))), out=out).execute() == 0
     assert "note: waiting for" not in out.getvalue()

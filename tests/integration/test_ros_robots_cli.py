@@ -18,14 +18,11 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 
-from components.robots.packages import find_package
 from tests.conftest import ROOT, orchestrator, part_files, wait_for_step, wait_until
 
 pytestmark = pytest.mark.integration
 
 PANDA = ROOT / "configs" / "panda_on_bus.yaml"
-needs_erd = pytest.mark.skipif(find_package("example-robot-data")[0] is None,
-                               reason="example-robot-data is not installed (pip install example-robot-data)")
 
 
 def panda_config(tmp_path, duration="0.3 s", **run) -> str:
@@ -42,7 +39,6 @@ def panda_config(tmp_path, duration="0.3 s", **run) -> str:
     return path
 
 
-@needs_erd
 def test_panda_from_example_robot_data_checks_runs_and_is_drawn(tmp_path):
     from tests.integration.test_viewer import read_rrd
 

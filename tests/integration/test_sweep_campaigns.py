@@ -7,13 +7,13 @@ import os
 import signal
 import subprocess
 import sys
-import time
+from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
 import yaml
 
-from tests.conftest import ROOT
+from tests.conftest import ROOT, wait_until
 
 pytestmark = pytest.mark.integration
 
@@ -121,6 +121,27 @@ def test_bad_campaign_files_stop_before_anything_runs(tmp_path):
     assert not out.exists()
 
 
+def started_cases(out) -> list[Path]:
+    """The cases whose run has begun (its recording has its start event) and not yet finished (no result file)."""
+    return [record for record in (out / "cases").glob("[0-9][0-9][0-9][0-9]")
+            if (record / "events.jsonl").exists() and not record.with_suffix(".json").exists()]
+
+
+def started_runs_under(pid: int) -> list[Path]:
+    """The recordings of the `orchestrator run` processes below ``pid`` whose run has begun (a start event)."""
+    import psutil
+
+    records = []
+    for child in psutil.Process(pid).children(recursive=True):
+        try:
+            args = child.cmdline()
+        except psutil.Error:   # ended meanwhile
+            continue
+        if "--record" in args and (Path(args[args.index("--record") + 1]) / "events.jsonl").exists():
+            records.append(Path(args[args.index("--record") + 1]))
+    return records
+
+
 def test_resume_after_ctrl_c_runs_only_what_is_left(tmp_path):
     """The sweep is started with SIGINT ignored, as `&` from a script leaves it (issue 34): a
     Ctrl-C (SIGINT) still stops it cleanly, exit 130 with the --resume hint, what finished kept."""
@@ -133,10 +154,8 @@ def test_resume_after_ctrl_c_runs_only_what_is_left(tmp_path):
                                 "--jobs", "1"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
     try:
-        deadline = time.monotonic() + 120
-        while len(list((out / "cases").glob("*.json"))) < 2 and time.monotonic() < deadline:
-            time.sleep(0.1)
-        time.sleep(0.5)     # the third case is running
+        wait_until(lambda: len(list((out / "cases").glob("*.json"))) >= 2, "two cases finished", run=process)
+        wait_until(lambda: started_cases(out), "the third case's run started", run=process)
         process.send_signal(signal.SIGINT)
         _, err = process.communicate(timeout=60)
     finally:
@@ -162,7 +181,7 @@ def test_resume_after_ctrl_c_runs_only_what_is_left(tmp_path):
 
 @pytest.fixture
 def dask_cluster():
-    distributed = pytest.importorskip("distributed")
+    import distributed
     cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
                                        scheduler_port=0)
     client = distributed.Client(cluster)
@@ -185,15 +204,12 @@ def test_dask_gives_the_local_results_and_survives_a_dead_worker(tmp_path, dask_
                                stderr=subprocess.PIPE, text=True)
     killed = None
     try:
-        deadline = time.monotonic() + 60
-        while killed is None and time.monotonic() < deadline and process.poll() is None:
-            busy = [w for w, keys in client.processing().items() if any("zenorbit-case" in str(k) for k in keys)]
-            if busy:
-                time.sleep(0.3)                     # mid-case
-                pid = client.run(os.getpid, workers=[busy[0]])[busy[0]]
-                os.kill(pid, signal.SIGKILL)
-                killed = busy[0]
-            time.sleep(0.05)
+        busy = wait_until(lambda: [w for w, keys in client.processing().items()
+                                   if any("zenorbit-case" in str(k) for k in keys)], "a worker given a case", 60, process)
+        pid = client.run(os.getpid, workers=[busy[0]])[busy[0]]
+        wait_until(lambda: started_runs_under(pid), "the worker's case run started", 60, process)   # mid-case
+        os.kill(pid, signal.SIGKILL)
+        killed = busy[0]
         _, err = process.communicate(timeout=240)
     finally:
         if process.poll() is None:

@@ -24,11 +24,9 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 import yaml
+from rerun.chunk import RrdReader
 
 from tests.conftest import ROOT, component_processes, orchestrator
-
-rr = pytest.importorskip("rerun")
-from rerun.chunk import RrdReader  # noqa: E402
 
 pytestmark = pytest.mark.integration
 

@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 
 from components.bus import decode_state
+from components.constants import NS_PER_S
 from components.controller.capture import APPROACH, CAPTURED, CLOSING, TRACK, WAIT, fit_motion
 from components.dynamics.world import BodySpec, OrbitalWorld
 from components.rotations import exp_so3, log_so3, matrix_to_quat, quat_to_matrix
@@ -125,7 +126,7 @@ class Scene:
 def closed_loop_step(scene: Scene, h: Harness, **extra) -> dict[str, np.ndarray]:
     h.inputs.update(scene.inputs())
     h.inputs.update(extra)
-    out = h.step(round(H * 1e9))
+    out = h.step(round(H * NS_PER_S))
     scene.advance(out["tau"])
     return out
 

@@ -12,6 +12,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from components.constants import NS_PER_S
 from components.dynamics.world import BodySpec, OrbitalWorld
 from tests import validation
 
@@ -192,7 +193,7 @@ def test_demo_humanoid_under_recorded_torques_matches_pinocchio_aba_and_dop853()
     mass = np.array([model.inertias[i].mass for i in bodies])
     lever = np.array([model.inertias[i].lever for i in bodies])
     inertia = np.array([model.inertias[i].inertia for i in bodies])
-    h = config.step_ns / 1e9
+    h = config.step_ns / NS_PER_S
 
     def orbit_point(k, s):                      # cubic Hermite between the samples at t_k and t_k+1
         return ((2 * s**3 - 3 * s**2 + 1) * r_eci[k] + (s**3 - 2 * s**2 + s) * h * v_eci[k]

@@ -86,3 +86,32 @@ def test_the_circle_check_finds_a_circle(monkeypatch):
         assert "a -> b -> c -> a" in str(e)
     else:
         raise AssertionError("the circle a -> b -> c -> a was not found")
+
+
+def private_imports(source: str, filename: str = "<source>") -> list[str]:
+    """``from <project module> import _name`` in the source: a leading-underscore name that another
+    module keeps private, used across the module boundary (dunder names such as __version__ are public)."""
+    found = []
+    imports = [node for node in ast.walk(ast.parse(source, filename)) if isinstance(node, ast.ImportFrom)]
+    for node in sorted(imports, key=lambda node: node.lineno):   # function-level imports too
+        module = node.module or ""
+        if node.level == 0 and module.split(".")[0] not in ("components", "orchestrator"):
+            continue
+        found += [f"{filename}:{node.lineno}: from {'.' * node.level}{module} import {alias.name}"
+                  for alias in node.names if alias.name.startswith("_") and not alias.name.startswith("__")]
+    return found
+
+
+def test_no_module_imports_a_private_name_of_another():
+    offenders = [line for path in sorted(project_modules().values())
+                 for line in private_imports(path.read_text(), str(path.relative_to(ROOT)))]
+    assert not offenders, "private names imported across modules (make them public or move them):\n" + "\n".join(offenders)
+
+
+def test_the_private_import_check_finds_one():
+    planted = ("import os\nfrom os.path import _get_sep\nfrom components.units import to_si, _unit\n"
+               "def f():\n    from orchestrator.run import _hidden\nfrom . import _sibling\nfrom components import __version__\n")
+    assert private_imports(planted, "planted.py") == [
+        "planted.py:3: from components.units import _unit",
+        "planted.py:5: from orchestrator.run import _hidden",
+        "planted.py:6: from . import _sibling"]

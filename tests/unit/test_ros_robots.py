@@ -12,13 +12,11 @@ import numpy as np
 import pytest
 
 from components.errors import ConfigError
-from components.robots.packages import find_package, resolve_uri
+from components.robots.packages import resolve_uri
 from components.robots.urdf import UrdfError, read_urdf
 from tests.conftest import ROOT
 
 PANDA_BUS = ROOT / "models" / "ros" / "panda_on_bus.urdf.xacro"
-erd, _ = find_package("example-robot-data")
-needs_erd = pytest.mark.skipif(erd is None, reason="example-robot-data is not installed (pip install example-robot-data)")
 
 
 def urdf(tmp_path: Path, body: str, name: str = "robot.urdf") -> Path:
@@ -84,7 +82,6 @@ def test_missing_mesh_file_in_a_found_package(tmp_path):
         read_urdf(mesh_urdf(tmp_path, "package://my_robot/meshes/gone.dae"), {"my_robot": str(package)})
 
 
-@needs_erd
 def test_installed_python_package_and_xacro_wrapper():
     model = read_urdf(PANDA_BUS)           # $(find example-robot-data) and package:// through the wheel
     assert model.root == "bus" and "panda_hand" in model.link_names
@@ -194,7 +191,6 @@ def test_waypoint_time_is_described_as_absolute():
 
 # ---------------------------------------------------------------- mimic joints in DART and Pinocchio
 
-@needs_erd
 @pytest.mark.parametrize("limits", [False, True])
 def test_mimic_joint_kept_and_momentum_conserved_rk4(limits):
     from components.dynamics.world import BodySpec, OrbitalWorld
@@ -216,7 +212,6 @@ def test_mimic_joint_kept_and_momentum_conserved_rk4(limits):
     assert np.linalg.norm(world.momentum("sat") - h0) < 1e-11 * np.linalg.norm(h0)
 
 
-@needs_erd
 def test_controller_model_with_a_mimic_finger_matches_the_dynamics():
     """M* qdd + C* = tau of the controller's Pinocchio model (mimic applied to M, c, J) against
     DART's forward dynamics with the mimic constraint: equal to rounding (0.15 rad/s^2 off when
@@ -244,7 +239,6 @@ def test_controller_model_with_a_mimic_finger_matches_the_dynamics():
         FreeFloatingArm(model, model.movable_joints, joints + ["panda_finger_joint1"], "panda_hand_tcp")
 
 
-@needs_erd
 def test_dae_visuals_become_triangles():
     from components.viewer.robot import mesh_arrays, read_geometry
 
@@ -286,7 +280,6 @@ def test_a_live_run_locks_its_directory_and_the_lock_dies_with_it(tmp_path):
 
 
 def test_a_visual_mesh_that_cannot_be_read_is_drawn_from_the_collision_geometry(tmp_path):
-    pytest.importorskip("rerun")
     from tests.unit.test_viewer_scene import save
 
     (tmp_path / "broken.dae").write_text("<COLLADA>not a mesh</COLLADA>")

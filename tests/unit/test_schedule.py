@@ -6,7 +6,7 @@ import struct
 import numpy as np
 import pytest
 
-from components.schedule import Route, initialization_order, next_due, routes, row_tag
+from components.schedule import Route, first_step_at, initialization_order, next_due, routes, row_tag
 from orchestrator.config.load import load
 from orchestrator.run.inprocess import run_in_process
 
@@ -195,3 +195,8 @@ def test_a_fault_overtaking_earlier_batches_keeps_the_progress_it_reported(tmp_p
         with pytest.raises(bus.Malformed):
             member.receive(decode(OUTPUTS, bus.batch_key("one-1a2b3c4d", "bad"), stale))
     assert member.steps == 32
+
+
+def test_first_step_at_is_the_step_at_or_after_the_time():
+    ms = 1_000_000
+    assert [first_step_at(t, ms) for t in (0, 1, ms - 1, ms, ms + 1, 5500 * ms)] == [0, 1, 1, 1, 2, 5500]

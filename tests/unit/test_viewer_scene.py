@@ -4,12 +4,12 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import pytest
+import rerun as rr
+from rerun.chunk import RrdReader
 
-rr = pytest.importorskip("rerun")
-from rerun.chunk import RrdReader  # noqa: E402
-
-from components.viewer.robot import Kinematics, read_geometry  # noqa: E402
-from components.viewer.scene import SceneLogger, parse_columns  # noqa: E402
+from components.constants import NS_PER_S
+from components.viewer.robot import Kinematics, read_geometry
+from components.viewer.scene import SceneLogger, parse_columns
 
 ROOT = Path(__file__).resolve().parents[2]
 URDF = ROOT / "models" / "humanoid_torso.urdf"
@@ -113,7 +113,7 @@ def test_rows_become_entities_on_sim_time_and_step(tmp_path):
     # time columns: sim_time is a duration (ns), step the step index
     entry = rrd["/plots/ctrl/tau"]
     assert entry["data"]["step"] == list(steps)
-    assert entry["data"]["sim_time"] == [int(round(t * 1e9)) for t in times]
+    assert entry["data"]["sim_time"] == [int(round(t * NS_PER_S)) for t in times]
     # paper figures: ee paths (3D trails and plots), errors, torques named by joint
     assert rrd["/world/ctrl/ee_desired"]["rows"] == n and rrd["/world/ctrl/ee_actual"]["rows"] == n
     assert rrd["/plots/ctrl/ee_position/desired"]["rows"] == n
@@ -297,7 +297,7 @@ def test_capture_view_draws_both_bodies_the_grasp_frames_and_the_capture_once(tm
     # the capture: once, on the first closed row, in the text log, as G's marker and on the distance plot
     events = rrd["/events/dyn/grasp"]
     assert events["rows"] == 1 and events["data"]["step"] == [steps[capture]]
-    assert events["data"]["sim_time"] == [int(round(times[capture] * 1e9))]
+    assert events["data"]["sim_time"] == [int(round(times[capture] * NS_PER_S))]
     text = events["data"]["TextLog:text"][0][0]
     assert text.startswith(f"capture at t = {times[capture]:.6g} s (step {steps[capture]}): servicer.ee -> target.grapple")
     marker = rrd[f"{base}/target/links/grapple/grasp_G/marker"]["data"]

@@ -362,10 +362,10 @@ def test_a_slow_instantiate_gets_a_note_naming_the_component(write_config, monke
     says what it waits for instead of sitting silent; a quick start says nothing."""
     import io
 
-    from orchestrator.run import engine
+    from orchestrator.run import engine, listener
     from orchestrator.config.load import load
 
-    monkeypatch.setattr(engine, "SLOW_START_S", 1.0)
+    monkeypatch.setattr(listener, "SLOW_START_S", 1.0)
     config = write_config(SLOW_START)
     (config.parent / "slow_start.py").write_text(SLOW_COMPONENT)
     out = io.StringIO()

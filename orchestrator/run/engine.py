@@ -230,10 +230,10 @@ class Run:
         if self.record_dir is not None:
             rows.recording = Recording(self.record_dir, rows.columns, config.resolved, flush_s=config.record_flush_s)
         state.log("start", run_id=self.run_id, config=str(config.path.resolve()), steps=config.steps,
-                 step_ns=config.step_ns, algorithm=config.algorithm,
-                 components={n: s.type for n, s in config.components.items()},
-                 shadows={n: s.shadow_of for n, s in config.components.items() if s.shadow_of},
-                 cpus={**self.placement.dedicated, "shared": sorted(self.placement.shared)})
+                  step_ns=config.step_ns, algorithm=config.algorithm,
+                  components={n: s.type for n, s in config.components.items()},
+                  shadows={n: s.shadow_of for n, s in config.components.items() if s.shadow_of},
+                  cpus={**self.placement.dedicated, "shared": sorted(self.placement.shared)})
         for note in config.notes:       # suspect physics the check found (orchestrator check shows them too)
             print(f"warning: {note}", file=self.out)
             state.log("warning", message=note, step=0)
@@ -293,4 +293,3 @@ class Run:
         if code == 0 and self.record_dir is None:
             shutil.rmtree(self.log_dir, ignore_errors=True)
         return code, message
-

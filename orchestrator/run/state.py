@@ -1,7 +1,7 @@
 """What a run holds as it goes, in one place: its inbox, its members, the recorded rows, the
 horizon, what is still to happen (events, injected faults) and its last checkpoint. The parts
-that drive the run (:mod:`.engine`, :mod:`.listener`, :mod:`.recovery`) read and change it;
-none of them reaches into another."""
+that drive the run (:mod:`.engine`, :mod:`.listener`, :mod:`.recovery`) read and change it here,
+not in one another."""
 from __future__ import annotations
 
 import queue

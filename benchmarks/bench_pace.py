@@ -124,11 +124,11 @@ def cpu_window(run, root: int, exclude: int, window: tuple[float, float], out: l
     the two fractions of ``window``; ``out`` gets (sample, row) twice."""
     steps = run.config.steps
     for fraction in window:
-        while run.rows.row < fraction * steps:
+        while run.row < fraction * steps:
             if run.loop_s:   # the loop ended (too early for this sample)
                 return
             time.sleep(0.005)
-        sample, row = cpu_sample(root, exclude), run.rows.row
+        sample, row = cpu_sample(root, exclude), run.row
         out.append((sample, row))
 
 

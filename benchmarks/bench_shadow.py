@@ -50,7 +50,7 @@ def demo(seconds: float, more: list[str]) -> tuple[float, float, dict[str, float
     if run.execute() != 0:
         raise RuntimeError("the demo failed over the bus")
     return (seconds / run.loop_s, cpu_s() - before,
-            {m.name: m.compute_s / max(m.steps, 1) for m in run.members.values()})
+            {m.name: m.compute_s / max(m.steps, 1) for m in run.state.members.values()})
 
 
 def main() -> None:

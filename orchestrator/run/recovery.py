@@ -1,42 +1,26 @@
 """Changing the run's members under way: a swap, a checkpoint, a restart from it; and what leads to
-them: a hung member, the rows salvaged from a failed one, the restart policy (docs/design.md §5, §7).
+them: a hung member, the restart policy (docs/design.md §5, §7).
 
 The procedures act at a step boundary, where every component is (the horizon is held there), and
-drive the run through its members, its inbox (``run.wait``, ``run.sync``, ``run.handle``) and its
-rows; the decisions are pure functions.
+drive the run through its state (:mod:`.state`), the crew that starts and asks its members and
+the listener that waits for their answers; the decisions are pure functions.
 """
 from __future__ import annotations
 
-import queue
 import time
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from components import protocol, schedule
 from components.constants import NS_PER_S
 from components.units import duration_ns, duration_text
-from orchestrator.run import messages, wiring, wording
+from orchestrator.run import wiring, wording
 from orchestrator.config.specs import ComponentSpec, Fault
 from orchestrator.config.connections import handover_problem, hands_over
 from orchestrator.run.control import SwapFailed
-from orchestrator.run.members import Member, RunFailure, terminate
-
-if TYPE_CHECKING:
-    from orchestrator.run.engine import Run
-
-
-@dataclass
-class Checkpoint:
-    """Where a restart goes back to: a step boundary, every component's state there and what the
-    orchestrator held (the recorded row, each member's last outputs)."""
-    row: int
-    values: np.ndarray
-    specs: list[ComponentSpec]
-    states: dict[str, bytes]
-    latest: dict[str, tuple[int, np.ndarray]]
-    events: list                        # the config's swaps still to come
+from orchestrator.run.listener import Listener
+from orchestrator.run.members import Crew, Member, RunFailure, terminate
+from orchestrator.run.state import Checkpoint, RunState
 
 
 def next_checkpoint(last: Checkpoint | None, checkpoint_ns: int | None, step_ns: int) -> int | None:
@@ -81,66 +65,71 @@ def hung(live: dict[str, Member], horizon: int, horizon_at: float, now: float, t
 
 
 class Recovery:
-    """The run's checkpoint and restarts, and its swaps. ``restartable``: a component may restart,
-    so checkpoints are taken: at the start, every run.checkpoint_every, after a swap."""
+    """The run's checkpoints and restarts, and its swaps, on ``run`` (its state) with ``crew`` and
+    ``listener``. ``restartable``: a component may restart, so checkpoints are taken: at the
+    start, every run.checkpoint_every, after a swap."""
 
-    def __init__(self, run: "Run"):
-        self.run = run
+    def __init__(self, run: RunState, crew: Crew, listener: Listener, out):
+        self.run, self.crew, self.listener, self.out = run, crew, listener, out
         self.restartable = any(s.on_failure == "restart" for s in run.config.components.values())
-        self.checkpoint: Checkpoint | None = None
-        self.restarts = 0
 
     def next_checkpoint(self) -> int | None:
-        return next_checkpoint(self.checkpoint, self.run.config.checkpoint_ns, self.run.config.step_ns)
+        return next_checkpoint(self.run.checkpoint, self.run.config.checkpoint_ns, self.run.config.step_ns)
+
+    def at_boundary(self) -> None:
+        """At a step boundary every component has reached: the config's swaps due there, then the
+        periodic checkpoint if it is due."""
+        run = self.run
+        while run.next_event_step() is not None and run.next_event_step() <= run.rows.row:
+            try:
+                self.swap(run.pending_events.pop(0).spec, planned=True)
+            except SwapFailed as failure:  # a swap the config asks for is part of the experiment
+                raise RunFailure(str(failure)) from None
+        if run.rows.row == self.next_checkpoint():
+            self.take_checkpoint()
 
     def take_checkpoint(self) -> None:
         """Every component's state at this step boundary, where they all are (docs/design.md §7)."""
         run = self.run
         live = list(run.members.values())
-        run.crew.ask(live, protocol.GetState(), "get_state (checkpoint)", run.config.step_timeout_s)
-        self.checkpoint = Checkpoint(run.rows.row, run.rows.values.copy(), [m.spec for m in live],
-                                     {m.name: m.reply["blob"] for m in live},
-                                     {m.name: (m.tag, m.latest.copy()) for m in live}, list(run.pending_events))
+        self.crew.ask(live, protocol.GetState(), "get_state (checkpoint)", run.config.step_timeout_s)
+        run.checkpoint = Checkpoint(run.rows.row, run.rows.values.copy(), [m.spec for m in live],
+                                    {m.name: m.reply["blob"] for m in live},
+                                    {m.name: (m.tag, m.latest.copy()) for m in live}, list(run.pending_events))
         run.log("checkpoint", step=run.rows.row, time=run.rows.row * run.config.step_ns / NS_PER_S)
 
     def may_restart(self, failure: RunFailure) -> bool:
-        return may_restart(failure, self.checkpoint, self.run.members)
+        return may_restart(failure, self.run.checkpoint, self.run.members)
 
     def restart(self, failure: RunFailure) -> None:
         """Stop every component and start them all again, in new processes, from the last checkpoint;
         RunFailure after run.max_restarts."""
-        run, checkpoint, failed = self.run, self.checkpoint, failure.member
+        run, crew, checkpoint, failed = self.run, self.crew, self.run.checkpoint, failure.member
         config = run.config
         step_ns = config.step_ns
-        if self.restarts >= config.max_restarts:
-            raise RunFailure(f"{failure} (after {wording.count(self.restarts, 'restart')}: run.max_restarts)",
+        if run.restarts >= config.max_restarts:
+            raise RunFailure(f"{failure} (after {wording.count(run.restarts, 'restart')}: run.max_restarts)",
                              failed) from None
         began = time.perf_counter()
-        self.restarts += 1
+        run.restarts += 1
         run.log("fault", step=run.rows.row, component=failed.name, message=str(failure))
         print(f"warning: {failure}\nrestarting from step {checkpoint.row} (t = {checkpoint.row * step_ns / NS_PER_S:g} s; "
-              f"restart {self.restarts} of at most {config.max_restarts})", file=run.out, flush=True)
+              f"restart {run.restarts} of at most {config.max_restarts})", file=self.out, flush=True)
         if failed.process is not None and failed.process.poll() is None:
             failed.process.kill()   # hung: it would not answer terminate
         for member in [*run.members.values(), *run.joining.values()]:
             terminate(member, timeout=2.0)
         run.joining.clear()
         run.pending_faults = faults_left(run.pending_faults, failed.name, run.horizon, run.rows.row, step_ns)
-        while True:   # what the stopped generations sent is stale; requests from the CLI are kept
-            try:
-                kind, a, _ = run.inbox.get_nowait()
-            except queue.Empty:
-                break
-            if kind == messages.CONTROL:
-                run.controls.add(a)
+        self.listener.discard_stale()
         generations = {n: m.generation + 1 for n, m in run.members.items()}
         run.members = {}
-        run.crew.start(checkpoint.specs, generations, run.members)
+        crew.start(checkpoint.specs, generations, run.members)
         for member in run.members.values():
-            wiring.wire(run.crew, member, run.members, run.pending_faults, checkpoint.row)
+            wiring.wire(crew, member, run.members, run.pending_faults, checkpoint.row)
         for member in run.members.values():
             member.control(protocol.SetState(checkpoint.states[member.name]))
-        run.wait({m: "set_state" for m in run.members}, config.step_timeout_s, "set_state (restart)")
+        self.listener.wait({m: "set_state" for m in run.members}, config.step_timeout_s, "set_state (restart)")
         now = time.monotonic()
         for member in run.members.values():
             tag, latest = checkpoint.latest[member.name]
@@ -149,11 +138,11 @@ class Recovery:
         run.rows.rewind(checkpoint.row, checkpoint.values)
         run.horizon, run.horizon_at = checkpoint.row, now
         run.pending_events = list(checkpoint.events)
-        run.sync(list(run.members.values()))
+        self.listener.sync(list(run.members.values()))
         for member in run.members.values():
             wiring.go(member, run.members, run.horizon)
         run.log("restart", step=checkpoint.row, time=checkpoint.row * step_ns / NS_PER_S, component=failed.name,
-                restart=self.restarts, wall_s=round(time.perf_counter() - began, 4))
+                restart=run.restarts, wall_s=round(time.perf_counter() - began, 4))
 
     def check_hung(self) -> None:
         """Fail with a member that hung (see :func:`hung`), after salvaging the rows it completes."""
@@ -162,26 +151,9 @@ class Recovery:
         m = hung(run.members, run.horizon, run.horizon_at, time.monotonic(), timeout)
         if m is not None:
             k = m.progress
-            self.salvage(m)
+            self.listener.salvage(m)
             raise RunFailure(f"component {m.name!r} did not answer step {k} within {timeout:g} s "
                              f"(hung? raise run.step_timeout if it is just slow)", m, lost=True)
-
-    def salvage(self, failed: Member, timeout: float = 1.0) -> None:
-        """``failed`` failed: record the rows up to its last output, as far as the others' outputs
-        (some still on their way) complete them within ``timeout``."""
-        run = self.run
-        if failed.name not in run.members:
-            return
-        deadline = time.monotonic() + timeout
-        run.rows.advance(run.members, run.horizon)   # outputs handled before the failure may still wait
-        while run.rows.row < min(failed.progress, run.horizon) and time.monotonic() < deadline:
-            try:
-                kind, key, payload = run.inbox.get(timeout=0.05)
-            except queue.Empty:
-                continue
-            if kind == messages.OUTPUTS:
-                run.handle((kind, key, payload), {})
-                run.rows.advance(run.members, run.horizon)
 
     def swap(self, spec: ComponentSpec, planned: bool = False) -> int:
         """Replace a component at the current step boundary (docs/design.md §5); the new generation.
@@ -196,7 +168,7 @@ class Recovery:
         SwapFailed is raised: the old generation runs on. ``planned``: an event of the config
         (else the recorded config gains one, so that it replays the run).
         """
-        run, config = self.run, self.run.config
+        run, crew, config = self.run, self.crew, self.run.config
         old, row = run.members[spec.name], run.rows.row
         t_ns = row * config.step_ns
         same_type = spec.type == old.spec.type
@@ -206,15 +178,15 @@ class Recovery:
             raise SwapFailed(problem)
         began = time.perf_counter()
         try:
-            new = run.crew.start([spec], {spec.name: old.generation + 1}, run.joining)[0]
+            new = crew.start([spec], {spec.name: old.generation + 1}, run.joining)[0]
             joined = {**run.members, spec.name: new}
-            wiring.wire(run.crew, new, joined, run.pending_faults, row)
+            wiring.wire(crew, new, joined, run.pending_faults, row)
             if handed_over:
-                run.crew.ask([old], protocol.GetState(), "get_state", config.step_timeout_s)
-                run.crew.ask([new], protocol.SetState(old.reply["blob"]), "set_state", config.step_timeout_s)
+                crew.ask([old], protocol.GetState(), "get_state", config.step_timeout_s)
+                crew.ask([new], protocol.SetState(old.reply["blob"]), "set_state", config.step_timeout_s)
                 outputs = old.latest
             else:
-                outputs = wiring.initialize(run.crew, new, joined, t_ns)
+                outputs = wiring.initialize(crew, new, joined, t_ns)
         except RunFailure as failure:
             if old.process is not None and old.process.poll() is not None:
                 raise  # the old generation is gone too: nothing to run on
@@ -231,8 +203,8 @@ class Recovery:
         consumers = [m for m in run.members.values() if m is not new and any(r.source == spec.name for r in m.routes)]
         for consumer in consumers:
             wiring.rewire(consumer, run.members, config, spec.name)
-        run.wait({m.name: "rewire" for m in consumers}, config.step_timeout_s, "rewire")
-        run.sync([new, *consumers])
+        self.listener.wait({m.name: "rewire" for m in consumers}, config.step_timeout_s, "rewire")
+        self.listener.sync([new, *consumers])
         wiring.go(new, run.members, run.horizon)
         parameters = spec.cls.schema.plain(spec.resolved)
         if run.rows.recording is not None:

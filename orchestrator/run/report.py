@@ -1,4 +1,5 @@
-"""What a run prints: the summary line at its end, the progress line while it runs, the profile."""
+"""What a run prints: the summary line at its end, the progress line while it runs, the profile,
+the error it ended with."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -37,3 +38,9 @@ def profile(members, row: int, step_ns: int, loop_s: float, algorithm: str) -> l
                      f"{100 * m.compute_s / wall if wall else 0:>7.1f}%")
     lines.append("  waiting: for inputs or the horizon, and the bus (a component's own compute not included)")
     return lines
+
+
+def error(message: str, members) -> str:
+    """The error a run ended with, and where the logs of its components are."""
+    logs = ", ".join(str(m.log_path) for m in members if m.log_path)
+    return f"error: {message}" + (f"\ncomponent logs: {logs}" if logs else "")

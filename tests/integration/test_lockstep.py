@@ -369,14 +369,14 @@ def test_a_slow_instantiate_gets_a_note_naming_the_component(write_config, monke
     import math
     import threading
 
-    from orchestrator.run import engine
+    from orchestrator.run import engine, listener
     from orchestrator.config.load import load
 
     config = write_config(SLOW_START)
     gate = config.parent / "go"
     (config.parent / "slow_start.py").write_text(SLOW_COMPONENT.replace("GATE", repr(str(gate))))
     waits: list[dict] = []                          # the instantiate wait's expectations, as the run meets them
-    wait = engine.Run.wait
+    wait = listener.Listener.wait
 
     def watched_wait(self, expect, timeout, what):
         if what == "instantiate":
@@ -386,13 +386,13 @@ def test_a_slow_instantiate_gets_a_note_naming_the_component(write_config, monke
     def conduct():   # quick answered -> no more patience; the note out -> slow may finish
         try:
             wait_until(lambda: waits and list(waits[0]) == ["slow"], "quick instantiated, slow still waited for")
-            monkeypatch.setattr(engine, "SLOW_START_S", 0.0)
+            monkeypatch.setattr(listener, "SLOW_START_S", 0.0)
             wait_until(lambda: "note: waiting for" in out.getvalue(), "the note")
         finally:
             gate.touch()
 
-    monkeypatch.setattr(engine.Run, "wait", watched_wait)
-    monkeypatch.setattr(engine, "SLOW_START_S", math.inf)
+    monkeypatch.setattr(listener.Listener, "wait", watched_wait)
+    monkeypatch.setattr(listener, "SLOW_START_S", math.inf)
     out = io.StringIO()
     conductor = threading.Thread(target=conduct, daemon=True)
     conductor.start()
@@ -401,7 +401,7 @@ def test_a_slow_instantiate_gets_a_note_naming_the_component(write_config, monke
     notes = [line for line in out.getvalue().splitlines() if line.startswith("note: waiting for")]
     assert notes == ["note: waiting for 'slow' to instantiate: the first run on a machine compiles its kernels "
                      "(numba; 20-45 s on 2 cores), later runs load them from the cache (run.start_timeout: 180 s)"]
-    monkeypatch.setattr(engine, "SLOW_START_S", math.inf)   # every start is quick against it: no note
+    monkeypatch.setattr(listener, "SLOW_START_S", math.inf)   # every start is quick against it: no note
     out = io.StringIO()
     assert engine.Run(load(write_config(CHAIN.format(name="quick", steps=2, algorithm="jacobi"))), out=out).execute() == 0
     assert "note: waiting for" not in out.getvalue()

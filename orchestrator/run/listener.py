@@ -1,0 +1,196 @@
+"""The orchestrator's side of the inbox: applies each message to the run's state, waits for the
+answers a step of the run's life expects, and watches the processes; a member that faults or dies
+first has the rows it completed recorded (salvaged)."""
+from __future__ import annotations
+
+import queue
+import time
+
+from components import bus, protocol
+from orchestrator.run.control import ControlServer
+from orchestrator.run.members import Member, RunFailure, death, exited, fault_message
+from orchestrator.run.messages import CONTROL, OUTPUTS, Beat, Events, LinkLost, Liveliness, Outputs, Reply, decode
+from orchestrator.run.state import RunState
+from orchestrator.run.viewer_link import ViewerLink
+
+SYNC_ROUND_S = 0.05  # the start-up handshake is repeated at this interval until everyone hears everyone
+SLOW_START_S = 5.0   # an instantiate this long gets a note (a first run on a machine compiles the kernels)
+
+
+class Listener:
+    """Applies the messages of ``run`` (its state; the queue is ``run.inbox``); CLI requests go to
+    ``controls``. ``hosts``: the run's bus (orchestrator.hosts.run_bus), which tells of lost links."""
+
+    def __init__(self, run: RunState, controls: ControlServer, hosts, viewer_link: ViewerLink, out):
+        self.run, self.controls, self.hosts, self.viewer_link, self.out = run, controls, hosts, viewer_link, out
+        self.dropped: dict[str, int] = {}   # key -> messages dropped from it (malformed, stranger, stale)
+
+    def handle(self, message, expect: dict[str, str]) -> None:
+        """Apply one inbox message; ``expect`` maps component name -> the reply we wait for. A
+        malformed message, or one from an unknown component or an old generation, is dropped with
+        a warning: whoever can reach the bus cannot end the run (docs/design.md §7)."""
+        kind, key, payload = message
+        if kind == CONTROL:
+            self.controls.add(key)
+            return
+        try:
+            decoded = decode(kind, key, payload)
+            if decoded is not None:
+                self._apply(decoded, expect)
+        except bus.Malformed as e:
+            self._drop(key, str(e))
+
+    def _drop(self, key: str, reason: str) -> None:
+        """Warn of a dropped message in events.jsonl (bus.count_drop says when)."""
+        if n := bus.count_drop(self.dropped, key):
+            self.run.log("warning", step=self.run.rows.row, message=f"dropped a message on {key}: {reason}"
+                                                                    + (f" ({n} so far)" if n > 1 else ""))
+
+    def _apply(self, message, expect: dict[str, str]) -> None:
+        run = self.run
+        if type(message) is Outputs:
+            member = run.members.get(message.name)
+            if member is None:
+                raise bus.Malformed(f"no component {message.name!r} in this run")
+            member.receive(message)
+            member.heard_at = member.progress_at
+            return
+        if type(message) is LinkLost:   # the member it was is lost: check_processes says so (hosts.silent)
+            self.hosts.link_closed(message.zid, [*run.members.values(), *run.joining.values()])
+            return
+        name = message.name
+        if type(message) is Liveliness:
+            if name == bus.VIEWER:
+                if message.alive and expect.get(name) == "alive":
+                    del expect[name]
+                elif not message.alive:
+                    run.log("warning", message="the viewer went away; the run goes on", step=run.rows.row)
+                return
+            member = self._member(name, message.generation)
+            if member is None:
+                return
+            if message.alive:
+                if expect.get(name) == "alive":
+                    del expect[name]
+                return
+            return   # a token may go with another peer's link: its process or link tells (check_processes)
+        member = self._member(name, message.generation)
+        if member is None:
+            if type(message) is Beat or self._replaced(name, message.generation):
+                return   # a generation swapped out (or restarted) on purpose may still say its last
+            raise bus.Malformed(f"no component {name!r} of generation {message.generation} in this run")
+        member.heard_at = time.monotonic()
+        if type(message) is Beat:
+            return
+        if type(message) is Reply:
+            member.reply = {**message.body, "blob": message.blob}
+            if expect.get(name) == message.body["op"]:
+                del expect[name]
+            return
+        if type(message) is Events:
+            for kind, fields in message.events:   # what a component reports cannot rename the line's keys
+                run.log(kind, **{**fields, "component": name, "step": message.k})
+            return
+        if message.k >= 0:  # a fault: it published every output before the failing step's
+            member.progress = max(member.progress, message.k)
+        self.salvage(member)
+        raise RunFailure(fault_message(member, message, run.config.step_ns), member)
+
+    def _member(self, name: str, generation: int) -> Member | None:
+        """The live (or joining) member with this name and generation; None for a stale generation."""
+        for group in (self.run.members, self.run.joining):
+            member = group.get(name)
+            if member is not None and member.generation == generation:
+                return member
+        return None
+
+    def _replaced(self, name: str, generation: int) -> bool:
+        """An older generation of a component of this run: one this run replaced."""
+        live = [m.generation for m in (self.run.members.get(name), self.run.joining.get(name)) if m is not None]
+        return bool(live) and generation < max(live)
+
+    def wait(self, expect: dict[str, str], timeout: float, what: str) -> None:
+        """Process inbox messages until every expectation is met, or fail naming the laggards."""
+        started = time.monotonic()
+        deadline = started + timeout
+        noted = what != "instantiate"
+        while expect:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise RunFailure(f"component {_names(expect)} did not answer {what} within {timeout:g} s "
+                                 f"(hung? raise run.step_timeout / run.start_timeout if it is just slow)")
+            if not noted and time.monotonic() - started > SLOW_START_S:
+                noted = True
+                print(f"note: waiting for {_names(expect)} to instantiate: the first run on a machine compiles "
+                      f"{'its' if len(expect) == 1 else 'their'} kernels (numba; 20-45 s on 2 cores), later runs "
+                      f"load them from the cache (run.start_timeout: {timeout:g} s)", file=self.out, flush=True)
+            try:
+                message = self.run.inbox.get(timeout=min(remaining, 0.2))
+            except queue.Empty:
+                self.check_processes(expect)
+                continue
+            self.handle(message, expect)
+
+    def sync(self, waiting: list[Member]) -> None:
+        """Repeat the handshake until each of ``waiting`` has heard every one of its sources: from
+        then on, no output published to it can be lost to a subscription still on its way."""
+        run = self.run
+        expect = {m.name: "synced" for m in waiting}
+        deadline = time.monotonic() + run.config.start_timeout_s
+        while expect:
+            if time.monotonic() > deadline:
+                raise RunFailure(f"component {', '.join(map(repr, expect))} did not hear its sources within "
+                                 f"{run.config.start_timeout_s:g} s (run.start_timeout)")
+            for member in run.members.values():
+                member.control(protocol.Sync())
+            round_end = time.monotonic() + SYNC_ROUND_S
+            while expect and time.monotonic() < round_end:
+                try:
+                    self.handle(run.inbox.get(timeout=max(round_end - time.monotonic(), 0.001)), expect)
+                except queue.Empty:
+                    pass
+            self.check_processes(list(expect))
+
+    def check_processes(self, names) -> None:
+        """Fail if the process of one of these members (or the viewer) has exited."""
+        for name in names:
+            if name == bus.VIEWER:
+                if problem := self.viewer_link.exited():
+                    raise RunFailure(problem)
+                continue
+            member = self.run.joining.get(name) or self.run.members[name]
+            if how := exited(member) or self.hosts.silent(member):
+                self.salvage(member)
+                raise RunFailure(death(member, how), member, lost=True)
+
+    def salvage(self, failed: Member, timeout: float = 1.0) -> None:
+        """``failed`` failed: record the rows up to its last output, as far as the others' outputs
+        (some still on their way) complete them within ``timeout``."""
+        run = self.run
+        if failed.name not in run.members:
+            return
+        deadline = time.monotonic() + timeout
+        run.rows.advance(run.members, run.horizon)   # outputs handled before the failure may still wait
+        while run.rows.row < min(failed.progress, run.horizon) and time.monotonic() < deadline:
+            try:
+                kind, key, payload = run.inbox.get(timeout=0.05)
+            except queue.Empty:
+                continue
+            if kind == OUTPUTS:
+                self.handle((kind, key, payload), {})
+                run.rows.advance(run.members, run.horizon)
+
+    def discard_stale(self) -> None:
+        """Empty the inbox of what stopped generations sent; requests from the CLI are kept."""
+        while True:
+            try:
+                kind, key, _ = self.run.inbox.get_nowait()
+            except queue.Empty:
+                break
+            if kind == CONTROL:
+                self.controls.add(key)
+
+
+def _names(names) -> str:
+    """'a', 'b': the components a wait is still on."""
+    return ", ".join(f"{n!r}" for n in names)

@@ -22,6 +22,7 @@ import numpy as np
 from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.rotations import continuous
+from components.controller import plots as controller_plots
 from components.controller.trajectory import CARTESIAN
 from components.robots.model import JOINT_VALUE, arm_reach, joint_units, read_model
 from components.schema import Float, ListOf, MapOf, OneOf, Record, Str, Vector
@@ -118,6 +119,7 @@ class ComputedTorqueComponent(Component):
     ``locked_joints`` that moves (not locked in the dynamics) stops the run with a message.
     """
     type_name = "controller.computed_torque"
+    plots = (controller_plots.PATH, controller_plots.ERROR, controller_plots.TORQUES, controller_plots.BASE)
     parameters = (
         Parameter("urdf", "str", description="the body's URDF, relative to the config file"),
         Parameter("joints", ListOf(Str(), min_items=1, unique=True),
@@ -330,6 +332,7 @@ class JointPDComponent(Component):
     on a fresh instance too (no ``initialize``).
     """
     type_name = "controller.joint_pd"
+    plots = (controller_plots.TORQUES, controller_plots.JOINTS)
     parameters = (
         Parameter("urdf", "str", description="the body's URDF, relative to the config file"),
         Parameter("gains", MapOf(PID_GAINS, "joint", min_items=1), description="the driven joints and their gains"),

@@ -18,6 +18,7 @@ import numpy as np
 
 from components.constants import NS_PER_S
 from components.errors import ConfigError
+from components.orbit import plots as orbit_plots
 from components.orbit.frames import lvlh_dcm, lvlh_state
 from components.rotations import continuous
 from components.orbit.kepler import ElementError, KeplerOrbit, check_elements
@@ -46,6 +47,7 @@ class _OrbitComponent(Component):
     """Shared lifecycle: subclasses implement ``_sample(t_s) -> (r, v, q, w)``."""
 
     variables = ORBIT_OUTPUTS
+    plots = (orbit_plots.TRACK,)
 
     def __init__(self, params):
         super().__init__(params)

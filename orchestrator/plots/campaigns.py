@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from orchestrator.plots.figure import PlotError, new_figure
+from components.plotting import PlotError, new_figure
 from components.units import _QUANTITY, unit_scale
 
 OUTCOME_COLOURS = {"completed": "tab:blue", "failed": "tab:red", "interrupted": "tab:grey"}

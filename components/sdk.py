@@ -78,6 +78,9 @@ class Component:
     #: The figures ``orchestrator plot`` draws from a recording for a component of this type, in
     #: this order (:class:`components.plotting.Plot`: file name, description, draw function).
     plots: ClassVar[tuple[Plot, ...]] = ()
+    #: What the Rerun viewer draws for a component of this type: a
+    #: :class:`components.viewer.scene.View` subclass. None: its outputs are plotted as plain signals.
+    view: ClassVar[type | None] = None
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)

@@ -24,6 +24,7 @@ from components.errors import ConfigError
 from components.rotations import continuous
 from components.controller import plots as controller_plots
 from components.controller.trajectory import CARTESIAN
+from components.controller.view import ControllerView
 from components.robots.model import JOINT_VALUE, arm_reach, joint_units, read_model
 from components.schema import Float, ListOf, MapOf, OneOf, Record, Str, Vector
 from components.sdk import Component, Parameter, Variable
@@ -120,6 +121,7 @@ class ComputedTorqueComponent(Component):
     """
     type_name = "controller.computed_torque"
     plots = (controller_plots.PATH, controller_plots.ERROR, controller_plots.TORQUES, controller_plots.BASE)
+    view = ControllerView
     parameters = (
         Parameter("urdf", "str", description="the body's URDF, relative to the config file"),
         Parameter("joints", ListOf(Str(), min_items=1, unique=True),
@@ -333,6 +335,7 @@ class JointPDComponent(Component):
     """
     type_name = "controller.joint_pd"
     plots = (controller_plots.TORQUES, controller_plots.JOINTS)
+    view = ControllerView
     parameters = (
         Parameter("urdf", "str", description="the body's URDF, relative to the config file"),
         Parameter("gains", MapOf(PID_GAINS, "joint", min_items=1), description="the driven joints and their gains"),

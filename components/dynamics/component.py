@@ -21,6 +21,7 @@ import numpy as np
 from components.constants import MU_EARTH, NS_PER_S
 from components.dynamics import plots as dynamics_plots
 from components.dynamics.capture import OVERLOAD_ACTIONS
+from components.dynamics.view import DynamicsView
 from components.errors import ComponentError, ConfigError
 from components.robots.model import JOINT_RATE, JOINT_VALUE, body_items, read_model
 from components.robots.urdf import UrdfModel
@@ -206,6 +207,7 @@ class OrbitalDynamics(Component):
     engine = ""
     state_form = "dynamics"
     plots = (dynamics_plots.BODIES, dynamics_plots.CAPTURE)
+    view = DynamicsView
     parameters = (
         Parameter("bodies", MapOf(BODY, "body name", key_pattern=NAME.pattern[1:-1], min_items=1),
                   description="the bodies by name"),

@@ -65,6 +65,12 @@ class RecordedRun:
             return None
         return np.column_stack([self.columns[f"{name}[{i}]"] for i in range(n)])
 
+    def variable(self, name: str) -> np.ndarray | None:
+        """A recorded variable as an (rows, size) array: a scalar's column, or a vector's columns; None if absent."""
+        if name in self.columns:
+            return self.columns[name][:, None]
+        return self.vector(name)
+
     def source(self, component: str, variable: str) -> str | None:
         """The output feeding ``component.variable`` (``dynamics.humanoid.position``), if connected."""
         return (self.config.get("connections") or {}).get(f"{component}.{variable}")

@@ -1,5 +1,6 @@
 """The controllers' plots (``orchestrator plot``): the computed-torque controller's path, error,
-torques and base (the paper's Figs. 5-7), and joint_pd's torques and joints."""
+torques and base (the paper's Figs. 5-7), joint_pd's torques and joints, and the capture
+controller's phases."""
 from __future__ import annotations
 
 import numpy as np
@@ -14,8 +15,8 @@ def _driven(tau: np.ndarray) -> np.ndarray:
 
 
 def _required(run: RecordedRun, c: str, *names: str) -> list[np.ndarray]:
-    """The vectors ``c.name`` for each name; PlotError naming the ones the recording lacks."""
-    found = [run.vector(f"{c}.{name}") for name in names]
+    """The variables ``c.name`` for each name; PlotError naming the ones the recording lacks."""
+    found = [run.variable(f"{c}.{name}") for name in names]
     missing = [name for name, value in zip(names, found) if value is None]
     if missing:
         raise PlotError(f"{c}: the recording lacks {', '.join(missing)}")
@@ -152,6 +153,33 @@ def joints(run: RecordedRun, c: str) -> dict:
     return {f"{c}_joints.png": fig}
 
 
+CLOSE_ERRORS = ("position (m)", "attitude (rad)", "velocity (m/s)", "rate (rad/s)")   # close_errors' elements
+
+
+def phases(run: RecordedRun, c: str) -> dict:
+    """The capture controller's course: its phase and attempts, the estimated distance to the
+    grasp frame, and the estimated errors its close decision weighs."""
+    phase, attempt, distance, errors = _required(run, c, "phase", "attempt", "grasp_distance", "close_errors")
+    t = run.time
+    fig = new_figure(9.0, 8.0)
+    axes = fig.subplots(3, 1, sharex=True)
+    axes[0].step(t, phase[:, 0], where="post", color="black", linewidth=1.0, label="phase")
+    axes[0].step(t, attempt[:, 0], where="post", color="tab:blue", linewidth=1.0, label="attempt")
+    axes[0].set_title(f"{c}: phase (0 wait, 1 approach, 2 closing, 3 track, 4 retreat, 5 captured, 6 aborted) "
+                      "and approaches started", loc="left")
+    axes[1].plot(t, distance[:, 0], color="black", linewidth=1.0, label="grasp_distance")
+    axes[1].set(ylabel="m")
+    axes[1].set_title("estimated distance from the end effector to the grasp frame", loc="left")
+    for k, label in enumerate(CLOSE_ERRORS):
+        axes[2].plot(t, errors[:, k], linewidth=1.0, label=label)
+    axes[2].set_xlabel("time (s)")
+    axes[2].set_title("estimated errors behind close (closing and track)", loc="left")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper right", fontsize="x-small", ncols=2)
+    return {f"{c}_phases.png": fig}
+
+
 PATH = Plot("{c}_path.png", "desired (black) and obtained (red) 3D end-effector path relative to its start, in the "
                             "axes of the base at t0 (inertial; W axes if the base orientation is not recorded) "
                             "(paper Fig. 5)", path)
@@ -161,3 +189,5 @@ TORQUES = Plot("{c}_torque.png", "torques of the driven joints, N m (Fig. 7)", t
 BASE = Plot("{c}_base.png", "the body's base displacement (mm, W) and rotation (deg) from t0, and sigma_min of J_g",
             base)
 JOINTS = Plot("{c}_joints.png", "joint positions and their references", joints)
+PHASES = Plot("{c}_phases.png", "the capture's phase and attempts, the estimated distance to the grasp frame and "
+                                "the estimated errors behind close", phases)

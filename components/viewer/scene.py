@@ -178,6 +178,7 @@ class SceneLogger:
         self.connections = {str(k): str(v) for k, v in (self.config.get("connections") or {}).items()}
         self.arrow_scales: dict[tuple[str, ...], float] = {}
         self.arrow_units: dict[tuple[str, ...], str] = {}
+        self.types: dict[str, type] = {}          # the components' types that could be loaded
         self.views: dict[str, View] = {}
         for name, entry in (self.config.get("components") or {}).items():
             view = self._view_of(name, entry or {})
@@ -204,6 +205,7 @@ class SceneLogger:
         except ConfigError as e:
             self.warn(f"{name}: {e.message}; its outputs are shown as plain signals")
             return None
+        self.types[name] = cls
         return cls.view(name, entry.get("parameters") or {}, self) if cls.view is not None else None
 
     @property

@@ -19,6 +19,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 
 from components.errors import ConfigError
+from components.plotting import Plot
 from components.schema import REQUIRED, Parameter, Problems, Record, markdown  # noqa: F401 (SDK surface)
 
 CAUSALITIES = ("input", "output")
@@ -74,6 +75,12 @@ class Component:
     #: of the same ``state_form`` hands the state over (``set_state``, no ``initialize``) as a swap
     #: to the same type does. None: the state is the type's own.
     state_form: ClassVar[str | None] = None
+    #: The figures ``orchestrator plot`` draws from a recording for a component of this type, in
+    #: this order (:class:`components.plotting.Plot`: file name, description, draw function).
+    plots: ClassVar[tuple[Plot, ...]] = ()
+    #: What the Rerun viewer draws for a component of this type: a
+    #: :class:`components.viewer.scene.View` subclass. None: its outputs are plotted as plain signals.
+    view: ClassVar[type | None] = None
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -183,6 +190,9 @@ def declaration_tables(cls: type[Component]) -> str:
     else:
         parts += ["Variables:", "", "| variable | causality | shape | unit | description |", "|---|---|---|---|---|"]
         parts += [f"| {v.name} | {v.causality} | {v.shape} | {v.unit} | {v.description} |" for v in cls.variables]
+    if cls.plots:
+        parts += ["", "Plots (``orchestrator plot``):", "", "| file | content |", "|---|---|"]
+        parts += [f"| ``{plot.file}`` | {plot.description} |" for plot in cls.plots]
     return "\n".join(parts)
 
 

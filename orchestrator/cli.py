@@ -301,7 +301,7 @@ def cmd_export_fmu(args) -> int:
 
 
 def cmd_plot(args) -> int:
-    from orchestrator.plots.figure import PlotError
+    from components.plotting import PlotError
     from orchestrator.plots.recording import plot_recording
     out = Path(args.out) if args.out else Path(args.recording) / "plots"
     signals = [name.strip() for name in args.signals.split(",") if name.strip()] if args.signals else None

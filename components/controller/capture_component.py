@@ -20,7 +20,9 @@ from typing import Any
 import numpy as np
 
 from components.constants import NS_PER_S
+from components.controller import plots as controller_plots
 from components.controller.gains import CARTESIAN_GAINS, TASK_AXES, gain, per_item
+from components.controller.view import ControllerView
 from components.errors import ConfigError
 from components.robots.model import arm_reach, read_model
 from components.rotations import rpy_to_matrix
@@ -86,6 +88,8 @@ class CaptureComponent(Component):
     timers and the wheel-torque factor: ``set_state`` on a fresh instance continues bit for bit.
     """
     type_name = "controller.capture"
+    plots = (controller_plots.TORQUES, controller_plots.PHASES)
+    view = ControllerView
     parameters = (
         Parameter("urdf", "str", description="the servicer's URDF, relative to the config file"),
         Parameter("joints", ListOf(Str(), min_items=1, unique=True),

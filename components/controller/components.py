@@ -22,8 +22,10 @@ import numpy as np
 from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.rotations import continuous
+from components.controller import plots as controller_plots
 from components.controller.gains import CARTESIAN_GAINS, TASK_AXES, per_item
 from components.controller.trajectory import CARTESIAN
+from components.controller.view import ControllerView
 from components.robots.model import JOINT_VALUE, arm_reach, joint_units, read_model
 from components.schema import Float, ListOf, MapOf, Record, Str
 from components.sdk import Component, Parameter, Variable
@@ -105,6 +107,8 @@ class ComputedTorqueComponent(Component):
     ``locked_joints`` that moves (not locked in the dynamics) stops the run with a message.
     """
     type_name = "controller.computed_torque"
+    plots = (controller_plots.PATH, controller_plots.ERROR, controller_plots.TORQUES, controller_plots.BASE)
+    view = ControllerView
     parameters = (
         Parameter("urdf", "str", description="the body's URDF, relative to the config file"),
         Parameter("joints", ListOf(Str(), min_items=1, unique=True),
@@ -309,6 +313,8 @@ class JointPDComponent(Component):
     on a fresh instance too (no ``initialize``).
     """
     type_name = "controller.joint_pd"
+    plots = (controller_plots.TORQUES, controller_plots.JOINTS)
+    view = ControllerView
     parameters = (
         Parameter("urdf", "str", description="the body's URDF, relative to the config file"),
         Parameter("gains", MapOf(PID_GAINS, "joint", min_items=1), description="the driven joints and their gains"),

@@ -19,7 +19,9 @@ from typing import Any, Mapping
 import numpy as np
 
 from components.constants import MU_EARTH, NS_PER_S
+from components.dynamics import plots as dynamics_plots
 from components.dynamics.capture import OVERLOAD_ACTIONS
+from components.dynamics.view import DynamicsView
 from components.errors import ComponentError, ConfigError
 from components.robots.model import JOINT_RATE, JOINT_VALUE, body_items, read_model
 from components.robots.urdf import UrdfModel
@@ -204,6 +206,8 @@ class OrbitalDynamics(Component):
     """What both dynamics types share: everything but the engine (``engine``)."""
     engine = ""
     state_form = "dynamics"
+    plots = (dynamics_plots.BODIES, dynamics_plots.CAPTURE)
+    view = DynamicsView
     parameters = (
         Parameter("bodies", MapOf(BODY, "body name", key_pattern=NAME.pattern[1:-1], min_items=1),
                   description="the bodies by name"),

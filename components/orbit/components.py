@@ -18,9 +18,11 @@ import numpy as np
 
 from components.constants import NS_PER_S
 from components.errors import ConfigError
+from components.orbit import plots as orbit_plots
 from components.orbit.frames import lvlh_dcm, lvlh_state
 from components.rotations import continuous
 from components.orbit.kepler import ElementError, KeplerOrbit, check_elements
+from components.orbit.view import OrbitView
 from components.schema import Float, ListOf, Record, Str, UtcTime, Vector
 from components.sdk import Component, Parameter
 from components.signals import orbit_signals
@@ -46,6 +48,8 @@ class _OrbitComponent(Component):
     """Shared lifecycle: subclasses implement ``_sample(t_s) -> (r, v, q, w)``."""
 
     variables = ORBIT_OUTPUTS
+    plots = (orbit_plots.TRACK,)
+    view = OrbitView
 
     def __init__(self, params):
         super().__init__(params)

@@ -19,7 +19,7 @@ state is part of ``get_state``, so a restored instance draws what the original w
 """
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
@@ -28,6 +28,8 @@ from components.errors import ConfigError
 from components.rotations import continuous
 from components.schema import Duration, Float, Int, OneOf, Vector
 from components.sdk import Component, Parameter, Variable
+from components.sensors.plots import measured_against_true
+from components.sensors.view import SensorView
 from components.sensors.noise import (BiasRandomWalk, LatencyBuffer, NormalStream, latency_samples, normalized,
                                       per_axis, perturb_quaternion, white)
 
@@ -57,6 +59,8 @@ def _bias(name: str, unit: str, what: str, default: Any = ...) -> Parameter:
 
 class _SeededSensor(Component):
     """Shared plumbing: the seeded normal stream, ``DRAWS`` normals per step."""
+    #: Its measurements: output -> the input it measures (its plot and its view show them side by side).
+    measures: ClassVar[Mapping[str, str]]
 
     DRAWS = 0
 
@@ -90,6 +94,9 @@ class ImuComponent(_SeededSensor):
     accelerometer bias increment (3). State: the generator and the current biases.
     """
     type_name = "sensor.imu"
+    measures = {"rate": "rate_true", "specific_force": "specific_force_true"}
+    plots = (measured_against_true(measures),)
+    view = SensorView
     parameters = (
         _seed(),
         _sigma("rate_noise", "rad/s", "gyro white noise"),
@@ -150,6 +157,9 @@ class ForceTorqueComponent(_SeededSensor):
     Draws per step: 6 normals, force noise (3), torque noise (3). State: the generator.
     """
     type_name = "sensor.force_torque"
+    measures = {"wrench": "wrench_true"}
+    plots = (measured_against_true(measures),)
+    view = SensorView
     parameters = (
         _seed(),
         _sigma("force_noise", "N", "force white noise"),
@@ -208,6 +218,9 @@ class RelativePoseComponent(_SeededSensor):
     step it learnt, the samples in the latency pipeline and the last outputs.
     """
     type_name = "sensor.relative_pose"
+    measures = {"p": "p_true", "q": "q_true"}
+    plots = (measured_against_true(measures),)
+    view = SensorView
     parameters = (
         _seed(),
         _sigma("position_noise", "m", "position white noise, sensor axes"),

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from orchestrator.plots.figure import PlotError, new_figure
 from components.errors import ConfigError
+from components.plotting import PlotError, new_figure
 from components.units import parse_quantity, unit_scale
 
 OUTCOME_COLOURS = {"completed": "tab:blue", "failed": "tab:red", "interrupted": "tab:grey"}

@@ -33,11 +33,13 @@ pytestmark = pytest.mark.integration
 FAKE_CONTROLLER = '''
 """Stand-in controller with closed-form outputs: a 0.1 m circle away from the torso, followed 0.3 s late."""
 import numpy as np
+from components.controller.view import ControllerView
 from components.sdk import Component, Parameter, Variable
 
 
 class FakeController(Component):
     type_name = "controller.fake"
+    view = ControllerView          # drawn as the controllers are: paths, errors, torques
     parameters = (Parameter("joints", "int", default=14, description="number of joint torques"),)
 
     @classmethod

@@ -89,7 +89,7 @@ def test_plot_and_view_of_a_recording_with_no_rows_say_so(tmp_path):
     """A recording whose run wrote no row (its table closed empty, as a disk full at once leaves
     it): plot and view both say the recording holds no rows, not a missing column."""
     from components.viewer.replay import ReplayError, replay
-    from orchestrator.plots.figure import PlotError
+    from components.plotting import PlotError
     from orchestrator.plots.recording import figures
 
     record = tmp_path / "rec"

@@ -1,4 +1,5 @@
-"""A user-written component: a mass on a spring, as shown in the README."""
+"""A user-written component: a mass on a spring, as docs/guides/writing-a-component.md shows it."""
+from components.constants import NS_PER_S
 from components.sdk import Component, Parameter, Variable
 
 
@@ -24,7 +25,7 @@ class Oscillator(Component):
         return {"x": self.x, "v": self.v}
 
     def do_step(self, t_ns, h_ns, inputs):
-        h = h_ns * 1e-9
+        h = h_ns / NS_PER_S          # integer ns -> s: a division (components/constants.py)
         self.v += h * (float(inputs["force"]) - self.k * self.x) / self.m
         self.x += h * self.v
         return {"x": self.x, "v": self.v}

@@ -48,3 +48,13 @@ def test_the_readme_gives_what_ci_runs_and_its_links_resolve():
     for target in re.findall(r"\]\(([^)\s]+)\)", readme):
         if not re.match(r"\w+://", target):
             assert (ROOT / target.split("#")[0]).exists(), f"README.md links to {target}, which does not exist"
+
+
+def test_the_guide_shows_the_example_component_as_it_is():
+    """The guide's first listing is components/examples/oscillator.py (its module docstring aside),
+    so the code a newcomer copies is the code the tests run."""
+    guide = (ROOT / "docs" / "guides" / "writing-a-component.md").read_text()
+    listing = guide.split("```python\n", 1)[1].split("```", 1)[0]
+    source = (ROOT / "components" / "examples" / "oscillator.py").read_text()
+    code = source.split('"""', 2)[2].lstrip("\n")
+    assert [line for line in listing.splitlines() if line] == [line for line in code.splitlines() if line]

@@ -9,7 +9,7 @@ The body and the orbit are configs/gravity_gradient_libration.yaml's (models/tar
 
 - Zenorbit: the component ``--type`` (``dynamics.dart``, or any type with its parameters, e.g.
   ``dynamics.pinocchio``) with the config's parameters (rk4, tidal force and gravity-gradient
-  torque), stepped in this process through its layouts as components/runner.py steps it, its
+  torque), stepped in this process through its layouts as components/process.py steps it, its
   orbit inputs from ``orbit.kepler`` with the config's elements (the orbit's own cost not counted).
 - Basilisk (``bsk``, installed on first use in a virtual environment of its own, ``--venv``;
   benchmarks/basilisk_rigid_body.py): a Spacecraft hub with the same mass and inertia, started

@@ -5,7 +5,7 @@
 Rows: the model terms alone (Pinocchio: M, nle, Jacobians, the drift, the Schur complements),
 one whole ``ArmController.step`` (terms + trajectory + DLS + law), the same through the
 component's ``do_step`` with its inputs and outputs in the fixed float64 layout (what
-components/runner.py times as a component's compute per step, without the bus), the fixed-base
+components/process.py times as a component's compute per step, without the bus), the fixed-base
 variant, and ``controller.joint_pd``. The states come from a short closed loop with
 ``dynamics.dart`` (so velocities and the base motion are realistic).
 Each row is the median over batches of ``BATCH`` consecutive states of the thread's CPU time
@@ -99,7 +99,7 @@ def main() -> None:
 
     def as_the_runner(h: Harness):
         """do_step on inputs unpacked from one float64 vector, outputs packed into another: the
-        part of a step components/runner.py times (the input vectors are filled beforehand)."""
+        part of a step components/process.py times (the input vectors are filled beforehand)."""
         vectors = []
         for s in states:
             vector = h.input_layout.start_vector()

@@ -9,7 +9,7 @@ the paper's demo, the ``dynamics`` parameters of configs/humanoid_tracking.yaml 
 rigid box (models/target.urdf: one body, no joints, rk4, tidal force and gravity-gradient
 torque); the servicer (models/capture/servicer.urdf: six arm joints and three wheels, the same
 environment). Each driven by a circular 6778 km orbit and a PD law holding the start posture.
-Timed as components/runner.py times a component's compute: unpacking the inputs, ``do_step``
+Timed as components/process.py times a component's compute: unpacking the inputs, ``do_step``
 and packing the outputs in the fixed float64 layout. ``--link-outputs`` adds the demo with
 ``link_outputs: true``; ``--table`` adds rk4 and dart, with and without the environment, on an
 unlocked humanoid (link_outputs false; dart engine).

@@ -3,7 +3,7 @@
     python benchmarks/bench_orbit.py [--steps 5000] [--repeat 5]
 
 Rows: ``KeplerOrbit.state`` alone, then ``do_step`` plus packing its outputs into the float64
-layout (what a component's process spends per step, as components/runner.py times it), with and
+layout (what a component's process spends per step, as components/process.py times it), with and
 without J2. The elements are those of configs/humanoid_tracking.yaml; 1 ms steps from t = 0.
 Each row is the median over batches of ``BATCH`` consecutive steps of the thread's CPU time
 (``time.thread_time_ns``), so that another process busy on the other core does not count; the

@@ -120,6 +120,17 @@ def write_config(tmp_path):
     return write
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _session_runtime_dir(tmp_path_factory):
+    """The runs of module fixtures (started before any test's own dir is set) register in this
+    session's own runtime dir: component_processes then counts only this session's processes, not
+    those of another xdist worker running the same config at the same time."""
+    patch = pytest.MonkeyPatch()
+    patch.setenv("ZENORBIT_RUNTIME_DIR", str(tmp_path_factory.mktemp("runtime")))
+    yield
+    patch.undo()
+
+
 @pytest.fixture(autouse=True)
 def _isolated_runtime_dir(tmp_path, monkeypatch):
     """Each test registers its runs in its own runtime dir (for `ps`/`stop`)."""

@@ -1,5 +1,5 @@
-"""Running a campaign (``orchestrator sweep``): its cases in parallel on this machine, or on a
-dask.distributed cluster, into ``DIR``:
+"""The campaign directory ``DIR`` of ``orchestrator sweep``: its files, its cases' results as they
+come, the progress line, and what ``--resume`` and ``--only`` find there:
 
 | path | what |
 |---|---|
@@ -9,10 +9,6 @@ dask.distributed cluster, into ``DIR``:
 | ``cases/NNNN/`` | its recording, as ``keep`` says |
 | ``cases/NNNN.json`` | its result, once it completed or failed (``--resume`` skips it) |
 | ``cases.parquet`` | one row per case: case, status, error, parameters, metrics, wall_time, attempts, host, recording |
-
-Every case is one ``orchestrator run`` process of its own (own run id, own bus on a free port,
-own component processes), started with the case's config file, so a case's numbers are those of
-a plain ``orchestrator run`` of that file, wherever it runs.
 """
 from __future__ import annotations
 

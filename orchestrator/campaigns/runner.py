@@ -1,14 +1,6 @@
-"""Running a campaign (``orchestrator sweep``): its cases in parallel on this machine, or on a
-dask.distributed cluster, into ``DIR``:
-
-| path | what |
-|---|---|
-| ``campaign.yaml`` | the campaign as given |
-| ``campaign.json`` | its fingerprint (``--resume`` refuses another campaign), keys, metrics, case count |
-| ``cases/NNNN.yaml`` | case NNNN's config: runs by itself with ``orchestrator run`` |
-| ``cases/NNNN/`` | its recording, as ``keep`` says |
-| ``cases/NNNN.json`` | its result, once it completed or failed (``--resume`` skips it) |
-| ``cases.parquet`` | one row per case: case, status, error, parameters, metrics, wall_time, attempts, host, recording |
+"""Running a campaign (``orchestrator sweep``): its cases in parallel on this machine (the local
+pool), or on a dask.distributed cluster (campaigns/distributed.py), into the campaign directory
+(campaigns/directory.py, which lists its files).
 
 Every case is one ``orchestrator run`` process of its own (own run id, own bus on a free port,
 own component processes), started with the case's config file, so a case's numbers are those of

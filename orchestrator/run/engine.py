@@ -11,7 +11,7 @@ orchestrator receives every output, assembles the recorded rows, and checks for 
 the horizon is held there until every component has reached it. A component with no input from the loop (an
 orbit) runs ahead up to the horizon, which hides its cost.
 
-Components send the orchestrator their outputs in batches (see :mod:`components.runner`).
+Components send the orchestrator their outputs in batches (see :mod:`components.process`).
 Every message the orchestrator receives lands in one inbox queue (callbacks only enqueue) and the
 main thread does all the work. Times are integer nanoseconds, step k covers [k*h, (k+1)*h).
 

@@ -124,24 +124,27 @@ def alive_pattern(run_id: str) -> str:
 
 
 def batch_source(key: str) -> str:
-    """The component a key of :func:`batch_pattern` is from."""
-    return key.rpartition("/")[2]
+    """The component a key of :func:`batch_pattern` is from; Malformed for another key."""
+    fields = protocol.BATCHES.fields(key)
+    if fields is None:
+        raise Malformed(f"not a component's batch key: {key!r}")
+    return fields["name"]
 
 
 def reply_source(key: str) -> tuple[str, int]:
     """(component, generation) of a key of :func:`reply_pattern`; Malformed for another key."""
-    parts = key.split("/")
-    if len(parts) < 3 or not _is_number(parts[-2]):
-        raise Malformed("not a component's reply key")
-    return parts[-3], int(parts[-2])
+    fields = protocol.REPLIES.fields(key)
+    if fields is None or not _is_number(fields["generation"]):
+        raise Malformed(f"not a component's reply key: {key!r}")
+    return fields["name"], int(fields["generation"])
 
 
 def alive_source(key: str) -> tuple[str, int] | None:
     """(name, generation) of a key of :func:`alive_pattern`; None for a token that is not a process's."""
-    parts = key.split("/")
-    if not _is_number(parts[-1]):
+    fields = protocol.ALIVE.fields(key)
+    if fields is None or not _is_number(fields["generation"]):
         return None
-    return parts[-2], int(parts[-1])
+    return fields["name"], int(fields["generation"])
 
 
 def _is_number(text: str) -> bool:

@@ -93,6 +93,20 @@ class Topic:
             chunks.pop()
         return "/".join([*chunks, "**"])
 
+    def fields(self, key: str) -> dict[str, str] | None:
+        """The fields of a key of this topic, as text (``{"name": "arm", "generation": "2"}``);
+        None for a key of another form."""
+        chunks, template = key.split("/"), self.template.split("/")
+        if len(chunks) != len(template) + 2 or chunks[0] != ROOT:
+            return None
+        found = {}
+        for chunk, part in zip(chunks[2:], template):
+            if part.startswith("{") and chunk:
+                found[part[1:-1]] = chunk
+            elif chunk != part:
+                return None
+        return found
+
     def _spell(self, run_id: str, fields: dict, wildcard: str | None) -> str:
         chunks = []
         for chunk in self.template.split("/"):

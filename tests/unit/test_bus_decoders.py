@@ -295,3 +295,27 @@ def test_a_malformed_message_says_which_and_what_was_expected(payload, message):
         else protocol.decode_command
     with pytest.raises(protocol.Malformed, match=message):
         decode(payload)
+
+
+def test_keys_are_read_back_by_the_topics_that_spell_them():
+    """The orchestrator reads who sent a batch, a reply or a liveliness token from its key with
+    the same declaration that spelled it; any other key is refused (Malformed) or not a process's."""
+    run = "r1"
+    assert bus.batch_source(protocol.BATCHES.key(run, name="arm")) == "arm"
+    assert bus.reply_source(protocol.REPLIES.key(run, name="arm", generation=12)) == ("arm", 12)
+    assert bus.alive_source(protocol.ALIVE.key(run, name="arm", generation=3)) == ("arm", 3)
+    assert bus.alive_source(protocol.ORCHESTRATOR_ALIVE.key(run)) is None
+    assert bus.alive_source(protocol.ALIVE.key(run, name="arm", generation="²")) is None
+    for key in (protocol.REPLIES.key(run, name="arm", generation="x"), protocol.BATCHES.key(run, name="arm") + "/x",
+                f"zenorbit/{run}/c/arm/1/in", "elsewhere/r1/c/arm/1/out", protocol.BATCHES.key(run, name="")):
+        with pytest.raises(bus.Malformed):
+            bus.reply_source(key) if "/c/" in key else bus.batch_source(key)
+    rng = np.random.default_rng(7)
+    for template in (protocol.REPLIES, protocol.ALIVE, protocol.BATCHES, protocol.OUTPUTS, protocol.COMMANDS):
+        key = template.key(run, **{f: "n1" if f == "name" else "4" for f in ("name", "generation", "source")
+                                   if "{" + f + "}" in template.template})
+        for _ in range(300):   # a key cut or grown by chunks: read back as its fields or refused, never a crash
+            chunks = key.split("/")
+            cut = chunks[:rng.integers(1, len(chunks) + 1)] + ["x"] * int(rng.integers(0, 2))
+            fields = template.fields("/".join(cut))
+            assert fields is None or template.key(run, **fields) == "/".join(cut)

@@ -27,9 +27,13 @@ def register(run_id: str, name: str, endpoint: str, config: Path, secret: str, s
     entry = {"run_id": run_id, "name": name, "endpoint": endpoint, "pid": os.getpid(),
              "config": str(config), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "secret": secret,
              "settings": settings or {}}
-    descriptor = os.open(directory() / f"{run_id}.json", os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    # written under a hidden name, then renamed: a reader never sees half an entry
+    final = directory() / f"{run_id}.json"
+    partial = final.with_name(f".{final.name}.{os.getpid()}")
+    descriptor = os.open(partial, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
     with os.fdopen(descriptor, "w") as file:
         file.write(json.dumps(entry))
+    os.replace(partial, final)
 
 
 def unregister(run_id: str) -> None:
@@ -43,7 +47,9 @@ def alive() -> list[dict]:
         try:
             entry = json.loads(path.read_text())
             os.kill(entry["pid"], 0)
-        except (ValueError, KeyError, ProcessLookupError):
+        except (ValueError, KeyError, FileNotFoundError):   # not an entry (or gone since listed): not removed
+            continue
+        except ProcessLookupError:   # its orchestrator is gone (killed): a stale entry
             path.unlink(missing_ok=True)
             continue
         except PermissionError:

@@ -155,7 +155,7 @@ class OrbitalWorld:
             for j, k in zip(body.joints, body.dof_index):
                 if k >= 0:
                     positions[k] = spec.q.get(j, 0.0)
-            body.skel.setPositions(body._dart(positions))
+            body.set_state(positions, body.velocities())
 
         detector = dart.collision.BulletCollisionDetector()
         groups = {}

@@ -250,9 +250,13 @@ class CaptureComponent(Component):
         ]
 
     def __init__(self, params):
+        from components.controller.computed_torque import compile_kernels
+
         super().__init__(params)
         self.config = self.setup(params)
         self.controller = self._build()
+        warm = self._build()   # the first control step comes with the approach, seconds into the run
+        compile_kernels(warm.arm, warm.law)
 
     def _build(self):
         from components.controller.capture import CaptureController, CaptureSettings

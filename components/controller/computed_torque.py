@@ -283,6 +283,22 @@ class FreeFloatingArm:
                         self._q_arm.copy(), self._qd_arm.copy())
 
 
+def compile_kernels(arm: FreeFloatingArm, law: ComputedTorqueLaw) -> None:
+    """Compile the numba kernels of a control step (or load them from numba's disk cache) now, by
+    one step's calls with ``arm`` at rest in its neutral configuration. A component whose first
+    control step comes late (a capture's approach, seconds into the run) calls it at construction:
+    a cold compile (~3 s on one idle core) then counts against run.start_timeout, not inside a
+    step against run.step_timeout. ``arm`` and ``law`` are throwaway: their state changes."""
+    q = np.zeros(arm.n_body)
+    for k, _, value in arm._locked_body:
+        q[k] = value
+    arm.set_state(np.zeros(3), (0.0, 0.0, 0.0, 1.0), np.zeros(6), q, np.zeros(arm.n_body))
+    s = arm.compute(law.base_model)
+    still = np.zeros(3)
+    law.control(s, PoseSample(s.p, still, still, s.R, still, still), s.q.copy())
+    dls_inverse(s.J_g, law.eps, law.lam)
+
+
 def dls_inverse(J: np.ndarray, eps: float, lambda_max: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Damped least-squares inverse of J (m x n, m <= n): (J^+, null-space projector, s_min).
 

@@ -491,3 +491,25 @@ def test_wheel_torques_scale_down_with_the_wrist_wrench():
     assert np.allclose([w[1:] for w in wheel], 0.0)
     assert x[0] == 1.0 and x[1] == 0.5, x
     assert math.isclose(x[2], 0.505) and math.isclose(x[3], 0.505 / 4) and math.isclose(x[4], 0.505 / 4 + 0.005), x
+
+
+def test_the_control_kernels_are_ready_when_the_capture_controller_is_built():
+    """The capture's first control step comes with the approach, seconds into the run: a kernel
+    compiled there (~3 s cold, far more on a busy machine) counted against run.step_timeout. Built
+    in a fresh process (no kernel loaded yet), the component holds every control kernel compiled."""
+    import subprocess
+    import sys
+
+    code = """
+import numba
+from components.controller import kernels
+from components.testing.harness import Harness
+from orchestrator.config.load import load
+spec = load("configs/capture_tumbling_target.yaml").components["controller"]
+Harness(spec.type, spec.parameters, config_dir="configs")
+missing = [n for n in dir(kernels) if isinstance(getattr(kernels, n), numba.core.registry.CPUDispatcher)
+           and not getattr(kernels, n).signatures]
+assert not missing, missing
+"""
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]

@@ -12,6 +12,9 @@ each consumer, and in batches to the orchestrator. All work happens on the main 
 the one Zenoh FIFO of its inbox (see :mod:`components.bus`); a watchdog thread only flushes
 batches. The process exits after ``terminate``, or when the orchestrator's liveliness token
 goes away.
+
+With ``--member NAME:GENERATION`` repeated instead of ``--name``, it runs a process group: those
+components in this one process (see :mod:`components.group`).
 """
 from __future__ import annotations
 
@@ -20,6 +23,7 @@ import os
 import sys
 
 from components import bus, bus_security
+from components.group import serve_group
 from components.serving import ORPHANED, serve
 
 
@@ -27,8 +31,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m components.runner", description=__doc__.splitlines()[0])
     parser.add_argument("--connect", required=True, help="the orchestrator's Zenoh endpoint, e.g. tcp/127.0.0.1:7447")
     parser.add_argument("--run-id", required=True)
-    parser.add_argument("--name", required=True, help="the component's name in the config")
+    parser.add_argument("--name", help="the component's name in the config")
     parser.add_argument("--generation", type=int, default=0)
+    parser.add_argument("--member", action="append", type=_member, default=[], metavar="NAME:GENERATION",
+                        help="a component of a process group (repeated, instead of --name): all in this process")
+    parser.add_argument("--stepping", metavar="FILE", help="a group's file of 4 bytes where it marks the member "
+                                                           "whose code runs (the orchestrator reads it)")
     parser.add_argument("--listen", help="where the other components reach this one directly "
                                          "(default: port 0 on the address used to reach the orchestrator)")
     parser.add_argument("--cpu", type=int, help="step on this CPU alone (the config's dedicated_cpu)")
@@ -39,9 +47,24 @@ def main(argv: list[str] | None = None) -> int:
     if not secret:
         parser.error(f"{bus.SECRET_ENV} is not set: give the run's secret in it, as the orchestrator's "
                      f"command for an external component does")
-    ended = serve(args.connect, args.run_id, args.name, args.generation, args.listen, secret, args.cpu,
-                  bus_security.from_env(), args.orchestrator)
+    if (args.name is None) == (not args.member):
+        parser.error("give either --name (one component) or --member (each component of a group)")
+    if args.member and len(args.member) == 1:
+        parser.error("a group of one is a component: give --name")
+    if args.member:
+        ended = serve_group(args.connect, args.run_id, args.member, args.listen, secret, args.cpu,
+                            bus_security.from_env(), args.orchestrator, args.stepping)
+    else:
+        ended = serve(args.connect, args.run_id, args.name, args.generation, args.listen, secret, args.cpu,
+                      bus_security.from_env(), args.orchestrator)
     return 1 if ended == ORPHANED else 0
+
+
+def _member(text: str) -> tuple[str, int]:
+    name, colon, generation = text.rpartition(":")
+    if not colon or not name or not generation.isdigit():
+        raise argparse.ArgumentTypeError(f"expected NAME:GENERATION (e.g. dynamics:0), got {text!r}")
+    return name, int(generation)
 
 
 if __name__ == "__main__":

@@ -158,6 +158,13 @@ class Component:
         return other is cls or (cls.state_form is not None and cls.state_form == other.state_form)
 
     @classmethod
+    def group_problem(cls, params: Mapping[str, Any]) -> str | None:
+        """Why an instance with these (validated) parameters cannot share a process with other
+        components (``process:``, a process group), or None: ``check`` refuses the group with it.
+        Default: it can (its code runs in the process's Python like any other member's)."""
+        return None
+
+    @classmethod
     def state_problem(cls, params: Mapping[str, Any]) -> str | None:
         """Why an instance with these (validated) parameters cannot hand its state over, or None.
         Swaps that hand the state over (``takes_state_of``) and restarts are refused with this reason."""

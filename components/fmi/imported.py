@@ -279,6 +279,20 @@ class FMUComponent(Component):
                     f"{str(cs.canSerializeFMUstate).lower()}")
         return None
 
+    @classmethod
+    def group_problem(cls, params):
+        file, md = cls._model(params)
+        name = Path(params["path"]).name
+        with zipfile.ZipFile(file) as archive:
+            if "resources/slavemodule.txt" in archive.namelist():
+                return (f"FMU {name} embeds a Python interpreter (pythonfmu): in a group its model would run in "
+                        f"the process's own interpreter, beside the other members' modules and native libraries "
+                        f"(pythonfmu's binary is only safe in a process of its own)")
+        if md.coSimulation.canBeInstantiatedOnlyOncePerProcess:
+            return (f"FMU {name} can be instantiated only once per process (its modelDescription.xml says "
+                    f"canBeInstantiatedOnlyOncePerProcess=true)")
+        return None
+
     def __init__(self, params):
         from fmpy import extract
 

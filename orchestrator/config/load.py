@@ -12,6 +12,7 @@ from components import registry
 from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.units import duration_text
+from orchestrator.config import groups
 from orchestrator.hosts import bus_config
 from orchestrator.config.schema import BUS, COMPONENT, CONFIG, FAULT, MAX_STEPS, RUN, VIEWER
 from orchestrator.config.specs import ComponentSpec, Event, Fault, RunConfig, ViewerSpec
@@ -87,7 +88,8 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
                             f"{key}.parameters: {type_name} cannot declare its variables: {type(e).__name__}: {e}"])
     return ComponentSpec(name=name, type=type_name, cls=cls, step_ns=step_ns, parameters=params_raw,
                          resolved=resolved.params, launch=entry["launch"], dedicated_cpu=entry["dedicated_cpu"],
-                         on_failure=entry["on_failure"], inputs=resolved.inputs, outputs=resolved.outputs)
+                         on_failure=entry["on_failure"], process=entry["process"], inputs=resolved.inputs,
+                         outputs=resolved.outputs)
 
 
 def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
@@ -136,6 +138,7 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
     connections = parse_connections(config.get("connections", {}), components, raw_entries, file, errors)
     for name, shadow in shadows.items():
         errors += [f"{file}: {shadow.key}: {p}" for p in mismatches(components[name], shadow, connections)]
+    errors += [f"{file}: {p}" for p in groups.problems(list(components.values()))]
     components, connections = with_shadows(components, shadows, connections)
     events = _events(config.get("events", []), components, connections, step_ns, total_ns, config_dir, epoch,
                      file, errors, packages)
@@ -188,9 +191,12 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
 def _resolved_entry(spec: ComponentSpec, shadow: ComponentSpec | None) -> dict:
     """A component's entry in the resolved config.yaml, its shadow nested in it."""
     entry = {**COMPONENT.plain({"type": spec.type, "step": spec.step_ns, "launch": spec.launch,
-                                "dedicated_cpu": spec.dedicated_cpu, "on_failure": spec.on_failure}),
+                                "dedicated_cpu": spec.dedicated_cpu, "on_failure": spec.on_failure,
+                                "process": spec.process}),
              "parameters": spec.cls.schema.plain(spec.resolved)}
     del entry["shadow"]
+    if spec.process is None:   # one process per component: the default, unwritten
+        del entry["process"]
     if shadow is not None:
         entry["shadow"] = {"type": shadow.type, "parameters": shadow.cls.schema.plain(shadow.resolved)}
     return entry
@@ -232,7 +238,8 @@ def _events(entries: list[dict], components: dict[str, ComponentSpec], connectio
             params = old.parameters if handed_over else {}
         try:
             spec = component_spec(target, {"type": new_type, "parameters": params, "step": old.step_ns,
-                                           "launch": "local", "dedicated_cpu": False, "on_failure": old.on_failure},
+                                           "launch": "local", "dedicated_cpu": False, "on_failure": old.on_failure,
+                                           "process": None},   # a new generation runs in a process of its own
                                   step_ns, config_dir, epoch, key, packages)
         except ConfigErrors as e:
             errors += [f"{file}: {m}" for m in e.errors]

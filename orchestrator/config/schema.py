@@ -95,6 +95,9 @@ COMPONENT = Record("component", (
                           "for its inputs much of each step (speed only, never results)"),
     Parameter("on_failure", Str(("stop", "restart")), default="stop",
               description="when it dies or hangs: stop the run, or restart the run from its last checkpoint"),
+    Parameter("process", Str(pattern=NAME, hint="a group name: a letter, then letters, digits or '_'"), default=None,
+              description="a group name: every component naming it runs in one process, their outputs to each "
+                          "other in memory (speed only, never results; default: a process of its own)"),
     Parameter("shadow", SHADOW, default=None,
               description="a second instance run beside it on the same inputs, recorded, never fed back"),
 ), description="one component (``components.<name>``)")

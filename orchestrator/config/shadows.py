@@ -28,14 +28,14 @@ def shadow_name(main: str) -> str:
 def shadow_spec(main: ComponentSpec, entry: dict, entries: dict,
                 build: Callable[[str, dict, str], ComponentSpec]) -> ComponentSpec:
     """The spec of ``main``'s shadow from its ``entry`` (config.SHADOW converted); its step and
-    on_failure are the main's and the orchestrator starts it. ``entries``: the config's components;
+    on_failure are the main's, the orchestrator starts it, in a process of its own. ``entries``: the config's components;
     ``build(name, entry, key)``: config.component_spec."""
     name, key = shadow_name(main.name), f"components.{main.name}.shadow"
     if name in entries:
         raise ConfigErrors([f"{key}: its outputs are recorded as {name}.<output>, and a component is named "
                             f"{name!r} already (rename it)"])
     spec = build(name, {**entry, "step": main.step_ns, "launch": "local", "dedicated_cpu": False,
-                        "on_failure": main.on_failure}, key)
+                        "on_failure": main.on_failure, "process": None}, key)
     spec.shadow_of = main.name
     return spec
 

@@ -21,6 +21,7 @@ class ComponentSpec:
     launch: str = "local"
     dedicated_cpu: bool | str = False   # true: its stepping thread on a CPU of its own; "process": all its threads
     on_failure: str = "stop"      # or "restart": the run goes back to its last checkpoint
+    process: str | None = None    # its process group: the components naming it share one process
     shadow_of: str | None = None  # the component this one shadows (orchestrator/config/shadows.py)
 
     @property

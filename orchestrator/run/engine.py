@@ -37,7 +37,7 @@ from pathlib import Path
 from components import bus, protocol
 from components.constants import NS_PER_S
 from orchestrator.run import pacing, recovery, report, runs, supervisor, wiring
-from orchestrator.config import shadows
+from orchestrator.config import groups, shadows
 from orchestrator.config.specs import ComponentSpec, RunConfig, ViewerSpec
 from orchestrator.run.control import ControlServer, StopRequested, raise_stop
 from orchestrator.run.listener import Listener
@@ -70,7 +70,8 @@ class Run:
             tempfile.mkdtemp(prefix=f"zenorbit-{self.run_id}-"))
         self.log_dir.mkdir(parents=True, exist_ok=True)
         self.loop_s = 0.0
-        self.placement = supervisor.place([n for n, c in config.components.items() if c.dedicated_cpu],
+        processes = groups.processes(list(config.components.values()))
+        self.placement = supervisor.place([[s.name for s in specs] for specs in processes if groups.dedicated_cpu(specs)],
                                           os.sched_getaffinity(0))
         self.session = self.crew = self.viewer_link = self.hosts = self.listener = self.recovery = None
         self._subscriptions: list = []

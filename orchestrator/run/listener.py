@@ -8,7 +8,7 @@ import time
 
 from components import bus, protocol
 from orchestrator.run.control import ControlServer
-from orchestrator.run.members import Member, RunFailure, death, exited, fault_message
+from orchestrator.run.members import Member, RunFailure, at_fault, death, exited, fault_message
 from orchestrator.run.messages import CONTROL, OUTPUTS, Beat, Events, LinkLost, Liveliness, Outputs, Reply, decode
 from orchestrator.run.state import RunState
 from orchestrator.run.viewer_link import ViewerLink
@@ -160,6 +160,7 @@ class Listener:
                 continue
             member = self.run.joining.get(name) or self.run.members[name]
             if how := exited(member) or self.hosts.silent(member):
+                member = at_fault(member)   # in a process group: the member whose code was running
                 self.salvage(member)
                 raise RunFailure(death(member, how), member, lost=True)
 

@@ -1,5 +1,6 @@
 """The run's component processes: a live member, starting one (launch, wait for its liveliness
-token, instantiate), asking it something, stopping it, and how their deaths and faults read."""
+token, instantiate), asking it something, stopping it, and how their deaths and faults read. A
+process group's members share one process (:class:`SharedProcess`)."""
 from __future__ import annotations
 
 import collections
@@ -13,8 +14,10 @@ import numpy as np
 
 from components import bus, protocol
 from components.constants import NS_PER_S
+from components.group import read_mark
 from components.schedule import Route
 from orchestrator.run import supervisor
+from orchestrator.config import groups
 from orchestrator.config.specs import ComponentSpec, RunConfig
 from orchestrator.run.messages import Fault, Outputs
 
@@ -56,6 +59,7 @@ class Member:
     heard_at: float = 0.0                  # wall time of its last message (heartbeats included)
     cut: bool = False                      # Zenoh closed the link to it
     ended: bool = False                    # asked to terminate
+    shared: "SharedProcess | None" = field(default=None, repr=False)   # its process group's process
 
     @property
     def name(self) -> str:
@@ -82,6 +86,27 @@ class Member:
         self.steps += len(tags)
 
 
+@dataclass
+class SharedProcess:
+    """The process of a process group: its members in the runner's ``--member`` order, and the
+    file where it marks the member whose code runs (components.group)."""
+    group: str
+    members: list[Member]
+    stepping: Path
+
+    def running(self) -> Member | None:
+        """The member whose code the process was in (its step, a command), if any."""
+        index = read_mark(self.stepping)
+        return self.members[index] if index is not None and index < len(self.members) else None
+
+
+def at_fault(member: Member) -> Member:
+    """Who a death or hang of ``member``'s process is due to: the member of its process group whose
+    code was running, if one was (and is still live); else ``member``."""
+    running = member.shared.running() if member.shared is not None else None
+    return running if running is not None and not running.ended else member
+
+
 Wait = Callable[[dict, float, str], None]
 
 
@@ -96,36 +121,51 @@ class Crew:
         self.config, self.run_id, self.session, self.endpoint = config, run_id, session, endpoint
         self.secret, self.env, self.log_dir, self.placement, self.out = secret, env, log_dir, placement, out
         self.place, self.wait, self.hosts = place, wait, hosts   # hosts: the run's bus (orchestrator.hosts.run_bus)
+        self.launches: dict[str, int] = {}   # process group -> its processes started so far (their log names)
 
-    def launch(self, spec: ComponentSpec, generation: int) -> Member:
-        """Start the process of a member (or ask the user to, for an external one)."""
-        process = log_path = None
+    def launch(self, specs: list[ComponentSpec], generation: dict[str, int]) -> list[Member]:
+        """Start the process of a member, or of a process group's members (or ask the user to,
+        for an external one)."""
+        spec = specs[0]   # a group's members agree on launch (config.groups)
+        process = log_path = shared = None
         if spec.launch == "local":
-            args = supervisor.runner_arguments(self.endpoint, self.run_id, spec.name, generation)
+            args = supervisor.runner_arguments(self.endpoint, self.run_id, [(s.name, generation[s.name]) for s in specs])
             args += ["--orchestrator", str(self.session.zid())]
+            if len(specs) > 1:
+                launches = self.launches[spec.process] = self.launches.get(spec.process, -1) + 1
+                log_path = self.log_dir / f"group.{spec.process}.{launches}.log"
+                shared = SharedProcess(spec.process, [], log_path.with_suffix(".stepping"))
+                shared.stepping.write_bytes(bytes(4))   # the process maps it: no member running yet
+                args += ["--stepping", str(shared.stepping)]
+            else:
+                log_path = self.log_dir / f"{spec.name}.{generation[spec.name]}.log"
             listen = self.hosts.component_listen()
             cpu = self.placement.dedicated.get(spec.name)
             args += (["--listen", listen] if listen else []) + (["--cpu", str(cpu)] if cpu is not None else [])
-            log_path = self.log_dir / f"{spec.name}.{generation}.log"
-            whole = cpu is not None and spec.dedicated_cpu == "process"   # its bus threads on its CPU too
+            whole = cpu is not None and groups.dedicated_cpu(specs) == "process"   # its bus threads on its CPU too
+            # a group's process holds its first member's certificate: any component's may do what one does
             process = supervisor.start_component(args, log_path, frozenset({cpu}) if whole else self.placement.shared,
                                                  {**self.env, **self.hosts.child_env(spec.name)})
-        member = Member(spec=spec, generation=generation, process=process, log_path=log_path,
-                        ratio=spec.step_ns // self.config.step_ns, latest=spec.outputs.start_vector())
-        if spec.launch != "local":
-            self.hosts.invite(member)   # writes its join file and says where
-        member.command = bus.publisher(self.session, bus.command_key(self.run_id, spec.name, generation))
-        member.out_dst, member.out_src = self.place(spec)
-        return member
+        members = []
+        for spec in specs:
+            member = Member(spec=spec, generation=generation[spec.name], process=process, log_path=log_path,
+                            ratio=spec.step_ns // self.config.step_ns, latest=spec.outputs.start_vector(), shared=shared)
+            if spec.launch != "local":
+                self.hosts.invite(member)   # writes its join file and says where
+            member.command = bus.publisher(self.session, bus.command_key(self.run_id, spec.name, member.generation))
+            member.out_dst, member.out_src = self.place(spec)
+            members.append(member)
+        if shared is not None:
+            shared.members = members
+        return members
 
     def start(self, specs: list[ComponentSpec], generation: dict[str, int], into: dict[str, Member]) -> list[Member]:
         """Launch, wait for and instantiate members, registered in ``into`` (the engine's members,
-        or those joining) as soon as launched, so that their messages are taken."""
-        started = []
-        for spec in specs:
-            member = self.launch(spec, generation[spec.name])
-            into[member.name] = member
-            started.append(member)
+        or those joining) as soon as launched, so that their messages are taken. The members of a
+        process group started together share one process."""
+        launched = {m.name: m for together in groups.processes(specs) for m in self.launch(together, generation)}
+        started = [launched[spec.name] for spec in specs]   # in config order, as the run lists them
+        into.update((m.name, m) for m in started)
         timeout = self.config.start_timeout_s
         expect = {m.name: "alive" for m in started}
         external = any(m.spec.launch == "external" for m in started)
@@ -158,7 +198,8 @@ def terminate(member: Member, timeout: float = 5.0, final: bool = False) -> None
     ``final``: the run is over (an external member's `orchestrator join` then exits)."""
     member.ended = True
     member.control(protocol.Terminate(final))
-    supervisor.reap(member.process, timeout)
+    if member.shared is None or all(m.ended for m in member.shared.members):   # the last of a group ends its process
+        supervisor.reap(member.process, timeout)
     member.command.undeclare()
 
 
@@ -171,6 +212,9 @@ def exited(member: Member) -> str | None:
 
 def death(member: Member, how: str) -> str:
     where = f" on {member.host}" if member.host else ""
+    if member.shared is not None:
+        others = [m.name for m in member.shared.members if m is not member]
+        where += f", in process group {member.shared.group!r} with {', '.join(others)},"
     return (f"component {member.name!r} ({member.spec.type}){where} died at step {member.progress}: {how}"
             f"{supervisor.last_words(member.log_path)}")
 

@@ -19,7 +19,7 @@ from orchestrator.config.specs import ComponentSpec, Fault
 from orchestrator.config.connections import handover_problem, hands_over
 from orchestrator.run.control import SwapFailed
 from orchestrator.run.listener import Listener
-from orchestrator.run.members import Crew, Member, RunFailure, terminate
+from orchestrator.run.members import Crew, Member, RunFailure, at_fault, terminate
 from orchestrator.run.state import Checkpoint, RunState
 
 
@@ -150,6 +150,7 @@ class Recovery:
         timeout = run.config.step_timeout_s
         m = hung(run.members, run.horizon, run.horizon_at, time.monotonic(), timeout)
         if m is not None:
+            m = at_fault(m)   # in a process group, the member whose step holds the others up
             k = m.progress
             self.listener.salvage(m)
             raise RunFailure(f"component {m.name!r} did not answer step {k} within {timeout:g} s "

@@ -42,5 +42,5 @@ def profile(members, row: int, step_ns: int, loop_s: float, algorithm: str) -> l
 
 def error(message: str, members) -> str:
     """The error a run ended with, and where the logs of its components are."""
-    logs = ", ".join(str(m.log_path) for m in members if m.log_path)
+    logs = ", ".join(dict.fromkeys(str(m.log_path) for m in members if m.log_path))   # a process group's once
     return f"error: {message}" + (f"\ncomponent logs: {logs}" if logs else "")

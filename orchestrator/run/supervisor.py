@@ -1,4 +1,5 @@
-"""Component processes: start them, tell how they died, make sure none is left behind."""
+"""Component processes (one component's, or a process group's): start them, tell how they died,
+make sure none is left behind."""
 from __future__ import annotations
 
 import os
@@ -42,8 +43,12 @@ def resolve_endpoints(listen: list[str]) -> tuple[list[str], str]:
     return resolved, f"{proto}/{local_host}:{port}"
 
 
-def runner_arguments(endpoint: str, run_id: str, name: str, generation: int) -> list[str]:
-    return ["--connect", endpoint, "--run-id", run_id, "--name", name, "--generation", str(generation)]
+def runner_arguments(endpoint: str, run_id: str, members: list[tuple[str, int]]) -> list[str]:
+    """The runner's arguments for one component, or a process group's (name, generation) each."""
+    if len(members) == 1:
+        (name, generation), = members
+        return ["--connect", endpoint, "--run-id", run_id, "--name", name, "--generation", str(generation)]
+    return ["--connect", endpoint, "--run-id", run_id, *(f"--member={n}:{g}" for n, g in members)]
 
 
 @dataclass(frozen=True)
@@ -58,9 +63,10 @@ class Placement:
     unplaced: tuple[str, ...]
 
 
-def place(asking: list[str], available: set[int]) -> Placement:
-    """Give each component of ``asking`` (in order) a CPU of its own, from the highest-numbered
-    one down, keeping at least one CPU for the rest of the run.
+def place(asking: list[list[str]], available: set[int]) -> Placement:
+    """Give each process of ``asking`` (in order; each the names of the components it runs: one,
+    or a process group's) a CPU of its own, from the highest-numbered one down, keeping at least
+    one CPU for the rest of the run.
 
     Why: on a loaded machine each wake-up of another thread on a component's CPU costs it far more
     than the wake-up itself (caches and branch predictors go cold); measured on 2 cores, the
@@ -70,8 +76,9 @@ def place(asking: list[str], available: set[int]) -> Placement:
     (benchmarks/bench_pace.py: the demo with a 100 us dynamics 3.0x real time against 2.6x)."""
     cpus = sorted(available, reverse=True)
     spare = max(len(cpus) - 1, 0)
-    dedicated = dict(zip(asking[:spare], cpus))
-    return Placement(dedicated, frozenset(available) - frozenset(dedicated.values()), tuple(asking[spare:]))
+    dedicated = {name: cpu for names, cpu in zip(asking[:spare], cpus) for name in names}
+    return Placement(dedicated, frozenset(available) - frozenset(dedicated.values()),
+                     tuple(name for names in asking[spare:] for name in names))
 
 
 def keep_to(cpus: frozenset[int], pid: int = 0) -> None:

@@ -155,6 +155,27 @@ def test_bad_files_are_refused_naming_the_key_and_the_file(tmp_path, probe_fmu):
     assert "expected an .fmu file" in _error({"path": str(text)})
 
 
+def test_only_an_fmu_that_is_safe_beside_others_may_join_a_process_group(tmp_path, probe_fmu):
+    """A pythonfmu FMU runs its model in the host's interpreter: refused; an FMU without one (here
+    the probe's archive without pythonfmu's resource) may join, unless it says it can be
+    instantiated only once per process."""
+    def rewritten(name: str, once: bool):
+        path = tmp_path / name
+        with zipfile.ZipFile(probe_fmu) as src, zipfile.ZipFile(path, "w") as dst:
+            for item in src.infolist():
+                data = src.read(item)
+                if item.filename == "resources/slavemodule.txt":
+                    continue
+                if item.filename == "modelDescription.xml" and once:
+                    data = data.replace(b'canBeInstantiatedOnlyOncePerProcess="false"',
+                                        b'canBeInstantiatedOnlyOncePerProcess="true"')
+                dst.writestr(item, data)
+        return {"path": str(path), "start_values": {}}
+    assert "embeds a Python interpreter (pythonfmu)" in FMUComponent.group_problem({"path": str(probe_fmu)})
+    assert FMUComponent.group_problem(rewritten("native.fmu", once=False)) is None
+    assert "canBeInstantiatedOnlyOncePerProcess=true" in FMUComponent.group_problem(rewritten("once.fmu", once=True))
+
+
 def test_bad_start_values_are_refused_naming_the_variable(probe_fmu):
     def error(start_values):
         return _error({"path": str(probe_fmu), "start_values": start_values})

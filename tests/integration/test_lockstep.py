@@ -265,6 +265,38 @@ components:
     assert not component_processes("pinned-")
 
 
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs 2 CPUs")
+def test_dedicated_cpu_of_a_member_places_its_whole_process_group(write_config, tmp_path):
+    """a asks for a CPU (process), c in its group does not say: the group's process, every thread
+    of it, is on that CPU, and no thread of b or the orchestrator."""
+    config = write_config("""
+run: {name: grouped_pin, epoch: 2022-09-18T12:00:00Z, duration: 1000 s, step: 1 ms, realtime: 1.0}
+components:
+  a: {type: test.counter, dedicated_cpu: process, process: pair}
+  b: {type: test.counter}
+  c: {type: test.counter, process: pair}
+""")
+    dedicated = max(os.sched_getaffinity(0))
+    run = start_run(config, tmp_path / "rec")
+    try:
+        lines = wait_for_components("grouped_pin-", 2)
+        group = next(int(line.split()[0]) for line in lines if "--member=a:0 --member=c:0" in line)
+        other = next(int(line.split()[0]) for line in lines if "--name b" in line)
+        wait_for_step("grouped_pin", 10, run=run)
+        pair, b, orchestrator_threads = thread_cpus(group), thread_cpus(other), thread_cpus(run.pid)
+        assert len(pair) > 1 and all(c == {dedicated} for c in pair.values()), pair
+        assert all(dedicated not in c and c for c in [*b.values(), *orchestrator_threads.values()])
+        assert orchestrator("stop", "--run", "grouped_pin").returncode == 0
+        run.communicate(timeout=30)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 0
+    start = events(tmp_path / "rec")[0]
+    assert start["cpus"]["a"] == start["cpus"]["c"] == dedicated and dedicated not in start["cpus"]["shared"]
+    assert not component_processes("grouped_pin-")
+
+
 def test_ctrl_c_stops_cleanly(write_config, tmp_path):
     """Ctrl-C on a terminal signals the whole process group: components leave it to the orchestrator."""
     config = write_config("""

@@ -272,3 +272,44 @@ def test_bodies_that_overlap_at_the_start_are_warned_at_check():
     depth = float(found[0].split(" by ")[1].split(" mm")[0]) / 1e3
     assert 0.0 < depth <= 1.135 + 1e-6
     assert not [n for n in load(config, full=True).notes if "overlap" in n]
+
+
+def test_a_process_group_is_one_line_per_component_and_kept_in_the_resolved_config(write_config):
+    config = load(write_config(GOOD.replace("{value: 1.0}}", "{value: 1.0}, process: loop}")
+                               .replace("{gain: 2}}", "{gain: 2}, process: loop, shadow: {type: test.integrator}}")
+                               + "events: [{at: 1 s, swap: int}]\n"))
+    assert [config.components[n].process for n in ("src", "int", "int_shadow")] == ["loop", "loop", None]
+    assert config.events[0].spec.process is None          # a swap's new generation: a process of its own
+    assert config.resolved["components"]["int"]["process"] == "loop"
+    assert "process" not in load(write_config(GOOD, "plain.yaml")).resolved["components"]["int"]   # the default
+
+
+@pytest.mark.parametrize("entries, expected", [
+    ("launch: external, process: loop}", "components.src.process: group 'loop' is one process, started by the "
+     "orchestrator or by you: expected its members all launch: local, got launch: external (src) beside "
+     "launch: local (int)"),
+    ("dedicated_cpu: true, process: loop}", "components.src.dedicated_cpu: the members of group 'loop' share one "
+     "process and its CPU: expected those that ask for one to agree (true or process), got src: true, int: process"),
+    ("process: 7up}", "components.src.process: expected a group name: a letter, then letters, digits or '_'"),
+])
+def test_a_group_whose_members_disagree_is_refused_saying_what_was_expected(write_config, entries, expected):
+    text = (GOOD.replace("{value: 1.0}}", "{value: 1.0}, " + entries)
+            .replace("{gain: 2}}", "{gain: 2}, process: loop, dedicated_cpu: process}"))
+    errors = errors_of(write_config, text)
+    assert any(expected in e for e in errors), errors
+
+
+def test_an_external_group_is_refused_with_the_reason(write_config):
+    text = (GOOD.replace("{value: 1.0}}", "{value: 1.0}, launch: external, process: far}")
+            .replace("{gain: 2}}", "{gain: 2}, launch: external, process: far}"))
+    errors = errors_of(write_config, text)
+    assert any("components.src.process: group 'far' (src, int) is launch: external; orchestrator join serves one "
+               "component" in e for e in errors), errors
+
+
+def test_a_type_that_cannot_share_a_process_is_refused_with_its_reason(write_config, monkeypatch):
+    from components.testing.blocks import Constant
+    monkeypatch.setattr(Constant, "group_problem", classmethod(lambda cls, params: "it owns the process's signals"))
+    errors = errors_of(write_config, GOOD.replace("{value: 1.0}}", "{value: 1.0}, process: loop}"))
+    assert any("components.src.process: src (test.constant) cannot join group 'loop': it owns the process's "
+               "signals; run it in a process of its own (no process: key)" in e for e in errors), errors

@@ -110,16 +110,19 @@ def test_consumers_off_every_loop_back_get_batches():
 
 def test_dedicated_cpus_are_handed_out_from_the_top_keeping_one_for_the_rest():
     from orchestrator.run.supervisor import place
-    two = place(["dynamics"], {0, 1})
+    two = place([["dynamics"]], {0, 1})
     assert two.dedicated == {"dynamics": 1} and two.shared == {0} and two.unplaced == ()
-    four = place(["a", "b"], {0, 1, 2, 3})
+    four = place([["a"], ["b"]], {0, 1, 2, 3})
     assert four.dedicated == {"a": 3, "b": 2} and four.shared == {0, 1}
     # an orchestrator restricted to CPUs 2 and 5 hands out only those
-    assert place(["a"], {2, 5}).dedicated == {"a": 5}
-    alone = place(["a", "b"], {0})
+    assert place([["a"]], {2, 5}).dedicated == {"a": 5}
+    alone = place([["a"], ["b"]], {0})
     assert alone.dedicated == {} and alone.shared == {0} and alone.unplaced == ("a", "b")
-    assert place(["a", "b"], {0, 1}).unplaced == ("b",)
+    assert place([["a"], ["b"]], {0, 1}).unplaced == ("b",)
     assert place([], {0, 1}).shared == {0, 1}
+    # a process group takes one CPU, for all its members
+    group = place([["dynamics", "controller"], ["orbit"]], {0, 1, 2})
+    assert group.dedicated == {"dynamics": 2, "controller": 2, "orbit": 1} and group.shared == {0}
 
 
 def test_fed_inputs_names_the_variables_a_route_feeds():

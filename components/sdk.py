@@ -20,6 +20,7 @@ import numpy as np
 
 from components.errors import ConfigError
 from components.plotting import Plot
+from components.rosbag import RosExport
 from components.schema import REQUIRED, Parameter, Problems, Record, markdown  # noqa: F401 (SDK surface)
 
 CAUSALITIES = ("input", "output")
@@ -81,6 +82,9 @@ class Component:
     #: What the Rerun viewer draws for a component of this type: a
     #: :class:`components.viewer.scene.View` subclass. None: its outputs are plotted as plain signals.
     view: ClassVar[type | None] = None
+    #: What ``orchestrator export DIR --rosbag2 OUT`` writes for a component of this type, as ROS 2
+    #: messages (:class:`components.rosbag.RosExport`). None: nothing (the exporter names it).
+    rosbag: ClassVar[RosExport | None] = None
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)

@@ -21,6 +21,7 @@ import numpy as np
 from components.constants import MU_EARTH, NS_PER_S
 from components.dynamics import plots as dynamics_plots
 from components.dynamics.capture import OVERLOAD_ACTIONS
+from components.dynamics import ros as dynamics_ros
 from components.dynamics.view import DynamicsView
 from components.errors import ComponentError, ConfigError
 from components.robots.model import JOINT_RATE, JOINT_VALUE, body_items, read_model
@@ -208,6 +209,7 @@ class OrbitalDynamics(Component):
     state_form = "dynamics"
     plots = (dynamics_plots.BODIES, dynamics_plots.CAPTURE)
     view = DynamicsView
+    rosbag = dynamics_ros.ROS_EXPORT
     parameters = (
         Parameter("bodies", MapOf(BODY, "body name", key_pattern=NAME.pattern[1:-1], min_items=1),
                   description="the bodies by name"),

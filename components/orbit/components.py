@@ -22,6 +22,7 @@ from components.orbit import plots as orbit_plots
 from components.orbit.frames import lvlh_dcm, lvlh_state
 from components.rotations import continuous
 from components.orbit.kepler import ElementError, KeplerOrbit, check_elements
+from components.orbit import ros as orbit_ros
 from components.orbit.view import OrbitView
 from components.schema import Float, ListOf, Record, Str, UtcTime, Vector
 from components.sdk import Component, Parameter
@@ -50,6 +51,7 @@ class _OrbitComponent(Component):
     variables = ORBIT_OUTPUTS
     plots = (orbit_plots.TRACK,)
     view = OrbitView
+    rosbag = orbit_ros.ROS_EXPORT
 
     def __init__(self, params):
         super().__init__(params)

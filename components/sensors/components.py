@@ -29,6 +29,7 @@ from components.rotations import continuous
 from components.schema import Duration, Float, Int, OneOf, Vector
 from components.sdk import Component, Parameter, Variable
 from components.sensors.plots import measured_against_true
+from components.sensors import ros as sensor_ros
 from components.sensors.view import SensorView
 from components.sensors.noise import (BiasRandomWalk, LatencyBuffer, NormalStream, latency_samples, normalized,
                                       per_axis, perturb_quaternion, white)
@@ -97,6 +98,7 @@ class ImuComponent(_SeededSensor):
     measures = {"rate": "rate_true", "specific_force": "specific_force_true"}
     plots = (measured_against_true(measures),)
     view = SensorView
+    rosbag = sensor_ros.IMU
     parameters = (
         _seed(),
         _sigma("rate_noise", "rad/s", "gyro white noise"),
@@ -160,6 +162,7 @@ class ForceTorqueComponent(_SeededSensor):
     measures = {"wrench": "wrench_true"}
     plots = (measured_against_true(measures),)
     view = SensorView
+    rosbag = sensor_ros.FORCE_TORQUE
     parameters = (
         _seed(),
         _sigma("force_noise", "N", "force white noise"),
@@ -221,6 +224,7 @@ class RelativePoseComponent(_SeededSensor):
     measures = {"p": "p_true", "q": "q_true"}
     plots = (measured_against_true(measures),)
     view = SensorView
+    rosbag = sensor_ros.RELATIVE_POSE
     parameters = (
         _seed(),
         _sigma("position_noise", "m", "position white noise, sensor axes"),

@@ -38,7 +38,8 @@ from components.plotting import PlotError, RecordedRun, new_figure
 from orchestrator.plots.shadows import shadow_figures
 
 
-def _load(record_dir: Path) -> RecordedRun:
+def load_run(record_dir: Path) -> RecordedRun:
+    """A recording as :class:`RecordedRun`; PlotError when DIR holds none (or no rows)."""
     import pyarrow.parquet as pq
     import yaml
 
@@ -122,7 +123,7 @@ def figures(record_dir, signals: list[str] | None = None,
     if (record_dir / "cases.parquet").exists() and not signals:   # a campaign (orchestrator sweep --out DIR)
         from orchestrator.plots.campaigns import campaign_figures
         return campaign_figures(record_dir)
-    run = _load(record_dir)
+    run = load_run(record_dir)
     if signals:
         return _signals(signals, run)
     warn = warn or (lambda message: print(f"plot: {message}", file=sys.stderr, flush=True))

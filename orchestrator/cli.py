@@ -316,6 +316,19 @@ def cmd_plot(args) -> int:
     return 0
 
 
+def cmd_export(args) -> int:
+    from orchestrator.export.rosbag2 import ExportError, export_rosbag2
+    try:
+        exported = export_rosbag2(Path(args.recording), Path(args.rosbag2), args.overwrite)
+    except ExportError as e:
+        return _fail(str(e))
+    except OSError as e:
+        return _fail(f"cannot export {args.recording} to {args.rosbag2}: {e}")
+    topics = ", ".join(f"{name} ({n})" for name, n in exported.counts.items())
+    print(f"wrote {exported.path} (rosbag2, MCAP, {exported.size / 1e6:.1f} MB): {topics}")
+    return 0
+
+
 def cmd_sweep(args) -> int:
     from orchestrator.campaigns.directory import CampaignError
     from orchestrator.campaigns.runner import sweep
@@ -407,6 +420,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--signals", metavar="NAME,NAME", help="plot these columns instead (orbit.r_eci, "
                    "dynamics.target.q[0], ...)")
     p.set_defaults(func=cmd_plot)
+
+    p = sub.add_parser("export", help="a recording as a rosbag2 folder (MCAP storage) for ros2 bag and Foxglove")
+    p.add_argument("recording", metavar="DIR", help="a directory written by run --record")
+    p.add_argument("--rosbag2", required=True, metavar="OUT", help="the bag folder to write (must not exist)")
+    p.add_argument("--overwrite", action="store_true", help="replace OUT (a bag folder) once the new bag is written")
+    p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("sweep", help="run a campaign: a grid and dispersions over a config's keys, many cases")
     p.add_argument("campaign", metavar="CAMPAIGN.yaml")

@@ -319,7 +319,7 @@ def cmd_plot(args) -> int:
 def cmd_export(args) -> int:
     from orchestrator.export.rosbag2 import ExportError, export_rosbag2
     try:
-        exported = export_rosbag2(Path(args.recording), Path(args.rosbag2), args.overwrite)
+        exported = export_rosbag2(Path(args.recording), Path(args.rosbag2), args.overwrite, args.all_signals)
     except ExportError as e:
         return _fail(str(e))
     except OSError as e:
@@ -425,6 +425,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("recording", metavar="DIR", help="a directory written by run --record")
     p.add_argument("--rosbag2", required=True, metavar="OUT", help="the bag folder to write (must not exist)")
     p.add_argument("--overwrite", action="store_true", help="replace OUT (a bag folder) once the new bag is written")
+    p.add_argument("--all-signals", action="store_true", help="also the variables of components whose type "
+                   "declares no ROS messages, as std_msgs/Float64MultiArray on /<component>/<variable>")
     p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("sweep", help="run a campaign: a grid and dispersions over a config's keys, many cases")

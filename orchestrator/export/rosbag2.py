@@ -8,7 +8,9 @@ version 9, ROS 2 Jazzy message definitions and their RIHS01 type hashes) with th
 - what each component's type declares (its ``rosbag``, :class:`components.rosbag.RosExport`): the
   components' ``/tf`` messages go out on one ``/tf`` topic, their ``/tf_static`` transforms as one
   message (a late subscriber gets only the last message of a transient-local topic);
-- a component whose type declares nothing exports nothing (``warn`` names it).
+- a component whose type declares nothing exports nothing (``warn`` names it), unless
+  ``all_signals``: then each of its recorded variables goes out as std_msgs/Float64MultiArray on
+  ``/<component>/<variable>`` per row (that message has no header: its time is the log time).
 
 Every message's log time is its header's stamp (``/tf_static`` and ``robot_description``: the
 first row's). Topics that are transient local (``latched``) say so in their offered QoS profile.
@@ -21,6 +23,8 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
+
+import numpy as np
 
 from components.rosbag import RosContext, RosTopic
 
@@ -50,13 +54,33 @@ def _qos(latched: bool):
                liveliness_lease_duration=never, avoid_ros_namespace_conventions=False)
 
 
-def _component_topics(context: RosContext, warn: Callable[[str], None]) -> list[RosTopic]:
-    """The topics the run's component types declare, in config order."""
+def _signal_topics(context: RosContext, component: str) -> list[RosTopic]:
+    """Each recorded variable of ``component`` as std_msgs/Float64MultiArray, one per row."""
+    run = context.run
+    Array = context.msg("std_msgs/msg/Float64MultiArray")
+    Layout = context.msg("std_msgs/msg/MultiArrayLayout")
+    names = sorted({c.split("[")[0] for c in run.columns if c.startswith(f"{component}.")})
+    topics = []
+    for name in names:
+        values = run.variable(name)
+        if values is None:
+            continue
+        values = np.ascontiguousarray(values, dtype=np.float64)
+        topic = "/" + name.replace(".", "/")
+        topics.append(RosTopic(topic, "std_msgs/msg/Float64MultiArray", [
+            (int(ns), Array(layout=Layout(dim=[], data_offset=0), data=values[row]))
+            for row, ns in enumerate(context.stamps)]))
+    return topics
+
+
+def _component_topics(context: RosContext, warn: Callable[[str], None], all_signals: bool = False) -> list[RosTopic]:
+    """The topics the run's component types declare, in config order (with ``all_signals``, the
+    other components' variables as arrays)."""
     from components import registry
     from components.errors import ConfigError
 
     run = context.run
-    exports = []
+    exports, generic = [], []
     for name, spec in (run.config.get("components") or {}).items():
         type_name = (spec or {}).get("type")
         try:
@@ -65,13 +89,18 @@ def _component_topics(context: RosContext, warn: Callable[[str], None]) -> list[
             warn(f"{name}: not exported ({e.message})")
             continue
         if cls.rosbag is None:
-            warn(f"{name}: its type {type_name} declares no ROS messages (rosbag); not exported")
+            if all_signals:
+                generic.append(name)
+            else:
+                warn(f"{name}: its type {type_name} declares no ROS messages (rosbag); not exported "
+                     "(--all-signals: its variables as Float64MultiArray)")
             continue
         exports.append((name, cls.rosbag))
     for name, export in exports:   # first: where outputs are measured, for the sensors reading them
         if export.output_frames is not None:
             context.output_frames.update({f"{name}.{v}": f for v, f in export.output_frames(context, name).items()})
-    return [topic for name, export in exports for topic in export.topics(context, name)]
+    return ([topic for name, export in exports for topic in export.topics(context, name)]
+            + [topic for name in generic for topic in _signal_topics(context, name)])
 
 
 def _merged(context: RosContext, topics: list[RosTopic]) -> list[RosTopic]:
@@ -108,7 +137,7 @@ def _write(path: Path, topics: list[RosTopic], typestore) -> None:
             writer.write(connection, ns, typestore.serialize_cdr(message, msgtype))
 
 
-def export_rosbag2(record_dir, out, overwrite: bool = False,
+def export_rosbag2(record_dir, out, overwrite: bool = False, all_signals: bool = False,
                    warn: Callable[[str], None] | None = None) -> Exported:
     """Write the recording in ``record_dir`` as a rosbag2 folder ``out`` (see the module's docstring).
 
@@ -138,7 +167,7 @@ def export_rosbag2(record_dir, out, overwrite: bool = False,
     Clock = context.msg("rosgraph_msgs/msg/Clock")
     clock = RosTopic("/clock", "rosgraph_msgs/msg/Clock", [(int(ns), Clock(clock=context.time(ns)))
                                                           for ns in context.stamps])
-    topics = [clock] + _merged(context, _component_topics(context, warn))
+    topics = [clock] + _merged(context, _component_topics(context, warn, all_signals))
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:

@@ -259,3 +259,16 @@ def test_a_recording_cut_short_exports_the_rows_it_has(capture, tmp_path):
     assert result.returncode == 0, result.stderr
     topics = _read(tmp_path / "bag")
     assert len(topics["/clock"]) == len(topics["/imu/imu"]) == 37
+
+
+def test_all_signals_exports_a_type_without_ros_messages_as_arrays(capture, tmp_path):
+    record, _, _ = capture
+    result = orchestrator("export", record, "--rosbag2", tmp_path / "bag", "--all-signals")
+    assert result.returncode == 0, result.stderr
+    assert "declares no ROS messages" not in result.stderr
+    columns, topics = _parquet(record), _read(tmp_path / "bag")
+    m = sum(1 for c in columns if c.startswith("controller.tau["))
+    tau = topics["/controller/tau"]
+    _equal([message.data for _, message in tau], _vector(columns, "controller.tau", m))
+    _equal([message.data for _, message in topics["/controller/phase"]], columns["controller.phase"][:, None])
+    assert [log for log, _ in tau] == list(_stamps(record, columns))

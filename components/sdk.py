@@ -204,6 +204,8 @@ def declaration_tables(cls: type[Component]) -> str:
     if cls.plots:
         parts += ["", "Plots (``orchestrator plot``):", "", "| file | content |", "|---|---|"]
         parts += [f"| ``{plot.file}`` | {plot.description} |" for plot in cls.plots]
+    if cls.rosbag is not None:
+        parts += ["", f"ROS 2 messages (``orchestrator export --rosbag2``): {cls.rosbag.description}."]
     return "\n".join(parts)
 
 

@@ -426,7 +426,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rosbag2", required=True, metavar="OUT", help="the bag folder to write (must not exist)")
     p.add_argument("--overwrite", action="store_true", help="replace OUT (a bag folder) once the new bag is written")
     p.add_argument("--all-signals", action="store_true", help="also the variables of components whose type "
-                   "declares no ROS messages, as std_msgs/Float64MultiArray on /<component>/<variable>")
+                   "declares no ROS messages, as std_msgs/Float64MultiArray on /COMPONENT/VARIABLE")
     p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("sweep", help="run a campaign: a grid and dispersions over a config's keys, many cases")

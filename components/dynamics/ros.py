@@ -13,6 +13,8 @@ Base pose and twist are in W, not LVLH: they are what the dynamics records, so t
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from components.errors import ConfigError
@@ -23,8 +25,8 @@ from components.rosbag import ROOT_FRAME, RosContext, RosExport, RosTopic, link_
 def _packages(context: RosContext) -> dict:
     run = context.run
     packages = (run.config.get("run") or {}).get("packages") or {}
-    base = run.config_dir or "."
-    return {str(k): f"{base}/{v}" for k, v in packages.items()} if isinstance(packages, dict) else {}
+    base = Path(run.config_dir or ".")   # as the run resolved them: relative to the config's directory
+    return {str(k): str(base / str(v)) for k, v in packages.items()} if isinstance(packages, dict) else {}
 
 
 def _links_in_w(context: RosContext, dynamics: str, body: str, urdf, position, orientation, q):
@@ -79,7 +81,7 @@ def _topics(context: RosContext, dynamics: str):
             urdf = model = None
         if model is not None:
             topics.append(RosTopic(f"/{dynamics}/{body}/robot_description", "std_msgs/msg/String",
-                                   [(int(stamps[0]), context.msg("std_msgs/msg/String")(data=urdf_text(urdf)))],
+                                   [(int(stamps[0]), context.msg("std_msgs/msg/String")(data=model.text or Path(urdf).read_text()))],
                                    latched=True))
         if position is None or orientation is None:
             continue
@@ -129,12 +131,6 @@ def _joint_states(context: RosContext, dynamics: str, body: str, model, q, qd) -
                              velocity=np.ascontiguousarray(qd[row]) if qd is not None else empty,
                              effort=np.ascontiguousarray(effort[row]) if effort is not None else empty))
         for row, ns in enumerate(context.stamps)])
-
-
-def urdf_text(urdf) -> str:
-    """The URDF as the run read it (a .xacro expanded)."""
-    from components.viewer.robot import read_geometry
-    return read_geometry(urdf).text or open(urdf).read()
 
 
 def _output_frames(context: RosContext, dynamics: str) -> dict[str, str]:

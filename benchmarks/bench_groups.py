@@ -162,9 +162,14 @@ def main() -> None:
         rigid = rigid_overrides()
         both = grouped(["orbit", "dynamics"], "rigid")
         variants += [("rigid us/step, separate", lambda: 1e6 / orchestrator_run(RIGID, rigid)["factor"]),
+                     ("rigid us/step, separate, recorded",
+                      lambda: 1e6 / orchestrator_run(RIGID, rigid, record=True)["factor"]),
                      ("rigid us/step, grouped", lambda: 1e6 / orchestrator_run(RIGID, rigid + both)["factor"]),
                      ("rigid us/step, grouped, recorded",
                       lambda: 1e6 / orchestrator_run(RIGID, rigid + both, record=True)["factor"])]
+        if not (ROOT / "benchmarks" / ".venv-basilisk" / "bin" / "python").exists():
+            print(f"(no Basilisk environment: its per step is --basilisk-us, {args.basilisk_us} us; "
+                  f"python benchmarks/bench_basilisk.py makes it)")
         variants.append(("Basilisk us/step", lambda: basilisk_step_us() or args.basilisk_us))
     if "loop" in only:
         from bench_lockstep import round_trip
@@ -192,7 +197,8 @@ def main() -> None:
     m = median.get
     if "rigid us/step, separate" in median:
         base = m("Basilisk us/step")
-        print(f"| rigid body per step / Basilisk's ({base:.1f} us) | {m('rigid us/step, separate') / base:.1f}x | "
+        print(f"| rigid body per step / Basilisk's ({base:.1f} us) | {m('rigid us/step, separate') / base:.1f}x "
+              f"({m('rigid us/step, separate, recorded') / base:.1f}x recorded) | "
               f"{m('rigid us/step, grouped') / base:.1f}x ({m('rigid us/step, grouped, recorded') / base:.1f}x recorded) |")
     if "demo dart, separate" in median:
         print(f"| demo, pinocchio / dart (real-time factor) | {m('demo pinocchio, separate') / m('demo dart, separate'):.2f}x | "

@@ -20,6 +20,8 @@ from components import bus, protocol, registry
 from components.schedule import Route, fed_inputs
 
 BATCH_STEPS = 32   # outputs go to the orchestrator in batches of this many steps ...
+BATCH_MIN_S = 0.002  # ... more (up to BATCH_CAPACITY) while this long has not passed since the last (each
+BATCH_CAPACITY = 256  # send costs a light model's several steps; a crash loses at most this long of rows) ...
 IDLE_FLUSH_S = 0.02  # ... or sooner: at the horizon, before a reply or fault, after this long idle,
 SLOW_STEP_S = 0.05   # or when a step takes this long (a hung step leaves the steps before it recorded)
 
@@ -44,6 +46,7 @@ class ComponentProcess:
         self.consumers: list[str] = []         # get its outputs at every step (they feed it back)
         self.batch_consumers: list[str] = []   # get them in batches, as the orchestrator does (they never hold it up)
         self.batched = 0
+        self.flushed_at = 0.0   # perf_counter at the last batch sent
         self.batch_lock = threading.Lock()
         self.stepping_since: float | None = None   # perf_counter at the start of a running do_step
         self.component = None
@@ -134,9 +137,9 @@ class ComponentProcess:
             self.input_vector = self.inputs.start_vector()
             self.output_vector = self.outputs.start_vector()
             self.input_views = self.inputs.unpack(self.input_vector)
-            self.batch_tags = np.empty(BATCH_STEPS, dtype=np.int64)
-            self.batch_timings = np.empty((BATCH_STEPS, 2))
-            self.batch_rows = np.empty((BATCH_STEPS, self.outputs.size))
+            self.batch_tags = np.empty(BATCH_CAPACITY, dtype=np.int64)
+            self.batch_timings = np.empty((BATCH_CAPACITY, 2))
+            self.batch_rows = np.empty((BATCH_CAPACITY, self.outputs.size))
             self.component = resolved.build()
             self.component.input_times_ns = self.input_times = {}
             self.reply(op, {"inputs": self.inputs.size, "outputs": self.outputs.size, "pid": os.getpid()})
@@ -280,7 +283,7 @@ class ComponentProcess:
             self.batch_timings[i] = done - started, started - self.idle_since
             self.batch_rows[i] = vector
             self.batched = i + 1
-        if self.batched == BATCH_STEPS:
+        if self.batched >= BATCH_STEPS and (done - self.flushed_at >= BATCH_MIN_S or self.batched == BATCH_CAPACITY):
             self.flush()
         self.next_k = tag
         self.idle_since = time.perf_counter()
@@ -304,6 +307,7 @@ class ComponentProcess:
             if self.batch_consumers:
                 self.publish_output(self.batch_consumers, batch)
             self.batched = 0
+            self.flushed_at = time.perf_counter()
 
     def _report(self, op: str, k: int, error: str) -> str:
         self.fault(op, k, error)

@@ -101,11 +101,15 @@ def cmd_run(args) -> int:
         errors: list[str] = []
         viewer = viewer_spec(args.view, "--view", errors, Path.cwd())
         if errors or viewer is None:
-            return _fail("; ".join(errors) or "--view: expected spawn, web or save:FILE.rrd")
+            return _fail("; ".join(errors) or "--view: expected spawn, web, save:FILE.rrd or foxglove[:PORT]")
     if getattr(viewer or config.viewer, "mode", None) == "spawn":   # fail before the run, not after
         from components.viewer.sinks import spawn_problem
         if spawn_problem():
             return _fail(f"viewer spawn: {spawn_problem()}")
+    if getattr(viewer or config.viewer, "mode", None) == "foxglove":   # a taken port: before the run, not after
+        from components.viewer.foxglove_observer import port_problem
+        if problem := port_problem((viewer or config.viewer).port):
+            return _fail(f"viewer foxglove: {problem}")
     from orchestrator.run.engine import Run
     run = Run(config, record=args.record, profile=args.profile, progress=sys.stderr.isatty(), viewer=viewer)
     try:
@@ -389,7 +393,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "(a new or empty directory)")
     p.add_argument("--overwrite", action="store_true", help="replace the recording already in --record DIR")
     with_set(p)
-    p.add_argument("--view", metavar="{spawn,web,save:FILE.rrd}", help="live view in Rerun")
+    p.add_argument("--view", metavar="{spawn,web,save:FILE.rrd,foxglove[:PORT]}",
+                   help="live view in Rerun, or served to Foxglove on ws://localhost:PORT (default 8765)")
     p.add_argument("--profile", action="store_true", help="print, at the end, each component's compute time and "
                    "waiting time per step (waiting: for its inputs or the horizon, the bus included) and the share "
                    "of the wall time it computes")

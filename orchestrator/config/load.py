@@ -21,10 +21,17 @@ from orchestrator.config.connections import check_replacement, hands_over, hando
 from orchestrator.config.shadows import mismatches, shadow_spec, with_shadows
 
 def viewer_spec(raw: Any, where: str, errors: list[str], base: Path) -> ViewerSpec | None:
-    """Parse a ``viewer:`` section or a ``--view`` value (``spawn``, ``web``, ``save:FILE.rrd``)."""
+    """Parse a ``viewer:`` section or a ``--view`` value (``spawn``, ``web``, ``save:FILE.rrd``,
+    ``foxglove[:PORT]``)."""
     if isinstance(raw, str):
-        mode, _, file = raw.partition(":")
-        raw = {"mode": mode, **({"file": file} if file else {})}
+        mode, _, rest = raw.partition(":")
+        if mode == "foxglove" and rest:
+            if not rest.isdigit():
+                errors.append(f"{where}: foxglove:PORT needs a port number, got {rest!r}")
+                return None
+            raw = {"mode": mode, "port": int(rest)}
+        else:
+            raw = {"mode": mode, **({"file": rest} if rest else {})}
     section, problems = VIEWER.resolve(raw, where)
     if problems:
         errors += [str(e) for e in problems]
@@ -39,8 +46,11 @@ def _viewer(section: dict, where: str, errors: list[str], base: Path) -> ViewerS
         errors.append(f"{where}.file: save needs a file name ending in .rrd (e.g. save:run.rrd), got none")
         return None
     file = section["file"]
+    if section["port"] > 65535:
+        errors.append(f"{where}.port: expected a port number 1..65535, got {section['port']}")
+        return None
     return ViewerSpec(mode=section["mode"], file=(base / file) if file else None, rate_hz=section["rate"],
-                      open_browser=section["open_browser"])
+                      open_browser=section["open_browser"], port=section["port"])
 
 
 def load(path: str | Path, overrides: list[str] = (), full: bool = False) -> RunConfig:

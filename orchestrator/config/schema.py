@@ -9,7 +9,8 @@ from components.schema import (Anything, Bool, Duration, Float, Int, ListOf, Map
                                Str, UtcTime, markdown)
 
 MAX_STEPS = 10 ** 12   # steps in a run: beyond, a typo (a duration in the wrong unit), not an experiment
-VIEWER_MODES = ("spawn", "web", "save", "off")
+VIEWER_MODES = ("spawn", "web", "save", "foxglove", "off")
+FOXGLOVE_PORT = 8765   # the Foxglove app's default WebSocket port
 NAME = r"[A-Za-z][A-Za-z0-9_]*"
 ENDPOINT = r"(tcp|udp|tls|quic)/(\[[0-9a-fA-F:]+\]|[A-Za-z0-9.\-]+):\d{1,5}"
 
@@ -70,12 +71,15 @@ BUS = Record("bus", (
               description="issue the run's certificates from your CA (default: a CA made for the run)"),
 ), description="the Zenoh bus (``bus:``)")
 VIEWER = Record("viewer", (
-    Parameter("mode", Str(VIEWER_MODES), description="spawn a Rerun viewer, serve it on the web, save a .rrd, or off"),
+    Parameter("mode", Str(VIEWER_MODES), description="spawn a Rerun viewer, serve it on the web, save a .rrd, "
+                                                     "serve the run to Foxglove (WebSocket), or off"),
     Parameter("file", Str(pattern=r".+\.rrd", hint="a file name ending in .rrd"), default=None,
               description="the recording of save, relative to the config file"),
     Parameter("rate", Float("Hz", positive=True), default=30.0, description="frames per second of simulated time"),
     Parameter("open_browser", Bool(), default=False, description="web: open the viewer in a browser"),
-), description="the Rerun live view (``viewer:``, or ``--view``)")
+    Parameter("port", Int(minimum=1), default=FOXGLOVE_PORT,
+              description="foxglove: the WebSocket port on localhost (ws://localhost:PORT)"),
+), description="the live view, in Rerun or Foxglove (``viewer:``, or ``--view``)")
 SHADOW = Record("shadow", (
     Parameter("type", Str(hint="a component type name"),
               description="any type with the component's connected inputs and all its outputs, same shapes and units"),
@@ -125,7 +129,7 @@ CONFIG = Record("config", (
     Parameter("bus", BUS, default={}, description="the Zenoh bus"),
     Parameter("events", ListOf(EVENT), default=[], description="swaps during the run"),
     Parameter("faults", ListOf(FAULT), default=[], description="injected failures, to test a setup's recovery"),
-    Parameter("viewer", VIEWER, default=None, description="the Rerun live view"),
+    Parameter("viewer", VIEWER, default=None, description="the live view (Rerun or Foxglove)"),
 ), description="a run config")
 
 

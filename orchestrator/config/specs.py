@@ -36,11 +36,13 @@ class ComponentSpec:
 
 @dataclass
 class ViewerSpec:
-    """The Rerun live view: ``mode`` spawn | web | save; ``file`` for save; ``rate_hz`` of sim time."""
+    """The live view: ``mode`` spawn | web | save (Rerun) or foxglove; ``file`` for save; ``rate_hz``
+    of sim time; ``port`` for foxglove."""
     mode: str
     file: Path | None
     rate_hz: float
     open_browser: bool = False
+    port: int = 8765
 
 
 @dataclass

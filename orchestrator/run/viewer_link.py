@@ -1,5 +1,6 @@
 """The run's side of the live viewer: the signals publisher (rows, and the end of the run) and the
-observer process (components/viewer/observer.py), started and stopped with the run."""
+observer process (components/viewer/observer.py for Rerun, components/viewer/foxglove_observer.py
+for Foxglove), started and stopped with the run."""
 from __future__ import annotations
 
 import json
@@ -25,7 +26,7 @@ class ViewerLink:
 
     def start(self, config: RunConfig, columns: list[str], *, setup, endpoint: str, run_id: str, env: dict,
               cpus: frozenset[int], wait: Wait) -> int:
-        """Start the Rerun observer, if asked (setup file at ``setup``), and wait for its liveliness
+        """Start the observer, if asked (setup file at ``setup``), and wait for its liveliness
         token; return the decimation (publish every n-th row), or 0."""
         if self.spec is None:
             return 0
@@ -33,9 +34,11 @@ class ViewerLink:
             "columns": columns, "config": config.resolved, "step_ns": config.step_ns,
             "config_dir": str(config.path.parent.resolve()), "epoch": config.epoch,
             "mode": self.spec.mode, "file": str(self.spec.file) if self.spec.file else None,
-            "open_browser": self.spec.open_browser}))
+            "open_browser": self.spec.open_browser, "port": self.spec.port,
+            "linger": sys.stdin.isatty()}))   # foxglove: keep serving after the run (stop() waits for it)
+        module = "components.viewer.foxglove_observer" if self.spec.mode == "foxglove" else "components.viewer.observer"
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "components.viewer.observer", "--connect", endpoint,
+            [sys.executable, "-m", module, "--connect", endpoint,
              "--run-id", run_id, "--setup", str(setup)],
             stdin=subprocess.DEVNULL, preexec_fn=supervisor.child_setup, env=env)
         supervisor.keep_to(cpus, self.process.pid)
@@ -49,13 +52,15 @@ class ViewerLink:
         return None
 
     def stop(self, interrupted: bool, out) -> None:
-        """Tell the observer the run is over and let it finish (flush the .rrd; web: until Ctrl-C)."""
+        """Tell the observer the run is over and let it finish (flush the .rrd; web, foxglove: until Ctrl-C)."""
         if self.process is None:
             return
         self.signals.put(bus.SIGNALS_END)
+        if interrupted and self.spec.mode == "foxglove":
+            self.process.terminate()   # it would linger for the user, who asked to stop
         try:
-            if self.spec.mode == "web" and sys.stdin.isatty() and not interrupted:
-                print("run finished; the web viewer stays up until Ctrl-C", file=out, flush=True)
+            if self.spec.mode in ("web", "foxglove") and sys.stdin.isatty() and not interrupted:
+                print(f"run finished; the {self.spec.mode} viewer stays up until Ctrl-C", file=out, flush=True)
                 # the clean-up ignores signals; this one wait is what Ctrl-C (or SIGTERM) is for
                 signal.signal(signal.SIGINT, signal.default_int_handler)
                 signal.signal(signal.SIGTERM, raise_stop)

@@ -1,0 +1,257 @@
+"""The Foxglove observer process: signal rows from the bus, served live over the Foxglove WebSocket
+protocol (``foxglove-sdk``) with the topics of the rosbag2 export.
+
+    python -m components.viewer.foxglove_observer --connect tcp/127.0.0.1:7447 --run-id demo-1a2b3c4d --setup viewer.json
+
+Started by the orchestrator for ``--view foxglove[:PORT]`` (setup JSON as for
+components/viewer/observer.py, plus ``port`` and ``linger``: keep serving after the run until the
+orchestrator goes, when it runs at a terminal). It listens on ws://127.0.0.1:PORT (localhost only)
+from the first batch of rows on: every channel exists before a client can subscribe. The
+orchestrator checks that the port is free before the run (exit 2 if not); should it be taken in
+between, the observer says so and exits, and the run goes on without the view.
+
+Each batch of rows becomes a small :class:`RecordedRun` and goes through the rosbag2 exporter's
+builders (:func:`components.rosbag.run_topics`): the same topics, message types and CDR bytes as
+``orchestrator export --rosbag2`` writes for those rows, on ``ros2msg`` schema / ``cdr`` channels
+(Foxglove reads ROS 2 messages without a ROS install). Latched topics (``/tf_static``,
+``robot_description``) are built from the first batch and sent again whenever a client subscribes
+to them: the server keeps no history. Like the Rerun observer it runs niced and reads a dropping
+publisher: a slow client never holds up a step (the server drops its oldest messages for it).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import socket
+import sys
+import threading
+import time
+from pathlib import Path
+
+from components import bus, bus_security
+from components.viewer.observer import (END, LIVE_BATCH_S, MAX_BATCH_ROWS, NICENESS, POLL_S, RowBuffer, Stop,
+                                        _orchestrator_gone, _raise_stop)
+
+HOST = "127.0.0.1"
+DISTRO = "ros2_jazzy"   # message definitions, as the rosbag2 export writes them
+
+
+class ServeError(Exception):
+    """The WebSocket server could not start (its port taken since the orchestrator checked it)."""
+
+
+def log(message: str) -> None:
+    print(f"viewer foxglove: {message}", file=sys.stderr, flush=True)
+
+
+def port_problem(port: int) -> str | None:
+    """Why the server could not listen on ``port`` (in use, not allowed), or None."""
+    probe = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)   # as the server binds: TIME_WAIT is no conflict
+    try:
+        probe.bind((HOST, port))
+    except OSError as e:
+        return f"cannot listen on port {port} ({e.strerror}); choose another with --view foxglove:PORT"
+    finally:
+        probe.close()
+    return None
+
+
+class RosChannels:
+    """Rows to ROS 2 messages (the rosbag2 exporter's builders) on Foxglove channels, one per topic."""
+
+    def __init__(self, columns: list[str], config: dict, config_dir: str | None, context):
+        from rosbags.typesys import Stores, get_typestore
+        self.columns = columns
+        self.config = config
+        self.config_dir = Path(config_dir) if config_dir else None
+        self.context = context
+        self.typestore = get_typestore(Stores(DISTRO))
+        self.channels: dict[str, object] = {}
+        self.latched: dict[str, bytes] = {}        # topic -> its one message (sent again on subscribe)
+        self.latched_ns: dict[str, int] = {}
+        self.warned: set[str] = set()
+        self.rows_sent = 0
+        self._resend: set[str] = set()             # latched topics subscribed to since the last batch
+        self._lock = threading.Lock()
+
+    def warn(self, message: str) -> None:
+        if message not in self.warned:             # the builders run per batch: say each thing once
+            self.warned.add(message)
+            log(message)
+
+    def subscribed(self, topic: str) -> None:
+        """A client subscribed (server thread): a latched topic's message goes out again."""
+        with self._lock:
+            self._resend.add(topic)
+
+    def _channel(self, topic: str, msgtype: str):
+        if topic not in self.channels:
+            from foxglove import Channel, Schema
+            definition, _ = self.typestore.generate_msgdef(msgtype, ros_version=2)
+            self.channels[topic] = Channel(topic, message_encoding="cdr", context=self.context,
+                                           schema=Schema(name=msgtype, encoding="ros2msg",
+                                                         data=definition.encode()))
+        return self.channels[topic]
+
+    def build(self, times, rows) -> tuple[list, int]:
+        """The messages of a batch of rows as (log time = ROS stamp, channel, CDR bytes), in time
+        order, and the last row's stamp (ns). Creates the channels of topics not seen before."""
+        from components.plotting import RecordedRun
+        from components.rosbag import RosContext, run_topics
+
+        run = RecordedRun(self.config, {name: rows[:, i] for i, name in enumerate(self.columns)}, times,
+                          self.config_dir)
+        context = RosContext(run, self.typestore, self.warn)
+        queue = []
+        for topic in run_topics(context, self.warn):
+            channel = self._channel(topic.name, topic.msgtype)
+            if topic.latched:
+                if topic.name not in self.latched and topic.messages:
+                    ns, message = topic.messages[0]
+                    self.latched[topic.name] = bytes(self.typestore.serialize_cdr(message, topic.msgtype))
+                    self.latched_ns[topic.name] = ns
+                    queue.append((ns, channel, self.latched[topic.name]))
+                continue
+            queue += [(ns, channel, bytes(self.typestore.serialize_cdr(message, topic.msgtype)))
+                      for ns, message in topic.messages]
+        queue.sort(key=lambda item: item[0])   # stable: topics in the exporter's order within a stamp
+        self.rows_sent += len(times)
+        return queue, int(context.stamps[-1])
+
+    @staticmethod
+    def log(queue) -> None:
+        for ns, channel, data in queue:
+            channel.log(data, log_time=int(ns))
+
+    def resend_latched(self) -> None:
+        with self._lock:
+            topics, self._resend = self._resend & self.latched.keys(), self._resend - self.latched.keys()
+        for topic in topics:
+            self.channels[topic].log(self.latched[topic], log_time=self.latched_ns[topic])
+
+
+def _listener(channels: RosChannels):
+    from foxglove.websocket import ServerListener
+
+    class Subscriptions(ServerListener):
+        def on_subscribe(self, client, channel) -> None:
+            channels.subscribed(channel.topic)
+
+    return Subscriptions()
+
+
+def observe(connect: str, run_id: str, setup: dict) -> int:
+    """Serve the run until END (then, with a terminal, until Ctrl-C) or the orchestrator is gone."""
+    import foxglove
+    import zenoh
+
+    columns = list(setup["columns"])
+    config = setup.get("config") or {}
+    port = int(setup.get("port") or 8765)
+    settings = bus_security.from_env()
+    session = bus.open_session(connect=[connect], secret=os.environ.get(bus.SECRET_ENV), settings=settings)
+    token = watcher = signals = server = None
+    try:
+        signals = session.declare_subscriber(bus.signals_key(run_id), zenoh.handlers.FifoChannel(16384))
+        watcher = session.liveliness().declare_subscriber(bus.orchestrator_alive_key(run_id),
+                                                          zenoh.handlers.FifoChannel(16))
+        channels = RosChannels(columns, config, setup.get("config_dir"), foxglove.Context())
+        token = session.liveliness().declare_token(bus.viewer_alive_key(run_id))
+        buffer = RowBuffer(len(columns))
+        last_log = time.monotonic()
+        ended = gone = False
+        while not ended and not gone:
+            sample = signals.try_recv()
+            while sample is not None:
+                payload = sample.payload.to_bytes()
+                if payload == END:
+                    ended = True
+                    break
+                buffer.add(payload)
+                if len(buffer) >= MAX_BATCH_ROWS:
+                    break
+                sample = signals.try_recv()
+            now = time.monotonic()
+            if buffer and (ended or now - last_log >= LIVE_BATCH_S or len(buffer) >= MAX_BATCH_ROWS):
+                steps, times, rows = buffer.take()
+                queue, stamp = channels.build(times, rows)
+                if server is None:
+                    # only now: every channel exists before a client can subscribe (foxglove-sdk
+                    # 0.30 may answer "unknown channel" to a subscription racing an advertisement)
+                    server = _serve(channels, name=(config.get("run") or {}).get("name") or run_id, port=port)
+                channels.log(queue)
+                server.broadcast_time(stamp)
+                last_log = now
+            channels.resend_latched()
+            gone = _orchestrator_gone(watcher)
+            if sample is None and not ended:
+                time.sleep(POLL_S)
+        if buffer.bad:
+            log(f"ignored {buffer.bad} signal rows of an unexpected size (expected {buffer.size} bytes)")
+        if ended and not gone and setup.get("linger"):   # a terminal: until Ctrl-C (ViewerLink.stop)
+            log(f"run over ({channels.rows_sent} rows sent); still serving until Ctrl-C")
+            while not _orchestrator_gone(watcher):
+                channels.resend_latched()
+                time.sleep(0.1)
+    except Stop:
+        pass
+    finally:
+        for declared in (token, watcher, signals):
+            if declared is not None:
+                try:
+                    declared.undeclare()
+                except Exception:
+                    pass
+        session.close()
+        if server is not None:
+            server.stop()
+    return 0
+
+
+def _serve(channels: RosChannels, name: str, port: int):
+    """Start the WebSocket server on the channels' context; raises ServeError naming the port."""
+    import foxglove
+    try:
+        server = foxglove.start_server(name=name, host=HOST, port=port, context=channels.context,
+                                       server_listener=_listener(channels), capabilities=[foxglove.Capability.Time])
+    except RuntimeError as e:
+        raise ServeError(f"cannot listen on port {port}: {e}") from None
+    log(f"serving the run on ws://localhost:{server.port} (Foxglove: Open connection, Foxglove WebSocket)")
+    return server
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m components.viewer.foxglove_observer",
+                                     description=__doc__.splitlines()[0])
+    parser.add_argument("--connect", required=True, help="the orchestrator's Zenoh endpoint, e.g. tcp/127.0.0.1:7447")
+    parser.add_argument("--run-id", required=True)
+    parser.add_argument("--setup", required=True, help="the JSON file the orchestrator wrote")
+    args = parser.parse_args(argv)
+    signal.signal(signal.SIGTERM, _raise_stop)
+    signal.signal(signal.SIGINT, _raise_stop)
+    try:
+        os.nice(NICENESS)   # best effort: on a busy machine the lockstep processes go first
+    except (AttributeError, OSError):
+        pass
+    try:
+        setup = json.loads(Path(args.setup).read_text())
+    except (OSError, ValueError) as e:
+        log(f"cannot read the setup file {args.setup}: {e}")
+        return 2
+    try:
+        return observe(args.connect, args.run_id, setup)
+    except Stop:
+        return 0
+    except ServeError as e:   # the run goes on without the view
+        log(str(e))
+        return 2
+    except Exception as e:  # one line, not a traceback; the run goes on without the viewer
+        log(f"stopped: {type(e).__name__}: {e}")
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -313,3 +313,15 @@ def test_a_type_that_cannot_share_a_process_is_refused_with_its_reason(write_con
     errors = errors_of(write_config, GOOD.replace("{value: 1.0}}", "{value: 1.0}, process: loop}"))
     assert any("components.src.process: src (test.constant) cannot join group 'loop': it owns the process's "
                "signals; run it in a process of its own (no process: key)" in e for e in errors), errors
+
+
+def test_view_foxglove_port():
+    from orchestrator.config.load import viewer_spec
+    errors: list[str] = []
+    assert viewer_spec("foxglove", "--view", errors, Path(".")).port == 8765
+    assert viewer_spec("foxglove:9000", "--view", errors, Path(".")).port == 9000
+    assert viewer_spec({"mode": "foxglove", "port": 9001}, "viewer", errors, Path(".")).port == 9001
+    assert errors == []
+    assert viewer_spec("foxglove:70000", "--view", errors, Path(".")) is None
+    assert viewer_spec("foxglove:x", "--view", errors, Path(".")) is None
+    assert "65535" in errors[0] and "port number" in errors[1]

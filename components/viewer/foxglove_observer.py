@@ -32,7 +32,7 @@ from pathlib import Path
 
 from components import bus, bus_security
 from components.viewer.observer import (END, LIVE_BATCH_S, MAX_BATCH_ROWS, NICENESS, POLL_S, RowBuffer, Stop,
-                                        _orchestrator_gone, _raise_stop)
+                                        orchestrator_gone, raise_stop)
 
 HOST = "127.0.0.1"
 DISTRO = "ros2_jazzy"   # message definitions, as the rosbag2 export writes them
@@ -100,7 +100,8 @@ class RosChannels:
         """The messages of a batch of rows as (log time = ROS stamp, channel, CDR bytes), in time
         order, and the last row's stamp (ns). Creates the channels of topics not seen before."""
         from components.plotting import RecordedRun
-        from components.rosbag import RosContext, run_topics
+        from components.rosbag import RosContext
+        from components.ros_topics import run_topics
 
         run = RecordedRun(self.config, {name: rows[:, i] for i, name in enumerate(self.columns)}, times,
                           self.config_dir)
@@ -186,14 +187,14 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
                 server.broadcast_time(stamp)
                 last_log = now
             channels.resend_latched()
-            gone = _orchestrator_gone(watcher)
+            gone = orchestrator_gone(watcher)
             if sample is None and not ended:
                 time.sleep(POLL_S)
         if buffer.bad:
             log(f"ignored {buffer.bad} signal rows of an unexpected size (expected {buffer.size} bytes)")
         if ended and not gone and setup.get("linger"):   # a terminal: until Ctrl-C (ViewerLink.stop)
             log(f"run over ({channels.rows_sent} rows sent); still serving until Ctrl-C")
-            while not _orchestrator_gone(watcher):
+            while not orchestrator_gone(watcher):
                 channels.resend_latched()
                 time.sleep(0.1)
     except Stop:
@@ -230,8 +231,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--run-id", required=True)
     parser.add_argument("--setup", required=True, help="the JSON file the orchestrator wrote")
     args = parser.parse_args(argv)
-    signal.signal(signal.SIGTERM, _raise_stop)
-    signal.signal(signal.SIGINT, _raise_stop)
+    signal.signal(signal.SIGTERM, raise_stop)
+    signal.signal(signal.SIGINT, raise_stop)
     try:
         os.nice(NICENESS)   # best effort: on a busy machine the lockstep processes go first
     except (AttributeError, OSError):

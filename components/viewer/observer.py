@@ -44,7 +44,7 @@ class Stop(Exception):
     """SIGTERM or SIGINT: flush and leave."""
 
 
-def _raise_stop(signum, frame):
+def raise_stop(signum, frame):
     raise Stop()
 
 
@@ -136,7 +136,7 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
             if buffer and (ended or now - last_log >= batch_s or len(buffer) >= MAX_BATCH_ROWS):
                 scene.log_rows(*buffer.take())
                 last_log = now
-            gone = _orchestrator_gone(watcher)
+            gone = orchestrator_gone(watcher)
             if sample is None and not ended:
                 time.sleep(POLL_S)
         if buffer:
@@ -146,7 +146,7 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
         stream.flush(timeout_sec=30.0)
         if ended and mode == "web" and not gone:
             log(f"run over ({scene.rows_logged} rows); still serving {url} until Ctrl-C")
-            while not _orchestrator_gone(watcher):
+            while not orchestrator_gone(watcher):
                 time.sleep(0.1)
     except Stop:
         pass
@@ -168,7 +168,7 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
     return 0
 
 
-def _orchestrator_gone(watcher) -> bool:
+def orchestrator_gone(watcher) -> bool:
     import zenoh
     sample = watcher.try_recv()
     while sample is not None:
@@ -184,8 +184,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--run-id", required=True)
     parser.add_argument("--setup", required=True, help="the JSON file the orchestrator wrote")
     args = parser.parse_args(argv)
-    signal.signal(signal.SIGTERM, _raise_stop)
-    signal.signal(signal.SIGINT, _raise_stop)
+    signal.signal(signal.SIGTERM, raise_stop)
+    signal.signal(signal.SIGINT, raise_stop)
     try:
         os.nice(NICENESS)   # a best-effort observer: on a busy machine the lockstep processes go first
     except (AttributeError, OSError):

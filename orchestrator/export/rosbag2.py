@@ -25,7 +25,8 @@ from pathlib import Path
 from typing import Callable
 
 
-from components.rosbag import RosContext, RosTopic, TopicError, run_topics
+from components.ros_topics import run_topics
+from components.rosbag import RosContext, RosTopic, TopicError
 
 DISTRO = "ros2_jazzy"      # message definitions and type hashes (rosbags' typestore)
 BAG_VERSION = 9            # rosbag2's metadata.yaml version (Jazzy)

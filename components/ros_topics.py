@@ -1,0 +1,87 @@
+"""A recording's ROS 2 topics: ``/clock``, then what each of the run's component types declares
+(``Component.rosbag``, found through the registry), merged by topic name. The rosbag2 export
+(orchestrator/export/rosbag2.py) writes them; the live Foxglove view
+(components/viewer/foxglove_observer.py) sends them."""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from components import registry
+from components.errors import ConfigError
+from components.rosbag import RosContext, RosTopic, TopicError
+
+
+def signal_topics(context: RosContext, component: str) -> list[RosTopic]:
+    """Each recorded variable of ``component`` as std_msgs/Float64MultiArray, one per row."""
+    run = context.run
+    Array = context.msg("std_msgs/msg/Float64MultiArray")
+    Layout = context.msg("std_msgs/msg/MultiArrayLayout")
+    names = sorted({c.split("[")[0] for c in run.columns if c.startswith(f"{component}.")})
+    topics = []
+    for name in names:
+        values = run.variable(name)
+        if values is None:
+            continue
+        values = np.ascontiguousarray(values, dtype=np.float64)
+        topic = "/" + name.replace(".", "/")
+        topics.append(RosTopic(topic, "std_msgs/msg/Float64MultiArray", [
+            (int(ns), Array(layout=Layout(dim=[], data_offset=0), data=values[row]))
+            for row, ns in enumerate(context.stamps)]))
+    return topics
+
+
+def component_topics(context: RosContext, warn: Callable[[str], None], all_signals: bool = False) -> list[RosTopic]:
+    """The topics the run's component types declare, in config order (with ``all_signals``, the
+    other components' variables as arrays)."""
+    run = context.run
+    exports, generic = [], []
+    for name, spec in (run.config.get("components") or {}).items():
+        type_name = (spec or {}).get("type")
+        try:
+            cls = registry.load(type_name, run.config_dir)
+        except ConfigError as e:
+            warn(f"{name}: not exported ({e.message})")
+            continue
+        if cls.rosbag is None:
+            if all_signals:
+                generic.append(name)
+            else:
+                warn(f"{name}: its type {type_name} declares no ROS messages (rosbag); not exported "
+                     "(--all-signals: its variables as Float64MultiArray)")
+            continue
+        exports.append((name, cls.rosbag))
+    for name, export in exports:   # first: where outputs are measured, for the sensors reading them
+        if export.output_frames is not None:
+            context.output_frames.update({f"{name}.{v}": f for v, f in export.output_frames(context, name).items()})
+    return ([topic for name, export in exports for topic in export.topics(context, name)]
+            + [topic for name in generic for topic in signal_topics(context, name)])
+
+
+def merged(context: RosContext, topics: list[RosTopic]) -> list[RosTopic]:
+    """One topic per name: messages in time order; ``/tf_static``'s transforms in one message."""
+    by_name: dict[str, RosTopic] = {}
+    for topic in topics:
+        if topic.name not in by_name:
+            by_name[topic.name] = RosTopic(topic.name, topic.msgtype, [], topic.latched)
+        known = by_name[topic.name]
+        if known.msgtype != topic.msgtype:
+            raise TopicError(f"topic {topic.name}: two message types ({known.msgtype}, {topic.msgtype})")
+        known.messages += topic.messages
+    static = by_name.get("/tf_static")
+    if static is not None and static.messages:
+        transforms = [t for _, message in static.messages for t in message.transforms]
+        static.messages = [(min(ns for ns, _ in static.messages), context.tf(transforms))]
+    for topic in by_name.values():
+        topic.messages.sort(key=lambda item: item[0])   # stable: components' order within a stamp
+    return list(by_name.values())
+
+
+def run_topics(context: RosContext, warn: Callable[[str], None], all_signals: bool = False) -> list[RosTopic]:
+    """Every topic of the recording in ``context``: ``/clock`` (one message per row), then the
+    component types' topics merged by name (the rosbag2 export and the live Foxglove view)."""
+    Clock = context.msg("rosgraph_msgs/msg/Clock")
+    clock = RosTopic("/clock", "rosgraph_msgs/msg/Clock", [(int(ns), Clock(clock=context.time(ns)))
+                                                          for ns in context.stamps])
+    return [clock] + merged(context, component_topics(context, warn, all_signals))

@@ -6,7 +6,6 @@ import subprocess
 import sys
 import zipfile
 
-import fmpy
 import numpy as np
 import pytest
 
@@ -37,13 +36,27 @@ def _command(n: int) -> np.ndarray:
     return 0.3 * np.sin(2.0 * t) + 0.05 * (t > 1.0)
 
 
-def test_outputs_equal_fmpy_simulate_fmu_on_the_same_steps(wheel_fmu):
+def simulate_fmu_apart(path, tmp_path, **options) -> np.ndarray:
+    """FMPy's own ``simulate_fmu`` of ``path``, run in a Python process of its own: a pythonfmu
+    binary that FMPy loads and frees here, outside the component's hold
+    (components/fmi/pythonfmu_exit.py), would abort this process at exit once DART is loaded
+    (test_fmu_exit.py runs these tests in processes that must exit 0)."""
+    arguments, result = tmp_path / "simulate_args.npz", tmp_path / "simulate_result.npy"
+    np.savez(arguments, options=np.array([options], dtype=object))
+    code = ("import sys, numpy as np, fmpy; options = np.load(sys.argv[2], allow_pickle=True)['options'][0]; "
+            "np.save(sys.argv[3], fmpy.simulate_fmu(sys.argv[1], **options))")
+    subprocess.run([sys.executable, "-c", code, str(path), str(arguments), str(result)], check=True,
+                   capture_output=True, timeout=300)
+    return np.load(result)
+
+
+def test_outputs_equal_fmpy_simulate_fmu_on_the_same_steps(wheel_fmu, tmp_path):
     n = 400   # 6.25 s: the wheel reaches max_speed, the command saturates and reverses
     u = _command(n + 1)
     signal = np.array(list(zip(np.arange(n + 1) * H_S, u)), dtype=[("time", float), ("torque_command", float)])
     outputs = ["motor_torque", "reaction_torque", "wheel_speed"]
-    reference = fmpy.simulate_fmu(str(wheel_fmu), start_time=0.0, stop_time=n * H_S, step_size=H_S,
-                                  output_interval=H_S, start_values=WHEEL, input=signal, output=outputs)
+    reference = simulate_fmu_apart(wheel_fmu, tmp_path, start_time=0.0, stop_time=n * H_S, step_size=H_S,
+                                   output_interval=H_S, start_values=WHEEL, input=signal, output=outputs)
     h = Harness("fmu", {"path": str(wheel_fmu), "start_values": WHEEL})
     h.inputs["torque_command"] = u[0]
     h.initialize()
@@ -192,8 +205,8 @@ def test_an_fmi3_fmu_equals_fmpy_simulate_fmu(tmp_path):
     path, n = tmp_path / "Integrator3.fmu", 50
     u = np.cos(np.arange(n + 1) * H_S * 3.0)
     signal = np.array(list(zip(np.arange(n + 1) * H_S, u)), dtype=[("time", float), ("u", float)])
-    reference = fmpy.simulate_fmu(str(path), stop_time=n * H_S, step_size=H_S, output_interval=H_S,
-                                  start_values={"k": 3.0}, input=signal, output=["y"])
+    reference = simulate_fmu_apart(path, tmp_path, stop_time=n * H_S, step_size=H_S, output_interval=H_S,
+                                   start_values={"k": 3.0}, input=signal, output=["y"])
     h = Harness("fmu", {"path": str(path), "start_values": {"k": 3.0}})
     assert h.component.md.fmiVersion == "3.0"
     h.inputs["u"] = u[0]

@@ -238,7 +238,7 @@ def test_describe_shows_nested_parameters_typed_and_the_config_sections():
     assert "PID gains: one joint's gains" in pid and "float [N*m/rad]" in pid
     config = orchestrator("describe", "config")
     assert config.returncode == 0 and "step_timeout" in config.stdout and "default 10 s" in config.stdout
-    assert "viewer: the Rerun live view" in config.stdout
+    assert "viewer: the live view, in Rerun or Foxglove" in config.stdout
 
 
 def test_a_swap_to_another_type_records_what_is_true(write_config, tmp_path):

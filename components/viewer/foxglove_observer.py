@@ -31,8 +31,8 @@ import time
 from pathlib import Path
 
 from components import bus, bus_security
-from components.viewer.observer import (END, LIVE_BATCH_S, MAX_BATCH_ROWS, NICENESS, POLL_S, RowBuffer, Stop,
-                                        orchestrator_gone, raise_stop)
+from components.viewer.observer import (LIVE_BATCH_S, MAX_BATCH_ROWS, NICENESS, POLL_S, RowBuffer, Stop,
+                                        orchestrator_gone, raise_stop, take_rows)
 
 HOST = "127.0.0.1"
 DISTRO = "ros2_jazzy"   # message definitions, as the rosbag2 export writes them
@@ -165,16 +165,7 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
         last_log = time.monotonic()
         ended = gone = False
         while not ended and not gone:
-            sample = signals.try_recv()
-            while sample is not None:
-                payload = sample.payload.to_bytes()
-                if payload == END:
-                    ended = True
-                    break
-                buffer.add(payload)
-                if len(buffer) >= MAX_BATCH_ROWS:
-                    break
-                sample = signals.try_recv()
+            ended, empty = take_rows(signals, buffer)
             now = time.monotonic()
             if buffer and (ended or now - last_log >= LIVE_BATCH_S or len(buffer) >= MAX_BATCH_ROWS):
                 steps, times, rows = buffer.take()
@@ -188,7 +179,7 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
                 last_log = now
             channels.resend_latched()
             gone = orchestrator_gone(watcher)
-            if sample is None and not ended:
+            if empty and not ended:
                 time.sleep(POLL_S)
         if buffer.bad:
             log(f"ignored {buffer.bad} signal rows of an unexpected size (expected {buffer.size} bytes)")

@@ -122,22 +122,13 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
         last_log = time.monotonic()
         gone = False
         while not ended and not gone:
-            sample = signals.try_recv()
-            while sample is not None:
-                payload = sample.payload.to_bytes()
-                if payload == END:
-                    ended = True
-                    break
-                buffer.add(payload)
-                if len(buffer) >= MAX_BATCH_ROWS:
-                    break
-                sample = signals.try_recv()
+            ended, empty = take_rows(signals, buffer)
             now = time.monotonic()
             if buffer and (ended or now - last_log >= batch_s or len(buffer) >= MAX_BATCH_ROWS):
                 scene.log_rows(*buffer.take())
                 last_log = now
             gone = orchestrator_gone(watcher)
-            if sample is None and not ended:
+            if empty and not ended:
                 time.sleep(POLL_S)
         if buffer:
             scene.log_rows(*buffer.take())
@@ -166,6 +157,21 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
     if mode == "save" and setup.get("file") and scene is not None:
         log(f"saved {scene.rows_logged} rows to {setup['file']}")
     return 0
+
+
+def take_rows(signals, buffer: RowBuffer) -> tuple[bool, bool]:
+    """Move the rows waiting on the signals subscription into ``buffer``, up to MAX_BATCH_ROWS:
+    (the run's END came, the subscription is empty now)."""
+    sample = signals.try_recv()
+    while sample is not None:
+        payload = sample.payload.to_bytes()
+        if payload == END:
+            return True, False
+        buffer.add(payload)
+        if len(buffer) >= MAX_BATCH_ROWS:
+            return False, False
+        sample = signals.try_recv()
+    return False, True
 
 
 def orchestrator_gone(watcher) -> bool:

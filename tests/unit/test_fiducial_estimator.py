@@ -23,6 +23,7 @@ from components.estimators.fiducial import FiducialEstimator
 from components.estimators.marker_layout import Marker, read_layout
 from components.rotations import exp_so3, log_so3, quat_to_matrix
 from tests import fiducial_scenes as scenes
+from tests import validation
 from tools import fiducial_markers
 
 LAYOUT = read_layout(scenes.LAYOUT)
@@ -40,6 +41,12 @@ def position_bound(distance: float) -> float:
 
 
 ANGLE_BOUND = math.radians(0.6)
+
+
+def recorded(dp: float, da: float) -> None:
+    """The validation table's rows (tests/validation.py): position (m) and attitude (deg)."""
+    validation.check("fiducial_position", dp)
+    validation.check("fiducial_attitude", math.degrees(da))
 
 
 def errors(estimate, R_C_G, p_C_G):
@@ -62,6 +69,7 @@ def test_pose_from_warped_marker_pictures(distance, offset, tilt, roll):
     estimate = solve(image)
     assert estimate.valid, estimate.reason
     dp, da = errors(estimate, R_C_G, p_C_G)
+    recorded(dp, da)
     assert dp <= position_bound(distance) and da <= ANGLE_BOUND, (dp, math.degrees(da))
     assert estimate.reprojection_error < 1.0
     assert np.isclose(np.linalg.norm(estimate.q_ee_grasp), 1.0)
@@ -77,6 +85,7 @@ def test_pose_from_the_committed_textured_mesh(distance, offset, tilt, roll):
     assert estimate.valid, estimate.reason
     assert estimate.markers == {0.2: 2, 0.5: 5}[distance]
     dp, da = errors(estimate, R_C_G, p_C_G)
+    recorded(dp, da)
     assert dp <= position_bound(distance) and da <= ANGLE_BOUND, (dp, math.degrees(da))
 
 
@@ -89,6 +98,7 @@ def test_a_distorted_lens_is_solved_with_its_distortion():
     estimate = solve(image, distortion=distortion)
     assert estimate.valid and estimate.markers >= 4, estimate.reason
     dp, da = errors(estimate, R_C_G, p_C_G)
+    recorded(dp, da)
     assert dp <= position_bound(0.4) and da <= ANGLE_BOUND, (dp, math.degrees(da))
     pinhole = solve(image)
     assert not pinhole.valid or errors(pinhole, R_C_G, p_C_G)[0] > 10 * dp

@@ -57,6 +57,11 @@ class FiducialEstimator:
         self.layout, self.min_markers, self.max_error = layout, int(min_markers), float(max_reprojection_error)
         parameters = cv2.aruco.DetectorParameters()
         parameters.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+        # a marker's white quiet zone on a darker surface is a second square a cell outside its
+        # black one: OpenCV's default (0.125 of the perimeter) groups the two and at times keeps
+        # the white one (607 of 625 markers found in 160 random views at 0.1-1 m; 624 with 0.05;
+        # 0.02 finds some markers twice)
+        parameters.minMarkerDistanceRate = 0.05
         self.detector = cv2.aruco.ArucoDetector(
             cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, layout.dictionary)), parameters)
         self.markers = layout.by_id()

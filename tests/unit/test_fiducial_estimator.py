@@ -49,6 +49,18 @@ def recorded(dp: float, da: float) -> None:
     validation.check("fiducial_attitude", math.degrees(da))
 
 
+def in_view(R_C_G, p_C_G) -> list[int]:
+    """The ids whose black squares project wholly inside the image (none of these poses puts one
+    marker in front of another)."""
+    rvec = cv2.Rodrigues(R_C_G)[0]
+    ids = []
+    for marker in LAYOUT.markers:
+        corners, _ = cv2.projectPoints(marker.corners(), rvec, p_C_G, scenes.K, None)
+        if np.all((corners.reshape(4, 2) >= 0) & (corners.reshape(4, 2) <= [scenes.WIDTH - 1, scenes.HEIGHT - 1])):
+            ids.append(marker.id)
+    return ids
+
+
 def errors(estimate, R_C_G, p_C_G):
     """(position error m, attitude error rad) of an estimate of G in E against the truth in C."""
     p_true = R_EE_CAMERA @ p_C_G + P_EE_CAMERA
@@ -81,9 +93,10 @@ def test_pose_from_the_committed_textured_mesh(distance, offset, tilt, roll):
     where the layout puts it, the right way up."""
     R_C_G, p_C_G = scenes.camera_pose(distance, offset, tilt, roll)
     image = scenes.noisy(scenes.ray_cast(LAYOUT.mesh, R_C_G, p_C_G), 2.0, seed=7)
-    estimate = solve(image)
+    estimator = FiducialEstimator(LAYOUT, 1, 1.5)
+    assert sorted(estimator.detect(image)) == in_view(R_C_G, p_C_G)       # 3 at 0.2 m, all 5 at 0.5 m
+    estimate = solve(image, estimator)
     assert estimate.valid, estimate.reason
-    assert estimate.markers == {0.2: 2, 0.5: 5}[distance]
     dp, da = errors(estimate, R_C_G, p_C_G)
     recorded(dp, da)
     assert dp <= position_bound(distance) and da <= ANGLE_BOUND, (dp, math.degrees(da))

@@ -13,9 +13,12 @@ DIR`` each frame is written to ``DIR/frames/<component>/<k>.npz`` (k: the compon
 nothing is hit; absent with ``depth: false``), ``K`` (3x3), ``T_link_camera`` and ``T_W_camera``
 (4x4), ``t`` (s); see :mod:`components.camera.frames`.
 
-Noise: seeded, never from the wall clock; each frame draws H*W*3 then H*W standard normals
-(float32) from ``numpy.random.Generator(PCG64(seed))``, whatever the sigmas, so the noise of frame
-k depends only on the seed and k. The generator's state is part of ``get_state``.
+Noise: seeded, never from the wall clock. Pixel noise and depth noise have a generator each,
+``numpy.random.Generator(PCG64(SeedSequence([seed, 0])))`` and ``[seed, 1]``; a frame draws H*W*3
+standard normals (float32) from the first when ``pixel_noise`` > 0 and H*W from the second when
+``depth_noise`` > 0 (a frame's 1.2 million normals at 640x480 cost more than its render, so none
+are drawn for a sigma of 0). The noise of frame k depends only on the seed and k, and another
+non-zero sigma scales the same draws. The generators' states are part of ``get_state``.
 """
 from __future__ import annotations
 
@@ -113,7 +116,7 @@ class CameraComponent(Component):
         """The camera needs an OpenGL context on EGL (checked by making one) and the run's epoch."""
         problem = egl_problem()
         if problem is not None:
-            raise ConfigError("type", f"sensor.camera renders with OpenGL on EGL, which this machine lacks: {problem} "
+            raise ConfigError("", f"sensor.camera renders with OpenGL on EGL, which this machine lacks: {problem} "
                                       f"(Debian packages: {EGL_PACKAGES})")
         return []
 
@@ -133,7 +136,8 @@ class CameraComponent(Component):
         self.model = CameraModel(geometries, params["body"], params["link"], self.T_link_camera, self.intrinsics,
                                  params["ambient"])
         self.sun = SunClock(params["_epoch"])
-        self.stream = NormalStream(params["seed"])
+        self.pixel_stream = NormalStream(np.random.SeedSequence([params["seed"], 0]))
+        self.depth_stream = NormalStream(np.random.SeedSequence([params["seed"], 1]))
         self.joints = {name: len(model.movable_joints) for name, model in models.items()}
         self.writer = FrameWriter(params["_frames"]) if params.get("_frames") else None
         self.k = 0                       # frames taken
@@ -147,7 +151,7 @@ class CameraComponent(Component):
 
     def take(self, t_ns: int, inputs) -> dict[str, np.ndarray]:
         """The frame of the scene the inputs hold at ``t_ns``, noise added: the arrays of its file."""
-        from components.camera.model import add_noise
+        from components.camera.model import add_depth_noise, add_pixel_noise
         from components.camera.sun import in_earth_shadow
 
         taken = self.input_times_ns.get(f"{self.params['body']}.position", t_ns)
@@ -156,10 +160,12 @@ class CameraComponent(Component):
         states = {name: (inputs[f"{name}.position"], inputs[f"{name}.orientation"], inputs[f"{name}.q"])
                   for name in self.joints}
         rgb, depth, T_W_camera = self.model.render(states, sun_W if lit else None)
-        h, w = rgb.shape[:2]
-        z_rgb = self.stream.rng.standard_normal((h, w, 3), dtype=np.float32)
-        z_depth = self.stream.rng.standard_normal((h, w), dtype=np.float32)
-        rgb, depth = add_noise(rgb, depth, z_rgb, z_depth, self.params["pixel_noise"], self.params["depth_noise"])
+        pixel_sigma, depth_sigma = self.params["pixel_noise"], self.params["depth_noise"]
+        if pixel_sigma > 0.0:
+            rgb = add_pixel_noise(rgb, self.pixel_stream.rng.standard_normal(rgb.shape, dtype=np.float32), pixel_sigma)
+        if depth_sigma > 0.0:
+            depth = add_depth_noise(depth, self.depth_stream.rng.standard_normal(depth.shape, dtype=np.float32),
+                                    depth_sigma)
         self.t_frame_ns, self.lit = taken, lit
         frame = {"rgb": rgb, "K": self.intrinsics.K, "T_link_camera": self.T_link_camera, "T_W_camera": T_W_camera,
                  "t": np.float64(taken / NS_PER_S)}
@@ -180,9 +186,10 @@ class CameraComponent(Component):
         self.model.release()
 
     def get_state(self):
-        return {"rng": self.stream.get_state(), "k": np.int64(self.k), "t_frame_ns": np.int64(self.t_frame_ns),
-                "lit": np.bool_(self.lit)}
+        return {"pixel_rng": self.pixel_stream.get_state(), "depth_rng": self.depth_stream.get_state(),
+                "k": np.int64(self.k), "t_frame_ns": np.int64(self.t_frame_ns), "lit": np.bool_(self.lit)}
 
     def set_state(self, state):
-        self.stream.set_state(state["rng"])
+        self.pixel_stream.set_state(state["pixel_rng"])
+        self.depth_stream.set_state(state["depth_rng"])
         self.k, self.t_frame_ns, self.lit = int(state["k"]), int(state["t_frame_ns"]), bool(state["lit"])

@@ -6,9 +6,9 @@ poses its base pose and joint positions give, puts the camera on its mount link
 the Sun unless the camera is in the Earth's shadow (:mod:`components.camera.sun`). W is the
 dynamics' world frame, ECI axes, so the Sun direction in ECI is the one in W.
 
-:func:`add_noise`: white pixel noise (counts of 0..255, 1-sigma, rounded to the nearest count and
-clipped) and white depth noise (m, 1-sigma, only where something is hit) from standard normals the
-caller draws.
+:func:`add_pixel_noise`: white pixel noise (counts of 0..255, 1-sigma, rounded to the nearest count
+and clipped); :func:`add_depth_noise`: white depth noise (m, 1-sigma, only where something is hit);
+both from standard normals the caller draws.
 """
 from __future__ import annotations
 
@@ -88,13 +88,12 @@ def mount_transform(position, orientation) -> np.ndarray:
     return pose_matrix(position, orientation)
 
 
-def add_noise(rgb: np.ndarray, depth: np.ndarray, z_rgb: np.ndarray, z_depth: np.ndarray,
-              pixel_sigma: float, depth_sigma: float) -> tuple[np.ndarray, np.ndarray]:
-    """rgb + pixel_sigma z_rgb (rounded, clipped to 0..255) and depth + depth_sigma z_depth where
-    depth > 0; z_rgb and z_depth are standard normals of the images' shapes (float32)."""
-    if pixel_sigma > 0.0:
-        noisy = rgb.astype(np.float32) + np.float32(pixel_sigma) * z_rgb
-        rgb = np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
-    if depth_sigma > 0.0:
-        depth = np.where(depth > 0.0, depth + np.float32(depth_sigma) * z_depth, np.float32(0.0)).astype(np.float32)
-    return rgb, depth
+def add_pixel_noise(rgb: np.ndarray, z: np.ndarray, sigma: float) -> np.ndarray:
+    """rgb (uint8) + sigma z (z: standard normals of rgb's shape), rounded to the nearest count and
+    clipped to 0..255."""
+    return np.clip(np.rint(rgb.astype(np.float32) + np.float32(sigma) * z), 0, 255).astype(np.uint8)
+
+
+def add_depth_noise(depth: np.ndarray, z: np.ndarray, sigma: float) -> np.ndarray:
+    """depth (float32, m) + sigma z where something is hit (depth > 0); 0 stays 0."""
+    return np.where(depth > 0.0, depth + np.float32(sigma) * z, np.float32(0.0)).astype(np.float32)

@@ -28,6 +28,7 @@ import numpy as np
 
 from components.camera.frames import FrameWriter
 from components.camera.render import EGL_PACKAGES, egl_problem
+from components.camera.view import CameraView
 from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.robots.model import read_model
@@ -54,6 +55,7 @@ class CameraComponent(Component):
     ``run.epoch`` and the run's time.
     """
     type_name = "sensor.camera"
+    view = CameraView
     parameters = (
         Parameter("bodies", MapOf(Str(hint="a URDF file path"), "body name", min_items=1),
                   description="the bodies in the scene: name (as the dynamics names it) -> its URDF, relative to the config"),

@@ -257,7 +257,8 @@ class Run:
             rows.recording.append(0, 0.0, rows.values)
         rows.decimation = self.viewer_link.start(config, rows.columns, setup=self.log_dir / "viewer.json",
                                                  endpoint=self.crew.endpoint, run_id=self.run_id, env=self.child_env,
-                                                 cpus=self.placement.shared, wait=self.listener.wait)
+                                                 cpus=self.placement.shared, wait=self.listener.wait,
+                                                 frames_dir=self.record_dir / "frames" if self.record_dir else None)
         if rows.decimation:
             state.log("viewer", mode=self.viewer.mode, rate_hz=self.viewer.rate_hz)
             rows.signals = self.viewer_link.signals.put

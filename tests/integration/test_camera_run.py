@@ -66,12 +66,19 @@ def camera_config(path: Path, duration: str = "1 s", step: str = "100 ms", **cam
     return path
 
 
-def test_a_wrist_camera_records_frames_whose_depth_at_the_grapple_is_the_dynamics_truth(tmp_path):
-    config = camera_config(tmp_path / "camera.yaml")
-    record = tmp_path / "run"
-    done = orchestrator("run", config, "--record", record, timeout=600)
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """The capture config with a wrist camera (1 s, 10 Hz), run and recorded: its directory."""
+    base = tmp_path_factory.mktemp("camera")
+    config = camera_config(base / "camera.yaml")
+    done = orchestrator("run", config, "--record", base / "run", timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
     assert not component_processes("capture_tumbling_target"), "component processes left after the run"
+    return base / "run"
+
+
+def test_a_wrist_camera_records_frames_whose_depth_at_the_grapple_is_the_dynamics_truth(recorded):
+    record = recorded
     signals = pandas.read_parquet(record / "signals.parquet")
     frames = sorted((record / "frames" / "camera").glob("*.npz"))
     assert [f.name for f in frames] == [f"{k:06d}.npz" for k in range(10)]     # 1 s at 10 Hz, none lost
@@ -104,6 +111,41 @@ def test_a_wrist_camera_records_frames_whose_depth_at_the_grapple_is_the_dynamic
         checked += 1
     assert checked == 10
     assert signals["camera.lit"].iloc[-1] in (0.0, 1.0)
+
+
+def test_a_second_run_records_the_same_frames_bit_for_bit(recorded, tmp_path):
+    done = orchestrator("run", recorded / "config.yaml", "--record", tmp_path / "again", timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    first = sorted((recorded / "frames" / "camera").glob("*.npz"))
+    second = sorted((tmp_path / "again" / "frames" / "camera").glob("*.npz"))
+    assert [f.name for f in first] == [f.name for f in second] and len(first) == 10
+    for a, b in zip(first, second):
+        with np.load(a) as x, np.load(b) as y:
+            assert x["rgb"].tobytes() == y["rgb"].tobytes() and x["depth"].tobytes() == y["depth"].tobytes(), a.name
+            assert x["rgb"].max() > 0                      # something lit is in view
+
+
+def test_the_view_draws_the_frustum_on_the_end_effector_and_the_frames(recorded, tmp_path):
+    """`orchestrator view DIR` into an .rrd, read back with Rerun: the camera's pinhole (its K) and
+    mount under the ee link's entity, its images on the timeline, each the recorded frame's pixels."""
+    from rerun.chunk import RrdReader
+    rrd = tmp_path / "view.rrd"
+    done = orchestrator("view", recorded, "--view", f"save:{rrd}", "--rate", "100", timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    entity = "/world/dynamics/servicer/links/ee/camera"
+    pinhole, images = None, []
+    for chunk in RrdReader(rrd).stream():
+        batch = chunk.to_record_batch()
+        if chunk.entity_path == entity and chunk.is_static and "Pinhole:image_from_camera" in batch.schema.names:
+            pinhole = np.array(batch.column("Pinhole:image_from_camera").to_pylist()[0]).reshape(3, 3)
+        if chunk.entity_path == f"{entity}/rgb" and "Image:buffer" in batch.schema.names:
+            images += batch.column("Image:buffer").to_pylist()
+    assert pinhole is not None
+    # Rerun stores the 3x3 column-major
+    assert np.allclose(pinhole.T, [[F, 0.0, CX], [0.0, F, CY], [0.0, 0.0, 1.0]])
+    assert len(images) == 10
+    with np.load(recorded / "frames" / "camera" / "000009.npz") as frame:
+        assert bytes(np.asarray(images[-1][0], dtype=np.uint8)) == frame["rgb"].tobytes()
 
 
 @pytest.mark.parametrize("setting, key, expected", [

@@ -111,3 +111,54 @@ def test_outputs_say_when_the_frame_was_taken_and_whether_it_was_lit(truth):
     assert lit["rgb"].max() > 100                             # the Sun on some face
     assert shadowed["rgb"].max() <= 0.2 * 255 + 6 * 3.0       # ambient only (and 6 sigma of noise)
     assert not lit["rgb"][lit["depth"] == 0].any()            # black sky
+
+
+def test_a_component_that_embeds_the_camera_sees_the_same_frames(truth):
+    """The pattern for a consumer that needs the images in its own step (docs/component_api.md):
+    CAMERA_PARAMETERS as a nested record, its inputs under a prefix, a Camera in __init__. Same
+    parameters, same inputs: the same pixels as sensor.camera's, bit for bit."""
+    from components.camera.camera import CAMERA_PARAMETERS, Camera, camera_inputs, check_camera
+    from components.errors import ConfigError
+    from components.schema import Record
+    from components.sdk import Component, Parameter, Variable
+
+    class Embedding(Component):
+        type_name = "test.embedded_camera"
+        parameters = (Parameter("camera", Record("Camera", CAMERA_PARAMETERS), description="the camera"),)
+
+        @classmethod
+        def declare(cls, params):
+            return camera_inputs(params["camera"], params, "eye.") + [
+                Variable("hit", "output", (), "1", 0.0, "fraction of pixels that hit something")]
+
+        @classmethod
+        def validate(cls, params):
+            try:
+                check_camera(params["camera"], params)
+            except ConfigError as e:
+                raise ConfigError(f"camera.{e.key}", e.message) from None
+
+        def __init__(self, params):
+            self.camera = Camera(params["camera"], params, "eye.")
+            self.last = None
+
+        def initialize(self, t0_ns, inputs):
+            return {"hit": 0.0}
+
+        def do_step(self, t_ns, h_ns, inputs):
+            self.last = self.camera.frame(t_ns, inputs)
+            return {"hit": float((self.last["depth"] > 0).mean())}
+
+    sensor = camera(truth)
+    own = {key: value for key, value in sensor.params.items() if not key.startswith("_")}   # not the run's
+    own["orientation"] = list(own["orientation"])
+    embedded = Harness(Embedding, {"camera": own}, epoch=EPOCH, config_dir=CONFIGS)
+    for key, value in sensor.inputs.items():
+        embedded.inputs[f"eye.{key}"] = value
+    expected = frames(sensor, 1)[0]
+    hit = embedded.step(STEP)["hit"]
+    assert embedded.component.last["rgb"].tobytes() == expected["rgb"].tobytes()
+    assert embedded.component.last["depth"].tobytes() == expected["depth"].tobytes()
+    assert hit == float((expected["depth"] > 0).mean()) > 0.02
+    with pytest.raises(ConfigError, match="camera.link: expected a link of servicer"):
+        Harness(Embedding, {"camera": {**own, "link": "hand"}}, epoch=EPOCH, config_dir=CONFIGS)

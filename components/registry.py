@@ -39,6 +39,7 @@ TYPES = {
     "sensor.imu": "components.sensors.components:ImuComponent",
     "sensor.force_torque": "components.sensors.components:ForceTorqueComponent",
     "sensor.relative_pose": "components.sensors.components:RelativePoseComponent",
+    "sensor.camera": "components.camera.component:CameraComponent",
     # estimators
     "estimator.fiducial": "components.estimators.component:FiducialComponent",
     # FMI co-simulation FMUs (FMPy)

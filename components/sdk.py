@@ -213,7 +213,9 @@ def declaration_tables(cls: type[Component]) -> str:
 ORCHESTRATOR_EVENTS = ("start", "end", "fault", "warning", "swap", "checkpoint", "restart", "viewer")
 
 # Injected by the orchestrator into every component's parameters; not declared by the types.
-RUN_PARAMETERS = ("_epoch", "_config_dir", "_packages")
+# ``_frames``: with --record DIR, DIR/frames/<component>, where a component may write files of
+# its own (camera frames); absent without a recording.
+RUN_PARAMETERS = ("_epoch", "_config_dir", "_packages", "_frames")
 
 
 def run_parameters(epoch: str | None, config_dir: str | Path | None,

@@ -109,7 +109,7 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
         if mode == "spawn" and spawn_problem():
             log(f"cannot spawn the desktop viewer: {spawn_problem()}")
             return 1
-        scene = SceneLogger(columns, config, setup.get("config_dir"), warn=log)
+        scene = SceneLogger(columns, config, setup.get("config_dir"), warn=log, frames_dir=setup.get("frames_dir"))
         stream, url = open_stream(mode, recording_id=run_id, file=setup.get("file"), blueprint=scene.blueprint(),
                                   open_browser=bool(setup.get("open_browser")),
                                   name=(config.get("run") or {}).get("name") or run_id)

@@ -102,7 +102,8 @@ def replay(directory: str | Path, mode: str = "spawn", file: str | Path | None =
         raise ReplayError(f"{directory}/signals.parquet: expected the columns step, time first, got {names[:2]}")
     columns = names[2:]
     n = decimation(config, rate_hz)
-    scene = SceneLogger(columns, config, config_dir, warn=lambda m: print(f"view: {m}", file=out, flush=True))
+    scene = SceneLogger(columns, config, config_dir, warn=lambda m: print(f"view: {m}", file=out, flush=True),
+                        frames_dir=Path(directory) / "frames")
     stream, url = open_stream(mode, recording_id=f"{run_id}-replay", file=file, blueprint=scene.blueprint(),
                               open_browser=open_browser, name=f"{(config.get('run') or {}).get('name', run_id)} (replay)")
     scene.rec = stream

@@ -1,6 +1,6 @@
 """Recorded rows -> Rerun log calls: the frame of the Zenorbit view (no bus, no I/O).
 
-``SceneLogger(columns, config, config_dir, recording)`` looks at the resolved config and the
+``SceneLogger(columns, config, config_dir, recording, frames_dir)`` looks at the resolved config and the
 recorded column names (``<component>.<name>`` or ``<component>.<name>[i]``, docs/design.md §6).
 Each component whose type has a ``view`` (a :class:`View` class, found through the registry) draws
 its part; this module turns batches of rows (step, time, one float64 per column) into their
@@ -163,8 +163,9 @@ class SceneLogger:
     """
 
     def __init__(self, columns: list[str], config: dict, config_dir: str | Path | None = None, *,
-                 recording=None, warn: Callable[[str], None] | None = None):
+                 recording=None, warn: Callable[[str], None] | None = None, frames_dir: str | Path | None = None):
         self.columns = list(columns)
+        self.frames_dir = Path(frames_dir) if frames_dir else None   # the recording's frames/ (camera images)
         self.config = config or {}
         self.config_dir = Path(config_dir) if config_dir else None
         # run.packages as the run resolved them: relative to the config's directory

@@ -220,7 +220,8 @@ class Run:
         self.listener = Listener(self.state, self.controls, self.hosts, self.viewer_link, self.out)
         self.crew = Crew(self.config, run_id=run_id, session=session, endpoint=self.hosts.local, secret=self.secret,
                          env=self.child_env, log_dir=self.log_dir, placement=self.placement, out=self.out,
-                         place=self.state.rows.placement, wait=self.listener.wait, hosts=self.hosts)
+                         place=self.state.rows.placement, wait=self.listener.wait, hosts=self.hosts,
+                         frames_dir=self.record_dir / "frames" if self.record_dir else None)
         self.recovery = recovery.Recovery(self.state, self.crew, self.listener, self.out)
         runs.register(run_id, self.config.name, self.hosts.local, self.config.path, self.secret,
                       self.hosts.settings("cli"))
@@ -256,7 +257,8 @@ class Run:
             rows.recording.append(0, 0.0, rows.values)
         rows.decimation = self.viewer_link.start(config, rows.columns, setup=self.log_dir / "viewer.json",
                                                  endpoint=self.crew.endpoint, run_id=self.run_id, env=self.child_env,
-                                                 cpus=self.placement.shared, wait=self.listener.wait)
+                                                 cpus=self.placement.shared, wait=self.listener.wait,
+                                                 frames_dir=self.record_dir / "frames" if self.record_dir else None)
         if rows.decimation:
             state.log("viewer", mode=self.viewer.mode, rate_hz=self.viewer.rate_hz)
             rows.signals = self.viewer_link.signals.put

@@ -117,10 +117,12 @@ class Crew:
 
     def __init__(self, config: RunConfig, *, run_id: str, session, endpoint: str, secret: str, env: dict,
                  log_dir: Path, placement: supervisor.Placement, out,
-                 place: Callable[[ComponentSpec], tuple[np.ndarray, np.ndarray]], wait: Wait, hosts):
+                 place: Callable[[ComponentSpec], tuple[np.ndarray, np.ndarray]], wait: Wait, hosts,
+                 frames_dir: Path | None = None):
         self.config, self.run_id, self.session, self.endpoint = config, run_id, session, endpoint
         self.secret, self.env, self.log_dir, self.placement, self.out = secret, env, log_dir, placement, out
         self.place, self.wait, self.hosts = place, wait, hosts   # hosts: the run's bus (orchestrator.hosts.run_bus)
+        self.frames_dir = frames_dir         # DIR/frames with --record DIR: the members' _frames are in it
         self.launches: dict[str, int] = {}   # process group -> its processes started so far (their log names)
 
     def launch(self, specs: list[ComponentSpec], generation: dict[str, int]) -> list[Member]:
@@ -177,7 +179,7 @@ class Crew:
                 raise RunFailure(self.hosts.late(late)) from None
             raise
         for member in started:
-            member.control(instantiate_message(member.spec, self.config))
+            member.control(instantiate_message(member.spec, self.config, self.frames_dir))
         self.wait({m.name: "instantiate" for m in started}, timeout, "instantiate")
         return started
 
@@ -188,9 +190,11 @@ class Crew:
         self.wait({m.name: message.OP for m in members}, timeout, what)
 
 
-def instantiate_message(spec: ComponentSpec, config: RunConfig) -> protocol.Instantiate:
-    """The instantiate message: the type and its parameters, with the run's own."""
-    return protocol.Instantiate(spec.type, bus.jsonable({**spec.parameters, **config.run_parameters}))
+def instantiate_message(spec: ComponentSpec, config: RunConfig, frames_dir: Path | None = None) -> protocol.Instantiate:
+    """The instantiate message: the type and its parameters, with the run's own (``_frames``: the
+    component's directory in ``frames_dir``, when the run records)."""
+    frames = {} if frames_dir is None else {"_frames": str(frames_dir / spec.name)}
+    return protocol.Instantiate(spec.type, bus.jsonable({**spec.parameters, **config.run_parameters, **frames}))
 
 
 def terminate(member: Member, timeout: float = 5.0, final: bool = False) -> None:

@@ -7,6 +7,7 @@ import json
 import signal
 import subprocess
 import sys
+from pathlib import Path
 
 from components import bus
 from components.constants import NS_PER_S
@@ -25,7 +26,7 @@ class ViewerLink:
         self.signals = bus.publisher(session, bus.signals_key(run_id), drop=True)
 
     def start(self, config: RunConfig, columns: list[str], *, setup, endpoint: str, run_id: str, env: dict,
-              cpus: frozenset[int], wait: Wait) -> int:
+              cpus: frozenset[int], wait: Wait, frames_dir: Path | None = None) -> int:
         """Start the observer, if asked (setup file at ``setup``), and wait for its liveliness
         token; return the decimation (publish every n-th row), or 0."""
         if self.spec is None:
@@ -35,6 +36,7 @@ class ViewerLink:
             "config_dir": str(config.path.parent.resolve()), "epoch": config.epoch,
             "mode": self.spec.mode, "file": str(self.spec.file) if self.spec.file else None,
             "open_browser": self.spec.open_browser, "port": self.spec.port,
+            "frames_dir": str(frames_dir) if frames_dir else None,   # the cameras' images (with --record)
             "linger": sys.stdin.isatty()}))   # foxglove: keep serving after the run (stop() waits for it)
         module = "components.viewer.foxglove_observer" if self.spec.mode == "foxglove" else "components.viewer.observer"
         self.process = subprocess.Popen(

@@ -1,0 +1,161 @@
+"""A camera as a reusable part: its parameters, inputs and checks declared once, and
+:class:`Camera`, the frames of those inputs with the Sun and the noise (no bus, no files).
+
+``sensor.camera`` is this part alone; a component that needs the images in its own step (a pose
+estimator) embeds the same part: ``Parameter("camera", Record("Camera", CAMERA_PARAMETERS))``,
+its inputs from :func:`camera_inputs`, :func:`check_camera` in its ``validate``,
+:func:`check_egl` in its ``preflight`` and a :class:`Camera` in its ``__init__``; each step,
+``Camera.frame`` renders what the inputs it holds show. The images then never leave the process
+(see the Component API, "Images in a step").
+
+Noise: pixel noise and depth noise have a generator each,
+``numpy.random.Generator(PCG64(SeedSequence([seed, 0])))`` and ``[seed, 1]``; a frame draws H*W*3
+standard normals (float32) from the first when ``pixel_noise`` > 0 and H*W from the second when
+``depth_noise`` > 0 (a frame's 1.2 million normals at 640x480 cost more than its render, so none
+are drawn for a sigma of 0). The noise of frame k depends only on the seed and k, and another
+non-zero sigma scales the same draws. The generators' states are the part's state.
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import numpy as np
+
+from components.camera.render import EGL_PACKAGES, egl_problem
+from components.constants import NS_PER_S
+from components.errors import ConfigError
+from components.robots.model import read_model
+from components.schema import Bool, Float, Int, MapOf, Str, Vector
+from components.sdk import Parameter, Variable
+from components.sensors.noise import NormalStream, normalized
+from components.signals import body_signals
+
+MAX_SIZE = 8192
+
+CAMERA_PARAMETERS = (
+    Parameter("bodies", MapOf(Str(hint="a URDF file path"), "body name", min_items=1),
+              description="the bodies in the scene: name (as the dynamics names it) -> its URDF, relative to the config"),
+    Parameter("body", Str(), description="the body carrying the camera"),
+    Parameter("link", Str(), description="the link of that body the camera is fixed to"),
+    Parameter("position", Vector(3, "m"), description="camera origin in the link frame"),
+    Parameter("orientation", Vector(4), description="q_link_camera [x, y, z, w]; camera axes: z forward, x right, y down"),
+    Parameter("width", Int(minimum=1), description=f"image width (pixels, at most {MAX_SIZE})"),
+    Parameter("height", Int(minimum=1), description=f"image height (pixels, at most {MAX_SIZE})"),
+    Parameter("fx", Float(positive=True), description="focal length along x (pixels)"),
+    Parameter("fy", Float(positive=True), description="focal length along y (pixels)"),
+    Parameter("cx", Float(), description="principal point x (pixels; pixel centres at integers, OpenCV's convention)"),
+    Parameter("cy", Float(), description="principal point y (pixels)"),
+    Parameter("near", Float("m", positive=True), description="nearest distance drawn, along the optical axis"),
+    Parameter("far", Float("m", positive=True), description="farthest distance drawn, along the optical axis"),
+    Parameter("depth", Bool(), default=True, description="record the depth image beside the colour image"),
+    Parameter("ambient", Float(minimum=0.0, maximum=1.0), default=0.0,
+              description="light without the Sun, a fraction of a surface's colour (0: unlit faces and eclipse are black)"),
+    Parameter("seed", Int(minimum=0), description="seed of the noise (numpy PCG64)"),
+    Parameter("pixel_noise", Float(minimum=0.0), description="white noise on each colour channel, 1-sigma (counts of 0..255)"),
+    Parameter("depth_noise", Float("m", minimum=0.0), description="white noise on the depth, 1-sigma, where something is hit"),
+)
+
+
+def _models(camera: Mapping[str, Any], run: Mapping[str, Any]):
+    return {name: read_model(urdf, run.get("_config_dir"), f"bodies.{name}", run.get("_packages"))
+            for name, urdf in camera["bodies"].items()}
+
+
+def camera_inputs(camera: Mapping[str, Any], run: Mapping[str, Any], prefix: str = "") -> list[Variable]:
+    """The inputs a camera reads (names after ``prefix``): ``r_eci`` and, per body, its base
+    ``position``, ``orientation`` and joints ``q``. ``run``: the component's parameters, for the
+    run parameters (``_config_dir``, ``_packages``)."""
+    variables = [Variable(f"{prefix}r_eci", "input", (3,), "m", 0.0,
+                          "position of W's origin (the orbit point) in ECI, for the Earth's shadow; all zero: always lit")]
+    for name, model in _models(camera, run).items():
+        variables += body_signals("input", model, f"{prefix}{name}", ("position", "orientation", "q"))
+    return variables
+
+
+def check_camera(camera: Mapping[str, Any], run: Mapping[str, Any]) -> None:
+    """Checks across a camera's parameters: ConfigError naming the key (relative to the camera's)."""
+    models = _models(camera, run)
+    if camera["body"] not in models:
+        raise ConfigError("body", f"expected one of bodies ({', '.join(models)}), got {camera['body']!r}")
+    links = models[camera["body"]].link_names
+    if camera["link"] not in links:
+        raise ConfigError("link", f"expected a link of {camera['body']} ({', '.join(links)}), got {camera['link']!r}")
+    try:
+        normalized(camera["orientation"], "orientation")
+    except ValueError as e:
+        raise ConfigError("orientation", str(e)) from None
+    for key in ("width", "height"):
+        if camera[key] > MAX_SIZE:
+            raise ConfigError(key, f"expected 1 to {MAX_SIZE} pixels, got {camera[key]}")
+    for key, size in (("cx", camera["width"]), ("cy", camera["height"])):
+        if not -0.5 <= camera[key] <= size - 0.5:
+            raise ConfigError(key, f"expected a principal point within the image (-0.5 to {size - 0.5:g} pixels "
+                                   f"for {size} pixels), got {camera[key]:g}")
+    if not camera["far"] > camera["near"]:
+        raise ConfigError("far", f"expected more than near ({camera['near']:g} m), got {camera['far']:g} m")
+
+
+def check_egl(who: str = "sensor.camera") -> None:
+    """ConfigError (no key) when no OpenGL context on EGL can be made here, naming the Debian packages."""
+    problem = egl_problem()
+    if problem is not None:
+        raise ConfigError("", f"{who} renders with OpenGL on EGL, which this machine lacks: {problem} "
+                              f"(Debian packages: {EGL_PACKAGES})")
+
+
+class Camera:
+    """The frames of one camera (``camera``: its validated parameters; ``run``: the component's
+    parameters, for ``_epoch``, ``_config_dir`` and ``_packages``). ``prefix``: before the names
+    of its inputs, as :func:`camera_inputs` was given it."""
+
+    def __init__(self, camera: Mapping[str, Any], run: Mapping[str, Any], prefix: str = ""):
+        from components.camera.model import CameraModel, Intrinsics, mount_transform
+        from components.camera.sun import SunClock
+        from components.viewer.robot import read_geometry
+
+        if not run.get("_epoch"):
+            raise ConfigError("_epoch", "a camera needs the run's epoch (run.epoch) for the Sun")
+        self.camera, self.prefix = camera, prefix
+        models = _models(camera, run)
+        geometries = {name: read_geometry(model.path, run.get("_packages")) for name, model in models.items()}
+        self.intrinsics = Intrinsics(camera["width"], camera["height"], camera["fx"], camera["fy"], camera["cx"],
+                                     camera["cy"], camera["near"], camera["far"])
+        self.T_link_camera = mount_transform(camera["position"], camera["orientation"])
+        self.model = CameraModel(geometries, camera["body"], camera["link"], self.T_link_camera, self.intrinsics,
+                                 camera["ambient"])
+        self.sun = SunClock(run["_epoch"])
+        self.pixel_stream = NormalStream(np.random.SeedSequence([camera["seed"], 0]))
+        self.depth_stream = NormalStream(np.random.SeedSequence([camera["seed"], 1]))
+        self.bodies = list(models)
+
+    def frame(self, t_ns: int, inputs: Mapping[str, np.ndarray]) -> dict[str, Any]:
+        """The frame of what ``inputs`` show, taken at ``t_ns`` (the time the inputs were sampled),
+        noise added: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32 (m along the optical axis, 0:
+        nothing hit), ``K``, ``T_link_camera``, ``T_W_camera``, ``t`` (s) and ``lit`` (bool)."""
+        from components.camera.model import add_depth_noise, add_pixel_noise
+        from components.camera.sun import in_earth_shadow
+
+        p = self.prefix
+        sun_W = self.sun.direction(t_ns)
+        lit = not in_earth_shadow(inputs[f"{p}r_eci"], sun_W)
+        states = {name: (inputs[f"{p}{name}.position"], inputs[f"{p}{name}.orientation"], inputs[f"{p}{name}.q"])
+                  for name in self.bodies}
+        rgb, depth, T_W_camera = self.model.render(states, sun_W if lit else None)
+        pixel_sigma, depth_sigma = self.camera["pixel_noise"], self.camera["depth_noise"]
+        if pixel_sigma > 0.0:
+            rgb = add_pixel_noise(rgb, self.pixel_stream.rng.standard_normal(rgb.shape, dtype=np.float32), pixel_sigma)
+        if depth_sigma > 0.0:
+            depth = add_depth_noise(depth, self.depth_stream.rng.standard_normal(depth.shape, dtype=np.float32),
+                                    depth_sigma)
+        return {"rgb": rgb, "depth": depth, "K": self.intrinsics.K, "T_link_camera": self.T_link_camera,
+                "T_W_camera": T_W_camera, "t": np.float64(t_ns / NS_PER_S), "lit": lit}
+
+    def get_state(self) -> dict[str, np.ndarray]:
+        return {"pixel_rng": self.pixel_stream.get_state(), "depth_rng": self.depth_stream.get_state()}
+
+    def set_state(self, state: Mapping[str, Any]) -> None:
+        self.pixel_stream.set_state(state["pixel_rng"])
+        self.depth_stream.set_state(state["depth_rng"])
+
+    def release(self) -> None:
+        self.model.release()

@@ -1,0 +1,99 @@
+"""``sensor.camera``: an RGB-D pinhole camera on a link, rendered with OpenGL on EGL (thin wrapper
+of :class:`components.camera.camera.Camera`).
+
+Rate and time: one frame per step of the component (its own ``step:`` in the config, a multiple
+of run.step). ``do_step(t, h)`` renders the scene from the inputs it holds (the bodies' poses at
+t, or when ``input_times_ns`` says) and its outputs at t + h describe that frame: ``t_frame``
+(when it was taken), ``frame`` (how many frames so far) and ``lit`` (1 in sunlight, 0 in the
+Earth's shadow). ``initialize`` takes no frame.
+
+The image and the depth do not travel as variables (a 640x480 frame is 2 MB): with ``--record
+DIR`` each frame is written to ``DIR/frames/<component>/<k>.npz`` (k: the component's step, from
+0) with ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32 (m along the optical axis, 0 where
+nothing is hit; absent with ``depth: false``), ``K`` (3x3), ``T_link_camera`` and ``T_W_camera``
+(4x4), ``t`` (s); see :mod:`components.camera.frames`. Noise: :mod:`components.camera.camera`.
+State: the noise generators, the frame count, the last frame's time and light.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from components.camera.camera import CAMERA_PARAMETERS, Camera, camera_inputs, check_camera, check_egl
+from components.camera.frames import FrameWriter
+from components.camera.view import CameraView
+from components.constants import NS_PER_S
+from components.sdk import Component, Variable
+
+
+class CameraComponent(Component):
+    """An RGB-D camera (type ``sensor.camera``) on link ``link`` of body ``body``, looking at every
+    body of ``bodies`` (their URDF visuals) lit by the Sun; black sky, no Earth in the image.
+
+    Connect each body's base pose and joints from the dynamics (``camera.<body>.position:
+    dynamics.<body>.position``, the same for ``orientation`` and ``q``) and the orbit
+    (``camera.r_eci: orbit.r_eci``) for the Earth's shadow. The Sun direction comes from
+    ``run.epoch`` and the run's time.
+    """
+    type_name = "sensor.camera"
+    view = CameraView
+    parameters = CAMERA_PARAMETERS
+
+    @classmethod
+    def declare(cls, params):
+        return camera_inputs(params, params) + [
+            Variable("t_frame", "output", (), "s", 0.0, "when the latest frame was taken (0 before the first)"),
+            Variable("frame", "output", (), "1", 0.0, "frames taken so far (the latest is frames/<component>/<frame - 1>.npz)"),
+            Variable("lit", "output", (), "1", 0.0, "1 when the latest frame was in sunlight, 0 in the Earth's shadow"),
+        ]
+
+    @classmethod
+    def validate(cls, params):
+        check_camera(params, params)
+
+    @classmethod
+    def preflight(cls, params, step_s, full=False):
+        """The camera needs an OpenGL context on EGL: checked by making one, at check and run."""
+        check_egl()
+        return []
+
+    def __init__(self, params):
+        self.params = params
+        self.camera = Camera(params, params)
+        self.writer = FrameWriter(params["_frames"]) if params.get("_frames") else None
+        self.k = 0                       # frames taken
+        self.t_frame_ns, self.lit = 0, False
+
+    def _outputs(self):
+        return {"t_frame": self.t_frame_ns / NS_PER_S, "frame": float(self.k), "lit": float(self.lit)}
+
+    def initialize(self, t0_ns, inputs):
+        return self._outputs()
+
+    def take(self, t_ns: int, inputs) -> dict[str, np.ndarray]:
+        """The frame of the scene the inputs hold at ``t_ns``: the arrays of its file."""
+        taken = self.input_times_ns.get(f"{self.params['body']}.position", t_ns)
+        frame = self.camera.frame(taken, inputs)
+        self.t_frame_ns, self.lit = taken, frame.pop("lit")
+        if not self.params["depth"]:
+            del frame["depth"]
+        return frame
+
+    def do_step(self, t_ns, h_ns, inputs):
+        frame = self.take(t_ns, inputs)
+        if self.writer is not None:
+            self.writer.put(self.k, frame)
+        self.k += 1
+        return self._outputs()
+
+    def terminate(self):
+        if self.writer is not None:
+            self.writer.close()
+        self.camera.release()
+
+    def get_state(self):
+        return {**self.camera.get_state(), "k": np.int64(self.k), "t_frame_ns": np.int64(self.t_frame_ns),
+                "lit": np.bool_(self.lit)}
+
+    def set_state(self, state):
+        self.camera.set_state(state)
+        self.k, self.t_frame_ns, self.lit = int(state["k"]), int(state["t_frame_ns"]), bool(state["lit"])

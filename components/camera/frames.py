@@ -1,0 +1,65 @@
+"""Recorded camera frames: ``DIR/frames/<component>/<k>.npz``, written off the stepping thread.
+
+:class:`FrameWriter` takes each frame (a dict of arrays) and writes it from a thread of its own
+as an uncompressed ``.npz`` (``numpy.savez``: any tool reads it), under a hidden name renamed into
+place once complete, so a reader never sees half a file. ``close()`` writes what is queued and
+joins the thread: a run that ends (terminate) loses no frame. A write that fails is raised by the
+next ``put`` or by ``close``, naming the file.
+"""
+from __future__ import annotations
+
+import os
+import queue
+import threading
+from pathlib import Path
+
+import numpy as np
+
+
+def frame_path(directory: str | Path, k: int) -> Path:
+    """The file of frame ``k`` (the component's k-th step, from 0)."""
+    return Path(directory) / f"{k:06d}.npz"
+
+
+class FrameWriter:
+    """Writes frames into ``directory`` (created) from a thread; at most ``backlog`` frames wait
+    (``put`` blocks beyond: a disk slower than the renderer slows the run rather than filling the
+    memory)."""
+
+    def __init__(self, directory: str | Path, backlog: int = 8):
+        self.directory = Path(directory)
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self.queue: queue.Queue = queue.Queue(maxsize=backlog)
+        self.error: Exception | None = None
+        self.thread = threading.Thread(target=self._run, name="frame-writer", daemon=True)
+        self.thread.start()
+
+    def put(self, k: int, arrays: dict[str, np.ndarray]) -> None:
+        self._raise()
+        self.queue.put((k, arrays))
+
+    def close(self) -> None:
+        if self.thread.is_alive():
+            self.queue.put(None)
+            self.thread.join()
+        self._raise()
+
+    def _raise(self) -> None:
+        if self.error is not None:
+            error, self.error = self.error, None
+            raise error
+
+    def _run(self) -> None:
+        while True:
+            item = self.queue.get()
+            if item is None:
+                return
+            k, arrays = item
+            path = frame_path(self.directory, k)
+            hidden = path.with_name(f".{path.name}.part")
+            try:
+                with open(hidden, "wb") as f:
+                    np.savez(f, **arrays)
+                os.replace(hidden, path)
+            except OSError as e:
+                self.error = OSError(f"cannot write camera frame {path}: {e}")

@@ -1,0 +1,164 @@
+"""sensor.camera in the harness: its frames on the capture scene (the dynamics' own initial state),
+the seeded noise (its spread, replayed bit for bit, restored mid-run), and its outputs."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+from components.camera.render import egl_problem
+from components.testing.harness import Harness
+from tests.conftest import ROOT
+
+pytestmark = pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}")
+
+CAPTURE = yaml.safe_load((ROOT / "configs" / "capture_tumbling_target.yaml").read_text())
+EPOCH = CAPTURE["run"]["epoch"]
+CONFIGS = ROOT / "configs"
+STEP = 100_000_000   # ns
+
+
+@pytest.fixture(scope="module")
+def truth():
+    """The capture scene's orbit and dynamics outputs at t0."""
+    orbit = Harness("orbit.kepler", CAPTURE["components"]["orbit"]["parameters"], epoch=EPOCH, config_dir=CONFIGS)
+    dynamics = Harness("dynamics.dart", CAPTURE["components"]["dynamics"]["parameters"], epoch=EPOCH, config_dir=CONFIGS)
+    o = orbit.initialize()
+    for key in ("r_eci", "v_eci", "q_eci_lvlh", "w_lvlh"):
+        dynamics.inputs[key] = o[key]
+    return {**{f"orbit.{k}": v for k, v in o.items()}, **dynamics.initialize()}
+
+
+def looking_at(direction) -> list[float]:
+    """q_link_camera [x, y, z, w] whose z axis points along ``direction`` (link axes)."""
+    from scipy.spatial.transform import Rotation
+    z = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+    x = np.cross([0.0, 0.0, 1.0], z)
+    x /= np.linalg.norm(x)
+    return list(Rotation.from_matrix(np.column_stack([x, np.cross(z, x), z])).as_quat())
+
+
+def camera(truth, **changes):
+    """A camera on the servicer's bus, 1.1 m out from its centre towards the target, looking at it."""
+    from components.rotations import quat_to_matrix
+    R_W_bus = quat_to_matrix(truth["servicer.orientation"])
+    towards = R_W_bus.T @ (truth["target.position"] - truth["servicer.position"])
+    towards /= np.linalg.norm(towards)
+    params = {"bodies": {"servicer": "../models/capture/servicer.urdf", "target": "../models/capture/target.urdf"},
+              "body": "servicer", "link": "bus", "position": (1.1 * towards).tolist(), "orientation": looking_at(towards),
+              "width": 160, "height": 120, "fx": 60.0, "fy": 60.0, "cx": 79.5, "cy": 59.5, "near": 0.05,
+              "far": 30.0, "ambient": 0.2, "seed": 7, "pixel_noise": 3.0, "depth_noise": 0.002, **changes}
+    h = Harness("sensor.camera", params, epoch=EPOCH, config_dir=CONFIGS)
+    for body in ("servicer", "target"):
+        for variable in ("position", "orientation", "q"):
+            h.inputs[f"{body}.{variable}"] = truth[f"{body}.{variable}"]
+    h.inputs["r_eci"] = truth["orbit.r_eci"]
+    return h
+
+
+def frames(h, n):
+    """n frames: (rgb, depth) as the component would write them."""
+    out = []
+    for _ in range(n):
+        out.append(h.component.take(h.t_ns, h._input_views()))
+        h.step(STEP)
+    return out
+
+
+def test_the_camera_sees_the_target_and_its_noise_has_the_declared_spread(truth):
+    """The target fills part of the image; noisy minus clean has the declared 1-sigma (pixels not clipped, depth where hit), 2 %."""
+    clean = frames(camera(truth, pixel_noise=0.0, depth_noise=0.0), 1)[0]
+    noisy = frames(camera(truth), 1)[0]
+    hit = clean["depth"] > 0
+    assert 0.02 < hit.mean() < 0.9
+    unclipped = (clean["rgb"] > 20) & (clean["rgb"] < 235)
+    assert unclipped.sum() > 5000
+    pixel_error = noisy["rgb"].astype(float)[unclipped] - clean["rgb"].astype(float)[unclipped]
+    # rounding to whole counts adds 1/12 to the variance
+    assert np.std(pixel_error) == pytest.approx(np.sqrt(3.0 ** 2 + 1 / 12), rel=0.02)
+    assert np.std(noisy["depth"][hit] - clean["depth"][hit]) == pytest.approx(0.002, rel=0.02)
+    assert not noisy["depth"][~hit].any()
+
+
+def test_noise_replays_bit_for_bit_and_a_restored_camera_continues_it(truth):
+    a, b = camera(truth), camera(truth)
+    first, second = frames(a, 3), frames(b, 3)
+    for x, y in zip(first, second):
+        assert x["rgb"].tobytes() == y["rgb"].tobytes() and x["depth"].tobytes() == y["depth"].tobytes()
+    assert first[0]["rgb"].tobytes() != first[1]["rgb"].tobytes()          # each frame its own noise
+    restored = camera(truth)
+    restored.t_ns = a.t_ns
+    restored.set_state(a.get_state())
+    for x, y in zip(frames(a, 2), frames(restored, 2)):
+        assert x["rgb"].tobytes() == y["rgb"].tobytes() and x["depth"].tobytes() == y["depth"].tobytes()
+    assert a.outputs["frame"] == restored.outputs["frame"] == 5.0
+    other_seed = frames(camera(truth, seed=8), 1)[0]
+    assert other_seed["rgb"].tobytes() != first[0]["rgb"].tobytes()
+
+
+def test_outputs_say_when_the_frame_was_taken_and_whether_it_was_lit(truth):
+    h = camera(truth)
+    assert h.initialize()["frame"] == 0.0
+    h.step(STEP)
+    out = h.step(STEP)
+    assert out["t_frame"] == 0.1 and out["frame"] == 2.0 and out["lit"] == 1.0
+    # the orbit point moved behind the Earth (opposite the Sun): the frame is dark but for the ambient
+    from components.camera.sun import SunClock
+    h.inputs["r_eci"] = -6778e3 * SunClock(EPOCH).direction(h.t_ns)
+    shadowed = h.component.take(h.t_ns, h._input_views())
+    assert h.step(STEP)["lit"] == 0.0
+    lit = frames(camera(truth, pixel_noise=0.0), 1)[0]
+    assert lit["rgb"].max() > 100                             # the Sun on some face
+    assert shadowed["rgb"].max() <= 0.2 * 255 + 6 * 3.0       # ambient only (and 6 sigma of noise)
+    assert not lit["rgb"][lit["depth"] == 0].any()            # black sky
+
+
+def test_a_component_that_embeds_the_camera_sees_the_same_frames(truth):
+    """The pattern for a consumer that needs the images in its own step (docs/component_api.md):
+    CAMERA_PARAMETERS as a nested record, its inputs under a prefix, a Camera in __init__. Same
+    parameters, same inputs: the same pixels as sensor.camera's, bit for bit."""
+    from components.camera.camera import CAMERA_PARAMETERS, Camera, camera_inputs, check_camera
+    from components.errors import ConfigError
+    from components.schema import Record
+    from components.sdk import Component, Parameter, Variable
+
+    class Embedding(Component):
+        type_name = "test.embedded_camera"
+        parameters = (Parameter("camera", Record("Camera", CAMERA_PARAMETERS), description="the camera"),)
+
+        @classmethod
+        def declare(cls, params):
+            return camera_inputs(params["camera"], params, "eye.") + [
+                Variable("hit", "output", (), "1", 0.0, "fraction of pixels that hit something")]
+
+        @classmethod
+        def validate(cls, params):
+            try:
+                check_camera(params["camera"], params)
+            except ConfigError as e:
+                raise ConfigError(f"camera.{e.key}", e.message) from None
+
+        def __init__(self, params):
+            self.camera = Camera(params["camera"], params, "eye.")
+            self.last = None
+
+        def initialize(self, t0_ns, inputs):
+            return {"hit": 0.0}
+
+        def do_step(self, t_ns, h_ns, inputs):
+            self.last = self.camera.frame(t_ns, inputs)
+            return {"hit": float((self.last["depth"] > 0).mean())}
+
+    sensor = camera(truth)
+    own = {key: value for key, value in sensor.params.items() if not key.startswith("_")}   # not the run's
+    own["orientation"] = list(own["orientation"])
+    embedded = Harness(Embedding, {"camera": own}, epoch=EPOCH, config_dir=CONFIGS)
+    for key, value in sensor.inputs.items():
+        embedded.inputs[f"eye.{key}"] = value
+    expected = frames(sensor, 1)[0]
+    hit = embedded.step(STEP)["hit"]
+    assert embedded.component.last["rgb"].tobytes() == expected["rgb"].tobytes()
+    assert embedded.component.last["depth"].tobytes() == expected["depth"].tobytes()
+    assert hit == float((expected["depth"] > 0).mean()) > 0.02
+    with pytest.raises(ConfigError, match="camera.link: expected a link of servicer"):
+        Harness(Embedding, {"camera": {**own, "link": "hand"}}, epoch=EPOCH, config_dir=CONFIGS)

@@ -1,0 +1,175 @@
+"""sensor.camera in a real run: the capture scenario (configs/capture_tumbling_target.yaml) with a
+wrist camera on the servicer's end effector, `orchestrator run --record` (seven component
+processes over Zenoh on loopback), and `orchestrator check` refusing bad cameras with exit 2.
+
+The frames' depth at the grapple is checked against the dynamics' own record of where the
+grapple is (``grasp.p_ee_grasp``, ``grasp.q_ee_grasp``, DART's kinematics): the ray through the
+pixel nearest the grapple's projection meets the plane of the grapple's tip disc at a depth
+computed here in float64 from those recorded values.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas
+import pytest
+import yaml
+from scipy.spatial.transform import Rotation
+
+from components.camera.render import EGL_PACKAGES, egl_problem
+from tests.conftest import ROOT, component_processes, orchestrator
+
+pytestmark = [pytest.mark.integration,
+              pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}")]
+
+CAPTURE = ROOT / "configs" / "capture_tumbling_target.yaml"
+# where the camera sits on the end effector (beside the tool, which spans |y| < 0.05 m)
+MOUNT = np.array([0.0, 0.07, -0.03])
+# the grapple in the ee frame at the start (the capture config's initial arm pose): the camera
+# looks at it, so that the frames hold it while the arm starts to move
+GRAPPLE_AT_START = np.array([0.82793285, 0.29939321, -0.0460646])
+DISC_RADIUS = 0.05 * np.cos(np.pi / 64)       # the tip disc's 64-gon's inradius (m)
+WIDTH, HEIGHT, F, CX, CY = 640, 480, 500.0, 301.3, 251.7
+
+
+def looking_at(direction) -> list[float]:
+    """q_link_camera [x, y, z, w] whose z axis points along ``direction`` (link axes)."""
+    z = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+    x = np.cross([0.0, 0.0, 1.0], z)
+    x /= np.linalg.norm(x)
+    R = np.column_stack([x, np.cross(z, x), z])
+    return [float(v) for v in Rotation.from_matrix(R).as_quat()]
+
+
+def camera_config(path: Path, duration: str = "1 s", step: str = "100 ms", **camera) -> Path:
+    """The capture config with a camera added (URDF paths made absolute: the file is elsewhere)."""
+    config = yaml.safe_load(CAPTURE.read_text())
+    config["run"]["duration"] = duration
+    bodies = config["components"]["dynamics"]["parameters"]["bodies"]
+    for body in bodies.values():
+        body["urdf"] = str((CAPTURE.parent / body["urdf"]).resolve())
+    controller = config["components"]["controller"]["parameters"]
+    controller["urdf"] = str((CAPTURE.parent / controller["urdf"]).resolve())
+    parameters = {"bodies": {name: body["urdf"] for name, body in bodies.items()},
+                  "body": "servicer", "link": "ee", "position": MOUNT.tolist(),
+                  "orientation": looking_at(GRAPPLE_AT_START - MOUNT),
+                  "width": WIDTH, "height": HEIGHT, "fx": F, "fy": F, "cx": CX, "cy": CY, "near": 0.05, "far": 20.0,
+                  "ambient": 0.1, "seed": 3, "pixel_noise": 0.0, "depth_noise": 0.0, **camera}
+    config["components"]["camera"] = {"type": "sensor.camera", "step": step, "parameters": parameters}
+    for body in bodies:
+        for variable in ("position", "orientation", "q"):
+            config["connections"][f"camera.{body}.{variable}"] = f"dynamics.{body}.{variable}"
+    config["connections"]["camera.r_eci"] = "orbit.r_eci"
+    path.write_text(yaml.safe_dump(config, sort_keys=False))
+    return path
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """The capture config with a wrist camera (1 s, 10 Hz), run and recorded: its directory."""
+    base = tmp_path_factory.mktemp("camera")
+    config = camera_config(base / "camera.yaml")
+    done = orchestrator("run", config, "--record", base / "run", timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert not component_processes("capture_tumbling_target"), "component processes left after the run"
+    return base / "run"
+
+
+def test_a_wrist_camera_records_frames_whose_depth_at_the_grapple_is_the_dynamics_truth(recorded):
+    record = recorded
+    signals = pandas.read_parquet(record / "signals.parquet")
+    frames = sorted((record / "frames" / "camera").glob("*.npz"))
+    assert [f.name for f in frames] == [f"{k:06d}.npz" for k in range(10)]     # 1 s at 10 Hz, none lost
+    assert signals["camera.frame"].iloc[-1] == 10.0
+    T_link_camera = np.eye(4)
+    T_link_camera[:3, :3] = Rotation.from_quat(looking_at(GRAPPLE_AT_START - MOUNT)).as_matrix()
+    T_link_camera[:3, 3] = MOUNT
+    K = np.array([[F, 0.0, CX], [0.0, F, CY], [0.0, 0.0, 1.0]])
+    checked = 0
+    for path in frames:
+        with np.load(path) as frame:
+            rgb, depth, t = frame["rgb"], frame["depth"], float(frame["t"])
+            assert rgb.shape == (HEIGHT, WIDTH, 3) and rgb.dtype == np.uint8
+            assert depth.shape == (HEIGHT, WIDTH) and depth.dtype == np.float32
+            assert np.array_equal(frame["K"], K) and np.allclose(frame["T_link_camera"], T_link_camera, atol=1e-15)
+        row = signals.loc[np.isclose(signals["time"], t, atol=1e-9)].iloc[0]
+        p_ee = np.array([row[f"dynamics.grasp.p_ee_grasp[{i}]"] for i in range(3)])
+        R_ee_grasp = Rotation.from_quat([row[f"dynamics.grasp.q_ee_grasp[{i}]"] for i in range(4)]).as_matrix()
+        # the grapple's origin and its tip disc's plane (normal: grapple z) in the camera frame
+        R_c = T_link_camera[:3, :3].T
+        origin = R_c @ (p_ee - MOUNT)
+        normal = R_c @ R_ee_grasp[:, 2]
+        assert origin[2] > 0.3 and normal @ origin > 0.0   # in front, and the disc's face turned to the camera
+        u, v = (K @ origin)[:2] / origin[2]
+        pixel = np.array([round(u), round(v)])
+        ray = np.linalg.solve(K, [pixel[0], pixel[1], 1.0])
+        hit = ray * (normal @ origin) / (normal @ ray)                 # on the plane z_G = 0
+        assert np.linalg.norm(hit - origin) < DISC_RADIUS - 0.005      # well inside the disc
+        assert abs(depth[pixel[1], pixel[0]] - hit[2]) < 1e-4, (path.name, depth[pixel[1], pixel[0]], hit[2])
+        checked += 1
+    assert checked == 10
+    assert signals["camera.lit"].iloc[-1] in (0.0, 1.0)
+
+
+def test_a_second_run_records_the_same_frames_bit_for_bit(recorded, tmp_path):
+    done = orchestrator("run", recorded / "config.yaml", "--record", tmp_path / "again", timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    first = sorted((recorded / "frames" / "camera").glob("*.npz"))
+    second = sorted((tmp_path / "again" / "frames" / "camera").glob("*.npz"))
+    assert [f.name for f in first] == [f.name for f in second] and len(first) == 10
+    for a, b in zip(first, second):
+        with np.load(a) as x, np.load(b) as y:
+            assert x["rgb"].tobytes() == y["rgb"].tobytes() and x["depth"].tobytes() == y["depth"].tobytes(), a.name
+            assert x["rgb"].max() > 0                      # something lit is in view
+
+
+def test_the_view_draws_the_frustum_on_the_end_effector_and_the_frames(recorded, tmp_path):
+    """`orchestrator view DIR` into an .rrd, read back with Rerun: the camera's pinhole (its K) and
+    mount under the ee link's entity, its images on the timeline, each the recorded frame's pixels."""
+    from rerun.chunk import RrdReader
+    rrd = tmp_path / "view.rrd"
+    done = orchestrator("view", recorded, "--view", f"save:{rrd}", "--rate", "100", timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    entity = "/world/dynamics/servicer/links/ee/camera"
+    pinhole, images = None, []
+    for chunk in RrdReader(rrd).stream():
+        batch = chunk.to_record_batch()
+        if chunk.entity_path == entity and chunk.is_static and "Pinhole:image_from_camera" in batch.schema.names:
+            pinhole = np.array(batch.column("Pinhole:image_from_camera").to_pylist()[0]).reshape(3, 3)
+        if chunk.entity_path == f"{entity}/rgb" and "Image:buffer" in batch.schema.names:
+            images += batch.column("Image:buffer").to_pylist()
+    assert pinhole is not None
+    # Rerun stores the 3x3 column-major
+    assert np.allclose(pinhole.T, [[F, 0.0, CX], [0.0, F, CY], [0.0, 0.0, 1.0]])
+    assert len(images) == 10
+    with np.load(recorded / "frames" / "camera" / "000009.npz") as frame:
+        assert bytes(np.asarray(images[-1][0], dtype=np.uint8)) == frame["rgb"].tobytes()
+
+
+@pytest.mark.parametrize("setting, key, expected", [
+    ("components.camera.parameters.link=hand", "components.camera.parameters.link", "expected a link of servicer"),
+    ("components.camera.parameters.body=moon", "components.camera.parameters.body", "expected one of bodies"),
+    ("components.camera.parameters.fx=0", "components.camera.parameters.fx", "expected a quantity > 0, got 0"),
+    ("components.camera.parameters.cx=700", "components.camera.parameters.cx", "within the image (-0.5 to 639.5"),
+    ("components.camera.parameters.width=0", "components.camera.parameters.width", "expected an integer >= 1, got 0"),
+    ("components.camera.parameters.height=9000", "components.camera.parameters.height", "expected 1 to 8192 pixels, got 9000"),
+    ("components.camera.step=15ms", "components.camera.step", "must be a positive integer multiple of run.step (10 ms)"),
+    ("components.camera.parameters.far=0.01", "components.camera.parameters.far", "expected more than near"),
+])
+def test_a_bad_camera_is_refused_at_check_naming_the_key(tmp_path, setting, key, expected):
+    config = camera_config(tmp_path / "camera.yaml")
+    done = orchestrator("check", config, "--set", setting, timeout=300)
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert f"{key}: " in done.stderr and expected in done.stderr, done.stderr
+
+
+def test_no_egl_is_refused_at_check_naming_the_packages(tmp_path):
+    """glvnd finding no EGL vendor is what a machine without Mesa's EGL looks like."""
+    config = camera_config(tmp_path / "camera.yaml")
+    done = orchestrator("check", config, timeout=300,
+                        env={**os.environ, "__EGL_VENDOR_LIBRARY_FILENAMES": str(tmp_path / "none.json")})
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert "components.camera.parameters: sensor.camera renders with OpenGL on EGL" in done.stderr, done.stderr
+    assert EGL_PACKAGES in done.stderr

@@ -1,0 +1,184 @@
+"""The camera's renderer against independent references: a trimesh + Embree ray caster (depth and
+coverage), a plate's analytic depth, OpenCV's projectPoints (the pixel of a 3D point), ERFA-free
+Sun geometry (the Astronomical Almanac's low-precision Sun), and itself (bit for bit)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from components.camera.render import egl_problem
+
+pytestmark = pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}")
+
+# an off-centre principal point (and unequal focal lengths): half a pixel or a swapped axis shows
+W, H = 320, 240
+K = np.array([[300.0, 0.0, 141.3], [0.0, 310.0, 131.8], [0.0, 0.0, 1.0]])
+
+
+def renderer(K=K, width=W, height=H):
+    from components.camera.render import Renderer
+    return Renderer(K, width, height, 0.05, 100.0, ambient=0.1)
+
+
+def rigid(rotvec, translation):
+    from scipy.spatial.transform import Rotation
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_rotvec(rotvec).as_matrix()
+    T[:3, 3] = translation
+    return T
+
+
+def scene():
+    """A box, a sphere and a cylinder, turned and placed 1.5 to 3 m in front of the camera
+    (camera frame = world here), partly covering one another and the image's edges."""
+    import trimesh
+    return [
+        (trimesh.creation.box(extents=(0.8, 0.5, 0.3)), rigid([0.3, 0.5, 0.2], [0.1, -0.1, 2.2])),
+        (trimesh.creation.icosphere(subdivisions=3, radius=0.35), rigid([0, 0, 0], [-0.45, 0.25, 1.6])),
+        (trimesh.creation.cylinder(radius=0.2, height=1.2, sections=48), rigid([1.2, 0.0, 0.4], [0.55, 0.3, 3.0])),
+    ]
+
+
+def draw(r, meshes, sun=(0.0, 0.0, -1.0)):
+    for mesh, _ in meshes:
+        corners = mesh.vertices[mesh.faces.ravel()]
+        normals = np.repeat(mesh.face_normals, 3, axis=0)
+        r.add_mesh(corners, np.arange(len(corners)).reshape(-1, 3), normals, (0.8, 0.6, 0.4))
+    return r.render([T for _, T in meshes], None if sun is None else np.asarray(sun, dtype=float))
+
+
+def ray_cast(meshes, K, width, height):
+    """Depth along z of the first hit of the ray through every pixel centre (OpenCV: integer
+    coordinates), 0 where none: trimesh's ray caster on Embree, in float64 geometry."""
+    import trimesh
+    world = trimesh.util.concatenate([m.copy().apply_transform(T) for m, T in meshes])
+    intersector = trimesh.ray.ray_pyembree.RayMeshIntersector(world)
+    u, v = np.meshgrid(np.arange(width, dtype=float), np.arange(height, dtype=float))
+    directions = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], axis=-1).reshape(-1, 3)
+    origins = np.zeros_like(directions)
+    locations, index_ray, _ = intersector.intersects_location(origins, directions, multiple_hits=False)
+    depth = np.zeros(width * height)
+    depth[index_ray] = locations[:, 2]
+    return depth.reshape(height, width)
+
+
+def test_depth_matches_an_independent_ray_caster_with_an_off_centre_principal_point():
+    meshes = scene()
+    r = renderer()
+    _, depth = draw(r, meshes)
+    r.release()
+    reference = ray_cast(meshes, K, W, H)
+    hit, expected = depth > 0, reference > 0
+    assert expected.mean() > 0.3                     # the scene fills a good part of the image
+    agreement = (hit == expected).mean()
+    assert agreement >= 0.9999, f"coverage differs on {(hit != expected).sum()} of {hit.size} pixels"
+    both = hit & expected
+    error = np.abs(depth[both].astype(np.float64) - reference[both])
+    assert np.percentile(error, 99) <= 1e-5, f"p99 depth error {np.percentile(error, 99):.3g} m"
+
+
+def test_a_plate_at_a_known_distance_has_its_analytic_depth_and_edges():
+    """A 1 m square plate facing the camera, its face at z = 2 m: depth 2 m (to float32) on every
+    pixel whose centre projects inside it, 0 elsewhere (OpenCV pixel centres: x = (u - cx) z / fx)."""
+    import trimesh
+    plate = trimesh.creation.box(extents=(1.0, 1.0, 0.01))
+    r = renderer()
+    # its edges fall 0.2-0.3 px past pixel centres: half a pixel off moves a row or a column
+    _, depth = draw(r, [(plate, rigid([0, 0, 0], [0.1, -0.02, 2.005]))])
+    r.release()
+    u, v = np.meshgrid(np.arange(W), np.arange(H))
+    x, y = (u - K[0, 2]) * 2.0 / K[0, 0], (v - K[1, 2]) * 2.0 / K[1, 1]
+    inside = (np.abs(x - 0.1) < 0.5) & (np.abs(y + 0.02) < 0.5)
+    assert np.array_equal(depth > 0, inside)
+    assert np.max(np.abs(depth[inside] - 2.0)) <= 2.0 * np.finfo(np.float32).eps * 2
+
+
+def test_points_land_where_opencv_projects_them():
+    """Quads in general poses seen by a camera turned and moved (rvec, tvec): a quad's image is the
+    polygon of its corners' projections, so every pixel centre inside the polygon OpenCV's
+    cv2.projectPoints gives (more than 1e-3 px from its edges) is covered, and every one outside
+    is not. Half a pixel off, or an axis swapped, fails on hundreds of pixels."""
+    import cv2
+    from scipy.spatial.transform import Rotation
+    rng = np.random.default_rng(5)
+    rvec, tvec = np.array([0.1, -0.2, 0.15]), np.array([0.05, 0.1, 3.0])
+    T_camera_W = rigid(rvec, tvec)
+    square = np.array([[-0.3, -0.25, 0.0], [0.3, -0.25, 0.0], [0.3, 0.25, 0.0], [-0.3, 0.25, 0.0]])
+    checked = 0
+    for _ in range(6):
+        T_W_quad = rigid(Rotation.random(random_state=rng).as_rotvec() * 0.6, rng.uniform(-0.6, 0.6, 3))
+        corners_W = square @ T_W_quad[:3, :3].T + T_W_quad[:3, 3]
+        r = renderer()
+        normal = np.tile(T_W_quad[:3, 2], (6, 1))
+        r.add_mesh(corners_W[[0, 1, 2, 0, 2, 3]], np.arange(6).reshape(2, 3), normal, (1.0, 1.0, 1.0))
+        _, depth = r.render([T_camera_W], None)
+        r.release()
+        projected, _ = cv2.projectPoints(corners_W, rvec, tvec, K, None)
+        polygon = projected.reshape(-1, 1, 2).astype(np.float32)
+        for v in range(H):
+            for u in range(W):
+                distance = cv2.pointPolygonTest(polygon, (float(u), float(v)), True)
+                if abs(distance) > 1e-3:
+                    assert (depth[v, u] > 0) == (distance > 0), (u, v, distance)
+                    checked += distance > 0
+    assert checked > 2000
+
+
+def test_same_pixels_bit_for_bit_on_two_renderers():
+    meshes = scene()
+    a, b = renderer(), renderer()
+    rgb_a, depth_a = draw(a, meshes, sun=(0.3, -0.5, -0.8))
+    rgb_b, depth_b = draw(b, meshes, sun=(0.3, -0.5, -0.8))
+    rgb_again, depth_again = a.render([T for _, T in meshes], np.array([0.3, -0.5, -0.8]))
+    a.release(), b.release()
+    assert rgb_a.tobytes() == rgb_b.tobytes() == rgb_again.tobytes()
+    assert depth_a.tobytes() == depth_b.tobytes() == depth_again.tobytes()
+    assert rgb_a.max() > 50                      # lit: the test compares real images
+
+
+def test_lambert_shading_of_a_plate_facing_the_camera():
+    """A plate facing the camera (its normal -z) lit from 60 deg off its normal: colour * (ambient +
+    cos 60 deg); with no Sun (eclipse): colour * ambient; the sky black."""
+    import trimesh
+    plate = trimesh.creation.box(extents=(1.0, 1.0, 0.01))
+    pose = rigid([0, 0, 0], [0.0, 0.0, 2.0])
+    sun = np.array([np.sin(np.radians(60)), 0.0, -np.cos(np.radians(60))])
+    r = renderer()
+    rgb, depth = draw(r, [(plate, pose)], sun=sun)
+    dark, _ = r.render([pose], None)
+    r.release()
+    inside = depth > 0
+    expected = np.array([0.8, 0.6, 0.4]) * (0.1 + 0.5) * 255
+    assert np.all(np.abs(rgb[inside].astype(float) - expected) <= 1.0)
+    assert np.all(np.abs(dark[inside].astype(float) - np.array([0.8, 0.6, 0.4]) * 0.1 * 255) <= 1.0)
+    assert not rgb[~inside].any()
+
+
+def test_the_sun_is_where_the_astronomical_almanac_puts_it():
+    """ERFA's epv00 Sun against the Almanac's low-precision formula (0.01 deg, mean equator and
+    equinox of date: turned into GCRF with the IAU 2006 precession matrix), over four seasons."""
+    import erfa
+    from components.camera.sun import sun_direction_eci
+    from components.orbit.timescales import parse_utc, utc_to_tt
+    for date in ("2022-09-18T12:00:00Z", "2024-03-20T03:06:00Z", "2025-06-21T00:00:00Z", "2030-12-25T18:30:00Z"):
+        tt = utc_to_tt(parse_utc(date))
+        n = tt[0] + tt[1] - 2451545.0
+        g = np.radians(357.528 + 0.9856003 * n)
+        ecliptic_longitude = np.radians(280.460 + 0.9856474 * n + 1.915 * np.sin(g) + 0.020 * np.sin(2 * g))
+        obliquity = np.radians(23.439 - 4e-7 * n)
+        of_date = np.array([np.cos(ecliptic_longitude), np.cos(obliquity) * np.sin(ecliptic_longitude),
+                            np.sin(obliquity) * np.sin(ecliptic_longitude)])
+        almanac = erfa.pmat06(*tt).T @ of_date
+        angle = np.degrees(np.arccos(np.clip(almanac @ sun_direction_eci(tt), -1.0, 1.0)))
+        assert angle < 0.015, (date, angle)
+
+
+def test_earth_shadow_cylinder():
+    from components.camera.sun import R_EARTH, in_earth_shadow
+    sun = np.array([1.0, 0.0, 0.0])
+    r = 6778e3
+    assert in_earth_shadow([-r, 0.0, 0.0], sun)                    # behind the Earth
+    assert not in_earth_shadow([r, 0.0, 0.0], sun)                 # facing the Sun
+    assert not in_earth_shadow([0.0, r, 0.0], sun)                 # beside it
+    assert in_earth_shadow([-r, R_EARTH - 1.0, 0.0], sun)          # just inside the cylinder
+    assert not in_earth_shadow([-r, R_EARTH + 1.0, 0.0], sun)      # just outside

@@ -5,9 +5,9 @@ Two renderers, neither of which shares code with the estimator:
 - ``warp``: each marker's picture (OpenCV's ``generateImageMarker``, quiet zone added) mapped onto
   the projection of its quad's corners (``cv2.projectPoints`` of the layout's corners) by a
   homography (``cv2.warpPerspective``), far markers first. Pinhole only.
-- ``ray_cast``: the committed textured mesh (OBJ + MTL + PNG, read by trimesh) intersected by one
-  ray per sub-pixel (Moeller-Trumbore in numpy), the texture sampled at the hit's UV; rays from
-  ``cv2.undistortPoints``, so a distorted lens is imaged exactly. 2 x 2 sub-pixels per pixel.
+- ``ray_cast``: the committed meshes of the markers' white and black cells (OBJ, read by trimesh)
+  intersected by one ray per sub-pixel (Moeller-Trumbore in numpy), the nearest hit's colour;
+  rays from ``cv2.undistortPoints``, so a distorted lens is imaged exactly. 2 x 2 sub-pixels a pixel.
 
 Poses: ``camera_pose(distance, ...)`` puts the camera on the servicer's side of the grasp frame G
 (``distance`` back along -z of G from its origin, looking along +z with a tilt and a roll), and
@@ -70,45 +70,52 @@ def warp(layout: MarkerLayout, R_C_G, p_C_G, K=K, size=(HEIGHT, WIDTH), shift=No
     return _rgb(image)
 
 
-def ray_cast(obj: Path, R_C_G, p_C_G, K=K, distortion=None, size=(HEIGHT, WIDTH), sub: int = 2) -> np.ndarray:
-    """RGB image (uint8) of a textured mesh (vertices in G) from (R_C_G, p_C_G)."""
+def ray_cast(layout: MarkerLayout, R_C_G, p_C_G, K=K, distortion=None, size=(HEIGHT, WIDTH), sub: int = 2) -> np.ndarray:
+    """RGB image (uint8) of the layout's committed meshes (white cells 255, black cells 0, vertices
+    in G, read by trimesh) from (R_C_G, p_C_G)."""
     import trimesh
-    mesh = trimesh.load(str(obj), force="mesh", process=False)
-    texture = np.asarray(mesh.visual.material.image.convert("L"), dtype=np.float64)
-    uv = np.asarray(mesh.visual.uv, dtype=np.float64)
-    vertices = np.asarray(mesh.vertices) @ np.asarray(R_C_G).T + p_C_G          # camera frame
+    from tools.fiducial_markers import mesh_path
     h, w = size
-    # sub-pixel centres, then their rays (normalized image coordinates, z = 1)
-    offsets = (np.arange(sub) + 0.5) / sub - 0.5
-    u = (np.arange(w)[None, :, None, None] + offsets[None, None, None, :]).repeat(h, 0).repeat(sub, 2)
-    v = (np.arange(h)[:, None, None, None] + offsets[None, None, :, None]).repeat(w, 1).repeat(sub, 3)
-    pixels = np.stack([u.ravel(), v.ravel()], axis=1)
-    rays = cv2.undistortPoints(pixels.reshape(-1, 1, 2), K, distortion).reshape(-1, 2)
-    d = np.concatenate([rays, np.ones((len(rays), 1))], axis=1)
-    depth = np.full(len(d), np.inf)
-    value = np.full(len(d), float(BACKGROUND))
-    for face in np.asarray(mesh.faces):
-        a, b, c = vertices[face]
-        e1, e2 = b - a, c - a
-        pvec = np.cross(d, e2)
-        det = pvec @ e1
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1.0 / det
-            tvec = -a                                    # ray origin (camera centre) minus a
-            s = (pvec @ tvec) * inv
-            qvec = np.cross(tvec, e1)
-            t_ = (d @ qvec) * inv
-            z = (qvec @ e2) * inv
-        hit = (np.abs(det) > 1e-12) & (s >= 0) & (t_ >= 0) & (s + t_ <= 1) & (z > 0) & (z < depth)
-        if not hit.any():
-            continue
-        uv_hit = (1 - s[hit] - t_[hit])[:, None] * uv[face[0]] + s[hit][:, None] * uv[face[1]] + t_[hit][:, None] * uv[face[2]]
-        col = np.clip((uv_hit[:, 0] * texture.shape[1]).astype(int), 0, texture.shape[1] - 1)
-        row = np.clip(((1.0 - uv_hit[:, 1]) * texture.shape[0]).astype(int), 0, texture.shape[0] - 1)
-        value[hit] = texture[row, col]
-        depth[hit] = z[hit]
-    image = value.reshape(h, w, sub, sub).mean(axis=(2, 3))
-    return _rgb(image)
+    # sub-pixel (r, c) of the (h sub) x (w sub) grid: its centre at u = (c + 0.5) / sub - 0.5, and its ray
+    c, r = np.meshgrid((np.arange(w * sub) + 0.5) / sub - 0.5, (np.arange(h * sub) + 0.5) / sub - 0.5)
+    rays = cv2.undistortPoints(np.stack([c, r], axis=-1).reshape(-1, 1, 2), K, distortion).reshape(h * sub, w * sub, 2)
+    d = np.concatenate([rays, np.ones((h * sub, w * sub, 1))], axis=-1)
+    depth = np.full((h * sub, w * sub), np.inf)
+    value = np.full((h * sub, w * sub), float(BACKGROUND))
+    rvec = cv2.Rodrigues(np.asarray(R_C_G, dtype=np.float64))[0]
+    for colour, grey in (("white", 255.0), ("black", 0.0)):
+        mesh = trimesh.load(str(mesh_path(layout, colour)), force="mesh", process=False)
+        vertices = np.asarray(mesh.vertices) @ np.asarray(R_C_G).T + p_C_G          # camera frame
+        if np.any(vertices[:, 2] <= 0.0):
+            raise ValueError("a marker reaches behind the camera")
+        projected, _ = cv2.projectPoints(np.asarray(mesh.vertices, dtype=np.float64), rvec,
+                                         np.asarray(p_C_G, dtype=np.float64), K, distortion)
+        projected = projected.reshape(-1, 2)
+        for face in np.asarray(mesh.faces):
+            # only the sub-pixels around the triangle's image (2 pixels of margin for the lens)
+            lo = np.floor((projected[face].min(axis=0) - 2.0 + 0.5) * sub).astype(int)
+            hi = np.ceil((projected[face].max(axis=0) + 2.0 + 0.5) * sub).astype(int)
+            c0, r0 = max(lo[0], 0), max(lo[1], 0)
+            c1, r1 = min(hi[0], w * sub), min(hi[1], h * sub)
+            if c0 >= c1 or r0 >= r1:
+                continue
+            ray = d[r0:r1, c0:c1]
+            a, b, cc = vertices[face]
+            e1, e2 = b - a, cc - a
+            # Moeller-Trumbore, the ray from the camera centre along d
+            pvec = np.cross(ray, e2)
+            det = pvec @ e1
+            with np.errstate(divide="ignore", invalid="ignore"):
+                inv = 1.0 / det
+                s = (pvec @ -a) * inv
+                qvec = np.cross(-a, e1)
+                t_ = (ray @ qvec) * inv
+                z = (qvec @ e2) * inv
+            window = depth[r0:r1, c0:c1]
+            hit = (np.abs(det) > 1e-15) & (s >= 0) & (t_ >= 0) & (s + t_ <= 1) & (z > 0) & (z < window)
+            value[r0:r1, c0:c1][hit] = grey
+            window[hit] = z[hit]
+    return _rgb(value.reshape(h, sub, w, sub).mean(axis=(1, 3)))
 
 
 def noisy(rgb: np.ndarray, sigma: float, seed: int) -> np.ndarray:

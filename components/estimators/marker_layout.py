@@ -1,12 +1,12 @@
 """Fiducial markers fixed to a link, declared once in a YAML file beside the model: read by the
-estimator (``estimator.fiducial``) and by the generator of the markers' textured mesh
+estimator (``estimator.fiducial``) and by the generator of the markers' meshes
 (``python -m tools.fiducial_markers``). No OpenCV here: the file is plain data.
 
 A marker's frame is OpenCV's ArUco convention: origin at the centre of its black square, x to the
 right and y up as the printed marker reads, z out of its face (towards whoever sees it). Its pose
 in the link frame is ``position`` (m) and ``orientation`` (``q_link_marker`` [x, y, z, w]);
-``size`` (m) is the side of the black square. Each marker's texture adds ``quiet_zone`` white
-cells around that square (a detector needs white around the border), so the textured quad is
+``size`` (m) is the side of the black square. Each marker's mesh adds ``quiet_zone`` white
+cells around that square (a detector needs white around the border), so the drawn square is
 ``size * (cells + 2 quiet_zone) / cells`` on a side, ``cells`` the dictionary's bits plus its
 one-cell black border.
 """
@@ -39,9 +39,9 @@ MARKER = Record("Marker", (
 LAYOUT = Record("MarkerLayout", (
     Parameter("dictionary", Str(tuple(DICTIONARIES)), description="the markers' dictionary (OpenCV aruco)"),
     Parameter("link", Str(), description="the link they are fixed to: the estimator measures its frame's pose"),
-    Parameter("quiet_zone", Int(minimum=1), description="white cells around each marker's black square in its texture"),
-    Parameter("cell_pixels", Int(minimum=4), description="texture pixels per marker cell"),
-    Parameter("mesh", Str(), description="the textured mesh (OBJ) the generator writes, relative to this file"),
+    Parameter("quiet_zone", Int(minimum=1), description="white cells drawn around each marker's black square"),
+    Parameter("mesh", Str(), description="where the generator writes the markers' meshes, relative to this file: "
+                                         "<mesh>_white.obj and <mesh>_black.obj"),
     Parameter("markers", ListOf(MARKER, min_items=1), description="the markers"),
 ))
 
@@ -67,8 +67,7 @@ class MarkerLayout:
     dictionary: str
     link: str
     quiet_zone: int
-    cell_pixels: int
-    mesh: Path                  # absolute
+    mesh: Path                  # absolute: the meshes' common stem
     markers: tuple[Marker, ...]
 
     @property
@@ -78,7 +77,7 @@ class MarkerLayout:
 
     @property
     def quad_scale(self) -> float:
-        """The textured quad's side over the black square's (the quiet zone around it)."""
+        """The drawn square's side over the black square's (the quiet zone around it)."""
         return (self.cells + 2 * self.quiet_zone) / self.cells
 
     def by_id(self) -> dict[int, Marker]:
@@ -114,5 +113,5 @@ def read_layout(path: str | Path, key: str = "markers") -> MarkerLayout:
     repeated = sorted({i for i in ids if ids.count(i) > 1})
     if repeated:
         raise ConfigError(key, f"{path}: marker id {repeated[0]} listed twice (each id once: it names the marker)")
-    return MarkerLayout(path.resolve(), data["dictionary"], data["link"], data["quiet_zone"], data["cell_pixels"],
+    return MarkerLayout(path.resolve(), data["dictionary"], data["link"], data["quiet_zone"],
                         (path.parent / data["mesh"]).resolve(), tuple(markers))

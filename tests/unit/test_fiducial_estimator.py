@@ -92,7 +92,7 @@ def test_pose_from_the_committed_textured_mesh(distance, offset, tilt, roll):
     """The model's own asset (OBJ, MTL, PNG read by trimesh) ray cast: the texture shows each id
     where the layout puts it, the right way up."""
     R_C_G, p_C_G = scenes.camera_pose(distance, offset, tilt, roll)
-    image = scenes.noisy(scenes.ray_cast(LAYOUT.mesh, R_C_G, p_C_G), 2.0, seed=7)
+    image = scenes.noisy(scenes.ray_cast(LAYOUT, R_C_G, p_C_G), 2.0, seed=7)
     estimator = FiducialEstimator(LAYOUT, 1, 1.5)
     assert sorted(estimator.detect(image)) == in_view(R_C_G, p_C_G)       # 3 at 0.2 m, all 5 at 0.5 m
     estimate = solve(image, estimator)
@@ -107,7 +107,7 @@ def test_a_distorted_lens_is_solved_with_its_distortion():
     coefficients it is within the bounds; taken for a pinhole it is refused or off."""
     distortion = np.array([-0.12, 0.03, 0.001, -0.0005, 0.0])
     R_C_G, p_C_G = scenes.camera_pose(0.4, (0.06, -0.05), (0.08, -0.1), 1.3)
-    image = scenes.noisy(scenes.ray_cast(LAYOUT.mesh, R_C_G, p_C_G, distortion=distortion), 2.0, seed=3)
+    image = scenes.noisy(scenes.ray_cast(LAYOUT, R_C_G, p_C_G, distortion=distortion), 2.0, seed=3)
     estimate = solve(image, distortion=distortion)
     assert estimate.valid and estimate.markers >= 4, estimate.reason
     dp, da = errors(estimate, R_C_G, p_C_G)
@@ -203,23 +203,38 @@ def test_an_image_that_is_not_rgb_uint8_is_refused():
 
 # --------------------------------------------------------------------------- the layout and its mesh
 
-def test_the_committed_mesh_is_what_the_layout_gives_and_the_target_draws_it():
+def test_the_committed_meshes_are_what_the_layout_gives_and_the_target_draws_them():
     from components.robots.urdf import read_urdf
     assert fiducial_markers.stale(LAYOUT, scenes.ROOT) == [], "run python -m tools.fiducial_markers " \
                                                               "models/capture/grapple_markers.yaml"
     urdf = read_urdf(scenes.ROOT / "models" / "capture" / "target.urdf")
-    link = urdf.tree.getroot().find(f"link[@name='{LAYOUT.link}']")
-    meshes = [m.get("filename") for m in link.iter("mesh")]
-    assert str(LAYOUT.mesh) in meshes
+    root = urdf.tree.getroot()
+    colours = {m.get("name"): m.find("color").get("rgba") for m in root.findall("material")}
+    drawn = {visual.find("geometry/mesh").get("filename"): colours[visual.find("material").get("name")]
+             for visual in root.find(f"link[@name='{LAYOUT.link}']").findall("visual")
+             if visual.find("geometry/mesh") is not None}
+    assert drawn == {str(fiducial_markers.mesh_path(LAYOUT, "white")): "1 1 1 1",
+                     str(fiducial_markers.mesh_path(LAYOUT, "black")): "0 0 0 1"}
 
 
-def test_the_texture_holds_opencvs_markers_in_layout_order():
-    """Each tile of the committed PNG, read back by OpenCV's detector, is the layout's id."""
-    image = cv2.imread(str(LAYOUT.mesh.with_suffix(".png")), cv2.IMREAD_GRAYSCALE)
-    tile = image.shape[0]
+def test_the_meshes_cells_read_back_as_the_layouts_ids():
+    """Each marker's black cells, put back on a grid from the black mesh's triangles, are the
+    picture OpenCV's detector reads as that marker's id."""
+    import trimesh
+    mesh = trimesh.load(str(fiducial_markers.mesh_path(LAYOUT, "black")), force="mesh", process=False)
+    centres = np.asarray(mesh.triangles_center)
     detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50))
-    for i, marker in enumerate(LAYOUT.markers):
-        _, ids, _ = detector.detectMarkers(np.pad(image[:, i * tile:(i + 1) * tile], 32, constant_values=255))
+    n = LAYOUT.cells + 2 * LAYOUT.quiet_zone
+    for marker in LAYOUT.markers:
+        side = marker.size * LAYOUT.quad_scale
+        local = (centres - marker.p_link_marker) @ marker.R_link_marker     # marker frame
+        mine = np.all(np.abs(local[:, :2]) < 0.5 * side, axis=1) & (np.abs(local[:, 2]) < 1e-9)
+        picture = np.full((n, n), 255, np.uint8)
+        cols = np.floor((local[mine, 0] + 0.5 * side) / side * n).astype(int)
+        rows = np.floor((0.5 * side - local[mine, 1]) / side * n).astype(int)
+        picture[rows, cols] = 0
+        big = np.pad(cv2.resize(picture, (n * 20, n * 20), interpolation=cv2.INTER_NEAREST), 40, constant_values=255)
+        _, ids, _ = detector.detectMarkers(big)
         assert ids is not None and ids.ravel().tolist() == [marker.id]
 
 
@@ -241,3 +256,27 @@ def test_a_bad_layout_is_refused_naming_the_field(tmp_path, edit, key):
     with pytest.raises(ConfigError, match=re.escape(key)) as raised:
         read_layout(path, "markers")
     assert raised.value.key == "markers" and str(path) in str(raised.value)
+
+
+def test_the_camera_to_end_effector_transform_over_fixed_joints_against_pinocchio(tmp_path):
+    """components.estimators.component.fixed_transform on a chain a - b - c - d of fixed joints
+    with turns and offsets (and a branch), against Pinocchio's frame placements."""
+    import pinocchio as pin
+    from components.estimators.component import fixed_transform
+    from components.robots.urdf import read_urdf
+    links = "".join(f'<link name="{n}"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" '
+                    f'izz="1"/></inertial></link>' for n in "abcde")
+    joints = [("a", "b", "0.1 0.2 0.3", "0.3 -0.2 1.1"), ("b", "c", "-0.4 0.05 0.2", "1.2 0.4 -0.7"),
+              ("c", "d", "0.0 0.3 -0.1", "-0.5 0.9 0.2"), ("a", "e", "0.5 0 0", "0 0 1.5")]
+    text = "".join(f'<joint name="{p}_{c}" type="fixed"><parent link="{p}"/><child link="{c}"/>'
+                   f'<origin xyz="{xyz}" rpy="{rpy}"/></joint>' for p, c, xyz, rpy in joints)
+    path = tmp_path / "chain.urdf"
+    path.write_text(f'<robot name="chain">{links}{text}</robot>')
+    model = pin.buildModelFromUrdf(str(path))
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, pin.neutral(model))
+    placement = {n: data.oMf[model.getFrameId(n)].homogeneous for n in "abcde"}
+    urdf = read_urdf(path)
+    for a, b in (("a", "d"), ("d", "a"), ("b", "d"), ("e", "d"), ("c", "c")):
+        expected = np.linalg.inv(placement[a]) @ placement[b]
+        assert np.allclose(fixed_transform(urdf, a, b), expected, atol=1e-12), (a, b)

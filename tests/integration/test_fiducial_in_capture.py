@@ -1,0 +1,129 @@
+"""The capture scenario with estimator.fiducial (its wrist camera embedded) in place of the
+relative-pose oracle:
+
+- ``orchestrator run --record`` (real processes, Zenoh on loopback): its measurements against the
+  dynamics' own ``grasp.p_ee_grasp``, ``grasp.q_ee_grasp`` at each frame's time, while the arm
+  holds its posture and the camera looks at the grapple 0.88 m away (the markers' face lit by
+  ``ambient`` alone: white cells at ~25 of 255); a second run gives the same columns bit for bit;
+- ``orchestrator check``: accepted as it is, refused with exit 2 naming the key (and the field of
+  the layout file) for bad parameters."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas
+import pytest
+import yaml
+
+from components.camera.render import egl_problem
+from components.rotations import log_so3, matrix_to_quat, quat_to_matrix
+from tests.conftest import ROOT, component_processes, orchestrator
+
+pytestmark = [pytest.mark.integration,
+              pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}")]
+CAPTURE = ROOT / "configs" / "capture_tumbling_target.yaml"
+KEY = "components.pose_sensor.parameters"
+
+
+# the grapple in the end-effector frame at the start (the config's arm pose): the camera looks at it
+GRAPPLE_AT_START = np.array([0.82793285, 0.29939321, -0.0460646])
+MOUNT = np.array([0.0, 0.07, -0.03])
+
+
+def looking_at(direction) -> list[float]:
+    """q_link_camera [x, y, z, w] whose z axis points along ``direction`` (link axes)."""
+    z = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+    x = np.cross([0.0, 0.0, 1.0], z)
+    x /= np.linalg.norm(x)
+    return matrix_to_quat(np.column_stack([x, np.cross(z, x), z])).tolist()
+
+
+def vision_config(path: Path, duration: str = "40 s") -> Path:
+    """The shipped capture with the estimator as its pose sensor (URDF paths made absolute)."""
+    data = yaml.safe_load(CAPTURE.read_text())
+    data["run"]["duration"] = duration
+    for body in data["components"]["dynamics"]["parameters"]["bodies"].values():
+        body["urdf"] = str((CAPTURE.parent / body["urdf"]).resolve())
+    controller = data["components"]["controller"]["parameters"]
+    controller["urdf"] = str((CAPTURE.parent / controller["urdf"]).resolve())
+    bodies = {name: body["urdf"] for name, body in data["components"]["dynamics"]["parameters"]["bodies"].items()}
+    camera = {"bodies": bodies, "body": "servicer", "link": "ee", "position": MOUNT.tolist(),
+              "orientation": looking_at(GRAPPLE_AT_START - MOUNT), "width": 640, "height": 480, "fx": 500, "fy": 500,
+              "cx": 319.5, "cy": 239.5, "near": 0.02, "far": 20, "ambient": 0.1, "seed": 5, "pixel_noise": 2,
+              "depth_noise": 0}
+    data["components"]["pose_sensor"] = {"type": "estimator.fiducial", "step": "100 ms", "parameters": {
+        "camera": camera, "end_effector": "ee", "markers": str(ROOT / "models" / "capture" / "grapple_markers.yaml"),
+        "min_markers": 2, "max_reprojection_error": 1.5}}
+    connections = data["connections"]
+    del connections["pose_sensor.p_true"], connections["pose_sensor.q_true"]
+    for body in bodies:
+        for variable in ("position", "orientation", "q"):
+            connections[f"pose_sensor.camera.{body}.{variable}"] = f"dynamics.{body}.{variable}"
+    connections["pose_sensor.camera.r_eci"] = "orbit.r_eci"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+@pytest.fixture
+def config(tmp_path):
+    return vision_config(tmp_path / "vision.yaml")
+
+
+def test_the_estimator_over_a_run_against_the_dynamics_and_again_bit_for_bit(tmp_path):
+    """1.2 s, 12 frames, the arm still: every frame gives a pose within 5 mm and 0.6 deg of the
+    dynamics' (measured: 0.2-3.1 mm, 0.1-0.4 deg, 4 markers each, 0.88 m away)."""
+    config = vision_config(tmp_path / "vision.yaml", duration="1200 ms")
+    runs = []
+    for name in ("a", "b"):
+        done = orchestrator("run", config, "--record", tmp_path / name, timeout=600)
+        assert done.returncode == 0, done.stderr[-3000:]
+        assert not component_processes("capture_tumbling_target"), "component processes left after the run"
+        runs.append(pandas.read_parquet(tmp_path / name / "signals.parquet"))
+    signals = runs[0]
+    columns = [c for c in signals.columns if c.startswith("pose_sensor.")]
+    assert runs[1][columns].to_numpy().tobytes() == signals[columns].to_numpy().tobytes()
+    # frame k, taken at k * 100 ms, is the estimator's output from (k + 1) * 100 ms on
+    frames = signals[(signals["step"] % 10 == 0) & (signals["step"] > 0)]
+    assert np.array_equal(frames["pose_sensor.t_measured"].to_numpy(), (frames["step"].to_numpy() // 10 - 1) * 1e8 / 1e9)
+    assert len(frames) == 12 and (frames["pose_sensor.valid"] == 1.0).all() and (frames["pose_sensor.markers"] >= 3).all()
+    for _, row in frames.iterrows():
+        truth = signals.loc[np.isclose(signals["time"], row["pose_sensor.t_measured"], atol=1e-9)].iloc[0]
+        p = np.array([row[f"pose_sensor.p[{i}]"] for i in range(3)])
+        p_true = np.array([truth[f"dynamics.grasp.p_ee_grasp[{i}]"] for i in range(3)])
+        R = quat_to_matrix([row[f"pose_sensor.q[{i}]"] for i in range(4)])
+        R_true = quat_to_matrix([truth[f"dynamics.grasp.q_ee_grasp[{i}]"] for i in range(4)])
+        assert np.linalg.norm(p - p_true) <= 0.005, (row["time"], p, p_true)
+        assert np.linalg.norm(log_so3(R_true.T @ R)) <= math.radians(0.6), row["time"]
+    assert len(list((tmp_path / "a" / "frames" / "pose_sensor").glob("*.npz"))) == 12
+
+
+def test_the_estimator_in_place_of_the_oracle_checks(config):
+    done = orchestrator("check", config)
+    assert done.returncode == 0, done.stderr
+    assert "6 components" in done.stdout
+
+
+@pytest.mark.parametrize("setting, key, expected", [
+    ("min_markers=9", "min_markers", "expected at most the layout's 5 markers, got 9"),
+    ("markers=nowhere.yaml", "markers", "marker layout 'nowhere.yaml' not found"),
+    ("end_effector=arm_5_link", "end_effector", "joint arm_6_joint between them is revolute, not fixed"),
+    ("camera.link=hand", "camera.link", "expected a link of servicer"),
+    ("camera.fx=0", "camera.fx", "expected a quantity > 0, got 0"),
+    ("max_reprojection_error=-1", "max_reprojection_error", "expected a quantity > 0, got -1"),
+])
+def test_bad_parameters_exit_2_naming_the_key(config, setting, key, expected):
+    done = orchestrator("check", config, "--set", f"{KEY}.{setting}")
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert f"{KEY}.{key}: " in done.stderr and expected in done.stderr, done.stderr
+
+
+def test_a_bad_layout_file_exits_2_naming_the_field_in_it(config, tmp_path):
+    layout = yaml.safe_load((ROOT / "models" / "capture" / "grapple_markers.yaml").read_text())
+    layout["markers"][2]["id"] = 1
+    path = tmp_path / "layout.yaml"
+    path.write_text(yaml.safe_dump(layout))
+    done = orchestrator("check", config, "--set", f"{KEY}.markers={path}")
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert f"{KEY}.markers: {path}: marker id 1 listed twice" in done.stderr, done.stderr

@@ -148,6 +148,22 @@ def test_the_view_draws_the_frustum_on_the_end_effector_and_the_frames(recorded,
         assert bytes(np.asarray(images[-1][0], dtype=np.uint8)) == frame["rgb"].tobytes()
 
 
+def test_the_guides_camera_passes_check(tmp_path):
+    """docs/guides/camera.md's YAML, added to the capture config as it says, is a valid camera."""
+    import re
+    block = re.search(r"```yaml\n(.*?)```", (ROOT / "docs" / "guides" / "camera.md").read_text(), re.S).group(1)
+    snippet = yaml.safe_load(block)
+    config = yaml.safe_load(camera_config(tmp_path / "base.yaml").read_text())
+    del config["components"]["camera"]
+    config["components"].update(snippet["components"])
+    config["connections"].update(snippet["connections"])
+    for name, urdf in config["components"]["camera"]["parameters"]["bodies"].items():
+        config["components"]["camera"]["parameters"]["bodies"][name] = str((CAPTURE.parent / urdf).resolve())
+    (tmp_path / "guide.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
+    done = orchestrator("check", tmp_path / "guide.yaml", timeout=300)
+    assert done.returncode == 0, done.stderr
+
+
 @pytest.mark.parametrize("setting, key, expected", [
     ("components.camera.parameters.link=hand", "components.camera.parameters.link", "expected a link of servicer"),
     ("components.camera.parameters.body=moon", "components.camera.parameters.body", "expected one of bodies"),

@@ -59,7 +59,7 @@ class CameraModel:
             self.notes += notes
             for mesh in meshes:
                 self.renderer.add_mesh(mesh.vertices, np.arange(len(mesh.vertices)).reshape(-1, 3), mesh.normals,
-                                       mesh.colour)
+                                       mesh.colours, mesh.uv, mesh.texture)
                 self.drawn.append((name, mesh.link))
 
     def camera_pose(self, links: Mapping[str, np.ndarray]) -> np.ndarray:

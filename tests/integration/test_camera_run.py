@@ -173,6 +173,8 @@ def test_the_guides_camera_passes_check(tmp_path):
     ("components.camera.parameters.height=9000", "components.camera.parameters.height", "expected 1 to 8192 pixels, got 9000"),
     ("components.camera.step=15ms", "components.camera.step", "must be a positive integer multiple of run.step (10 ms)"),
     ("components.camera.parameters.far=0.01", "components.camera.parameters.far", "expected more than near"),
+    ("components.camera.parameters.distortion=[-3, 0, 0, 0, 0]", "components.camera.parameters.distortion",
+     "the distortion does not invert over the image"),
 ])
 def test_a_bad_camera_is_refused_at_check_naming_the_key(tmp_path, setting, key, expected):
     config = camera_config(tmp_path / "camera.yaml")

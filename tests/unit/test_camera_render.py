@@ -234,3 +234,49 @@ def test_a_meshs_face_colours_are_kept_and_a_plain_shape_takes_the_urdf_colour(t
     (coloured, plain), _ = visual_meshes(read_geometry(tmp_path / "two.urdf"))
     assert {tuple(c) for c in coloured.colours} == {(1.0, 0.0, 0.0), (0.0, 0.0, 1.0)}
     assert {tuple(c) for c in plain.colours} == {(0.0, 1.0, 0.0)}
+
+
+def test_a_distorted_camera_sees_what_opencvs_undistortion_says_each_pixel_sees():
+    """plumb_bob distortion (barrel, tangential terms, an off-centre principal point): for every
+    pixel, OpenCV's cv2.undistortPoints (200 iterations) gives its ray; the ray meets a tilted plate or not,
+    and at what depth. The rendered mask agrees on every pixel whose ray is more than 1.5 px from
+    the plate's edges, and the depth is the ray's to within the change of depth over 0.5 px (the
+    lens takes each pixel from the pinhole render's nearest, at twice the focal length)."""
+    import cv2
+    from components.camera.lens import Lens
+    from components.camera.render import Renderer
+    D = np.array([-0.25, 0.08, 0.001, -0.0015, 0.01])
+    lens = Lens(K, W, H, D, supersample=2)
+    r = Renderer(lens.K_render, lens.render_width, lens.render_height, 0.05, 100.0)
+    half = 0.9
+    corners = np.array([[-half, -half, 0.0], [half, -half, 0.0], [half, half, 0.0], [-half, half, 0.0]])
+    r.add_mesh(corners[[0, 1, 2, 0, 2, 3]], np.arange(6).reshape(2, 3), np.tile([0.0, 0.0, 1.0], (6, 1)), (1, 1, 1))
+    pose = rigid([0.35, -0.25, 0.0], [0.2, 0.1, 2.2])
+    rgb, depth = lens.apply(*r.render([pose], None))
+    r.release()
+    assert depth.shape == (H, W) and rgb.shape == (H, W, 3)
+    u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    pixels = np.stack([u.ravel(), v.ravel()], axis=-1).reshape(-1, 1, 2)
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)
+    rays = cv2.undistortPoints(pixels, K, D, None, None, None, criteria).reshape(H, W, 2)
+    rays = np.concatenate([rays, np.ones((H, W, 1))], axis=-1)
+    back, _ = cv2.projectPoints(rays.reshape(-1, 3), np.zeros(3), np.zeros(3), K, D)   # OpenCV converged
+    assert np.max(np.abs(back.reshape(H, W, 2) - pixels.reshape(H, W, 2))) < 1e-6
+    normal, origin = pose[:3, 2], pose[:3, 3]
+    t = (normal @ origin) / (rays @ normal)
+    on_plane = (rays * t[..., None] - origin) @ pose[:3, :3]          # plate coordinates
+    expected = t                                                      # rays have z = 1: t is the depth
+    slack = 1.5 * np.max(expected) / K[0, 0] / abs(normal[2])         # 1.5 px on the tilted plate (m)
+    edge = half - np.max(np.abs(on_plane[..., :2]), axis=-1)          # > 0 inside
+    sure = np.abs(edge) > slack
+    assert sure.mean() > 0.9 and (edge > slack).mean() > 0.3
+    assert np.array_equal((depth > 0)[sure], (edge > 0)[sure])
+    step = np.maximum(np.abs(np.gradient(expected, axis=0)), np.abs(np.gradient(expected, axis=1)))
+    inside = edge > slack
+    assert np.all(np.abs(depth[inside] - expected[inside]) <= 0.5 * step[inside] + 1e-5)
+    # the pinhole image of the same scene differs by many pixels at the edges: the test sees distortion
+    r = renderer()
+    r.add_mesh(corners[[0, 1, 2, 0, 2, 3]], np.arange(6).reshape(2, 3), np.tile([0.0, 0.0, 1.0], (6, 1)), (1, 1, 1))
+    _, pinhole = r.render([pose], None)
+    r.release()
+    assert ((pinhole > 0) != (depth > 0)).sum() > 1000

@@ -128,6 +128,10 @@ class Renderer:
         self.K = np.array(K, dtype=np.float64).reshape(3, 3)
         self.width, self.height, self.ambient = int(width), int(height), float(ambient)
         self.ctx = _context()
+        with self.ctx:   # every GL call in this context: another camera's may be current in this process
+            self._build(near, far)
+
+    def _build(self, near: float, far: float) -> None:
         ctx = self.ctx
         self.program = ctx.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)
         self.program["projection"].write(
@@ -162,9 +166,10 @@ class Renderer:
         # unindexed: three vertices per triangle (no index buffer; meshes are small)
         corners = triangles.ravel()
         data = np.hstack([vertices[corners], normals[corners], colours[corners], uv[corners]]).astype("f4")
-        buffer = self.ctx.buffer(data.tobytes())
-        vao = self.ctx.vertex_array(self.program, [(buffer, "3f 3f 3f 2f", "position", "normal", "colour", "uv")])
-        self.meshes.append((vao, buffer, None if texture is None else self._texture(texture)))
+        with self.ctx:
+            buffer = self.ctx.buffer(data.tobytes())
+            vao = self.ctx.vertex_array(self.program, [(buffer, "3f 3f 3f 2f", "position", "normal", "colour", "uv")])
+            self.meshes.append((vao, buffer, None if texture is None else self._texture(texture)))
         return len(self.meshes) - 1
 
     def _texture(self, image: np.ndarray):
@@ -185,6 +190,10 @@ class Renderer:
         None: not drawn) lit by the Sun from ``sun_camera`` (unit vector towards the Sun, camera
         axes; None: no Sun). Returns ``rgb`` (H, W, 3) uint8 and ``depth`` (H, W) float32 (m along
         the optical axis, 0 where nothing is hit)."""
+        with self.ctx:
+            return self._render(T_camera_meshes, sun_camera)
+
+    def _render(self, T_camera_meshes, sun_camera):
         import moderngl
 
         ctx = self.ctx
@@ -210,11 +219,13 @@ class Renderer:
 
     def release(self) -> None:
         """Free the GL objects and the context."""
-        for vao, buffer, texture in self.meshes:
-            vao.release()
-            buffer.release()
-            if texture is not None:
-                texture.release()
-        self.meshes = []
-        for thing in (self.fbo, self.colour_buffer, self.depth_buffer, self.z_buffer, self.program, self.ctx):
-            thing.release()
+        with self.ctx:
+            for vao, buffer, texture in self.meshes:
+                vao.release()
+                buffer.release()
+                if texture is not None:
+                    texture.release()
+            self.meshes = []
+            for thing in (self.fbo, self.colour_buffer, self.depth_buffer, self.z_buffer, self.program):
+                thing.release()
+        self.ctx.release()

@@ -280,3 +280,21 @@ def test_a_distorted_camera_sees_what_opencvs_undistortion_says_each_pixel_sees(
     _, pinhole = r.render([pose], None)
     r.release()
     assert ((pinhole > 0) != (depth > 0)).sum() > 1000
+
+
+def test_two_cameras_in_one_process_each_draw_their_own_scene():
+    """Two renderers made one after the other (two cameras in a process group, or a sensor.camera
+    beside a component embedding one): each draws its own meshes in its own context."""
+    import trimesh
+    plate = trimesh.creation.box(extents=(1.0, 1.0, 0.01))
+    a, b = renderer(), renderer()
+    draw(a, [(plate, rigid([0, 0, 0], [0.0, 0.0, 2.005]))])
+    draw(b, [(plate, rigid([0, 0, 0], [0.0, 0.0, 3.005]))])
+    _, depth_a = a.render([rigid([0, 0, 0], [0.0, 0.0, 2.005])], None)
+    _, depth_b = b.render([rigid([0, 0, 0], [0.0, 0.0, 3.005])], None)
+    a.release()
+    _, depth_b_again = b.render([rigid([0, 0, 0], [0.0, 0.0, 3.005])], None)
+    b.release()
+    assert set(np.unique(depth_a)) == {0.0, np.float32(2.0)}
+    assert set(np.unique(depth_b)) == {0.0, np.float32(3.0)}
+    assert depth_b_again.tobytes() == depth_b.tobytes()

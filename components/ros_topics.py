@@ -4,6 +4,7 @@
 (components/viewer/foxglove_observer.py) sends them."""
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -85,3 +86,18 @@ def run_topics(context: RosContext, warn: Callable[[str], None], all_signals: bo
     clock = RosTopic("/clock", "rosgraph_msgs/msg/Clock", [(int(ns), Clock(clock=context.time(ns)))
                                                           for ns in context.stamps])
     return [clock] + merged(context, component_topics(context, warn, all_signals))
+
+
+def run_assets(context: RosContext, warn: Callable[[str], None]) -> dict[str, Path]:
+    """{URI: file} of every file the run's topics reference (meshes of ``robot_description``),
+    from the component types that declare them (``RosExport.assets``)."""
+    assets = {}
+    for name, spec in (context.run.config.get("components") or {}).items():
+        try:
+            cls = registry.load((spec or {}).get("type"), context.run.config_dir)
+        except ConfigError:
+            continue   # component_topics has said so
+        if cls.rosbag is not None and cls.rosbag.assets is not None:
+            for uri, path in cls.rosbag.assets(context, name).items():
+                assets.setdefault(uri, path)
+    return assets

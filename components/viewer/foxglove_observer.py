@@ -15,7 +15,9 @@ builders (:func:`components.rosbag.run_topics`): the same topics, message types 
 ``orchestrator export --rosbag2`` writes for those rows, on ``ros2msg`` schema / ``cdr`` channels
 (Foxglove reads ROS 2 messages without a ROS install). Latched topics (``/tf_static``,
 ``robot_description``) are built from the first batch and sent again whenever a client subscribes
-to them: the server keeps no history. Like the Rerun observer it runs niced and reads a dropping
+to them: the server keeps no history. The meshes the robots' ``robot_description`` names
+(``package://`` URIs as written) are served to Foxglove's 3D panel on request (the protocol's
+``fetchAsset``); no other file is. Like the Rerun observer it runs niced and reads a dropping
 publisher: a slow client never holds up a step (the server drops its oldest messages for it).
 """
 from __future__ import annotations
@@ -74,6 +76,7 @@ class RosChannels:
         self.latched_ns: dict[str, int] = {}
         self.warned: set[str] = set()
         self.rows_sent = 0
+        self.assets: dict[str, Path] = {}          # URI -> file: what robot_description references
         self._resend: set[str] = set()             # latched topics subscribed to since the last batch
         self._lock = threading.Lock()
 
@@ -106,6 +109,9 @@ class RosChannels:
         run = RecordedRun(self.config, {name: rows[:, i] for i, name in enumerate(self.columns)}, times,
                           self.config_dir)
         context = RosContext(run, self.typestore, self.warn)
+        if not self.rows_sent:
+            from components.ros_topics import run_assets
+            self.assets = run_assets(context, self.warn)
         queue = []
         for topic in run_topics(context, self.warn):
             channel = self._channel(topic.name, topic.msgtype)
@@ -121,6 +127,12 @@ class RosChannels:
         queue.sort(key=lambda item: item[0])   # stable: topics in the exporter's order within a stamp
         self.rows_sent += len(times)
         return queue, int(context.stamps[-1])
+
+    def asset(self, uri: str) -> bytes | None:
+        """A mesh a robot_description names (server thread, Foxglove's fetchAsset); None (not
+        found) for any other URI: only the robots' own files are served."""
+        path = self.assets.get(uri)
+        return path.read_bytes() if path is not None else None
 
     @staticmethod
     def log(queue) -> None:
@@ -173,7 +185,7 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
                 if server is None:
                     # only now: every channel exists before a client can subscribe (foxglove-sdk
                     # 0.30 may answer "unknown channel" to a subscription racing an advertisement)
-                    server = _serve(channels, name=(config.get("run") or {}).get("name") or run_id, port=port)
+                    server = serve(channels, name=(config.get("run") or {}).get("name") or run_id, port=port)
                 channels.log(queue)
                 server.broadcast_time(stamp)
                 last_log = now
@@ -203,12 +215,13 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
     return 0
 
 
-def _serve(channels: RosChannels, name: str, port: int):
+def serve(channels: RosChannels, name: str, port: int):
     """Start the WebSocket server on the channels' context; raises ServeError naming the port."""
     import foxglove
     try:
         server = foxglove.start_server(name=name, host=HOST, port=port, context=channels.context,
-                                       server_listener=_listener(channels), capabilities=[foxglove.Capability.Time])
+                                       server_listener=_listener(channels), capabilities=[foxglove.Capability.Time],
+                                       asset_handler=channels.asset)
     except RuntimeError as e:
         raise ServeError(f"cannot listen on port {port}: {e}") from None
     log(f"serving the run on ws://localhost:{server.port} (Foxglove: Open connection, Foxglove WebSocket)")

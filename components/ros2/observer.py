@@ -38,7 +38,7 @@ from components.viewer.observer import (LIVE_BATCH_S, MAX_BATCH_ROWS, NICENESS, 
                                         orchestrator_gone, raise_stop, take_rows)
 
 CONNECT_TIMEOUT_S = 3.0   # how long a link to the ROS router may take to come up
-RETRY_S = 5.0             # between tries when it did not
+RETRY_S = 2.0             # between tries when it did not
 DISTROS = {"jazzy": "ros2_jazzy", "kilted": "ros2_kilted", "lyrical": "ros2_lyrical"}   # rmw_zenoh with type hashes
 
 

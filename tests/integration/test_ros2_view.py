@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import os
 import queue
+import shutil
+import signal
 import re
 import socket
 import subprocess
@@ -269,6 +271,41 @@ def test_an_unreachable_router_warns_and_the_run_completes(tmp_path):
     assert len(_parquet(record)["time"]) == 11
 
 
+def test_a_router_that_comes_up_during_the_run_gets_the_rest_of_it(tmp_path):
+    """No router at the start: the warning; the router started upon it: the observer's retry
+    links to it, and the ROS side sees the node and the /clock of the later rows."""
+    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", str(CONFIG), "--set", "run.duration=12 s",
+                            "--set", "run.realtime=1", "--ros2", endpoint], cwd=ROOT, stdout=subprocess.DEVNULL,
+                           stderr=subprocess.PIPE, text=True, env={**os.environ, "ROS_DOMAIN_ID": str(DOMAIN)})
+    router = ros = None
+    lines: list[str] = []
+    try:
+        for line in run.stderr:
+            lines.append(line)
+            if f"cannot reach the ROS 2 router at {endpoint}" in line:
+                break
+        router = subprocess.Popen([sys.executable, "-c", ROUTER % endpoint], stdin=subprocess.PIPE,
+                                  stdout=subprocess.PIPE, text=True)
+        assert router.stdout.readline().strip() == "ready"
+        ros = RosSide(endpoint)
+        lines += run.stderr.readlines()   # to the end of the run
+        assert run.wait(timeout=120) == 0, "".join(lines)
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.wait()
+        if ros is not None:
+            ros.close()
+        if router is not None:
+            router.stdin.close()
+            router.wait(timeout=10)
+    assert any("publishing the run to ROS 2" in line for line in lines), "".join(lines)
+    assert any(_parse_token(k)["kind"] == "NN" for k in ros.tokens)
+    clock = [p for key, p, _ in ros.samples if key.startswith(f"{DOMAIN}/clock/")]
+    assert len(clock) > 10
+
+
 @pytest.mark.parametrize("sets, expected", [
     (["ros2.topics=[/clock, /imu-1/imu]"], "ros2.topics[1]: ROS 2 rejects the topic name '/imu-1/imu'"),
     (["ros2.topic=[/clock]"], "ros2.topic: unknown key"),
@@ -283,3 +320,42 @@ def test_bad_ros2_sections_are_refused_at_check(sets, expected):
 def test_a_bad_endpoint_is_refused():
     result = orchestrator("run", CONFIG, "--ros2", "localhost:7447")
     assert result.returncode == 2 and "--ros2.endpoint" in result.stderr
+
+
+def _ros2_with_rmw_zenoh() -> bool:
+    if shutil.which("ros2") is None:
+        return False
+    found = subprocess.run(["ros2", "pkg", "prefix", "rmw_zenoh_cpp"], capture_output=True, timeout=60)
+    return found.returncode == 0
+
+
+@pytest.mark.ros2
+@pytest.mark.skipif(not _ros2_with_rmw_zenoh(), reason="needs ROS 2 with rmw_zenoh_cpp (ros2 pkg prefix rmw_zenoh_cpp)")
+def test_ros2_topic_echo_sees_the_runs_clock_through_rmw_zenohd(tmp_path):
+    """The real thing: rmw_zenohd as the router, `ros2 topic echo /clock` and `ros2 topic list` as the
+    ROS side (RMW_IMPLEMENTATION=rmw_zenoh_cpp), against the demo paced at real time."""
+    env = {**os.environ, "RMW_IMPLEMENTATION": "rmw_zenoh_cpp", "ROS_DOMAIN_ID": str(DOMAIN)}
+    router = subprocess.Popen(["ros2", "run", "rmw_zenoh_cpp", "rmw_zenohd"], env=env, stdin=subprocess.DEVNULL,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    run = None
+    try:
+        run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", str(CONFIG), "--set", "run.duration=30 s",
+                                "--set", "run.realtime=1", "--ros2", "tcp/localhost:7447"], cwd=ROOT, env=env,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        echo = subprocess.run(["ros2", "topic", "echo", "--once", "/clock", "rosgraph_msgs/msg/Clock"], env=env,
+                              capture_output=True, text=True, timeout=120)
+        assert echo.returncode == 0, echo.stderr
+        assert "clock:" in echo.stdout and "sec:" in echo.stdout and "nanosec:" in echo.stdout
+        listed = subprocess.run(["ros2", "topic", "list"], env=env, capture_output=True, text=True, timeout=60)
+        assert {"/clock", "/tf", "/tf_static", "/dynamics/servicer/joint_states"} <= set(listed.stdout.split())
+        nodes = subprocess.run(["ros2", "node", "list"], env=env, capture_output=True, text=True, timeout=60)
+        assert "/zenorbit_capture_tumbling_target" in nodes.stdout.split()
+    finally:
+        for process in (run, router):
+            if process is not None and process.poll() is None:
+                os.killpg(process.pid, signal.SIGINT)
+                try:
+                    process.wait(timeout=30)
+                except subprocess.TimeoutExpired:
+                    os.killpg(process.pid, signal.SIGKILL)
+                    process.wait()

@@ -115,8 +115,10 @@ class RosPublishers:
                 self.warn(f"topic {topic.name} not published: ROS 2 rejects the name ({problem})")
                 self.skipped.add(topic.name)
                 return None
+            # block: a batch's burst would overflow the link's queue and be dropped; waiting holds
+            # up this process only, never the run (its rows come through a dropping publisher)
             self.publishers[topic.name] = self.node.publisher(topic.name, topic.msgtype, self.typestore,
-                                                              latched=topic.latched)
+                                                              latched=topic.latched, block=True)
         return self.publishers[topic.name]
 
     def publish(self, batch) -> None:

@@ -23,11 +23,13 @@ era of the Jazzy branch and rolling) and its ``docs/design.md``:
   (rmw_node_data.cpp); the GID is XXH3-128 of the token's key, low 64 bits then high 64, each
   little endian (liveliness_utils.cpp ``Entity::Entity``), which is how a remote graph cache
   computes it from the token as well;
-- publishers: congestion control DROP, reliability RELIABLE; a TRANSIENT_LOCAL one is an
+- publishers: congestion control DROP (BLOCK for KEEP_ALL), reliability RELIABLE; a TRANSIENT_LOCAL one is an
   AdvancedPublisher with a cache of ``depth`` samples, publisher detection, and (RELIABLE) sporadic
   heartbeats every 500 ms (rmw_publisher_data.cpp ``PublisherData::make``); a TRANSIENT_LOCAL
   subscription is an AdvancedSubscriber with history (late publishers detected, ``depth`` samples),
   subscriber detection, heartbeat recovery (rmw_subscription_data.cpp ``SubscriptionData::init``).
+  Jazzy has them since rmw_zenoh 0.2.2 (its release notes in ros/rosdistro#44533: "Introduce the
+  advanced publisher and subscriber (#469)"); before, a PublicationCache and a QueryingSubscriber.
 """
 from __future__ import annotations
 
@@ -159,14 +161,15 @@ def qualify(topic: str, namespace: str) -> str:
 class Publisher:
     """One ROS 2 publisher: its key expression, token and sequence numbers (made by :meth:`Node.publisher`)."""
 
-    def __init__(self, session, key: str, token: str, latched: bool, depth: int):
+    def __init__(self, session, key: str, token: str, latched: bool, depth: int, block: bool = False):
         import zenoh
         import zenoh.ext
         self.key = key
         self.token_key = token
         self.gid = gid_of(token)
         self.sequence = 0
-        options = dict(congestion_control=zenoh.CongestionControl.DROP, reliability=zenoh.Reliability.RELIABLE)
+        congestion = zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP
+        options = dict(congestion_control=congestion, reliability=zenoh.Reliability.RELIABLE)
         if latched:   # late joiners get the cache through their AdvancedSubscriber's history query
             self._publisher = zenoh.ext.declare_advanced_publisher(
                 session, key, cache=zenoh.ext.CacheConfig(depth), publisher_detection=True,
@@ -268,11 +271,13 @@ class Node:
         depth = 1 if latched else DEFAULT_DEPTH
         return qos_keyexpr(durability=TRANSIENT_LOCAL if latched else VOLATILE, depth=depth), depth
 
-    def publisher(self, topic: str, msgtype: str, typestore, latched: bool = False) -> Publisher:
-        """A publisher of ``msgtype`` on ``topic``; ``latched``: TRANSIENT_LOCAL, depth 1."""
+    def publisher(self, topic: str, msgtype: str, typestore, latched: bool = False, block: bool = False) -> Publisher:
+        """A publisher of ``msgtype`` on ``topic``; ``latched``: TRANSIENT_LOCAL, depth 1.
+        ``block``: congestion control BLOCK, as rmw_zenoh has it for KEEP_ALL only: a put waits
+        for a congested link rather than dropping the message (for a sender that may wait)."""
         qos, depth = self._qos(latched)
         key, token = self._entity_token(PUBLISHER, topic, msgtype, typestore, qos)
-        publisher = Publisher(self.session, key, token, latched, depth)
+        publisher = Publisher(self.session, key, token, latched, depth, block)
         self.entities.append(publisher)
         return publisher
 

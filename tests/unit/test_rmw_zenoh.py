@@ -160,3 +160,47 @@ def test_a_node_declares_its_tokens_and_undeclares_them(tmp_path):
         seen.undeclare()
     finally:
         session.close()
+
+
+def test_a_subscriber_gets_the_payload_and_attachment_and_a_latched_one_the_cache():
+    """Two nodes on two linked sessions: a subscription gets each CDR payload with (sequence,
+    timestamp, the publisher's GID); a TRANSIENT_LOCAL subscription made after the message was
+    published gets it from the publisher's cache."""
+    import queue
+    import socket
+
+    from components import bus
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        endpoint = f"tcp/127.0.0.1:{s.getsockname()[1]}"
+    a = bus.open_session(listen=[endpoint])
+    b = bus.open_session(connect=[endpoint], connect_timeout_s=10)
+    try:
+        talker, listener = rz.Node(a, 0, "talker"), rz.Node(b, 0, "listener")
+        String = TYPESTORE.types["std_msgs/msg/String"]
+        got: queue.Queue = queue.Queue()
+        listener.subscriber("/chatter", "std_msgs/msg/String", TYPESTORE, lambda data, info: got.put((data, info)))
+        publisher = talker.publisher("/chatter", "std_msgs/msg/String", TYPESTORE)
+        static = talker.publisher("/latched", "std_msgs/msg/String", TYPESTORE, latched=True)
+        static.put(TYPESTORE.serialize_cdr(String(data="kept"), "std_msgs/msg/String"), 5)
+        for i in range(1, 201):   # until the subscription's declaration has reached the publisher
+            publisher.put(TYPESTORE.serialize_cdr(String(data=f"hello {i}"), "std_msgs/msg/String"), 1000 + i)
+            try:
+                data, (sequence, timestamp, gid) = got.get(timeout=0.05)
+                break
+            except queue.Empty:
+                continue
+        assert TYPESTORE.deserialize_cdr(data, "std_msgs/msg/String").data == f"hello {sequence}"
+        assert timestamp == 1000 + sequence and gid == publisher.gid
+        late: queue.Queue = queue.Queue()
+        listener.subscriber("/latched", "std_msgs/msg/String", TYPESTORE, lambda data, info: late.put((data, info)),
+                            latched=True)
+        data, (sequence, timestamp, gid) = late.get(timeout=10)
+        assert TYPESTORE.deserialize_cdr(data, "std_msgs/msg/String").data == "kept"
+        assert (sequence, timestamp, gid) == (1, 5, static.gid)
+        talker.close()
+        listener.close()
+    finally:
+        b.close()
+        a.close()

@@ -240,6 +240,7 @@ class Ros2Bridge(Component):
         self.types = self.typestore.types
         self.epoch_ns = epoch_ns(params.get("_epoch"))
         self.wait_for = params["wait_for"]
+        self.domain_id, self.endpoint = params["domain_id"], params["endpoint"]
         self.timeout_s = params["timeout"] / NS_PER_S
         self.outputs = [b for b in self.bindings if b.causality == "output"]
         self.published: dict[str, list[Binding]] = {}   # topic -> its input variables
@@ -290,8 +291,39 @@ class Ros2Bridge(Component):
         return on_message
 
     def initialize(self, t0_ns, inputs):
+        self._await_graph()
         self._publish_clock(self.epoch_ns + t0_ns)
         return dict(self.last)
+
+    def _await_graph(self) -> None:
+        """Wait (up to ``timeout``) until, in the ROS graph (rmw_zenoh's liveliness tokens), another
+        node subscribes to each input topic and publishes each output topic with the bridge's types:
+        an input published before its subscriber is known would be lost, and its step never answered."""
+        import time
+
+        from components.ros2.rmw_zenoh import ADMIN_SPACE, PUBLISHER, SUBSCRIPTION, dds_type_name
+
+        wanted = {(SUBSCRIPTION, topic, dds_type_name(group[0].message.msgtype)) for topic, group in self.published.items()}
+        wanted |= {(PUBLISHER, topic, dds_type_name(msgtype)) for topic, msgtype in self.listened.items()}
+        own = str(self.session.info.zid())
+        deadline = time.monotonic() + self.timeout_s
+        while True:
+            seen = set()
+            for reply in self.session.liveliness().get(f"{ADMIN_SPACE}/{self.domain_id}/**", timeout=self.timeout_s):
+                if reply.ok is not None:
+                    parts = str(reply.ok.key_expr).split("/")
+                    if len(parts) >= 11 and parts[2] != own:
+                        seen.add((parts[5], parts[9].replace("%", "/"), parts[10].replace("%", "/")))
+            missing = sorted(wanted - seen)
+            if not missing:
+                return
+            if time.monotonic() > deadline:
+                kind, topic, dds_type = missing[0]
+                role = "subscribes to" if kind == SUBSCRIPTION else "publishes"
+                raise ComponentError(f"no ROS 2 node {role} {topic} ({dds_type}) in domain {self.domain_id} at "
+                                     f"{self.endpoint} within {self.timeout_s:g} s: start the node before the run "
+                                     f"(or raise timeout)")
+            time.sleep(0.05)
 
     def do_step(self, t_ns, h_ns, inputs):
         stamp = self.epoch_ns + t_ns

@@ -1,0 +1,187 @@
+"""``ros2.bridge`` in a real run (the orchestrator and each component a process, Zenoh on loopback)
+against a stand-in ROS 2 node (tests/integration/ros2_standin.py, a Zenoh program of its own that
+follows rmw_zenoh's conventions): a mass on a spring whose force is a PD law computed by the node.
+
+- ``wait_for: stamped``: the recorded run equals, bit for bit, the same loop stepped in process
+  (the oscillator in the harness, the PD law in Python, its answer applied a step later as any
+  controller's under Jacobi), through both the stamped rule (JointTrajectory) and the answer rule
+  of a type without a header (Float64MultiArray); the node saw /clock at every step's time.
+- The node stops answering: the run fails, naming the topic, at the step it stopped at, and leaves
+  no process behind.
+- A run stopped (Ctrl-C) while the bridge waits: the bridge's wait is interrupted, so it ends by
+  itself rather than being killed after the orchestrator's grace period.
+"""
+from __future__ import annotations
+
+import signal
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from components.rosbag import epoch_ns
+from components.testing.harness import Harness
+from tests.conftest import ROOT, component_processes, orchestrator, start_run, wait_until
+
+pytestmark = pytest.mark.integration
+
+EPOCH = "2022-09-18T12:00:00Z"
+STEP_NS = 10_000_000
+STEPS = 150
+KP, KD = 3.0, 0.5
+MASS, STIFFNESS, X0 = 2.0, 8.0, 1.0
+STANDIN = Path(__file__).with_name("ros2_standin.py")
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def config(name: str, port: int, timeout: str = "20 s", step_timeout: str = "60 s", steps: int = STEPS) -> str:
+    return f"""
+run: {{name: {name}, epoch: {EPOCH}, duration: {steps * STEP_NS // 1_000_000} ms, step: 10 ms,
+       step_timeout: {step_timeout}}}
+components:
+  spring:
+    type: components.examples.oscillator:Oscillator
+    parameters: {{mass: {MASS} kg, stiffness: {STIFFNESS} N/m, x0: {X0} m}}
+  node:
+    type: ros2.bridge
+    parameters:
+      wait_for: stamped
+      endpoint: tcp/127.0.0.1:{port}
+      domain_id: 0
+      timeout: {timeout}
+      inputs:
+        x: {{topic: /spring/joint_states, type: sensor_msgs/msg/JointState, field: position, names: [slide], unit: m}}
+        v: {{topic: /spring/joint_states, type: sensor_msgs/msg/JointState, field: velocity, names: [slide], unit: m/s}}
+      outputs:
+        force: {{topic: /spring/effort, type: trajectory_msgs/msg/JointTrajectory, field: effort, names: [slide], unit: N}}
+        force_array: {{topic: /spring/effort_array, type: std_msgs/msg/Float64MultiArray, size: 1, unit: N}}
+connections:
+  spring.force: node.force
+  node.x: spring.x
+  node.v: spring.v
+"""
+
+
+class StandIn:
+    """The stand-in node as a subprocess, stopped (SIGTERM, then killed) by :meth:`stop`."""
+
+    def __init__(self, tmp: Path, port: int, *extra: str):
+        self.ready, self.waiting, self.clock_log = tmp / "standin.ready", tmp / "standin.waiting", tmp / "clock.log"
+        self.log = open(tmp / "standin.log", "w")
+        self.process = subprocess.Popen(
+            [sys.executable, str(STANDIN), "--listen", f"tcp/127.0.0.1:{port}", "--kp", str(KP), "--kd", str(KD),
+             "--ready", str(self.ready), "--waiting", str(self.waiting), "--clock-log", str(self.clock_log), *extra],
+            cwd=ROOT, stdout=self.log, stderr=subprocess.STDOUT)
+        wait_until(lambda: self.ready.exists() or self.process.poll() is not None, "the stand-in node ready", 60)
+        assert self.process.poll() is None, (tmp / "standin.log").read_text()
+
+    def stop(self) -> None:
+        if self.process.poll() is None:
+            self.process.terminate()
+            try:
+                self.process.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+        self.log.close()
+
+    def clocks(self) -> list[int]:
+        return [int(line) for line in self.clock_log.read_text().split()]
+
+
+@pytest.fixture
+def standin(tmp_path):
+    started = []
+
+    def start(port: int, *extra: str) -> StandIn:
+        node = StandIn(tmp_path, port, *extra)
+        started.append(node)
+        return node
+    yield start
+    for node in started:
+        node.stop()
+
+
+def reference(steps: int) -> dict[str, np.ndarray]:
+    """The loop stepped in process: row k holds the spring at t_k and the force the bridge outputs at
+    t_k, the node's answer to the spring at t_{k-1} (0 at t0, the output's start)."""
+    spring = Harness("components.examples.oscillator:Oscillator", {"mass": MASS, "stiffness": STIFFNESS, "x0": X0})
+    xs, vs, forces = [spring.outputs["x"]], [spring.outputs["v"]], [0.0]
+    for _ in range(steps):
+        x, v, force = xs[-1], vs[-1], forces[-1]
+        spring.inputs["force"] = force
+        spring.step(STEP_NS)
+        forces.append(-KP * np.array([x]) - KD * np.array([v]))   # the node's expression, on float64 arrays
+        xs.append(spring.outputs["x"])
+        vs.append(spring.outputs["v"])
+    return {"spring.x": np.array(xs, dtype=np.float64).ravel(), "spring.v": np.array(vs, dtype=np.float64).ravel(),
+            "node.force[0]": np.array([np.ravel(f)[0] for f in forces], dtype=np.float64)}
+
+
+def test_stamped_lockstep_equals_the_loop_in_process(tmp_path, write_config, standin):
+    import pandas as pd
+
+    port = _free_port()
+    node = standin(port)
+    record = tmp_path / "rec"
+    result = orchestrator("run", write_config(config("ros2_bridge_pd", port)), "--record", record)
+    assert result.returncode == 0, result.stdout + result.stderr
+    node.stop()
+    signals = pd.read_parquet(record / "signals.parquet")
+    assert len(signals) == STEPS + 1
+    expected = reference(STEPS)
+    for column, values in expected.items():
+        got = signals[column].to_numpy()
+        assert got.tobytes() == values.tobytes(), f"{column}: first difference at row " \
+                                                  f"{int(np.flatnonzero(got != values)[0])}"
+    # the answer rule (no header) gives the same numbers as the stamped one
+    assert signals["node.force_array[0]"].to_numpy().tobytes() == expected["node.force[0]"].tobytes()
+    assert np.ptp(expected["node.force[0]"]) > 1.0    # the PD law did act
+    # /clock: the run's time at initialize and at each step, as ROS time (run.epoch + t)
+    assert sorted(set(node.clocks())) == [epoch_ns(EPOCH) + k * STEP_NS for k in range(STEPS)]
+    assert not component_processes("ros2_bridge_pd")
+
+
+def test_a_node_that_stops_answering_fails_the_run_naming_the_topic(tmp_path, write_config, standin):
+    import pandas as pd
+
+    port = _free_port()
+    last = 40   # the node answers the steps up to this one
+    standin(port, "--answer-until", str(epoch_ns(EPOCH) + last * STEP_NS))
+    record = tmp_path / "rec"
+    result = orchestrator("run", write_config(config("ros2_bridge_silent", port, timeout="3 s")), "--record", record)
+    out = result.stdout + result.stderr
+    assert result.returncode == 1, out
+    t = epoch_ns(EPOCH) + (last + 1) * STEP_NS
+    assert f"no message on /spring/effort stamped {t // 10**9}.{t % 10**9:09d}" in out, out
+    assert f"failed in step {last + 1}" in out, out
+    assert len(pd.read_parquet(record / "signals.parquet")) == last + 2    # rows 0..last+1: the answered steps'
+    assert not component_processes("ros2_bridge_silent")
+
+
+def test_a_run_stopped_while_the_bridge_waits_ends_its_wait(tmp_path, write_config, standin):
+    port = _free_port()
+    node = standin(port, "--answer-until", str(epoch_ns(EPOCH) + 5 * STEP_NS))
+    record = tmp_path / "rec"
+    # the bridge would wait 10 min: only the interrupt can end its wait before the orchestrator kills it
+    run = start_run(write_config(config("ros2_bridge_stop", port, timeout="10 min", step_timeout="20 min")), record)
+    try:
+        wait_until(lambda: node.waiting.exists(), "a step the node leaves unanswered", 120, run)
+        run.send_signal(signal.SIGINT)
+        out, err = run.communicate(timeout=120)
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.wait()
+    assert run.returncode == 130, out + err
+    log = (record / "logs" / "node.0.log").read_text()
+    assert "Interrupted: the run is ending: stopped waiting for /spring/effort" in log, log
+    assert not component_processes("ros2_bridge_stop")

@@ -185,3 +185,16 @@ def test_a_run_stopped_while_the_bridge_waits_ends_its_wait(tmp_path, write_conf
     log = (record / "logs" / "node.0.log").read_text()
     assert "Interrupted: the run is ending: stopped waiting for /spring/effort" in log, log
     assert not component_processes("ros2_bridge_stop")
+
+
+@pytest.mark.parametrize("key, value, words", [
+    ("outputs.force.type", "nav_msgs/msg/Odometry",
+     ["topic /spring/effort: the bridge cannot map message type 'nav_msgs/msg/Odometry'", "sensor_msgs/msg/Imu"]),
+    ("outputs.force.topic", "/spring/effort-command", ["'/spring/effort-command' is not a ROS 2 topic name"]),
+])
+def test_check_refuses_what_the_bridge_cannot_map_with_exit_2(write_config, key, value, words):
+    path = write_config(config("ros2_bridge_check", 7447))
+    assert orchestrator("check", path).returncode == 0
+    result = orchestrator("check", path, "--set", f"components.node.parameters.{key}={value}")
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert f"components.node.parameters.{key}" in result.stderr and all(w in result.stderr for w in words), result.stderr

@@ -8,6 +8,8 @@ follows rmw_zenoh's conventions): a mass on a spring whose force is a PD law com
   of a type without a header (Float64MultiArray); the node saw /clock at every step's time.
 - The node stops answering: the run fails, naming the topic, at the step it stopped at, and leaves
   no process behind.
+- ``wait_for: latest``: every output is the node's answer to an earlier step (or the start value),
+  each newer than the one before; which one depends on timing (not deterministic).
 - A run stopped (Ctrl-C) while the bridge waits: the bridge's wait is interrupted, so it ends by
   itself rather than being killed after the orchestrator's grace period.
 """
@@ -42,10 +44,11 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def config(name: str, port: int, timeout: str = "20 s", step_timeout: str = "60 s", steps: int = STEPS) -> str:
+def config(name: str, port: int, timeout: str = "20 s", step_timeout: str = "60 s", steps: int = STEPS,
+           wait_for: str = "stamped", realtime: float = 0) -> str:
     return f"""
 run: {{name: {name}, epoch: {EPOCH}, duration: {steps * STEP_NS // 1_000_000} ms, step: 10 ms,
-       step_timeout: {step_timeout}}}
+       step_timeout: {step_timeout}, realtime: {realtime}}}
 components:
   spring:
     type: components.examples.oscillator:Oscillator
@@ -53,7 +56,7 @@ components:
   node:
     type: ros2.bridge
     parameters:
-      wait_for: stamped
+      wait_for: {wait_for}
       endpoint: tcp/127.0.0.1:{port}
       domain_id: 0
       timeout: {timeout}
@@ -148,6 +151,31 @@ def test_stamped_lockstep_equals_the_loop_in_process(tmp_path, write_config, sta
     # /clock: the run's time at initialize and at each step, as ROS time (run.epoch + t)
     assert sorted(set(node.clocks())) == [epoch_ns(EPOCH) + k * STEP_NS for k in range(STEPS)]
     assert not component_processes("ros2_bridge_pd")
+
+
+def test_latest_takes_answers_to_earlier_steps(tmp_path, write_config, standin):
+    import pandas as pd
+
+    port = _free_port()
+    node = standin(port)
+    record = tmp_path / "rec"
+    # paced at the wall clock (10 ms a step), so that the node's answers arrive while the run goes on
+    result = orchestrator("run", write_config(config("ros2_bridge_latest", port, wait_for="latest", realtime=1)),
+                          "--record", record)
+    assert result.returncode == 0, result.stdout + result.stderr
+    node.stop()
+    signals = pd.read_parquet(record / "signals.parquet")
+    x, v = signals["spring.x"].to_numpy(), signals["spring.v"].to_numpy()
+    answers = -KP * x - KD * v          # the node's answer to the inputs of each row
+    answered = []                       # the row each output answers (-1: the start value)
+    for row, force in enumerate(signals["node.force[0]"].to_numpy()):
+        earlier = [j for j in range(row) if answers[j] == force]
+        if not earlier:   # the start value, until the first answer arrives
+            assert force == 0.0 and set(answered) <= {-1}, f"row {row}: {force} answers no earlier step"
+        answered.append(earlier[-1] if earlier else -1)
+    assert answered == sorted(answered)                  # each answer is newer than the one before
+    assert max(answered) > 0
+    assert not component_processes("ros2_bridge_latest")
 
 
 def test_a_node_that_stops_answering_fails_the_run_naming_the_topic(tmp_path, write_config, standin):

@@ -14,6 +14,7 @@ get_state (a restart or a swap with state is refused, naming why).
 from __future__ import annotations
 
 import sys
+import time
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -23,6 +24,7 @@ from components.constants import NS_PER_S
 from components.errors import ComponentError, ConfigError
 from components.rosbag import epoch_ns
 from components.ros2 import lockstep, messages
+from components.ros2.rmw_zenoh import ADMIN_SPACE, PUBLISHER, SUBSCRIPTION, check_topic_name, dds_type_name
 from components.schema import Bool, Duration, Int, ListOf, MapOf, OneOf, Float, Problems, Record, Str, Vector
 from components.sdk import Component, Parameter, Variable
 
@@ -74,13 +76,11 @@ class Binding:
 
 def bindings(params: Mapping) -> list[Binding]:
     """Every variable's binding, outputs first; Problems (each naming its key) for what is wrong."""
-    from components.ros2.rmw_zenoh import check_topic_name
-
     found, problems = [], []
     for causality, group in (("output", "outputs"), ("input", "inputs")):
         for name, spec in params[group].items():
             try:
-                found.append(_binding(causality, f"{group}.{name}", name, spec, check_topic_name))
+                found.append(_binding(causality, f"{group}.{name}", name, spec))
             except ConfigError as e:
                 problems.append(e)
     if problems:
@@ -91,7 +91,7 @@ def bindings(params: Mapping) -> list[Binding]:
     return found
 
 
-def _binding(causality: str, key: str, name: str, spec: Mapping, check_topic_name) -> Binding:
+def _binding(causality: str, key: str, name: str, spec: Mapping) -> Binding:
     topic = spec["topic"]
     wrong = check_topic_name(topic)
     if wrong:
@@ -299,11 +299,8 @@ class Ros2Bridge(Component):
         """Wait (up to ``timeout``) until, in the ROS graph (rmw_zenoh's liveliness tokens), another
         node subscribes to each input topic and publishes each output topic with the bridge's types:
         an input published before its subscriber is known would be lost, and its step never answered."""
-        import time
-
-        from components.ros2.rmw_zenoh import ADMIN_SPACE, PUBLISHER, SUBSCRIPTION, dds_type_name
-
-        wanted = {(SUBSCRIPTION, topic, dds_type_name(group[0].message.msgtype)) for topic, group in self.published.items()}
+        wanted = {(SUBSCRIPTION, topic, dds_type_name(group[0].message.msgtype))
+                  for topic, group in self.published.items()}
         wanted |= {(PUBLISHER, topic, dds_type_name(msgtype)) for topic, msgtype in self.listened.items()}
         own = str(self.session.info.zid())
         deadline = time.monotonic() + self.timeout_s
@@ -317,6 +314,8 @@ class Ros2Bridge(Component):
             missing = sorted(wanted - seen)
             if not missing:
                 return
+            if self.arrivals.interrupted:
+                raise lockstep.Interrupted("the run is ending: stopped waiting for the ROS graph")
             if time.monotonic() > deadline:
                 kind, topic, dds_type = missing[0]
                 role = "subscribes to" if kind == SUBSCRIPTION else "publishes"

@@ -101,6 +101,10 @@ class Arrivals:
             self._interrupted = True
             self._lock.notify_all()
 
+    @property
+    def interrupted(self) -> bool:
+        return self._interrupted
+
     def _missing(self, taken: dict) -> list[str]:
         return [t for t in self.stamped if t not in taken]
 

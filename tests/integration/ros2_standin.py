@@ -43,7 +43,8 @@ def token(domain: int, zid: str, entity: int, kind: str, topic: str | None = Non
     parts = ["@ros2_lv", str(domain), zid, "0", str(entity), kind, "%", "%", "standin"]
     if topic is not None:
         package, _, name = msgtype.split("/")
-        parts += [topic.replace("/", "%"), f"{package}::msg::dds_::{name}_", typestore.hash_rihs01(msgtype), "::,10:,:,:,,"]
+        parts += [topic.replace("/", "%"), f"{package}::msg::dds_::{name}_", typestore.hash_rihs01(msgtype),
+                  "::,10:,:,:,,"]
     return "/".join(parts)
 
 

@@ -64,7 +64,8 @@ components:
         x: {{topic: /spring/joint_states, type: sensor_msgs/msg/JointState, field: position, names: [slide], unit: m}}
         v: {{topic: /spring/joint_states, type: sensor_msgs/msg/JointState, field: velocity, names: [slide], unit: m/s}}
       outputs:
-        force: {{topic: /spring/effort, type: trajectory_msgs/msg/JointTrajectory, field: effort, names: [slide], unit: N}}
+        force: {{topic: /spring/effort, type: trajectory_msgs/msg/JointTrajectory, field: effort, names: [slide],
+                 unit: N}}
         force_array: {{topic: /spring/effort_array, type: std_msgs/msg/Float64MultiArray, size: 1, unit: N}}
 connections:
   spring.force: node.force
@@ -225,7 +226,8 @@ def test_check_refuses_what_the_bridge_cannot_map_with_exit_2(write_config, key,
     assert orchestrator("check", path).returncode == 0
     result = orchestrator("check", path, "--set", f"components.node.parameters.{key}={value}")
     assert result.returncode == 2, result.stdout + result.stderr
-    assert f"components.node.parameters.{key}" in result.stderr and all(w in result.stderr for w in words), result.stderr
+    assert f"components.node.parameters.{key}" in result.stderr, result.stderr
+    assert all(w in result.stderr for w in words), result.stderr
 
 
 def _ros2_with_rmw_zenoh() -> bool:
@@ -260,7 +262,8 @@ def test_the_guides_rclpy_node_in_the_loop_over_a_real_rmw_zenohd(tmp_path, writ
                                         env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         text = config("ros2_bridge_rclpy", 7447).replace("domain_id: 0", "domain_id: 42")
         text = text.replace("endpoint: tcp/127.0.0.1:7447", "endpoint: tcp/localhost:7447")
-        text = "\n".join(line for line in text.splitlines() if "force_array" not in line)   # the guide's node has one answer
+        # the guide's node answers on one topic
+        text = "\n".join(line for line in text.splitlines() if "force_array" not in line)
         record = tmp_path / "rec"
         result = orchestrator("run", write_config(text), "--record", record)
         assert result.returncode == 0, result.stdout + result.stderr

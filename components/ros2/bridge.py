@@ -267,9 +267,9 @@ class Ros2Bridge(Component):
         config.insert_json5("connect/exit_on_failure", "true")
         try:
             self.session = zenoh.open(config)
-        except zenoh.ZError as e:
+        except zenoh.ZError:
             raise ComponentError(f"cannot reach the ROS 2 router at {params['endpoint']} within {self.timeout_s:g} s "
-                                 f"(is rmw_zenohd running there? endpoint sets where): {e}") from None
+                                 f"(is rmw_zenohd running there? endpoint sets where)") from None
         self.node = Node(self.session, params["domain_id"], params["node"], params["namespace"])
         self.clock = (self.node.publisher(CLOCK_TOPIC, CLOCK_TYPE, self.typestore)
                       if params["clock"] else None)

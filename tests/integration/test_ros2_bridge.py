@@ -10,6 +10,7 @@ follows rmw_zenoh's conventions): a mass on a spring whose force is a PD law com
   no process behind.
 - ``wait_for: latest``: every output is the node's answer to an earlier step (or the start value),
   each newer than the one before; which one depends on timing (not deterministic).
+- No router at the endpoint, or no node on a topic: the run fails at its start, naming them.
 - A run stopped (Ctrl-C) while the bridge waits: the bridge's wait is interrupted, so it ends by
   itself rather than being killed after the orchestrator's grace period.
 """
@@ -194,6 +195,22 @@ def test_a_node_that_stops_answering_fails_the_run_naming_the_topic(tmp_path, wr
     assert f"failed in step {last + 1}" in out, out
     assert len(pd.read_parquet(record / "signals.parquet")) == last + 2    # rows 0..last+1: the answered steps'
     assert not component_processes("ros2_bridge_silent")
+
+
+def test_no_router_or_no_node_fails_the_start_naming_it(tmp_path, write_config, standin):
+    port = _free_port()
+    result = orchestrator("run", write_config(config("ros2_bridge_alone", port, timeout="1 s")))
+    out = result.stdout + result.stderr
+    assert result.returncode == 1, out
+    assert f"failed in instantiate: ComponentError: cannot reach the ROS 2 router at tcp/127.0.0.1:{port} " \
+           "within 1 s" in out, out
+    standin(port, "--state", "/other/joint_states")   # a node, but not on the bridge's input topic
+    result = orchestrator("run", write_config(config("ros2_bridge_alone", port, timeout="2 s")))
+    out = result.stdout + result.stderr
+    assert result.returncode == 1, out
+    assert ("no ROS 2 node subscribes to /spring/joint_states (sensor_msgs::msg::dds_::JointState_) in domain 0 "
+            f"at tcp/127.0.0.1:{port} within 2 s") in out, out
+    assert not component_processes("ros2_bridge_alone")
 
 
 def test_a_run_stopped_while_the_bridge_waits_ends_its_wait(tmp_path, write_config, standin):

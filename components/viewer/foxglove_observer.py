@@ -31,6 +31,7 @@ import time
 from pathlib import Path
 
 from components import bus, bus_security
+from components.ros_topics import LiveTopics
 from components.viewer.observer import (LIVE_BATCH_S, MAX_BATCH_ROWS, NICENESS, POLL_S, RowBuffer, Stop,
                                         orchestrator_gone, raise_stop, take_rows)
 
@@ -74,6 +75,7 @@ class RosChannels:
         self.latched_ns: dict[str, int] = {}
         self.warned: set[str] = set()
         self.rows_sent = 0
+        self.live = LiveTopics(config, config_dir, columns, self.typestore, self.warn)
         self._resend: set[str] = set()             # latched topics subscribed to since the last batch
         self._lock = threading.Lock()
 
@@ -99,28 +101,16 @@ class RosChannels:
     def build(self, times, rows) -> tuple[list, int]:
         """The messages of a batch of rows as (log time = ROS stamp, channel, CDR bytes), in time
         order, and the last row's stamp (ns). Creates the channels of topics not seen before."""
-        from components.plotting import RecordedRun
-        from components.rosbag import RosContext
-        from components.ros_topics import run_topics
-
-        run = RecordedRun(self.config, {name: rows[:, i] for i, name in enumerate(self.columns)}, times,
-                          self.config_dir)
-        context = RosContext(run, self.typestore, self.warn)
+        batch, stamp = self.live.batch(times, rows)
         queue = []
-        for topic in run_topics(context, self.warn):
+        for topic, messages in batch:
             channel = self._channel(topic.name, topic.msgtype)
-            if topic.latched:
-                if topic.name not in self.latched and topic.messages:
-                    ns, message = topic.messages[0]
-                    self.latched[topic.name] = bytes(self.typestore.serialize_cdr(message, topic.msgtype))
-                    self.latched_ns[topic.name] = ns
-                    queue.append((ns, channel, self.latched[topic.name]))
-                continue
-            queue += [(ns, channel, bytes(self.typestore.serialize_cdr(message, topic.msgtype)))
-                      for ns, message in topic.messages]
+            if topic.latched and messages:
+                self.latched_ns[topic.name], self.latched[topic.name] = messages[0]
+            queue += [(ns, channel, data) for ns, data in messages]
         queue.sort(key=lambda item: item[0])   # stable: topics in the exporter's order within a stamp
         self.rows_sent += len(times)
-        return queue, int(context.stamps[-1])
+        return queue, stamp
 
     @staticmethod
     def log(queue) -> None:

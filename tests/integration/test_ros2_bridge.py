@@ -295,3 +295,18 @@ def test_the_guides_rclpy_node_in_the_loop_over_a_real_rmw_zenohd(tmp_path, writ
     signals = pd.read_parquet(record / "signals.parquet")
     for column, values in reference(STEPS).items():
         assert signals[column].to_numpy().tobytes() == values.tobytes(), column
+
+
+def test_check_refuses_a_second_clock_from_the_live_ros2_view(write_config, monkeypatch):
+    monkeypatch.delenv("ROS_DOMAIN_ID", raising=False)
+    path = write_config(config("ros2_bridge_clock", 7447) + "ros2: {endpoint: tcp/localhost:7447}\n")
+    result = orchestrator("check", path)
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert ("ros2: the live ROS 2 view would publish /clock in domain 0, where the bridge 'node' publishes the "
+            "run's /clock") in result.stderr, result.stderr
+    assert orchestrator("check", path, "--set", "ros2.topics=[/tf]").returncode == 0
+    assert orchestrator("check", path, "--set", "components.node.parameters.clock=false").returncode == 0
+    assert orchestrator("check", path, "--set", "components.node.parameters.domain_id=3").returncode == 0
+    plain = write_config(config("ros2_bridge_clock", 7447), "plain.yaml")
+    result = orchestrator("run", plain, "--ros2")      # refused before anything starts
+    assert result.returncode == 2 and "--ros2: the live ROS 2 view would publish /clock" in result.stderr, result.stderr

@@ -7,7 +7,7 @@ the run's own bus is untouched. The mapping of variables to message fields:
 
 Step k (``do_step(t_k, ...)``): ``/clock`` <- t_k, each input topic <- the inputs held at t_k,
 stamped t_k; then each output topic's message for t_k (``stamped``) or its newest (``latest``)
-gives the outputs at t_{k+1}, as any controller's do. ROS time = ``run.epoch`` + t (ns since 1970,
+gives the outputs at t_{k+1}, as a controller's outputs are. ROS time = ``run.epoch`` + t (ns since 1970,
 as components/rosbag.py stamps a recording). The state of the ROS node lives outside the run: no
 get_state (a restart or a swap with state is refused, naming why).
 """

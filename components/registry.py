@@ -41,6 +41,8 @@ TYPES = {
     "sensor.relative_pose": "components.sensors.components:RelativePoseComponent",
     # FMI co-simulation FMUs (FMPy)
     "fmu": "components.fmi.imported:FMUComponent",
+    # a ROS 2 node in the loop (rmw_zenoh)
+    "ros2.bridge": "components.ros2.bridge:Ros2Bridge",
 }
 
 

@@ -112,11 +112,13 @@ def cmd_run(args) -> int:
             return _fail(f"viewer foxglove: {problem}")
     ros2 = None
     if args.ros2 is not None:   # --ros2 [ENDPOINT]: the ros2: section's settings (or the defaults), this endpoint
-        from orchestrator.config.load import ros2_spec
+        from orchestrator.config.load import clock_clash, ros2_spec
         errors = []
         ros2 = ros2_spec(config.resolved.get("ros2"), "--ros2", errors, endpoint=args.ros2 or None)
         if errors or ros2 is None:
             return _fail("; ".join(errors))
+        if clash := clock_clash(config.components, ros2, "--ros2"):
+            return _fail(clash)
     from orchestrator.run.engine import Run
     run = Run(config, record=args.record, profile=args.profile, progress=sys.stderr.isatty(), viewer=viewer,
               ros2=ros2)

@@ -53,6 +53,19 @@ def _viewer(section: dict, where: str, errors: list[str], base: Path) -> ViewerS
                       open_browser=section["open_browser"], port=section["port"])
 
 
+def clock_clash(components: dict[str, ComponentSpec], ros2: Ros2Spec | None, where: str) -> str | None:
+    """Why the live ROS 2 view cannot publish ``/clock`` beside a ``ros2.bridge`` that does, in one
+    domain, or None: a node with use_sim_time would hear two clocks, the view's lagging the bridge's."""
+    if ros2 is None or (ros2.topics is not None and "/clock" not in ros2.topics):
+        return None
+    for name, spec in components.items():
+        if spec.type == "ros2.bridge" and spec.resolved["clock"] and spec.resolved["domain_id"] == ros2.domain_id:
+            return (f"{where}: the live ROS 2 view would publish /clock in domain {ros2.domain_id}, where the bridge "
+                    f"{name!r} publishes the run's /clock in lockstep (a node with use_sim_time would hear both): "
+                    f"give ros2.topics without /clock, or components.{name}.parameters.clock: false")
+    return None
+
+
 def ros2_spec(raw: Any, where: str, errors: list[str], endpoint: str | None = None) -> Ros2Spec | None:
     """Parse a ``ros2:`` section (None: the defaults); ``endpoint``: ``--ros2 ENDPOINT``, which
     wins. The domain id, if not given, is the environment's ROS_DOMAIN_ID, else 0. A topic name
@@ -210,6 +223,8 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
         problems_of_ros2: list[str] = []
         ros2 = ros2_spec(config["ros2"], "ros2", problems_of_ros2)
         errors += [f"{file}: {m}" for m in problems_of_ros2]
+        if clash := clock_clash(components, ros2, "ros2"):
+            errors.append(f"{file}: {clash}")
     if errors:
         raise ConfigErrors(errors)
     resolved = {

@@ -7,7 +7,9 @@ References (not our code, not rosbags):
   LibCarla/source/carla/ros2/types/CdrTopicInfo.h (Clock, Imu, Odometry, PoseStamped, String,
   TFMessage, TransformStamped, Twist, Vector3), a ros2cli subscription token for TwistStamped,
   ``ros2 topic info -v`` output for JointState, generated zenoh-pico type tables for WrenchStamped
-  and Float64MultiArray;
+  and Float64MultiArray; rosidl_generator_c's type hashes for Float64, JointTrajectory and
+  JointTrajectoryPoint (``*__description.c`` of a micro-ROS Kilted build, hpmicro/hpm_sdk
+  middleware/microros/kilted/include/; those definitions are Jazzy's, unchanged);
 - Zenoh's serialization format (zenoh docs "Zenoh serialization format"), checked through
   zenoh-python's own serializer ``zenoh.ext.z_serialize``: the attachment rmw_zenoh writes with
   zenoh-cpp's ``ext::Serializer`` (attachment_helpers.cpp).
@@ -36,6 +38,10 @@ PUBLISHED_HASHES = {
     "geometry_msgs/msg/WrenchStamped": "8dc3deaf06b2ab281f9f9a742a8961c328ca7cec16e3fd6586d3a5c83fa78f77",
     "std_msgs/msg/Float64MultiArray": "1025ddc6b9552d191f89ef1a8d2f60f3d373e28b283d8891ddcc974e8c55397f",
     "geometry_msgs/msg/TransformStamped": "0a241f87d04668d94099cbb5ba11691d5ad32c2f29682e4eb5653424bd275206",
+    # ros2.bridge's types
+    "std_msgs/msg/Float64": "705ba9c3d1a09df43737eb67095534de36fd426c0587779bda2bc51fe790182a",
+    "trajectory_msgs/msg/JointTrajectory": "179b33eba59d676f6d967ac71fe35e7ca2f64b2f3928f4a018cec115e213796e",
+    "trajectory_msgs/msg/JointTrajectoryPoint": "de8907036d8bd45aac6f30cc9044a3d4a329c42cbf719aff7d95a584cfa532d7",
 }
 
 

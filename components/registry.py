@@ -42,6 +42,8 @@ TYPES = {
     "sensor.camera": "components.camera.component:CameraComponent",
     # FMI co-simulation FMUs (FMPy)
     "fmu": "components.fmi.imported:FMUComponent",
+    # a ROS 2 node in the loop (rmw_zenoh)
+    "ros2.bridge": "components.ros2.bridge:Ros2Bridge",
 }
 
 

@@ -86,6 +86,7 @@ def output_prefix(run_id: str, consumer: str) -> str:
 
 
 VIEWER = "_viewer"              # the observer's liveliness name (component names cannot start with _)
+ROS2 = "_ros2"                  # the ROS 2 observer's (--ros2)
 
 
 def alive_key(run_id: str, name: str, generation: int) -> str:
@@ -99,6 +100,10 @@ def orchestrator_alive_key(run_id: str) -> str:
 
 def viewer_alive_key(run_id: str) -> str:
     return alive_key(run_id, VIEWER, 0)
+
+
+def ros2_alive_key(run_id: str) -> str:
+    return alive_key(run_id, ROS2, 0)
 
 
 def control_key(run_id: str) -> str:

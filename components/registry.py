@@ -44,6 +44,8 @@ TYPES = {
     "estimator.fiducial": "components.estimators.component:FiducialComponent",
     # FMI co-simulation FMUs (FMPy)
     "fmu": "components.fmi.imported:FMUComponent",
+    # a ROS 2 node in the loop (rmw_zenoh)
+    "ros2.bridge": "components.ros2.bridge:Ros2Bridge",
 }
 
 

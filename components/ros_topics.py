@@ -4,6 +4,7 @@
 (components/viewer/foxglove_observer.py) sends them."""
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -85,3 +86,58 @@ def run_topics(context: RosContext, warn: Callable[[str], None], all_signals: bo
     clock = RosTopic("/clock", "rosgraph_msgs/msg/Clock", [(int(ns), Clock(clock=context.time(ns)))
                                                           for ns in context.stamps])
     return [clock] + merged(context, component_topics(context, warn, all_signals))
+
+
+def run_assets(context: RosContext, warn: Callable[[str], None]) -> dict[str, Path]:
+    """{URI: file} of every file the run's topics reference (meshes of ``robot_description``),
+    from the component types that declare them (``RosExport.assets``)."""
+    assets = {}
+    for name, spec in (context.run.config.get("components") or {}).items():
+        try:
+            cls = registry.load((spec or {}).get("type"), context.run.config_dir)
+        except ConfigError:
+            continue   # component_topics has said so
+        if cls.rosbag is not None and cls.rosbag.assets is not None:
+            for uri, path in cls.rosbag.assets(context, name).items():
+                assets.setdefault(uri, path)
+    return assets
+
+
+class LiveTopics:
+    """The live views' signal rows, batch by batch, as the export's topics with CDR messages.
+
+    The previous batch's last row leads each batch, so that what a builder derives from consecutive
+    rows (a relative pose's new measurement) comes out as in the export; what that row gave was
+    sent with the previous batch and is left out. A latched topic has its first message only, once.
+    """
+
+    def __init__(self, config: dict, config_dir, columns: list[str], typestore, warn: Callable[[str], None]):
+        self.config, self.columns, self.typestore, self.warn = config, columns, typestore, warn
+        self.config_dir = Path(config_dir) if config_dir else None
+        self.latched_sent: set[str] = set()
+        self._lead = None   # (time s, row) of the previous batch's last row
+
+    def batch(self, times, rows) -> tuple[list[tuple[RosTopic, list[tuple[int, bytes]]]], int]:
+        """``times`` (s) and ``rows`` (one column per name of ``columns``): each topic with its
+        messages as (stamp ns, CDR bytes), and the last row's stamp."""
+        from components.plotting import RecordedRun
+
+        times, rows = np.asarray(times, dtype=np.float64), np.asarray(rows, dtype=np.float64)
+        if self._lead is not None:
+            times, rows = np.concatenate([[self._lead[0]], times]), np.vstack([self._lead[1], rows])
+        run = RecordedRun(self.config, {name: rows[:, i] for i, name in enumerate(self.columns)}, times,
+                          self.config_dir)
+        context = RosContext(run, self.typestore, self.warn)
+        sent_until = int(context.stamps[0]) if self._lead is not None else None
+        batch = []
+        for topic in run_topics(context, self.warn):
+            if topic.latched:
+                messages = [] if topic.name in self.latched_sent else topic.messages[:1]
+                if messages:
+                    self.latched_sent.add(topic.name)
+            else:
+                messages = [(ns, m) for ns, m in topic.messages if sent_until is None or ns > sent_until]
+            batch.append((topic, [(int(ns), bytes(self.typestore.serialize_cdr(message, topic.msgtype)))
+                                  for ns, message in messages]))
+        self._lead = (times[-1], rows[-1].copy())
+        return batch, int(context.stamps[-1])

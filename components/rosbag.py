@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
+from pathlib import Path
 from typing import Callable, Iterable
 
 import numpy as np
@@ -59,10 +60,13 @@ class RosExport:
     exporter merges the components' into one topic each). Empty when the recording holds nothing
     it exports. ``output_frames(context, c)``: {output variable: tf frame it is measured in}, for
     the sensors that read it (their frame is mounted there, see :meth:`RosContext.mount_of`).
+    ``assets(context, c)``: {URI as its messages name it: the file}, the files a viewer fetches to
+    draw them (the meshes a ``robot_description`` references); served by the live Foxglove view.
     """
     description: str
     topics: Callable[["RosContext", str], Iterable[RosTopic]]
     output_frames: Callable[["RosContext", str], dict[str, str]] | None = None
+    assets: Callable[["RosContext", str], dict[str, Path]] | None = None
 
 
 class TopicError(Exception):

@@ -134,6 +134,16 @@ class Component:
     def terminate(self) -> None:
         """Release resources at the end of the run."""
 
+    def interrupt(self) -> None:
+        """Called from another thread when the run is ending (a terminate, or the orchestrator gone)
+        while a step may be under way: a ``do_step`` that waits for something outside the run (a
+        ROS 2 node) ends that wait now, raising. Default: nothing (a step that computes ends soon)."""
+
+    @classmethod
+    def interruptible(cls) -> bool:
+        """Whether the type's steps may wait on the outside (it overrides ``interrupt``)."""
+        return cls.interrupt is not Component.interrupt
+
     def emit(self, kind: str, **fields: Any) -> None:
         """Report an event of the step being taken (a capture, say): the orchestrator writes it to
         ``events.jsonl`` as ``{"event": kind, **fields, "component": ..., "step": ...}`` (step: the

@@ -33,6 +33,22 @@ def _watchdog(process: ComponentProcess, stop: threading.Event, beat_s: float | 
         pass
 
 
+def _interrupter(session, component, command: str, quit_key: str) -> list:
+    """For a component whose steps may wait on the outside (``Component.interrupt``): subscribers
+    that interrupt it as soon as a terminate or a quit arrives, while the main thread, which reads
+    them from the inbox, may be inside such a step."""
+    def on_command(sample) -> None:
+        payload = sample.payload.to_bytes()
+        if payload[:1] != b"H":   # not a horizon grant, the frequent one
+            try:
+                if type(protocol.decode_command(payload)) is protocol.Terminate:
+                    component.interrupt()
+            except protocol.Malformed:
+                pass
+    return [session.declare_subscriber(command, on_command),
+            session.declare_subscriber(quit_key, lambda sample: component.interrupt())]
+
+
 TERMINATED, RELEASED, ORPHANED = "terminated", "released", "orphaned"   # how serving a generation ended
 
 
@@ -113,6 +129,7 @@ def serve_session(session, run_id: str, name: str, generation: int, cpu: int | N
         threading.Thread(target=_watchdog, args=(process, stop_watchdog, beat_s), daemon=True).start()
         if cpu is not None:
             os.sched_setaffinity(0, {cpu})   # this thread only
+        interrupter = []
         while True:
             sample = inbox.recv()
             key = str(sample.key_expr)
@@ -125,6 +142,9 @@ def serve_session(session, run_id: str, name: str, generation: int, cpu: int | N
                 elif key == command:
                     if not process.command(sample.payload.to_bytes()):
                         return TERMINATED if process.final else RELEASED
+                    if not interrupter and process.component is not None and process.component.interruptible():
+                        interrupter = _interrupter(session, process.component, command, quit_key)
+                        keep += interrupter
                 else:
                     continue   # for another generation of this component
             except bus.Malformed as e:   # whoever reaches the bus cannot stop this component

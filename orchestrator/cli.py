@@ -110,8 +110,18 @@ def cmd_run(args) -> int:
         from components.viewer.foxglove_observer import port_problem
         if problem := port_problem((viewer or config.viewer).port):
             return _fail(f"viewer foxglove: {problem}")
+    ros2 = None
+    if args.ros2 is not None:   # --ros2 [ENDPOINT]: the ros2: section's settings (or the defaults), this endpoint
+        from orchestrator.config.load import clock_clash, ros2_spec
+        errors = []
+        ros2 = ros2_spec(config.resolved.get("ros2"), "--ros2", errors, endpoint=args.ros2 or None)
+        if errors or ros2 is None:
+            return _fail("; ".join(errors))
+        if clash := clock_clash(config.components, ros2, "--ros2"):
+            return _fail(clash)
     from orchestrator.run.engine import Run
-    run = Run(config, record=args.record, profile=args.profile, progress=sys.stderr.isatty(), viewer=viewer)
+    run = Run(config, record=args.record, profile=args.profile, progress=sys.stderr.isatty(), viewer=viewer,
+              ros2=ros2)
     try:
         return run.execute()
     finally:
@@ -395,6 +405,9 @@ def build_parser() -> argparse.ArgumentParser:
     with_set(p)
     p.add_argument("--view", metavar="{spawn,web,save:FILE.rrd,foxglove[:PORT]}",
                    help="live view in Rerun, or served to Foxglove on ws://localhost:PORT (default 8765)")
+    p.add_argument("--ros2", nargs="?", const="", metavar="ENDPOINT",
+                   help="publish the run live to ROS 2 over rmw_zenoh through the router at ENDPOINT "
+                        "(default: the ros2: section's, else tcp/localhost:7447); ROS_DOMAIN_ID is the domain")
     p.add_argument("--profile", action="store_true", help="print, at the end, each component's compute time and "
                    "waiting time per step (waiting: for its inputs or the horizon, the bus included) and the share "
                    "of the wall time it computes")

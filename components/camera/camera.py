@@ -21,6 +21,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from components.camera.lens import inversion_problem
 from components.camera.render import EGL_PACKAGES, egl_problem
 from components.constants import NS_PER_S
 from components.errors import ConfigError
@@ -45,6 +46,8 @@ CAMERA_PARAMETERS = (
     Parameter("fy", Float(positive=True), description="focal length along y (pixels)"),
     Parameter("cx", Float(), description="principal point x (pixels; pixel centres at integers, OpenCV's convention)"),
     Parameter("cy", Float(), description="principal point y (pixels)"),
+    Parameter("distortion", Vector(5), default=None,
+              description="plumb_bob lens distortion [k1, k2, p1, p2, k3] (OpenCV's, ROS's); null: an ideal pinhole"),
     Parameter("near", Float("m", positive=True), description="nearest distance drawn, along the optical axis"),
     Parameter("far", Float("m", positive=True), description="farthest distance drawn, along the optical axis"),
     Parameter("depth", Bool(), default=True, description="record the depth image beside the colour image"),
@@ -91,8 +94,17 @@ def check_camera(camera: Mapping[str, Any], run: Mapping[str, Any]) -> None:
         if not -0.5 <= camera[key] <= size - 0.5:
             raise ConfigError(key, f"expected a principal point within the image (-0.5 to {size - 0.5:g} pixels "
                                    f"for {size} pixels), got {camera[key]:g}")
+    if camera["distortion"] is not None:
+        problem = inversion_problem(camera["width"], camera["height"], intrinsic_matrix(camera), camera["distortion"])
+        if problem is not None:
+            raise ConfigError("distortion", f"{problem}, got {[float(c) for c in camera['distortion']]}")
     if not camera["far"] > camera["near"]:
         raise ConfigError("far", f"expected more than near ({camera['near']:g} m), got {camera['far']:g} m")
+
+
+def intrinsic_matrix(camera: Mapping[str, Any]) -> np.ndarray:
+    """K (3x3, pixels) of a camera's parameters."""
+    return np.array([[camera["fx"], 0.0, camera["cx"]], [0.0, camera["fy"], camera["cy"]], [0.0, 0.0, 1.0]])
 
 
 def check_egl(who: str = "sensor.camera") -> None:
@@ -118,11 +130,13 @@ class Camera:
         self.camera, self.prefix = camera, prefix
         models = _models(camera, run)
         geometries = {name: read_geometry(model.path, run.get("_packages")) for name, model in models.items()}
+        distortion = None if camera["distortion"] is None else tuple(float(c) for c in camera["distortion"])
         self.intrinsics = Intrinsics(camera["width"], camera["height"], camera["fx"], camera["fy"], camera["cx"],
-                                     camera["cy"], camera["near"], camera["far"])
+                                     camera["cy"], camera["near"], camera["far"], distortion)
         self.T_link_camera = mount_transform(camera["position"], camera["orientation"])
         self.model = CameraModel(geometries, camera["body"], camera["link"], self.T_link_camera, self.intrinsics,
                                  camera["ambient"])
+        self.D = np.array(distortion or (0.0,) * 5)       # plumb_bob [k1, k2, p1, p2, k3]
         self.sun = SunClock(run["_epoch"])
         self.pixel_stream = NormalStream(np.random.SeedSequence([camera["seed"], 0]))
         self.depth_stream = NormalStream(np.random.SeedSequence([camera["seed"], 1]))
@@ -131,7 +145,8 @@ class Camera:
     def frame(self, t_ns: int, inputs: Mapping[str, np.ndarray]) -> dict[str, Any]:
         """The frame of what ``inputs`` show, taken at ``t_ns`` (the time the inputs were sampled),
         noise added: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32 (m along the optical axis, 0:
-        nothing hit), ``K``, ``T_link_camera``, ``T_W_camera``, ``t`` (s) and ``lit`` (bool)."""
+        nothing hit), ``K``, ``D`` (plumb_bob, zeros for a pinhole), ``T_link_camera``,
+        ``T_W_camera``, ``t`` (s) and ``lit`` (bool)."""
         from components.camera.model import add_depth_noise, add_pixel_noise
         from components.camera.sun import in_earth_shadow
 
@@ -147,7 +162,7 @@ class Camera:
         if depth_sigma > 0.0:
             depth = add_depth_noise(depth, self.depth_stream.rng.standard_normal(depth.shape, dtype=np.float32),
                                     depth_sigma)
-        return {"rgb": rgb, "depth": depth, "K": self.intrinsics.K, "T_link_camera": self.T_link_camera,
+        return {"rgb": rgb, "depth": depth, "K": self.intrinsics.K, "D": self.D, "T_link_camera": self.T_link_camera,
                 "T_W_camera": T_W_camera, "t": np.float64(t_ns / NS_PER_S), "lit": lit}
 
     def get_state(self) -> dict[str, np.ndarray]:

@@ -10,7 +10,7 @@ Earth's shadow). ``initialize`` takes no frame.
 The image and the depth do not travel as variables (a 640x480 frame is 2 MB): with ``--record
 DIR`` each frame is written to ``DIR/frames/<component>/<k>.npz`` (k: the component's step, from
 0) with ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32 (m along the optical axis, 0 where
-nothing is hit; absent with ``depth: false``), ``K`` (3x3), ``T_link_camera`` and ``T_W_camera``
+nothing is hit; absent with ``depth: false``), ``K`` (3x3), ``D`` (plumb_bob, zeros for a pinhole), ``T_link_camera`` and ``T_W_camera``
 (4x4), ``t`` (s); see :mod:`components.camera.frames`. Noise: :mod:`components.camera.camera`.
 State: the noise generators, the frame count, the last frame's time and light.
 """

@@ -3,7 +3,8 @@
 :class:`CameraModel` places every body's visuals (:mod:`components.camera.scene`) at the link
 poses its base pose and joint positions give, puts the camera on its mount link
 (``T_W_camera = T_W_link T_link_camera``) and renders (:mod:`components.camera.render`), lit by
-the Sun unless the camera is in the Earth's shadow (:mod:`components.camera.sun`). W is the
+the Sun unless the camera is in the Earth's shadow (:mod:`components.camera.sun`); a lens with
+distortion resamples a larger pinhole render (:mod:`components.camera.lens`). W is the
 dynamics' world frame, ECI axes, so the Sun direction in ECI is the one in W.
 
 :func:`add_pixel_noise`: white pixel noise (counts of 0..255, 1-sigma, rounded to the nearest count
@@ -17,15 +18,19 @@ from typing import Mapping
 
 import numpy as np
 
+from components.camera.lens import Lens
 from components.camera.render import Renderer
 from components.camera.scene import BodyPoses, pose_matrix, visual_meshes
 from components.viewer.robot import Geometry
 
+MAX_RENDER = 16384     # pixels: the largest framebuffer side the camera asks OpenGL for
+
 
 @dataclass(frozen=True)
 class Intrinsics:
-    """A pinhole camera: ``width`` x ``height`` pixels, focal lengths and principal point (pixels),
-    clip distances ``near`` and ``far`` (m)."""
+    """A camera: ``width`` x ``height`` pixels, focal lengths and principal point (pixels), clip
+    distances ``near`` and ``far`` (m), plumb_bob ``distortion`` [k1, k2, p1, p2, k3] (None: a
+    pinhole)."""
     width: int
     height: int
     fx: float
@@ -34,6 +39,7 @@ class Intrinsics:
     cy: float
     near: float
     far: float
+    distortion: tuple[float, ...] | None = None
 
     @property
     def K(self) -> np.ndarray:
@@ -48,8 +54,17 @@ class CameraModel:
                  intrinsics: Intrinsics, ambient: float):
         self.intrinsics = intrinsics
         self.T_link_camera = np.asarray(T_link_camera, dtype=np.float64)
-        self.renderer = Renderer(intrinsics.K, intrinsics.width, intrinsics.height, intrinsics.near,
-                                 intrinsics.far, ambient)
+        self.lens = None
+        K, width, height = intrinsics.K, intrinsics.width, intrinsics.height
+        if intrinsics.distortion is not None and any(intrinsics.distortion):
+            # twice the focal length (a quarter pixel at most off) while the render stays within 16384
+            supersample = 2 if 2.5 * max(width, height) <= MAX_RENDER else 1
+            self.lens = Lens(K, width, height, intrinsics.distortion, supersample)
+            K, width, height = self.lens.K_render, self.lens.render_width, self.lens.render_height
+            if max(width, height) > MAX_RENDER:
+                raise ValueError(f"the distortion needs a pinhole render of {width}x{height} pixels, "
+                                 f"above OpenGL's {MAX_RENDER}")
+        self.renderer = Renderer(K, width, height, intrinsics.near, intrinsics.far, ambient)
         self.poses = {name: BodyPoses(geometry) for name, geometry in bodies.items()}
         self.mount = (body, bodies[body].links.index(link))
         self.drawn: list[tuple[str, int]] = []     # per renderer mesh: (body, link index)
@@ -59,7 +74,7 @@ class CameraModel:
             self.notes += notes
             for mesh in meshes:
                 self.renderer.add_mesh(mesh.vertices, np.arange(len(mesh.vertices)).reshape(-1, 3), mesh.normals,
-                                       mesh.colour)
+                                       mesh.colours, mesh.uv, mesh.texture)
                 self.drawn.append((name, mesh.link))
 
     def camera_pose(self, links: Mapping[str, np.ndarray]) -> np.ndarray:
@@ -77,6 +92,8 @@ class CameraModel:
         T_camera_meshes = [T_camera_W @ links[name][link] for name, link in self.drawn]
         sun_camera = None if sun_W is None else T_camera_W[:3, :3] @ sun_W
         rgb, depth = self.renderer.render(T_camera_meshes, sun_camera)
+        if self.lens is not None:
+            rgb, depth = self.lens.apply(rgb, depth)
         return rgb, depth, T_W_camera
 
     def release(self) -> None:

@@ -4,8 +4,9 @@ Plain class, no bus and no I/O. :class:`Renderer` holds an EGL context, an offsc
 and a scene of triangle meshes (each in its own frame, with one colour); :meth:`Renderer.render`
 draws them from a camera pose and returns
 
-- ``rgb``: (H, W, 3) uint8, Lambert shading ``colour * (ambient + max(0, n . s))`` for a Sun
+- ``rgb``: (H, W, 3) uint8, Lambert shading ``colour * min(1, ambient + max(0, n . s))`` for a Sun
   direction ``s`` (None: no Sun, in the Earth's shadow), black where nothing is hit (the sky);
+  ``colour`` is a mesh's per-vertex colour, or its texture's (trilinear, mipmapped) where it has one;
 - ``depth``: (H, W) float32, metres along the optical axis (the camera frame's z), 0 where
   nothing is hit.
 
@@ -37,23 +38,32 @@ uniform mat4 T_camera_mesh;   // mesh frame -> camera frame (OpenCV axes)
 uniform mat4 projection;      // camera frame -> clip
 in vec3 position;
 in vec3 normal;
+in vec3 colour;
+in vec2 uv;
 out vec3 p_camera;
 out vec3 n_camera;
+out vec3 v_colour;
+out vec2 v_uv;
 void main() {
     vec4 p = T_camera_mesh * vec4(position, 1.0);
     p_camera = p.xyz;
     n_camera = mat3(T_camera_mesh) * normal;
+    v_colour = colour;
+    v_uv = uv;
     gl_Position = projection * p;
 }
 """
 
 _FRAGMENT = """
 #version 330
-uniform vec3 colour;          // linear 0..1
 uniform vec3 sun_camera;      // unit vector towards the Sun, camera axes (0: none)
 uniform float ambient;
+uniform bool textured;
+uniform sampler2D image;
 in vec3 p_camera;
 in vec3 n_camera;
+in vec3 v_colour;             // 0..1
+in vec2 v_uv;
 layout(location = 0) out vec4 rgb;
 layout(location = 1) out float depth;
 void main() {
@@ -61,6 +71,7 @@ void main() {
     // two-sided: the side the camera sees faces it
     if (dot(n, p_camera) > 0.0) n = -n;
     float light = ambient + max(dot(n, sun_camera), 0.0);
+    vec3 colour = textured ? texture(image, v_uv).rgb : v_colour;
     rgb = vec4(colour * min(light, 1.0), 1.0);
     depth = p_camera.z;
 }
@@ -117,6 +128,10 @@ class Renderer:
         self.K = np.array(K, dtype=np.float64).reshape(3, 3)
         self.width, self.height, self.ambient = int(width), int(height), float(ambient)
         self.ctx = _context()
+        with self.ctx:   # every GL call in this context: another camera's may be current in this process
+            self._build(near, far)
+
+    def _build(self, near: float, far: float) -> None:
         ctx = self.ctx
         self.program = ctx.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)
         self.program["projection"].write(
@@ -127,30 +142,58 @@ class Renderer:
         self.z_buffer = ctx.depth_renderbuffer(size)
         self.fbo = ctx.framebuffer(color_attachments=[self.colour_buffer, self.depth_buffer],
                                    depth_attachment=self.z_buffer)
-        self.meshes: list[tuple[object, object, np.ndarray]] = []   # (vao, buffer, colour)
+        self.program["image"].value = 0
+        self.meshes: list[tuple[object, object, object]] = []   # (vao, buffer, texture or None)
 
-    def add_mesh(self, vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray,
-                 colour: tuple[float, float, float]) -> int:
+    def add_mesh(self, vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray, colour,
+                 uv: np.ndarray | None = None, texture: np.ndarray | None = None) -> int:
         """Add a mesh: vertices (n, 3) in its own frame (m), triangles (m, 3) indices, vertex
-        normals (n, 3), colour (r, g, b) in 0..1. Returns its index (the order of ``render``'s poses)."""
+        normals (n, 3); ``colour`` (r, g, b) in 0..1, one for the mesh or one per vertex (n, 3);
+        or a ``texture`` (h, w, 3 or 4) uint8, its row 0 the image's top, with texture
+        coordinates ``uv`` (n, 2), (0, 0) at the image's bottom left (OBJ's and trimesh's
+        convention). Returns its index (the order of ``render``'s poses)."""
         vertices = np.asarray(vertices, dtype=np.float32).reshape(-1, 3)
+        n = len(vertices)
         normals = np.asarray(normals, dtype=np.float32).reshape(-1, 3)
         triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-        if len(normals) != len(vertices) or not len(triangles) or triangles.max() >= len(vertices) or triangles.min() < 0:
-            raise RenderError(f"mesh of {len(vertices)} vertices, {len(normals)} normals and {len(triangles)} "
+        if len(normals) != n or not len(triangles) or triangles.max() >= n or triangles.min() < 0:
+            raise RenderError(f"mesh of {n} vertices, {len(normals)} normals and {len(triangles)} "
                               "triangles: expected one normal per vertex and triangle indices within the vertices")
+        colours = np.broadcast_to(np.asarray(colour, dtype=np.float32).reshape(-1, 3), (n, 3))
+        if (uv is None) != (texture is None):
+            raise RenderError("a textured mesh needs both uv and texture")
+        uv = np.zeros((n, 2), dtype=np.float32) if uv is None else np.asarray(uv, dtype=np.float32).reshape(n, 2)
         # unindexed: three vertices per triangle (no index buffer; meshes are small)
-        data = np.hstack([vertices[triangles.ravel()], normals[triangles.ravel()]]).astype("f4")
-        buffer = self.ctx.buffer(data.tobytes())
-        vao = self.ctx.vertex_array(self.program, [(buffer, "3f 3f", "position", "normal")])
-        self.meshes.append((vao, buffer, np.asarray(colour, dtype=np.float32).reshape(3)))
+        corners = triangles.ravel()
+        data = np.hstack([vertices[corners], normals[corners], colours[corners], uv[corners]]).astype("f4")
+        with self.ctx:
+            buffer = self.ctx.buffer(data.tobytes())
+            vao = self.ctx.vertex_array(self.program, [(buffer, "3f 3f 3f 2f", "position", "normal", "colour", "uv")])
+            self.meshes.append((vao, buffer, None if texture is None else self._texture(texture)))
         return len(self.meshes) - 1
+
+    def _texture(self, image: np.ndarray):
+        import moderngl
+
+        image = np.asarray(image, dtype=np.uint8)
+        if image.ndim != 3 or image.shape[2] not in (3, 4):
+            raise RenderError(f"a texture is (h, w, 3 or 4) uint8, got shape {image.shape}")
+        rows = np.ascontiguousarray(image[::-1, :, :3])      # OpenGL's row 0 is the bottom
+        texture = self.ctx.texture((rows.shape[1], rows.shape[0]), 3, rows.tobytes(), alignment=1)
+        texture.build_mipmaps()
+        texture.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        texture.repeat_x = texture.repeat_y = True
+        return texture
 
     def render(self, T_camera_meshes, sun_camera: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """Draw every mesh at its pose ``T_camera_meshes[i]`` (4x4, mesh frame -> camera frame, m;
         None: not drawn) lit by the Sun from ``sun_camera`` (unit vector towards the Sun, camera
         axes; None: no Sun). Returns ``rgb`` (H, W, 3) uint8 and ``depth`` (H, W) float32 (m along
         the optical axis, 0 where nothing is hit)."""
+        with self.ctx:
+            return self._render(T_camera_meshes, sun_camera)
+
+    def _render(self, T_camera_meshes, sun_camera):
         import moderngl
 
         ctx = self.ctx
@@ -161,11 +204,13 @@ class Renderer:
         sun = np.zeros(3, dtype=np.float32) if sun_camera is None else np.asarray(sun_camera, dtype=np.float32)
         self.program["sun_camera"].write(sun.tobytes())
         self.program["ambient"].value = self.ambient
-        for (vao, _, colour), T in zip(self.meshes, T_camera_meshes):
+        for (vao, _, texture), T in zip(self.meshes, T_camera_meshes):
             if T is None:
                 continue
             self.program["T_camera_mesh"].write(np.asarray(T, dtype=np.float64).T.astype("f4").tobytes())
-            self.program["colour"].write(colour.tobytes())
+            self.program["textured"].value = texture is not None
+            if texture is not None:
+                texture.use(location=0)
             vao.render(moderngl.TRIANGLES)
         rgba = np.frombuffer(self.fbo.read(components=4, attachment=0, dtype="f1"), dtype=np.uint8)
         depth = np.frombuffer(self.fbo.read(components=1, attachment=1, dtype="f4"), dtype=np.float32)
@@ -174,9 +219,13 @@ class Renderer:
 
     def release(self) -> None:
         """Free the GL objects and the context."""
-        for vao, buffer, _ in self.meshes:
-            vao.release()
-            buffer.release()
-        self.meshes = []
-        for thing in (self.fbo, self.colour_buffer, self.depth_buffer, self.z_buffer, self.program, self.ctx):
-            thing.release()
+        with self.ctx:
+            for vao, buffer, texture in self.meshes:
+                vao.release()
+                buffer.release()
+                if texture is not None:
+                    texture.release()
+            self.meshes = []
+            for thing in (self.fbo, self.colour_buffer, self.depth_buffer, self.z_buffer, self.program):
+                thing.release()
+        self.ctx.release()

@@ -5,8 +5,9 @@ Plain functions and a class, no bus and no I/O beyond reading the URDFs and thei
 (:mod:`components.viewer.robot`, the meshes the viewer loads). Boxes, cylinders (64 sides) and
 spheres (an icosphere of 1280 triangles) are tessellated here; a mesh visual is read with trimesh,
 its ``scale`` applied. A visual whose mesh cannot be read is replaced by its link's collision
-shapes, as the viewer does. Each visual gets one colour, the URDF's (a mesh's own vertex
-colours or textures are not used). Normals are per triangle (flat shading). Units: m.
+shapes, as the viewer does. Colour: a mesh file's texture (its base colour image and texture
+coordinates: .obj with .mtl, .glb/.gltf, .dae) or its face or vertex colours when it has them,
+else the URDF's colour. Normals are per triangle (flat shading). Units: m.
 """
 from __future__ import annotations
 
@@ -15,18 +16,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from components.rotations import quat_to_matrix, rpy_to_matrix
-from components.viewer.robot import Geometry, Kinematics, Visual, mesh_arrays
+from components.viewer.robot import Geometry, Kinematics, Visual
 
 
 @dataclass(frozen=True)
 class VisualMesh:
-    """One visual's triangles in its link's frame: ``vertices`` (3 per triangle, (3m, 3)) and
-    their ``normals`` (the triangle's), ``colour`` (r, g, b) in 0..1; ``link`` its index in the
-    body's links."""
+    """One visual's triangles in its link's frame: ``vertices`` (3 per triangle, (3m, 3)), their
+    ``normals`` (the triangle's) and ``colours`` (r, g, b in 0..1), or ``uv`` and a ``texture``
+    ((h, w, 3) uint8, row 0 the top); ``link`` its index in the body's links."""
     link: int
     vertices: np.ndarray
     normals: np.ndarray
-    colour: tuple[float, float, float]
+    colours: np.ndarray
+    uv: np.ndarray | None = None
+    texture: np.ndarray | None = None
 
 
 def transform(R: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -53,10 +56,33 @@ def _shape_trimesh(visual: Visual):
     if visual.kind == "mesh":
         if visual.mesh is None:
             raise ValueError("mesh file not found")
-        vertices, triangles, _, _ = mesh_arrays(visual.mesh)
-        return trimesh.Trimesh(vertices=np.asarray(vertices, dtype=np.float64) * np.asarray(visual.size),
-                               faces=triangles, process=False)
+        mesh = trimesh.load(str(visual.mesh), force="mesh")
+        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+            raise ValueError(f"{visual.mesh.name}: no triangles")
+        mesh.vertices = np.asarray(mesh.vertices, dtype=np.float64) * np.asarray(visual.size)
+        return mesh
     raise ValueError(f"unknown visual kind {visual.kind!r}")
+
+
+def _appearance(mesh, colour: tuple[float, float, float]):
+    """(colours (3m, 3), uv (3m, 2) or None, texture or None) per triangle corner of ``mesh``: its
+    texture, else its face or vertex colours, else ``colour``."""
+    corners = mesh.faces.ravel()
+    visual = mesh.visual
+    try:
+        if visual.kind == "texture" and getattr(visual, "uv", None) is not None and len(visual.uv) == len(mesh.vertices):
+            material = visual.material
+            image = getattr(material, "image", None) or getattr(material, "baseColorTexture", None)
+            if image is not None:
+                texture = np.asarray(image.convert("RGB"), dtype=np.uint8)
+                return np.tile(colour, (len(corners), 1)), np.asarray(visual.uv, dtype=np.float64)[corners], texture
+        if visual.kind == "face":
+            return np.repeat(np.asarray(visual.face_colors, dtype=np.float64)[:, :3] / 255.0, 3, axis=0), None, None
+        if visual.kind == "vertex":
+            return np.asarray(visual.vertex_colors, dtype=np.float64)[corners, :3] / 255.0, None, None
+    except Exception:   # a material trimesh cannot read: the URDF's colour instead
+        pass
+    return np.tile(colour, (len(corners), 1)), None, None
 
 
 def visual_meshes(geometry: Geometry) -> tuple[list[VisualMesh], list[str]]:
@@ -80,8 +106,8 @@ def visual_meshes(geometry: Geometry) -> tuple[list[VisualMesh], list[str]]:
             corners = mesh.vertices[mesh.faces.ravel()]                       # 3 per triangle
             corners = corners @ T[:3, :3].T + T[:3, 3]
             normals = np.repeat(np.asarray(mesh.face_normals) @ T[:3, :3].T, 3, axis=0)
-            meshes.append(VisualMesh(geometry.links.index(visual.link), corners, normals,
-                                     tuple(c / 255.0 for c in visual.color[:3])))
+            colours, uv, texture = _appearance(mesh, np.array(visual.color[:3], dtype=np.float64) / 255.0)
+            meshes.append(VisualMesh(geometry.links.index(visual.link), corners, normals, colours, uv, texture))
     return meshes, notes
 
 

@@ -6,7 +6,7 @@
 | ``/<dyn>/<body>/joint_states`` | sensor_msgs/JointState | the URDF's movable joints: ``q`` (rad, m), ``qd``, effort: the output feeding ``<body>.tau`` (N m, N; empty if not connected) |
 | ``/<dyn>/<body>/pose`` | geometry_msgs/PoseStamped | the base in W (``position``, ``orientation``), frame ``<dyn>/world`` |
 | ``/<dyn>/<body>/twist`` | geometry_msgs/TwistStamped | the base's ``twist`` (m/s, rad/s), W axes, frame ``<dyn>/world`` |
-| ``/<dyn>/<body>/robot_description`` | std_msgs/String | the URDF (transient local), links unprefixed: prefix ``<dyn>/<body>/`` in RViz or Foxglove |
+| ``/<dyn>/<body>/robot_description`` | std_msgs/String | the URDF as written (``package://`` mesh URIs kept; transient local), links unprefixed: prefix ``<dyn>/<body>/`` in RViz or Foxglove |
 
 Base pose and twist are in W, not LVLH: they are what the dynamics records, so the bag is exact;
 ``/tf`` places W and LVLH in ECI, so tf gives the base in LVLH.
@@ -53,7 +53,7 @@ def _links_in_w(context: RosContext, dynamics: str, body: str, urdf, position, o
 
 
 def _topics(context: RosContext, dynamics: str):
-    from components.robots.urdf import read_urdf
+    from components.robots.urdf import read_urdf, source_text
 
     run, stamps = context.run, context.stamps
     try:
@@ -76,12 +76,13 @@ def _topics(context: RosContext, dynamics: str):
         try:
             urdf = resolve_urdf(spec["urdf"], run.config_dir, f"bodies.{body}.urdf", _packages(context))
             model = read_urdf(urdf, _packages(context))
+            description = source_text(urdf, _packages(context))
         except (ConfigError, ValueError, OSError) as e:
             context.warn(f"{prefix}: its URDF cannot be read ({e}); no joint names, links or robot_description")
             urdf = model = None
         if model is not None:
             topics.append(RosTopic(f"/{dynamics}/{body}/robot_description", "std_msgs/msg/String",
-                                   [(int(stamps[0]), context.msg("std_msgs/msg/String")(data=model.text or Path(urdf).read_text()))],
+                                   [(int(stamps[0]), context.msg("std_msgs/msg/String")(data=description))],
                                    latched=True))
         if position is None or orientation is None:
             continue
@@ -159,6 +160,36 @@ def _output_frames(context: RosContext, dynamics: str) -> dict[str, str]:
     return frames
 
 
+def _assets(context: RosContext, dynamics: str) -> dict[str, Path]:
+    """The mesh files the bodies' ``robot_description`` names, by the URI as written there
+    (``package://...``, ``file://...`` or a path relative to the URDF), resolved as the run did."""
+    import xml.etree.ElementTree as ET
+
+    from components.robots.packages import PackageError, resolve_uri
+    from components.robots.urdf import source_text
+
+    assets: dict[str, Path] = {}
+    try:
+        bodies = body_items(context.run.parameters(dynamics).get("bodies"))
+    except ConfigError:
+        return assets
+    packages = _packages(context)
+    for body, spec in bodies:
+        try:
+            urdf = resolve_urdf(spec["urdf"], context.run.config_dir, f"bodies.{body}.urdf", packages)
+            text = source_text(urdf, packages)
+            meshes = ET.fromstring(text).iter("mesh")
+        except (ConfigError, ValueError, OSError, ET.ParseError):
+            continue   # the topics' builder says why the URDF cannot be read
+        for mesh in meshes:
+            uri = mesh.get("filename")
+            try:
+                assets.setdefault(uri, resolve_uri(uri, urdf.parent, packages))
+            except PackageError as e:
+                context.warn(f"{dynamics}.{body}: mesh not served ({e})")
+    return assets
+
+
 ROS_EXPORT = RosExport(
     "per body: joint_states, base pose and twist in W, robot_description; /tf: W in ECI, every link in W",
-    _topics, _output_frames)
+    _topics, _output_frames, _assets)

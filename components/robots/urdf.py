@@ -213,21 +213,29 @@ def _resolve_meshes(robot: ET.Element, path: Path, packages) -> None:
                         raise UrdfError(f"{path.name}: link {link.get('name')!r} {kind} mesh {e}") from None
 
 
-def read_urdf(path: str | Path, packages=None) -> UrdfModel:
-    """Parse and check a URDF (or .xacro) file: tree of links, supported joints, positive base
-    mass, physical inertias, mesh files found. ``packages``: name -> directory (``run.packages``)."""
-    path = Path(path)
+def _source(path: Path, packages) -> str | bytes:
     if not path.is_file():
         raise UrdfError(f"URDF file {path} not found")
     try:
         if path.suffix == ".xacro":
-            text = process_xacro(path, packages)
-        else:
-            text = path.read_bytes()          # bytes: the XML declaration's encoding applies
-    except PackageError as e:
+            return process_xacro(path, packages)
+        return path.read_bytes()              # bytes: the XML declaration's encoding applies
+    except (PackageError, ValueError) as e:
         raise UrdfError(str(e)) from None
-    except ValueError as e:
-        raise UrdfError(str(e)) from None
+
+
+def source_text(path: str | Path, packages=None) -> str:
+    """The URDF as its author wrote it: a ``.xacro`` expanded, mesh URIs as written (``package://``
+    kept), what ROS's ``robot_description`` carries; UrdfError when it cannot be read."""
+    text = _source(Path(path), packages)
+    return text.decode("utf-8") if isinstance(text, bytes) else text
+
+
+def read_urdf(path: str | Path, packages=None) -> UrdfModel:
+    """Parse and check a URDF (or .xacro) file: tree of links, supported joints, positive base
+    mass, physical inertias, mesh files found. ``packages``: name -> directory (``run.packages``)."""
+    path = Path(path)
+    text = _source(path, packages)
     try:
         tree = ET.ElementTree(ET.fromstring(text))
     except ET.ParseError as e:

@@ -15,7 +15,9 @@ builders (:func:`components.rosbag.run_topics`): the same topics, message types 
 ``orchestrator export --rosbag2`` writes for those rows, on ``ros2msg`` schema / ``cdr`` channels
 (Foxglove reads ROS 2 messages without a ROS install). Latched topics (``/tf_static``,
 ``robot_description``) are built from the first batch and sent again whenever a client subscribes
-to them: the server keeps no history. Like the Rerun observer it runs niced and reads a dropping
+to them: the server keeps no history. The meshes the robots' ``robot_description`` names
+(``package://`` URIs as written) are served to Foxglove's 3D panel on request (the protocol's
+``fetchAsset``); no other file is. Like the Rerun observer it runs niced and reads a dropping
 publisher: a slow client never holds up a step (the server drops its oldest messages for it).
 """
 from __future__ import annotations
@@ -30,7 +32,10 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
+
 from components import bus, bus_security
+from components.ros_topics import LiveTopics
 from components.viewer.observer import (LIVE_BATCH_S, MAX_BATCH_ROWS, NICENESS, POLL_S, RowBuffer, Stop,
                                         orchestrator_gone, raise_stop, take_rows)
 
@@ -74,6 +79,8 @@ class RosChannels:
         self.latched_ns: dict[str, int] = {}
         self.warned: set[str] = set()
         self.rows_sent = 0
+        self.live = LiveTopics(config, config_dir, columns, self.typestore, self.warn)
+        self.assets = self._assets()               # URI -> file: what robot_description references
         self._resend: set[str] = set()             # latched topics subscribed to since the last batch
         self._lock = threading.Lock()
 
@@ -99,28 +106,30 @@ class RosChannels:
     def build(self, times, rows) -> tuple[list, int]:
         """The messages of a batch of rows as (log time = ROS stamp, channel, CDR bytes), in time
         order, and the last row's stamp (ns). Creates the channels of topics not seen before."""
-        from components.plotting import RecordedRun
-        from components.rosbag import RosContext
-        from components.ros_topics import run_topics
-
-        run = RecordedRun(self.config, {name: rows[:, i] for i, name in enumerate(self.columns)}, times,
-                          self.config_dir)
-        context = RosContext(run, self.typestore, self.warn)
+        batch, stamp = self.live.batch(times, rows)
         queue = []
-        for topic in run_topics(context, self.warn):
+        for topic, messages in batch:
             channel = self._channel(topic.name, topic.msgtype)
-            if topic.latched:
-                if topic.name not in self.latched and topic.messages:
-                    ns, message = topic.messages[0]
-                    self.latched[topic.name] = bytes(self.typestore.serialize_cdr(message, topic.msgtype))
-                    self.latched_ns[topic.name] = ns
-                    queue.append((ns, channel, self.latched[topic.name]))
-                continue
-            queue += [(ns, channel, bytes(self.typestore.serialize_cdr(message, topic.msgtype)))
-                      for ns, message in topic.messages]
+            if topic.latched and messages:
+                self.latched_ns[topic.name], self.latched[topic.name] = messages[0]
+            queue += [(ns, channel, data) for ns, data in messages]
         queue.sort(key=lambda item: item[0])   # stable: topics in the exporter's order within a stamp
         self.rows_sent += len(times)
-        return queue, int(context.stamps[-1])
+        return queue, stamp
+
+    def _assets(self) -> dict[str, Path]:
+        from components.plotting import RecordedRun
+        from components.rosbag import RosContext
+        from components.ros_topics import run_assets
+
+        run = RecordedRun(self.config, {}, np.zeros(1), self.config_dir)
+        return run_assets(RosContext(run, self.typestore, self.warn), self.warn)
+
+    def asset(self, uri: str) -> bytes | None:
+        """A mesh a robot_description names (server thread, Foxglove's fetchAsset); None (not
+        found) for any other URI: only the robots' own files are served."""
+        path = self.assets.get(uri)
+        return path.read_bytes() if path is not None else None
 
     @staticmethod
     def log(queue) -> None:
@@ -173,7 +182,7 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
                 if server is None:
                     # only now: every channel exists before a client can subscribe (foxglove-sdk
                     # 0.30 may answer "unknown channel" to a subscription racing an advertisement)
-                    server = _serve(channels, name=(config.get("run") or {}).get("name") or run_id, port=port)
+                    server = serve(channels, name=(config.get("run") or {}).get("name") or run_id, port=port)
                 channels.log(queue)
                 server.broadcast_time(stamp)
                 last_log = now
@@ -203,12 +212,13 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
     return 0
 
 
-def _serve(channels: RosChannels, name: str, port: int):
+def serve(channels: RosChannels, name: str, port: int):
     """Start the WebSocket server on the channels' context; raises ServeError naming the port."""
     import foxglove
     try:
         server = foxglove.start_server(name=name, host=HOST, port=port, context=channels.context,
-                                       server_listener=_listener(channels), capabilities=[foxglove.Capability.Time])
+                                       server_listener=_listener(channels), capabilities=[foxglove.Capability.Time],
+                                       asset_handler=channels.asset)
     except RuntimeError as e:
         raise ServeError(f"cannot listen on port {port}: {e}") from None
     log(f"serving the run on ws://localhost:{server.port} (Foxglove: Open connection, Foxglove WebSocket)")

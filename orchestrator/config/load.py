@@ -14,8 +14,8 @@ from components.errors import ConfigError
 from components.units import duration_text
 from orchestrator.config import groups
 from orchestrator.hosts import bus_config
-from orchestrator.config.schema import BUS, COMPONENT, CONFIG, FAULT, MAX_STEPS, RUN, VIEWER
-from orchestrator.config.specs import ComponentSpec, Event, Fault, RunConfig, ViewerSpec
+from orchestrator.config.schema import BUS, COMPONENT, CONFIG, FAULT, MAX_STEPS, ROS2, RUN, VIEWER
+from orchestrator.config.specs import ComponentSpec, Event, Fault, Ros2Spec, RunConfig, ViewerSpec
 from orchestrator.config.yaml_file import ConfigErrors, apply_overrides, read_yaml
 from orchestrator.config.connections import check_replacement, hands_over, handover_problem, parse_connections
 from orchestrator.config.shadows import mismatches, shadow_spec, with_shadows
@@ -51,6 +51,49 @@ def _viewer(section: dict, where: str, errors: list[str], base: Path) -> ViewerS
         return None
     return ViewerSpec(mode=section["mode"], file=(base / file) if file else None, rate_hz=section["rate"],
                       open_browser=section["open_browser"], port=section["port"])
+
+
+def clock_clash(components: dict[str, ComponentSpec], ros2: Ros2Spec | None, where: str) -> str | None:
+    """Why the live ROS 2 view cannot publish ``/clock`` beside a ``ros2.bridge`` that does, in one
+    domain, or None: a node with use_sim_time would hear two clocks, the view's lagging the bridge's."""
+    if ros2 is None or (ros2.topics is not None and "/clock" not in ros2.topics):
+        return None
+    for name, spec in components.items():
+        if spec.type == "ros2.bridge" and spec.resolved["clock"] and spec.resolved["domain_id"] == ros2.domain_id:
+            return (f"{where}: the live ROS 2 view would publish /clock in domain {ros2.domain_id}, where the bridge "
+                    f"{name!r} publishes the run's /clock in lockstep (a node with use_sim_time would hear both): "
+                    f"give ros2.topics without /clock, or components.{name}.parameters.clock: false")
+    return None
+
+
+def ros2_spec(raw: Any, where: str, errors: list[str], endpoint: str | None = None) -> Ros2Spec | None:
+    """Parse a ``ros2:`` section (None: the defaults); ``endpoint``: ``--ros2 ENDPOINT``, which
+    wins. The domain id, if not given, is the environment's ROS_DOMAIN_ID, else 0. A topic name
+    ROS 2 rejects is an error naming it."""
+    import os
+
+    from components.ros2.rmw_zenoh import check_topic_name
+
+    if raw is None or isinstance(raw, dict):
+        raw = {**(raw or {}), **({"endpoint": endpoint} if endpoint is not None else {})}
+    section, problems = ROS2.resolve(raw, where)
+    if problems:
+        errors += [str(e) for e in problems]
+        return None
+    domain_id = section["domain_id"]
+    if domain_id is None:
+        text = os.environ.get("ROS_DOMAIN_ID", "").strip()
+        if text and not text.isdigit():
+            errors.append(f"{where}.domain_id: from ROS_DOMAIN_ID, expected an integer >= 0, got {text!r}")
+            return None
+        domain_id = int(text) if text else 0
+    rejected = [f"{where}.topics[{i}]: ROS 2 rejects the topic name {topic!r}: {problem}"
+                for i, topic in enumerate(section["topics"] or []) if (problem := check_topic_name(topic))]
+    if rejected:
+        errors += rejected
+        return None
+    return Ros2Spec(endpoint=section["endpoint"], domain_id=domain_id, distro=section["distro"],
+                    topics=section["topics"], rate_hz=section["rate"])
 
 
 def load(path: str | Path, overrides: list[str] = (), full: bool = False) -> RunConfig:
@@ -175,6 +218,13 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
         problems_of_viewer: list[str] = []
         viewer = _viewer(config["viewer"], "viewer", problems_of_viewer, path.parent)
         errors += [f"{file}: {m}" for m in problems_of_viewer]
+    ros2 = None
+    if config.get("ros2") is not None:
+        problems_of_ros2: list[str] = []
+        ros2 = ros2_spec(config["ros2"], "ros2", problems_of_ros2)
+        errors += [f"{file}: {m}" for m in problems_of_ros2]
+        if clash := clock_clash(components, ros2, "ros2"):
+            errors.append(f"{file}: {clash}")
     if errors:
         raise ConfigErrors(errors)
     resolved = {
@@ -189,12 +239,14 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
     }
     if viewer is not None:
         resolved["viewer"] = VIEWER.plain(config["viewer"])
+    if ros2 is not None:
+        resolved["ros2"] = ROS2.plain({**config["ros2"], "domain_id": ros2.domain_id})
     return RunConfig(path=path, name=run["name"], epoch=epoch, duration_ns=total_ns, step_ns=step_ns,
                      algorithm=run["algorithm"], realtime=run["realtime"], step_timeout_s=run["step_timeout"] / NS_PER_S,
                      start_timeout_s=run["start_timeout"] / NS_PER_S, components=components, connections=connections,
                      listen=config["bus"]["listen"], bus=bus_spec, join_timeout_s=run["join_timeout"] / NS_PER_S,
                      events=events, faults=faults, checkpoint_ns=checkpoint_ns,
-                     max_restarts=run["max_restarts"], viewer=viewer, resolved=resolved, packages=packages, notes=notes,
+                     max_restarts=run["max_restarts"], viewer=viewer, ros2=ros2, resolved=resolved, packages=packages, notes=notes,
                      record_flush_s=run["record_flush"] / NS_PER_S)
 
 

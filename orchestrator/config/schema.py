@@ -11,6 +11,8 @@ from components.schema import (Anything, Bool, Duration, Float, Int, ListOf, Map
 MAX_STEPS = 10 ** 12   # steps in a run: beyond, a typo (a duration in the wrong unit), not an experiment
 VIEWER_MODES = ("spawn", "web", "save", "foxglove", "off")
 FOXGLOVE_PORT = 8765   # the Foxglove app's default WebSocket port
+ROS2_ENDPOINT = "tcp/localhost:7447"   # rmw_zenohd's default listen endpoint
+ROS2_DISTROS = ("jazzy", "kilted", "lyrical")   # rmw_zenoh with type hashes in its keys (Jazzy and later)
 NAME = r"[A-Za-z][A-Za-z0-9_]*"
 ENDPOINT = r"(tcp|udp|tls|quic)/(\[[0-9a-fA-F:]+\]|[A-Za-z0-9.\-]+):\d{1,5}"
 
@@ -80,6 +82,20 @@ VIEWER = Record("viewer", (
     Parameter("port", Int(minimum=1), default=FOXGLOVE_PORT,
               description="foxglove: the WebSocket port on localhost (ws://localhost:PORT)"),
 ), description="the live view, in Rerun or Foxglove (``viewer:``, or ``--view``)")
+ROS2 = Record("ros2", (
+    Parameter("endpoint", Str(pattern=ENDPOINT, hint="a Zenoh endpoint like tcp/localhost:7447"), default=ROS2_ENDPOINT,
+              description="the ROS side's Zenoh router (ros2 run rmw_zenoh_cpp rmw_zenohd)"),
+    Parameter("domain_id", Int(minimum=0), default=None,
+              description="the ROS domain (default: the environment's ROS_DOMAIN_ID, else 0)"),
+    Parameter("distro", Str(ROS2_DISTROS), default="jazzy",
+              description="the ROS 2 distribution whose message definitions and type hashes are used"),
+    Parameter("topics", ListOf(Str(hint="a topic name like /clock"), unique=True), default=None,
+              description="the topics published, by name as orchestrator export --rosbag2 writes them "
+                          "(default: all)"),
+    Parameter("rate", Float("Hz", positive=True), default=30.0,
+              description="rows per second of simulated time (at most one per step; with a viewer, the "
+                          "higher of the two rates)"),
+), description="the live ROS 2 view over rmw_zenoh (``ros2:``, or ``--ros2 [ENDPOINT]``)")
 SHADOW = Record("shadow", (
     Parameter("type", Str(hint="a component type name"),
               description="any type with the component's connected inputs and all its outputs, same shapes and units"),
@@ -130,6 +146,7 @@ CONFIG = Record("config", (
     Parameter("events", ListOf(EVENT), default=[], description="swaps during the run"),
     Parameter("faults", ListOf(FAULT), default=[], description="injected failures, to test a setup's recovery"),
     Parameter("viewer", VIEWER, default=None, description="the live view (Rerun or Foxglove)"),
+    Parameter("ros2", ROS2, default=None, description="the live ROS 2 view over rmw_zenoh"),
 ), description="a run config")
 
 

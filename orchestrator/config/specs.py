@@ -46,6 +46,17 @@ class ViewerSpec:
 
 
 @dataclass
+class Ros2Spec:
+    """The live ROS 2 view: the ROS side's router ``endpoint``, ``domain_id``, ``distro``,
+    ``topics`` (None: all), ``rate_hz`` of sim time."""
+    endpoint: str
+    domain_id: int
+    distro: str
+    topics: list[str] | None
+    rate_hz: float
+
+
+@dataclass
 class Event:
     at_ns: int
     swap: str
@@ -84,6 +95,7 @@ class RunConfig:
     checkpoint_ns: int | None = None
     max_restarts: int = 3
     viewer: ViewerSpec | None = None
+    ros2: Ros2Spec | None = None
     resolved: dict = field(default_factory=dict)   # the config as written to config.yaml
     packages: dict = field(default_factory=dict)   # run.packages: name -> absolute directory
     notes: list = field(default_factory=list)      # warnings found by the check (physics), one line each

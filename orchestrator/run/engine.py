@@ -38,7 +38,7 @@ from components import bus, protocol
 from components.constants import NS_PER_S
 from orchestrator.run import pacing, recovery, report, runs, supervisor, wiring
 from orchestrator.config import groups, shadows
-from orchestrator.config.specs import ComponentSpec, RunConfig, ViewerSpec
+from orchestrator.config.specs import ComponentSpec, Ros2Spec, RunConfig, ViewerSpec
 from orchestrator.run.control import ControlServer, StopRequested, raise_stop
 from orchestrator.run.listener import Listener
 from orchestrator.run.members import Crew, RunFailure, terminate
@@ -53,9 +53,11 @@ class Run:
     """One execution of a validated config. ``execute()`` returns the exit code (0, 1, 130)."""
 
     def __init__(self, config: RunConfig, *, record: str | Path | None = None, profile: bool = False,
-                 progress: bool = False, out=sys.stderr, viewer: ViewerSpec | None = None):
+                 progress: bool = False, out=sys.stderr, viewer: ViewerSpec | None = None,
+                 ros2: Ros2Spec | None = None):
         self.config = config
         self.viewer = viewer or config.viewer
+        self.ros2 = ros2 or config.ros2
         self.record_dir = Path(record) if record else None
         self.profile = profile
         self.progress = progress
@@ -216,7 +218,7 @@ class Run:
         self.session = session = self.hosts.open()
         run_id = self.run_id
         self._subscriptions = subscribe(session, run_id, self.state.inbox.put)
-        self.viewer_link = ViewerLink(self.viewer, session, run_id)
+        self.viewer_link = ViewerLink(self.viewer, session, run_id, ros2=self.ros2)
         self.listener = Listener(self.state, self.controls, self.hosts, self.viewer_link, self.out)
         self.crew = Crew(self.config, run_id=run_id, session=session, endpoint=self.hosts.local, secret=self.secret,
                          env=self.child_env, log_dir=self.log_dir, placement=self.placement, out=self.out,
@@ -260,7 +262,10 @@ class Run:
                                                  cpus=self.placement.shared, wait=self.listener.wait,
                                                  frames_dir=self.record_dir / "frames" if self.record_dir else None)
         if rows.decimation:
-            state.log("viewer", mode=self.viewer.mode, rate_hz=self.viewer.rate_hz)
+            if self.viewer is not None:
+                state.log("viewer", mode=self.viewer.mode, rate_hz=self.viewer.rate_hz)
+            if self.ros2 is not None:
+                state.log("ros2", endpoint=self.ros2.endpoint, domain_id=self.ros2.domain_id, rate_hz=self.ros2.rate_hz)
             rows.signals = self.viewer_link.signals.put
             rows.publish()
         self.listener.sync(list(state.members.values()))

@@ -60,11 +60,12 @@ class Listener:
             return
         name = message.name
         if type(message) is Liveliness:
-            if name == bus.VIEWER:
+            if name in (bus.VIEWER, bus.ROS2):
                 if message.alive and expect.get(name) == "alive":
                     del expect[name]
                 elif not message.alive:
-                    run.log("warning", message="the viewer went away; the run goes on", step=run.rows.row)
+                    what = "the viewer" if name == bus.VIEWER else "the ROS 2 view"
+                    run.log("warning", message=f"{what} went away; the run goes on", step=run.rows.row)
                 return
             member = self._member(name, message.generation)
             if member is None:
@@ -154,8 +155,8 @@ class Listener:
     def check_processes(self, names) -> None:
         """Fail if the process of one of these members (or the viewer) has exited."""
         for name in names:
-            if name == bus.VIEWER:
-                if problem := self.viewer_link.exited():
+            if name in (bus.VIEWER, bus.ROS2):
+                if problem := self.viewer_link.exited(name):
                     raise RunFailure(problem)
                 continue
             member = self.run.joining.get(name) or self.run.members[name]

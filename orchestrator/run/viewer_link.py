@@ -1,9 +1,11 @@
-"""The run's side of the live viewer: the signals publisher (rows, and the end of the run) and the
-observer process (components/viewer/observer.py for Rerun, components/viewer/foxglove_observer.py
-for Foxglove), started and stopped with the run."""
+"""The run's side of the live views: the signals publisher (rows, and the end of the run) and the
+observer processes reading it, started and stopped with the run: the viewer
+(components/viewer/observer.py for Rerun, components/viewer/foxglove_observer.py for Foxglove) and
+the ROS 2 view (components/ros2/observer.py, ``--ros2``)."""
 from __future__ import annotations
 
 import json
+import re
 import signal
 import subprocess
 import sys
@@ -12,7 +14,7 @@ from pathlib import Path
 from components import bus
 from components.constants import NS_PER_S
 from orchestrator.run import supervisor
-from orchestrator.config.specs import RunConfig, ViewerSpec
+from orchestrator.config.specs import Ros2Spec, RunConfig, ViewerSpec
 from orchestrator.run.control import StopRequested, raise_stop
 from orchestrator.run.members import Wait
 
@@ -20,44 +22,71 @@ from orchestrator.run.members import Wait
 class ViewerLink:
     """``signals``: the publisher of the rows for observers (any run has one; it may drop)."""
 
-    def __init__(self, spec: ViewerSpec | None, session, run_id: str):
+    def __init__(self, spec: ViewerSpec | None, session, run_id: str, ros2: Ros2Spec | None = None):
         self.spec = spec
-        self.process: subprocess.Popen | None = None
+        self.ros2 = ros2
+        self.process: subprocess.Popen | None = None        # the viewer's
+        self.ros2_process: subprocess.Popen | None = None
         self.signals = bus.publisher(session, bus.signals_key(run_id), drop=True)
+
+    def _spawn(self, module: str, endpoint: str, run_id: str, setup, env: dict, cpus: frozenset[int]):
+        process = subprocess.Popen([sys.executable, "-m", module, "--connect", endpoint, "--run-id", run_id,
+                                    "--setup", str(setup)],
+                                   stdin=subprocess.DEVNULL, preexec_fn=supervisor.child_setup, env=env)
+        supervisor.keep_to(cpus, process.pid)
+        return process
 
     def start(self, config: RunConfig, columns: list[str], *, setup, endpoint: str, run_id: str, env: dict,
               cpus: frozenset[int], wait: Wait, frames_dir: Path | None = None) -> int:
-        """Start the observer, if asked (setup file at ``setup``), and wait for its liveliness
-        token; return the decimation (publish every n-th row), or 0."""
-        if self.spec is None:
+        """Start the observers asked for (setup files ``setup`` and ``ros2.json`` beside it) and wait
+        for their liveliness tokens; return the decimation (publish every n-th row), or 0.
+        ``frames_dir``: the recording's frames/ (the cameras' images), None without --record."""
+        rates, expected = [], {}
+        if self.spec is not None:
+            setup.write_text(json.dumps({
+                "columns": columns, "config": config.resolved, "step_ns": config.step_ns,
+                "config_dir": str(config.path.parent.resolve()), "epoch": config.epoch,
+                "mode": self.spec.mode, "file": str(self.spec.file) if self.spec.file else None,
+                "open_browser": self.spec.open_browser, "port": self.spec.port,
+                "frames_dir": str(frames_dir) if frames_dir else None,
+                "linger": sys.stdin.isatty()}))   # foxglove: keep serving after the run (stop() waits for it)
+            module = ("components.viewer.foxglove_observer" if self.spec.mode == "foxglove"
+                      else "components.viewer.observer")
+            self.process = self._spawn(module, endpoint, run_id, setup, env, cpus)
+            rates.append(self.spec.rate_hz)
+            expected[bus.VIEWER] = "alive"
+        if self.ros2 is not None:
+            ros2_setup = setup.with_name("ros2.json")
+            node = "zenorbit_" + re.sub(r"[^A-Za-z0-9_]", "_", config.name)
+            ros2_setup.write_text(json.dumps({
+                "columns": columns, "config": config.resolved, "config_dir": str(config.path.parent.resolve()),
+                "ros2": {"endpoint": self.ros2.endpoint, "domain_id": self.ros2.domain_id,
+                         "distro": self.ros2.distro, "topics": self.ros2.topics, "node": node}}))
+            self.ros2_process = self._spawn("components.ros2.observer", endpoint, run_id, ros2_setup, env, cpus)
+            rates.append(self.ros2.rate_hz)
+            expected[bus.ROS2] = "alive"
+        if not expected:
             return 0
-        setup.write_text(json.dumps({
-            "columns": columns, "config": config.resolved, "step_ns": config.step_ns,
-            "config_dir": str(config.path.parent.resolve()), "epoch": config.epoch,
-            "mode": self.spec.mode, "file": str(self.spec.file) if self.spec.file else None,
-            "open_browser": self.spec.open_browser, "port": self.spec.port,
-            "frames_dir": str(frames_dir) if frames_dir else None,   # the cameras' images (with --record)
-            "linger": sys.stdin.isatty()}))   # foxglove: keep serving after the run (stop() waits for it)
-        module = "components.viewer.foxglove_observer" if self.spec.mode == "foxglove" else "components.viewer.observer"
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", module, "--connect", endpoint,
-             "--run-id", run_id, "--setup", str(setup)],
-            stdin=subprocess.DEVNULL, preexec_fn=supervisor.child_setup, env=env)
-        supervisor.keep_to(cpus, self.process.pid)
-        wait({bus.VIEWER: "alive"}, config.start_timeout_s, "viewer start-up")
-        return max(1, round(NS_PER_S / (self.spec.rate_hz * config.step_ns)))
+        wait(expected, config.start_timeout_s, "viewer start-up")
+        return max(1, round(NS_PER_S / (max(rates) * config.step_ns)))
 
-    def exited(self) -> str | None:
-        """Why the run cannot start, if the observer has exited."""
-        if self.process.poll() is not None:
-            return f"the viewer exited during start-up with code {self.process.returncode} (see its message above)"
+    def exited(self, name: str = bus.VIEWER) -> str | None:
+        """Why the run cannot start, if the observer ``name`` (bus.VIEWER, bus.ROS2) has exited."""
+        process, what = ((self.ros2_process, "the ROS 2 view") if name == bus.ROS2 else (self.process, "the viewer"))
+        if process is not None and process.poll() is not None:
+            return f"{what} exited during start-up with code {process.returncode} (see its message above)"
         return None
 
     def stop(self, interrupted: bool, out) -> None:
-        """Tell the observer the run is over and let it finish (flush the .rrd; web, foxglove: until Ctrl-C)."""
-        if self.process is None:
+        """Tell the observers the run is over and let them finish (flush the .rrd; web, foxglove:
+        until Ctrl-C; ros2: at once)."""
+        if self.process is None and self.ros2_process is None:
             return
         self.signals.put(bus.SIGNALS_END)
+        if self.ros2_process is not None:
+            self._finish(self.ros2_process, interrupted)
+        if self.process is None:
+            return
         if interrupted and self.spec.mode == "foxglove":
             self.process.terminate()   # it would linger for the user, who asked to stop
         try:
@@ -78,3 +107,15 @@ class ViewerLink:
         if self.process.poll() is None:
             self.process.terminate()
             supervisor.reap(self.process, 5)
+
+    @staticmethod
+    def _finish(process: subprocess.Popen, interrupted: bool) -> None:
+        if interrupted:
+            process.terminate()
+        try:
+            process.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            pass
+        if process.poll() is None:
+            process.terminate()
+            supervisor.reap(process, 5)

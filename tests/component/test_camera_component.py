@@ -96,6 +96,17 @@ def test_noise_replays_bit_for_bit_and_a_restored_camera_continues_it(truth):
     assert other_seed["rgb"].tobytes() != first[0]["rgb"].tobytes()
 
 
+def test_a_lens_with_distortion_bends_the_image_and_says_so_in_the_frame(truth):
+    pinhole = frames(camera(truth, pixel_noise=0.0), 1)[0]
+    D = [-0.05, 0.005, 0.0, 0.0, 0.0]      # a mild barrel over this 106 deg field of view
+    bent = frames(camera(truth, pixel_noise=0.0, distortion=D), 1)[0]
+    assert np.array_equal(bent["D"], D) and not pinhole["D"].any()
+    assert bent["rgb"].shape == pinhole["rgb"].shape
+    # barrel: the centre pixel sees the same ray, the image's edges see wider
+    assert np.allclose(bent["depth"][59:61, 79:81], pinhole["depth"][59:61, 79:81], rtol=1e-3)
+    assert ((bent["depth"] > 0) != (pinhole["depth"] > 0)).sum() > 100
+
+
 def test_outputs_say_when_the_frame_was_taken_and_whether_it_was_lit(truth):
     h = camera(truth)
     assert h.initialize()["frame"] == 0.0

@@ -71,10 +71,23 @@ def recorded(tmp_path_factory):
     """The capture config with a wrist camera (1 s, 10 Hz), run and recorded: its directory."""
     base = tmp_path_factory.mktemp("camera")
     config = camera_config(base / "camera.yaml")
-    done = orchestrator("run", config, "--record", base / "run", timeout=600)
+    done = orchestrator("run", config, "--record", base / "run", "--view", f"save:{base / 'live.rrd'}", timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
     assert not component_processes("capture_tumbling_target"), "component processes left after the run"
     return base / "run"
+
+
+def rrd_camera(rrd: Path, entity: str):
+    """(the pinhole's K as logged, the colour images logged) of a camera entity in an .rrd."""
+    from rerun.chunk import RrdReader
+    pinhole, images = None, []
+    for chunk in RrdReader(rrd).stream():
+        batch = chunk.to_record_batch()
+        if chunk.entity_path == entity and chunk.is_static and "Pinhole:image_from_camera" in batch.schema.names:
+            pinhole = np.array(batch.column("Pinhole:image_from_camera").to_pylist()[0]).reshape(3, 3).T   # column-major
+        if chunk.entity_path == f"{entity}/rgb" and "Image:buffer" in batch.schema.names:
+            images += batch.column("Image:buffer").to_pylist()
+    return pinhole, images
 
 
 def test_a_wrist_camera_records_frames_whose_depth_at_the_grapple_is_the_dynamics_truth(recorded):
@@ -128,24 +141,40 @@ def test_a_second_run_records_the_same_frames_bit_for_bit(recorded, tmp_path):
 def test_the_view_draws_the_frustum_on_the_end_effector_and_the_frames(recorded, tmp_path):
     """`orchestrator view DIR` into an .rrd, read back with Rerun: the camera's pinhole (its K) and
     mount under the ee link's entity, its images on the timeline, each the recorded frame's pixels."""
-    from rerun.chunk import RrdReader
     rrd = tmp_path / "view.rrd"
     done = orchestrator("view", recorded, "--view", f"save:{rrd}", "--rate", "100", timeout=300)
     assert done.returncode == 0, done.stderr[-3000:]
     entity = "/world/dynamics/servicer/links/ee/camera"
-    pinhole, images = None, []
-    for chunk in RrdReader(rrd).stream():
-        batch = chunk.to_record_batch()
-        if chunk.entity_path == entity and chunk.is_static and "Pinhole:image_from_camera" in batch.schema.names:
-            pinhole = np.array(batch.column("Pinhole:image_from_camera").to_pylist()[0]).reshape(3, 3)
-        if chunk.entity_path == f"{entity}/rgb" and "Image:buffer" in batch.schema.names:
-            images += batch.column("Image:buffer").to_pylist()
-    assert pinhole is not None
-    # Rerun stores the 3x3 column-major
-    assert np.allclose(pinhole.T, [[F, 0.0, CX], [0.0, F, CY], [0.0, 0.0, 1.0]])
+    pinhole, images = rrd_camera(rrd, entity)
+    assert np.allclose(pinhole, [[F, 0.0, CX], [0.0, F, CY], [0.0, 0.0, 1.0]])
     assert len(images) == 10
     with np.load(recorded / "frames" / "camera" / "000009.npz") as frame:
         assert bytes(np.asarray(images[-1][0], dtype=np.uint8)) == frame["rgb"].tobytes()
+    # live (--view save: while the run recorded): the frames as their files appeared, at 30 rows/s
+    # of sim time the latest of each row; one written after the run's last row may be missing
+    pinhole, live = rrd_camera(recorded.parent / "live.rrd", entity)
+    assert np.allclose(pinhole, [[F, 0.0, CX], [0.0, F, CY], [0.0, 0.0, 1.0]])
+    recorded_frames = set()
+    for path in sorted((recorded / "frames" / "camera").glob("*.npz")):
+        with np.load(path) as frame:
+            recorded_frames.add(frame["rgb"].tobytes())
+    assert len(live) >= 5 and all(bytes(np.asarray(image[0], dtype=np.uint8)) in recorded_frames for image in live)
+
+
+def test_the_guides_camera_passes_check(tmp_path):
+    """docs/guides/camera.md's YAML, added to the capture config as it says, is a valid camera."""
+    import re
+    block = re.search(r"```yaml\n(.*?)```", (ROOT / "docs" / "guides" / "camera.md").read_text(), re.S).group(1)
+    snippet = yaml.safe_load(block)
+    config = yaml.safe_load(camera_config(tmp_path / "base.yaml").read_text())
+    del config["components"]["camera"]
+    config["components"].update(snippet["components"])
+    config["connections"].update(snippet["connections"])
+    for name, urdf in config["components"]["camera"]["parameters"]["bodies"].items():
+        config["components"]["camera"]["parameters"]["bodies"][name] = str((CAPTURE.parent / urdf).resolve())
+    (tmp_path / "guide.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
+    done = orchestrator("check", tmp_path / "guide.yaml", timeout=300)
+    assert done.returncode == 0, done.stderr
 
 
 @pytest.mark.parametrize("setting, key, expected", [
@@ -157,6 +186,8 @@ def test_the_view_draws_the_frustum_on_the_end_effector_and_the_frames(recorded,
     ("components.camera.parameters.height=9000", "components.camera.parameters.height", "expected 1 to 8192 pixels, got 9000"),
     ("components.camera.step=15ms", "components.camera.step", "must be a positive integer multiple of run.step (10 ms)"),
     ("components.camera.parameters.far=0.01", "components.camera.parameters.far", "expected more than near"),
+    ("components.camera.parameters.distortion=[-3, 0, 0, 0, 0]", "components.camera.parameters.distortion",
+     "the distortion does not invert over the image"),
 ])
 def test_a_bad_camera_is_refused_at_check_naming_the_key(tmp_path, setting, key, expected):
     config = camera_config(tmp_path / "camera.yaml")

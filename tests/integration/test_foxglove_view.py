@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import asyncio
 import json
+import re
 import socket
 import struct
 import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import pytest
 
@@ -21,6 +23,7 @@ pytestmark = pytest.mark.integration
 
 SUBPROTOCOL = "foxglove.sdk.v1"   # what foxglove-sdk 0.30 accepts (the app's newer name of foxglove.websocket.v1)
 MESSAGE_DATA = 0x01
+FETCH_ASSET_RESPONSE = 0x04
 DEADLINE_S = 240.0                # start-up may compile numba kernels on a fresh machine
 
 
@@ -158,3 +161,54 @@ def test_bad_view(view, expected):
     assert result.returncode == 2
     assert expected in result.stderr
 
+
+
+def test_meshes_are_served_to_the_3d_panel():
+    """Foxglove's fetchAsset for the Panda's meshes (package:// URIs as its robot_description names
+    them) answers the file's bytes, found independently in the installed example-robot-data; any
+    other file is refused."""
+    import numpy as np
+    import yaml
+    import foxglove
+    from rosbags.typesys import Stores, get_typestore
+    from components.plotting import RecordedRun
+    from components.rosbag import RosContext
+    from components.ros_topics import run_topics
+    from components.viewer.foxglove_observer import DISTRO, RosChannels, serve
+    from importlib.metadata import distribution
+
+    config = yaml.safe_load((ROOT / "configs/panda_on_bus.yaml").read_text())
+    channels = RosChannels(["time"], config, str(ROOT / "configs"), foxglove.Context())
+    channels.build(np.zeros(1), np.zeros((1, 1)))
+    context = RosContext(RecordedRun(config, {}, np.zeros(1), str(ROOT / "configs")), get_typestore(Stores(DISTRO)), print)
+    (description,) = [t for t in run_topics(context, lambda _: None) if t.name.endswith("robot_description")]
+    uris = set(re.findall(r'filename="([^"]+)"', description.messages[0][1].data))
+    assert uris and all(u.startswith("package://example-robot-data/") for u in uris)
+    share = Path(distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data"))
+    uri = "package://example-robot-data/robots/panda_description/meshes/visual/link3.dae"
+    assert uri in uris
+    expected = (share / "robots/panda_description/meshes/visual/link3.dae").read_bytes()
+
+    server = serve(channels, name="assets", port=0)
+    try:
+        answers = asyncio.run(_fetch(server.port, [uri, "file:///etc/passwd", "/etc/passwd"]))
+    finally:
+        server.stop()
+    assert answers[0] == (0, expected)
+    assert answers[1][0] == answers[2][0] == 1 and not answers[1][1] and not answers[2][1]
+
+
+async def _fetch(port: int, uris: list[str]) -> list[tuple[int, bytes]]:
+    """fetchAsset each URI; (status: 0 found, 1 not, data) in the order asked."""
+    import websockets
+
+    async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL], max_size=None) as ws:
+        for request, uri in enumerate(uris):
+            await ws.send(json.dumps({"op": "fetchAsset", "uri": uri, "requestId": request}))
+        answers = {}
+        while len(answers) < len(uris):
+            frame = await asyncio.wait_for(ws.recv(), 30)
+            if isinstance(frame, bytes) and frame[0] == FETCH_ASSET_RESPONSE:
+                request, status, length = struct.unpack_from("<IBI", frame, 1)
+                answers[request] = (status, bytes(frame[10 + length:]))
+    return [answers[i] for i in range(len(uris))]

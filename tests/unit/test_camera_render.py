@@ -182,3 +182,119 @@ def test_earth_shadow_cylinder():
     assert not in_earth_shadow([0.0, r, 0.0], sun)                 # beside it
     assert in_earth_shadow([-r, R_EARTH - 1.0, 0.0], sun)          # just inside the cylinder
     assert not in_earth_shadow([-r, R_EARTH + 1.0, 0.0], sun)      # just outside
+
+
+def test_a_textured_mesh_from_a_urdf_shows_its_texels_where_they_project(tmp_path):
+    """A 1 m plate (an .obj with a 6x6 random black-and-white texture, as trimesh writes it, in a
+    URDF) facing the camera 2 m away, lit head-on: the pixel nearest each texel's centre has that
+    texel's value (linear filtering blends less than 3 % that close to a texel's centre, 19 pixels
+    a texel); the texture upside down or mirrored fails on about half of them."""
+    import trimesh
+    from PIL import Image
+    from components.camera.scene import visual_meshes
+    from components.viewer.robot import read_geometry
+    pattern = np.random.default_rng(2).integers(0, 2, (6, 6)).astype(np.uint8) * 255
+    corners = np.array([[-0.5, -0.5, 0.0], [0.5, -0.5, 0.0], [0.5, 0.5, 0.0], [-0.5, 0.5, 0.0]])
+    plate = trimesh.Trimesh(vertices=corners, faces=[[0, 1, 2], [0, 2, 3]], process=False)
+    plate.visual = trimesh.visual.TextureVisuals(uv=corners[:, :2] + 0.5,
+                                                 image=Image.fromarray(np.repeat(pattern[:, :, None], 3, axis=2)))
+    plate.export(tmp_path / "plate.obj")
+    (tmp_path / "plate.urdf").write_text(
+        '<robot name="plate"><link name="plate"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" '
+        'iyy="1" iyz="0" izz="1"/></inertial><visual><geometry><mesh filename="plate.obj"/></geometry></visual>'
+        '</link></robot>')
+    meshes, notes = visual_meshes(read_geometry(tmp_path / "plate.urdf"))
+    assert not notes and len(meshes) == 1 and meshes[0].texture is not None
+    r = renderer()
+    r.ambient = 0.0
+    m = meshes[0]
+    r.add_mesh(m.vertices, np.arange(len(m.vertices)).reshape(-1, 3), m.normals, m.colours, m.uv, m.texture)
+    pose = rigid([0, 0, 0], [0.0, 0.0, 2.0])
+    rgb, depth = r.render([pose], np.array([0.0, 0.0, -1.0]))
+    r.release()
+    for row in range(6):
+        for col in range(6):
+            x, y = -0.5 + (col + 0.5) / 6, 0.5 - (row + 0.5) / 6    # texel centre on the plate (uv up = image top)
+            u, v = round(K[0, 0] * x / 2.0 + K[0, 2]), round(K[1, 1] * y / 2.0 + K[1, 2])
+            assert abs(int(rgb[v, u, 0]) - int(pattern[row, col])) <= 10, (row, col, rgb[v, u], pattern[row, col])
+
+
+def test_a_meshs_face_colours_are_kept_and_a_plain_shape_takes_the_urdf_colour(tmp_path):
+    import trimesh
+    from components.camera.scene import visual_meshes
+    from components.viewer.robot import read_geometry
+    box = trimesh.creation.box(extents=(0.2, 0.2, 0.2))
+    box.visual.face_colors = np.array([[255, 0, 0, 255] if i % 2 else [0, 0, 255, 255] for i in range(len(box.faces))])
+    box.export(tmp_path / "box.ply")
+    (tmp_path / "two.urdf").write_text(
+        '<robot name="two"><material name="green"><color rgba="0 1 0 1"/></material><link name="a">'
+        '<inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>'
+        '<visual><geometry><mesh filename="box.ply"/></geometry><material name="green"/></visual>'
+        '<visual><geometry><sphere radius="0.1"/></geometry><material name="green"/></visual></link></robot>')
+    (coloured, plain), _ = visual_meshes(read_geometry(tmp_path / "two.urdf"))
+    assert {tuple(c) for c in coloured.colours} == {(1.0, 0.0, 0.0), (0.0, 0.0, 1.0)}
+    assert {tuple(c) for c in plain.colours} == {(0.0, 1.0, 0.0)}
+
+
+def test_a_distorted_camera_sees_what_opencvs_undistortion_says_each_pixel_sees():
+    """plumb_bob distortion (barrel, tangential terms, an off-centre principal point): for every
+    pixel, OpenCV's cv2.undistortPoints (200 iterations) gives its ray; the ray meets a tilted plate or not,
+    and at what depth. The rendered mask agrees on every pixel whose ray is more than 1.5 px from
+    the plate's edges, and the depth is the ray's to within the change of depth over 0.5 px (the
+    lens takes each pixel from the pinhole render's nearest, at twice the focal length)."""
+    import cv2
+    from components.camera.lens import Lens
+    from components.camera.render import Renderer
+    D = np.array([-0.25, 0.08, 0.001, -0.0015, 0.01])
+    lens = Lens(K, W, H, D, supersample=2)
+    r = Renderer(lens.K_render, lens.render_width, lens.render_height, 0.05, 100.0)
+    half = 0.9
+    corners = np.array([[-half, -half, 0.0], [half, -half, 0.0], [half, half, 0.0], [-half, half, 0.0]])
+    r.add_mesh(corners[[0, 1, 2, 0, 2, 3]], np.arange(6).reshape(2, 3), np.tile([0.0, 0.0, 1.0], (6, 1)), (1, 1, 1))
+    pose = rigid([0.35, -0.25, 0.0], [0.2, 0.1, 2.2])
+    rgb, depth = lens.apply(*r.render([pose], None))
+    r.release()
+    assert depth.shape == (H, W) and rgb.shape == (H, W, 3)
+    u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    pixels = np.stack([u.ravel(), v.ravel()], axis=-1).reshape(-1, 1, 2)
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)
+    rays = cv2.undistortPoints(pixels, K, D, None, None, None, criteria).reshape(H, W, 2)
+    rays = np.concatenate([rays, np.ones((H, W, 1))], axis=-1)
+    back, _ = cv2.projectPoints(rays.reshape(-1, 3), np.zeros(3), np.zeros(3), K, D)   # OpenCV converged
+    assert np.max(np.abs(back.reshape(H, W, 2) - pixels.reshape(H, W, 2))) < 1e-6
+    normal, origin = pose[:3, 2], pose[:3, 3]
+    t = (normal @ origin) / (rays @ normal)
+    on_plane = (rays * t[..., None] - origin) @ pose[:3, :3]          # plate coordinates
+    expected = t                                                      # rays have z = 1: t is the depth
+    slack = 1.5 * np.max(expected) / K[0, 0] / abs(normal[2])         # 1.5 px on the tilted plate (m)
+    edge = half - np.max(np.abs(on_plane[..., :2]), axis=-1)          # > 0 inside
+    sure = np.abs(edge) > slack
+    assert sure.mean() > 0.9 and (edge > slack).mean() > 0.3
+    assert np.array_equal((depth > 0)[sure], (edge > 0)[sure])
+    step = np.maximum(np.abs(np.gradient(expected, axis=0)), np.abs(np.gradient(expected, axis=1)))
+    inside = edge > slack
+    assert np.all(np.abs(depth[inside] - expected[inside]) <= 0.5 * step[inside] + 1e-5)
+    # the pinhole image of the same scene differs by many pixels at the edges: the test sees distortion
+    r = renderer()
+    r.add_mesh(corners[[0, 1, 2, 0, 2, 3]], np.arange(6).reshape(2, 3), np.tile([0.0, 0.0, 1.0], (6, 1)), (1, 1, 1))
+    _, pinhole = r.render([pose], None)
+    r.release()
+    assert ((pinhole > 0) != (depth > 0)).sum() > 1000
+
+
+def test_two_cameras_in_one_process_each_draw_their_own_scene():
+    """Two renderers made one after the other (two cameras in a process group, or a sensor.camera
+    beside a component embedding one): each draws its own meshes in its own context."""
+    import trimesh
+    plate = trimesh.creation.box(extents=(1.0, 1.0, 0.01))
+    a, b = renderer(), renderer()
+    draw(a, [(plate, rigid([0, 0, 0], [0.0, 0.0, 2.005]))])
+    draw(b, [(plate, rigid([0, 0, 0], [0.0, 0.0, 3.005]))])
+    _, depth_a = a.render([rigid([0, 0, 0], [0.0, 0.0, 2.005])], None)
+    _, depth_b = b.render([rigid([0, 0, 0], [0.0, 0.0, 3.005])], None)
+    a.release()
+    _, depth_b_again = b.render([rigid([0, 0, 0], [0.0, 0.0, 3.005])], None)
+    b.release()
+    assert set(np.unique(depth_a)) == {0.0, np.float32(2.0)}
+    assert set(np.unique(depth_b)) == {0.0, np.float32(3.0)}
+    assert depth_b_again.tobytes() == depth_b.tobytes()

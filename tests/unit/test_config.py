@@ -325,3 +325,21 @@ def test_view_foxglove_port():
     assert viewer_spec("foxglove:70000", "--view", errors, Path(".")) is None
     assert viewer_spec("foxglove:x", "--view", errors, Path(".")) is None
     assert "65535" in errors[0] and "port number" in errors[1]
+
+
+def test_ros2_section_domain_from_environment_and_endpoint_override(monkeypatch):
+    from orchestrator.config.load import ros2_spec
+
+    monkeypatch.setenv("ROS_DOMAIN_ID", "5")
+    errors: list[str] = []
+    spec = ros2_spec({"topics": ["/clock"]}, "ros2", errors, endpoint="tcp/192.0.2.7:7447")
+    assert errors == [] and (spec.endpoint, spec.domain_id, spec.distro, spec.topics, spec.rate_hz) == \
+        ("tcp/192.0.2.7:7447", 5, "jazzy", ["/clock"], 30.0)
+    assert ros2_spec({"domain_id": 3}, "ros2", errors).domain_id == 3   # the section wins over the environment
+    monkeypatch.setenv("ROS_DOMAIN_ID", "five")
+    assert ros2_spec(None, "--ros2", errors) is None and "ROS_DOMAIN_ID" in errors[-1] and "'five'" in errors[-1]
+    monkeypatch.delenv("ROS_DOMAIN_ID")
+    errors = []
+    assert ros2_spec(None, "--ros2", errors).domain_id == 0
+    assert ros2_spec({"topics": ["/ok", "/2d/pose"]}, "ros2", errors) is None
+    assert errors == ["ros2.topics[1]: ROS 2 rejects the topic name '/2d/pose': a part of it starts with a digit"]

@@ -1,0 +1,242 @@
+"""The ROS 2 observer process: signal rows from the run's bus, published live to ROS 2 over
+rmw_zenoh (``orchestrator run CFG --ros2 [ENDPOINT]`` or a ``ros2:`` config section).
+
+    python -m components.ros2.observer --connect tcp/127.0.0.1:7447 --run-id demo-1a2b3c4d --setup ros2.json
+
+Started by the orchestrator, like the live viewers (components/viewer/observer.py): it subscribes
+to the run's signal rows (a dropping publisher, so it never holds up a step), runs niced, declares
+its liveliness token ``alive/_ros2/0`` at once, and leaves at the run's END or when the
+orchestrator goes. The setup JSON: ``columns``, ``config`` (resolved), ``config_dir``, and
+``ros2``: ``endpoint`` (the ROS side's router, rmw_zenohd), ``domain_id``, ``distro``, ``topics``
+(None: all), ``node`` (the node's name).
+
+The ROS side is a second Zenoh session, a client of that router (no secret, no TLS: the run's own
+bus keeps both; no port opened here). On it a ROS 2 node (:class:`components.ros2.rmw_zenoh.Node`) publishes the
+topics of the rosbag2 export (:class:`components.ros_topics.LiveTopics`: the same message
+types and CDR bytes as ``orchestrator export --rosbag2`` for those rows), in time order per batch,
+each sample with rmw_zenoh's attachment (the source timestamp is this process's system clock, as
+rmw_zenoh's; the simulation time is in the messages' stamps and on ``/clock``). Latched topics
+(``/tf_static``, ``robot_description``) are sent once, from a TRANSIENT_LOCAL publisher whose cache
+answers late joiners. A router that cannot be reached within ``CONNECT_TIMEOUT_S``: a warning naming
+it, the rows are dropped, and a thread tries again every ``RETRY_S``, so a router started later
+still gets the rest of the run.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+from components import bus, bus_security
+from components.ros2 import rmw_zenoh
+from components.viewer.observer import (LIVE_BATCH_S, MAX_BATCH_ROWS, NICENESS, POLL_S, RowBuffer, Stop,
+                                        orchestrator_gone, raise_stop, take_rows)
+
+CONNECT_TIMEOUT_S = 3.0   # how long a link to the ROS router may take to come up
+RETRY_S = 2.0             # between tries when it did not
+DISTROS = {"jazzy": "ros2_jazzy", "kilted": "ros2_kilted", "lyrical": "ros2_lyrical"}   # rmw_zenoh with type hashes
+
+
+def log(message: str) -> None:
+    print(f"ros2: {message}", file=sys.stderr, flush=True)
+
+
+class RosLink:
+    """The session to the ROS side's router at ``endpoint``: a Zenoh client of it (the router
+    routes a client's samples, tokens and queries to the ROS nodes, its peers; this process listens
+    on no port). Tried at once; if the router cannot be reached, ``warning`` says so and a thread
+    tries again every ``RETRY_S`` until :meth:`close`."""
+
+    def __init__(self, endpoint: str):
+        self.endpoint = endpoint
+        self.session = None
+        self.warning: str | None = None
+        self._stop = threading.Event()
+        self._thread = None
+        try:
+            self.session = self._open()
+        except Exception as e:
+            self.warning = (f"warning: cannot reach the ROS 2 router at {endpoint} ({str(e).split(' at ')[0]}); "
+                            f"the run goes on, and the ROS 2 view connects if the router comes up (start it "
+                            f"with: ros2 run rmw_zenoh_cpp rmw_zenohd)")
+            self._thread = threading.Thread(target=self._retry, name="ros2-link", daemon=True)
+            self._thread.start()
+
+    def _open(self):
+        return bus.open_session(connect=[self.endpoint], settings={"mode": "client"},
+                                connect_timeout_s=CONNECT_TIMEOUT_S)
+
+    def _retry(self) -> None:
+        while not self._stop.wait(RETRY_S):
+            try:
+                session = self._open()
+            except Exception:
+                continue
+            if self._stop.is_set():
+                session.close()
+            else:
+                self.session = session
+            return
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=CONNECT_TIMEOUT_S + 1)
+        if self.session is not None:
+            self.session.close()
+
+
+class RosPublishers:
+    """The run's topics on a ROS 2 node: a publisher per topic, made when the topic first has
+    messages; the messages of a batch in time order."""
+
+    def __init__(self, node: rmw_zenoh.Node, typestore, topics: list[str] | None, warn):
+        self.node = node
+        self.typestore = typestore
+        self.wanted = set(topics) if topics is not None else None
+        self.warn = warn
+        self.publishers: dict[str, rmw_zenoh.Publisher] = {}
+        self.skipped: set[str] = set()
+        self.sent = 0
+
+    def _publisher(self, topic) -> rmw_zenoh.Publisher | None:
+        if topic.name in self.skipped:
+            return None
+        if topic.name not in self.publishers:
+            if self.wanted is not None and topic.name not in self.wanted:
+                self.skipped.add(topic.name)
+                return None
+            if problem := rmw_zenoh.check_topic_name(topic.name):
+                self.warn(f"topic {topic.name} not published: ROS 2 rejects the name ({problem})")
+                self.skipped.add(topic.name)
+                return None
+            # block: a batch's burst would overflow the link's queue and be dropped; waiting holds
+            # up this process only, never the run (its rows come through a dropping publisher)
+            self.publishers[topic.name] = self.node.publisher(topic.name, topic.msgtype, self.typestore,
+                                                              latched=topic.latched, block=True)
+        return self.publishers[topic.name]
+
+    def publish(self, batch) -> None:
+        """``batch``: [(RosTopic, [(stamp ns, CDR bytes)])] of :meth:`LiveTopics.batch`."""
+        queue = []
+        for topic, messages in batch:
+            publisher = self._publisher(topic)
+            if publisher is None or not messages:
+                continue
+            queue += [(ns, publisher, data) for ns, data in messages]
+        queue.sort(key=lambda item: item[0])   # stable: the exporter's topic order within a stamp
+        for _, publisher, data in queue:
+            publisher.put(data, time.time_ns())   # rmw_zenoh's source timestamp: the system clock
+        self.sent += len(queue)
+
+    def missing(self) -> list[str]:
+        """Topics asked for (``topics``) that the run has not had."""
+        return sorted((self.wanted or set()) - set(self.publishers))
+
+
+def observe(connect: str, run_id: str, setup: dict) -> int:
+    """Publish the run to ROS 2 until END or the orchestrator is gone."""
+    import zenoh
+    from rosbags.typesys import Stores, get_typestore
+
+    from components.ros_topics import LiveTopics
+
+    columns = list(setup["columns"])
+    config = setup.get("config") or {}
+    ros = setup["ros2"]
+    warned: set[str] = set()
+
+    def warn(message: str) -> None:
+        if message not in warned:   # the builders run per batch: say each thing once
+            warned.add(message)
+            log(message)
+
+    session = bus.open_session(connect=[connect], secret=os.environ.get(bus.SECRET_ENV),
+                               settings=bus_security.from_env())
+    token = watcher = signals = link = node = publishers = None
+    try:
+        signals = session.declare_subscriber(bus.signals_key(run_id), zenoh.handlers.FifoChannel(16384))
+        watcher = session.liveliness().declare_subscriber(bus.orchestrator_alive_key(run_id),
+                                                          zenoh.handlers.FifoChannel(16))
+        token = session.liveliness().declare_token(bus.ros2_alive_key(run_id))   # rows wait in the FIFO from here
+        typestore = get_typestore(Stores(DISTROS[ros["distro"]]))
+        link = RosLink(ros["endpoint"])
+        if link.warning:
+            log(link.warning)
+        buffer = RowBuffer(len(columns))
+        last = time.monotonic()
+        ended = gone = False
+        while not ended and not gone:
+            ended, empty = take_rows(signals, buffer)
+            if node is None and link.session is not None:
+                node = rmw_zenoh.Node(link.session, ros["domain_id"], ros["node"])
+                publishers = RosPublishers(node, typestore, ros.get("topics"), warn)
+                live = LiveTopics(config, setup.get("config_dir"), columns, typestore, warn)
+                log(f"publishing the run to ROS 2 (domain {ros['domain_id']}) through {ros['endpoint']} "
+                    f"as node /{ros['node']}")
+            now = time.monotonic()
+            if buffer and (ended or now - last >= LIVE_BATCH_S or len(buffer) >= MAX_BATCH_ROWS):
+                _, times, rows = buffer.take()
+                if publishers is not None:   # without the router, the rows go nowhere
+                    publishers.publish(live.batch(times, rows)[0])
+                last = now
+            gone = orchestrator_gone(watcher)
+            if empty and not ended:
+                time.sleep(POLL_S)
+        if buffer.bad:
+            log(f"ignored {buffer.bad} signal rows of an unexpected size (expected {buffer.size} bytes)")
+        if publishers is not None and (missing := publishers.missing()):
+            log(f"ros2.topics: the run had no {', '.join(missing)} "
+                f"(its topics: {', '.join(sorted(publishers.publishers)) or 'none'})")
+        if ended and publishers is not None:
+            log(f"run over: {publishers.sent} messages published on {len(publishers.publishers)} topics")
+    except Stop:
+        pass
+    finally:
+        if node is not None:
+            node.close()
+        if link is not None:
+            link.close()
+        for declared in (token, watcher, signals):
+            if declared is not None:
+                try:
+                    declared.undeclare()
+                except Exception:
+                    pass
+        session.close()
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m components.ros2.observer", description=__doc__.splitlines()[0])
+    parser.add_argument("--connect", required=True, help="the orchestrator's Zenoh endpoint, e.g. tcp/127.0.0.1:7447")
+    parser.add_argument("--run-id", required=True)
+    parser.add_argument("--setup", required=True, help="the JSON file the orchestrator wrote")
+    args = parser.parse_args(argv)
+    signal.signal(signal.SIGTERM, raise_stop)
+    signal.signal(signal.SIGINT, raise_stop)
+    try:
+        os.nice(NICENESS)   # best effort: on a busy machine the lockstep processes go first
+    except (AttributeError, OSError):
+        pass
+    try:
+        setup = json.loads(Path(args.setup).read_text())
+    except (OSError, ValueError) as e:
+        log(f"cannot read the setup file {args.setup}: {e}")
+        return 2
+    try:
+        return observe(args.connect, args.run_id, setup)
+    except Stop:
+        return 0
+    except Exception as e:  # one line, not a traceback; the run goes on without the ROS 2 view
+        log(f"stopped: {type(e).__name__}: {e}")
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -161,7 +161,8 @@ class FiducialComponent(Component):
         self.t_measured_ns, self.valid, self.markers, self.error = 0, False, 0, 0.0
 
     def frame(self, t_ns: int, inputs: Mapping[str, np.ndarray]) -> dict[str, Any]:
-        """The camera's frame of what the inputs show at ``t_ns`` (``rgb``, ``K``, ...)."""
+        """The camera's frame of what the inputs show at ``t_ns``: ``rgb``, ``K``, ``D`` (its lens's
+        plumb_bob distortion), ..."""
         return self.camera.frame(t_ns, inputs)
 
     def _outputs(self) -> dict[str, Any]:
@@ -174,8 +175,7 @@ class FiducialComponent(Component):
     def do_step(self, t_ns, h_ns, inputs):
         taken = self.input_times_ns.get(f"{PREFIX}{self.params['camera']['body']}.position", t_ns)
         frame = self.frame(taken, inputs)
-        estimate = self.estimator.estimate(frame["rgb"], frame["K"], frame.get("distortion", np.zeros(0)),
-                                           self.p_ee_camera, self.R_ee_camera)
+        estimate = self.estimator.estimate(frame["rgb"], frame["K"], frame["D"], self.p_ee_camera, self.R_ee_camera)
         self.t_measured_ns, self.valid, self.markers = taken, estimate.valid, estimate.markers
         self.error = estimate.reprojection_error if np.isfinite(estimate.reprojection_error) else 0.0
         if estimate.valid:

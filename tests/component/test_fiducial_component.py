@@ -108,6 +108,18 @@ def test_the_rendered_target_gives_the_pose_the_kinematics_put_it_at(distance, t
     h.component.terminate()
 
 
+def test_a_distorted_lens_rendered_by_the_camera_is_solved_with_its_distortion():
+    """The camera's plumb_bob lens (its frames carry D): the same bounds as a pinhole."""
+    T_E_G = grapple(0.3, (0.1, 0.05), 2.0)
+    h = harness(camera={**CAMERA, "distortion": [-0.15, 0.05, 0.001, -0.0008, 0.0]})
+    h.inputs.update(scene_inputs(T_E_G))
+    out = h.step(STEP)
+    assert out["valid"] == 1.0 and out["markers"] >= 3 and out["reprojection_error"] < 1.0
+    assert np.linalg.norm(out["p"] - T_E_G[:3, 3]) <= 0.002 + 0.002 * 0.3
+    assert np.linalg.norm(log_so3(T_E_G[:3, :3].T @ quat_to_matrix(out["q"]))) <= math.radians(0.6)
+    h.component.terminate()
+
+
 def test_the_state_continues_in_a_fresh_instance_bit_for_bit():
     """Pixel noise on: the camera's generators are part of the state."""
     poses = [scene_inputs(grapple(0.3 + 0.02 * k, (0.1, 0.05), 2.0 + 0.1 * k)) for k in range(5)]
@@ -140,7 +152,7 @@ def drawn(roll: float):
     """(R_C_G, p_C_G, frame) of a drawn picture of the markers at 0.3 m with this roll."""
     R_C_G, p_C_G = scenes.camera_pose(0.3, (0.02, -0.01), (0.06, -0.09), roll)
     rgb = scenes.noisy(scenes.warp(LAYOUT, R_C_G, p_C_G), 2.0, seed=int(roll * 100) % 1000)
-    return R_C_G, p_C_G, {"rgb": rgb, "K": K.copy()}
+    return R_C_G, p_C_G, {"rgb": rgb, "K": K.copy(), "D": np.zeros(5)}
 
 
 def test_a_turning_grapple_frame_by_frame_with_q_sign_continuous():
@@ -168,7 +180,7 @@ def test_a_turning_grapple_frame_by_frame_with_q_sign_continuous():
 
 def test_a_frame_without_markers_is_not_valid_and_holds_the_pose():
     h = harness()
-    blank = {"rgb": np.full((480, 640, 3), scenes.BACKGROUND, np.uint8), "K": K.copy()}
+    blank = {"rgb": np.full((480, 640, 3), scenes.BACKGROUND, np.uint8), "K": K.copy(), "D": np.zeros(5)}
     frames = [drawn(r)[2] for r in ROLLS[:3]] + [blank, drawn(ROLLS[4])[2]]
     h.component.frame = lambda t_ns, inputs: frames[h.component.k]
     for _ in range(3):

@@ -134,14 +134,14 @@ ROWS: dict[str, Row] = {
         ("tests/unit/test_grasp.py::test_imu_reads_the_base_rate_and_non_gravitational_acceleration",)),
     "fiducial_position": Row(
         "estimator.fiducial", "grasp frame's position in E from a 640x480 image, 0.1-1 m, pixel noise 2/255",
-        "the pose the pictures were drawn at (OpenCV homography warp; ray cast of the target's textured mesh)",
+        "the pose the pictures were drawn at (OpenCV homography warp; ray cast of the target's marker meshes)",
         4e-3, "m", tuple(f"tests/unit/test_fiducial_estimator.py::{t}" for t in (
-            "test_pose_from_warped_marker_pictures", "test_pose_from_the_committed_textured_mesh",
+            "test_pose_from_warped_marker_pictures", "test_pose_from_the_committed_marker_meshes",
             "test_a_distorted_lens_is_solved_with_its_distortion"))),
     "fiducial_attitude": Row(
         "estimator.fiducial", "grasp frame's attitude in E, the same images",
         "the pose the pictures were drawn at", 0.6, "deg", tuple(f"tests/unit/test_fiducial_estimator.py::{t}" for t in (
-            "test_pose_from_warped_marker_pictures", "test_pose_from_the_committed_textured_mesh",
+            "test_pose_from_warped_marker_pictures", "test_pose_from_the_committed_marker_meshes",
             "test_a_distorted_lens_is_solved_with_its_distortion"))),
 }
 

@@ -104,11 +104,13 @@ class FiducialComponent(Component):
     """
     type_name = "estimator.fiducial"
     parameters = (
-        Parameter("camera", Record("Camera", CAMERA_PARAMETERS), description="the camera it sees through: sensor.camera's parameters"),
+        Parameter("camera", Record("Camera", CAMERA_PARAMETERS),
+                  description="the camera it sees through: sensor.camera's parameters"),
         Parameter("end_effector", Str(), description="the link of camera.body whose frame E the pose is in: "
                                                      "the camera's link, or one fixed to it"),
         Parameter("markers", Str(hint="a marker layout (YAML) file path"),
-                  description="the marker layout: dictionary, link, markers' ids, sizes and poses (relative to the config)"),
+                  description="the marker layout: dictionary, link, markers' ids, sizes and poses "
+                              "(relative to the config)"),
         Parameter("min_markers", Int(minimum=1), description="fewest markers seen for a pose (fewer: valid 0)"),
         Parameter("max_reprojection_error", Float(positive=True),
                   description="largest RMS reprojection error over the markers' corners for a pose (pixels)"),
@@ -204,4 +206,5 @@ class FiducialComponent(Component):
         self.p = np.array(state["p"], dtype=np.float64).reshape(3)
         self.q = np.array(state["q"], dtype=np.float64).reshape(4)
         self.accepted, self.valid = bool(state["accepted"]), bool(state["valid"])
-        self.t_measured_ns, self.markers, self.error = int(state["t_measured_ns"]), int(state["markers"]), float(state["error"])
+        self.t_measured_ns, self.markers = int(state["t_measured_ns"]), int(state["markers"])
+        self.error = float(state["error"])

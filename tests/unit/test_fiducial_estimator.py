@@ -1,6 +1,6 @@
 """estimator.fiducial's core (components/estimators/fiducial.py) against independent pictures of
 the capture target's marker layout (tests/fiducial_scenes.py: a homography warp of OpenCV's own
-marker drawings, and a ray caster on the committed textured mesh) at known poses.
+marker drawings, and a ray caster on the committed meshes of the markers' cells) at known poses.
 
 Bounds: position within 2 mm + 2 mm per metre of distance, attitude within 0.6 deg, with pixel
 noise of 2 grey levels (measured: at most 1.1 mm and 0.24 deg from 0.1 to 1 m). A sign flip or
@@ -88,9 +88,9 @@ def test_pose_from_warped_marker_pictures(distance, offset, tilt, roll):
 
 
 @pytest.mark.parametrize("distance, offset, tilt, roll", [POSES[1], POSES[3]])
-def test_pose_from_the_committed_textured_mesh(distance, offset, tilt, roll):
-    """The model's own asset (OBJ, MTL, PNG read by trimesh) ray cast: the texture shows each id
-    where the layout puts it, the right way up."""
+def test_pose_from_the_committed_marker_meshes(distance, offset, tilt, roll):
+    """The model's own assets (the white and black cells' OBJ files, read by trimesh) ray cast:
+    each id shows where the layout puts it, the right way up."""
     R_C_G, p_C_G = scenes.camera_pose(distance, offset, tilt, roll)
     image = scenes.noisy(scenes.ray_cast(LAYOUT, R_C_G, p_C_G), 2.0, seed=7)
     estimator = FiducialEstimator(LAYOUT, 1, 1.5)

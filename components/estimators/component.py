@@ -13,6 +13,7 @@ from components.camera.model import mount_transform
 from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.estimators.marker_layout import MarkerLayout, read_layout
+from components.estimators.view import FiducialView
 from components.robots.model import PROJECT_ROOT, read_model
 from components.robots.urdf import UrdfModel
 from components.rotations import continuous, rpy_to_matrix
@@ -95,7 +96,8 @@ class FiducialComponent(Component):
     (at least ``min_markers`` markers, RMS reprojection error at most ``max_reprojection_error``).
     A frame refused leaves ``p`` and ``q`` at the last accepted pose, ``valid`` 0. ``q`` is
     sign-continuous from one accepted pose to the next. With ``--record DIR`` the frames it saw go
-    to ``DIR/frames/<component>/<k>.npz`` as ``sensor.camera``'s do.
+    to ``DIR/frames/<component>/<k>.npz`` as ``sensor.camera``'s do (``frame`` counts them), and the
+    Rerun view shows them on the camera's frustum.
 
     The markers must show in the camera's image: the capture target's are meshes of black and
     white cells (``python -m tools.fiducial_markers``), which any renderer of URDF colours draws.
@@ -103,6 +105,7 @@ class FiducialComponent(Component):
     State: the camera's noise generators, the frames taken and the last outputs.
     """
     type_name = "estimator.fiducial"
+    view = FiducialView
     parameters = (
         Parameter("camera", Record("Camera", CAMERA_PARAMETERS),
                   description="the camera it sees through: sensor.camera's parameters"),
@@ -124,6 +127,8 @@ class FiducialComponent(Component):
         Variable("markers", "output", (), "1", 0.0, "markers of the layout found in the latest frame"),
         Variable("reprojection_error", "output", (), "px", 0.0,
                  "RMS reprojection error of the latest frame's solve (0 without one)"),
+        Variable("frame", "output", (), "1", 0.0,
+                 "frames taken so far (with --record, the latest is frames/<component>/<frame - 1>.npz)"),
     )
 
     @classmethod
@@ -169,7 +174,7 @@ class FiducialComponent(Component):
 
     def _outputs(self) -> dict[str, Any]:
         return {"p": self.p, "q": self.q, "t_measured": self.t_measured_ns / NS_PER_S, "valid": float(self.valid),
-                "markers": float(self.markers), "reprojection_error": self.error}
+                "markers": float(self.markers), "reprojection_error": self.error, "frame": float(self.k)}
 
     def initialize(self, t0_ns, inputs):
         return self._outputs()

@@ -5,6 +5,7 @@ relative-pose oracle:
   dynamics' own ``grasp.p_ee_grasp``, ``grasp.q_ee_grasp`` at each frame's time, while the arm
   holds its posture and the camera looks at the grapple 0.88 m away (the markers' face lit by
   ``ambient`` alone: white cells at ~25 of 255); a second run gives the same columns bit for bit;
+  the Rerun view of the recording shows the camera's frustum on the end effector and its frames;
 - ``orchestrator check``: accepted as it is, refused with exit 2 naming the key (and the field of
   the layout file) for bad parameters."""
 from __future__ import annotations
@@ -97,6 +98,29 @@ def test_the_estimator_over_a_run_against_the_dynamics_and_again_bit_for_bit(tmp
         assert np.linalg.norm(p - p_true) <= 0.005, (row["time"], p, p_true)
         assert np.linalg.norm(log_so3(R_true.T @ R)) <= math.radians(0.6), row["time"]
     assert len(list((tmp_path / "a" / "frames" / "pose_sensor").glob("*.npz"))) == 12
+    assert frames["pose_sensor.frame"].tolist() == list(range(1, 13))
+    # the Rerun view of the recording: the camera's pinhole on the end effector, and its frames
+    rrd = tmp_path / "view.rrd"
+    done = orchestrator("view", tmp_path / "a", "--view", f"save:{rrd}", "--rate", "100", timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    pinhole, images = rrd_camera(rrd, "/world/dynamics/servicer/links/ee/pose_sensor")
+    assert np.allclose(pinhole, [[500.0, 0.0, 319.5], [0.0, 500.0, 239.5], [0.0, 0.0, 1.0]])
+    assert len(images) == 12
+    with np.load(tmp_path / "a" / "frames" / "pose_sensor" / "000011.npz") as frame:
+        assert bytes(np.asarray(images[-1][0], dtype=np.uint8)) == frame["rgb"].tobytes()
+
+
+def rrd_camera(rrd: Path, entity: str):
+    """(the pinhole's K as logged, the colour images logged) of a camera entity in an .rrd."""
+    from rerun.chunk import RrdReader
+    pinhole, images = None, []
+    for chunk in RrdReader(rrd).stream():
+        batch = chunk.to_record_batch()
+        if chunk.entity_path == entity and chunk.is_static and "Pinhole:image_from_camera" in batch.schema.names:
+            pinhole = np.array(batch.column("Pinhole:image_from_camera").to_pylist()[0]).reshape(3, 3).T   # column-major
+        if chunk.entity_path == f"{entity}/rgb" and "Image:buffer" in batch.schema.names:
+            images += batch.column("Image:buffer").to_pylist()
+    return pinhole, images
 
 
 def test_the_estimator_in_place_of_the_oracle_checks(config):

@@ -3,7 +3,6 @@ wrapper of :class:`components.estimators.fiducial.FiducialEstimator` around an e
 :class:`components.camera.camera.Camera`)."""
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
@@ -12,25 +11,16 @@ from components.camera.camera import CAMERA_PARAMETERS, Camera, camera_inputs, c
 from components.camera.model import mount_transform
 from components.constants import NS_PER_S
 from components.errors import ConfigError
-from components.estimators.marker_layout import MarkerLayout, read_layout
+from components.estimators.marker_layout import MarkerLayout, layout_path, read_layout
+from components.estimators.plots import POSE
 from components.estimators.view import FiducialView
-from components.robots.model import PROJECT_ROOT, read_model
+from components.robots.model import read_model
 from components.robots.urdf import UrdfModel
 from components.rotations import continuous, rpy_to_matrix
 from components.schema import Float, Int, Record, Str
 from components.sdk import Component, Parameter, Variable
 
 PREFIX = "camera."          # before the names of the camera's inputs
-
-
-def layout_path(value: str, config_dir: str | None) -> Path:
-    """The marker layout file: absolute, else relative to the config, else to the project root."""
-    path = Path(value)
-    candidates = [path] if path.is_absolute() else [Path(config_dir or ".") / path, PROJECT_ROOT / path]
-    for candidate in candidates:
-        if candidate.is_file():
-            return candidate
-    raise ConfigError("markers", f"marker layout {value!r} not found (looked in: {', '.join(map(str, candidates))})")
 
 
 def _layout(params: Mapping[str, Any]) -> MarkerLayout:
@@ -106,6 +96,7 @@ class FiducialComponent(Component):
     """
     type_name = "estimator.fiducial"
     view = FiducialView
+    plots = (POSE,)
     parameters = (
         Parameter("camera", Record("Camera", CAMERA_PARAMETERS),
                   description="the camera it sees through: sensor.camera's parameters"),

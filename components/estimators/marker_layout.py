@@ -84,6 +84,18 @@ class MarkerLayout:
         return {m.id: m for m in self.markers}
 
 
+def layout_path(value: str, config_dir: str | Path | None) -> Path:
+    """A layout file a config names: absolute, else relative to the config, else to the project
+    root; ConfigError (key ``markers``) when none exists."""
+    from components.robots.model import PROJECT_ROOT
+    path = Path(value)
+    candidates = [path] if path.is_absolute() else [Path(config_dir or ".") / path, PROJECT_ROOT / path]
+    for candidate in candidates:
+        if candidate.is_file():
+            return candidate
+    raise ConfigError("markers", f"marker layout {value!r} not found (looked in: {', '.join(map(str, candidates))})")
+
+
 def read_layout(path: str | Path, key: str = "markers") -> MarkerLayout:
     """The layout in a YAML file; ConfigError naming ``key`` (then the field inside the file)."""
     path = Path(path)

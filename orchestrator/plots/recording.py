@@ -20,6 +20,7 @@ both record, orchestrator/plots/shadows.py). The registered types' plots (:func:
 | ``<c>_measured.png`` | sensor.imu | rate, specific_force (solid) against the outputs feeding rate_true, specific_force_true (dashed), per element |
 | ``<c>_measured.png`` | sensor.force_torque | wrench (solid) against the outputs feeding wrench_true (dashed), per element |
 | ``<c>_measured.png`` | sensor.relative_pose | p, q (solid) against the outputs feeding p_true, q_true (dashed), per element |
+| ``<c>_pose.png`` | estimator.fiducial | each frame's position and attitude error against the dynamics' grasp pose (when recorded), markers found, valid, RMS reprojection error |
 
 ``signals=[name, ...]`` plots those columns instead (``signals.png``): a column such as
 ``dynamics.target.q[0]``, or all elements of a vector, ``orbit.r_eci``. ``<c>`` is the component's

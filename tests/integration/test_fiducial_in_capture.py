@@ -5,7 +5,8 @@ relative-pose oracle:
   dynamics' own ``grasp.p_ee_grasp``, ``grasp.q_ee_grasp`` at each frame's time, while the arm
   holds its posture and the camera looks at the grapple 0.88 m away (the markers' face lit by
   ``ambient`` alone: white cells at ~25 of 255); a second run gives the same columns bit for bit;
-  the Rerun view of the recording shows the camera's frustum on the end effector and its frames;
+  ``orchestrator plot`` draws those errors; the Rerun view of the recording shows the camera's
+  frustum on the end effector and its frames;
 - ``orchestrator check``: accepted as it is, refused with exit 2 naming the key (and the field of
   the layout file) for bad parameters."""
 from __future__ import annotations
@@ -20,6 +21,7 @@ import yaml
 
 from components.camera.render import egl_problem
 from components.rotations import log_so3, matrix_to_quat, quat_to_matrix
+from orchestrator.plots.recording import figures
 from tests.conftest import ROOT, component_processes, orchestrator
 
 pytestmark = [pytest.mark.integration,
@@ -89,14 +91,26 @@ def test_the_estimator_over_a_run_against_the_dynamics_and_again_bit_for_bit(tmp
     frames = signals[(signals["step"] % 10 == 0) & (signals["step"] > 0)]
     assert np.array_equal(frames["pose_sensor.t_measured"].to_numpy(), (frames["step"].to_numpy() // 10 - 1) * 1e8 / 1e9)
     assert len(frames) == 12 and (frames["pose_sensor.valid"] == 1.0).all() and (frames["pose_sensor.markers"] >= 3).all()
+    position_errors, attitude_errors = [], []
     for _, row in frames.iterrows():
         truth = signals.loc[np.isclose(signals["time"], row["pose_sensor.t_measured"], atol=1e-9)].iloc[0]
         p = np.array([row[f"pose_sensor.p[{i}]"] for i in range(3)])
         p_true = np.array([truth[f"dynamics.grasp.p_ee_grasp[{i}]"] for i in range(3)])
         R = quat_to_matrix([row[f"pose_sensor.q[{i}]"] for i in range(4)])
         R_true = quat_to_matrix([truth[f"dynamics.grasp.q_ee_grasp[{i}]"] for i in range(4)])
-        assert np.linalg.norm(p - p_true) <= 0.005, (row["time"], p, p_true)
-        assert np.linalg.norm(log_so3(R_true.T @ R)) <= math.radians(0.6), row["time"]
+        position_errors.append(np.linalg.norm(p - p_true))
+        attitude_errors.append(np.linalg.norm(log_so3(R_true.T @ R)))
+    assert max(position_errors) <= 0.005 and max(attitude_errors) <= math.radians(0.6), \
+        (position_errors, attitude_errors)
+    # orchestrator plot draws those errors at the frames' times
+    done = orchestrator("plot", tmp_path / "a")
+    assert done.returncode == 0, done.stderr
+    assert str(tmp_path / "a" / "plots" / "pose_sensor_pose.png") in done.stdout.split()
+    figure = dict(figures(tmp_path / "a"))["pose_sensor_pose.png"]
+    t, position = line(figure, "error against dynamics.grasp", "position")
+    assert np.array_equal(t, frames["pose_sensor.t_measured"].to_numpy())
+    assert np.allclose(position, 1e3 * np.array(position_errors), rtol=1e-12, atol=0.0)
+    assert np.allclose(line(figure, "attitude error", "attitude")[1], np.degrees(attitude_errors), rtol=1e-12, atol=0.0)
     assert len(list((tmp_path / "a" / "frames" / "pose_sensor").glob("*.npz"))) == 12
     assert frames["pose_sensor.frame"].tolist() == list(range(1, 13))
     # the Rerun view of the recording: the camera's pinhole on the end effector, and its frames
@@ -108,6 +122,12 @@ def test_the_estimator_over_a_run_against_the_dynamics_and_again_bit_for_bit(tmp
     assert len(images) == 12
     with np.load(tmp_path / "a" / "frames" / "pose_sensor" / "000011.npz") as frame:
         assert bytes(np.asarray(images[-1][0], dtype=np.uint8)) == frame["rgb"].tobytes()
+
+
+def line(fig, title_part: str, label: str):
+    ax = next(a for a in fig.axes if title_part in a.get_title())
+    drawn = next(ln for ln in ax.get_lines() if ln.get_label() == label)
+    return np.asarray(drawn.get_xdata(), dtype=float), np.asarray(drawn.get_ydata(), dtype=float)
 
 
 def rrd_camera(rrd: Path, entity: str):

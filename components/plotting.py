@@ -50,6 +50,7 @@ class RecordedRun:
     columns: dict[str, np.ndarray]
     time: np.ndarray
     config_dir: Path | None
+    record_dir: Path | None = None      # the recording directory (files beside signals.parquet), if read from one
 
     def parameters(self, component: str) -> dict:
         """The component's parameters as the config gives them (raw: units as written)."""

@@ -20,6 +20,7 @@ import numpy as np
 
 from components.camera.camera import CAMERA_PARAMETERS, Camera, camera_inputs, check_camera, check_egl
 from components.camera.frames import FrameWriter
+from components.camera.ros import CAMERA as CAMERA_ROS
 from components.camera.view import CameraView
 from components.constants import NS_PER_S
 from components.sdk import Component, Variable
@@ -36,6 +37,7 @@ class CameraComponent(Component):
     """
     type_name = "sensor.camera"
     view = CameraView
+    rosbag = CAMERA_ROS
     parameters = CAMERA_PARAMETERS
 
     @classmethod

@@ -21,6 +21,12 @@ def frame_path(directory: str | Path, k: int) -> Path:
     return Path(directory) / f"{k:06d}.npz"
 
 
+def frame_files(directory: str | Path) -> list[Path]:
+    """The complete frame files in ``directory``, in frame order (none if it does not exist)."""
+    directory = Path(directory)
+    return sorted(p for p in directory.glob("*.npz") if not p.name.startswith(".")) if directory.is_dir() else []
+
+
 class FrameWriter:
     """Writes frames into ``directory`` (created) from a thread; at most ``backlog`` frames wait
     (``put`` blocks beyond: a disk slower than the renderer slows the run rather than filling the

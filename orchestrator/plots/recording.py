@@ -53,7 +53,8 @@ def load_run(record_dir: Path) -> RecordedRun:
     columns = {name: table.column(name).to_numpy() for name in table.column_names}
     if "time" not in columns or not len(columns["time"]):
         raise PlotError(f"{signals}: the recording holds no rows (the run wrote none before it ended: its events.jsonl says why)")
-    return RecordedRun(resolved, columns, np.asarray(columns["time"], dtype=float), _config_dir(record_dir))
+    return RecordedRun(resolved, columns, np.asarray(columns["time"], dtype=float), _config_dir(record_dir),
+                       Path(record_dir))
 
 
 def _config_dir(record_dir: Path) -> Path | None:

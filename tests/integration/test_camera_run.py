@@ -161,6 +161,40 @@ def test_the_view_draws_the_frustum_on_the_end_effector_and_the_frames(recorded,
     assert len(live) >= 5 and all(bytes(np.asarray(image[0], dtype=np.uint8)) in recorded_frames for image in live)
 
 
+def test_the_rosbag2_export_carries_the_frames_their_intrinsics_and_the_mount(recorded, tmp_path):
+    """`orchestrator export DIR --rosbag2 OUT`, read back with the independent MCAP reader: every
+    frame as sensor_msgs/Image (rgb8 and 32FC1, the recorded bytes), CameraInfo with K and a zero
+    plumb_bob D, stamped when taken, and the camera's optical frame on the ee link in /tf_static."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    bag = tmp_path / "bag"
+    done = orchestrator("export", recorded, "--rosbag2", bag, timeout=300)
+    assert done.returncode == 0, done.stderr
+    topics: dict[str, list] = {}
+    with open(next(bag.glob("*.mcap")), "rb") as f:
+        for _, channel, message, decoded in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            topics.setdefault(channel.topic, []).append((message.log_time, decoded))
+    frames = sorted((recorded / "frames" / "camera").glob("*.npz"))
+    images, depths, infos = topics["/camera/image_raw"], topics["/camera/depth/image_raw"], topics["/camera/camera_info"]
+    assert len(images) == len(depths) == len(infos) == len(frames) == 10
+    epoch_ns = 1663502400 * 10**9                     # 2022-09-18T12:00:00Z
+    for path, (ns, image), (_, depth), (_, info) in zip(frames, images, depths, infos):
+        with np.load(path) as frame:
+            assert ns == epoch_ns + round(float(frame["t"]) * 1e9)
+            assert (image.encoding, image.height, image.width, image.step) == ("rgb8", HEIGHT, WIDTH, 3 * WIDTH)
+            assert bytes(image.data) == frame["rgb"].tobytes() and image.header.frame_id == "camera"
+            assert depth.encoding == "32FC1" and bytes(depth.data) == frame["depth"].astype("<f4").tobytes()
+            assert np.array_equal(info.k, frame["K"].ravel()) and info.distortion_model == "plumb_bob"
+            assert not np.any(info.d) and np.array_equal(np.reshape(info.p, (3, 4))[:, :3], frame["K"])
+    mounts = [t for _, m in topics["/tf_static"] for t in m.transforms if t.child_frame_id == "camera"]
+    assert len(mounts) == 1 and mounts[0].header.frame_id == "dynamics/servicer/ee"
+    translation = mounts[0].transform.translation
+    assert np.allclose([translation.x, translation.y, translation.z], MOUNT, atol=1e-15)
+    rotation = mounts[0].transform.rotation
+    R = Rotation.from_quat([rotation.x, rotation.y, rotation.z, rotation.w]).as_matrix()
+    assert np.allclose(R, Rotation.from_quat(looking_at(GRAPPLE_AT_START - MOUNT)).as_matrix(), atol=1e-12)
+
+
 def test_the_guides_camera_passes_check(tmp_path):
     """docs/guides/camera.md's YAML, added to the capture config as it says, is a valid camera."""
     import re

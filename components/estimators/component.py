@@ -12,7 +12,8 @@ from components.camera.model import mount_transform
 from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.estimators.marker_layout import MarkerLayout, layout_path, read_layout
-from components.estimators.plots import POSE
+from components.estimators import plots as fiducial_plots
+from components.estimators import ros as fiducial_ros
 from components.estimators.view import FiducialView
 from components.robots.model import read_model
 from components.robots.urdf import UrdfModel
@@ -96,7 +97,8 @@ class FiducialComponent(Component):
     """
     type_name = "estimator.fiducial"
     view = FiducialView
-    plots = (POSE,)
+    plots = (fiducial_plots.POSE,)
+    rosbag = fiducial_ros.POSE
     parameters = (
         Parameter("camera", Record("Camera", CAMERA_PARAMETERS),
                   description="the camera it sees through: sensor.camera's parameters"),

@@ -5,7 +5,8 @@ relative-pose oracle:
   dynamics' own ``grasp.p_ee_grasp``, ``grasp.q_ee_grasp`` at each frame's time, while the arm
   holds its posture and the camera looks at the grapple 0.88 m away (the markers' face lit by
   ``ambient`` alone: white cells at ~25 of 255); a second run gives the same columns bit for bit;
-  ``orchestrator plot`` draws those errors; the Rerun view of the recording shows the camera's
+  ``orchestrator plot`` draws those errors, ``orchestrator export --rosbag2`` writes them as
+  PoseStamped in the end effector's frame; the Rerun view of the recording shows the camera's
   frustum on the end effector and its frames;
 - ``orchestrator check``: accepted as it is, refused with exit 2 naming the key (and the field of
   the layout file) for bad parameters."""
@@ -33,6 +34,7 @@ KEY = "components.pose_sensor.parameters"
 # the grapple in the end-effector frame at the start (the config's arm pose): the camera looks at it
 GRAPPLE_AT_START = np.array([0.82793285, 0.29939321, -0.0460646])
 MOUNT = np.array([0.0, 0.07, -0.03])
+EPOCH_NS = 1663502400 * 1_000_000_000        # the capture config's epoch, 2022-09-18T12:00:00Z
 
 
 def looking_at(direction) -> list[float]:
@@ -113,6 +115,19 @@ def test_the_estimator_over_a_run_against_the_dynamics_and_again_bit_for_bit(tmp
     assert np.allclose(line(figure, "attitude error", "attitude")[1], np.degrees(attitude_errors), rtol=1e-12, atol=0.0)
     assert len(list((tmp_path / "a" / "frames" / "pose_sensor").glob("*.npz"))) == 12
     assert frames["pose_sensor.frame"].tolist() == list(range(1, 13))
+    # orchestrator export --rosbag2: a PoseStamped per frame in the end effector's tf frame, read back
+    # with the independent MCAP reader
+    bag = tmp_path / "bag"
+    done = orchestrator("export", tmp_path / "a", "--rosbag2", bag)
+    assert done.returncode == 0, done.stderr
+    poses = read_bag(bag)["/pose_sensor/pose"]
+    assert len(poses) == 12
+    for (_, message), (_, row) in zip(poses, frames.iterrows()):
+        assert message.header.frame_id == "dynamics/servicer/ee"
+        stamp = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
+        assert stamp == EPOCH_NS + round(row["pose_sensor.t_measured"] * 1e9)
+        position = message.pose.position
+        assert [position.x, position.y, position.z] == [row[f"pose_sensor.p[{i}]"] for i in range(3)]
     # the Rerun view of the recording: the camera's pinhole on the end effector, and its frames
     rrd = tmp_path / "view.rrd"
     done = orchestrator("view", tmp_path / "a", "--view", f"save:{rrd}", "--rate", "100", timeout=300)
@@ -122,6 +137,19 @@ def test_the_estimator_over_a_run_against_the_dynamics_and_again_bit_for_bit(tmp
     assert len(images) == 12
     with np.load(tmp_path / "a" / "frames" / "pose_sensor" / "000011.npz") as frame:
         assert bytes(np.asarray(images[-1][0], dtype=np.uint8)) == frame["rgb"].tobytes()
+
+
+def read_bag(bag: Path) -> dict[str, list]:
+    """{topic: [(log time ns, decoded message)]} with the MCAP reader (not the exporter's rosbags)."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    (path,) = bag.glob("*.mcap")
+    topics: dict[str, list] = {}
+    with open(path, "rb") as f:
+        for _, channel, message, decoded in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
+                log_time_order=True):
+            topics.setdefault(channel.topic, []).append((message.log_time, decoded))
+    return topics
 
 
 def line(fig, title_part: str, label: str):

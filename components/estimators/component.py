@@ -115,6 +115,9 @@ class FiducialComponent(Component):
         Variable("markers", "output", (), "1", 0.0, "markers of the layout found in the latest frame"),
         Variable("reprojection_error", "output", (), "px", 0.0,
                  "RMS reprojection error of the latest frame's solve (0 without one)"),
+        Variable("frame_solved", "output", (), "1", 0.0,
+                 "the camera's count of the latest frame solved (0: none yet; with --record, its file is "
+                 "frames/<camera>/<frame - 1>.npz)"),
     )
 
     @classmethod
@@ -148,17 +151,19 @@ class FiducialComponent(Component):
         self.p, self.q = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
         self.accepted = False                       # a pose was accepted (q's sign follows it)
         self.t_measured_ns, self.valid, self.markers, self.error = 0, False, 0, 0.0
+        self.frame = 0
 
     def _outputs(self) -> dict[str, Any]:
         return {"p": self.p, "q": self.q, "t_measured": self.t_measured_ns / NS_PER_S, "valid": float(self.valid),
-                "markers": float(self.markers), "reprojection_error": self.error}
+                "markers": float(self.markers), "reprojection_error": self.error,
+                "frame_solved": float(self.frame)}
 
     def initialize(self, t0_ns, inputs):
         return self._outputs()
 
     def do_step(self, t_ns, h_ns, inputs):
-        self.t_measured_ns = round(float(inputs["t_frame"]) * NS_PER_S)
-        if not inputs["frame"]:                  # no frame yet (the camera's start values)
+        self.t_measured_ns, self.frame = round(float(inputs["t_frame"]) * NS_PER_S), int(inputs["frame"])
+        if not self.frame:                       # no frame yet (the camera's start values)
             self.valid, self.markers, self.error = False, 0, 0.0
             return self._outputs()
         T_E_C = self.T_E_link @ inputs["T_link_camera"]
@@ -174,11 +179,11 @@ class FiducialComponent(Component):
     def get_state(self):
         return {"p": self.p.copy(), "q": self.q.copy(), "accepted": np.bool_(self.accepted),
                 "t_measured_ns": np.int64(self.t_measured_ns), "valid": np.bool_(self.valid),
-                "markers": np.int64(self.markers), "error": np.float64(self.error)}
+                "markers": np.int64(self.markers), "error": np.float64(self.error), "frame": np.int64(self.frame)}
 
     def set_state(self, state):
         self.p = np.array(state["p"], dtype=np.float64).reshape(3)
         self.q = np.array(state["q"], dtype=np.float64).reshape(4)
         self.accepted, self.valid = bool(state["accepted"]), bool(state["valid"])
         self.t_measured_ns, self.markers = int(state["t_measured_ns"]), int(state["markers"])
-        self.error = float(state["error"])
+        self.error, self.frame = float(state["error"]), int(state["frame"])

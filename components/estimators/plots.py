@@ -20,9 +20,9 @@ def chaser_dynamics(run: RecordedRun, c: str) -> str | None:
     return source.partition(".")[0] if source else None
 
 
-def new_frames(t_measured: np.ndarray) -> np.ndarray:
-    """The rows where the estimator's solve is of a new frame (its time changes; 0: none yet)."""
-    return np.flatnonzero((np.diff(t_measured, prepend=0.0) != 0) & (t_measured > 0))
+def new_frames(frame: np.ndarray) -> np.ndarray:
+    """The rows where the estimator's solve is of a new frame (its ``frame_solved`` output changes)."""
+    return np.flatnonzero(np.diff(frame, prepend=0.0) > 0)
 
 
 def _truth(run: RecordedRun, c: str) -> str | None:
@@ -49,7 +49,7 @@ def frame_errors(run: RecordedRun, c: str, dynamics: str):
     valid, t_measured = run.variable(f"{c}.valid")[:, 0], run.variable(f"{c}.t_measured")[:, 0]
     p, q = run.variable(f"{c}.p"), run.variable(f"{c}.q")
     p_true, q_true = run.variable(f"{dynamics}.grasp.p_ee_grasp"), run.variable(f"{dynamics}.grasp.q_ee_grasp")
-    rows = [k for k in new_frames(t_measured) if valid[k] > 0.5]
+    rows = [k for k in new_frames(run.variable(f"{c}.frame_solved")[:, 0]) if valid[k] > 0.5]
     out = []
     for k in rows:
         j = int(np.argmin(np.abs(run.time - t_measured[k])))
@@ -61,14 +61,14 @@ def frame_errors(run: RecordedRun, c: str, dynamics: str):
 
 
 def draw(run: RecordedRun, c: str) -> dict:
-    t_measured = run.variable(f"{c}.t_measured")
-    if t_measured is None:
+    frame = run.variable(f"{c}.frame_solved")
+    if frame is None:
         return {}
     dynamics = _truth(run, c)
     fig = new_figure(9.0, 10.0)
     axes = [fig.add_subplot(4, 1, row) for row in range(1, 5)]
-    new = new_frames(t_measured[:, 0])
-    t_frame = t_measured[new, 0]
+    new = new_frames(frame[:, 0])
+    t_frame = run.variable(f"{c}.t_measured")[new, 0]
     if dynamics is not None:
         errors = frame_errors(run, c, dynamics)
         axes[0].plot(errors[:, 0], 1e3 * errors[:, 1], ".-", label="position")

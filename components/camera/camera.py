@@ -47,6 +47,9 @@ CAMERA_PARAMETERS = (
     Parameter("depth", Bool(), default=True, description="record the depth image beside the colour image"),
     Parameter("ambient", Float(minimum=0.0, maximum=1.0), default=0.0,
               description="light without the Sun, a fraction of a surface's colour (0: unlit faces and eclipse are black)"),
+    Parameter("lamp", Float("m^2", minimum=0.0), default=0.0,
+              description="a lamp at the camera's origin: light on a face square to it 1 m away, a fraction of its "
+                          "colour, falling off as 1/d^2 (Lambert; 0: none)"),
     Parameter("seed", Int(minimum=0), description="seed of the noise (numpy PCG64)"),
     Parameter("pixel_noise", Float(minimum=0.0), description="white noise on each colour channel, 1-sigma (counts of 0..255)"),
     Parameter("depth_noise", Float("m", minimum=0.0), description="white noise on the depth, 1-sigma, where something is hit"),
@@ -128,7 +131,7 @@ class Camera:
                                      camera["cy"], camera["near"], camera["far"], distortion)
         self.T_link_camera = mount_transform(camera["position"], camera["orientation"])
         self.model = CameraModel(geometries, camera["body"], camera["link"], self.T_link_camera, self.intrinsics,
-                                 camera["ambient"])
+                                 camera["ambient"], camera["lamp"])
         self.D = np.array(distortion or (0.0,) * 5)       # plumb_bob [k1, k2, p1, p2, k3]
         self.sun = SunClock(run["_epoch"])
         self.pixel_stream = NormalStream(np.random.SeedSequence([camera["seed"], 0]))

@@ -51,7 +51,7 @@ class CameraModel:
     at ``T_link_camera`` (4x4, OpenCV axes: z forward, x right, y down)."""
 
     def __init__(self, bodies: Mapping[str, Geometry], body: str, link: str, T_link_camera: np.ndarray,
-                 intrinsics: Intrinsics, ambient: float):
+                 intrinsics: Intrinsics, ambient: float, lamp: float = 0.0):
         self.intrinsics = intrinsics
         self.T_link_camera = np.asarray(T_link_camera, dtype=np.float64)
         self.lens = None
@@ -64,7 +64,7 @@ class CameraModel:
             if max(width, height) > MAX_RENDER:
                 raise ValueError(f"the distortion needs a pinhole render of {width}x{height} pixels, "
                                  f"above OpenGL's {MAX_RENDER}")
-        self.renderer = Renderer(K, width, height, intrinsics.near, intrinsics.far, ambient)
+        self.renderer = Renderer(K, width, height, intrinsics.near, intrinsics.far, ambient, lamp)
         self.poses = {name: BodyPoses(geometry) for name, geometry in bodies.items()}
         self.mount = (body, bodies[body].links.index(link))
         self.drawn: list[tuple[str, int]] = []     # per renderer mesh: (body, link index)

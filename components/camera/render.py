@@ -4,8 +4,11 @@ Plain class, no bus and no I/O. :class:`Renderer` holds an EGL context, an offsc
 and a scene of triangle meshes (each in its own frame, with one colour); :meth:`Renderer.render`
 draws them from a camera pose and returns
 
-- ``rgb``: (H, W, 3) uint8, Lambert shading ``colour * min(1, ambient + max(0, n . s))`` for a Sun
-  direction ``s`` (None: no Sun, in the Earth's shadow), black where nothing is hit (the sky);
+- ``rgb``: (H, W, 3) uint8, Lambert shading
+  ``colour * min(1, ambient + max(0, n . s) + lamp max(0, n . l) / d^2)`` for a Sun direction ``s``
+  (None: no Sun, in the Earth's shadow) and a lamp at the camera's origin (``l`` the unit vector
+  from the surface towards it, ``d`` its distance in m: inverse-square falloff), black where
+  nothing is hit (the sky);
   ``colour`` is a mesh's per-vertex colour, or its texture's (trilinear, mipmapped) where it has one;
 - ``depth``: (H, W) float32, metres along the optical axis (the camera frame's z), 0 where
   nothing is hit.
@@ -58,6 +61,7 @@ _FRAGMENT = """
 #version 330
 uniform vec3 sun_camera;      // unit vector towards the Sun, camera axes (0: none)
 uniform float ambient;
+uniform float lamp;           // a lamp at the camera's origin: light on a face square to it at 1 m
 uniform bool textured;
 uniform sampler2D image;
 in vec3 p_camera;
@@ -70,7 +74,8 @@ void main() {
     vec3 n = normalize(n_camera);
     // two-sided: the side the camera sees faces it
     if (dot(n, p_camera) > 0.0) n = -n;
-    float light = ambient + max(dot(n, sun_camera), 0.0);
+    float d2 = dot(p_camera, p_camera);
+    float light = ambient + max(dot(n, sun_camera), 0.0) + lamp * max(dot(n, -p_camera), 0.0) / (d2 * sqrt(d2));
     vec3 colour = textured ? texture(image, v_uv).rgb : v_colour;
     rgb = vec4(colour * min(light, 1.0), 1.0);
     depth = p_camera.z;
@@ -122,11 +127,13 @@ def _context():
 class Renderer:
     """An offscreen pinhole camera of intrinsics ``K`` (3x3, pixels), ``width`` x ``height`` pixels,
     clipping at ``near`` and ``far`` (m); ``ambient`` is the light a surface gets without the Sun
-    (0..1 of its colour)."""
+    (0..1 of its colour); ``lamp`` the light of a lamp at the camera's origin on a face square to
+    it 1 m away (0..1 of its colour, m^2: it falls off as 1/d^2)."""
 
-    def __init__(self, K: np.ndarray, width: int, height: int, near: float, far: float, ambient: float = 0.0):
+    def __init__(self, K: np.ndarray, width: int, height: int, near: float, far: float, ambient: float = 0.0,
+                 lamp: float = 0.0):
         self.K = np.array(K, dtype=np.float64).reshape(3, 3)
-        self.width, self.height, self.ambient = int(width), int(height), float(ambient)
+        self.width, self.height, self.ambient, self.lamp = int(width), int(height), float(ambient), float(lamp)
         self.ctx = _context()
         with self.ctx:   # every GL call in this context: another camera's may be current in this process
             self._build(near, far)
@@ -204,6 +211,7 @@ class Renderer:
         sun = np.zeros(3, dtype=np.float32) if sun_camera is None else np.asarray(sun_camera, dtype=np.float32)
         self.program["sun_camera"].write(sun.tobytes())
         self.program["ambient"].value = self.ambient
+        self.program["lamp"].value = self.lamp
         for (vao, _, texture), T in zip(self.meshes, T_camera_meshes):
             if T is None:
                 continue

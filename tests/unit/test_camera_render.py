@@ -154,6 +154,38 @@ def test_lambert_shading_of_a_plate_facing_the_camera():
     assert not rgb[~inside].any()
 
 
+def test_a_lamp_at_the_camera_lights_a_turned_plate_by_lambert_and_the_inverse_square_law():
+    """A plate 0.5 m ahead, turned 35 deg about y and filling the image, lit by the Sun (n . s =
+    0.3) and by a lamp at the camera's origin: every pixel is colour * (n . s + lamp cos(i) / d^2),
+    d the distance from the camera to the point the pixel's ray meets the plate's plane (ray and
+    plane intersected here in float64) and i the angle between the plate's normal and that ray;
+    the lamp's share alone (no Sun) likewise, within one count of 255."""
+    import trimesh
+    from components.camera.render import Renderer
+    plate = trimesh.creation.box(extents=(3.0, 3.0, 0.01))
+    pose = rigid([0.0, np.radians(35.0), 0.0], [0.05, -0.02, 0.5])
+    n = pose[:3, :3] @ [0.0, 0.0, -1.0]                  # the face towards the camera
+    point = pose[:3, 3] + 0.005 * n                      # on that face
+    sun = np.cross(n, [0.0, 1.0, 0.0])
+    sun = 0.3 * n + np.sqrt(1.0 - 0.09) * sun / np.linalg.norm(sun)
+    lamp = 0.05
+    colour = np.array([0.8, 0.6, 0.4])
+    u, v = np.meshgrid(np.arange(W, dtype=float), np.arange(H, dtype=float))
+    rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], axis=-1)
+    t = (point @ n) / (rays @ n)
+    d = t * np.linalg.norm(rays, axis=-1)
+    cos_i = np.abs(rays @ n) / np.linalg.norm(rays, axis=-1)
+    r = Renderer(K, W, H, 0.05, 100.0, ambient=0.0, lamp=lamp)
+    rgb, depth = draw(r, [(plate, pose)], sun=sun)
+    lamp_only, _ = r.render([pose], None)
+    r.release()
+    assert (depth > 0).all()
+    for image, light in ((rgb, 0.3 + lamp * cos_i / d**2), (lamp_only, lamp * cos_i / d**2)):
+        assert light.max() < 1.0 and np.ptp(light) > 0.05          # unclipped, and varying over the image
+        expected = colour * light[..., None] * 255.0
+        assert np.abs(image.astype(float) - expected).max() <= 1.0
+
+
 def test_the_sun_is_where_the_astronomical_almanac_puts_it():
     """ERFA's epv00 Sun against the Almanac's low-precision formula (0.01 deg, mean equator and
     equinox of date: turned into GCRF with the IAU 2006 precession matrix), over four seasons."""

@@ -8,8 +8,8 @@ ArUco solve), shortened to 10 s of its 40 (the grasp closes at 3.6 s):
   (0.77 deg/s) below 0.045 deg/s at 10 s (the oracle's config: 0.767 and 0.032; this one: 0.774
   and 0.031), the wrist's loads within the fixture's limits all along;
 - the estimator's poses against the dynamics' own ``grasp.p_ee_grasp`` and ``grasp.q_ee_grasp`` at
-  each frame's time (measured: up to 7.7 mm and 1.5 deg at 0.75 m while the arm swings, 1.8 mm and
-  0.44 deg closer than 0.15 m);
+  each frame's time (measured: up to 8.4 mm and 1.2 deg at 0.75 m while the arm swings, 1.0 mm and
+  0.20 deg closer than 0.15 m);
 - tools/camera_figure.py draws the recorded frame nearest a time."""
 from __future__ import annotations
 

@@ -17,7 +17,13 @@ def check_replacement(spec: ComponentSpec, connections: list[tuple[str, str, str
     problems = []
     for d, dv, s, sv in connections:
         for comp, var, layout, causality in ((d, dv, spec.inputs, "input"), (s, sv, spec.outputs, "output")):
-            if comp == spec.name and var not in layout.offsets:
+            if comp != spec.name:
+                continue
+            if any(v.name == var for v in layout.frames):
+                # a frame is part of no state and is not sent again to a new generation
+                problems.append(f"the connection {d}.{dv}: {s}.{sv} carries frames (images): a component joined "
+                                f"by one cannot be swapped yet")
+            elif var not in layout.offsets:
                 problems.append(f"{spec.type} has no {causality} {var!r}, which the connection "
                                 f"{d}.{dv}: {s}.{sv} uses")
     return problems

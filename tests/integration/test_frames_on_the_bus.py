@@ -88,3 +88,15 @@ connections: {{{connection}}}
     result = orchestrator("check", path)
     assert result.returncode == 2, result.stdout + result.stderr
     assert expected in result.stdout + result.stderr
+
+
+@pytest.mark.parametrize("setting, expected", [
+    ("components.reader.on_failure=restart", "components.reader.on_failure: restart is not supported yet in a run "
+                                             "with frame connections (camera, reader, slow exchange images)"),
+    ("events=[{at: 0.1 s, swap: reader, type: test.image_sum}]",
+     "the connection reader.rgb: camera.rgb carries frames (images): a component joined by one cannot be swapped yet"),
+])
+def test_check_refuses_what_frames_do_not_support_yet(write_config, setting, expected):
+    result = orchestrator("check", write_config(config_text("jacobi", False)), "--set", setting)
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert expected in result.stderr, result.stderr

@@ -269,11 +269,12 @@ def frame_problems(components: dict[str, ComponentSpec], connections: list, rest
     """What a run with frame connections cannot do yet (docs/component_api.md, "Images in a step"):
     a frame is part of no state and is not sent again to a new generation, so a restart would
     wait for a frame that never comes (a swap: :func:`check_replacement`)."""
-    framed = {n for d, dv, s, sv in connections if components[d].variables[dv].frame for n in (d, s)}
-    if not framed:
-        return []
-    return [f"components.{n}.on_failure: restart is not supported yet in a run with frame connections "
-            f"({', '.join(sorted(framed))} exchange images)" for n in restarting[:1]]
+    frames = [(d, dv, s, sv) for d, dv, s, sv in connections if components[d].variables[dv].frame]
+    framed = {n for d, _, s, _ in frames for n in (d, s)}
+    problems = [f"connections.{d}.{dv}: a component cannot read its own frames (from {s}.{sv})"
+                for d, dv, s, sv in frames if d == s]
+    return problems + [f"components.{n}.on_failure: restart is not supported yet in a run with frame connections "
+                       f"({', '.join(sorted(framed))} exchange images)" for n in restarting[:1] if framed]
 
 
 def _events(entries: list[dict], components: dict[str, ComponentSpec], connections: list, step_ns: int | None,

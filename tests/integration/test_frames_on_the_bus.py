@@ -100,3 +100,23 @@ def test_check_refuses_what_frames_do_not_support_yet(write_config, setting, exp
     result = orchestrator("check", write_config(config_text("jacobi", False)), "--set", setting)
     assert result.returncode == 2, result.stdout + result.stderr
     assert expected in result.stderr, result.stderr
+
+
+def test_check_refuses_a_component_reading_its_own_frames(write_config):
+    write_config("""
+import numpy as np
+from components.sdk import Component, Variable
+
+class Echo(Component):
+    variables = (Variable("image_in", "input", (4, 4), "1", 0, "in", frame=True, dtype="uint8"),
+                 Variable("image_out", "output", (4, 4), "1", 0, "out", frame=True, dtype="uint8"))
+""", name="echo.py")
+    path = write_config("""
+run: {name: frames, epoch: 2022-09-18T12:00:00Z, duration: 0.1 s, step: 1 ms}
+components:
+  echo: {type: echo.py:Echo}
+connections: {echo.image_in: echo.image_out}
+""")
+    result = orchestrator("check", path)
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert "connections.echo.image_in: a component cannot read its own frames (from echo.image_out)" in result.stderr

@@ -30,11 +30,14 @@ from typing import Any, Mapping
 import numpy as np
 
 from components import protocol
-from components.protocol import BATCH, OUTPUT, SYNC, Malformed
+from components.protocol import BATCH, FRAME, FRAME_DTYPES, OUTPUT, SYNC, Malformed
 
 _OUTPUT_HEADER = struct.Struct("<qq")    # generation, tag
 _BATCH_HEADER = struct.Struct("<qqq")    # generation, number of steps, outputs per step
 _INT = struct.Struct("<q")
+# a frame's header: generation, tag, dtype (index in FRAME_DTYPES), ndim, H, W, C (1 when 2-D),
+# length of the output's name (UTF-8, after the header); the raw bytes follow the name
+_FRAME_HEADER = struct.Struct("<qqBBIIIH")
 
 
 def count_drop(counts: dict[str, int], key: str) -> int | None:
@@ -171,6 +174,32 @@ def decode_output(payload: bytes) -> tuple[int, int, np.ndarray]:
         raise Malformed(f"output message of {len(payload)} bytes: not a whole number of float64 values")
     generation, tag = _OUTPUT_HEADER.unpack_from(payload, 1)
     return generation, tag, np.frombuffer(payload, dtype=np.float64, offset=1 + _OUTPUT_HEADER.size)
+
+
+def encode_frame(generation: int, tag: int, output: str, frame: np.ndarray) -> bytes:
+    """One frame output of one step: the header, the output's name and the array's raw bytes (C order)."""
+    name = output.encode()
+    shape = frame.shape + (1,) * (3 - frame.ndim)
+    header = _FRAME_HEADER.pack(generation, tag, FRAME_DTYPES.index(frame.dtype.name), frame.ndim, *shape, len(name))
+    return b"".join((FRAME, header, name, np.ascontiguousarray(frame).data))
+
+
+def decode_frame(payload: bytes) -> tuple[int, int, str, np.ndarray]:
+    """(generation, tag, output, frame); the frame a read-only view of the payload. Malformed
+    unless the payload holds exactly one frame of a known dtype."""
+    _expect(payload, FRAME, 1 + _FRAME_HEADER.size)
+    generation, tag, dtype, ndim, h, w, c, n = _FRAME_HEADER.unpack_from(payload, 1)
+    start = 1 + _FRAME_HEADER.size + n
+    if dtype >= len(FRAME_DTYPES) or ndim not in (2, 3) or ndim == 2 and c != 1:
+        raise Malformed(f"frame message with dtype {dtype}, {ndim} dimensions, shape {(h, w, c)}")
+    shape, dtype = (h, w, c)[:ndim], np.dtype(FRAME_DTYPES[dtype])
+    if len(payload) != start + h * w * c * dtype.itemsize:
+        raise Malformed(f"frame message of {len(payload)} bytes does not hold a {dtype.name} frame of shape {shape}")
+    try:
+        output = bytes(payload[1 + _FRAME_HEADER.size:start]).decode()
+    except UnicodeDecodeError:
+        raise Malformed("frame message whose output name is not UTF-8") from None
+    return generation, tag, output, np.frombuffer(payload, dtype=dtype, offset=start).reshape(shape)
 
 
 def encode_batch(generation: int, tags: np.ndarray, timings: np.ndarray, outputs: np.ndarray) -> bytes:

@@ -72,7 +72,9 @@ def access_control(run_id: str, components: list[str]) -> dict:
     """Zenoh access control for a TLS run: only the orchestrator's certificate sends control
     messages (commands, horizons), holds the orchestrator's liveliness token and answers joins
     and CLI queries; nobody sends another process its quit message. Enforced where a message
-    comes in, by every process of the run and its router."""
+    comes in, by every process of the run and its router. Step outputs, batches and frames (images)
+    go on the consumers' inbox keys (``OUTPUTS``), which the default permission allows to the
+    run's processes, whose certificates the TLS links check."""
     others = [component_name(n) for n in components] + [CLI_NAME]
     return {
         "enabled": True,

@@ -17,7 +17,8 @@ import traceback
 import numpy as np
 
 from components import bus, protocol, registry
-from components.schedule import Route, fed_inputs
+from components.sdk import ComponentOutputError
+from components.schedule import FrameRoute, Route, fed_inputs
 
 BATCH_STEPS = 32   # outputs go to the orchestrator in batches of this many steps ...
 BATCH_MIN_S = 0.002  # ... more (up to BATCH_CAPACITY) while this long has not passed since the last (each
@@ -52,10 +53,15 @@ class ComponentProcess:
         self.component = None
         self.generation = 0
         self.routes = []
+        self.float_sources: set[str] = set()
         self.route_inputs: list[list[str]] = []   # the input variables each route feeds
         self.sources: dict[str, int] = {}        # source -> the generation whose outputs count
         self.held: dict[str, collections.deque] = {}   # source -> (tag, outputs), tags increasing
         self.heard: set[str] = set()             # sources whose sync message arrived
+        self.frame_routes: list[FrameRoute] = []
+        self.frames_held: dict[tuple[str, str], dict[int, np.ndarray]] = {}   # (source, output) -> tag -> frame
+        self.frame_consumers: dict[str, list[str]] = {}   # our frame output -> who gets it
+        self.frame_messages: dict[str, bytes] = {}        # our frame output -> its latest message (sent again at sync)
         self.source_sizes: dict[str, int] = {}   # source -> the outputs its routes read
         self.drops: dict[str, int] = {}          # key -> messages dropped from it
         self.synced = False
@@ -97,12 +103,19 @@ class ComponentProcess:
         kind = payload[:1]
         if kind == bus.OUTPUT:
             generation, tag, vector = bus.decode_output(payload)
-            if self._accepts(source, generation, vector.size):
+            if self._accepts(source, generation, vector.size) and source in self.float_sources:
                 self.held[source].append((tag, vector))
         elif kind == bus.BATCH:
             generation, tags, _, outputs = bus.decode_batch(payload)
-            if self._accepts(source, generation, outputs.shape[1]):
+            if self._accepts(source, generation, outputs.shape[1]) and source in self.float_sources:
                 self.held[source].extend(zip(tags.tolist(), outputs))
+        elif kind == bus.FRAME:
+            generation, tag, output, frame = bus.decode_frame(payload)
+            held = self.frames_held.get((source, output))
+            if held is None:
+                raise bus.Malformed(f"frame {output!r} of {source!r} feeds no input of {self.name}")
+            if self.sources[source] == generation:
+                held[tag] = frame   # by tag: a frame sent again (at sync) replaces its copy
         elif kind == bus.SYNC:
             if self.sources.get(source) == bus.decode_sync(payload) and not self.synced:
                 self.heard.add(source)
@@ -137,6 +150,8 @@ class ComponentProcess:
             self.input_vector = self.inputs.start_vector()
             self.output_vector = self.outputs.start_vector()
             self.input_views = self.inputs.unpack(self.input_vector)
+            self.input_views.update((v.name, v.start) for v in self.inputs.frames)
+            self.frame_outputs = {v.name: v for v in self.outputs.frames}
             self.batch_tags = np.empty(BATCH_CAPACITY, dtype=np.int64)
             self.batch_timings = np.empty((BATCH_CAPACITY, 2))
             self.batch_rows = np.empty((BATCH_CAPACITY, self.outputs.size))
@@ -151,16 +166,24 @@ class ComponentProcess:
             self.horizon = message.k
             self._set_routes(message.routes)
             self._set_sources(message.sources)
+            self.frame_routes = [FrameRoute(*route) for route in message.frame_routes]
+            self.frames_held = {(r.source, r.output): {} for r in self.frame_routes}
+            self.frame_consumers = message.frame_consumers
             self.reply(op)
         elif kind is protocol.Initialize:
             self.input_vector[:] = message.inputs
             self.input_times.clear()
             self.input_times.update(message.input_times_ns)
+            self.input_views.update((v.name, v.start) for v in self.inputs.frames)   # no frame before the first step
             result = self.component.initialize(message.t0_ns, self.input_views)
             self.outputs.pack(result, self.output_vector)
+            self._frames(result, self.next_k, send=False)
             self.reply(op, {}, self.output_vector.tobytes())
         elif kind is protocol.Sync:
-            # our outputs now reach every consumer that subscribed before this message
+            # our outputs now reach every consumer that subscribed before this message; the
+            # latest frames go (again) first, as a step's do: a consumer synced holds them
+            for output, payload in self.frame_messages.items():
+                self.publish_output(self.frame_consumers.get(output, []), payload)
             self.publish_output(self.consumers + self.batch_consumers, bus.encode_sync(self.generation))
             if self.synced:
                 self.reply("synced")
@@ -191,6 +214,7 @@ class ComponentProcess:
 
     def _set_routes(self, routes: list[Route]) -> None:
         self.routes = list(routes)
+        self.float_sources = {route.source for route in self.routes}   # a source of frames alone: none held
         self.source_sizes = {}
         for route in self.routes:
             needed = int(route.src.max()) + 1 if route.src.size else 0
@@ -243,6 +267,18 @@ class ComponentProcess:
                     raise Halt(self._report("step", k, f"input from {route.source!r} for step {k} "
                                                          f"(tag {tag}) never arrived; got tag {held[0][0]}"))
                 vectors.append(held[0][1])
+            frames = []
+            for route in self.frame_routes:
+                frame = self.frames_held[route.source, route.output].get(route.tag(k))
+                if frame is None:
+                    return   # it comes before its step's outputs, unless the bus reordered them
+                frames.append(frame)
+            for route, frame in zip(self.frame_routes, frames):
+                self.input_views[route.input] = frame
+                self.input_times[route.input] = route.tag(k) * self.step_ns
+                held = self.frames_held[route.source, route.output]
+                for old in [t for t in held if t < route.tag(k)]:   # never read again: tags only grow
+                    del held[old]
             for route, names, vector, tag in zip(self.routes, self.route_inputs, vectors, tags):
                 self.input_vector[route.dst] = vector[route.src]
                 for name in names:
@@ -259,6 +295,8 @@ class ComponentProcess:
             self.outputs.pack(result, self.output_vector)
             if fault and fault[0] == "nan":
                 self.output_vector[0] = np.nan
+            if self.frame_outputs:
+                self._frames(result, k + self.ratio, send=True)   # before the outputs: consumers hold it first
         except Exception as error:
             traceback.print_exc(file=sys.stderr)
             raise Halt(self._report("step", k, f"{type(error).__name__}: {error}")) from None
@@ -287,6 +325,24 @@ class ComponentProcess:
             self.flush()
         self.next_k = tag
         self.idle_since = time.perf_counter()
+
+    def _frames(self, result, tag: int, send: bool) -> None:
+        """Encode the frame outputs of ``result`` (tagged ``tag``), checked against their
+        declarations; with ``send``, publish each to its consumers."""
+        for name, variable in self.frame_outputs.items():
+            try:
+                frame = result[name]
+            except KeyError:
+                raise ComponentOutputError(f"frame output {name!r} missing from the step's result") from None
+            if not isinstance(frame, np.ndarray) or frame.dtype.name != variable.dtype or frame.shape != variable.shape:
+                raise ComponentOutputError(f"frame output {name!r}: expected a {variable.dtype} array of shape "
+                                           f"{variable.shape}, got {getattr(frame, 'dtype', type(frame).__name__)} "
+                                           f"{getattr(frame, 'shape', '')}")
+            consumers = self.frame_consumers.get(name)
+            if consumers:
+                payload = self.frame_messages[name] = bus.encode_frame(self.generation, tag, name, frame)
+                if send:
+                    self.publish_output(consumers, payload)
 
     def flush(self) -> None:
         """Send the outputs not yet sent to the orchestrator (from any thread)."""

@@ -8,7 +8,7 @@ Topics, under ``zenorbit/<run_id>/``:
 | topic | key | from -> to | payload |
 |---|---|---|---|
 | ``INBOX`` | ``i/<name>/**`` | anyone -> component | everything addressed to it: one subscriber, one FIFO |
-| ``OUTPUTS`` | ``i/<name>/o/<source>`` | component -> a consumer | step outputs (binary, tagged), a batch of them, or sync |
+| ``OUTPUTS`` | ``i/<name>/o/<source>`` | component -> a consumer | step outputs (binary, tagged), a batch of them, a frame, or sync |
 | ``COMMANDS`` | ``i/<name>/c/<generation>`` | orchestrator -> component | the commands below |
 | ``QUITS`` | ``i/<name>/q/<generation>`` | component -> itself | ``Quit``: the orchestrator's liveliness token went away |
 | ``BATCHES`` | ``r/<name>`` | component -> orchestrator | a batch of step outputs (binary), for recording |
@@ -27,7 +27,7 @@ the command, or for ``R`` and ``E`` the command answered. Times in integer ns, v
 |---|---|---|---|
 | ``Horizon`` | ``H`` | COMMANDS | ``horizon``: steps ``k < horizon`` may run (int64, binary) |
 | ``Instantiate`` | ``C`` instantiate | COMMANDS | ``type``; ``params`` (the component's, with the run's) |
-| ``Wire`` | ``C`` wire | COMMANDS | ``generation``; ``step_ns`` (the run step, ns); ``ratio`` (its step in run steps); ``k`` (the step it starts at); ``consumers``, ``batch_consumers`` (names); ``routes``; ``sources`` (name -> generation); ``faults`` ([step, kind, seconds] to inject) |
+| ``Wire`` | ``C`` wire | COMMANDS | ``generation``; ``step_ns`` (the run step, ns); ``ratio`` (its step in run steps); ``k`` (the step it starts at); ``consumers``, ``batch_consumers`` (names); ``routes``; ``sources`` (name -> generation); ``faults`` ([step, kind, seconds] to inject); ``frame_routes`` ([source, output, input, ratio, ahead]); ``frame_consumers`` (frame output -> names) |
 | ``Initialize`` | ``C`` initialize | COMMANDS | ``t0_ns``; ``input_times_ns`` (input -> when sampled, ns); blob: ``inputs`` (float64) |
 | ``Sync`` | ``C`` sync | COMMANDS | (none): send sync to the consumers, reply ``synced`` once every source is heard |
 | ``Start`` | ``C`` start | COMMANDS | ``held`` ([source, tag, size]); ``horizon``; blob: ``values``, the held outputs in that order (float64) |
@@ -138,6 +138,8 @@ CONTROL = b"C"   # orchestrator -> component: a command (JSON + blob)
 HORIZON = b"H"   # orchestrator -> component: steps k < horizon may run
 OUTPUT = b"O"    # component -> consumers: header + outputs (components.bus)
 BATCH = b"B"     # component -> orchestrator: several steps' outputs (components.bus)
+FRAME_DTYPES = ("uint8", "float32")   # a frame's element types, as numpy names them (index: its code)
+FRAME = b"F"     # component -> consumers: one frame output of one step (components.bus)
 SYNC = b"Y"      # component -> consumers: "you hear me" (the start-up handshake, components.bus)
 REPLY = b"R"     # component -> orchestrator: JSON + blob
 FAULT = b"E"     # component -> orchestrator: JSON {op, k, error}
@@ -339,6 +341,8 @@ class Wire(Message):
     routes: list[Route]
     sources: dict[str, int]
     faults: list[tuple[int, str, float]]
+    frame_routes: list[tuple[str, str, str, int, int]] = field(default_factory=list)   # source, output, input, ratio, ahead
+    frame_consumers: dict[str, list[str]] = field(default_factory=dict)                # frame output -> consumers
 
 
 @dataclass(frozen=True)

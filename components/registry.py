@@ -24,6 +24,8 @@ TYPES = {
     "test.integrator": "components.testing.blocks:Integrator",
     "test.noop": "components.testing.blocks:NoOp",
     "test.faulty": "components.testing.blocks:Faulty",
+    "test.imager": "components.testing.blocks:Imager",
+    "test.image_sum": "components.testing.blocks:ImageSum",
     # orbit
     "orbit.kepler": "components.orbit.components:KeplerComponent",
     "orbit.sgp4": "components.orbit.components:SGP4Component",

@@ -66,7 +66,7 @@ def routes(consumer: str, input_offsets: dict[str, slice], connections, output_o
         raise ValueError(f"algorithm must be one of {ALGORITHMS}, got {algorithm!r}")
     by_source: dict[str, tuple[list, list]] = {}
     for dst, dst_var, src, src_var in connections:
-        if dst != consumer:
+        if dst != consumer or dst_var not in input_offsets:   # not ours, or a frame (frame_routes)
             continue
         d, s = input_offsets[dst_var], output_offsets[src][src_var]
         pair = by_source.setdefault(src, ([], []))
@@ -77,6 +77,37 @@ def routes(consumer: str, input_offsets: dict[str, slice], connections, output_o
         ahead = int(algorithm == "gauss-seidel" and order.index(source) < order.index(consumer))
         result.append(Route(source, np.concatenate(src), np.concatenate(dst), ratios[source], ahead))
     return result
+
+
+@dataclass(frozen=True)
+class FrameRoute:
+    """A frame input of one consumer fed by a frame output of one source; read by tag as a
+    :class:`Route` is (a frame travels on its own message, not in the float64 vector)."""
+    source: str
+    output: str          # the source's frame output
+    input: str           # the consumer's frame input
+    ratio: int
+    ahead: int
+
+    def tag(self, k: int) -> int:
+        return (k + self.ahead) // self.ratio * self.ratio
+
+
+def frame_routes(consumer: str, frame_inputs: list[str], connections, ratios: dict[str, int], order: list[str],
+                 algorithm: str) -> list[FrameRoute]:
+    """The frame routes into ``consumer`` (its frame inputs named in ``frame_inputs``), one per connection."""
+    return [FrameRoute(src, src_var, dst_var, ratios[src],
+                       int(algorithm == "gauss-seidel" and order.index(src) < order.index(consumer)))
+            for dst, dst_var, src, src_var in connections if dst == consumer and dst_var in frame_inputs]
+
+
+def frame_consumers(name: str, frame_outputs: list[str], connections) -> dict[str, list[str]]:
+    """Who gets each of ``name``'s frame outputs: output -> consumers (sorted, itself excluded)."""
+    found: dict[str, set[str]] = {}
+    for dst, _, src, src_var in connections:
+        if src == name and src_var in frame_outputs and dst != name:
+            found.setdefault(src_var, set()).add(dst)
+    return {output: sorted(consumers) for output, consumers in found.items()}
 
 
 def is_due(ratio: int, k: int) -> bool:

@@ -20,6 +20,7 @@ import numpy as np
 
 from components.errors import ConfigError
 from components.plotting import Plot
+from components.protocol import FRAME_DTYPES
 from components.rosbag import RosExport
 from components.schema import REQUIRED, Parameter, Problems, Record, markdown  # noqa: F401 (SDK surface)
 
@@ -33,6 +34,11 @@ class Variable:
 
     ``shape`` is () for a scalar or (n,) for a vector; ``start`` is the value an unconnected
     input holds (and an output's value before initialization).
+
+    ``frame=True`` makes it a frame (an image): an array of ``dtype`` (``uint8`` or ``float32``)
+    and shape (H, W) or (H, W, C), sent once per step on its own message rather than in the
+    float64 payload, and left out of the layouts, the rows and ``signals.parquet``
+    (docs/component_api.md, "Images in a step"). Its start value is all zeros, read-only.
     """
     name: str
     causality: str
@@ -40,11 +46,22 @@ class Variable:
     unit: str
     start: Any
     description: str
+    frame: bool = False
+    dtype: str = "float64"
 
     def __post_init__(self):
         if self.causality not in CAUSALITIES:
             raise ValueError(f"variable {self.name}: causality must be one of {CAUSALITIES}, got {self.causality!r}")
-        start = np.broadcast_to(np.asarray(self.start, dtype=np.float64), self.shape).copy()
+        if self.frame:
+            if self.dtype not in FRAME_DTYPES or len(self.shape) not in (2, 3) or min(self.shape) < 1:
+                raise ValueError(f"frame {self.name}: expected a dtype of {FRAME_DTYPES} and a shape (H, W[, C]) "
+                                 f"of positive sizes, got {self.dtype!r} and {self.shape}")
+            start = np.zeros(self.shape, dtype=self.dtype)
+            start.flags.writeable = False
+        elif self.dtype != "float64":
+            raise ValueError(f"variable {self.name}: only a frame has a dtype other than float64, got {self.dtype!r}")
+        else:
+            start = np.broadcast_to(np.asarray(self.start, dtype=np.float64), self.shape).copy()
         object.__setattr__(self, "start", start)
         object.__setattr__(self, "size", int(np.prod(self.shape, dtype=np.int64)) if self.shape else 1)
 
@@ -210,7 +227,8 @@ def declaration_tables(cls: type[Component]) -> str:
                      "--set PARAM=VALUE`` lists them.")
     else:
         parts += ["Variables:", "", "| variable | causality | shape | unit | description |", "|---|---|---|---|---|"]
-        parts += [f"| {v.name} | {v.causality} | {v.shape} | {v.unit} | {v.description} |" for v in cls.variables]
+        parts += [f"| {v.name} | {v.causality} | {v.shape}{f' {v.dtype} frame' if v.frame else ''} | {v.unit} | "
+                  f"{v.description} |" for v in cls.variables]
     if cls.plots:
         parts += ["", "Plots (``orchestrator plot``):", "", "| file | content |", "|---|---|"]
         parts += [f"| ``{plot.file}`` | {plot.description} |" for plot in cls.plots]
@@ -240,12 +258,16 @@ def run_parameters(epoch: str | None, config_dir: str | Path | None,
 
 @dataclass
 class Layout:
-    """Fixed float64 layout of a list of variables, for binary payloads and recording columns."""
+    """Fixed float64 layout of a list of variables, for binary payloads and recording columns.
+    Frame variables among them are set aside in ``frames``: they have no place in the layout."""
     variables: list[Variable]
     offsets: dict[str, slice] = field(init=False)
     size: int = field(init=False)
+    frames: list[Variable] = field(init=False)
 
     def __post_init__(self):
+        self.frames = [v for v in self.variables if v.frame]
+        self.variables = [v for v in self.variables if not v.frame]
         self.offsets, start = {}, 0
         for v in self.variables:
             self.offsets[v.name] = slice(start, start + v.size)

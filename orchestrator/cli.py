@@ -278,7 +278,8 @@ def cmd_describe(args) -> int:
         return 0
     try:   # as a run resolves it (epoch: any will do for the variables)
         resolved = registry.resolve(cls, given, epoch="2000-01-01T12:00:00Z", config_dir=Path.cwd())
-        variables, errors = resolved.inputs.variables + resolved.outputs.variables, []
+        variables, errors = (resolved.inputs.variables + resolved.inputs.frames + resolved.outputs.variables
+                             + resolved.outputs.frames), []
     except registry.Unresolved as e:
         variables, errors = [], e.errors
     if errors and not given:   # the defaults alone do not make a valid instance (one of two needed...)
@@ -289,7 +290,8 @@ def cmd_describe(args) -> int:
             print(f"error: --set {e}", file=sys.stderr)
         return USAGE_ERROR
     for v in variables:
-        print(f"  {v.causality:<7} {v.name:<28}{str(v.shape):<8}{v.unit:<16} {v.description}")
+        shape = f"{v.shape} {v.dtype} frame " if v.frame else str(v.shape)
+        print(f"  {v.causality:<7} {v.name:<28}{shape:<8}{v.unit:<16} {v.description}")
     return 0
 
 

@@ -1,9 +1,9 @@
 """A figure of what a camera saw in a recorded run: one frame's colour image beside its depth.
 
-    python -m tools.camera_figure RUN_DIR --component pose_sensor --time 3.2 --out figure.png
+    python -m tools.camera_figure RUN_DIR --component wrist --time 3.2 --out figure.png
 
 Reads ``RUN_DIR/frames/<component>/<k>.npz`` (``rgb``, ``depth``, the frame's time ``t`` in s) as
-any camera writes them (``sensor.camera``, ``estimator.fiducial``) and draws the frame taken
+``sensor.camera`` writes them and draws the frame taken
 nearest ``--time`` (s): the image on the left, the depth (m along the optical axis, black where
 nothing is hit) on the right, titled with the frame's time. The README's vision figure
 (docs/images/capture_vision.png) is made this way from configs/capture_vision.yaml.

@@ -66,7 +66,7 @@ def _variables(type_name: str, cls) -> tuple[str, list]:
         assert spec.type == type_name, f"{config}: {component} is a {spec.type}, not a {type_name}"
         how = f", made a {type_name} of two joints" if overrides else ""
         return (f" (with the parameters of `{component}` in `{config}`{how})",
-                spec.inputs.variables + spec.outputs.variables)
+                spec.inputs.variables + spec.inputs.frames + spec.outputs.variables + spec.outputs.frames)
     return None, []
 
 
@@ -95,7 +95,8 @@ def components_page() -> str:
             continue
         lines += [f"**Variables**{where}", "",
                   "| variable | causality | shape | unit | description |", "|---|---|---|---|---|"]
-        lines += [f"| {_cell(v.name)} | {v.causality} | {_cell(v.shape)} | {_cell(v.unit)} | {_cell(v.description)} |"
+        lines += [f"| {_cell(v.name)} | {v.causality} | {_cell(v.shape)}{f' {v.dtype} frame' if v.frame else ''} | "
+                  f"{_cell(v.unit)} | {_cell(v.description)} |"
                   for v in variables]
         lines.append("")
     return "\n".join(lines)

@@ -1,12 +1,6 @@
-"""A camera as a reusable part: its parameters, inputs and checks declared once, and
-:class:`Camera`, the frames of those inputs with the Sun and the noise (no bus, no files).
-
-``sensor.camera`` is this part alone; a component that needs the images in its own step (a pose
-estimator) embeds the same part: ``Parameter("camera", Record("Camera", CAMERA_PARAMETERS))``,
-its inputs from :func:`camera_inputs`, :func:`check_camera` in its ``validate``,
-:func:`check_egl` in its ``preflight`` and a :class:`Camera` in its ``__init__``; each step,
-``Camera.frame`` renders what the inputs it holds show. The images then never leave the process
-(see the Component API, "Images in a step").
+"""A camera's parameters, inputs and checks, and :class:`Camera`, the frames of those inputs with
+the Sun and the noise (no bus, no files); ``sensor.camera`` wraps it. A component that needs the
+images reads ``sensor.camera``'s frame outputs over the bus (the Component API, "Images in a step").
 
 Noise: pixel noise and depth noise have a generator each,
 ``numpy.random.Generator(PCG64(SeedSequence([seed, 0])))`` and ``[seed, 1]``; a frame draws H*W*3
@@ -67,14 +61,14 @@ def _models(camera: Mapping[str, Any], run: Mapping[str, Any]):
             for name, urdf in camera["bodies"].items()}
 
 
-def camera_inputs(camera: Mapping[str, Any], run: Mapping[str, Any], prefix: str = "") -> list[Variable]:
-    """The inputs a camera reads (names after ``prefix``): ``r_eci`` and, per body, its base
-    ``position``, ``orientation`` and joints ``q``. ``run``: the component's parameters, for the
-    run parameters (``_config_dir``, ``_packages``)."""
-    variables = [Variable(f"{prefix}r_eci", "input", (3,), "m", 0.0,
+def camera_inputs(camera: Mapping[str, Any], run: Mapping[str, Any]) -> list[Variable]:
+    """The inputs a camera reads: ``r_eci`` and, per body, its base ``position``, ``orientation``
+    and joints ``q``. ``run``: the component's parameters, for the run parameters
+    (``_config_dir``, ``_packages``)."""
+    variables = [Variable("r_eci", "input", (3,), "m", 0.0,
                           "position of W's origin (the orbit point) in ECI, for the Earth's shadow; all zero: always lit")]
     for name, model in _models(camera, run).items():
-        variables += body_signals("input", model, f"{prefix}{name}", ("position", "orientation", "q"))
+        variables += body_signals("input", model, name, ("position", "orientation", "q"))
     return variables
 
 
@@ -120,17 +114,16 @@ def check_egl(who: str = "sensor.camera") -> None:
 
 class Camera:
     """The frames of one camera (``camera``: its validated parameters; ``run``: the component's
-    parameters, for ``_epoch``, ``_config_dir`` and ``_packages``). ``prefix``: before the names
-    of its inputs, as :func:`camera_inputs` was given it."""
+    parameters, for ``_epoch``, ``_config_dir`` and ``_packages``)."""
 
-    def __init__(self, camera: Mapping[str, Any], run: Mapping[str, Any], prefix: str = ""):
+    def __init__(self, camera: Mapping[str, Any], run: Mapping[str, Any]):
         from components.camera.model import CameraModel, Intrinsics, mount_transform
         from components.camera.sun import SunClock
         from components.viewer.robot import read_geometry
 
         if not run.get("_epoch"):
             raise ConfigError("_epoch", "a camera needs the run's epoch (run.epoch) for the Sun")
-        self.camera, self.prefix = camera, prefix
+        self.camera = camera
         models = _models(camera, run)
         geometries = {name: read_geometry(model.path, run.get("_packages")) for name, model in models.items()}
         distortion = None if camera["distortion"] is None else tuple(float(c) for c in camera["distortion"])
@@ -153,10 +146,9 @@ class Camera:
         from components.camera.model import add_depth_noise, add_pixel_noise
         from components.camera.sun import in_earth_shadow
 
-        p = self.prefix
         sun_W = self.sun.direction(t_ns)
-        lit = not in_earth_shadow(inputs[f"{p}r_eci"], sun_W)
-        states = {name: (inputs[f"{p}{name}.position"], inputs[f"{p}{name}.orientation"], inputs[f"{p}{name}.q"])
+        lit = not in_earth_shadow(inputs["r_eci"], sun_W)
+        states = {name: (inputs[f"{name}.position"], inputs[f"{name}.orientation"], inputs[f"{name}.q"])
                   for name in self.bodies}
         rgb, depth, T_W_camera = self.model.render(states, sun_W if lit else None)
         pixel_sigma, depth_sigma = self.camera["pixel_noise"], self.camera["depth_noise"]

@@ -3,12 +3,14 @@ of :class:`components.camera.camera.Camera`).
 
 Rate and time: one frame per step of the component (its own ``step:`` in the config, a multiple
 of run.step). ``do_step(t, h)`` renders the scene from the inputs it holds (the bodies' poses at
-t, or when ``input_times_ns`` says) and its outputs at t + h describe that frame: ``t_frame``
-(when it was taken), ``frame`` (how many frames so far) and ``lit`` (1 in sunlight, 0 in the
-Earth's shadow). ``initialize`` takes no frame.
+t, or when ``input_times_ns`` says) and its outputs at t + h are that frame: the frame outputs
+``rgb`` and ``depth`` (frame variables: on the bus to the components connected to them, never in
+the rows), ``t_frame`` (when it was taken), ``frame`` (how many frames so far), ``lit`` (1 in
+sunlight, 0 in the Earth's shadow) and the camera's constants ``K``, ``D`` and ``T_link_camera``,
+which a consumer of the images needs with them. ``initialize`` takes no frame (its images are
+zeros, ``t_frame`` 0).
 
-The image and the depth do not travel as variables (a 640x480 frame is 2 MB): with ``--record
-DIR`` each frame is written to ``DIR/frames/<component>/<k>.npz`` (k: the component's step, from
+With ``--record DIR`` each frame is written to ``DIR/frames/<component>/<k>.npz`` (k: the component's step, from
 0) with ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32 (m along the optical axis, 0 where
 nothing is hit; absent with ``depth: false``), ``K`` (3x3), ``D`` (plumb_bob, zeros for a pinhole), ``T_link_camera`` and ``T_W_camera``
 (4x4), ``t`` (s); see :mod:`components.camera.frames`. Noise: :mod:`components.camera.camera`.
@@ -46,7 +48,14 @@ class CameraComponent(Component):
             Variable("t_frame", "output", (), "s", 0.0, "when the latest frame was taken (0 before the first)"),
             Variable("frame", "output", (), "1", 0.0, "frames taken so far (the latest is frames/<component>/<frame - 1>.npz)"),
             Variable("lit", "output", (), "1", 0.0, "1 when the latest frame was in sunlight, 0 in the Earth's shadow"),
-        ]
+            Variable("rgb", "output", (params["height"], params["width"], 3), "1", 0, "the latest frame's colour image",
+                     frame=True, dtype="uint8"),
+            Variable("K", "output", (3, 3), "px", 0.0, "the intrinsic matrix (pixel centres at integers)"),
+            Variable("D", "output", (5,), "1", 0.0, "plumb_bob distortion [k1, k2, p1, p2, k3] (zeros: a pinhole)"),
+            Variable("T_link_camera", "output", (4, 4), "1", 0.0, "the camera's pose in its link (translation in m)"),
+        ] + ([Variable("depth", "output", (params["height"], params["width"]), "m", 0,
+                       "the latest frame's depth along the optical axis (0: nothing hit)", frame=True, dtype="float32")]
+             if params["depth"] else [])
 
     @classmethod
     def validate(cls, params):
@@ -64,12 +73,16 @@ class CameraComponent(Component):
         self.writer = FrameWriter(params["_frames"]) if params.get("_frames") else None
         self.k = 0                       # frames taken
         self.t_frame_ns, self.lit = 0, False
+        h, w = params["height"], params["width"]
+        self.constants = {"K": self.camera.intrinsics.K, "D": self.camera.D, "T_link_camera": self.camera.T_link_camera}
+        self.blank = {"rgb": np.zeros((h, w, 3), np.uint8), "depth": np.zeros((h, w), np.float32)}
 
-    def _outputs(self):
-        return {"t_frame": self.t_frame_ns / NS_PER_S, "frame": float(self.k), "lit": float(self.lit)}
+    def _outputs(self, frame):
+        return {"t_frame": self.t_frame_ns / NS_PER_S, "frame": float(self.k), "lit": float(self.lit),
+                "rgb": frame["rgb"], "depth": frame.get("depth"), **self.constants}
 
     def initialize(self, t0_ns, inputs):
-        return self._outputs()
+        return self._outputs(self.blank)
 
     def take(self, t_ns: int, inputs) -> dict[str, np.ndarray]:
         """The frame of the scene the inputs hold at ``t_ns``: the arrays of its file."""
@@ -85,7 +98,7 @@ class CameraComponent(Component):
         if self.writer is not None:
             self.writer.put(self.k, frame)
         self.k += 1
-        return self._outputs()
+        return self._outputs(frame)
 
     def terminate(self):
         if self.writer is not None:

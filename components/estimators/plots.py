@@ -12,16 +12,27 @@ from components.plotting import Plot, RecordedRun, new_figure
 from components.rotations import log_so3, quat_to_matrix
 
 
+def chaser_dynamics(run: RecordedRun, c: str) -> str | None:
+    """The dynamics moving the camera's body: the one feeding ``<camera>.<body>.position`` of the
+    camera whose images the estimator reads (``c.rgb``), or None."""
+    camera = (run.source(c, "rgb") or "").partition(".")[0]
+    source = run.source(camera, f"{run.parameters(c).get('body')}.position") if camera else None
+    return source.partition(".")[0] if source else None
+
+
+def new_frames(frame: np.ndarray) -> np.ndarray:
+    """The rows where the estimator's solve is of a new frame (its ``frame_solved`` output changes)."""
+    return np.flatnonzero(np.diff(frame, prepend=0.0) > 0)
+
+
 def _truth(run: RecordedRun, c: str) -> str | None:
     """The dynamics recording the grasp frame's pose in the estimator's end effector, or None."""
     params = run.parameters(c)
-    camera = params.get("camera") or {}
-    source = run.source(c, f"camera.{camera.get('body')}.position")
-    if not source:
+    dynamics = chaser_dynamics(run, c)
+    if dynamics is None:
         return None
-    dynamics = source.partition(".")[0]
     grasp = run.parameters(dynamics).get("grasp") or {}
-    if grasp.get("chaser") != camera.get("body") or grasp.get("end_effector") != params.get("end_effector"):
+    if grasp.get("chaser") != params.get("body") or grasp.get("end_effector") != params.get("end_effector"):
         return None
     try:
         link = read_layout(layout_path(params["markers"], run.config_dir)).link
@@ -35,11 +46,10 @@ def _truth(run: RecordedRun, c: str) -> str | None:
 def frame_errors(run: RecordedRun, c: str, dynamics: str):
     """(t_measured s, position error m, attitude error rad) of every accepted frame: the first row
     that shows each frame's solve, against the truth at the frame's time."""
-    frame, valid = run.variable(f"{c}.frame")[:, 0], run.variable(f"{c}.valid")[:, 0]
-    t_measured = run.variable(f"{c}.t_measured")[:, 0]
+    valid, t_measured = run.variable(f"{c}.valid")[:, 0], run.variable(f"{c}.t_measured")[:, 0]
     p, q = run.variable(f"{c}.p"), run.variable(f"{c}.q")
     p_true, q_true = run.variable(f"{dynamics}.grasp.p_ee_grasp"), run.variable(f"{dynamics}.grasp.q_ee_grasp")
-    rows = np.flatnonzero((np.diff(frame, prepend=0.0) > 0) & (valid > 0.5))
+    rows = [k for k in new_frames(run.variable(f"{c}.frame_solved")[:, 0]) if valid[k] > 0.5]
     out = []
     for k in rows:
         j = int(np.argmin(np.abs(run.time - t_measured[k])))
@@ -51,13 +61,13 @@ def frame_errors(run: RecordedRun, c: str, dynamics: str):
 
 
 def draw(run: RecordedRun, c: str) -> dict:
-    frame = run.variable(f"{c}.frame")
+    frame = run.variable(f"{c}.frame_solved")
     if frame is None:
         return {}
     dynamics = _truth(run, c)
     fig = new_figure(9.0, 10.0)
     axes = [fig.add_subplot(4, 1, row) for row in range(1, 5)]
-    new = np.flatnonzero(np.diff(frame[:, 0], prepend=0.0) > 0)
+    new = new_frames(frame[:, 0])
     t_frame = run.variable(f"{c}.t_measured")[new, 0]
     if dynamics is not None:
         errors = frame_errors(run, c, dynamics)

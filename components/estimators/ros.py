@@ -1,9 +1,10 @@
 """``estimator.fiducial``'s ROS 2 messages (``orchestrator export --rosbag2``, the Foxglove view):
 ``/<c>/pose``, a geometry_msgs/PoseStamped once per accepted frame, stamped when the frame was
 taken, in the end effector's tf frame (``<dynamics>/<body>/<end_effector>``, the dynamics'
-link frames; the component's own name when the camera's body is not connected to a dynamics)."""
+link frames; the component's own name when its camera's body is not connected to a dynamics)."""
 from __future__ import annotations
 
+from components.estimators.plots import chaser_dynamics
 from components.rosbag import RosContext, RosExport, RosTopic, link_frame
 from components.sensors.ros import measurement_rows
 
@@ -15,9 +16,8 @@ def _pose(context: RosContext, c: str) -> list[RosTopic]:
     if p is None or q is None or valid is None or t_measured is None:
         return []
     params = run.parameters(c)
-    body = (params.get("camera") or {}).get("body")
-    source = run.source(c, f"camera.{body}.position")
-    frame = link_frame(source.partition(".")[0], body, params.get("end_effector")) if source else c
+    dynamics = chaser_dynamics(run, c)
+    frame = link_frame(dynamics, params.get("body"), params.get("end_effector")) if dynamics else c
     Pose, PoseStamped = context.msg("geometry_msgs/msg/Pose"), context.msg("geometry_msgs/msg/PoseStamped")
     return [RosTopic(f"/{c}/pose", "geometry_msgs/msg/PoseStamped", [
         (int(context.stamps[row]),

@@ -162,3 +162,81 @@ class Faulty(Component):
 
     def set_state(self, state):
         self.k = int(state["k"])
+
+
+class Imager(Component):
+    """Makes an image and a depth frame each step (frame variables) from its input and its step
+    count, every pixel different: ``rgb[i, j, c] = (n + 3 i + 5 j + 7 c + floor(1000 u)) mod 256``,
+    ``depth[i, j] = u + n + (i W + j) / 2^16`` (float32), n the frames made so far (0 at initialize).
+    """
+    type_name = "test.imager"
+    parameters = (Parameter("width", "int", description="frame width (pixels)"),
+                  Parameter("height", "int", description="frame height (pixels)"))
+
+    @classmethod
+    def declare(cls, params):
+        h, w = params["height"], params["width"]
+        return [Variable("u", "input", (), "1", 0.0, "shifts every pixel"),
+                Variable("rgb", "output", (h, w, 3), "1", 0, "the image", frame=True, dtype="uint8"),
+                Variable("depth", "output", (h, w), "m", 0, "the depth", frame=True, dtype="float32"),
+                Variable("n", "output", (), "1", 0.0, "frames made so far")]
+
+    def __init__(self, params):
+        h, w = params["height"], params["width"]
+        i, j, c = np.meshgrid(np.arange(h), np.arange(w), np.arange(3), indexing="ij")
+        self.pattern = 3 * i + 5 * j + 7 * c
+        self.ramp = (np.arange(h * w).reshape(h, w) / 65536.0)
+        self.n = 0
+
+    def _outputs(self, u: float):
+        rgb = ((self.n + self.pattern + int(np.floor(1000.0 * u))) % 256).astype(np.uint8)
+        return {"rgb": rgb, "depth": (u + self.n + self.ramp).astype(np.float32), "n": float(self.n)}
+
+    def initialize(self, t0_ns, inputs):
+        return self._outputs(float(inputs["u"]))
+
+    def do_step(self, t_ns, h_ns, inputs):
+        self.n += 1
+        return self._outputs(float(inputs["u"]))
+
+
+class ImageSum(Component):
+    """Reads an image and a depth frame (frame inputs): ``s``, the image's pixels weighted by
+    their index (so a pixel out of place changes it) mod 1, and ``d``, the depth's sum; ``t_image``
+    when the image was made (its ``input_times_ns``).
+    """
+    type_name = "test.image_sum"
+    parameters = (Parameter("width", "int", description="frame width (pixels)"),
+                  Parameter("height", "int", description="frame height (pixels)"))
+
+    @classmethod
+    def declare(cls, params):
+        h, w = params["height"], params["width"]
+        return [Variable("rgb", "input", (h, w, 3), "1", 0, "an image", frame=True, dtype="uint8"),
+                Variable("depth", "input", (h, w), "m", 0, "a depth", frame=True, dtype="float32"),
+                Variable("s", "output", (), "1", 0.0, "the weighted pixel sum, mod 1"),
+                Variable("d", "output", (), "m", 0.0, "the depth's sum"),
+                Variable("t_image", "output", (), "s", 0.0, "when the image was made")]
+
+    def __init__(self, params):
+        self.weights = np.arange(params["height"] * params["width"] * 3, dtype=np.float64) + 1.0
+
+    def _outputs(self, inputs):
+        rgb, depth = inputs["rgb"], inputs["depth"]
+        s = float(self.weights @ rgb.ravel().astype(np.float64)) / 9973.0 % 1.0
+        t = self.input_times_ns.get("rgb", 0) / NS_PER_S
+        return {"s": s, "d": float(depth.astype(np.float64).sum()), "t_image": t}
+
+    def initialize(self, t0_ns, inputs):
+        return self._outputs(inputs)
+
+    def do_step(self, t_ns, h_ns, inputs):
+        if inputs["rgb"].flags.writeable:
+            raise ValueError("a frame input must be read-only")
+        return self._outputs(inputs)
+
+    def get_state(self):
+        return {}
+
+    def set_state(self, state):
+        pass

@@ -13,6 +13,11 @@ Gauss-Seidel or multi-rate run would; at ``initialize``, only those ``h.input_ti
 layout the bus uses, and get_state/set_state go through the same byte encoding, so a component
 that passes here behaves the same in a run. ``set_state`` stands for ``initialize`` (a restore:
 the next ``step`` continues from the state).
+
+A frame input is set like any other (``h.inputs["rgb"] = image``: an array of its declared dtype
+and shape, handed to the component read-only, as the bus does); it holds zeros until set, and at
+``initialize`` always (a frame is first read at a step). ``h.frames`` holds the frame outputs of
+the last step (or ``initialize``).
 """
 from __future__ import annotations
 
@@ -39,6 +44,8 @@ class Harness:
         self.params, self.input_layout, self.output_layout = resolved.params, resolved.inputs, resolved.outputs
         self.component = resolved.build()
         self.inputs: dict[str, Any] = {v.name: v.start.copy() for v in self.input_layout.variables}
+        self.inputs.update((v.name, v.start) for v in self.input_layout.frames)
+        self.frames: dict[str, np.ndarray] = {v.name: v.start for v in self.output_layout.frames}
         self._outputs = self.output_layout.start_vector()
         self.t_ns = t0_ns
         self.input_times_ns: dict[str, int] = {}
@@ -55,11 +62,29 @@ class Harness:
             if value.size != v.size:
                 raise ConfigError(v.name, f"input has shape {v.shape}, got {value.size} values")
             vector[self.input_layout.offsets[v.name]] = value.ravel()
-        return self.input_layout.unpack(vector)
+        views = self.input_layout.unpack(vector)
+        for v in self.input_layout.frames:
+            frame = np.asarray(self.inputs[v.name])
+            if frame.dtype.name != v.dtype or frame.shape != v.shape:
+                raise ConfigError(v.name, f"frame input is {v.dtype} {v.shape}, got {frame.dtype.name} {frame.shape}")
+            views[v.name] = frame.view()
+            views[v.name].flags.writeable = False
+        return views
+
+    def _take(self, result) -> None:
+        self.output_layout.pack(result, self._outputs)
+        for v in self.output_layout.frames:
+            frame = result.get(v.name)
+            if not isinstance(frame, np.ndarray) or frame.dtype.name != v.dtype or frame.shape != v.shape:
+                raise ConfigError(v.name, f"frame output is {v.dtype} {v.shape}, got "
+                                          f"{getattr(frame, 'dtype', type(frame).__name__)} {getattr(frame, 'shape', '')}")
+            self.frames[v.name] = frame.copy()
 
     def initialize(self) -> dict[str, np.ndarray]:
         self.component.input_times_ns = dict(self.input_times_ns)
-        self.output_layout.pack(self.component.initialize(self.t_ns, self._input_views()), self._outputs)
+        views = self._input_views()
+        views.update((v.name, v.start) for v in self.input_layout.frames)
+        self._take(self.component.initialize(self.t_ns, views))
         self._initialized = True
         return self.outputs
 
@@ -67,10 +92,9 @@ class Harness:
         """One do_step over [t, t + h_ns); initializes first if needed."""
         if not self._initialized:
             self.initialize()
-        self.component.input_times_ns = {**{v.name: self.t_ns for v in self.input_layout.variables},
+        self.component.input_times_ns = {**{v.name: self.t_ns for v in self.input_layout.variables + self.input_layout.frames},
                                          **self.input_times_ns}
-        result = self.component.do_step(self.t_ns, h_ns, self._input_views())
-        self.output_layout.pack(result, self._outputs)
+        self._take(self.component.do_step(self.t_ns, h_ns, self._input_views()))
         self.t_ns += h_ns
         return self.outputs
 

@@ -17,7 +17,13 @@ def check_replacement(spec: ComponentSpec, connections: list[tuple[str, str, str
     problems = []
     for d, dv, s, sv in connections:
         for comp, var, layout, causality in ((d, dv, spec.inputs, "input"), (s, sv, spec.outputs, "output")):
-            if comp == spec.name and var not in layout.offsets:
+            if comp != spec.name:
+                continue
+            if any(v.name == var for v in layout.frames):
+                # a frame is part of no state and is not sent again to a new generation
+                problems.append(f"the connection {d}.{dv}: {s}.{sv} carries frames (images): a component joined "
+                                f"by one cannot be swapped yet")
+            elif var not in layout.offsets:
                 problems.append(f"{spec.type} has no {causality} {var!r}, which the connection "
                                 f"{d}.{dv}: {s}.{sv} uses")
     return problems
@@ -83,7 +89,8 @@ def parse_connections(raw: Any, components: dict[str, ComponentSpec], entries: d
                 spec = components[comp]
                 v = spec.variables.get(var)
                 if v is None or v.causality != causality:
-                    names = [x.name for x in (spec.inputs if causality == "input" else spec.outputs).variables]
+                    layout = spec.inputs if causality == "input" else spec.outputs
+                    names = [x.name for x in layout.variables + layout.frames]
                     problem = (f"{comp} ({spec.type}) has no {causality} {var!r} "
                                f"(its {causality}s: {', '.join(names) or 'none'})")
             if problem:
@@ -93,6 +100,15 @@ def parse_connections(raw: Any, components: dict[str, ComponentSpec], entries: d
             continue
         if d[0] in components and s[0] in components:
             dv, sv = components[d[0]].variables[d[1]], components[s[0]].variables[s[1]]
+            if dv.frame != sv.frame:
+                kinds = {True: "a frame (image)", False: "a float variable"}
+                errors.append(f"{file}: {key}: kind mismatch: input {dst} is {kinds[dv.frame]}, output {src} is "
+                              f"{kinds[sv.frame]} (a frame connects only to a frame)")
+                continue
+            if dv.frame and (dv.shape, dv.dtype) != (sv.shape, sv.dtype):
+                errors.append(f"{file}: {key}: frame mismatch: input {dst} is {dv.dtype} {dv.shape}, output {src} "
+                              f"is {sv.dtype} {sv.shape}")
+                continue
             if dv.size != sv.size:
                 errors.append(f"{file}: {key}: shape mismatch: input {dst} is {dv.shape}, output {src} is {sv.shape}")
                 continue

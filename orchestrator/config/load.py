@@ -197,6 +197,7 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
                      file, errors, packages)
     faults = _faults(config.get("faults", []), components, total_ns, file, errors)
     restarting = [n for n, spec in components.items() if spec.on_failure == "restart"]
+    errors += [f"{file}: {p}" for p in frame_problems(components, connections, restarting)]
     for name, spec in components.items():
         problem = spec.cls.state_problem(spec.resolved) if restarting else None
         if problem:
@@ -262,6 +263,18 @@ def _resolved_entry(spec: ComponentSpec, shadow: ComponentSpec | None) -> dict:
     if shadow is not None:
         entry["shadow"] = {"type": shadow.type, "parameters": shadow.cls.schema.plain(shadow.resolved)}
     return entry
+
+
+def frame_problems(components: dict[str, ComponentSpec], connections: list, restarting: list[str]) -> list[str]:
+    """What a run with frame connections cannot do yet (docs/component_api.md, "Images in a step"):
+    a frame is part of no state and is not sent again to a new generation, so a restart would
+    wait for a frame that never comes (a swap: :func:`check_replacement`)."""
+    frames = [(d, dv, s, sv) for d, dv, s, sv in connections if components[d].variables[dv].frame]
+    framed = {n for d, _, s, _ in frames for n in (d, s)}
+    problems = [f"connections.{d}.{dv}: a component cannot read its own frames (from {s}.{sv})"
+                for d, dv, s, sv in frames if d == s]
+    return problems + [f"components.{n}.on_failure: restart is not supported yet in a run with frame connections "
+                       f"({', '.join(sorted(framed))} exchange images)" for n in restarting[:1] if framed]
 
 
 def _events(entries: list[dict], components: dict[str, ComponentSpec], connections: list, step_ns: int | None,

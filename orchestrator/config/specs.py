@@ -31,7 +31,7 @@ class ComponentSpec:
 
     @property
     def variables(self) -> dict[str, Variable]:
-        return {v.name: v for v in self.inputs.variables + self.outputs.variables}
+        return {v.name: v for v in self.inputs.variables + self.inputs.frames + self.outputs.variables + self.outputs.frames}
 
 
 @dataclass

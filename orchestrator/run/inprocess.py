@@ -33,10 +33,13 @@ class _Stepped:
         self.inputs, self.outputs = resolved.inputs, resolved.outputs
         self.input_vector = self.inputs.start_vector()
         self.input_views = self.inputs.unpack(self.input_vector)
+        self.input_views.update((v.name, v.start) for v in self.inputs.frames)   # none before the first step
         self.component = resolved.build()
         self.ratio = spec.step_ns // config.step_ns
         self.by_tag: dict[int, np.ndarray] = {}
+        self.frames_by_tag: dict[int, dict[str, np.ndarray]] = {}   # its frame outputs, read-only copies
         self.routes: list[schedule.Route] = []
+        self.frame_routes: list[schedule.FrameRoute] = []
         self.route_inputs: list[list[str]] = []
         self.component.input_times_ns = self.input_times = {}
 
@@ -45,11 +48,24 @@ class _Stepped:
             tag = route.tag(k)
             self.input_vector[route.dst] = members[route.source].by_tag[tag][route.src]
             self.input_times.update(dict.fromkeys(names, tag * step_ns))
+        for route in self.frame_routes:
+            tag = route.tag(k)
+            self.input_views[route.input] = members[route.source].frames_by_tag[tag][route.output]
+            self.input_times[route.input] = tag * step_ns
 
-    def pack(self, result) -> np.ndarray:
+    def pack(self, result, tag: int) -> np.ndarray:
+        """The float outputs of ``result`` as a vector; its frames kept under ``tag`` (copies, as the bus makes)."""
         vector = np.empty(self.outputs.size)
         self.outputs.pack(result, vector)
+        if self.outputs.frames:
+            self.frames_by_tag[tag] = {v.name: _frozen(result[v.name]) for v in self.outputs.frames}
         return vector
+
+
+def _frozen(frame: np.ndarray) -> np.ndarray:
+    frame = np.array(frame)
+    frame.flags.writeable = False
+    return frame
 
 
 def run_in_process(config: RunConfig, steps: int | None = None, timing: dict | None = None,
@@ -67,6 +83,8 @@ def run_in_process(config: RunConfig, steps: int | None = None, timing: dict | N
         member.routes = schedule.routes(name, member.inputs.offsets, config.connections, offsets, ratios,
                                         order, config.algorithm)
         member.route_inputs = [schedule.fed_inputs(r, member.inputs.offsets) for r in member.routes]
+        member.frame_routes = schedule.frame_routes(name, [v.name for v in member.inputs.frames], config.connections,
+                                                    ratios, order, config.algorithm)
     for name in shadows.initialization_order(config.components, config.connections):
         member = members[name]
         for route, names in zip(member.routes, member.route_inputs):  # sources not initialized yet
@@ -74,7 +92,7 @@ def run_in_process(config: RunConfig, steps: int | None = None, timing: dict | N
             member.input_vector[route.dst] = source.by_tag.get(0, source.outputs.start_vector())[route.src]
             if 0 in source.by_tag:
                 member.input_times.update(dict.fromkeys(names, 0))
-        member.by_tag[0] = member.pack(member.component.initialize(0, member.input_views))
+        member.by_tag[0] = member.pack(member.component.initialize(0, member.input_views), 0)
 
     rows = np.empty((steps + 1, sum(m.outputs.size for m in members.values())))
     rows[0] = np.concatenate([m.by_tag[0] for m in members.values()])
@@ -85,7 +103,7 @@ def run_in_process(config: RunConfig, steps: int | None = None, timing: dict | N
                 member.take_inputs(members, k, config.step_ns)
                 result = member.component.do_step(k * config.step_ns, member.ratio * config.step_ns,
                                                   member.input_views)
-                member.by_tag[k + member.ratio] = member.pack(result)
+                member.by_tag[k + member.ratio] = member.pack(result, k + member.ratio)
                 for kind, fields in member.component.take_events():
                     if events is not None:
                         events.append({"event": kind, **bus.jsonable(fields), "component": name, "step": k})
@@ -94,6 +112,8 @@ def run_in_process(config: RunConfig, steps: int | None = None, timing: dict | N
             oldest = schedule.row_tag(member.ratio, k + 1)
             for tag in [t for t in member.by_tag if t < oldest]:
                 del member.by_tag[tag]
+            for tag in [t for t in member.frames_by_tag if t < oldest]:
+                del member.frames_by_tag[tag]
     if timing is not None:
         timing["loop_s"] = time.perf_counter() - started
     return rows

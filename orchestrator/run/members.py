@@ -42,6 +42,7 @@ class Member:
     ratio: int                             # its step in run steps
     command: object = None                 # Zenoh publisher of its command key
     routes: list[Route] = field(default_factory=list)
+    frame_routes: list = field(default_factory=list)   # schedule.FrameRoute: its frame inputs' sources
     out_dst: np.ndarray = None             # where its outputs go in the recorded row ...
     out_src: np.ndarray = None             # ... from these indices of its output vector
     tag: int = 0                           # the tag of ``latest``: what the recorded rows hold now

@@ -19,6 +19,11 @@ def routes(consumer: ComponentSpec, members: dict[str, Member], config: RunConfi
                            {n: m.ratio for n, m in members.items()}, list(config.components), config.algorithm)
 
 
+def frame_routes(consumer: ComponentSpec, members: dict[str, Member], config: RunConfig) -> list[schedule.FrameRoute]:
+    return schedule.frame_routes(consumer.name, [v.name for v in consumer.inputs.frames], config.connections,
+                                 {n: m.ratio for n, m in members.items()}, list(config.components), config.algorithm)
+
+
 def wire_message(member: Member, members: dict[str, Member], config: RunConfig, faults: list[Injected],
                  k: int) -> protocol.Wire:
     """Which sources feed which of ``member``'s inputs (its routes, set), whom it feeds, from step
@@ -31,12 +36,14 @@ def wire_message(member: Member, members: dict[str, Member], config: RunConfig, 
         batch_consumers=batched,
         routes=member.routes,
         sources=sources(member, members),
-        faults=[(schedule.first_step_at(f.at_ns, step_ns), f.kind, (f.duration_ns or 0) / NS_PER_S) for f in faults if f.component == name])
+        faults=[(schedule.first_step_at(f.at_ns, step_ns), f.kind, (f.duration_ns or 0) / NS_PER_S) for f in faults if f.component == name],
+        frame_routes=[(r.source, r.output, r.input, r.ratio, r.ahead) for r in frame_routes(member.spec, members, config)],
+        frame_consumers=schedule.frame_consumers(name, [v.name for v in member.spec.outputs.frames], config.connections))
 
 
 def sources(member: Member, members: dict[str, Member]) -> dict[str, int]:
-    """The generation of each of ``member``'s sources."""
-    return {r.source: members[r.source].generation for r in member.routes}
+    """The generation of each of ``member``'s sources (of floats or frames)."""
+    return {r.source: members[r.source].generation for r in [*member.routes, *member.frame_routes]}
 
 
 def held(member: Member, members: dict[str, Member], only: str | None = None) -> list[tuple[str, int, np.ndarray]]:
@@ -67,6 +74,7 @@ def wire(crew: Crew, member: Member, members: dict[str, Member], faults: list[In
     """Route ``member``'s inputs and send it the wire message; wait for its answer."""
     config = crew.config
     member.routes = routes(member.spec, members, config)
+    member.frame_routes = frame_routes(member.spec, members, config)
     crew.ask([member], wire_message(member, members, config, faults, k), "wire", config.start_timeout_s)
 
 
@@ -91,5 +99,6 @@ def go(member: Member, members: dict[str, Member], horizon: int) -> None:
 def rewire(consumer: Member, members: dict[str, Member], config: RunConfig, source: str) -> None:
     """Tell ``consumer`` that ``source`` has a new generation (its routes may change with the type)."""
     consumer.routes = routes(consumer.spec, members, config)
+    consumer.frame_routes = frame_routes(consumer.spec, members, config)
     entries, values = protocol.holding(held(consumer, members, only=source))
     consumer.control(protocol.Rewire(entries, consumer.routes, sources(consumer, members), values))

@@ -124,52 +124,21 @@ def test_outputs_say_when_the_frame_was_taken_and_whether_it_was_lit(truth):
     assert not lit["rgb"][lit["depth"] == 0].any()            # black sky
 
 
-def test_a_component_that_embeds_the_camera_sees_the_same_frames(truth):
-    """The pattern for a consumer that needs the images in its own step (docs/component_api.md):
-    CAMERA_PARAMETERS as a nested record, its inputs under a prefix, a Camera in __init__. Same
-    parameters, same inputs: the same pixels as sensor.camera's, bit for bit."""
-    from components.camera.camera import CAMERA_PARAMETERS, Camera, camera_inputs, check_camera
-    from components.errors import ConfigError
-    from components.schema import Record
-    from components.sdk import Component, Parameter, Variable
+def test_the_frame_outputs_are_the_frames_it_takes(truth):
+    """The images a consumer gets on the bus (the frame outputs ``rgb`` and ``depth``) are the
+    frames the camera takes, bit for bit; K, D and T_link_camera are its parameters'; before the
+    first step the images are zeros."""
+    from components.camera.model import mount_transform
+    h = camera(truth)
+    assert not h.initialize()["t_frame"] and not h.frames["rgb"].any() and not h.frames["depth"].any()
+    twin = camera(truth)                   # the same seed: the same noise
+    expected = frames(twin, 1)[0]
+    out = h.step(STEP)
+    assert h.frames["rgb"].dtype == np.uint8 and h.frames["rgb"].shape == (120, 160, 3)
+    assert h.frames["rgb"].tobytes() == expected["rgb"].tobytes()
+    assert h.frames["depth"].dtype == np.float32 and h.frames["depth"].tobytes() == expected["depth"].tobytes()
+    assert np.array_equal(out["K"], [[60.0, 0.0, 79.5], [0.0, 60.0, 59.5], [0.0, 0.0, 1.0]])
+    assert np.array_equal(out["D"], np.zeros(5))
+    assert np.array_equal(out["T_link_camera"], mount_transform(h.params["position"], h.params["orientation"]))
+    assert "depth" not in camera(truth, depth=False).frames
 
-    class Embedding(Component):
-        type_name = "test.embedded_camera"
-        parameters = (Parameter("camera", Record("Camera", CAMERA_PARAMETERS), description="the camera"),)
-
-        @classmethod
-        def declare(cls, params):
-            return camera_inputs(params["camera"], params, "eye.") + [
-                Variable("hit", "output", (), "1", 0.0, "fraction of pixels that hit something")]
-
-        @classmethod
-        def validate(cls, params):
-            try:
-                check_camera(params["camera"], params)
-            except ConfigError as e:
-                raise ConfigError(f"camera.{e.key}", e.message) from None
-
-        def __init__(self, params):
-            self.camera = Camera(params["camera"], params, "eye.")
-            self.last = None
-
-        def initialize(self, t0_ns, inputs):
-            return {"hit": 0.0}
-
-        def do_step(self, t_ns, h_ns, inputs):
-            self.last = self.camera.frame(t_ns, inputs)
-            return {"hit": float((self.last["depth"] > 0).mean())}
-
-    sensor = camera(truth)
-    own = {key: value for key, value in sensor.params.items() if not key.startswith("_")}   # not the run's
-    own["orientation"] = list(own["orientation"])
-    embedded = Harness(Embedding, {"camera": own}, epoch=EPOCH, config_dir=CONFIGS)
-    for key, value in sensor.inputs.items():
-        embedded.inputs[f"eye.{key}"] = value
-    expected = frames(sensor, 1)[0]
-    hit = embedded.step(STEP)["hit"]
-    assert embedded.component.last["rgb"].tobytes() == expected["rgb"].tobytes()
-    assert embedded.component.last["depth"].tobytes() == expected["depth"].tobytes()
-    assert hit == float((expected["depth"] > 0).mean()) > 0.02
-    with pytest.raises(ConfigError, match="camera.link: expected a link of servicer"):
-        Harness(Embedding, {"camera": {**own, "link": "hand"}}, epoch=EPOCH, config_dir=CONFIGS)

@@ -8,8 +8,8 @@ ArUco solve), shortened to 10 s of its 40 (the grasp closes at 3.6 s):
   (0.77 deg/s) below 0.045 deg/s at 10 s (the oracle's config: 0.767 and 0.032; this one: 0.774
   and 0.031), the wrist's loads within the fixture's limits all along;
 - the estimator's poses against the dynamics' own ``grasp.p_ee_grasp`` and ``grasp.q_ee_grasp`` at
-  each frame's time (measured: up to 7.7 mm and 1.5 deg at 0.75 m while the arm swings, 1.8 mm and
-  0.44 deg closer than 0.15 m);
+  each frame's time (measured: up to 8.4 mm and 1.2 deg at 0.75 m while the arm swings, 1.0 mm and
+  0.20 deg closer than 0.15 m);
 - tools/camera_figure.py draws the recorded frame nearest a time."""
 from __future__ import annotations
 
@@ -81,7 +81,7 @@ def test_the_vision_capture_closes_the_grasp_on_the_estimators_poses(tmp_path):
         (position[near].max(), math.degrees(attitude[near].max()))
     # the README's figure: the recorded frame nearest 2.5 s, colour beside depth
     from tools.camera_figure import draw, nearest_frame
-    path = nearest_frame(run / "frames" / "pose_sensor", 2.52)
+    path = nearest_frame(run / "frames" / "wrist", 2.52)
     assert path.name == f"{50:06d}.npz"
     draw(path, tmp_path / "figure.png")
     assert (tmp_path / "figure.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

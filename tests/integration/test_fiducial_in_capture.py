@@ -1,5 +1,5 @@
-"""The capture scenario with estimator.fiducial (its wrist camera embedded) in place of the
-relative-pose oracle:
+"""The capture scenario with a wrist sensor.camera and estimator.fiducial, which reads the camera's
+images over the bus, in place of the relative-pose oracle:
 
 - ``orchestrator run --record`` (real processes, Zenoh on loopback): its measurements against the
   dynamics' own ``grasp.p_ee_grasp``, ``grasp.q_ee_grasp`` at each frame's time, while the arm
@@ -58,15 +58,19 @@ def vision_config(path: Path, duration: str = "40 s") -> Path:
               "orientation": looking_at(GRAPPLE_AT_START - MOUNT), "width": 640, "height": 480, "fx": 500, "fy": 500,
               "cx": 319.5, "cy": 239.5, "near": 0.02, "far": 20, "ambient": 0.1, "seed": 5, "pixel_noise": 2,
               "depth_noise": 0}
+    data["components"]["wrist"] = {"type": "sensor.camera", "step": "100 ms", "parameters": camera}
     data["components"]["pose_sensor"] = {"type": "estimator.fiducial", "step": "100 ms", "parameters": {
-        "camera": camera, "end_effector": "ee", "markers": str(ROOT / "models" / "capture" / "grapple_markers.yaml"),
+        "body": "servicer", "urdf": bodies["servicer"], "link": "ee", "end_effector": "ee", "width": 640,
+        "height": 480, "markers": str(ROOT / "models" / "capture" / "grapple_markers.yaml"),
         "min_markers": 2, "max_reprojection_error": 1.5}}
     connections = data["connections"]
     del connections["pose_sensor.p_true"], connections["pose_sensor.q_true"]
     for body in bodies:
         for variable in ("position", "orientation", "q"):
-            connections[f"pose_sensor.camera.{body}.{variable}"] = f"dynamics.{body}.{variable}"
-    connections["pose_sensor.camera.r_eci"] = "orbit.r_eci"
+            connections[f"wrist.{body}.{variable}"] = f"dynamics.{body}.{variable}"
+    connections["wrist.r_eci"] = "orbit.r_eci"
+    for variable in ("rgb", "K", "D", "T_link_camera", "t_frame", "frame"):
+        connections[f"pose_sensor.{variable}"] = f"wrist.{variable}"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
 
@@ -77,8 +81,8 @@ def config(tmp_path):
 
 
 def test_the_estimator_over_a_run_against_the_dynamics_and_again_bit_for_bit(tmp_path):
-    """1.2 s, 12 frames, the arm still: every frame gives a pose within 5 mm and 0.6 deg of the
-    dynamics' (measured: 0.2-3.1 mm, 0.1-0.4 deg, 4 markers each, 0.88 m away)."""
+    """1.2 s, 12 frames, the arm still: every frame the estimator reads gives a pose within 5 mm
+    and 0.6 deg of the dynamics' (measured: 0.2-3.1 mm, 0.1-0.4 deg, 4 markers each, 0.88 m away)."""
     config = vision_config(tmp_path / "vision.yaml", duration="1200 ms")
     runs = []
     for name in ("a", "b"):
@@ -89,10 +93,12 @@ def test_the_estimator_over_a_run_against_the_dynamics_and_again_bit_for_bit(tmp
     signals = runs[0]
     columns = [c for c in signals.columns if c.startswith("pose_sensor.")]
     assert runs[1][columns].to_numpy().tobytes() == signals[columns].to_numpy().tobytes()
-    # frame k, taken at k * 100 ms, is the estimator's output from (k + 1) * 100 ms on
-    frames = signals[(signals["step"] % 10 == 0) & (signals["step"] > 0)]
-    assert np.array_equal(frames["pose_sensor.t_measured"].to_numpy(), (frames["step"].to_numpy() // 10 - 1) * 1e8 / 1e9)
-    assert len(frames) == 12 and (frames["pose_sensor.valid"] == 1.0).all() and (frames["pose_sensor.markers"] >= 3).all()
+    # frame k, taken at k * 100 ms, is the camera's output from (k + 1) * 100 ms on, which the
+    # estimator's step then reads: its solve is out from (k + 2) * 100 ms on; before, no frame
+    assert (signals.loc[signals["step"] < 20, "pose_sensor.valid"] == 0.0).all()
+    frames = signals[(signals["step"] % 10 == 0) & (signals["step"] >= 20)]
+    assert np.array_equal(frames["pose_sensor.t_measured"].to_numpy(), (frames["step"].to_numpy() // 10 - 2) * 1e8 / 1e9)
+    assert len(frames) == 11 and (frames["pose_sensor.valid"] == 1.0).all() and (frames["pose_sensor.markers"] >= 3).all()
     position_errors, attitude_errors = [], []
     for _, row in frames.iterrows():
         truth = signals.loc[np.isclose(signals["time"], row["pose_sensor.t_measured"], atol=1e-9)].iloc[0]
@@ -113,15 +119,15 @@ def test_the_estimator_over_a_run_against_the_dynamics_and_again_bit_for_bit(tmp
     assert np.array_equal(t, frames["pose_sensor.t_measured"].to_numpy())
     assert np.allclose(position, 1e3 * np.array(position_errors), rtol=1e-12, atol=0.0)
     assert np.allclose(line(figure, "attitude error", "attitude")[1], np.degrees(attitude_errors), rtol=1e-12, atol=0.0)
-    assert len(list((tmp_path / "a" / "frames" / "pose_sensor").glob("*.npz"))) == 12
-    assert frames["pose_sensor.frame"].tolist() == list(range(1, 13))
+    assert len(list((tmp_path / "a" / "frames" / "wrist").glob("*.npz"))) == 12   # the last one too
+    assert frames["wrist.frame"].tolist() == list(range(2, 13)) and frames["pose_sensor.frame_solved"].tolist() == list(range(1, 12))
     # orchestrator export --rosbag2: a PoseStamped per frame in the end effector's tf frame, read back
     # with the independent MCAP reader
     bag = tmp_path / "bag"
     done = orchestrator("export", tmp_path / "a", "--rosbag2", bag)
     assert done.returncode == 0, done.stderr
     poses = read_bag(bag)["/pose_sensor/pose"]
-    assert len(poses) == 12
+    assert len(poses) == 11
     for (_, message), (_, row) in zip(poses, frames.iterrows()):
         assert message.header.frame_id == "dynamics/servicer/ee"
         stamp = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
@@ -132,10 +138,10 @@ def test_the_estimator_over_a_run_against_the_dynamics_and_again_bit_for_bit(tmp
     rrd = tmp_path / "view.rrd"
     done = orchestrator("view", tmp_path / "a", "--view", f"save:{rrd}", "--rate", "100", timeout=300)
     assert done.returncode == 0, done.stderr[-3000:]
-    pinhole, images = rrd_camera(rrd, "/world/dynamics/servicer/links/ee/pose_sensor")
+    pinhole, images = rrd_camera(rrd, "/world/dynamics/servicer/links/ee/wrist")
     assert np.allclose(pinhole, [[500.0, 0.0, 319.5], [0.0, 500.0, 239.5], [0.0, 0.0, 1.0]])
     assert len(images) == 12
-    with np.load(tmp_path / "a" / "frames" / "pose_sensor" / "000011.npz") as frame:
+    with np.load(tmp_path / "a" / "frames" / "wrist" / "000011.npz") as frame:
         assert bytes(np.asarray(images[-1][0], dtype=np.uint8)) == frame["rgb"].tobytes()
 
 
@@ -174,21 +180,27 @@ def rrd_camera(rrd: Path, entity: str):
 def test_the_estimator_in_place_of_the_oracle_checks(config):
     done = orchestrator("check", config)
     assert done.returncode == 0, done.stderr
-    assert "6 components" in done.stdout
+    assert "7 components" in done.stdout
 
 
 @pytest.mark.parametrize("setting, key, expected", [
     ("min_markers=9", "min_markers", "expected at most the layout's 5 markers, got 9"),
     ("markers=nowhere.yaml", "markers", "marker layout 'nowhere.yaml' not found"),
     ("end_effector=arm_5_link", "end_effector", "joint arm_6_joint between them is revolute, not fixed"),
-    ("camera.link=hand", "camera.link", "expected a link of servicer"),
-    ("camera.fx=0", "camera.fx", "expected a quantity > 0, got 0"),
+    ("link=hand", "link", "expected a link of"),
     ("max_reprojection_error=-1", "max_reprojection_error", "expected a quantity > 0, got -1"),
 ])
 def test_bad_parameters_exit_2_naming_the_key(config, setting, key, expected):
     done = orchestrator("check", config, "--set", f"{KEY}.{setting}")
     assert done.returncode == 2, done.stdout + done.stderr
     assert f"{KEY}.{key}: " in done.stderr and expected in done.stderr, done.stderr
+
+
+def test_an_estimator_of_another_image_size_than_its_camera_exits_2_naming_both(config):
+    done = orchestrator("check", config, "--set", f"{KEY}.width=641")
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert ("connections.pose_sensor.rgb: frame mismatch: input pose_sensor.rgb is uint8 (480, 641, 3), "
+            "output wrist.rgb is uint8 (480, 640, 3)") in done.stderr, done.stderr
 
 
 def test_a_bad_layout_file_exits_2_naming_the_field_in_it(config, tmp_path):

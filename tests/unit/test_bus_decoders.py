@@ -94,7 +94,8 @@ EXAMPLES = {   # each declared message with values that are not defaults
     protocol.Wire: protocol.Wire(generation=3, step_ns=1_000_000, ratio=4, k=120, consumers=["controller", "viewer"],
                                  batch_consumers=["logger"], routes=[_route("orbit", [0, 1, 2], [5, 6, 7], 2, 1),
                                                                      _route("sensor", [], [], 1, 0)],
-                                 sources={"orbit": 3, "sensor": 0}, faults=[(40, "crash", 0.0), (80, "delay", 1.5)]),
+                                 sources={"orbit": 3, "sensor": 0}, faults=[(40, "crash", 0.0), (80, "delay", 1.5)],
+                                 frame_routes=[("camera", "rgb", "image", 10, 1)], frame_consumers={"rgb": ["viewer"]}),
     protocol.Initialize: protocol.Initialize(7_000_000_000, {"q": 6_000_000_000, "qd": 0}, np.array([1.5, -2.0, 1e-300])),
     protocol.Sync: protocol.Sync(),
     protocol.Start: protocol.Start([("orbit", 8, 2), ("orbit", 9, 2), ("sensor", 8, 1)], 64,
@@ -158,7 +159,9 @@ def test_the_wire_bytes_are_those_of_the_json_messages_before_them():
                                           "consumers": ["controller", "viewer"], "batch_consumers": ["logger"],
                                           "routes": [r.to_json() for r in wire.routes],
                                           "sources": {"orbit": 3, "sensor": 0},
-                                          "faults": [[40, "crash", 0.0], [80, "delay", 1.5]]})
+                                          "faults": [[40, "crash", 0.0], [80, "delay", 1.5]],
+                                          "frame_routes": [["camera", "rgb", "image", 10, 1]],
+                                          "frame_consumers": {"rgb": ["viewer"]}})
     assert EXAMPLES[protocol.Start].encode() == framed(
         b"C", {"op": "start", "held": [["orbit", 8, 2], ["orbit", 9, 2], ["sensor", 8, 1]], "horizon": 64},
         np.array([1.0, 2.0, 3.0, 4.0, -5.0]).tobytes())

@@ -106,6 +106,7 @@ class RosSide:
         self.live_tf_static: list[bytes] = []
         self._late_sub = None
         self._pending: queue.Queue = queue.Queue()
+        self._arrived = threading.Condition()
         self.liveliness = self.session.liveliness().declare_subscriber("@ros2_lv/**", self._token, history=True)
         self.data = self.session.declare_subscriber(f"{DOMAIN}/**", self._sample)
         self.thread = threading.Thread(target=self._declare_late, daemon=True)
@@ -120,7 +121,9 @@ class RosSide:
 
     def _sample(self, sample) -> None:
         attachment = sample.attachment.to_bytes() if sample.attachment is not None else None
-        self.samples.append((str(sample.key_expr), sample.payload.to_bytes(), attachment))
+        with self._arrived:
+            self.samples.append((str(sample.key_expr), sample.payload.to_bytes(), attachment))
+            self._arrived.notify_all()
         if "/tf_static/" in str(sample.key_expr):
             self.live_tf_static.append(sample.payload.to_bytes())
 
@@ -136,6 +139,11 @@ class RosSide:
             self.session, key, lambda s: self.late.append(s.payload.to_bytes()), subscriber_detection=True,
             history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
             recovery=zenoh.ext.RecoveryConfig(heartbeat=True))
+
+    def wait_for(self, count: int, timeout_s: float) -> None:
+        """Until ``count`` data samples have arrived (or the time is up: the test then says how many)."""
+        with self._arrived:
+            self._arrived.wait_for(lambda: len(self.samples) >= count, timeout_s)
 
     def close(self) -> None:
         self._pending.put(None)
@@ -173,6 +181,9 @@ def live(router, tmp_path_factory):
         result = orchestrator("run", CONFIG, "--set", "run.duration=2 s", "--set", "run.realtime=1",
                               "--set", "ros2.rate=100 Hz", "--record", record, "--ros2", router,
                               env={**os.environ, "ROS_DOMAIN_ID": str(DOMAIN)})
+        sent = re.search(r"run over: (\d+) messages published", result.stderr)
+        if sent:   # the last ones may still be on their way through the router when the run returns
+            ros.wait_for(int(sent.group(1)), timeout_s=60)
     finally:
         ros.close()
     assert result.returncode == 0, result.stderr

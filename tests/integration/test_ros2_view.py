@@ -99,7 +99,9 @@ class RosSide:
 
         from components import bus
 
+        self.endpoint = endpoint
         self.session = zenoh.open(bus.session_config(connect=[endpoint], mesh=True))
+        self._late_session = None   # the late joiner: another node, so a session of its own
         self.tokens: dict[str, bool] = {}
         self.samples: list[tuple[str, bytes, bytes | None]] = []   # (key, payload, attachment)
         self.late: list[bytes] = []
@@ -128,15 +130,19 @@ class RosSide:
             self.live_tf_static.append(sample.payload.to_bytes())
 
     def _declare_late(self) -> None:
+        import zenoh
         import zenoh.ext
+
+        from components import bus
         entity = self._pending.get()
         if entity is None:
             return
         key = f"{DOMAIN}/tf_static/{entity['type'].replace('/', '%')}/{entity['hash']}"
         # rmw_subscription_data.cpp: TRANSIENT_LOCAL -> history with late publishers detected,
         # depth samples, subscriber detection, heartbeat recovery
+        self._late_session = zenoh.open(bus.session_config(connect=[self.endpoint], mesh=True))
         self._late_sub = zenoh.ext.declare_advanced_subscriber(
-            self.session, key, lambda s: self.late.append(s.payload.to_bytes()), subscriber_detection=True,
+            self._late_session, key, lambda s: self.late.append(s.payload.to_bytes()), subscriber_detection=True,
             history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
             recovery=zenoh.ext.RecoveryConfig(heartbeat=True))
 
@@ -159,7 +165,9 @@ class RosSide:
         for declared in (self._late_sub, self.data, self.liveliness):
             if declared is not None:
                 declared.undeclare()
-        self.session.close()
+        for session in (self._late_session, self.session):
+            if session is not None:
+                session.close()
 
 
 @pytest.fixture(scope="module")

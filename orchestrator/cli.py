@@ -407,9 +407,11 @@ def build_parser() -> argparse.ArgumentParser:
     with_set(p)
     p.add_argument("--view", metavar="{spawn,web,save:FILE.rrd,foxglove[:PORT]}",
                    help="live view in Rerun, or served to Foxglove on ws://localhost:PORT (default 8765)")
-    p.add_argument("--ros2", nargs="?", const="", metavar="ENDPOINT",
-                   help="publish the run live to ROS 2 over rmw_zenoh through the router at ENDPOINT "
-                        "(default: the ros2: section's, else tcp/localhost:7447); ROS_DOMAIN_ID is the domain")
+    p.add_argument("--ros2", nargs="?", const="", metavar="rclpy|zenoh|auto|ENDPOINT",
+                   help="publish the run live to ROS 2: rclpy (a real rclpy node, on your ROS 2's middleware, "
+                        "Fast DDS by default), zenoh (rmw_zenoh's wire through its router at tcp/localhost:7447), "
+                        "ENDPOINT (zenoh through that router), auto (rclpy if a Python here imports it, else "
+                        "zenoh); default: the ros2: section's, else auto. ROS_DOMAIN_ID is the domain")
     p.add_argument("--profile", action="store_true", help="print, at the end, each component's compute time and "
                    "waiting time per step (waiting: for its inputs or the horizon, the bus included) and the share "
                    "of the wall time it computes")

@@ -1,8 +1,10 @@
 """``ros2.bridge``: a ROS 2 node in the loop. Its inputs go out to ROS 2 topics each step, stamped
 with the step's time, with ``/clock``; its outputs come back from ROS 2 topics, taken by the rule of
-``wait_for`` (:mod:`components.ros2.lockstep`). The ROS side is a Zenoh session of its own, linked
-to the ROS router (rmw_zenohd) and following rmw_zenoh's conventions (:mod:`components.ros2.rmw_zenoh`);
-the run's own bus is untouched. The mapping of variables to message fields:
+``wait_for`` (:mod:`components.ros2.lockstep`). The ROS side (``transport``) is a real rclpy node
+in a process of its own, on the middleware the user's ROS 2 selects
+(:mod:`components.ros2.rclpy_transport`), or a Zenoh session of its own linked to the ROS router
+(rmw_zenohd), following rmw_zenoh's conventions (:mod:`components.ros2.rmw_zenoh`); the run's own
+bus is untouched either way. The mapping of variables to message fields:
 :mod:`components.ros2.messages`.
 
 Step k (``do_step(t_k, ...)``): ``/clock`` <- t_k, each input topic <- the inputs held at t_k,
@@ -24,6 +26,7 @@ from components.constants import NS_PER_S
 from components.errors import ComponentError, ConfigError
 from components.rosbag import epoch_ns
 from components.ros2 import lockstep, messages
+from components.ros2.rclpy_transport import AUTO, RCLPY, TRANSPORTS, RclpyNode, choose
 from components.ros2.rmw_zenoh import ADMIN_SPACE, PUBLISHER, SUBSCRIPTION, check_topic_name, dds_type_name
 from components.schema import Bool, Duration, Int, ListOf, MapOf, OneOf, Float, Problems, Record, Str, Vector
 from components.sdk import Component, Parameter, Variable
@@ -192,8 +195,14 @@ class Ros2Bridge(Component):
         Parameter("wait_for", Str((lockstep.STAMPED, lockstep.LATEST)),
                   description="stamped: step k waits for the messages stamped t_k (deterministic if the node "
                               "is); latest: takes the newest message (not deterministic)"),
+        Parameter("transport", Str(TRANSPORTS), default=AUTO,
+                  description="rclpy: a real rclpy node on your ROS 2's middleware (Fast DDS by default); zenoh: "
+                              "rmw_zenoh's wire through its router; auto: rclpy if a Python here imports it"),
+        Parameter("python", Str(hint="a Python that imports rclpy, e.g. /opt/venvs/ros/bin/python"), default=None,
+                  description="rclpy: the Python to run the node with (default: ZENORBIT_ROS2_PYTHON, else this "
+                              "Python, else python3 on the PATH)"),
         Parameter("endpoint", Str(pattern=ENDPOINT, hint="a Zenoh endpoint like tcp/localhost:7447"),
-                  default=DEFAULT_ENDPOINT, description="the ROS side's Zenoh router (rmw_zenohd's default)"),
+                  default=DEFAULT_ENDPOINT, description="zenoh: the ROS side's Zenoh router (rmw_zenohd's default)"),
         Parameter("domain_id", Int(minimum=0), default=DEFAULT_DOMAIN_ID,
                   description="the ROS domain (ROS_DOMAIN_ID; ROS's default 0)"),
         Parameter("node", Str(pattern=r"[A-Za-z][A-Za-z0-9_]*", hint="a ROS node name (letters, digits, _)"),
@@ -216,6 +225,11 @@ class Ros2Bridge(Component):
         if not params["outputs"] and not params["inputs"]:
             raise ConfigError("outputs", "the bridge has no variable: declare outputs (read from ROS 2) or inputs")
         bindings(params)
+        if params["transport"] == RCLPY:   # auto falls back to zenoh; rclpy asked for must be there
+            try:
+                choose(RCLPY, params["python"])
+            except ComponentError as e:
+                raise ConfigError("transport", str(e)) from None
 
     @classmethod
     def declare(cls, params):
@@ -255,7 +269,22 @@ class Ros2Bridge(Component):
         self._open(params, listened)
 
     def _open(self, params, listened: dict[str, messages.MessageMap]) -> None:
-        """The ROS side: a Zenoh session linked to the router, the node, its publishers and subscribers."""
+        """The ROS side (an rclpy node in a process of its own, or a Zenoh session linked to the
+        router), the node, its publishers and subscribers."""
+        self.transport, python, why = choose(params["transport"], params["python"])
+        print(f"{params['node']}: {why}", file=sys.stderr, flush=True)
+        if self.transport == RCLPY:
+            self.node = RclpyNode(python, params["domain_id"], params["node"], params["namespace"])
+        else:
+            self.node = self._zenoh_node(params)
+        self.clock = (self.node.publisher(CLOCK_TOPIC, CLOCK_TYPE, self.typestore)
+                      if params["clock"] else None)
+        self.publishers = {topic: self.node.publisher(topic, group[0].message.msgtype, self.typestore)
+                           for topic, group in self.published.items()}
+        for topic, message in listened.items():
+            self.node.subscriber(topic, message.msgtype, self.typestore, self._receiver(topic, message.stamped))
+
+    def _zenoh_node(self, params):
         import zenoh
 
         from components.bus import session_config
@@ -270,13 +299,7 @@ class Ros2Bridge(Component):
         except zenoh.ZError:
             raise ComponentError(f"cannot reach the ROS 2 router at {params['endpoint']} within {self.timeout_s:g} s "
                                  f"(is rmw_zenohd running there? endpoint sets where)") from None
-        self.node = Node(self.session, params["domain_id"], params["node"], params["namespace"])
-        self.clock = (self.node.publisher(CLOCK_TOPIC, CLOCK_TYPE, self.typestore)
-                      if params["clock"] else None)
-        self.publishers = {topic: self.node.publisher(topic, group[0].message.msgtype, self.typestore)
-                           for topic, group in self.published.items()}
-        for topic, message in listened.items():
-            self.node.subscriber(topic, message.msgtype, self.typestore, self._receiver(topic, message.stamped))
+        return Node(self.session, params["domain_id"], params["node"], params["namespace"])
 
     def _receiver(self, topic: str, stamped: bool):
         arrivals = self.arrivals
@@ -296,9 +319,33 @@ class Ros2Bridge(Component):
         return dict(self.last)
 
     def _await_graph(self) -> None:
-        """Wait (up to ``timeout``) until, in the ROS graph (rmw_zenoh's liveliness tokens), another
-        node subscribes to each input topic and publishes each output topic with the bridge's types:
-        an input published before its subscriber is known would be lost, and its step never answered."""
+        """Wait (up to ``timeout``) until another node subscribes to each input topic and publishes
+        each output topic with the bridge's types: an input published before its subscriber is known
+        would be lost, and its step never answered."""
+        if self.transport == RCLPY:
+            self._await_matches()
+        else:
+            self._await_tokens()
+
+    def _await_matches(self) -> None:
+        """rclpy: until the middleware has matched each of the bridge's publishers and subscriptions."""
+        deadline = time.monotonic() + self.timeout_s
+        while missing := self.node.unmatched(self.timeout_s, exclude=(CLOCK_TOPIC,)):
+            if self.arrivals.interrupted:
+                raise lockstep.Interrupted("the run is ending: stopped waiting for the ROS graph")
+            if time.monotonic() > deadline:
+                role, topic, msgtype = missing[0]
+                other_types = [f"{node} has it as {node_type}" for _, _, node_type, node
+                               in self.node.graph([topic], self.timeout_s) if node_type != msgtype]
+                wrong = f"; {other_types[0]}" if other_types else ""
+                role = "subscribes to" if role == "publisher" else "publishes"
+                raise ComponentError(f"no ROS 2 node {role} {topic} ({msgtype}) in domain {self.domain_id} "
+                                     f"({self.node.rmw}) within {self.timeout_s:g} s{wrong}: start the node before "
+                                     f"the run, with the same ROS_DOMAIN_ID and RMW_IMPLEMENTATION (or raise timeout)")
+            time.sleep(0.02)
+
+    def _await_tokens(self) -> None:
+        """zenoh: until rmw_zenoh's liveliness tokens show the other side of each topic."""
         wanted = {(SUBSCRIPTION, topic, dds_type_name(group[0].message.msgtype))
                   for topic, group in self.published.items()}
         wanted |= {(PUBLISHER, topic, dds_type_name(msgtype)) for topic, msgtype in self.listened.items()}

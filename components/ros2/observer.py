@@ -34,6 +34,7 @@ from pathlib import Path
 
 from components import bus, bus_security
 from components.ros2 import rmw_zenoh
+from components.ros2.rclpy_transport import RCLPY, RclpyNode
 from components.viewer.observer import (LIVE_BATCH_S, MAX_BATCH_ROWS, NICENESS, POLL_S, RowBuffer, Stop,
                                         orchestrator_gone, raise_stop, take_rows)
 
@@ -92,19 +93,19 @@ class RosLink:
 
 
 class RosPublishers:
-    """The run's topics on a ROS 2 node: a publisher per topic, made when the topic first has
-    messages; the messages of a batch in time order."""
+    """The run's topics on a ROS 2 node (an rmw_zenoh.Node or an RclpyNode): a publisher per topic,
+    made when the topic first has messages; the messages of a batch in time order."""
 
-    def __init__(self, node: rmw_zenoh.Node, typestore, topics: list[str] | None, warn):
+    def __init__(self, node, typestore, topics: list[str] | None, warn):
         self.node = node
         self.typestore = typestore
         self.wanted = set(topics) if topics is not None else None
         self.warn = warn
-        self.publishers: dict[str, rmw_zenoh.Publisher] = {}
+        self.publishers: dict[str, object] = {}
         self.skipped: set[str] = set()
         self.sent = 0
 
-    def _publisher(self, topic) -> rmw_zenoh.Publisher | None:
+    def _publisher(self, topic):
         if topic.name in self.skipped:
             return None
         if topic.name not in self.publishers:
@@ -163,22 +164,29 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
         signals = session.declare_subscriber(bus.signals_key(run_id), zenoh.handlers.FifoChannel(16384))
         watcher = session.liveliness().declare_subscriber(bus.orchestrator_alive_key(run_id),
                                                           zenoh.handlers.FifoChannel(16))
-        token = session.liveliness().declare_token(bus.ros2_alive_key(run_id))   # rows wait in the FIFO from here
         typestore = get_typestore(Stores(DISTROS[ros["distro"]]))
-        link = RosLink(ros["endpoint"])
-        if link.warning:
-            log(link.warning)
+        if ros.get("why"):
+            log(ros["why"])
+        if ros.get("transport") == RCLPY:   # up before the run starts: a node that cannot start stops it
+            node = RclpyNode(ros["python"], ros["domain_id"], ros["node"], warn=warn)
+            log(f"publishing the run to ROS 2 (domain {ros['domain_id']}, {node.rmw}) with rclpy as node /{ros['node']}")
+        else:
+            link = RosLink(ros["endpoint"])
+            if link.warning:
+                log(link.warning)
+        token = session.liveliness().declare_token(bus.ros2_alive_key(run_id))   # rows wait in the FIFO from here
         buffer = RowBuffer(len(columns))
         last = time.monotonic()
         ended = gone = False
         while not ended and not gone:
             ended, empty = take_rows(signals, buffer)
-            if node is None and link.session is not None:
+            if node is None and link is not None and link.session is not None:
                 node = rmw_zenoh.Node(link.session, ros["domain_id"], ros["node"])
+                log(f"publishing the run to ROS 2 (domain {ros['domain_id']}) over rmw_zenoh's wire through "
+                    f"{ros['endpoint']} as node /{ros['node']}")
+            if publishers is None and node is not None:
                 publishers = RosPublishers(node, typestore, ros.get("topics"), warn)
                 live = LiveTopics(config, setup.get("config_dir"), columns, typestore, warn)
-                log(f"publishing the run to ROS 2 (domain {ros['domain_id']}) through {ros['endpoint']} "
-                    f"as node /{ros['node']}")
             now = time.monotonic()
             if buffer and (ended or now - last >= LIVE_BATCH_S or len(buffer) >= MAX_BATCH_ROWS):
                 _, times, rows = buffer.take()

@@ -67,15 +67,24 @@ def clock_clash(components: dict[str, ComponentSpec], ros2: Ros2Spec | None, whe
 
 
 def ros2_spec(raw: Any, where: str, errors: list[str], endpoint: str | None = None) -> Ros2Spec | None:
-    """Parse a ``ros2:`` section (None: the defaults); ``endpoint``: ``--ros2 ENDPOINT``, which
-    wins. The domain id, if not given, is the environment's ROS_DOMAIN_ID, else 0. A topic name
-    ROS 2 rejects is an error naming it."""
+    """Parse a ``ros2:`` section (None: the defaults); ``endpoint``: ``--ros2 TRANSPORT|ENDPOINT``,
+    which wins (an endpoint means transport zenoh). The domain id, if not given, is the
+    environment's ROS_DOMAIN_ID, else 0. The transport is chosen here (auto: rclpy if a Python
+    imports it). A topic name ROS 2 rejects, or rclpy asked for and not found: an error naming it."""
     import os
 
+    from components.errors import ComponentError
+    from components.ros2.rclpy_transport import TRANSPORTS, ZENOH, choose
     from components.ros2.rmw_zenoh import check_topic_name
 
     if raw is None or isinstance(raw, dict):
-        raw = {**(raw or {}), **({"endpoint": endpoint} if endpoint is not None else {})}
+        if endpoint in TRANSPORTS:
+            given = {"transport": endpoint}
+        elif endpoint is not None:
+            given = {"endpoint": endpoint, "transport": ZENOH}
+        else:
+            given = {}
+        raw = {**(raw or {}), **given}
     section, problems = ROS2.resolve(raw, where)
     if problems:
         errors += [str(e) for e in problems]
@@ -92,8 +101,13 @@ def ros2_spec(raw: Any, where: str, errors: list[str], endpoint: str | None = No
     if rejected:
         errors += rejected
         return None
+    try:
+        transport, python, why = choose(section["transport"], section["python"])
+    except ComponentError as e:
+        errors.append(f"{where}.transport: {e}")
+        return None
     return Ros2Spec(endpoint=section["endpoint"], domain_id=domain_id, distro=section["distro"],
-                    topics=section["topics"], rate_hz=section["rate"])
+                    topics=section["topics"], rate_hz=section["rate"], transport=transport, python=python, why=why)
 
 
 def load(path: str | Path, overrides: list[str] = (), full: bool = False) -> RunConfig:

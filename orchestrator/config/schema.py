@@ -12,6 +12,7 @@ MAX_STEPS = 10 ** 12   # steps in a run: beyond, a typo (a duration in the wrong
 VIEWER_MODES = ("spawn", "web", "save", "foxglove", "off")
 FOXGLOVE_PORT = 8765   # the Foxglove app's default WebSocket port
 ROS2_ENDPOINT = "tcp/localhost:7447"   # rmw_zenohd's default listen endpoint
+ROS2_TRANSPORTS = ("auto", "rclpy", "zenoh")   # components/ros2/rclpy_transport.py
 ROS2_DISTROS = ("jazzy", "kilted", "lyrical")   # rmw_zenoh with type hashes in its keys (Jazzy and later)
 NAME = r"[A-Za-z][A-Za-z0-9_]*"
 ENDPOINT = r"(tcp|udp|tls|quic)/(\[[0-9a-fA-F:]+\]|[A-Za-z0-9.\-]+):\d{1,5}"
@@ -83,8 +84,15 @@ VIEWER = Record("viewer", (
               description="foxglove: the WebSocket port on localhost (ws://localhost:PORT)"),
 ), description="the live view, in Rerun or Foxglove (``viewer:``, or ``--view``)")
 ROS2 = Record("ros2", (
+    Parameter("transport", Str(ROS2_TRANSPORTS), default="auto",
+              description="rclpy: a real rclpy node on the middleware your ROS 2 environment selects (Fast DDS "
+                          "by default); zenoh: rmw_zenoh's wire through its router, no ROS install needed; auto: "
+                          "rclpy if a Python here imports it, else zenoh"),
+    Parameter("python", Str(hint="a Python interpreter that imports rclpy, e.g. /opt/venvs/ros/bin/python"),
+              default=None, description="rclpy: the Python to run the node with (default: ZENORBIT_ROS2_PYTHON, "
+                                        "else this Python, else python3 on the PATH)"),
     Parameter("endpoint", Str(pattern=ENDPOINT, hint="a Zenoh endpoint like tcp/localhost:7447"), default=ROS2_ENDPOINT,
-              description="the ROS side's Zenoh router (ros2 run rmw_zenoh_cpp rmw_zenohd)"),
+              description="zenoh: the ROS side's Zenoh router (rmw_zenohd, or orchestrator router --ros2)"),
     Parameter("domain_id", Int(minimum=0), default=None,
               description="the ROS domain (default: the environment's ROS_DOMAIN_ID, else 0)"),
     Parameter("distro", Str(ROS2_DISTROS), default="jazzy",
@@ -95,7 +103,7 @@ ROS2 = Record("ros2", (
     Parameter("rate", Float("Hz", positive=True), default=30.0,
               description="rows per second of simulated time (at most one per step; with a viewer, the "
                           "higher of the two rates)"),
-), description="the live ROS 2 view over rmw_zenoh (``ros2:``, or ``--ros2 [ENDPOINT]``)")
+), description="the live ROS 2 view, over rclpy or rmw_zenoh (``ros2:``, or ``--ros2 [TRANSPORT|ENDPOINT]``)")
 SHADOW = Record("shadow", (
     Parameter("type", Str(hint="a component type name"),
               description="any type with the component's connected inputs and all its outputs, same shapes and units"),
@@ -146,7 +154,7 @@ CONFIG = Record("config", (
     Parameter("events", ListOf(EVENT), default=[], description="swaps during the run"),
     Parameter("faults", ListOf(FAULT), default=[], description="injected failures, to test a setup's recovery"),
     Parameter("viewer", VIEWER, default=None, description="the live view (Rerun or Foxglove)"),
-    Parameter("ros2", ROS2, default=None, description="the live ROS 2 view over rmw_zenoh"),
+    Parameter("ros2", ROS2, default=None, description="the live ROS 2 view, over rclpy or rmw_zenoh"),
 ), description="a run config")
 
 

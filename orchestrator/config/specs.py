@@ -47,13 +47,17 @@ class ViewerSpec:
 
 @dataclass
 class Ros2Spec:
-    """The live ROS 2 view: the ROS side's router ``endpoint``, ``domain_id``, ``distro``,
+    """The live ROS 2 view: ``transport`` as chosen (rclpy or zenoh; ``why``: how), the ``python``
+    that runs rclpy, the ROS side's router ``endpoint`` (zenoh), ``domain_id``, ``distro``,
     ``topics`` (None: all), ``rate_hz`` of sim time."""
     endpoint: str
     domain_id: int
     distro: str
     topics: list[str] | None
     rate_hz: float
+    transport: str = "zenoh"
+    python: str | None = None
+    why: str = ""
 
 
 @dataclass

@@ -61,7 +61,8 @@ class ViewerLink:
             ros2_setup.write_text(json.dumps({
                 "columns": columns, "config": config.resolved, "config_dir": str(config.path.parent.resolve()),
                 "ros2": {"endpoint": self.ros2.endpoint, "domain_id": self.ros2.domain_id,
-                         "distro": self.ros2.distro, "topics": self.ros2.topics, "node": node}}))
+                         "distro": self.ros2.distro, "topics": self.ros2.topics, "node": node,
+                         "transport": self.ros2.transport, "python": self.ros2.python, "why": self.ros2.why}}))
             self.ros2_process = self._spawn("components.ros2.observer", endpoint, run_id, ros2_setup, env, cpus)
             rates.append(self.ros2.rate_hz)
             expected[bus.ROS2] = "alive"

@@ -58,6 +58,7 @@ components:
     type: ros2.bridge
     parameters:
       wait_for: {wait_for}
+      transport: zenoh
       endpoint: tcp/127.0.0.1:{port}
       domain_id: 0
       timeout: {timeout}

@@ -1,0 +1,180 @@
+"""The ROS 2 side of the ``rclpy`` transport: one rclpy node, in a process of its own, run by the
+Python that has the user's ROS 2 (a sourced /opt/ros, or a venv with the Jazzy wheels), on
+whatever middleware that environment selects (``RMW_IMPLEMENTATION``: Fast DDS by default).
+
+    python rclpy_side.py --domain 0 --node zenorbit_demo [--namespace /]
+
+This file imports only the standard library and rclpy (and, per topic, the message's package), so
+that any Python with rclpy runs it: the project's packages need not be installed there. Its parent
+(:mod:`components.ros2.rclpy_transport`) speaks to it over its stdin and stdout in frames: a
+little-endian uint32 length, one byte of kind, then the payload.
+
+parent -> this side:
+  ``P`` {id, topic, type, latched, depth}   declare a publisher (CDR bytes in, ``raw``)
+  ``S`` {id, topic, type, latched, depth}   declare a subscription (its messages go back as ``M``)
+  ``M`` uint32 id + CDR                       publish on publisher ``id``
+  ``G`` {request, topics}                     ask the graph: each entity's matched count, and who
+                                              else publishes and subscribes ``topics``
+  ``Q`` {}                                    finish: publish what came before, then exit 0
+this side -> parent:
+  ``R`` {rmw, domain, python, node}           the node is up
+  ``M`` uint32 id + CDR                       a message on subscription ``id``
+  ``W`` {id, text}                            entity ``id`` could not be made (its messages are dropped)
+  ``G`` {request, matched, graph}             the graph answer
+
+A closed stdin (the parent gone) ends the process too. Nothing else may write to stdout: it is
+moved to a private descriptor at once, and fd 1 points at stderr for the libraries' own prints.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import struct
+import sys
+import threading
+import time
+
+HEADER = struct.Struct("<IB")
+ENTITY_ID = struct.Struct("<I")
+FLUSH_S = 2.0        # at the end, how long the subscribers may take to acknowledge the last messages
+MATCH_WAIT_S = 2.0   # how long a new publisher waits to be matched by subscriptions the graph knows of
+
+
+def read_exact(fd: int, size: int) -> bytes | None:
+    chunks, remaining = [], size
+    while remaining:
+        chunk = os.read(fd, remaining)
+        if not chunk:
+            return None
+        chunks.append(chunk)
+        remaining -= len(chunk)
+    return b"".join(chunks)
+
+
+class Channel:
+    """Frames to the parent, from any thread."""
+
+    def __init__(self, fd: int):
+        self.fd = fd
+        self.lock = threading.Lock()
+
+    def send(self, kind: bytes, payload: bytes) -> None:
+        frame = HEADER.pack(len(payload), kind[0]) + payload
+        with self.lock:
+            view = memoryview(frame)
+            while view:
+                view = view[os.write(self.fd, view):]
+
+    def send_json(self, kind: bytes, value: dict) -> None:
+        self.send(kind, json.dumps(value).encode())
+
+
+def message_class(msgtype: str):
+    package, kind, name = msgtype.split("/")
+    return getattr(importlib.import_module(f"{package}.{kind}"), name)
+
+
+def main() -> int:
+    out = os.dup(1)          # the protocol's descriptor; fd 1 becomes stderr for everything else
+    os.dup2(2, 1)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--domain", type=int, required=True)
+    parser.add_argument("--node", required=True)
+    parser.add_argument("--namespace", default="/")
+    args = parser.parse_args()
+
+    import rclpy
+    import rclpy.duration
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    channel = Channel(out)
+    rclpy.init(domain_id=args.domain)
+    node = rclpy.create_node(args.node, namespace=args.namespace)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    spinner = threading.Thread(target=executor.spin, name="rclpy-spin", daemon=True)
+    spinner.start()
+    publishers: dict[int, object] = {}
+    subscriptions: dict[int, object] = {}
+
+    def qos(spec: dict) -> QoSProfile:
+        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=int(spec["depth"]),
+                          reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL if spec["latched"] else DurabilityPolicy.VOLATILE)
+
+    def declare(kind: bytes, spec: dict) -> None:
+        try:
+            cls = message_class(spec["type"])
+        except (ImportError, AttributeError, ValueError) as e:
+            channel.send_json(b"W", {"id": spec["id"], "text": f"{spec['topic']}: no message type {spec['type']} in "
+                                     f"this ROS 2 environment ({type(e).__name__}: {e}); install its package"})
+            return
+        if kind == b"P":
+            publisher = node.create_publisher(cls, spec["topic"], qos(spec))
+            publishers[spec["id"]] = publisher
+            await_matches(publisher, spec["topic"])
+        else:
+            header = ENTITY_ID.pack(spec["id"])
+            subscriptions[spec["id"]] = node.create_subscription(
+                cls, spec["topic"], lambda data: channel.send(b"M", header + data), qos(spec), raw=True)
+
+    def await_matches(publisher, topic: str) -> None:
+        # a message published before DDS matched a subscription the graph already knows is lost to it
+        deadline = time.monotonic() + MATCH_WAIT_S
+        while publisher.get_subscription_count() < node.count_subscribers(topic) and time.monotonic() < deadline:
+            time.sleep(0.005)
+
+    def graph(request: dict) -> dict:
+        matched = {str(i): p.get_subscription_count() for i, p in publishers.items()}
+        matched |= {str(i): s.get_publisher_count() for i, s in subscriptions.items()}
+        others = []
+        own = (node.get_name(), node.get_namespace())
+        for topic in request["topics"]:
+            for role, infos in (("publisher", node.get_publishers_info_by_topic(topic)),
+                                ("subscription", node.get_subscriptions_info_by_topic(topic))):
+                others += [[role, topic, info.topic_type, info.node_namespace.rstrip("/") + "/" + info.node_name]
+                           for info in infos if (info.node_name, info.node_namespace) != own]
+        return {"request": request["request"], "matched": matched, "graph": others}
+
+    channel.send_json(b"R", {"rmw": rclpy.get_rmw_implementation_identifier(), "domain": args.domain,
+                             "python": sys.executable, "node": node.get_fully_qualified_name()})
+    try:
+        while True:
+            header = read_exact(0, HEADER.size)
+            if header is None:
+                break
+            size, kind = HEADER.unpack(header)
+            payload = read_exact(0, size)
+            if payload is None:
+                break
+            kind = bytes([kind])
+            if kind == b"M":
+                (entity,) = ENTITY_ID.unpack_from(payload)
+                publisher = publishers.get(entity)
+                if publisher is not None:
+                    publisher.publish(payload[ENTITY_ID.size:])
+            elif kind in (b"P", b"S"):
+                declare(kind, json.loads(payload))
+            elif kind == b"G":
+                channel.send_json(b"G", graph(json.loads(payload)))
+            elif kind == b"Q":
+                break
+    except KeyboardInterrupt:
+        pass
+    finally:
+        deadline = time.monotonic() + FLUSH_S   # reliable: what was published reaches who matched
+        for publisher in publishers.values():
+            publisher.wait_for_all_acked(rclpy.duration.Duration(nanoseconds=max(0, int(
+                (deadline - time.monotonic()) * 1e9))))
+        executor.shutdown(timeout_sec=1.0)
+        rclpy.try_shutdown()   # wakes the spinning thread, which must end before the process does
+        spinner.join(timeout=2.0)
+        node.destroy_node()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -382,6 +382,11 @@ def cmd_router(args) -> int:
     from orchestrator.config.schema import ENDPOINT
     import re
     from orchestrator.hosts.joiner import JoinError, route
+    if args.ros2:
+        return _ros2_router(args)
+    if args.join is None or not args.listen:
+        missing = " and ".join(f for f, given in (("--listen ENDPOINT", args.listen), ("--join FILE", args.join)) if not given)
+        return _fail(f"router: expected {missing} (a run's router), or --ros2 (a ROS 2 router, as rmw_zenohd)")
     for endpoint in args.listen:
         if not re.fullmatch(ENDPOINT, endpoint):
             return _fail(f"--listen {endpoint}: expected a Zenoh endpoint like tls/0.0.0.0:7447")
@@ -389,6 +394,19 @@ def cmd_router(args) -> int:
         return route(Path(args.join), args.listen)
     except JoinError as e:
         return _fail(str(e), e.code)
+
+
+def _ros2_router(args) -> int:
+    from components.ros2 import router
+    if args.join is not None:
+        return _fail(f"router --ros2: expected no --join (that is a run's router), got --join {args.join}")
+    for endpoint in args.listen or []:
+        if problem := router.check_endpoint(endpoint):
+            return _fail(f"--listen: {problem}")
+    try:
+        return router.serve(args.listen)
+    except router.RouterError as e:
+        return _fail(str(e))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -473,10 +491,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cpu", type=int, help="step on this CPU alone")
     p.set_defaults(func=cmd_join)
 
-    p = sub.add_parser("router", help="the run's Zenoh router (bus.router), for hosts that cannot reach each other")
-    p.add_argument("--listen", action="append", required=True, metavar="ENDPOINT",
-                   help="where the run's processes reach it, e.g. tls/0.0.0.0:7447 (repeatable)")
-    p.add_argument("--join", required=True, metavar="FILE", help="DIR/join/router.join, which the orchestrator wrote")
+    p = sub.add_parser("router", help="the run's Zenoh router (bus.router), for hosts that cannot reach each other; "
+                       "with --ros2, a ROS 2 router (as rmw_zenohd) for --ros2 on a machine without ROS")
+    p.add_argument("--listen", action="append", metavar="ENDPOINT",
+                   help="where the run's processes reach it, e.g. tls/0.0.0.0:7447 (repeatable); with --ros2: "
+                        "where ROS 2 nodes and runs reach it (default tcp/[::]:7447, rmw_zenohd's)")
+    p.add_argument("--join", metavar="FILE", help="DIR/join/router.join, which the orchestrator wrote")
+    p.add_argument("--ros2", action="store_true", help="a ROS 2 router instead, in the foreground, with rmw_zenohd's "
+                   "default configuration: rmw_zenoh's nodes, `run --ros2` and ros2.bridge (transport zenoh) meet "
+                   "there; SIGTERM or Ctrl-C stops it")
     p.set_defaults(func=cmd_router)
 
     p = sub.add_parser("types", help="list the component types, with a line each")

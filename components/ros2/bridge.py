@@ -27,6 +27,7 @@ from components.errors import ComponentError, ConfigError
 from components.rosbag import epoch_ns
 from components.ros2 import lockstep, messages
 from components.ros2.rclpy_transport import AUTO, RCLPY, TRANSPORTS, RclpyNode, choose
+from components.ros2.router import hint
 from components.ros2.rmw_zenoh import ADMIN_SPACE, PUBLISHER, SUBSCRIPTION, check_topic_name, dds_type_name
 from components.schema import Bool, Duration, Int, ListOf, MapOf, OneOf, Float, Problems, Record, Str, Vector
 from components.sdk import Component, Parameter, Variable
@@ -298,7 +299,7 @@ class Ros2Bridge(Component):
             self.session = zenoh.open(config)
         except zenoh.ZError:
             raise ComponentError(f"cannot reach the ROS 2 router at {params['endpoint']} within {self.timeout_s:g} s "
-                                 f"(is rmw_zenohd running there? endpoint sets where)") from None
+                                 f"(endpoint sets where): {hint('transport: rclpy')}") from None
         return Node(self.session, params["domain_id"], params["node"], params["namespace"])
 
     def _receiver(self, topic: str, stamped: bool):
@@ -368,7 +369,7 @@ class Ros2Bridge(Component):
                 role = "subscribes to" if kind == SUBSCRIPTION else "publishes"
                 raise ComponentError(f"no ROS 2 node {role} {topic} ({dds_type}) in domain {self.domain_id} at "
                                      f"{self.endpoint} within {self.timeout_s:g} s: start the node before the run "
-                                     f"(or raise timeout)")
+                                     f"(or raise timeout)" + ("" if seen else f"; {hint('transport: rclpy')}"))
             time.sleep(0.05)
 
     def do_step(self, t_ns, h_ns, inputs):

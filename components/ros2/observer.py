@@ -33,7 +33,7 @@ import time
 from pathlib import Path
 
 from components import bus, bus_security
-from components.ros2 import rmw_zenoh
+from components.ros2 import rmw_zenoh, router
 from components.ros2.rclpy_transport import RCLPY, RclpyNode
 from components.viewer.observer import (LIVE_BATCH_S, MAX_BATCH_ROWS, NICENESS, POLL_S, RowBuffer, Stop,
                                         orchestrator_gone, raise_stop, take_rows)
@@ -62,9 +62,8 @@ class RosLink:
         try:
             self.session = self._open()
         except Exception as e:
-            self.warning = (f"warning: cannot reach the ROS 2 router at {endpoint} ({str(e).split(' at ')[0]}); "
-                            f"the run goes on, and the ROS 2 view connects if the router comes up (start it "
-                            f"with: ros2 run rmw_zenoh_cpp rmw_zenohd)")
+            self.warning = (f"warning: cannot reach the ROS 2 router at {endpoint} ({str(e).split(' at ')[0]}): "
+                            f"{router.hint()}; the run goes on, and the ROS 2 view connects if a router comes up there")
             self._thread = threading.Thread(target=self._retry, name="ros2-link", daemon=True)
             self._thread.start()
 

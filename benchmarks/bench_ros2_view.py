@@ -10,9 +10,10 @@ the most a 0.2 s batch holds at 1 kHz), through the observer's own path (LiveTop
 builders and CDR; RosPublishers: rmw_zenoh's keys and attachments) to a Zenoh router on loopback
 with a subscriber counting what arrives; prints rows/s and messages/s, and the share of building
 and serializing against putting. ``cost``: the run with and without ``--ros2`` (a router stand-in on
-loopback, every ``--rate`` Hz of sim time), alternately, comparing the lockstep loop time
-(``--profile``) and the CPU time of the whole process tree (orchestrator, components, observer),
-which depends less on what else the machine does. Medians over ``--repeats`` pairs.
+loopback, every ``--rate`` Hz of sim time; with ``--ros2-python`` the rclpy transport too), in
+turn, comparing the lockstep loop time (``--profile``) and the CPU time of the whole process tree
+(orchestrator, components, observer), which depends less on what else the machine does. Medians
+over ``--repeats`` rounds.
 """
 from __future__ import annotations
 
@@ -121,10 +122,11 @@ def children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def run_once(config: str, duration: str, ros2: str | None, rate: str):
+def run_once(config: str, duration: str, ros2: list[str], rate: str):
+    """(loop s, wall s, steps, CPU s of the process tree); ``ros2``: the view's arguments, [] for none."""
     cmd = [sys.executable, "-m", "orchestrator.cli", "run", config, "--profile", "--set", f"run.duration={duration}"]
     if ros2:
-        cmd += ["--ros2", ros2, "--set", f"ros2.rate={rate} Hz"]
+        cmd += [*ros2, "--set", f"ros2.rate={rate} Hz"]
     started, cpu = time.perf_counter(), children_cpu()
     result = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=1800)
     wall, cpu = time.perf_counter() - started, children_cpu() - cpu
@@ -136,21 +138,27 @@ def run_once(config: str, duration: str, ros2: str | None, rate: str):
 
 def cost(args) -> None:
     router = Router()
+    views = {"none": [], "zenoh": ["--ros2", router.endpoint]}
+    if args.ros2_python:
+        views["rclpy"] = ["--ros2", "rclpy", "--set", f"ros2.python={args.ros2_python}", "--set", "ros2.domain_id=96"]
     try:
-        run_once(args.config, "0.2s", None, args.rate)
-        plain, viewed = [], []
+        run_once(args.config, "0.2s", [], args.rate)
+        results: dict[str, list] = {view: [] for view in views}
         for i in range(args.repeats):
-            plain.append(run_once(args.config, args.duration, None, args.rate))
-            viewed.append(run_once(args.config, args.duration, router.endpoint, args.rate))
-            print(f"  pair {i + 1}: loop {plain[-1][0]:.3f} s -> {viewed[-1][0]:.3f} s; "
-                  f"CPU {plain[-1][3]:.2f} s -> {viewed[-1][3]:.2f} s", flush=True)
+            for view, extra in views.items():
+                results[view].append(run_once(args.config, args.duration, extra, args.rate))
+            print(f"  round {i + 1}: " + "; ".join(f"{view} loop {r[-1][0]:.3f} s, CPU {r[-1][3]:.2f} s"
+                                                   for view, r in results.items()), flush=True)
     finally:
         router.close()
-    loop = np.median([p[0] for p in plain]), np.median([v[0] for v in viewed])
-    cpu = np.median([p[3] for p in plain]), np.median([v[3] for v in viewed])
-    print(f"{Path(args.config).name}, {plain[0][2]} steps, ros2 at {args.rate} Hz of sim time, medians of {args.repeats} "
-          f"({os.cpu_count()} CPUs): loop {loop[0]:.3f} -> {loop[1]:.3f} s ({100 * (loop[1] / loop[0] - 1):+.1f} %), "
-          f"CPU of all processes {cpu[0]:.2f} -> {cpu[1]:.2f} s ({100 * (cpu[1] / cpu[0] - 1):+.1f} %)")
+    loop0 = np.median([r[0] for r in results["none"]])
+    cpu0 = np.median([r[3] for r in results["none"]])
+    print(f"{Path(args.config).name}, {results['none'][0][2]} steps, ros2 at {args.rate} Hz of sim time, medians of "
+          f"{args.repeats} ({os.cpu_count()} CPUs); without a view: loop {loop0:.3f} s, CPU of all processes {cpu0:.2f} s")
+    for view in list(views)[1:]:
+        loop, cpu = np.median([r[0] for r in results[view]]), np.median([r[3] for r in results[view]])
+        print(f"  {view}: loop {loop:.3f} s ({100 * (loop / loop0 - 1):+.1f} %), CPU {cpu:.2f} s "
+              f"({100 * (cpu / cpu0 - 1):+.1f} %)")
 
 
 def main() -> int:
@@ -160,6 +168,8 @@ def main() -> int:
     parser.add_argument("--duration", default=None, help="sim time (default: 2s throughput, 5s cost)")
     parser.add_argument("--rate", default="30", help="cost: ros2.rate, Hz of sim time")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--ros2-python", default=None,
+                        help="cost: also the rclpy transport, with this Python (python -m tests.ros2_rclpy.environment)")
     args = parser.parse_args()
     args.duration = args.duration or ("2s" if args.what == "throughput" else "5s")
     (throughput if args.what == "throughput" else cost)(args)

@@ -40,6 +40,7 @@ from components.viewer.observer import (LIVE_BATCH_S, MAX_BATCH_ROWS, NICENESS, 
 
 CONNECT_TIMEOUT_S = 3.0   # how long a link to the ROS router may take to come up
 RETRY_S = 2.0             # between tries when it did not
+DISCOVER_S = 3.0          # rclpy: at most this long for DDS discovery before the run starts (rclpy_side.discover)
 DISTROS = {"jazzy": "ros2_jazzy", "kilted": "ros2_kilted", "lyrical": "ros2_lyrical"}   # rmw_zenoh with type hashes
 
 
@@ -167,7 +168,7 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
         if ros.get("why"):
             log(ros["why"])
         if ros.get("transport") == RCLPY:   # up before the run starts: a node that cannot start stops it
-            node = RclpyNode(ros["python"], ros["domain_id"], ros["node"], warn=warn)
+            node = RclpyNode(ros["python"], ros["domain_id"], ros["node"], warn=warn, discover_s=DISCOVER_S)
             log(f"publishing the run to ROS 2 (domain {ros['domain_id']}, {node.rmw}) with rclpy as node /{ros['node']}")
         else:
             link = RosLink(ros["endpoint"])

@@ -40,6 +40,7 @@ HEADER = struct.Struct("<IB")
 ENTITY_ID = struct.Struct("<I")
 FLUSH_S = 2.0        # at the end, how long the subscribers may take to acknowledge the last messages
 MATCH_WAIT_S = 2.0   # how long a new publisher waits to be matched by subscriptions the graph knows of
+SETTLED_S = 0.5      # discovery: a graph unchanged this long, once another node is known, is taken as whole
 
 
 def read_exact(fd: int, size: int) -> bytes | None:
@@ -76,6 +77,24 @@ def message_class(msgtype: str):
     return getattr(importlib.import_module(f"{package}.{kind}"), name)
 
 
+def discover(node, limit_s: float) -> None:
+    """Wait, at most ``limit_s``, until the middleware's discovery has shown this node the others
+    on its domain: DDS learns of a participant some 0.1 s to seconds after it starts (seen here: 0.2
+    to 2.6 s on a loaded machine), and a message published before a subscription is matched is lost
+    to it. Done when another node is known and the graph has not changed for ``SETTLED_S``."""
+    started = changed = time.monotonic()
+    seen: tuple = ()
+    own = (node.get_name(), node.get_namespace())
+    while (now := time.monotonic()) - started < limit_s:
+        others = frozenset(n for n in node.get_node_names_and_namespaces() if tuple(n) != own)
+        topics = frozenset((topic, tuple(types)) for topic, types in node.get_topic_names_and_types())
+        if (others, topics) != seen:
+            seen, changed = (others, topics), now
+        elif others and now - changed >= SETTLED_S:
+            return
+        time.sleep(0.02)
+
+
 def main() -> int:
     out = os.dup(1)          # the protocol's descriptor; fd 1 becomes stderr for everything else
     os.dup2(2, 1)
@@ -83,6 +102,8 @@ def main() -> int:
     parser.add_argument("--domain", type=int, required=True)
     parser.add_argument("--node", required=True)
     parser.add_argument("--namespace", default="/")
+    parser.add_argument("--discover", type=float, default=0.0,
+                        help="at most this long (s), learn the graph before saying ready")
     args = parser.parse_args()
 
     import rclpy
@@ -139,6 +160,7 @@ def main() -> int:
                            for info in infos if (info.node_name, info.node_namespace) != own]
         return {"request": request["request"], "matched": matched, "graph": others}
 
+    discover(node, args.discover)
     channel.send_json(b"R", {"rmw": rclpy.get_rmw_implementation_identifier(), "domain": args.domain,
                              "python": sys.executable, "node": node.get_fully_qualified_name()})
     try:

@@ -78,7 +78,8 @@ def choose(transport: str, configured_python: str | None = None) -> tuple[str, s
     if transport == RCLPY:
         raise ComponentError("transport rclpy: no Python here imports rclpy (" + "; ".join(tried) + "): source your "
                              f"ROS 2 (source /opt/ros/jazzy/setup.bash), or give the Python that has it (ros2.python, "
-                             f"or {PYTHON_ENV}), or use transport: zenoh with rmw_zenoh's router")
+                             f"or {PYTHON_ENV}), or use transport: zenoh with rmw_zenoh's router (rmw_zenohd, "
+                             f"or orchestrator router --ros2 without ROS)")
     return ZENOH, None, "transport: auto chose zenoh (no Python here imports rclpy: " + "; ".join(tried) + ")"
 
 
@@ -101,10 +102,13 @@ class RclpySubscription(_Entity):
 
 class RclpyNode:
     """A ROS 2 node in an rclpy process of its own. ``warn(text)`` hears what that process could
-    not do (a message package missing there); its stderr is this process's."""
+    not do (a message package missing there); its stderr is this process's. ``discover_s``: how
+    long, at most, the node gives the middleware's discovery before it reports ready (see
+    rclpy_side.py), so that subscribers already running get the first messages."""
 
     def __init__(self, python: str, domain_id: int, name: str, namespace: str = "/",
-                 warn: Callable[[str], None] | None = None, start_timeout_s: float = START_TIMEOUT_S):
+                 warn: Callable[[str], None] | None = None, start_timeout_s: float = START_TIMEOUT_S,
+                 discover_s: float = 0.0):
         self.python, self.domain_id, self.name, self.namespace = python, int(domain_id), name, namespace
         self.warn = warn or (lambda text: print(f"ros2: {text}", file=sys.stderr, flush=True))
         self.entities: list[_Entity] = []
@@ -116,7 +120,8 @@ class RclpyNode:
         self._send_lock = threading.Lock()
         self.ready: dict | None = None
         self.process = subprocess.Popen(
-            [python, str(SIDE), "--domain", str(self.domain_id), "--node", name, "--namespace", namespace],
+            [python, str(SIDE), "--domain", str(self.domain_id), "--node", name, "--namespace", namespace,
+             "--discover", f"{discover_s:g}"],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=None)
         self._reader = threading.Thread(target=self._read, name="rclpy-reader", daemon=True)
         self._reader.start()

@@ -265,7 +265,8 @@ class Run:
             if self.viewer is not None:
                 state.log("viewer", mode=self.viewer.mode, rate_hz=self.viewer.rate_hz)
             if self.ros2 is not None:
-                state.log("ros2", endpoint=self.ros2.endpoint, domain_id=self.ros2.domain_id, rate_hz=self.ros2.rate_hz)
+                state.log("ros2", transport=self.ros2.transport, endpoint=self.ros2.endpoint,
+                          domain_id=self.ros2.domain_id, rate_hz=self.ros2.rate_hz)
             rows.signals = self.viewer_link.signals.put
             rows.publish()
         self.listener.sync(list(state.members.values()))

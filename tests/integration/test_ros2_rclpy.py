@@ -219,9 +219,10 @@ def test_a_late_joiner_gets_the_latched_topics(tmp_path, write_config, ros, ros_
         assert got[topic] == [dds_padded(export[topic][1][0][1])], topic
 
 
-def bridge_config(name: str, ros_python: str, domain: int, outputs: str, timeout: str = "30 s") -> str:
+def bridge_config(name: str, ros_python: str, domain: int, outputs: str, timeout: str = "30 s",
+                  steps: int = STEPS) -> str:
     return f"""
-run: {{name: {name}, epoch: {EPOCH}, duration: {STEPS * STEP_NS // 1_000_000} ms, step: 10 ms, step_timeout: 60 s}}
+run: {{name: {name}, epoch: {EPOCH}, duration: {steps * STEP_NS // 1_000_000} ms, step: 10 ms, step_timeout: 60 s}}
 components:
   spring:
     type: components.examples.oscillator:Oscillator

@@ -4,7 +4,8 @@ on: ``--ros2`` through a stand-in ROS router (a plain Zenoh router, as in test_r
 subscriber on rmw_zenoh's data keys, and ``--view foxglove`` to a Foxglove WebSocket client. Every
 Image and CameraInfo either view delivers is, byte for byte, the rosbag2 export's message of that
 topic and stamp, which the export builds from the recorded frame files (``frames/camera/*.npz``),
-not from the bus; the stamps are the frames' run times (epoch + t), one per camera step.
+not from the bus; the stamps are the frames' run times (epoch + t), one per camera step. Frames
+taken before the view's mesh link to the camera is up are not sent (nobody watches yet).
 """
 from __future__ import annotations
 
@@ -100,7 +101,8 @@ def live(tmp_path_factory):
 
 
 def _check(messages, bag, record):
-    """Every message equals the export's of its topic and stamp; every frame of every topic came once."""
+    """Every message equals the export's of its topic and stamp; each topic has every frame once, from
+    the first the view watched."""
     frames = sorted((record / "frames" / "camera").glob("*.npz"))
     assert len(frames) == FRAMES
     stamps = []
@@ -113,7 +115,12 @@ def _check(messages, bag, record):
         ns = _stamp(data)
         assert data in bag[topic, ns], f"{topic} at {ns}: not the export's message"
         by_topic.setdefault(topic, []).append(ns)
-    assert {topic: sorted(s) for topic, s in by_topic.items()} == {topic: stamps for topic in TOPICS}
+    assert set(by_topic) == set(TOPICS)
+    for topic, received in by_topic.items():
+        # one message per frame, in order, up to the last; the first frames may precede the mesh
+        # link from the camera to the view (nobody watching yet: the camera sends nothing)
+        assert received == stamps[FRAMES - len(received):], topic
+        assert len(received) >= FRAMES // 2, topic
 
 
 def test_the_ros2_view_carries_every_frame_as_the_export_does(live):

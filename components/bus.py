@@ -30,7 +30,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from components import protocol
-from components.protocol import BATCH, FRAME, FRAME_DTYPES, OUTPUT, SYNC, Malformed
+from components.protocol import BATCH, FRAME, FRAME_DTYPES, OUTPUT, SYNC, VIEW_FRAME, Malformed
 
 _OUTPUT_HEADER = struct.Struct("<qq")    # generation, tag
 _BATCH_HEADER = struct.Struct("<qqq")    # generation, number of steps, outputs per step
@@ -118,6 +118,11 @@ def signals_key(run_id: str) -> str:
     return protocol.SIGNALS.key(run_id)
 
 
+def view_key(run_id: str, name: str, output: str) -> str:
+    """Where component ``name`` sends its frame output ``output`` for the live views."""
+    return protocol.VIEWS.key(run_id, name=name, output=output)
+
+
 # what the orchestrator subscribes to
 def batch_pattern(run_id: str) -> str:
     return protocol.BATCHES.pattern(run_id)
@@ -176,12 +181,29 @@ def decode_output(payload: bytes) -> tuple[int, int, np.ndarray]:
     return generation, tag, np.frombuffer(payload, dtype=np.float64, offset=1 + _OUTPUT_HEADER.size)
 
 
-def encode_frame(generation: int, tag: int, output: str, frame: np.ndarray) -> bytes:
-    """One frame output of one step: the header, the output's name and the array's raw bytes (C order)."""
+def _frame_parts(generation: int, tag: int, output: str, frame: np.ndarray) -> tuple:
     name = output.encode()
     shape = frame.shape + (1,) * (3 - frame.ndim)
     header = _FRAME_HEADER.pack(generation, tag, FRAME_DTYPES.index(frame.dtype.name), frame.ndim, *shape, len(name))
-    return b"".join((FRAME, header, name, np.ascontiguousarray(frame).data))
+    return FRAME, header, name, np.ascontiguousarray(frame).data
+
+
+def encode_frame(generation: int, tag: int, output: str, frame: np.ndarray) -> bytes:
+    """One frame output of one step: the header, the output's name and the array's raw bytes (C order)."""
+    return b"".join(_frame_parts(generation, tag, output, frame))
+
+
+def encode_view_frame(taken_ns: int, generation: int, tag: int, output: str, frame: np.ndarray) -> bytes:
+    """A frame output for the live views: when it was taken (run time, ns), then its frame message."""
+    return b"".join((VIEW_FRAME, _INT.pack(taken_ns), *_frame_parts(generation, tag, output, frame)))
+
+
+def decode_view_frame(payload) -> tuple[int, int, int, str, np.ndarray]:
+    """(taken ns, generation, tag, output, frame) of :func:`encode_view_frame`; the frame a
+    read-only view of the payload. Malformed otherwise."""
+    _expect(payload, VIEW_FRAME, 1 + _INT.size)
+    taken = _INT.unpack_from(payload, 1)[0]
+    return (taken, *decode_frame(memoryview(payload)[1 + _INT.size:]))
 
 
 def decode_frame(payload: bytes) -> tuple[int, int, str, np.ndarray]:
@@ -363,6 +385,16 @@ def listen_beside(connect: str) -> str:
     return f"{proto}/{'127.0.0.1' if local else '0.0.0.0'}:0"
 
 
+def open_view_session(connect: str, secret: str | None, settings: dict | None):
+    """A live view's session: a peer of the run's mesh (listening beside ``connect``, gossip on),
+    since peers do not route for each other and the components' frames (``VIEWS``) come straight
+    from them; in the settings' mode ``client``, a client of the run's router."""
+    settings = settings or {}
+    peer = settings.get("mode", "peer") == "peer"
+    return open_session([listen_beside(connect)] if peer else [], [connect], mesh=peer, secret=secret,
+                        settings=settings)
+
+
 def publisher(session, key: str, *, drop: bool = False):
     """Reliable, express publisher; BLOCK unless ``drop`` (for observers that may lag)."""
     import zenoh
@@ -373,3 +405,54 @@ def publisher(session, key: str, *, drop: bool = False):
         reliability=zenoh.Reliability.RELIABLE,
         express=not drop,
     )
+
+
+class LiveFrameSender:
+    """A component's frame outputs for the live views (``v/<name>/<output>``): one publisher per
+    output, congestion control DROP (a slow or stalled view never holds up a step), and nothing
+    encoded or sent while no view subscribes (Zenoh's matching status, kept by a listener)."""
+
+    def __init__(self, session, run_id: str, name: str):
+        self.session, self.run_id, self.name = session, run_id, name
+        self.publishers: dict[str, object] = {}
+        self.listeners: list = []
+        self.watched: dict[str, bool] = {}   # output -> a view subscribes (set from Zenoh's thread)
+
+    def declare(self, outputs) -> None:
+        """Publishers for ``outputs`` (once each), declared early so that matching is known by the first step."""
+        for output in outputs:
+            if output in self.publishers:
+                continue
+            publisher = self.publishers[output] = publisher_for_views(self.session, view_key(self.run_id, self.name, output))
+            self.listeners.append(publisher.declare_matching_listener(
+                lambda status, output=output: self.watched.__setitem__(output, status.matching)))
+            self.watched[output] = self.watched.get(output, False) or publisher.matching_status.matching
+
+    def send(self, output: str, taken_ns: int, generation: int, tag: int, frame: np.ndarray) -> bool:
+        """Send one frame if a view watches ``output``; whether it was sent (handed to Zenoh)."""
+        if not self.watched.get(output):
+            return False
+        import zenoh
+        try:
+            self.publishers[output].put(encode_view_frame(taken_ns, generation, tag, output, frame))
+        except zenoh.ZError:   # a view must never stop a step
+            return False
+        return True
+
+    def undeclare(self) -> None:
+        for declared in (*self.listeners, *self.publishers.values()):
+            try:
+                declared.undeclare()
+            except Exception:   # the session is gone: so are they
+                pass
+        self.listeners, self.publishers, self.watched = [], {}, {}
+
+
+def publisher_for_views(session, key: str):
+    """DROP (Zenoh waits at most its ``wait_before_drop`` for a full queue), low priority: frames
+    for views yield to the step data on every link."""
+    import zenoh
+
+    return session.declare_publisher(key, congestion_control=zenoh.CongestionControl.DROP,
+                                     reliability=zenoh.Reliability.RELIABLE,
+                                     priority=zenoh.Priority.DATA_LOW, express=False)

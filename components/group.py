@@ -158,6 +158,7 @@ class ZenohTransport:
         self.replies: dict[str, object] = {}
         self.batches: dict[str, object] = {}
         self.outputs: dict[tuple[str, str], object] = {}   # (consumer, source) -> publisher
+        self.views: dict[str, bus.LiveFrameSender] = {}   # member -> its frames for the live views
 
     def join(self, name: str, generation: int) -> None:
         session, run_id, put = self.session, self.run_id, self.inbox.put
@@ -168,6 +169,8 @@ class ZenohTransport:
                                        lambda sample: put((name, str(sample.key_expr), sample.payload.to_bytes()))),
             self.replies[name], self.batches[name],
             session.liveliness().declare_token(bus.alive_key(run_id, name, generation))]
+        self.views[name] = bus.LiveFrameSender(session, run_id, name)
+        self.held[name].append(self.views[name])
 
     def publish_reply(self, name: str, payload: bytes) -> None:
         self.replies[name].put(payload)
@@ -184,6 +187,7 @@ class ZenohTransport:
         publisher.put(payload)
 
     def leave(self, name: str) -> None:
+        self.views.pop(name, None)
         for held in self.held.pop(name, ()):
             _undeclare(held)
         self.outputs = {pair: p for pair, p in self.outputs.items() if pair[1] != name}
@@ -241,6 +245,7 @@ def serve_group(connect: str, run_id: str, members: list[tuple[str, int]], liste
                 bus.orchestrator_alive_key(run_id), lambda s: gone() if s.kind == zenoh.SampleKind.DELETE else None))
         for name, generation in members:
             transport.join(name, generation)
+            group.members[name].process.view = transport.views[name]
         threading.Thread(target=_watchdog, args=(group, stop, beat_interval(settings)), daemon=True).start()
         if cpu is not None:
             os.sched_setaffinity(0, {cpu})   # this thread only

@@ -62,6 +62,7 @@ class ComponentProcess:
         self.frames_held: dict[tuple[str, str], dict[int, np.ndarray]] = {}   # (source, output) -> tag -> frame
         self.frame_consumers: dict[str, list[str]] = {}   # our frame output -> who gets it
         self.frame_messages: dict[str, bytes] = {}        # our frame output -> its latest message (sent again at sync)
+        self.view = None   # a bus.LiveFrameSender: our frame outputs for the live views, while one watches
         self.source_sizes: dict[str, int] = {}   # source -> the outputs its routes read
         self.drops: dict[str, int] = {}          # key -> messages dropped from it
         self.synced = False
@@ -152,6 +153,8 @@ class ComponentProcess:
             self.input_views = self.inputs.unpack(self.input_vector)
             self.input_views.update((v.name, v.start) for v in self.inputs.frames)
             self.frame_outputs = {v.name: v for v in self.outputs.frames}
+            if self.view is not None:
+                self.view.declare(self.frame_outputs)
             self.batch_tags = np.empty(BATCH_CAPACITY, dtype=np.int64)
             self.batch_timings = np.empty((BATCH_CAPACITY, 2))
             self.batch_rows = np.empty((BATCH_CAPACITY, self.outputs.size))
@@ -297,6 +300,11 @@ class ComponentProcess:
                 self.output_vector[0] = np.nan
             if self.frame_outputs:
                 self._frames(result, k + self.ratio, send=True)   # before the outputs: consumers hold it first
+                if self.view is not None:
+                    taken = self.component.frame_time_ns
+                    for name in self.frame_outputs:
+                        self.view.send(name, k * self.step_ns if taken is None else taken, self.generation,
+                                       k + self.ratio, result[name])
         except Exception as error:
             traceback.print_exc(file=sys.stderr)
             raise Halt(self._report("step", k, f"{type(error).__name__}: {error}")) from None

@@ -16,6 +16,7 @@ Topics, under ``zenorbit/<run_id>/``:
 | ``ALIVE`` | ``alive/<name>/<generation>`` | component | liveliness token, gone when the process dies |
 | ``ORCHESTRATOR_ALIVE`` | ``alive/orchestrator`` | orchestrator | liveliness token; components exit when it goes |
 | ``SIGNALS`` | ``signals`` | orchestrator -> observers | one recorded row per step (binary), may drop |
+| ``VIEWS`` | ``v/<name>/<output>`` | component -> live views | a frame output of a step (``VIEW_FRAME``), may drop; sent only while a view subscribes |
 | ``CTL`` | ``ctl`` | CLI -> orchestrator | queryable: status, stop, swap (JSON) |
 | ``JOIN`` | ``join/<name>`` | joiner -> orchestrator | queryable: which generation to serve (JSON) |
 
@@ -128,6 +129,7 @@ REPLIES = Topic("c/{name}/{generation}/out")
 ALIVE = Topic("alive/{name}/{generation}")
 ORCHESTRATOR_ALIVE = Topic(f"alive/{ORCHESTRATOR}")
 SIGNALS = Topic("signals")
+VIEWS = Topic("v/{name}/{output}")
 CTL = Topic("ctl")
 JOIN = Topic("join/{name}")
 
@@ -140,6 +142,7 @@ OUTPUT = b"O"    # component -> consumers: header + outputs (components.bus)
 BATCH = b"B"     # component -> orchestrator: several steps' outputs (components.bus)
 FRAME_DTYPES = ("uint8", "float32")   # a frame's element types, as numpy names them (index: its code)
 FRAME = b"F"     # component -> consumers: one frame output of one step (components.bus)
+VIEW_FRAME = b"L"   # component -> live views: when the frame was taken, then a FRAME message (components.bus)
 SYNC = b"Y"      # component -> consumers: "you hear me" (the start-up handshake, components.bus)
 REPLY = b"R"     # component -> orchestrator: JSON + blob
 FAULT = b"E"     # component -> orchestrator: JSON {op, k, error}

@@ -62,11 +62,23 @@ class RosExport:
     the sensors that read it (their frame is mounted there, see :meth:`RosContext.mount_of`).
     ``assets(context, c)``: {URI as its messages name it: the file}, the files a viewer fetches to
     draw them (the meshes a ``robot_description`` references); served by the live Foxglove view.
+    ``frames(context, c)``: the :class:`FrameTopics` of component ``c``'s frame outputs, which the
+    live views (``--ros2``, ``--view foxglove``) publish from the bus as they come (None: none).
     """
     description: str
     topics: Callable[["RosContext", str], Iterable[RosTopic]]
     output_frames: Callable[["RosContext", str], dict[str, str]] | None = None
     assets: Callable[["RosContext", str], dict[str, Path]] | None = None
+    frames: Callable[["RosContext", str], "FrameTopics | None"] | None = None
+
+
+@dataclass
+class FrameTopics:
+    """A component's frame outputs as live ROS 2 topics: ``outputs`` {frame output: the topics
+    (no messages) its frames go on}; ``messages(output, stamp ns, frame)`` -> [(RosTopic, message)],
+    the messages of one frame, as the export builds them from the recorded frame."""
+    outputs: dict[str, list[RosTopic]]
+    messages: Callable[[str, int, np.ndarray], list[tuple[RosTopic, object]]]
 
 
 class TopicError(Exception):

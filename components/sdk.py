@@ -89,6 +89,9 @@ class Component:
     #: last step. At ``initialize`` an input whose source is not initialized yet (it holds its
     #: start value) is absent.
     input_times_ns: Mapping[str, int] = MappingProxyType({})
+    #: When the frame outputs of the latest ``do_step`` were taken (run time, ns), for the live
+    #: views' stamps; None: at the step's time t_ns.
+    frame_time_ns: int | None = None
     #: The form of the state ``get_state`` returns, when other types share it: a swap from a type
     #: of the same ``state_form`` hands the state over (``set_state``, no ``initialize``) as a swap
     #: to the same type does. None: the state is the type's own.

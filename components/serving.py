@@ -126,6 +126,8 @@ def serve_session(session, run_id: str, name: str, generation: int, cpu: int | N
                 lambda s: session.put(quit_key, _QUIT) if s.kind == zenoh.SampleKind.DELETE else None))
         keep.append(session.liveliness().declare_token(bus.alive_key(run_id, name, generation)))
         process = ComponentProcess(name, replies.put, publish_output, batches.put)
+        process.view = bus.LiveFrameSender(session, run_id, name)
+        keep.append(process.view)
         threading.Thread(target=_watchdog, args=(process, stop_watchdog, beat_s), daemon=True).start()
         if cpu is not None:
             os.sched_setaffinity(0, {cpu})   # this thread only

@@ -89,6 +89,7 @@ class CameraComponent(Component):
         taken = self.input_times_ns.get(f"{self.params['body']}.position", t_ns)
         frame = self.camera.frame(taken, inputs)
         self.t_frame_ns, self.lit = taken, frame.pop("lit")
+        self.frame_time_ns = taken   # the live views' stamp, as t_frame is the recording's
         if not self.params["depth"]:
             del frame["depth"]
         return frame

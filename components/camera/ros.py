@@ -9,8 +9,10 @@ optical frame ``<camera>`` (z forward, x right, y down: REP 103's optical frame)
 | ``/<camera>/depth/image_raw`` | sensor_msgs/Image, ``32FC1`` (m along the optical axis, 0 where nothing is hit), with ``depth: true`` |
 | ``/<camera>/camera_info`` | sensor_msgs/CameraInfo: ``K``, ``plumb_bob`` ``D``, ``R`` identity, ``P`` = [K 0] |
 
-Without frames (no ``--record``, or the live views, which read rows only) it exports nothing. The
-export holds every frame in memory while it writes (2 MB a frame at 640x480).
+Without frames (no ``--record``) it exports nothing. The export holds every frame in memory
+while it writes (2 MB a frame at 640x480). The live views (``--ros2``, ``--view foxglove``) publish
+the same topics and messages from the bus, frame by frame as the camera sends them
+(:func:`frame_topics`, :mod:`components.ros_frames`).
 """
 from __future__ import annotations
 
@@ -19,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from components.camera.frames import frame_files
-from components.rosbag import RosContext, RosExport, RosTopic, link_frame, source_of
+from components.rosbag import FrameTopics, RosContext, RosExport, RosTopic, link_frame, source_of
 from components.rotations import matrix_to_quat
 
 
@@ -35,9 +37,8 @@ def _mount(context: RosContext, camera: str, T_link_camera: np.ndarray) -> list[
     return [RosTopic("/tf_static", "tf2_msgs/msg/TFMessage", [(ns, context.tf([transform]))], latched=True)]
 
 
-def _camera_info(context: RosContext, camera: str, ns: int, frame) -> object:
-    K, D = np.asarray(frame["K"], dtype=np.float64), np.asarray(frame.get("D", np.zeros(5)), dtype=np.float64)
-    height, width = frame["rgb"].shape[:2]
+def _camera_info(context: RosContext, camera: str, ns: int, K, D, height: int, width: int) -> object:
+    K, D = np.asarray(K, dtype=np.float64), np.asarray(D, dtype=np.float64)
     P = np.hstack([K, np.zeros((3, 1))])
     return context.msg("sensor_msgs/msg/CameraInfo")(
         header=context.header(ns, camera), height=height, width=width, distortion_model="plumb_bob", d=D,
@@ -46,32 +47,75 @@ def _camera_info(context: RosContext, camera: str, ns: int, frame) -> object:
                                                             do_rectify=False))
 
 
+def _image(context: RosContext, camera: str, ns: int, rgb: np.ndarray) -> object:
+    height, width = rgb.shape[:2]
+    return context.msg("sensor_msgs/msg/Image")(header=context.header(ns, camera), height=height, width=width,
+                                                encoding="rgb8", is_bigendian=0, step=3 * width, data=rgb.reshape(-1))
+
+
+def _depth(context: RosContext, camera: str, ns: int, depth: np.ndarray) -> object:
+    height, width = depth.shape[:2]
+    depth = depth.astype("<f4", copy=False)
+    return context.msg("sensor_msgs/msg/Image")(header=context.header(ns, camera), height=height, width=width,
+                                                encoding="32FC1", is_bigendian=0, step=4 * width,
+                                                data=depth.view(np.uint8).reshape(-1))
+
+
+def _topics(camera: str) -> tuple[RosTopic, RosTopic, RosTopic]:
+    """The camera's image, depth and camera_info topics (no messages)."""
+    return (RosTopic(f"/{camera}/image_raw", "sensor_msgs/msg/Image"),
+            RosTopic(f"/{camera}/depth/image_raw", "sensor_msgs/msg/Image"),
+            RosTopic(f"/{camera}/camera_info", "sensor_msgs/msg/CameraInfo"))
+
+
 def _camera(context: RosContext, camera: str) -> list[RosTopic]:
     directory = context.run.record_dir
     files = frame_files(Path(directory) / "frames" / camera) if directory is not None else []
     if not files:
         return []
-    Image = context.msg("sensor_msgs/msg/Image")
-    images = RosTopic(f"/{camera}/image_raw", "sensor_msgs/msg/Image")
-    depths = RosTopic(f"/{camera}/depth/image_raw", "sensor_msgs/msg/Image")
-    infos = RosTopic(f"/{camera}/camera_info", "sensor_msgs/msg/CameraInfo")
+    images, depths, infos = _topics(camera)
     mount = None
     for path in files:
         with np.load(path) as stored:
             frame = {key: stored[key] for key in stored.files}
         ns = context.stamp_of(float(frame["t"]))
-        header = context.header(ns, camera)
         height, width = frame["rgb"].shape[:2]
-        images.messages.append((ns, Image(header=header, height=height, width=width, encoding="rgb8", is_bigendian=0,
-                                          step=3 * width, data=frame["rgb"].reshape(-1))))
+        images.messages.append((ns, _image(context, camera, ns, frame["rgb"])))
         if "depth" in frame:
-            depth = frame["depth"].astype("<f4")
-            depths.messages.append((ns, Image(header=header, height=height, width=width, encoding="32FC1",
-                                              is_bigendian=0, step=4 * width, data=depth.view(np.uint8).reshape(-1))))
-        infos.messages.append((ns, _camera_info(context, camera, ns, frame)))
+            depths.messages.append((ns, _depth(context, camera, ns, frame["depth"])))
+        infos.messages.append((ns, _camera_info(context, camera, ns, frame["K"], frame.get("D", np.zeros(5)),
+                                                height, width)))
         mount = frame["T_link_camera"]
     return _mount(context, camera, mount) + [topic for topic in (images, depths, infos) if topic.messages]
 
 
+def frame_topics(context: RosContext, camera: str) -> FrameTopics | None:
+    """The camera's frame outputs live (from the bus): ``rgb`` on ``/<c>/image_raw`` with its
+    ``/<c>/camera_info`` (K and D from the parameters, as the camera computes them), ``depth`` on
+    ``/<c>/depth/image_raw``; the same messages as the export's for a frame taken at that stamp.
+    None when the parameters do not resolve (``orchestrator check`` names the problem)."""
+    from components.camera.component import CameraComponent
+    from components.sdk import resolve_parameters
+
+    params, errors = resolve_parameters(CameraComponent, context.run.parameters(camera))
+    if errors:
+        context.warn(f"{camera}: its frames are not published live ({errors[0]})")
+        return None
+    K = np.array([[params["fx"], 0.0, params["cx"]], [0.0, params["fy"], params["cy"]], [0.0, 0.0, 1.0]])
+    D = np.array(tuple(float(c) for c in params["distortion"] or ()) or (0.0,) * 5)
+    images, depths, infos = _topics(camera)
+
+    def messages(output: str, ns: int, frame: np.ndarray) -> list[tuple[RosTopic, object]]:
+        if output == "depth":
+            return [(depths, _depth(context, camera, ns, frame))]
+        height, width = frame.shape[:2]
+        return [(images, _image(context, camera, ns, frame)),
+                (infos, _camera_info(context, camera, ns, K, D, height, width))]
+
+    outputs = {"rgb": [images, infos], **({"depth": [depths]} if params["depth"] else {})}
+    return FrameTopics(outputs, messages)
+
+
 CAMERA = RosExport("``/<c>/image_raw`` (rgb8), ``/<c>/depth/image_raw`` (32FC1, m), ``/<c>/camera_info`` "
-                   "from the recorded frames; the optical frame ``<c>`` on ``/tf_static``", _camera)
+                   "from the recorded frames, and live from the bus; the optical frame ``<c>`` on ``/tf_static``",
+                   _camera, frames=frame_topics)

@@ -145,6 +145,7 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
     import zenoh
     from rosbags.typesys import Stores, get_typestore
 
+    from components.ros_frames import LiveFrames
     from components.ros_topics import LiveTopics
 
     columns = list(setup["columns"])
@@ -157,14 +158,15 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
             warned.add(message)
             log(message)
 
-    session = bus.open_session(connect=[connect], secret=os.environ.get(bus.SECRET_ENV),
-                               settings=bus_security.from_env())
-    token = watcher = signals = link = node = publishers = None
+    session = bus.open_view_session(connect, os.environ.get(bus.SECRET_ENV), bus_security.from_env())   # frames: from the mesh
+    token = watcher = signals = link = node = publishers = frames = None
     try:
         signals = session.declare_subscriber(bus.signals_key(run_id), zenoh.handlers.FifoChannel(16384))
         watcher = session.liveliness().declare_subscriber(bus.orchestrator_alive_key(run_id),
                                                           zenoh.handlers.FifoChannel(16))
         typestore = get_typestore(Stores(DISTROS[ros["distro"]]))
+        # camera frames from the bus (subscribed before the token: the run's first frames come)
+        frames = LiveFrames(session, run_id, config, setup.get("config_dir"), typestore, warn, ros.get("topics"))
         if ros.get("why"):
             log(ros["why"])
         if ros.get("transport") == RCLPY:   # up before the run starts: a node that cannot start stops it
@@ -193,6 +195,8 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
                 if publishers is not None:   # without the router, the rows go nowhere
                     publishers.publish(live.batch(times, rows)[0])
                 last = now
+            if publishers is not None:
+                publishers.publish(frames.take())
             gone = orchestrator_gone(watcher)
             if empty and not ended:
                 time.sleep(POLL_S)
@@ -210,7 +214,7 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
             node.close()
         if link is not None:
             link.close()
-        for declared in (token, watcher, signals):
+        for declared in (token, watcher, signals, frames):
             if declared is not None:
                 try:
                     declared.undeclare()

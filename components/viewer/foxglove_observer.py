@@ -17,7 +17,9 @@ builders (:func:`components.rosbag.run_topics`): the same topics, message types 
 ``robot_description``) are built from the first batch and sent again whenever a client subscribes
 to them: the server keeps no history. The meshes the robots' ``robot_description`` names
 (``package://`` URIs as written) are served to Foxglove's 3D panel on request (the protocol's
-``fetchAsset``); no other file is. Like the Rerun observer it runs niced and reads a dropping
+``fetchAsset``); no other file is. Camera frames come from the bus as the cameras send them
+(:class:`components.ros_frames.LiveFrames`: the export's Image and CameraInfo, stamped when taken)
+on channels advertised from the start. Like the Rerun observer it runs niced and reads a dropping
 publisher: a slow client never holds up a step (the server drops its oldest messages for it).
 """
 from __future__ import annotations
@@ -82,6 +84,7 @@ class RosChannels:
         self.live = LiveTopics(config, config_dir, columns, self.typestore, self.warn)
         self.assets = self._assets()               # URI -> file: what robot_description references
         self._resend: set[str] = set()             # latched topics subscribed to since the last batch
+        self.subscriptions: dict[str, int] = {}    # topic -> clients subscribed to it
         self._lock = threading.Lock()
 
     def warn(self, message: str) -> None:
@@ -93,6 +96,16 @@ class RosChannels:
         """A client subscribed (server thread): a latched topic's message goes out again."""
         with self._lock:
             self._resend.add(topic)
+            self.subscriptions[topic] = self.subscriptions.get(topic, 0) + 1
+
+    def unsubscribed(self, topic: str) -> None:
+        with self._lock:
+            self.subscriptions[topic] = self.subscriptions.get(topic, 1) - 1
+
+    def watched(self, topics) -> bool:
+        """Whether a client subscribes to one of ``topics``."""
+        with self._lock:
+            return any(self.subscriptions.get(topic, 0) > 0 for topic in topics)
 
     def _channel(self, topic: str, msgtype: str):
         if topic not in self.channels:
@@ -107,6 +120,11 @@ class RosChannels:
         """The messages of a batch of rows as (log time = ROS stamp, channel, CDR bytes), in time
         order, and the last row's stamp (ns). Creates the channels of topics not seen before."""
         batch, stamp = self.live.batch(times, rows)
+        self.rows_sent += len(times)
+        return self.queue(batch), stamp
+
+    def queue(self, batch) -> list:
+        """[(RosTopic, [(stamp ns, CDR bytes)])] (rows' or frames') as (log time, channel, CDR bytes), in time order."""
         queue = []
         for topic, messages in batch:
             channel = self._channel(topic.name, topic.msgtype)
@@ -114,8 +132,7 @@ class RosChannels:
                 self.latched_ns[topic.name], self.latched[topic.name] = messages[0]
             queue += [(ns, channel, data) for ns, data in messages]
         queue.sort(key=lambda item: item[0])   # stable: topics in the exporter's order within a stamp
-        self.rows_sent += len(times)
-        return queue, stamp
+        return queue
 
     def _assets(self) -> dict[str, Path]:
         from components.plotting import RecordedRun
@@ -150,6 +167,9 @@ def _listener(channels: RosChannels):
         def on_subscribe(self, client, channel) -> None:
             channels.subscribed(channel.topic)
 
+        def on_unsubscribe(self, client, channel) -> None:
+            channels.unsubscribed(channel.topic)
+
     return Subscriptions()
 
 
@@ -158,17 +178,23 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
     import foxglove
     import zenoh
 
+    from components.ros_frames import LiveFrames
+
     columns = list(setup["columns"])
     config = setup.get("config") or {}
     port = int(setup.get("port") or 8765)
     settings = bus_security.from_env()
-    session = bus.open_session(connect=[connect], secret=os.environ.get(bus.SECRET_ENV), settings=settings)
-    token = watcher = signals = server = None
+    session = bus.open_view_session(connect, os.environ.get(bus.SECRET_ENV), settings)   # frames come from the mesh
+    token = watcher = signals = server = frames = None
     try:
         signals = session.declare_subscriber(bus.signals_key(run_id), zenoh.handlers.FifoChannel(16384))
         watcher = session.liveliness().declare_subscriber(bus.orchestrator_alive_key(run_id),
                                                           zenoh.handlers.FifoChannel(16))
         channels = RosChannels(columns, config, setup.get("config_dir"), foxglove.Context())
+        # camera frames from the bus, on channels made now (before the server: see below)
+        frames = LiveFrames(session, run_id, config, setup.get("config_dir"), channels.typestore, channels.warn)
+        for topic in frames.topics.values():
+            channels._channel(topic.name, topic.msgtype)
         token = session.liveliness().declare_token(bus.viewer_alive_key(run_id))
         buffer = RowBuffer(len(columns))
         last_log = time.monotonic()
@@ -186,6 +212,8 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
                 channels.log(queue)
                 server.broadcast_time(stamp)
                 last_log = now
+            if channels.watched(frames.topics):   # till then the frames wait (LiveFrames.BACKLOG)
+                channels.log(channels.queue(frames.take()))
             channels.resend_latched()
             gone = orchestrator_gone(watcher)
             if empty and not ended:
@@ -200,7 +228,7 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
     except Stop:
         pass
     finally:
-        for declared in (token, watcher, signals):
+        for declared in (token, watcher, signals, frames):
             if declared is not None:
                 try:
                     declared.undeclare()

@@ -58,7 +58,8 @@ class Client:
         deadline = time.monotonic() + DEADLINE_S
         while True:
             try:
-                ws = await websockets.connect(f"ws://127.0.0.1:{self.port}", subprotocols=[SUBPROTOCOL])
+                # no size limit: a camera's depth image is 1.2 MB (websockets' default limit: 1 MiB)
+                ws = await websockets.connect(f"ws://127.0.0.1:{self.port}", subprotocols=[SUBPROTOCOL], max_size=None)
                 break
             except OSError:
                 if self.run.poll() is not None or time.monotonic() > deadline:

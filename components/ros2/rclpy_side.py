@@ -10,7 +10,7 @@ that any Python with rclpy runs it: the project's packages need not be installed
 little-endian uint32 length, one byte of kind, then the payload.
 
 parent -> this side:
-  ``P`` {id, topic, type, latched, depth}   declare a publisher (CDR bytes in, ``raw``)
+  ``P`` {id, topic, type, latched, depth}   declare a publisher (CDR bytes in, ``raw``; depth null: KEEP_ALL)
   ``S`` {id, topic, type, latched, depth}   declare a subscription (its messages go back as ``M``)
   ``M`` uint32 id + CDR                       publish on publisher ``id``
   ``G`` {request, topics}                     ask the graph: each entity's matched count, and who
@@ -120,8 +120,12 @@ def main() -> int:
     spinner.start()
     publishers: dict[int, object] = {}
     subscriptions: dict[int, object] = {}
+    unpublished: set[str] = set()   # topics a publish failed on (said once each)
 
     def qos(spec: dict) -> QoSProfile:
+        if spec["depth"] is None:   # KEEP_ALL: reliable delivery of every sample to the readers it matched
+            return QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                              durability=DurabilityPolicy.VOLATILE)
         return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=int(spec["depth"]),
                           reliability=ReliabilityPolicy.RELIABLE,
                           durability=DurabilityPolicy.TRANSIENT_LOCAL if spec["latched"] else DurabilityPolicy.VOLATILE)
@@ -177,7 +181,13 @@ def main() -> int:
                 (entity,) = ENTITY_ID.unpack_from(payload)
                 publisher = publishers.get(entity)
                 if publisher is not None:
-                    publisher.publish(payload[ENTITY_ID.size:])
+                    try:
+                        publisher.publish(payload[ENTITY_ID.size:])
+                    except Exception as e:   # rclpy's RCLError: the writer's history full past its wait
+                        if publisher.topic_name not in unpublished:
+                            unpublished.add(publisher.topic_name)
+                            channel.send_json(b"W", {"id": None, "text": f"{publisher.topic_name}: a message "
+                                                     f"could not be published ({type(e).__name__}: {e})"})
             elif kind in (b"P", b"S"):
                 declare(kind, json.loads(payload))
             elif kind == b"G":

@@ -32,7 +32,7 @@ HEADER = struct.Struct("<IB")
 ENTITY_ID = struct.Struct("<I")
 START_TIMEOUT_S = 60.0   # importing rclpy and joining the DDS domain; a first import compiles .pyc files
 PROBE_TIMEOUT_S = 60.0
-STREAM_DEPTH = 100       # KEEP_LAST depth of a volatile topic: a batch's burst stays in the writer's history
+STREAM_DEPTH = 100       # KEEP_LAST depth of a volatile subscription: a burst of answers waits whole
 LATCHED_DEPTH = 1        # as tf2's static broadcaster and robot_state_publisher
 ZENOH, RCLPY, AUTO = "zenoh", "rclpy", "auto"
 TRANSPORTS = (ZENOH, RCLPY, AUTO)
@@ -146,7 +146,9 @@ class RclpyNode:
     def publisher(self, topic: str, msgtype: str, typestore=None, latched: bool = False,
                   block: bool = False) -> RclpyPublisher:
         """A publisher of ``msgtype`` on ``topic``: reliable, TRANSIENT_LOCAL depth 1 if ``latched``,
-        else volatile. (``typestore`` and ``block``: for the interface of rmw_zenoh.Node; a pipe blocks.)"""
+        else volatile KEEP_ALL (a sample stays until every matched reader has it: a reader that lost
+        one gets it again, however far the writer has gone on; KEEP_LAST would let it go).
+        (``typestore`` and ``block``: for the interface of rmw_zenoh.Node; a pipe blocks.)"""
         return self._declare(b"P", RclpyPublisher, topic, msgtype, latched)
 
     def subscriber(self, topic: str, msgtype: str, typestore, handler: Callable[[bytes, object], None],
@@ -159,8 +161,9 @@ class RclpyNode:
     def _declare(self, kind: bytes, cls, topic: str, msgtype: str, latched: bool):
         entity = cls(self, len(self.entities), topic, msgtype, "publisher" if kind == b"P" else "subscription")
         self.entities.append(entity)
+        depth = LATCHED_DEPTH if latched else (None if kind == b"P" else STREAM_DEPTH)   # None: KEEP_ALL
         self._send(kind, json.dumps({"id": entity.id, "topic": topic, "type": msgtype, "latched": latched,
-                                     "depth": LATCHED_DEPTH if latched else STREAM_DEPTH}).encode())
+                                     "depth": depth}).encode())
         return entity
 
     def unmatched(self, timeout_s: float, exclude: tuple[str, ...] = ()) -> list[tuple[str, str, str]]:

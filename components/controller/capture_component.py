@@ -75,8 +75,9 @@ class CaptureComponent(Component):
 
     A grasp point beyond the arm's reach (from the shoulder, the first joint of ``joints``), or
     one whose following needs joint rates beyond the URDF velocity limits or torques beyond the
-    effort limits for longer than ``limit_window``, stops the run with a message naming the limit,
-    the figure and the limit.
+    effort limits for longer than ``limit_window``, makes the arm retreat to its posture (a
+    ``capture_retreat`` event naming the limit, the figure and the limit) and try the next window;
+    after ``attempts`` approaches, ``capture_aborted``. The run goes on either way.
 
     Outputs: ``tau`` (arm and wheels; zero elsewhere), ``close``, ``phase``, ``grasp_distance``,
     ``ee_error`` (the reference minus the end effector: the blend in approach, the estimated grasp
@@ -159,7 +160,7 @@ class CaptureComponent(Component):
         Parameter("pose_history", Float("s", positive=True), default=1.0,
                   description="end-effector poses kept by time: the longest measurement latency handled"),
         Parameter("limit_window", Float("s", minimum=0.0), default=0.2,
-                  description="how long needed joint rates or torques may exceed the URDF limits before the run stops"),
+                  description="how long needed joint rates or torques may exceed the URDF limits before the arm retreats"),
     )
 
     @classmethod

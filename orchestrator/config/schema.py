@@ -78,7 +78,9 @@ VIEWER = Record("viewer", (
                                                      "serve the run to Foxglove (WebSocket), or off"),
     Parameter("file", Str(pattern=r".+\.rrd", hint="a file name ending in .rrd"), default=None,
               description="the recording of save, relative to the config file"),
-    Parameter("rate", Float("Hz", positive=True), default=30.0, description="frames per second of simulated time"),
+    Parameter("rate", Float("Hz", positive=True), default=30.0,
+              description="rows drawn per second of simulated time, as every n-th step, n = round(1 / (rate * "
+                          "run.step)), at least 1: 30 Hz at a 10 ms step is every 3rd, 33.3 a second"),
     Parameter("open_browser", Bool(), default=False, description="web: open the viewer in a browser"),
     Parameter("port", Int(minimum=1), default=FOXGLOVE_PORT,
               description="foxglove: the WebSocket port on localhost (ws://localhost:PORT)"),
@@ -101,8 +103,9 @@ ROS2 = Record("ros2", (
               description="the topics published, by name as orchestrator export --rosbag2 writes them "
                           "(default: all)"),
     Parameter("rate", Float("Hz", positive=True), default=30.0,
-              description="rows per second of simulated time (at most one per step; with a viewer, the "
-                          "higher of the two rates)"),
+              description="rows published per second of simulated time, as every n-th step, n = round(1 / "
+                          "(rate * run.step)), at least 1 (30 Hz at a 10 ms step: every 3rd, 33.3 a second; with a "
+                          "viewer, the higher of the two rates)"),
 ), description="the live ROS 2 view, over rclpy or rmw_zenoh (``ros2:``, or ``--ros2 [TRANSPORT|ENDPOINT]``)")
 SHADOW = Record("shadow", (
     Parameter("type", Str(hint="a component type name"),

@@ -67,6 +67,16 @@ def _write(path: Path, topics: list[RosTopic], typestore) -> None:
         queue.sort(key=lambda item: item[:3])
         for ns, _, _, connection, msgtype, message in queue:
             writer.write(connection, ns, typestore.serialize_cdr(message, msgtype))
+    _name_distro(path / "metadata.yaml", DISTRO.removeprefix("ros2_"))
+
+
+def _name_distro(metadata: Path, distro: str) -> None:
+    """rosbags writes ``ros_distro: rosbags``; rosbag2 writes the distro the bag's types are from."""
+    text = metadata.read_text()
+    written = "  ros_distro: rosbags\n"
+    if written not in text:
+        raise ExportError(f"{metadata}: expected rosbags' line {written.strip()!r} to name the distro, not found")
+    metadata.write_text(text.replace(written, f"  ros_distro: {distro}\n"))
 
 
 def export_rosbag2(record_dir, out, overwrite: bool = False, all_signals: bool = False,

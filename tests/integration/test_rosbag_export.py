@@ -200,6 +200,7 @@ def test_metadata_names_the_topics_types_counts_storage_and_latched_qos(capture)
     record, bag, _ = capture
     info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert info["storage_identifier"] == "mcap" and info["version"] == 9
+    assert info["ros_distro"] == "jazzy"   # the types' distro, as rosbag2 writes it (rosbags wrote "rosbags")
     topics = {t["topic_metadata"]["name"]: t for t in info["topics_with_message_count"]}
     rows = pq.read_table(record / "signals.parquet", columns=["time"]).num_rows
     expected = {"/clock": "rosgraph_msgs/msg/Clock", "/tf": "tf2_msgs/msg/TFMessage",

@@ -58,3 +58,25 @@ def test_the_guide_shows_the_example_component_as_it_is():
     source = (ROOT / "components" / "examples" / "oscillator.py").read_text()
     code = source.split('"""', 2)[2].lstrip("\n")
     assert [line for line in listing.splitlines() if line] == [line for line in code.splitlines() if line]
+
+
+def test_the_readmes_layout_lists_the_packages_on_disk():
+    """The README's Layout block names every top-level folder and every subpackage of orchestrator/
+    and components/ (``name/``), and nothing that is not there."""
+    readme = (ROOT / "README.md").read_text()
+    block = readme.split("## Layout\n\n```\n", 1)[1].split("```", 1)[0]
+    entries: dict[str, set[str]] = {}
+    current = None
+    for line in block.splitlines():
+        if line[:1].strip():
+            current = line.split()[0].rstrip("/")
+            entries[current] = set()
+            line = line[len(current) + 1:]
+        entries[current] |= set(re.findall(r"\b([a-z_0-9]+)/", line))
+    folders = {p.name for p in ROOT.iterdir() if p.is_dir() and not p.name.startswith(".")
+               and not p.name.endswith(".egg-info") and p.name not in ("site", "runs", "build", "dist")}
+    assert set(entries) == folders, f"README layout {sorted(entries)} against the folders {sorted(folders)}"
+    for package in ("orchestrator", "components"):
+        on_disk = {p.parent.name for p in (ROOT / package).glob("*/__init__.py")}
+        assert entries[package] == on_disk, (f"README layout, {package}/: lists {sorted(entries[package])}, "
+                                             f"the subpackages are {sorted(on_disk)}")

@@ -279,11 +279,14 @@ class Node:
 
     def _subscribed(self, topic: str, msgtype: str) -> Callable[[], bool]:
         """Whether the graph has a subscription to ``topic`` (fully qualified) of ``msgtype``."""
-        if self._graph is None:   # tokens of every node in the domain, those already there too
-            self._graph = self.session.liveliness().declare_subscriber(
-                f"{ADMIN_SPACE}/{self.domain_id}/**", self._graph_sample, history=True)
         wanted = (mangle(topic), dds_type_name(msgtype))
-        return lambda: wanted in list(self._subscriptions.values())
+
+        def subscribed() -> bool:
+            if self._graph is None:   # on first use only; the tokens already there come too (history)
+                self._graph = self.session.liveliness().declare_subscriber(
+                    f"{ADMIN_SPACE}/{self.domain_id}/**", self._graph_sample, history=True)
+            return wanted in list(self._subscriptions.values())
+        return subscribed
 
     def _entity_token(self, kind: str, topic: str, msgtype: str, typestore, qos: str) -> tuple[str, str]:
         topic = qualify(topic, self.namespace)

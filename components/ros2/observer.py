@@ -155,6 +155,8 @@ class RosPublishers:
     def _put(self, topic, data: bytes) -> None:
         try:
             self._publisher(topic).put(data, time.time_ns())   # rmw_zenoh's source timestamp: the system clock
+        except Stop:
+            raise
         except Exception as e:   # a dead rclpy process, a closed session: this message is lost, the run goes on
             self.counts.drop(topic.name, FAILED)
             self.warn(f"publishing on {topic.name} failed ({type(e).__name__}); its messages are dropped (counted)")

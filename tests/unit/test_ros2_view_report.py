@@ -121,3 +121,18 @@ def test_a_file_that_is_not_a_report_is_none(tmp_path):
     assert stream_report.read(path) is None
     with pytest.raises(ValueError):
         StreamCounts().drop("/clock", "tired")
+
+
+def test_a_signal_during_a_publish_still_stops_the_view():
+    from components.viewer.observer import Stop
+
+    class Stopped(Node):
+        def publisher(self, topic, msgtype, typestore, latched=False, block=False):
+            publisher = super().publisher(topic, msgtype, typestore, latched, block)
+            publisher.put = lambda data, ns: (_ for _ in ()).throw(Stop())
+            return publisher
+
+    counts = StreamCounts()
+    with pytest.raises(Stop):
+        RosPublishers(Stopped(), None, None, lambda text: None, counts).publish(_batch(2))
+    assert counts.dropped == {}

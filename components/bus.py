@@ -330,6 +330,20 @@ def open_session(listen: list[str] = (), connect: list[str] = (), *, mesh: bool 
 # CPU time per step ~0.9x (benchmarks/bench_pace.py). Every callback of ours only enqueues, so
 # one thread cannot deadlock on them. A ZENOH_RUNTIME set by the user wins.
 RUNTIME = "(app: (worker_threads: 1), rx: (handover: app), tx: (handover: app), acc: (handover: app), net: (handover: app))"
+# The same, but the links' transmit on a thread of its own: for a process whose Zenoh thread may
+# itself block sending (congestion control BLOCK from a Zenoh task, as an AdvancedPublisher's
+# cache answering a late joiner). On the one thread of RUNTIME that wait holds up the very task
+# that would drain the queue: a deadlock until the link is closed (block/wait_before_close).
+RUNTIME_OWN_TX = "(app: (worker_threads: 1), rx: (handover: app), tx: (worker_threads: 1), acc: (handover: app), net: (handover: app))"
+DEFAULT_RUNTIME = "()"   # Zenoh's own: a runtime per task kind
+
+
+def prefer_runtime(runtime: str) -> None:
+    """Have this process's Zenoh run on ``runtime`` (call before its first session), unless the
+    user set ZENOH_RUNTIME: RUNTIME in the environment is inherited from a process of ours
+    (:func:`session_config` sets it), not the user's choice, and is replaced too."""
+    if os.environ.get("ZENOH_RUNTIME", RUNTIME) == RUNTIME:
+        os.environ["ZENOH_RUNTIME"] = runtime
 
 
 def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: bool = False, mode: str = "peer"):

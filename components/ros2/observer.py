@@ -34,11 +34,13 @@ from pathlib import Path
 
 from components import bus, bus_security
 from components.ros2 import rmw_zenoh, router
+from components.ros2.stream_report import FAILED, NO_LINK, StreamCounts
 from components.ros2.rclpy_transport import RCLPY, RclpyNode
 from components.viewer.observer import (LIVE_BATCH_S, MAX_BATCH_ROWS, NICENESS, POLL_S, RowBuffer, Stop,
                                         orchestrator_gone, raise_stop, take_rows)
 
 CONNECT_TIMEOUT_S = 3.0   # how long a link to the ROS router may take to come up
+LINK_POLL_S = 0.1         # how often the link's state is looked at
 RETRY_S = 2.0             # between tries when it did not
 DISCOVER_S = 3.0          # rclpy: at most this long for DDS discovery before the run starts (rclpy_side.discover)
 DISTROS = {"jazzy": "ros2_jazzy", "kilted": "ros2_kilted", "lyrical": "ros2_lyrical"}   # rmw_zenoh with type hashes
@@ -58,6 +60,8 @@ class RosLink:
         self.endpoint = endpoint
         self.session = None
         self.warning: str | None = None
+        self.up: bool | None = None   # None: not yet looked at
+        self._polled = 0.0
         self._stop = threading.Event()
         self._thread = None
         try:
@@ -84,6 +88,19 @@ class RosLink:
                 self.session = session
             return
 
+    def poll(self) -> str | None:
+        """"lost" when the link to the router has gone down since the last call, "back" when it is
+        up again (the client session reconnects by itself; declarations go to the new router)."""
+        now = time.monotonic()
+        if self.session is None or now - self._polled < LINK_POLL_S:
+            return None
+        self._polled = now
+        up = bool(list(self.session.info.routers_zid()))
+        if up == self.up:
+            return None
+        was, self.up = self.up, up
+        return None if was is None else ("back" if up else "lost")
+
     def close(self) -> None:
         self._stop.set()
         if self._thread is not None:
@@ -93,51 +110,99 @@ class RosLink:
 
 
 class RosPublishers:
-    """The run's topics on a ROS 2 node (an rmw_zenoh.Node or an RclpyNode): a publisher per topic,
-    made when the topic first has messages; the messages of a batch in time order."""
+    """The run's topics on a ROS 2 node (an rmw_zenoh.Node or an RclpyNode; None until there is
+    one): a publisher per topic, made when the topic first has messages; the messages of a batch in
+    time order. Every message counted in ``counts``: published, or dropped (no node or no link, a
+    publish that raised). A latched topic's last message is kept to send again (:meth:`link_back`)."""
 
-    def __init__(self, node, typestore, topics: list[str] | None, warn):
+    def __init__(self, node, typestore, topics: list[str] | None, warn, counts: StreamCounts | None = None):
         self.node = node
         self.typestore = typestore
         self.wanted = set(topics) if topics is not None else None
         self.warn = warn
+        self.counts = counts or StreamCounts()
         self.publishers: dict[str, object] = {}
         self.skipped: set[str] = set()
-        self.sent = 0
+        self.latched: dict[str, tuple[object, bytes]] = {}   # topic name -> (RosTopic, its last message)
+        self.resend: set[str] = set()                        # latched topics to send again
+        self.seen: set[str] = set()                          # topics that had messages
 
-    def _publisher(self, topic):
+    @property
+    def sent(self) -> int:
+        return sum(self.counts.published.values())
+
+    def _wants(self, topic) -> bool:
         if topic.name in self.skipped:
-            return None
+            return False
         if topic.name not in self.publishers:
             if self.wanted is not None and topic.name not in self.wanted:
                 self.skipped.add(topic.name)
-                return None
+                return False
             if problem := rmw_zenoh.check_topic_name(topic.name):
                 self.warn(f"topic {topic.name} not published: ROS 2 rejects the name ({problem})")
                 self.skipped.add(topic.name)
-                return None
+                return False
+        return True
+
+    def _publisher(self, topic):
+        if topic.name not in self.publishers:
             # block: a batch's burst would overflow the link's queue and be dropped; waiting holds
             # up this process only, never the run (its rows come through a dropping publisher)
             self.publishers[topic.name] = self.node.publisher(topic.name, topic.msgtype, self.typestore,
                                                               latched=topic.latched, block=True)
         return self.publishers[topic.name]
 
-    def publish(self, batch) -> None:
-        """``batch``: [(RosTopic, [(stamp ns, CDR bytes)])] of :meth:`LiveTopics.batch`."""
+    def _put(self, topic, data: bytes) -> None:
+        try:
+            self._publisher(topic).put(data, time.time_ns())   # rmw_zenoh's source timestamp: the system clock
+        except Stop:
+            raise
+        except Exception as e:   # a dead rclpy process, a closed session: this message is lost, the run goes on
+            self.counts.drop(topic.name, FAILED)
+            self.warn(f"publishing on {topic.name} failed ({type(e).__name__}); its messages are dropped (counted)")
+        else:
+            self.counts.sent(topic.name)
+
+    def publish(self, batch, up: bool = True) -> None:
+        """``batch``: [(RosTopic, [(stamp ns, CDR bytes)])] of :meth:`LiveTopics.batch`; ``up``:
+        whether the link to the ROS side is (else the messages are dropped, counted)."""
+        up = up and self.node is not None
         queue = []
         for topic, messages in batch:
-            publisher = self._publisher(topic)
-            if publisher is None or not messages:
+            if not messages or not self._wants(topic):
                 continue
-            queue += [(ns, publisher, data) for ns, data in messages]
+            self.seen.add(topic.name)
+            if topic.latched:
+                self.latched[topic.name] = (topic, messages[-1][1])
+                self.resend.discard(topic.name)
+            if not up:
+                self.counts.drop(topic.name, NO_LINK, len(messages))
+                if topic.latched:
+                    self.resend.add(topic.name)
+                continue
+            queue += [(ns, topic, data) for ns, data in messages]
         queue.sort(key=lambda item: item[0])   # stable: the exporter's topic order within a stamp
-        for _, publisher, data in queue:
-            publisher.put(data, time.time_ns())   # rmw_zenoh's source timestamp: the system clock
-        self.sent += len(queue)
+        for _, topic, data in queue:
+            self._put(topic, data)
+
+    def link_back(self) -> None:
+        """The link came back: the latched topics go again (:meth:`resend_latched`)."""
+        self.resend |= set(self.latched)
+
+    def resend_latched(self) -> None:
+        """Send each latched topic waiting for it once a subscription to it is known."""
+        if self.node is None:
+            return
+        for name in sorted(self.resend):
+            topic, data = self.latched[name]
+            publisher = self._publisher(topic)
+            if getattr(publisher, "has_subscribers", lambda: True)():
+                self.resend.discard(name)
+                self._put(topic, data)
 
     def missing(self) -> list[str]:
         """Topics asked for (``topics``) that the run has not had."""
-        return sorted((self.wanted or set()) - set(self.publishers))
+        return sorted((self.wanted or set()) - self.seen)
 
 
 def observe(connect: str, run_id: str, setup: dict) -> int:
@@ -158,6 +223,10 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
             warned.add(message)
             log(message)
 
+    # the latched topics' AdvancedPublisher answers a late joiner from Zenoh's thread with congestion
+    # control BLOCK: on bus.RUNTIME's one thread that wait stops the transmit that would end it
+    bus.prefer_runtime(bus.RUNTIME_OWN_TX)
+    counts = StreamCounts()
     session = bus.open_view_session(connect, os.environ.get(bus.SECRET_ENV), bus_security.from_env())   # frames: from the mesh
     token = watcher = signals = link = node = publishers = frames = None
     try:
@@ -176,6 +245,8 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
             link = RosLink(ros["endpoint"])
             if link.warning:
                 log(link.warning)
+        publishers = RosPublishers(node, typestore, ros.get("topics"), warn, counts)
+        live = LiveTopics(config, setup.get("config_dir"), columns, typestore, warn)
         token = session.liveliness().declare_token(bus.ros2_alive_key(run_id))   # rows wait in the FIFO from here
         buffer = RowBuffer(len(columns))
         last = time.monotonic()
@@ -186,30 +257,44 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
                 node = rmw_zenoh.Node(link.session, ros["domain_id"], ros["node"])
                 log(f"publishing the run to ROS 2 (domain {ros['domain_id']}) over rmw_zenoh's wire through "
                     f"{ros['endpoint']} as node /{ros['node']}")
-            if publishers is None and node is not None:
-                publishers = RosPublishers(node, typestore, ros.get("topics"), warn)
-                live = LiveTopics(config, setup.get("config_dir"), columns, typestore, warn)
+                publishers.node = node
+            if link is not None and (change := link.poll()):
+                if change == "lost":
+                    counts.links_lost += 1
+                    log(f"the link to the ROS 2 router at {ros['endpoint']} is down: messages are dropped "
+                        f"(counted) until it is back")
+                else:
+                    counts.links_back += 1
+                    log(f"the link to the ROS 2 router at {ros['endpoint']} is back: the stream resumes")
+                    publishers.link_back()
+            up = link is None or link.up is not False
+            if up:
+                publishers.resend_latched()
             now = time.monotonic()
             if buffer and (ended or now - last >= LIVE_BATCH_S or len(buffer) >= MAX_BATCH_ROWS):
                 _, times, rows = buffer.take()
-                if publishers is not None:   # without the router, the rows go nowhere
-                    publishers.publish(live.batch(times, rows)[0])
+                counts.rows += len(rows)
+                publishers.publish(live.batch(times, rows)[0], up)   # without the router, dropped (counted)
                 last = now
-            if publishers is not None:
-                publishers.publish(frames.take())
+            publishers.publish(frames.take(), up)
             gone = orchestrator_gone(watcher)
             if empty and not ended:
                 time.sleep(POLL_S)
         if buffer.bad:
             log(f"ignored {buffer.bad} signal rows of an unexpected size (expected {buffer.size} bytes)")
-        if publishers is not None and (missing := publishers.missing()):
+        if node is not None and (missing := publishers.missing()):
             log(f"ros2.topics: the run had no {', '.join(missing)} "
                 f"(its topics: {', '.join(sorted(publishers.publishers)) or 'none'})")
-        if ended and publishers is not None:
+        if ended:
             log(f"run over: {publishers.sent} messages published on {len(publishers.publishers)} topics")
     except Stop:
         pass
     finally:
+        if setup.get("report"):   # what was delivered, for the orchestrator's summary
+            try:
+                counts.write(setup["report"])
+            except OSError as e:
+                log(f"cannot write {setup['report']}: {e}")
         if node is not None:
             node.close()
         if link is not None:

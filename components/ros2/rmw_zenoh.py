@@ -161,11 +161,14 @@ def qualify(topic: str, namespace: str) -> str:
 class Publisher:
     """One ROS 2 publisher: its key expression, token and sequence numbers (made by :meth:`Node.publisher`)."""
 
-    def __init__(self, session, key: str, token: str, latched: bool, depth: int, block: bool = False):
+    def __init__(self, session, key: str, token: str, latched: bool, depth: int, block: bool = False,
+                 subscribed: Callable[[], bool] = lambda: False):
         import zenoh
         import zenoh.ext
         self.key = key
         self.token_key = token
+        self.latched = latched
+        self._subscribed = subscribed
         self.gid = gid_of(token)
         self.sequence = 0
         congestion = zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP
@@ -178,6 +181,11 @@ class Publisher:
         else:
             self._publisher = session.declare_publisher(key, **options)
         self._token = session.liveliness().declare_token(token)
+
+    def has_subscribers(self) -> bool:
+        """Whether a ROS 2 subscription to this topic and type is known: its liveliness token (MS),
+        as rmw_zenoh's graph cache matches them."""
+        return self._subscribed()
 
     def put(self, cdr: bytes, source_timestamp_ns: int) -> None:
         """Send one message (CDR with its encapsulation header), numbered from 1."""
@@ -255,6 +263,30 @@ class Node:
         self.token_key = token_key(self.domain_id, self.zid, self.id, self.id, NODE, enclave, namespace, name)
         self._token = session.liveliness().declare_token(self.token_key)
         self.entities: list[Publisher | Subscriber] = []
+        self._subscriptions: dict[str, tuple[str, str]] = {}   # MS token -> (topic, DDS type): the graph's subscriptions
+        self._graph = None
+
+    def _graph_sample(self, sample) -> None:
+        import zenoh
+        key = str(sample.key_expr)
+        parts = key.split("/")
+        if len(parts) != 13 or parts[5] != SUBSCRIPTION:
+            return
+        if sample.kind == zenoh.SampleKind.PUT:
+            self._subscriptions[key] = (parts[9], parts[10])   # mangled topic, DDS type name
+        else:
+            self._subscriptions.pop(key, None)
+
+    def _subscribed(self, topic: str, msgtype: str) -> Callable[[], bool]:
+        """Whether the graph has a subscription to ``topic`` (fully qualified) of ``msgtype``."""
+        wanted = (mangle(topic), dds_type_name(msgtype))
+
+        def subscribed() -> bool:
+            if self._graph is None:   # on first use only; the tokens already there come too (history)
+                self._graph = self.session.liveliness().declare_subscriber(
+                    f"{ADMIN_SPACE}/{self.domain_id}/**", self._graph_sample, history=True)
+            return wanted in list(self._subscriptions.values())
+        return subscribed
 
     def _entity_token(self, kind: str, topic: str, msgtype: str, typestore, qos: str) -> tuple[str, str]:
         topic = qualify(topic, self.namespace)
@@ -277,7 +309,8 @@ class Node:
         for a congested link rather than dropping the message (for a sender that may wait)."""
         qos, depth = self._qos(latched)
         key, token = self._entity_token(PUBLISHER, topic, msgtype, typestore, qos)
-        publisher = Publisher(self.session, key, token, latched, depth, block)
+        publisher = Publisher(self.session, key, token, latched, depth, block,
+                              self._subscribed(qualify(topic, self.namespace), msgtype))
         self.entities.append(publisher)
         return publisher
 
@@ -295,7 +328,10 @@ class Node:
         for entity in reversed(self.entities):
             entity.close()
         self.entities = []
-        try:
-            self._token.undeclare()
-        except Exception:
-            pass
+        for declared in (self._graph, self._token):
+            if declared is None:
+                continue
+            try:
+                declared.undeclare()
+            except Exception:
+                pass

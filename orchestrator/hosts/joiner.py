@@ -198,10 +198,8 @@ def route(path: Path, listen: list[str]) -> int:
     body = read_join_file(path, "router")
     # a router forwards every link's traffic: Zenoh's own runtime (a thread per task kind), not the
     # one thread a component's session runs on (bus.RUNTIME), on which one TLS link blocked sending
-    # holds up every other. bus.RUNTIME in the environment is inherited from a process of ours that
-    # opened a session (bus.session_config sets it), not the user's choice: it is replaced too.
-    if os.environ.get("ZENOH_RUNTIME", bus.RUNTIME) == bus.RUNTIME:
-        os.environ["ZENOH_RUNTIME"] = "()"
+    # holds up every other
+    bus.prefer_runtime(bus.DEFAULT_RUNTIME)
     with tempfile.TemporaryDirectory(prefix="zenorbit-router-") as directory:
         settings = {**local_settings(body, Path(directory)), "mode": "router"}
         try:

@@ -76,6 +76,7 @@ class Run:
         self.placement = supervisor.place([[s.name for s in specs] for specs in processes if groups.dedicated_cpu(specs)],
                                           os.sched_getaffinity(0))
         self.session = self.crew = self.viewer_link = self.hosts = self.listener = self.recovery = None
+        self.ros2_line: str | None = None   # the ROS 2 view's summary, printed before the run's
         self._subscriptions: list = []
 
     # ---------------------------------------------------------------- what the control server sees
@@ -204,6 +205,8 @@ class Run:
         if self.profile:
             print("\n".join(report.profile(self.state.members.values(), self.row, self.config.step_ns, self.loop_s,
                                            self.config.algorithm)), file=self.out)
+        if self.ros2_line:
+            print(self.ros2_line, file=self.out)
         # as events.jsonl's end line says it ("stopped by request" ends with exit code 0 too)
         status = "failed" if code == 1 else (self.state.stop_reason or ("completed" if code == 0 else "interrupted"))
         print(report.summary(self.config.name, status, self.row, self.config.steps, self.config.step_ns,
@@ -260,14 +263,15 @@ class Run:
         rows.decimation = self.viewer_link.start(config, rows.columns, setup=self.log_dir / "viewer.json",
                                                  endpoint=self.crew.endpoint, run_id=self.run_id, env=self.child_env,
                                                  cpus=self.placement.shared, wait=self.listener.wait,
-                                                 frames_dir=self.record_dir / "frames" if self.record_dir else None)
+                                                 frames_dir=self.record_dir / "frames" if self.record_dir else None,
+                                                 record_dir=self.record_dir)
         if rows.decimation:
             if self.viewer is not None:
                 state.log("viewer", mode=self.viewer.mode, rate_hz=self.viewer.rate_hz)
             if self.ros2 is not None:
                 state.log("ros2", transport=self.ros2.transport, endpoint=self.ros2.endpoint,
                           domain_id=self.ros2.domain_id, rate_hz=self.ros2.rate_hz)
-            rows.signals = self.viewer_link.signals.put
+            rows.signals = self.viewer_link.signals
             rows.publish()
         self.listener.sync(list(state.members.values()))
         if self.recovery.restartable:
@@ -287,6 +291,9 @@ class Run:
             terminate(member, timeout=2.0 if code else 5.0, final=True)
         if self.viewer_link is not None:
             self.viewer_link.stop(state.stop_reason == "interrupted", self.out)
+            if stream := self.viewer_link.ros2_stream():
+                event, self.ros2_line = stream
+                state.log("ros2_stream", **event)
         state.log("end", step=rows.row, time=rows.row * self.config.step_ns / NS_PER_S,
                   status="failed" if code == 1 else (state.stop_reason or "completed"))
         if rows.recording is not None:

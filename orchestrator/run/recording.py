@@ -28,7 +28,8 @@ class RecordingError(Exception):
 # The lock of a recording directory: a live run holds an flock on it (see ``claim_directory``).
 LOCK_FILE = ".lock"
 # What a run (and `orchestrator plot`) leaves in a recording directory: all that --overwrite removes.
-RECORDING_ENTRIES = frozenset({"signals.parquet", "swaps", "events.jsonl", "config.yaml", "logs", "plots", "frames", LOCK_FILE})
+RECORDING_ENTRIES = frozenset({"signals.parquet", "swaps", "events.jsonl", "config.yaml", "logs", "plots", "frames", "ros2.report.json",
+                               LOCK_FILE})
 
 
 def _holder(lock) -> str:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from components import bus
 from components.constants import NS_PER_S
+from components.ros2 import stream_report
 from orchestrator.run import supervisor
 from orchestrator.config.specs import Ros2Spec, RunConfig, ViewerSpec
 from orchestrator.run.control import StopRequested, raise_stop
@@ -27,7 +28,14 @@ class ViewerLink:
         self.ros2 = ros2
         self.process: subprocess.Popen | None = None        # the viewer's
         self.ros2_process: subprocess.Popen | None = None
-        self.signals = bus.publisher(session, bus.signals_key(run_id), drop=True)
+        self.ros2_report: Path | None = None   # where the ROS 2 view writes what it delivered
+        self.rows_sent = 0
+        self._signals = bus.publisher(session, bus.signals_key(run_id), drop=True)
+
+    def signals(self, payload: bytes) -> None:
+        """Send the observers a row (counted: the ROS 2 view's report says how many arrived)."""
+        self.rows_sent += 1
+        self._signals.put(payload)
 
     def _spawn(self, module: str, endpoint: str, run_id: str, setup, env: dict, cpus: frozenset[int]):
         process = subprocess.Popen([sys.executable, "-m", module, "--connect", endpoint, "--run-id", run_id,
@@ -37,10 +45,11 @@ class ViewerLink:
         return process
 
     def start(self, config: RunConfig, columns: list[str], *, setup, endpoint: str, run_id: str, env: dict,
-              cpus: frozenset[int], wait: Wait, frames_dir: Path | None = None) -> int:
+              cpus: frozenset[int], wait: Wait, frames_dir: Path | None = None, record_dir: Path | None = None) -> int:
         """Start the observers asked for (setup files ``setup`` and ``ros2.json`` beside it) and wait
         for their liveliness tokens; return the decimation (publish every n-th row), or 0.
-        ``frames_dir``: the recording's frames/ (the cameras' images), None without --record."""
+        ``frames_dir``: the recording's frames/ (the cameras' images), None without --record;
+        ``record_dir``: where the ROS 2 view's report goes (else beside ``setup``)."""
         rates, expected = [], {}
         if self.spec is not None:
             setup.write_text(json.dumps({
@@ -58,11 +67,13 @@ class ViewerLink:
         if self.ros2 is not None:
             ros2_setup = setup.with_name("ros2.json")
             node = "zenorbit_" + re.sub(r"[^A-Za-z0-9_]", "_", config.name)
+            self.ros2_report = (record_dir or setup.parent) / stream_report.REPORT
             ros2_setup.write_text(json.dumps({
                 "columns": columns, "config": config.resolved, "config_dir": str(config.path.parent.resolve()),
                 "ros2": {"endpoint": self.ros2.endpoint, "domain_id": self.ros2.domain_id,
                          "distro": self.ros2.distro, "topics": self.ros2.topics, "node": node,
-                         "transport": self.ros2.transport, "python": self.ros2.python, "why": self.ros2.why}}))
+                         "transport": self.ros2.transport, "python": self.ros2.python, "why": self.ros2.why},
+                "report": str(self.ros2_report)}))
             self.ros2_process = self._spawn("components.ros2.observer", endpoint, run_id, ros2_setup, env, cpus)
             rates.append(self.ros2.rate_hz)
             expected[bus.ROS2] = "alive"
@@ -83,7 +94,7 @@ class ViewerLink:
         until Ctrl-C; ros2: at once)."""
         if self.process is None and self.ros2_process is None:
             return
-        self.signals.put(bus.SIGNALS_END)
+        self._signals.put(bus.SIGNALS_END)
         if self.ros2_process is not None:
             self._finish(self.ros2_process, interrupted)
         if self.process is None:
@@ -108,6 +119,15 @@ class ViewerLink:
         if self.process.poll() is None:
             self.process.terminate()
             supervisor.reap(self.process, 5)
+
+    def ros2_stream(self) -> tuple[dict, str] | None:
+        """After :meth:`stop`: the ROS 2 view's report (for events.jsonl) and its summary line; None
+        without a ROS 2 view."""
+        if self.ros2_process is None:
+            return None
+        report = stream_report.read(self.ros2_report)
+        line = stream_report.summary(report, self.rows_sent, self.ros2_process.poll())
+        return {**(report or {"report": None}), "rows_sent": self.rows_sent}, line
 
     @staticmethod
     def _finish(process: subprocess.Popen, interrupted: bool) -> None:

@@ -214,3 +214,37 @@ def test_a_subscriber_gets_the_payload_and_attachment_and_a_latched_one_the_cach
     finally:
         b.close()
         a.close()
+
+
+def test_a_publisher_knows_a_subscription_by_its_token():
+    """has_subscribers: a subscription's liveliness token (MS) on the publisher's topic and type,
+    from another session; not one on another topic; gone when the subscription is."""
+    import socket
+
+    from components import bus
+    from tests.conftest import wait_until
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        endpoint = f"tcp/127.0.0.1:{s.getsockname()[1]}"
+    a = bus.open_session(listen=[endpoint])
+    b = bus.open_session(connect=[endpoint], connect_timeout_s=10)
+    try:
+        talker, listener = rz.Node(a, 0, "talker"), rz.Node(b, 0, "listener")
+        static = talker.publisher("/latched", "std_msgs/msg/String", TYPESTORE, latched=True)
+        assert not static.has_subscribers()
+        other = listener.subscriber("/other", "std_msgs/msg/String", TYPESTORE, lambda data, info: None)
+        wait_until(lambda: any("/MS/" in str(r.ok.key_expr) for r in a.liveliness().get("@ros2_lv/0/**")),
+                   "the other subscription's token", 10)
+        assert not static.has_subscribers()
+        subscription = listener.subscriber("/latched", "std_msgs/msg/String", TYPESTORE, lambda data, info: None,
+                                           latched=True)
+        wait_until(static.has_subscribers, "the subscription known", 10)
+        subscription.close()
+        wait_until(lambda: not static.has_subscribers(), "the subscription gone", 10)
+        other.close()
+        talker.close()
+        listener.close()
+    finally:
+        b.close()
+        a.close()

@@ -43,6 +43,9 @@ RUN = Record("run", (
     Parameter("record_flush", Duration(), default="1 s",
               description="wall time at most between the recording's writes to disk (besides every 1000 rows): "
                           "a full disk or a kill loses no more than this"),
+    Parameter("strict", Bool(), default=False,
+              description="true: the check's warnings (a value outside its plausible range, suspect physics) are "
+                          "errors, as with --strict"),
     Parameter("packages", MapOf(Str(hint="a directory"), "package name"), default={},
               description="ROS packages by name -> directory (relative to the config file), for package:// URIs "
                           "and $(find NAME) in URDFs; looked up before ROS_PACKAGE_PATH and installed packages"),

@@ -232,7 +232,8 @@ def test_describe_shows_nested_parameters_typed_and_the_config_sections():
     dynamics = orchestrator("describe", "dynamics.dart")
     lines = [line.split() for line in dynamics.stdout.splitlines()]
     assert ["bodies", "{body", "name:", "Body}", "required"] == lines[[l[:1] for l in lines].index(["bodies"])][:5]
-    assert ["position", "float[3]", "[m]", "default"] == lines[[l[:1] for l in lines].index(["position"])][:4]
+    assert (["position", "float[3]", "[m];", "plausible", "-100", "to", "100", "km", "default"]
+            == lines[[l[:1] for l in lines].index(["position"])][:9])
     assert "Body: one free-floating URDF multibody (bodies.<name>)" in dynamics.stdout
     pid = orchestrator("describe", "controller.joint_pd").stdout
     assert "PID gains: one joint's gains" in pid and "float [N*m/rad]" in pid

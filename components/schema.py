@@ -9,18 +9,24 @@ resolved ``config.yaml`` all read that declaration.
 A kind's ``convert(value, key)`` returns the checked value in SI (durations as integer ns,
 vectors as float64 arrays, records as dicts with every field) or raises ConfigError naming the
 key; ``plain(value)`` writes a converted value back as YAML.
+
+A quantity may declare a ``plausible`` range (SI, inclusive) beside its unit: a value outside it
+converts all the same, and is collected (:func:`implausible_values`) for a warning said in the
+unit people use for it (components.units.implausible); ``--strict`` makes it an error.
 """
 from __future__ import annotations
 
 import datetime as dt
 import re
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 import numpy as np
 
 from components.errors import ConfigError
-from components.units import duration_ns, duration_text, to_si
+from components.units import duration_ns, duration_text, implausible, say_range, to_si
 
 REQUIRED = object()
 """Default of a parameter the config must give."""
@@ -32,6 +38,43 @@ class Problems(ConfigError):
     def __init__(self, problems: list[ConfigError]):
         super().__init__(problems[0].key, problems[0].message)
         self.problems = problems
+
+
+@dataclass(frozen=True)
+class Implausible:
+    """A value outside its declared plausible range: ``key`` and why, in the unit people use."""
+    key: str
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.key}: {self.message}" if self.key else self.message
+
+
+_FOUND: ContextVar[list | None] = ContextVar("implausible_values", default=None)
+
+
+@contextmanager
+def implausible_values():
+    """Collect, into the list it yields, every value converted meanwhile that lies outside its
+    plausible range (a warning, not an error: the conversion goes on)."""
+    found: list[Implausible] = []
+    token = _FOUND.set(found)
+    try:
+        yield found
+    finally:
+        _FOUND.reset(token)
+
+
+def _plausible(written: Any, si: float, unit: str, plausible: tuple[float, float] | None, key: str) -> None:
+    found = _FOUND.get()
+    if plausible is not None and found is not None:
+        message = implausible(written, si, unit, *plausible)
+        if message:
+            found.append(Implausible(key, message))
+
+
+def _range_text(unit: str, plausible: tuple[float, float] | None) -> str:
+    return "" if plausible is None else say_range(*plausible, unit)
 
 
 def _join(key: str, sub: str) -> str:
@@ -74,6 +117,11 @@ class Kind:
         """The records nested in this kind, for describe."""
         return []
 
+    @property
+    def plausible_text(self) -> str:
+        """Its plausible range in the unit people use ("0 to 60 deg/s"), or "" when it declares none."""
+        return ""
+
 
 class Anything(Kind):
     """Any YAML value, passed on unchecked (for user components; the shipped ones declare types)."""
@@ -81,11 +129,17 @@ class Anything(Kind):
 
 @dataclass(frozen=True)
 class Float(Kind):
-    """A real number in ``unit`` (a bare number is SI; "6778 km" is converted); optional bounds."""
+    """A real number in ``unit`` (a bare number is SI; "6778 km" is converted); optional bounds
+    (beyond them: an error) and ``plausible`` range (SI; beyond it: a warning)."""
     unit: str = "1"
     minimum: float | None = None      # inclusive
     positive: bool = False
     maximum: float | None = None      # inclusive
+    plausible: tuple[float, float] | None = None
+
+    @property
+    def plausible_text(self) -> str:
+        return _range_text(self.unit, self.plausible)
 
     @property
     def text(self) -> str:
@@ -99,6 +153,7 @@ class Float(Kind):
             raise ConfigError(key, f"expected a quantity >= {self.minimum:g}, got {value!r}")
         if self.maximum is not None and not x <= self.maximum:
             raise ConfigError(key, f"expected a quantity <= {self.maximum:g}, got {value!r}")
+        _plausible(value, x, self.unit, self.plausible, key)
         return x
 
     def accepts(self, value):
@@ -162,9 +217,15 @@ MAX_DURATION_NS = 100 * 31_557_600 * 10 ** 9   # 100 Julian years: well inside i
 
 @dataclass(frozen=True)
 class Duration(Kind):
-    """A time span, exact integer nanoseconds ("1 ms", "20 s", or a number of seconds)."""
+    """A time span, exact integer nanoseconds ("1 ms", "20 s", or a number of seconds);
+    ``plausible``: a range in s."""
     positive: bool = True
+    plausible: tuple[float, float] | None = None
     text = "duration"
+
+    @property
+    def plausible_text(self) -> str:
+        return _range_text("s", self.plausible)
 
     def convert(self, value, key):
         ns = duration_ns(value, key)
@@ -172,6 +233,7 @@ class Duration(Kind):
             raise ConfigError(key, f"expected a duration {'>' if self.positive else '>='} 0, got {value!r}")
         if ns > MAX_DURATION_NS:
             raise ConfigError(key, f"expected a duration of at most 100 years (times are int64 nanoseconds), got {value!r}")
+        _plausible(value, ns / 1e9, "s", self.plausible, key)
         return ns
 
     def plain(self, value):
@@ -205,11 +267,24 @@ class UtcTime(Kind):
 
 @dataclass(frozen=True)
 class Vector(Kind):
-    """``size`` numbers (any number if None) in ``unit``, or in ``units`` element by element."""
+    """``size`` numbers (any number if None) in ``unit``, or in ``units`` element by element;
+    ``plausible``: one range (SI) for every element, or one per element (with ``units``)."""
     size: int | None = None
     unit: str = "1"
     units: tuple[str, ...] | None = None
     minimum: float | None = None      # inclusive, for every element
+    plausible: tuple | None = None
+
+    def _ranges(self, n: int) -> list:
+        if self.plausible is None or not isinstance(self.plausible[0], tuple):
+            return [self.plausible] * n
+        return list(self.plausible)
+
+    @property
+    def plausible_text(self) -> str:
+        units = self.units or (self.unit,) * len(self._ranges(1))
+        texts = [_range_text(u, r) for u, r in zip(units, self._ranges(len(units)))]
+        return ", ".join(dict.fromkeys(t for t in texts if t))
 
     @property
     def text(self) -> str:
@@ -228,6 +303,8 @@ class Vector(Kind):
         if self.minimum is not None and np.any(array < self.minimum):
             i = int(np.argmax(array < self.minimum))
             raise ConfigError(f"{key}[{i}]", f"expected a quantity >= {self.minimum:g}, got {values[i]!r}")
+        for i, (v, u, r) in enumerate(zip(values, units, self._ranges(len(values)))):
+            _plausible(v, float(array[i]), u, r, f"{key}[{i}]")
         return array
 
     def accepts(self, value):
@@ -274,6 +351,10 @@ class ListOf(Kind):
     def records(self):
         return self.item.records()
 
+    @property
+    def plausible_text(self) -> str:
+        return self.item.plausible_text
+
 
 @dataclass(frozen=True)
 class MapOf(Kind):
@@ -317,6 +398,10 @@ class MapOf(Kind):
     def records(self):
         return self.item.records()
 
+    @property
+    def plausible_text(self) -> str:
+        return self.item.plausible_text
+
 
 @dataclass(frozen=True)
 class OneOf(Kind):
@@ -333,12 +418,16 @@ class OneOf(Kind):
     def convert(self, value, key):
         """The first option of the value's shape that converts it (Float("rad") before Float("m"))."""
         first = None
+        found = _FOUND.get()
         for option in self.options:
             if option.accepts(value):
+                before = len(found) if found is not None else 0
                 try:
                     return option.convert(value, key)
                 except ConfigError as e:
                     first = first or e
+                    if found is not None:     # what a rejected option found is not about the value
+                        del found[before:]
         raise first or ConfigError(key, f"expected {self.text}, got {value!r}")
 
     def plain(self, value):
@@ -350,6 +439,10 @@ class OneOf(Kind):
     def accepts(self, value):
         return self._option(value) is not None
 
+    @property
+    def plausible_text(self) -> str:
+        return ", ".join(dict.fromkeys(t for o in self.options if (t := o.plausible_text)))
+
     def records(self):
         return [r for o in self.options for r in o.records()]
 
@@ -359,8 +452,9 @@ class Parameter:
     """One declared value: of a component type (its ``parameters``) or a field of a :class:`Record`.
 
     ``kind`` is a :class:`Kind`, or for short one of "float", "int", "bool", "str", "vector",
-    "any" with ``unit``, ``shape`` and ``choices``. ``default`` REQUIRED makes it required; a
-    default of None makes it optional (null, or absent, means "not given").
+    "any" with ``unit``, ``shape``, ``choices`` and ``plausible`` (a range in SI: beyond it, a
+    warning). ``default`` REQUIRED makes it required; a default of None makes it optional (null,
+    or absent, means "not given"); a default must lie within the plausible range.
     """
     name: str
     kind: Kind | str
@@ -369,13 +463,18 @@ class Parameter:
     description: str = ""
     shape: tuple[int, ...] | None = None
     choices: tuple[str, ...] | None = None
+    plausible: tuple[float, float] | None = None
 
     def __post_init__(self):
+        if self.plausible is not None and not (isinstance(self.kind, str) and self.kind in ("float", "vector")):
+            raise ValueError(f"parameter {self.name}: plausible= goes with kind 'float' or 'vector'; "
+                             f"give a Kind its own (Float(unit, plausible=...))")
         if isinstance(self.kind, str):
             unit = self.unit or "1"
-            shorthand = {"float": lambda: Float(unit), "int": Int, "bool": Bool,
+            shorthand = {"float": lambda: Float(unit, plausible=self.plausible), "int": Int, "bool": Bool,
                          "str": lambda: Str(tuple(self.choices or ())), "any": Anything,
-                         "vector": lambda: Vector(self.shape[0] if self.shape else None, unit)}
+                         "vector": lambda: Vector(self.shape[0] if self.shape else None, unit,
+                                                  plausible=self.plausible)}
             if self.kind not in shorthand:
                 raise ValueError(f"parameter {self.name}: kind must be a Kind or one of "
                                  f"{', '.join(shorthand)}, got {self.kind!r}")
@@ -384,9 +483,12 @@ class Parameter:
             object.__setattr__(self, "unit", self.kind.unit)
         if self.default is not REQUIRED and self.default is not None:
             try:
-                self.kind.convert(self.default, self.name)
+                with implausible_values() as found:
+                    self.kind.convert(self.default, self.name)
             except ConfigError as e:
                 raise ValueError(f"parameter {self.name}: its default does not fit its kind: {e}") from None
+            if found:
+                raise ValueError(f"parameter {self.name}: its default is not plausible: {found[0]}")
 
     @property
     def required(self) -> bool:
@@ -529,8 +631,9 @@ def _cell(text: Any) -> str:
 
 
 def table(fields: tuple[Parameter, ...]) -> list[tuple[str, str, str, str]]:
-    """Rows (name, type with its unit, default, description) of declared parameters."""
-    return [(p.name, p.kind.text, p.default_text, p.description) for p in fields]
+    """Rows (name, type with its unit and plausible range, default, description) of declared parameters."""
+    return [(p.name, p.kind.text + (f"; plausible {r}" if (r := p.kind.plausible_text) else ""), p.default_text,
+             p.description) for p in fields]
 
 
 def markdown(record: Record, where: str = "") -> str:

@@ -12,6 +12,8 @@ from decimal import ROUND_HALF_EVEN, Decimal
 
 from components.errors import ConfigError
 
+DEG = math.pi / 180.0   # rad per degree, for plausible ranges declared in degrees
+
 # symbol -> (factor to SI, dimension exponents over (m, kg, s, rad))
 _SYMBOLS: dict[str, tuple[float, tuple[int, int, int, int]]] = {
     "1": (1.0, (0, 0, 0, 0)),
@@ -154,3 +156,72 @@ def duration_ns(value, key: str) -> int:
             raise ConfigError(key, f"expected a finite duration like '1 ms', got {value!r}")
         number, unit = repr(value), "s"
     return int((Decimal(number) * _TIME_NS[unit]).to_integral_value(ROUND_HALF_EVEN))
+
+
+# The unit people read a quantity in, by dimension (m, kg, s, rad): angles in degrees; time and
+# length by magnitude (below); every other dimension in its SI unit.
+_ANGLE_DISPLAY = {(0, 0, 0, 1): "deg", (0, 0, -1, 1): "deg/s", (0, 0, -2, 1): "deg/s^2"}
+_TIME, _LENGTH = (0, 0, 1, 0), (1, 0, 0, 0)
+# a bare number the user may have meant in another unit: the units to suggest, by dimension
+_MEANT = {(0, 0, 0, 1): ("deg",), (0, 0, -1, 1): ("deg/s",), (0, 0, -2, 1): ("deg/s^2",),
+          _TIME: ("ms", "us", "min", "h"), _LENGTH: ("km", "mm", "cm"), (0, 1, 0, 0): ("g",)}
+_UNIT_NAMES = {"deg": "degrees", "deg/s": "degrees", "deg/s^2": "degrees", "ms": "milliseconds",
+               "us": "microseconds", "min": "minutes", "h": "hours", "km": "kilometres", "mm": "millimetres",
+               "cm": "centimetres", "g": "grams"}
+
+
+def figure(x: float) -> str:
+    """A number to 3 significant digits, without an exponent between 1e-4 and 1e6: 458.37 -> '458'."""
+    return f"{float(f'{x:.3g}'):g}"
+
+
+def display_unit(si: float, unit: str) -> str:
+    """The unit people read ``si`` (a value in ``unit``'s SI) in: rad/s -> deg/s, rad -> deg,
+    s -> us, ms, s or h, m -> mm, m or km by magnitude; else ``unit`` itself."""
+    _, dim = parse_unit(unit)
+    if dim in _ANGLE_DISPLAY:
+        return _ANGLE_DISPLAY[dim]
+    size = abs(si)
+    if dim == _TIME:
+        return "s" if size == 0 else "us" if size < 1e-3 else "ms" if size < 1 else "h" if size >= 3600 else "s"
+    if dim == _LENGTH:
+        return "m" if size == 0 else "mm" if size < 1e-2 else "km" if size >= 1e4 else "m"
+    return unit
+
+
+def say(si: float, unit: str, shown: str | None = None) -> str:
+    """``si`` (SI, in ``unit``'s dimension) in the unit people use: say(8, "rad/s") -> '458 deg/s'."""
+    shown = shown or display_unit(si, unit)
+    number = figure(si / parse_unit(shown)[0])
+    return number if shown == "1" else f"{number} {shown}"
+
+
+def say_range(lo: float, hi: float, unit: str) -> str:
+    """A range in the unit people use, the unit once when both ends share it: '0 to 60 deg/s'."""
+    a, b = display_unit(lo, unit), display_unit(hi, unit)
+    if a == b:
+        return f"{figure(lo / parse_unit(a)[0])} to {say(hi, unit, b)}"
+    return f"{say(lo, unit, a)} to {say(hi, unit, b)}"
+
+
+def implausible(written, si: float, unit: str, lo: float, hi: float) -> str | None:
+    """Why a value outside its plausible range [lo, hi] (SI, inclusive) is suspect, or None within it.
+    It says the value as written, in the unit people use, the range, and for a bare number (SI) a
+    unit that would make it plausible: 8 for rad/s -> "8 (read as rad/s) = 458 deg/s, outside the
+    plausible 0 to 60 deg/s; write '8 deg/s' for degrees"."""
+    if lo <= si <= hi:
+        return None
+    number, given = parse_quantity(written, "")
+    typed = written.strip() if isinstance(written, str) else f"{number:.12g}"   # the user's own text
+    shown = display_unit(si, unit)
+    if given is None:
+        as_written = typed + ("" if unit == "1" else f" (read as {unit})")
+        text = as_written if shown == unit else f"{as_written} = {say(si, unit, shown)}"
+    else:
+        text = typed if shown == given else f"{typed} = {say(si, unit, shown)}"
+    text += f", outside the plausible {say_range(lo, hi, unit)}"
+    if given is None and unit != "1":
+        meant = [u for u in _MEANT.get(parse_unit(unit)[1], ()) if lo <= number * parse_unit(u)[0] <= hi]
+        if meant:
+            text += f"; write '{typed} {meant[0]}' for {_UNIT_NAMES[meant[0]]}"
+    return text

@@ -23,11 +23,11 @@ def _fail(message: str, code: int = USAGE_ERROR) -> int:
     return code
 
 
-def _load(path: str, overrides: list[str], full: bool = False):
+def _load(path: str, overrides: list[str], full: bool = False, strict: bool = False):
     from orchestrator.config.yaml_file import ConfigErrors
     from orchestrator.config.load import load
     try:
-        return load(path, overrides, full), None
+        return load(path, overrides, full, strict), None
     except ConfigErrors as e:
         if _is_campaign(path):
             return None, [f"{path}: a campaign file (config:, disperse:, metrics:), not a run's config: "
@@ -61,7 +61,7 @@ def _check_campaign(path: str) -> int:
 def cmd_check(args) -> int:
     if not args.set and _is_campaign(args.config):
         return _check_campaign(args.config)
-    config, errors = _load(args.config, args.set, full=True)
+    config, errors = _load(args.config, args.set, full=True, strict=args.strict)
     if errors:
         for line in errors:
             print(f"error: {line}", file=sys.stderr)
@@ -77,7 +77,7 @@ def cmd_check(args) -> int:
 
 
 def cmd_run(args) -> int:
-    config, errors = _load(args.config, args.set)
+    config, errors = _load(args.config, args.set, strict=args.strict)
     if errors:
         for line in errors:
             print(f"error: {line}", file=sys.stderr)
@@ -417,12 +417,17 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                        help="override a config key, e.g. run.duration=2s (repeatable)")
 
+    def with_strict(p):
+        p.add_argument("--strict", action="store_true", help="the check's warnings (a value outside its plausible "
+                       "range, suspect physics) are errors: exit 2, nothing started (as run.strict: true)")
+
     p = sub.add_parser("run", help="run a config")
     p.add_argument("config")
     p.add_argument("--record", metavar="DIR", help="write signals.parquet, events.jsonl and config.yaml to DIR "
                    "(a new or empty directory)")
     p.add_argument("--overwrite", action="store_true", help="replace the recording already in --record DIR")
     with_set(p)
+    with_strict(p)
     p.add_argument("--view", metavar="{spawn,web,save:FILE.rrd,foxglove[:PORT]}",
                    help="live view in Rerun, or served to Foxglove on ws://localhost:PORT (default 8765)")
     p.add_argument("--ros2", nargs="?", const="", metavar="rclpy|zenoh|auto|ENDPOINT",
@@ -438,6 +443,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("check", help="validate a config without running it")
     p.add_argument("config")
     with_set(p)
+    with_strict(p)
     p.set_defaults(func=cmd_check)
 
     p = sub.add_parser("ps", help="list runs alive on this machine")

@@ -32,7 +32,7 @@ CAMERA_PARAMETERS = (
               description="the bodies in the scene: name (as the dynamics names it) -> its URDF, relative to the config"),
     Parameter("body", Str(), description="the body carrying the camera"),
     Parameter("link", Str(), description="the link of that body the camera is fixed to"),
-    Parameter("position", Vector(3, "m"), description="camera origin in the link frame"),
+    Parameter("position", Vector(3, "m", plausible=(-100.0, 100.0)), description="camera origin in the link frame"),
     Parameter("orientation", Vector(4), description="q_link_camera [x, y, z, w]; camera axes: z forward, x right, y down"),
     Parameter("width", Int(minimum=1), description=f"image width (pixels, at most {MAX_SIZE})"),
     Parameter("height", Int(minimum=1), description=f"image height (pixels, at most {MAX_SIZE})"),
@@ -42,8 +42,8 @@ CAMERA_PARAMETERS = (
     Parameter("cy", Float(), description="principal point y (pixels)"),
     Parameter("distortion", Vector(5), default=None,
               description="plumb_bob lens distortion [k1, k2, p1, p2, k3] (OpenCV's, ROS's); null: an ideal pinhole"),
-    Parameter("near", Float("m", positive=True), description="nearest distance drawn, along the optical axis"),
-    Parameter("far", Float("m", positive=True), description="farthest distance drawn, along the optical axis"),
+    Parameter("near", Float("m", positive=True, plausible=(1e-4, 100.0)), description="nearest distance drawn, along the optical axis"),
+    Parameter("far", Float("m", positive=True, plausible=(0.01, 1e6)), description="farthest distance drawn, along the optical axis"),
     Parameter("depth", Bool(), default=True, description="record the depth image beside the colour image"),
     Parameter("ambient", Float(minimum=0.0, maximum=1.0), default=0.0,
               description="light without the Sun, a fraction of a surface's colour (0: unlit faces and eclipse are black)"),
@@ -51,8 +51,10 @@ CAMERA_PARAMETERS = (
               description="a lamp at the camera's origin: light on a face square to it 1 m away, a fraction of its "
                           "colour, falling off as 1/d^2 (Lambert; 0: none)"),
     Parameter("seed", Int(minimum=0), description="seed of the noise (numpy PCG64)"),
-    Parameter("pixel_noise", Float(minimum=0.0), description="white noise on each colour channel, 1-sigma (counts of 0..255)"),
-    Parameter("depth_noise", Float("m", minimum=0.0), description="white noise on the depth, 1-sigma, where something is hit"),
+    Parameter("pixel_noise", Float(minimum=0.0, plausible=(0.0, 64.0)),
+              description="white noise on each colour channel, 1-sigma (counts of 0..255)"),
+    Parameter("depth_noise", Float("m", minimum=0.0, plausible=(0.0, 1.0)),
+              description="white noise on the depth, 1-sigma, where something is hit"),
 )
 
 

@@ -264,10 +264,10 @@ class ComputedTorqueComponent(Component):
 # --------------------------------------------------------------------------- joint PID
 
 PID_GAINS = Record("PID gains", (
-    Parameter("p", Float("N*m/rad", minimum=0.0), description="proportional gain (N/m for prismatic)"),
-    Parameter("i", Float("N*m/rad/s", minimum=0.0), default=0.0, description="integral gain"),
-    Parameter("d", Float("N*m*s/rad", minimum=0.0), default=0.0, description="derivative gain"),
-    Parameter("i_clamp", Float("N*m", minimum=0.0), default=None,
+    Parameter("p", Float("N*m/rad", minimum=0.0, plausible=(0.0, 1e6)), description="proportional gain (N/m for prismatic)"),
+    Parameter("i", Float("N*m/rad/s", minimum=0.0, plausible=(0.0, 1e6)), default=0.0, description="integral gain"),
+    Parameter("d", Float("N*m*s/rad", minimum=0.0, plausible=(0.0, 1e5)), default=0.0, description="derivative gain"),
+    Parameter("i_clamp", Float("N*m", minimum=0.0, plausible=(0.0, 1e5)), default=None,
               description="bound of the integral term's torque (default: the URDF effort)"),
 ), description="one joint's gains (``gains.<joint>``, ros_control pid style)")
 JOINT_TRAJECTORY = Record("Joint trajectory", (

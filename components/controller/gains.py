@@ -12,9 +12,15 @@ from components.sdk import Parameter
 TASK_AXES = "x, y, z, rotation about x, y, z"
 
 
-def gain(unit: str) -> OneOf:
-    """A non-negative gain in ``unit``: one number for all, or a list (one per axis or joint)."""
-    return OneOf((Float(unit, minimum=0.0), Vector(None, unit, minimum=0.0)))
+def gain(unit: str, plausible: tuple[float, float]) -> OneOf:
+    """A non-negative gain in ``unit``: one number for all, or a list (one per axis or joint);
+    ``plausible``: its range (SI)."""
+    return OneOf((Float(unit, minimum=0.0, plausible=plausible), Vector(None, unit, minimum=0.0, plausible=plausible)))
+
+
+# plausible: a stiffness whose natural frequency stays below 1 kHz (kp = w^2), a damping to match
+STIFFNESS = (0.0, 4e7)
+DAMPING = (0.0, 2e4)
 
 
 def per_item(value: float | np.ndarray, n: int, key: str, each: str = "one per arm joint") -> np.ndarray:
@@ -27,13 +33,13 @@ def per_item(value: float | np.ndarray, n: int, key: str, each: str = "one per a
 
 
 CARTESIAN_GAINS = (
-    Parameter("kp", gain("1/s^2"), default=100.0,
+    Parameter("kp", gain("1/s^2", STIFFNESS), default=100.0,
               description=f"Cartesian K_p, one for all six axes or per axis: {TASK_AXES} (W)"),
-    Parameter("kd", gain("1/s"), default=20.0,
+    Parameter("kd", gain("1/s", DAMPING), default=20.0,
               description=f"Cartesian K_d, one for all six axes or per axis: {TASK_AXES} (W)"),
-    Parameter("null_kp", gain("1/s^2"), default=4.0,
+    Parameter("null_kp", gain("1/s^2", STIFFNESS), default=4.0,
               description="null-space posture stiffness (towards the initial configuration), one or per arm joint"),
-    Parameter("null_kd", gain("1/s"), default=4.0, description="null-space joint damping, one or per arm joint"),
+    Parameter("null_kd", gain("1/s", DAMPING), default=4.0, description="null-space joint damping, one or per arm joint"),
     Parameter("dls_threshold", Float(minimum=0.0), default=0.02,
               description="sigma_min(J_g) below which the pseudo-inverse is damped"),
     Parameter("dls_damping", Float(minimum=0.0), default=0.05, description="damping at sigma_min = 0"),

@@ -164,18 +164,19 @@ _AXES = Parameter("axes", Str(AXES), default="body",
                   description="axes of the offsets: body (the base's initial axes) or world (W)")
 CARTESIAN_WAYPOINT = Record("Cartesian waypoint", (
     Parameter("time", Float("s"), description="the run time (s from t = 0, not from the previous waypoint) at which it is reached; later than the previous one (or start)"),
-    Parameter("position", Vector(3, "m"), default=[0.0, 0.0, 0.0],
+    Parameter("position", Vector(3, "m", plausible=(-100.0, 100.0)), default=[0.0, 0.0, 0.0],
               description="offset from the initial end-effector position"),
-    Parameter("rotation", Vector(3, "rad"), default=[0.0, 0.0, 0.0],
+    Parameter("rotation", Vector(3, "rad", plausible=(-2 * math.pi, 2 * math.pi)), default=[0.0, 0.0, 0.0],
               description="rotation vector applied to the initial orientation"),
 ), description="one waypoint of a waypoints trajectory (offsets in its axes)")
 CARTESIAN = Tagged("Trajectory", "type", (
     Record("hold", (), description="keep the initial pose (type: hold)"),
     Record("parabola", (
         _START,
-        Parameter("duration", Float("s", positive=True), description="time from the start to the end of the move"),
-        Parameter("displacement", Float("m"), default=0.5, description="along the x axis of axes"),
-        Parameter("height", Float("m"), default=0.1, description="apex of the parabola, halfway"),
+        Parameter("duration", Float("s", positive=True, plausible=(1e-3, 86400.0)),
+                  description="time from the start to the end of the move"),
+        Parameter("displacement", Float("m", plausible=(-100.0, 100.0)), default=0.5, description="along the x axis of axes"),
+        Parameter("height", Float("m", plausible=(-100.0, 100.0)), default=0.1, description="apex of the parabola, halfway"),
         _AXES,
     ), description="the paper's move (type: parabola)"),
     Record("waypoints", (

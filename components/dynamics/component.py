@@ -28,6 +28,7 @@ from components.robots.model import JOINT_RATE, JOINT_VALUE, body_items, read_mo
 from components.robots.urdf import UrdfModel
 from components.rotations import continuous
 from components.schema import Float, Int, ListOf, MapOf, OneOf, Record, Str, Vector
+from components.units import DEG
 from components.sdk import Component, Parameter, Variable
 from components.signals import BODY as BODY_OUTPUTS, ORBIT as ORBIT_INPUTS, body_signals, orbit_signals, torque_signal
 
@@ -42,22 +43,30 @@ PER_LINK = "one number for the base link, or link name -> number"
 # attitude grows as its fifth power: 60 s at the orbit's rate, 0.07 rad, is right to 1e-6 deg;
 # 1 h, 4 rad, ends 174 deg off), and the mean motion of the lowest orbit (at Earth's radius)
 MAX_ROTATION_PER_STEP = 0.1
+# plausible (a warning beyond): tumbling debris turns at up to a few tens of deg/s; a base's offset
+# and velocity relative to the orbit point are those of proximity operations
+TUMBLE = (0.0, 60 * DEG)
+RATE = (-60 * DEG, 60 * DEG)
+SPEED = (-100.0, 100.0)
+OFFSET = (-1e5, 1e5)
 ORBIT_RATE_MAX = float(np.sqrt(MU_EARTH / 6378137.0 ** 3))
 SPIN = Record("Spin", (
-    Parameter("rate", Float("rad/s", minimum=0.0), description="angular rate about the axis"),
+    Parameter("rate", Float("rad/s", minimum=0.0, plausible=TUMBLE), description="angular rate about the axis"),
     Parameter("axis", Vector(3), description="the axis (any length but zero; normalized)"),
     Parameter("axes", Str(("body", "frame")),
               description="axes of the axis: the body's own (turned by orientation) or the frame's"),
-    Parameter("linear", Vector(3, "m/s"), default=[0.0, 0.0, 0.0], description="base origin linear velocity"),
+    Parameter("linear", Vector(3, "m/s", plausible=SPEED), default=[0.0, 0.0, 0.0],
+              description="base origin linear velocity"),
 ), description="a twist from parts: rate times axis, and a linear velocity")
 BODY = Record("Body", (
     Parameter("urdf", Str(hint="a URDF file path"),
               description="URDF file, relative to the config file (else to the project root); its root link is the free base"),
     Parameter("frame", Str(("world", "lvlh")), default="world",
               description="frame of position, orientation and twist (lvlh: LVLH at t0, its rotation included)"),
-    Parameter("position", Vector(3, "m"), default=[0.0, 0.0, 0.0], description="base link origin"),
+    Parameter("position", Vector(3, "m", plausible=OFFSET), default=[0.0, 0.0, 0.0], description="base link origin"),
     Parameter("orientation", Vector(4), default=[0.0, 0.0, 0.0, 1.0], description="base attitude [x, y, z, w]"),
-    Parameter("twist", OneOf((Vector(6, units=("m/s",) * 3 + ("rad/s",) * 3), SPIN)), default=[0.0] * 6,
+    Parameter("twist", OneOf((Vector(6, units=("m/s",) * 3 + ("rad/s",) * 3, plausible=(SPEED,) * 3 + (RATE,) * 3),
+                              SPIN)), default=[0.0] * 6,
               description="base origin linear velocity (m/s), then angular velocity (rad/s); or built from parts: "
                           "{rate, axis, axes, linear} (a tumble rate about an axis, each sweepable)"),
     Parameter("q", MapOf(JOINT_VALUE, "joint"), default={},
@@ -65,23 +74,29 @@ BODY = Record("Body", (
     Parameter("qd", MapOf(JOINT_RATE, "joint"), default={},
               description="initial joint rates (rad/s, m/s for prismatic); joints not named start at 0"),
     Parameter("locked_joints", ListOf(Str(), unique=True), default=[], description="joints welded at their initial q"),
-    Parameter("drag_area", OneOf((Float("m^2", minimum=0.0), MapOf(Float("m^2", minimum=0.0), "link"))),
+    Parameter("drag_area", OneOf((Float("m^2", minimum=0.0, plausible=(0.0, 1e4)),
+                                  MapOf(Float("m^2", minimum=0.0, plausible=(0.0, 1e4)), "link"))),
               default={}, description=f"area facing the flow: {PER_LINK}"),
-    Parameter("drag_cd", OneOf((Float(minimum=0.0), MapOf(Float(minimum=0.0), "link"))), default=2.2,
+    Parameter("drag_cd", OneOf((Float(minimum=0.0, plausible=(0.0, 10.0)),
+                                MapOf(Float(minimum=0.0, plausible=(0.0, 10.0)), "link"))), default=2.2,
               description=f"drag coefficient: {PER_LINK}"),
 ), description="one free-floating URDF multibody (``bodies.<name>``)")
 ATMOSPHERE = Record("Atmosphere", (
-    Parameter("altitude", Float("m"), description="reference altitude above the WGS 84 ellipsoid"),
-    Parameter("density", Float("kg/m^3", minimum=0.0), description="density at that altitude"),
-    Parameter("scale_height", Float("m", positive=True), description="height over which the density falls by e"),
+    Parameter("altitude", Float("m", plausible=(0.0, 2e6)), description="reference altitude above the WGS 84 ellipsoid"),
+    Parameter("density", Float("kg/m^3", minimum=0.0, plausible=(0.0, 1.3)), description="density at that altitude"),
+    Parameter("scale_height", Float("m", positive=True, plausible=(1e3, 5e5)),
+              description="height over which the density falls by e"),
 ), description="one exponential layer instead of the 0-1000 km table")
 
 
 TOLERANCE = Record("Tolerance", (
-    Parameter("position", Float("m", minimum=0.0), description="distance between the end effector's and the grasp frame's origins"),
-    Parameter("orientation", Float("rad", minimum=0.0), description="angle between their attitudes"),
-    Parameter("linear_velocity", Float("m/s", minimum=0.0), description="target's velocity relative to the chaser at the end effector"),
-    Parameter("angular_velocity", Float("rad/s", minimum=0.0), description="target's angular velocity relative to the chaser"),
+    Parameter("position", Float("m", minimum=0.0, plausible=(0.0, 1.0)),
+              description="distance between the end effector's and the grasp frame's origins"),
+    Parameter("orientation", Float("rad", minimum=0.0, plausible=(0.0, 45 * DEG)), description="angle between their attitudes"),
+    Parameter("linear_velocity", Float("m/s", minimum=0.0, plausible=(0.0, 1.0)),
+              description="target's velocity relative to the chaser at the end effector"),
+    Parameter("angular_velocity", Float("rad/s", minimum=0.0, plausible=TUMBLE),
+              description="target's angular velocity relative to the chaser"),
 ), description="the grasp closes only within all four")
 GRASP = Record("Grasp", (
     Parameter("chaser", Str(), description="the body whose end effector grasps (the paper's chaser, F_c)"),
@@ -89,9 +104,9 @@ GRASP = Record("Grasp", (
     Parameter("target", Str(), description="the body grasped (the paper's target, F_t)"),
     Parameter("grasp_frame", Str(), description="link of the target: the grasp frame G that E must meet"),
     Parameter("tolerance", TOLERANCE, description="pose and velocity errors within which the grasp closes"),
-    Parameter("force_limit", Float("N", positive=True),
+    Parameter("force_limit", Float("N", positive=True, plausible=(0.1, 1e6)),
               description="the largest force the fixture carries (the weld's force at the grasp point)"),
-    Parameter("torque_limit", Float("N*m", positive=True),
+    Parameter("torque_limit", Float("N*m", positive=True, plausible=(0.01, 1e6)),
               description="the largest torque the fixture carries (about the grasp point)"),
     Parameter("on_overload", Str(OVERLOAD_ACTIONS), default="release",
               description="beyond a limit: release (the weld opens, momentum kept) or hold (stays closed); "
@@ -222,7 +237,7 @@ class OrbitalDynamics(Component):
         Parameter("drag", "bool", default=False, description="atmospheric drag on links with a drag_area"),
         Parameter("atmosphere", ATMOSPHERE, default=None,
                   description="one exponential layer; null (default): the piecewise exponential table 0-1000 km"),
-        Parameter("mu", Float("m^3/s^2", positive=True), default=MU_EARTH, description="Earth's gravitational parameter"),
+        Parameter("mu", Float("m^3/s^2", positive=True, plausible=(1e9, 1e21)), default=MU_EARTH, description="Earth's gravitational parameter"),
         Parameter("joint_limits", "bool", default=True, description="enforce the URDF joint position limits"),
         Parameter("link_outputs", "bool", default=False,
                   description="publish the per-link outputs (poses, environment wrenches)"),

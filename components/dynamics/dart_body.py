@@ -50,13 +50,15 @@ class DartBody(Body):
         uri = dart.common.Uri.createFromPath(str(Path(spec.urdf).resolve()))
         with _captured_stderr() as said:           # DART's C++ warnings: one note instead of raw lines
             skel = loader.parseSkeletonString(dart_urdf_text(model, self.locked), uri)
-        massless = re.findall(r"zero mass \[[^\]]*\] is set to BodyNode \[([^\]]+)\]", said.text)
+        # a massless link a fixed joint holds is harmless (it only adds a frame): no warning of it
+        held = {j.child for j in model.joints if j.type == "fixed"}
+        massless = [name for name in re.findall(r"zero mass \[[^\]]*\] is set to BodyNode \[([^\]]+)\]", said.text)
+                    if name not in held]
         other = [line for line in said.text.splitlines() if line.strip() and "zero mass" not in line]
         if other:
             print("\n".join(other), file=sys.stderr)
-        self.engine_notes = [f"{len(massless)} link(s) without mass, as the URDF gives them (no <inertial>): "
-                             f"{', '.join(massless)}; DART warns of them, which is harmless for links a fixed "
-                             f"joint holds"] if massless else []
+        self.engine_notes = [f"{len(massless)} link(s) without mass that a joint moves, as the URDF gives them "
+                             f"(no <inertial>): {', '.join(massless)}; DART warns of them"] if massless else []
         if skel is None:
             raise ModelError(f"{spec.name}.urdf", f"DART could not load {spec.urdf}")
         skel.setName(spec.name)

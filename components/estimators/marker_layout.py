@@ -32,8 +32,9 @@ DICTIONARY_SIZES = {"DICT_4X4_50": 50, "DICT_4X4_100": 100, "DICT_5X5_50": 50, "
 
 MARKER = Record("Marker", (
     Parameter("id", Int(minimum=0), description="the marker's id in the dictionary"),
-    Parameter("size", Float("m", positive=True), description="side of its black square (the outer edge of its border)"),
-    Parameter("position", Vector(3, "m"), description="its centre in the link frame"),
+    Parameter("size", Float("m", positive=True, plausible=(1e-3, 10.0)),
+              description="side of its black square (the outer edge of its border)"),
+    Parameter("position", Vector(3, "m", plausible=(-100.0, 100.0)), description="its centre in the link frame"),
     Parameter("orientation", Vector(4), description="q_link_marker [x, y, z, w]: marker x right, y up, z out of its face"),
 ))
 LAYOUT = Record("MarkerLayout", (

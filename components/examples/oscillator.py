@@ -7,9 +7,9 @@ class Oscillator(Component):
     """x'' = (force - stiffness * x) / mass, by semi-implicit Euler over each step."""
     type_name = "example.oscillator"
     parameters = (
-        Parameter("mass", "float", unit="kg", description="moving mass"),
-        Parameter("stiffness", "float", unit="N/m", description="spring constant"),
-        Parameter("x0", "float", unit="m", default=0.0, description="initial position"),
+        Parameter("mass", "float", unit="kg", plausible=(1e-3, 1e6), description="moving mass"),
+        Parameter("stiffness", "float", unit="N/m", plausible=(0.0, 1e9), description="spring constant"),
+        Parameter("x0", "float", unit="m", default=0.0, plausible=(-100.0, 100.0), description="initial position"),
     )
 
     @classmethod

@@ -17,6 +17,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from components.constants import NS_PER_S
+import math
+
 from components.errors import ConfigError
 from components.orbit import plots as orbit_plots
 from components.orbit.frames import lvlh_dcm, lvlh_state
@@ -93,12 +95,16 @@ class KeplerComponent(_OrbitComponent):
     """
     type_name = "orbit.kepler"
     parameters = (
-        Parameter("semi_major_axis", "float", unit="m", description="semi-major axis a (m), e.g. '6778 km'"),
+        # plausible: from inside the Earth (a bare 6778 meant in km) out past the Moon
+        Parameter("semi_major_axis", "float", unit="m", plausible=(6.3e6, 1e9),
+                  description="semi-major axis a (m), e.g. '6778 km'"),
         Parameter("eccentricity", "float", unit="1", description="eccentricity, 0 <= e < 1"),
-        Parameter("inclination", "float", unit="rad", description="inclination, 0 to 180 deg"),
-        Parameter("raan", "float", unit="rad", description="right ascension of the ascending node"),
-        Parameter("arg_perigee", "float", unit="rad", description="argument of perigee"),
-        Parameter("mean_anomaly", "float", unit="rad", default=None,
+        # angles: a bare 51.6 meant in degrees is 51.6 rad, beyond a turn
+        Parameter("inclination", "float", unit="rad", plausible=(0.0, math.pi), description="inclination, 0 to 180 deg"),
+        Parameter("raan", "float", unit="rad", plausible=(-2 * math.pi, 2 * math.pi),
+                  description="right ascension of the ascending node"),
+        Parameter("arg_perigee", "float", unit="rad", plausible=(-2 * math.pi, 2 * math.pi), description="argument of perigee"),
+        Parameter("mean_anomaly", "float", unit="rad", default=None, plausible=(-2 * math.pi, 2 * math.pi),
                   description="mean anomaly at run.epoch (or give time_of_perigee)"),
         Parameter("time_of_perigee", UtcTime(), default=None,
                   description="UTC time of a perigee passage, e.g. '2022-09-18T11:30:00Z' (or give mean_anomaly)"),
@@ -239,9 +245,9 @@ class SGP4Component(_OrbitComponent):
 
 WAYPOINT = Record("Waypoint", (
     Parameter("time", Float("s"), description="time since run.epoch"),
-    Parameter("position", Vector(3, "m"), description="position, ECI"),
-    Parameter("velocity", Vector(3, "m/s"), description="velocity, ECI"),
-    Parameter("acceleration", Vector(3, "m/s^2"), description="acceleration, ECI"),
+    Parameter("position", Vector(3, "m", plausible=(-1e9, 1e9)), description="position, ECI"),
+    Parameter("velocity", Vector(3, "m/s", plausible=(-2e4, 2e4)), description="velocity, ECI"),
+    Parameter("acceleration", Vector(3, "m/s^2", plausible=(-100.0, 100.0)), description="acceleration, ECI"),
 ), description="one point of orbit.custom_path's path")
 
 
@@ -322,7 +328,7 @@ class FixedComponent(_OrbitComponent):
     """
     type_name = "orbit.fixed"
     parameters = (
-        Parameter("r_eci", "vector", unit="m", shape=(3,), description="position in ECI"),
+        Parameter("r_eci", "vector", unit="m", shape=(3,), plausible=(-1e9, 1e9), description="position in ECI"),
         Parameter("q_eci_lvlh", "vector", unit="1", shape=(4,), default=np.array([0.0, 0.0, 0.0, 1.0]),
                   description="attitude quaternion [x, y, z, w], LVLH -> ECI"),
     )

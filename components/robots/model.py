@@ -14,8 +14,10 @@ from components.schema import Float, OneOf
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 
 # a joint's value in a config: revolute (rad) or prismatic (m); its rate likewise
-JOINT_VALUE = OneOf((Float("rad"), Float("m")))
-JOINT_RATE = OneOf((Float("rad/s"), Float("m/s")))
+# plausible: a joint within a turn either way (a bare 90 meant in degrees is not), a rate below a
+# robot's fastest joints; prismatic joints within metres
+JOINT_VALUE = OneOf((Float("rad", plausible=(-2 * math.pi, 2 * math.pi)), Float("m", plausible=(-10.0, 10.0))))
+JOINT_RATE = OneOf((Float("rad/s", plausible=(-2 * math.pi, 2 * math.pi)), Float("m/s", plausible=(-10.0, 10.0))))
 # units of a joint's position, rate and effort, by URDF joint type
 JOINT_UNITS = {"revolute": ("rad", "rad/s", "N*m"), "continuous": ("rad", "rad/s", "N*m"),
                "prismatic": ("m", "m/s", "N")}

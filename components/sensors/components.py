@@ -27,6 +27,7 @@ from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.rotations import continuous
 from components.schema import Duration, Float, Int, OneOf, Vector
+from components.units import DEG
 from components.sdk import Component, Parameter, Variable
 from components.sensors.plots import measured_against_true
 from components.sensors import ros as sensor_ros
@@ -42,16 +43,16 @@ def _seed() -> Parameter:
                                                          "replays the same noise bit for bit")
 
 
-def _sigma(name: str, unit: str, what: str, default: Any = ...) -> Parameter:
-    kind = OneOf((Float(unit, minimum=0.0), Vector(3, unit, minimum=0.0)))
+def _sigma(name: str, unit: str, what: str, plausible: tuple[float, float], default: Any = ...) -> Parameter:
+    kind = OneOf((Float(unit, minimum=0.0, plausible=plausible), Vector(3, unit, minimum=0.0, plausible=plausible)))
     description = f"{what}: 1-sigma per sample, one for every axis or one per axis (0: none)"
     if default is ...:
         return Parameter(name, kind, description=description)
     return Parameter(name, kind, default=default, description=description)
 
 
-def _bias(name: str, unit: str, what: str, default: Any = ...) -> Parameter:
-    kind = OneOf((Float(unit), Vector(3, unit)))
+def _bias(name: str, unit: str, what: str, plausible: tuple[float, float], default: Any = ...) -> Parameter:
+    kind = OneOf((Float(unit, plausible=plausible), Vector(3, unit, plausible=plausible)))
     description = f"{what}: added to every sample, one for every axis or one per axis"
     if default is ...:
         return Parameter(name, kind, description=description)
@@ -101,12 +102,13 @@ class ImuComponent(_SeededSensor):
     rosbag = sensor_ros.IMU
     parameters = (
         _seed(),
-        _sigma("rate_noise", "rad/s", "gyro white noise"),
-        _bias("rate_bias", "rad/s", "gyro bias (its start value when it walks)"),
-        _sigma("rate_bias_walk", "rad/s", "gyro bias random walk, the increment", default=0.0),
-        _sigma("accel_noise", "m/s^2", "accelerometer white noise"),
-        _bias("accel_bias", "m/s^2", "accelerometer bias (its start value when it walks)"),
-        _sigma("accel_bias_walk", "m/s^2", "accelerometer bias random walk, the increment", default=0.0),
+        # plausible: what a MEMS gyro and accelerometer give at most, a sample at a time
+        _sigma("rate_noise", "rad/s", "gyro white noise", (0.0, 10 * DEG)),
+        _bias("rate_bias", "rad/s", "gyro bias (its start value when it walks)", (-10 * DEG, 10 * DEG)),
+        _sigma("rate_bias_walk", "rad/s", "gyro bias random walk, the increment", (0.0, 1 * DEG), default=0.0),
+        _sigma("accel_noise", "m/s^2", "accelerometer white noise", (0.0, 1.0)),
+        _bias("accel_bias", "m/s^2", "accelerometer bias (its start value when it walks)", (-1.0, 1.0)),
+        _sigma("accel_bias_walk", "m/s^2", "accelerometer bias random walk, the increment", (0.0, 0.1), default=0.0),
     )
     variables = (
         Variable("rate_true", "input", (3,), "rad/s", [0.0] * 3, "true angular rate of the body, body axes"),
@@ -165,10 +167,10 @@ class ForceTorqueComponent(_SeededSensor):
     rosbag = sensor_ros.FORCE_TORQUE
     parameters = (
         _seed(),
-        _sigma("force_noise", "N", "force white noise"),
-        _sigma("torque_noise", "N*m", "torque white noise"),
-        _bias("force_bias", "N", "force bias", default=0.0),
-        _bias("torque_bias", "N*m", "torque bias", default=0.0),
+        _sigma("force_noise", "N", "force white noise", (0.0, 1e3)),
+        _sigma("torque_noise", "N*m", "torque white noise", (0.0, 1e3)),
+        _bias("force_bias", "N", "force bias", (-1e3, 1e3), default=0.0),
+        _bias("torque_bias", "N*m", "torque bias", (-1e3, 1e3), default=0.0),
     )
     variables = (
         Variable("wrench_true", "input", (6,), "N, N*m", [0.0] * 6,
@@ -227,9 +229,9 @@ class RelativePoseComponent(_SeededSensor):
     rosbag = sensor_ros.RELATIVE_POSE
     parameters = (
         _seed(),
-        _sigma("position_noise", "m", "position white noise, sensor axes"),
-        _sigma("angle_noise", "rad", "rotation white noise, a small rotation vector in target axes"),
-        Parameter("latency", Duration(positive=False),
+        _sigma("position_noise", "m", "position white noise, sensor axes", (0.0, 1.0)),
+        _sigma("angle_noise", "rad", "rotation white noise, a small rotation vector in target axes", (0.0, 10 * DEG)),
+        Parameter("latency", Duration(positive=False, plausible=(0.0, 10.0)),
                   description="age of a measurement when published, a whole number of the component's steps (0 allowed)"),
     )
     variables = (

@@ -11,6 +11,7 @@ from typing import Any
 from components import registry
 from components.constants import NS_PER_S
 from components.errors import ConfigError
+from components.schema import implausible_values
 from components.units import duration_text
 from orchestrator.config import groups
 from orchestrator.hosts import bus_config
@@ -110,14 +111,14 @@ def ros2_spec(raw: Any, where: str, errors: list[str], endpoint: str | None = No
                     topics=section["topics"], rate_hz=section["rate"], transport=transport, python=python, why=why)
 
 
-def load(path: str | Path, overrides: list[str] = (), full: bool = False) -> RunConfig:
+def load(path: str | Path, overrides: list[str] = (), full: bool = False, strict: bool = False) -> RunConfig:
     """Read, override and validate ``path``; raises ConfigErrors listing every problem. ``full``
     (``orchestrator check``): the components also load what they would at the start (URDFs into
-    DART), so that what fails there fails here."""
+    DART), so that what fails there fails here. ``strict`` (``--strict``): warnings are errors."""
     path = Path(path)
     raw = read_yaml(path)
     apply_overrides(raw, list(overrides))
-    return validate(raw, path, full)
+    return validate(raw, path, full, strict)
 
 
 def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, epoch: str,
@@ -138,7 +139,8 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
         raise ConfigErrors([f"{key}.parameters: expected a mapping, got {params_raw!r}"])
     unresolved = None
     try:
-        resolved = registry.resolve(cls, params_raw, epoch=epoch, config_dir=config_dir, packages=packages)
+        with implausible_values() as found:
+            resolved = registry.resolve(cls, params_raw, epoch=epoch, config_dir=config_dir, packages=packages)
     except registry.Unresolved as e:
         unresolved = e
     if unresolved and unresolved.stage == "parameters":
@@ -156,13 +158,16 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
     return ComponentSpec(name=name, type=type_name, cls=cls, step_ns=step_ns, parameters=params_raw,
                          resolved=resolved.params, launch=entry["launch"], dedicated_cpu=entry["dedicated_cpu"],
                          on_failure=entry["on_failure"], process=entry["process"], inputs=resolved.inputs,
-                         outputs=resolved.outputs)
+                         outputs=resolved.outputs, implausible=[f"{key}.parameters.{f}" for f in found])
 
 
-def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
-    """The config checked against CONFIG, then across its parts (components, connections, events)."""
+def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) -> RunConfig:
+    """The config checked against CONFIG, then across its parts (components, connections, events).
+    Its warnings (values outside their plausible range, suspect physics) are ``notes``; with
+    ``strict`` (``--strict``) or ``run.strict: true`` they are errors."""
     file = path
-    config, problems = CONFIG.resolve(raw)
+    with implausible_values() as found:
+        config, problems = CONFIG.resolve(raw)
     errors = [f"{file}: {e.key}: {e.message}" for e in problems]
     run = config.get("run", {})
     step_ns, total_ns, epoch = run.get("step"), run.get("duration"), run.get("epoch")
@@ -192,7 +197,8 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
                         component_spec(n, e, step_ns, config_dir, epoch, key, packages)))
             except ConfigErrors as e:
                 errors += [f"{file}: {m}" for m in e.errors]
-    notes = []
+    notes = [f"{file}: {f}" for f in found]
+    notes += [f"{file}: {line}" for spec in [*components.values(), *shadows.values()] for line in spec.implausible]
     for spec in [*components.values(), *shadows.values()]:
         key = f"{spec.key}.parameters"
         try:
@@ -210,6 +216,7 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
     events = _events(config.get("events", []), components, connections, step_ns, total_ns, config_dir, epoch,
                      file, errors, packages)
     faults = _faults(config.get("faults", []), components, total_ns, file, errors)
+    notes += [f"{file}: {line}" for event in events for line in event.spec.implausible]
     restarting = [n for n, spec in components.items() if spec.on_failure == "restart"]
     errors += [f"{file}: {p}" for p in frame_problems(components, connections, restarting)]
     for name, spec in components.items():
@@ -240,6 +247,10 @@ def validate(raw: dict, path: Path, full: bool = False) -> RunConfig:
         errors += [f"{file}: {m}" for m in problems_of_ros2]
         if clash := clock_clash(components, ros2, "ros2"):
             errors.append(f"{file}: {clash}")
+    if not errors and notes and (strict or run["strict"]):
+        why = "--strict" if strict else "run.strict: true"
+        errors = notes + [f"{file}: {why} makes the warning above an error" if len(notes) == 1 else
+                          f"{file}: {why} makes the {len(notes)} warnings above errors"]
     if errors:
         raise ConfigErrors(errors)
     resolved = {

@@ -15,6 +15,10 @@ ROS2_ENDPOINT = "tcp/localhost:7447"   # rmw_zenohd's default listen endpoint
 ROS2_TRANSPORTS = ("auto", "rclpy", "zenoh")   # components/ros2/rclpy_transport.py
 ROS2_DISTROS = ("jazzy", "kilted", "lyrical")   # rmw_zenoh with type hashes in its keys (Jazzy and later)
 NAME = r"[A-Za-z][A-Za-z0-9_]*"
+# plausible (a warning beyond, in s and Hz): a step from a microsecond (a fast loop) to an hour (an
+# orbit alone); a live view's rate from a frame a minute to a kHz
+STEP = (1e-6, 3600.0)
+RATE = (1 / 60, 1e3)
 ENDPOINT = r"(tcp|udp|tls|quic)/(\[[0-9a-fA-F:]+\]|[A-Za-z0-9.\-]+):\d{1,5}"
 
 RUN = Record("run", (
@@ -22,17 +26,17 @@ RUN = Record("run", (
               description="the run's name: its recording folder and bus keys"),
     Parameter("epoch", UtcTime(), description="UTC time of t = 0, e.g. 2022-09-18T12:00:00Z"),
     Parameter("duration", Duration(), description="simulated time, a whole number of steps"),
-    Parameter("step", Duration(), description="communication step; components may take multiples of it"),
+    Parameter("step", Duration(plausible=STEP), description="communication step; components may take multiples of it"),
     Parameter("algorithm", Str(ALGORITHMS), default="jacobi",
               description="jacobi: all step on the last outputs; gauss-seidel: in config order, on the newest"),
     Parameter("realtime", Float(minimum=0.0), default=0.0,
               description="0: as fast as possible; k: paced at k times the wall clock"),
-    Parameter("step_timeout", Duration(), default="10 s",
+    Parameter("step_timeout", Duration(plausible=(0.1, 86400.0)), default="10 s",
               description="wall time a component may take for one step before the run fails"),
-    Parameter("start_timeout", Duration(), default="3 min",
+    Parameter("start_timeout", Duration(plausible=(1.0, 86400.0)), default="3 min",
               description="wall time a component may take to start and initialize (a first run on a "
                           "machine compiles the kernels: 20-45 s on 2 cores)"),
-    Parameter("join_timeout", Duration(), default="5 min",
+    Parameter("join_timeout", Duration(plausible=(1.0, 7 * 86400.0)), default="5 min",
               description="wall time a launch: external component may take to join (orchestrator join), "
                           "and to join again after it was lost"),
     Parameter("checkpoint_every", Duration(), default=None,
@@ -40,9 +44,12 @@ RUN = Record("run", (
                           "(none: the start is the only one)"),
     Parameter("max_restarts", Int(minimum=0), default=3,
               description="restarts from a checkpoint before a failure ends the run"),
-    Parameter("record_flush", Duration(), default="1 s",
+    Parameter("record_flush", Duration(plausible=(1e-3, 3600.0)), default="1 s",
               description="wall time at most between the recording's writes to disk (besides every 1000 rows): "
                           "a full disk or a kill loses no more than this"),
+    Parameter("strict", Bool(), default=False,
+              description="true: the check's warnings (a value outside its plausible range, suspect physics) are "
+                          "errors, as with --strict"),
     Parameter("packages", MapOf(Str(hint="a directory"), "package name"), default={},
               description="ROS packages by name -> directory (relative to the config file), for package:// URIs "
                           "and $(find NAME) in URDFs; looked up before ROS_PACKAGE_PATH and installed packages"),
@@ -59,7 +66,7 @@ BUS = Record("bus", (
     Parameter("router", Str(pattern=ENDPOINT, hint="a Zenoh endpoint like tcp/192.0.2.7:7447"), default=None,
               description="a router every process of the run links to (orchestrator router), for hosts that "
                           "cannot reach each other"),
-    Parameter("lease", Duration(), default="10 s",
+    Parameter("lease", Duration(plausible=(0.1, 3600.0)), default="10 s",
               description="a link silent this long counts as dead: its component is lost (keep-alives every quarter)"),
     Parameter("tls", OneOf((Bool(), Str(("auto",)))), default="auto",
               description="mutual TLS on every link (true | false); auto: on when the bus leaves loopback "
@@ -78,7 +85,7 @@ VIEWER = Record("viewer", (
                                                      "serve the run to Foxglove (WebSocket), or off"),
     Parameter("file", Str(pattern=r".+\.rrd", hint="a file name ending in .rrd"), default=None,
               description="the recording of save, relative to the config file"),
-    Parameter("rate", Float("Hz", positive=True), default=30.0,
+    Parameter("rate", Float("Hz", positive=True, plausible=RATE), default=30.0,
               description="rows drawn per second of simulated time, as every n-th step, n = round(1 / (rate * "
                           "run.step)), at least 1: 30 Hz at a 10 ms step is every 3rd, 33.3 a second"),
     Parameter("open_browser", Bool(), default=False, description="web: open the viewer in a browser"),
@@ -102,7 +109,7 @@ ROS2 = Record("ros2", (
     Parameter("topics", ListOf(Str(hint="a topic name like /clock"), unique=True), default=None,
               description="the topics published, by name as orchestrator export --rosbag2 writes them "
                           "(default: all)"),
-    Parameter("rate", Float("Hz", positive=True), default=30.0,
+    Parameter("rate", Float("Hz", positive=True, plausible=RATE), default=30.0,
               description="rows published per second of simulated time, as every n-th step, n = round(1 / "
                           "(rate * run.step)), at least 1 (30 Hz at a 10 ms step: every 3rd, 33.3 a second; with a "
                           "viewer, the higher of the two rates)"),
@@ -116,7 +123,7 @@ SHADOW = Record("shadow", (
 COMPONENT = Record("component", (
     Parameter("type", Str(hint="a component type name"),
               description="a built-in type (orchestrator types), module:Class or file.py:Class"),
-    Parameter("step", Duration(), default=None, description="its step, a multiple of run.step (default: run.step)"),
+    Parameter("step", Duration(plausible=STEP), default=None, description="its step, a multiple of run.step (default: run.step)"),
     Parameter("parameters", Anything(), default={}, description="the type's parameters (orchestrator describe TYPE)"),
     Parameter("launch", Str(("local", "external")), default="local",
               description="local: the orchestrator starts it; external: you do (orchestrator ps prints how)"),

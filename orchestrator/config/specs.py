@@ -23,6 +23,7 @@ class ComponentSpec:
     on_failure: str = "stop"      # or "restart": the run goes back to its last checkpoint
     process: str | None = None    # its process group: the components naming it share one process
     shadow_of: str | None = None  # the component this one shadows (orchestrator/config/shadows.py)
+    implausible: list = field(default_factory=list)   # "<key>: why" of parameters outside their plausible range
 
     @property
     def key(self) -> str:
@@ -102,7 +103,7 @@ class RunConfig:
     ros2: Ros2Spec | None = None
     resolved: dict = field(default_factory=dict)   # the config as written to config.yaml
     packages: dict = field(default_factory=dict)   # run.packages: name -> absolute directory
-    notes: list = field(default_factory=list)      # warnings found by the check (physics), one line each
+    notes: list = field(default_factory=list)      # warnings found by the check (implausible values, physics), one line each
     record_flush_s: float = 1.0                    # run.record_flush
 
     @property

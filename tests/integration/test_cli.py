@@ -232,7 +232,8 @@ def test_describe_shows_nested_parameters_typed_and_the_config_sections():
     dynamics = orchestrator("describe", "dynamics.dart")
     lines = [line.split() for line in dynamics.stdout.splitlines()]
     assert ["bodies", "{body", "name:", "Body}", "required"] == lines[[l[:1] for l in lines].index(["bodies"])][:5]
-    assert ["position", "float[3]", "[m]", "default"] == lines[[l[:1] for l in lines].index(["position"])][:4]
+    assert (["position", "float[3]", "[m];", "plausible", "-100", "to", "100", "km", "default"]
+            == lines[[l[:1] for l in lines].index(["position"])][:9])
     assert "Body: one free-floating URDF multibody (bodies.<name>)" in dynamics.stdout
     pid = orchestrator("describe", "controller.joint_pd").stdout
     assert "PID gains: one joint's gains" in pid and "float [N*m/rad]" in pid
@@ -296,12 +297,43 @@ def test_check_compiles_no_kernel(tmp_path):
     assert not compiled, compiled
 
 
-def test_dart_warnings_on_massless_links_are_one_note():
-    """The Panda on a bus (panda_link8 has no <inertial>): `check` gives one note naming the link,
-    and none of DART's raw C++ warning lines (issue 34)."""
-    result = subprocess.run([sys.executable, "-m", "orchestrator.cli", "check", str(ROOT / "configs" / "panda_on_bus.yaml")],
-                            cwd=ROOT, capture_output=True, text=True, timeout=300)
+def test_dart_warnings_on_massless_links_are_no_noise():
+    """The Panda on a bus (panda_link8 has no <inertial>, on a fixed joint: harmless): `check
+    --strict` passes, with none of DART's raw C++ warning lines (issue 34) and no warning."""
+    result = subprocess.run([sys.executable, "-m", "orchestrator.cli", "check", "--strict",
+                             str(ROOT / "configs" / "panda_on_bus.yaml")], cwd=ROOT, capture_output=True, text=True,
+                            timeout=300)
     assert result.returncode == 0, result.stderr
     assert "BodyNode.cpp" not in result.stderr and "\x1b[" not in result.stderr, result.stderr
-    notes = [line for line in result.stderr.splitlines() if "without mass" in line]
-    assert len(notes) == 1 and "bodies.sat: 1 link(s) without mass" in notes[0] and "panda_link8" in notes[0], notes
+    assert "without mass" not in result.stderr and "warning" not in result.stderr, result.stderr
+
+
+def test_an_implausible_value_is_a_warning_and_under_strict_an_error(write_config, tmp_path):
+    """Issue 44: a tumble rate of 8 meant in deg/s is said in deg/s by check (exit 0), refused by
+    check --strict (exit 2); a run warns of a mass beyond its range, in events.jsonl too, and
+    run --strict starts nothing."""
+    capture = ROOT / "configs" / "capture_tumbling_target.yaml"
+    rate = "components.dynamics.parameters.bodies.target.twist.rate"
+    line = (f"{capture}: {rate}: 8 (read as rad/s) = 458 deg/s, outside the plausible 0 to 60 deg/s; "
+            f"write '8 deg/s' for degrees")
+    check = orchestrator("check", capture, "--set", f"{rate}=8")
+    assert check.returncode == 0 and check.stderr.splitlines() == [f"warning: {line}"], check.stderr
+    strict = orchestrator("check", capture, "--set", f"{rate}=8", "--strict")
+    assert strict.returncode == 2 and strict.stderr.splitlines() == [
+        f"error: {line}", f"error: {capture}: --strict makes the warning above an error"], strict.stderr
+    config = write_config("""
+run: {name: heavy, epoch: 2022-09-18T12:00:00Z, duration: 10 ms, step: 1 ms}
+components:
+  spring: {type: components.examples.oscillator:Oscillator, parameters: {mass: 1e7, stiffness: 8 N/m}}
+""")
+    said = (f"{config}: components.spring.parameters.mass: 1e7 (read as kg), outside the plausible 0.001 to 1e+06 kg; "
+            f"write '1e7 g' for grams")
+    run = orchestrator("run", config, "--record", tmp_path / "rec")
+    assert run.returncode == 0, run.stderr
+    assert f"warning: {said}" in run.stderr.splitlines(), run.stderr
+    events = [json.loads(line) for line in (tmp_path / "rec" / "events.jsonl").read_text().splitlines()]
+    assert [e["message"] for e in events if e["event"] == "warning"] == [said]
+    refused = orchestrator("run", config, "--record", tmp_path / "strict", "--strict")
+    assert refused.returncode == 2 and refused.stderr.splitlines() == [
+        f"error: {said}", f"error: {config}: --strict makes the warning above an error"], refused.stderr
+    assert not (tmp_path / "strict").exists() or not any((tmp_path / "strict").iterdir())

@@ -137,7 +137,7 @@ def _momentum_changed_by(params: dict) -> str:
     external = [name for key, name in (("tidal_force", "the tidal force"), ("gravity_gradient", "gravity gradient")) if params.get(key, True)]
     if not external:
         return "(no external force: the capture and wheels only exchange it)"
-    return f"(changed by {' and '.join(external)}, not the capture)"
+    return f"(changed by {' and '.join(external)})"
 
 
 BODIES = Plot("{c}_{body}.png", "per body: attitude against LVLH as a rotation vector (about z: the pitch of a "

@@ -130,11 +130,39 @@ def figures(record_dir, signals: list[str] | None = None,
         return _signals(signals, run)
     warn = warn or (lambda message: print(f"plot: {message}", file=sys.stderr, flush=True))
     written = _declared(run, warn) + shadow_figures(run.config, run.columns, run.time)
+    if outcome := recorded_outcome(record_dir):   # every figure says how the run ended (a figure is shown alone)
+        for _, fig in written:
+            _titled(fig, outcome)
     if not written:
         types = ", ".join(sorted({(s or {}).get("type", "?") for s in (run.config.get("components") or {}).values()}))
         raise PlotError(f"nothing to plot in {record_dir}: no figures for its component types ({types}); "
                         f"name columns to plot with --signals NAME,NAME")
     return written
+
+
+def recorded_outcome(record_dir: Path) -> str | None:
+    """The run's outcome in words (events.jsonl's end event, orchestrator/run/outcome.py), if any."""
+    import json
+    try:
+        lines = (Path(record_dir) / "events.jsonl").read_text().splitlines()
+    except OSError:
+        return None
+    for line in reversed(lines):
+        try:
+            event = json.loads(line)
+        except ValueError:   # a run killed mid-line
+            continue
+        if event.get("event") == "end":
+            return event.get("outcome_text")
+    return None
+
+
+def _titled(fig, outcome: str) -> None:
+    """The outcome above the figure's own title, in lines that fit its width."""
+    import textwrap
+    own = fig._suptitle.get_text() if fig._suptitle is not None else ""
+    text = textwrap.fill(f"run outcome: {outcome}", width=max(40, int(fig.get_figwidth() * 11)))
+    fig.suptitle(f"{text}\n{own}" if own else text, fontsize="medium")
 
 
 def plot_recording(record_dir, out_dir, signals: list[str] | None = None) -> list[Path]:

@@ -182,12 +182,12 @@ def phases(run: RecordedRun, c: str) -> dict:
     twin.yaxis.get_major_locator().set_params(integer=True)
     lines = ax.get_legend_handles_labels()[0] + twin.get_legend_handles_labels()[0]
     ax.legend(lines, [line.get_label() for line in lines], loc="lower right", fontsize="x-small", ncols=2)
-    axes["distance"].plot(t, distance[:, 0], color="black", linewidth=1.0)
+    axes["distance"].plot(t, distance[:, 0], color="black", linewidth=1.0, label="grasp_distance")
     axes["distance"].set(ylabel="m")
     axes["distance"].set_title("estimated distance from the end effector to the grasp frame", loc="left")
     for k, (title, unit, scale) in enumerate(CLOSE_ERRORS):
         ax = axes[f"e{k}"]
-        ax.plot(t, scale * errors[:, k], linewidth=1.0, color=f"C{k}")
+        ax.plot(t, scale * errors[:, k], linewidth=1.0, color=f"C{k}", label=f"close_errors[{k}]")
         ax.set_ylabel(unit)
         ax.set_title(f"estimated {title}", loc="left", fontsize="medium")
     for name in ("e2", "e3"):

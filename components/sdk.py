@@ -72,6 +72,29 @@ class Variable:
         return [f"{prefix}.{self.name}[{i}]" for i in range(self.size)]
 
 
+@dataclass(frozen=True)
+class Outcome:
+    """An end a run comes to, as a component type declares it (its ``outcomes``; the capture:
+    captured, aborted, undecided). ``events``: the component's own events that put the run in
+    this outcome; at the end the last such event decides, and with none the first outcome declared
+    holds. ``says``: the run's summary line for it, a format string over the deciding event's
+    fields and ``end`` (the run's end, s), e.g. ``"captured at {time:g} s"``."""
+    name: str
+    says: str
+    events: tuple[str, ...] = ()
+    description: str = ""
+
+    def text(self, fields: Mapping[str, Any], end_s: float) -> str:
+        """``says`` filled in; a field the event lacks reads '?' (the line is still written)."""
+        class Missing(dict):
+            def __missing__(self, key):
+                return "?"
+        try:
+            return self.says.format_map(Missing({**fields, "end": end_s}))
+        except (ValueError, TypeError):   # a field of another type than the format expects
+            return self.name
+
+
 class Component:
     """Base class of a component type. Subclasses set ``type_name`` and ``parameters``, and
     ``variables`` when they do not depend on the parameters (else they override ``declare``).
@@ -105,9 +128,13 @@ class Component:
     #: What ``orchestrator export DIR --rosbag2 OUT`` writes for a component of this type, as ROS 2
     #: messages (:class:`components.rosbag.RosExport`). None: nothing (the exporter names it).
     rosbag: ClassVar[RosExport | None] = None
+    #: The ends a run with a component of this type comes to (:class:`Outcome`): the summary line
+    #: states it, ``run --expect NAME`` checks it, events.jsonl's end event records it. Empty: none.
+    outcomes: ClassVar[tuple[Outcome, ...]] = ()
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
+        _check_outcomes(cls)
         cls.schema = Record(cls.type_name or cls.__name__, tuple(cls.parameters),
                             noun=f"parameter of {cls.type_name or cls.__name__}", extra=RUN_PARAMETERS)
         if cls.__dict__.get("__doc__"):   # its own docstring, not an inherited one
@@ -235,9 +262,23 @@ def declaration_tables(cls: type[Component]) -> str:
     if cls.plots:
         parts += ["", "Plots (``orchestrator plot``):", "", "| file | content |", "|---|---|"]
         parts += [f"| ``{plot.file}`` | {plot.description} |" for plot in cls.plots]
+    if cls.outcomes:
+        parts += ["", "Outcomes (the run's summary line, ``run --expect NAME``; the first holds until an event "
+                      "decides):", "", "| outcome | decided by the event | description |", "|---|---|---|"]
+        parts += [f"| {o.name} | {', '.join(o.events) or '(none: the start)'} | {o.description} |"
+                  for o in cls.outcomes]
     if cls.rosbag is not None:
         parts += ["", f"ROS 2 messages (``orchestrator export --rosbag2``): {cls.rosbag.description}."]
     return "\n".join(parts)
+
+
+def _check_outcomes(cls) -> None:
+    """A type's outcomes: distinct names, each event deciding one outcome at most."""
+    names = [o.name for o in cls.outcomes]
+    events = [e for o in cls.outcomes for e in o.events]
+    if len(set(names)) < len(names) or len(set(events)) < len(events):
+        raise TypeError(f"{cls.type_name or cls.__name__}: outcomes need distinct names and an event deciding one "
+                        f"outcome at most, got {[(o.name, o.events) for o in cls.outcomes]}")
 
 
 # The events the orchestrator itself writes to events.jsonl; a component's emit() cannot use them.

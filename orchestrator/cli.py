@@ -1,7 +1,8 @@
 """`orchestrator` command line (docs/design.md §5).
 
 Exit codes: 0 success; 1 the run failed (a component crashed, hung or produced NaN);
-2 bad usage or bad config; 130 interrupted (Ctrl-C).
+2 bad usage or bad config; 3 the run ended in another outcome than --expect (run.expect) names;
+130 interrupted (Ctrl-C).
 """
 from __future__ import annotations
 
@@ -58,14 +59,22 @@ def _check_campaign(path: str) -> int:
     return 0
 
 
+def _expect_problem(config, expect: str | None) -> str | None:
+    """--expect NAME against the outcomes the run's components declare."""
+    from orchestrator.run.outcome import expect_problem
+    return f"--expect {problem}" if expect and (problem := expect_problem(config.components, expect)) else None
+
+
 def cmd_check(args) -> int:
-    if not args.set and _is_campaign(args.config):
+    if not args.set and not args.expect and _is_campaign(args.config):
         return _check_campaign(args.config)
     config, errors = _load(args.config, args.set, full=True, strict=args.strict)
     if errors:
         for line in errors:
             print(f"error: {line}", file=sys.stderr)
         return USAGE_ERROR
+    if problem := _expect_problem(config, args.expect):
+        return _fail(problem)
     for line in config.notes:
         print(f"warning: {line}", file=sys.stderr)
     shadows = [n for n, s in config.components.items() if s.shadow_of]
@@ -82,6 +91,8 @@ def cmd_run(args) -> int:
         for line in errors:
             print(f"error: {line}", file=sys.stderr)
         return USAGE_ERROR
+    if problem := _expect_problem(config, args.expect):
+        return _fail(problem)
     lock = None   # held (open, flock'ed) until this process ends: the directory is this run's
     if args.record:
         from orchestrator.run.recording import RecordingError, claim_directory
@@ -121,7 +132,7 @@ def cmd_run(args) -> int:
             return _fail(clash)
     from orchestrator.run.engine import Run
     run = Run(config, record=args.record, profile=args.profile, progress=sys.stderr.isatty(), viewer=viewer,
-              ros2=ros2)
+              ros2=ros2, expect=args.expect)
     try:
         return run.execute()
     finally:
@@ -435,6 +446,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "Fast DDS by default), zenoh (rmw_zenoh's wire through its router at tcp/localhost:7447), "
                         "ENDPOINT (zenoh through that router), auto (rclpy if a Python here imports it, else "
                         "zenoh); default: the ros2: section's, else auto. ROS_DOMAIN_ID is the domain")
+    p.add_argument("--expect", metavar="OUTCOME", help="the outcome the run must come to, one its components declare "
+                   "(controller.capture: captured, aborted, undecided): another ends it with exit code 3 "
+                   "(overrides run.expect)")
     p.add_argument("--profile", action="store_true", help="print, at the end, each component's compute time and "
                    "waiting time per step (waiting: for its inputs or the horizon, the bus included) and the share "
                    "of the wall time it computes")
@@ -444,6 +458,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("config")
     with_set(p)
     with_strict(p)
+    p.add_argument("--expect", metavar="OUTCOME", help="check that the run can come to this outcome (run --expect)")
     p.set_defaults(func=cmd_check)
 
     p = sub.add_parser("ps", help="list runs alive on this machine")

@@ -88,6 +88,12 @@ def components_page() -> str:
         cls = registry.load(type_name)
         lines += [f"## {type_name}", "", _summary(cls), "", "**Parameters**", ""]
         lines += [markdown(cls.schema) if cls.parameters else "(none)", ""]
+        if cls.outcomes:   # what the summary line and `run --expect` say
+            lines += ["**Outcomes** (the run's summary line, `orchestrator run --expect OUTCOME`; the first holds "
+                      "until an event decides)", "", "| outcome | decided by its event | summary line |", "|---|---|---|"]
+            lines += [f"| {o.name} | {', '.join(f'`{e}`' for e in o.events) or '(none: the start)'} | "
+                      f"{_cell(o.says)} |" for o in cls.outcomes]
+            lines.append("")
         where, variables = _variables(type_name, cls)
         if where is None:
             lines += [f"**Variables** depend on its parameters: `orchestrator describe {type_name} "
@@ -132,7 +138,8 @@ def cli_page() -> str:
              "",
              f"`orchestrator COMMAND ...`: {parser.description} `orchestrator COMMAND --help` prints a command's "
              "usage. Exit codes: 0 success, 1 the run failed (a component crashed, hung or produced NaN, or the "
-             "recording could not be written), 2 bad usage or config, 130 interrupted (Ctrl-C).",
+             "recording could not be written), 2 bad usage or config, 3 the run ended in another outcome than "
+             "`--expect` (`run.expect`) names, 130 interrupted (Ctrl-C).",
              "",
              "| command | does |", "|---|---|"]
     lines += [f"| [`{name}`](#{name}) | {_cell(helps[name])} |" for name in sub.choices]

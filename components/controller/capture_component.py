@@ -27,7 +27,7 @@ from components.errors import ConfigError
 from components.robots.model import arm_reach, read_model
 from components.rotations import rpy_to_matrix
 from components.schema import Float, Int, ListOf, Str
-from components.sdk import Component, Parameter, Variable
+from components.sdk import Component, Outcome, Parameter, Variable
 from components.signals import BODY_STATE, body_signals, torque_signal
 from components.units import DEG
 
@@ -92,6 +92,15 @@ class CaptureComponent(Component):
     type_name = "controller.capture"
     plots = (controller_plots.TORQUES, controller_plots.PHASES)
     view = ControllerView
+    # the controller's own events: a capture the grasp lost again (capture_retreat) is undecided again
+    outcomes = (
+        Outcome("undecided", "undecided: neither captured nor aborted by {end:g} s", ("capture_retreat",),
+                "neither captured nor aborted at the end (or the grasp opened again after a capture)"),
+        Outcome("captured", "captured at {time:g} s", ("capture_closed",),
+                "the dynamics closed the grasp and it held to the end"),
+        Outcome("aborted", "capture aborted at {time:g} s: {reason}", ("capture_aborted",),
+                "the capture was given up (attempts, no window, capture_timeout)"),
+    )
     parameters = (
         Parameter("urdf", "str", description="the servicer's URDF, relative to the config file"),
         Parameter("joints", ListOf(Str(), min_items=1, unique=True),

@@ -153,30 +153,47 @@ def joints(run: RecordedRun, c: str) -> dict:
     return {f"{c}_joints.png": fig}
 
 
-CLOSE_ERRORS = ("position (m)", "attitude (rad)", "velocity (m/s)", "rate (rad/s)")   # close_errors' elements
+# close_errors' elements: (title, unit, scale to that unit), each on an axis of its own
+CLOSE_ERRORS = (("position error", "mm", 1e3), ("attitude error", "deg", np.degrees(1.0)),
+                ("velocity error", "mm/s", 1e3), ("rate error", "deg/s", np.degrees(1.0)))
 
 
 def phases(run: RecordedRun, c: str) -> dict:
-    """The capture controller's course: its phase and attempts, the estimated distance to the
-    grasp frame, and the estimated errors its close decision weighs."""
+    """The capture controller's course: its phase (named on the axis) and attempts (an axis of
+    their own), the estimated distance to the grasp frame, and each estimated error its close
+    decision weighs on an axis of its own."""
+    from components.controller.capture import PHASES as NAMES
+
     phase, attempt, distance, errors = _required(run, c, "phase", "attempt", "grasp_distance", "close_errors")
     t = run.time
-    fig = new_figure(9.0, 8.0)
-    axes = fig.subplots(3, 1, sharex=True)
-    axes[0].step(t, phase[:, 0], where="post", color="black", linewidth=1.0, label="phase")
-    axes[0].step(t, attempt[:, 0], where="post", color="tab:blue", linewidth=1.0, label="attempt")
-    axes[0].set_title(f"{c}: phase (0 wait, 1 approach, 2 closing, 3 track, 4 retreat, 5 captured, 6 aborted) "
-                      "and approaches started", loc="left")
-    axes[1].plot(t, distance[:, 0], color="black", linewidth=1.0, label="grasp_distance")
-    axes[1].set(ylabel="m")
-    axes[1].set_title("estimated distance from the end effector to the grasp frame", loc="left")
-    for k, label in enumerate(CLOSE_ERRORS):
-        axes[2].plot(t, errors[:, k], linewidth=1.0, label=label)
-    axes[2].set_xlabel("time (s)")
-    axes[2].set_title("estimated errors behind close (closing and track)", loc="left")
-    for ax in axes:
+    fig = new_figure(9.0, 10.0)
+    axes = fig.subplot_mosaic([["phase", "phase"], ["distance", "distance"], ["e0", "e1"], ["e2", "e3"]],
+                              sharex=True)
+    ax = axes["phase"]
+    ax.step(t, phase[:, 0], where="post", color="black", linewidth=1.0, label="phase")
+    ax.set_yticks(range(len(NAMES)), [f"{k} {name}" for k, name in enumerate(NAMES)], fontsize="small")
+    ax.set_ylim(-0.5, len(NAMES) - 0.5)   # every phase inside the frame, none on its border
+    ax.set_ylabel("phase")
+    ax.set_title(f"{c}: phase, and approaches started", loc="left")
+    twin = ax.twinx()
+    twin.step(t, attempt[:, 0], where="post", color="tab:blue", linewidth=1.0, label="approaches started")
+    twin.set_ylabel("approaches started", color="tab:blue")
+    twin.set_ylim(-0.5, max(float(np.max(attempt[:, 0])), 1.0) + 0.5)
+    twin.yaxis.get_major_locator().set_params(integer=True)
+    lines = ax.get_legend_handles_labels()[0] + twin.get_legend_handles_labels()[0]
+    ax.legend(lines, [line.get_label() for line in lines], loc="lower right", fontsize="x-small", ncols=2)
+    axes["distance"].plot(t, distance[:, 0], color="black", linewidth=1.0, label="grasp_distance")
+    axes["distance"].set(ylabel="m")
+    axes["distance"].set_title("estimated distance from the end effector to the grasp frame", loc="left")
+    for k, (title, unit, scale) in enumerate(CLOSE_ERRORS):
+        ax = axes[f"e{k}"]
+        ax.plot(t, scale * errors[:, k], linewidth=1.0, color=f"C{k}", label=f"close_errors[{k}]")
+        ax.set_ylabel(unit)
+        ax.set_title(f"estimated {title}", loc="left", fontsize="medium")
+    for name in ("e2", "e3"):
+        axes[name].set_xlabel("time (s)")
+    for ax in axes.values():
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper right", fontsize="x-small", ncols=2)
     return {f"{c}_phases.png": fig}
 
 
@@ -190,4 +207,5 @@ BASE = Plot("{c}_base.png", "the body's base displacement (mm, W) and rotation (
             base)
 JOINTS = Plot("{c}_joints.png", "joint positions and their references", joints)
 PHASES = Plot("{c}_phases.png", "the capture's phase and attempts, the estimated distance to the grasp frame and "
-                                "the estimated errors behind close", phases)
+                                "the estimated errors behind close (position, attitude, velocity, rate: an axis "
+                                "each)", phases)

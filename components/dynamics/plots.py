@@ -88,45 +88,62 @@ def capture(run: RecordedRun, c: str) -> dict:
             break
         total[:, :3] += momentum[:, :3]
         total[:, 3:] += momentum[:, 3:] + np.cross(com, momentum[:, :3])
-    fig = new_figure(9.0, 14.0)
-    axes = [fig.add_subplot(6, 1, k) for k in range(1, 7)]
-    axes[0].plot(t, 1e3 * np.linalg.norm(p, axis=1), label="distance E to G (mm)")
-    axes[0].set(yscale="log", title=f"{c}: end effector to grasp frame")
+    fig = new_figure(12.0, 15.0)
+    axes = fig.subplot_mosaic([["distance", "rate"], ["rel_v", "rel_w"], ["force", "torque"], ["wheels", "wheels"],
+                               ["p", "L"]])
+    # one quantity per axis, its unit the axis' label
+    axes["distance"].plot(t, 1e3 * np.linalg.norm(p, axis=1))
+    axes["distance"].set(yscale="log", ylabel="mm", title=f"{c}: end effector to grasp frame, distance")
     if relative is not None:
-        axes[1].plot(t, 1e3 * np.linalg.norm(relative[:, :3], axis=1), label="relative velocity (mm/s)")
-        axes[1].plot(t, np.degrees(np.linalg.norm(relative[:, 3:], axis=1)), label="relative rate (deg/s)")
-        axes[1].set(yscale="log", title="grasp frame relative to the end effector")
+        axes["rel_v"].plot(t, 1e3 * np.linalg.norm(relative[:, :3], axis=1))
+        axes["rel_v"].set(yscale="log", ylabel="mm/s", title="grasp frame's velocity relative to the EE")
+        axes["rel_w"].plot(t, np.degrees(np.linalg.norm(relative[:, 3:], axis=1)), color="tab:orange")
+        axes["rel_w"].set(yscale="log", ylabel="deg/s", title="grasp frame's rate relative to the EE")
     for body, twist in rates.items():
         if twist is not None:
-            axes[2].plot(t, np.degrees(np.linalg.norm(twist[:, 3:], axis=1)), label=f"{body} (deg/s)")
-    axes[2].axhline(0.1, color="grey", linestyle=":", label="0.1 deg/s")
-    axes[2].set(title="angular rate (inertial)")
+            axes["rate"].plot(t, np.degrees(np.linalg.norm(twist[:, 3:], axis=1)), label=body)
+    axes["rate"].axhline(0.1, color="grey", linestyle=":", label="0.1 deg/s")
+    axes["rate"].set(ylabel="deg/s", title="angular rate (inertial)")
     for i in wheels:
-        axes[3].plot(t, qd[:, i], label=joints[i])
-    axes[3].set(ylabel="rad/s", title=f"{chaser}: wheel rates" if wheels else "no joints named *wheel*")
+        axes["wheels"].plot(t, qd[:, i], label=joints[i])
+    axes["wheels"].set(ylabel="rad/s", title=f"{chaser}: wheel rates" if wheels else "no joints named *wheel*")
     if wrench is not None:
-        axes[4].plot(t, np.linalg.norm(wrench[:, :3], axis=1), label="|force| (N)")
-        axes[4].plot(t, np.linalg.norm(wrench[:, 3:], axis=1), label="|torque| (N m)")
-        axes[4].set(title="wrench at the grasp (what a wrist F/T sensor reads)")
+        axes["force"].plot(t, np.linalg.norm(wrench[:, :3], axis=1))
+        axes["force"].set(ylabel="N", title="|force| at the grasp (a wrist F/T sensor's)")
+        axes["torque"].plot(t, np.linalg.norm(wrench[:, 3:], axis=1), color="tab:orange")
+        axes["torque"].set(ylabel="N m", title="|torque| at the grasp (a wrist F/T sensor's)")
     if total is not None:
         change = total - total[0]
-        axes[5].plot(t, np.linalg.norm(change[:, :3], axis=1), label="linear (kg m/s)")
-        axes[5].plot(t, np.linalg.norm(change[:, 3:], axis=1), label="angular about W's origin (kg m^2/s)")
-        axes[5].set(title="total momentum, change from t0 (all bodies, wheels included)")
-    for ax in axes:
+        why = _momentum_changed_by(params)
+        axes["p"].plot(t, np.linalg.norm(change[:, :3], axis=1))
+        axes["p"].set(ylabel="kg m/s", title=f"total linear momentum, change from t0\n{why}")
+        axes["L"].plot(t, np.linalg.norm(change[:, 3:], axis=1), color="tab:orange")
+        axes["L"].set(ylabel="kg m^2/s", title=f"total angular momentum (about W's origin), change\n{why}")
+    for name, ax in axes.items():
         if t_capture is not None:
-            ax.axvline(t_capture, color="red", linewidth=0.8, label="capture" if ax is axes[0] else None)
-        ax.set_xlabel("time (s)")
+            ax.axvline(t_capture, color="red", linewidth=0.8, label="capture")
+        ax.set_xlim(t[0], t[-1])
+        if name in ("p", "L"):
+            ax.set_xlabel("time (s)")
         ax.grid(True, alpha=0.3)
-        if ax.get_legend_handles_labels()[0]:
+        if len(ax.get_legend_handles_labels()[0]) > 1:
             ax.legend(loc="upper right", fontsize="x-small", ncols=2)
-    fig.tight_layout()
     return {f"{c}_capture.png": fig}
+
+
+def _momentum_changed_by(params: dict) -> str:
+    """What changes the bodies' total momentum in this run (all bodies, wheels included: the
+    capture and the wheels exchange it, the environment's external forces change it)."""
+    external = [name for key, name in (("tidal_force", "the tidal force"), ("gravity_gradient", "gravity gradient")) if params.get(key, True)]
+    if not external:
+        return "(no external force: the capture and wheels only exchange it)"
+    return f"(changed by {' and '.join(external)})"
 
 
 BODIES = Plot("{c}_{body}.png", "per body: attitude against LVLH as a rotation vector (about z: the pitch of a "
                                 "libration; against the body's t0 attitude if q_eci_lvlh is not connected), momentum "
                                 "change from t0, joint positions", bodies)
 CAPTURE = Plot("{c}_capture.png", "with a ``grasp``: distance and relative rate to the grasp frame, the assembly's "
-                                  "rate, wheel rates (joints named ``*wheel*``), the wrist wrench, and the total "
-                                  "momentum's change, the capture instant marked", capture)
+                                  "rate, wheel rates (joints named ``*wheel*``), the wrist force and torque, and the "
+                                  "total linear and angular momentum's change with what changes it, the capture "
+                                  "instant marked", capture)

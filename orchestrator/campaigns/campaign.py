@@ -19,6 +19,7 @@ A campaign file::
       force: {signal: dynamics.grasp.wrench[0:3], reduce: max}        # a slice: the norm of the force
       t_capture: {event: capture, field: time}                        # an event's field (NaN: no event)
     outcomes: {captured: capture, aborted: capture_aborted}   # the last of these events names the outcome
+                                                          # (none: the outcome its run declares, else completed)
     keep: failed                                          # all | failed | none
 
 Cases: each grid point (in order) times ``samples`` draws; case ``i`` is grid point
@@ -160,16 +161,17 @@ class Campaign:
     raw: dict = field(default_factory=dict)   # the campaign as read
     outcomes: dict[str, str] = field(default_factory=dict)   # outcome name -> the event that makes it
 
-    def outcome(self, status: str, events: list[str]) -> str:
+    def outcome(self, status: str, events: list[str], declared: str = "") -> str:
         """A case's outcome: failed (or interrupted) as its run; else the outcome whose event came
-        last among ``outcomes``; else completed."""
+        last among ``outcomes``; else the one its run's components declare (``declared``: the
+        capture's captured, aborted, undecided); else completed."""
         if status != "completed":
             return status
         by_event = {event: name for name, event in self.outcomes.items()}
         for event in reversed(events):
             if event in by_event:
                 return by_event[event]
-        return status
+        return declared or status
 
     @property
     def count(self) -> int:

@@ -84,7 +84,7 @@ def execute_case(index: int, config_file: Path, record_dir: Path, metrics: list[
                  stop: threading.Event | None = None, cpus=None, stopped=None) -> dict:
     """Run one case as ``orchestrator run CONFIG --record DIR``; its result: status (completed,
     failed, interrupted), error, metrics (from the recording, failed or not), the names of its
-    events in order, wall_time, host. ``stop`` set: the run is stopped
+    events in order, the outcome its components declare ('' for none), wall_time, host. ``stop`` set: the run is stopped
     cleanly (SIGINT), then killed after STOP_GRACE_S. The recording is removed unless ``keep``
     wants it."""
     if record_dir.exists():
@@ -121,9 +121,13 @@ def execute_case(index: int, config_file: Path, record_dir: Path, metrics: list[
         status = "failed"
     values = {m.name: math.nan for m in metrics}
     events: list[str] = []
+    outcome = ""
     if status != "interrupted" and record_dir.exists():
         # a failed run's recording holds its rows up to the failure: its metrics are read too
-        events = [e.get("event", "") for e in read_events(record_dir)][-MAX_EVENTS:]
+        recorded = read_events(record_dir)
+        events = [e.get("event", "") for e in recorded][-MAX_EVENTS:]
+        # the outcome the run's components declare (orchestrator/run/outcome.py), on its end event
+        outcome = next((e["outcome"] for e in reversed(recorded) if e.get("event") == "end" and e.get("outcome")), "")
         try:
             values = metric_values(record_dir, metrics)
         except Exception as e:   # an unreadable recording: the case failed, the campaign goes on
@@ -133,7 +137,8 @@ def execute_case(index: int, config_file: Path, record_dir: Path, metrics: list[
     kept = status != "interrupted" and (keep == "all" or (keep == "failed" and status == "failed"))
     if not kept and record_dir.exists():
         shutil.rmtree(record_dir, ignore_errors=True)
-    return {"case": index, "status": status, "error": error, "metrics": values, "events": events, "wall_time": wall,
+    return {"case": index, "status": status, "error": error, "metrics": values, "events": events, "outcome": outcome,
+            "wall_time": wall,
             "host": socket.gethostname(), "kept": kept, "attempts": 1}
 
 

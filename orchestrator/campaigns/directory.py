@@ -119,7 +119,7 @@ class CampaignDir:
             result = self.done(index) or {"case": index, "status": pending_status, "error": "", "metrics": {},
                                           "wall_time": math.nan, "attempts": 0, "host": "", "recording": ""}
             row = {"case": index, "status": result["status"],
-                   "outcome": c.outcome(result["status"], result.get("events", [])), "error": result.get("error", "")}
+                   "outcome": c.outcome(result["status"], result.get("events", []), result.get("outcome", "")), "error": result.get("error", "")}
             row.update({k: params[k] for k in c.keys})
             row.update({m.name: _metric_value(result["metrics"].get(m.name, math.nan)) for m in c.metrics})
             row.update({"wall_time": float(result["wall_time"]), "attempts": int(result.get("attempts", 1)),

@@ -127,7 +127,7 @@ def summary(rows: list[dict], campaign: Campaign, wall: float, out, ran: int | N
     finished = statuses.get("completed", 0) + statuses.get("failed", 0) if ran is None else ran
     print(f"campaign: {len(rows)} cases: {counts}; {wall:.1f} s wall"
           + (f", {finished / wall * 60:.1f} cases/min" if wall > 0 and finished else ""), file=out)
-    if campaign.outcomes:
+    if any(row["outcome"] != row["status"] for row in rows):   # declared or named outcomes: say them
         outcomes: dict[str, int] = {}
         for row in rows:
             outcomes[row["outcome"]] = outcomes.get(row["outcome"], 0) + 1

@@ -20,6 +20,7 @@ from orchestrator.config.specs import ComponentSpec, Event, Fault, Ros2Spec, Run
 from orchestrator.config.yaml_file import ConfigErrors, apply_overrides, read_yaml
 from orchestrator.config.connections import check_replacement, hands_over, handover_problem, parse_connections
 from orchestrator.config.shadows import mismatches, shadow_spec, with_shadows
+from orchestrator.run.outcome import expect_problem
 
 def viewer_spec(raw: Any, where: str, errors: list[str], base: Path) -> ViewerSpec | None:
     """Parse a ``viewer:`` section or a ``--view`` value (``spawn``, ``web``, ``save:FILE.rrd``,
@@ -231,6 +232,8 @@ def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) ->
                 errors.append(f"{file}: run.checkpoint_every: must be a multiple of every component's step "
                               f"(all are at a step boundary then); {name} steps {duration_text(spec.step_ns)}, "
                               f"got {duration_text(checkpoint_ns)}")
+    if run.get("expect") is not None and (problem := expect_problem(components, run["expect"])):
+        errors.append(f"{file}: run.expect: {problem}")
     bus_spec = bus_config.check(config["bus"], config_dir, errors, file) if "bus" in config else None
     if bus_spec is not None and bus_spec.plaintext_beyond:
         notes.append(f"{file}: bus: plain TCP beyond loopback ({', '.join(bus_spec.plaintext_beyond)}), as "
@@ -273,7 +276,7 @@ def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) ->
                      listen=config["bus"]["listen"], bus=bus_spec, join_timeout_s=run["join_timeout"] / NS_PER_S,
                      events=events, faults=faults, checkpoint_ns=checkpoint_ns,
                      max_restarts=run["max_restarts"], viewer=viewer, ros2=ros2, resolved=resolved, packages=packages, notes=notes,
-                     record_flush_s=run["record_flush"] / NS_PER_S)
+                     record_flush_s=run["record_flush"] / NS_PER_S, expect=run.get("expect"))
 
 
 def _resolved_entry(spec: ComponentSpec, shadow: ComponentSpec | None) -> dict:

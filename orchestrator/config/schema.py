@@ -50,6 +50,9 @@ RUN = Record("run", (
     Parameter("strict", Bool(), default=False,
               description="true: the check's warnings (a value outside its plausible range, suspect physics) are "
                           "errors, as with --strict"),
+    Parameter("expect", Str(pattern=NAME, hint="an outcome's name, e.g. captured"), default=None,
+              description="the outcome the run must come to (one its components declare, e.g. captured): another "
+                          "ends it with exit code 3 (orchestrator run --expect NAME overrides it)"),
     Parameter("packages", MapOf(Str(hint="a directory"), "package name"), default={},
               description="ROS packages by name -> directory (relative to the config file), for package:// URIs "
                           "and $(find NAME) in URDFs; looked up before ROS_PACKAGE_PATH and installed packages"),

@@ -105,6 +105,7 @@ class RunConfig:
     packages: dict = field(default_factory=dict)   # run.packages: name -> absolute directory
     notes: list = field(default_factory=list)      # warnings found by the check (implausible values, physics), one line each
     record_flush_s: float = 1.0                    # run.record_flush
+    expect: str | None = None                      # run.expect: the outcome the run must come to
 
     @property
     def steps(self) -> int:

@@ -6,8 +6,9 @@
 | ``<metric>_vs_parameters.png`` | the metric against each swept or dispersed quantity (a vector by its parts), every case coloured by its outcome |
 | ``outcomes.png`` | the envelope: each case's outcome against each quantity, and a vector's direction as azimuth and elevation |
 
-A quantity that has one value over the campaign (a grid of one point) is not drawn against; the
-figures say which were left out. Axes carry the unit the campaign file gives (a dispersion's, or
+A quantity that has one value over the campaign (a grid of one point) or is a seed (a key named
+``seed`` or ``*_seed``: a sensor's noise draw, no physics) is not drawn against; the figures say
+which were left out. Axes carry the unit the campaign file gives (a dispersion's, or
 the grid's first value's), metrics their signal's SI unit.
 """
 from __future__ import annotations
@@ -24,7 +25,9 @@ from components.errors import ConfigError
 from components.plotting import PlotError, new_figure
 from components.units import parse_quantity, unit_scale
 
-OUTCOME_COLOURS = {"completed": "tab:blue", "failed": "tab:red", "interrupted": "tab:grey"}
+OUTCOME_COLOURS = {"completed": "tab:blue", "failed": "tab:red", "interrupted": "tab:grey",
+                   "captured": "tab:green", "aborted": "tab:orange", "undecided": "tab:purple"}
+SEED = re.compile(r"(.*_)?seed$")   # a key's last part naming a random draw's seed
 PALETTE = ("tab:green", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
 
 
@@ -57,6 +60,9 @@ def quantities(columns: dict[str, list], keys: list[str], meta: dict) -> tuple[l
     out, left_out, vectors = [], [], {}
     for key in keys:
         values = columns[key]
+        if SEED.match(re.sub(r"\[\d+\]", "", key.split(".")[-1])):   # which draw, not a quantity
+            left_out.append(f"{key} (a seed)")
+            continue
         short = ".".join([p for p in key.split(".") if p not in ("components", "parameters")][-2:])
         if all(isinstance(v, (int, float)) for v in values):
             x = np.array(values, dtype=float)
@@ -118,12 +124,12 @@ def campaign_figures(directory: Path) -> list[tuple[str, object]]:
             values = values[np.isfinite(values)]
             if len(values):
                 ax.hist(values, bins=max(5, min(50, int(np.sqrt(len(values))) + 1)), color="tab:blue", alpha=0.8)
-            ax.set(title=f"{name} ({len(values)} of {len(outcome)} cases)", xlabel=_metric_label(name, metric_meta),
+            ax.set(title=_fits(f"{name} ({len(values)} of {len(outcome)} cases)", cols), xlabel=_metric_label(name, metric_meta),
                    ylabel="cases")
             ax.grid(True, alpha=0.3)
         out.append(("metrics_histograms.png", fig))
     axes, left_out, vectors = quantities(columns, keys, meta)
-    note = f"not drawn against: {', '.join(left_out)}" if left_out else ""
+    note = f"not drawn against: {'; '.join(left_out)}" if left_out else ""
     for name in metrics if axes else []:
         y = np.array([math.nan if v is None else v for v in columns[name]], dtype=float)
         fig = _gridnew_figure(len(axes))
@@ -137,11 +143,23 @@ def campaign_figures(directory: Path) -> list[tuple[str, object]]:
             ax.grid(True, alpha=0.3)
             ax.legend(fontsize="x-small")
         if note:
-            fig.suptitle(note, fontsize="small")
+            fig.suptitle(_wrapped(note, fig), fontsize="small")
         out.append((f"{re.sub(r'[^A-Za-z0-9_.-]', '_', name)}_vs_parameters.png", fig))
     if axes or vectors:
         out.append(("outcomes.png", _outcomesnew_figure(axes, vectors, outcome, colours, note)))
     return out
+
+
+def _wrapped(text: str, fig) -> str:
+    """``text`` in lines that fit the figure's width (small type: ~15 characters an inch)."""
+    import textwrap
+    return textwrap.fill(text, width=max(40, int(fig.get_figwidth() * 15)))
+
+
+def _fits(title: str, cols: int) -> str:
+    """A panel's title in lines that fit its width (4.2 in; ~9 characters an inch at the title's size)."""
+    import textwrap
+    return textwrap.fill(title, width=int(4.2 * 9)) if cols > 1 else title
 
 
 def _gridnew_figure(panels: int):
@@ -174,7 +192,7 @@ def _outcomesnew_figure(axes: list[Quantity], vectors: dict, outcome: np.ndarray
                 ax.plot(q.values[chosen], np.full(chosen.sum(), row), "o", markersize=4, color=colours[kind],
                         alpha=0.7, label=f"{kind} ({chosen.sum()})")
         ax.set(xlabel=_label(q), yticks=range(len(kinds)), yticklabels=kinds,
-               ylim=(-0.5, len(kinds) - 0.5), title=f"outcome against {q.label}")
+               ylim=(-0.5, len(kinds) - 0.5), title=_fits(f"outcome against {q.label}", cols))
         ax.grid(True, axis="x", alpha=0.3)
     for j, (label, v) in enumerate(vectors.items(), start=len(axes) + 1):
         ax = fig.add_subplot(rows, cols, j)
@@ -188,9 +206,9 @@ def _outcomesnew_figure(axes: list[Quantity], vectors: dict, outcome: np.ndarray
                 ax.plot(azimuth[chosen], elevation[chosen], "o", markersize=5, color=colours[kind],
                         label=f"{kind} ({chosen.sum()})")
         ax.set(xlabel=f"{label}: azimuth (deg)", ylabel=f"{label}: elevation (deg)", xlim=(-180, 180),
-               ylim=(-90, 90), title=f"outcome over the direction of {label}")
+               ylim=(-90, 90), title=_fits(f"outcome over the direction of {label}", cols))
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize="x-small")
     if note:
-        fig.suptitle(note, fontsize="small")
+        fig.suptitle(_wrapped(note, fig), fontsize="small")
     return fig

@@ -10,13 +10,13 @@ both record, orchestrator/plots/shadows.py). The registered types' plots (:func:
 |---|---|---|
 | ``<c>_track.png`` | orbit.kepler, orbit.sgp4, orbit.custom_path, orbit.fixed | altitude, ground track (spherical Earth, UT1 = UTC), r_eci and v_eci over time |
 | ``<c>_<body>.png`` | dynamics.dart, dynamics.pinocchio | per body: attitude against LVLH as a rotation vector (about z: the pitch of a libration; against the body's t0 attitude if q_eci_lvlh is not connected), momentum change from t0, joint positions |
-| ``<c>_capture.png`` | dynamics.dart, dynamics.pinocchio | with a ``grasp``: distance and relative rate to the grasp frame, the assembly's rate, wheel rates (joints named ``*wheel*``), the wrist wrench, and the total momentum's change, the capture instant marked |
+| ``<c>_capture.png`` | dynamics.dart, dynamics.pinocchio | with a ``grasp``: distance and relative rate to the grasp frame, the assembly's rate, wheel rates (joints named ``*wheel*``), the wrist force and torque, and the total linear and angular momentum's change with what changes it, the capture instant marked |
 | ``<c>_path.png`` | controller.computed_torque | desired (black) and obtained (red) 3D end-effector path relative to its start, in the axes of the base at t0 (inertial; W axes if the base orientation is not recorded) (paper Fig. 5) |
 | ``<c>_error.png`` | controller.computed_torque | position error (mm) and orientation error (mrad) per W axis and norm, over time (Fig. 6) |
 | ``<c>_torque.png`` | controller.computed_torque, controller.joint_pd, controller.capture | torques of the driven joints, N m (Fig. 7) |
 | ``<c>_base.png`` | controller.computed_torque | the body's base displacement (mm, W) and rotation (deg) from t0, and sigma_min of J_g |
 | ``<c>_joints.png`` | controller.joint_pd | joint positions and their references |
-| ``<c>_phases.png`` | controller.capture | the capture's phase and attempts, the estimated distance to the grasp frame and the estimated errors behind close |
+| ``<c>_phases.png`` | controller.capture | the capture's phase and attempts, the estimated distance to the grasp frame and the estimated errors behind close (position, attitude, velocity, rate: an axis each) |
 | ``<c>_measured.png`` | sensor.imu | rate, specific_force (solid) against the outputs feeding rate_true, specific_force_true (dashed), per element |
 | ``<c>_measured.png`` | sensor.force_torque | wrench (solid) against the outputs feeding wrench_true (dashed), per element |
 | ``<c>_measured.png`` | sensor.relative_pose | p, q (solid) against the outputs feeding p_true, q_true (dashed), per element |
@@ -130,11 +130,39 @@ def figures(record_dir, signals: list[str] | None = None,
         return _signals(signals, run)
     warn = warn or (lambda message: print(f"plot: {message}", file=sys.stderr, flush=True))
     written = _declared(run, warn) + shadow_figures(run.config, run.columns, run.time)
+    if outcome := recorded_outcome(record_dir):   # every figure says how the run ended (a figure is shown alone)
+        for _, fig in written:
+            _titled(fig, outcome)
     if not written:
         types = ", ".join(sorted({(s or {}).get("type", "?") for s in (run.config.get("components") or {}).values()}))
         raise PlotError(f"nothing to plot in {record_dir}: no figures for its component types ({types}); "
                         f"name columns to plot with --signals NAME,NAME")
     return written
+
+
+def recorded_outcome(record_dir: Path) -> str | None:
+    """The run's outcome in words (events.jsonl's end event, orchestrator/run/outcome.py), if any."""
+    import json
+    try:
+        lines = (Path(record_dir) / "events.jsonl").read_text().splitlines()
+    except OSError:
+        return None
+    for line in reversed(lines):
+        try:
+            event = json.loads(line)
+        except ValueError:   # a run killed mid-line
+            continue
+        if event.get("event") == "end":
+            return event.get("outcome_text")
+    return None
+
+
+def _titled(fig, outcome: str) -> None:
+    """The outcome above the figure's own title, in lines that fit its width."""
+    import textwrap
+    own = fig._suptitle.get_text() if fig._suptitle is not None else ""
+    text = textwrap.fill(f"run outcome: {outcome}", width=max(40, int(fig.get_figwidth() * 11)))
+    fig.suptitle(f"{text}\n{own}" if own else text, fontsize="medium")
 
 
 def plot_recording(record_dir, out_dir, signals: list[str] | None = None) -> list[Path]:

@@ -36,7 +36,7 @@ from pathlib import Path
 
 from components import bus, protocol
 from components.constants import NS_PER_S
-from orchestrator.run import pacing, recovery, report, runs, supervisor, wiring
+from orchestrator.run import outcome, pacing, recovery, report, runs, supervisor, wiring
 from orchestrator.config import groups, shadows
 from orchestrator.config.specs import ComponentSpec, Ros2Spec, RunConfig, ViewerSpec
 from orchestrator.run.control import ControlServer, StopRequested, raise_stop
@@ -50,12 +50,14 @@ from orchestrator.run.viewer_link import ViewerLink
 
 
 class Run:
-    """One execution of a validated config. ``execute()`` returns the exit code (0, 1, 130)."""
+    """One execution of a validated config. ``execute()`` returns the exit code (0, 1, 130; 3: the
+    run ended normally in another outcome than ``expect``, validated by the caller)."""
 
     def __init__(self, config: RunConfig, *, record: str | Path | None = None, profile: bool = False,
                  progress: bool = False, out=sys.stderr, viewer: ViewerSpec | None = None,
-                 ros2: Ros2Spec | None = None):
+                 ros2: Ros2Spec | None = None, expect: str | None = None):
         self.config = config
+        self.expect = expect or config.expect
         self.viewer = viewer or config.viewer
         self.ros2 = ros2 or config.ros2
         self.record_dir = Path(record) if record else None
@@ -209,10 +211,21 @@ class Run:
             print(self.ros2_line, file=self.out)
         # as events.jsonl's end line says it ("stopped by request" ends with exit code 0 too)
         status = "failed" if code == 1 else (self.state.stop_reason or ("completed" if code == 0 else "interrupted"))
+        name, words = self._outcome(code)
+        if code == 0 and self.expect is not None and name != self.expect:
+            code = outcome.EXPECT_MISMATCH
+            print(f"error: the run's outcome is {name}, not {self.expect} as expected (exit code {code})",
+                  file=self.out)
         print(report.summary(self.config.name, status, self.row, self.config.steps, self.config.step_ns,
-                             time.perf_counter() - run_start, self.loop_s, self.state.restarts, self.record_dir),
-              file=self.out, flush=True)
+                             time.perf_counter() - run_start, self.loop_s, self.state.restarts, self.record_dir,
+                             words), file=self.out, flush=True)
         return code
+
+    def _outcome(self, code: int) -> tuple[str | None, str | None]:
+        """The run's outcome (name, words); none for a failed run or one whose components declare none."""
+        if code == 1 or self.state.outcome is None:
+            return None, None
+        return self.state.outcome.result(self.row * self.config.step_ns / NS_PER_S)
 
     def _open_bus(self) -> None:
         """The orchestrator's Zenoh session, its subscriptions, and the run's entry for `ps`."""
@@ -294,8 +307,10 @@ class Run:
             if stream := self.viewer_link.ros2_stream():
                 event, self.ros2_line = stream
                 state.log("ros2_stream", **event)
+        name, words = self._outcome(code)
         state.log("end", step=rows.row, time=rows.row * self.config.step_ns / NS_PER_S,
-                  status="failed" if code == 1 else (state.stop_reason or "completed"))
+                  status="failed" if code == 1 else (state.stop_reason or "completed"),
+                  **({"outcome": name, "outcome_text": words} if name else {}))
         if rows.recording is not None:
             try:
                 rows.recording.close()

@@ -95,7 +95,8 @@ class Recovery:
         self.crew.ask(live, protocol.GetState(), "get_state (checkpoint)", run.config.step_timeout_s)
         run.checkpoint = Checkpoint(run.rows.row, run.rows.values.copy(), [m.spec for m in live],
                                     {m.name: m.reply["blob"] for m in live},
-                                    {m.name: (m.tag, m.latest.copy()) for m in live}, list(run.pending_events))
+                                    {m.name: (m.tag, m.latest.copy()) for m in live}, list(run.pending_events),
+                                    run.outcome.state() if run.outcome else None)
         run.log("checkpoint", step=run.rows.row, time=run.rows.row * run.config.step_ns / NS_PER_S)
 
     def may_restart(self, failure: RunFailure) -> bool:
@@ -138,6 +139,8 @@ class Recovery:
         run.rows.rewind(checkpoint.row, checkpoint.values)
         run.horizon, run.horizon_at = checkpoint.row, now
         run.pending_events = list(checkpoint.events)
+        if run.outcome is not None:   # events after the checkpoint come again (or not) in the rerun
+            run.outcome.restore(checkpoint.outcome)
         self.listener.sync(list(run.members.values()))
         for member in run.members.values():
             wiring.go(member, run.members, run.horizon)

@@ -9,15 +9,17 @@ from orchestrator.run import wording
 
 
 def summary(name: str, status: str, row: int, steps: int, step_ns: int, wall_s: float, loop_s: float,
-            restarts: int, record_dir: Path | None) -> str:
-    """One line for the end of every run: how it ended, how far it got, how fast, where it went."""
+            restarts: int, record_dir: Path | None, outcome: str | None = None) -> str:
+    """One line for the end of every run: how it ended, how far it got, how fast, where it went, and
+    the outcome its components declare (``outcome``: its words), last so that a script's tail reads it."""
     sim_s = row * step_ns / NS_PER_S
     factor = sim_s / loop_s if loop_s > 0 else 0.0
     rate = f", real-time factor {factor:.{2 if factor < 100 else 0}f}" if factor else ""
     where = f"recording in {record_dir}" if record_dir is not None else "not recorded (no --record)"
     status += f" after {wording.count(restarts, 'restart')}" if restarts else ""
     return (f"run {name} {status}: {wording.count(row, 'step')} of {steps}, "
-            f"{sim_s:g} s simulated; {wall_s:.1f} s wall ({loop_s:.1f} s stepping{rate}); {where}")
+            f"{sim_s:g} s simulated; {wall_s:.1f} s wall ({loop_s:.1f} s stepping{rate}); {where}"
+            + (f"; {outcome}" if outcome else ""))
 
 
 def progress(row: int, step_ns: int, duration_ns: int, wall_s: float) -> str:

@@ -11,6 +11,7 @@ import numpy as np
 
 from components import schedule
 from orchestrator.config.specs import ComponentSpec, Event, Fault, RunConfig
+from orchestrator.run import outcome
 from orchestrator.run.members import Member
 from orchestrator.run.rows import Rows
 
@@ -25,6 +26,7 @@ class Checkpoint:
     states: dict[str, bytes]
     latest: dict[str, tuple[int, np.ndarray]]
     events: list                        # the config's swaps still to come
+    outcome: tuple | None = None        # the outcome so far (outcome.Tracker.state)
 
 
 @dataclass
@@ -44,14 +46,19 @@ class RunState:
     checkpoint: Checkpoint | None = None
     restarts: int = 0
     stop_reason: str | None = None
+    outcome: outcome.Tracker | None = None   # None: no component declares outcomes
 
     @classmethod
     def of(cls, config: RunConfig) -> RunState:
         """A run of ``config`` before it starts."""
-        return cls(config, Rows(config.components.values(), config.step_ns), list(config.events), list(config.faults))
+        found = outcome.declared(config.components)
+        return cls(config, Rows(config.components.values(), config.step_ns), list(config.events), list(config.faults),
+                   outcome=outcome.Tracker(found) if found else None)
 
     def log(self, kind: str, **fields) -> None:
-        """An event in events.jsonl, if the run is recorded."""
+        """An event in events.jsonl, if the run is recorded; the outcome hears it, recorded or not."""
+        if self.outcome is not None:
+            self.outcome.hear(kind, fields)
         if self.rows.recording is not None:
             self.rows.recording.event(kind, **fields)
 

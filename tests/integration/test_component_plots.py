@@ -84,7 +84,8 @@ def test_the_capture_controller_and_the_sensors_plot_what_they_recorded(capture)
     assert np.array_equal(t, columns["time"]) and np.array_equal(phase, columns["controller.phase"])
     assert {0.0, 1.0, 2.0, 5.0} <= set(phase)                       # waited, approached, closed, captured
     assert np.array_equal(_line(phases, "distance", "grasp_distance")[1], columns["controller.grasp_distance"])
-    assert np.array_equal(_line(phases, "behind close", "velocity (m/s)")[1], columns["controller.close_errors[2]"])
+    assert np.allclose(_line(phases, "velocity error", "close_errors[2]")[1], 1e3 * columns["controller.close_errors[2]"],
+                       rtol=1e-15, atol=0)   # m/s drawn in mm/s
     # each measurement against the true value feeding the sensor (the connection's source)
     imu = made["imu_measured.png"]
     for k in range(3):

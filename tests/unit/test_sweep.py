@@ -197,6 +197,17 @@ def test_outcomes_come_from_the_last_listed_event(tmp_path):
     assert campaign.outcome("failed", ["capture"]) == "failed"
     assert "outcomes.failed: completed, failed, interrupted are the outcomes of a run itself" in \
         errors_of(tmp_path, {"outcomes": {"failed": "capture"}})
+    assert campaign.outcome("completed", ["start", "end"], "undecided") == "undecided"   # no listed event: the run's
+
+
+def test_without_outcomes_a_case_is_what_its_run_declares(tmp_path):
+    """No outcomes: key: a capture case is captured, aborted or undecided as its run's end event
+    says, not 'completed'; a failed run stays failed; a run declaring none is completed."""
+    campaign = load_campaign(write(tmp_path, {}))
+    assert campaign.outcome("completed", ["start", "capture_closed", "end"], "captured") == "captured"
+    assert campaign.outcome("completed", ["start", "end"], "undecided") == "undecided"
+    assert campaign.outcome("failed", ["start"], "") == "failed"
+    assert campaign.outcome("completed", ["start", "end"], "") == "completed"
 
 
 def test_a_twist_from_rate_and_axis(tmp_path):

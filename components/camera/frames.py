@@ -3,7 +3,7 @@
 Each frame is an ``.npz`` whose arrays are deflated (zip's deflate at level 1, :func:`write_frame`):
 ``numpy.load`` reads it as it reads any ``.npz``, bit for bit (lossless), and so it reads the
 uncompressed frames of older recordings. A 640x480 frame of the vision capture (rgb8 with pixel
-noise, float32 depth) is about 1.06 MB instead of 2.15 MB (benchmarks/bench_frames.py; noise
+noise, float32 depth) is about 1.15 MB instead of 2.15 MB (benchmarks/bench_frames.py; noise
 does not compress, so a noisy image stays near half its size).
 
 :class:`FrameWriter` takes each frame (a dict of arrays) and writes it from a thread of its own

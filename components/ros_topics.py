@@ -11,7 +11,7 @@ import numpy as np
 
 from components import registry
 from components.errors import ConfigError
-from components.rosbag import RosContext, RosTopic, TopicError
+from components.rosbag import LazyMessages, RosContext, RosTopic, TopicError
 
 
 def signal_topics(context: RosContext, component: str) -> list[RosTopic]:
@@ -61,21 +61,27 @@ def component_topics(context: RosContext, warn: Callable[[str], None], all_signa
 
 
 def merged(context: RosContext, topics: list[RosTopic]) -> list[RosTopic]:
-    """One topic per name: messages in time order; ``/tf_static``'s transforms in one message."""
-    by_name: dict[str, RosTopic] = {}
+    """One topic per name: messages in time order; ``/tf_static``'s transforms in one message. A
+    topic of :class:`LazyMessages` alone on its name stays lazy (in time order already)."""
+    groups: dict[str, list[RosTopic]] = {}
     for topic in topics:
-        if topic.name not in by_name:
-            by_name[topic.name] = RosTopic(topic.name, topic.msgtype, [], topic.latched)
-        known = by_name[topic.name]
-        if known.msgtype != topic.msgtype:
-            raise TopicError(f"topic {topic.name}: two message types ({known.msgtype}, {topic.msgtype})")
-        known.messages += topic.messages
+        group = groups.setdefault(topic.name, [])
+        if group and group[0].msgtype != topic.msgtype:
+            raise TopicError(f"topic {topic.name}: two message types ({group[0].msgtype}, {topic.msgtype})")
+        group.append(topic)
+    by_name: dict[str, RosTopic] = {}
+    for name, group in groups.items():
+        first = group[0]
+        if len(group) == 1 and isinstance(first.messages, LazyMessages):
+            by_name[name] = RosTopic(name, first.msgtype, first.messages, first.latched)
+            continue
+        messages = [message for topic in group for message in topic.messages]
+        messages.sort(key=lambda item: item[0])   # stable: components' order within a stamp
+        by_name[name] = RosTopic(name, first.msgtype, messages, first.latched)
     static = by_name.get("/tf_static")
     if static is not None and static.messages:
         transforms = [t for _, message in static.messages for t in message.transforms]
         static.messages = [(min(ns for ns, _ in static.messages), context.tf(transforms))]
-    for topic in by_name.values():
-        topic.messages.sort(key=lambda item: item[0])   # stable: components' order within a stamp
     return list(by_name.values())
 
 

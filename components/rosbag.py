@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Callable, Iterable
+from typing import Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -40,14 +40,37 @@ def lvlh_frame(orbit: str) -> str:
     return f"{orbit}/lvlh"
 
 
+class LazyMessages(Sequence):
+    """A topic's messages built one at a time when read: ``count`` of them, the k-th from
+    ``build(k)`` -> (log time ns, message), in time order. The export writes each and drops it, so
+    a recording's camera frames (2 MB each uncompressed) are never all in memory at once."""
+
+    def __init__(self, count: int, build: Callable[[int], tuple[int, object]]):
+        self.count, self.build = count, build
+
+    def __len__(self) -> int:
+        return self.count
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self.build(i) for i in range(*k.indices(self.count))]
+        if not -self.count <= k < self.count:
+            raise IndexError(f"message {k} of {self.count}")
+        return self.build(k % self.count)
+
+    def __iter__(self) -> Iterator[tuple[int, object]]:
+        return (self.build(k) for k in range(self.count))
+
+
 @dataclass
 class RosTopic:
     """One topic of the bag: ``name`` (``/dynamics/humanoid/joint_states``), ``msgtype``
-    (``sensor_msgs/msg/JointState``), ``messages`` as (log time ns, message), ``latched``: offered
-    with transient-local durability, depth 1 (``/tf_static``, ``robot_description``)."""
+    (``sensor_msgs/msg/JointState``), ``messages`` as (log time ns, message), a list or, for
+    messages too big to hold together, :class:`LazyMessages` (already in time order); ``latched``:
+    offered with transient-local durability, depth 1 (``/tf_static``, ``robot_description``)."""
     name: str
     msgtype: str
-    messages: list[tuple[int, object]] = field(default_factory=list)
+    messages: list[tuple[int, object]] | LazyMessages = field(default_factory=list)
     latched: bool = False
 
 

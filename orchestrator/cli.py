@@ -14,6 +14,7 @@ import sys
 import threading
 from pathlib import Path
 
+from components.outputs import output_problem
 from orchestrator.run.wording import count
 
 USAGE_ERROR = 2
@@ -113,6 +114,9 @@ def cmd_run(args) -> int:
         viewer = viewer_spec(args.view, "--view", errors, Path.cwd())
         if errors or viewer is None:
             return _fail("; ".join(errors) or "--view: expected spawn, web, save:FILE.rrd or foxglove[:PORT]")
+    if getattr(viewer or config.viewer, "mode", None) == "save":   # an .rrd it cannot write: before the run
+        if problem := output_problem((viewer or config.viewer).file, "--view save:", "file"):
+            return _fail(problem)
     if getattr(viewer or config.viewer, "mode", None) == "spawn":   # fail before the run, not after
         from components.viewer.sinks import spawn_problem
         if spawn_problem():
@@ -312,6 +316,8 @@ def cmd_export_fmu(args) -> int:
     from orchestrator.config.yaml_file import apply_overrides
     if not args.output.endswith(".fmu"):
         return _fail(f"-o {args.output}: the output must be a .fmu file, e.g. -o {Path(args.output).stem or 'model'}.fmu")
+    if problem := output_problem(args.output, "-o", "file"):
+        return _fail(problem)
     parameters: dict = {}
     try:
         apply_overrides(parameters, args.set)
@@ -331,6 +337,8 @@ def cmd_plot(args) -> int:
     from components.plotting import PlotError
     from orchestrator.plots.recording import plot_recording
     out = Path(args.out) if args.out else Path(args.recording) / "plots"
+    if problem := output_problem(out, "--out" if args.out else "plot: DIR/plots"):
+        return _fail(problem)
     signals = [name.strip() for name in args.signals.split(",") if name.strip()] if args.signals else None
     try:
         written = plot_recording(Path(args.recording), out, signals)
@@ -345,6 +353,8 @@ def cmd_plot(args) -> int:
 
 def cmd_export(args) -> int:
     from orchestrator.export.rosbag2 import ExportError, export_rosbag2
+    if problem := output_problem(args.rosbag2, "--rosbag2"):
+        return _fail(problem)
     try:
         exported = export_rosbag2(Path(args.recording), Path(args.rosbag2), args.overwrite, args.all_signals)
     except ExportError as e:
@@ -368,6 +378,8 @@ def cmd_sweep(args) -> int:
             return _fail(f"--only {args.only}: expected case numbers, e.g. --only 17 or --only 3,17")
     if args.jobs is not None and args.jobs < 1:
         return _fail(f"--jobs {args.jobs}: expected 1 or more")
+    if problem := output_problem(args.out, "--out"):   # before any case starts
+        return _fail(problem)
     try:
         campaign = load_campaign(args.campaign, check_cases=True if only is None else only)
     except CampaignErrors as e:
@@ -379,6 +391,31 @@ def cmd_sweep(args) -> int:
                      retries=args.retries)
     except CampaignError as e:
         return _fail(str(e))
+
+
+def cmd_figure(args) -> int:
+    from components.camera.figure import draw, nearest_frame
+    if problem := output_problem(args.out, "--out", "file"):
+        return _fail(problem)
+    frames = Path(args.recording) / "frames" / args.component
+    try:
+        path = nearest_frame(frames, args.time)
+    except FileNotFoundError as e:
+        return _fail(f"{e} (a recording of `orchestrator run --record DIR` with a camera {args.component!r})")
+    draw(path, Path(args.out))
+    print(f"wrote {args.out}: {path}")
+    return 0
+
+
+def cmd_markers(args) -> int:
+    from components.errors import ConfigError
+    from components.estimators.marker_meshes import write
+    try:
+        return write(args.layout, args.check)
+    except ConfigError as e:
+        return _fail(str(e))
+    except OSError as e:
+        return _fail(f"cannot write the meshes of {args.layout}: {e}")
 
 
 def cmd_join(args) -> int:
@@ -489,6 +526,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--all-signals", action="store_true", help="also the variables of components whose type "
                    "declares no ROS messages, as std_msgs/Float64MultiArray on /COMPONENT/VARIABLE")
     p.set_defaults(func=cmd_export)
+
+    p = sub.add_parser("figure", help="a camera's recorded frame as a PNG: its colour image beside its depth")
+    p.add_argument("recording", metavar="DIR", help="a directory written by run --record")
+    p.add_argument("--component", required=True, help="the camera's component name (its frames' folder)")
+    p.add_argument("--time", type=float, required=True, help="the frame taken nearest this time (s)")
+    p.add_argument("--out", required=True, metavar="FILE.png", help="the PNG to write")
+    p.set_defaults(func=cmd_figure)
+
+    p = sub.add_parser("markers", help="write the meshes (OBJ) of a fiducial marker layout, which the URDF draws")
+    p.add_argument("layout", metavar="LAYOUT.yaml", help="the marker layout, e.g. models/capture/grapple_markers.yaml")
+    p.add_argument("--check", action="store_true", help="write nothing; exit 1 if the meshes differ from the layout's")
+    p.set_defaults(func=cmd_markers)
 
     p = sub.add_parser("sweep", help="run a campaign: a grid and dispersions over a config's keys, many cases")
     p.add_argument("campaign", metavar="CAMPAIGN.yaml")

@@ -74,7 +74,7 @@ def ray_cast(layout: MarkerLayout, R_C_G, p_C_G, K=K, distortion=None, size=(HEI
     """RGB image (uint8) of the layout's committed meshes (white cells 255, black cells 0, vertices
     in G, read by trimesh) from (R_C_G, p_C_G)."""
     import trimesh
-    from tools.fiducial_markers import mesh_path
+    from components.estimators.marker_meshes import mesh_path
     h, w = size
     # sub-pixel (r, c) of the (h sub) x (w sub) grid: its centre at u = (c + 0.5) / sub - 0.5, and its ray
     c, r = np.meshgrid((np.arange(w * sub) + 0.5) / sub - 0.5, (np.arange(h * sub) + 0.5) / sub - 0.5)

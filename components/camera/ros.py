@@ -9,8 +9,9 @@ optical frame ``<camera>`` (z forward, x right, y down: REP 103's optical frame)
 | ``/<camera>/depth/image_raw`` | sensor_msgs/Image, ``32FC1`` (m along the optical axis, 0 where nothing is hit), with ``depth: true`` |
 | ``/<camera>/camera_info`` | sensor_msgs/CameraInfo: ``K``, ``plumb_bob`` ``D``, ``R`` identity, ``P`` = [K 0] |
 
-Without frames (no ``--record``) it exports nothing. The export holds every frame in memory
-while it writes (2 MB a frame at 640x480). The live views (``--ros2``, ``--view foxglove``) publish
+Without frames (no ``--record``) it exports nothing. The export reads the frames one at a time
+as it writes them (:class:`~components.rosbag.LazyMessages`): its memory does not grow with the
+number of frames. The live views (``--ros2``, ``--view foxglove``) publish
 the same topics and messages from the bus, frame by frame as the camera sends them
 (:func:`frame_topics`, :mod:`components.ros_frames`).
 """
@@ -20,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from components.camera.frames import frame_files
-from components.rosbag import FrameTopics, RosContext, RosExport, RosTopic, link_frame, source_of
+from components.camera.frames import frame_files, read_frame
+from components.rosbag import FrameTopics, LazyMessages, RosContext, RosExport, RosTopic, link_frame, source_of
 from components.rotations import matrix_to_quat
 
 
@@ -69,24 +70,34 @@ def _topics(camera: str) -> tuple[RosTopic, RosTopic, RosTopic]:
 
 
 def _camera(context: RosContext, camera: str) -> list[RosTopic]:
+    """The recorded frames' topics, built frame by frame as the export writes them (each reads
+    only its arrays of the file: a frame is decompressed once across the three)."""
     directory = context.run.record_dir
     files = frame_files(Path(directory) / "frames" / camera) if directory is not None else []
     if not files:
         return []
     images, depths, infos = _topics(camera)
-    mount = None
-    for path in files:
-        with np.load(path) as stored:
-            frame = {key: stored[key] for key in stored.files}
-        ns = context.stamp_of(float(frame["t"]))
-        height, width = frame["rgb"].shape[:2]
-        images.messages.append((ns, _image(context, camera, ns, frame["rgb"])))
-        if "depth" in frame:
-            depths.messages.append((ns, _depth(context, camera, ns, frame["depth"])))
-        infos.messages.append((ns, _camera_info(context, camera, ns, frame["K"], frame.get("D", np.zeros(5)),
-                                                height, width)))
-        mount = frame["T_link_camera"]
-    return _mount(context, camera, mount) + [topic for topic in (images, depths, infos) if topic.messages]
+    last = read_frame(files[-1])          # the mount as last recorded; all frames of a camera share a size
+    height, width = last["rgb"].shape[:2]
+    stamps = [context.stamp_of(float(read_frame(path, ("t",))["t"])) for path in files]
+
+    def image(k: int):
+        return stamps[k], _image(context, camera, stamps[k], read_frame(files[k], ("rgb",))["rgb"])
+
+    def depth(k: int):
+        return stamps[k], _depth(context, camera, stamps[k], read_frame(files[k], ("depth",))["depth"])
+
+    def info(k: int):
+        frame = read_frame(files[k], ("K", "D"))
+        return stamps[k], _camera_info(context, camera, stamps[k], frame["K"], frame.get("D", np.zeros(5)),
+                                       height, width)
+
+    images.messages, infos.messages = LazyMessages(len(files), image), LazyMessages(len(files), info)
+    topics = [images]
+    if "depth" in last:
+        depths.messages = LazyMessages(len(files), depth)
+        topics.append(depths)
+    return _mount(context, camera, last["T_link_camera"]) + topics + [infos]
 
 
 def frame_topics(context: RosContext, camera: str) -> FrameTopics | None:

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from components.camera.frames import frame_path
+from components.camera.frames import frame_path, read_frame
 from components.viewer.scene import STEP_TIMELINE, TIMELINE, Batch, Layout, View, entity_path
 
 
@@ -73,9 +73,8 @@ class CameraView(View):
             path = frame_path(self.frames_dir, int(count) - 1)
             if not path.is_file():           # live: not written yet; tried again at the next row
                 continue
-            with np.load(path) as frame:
-                rgb = frame["rgb"]
-                depth = frame["depth"] if "depth" in frame.files else None
+            frame = read_frame(path, ("rgb", "depth"))
+            rgb, depth = frame["rgb"], frame.get("depth")
             rr.set_time(TIMELINE, duration=float(time), recording=scene.rec)
             rr.set_time(STEP_TIMELINE, sequence=int(step), recording=scene.rec)
             scene.log(f"{self.entity}/rgb", rr.Image(rgb))

@@ -85,7 +85,7 @@ class FiducialComponent(Component):
     sign-continuous from one accepted pose to the next.
 
     The markers must show in the camera's image: the capture target's are meshes of black and
-    white cells (``python -m tools.fiducial_markers``), which any renderer of URDF colours draws.
+    white cells (``orchestrator markers``), which any renderer of URDF colours draws.
 
     State: the last outputs.
     """

@@ -1,6 +1,6 @@
 """Fiducial markers fixed to a link, declared once in a YAML file beside the model: read by the
 estimator (``estimator.fiducial``) and by the generator of the markers' meshes
-(``python -m tools.fiducial_markers``). No OpenCV here: the file is plain data.
+(``orchestrator markers``). No OpenCV here: the file is plain data.
 
 A marker's frame is OpenCV's ArUco convention: origin at the centre of its black square, x to the
 right and y up as the printed marker reads, z out of its face (towards whoever sees it). Its pose

@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 from components.constants import NS_PER_S
+from components.outputs import output_problem
 
 USAGE_ERROR = 2
 DEFAULT_RATE_HZ = 30.0
@@ -164,6 +165,9 @@ def cmd_view(args) -> int:
             return USAGE_ERROR
     if not args.rate > 0:
         print(f"error: --rate: must be positive, got {args.rate:g}", file=sys.stderr)
+        return USAGE_ERROR
+    if file and (problem := output_problem(file, "--view save:", "file")):
+        print(f"error: {problem}", file=sys.stderr)
         return USAGE_ERROR
     try:
         rows = replay(args.dir, mode, file or None, rate_hz=args.rate, open_browser=args.open_browser)

@@ -17,6 +17,7 @@ first row's). Topics that are transient local (``latched``) say so in their offe
 """
 from __future__ import annotations
 
+import heapq
 import shutil
 import sys
 import tempfile
@@ -54,18 +55,24 @@ def _qos(latched: bool):
                liveliness_lease_duration=never, avoid_ros_namespace_conventions=False)
 
 
+def _stream(topic: RosTopic, order: int, connection):
+    """The topic's messages as (ns, order, k, connection, msgtype, message), in time order."""
+    for k, (ns, message) in enumerate(topic.messages):
+        yield ns, order, k, connection, topic.msgtype, message
+
+
 def _write(path: Path, topics: list[RosTopic], typestore) -> None:
+    """The topics' messages in (time, topic, index) order, merged as they are read: a topic of
+    :class:`~components.rosbag.LazyMessages` has one message in memory at a time."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
-    queue = []
     with Writer(path, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP) as writer:
+        streams = []
         for order, topic in enumerate(topics):
             connection = writer.add_connection(topic.name, topic.msgtype, typestore=typestore,
                                                offered_qos_profiles=[_qos(topic.latched)])
-            queue += [(ns, order, k, connection, topic.msgtype, message)
-                      for k, (ns, message) in enumerate(topic.messages)]
-        queue.sort(key=lambda item: item[:3])
-        for ns, _, _, connection, msgtype, message in queue:
+            streams.append(_stream(topic, order, connection))
+        for ns, _, _, connection, msgtype, message in heapq.merge(*streams, key=lambda item: item[:3]):
             writer.write(connection, ns, typestore.serialize_cdr(message, msgtype))
     _name_distro(path / "metadata.yaml", DISTRO.removeprefix("ros2_"))
 

@@ -10,7 +10,7 @@ ArUco solve), shortened to 10 s of its 40 (the grasp closes at 3.6 s):
 - the estimator's poses against the dynamics' own ``grasp.p_ee_grasp`` and ``grasp.q_ee_grasp`` at
   each frame's time (measured: up to 8.4 mm and 1.2 deg at 0.75 m while the arm swings, 1.0 mm and
   0.20 deg closer than 0.15 m);
-- tools/camera_figure.py draws the recorded frame nearest a time."""
+- `orchestrator figure` (components/camera/figure.py) draws the recorded frame nearest a time."""
 from __future__ import annotations
 
 import json
@@ -80,7 +80,7 @@ def test_the_vision_capture_closes_the_grasp_on_the_estimators_poses(tmp_path):
     assert position[near].max() <= 0.003 and attitude[near].max() <= math.radians(0.6), \
         (position[near].max(), math.degrees(attitude[near].max()))
     # the README's figure: the recorded frame nearest 2.5 s, colour beside depth
-    from tools.camera_figure import draw, nearest_frame
+    from components.camera.figure import draw, nearest_frame
     path = nearest_frame(run / "frames" / "wrist", 2.52)
     assert path.name == f"{50:06d}.npz"
     draw(path, tmp_path / "figure.png")

@@ -24,7 +24,7 @@ from components.estimators.marker_layout import Marker, read_layout
 from components.rotations import exp_so3, log_so3, quat_to_matrix
 from tests import fiducial_scenes as scenes
 from tests import validation
-from tools import fiducial_markers
+from components.estimators import marker_meshes as fiducial_markers
 
 LAYOUT = read_layout(scenes.LAYOUT)
 # the wrist camera's mount in E used throughout: off the tool's axis, tilted towards it
@@ -202,7 +202,7 @@ def test_an_image_that_is_not_rgb_uint8_is_refused():
 
 def test_the_committed_meshes_are_what_the_layout_gives_and_the_target_draws_them():
     from components.robots.urdf import read_urdf
-    assert fiducial_markers.stale(LAYOUT, scenes.ROOT) == [], "run python -m tools.fiducial_markers " \
+    assert fiducial_markers.stale(LAYOUT, scenes.ROOT) == [], "run orchestrator markers " \
                                                               "models/capture/grapple_markers.yaml"
     urdf = read_urdf(scenes.ROOT / "models" / "capture" / "target.urdf")
     root = urdf.tree.getroot()

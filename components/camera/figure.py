@@ -1,32 +1,30 @@
 """A figure of what a camera saw in a recorded run: one frame's colour image beside its depth.
 
-    python -m tools.camera_figure RUN_DIR --component wrist --time 3.2 --out figure.png
+    orchestrator figure RUN_DIR --component wrist --time 3.2 --out figure.png
 
 Reads ``RUN_DIR/frames/<component>/<k>.npz`` (``rgb``, ``depth``, the frame's time ``t`` in s) as
-``sensor.camera`` writes them and draws the frame taken
+``sensor.camera`` writes them (:mod:`components.camera.frames`) and draws the frame taken
 nearest ``--time`` (s): the image on the left, the depth (m along the optical axis, black where
 nothing is hit) on the right, titled with the frame's time. The README's vision figure
 (docs/images/capture_vision.png) is made this way from configs/capture_vision.yaml.
 """
 from __future__ import annotations
 
-import argparse
 import io
-import sys
 from pathlib import Path
 
 import numpy as np
 
+from components.camera.frames import frame_files, read_frame
+
 
 def nearest_frame(frames: Path, t: float) -> Path:
     """The recorded frame (``<k>.npz`` in ``frames``) taken nearest ``t`` (s)."""
-    paths = sorted(frames.glob("*.npz"))
+    paths = frame_files(frames)
     if not paths:
-        raise FileNotFoundError(f"no frames in {frames}")
-    times = []
-    for path in paths:
-        with np.load(path) as frame:
-            times.append(float(frame["t"]))
+        raise FileNotFoundError(f"{frames}: expected the camera's frame files (NNNNNN.npz), got "
+                                + ("none" if frames.is_dir() else "no such directory"))
+    times = [float(read_frame(path, ("t",))["t"]) for path in paths]
     return paths[int(np.argmin(np.abs(np.array(times) - t)))]
 
 
@@ -37,9 +35,8 @@ def draw(path: Path, out: Path, width_inches: float = 8.0) -> None:
     import matplotlib.pyplot as plt
     from PIL import Image
 
-    with np.load(path) as frame:
-        rgb, t = frame["rgb"], float(frame["t"])
-        depth = frame["depth"] if "depth" in frame.files else None
+    frame = read_frame(path, ("rgb", "depth", "t"))
+    rgb, t, depth = frame["rgb"], float(frame["t"]), frame.get("depth")
     panels = 1 if depth is None else 2
     height, width = rgb.shape[:2]
     figure, axes = plt.subplots(1, panels, figsize=(width_inches, width_inches / panels * height / width + 0.5),
@@ -61,25 +58,3 @@ def draw(path: Path, out: Path, width_inches: float = 8.0) -> None:
     plt.close(figure)
     # a palette of 256 colours: a third of the bytes, for a figure committed beside the docs
     Image.open(buffer).convert("RGB").quantize(256).save(out, optimize=True)
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.camera_figure", description=__doc__.splitlines()[0])
-    parser.add_argument("run", type=Path, help="a recorded run's directory (orchestrator run --record DIR)")
-    parser.add_argument("--component", required=True, help="the camera's component name (its frames' folder)")
-    parser.add_argument("--time", type=float, required=True, help="the frame taken nearest this time (s)")
-    parser.add_argument("--out", type=Path, required=True, help="the PNG to write")
-    args = parser.parse_args(argv)
-    frames = args.run / "frames" / args.component
-    try:
-        path = nearest_frame(frames, args.time)
-    except FileNotFoundError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    draw(path, args.out)
-    print(f"{args.out}: {path}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -162,25 +162,46 @@ class Listener:
             member = self.run.joining.get(name) or self.run.members[name]
             if how := exited(member) or self.hosts.silent(member):
                 member = at_fault(member)   # in a process group: the member whose code was running
-                self.salvage(member)
+                self.salvage(member, lost=True)
                 raise RunFailure(death(member, how), member, lost=True)
 
-    def salvage(self, failed: Member, timeout: float = 1.0) -> None:
-        """``failed`` failed: record the rows up to its last output, as far as the others' outputs
-        (some still on their way) complete them within ``timeout``."""
+    def salvage(self, failed: Member, lost: bool = False) -> None:
+        """``failed`` failed: record every row up to its last output. The others' outputs for those
+        rows may still be on their way (batched; on a loaded machine, seconds late), so wait for
+        them as long as they come: until the rows are in, a member they wait on is gone, or no
+        output has come for run.step_timeout (what the run takes for hung). No wall-clock limit
+        of its own: a fixed one cut off rows that were sent (CI: 32 of 50, one batch short).
+        ``lost``: ``failed``'s process died or hung, so the members it runs too send nothing more."""
         run = self.run
         if failed.name not in run.members:
             return
-        deadline = time.monotonic() + timeout
+        target = min(failed.progress, run.horizon)
+        heard = time.monotonic()
         run.rows.advance(run.members, run.horizon)   # outputs handled before the failure may still wait
-        while run.rows.row < min(failed.progress, run.horizon) and time.monotonic() < deadline:
+        while run.rows.row < target and time.monotonic() - heard <= run.config.step_timeout_s:
+            if self._unreachable(run.rows.row + 1, failed, lost):
+                return
             try:
-                kind, key, payload = run.inbox.get(timeout=0.05)
+                kind, key, payload = run.inbox.get(timeout=0.1)
             except queue.Empty:
                 continue
             if kind == OUTPUTS:
                 self.handle((kind, key, payload), {})
                 run.rows.advance(run.members, run.horizon)
+                heard = time.monotonic()
+
+    def _unreachable(self, row: int, failed: Member, lost: bool) -> bool:
+        """A member whose outputs row ``row`` lacks can send no more: its process exited, its
+        link is lost, or it runs in ``failed``'s process, which is ``lost``."""
+        for m in self.run.members.values():
+            need = row // m.ratio * m.ratio
+            if m.tag == need or (m.received and m.received[-1][0] >= need):
+                continue
+            if m is not failed and lost and m.shared is not None and m.shared is failed.shared:
+                return True
+            if exited(m) or self.hosts.silent(m):
+                return True
+        return False
 
     def discard_stale(self) -> None:
         """Empty the inbox of what stopped generations sent; requests from the CLI are kept."""

@@ -152,7 +152,7 @@ class Recovery:
         if m is not None:
             m = at_fault(m)   # in a process group, the member whose step holds the others up
             k = m.progress
-            self.listener.salvage(m)
+            self.listener.salvage(m, lost=True)
             raise RunFailure(f"component {m.name!r} did not answer step {k} within {timeout:g} s "
                              f"(hung? raise run.step_timeout if it is just slow)", m, lost=True)
 

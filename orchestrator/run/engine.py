@@ -41,7 +41,7 @@ from orchestrator.config import groups, shadows
 from orchestrator.config.specs import ComponentSpec, Ros2Spec, RunConfig, ViewerSpec
 from orchestrator.run.control import ControlServer, StopRequested, raise_stop
 from orchestrator.run.listener import Listener
-from orchestrator.run.members import Crew, RunFailure, terminate
+from orchestrator.run.members import Crew, RunFailure, terminate_all
 from orchestrator.run.messages import subscribe
 from orchestrator.run.recording import Recording, RecordingError
 from orchestrator.run.state import RunState
@@ -185,7 +185,13 @@ class Run:
             self._loop()
         except (RunFailure, RecordingError) as failure:
             code, message = 1, str(failure)
-            self.state.log("fault", step=self.row, message=message)
+            # who and when, as numbers: the wall seconds since the start (and how long a lost
+            # link had been silent) say how soon the run ended after a cut
+            member, silent_s = getattr(failure, "member", None), getattr(failure, "silent_s", None)
+            self.state.log("fault", step=self.row, message=message,
+                           **({"component": member.name} if member is not None else {}),
+                           **({"silent_s": round(silent_s, 3)} if silent_s is not None else {}),
+                           wall_s=round(time.perf_counter() - run_start, 3))
         except (KeyboardInterrupt, StopRequested):
             self.state.stop_reason = "interrupted"
             code = 130
@@ -197,7 +203,7 @@ class Run:
             # no second Ctrl-C/SIGTERM in the middle of the clean-up: it has bounded waits of its own
             for sig in (signal.SIGINT, signal.SIGTERM):
                 signal.signal(sig, signal.SIG_IGN)
-            code, message = self._clean_up(code, message)
+            code, message = self._clean_up(code, message, run_start)
             signal.signal(signal.SIGINT, signal.default_int_handler)
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
@@ -292,7 +298,7 @@ class Run:
         for member in state.members.values():
             wiring.go(member, state.members, state.horizon)
 
-    def _clean_up(self, code: int, message: str | None) -> tuple[int, str | None]:
+    def _clean_up(self, code: int, message: str | None, run_start: float) -> tuple[int, str | None]:
         """Stop every process, close the recording and the bus; the exit code and error message,
         which a recording that cannot be closed changes."""
         if self.progress:
@@ -300,8 +306,7 @@ class Run:
         if self.hosts is not None:
             self.hosts.close()   # joins from now on are told the run is over
         state, rows = self.state, self.state.rows
-        for member in list(state.members.values()) + list(state.joining.values()):
-            terminate(member, timeout=2.0 if code else 5.0, final=True)
+        terminate_all(list(state.members.values()) + list(state.joining.values()), 2.0 if code else 5.0, final=True)
         if self.viewer_link is not None:
             self.viewer_link.stop(state.stop_reason == "interrupted", self.out)
             if stream := self.viewer_link.ros2_stream():
@@ -310,6 +315,7 @@ class Run:
         name, words = self._outcome(code)
         state.log("end", step=rows.row, time=rows.row * self.config.step_ns / NS_PER_S,
                   status="failed" if code == 1 else (state.stop_reason or "completed"),
+                  wall_s=round(time.perf_counter() - run_start, 3),
                   **({"outcome": name, "outcome_text": words} if name else {}))
         if rows.recording is not None:
             try:

@@ -9,7 +9,7 @@ import time
 from components import bus, protocol
 from orchestrator.run.control import ControlServer
 from orchestrator.run.members import Member, RunFailure, at_fault, death, exited, fault_message
-from orchestrator.run.messages import CONTROL, OUTPUTS, Beat, Events, LinkLost, Liveliness, Outputs, Reply, decode
+from orchestrator.run.messages import CONTROL, OUTPUTS, REPLY, Beat, Events, LinkLost, Liveliness, Outputs, Reply, decode
 from orchestrator.run.state import RunState
 from orchestrator.run.viewer_link import ViewerLink
 
@@ -161,26 +161,98 @@ class Listener:
                 continue
             member = self.run.joining.get(name) or self.run.members[name]
             if how := exited(member) or self.hosts.silent(member):
+                silent_s = None if exited(member) else time.monotonic() - member.heard_at
                 member = at_fault(member)   # in a process group: the member whose code was running
-                self.salvage(member)
-                raise RunFailure(death(member, how), member, lost=True)
+                self.salvage(member, lost=True)
+                raise RunFailure(death(member, how), member, lost=True, silent_s=silent_s)
 
-    def salvage(self, failed: Member, timeout: float = 1.0) -> None:
-        """``failed`` failed: record the rows up to its last output, as far as the others' outputs
-        (some still on their way) complete them within ``timeout``."""
+    def salvage(self, failed: Member, lost: bool = False) -> None:
+        """``failed`` failed: record every row up to its last output. The others' outputs for those
+        rows may still be on their way (batched; on a loaded machine, seconds late), so wait for
+        them as long as they can come: until the rows are in, a row lacks what can no longer
+        come, or no output has come for run.step_timeout (what the run takes for hung). No
+        wall-clock limit of its own: a fixed 1 s cut off rows that were sent (CI: 32 of 50).
+        ``lost``: ``failed``'s process died, hung or lost its link (the members it runs too send
+        nothing more)."""
         run = self.run
         if failed.name not in run.members:
             return
-        deadline = time.monotonic() + timeout
+        target = min(failed.progress, run.horizon)
+        heard = time.monotonic()
         run.rows.advance(run.members, run.horizon)   # outputs handled before the failure may still wait
-        while run.rows.row < min(failed.progress, run.horizon) and time.monotonic() < deadline:
+        while run.rows.row < target and time.monotonic() - heard <= run.config.step_timeout_s:
+            row = run.rows.row + 1
+            if not all(self._deliverable(m, row // m.ratio * m.ratio, failed, lost, set()) for m in run.members.values()):
+                break
+            if self._take_outputs(0.1):
+                heard = time.monotonic()
+        else:
+            return
+        # a row lacks the output of a member fed by one that is gone: whether that member got
+        # its last inputs (a killed process's may have left; a cut link's never arrive), only
+        # it knows. Ask: a member answers a sync after sending every output it has made.
+        asked = {m.name for m in run.members.values()
+                 if m is not failed and not exited(m) and not self.hosts.silent(m)
+                 and not (lost and m.shared is not None and m.shared is failed.shared)}
+        for name in asked:
+            run.members[name].control(protocol.Sync())
+        heard = time.monotonic()
+        while asked and time.monotonic() - heard <= run.config.step_timeout_s:
             try:
-                kind, key, payload = run.inbox.get(timeout=0.05)
+                kind, key, payload = run.inbox.get(timeout=0.1)
             except queue.Empty:
                 continue
             if kind == OUTPUTS:
                 self.handle((kind, key, payload), {})
                 run.rows.advance(run.members, run.horizon)
+                heard = time.monotonic()
+            elif kind == REPLY:
+                try:
+                    reply = decode(kind, key, payload)
+                except bus.Malformed:
+                    continue
+                if type(reply) is Reply and reply.body.get("op") == "synced":
+                    asked.discard(reply.name)
+
+    def _take_outputs(self, timeout: float) -> bool:
+        """Record what one batch of outputs from the inbox completes; whether one came within ``timeout``."""
+        try:
+            kind, key, payload = self.run.inbox.get(timeout=timeout)
+        except queue.Empty:
+            return False
+        if kind != OUTPUTS:
+            return False
+        self.handle((kind, key, payload), {})
+        self.run.rows.advance(self.run.members, self.run.horizon)
+        return True
+
+    def _deliverable(self, m: Member, tag: int, failed: Member, lost: bool, seen: set) -> bool:
+        """Whether ``m``'s output ``tag`` came or surely can still come: sent (a fault's step
+        counts: its batch is on the way), or ``m`` steps on and its sources feed that step. A
+        source that is gone (process exited, link lost, ``failed``'s process when ``lost``) may
+        not have delivered what it sent: False then, and salvage asks."""
+        if m.progress >= tag:
+            return True
+        if (m is failed or exited(m) or self.hosts.silent(m)
+                or (lost and m.shared is not None and m.shared is failed.shared)):
+            return False
+        if (m.name, tag) in seen:   # a loop: the step_timeout bound decides
+            return True
+        seen.add((m.name, tag))
+        k = tag - m.ratio   # the step that makes it
+        for route in (*m.routes, *m.frame_routes):
+            source = self.run.members.get(route.source)
+            if source is None or source is m:
+                continue
+            if not self._deliverable(source, route.tag(k), failed, lost, seen) or (
+                    source.progress >= route.tag(k) and self._gone(source, failed, lost)):
+                return False
+        return True
+
+    def _gone(self, m: Member, failed: Member, lost: bool) -> bool:
+        """``m`` sends nothing more, and what it sent may not all have arrived."""
+        return ((m is failed and lost) or exited(m) is not None or self.hosts.silent(m) is not None
+                or (lost and m.shared is not None and m.shared is failed.shared))
 
     def discard_stale(self) -> None:
         """Empty the inbox of what stopped generations sent; requests from the CLI are kept."""

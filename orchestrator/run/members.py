@@ -24,12 +24,15 @@ from orchestrator.run.messages import Fault, Outputs
 
 class RunFailure(Exception):
     """The run cannot go on: a component crashed, hung, or produced a non-finite value.
-    ``lost``: ``member`` died or hung (a restart may cure that), rather than reported a fault."""
+    ``lost``: ``member`` died or hung (a restart may cure that), rather than reported a fault.
+    ``silent_s``: for a member lost with its link, how long nothing had come from it."""
 
-    def __init__(self, message: str, member: "Member | None" = None, lost: bool = False):
+    def __init__(self, message: str, member: "Member | None" = None, lost: bool = False,
+                 silent_s: float | None = None):
         super().__init__(message)
         self.member = member
         self.lost = lost
+        self.silent_s = silent_s
 
 
 @dataclass
@@ -206,6 +209,19 @@ def terminate(member: Member, timeout: float = 5.0, final: bool = False) -> None
     if member.shared is None or all(m.ended for m in member.shared.members):   # the last of a group ends its process
         supervisor.reap(member.process, timeout)
     member.command.undeclare()
+
+
+def terminate_all(members: list[Member], timeout: float, final: bool = False) -> None:
+    """:func:`terminate` each of ``members``, all asked at once and reaped within one ``timeout``:
+    one that does not answer (its sending blocked on a cut link) holds up the others' end no longer."""
+    for member in members:
+        member.ended = True
+        member.control(protocol.Terminate(final))
+    deadline = time.monotonic() + timeout
+    for member in members:
+        if member.shared is None or all(m.ended for m in member.shared.members):
+            supervisor.reap(member.process, max(deadline - time.monotonic(), 0.0))
+        member.command.undeclare()
 
 
 def exited(member: Member) -> str | None:

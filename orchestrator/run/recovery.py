@@ -19,7 +19,7 @@ from orchestrator.config.specs import ComponentSpec, Fault
 from orchestrator.config.connections import handover_problem, hands_over
 from orchestrator.run.control import SwapFailed
 from orchestrator.run.listener import Listener
-from orchestrator.run.members import Crew, Member, RunFailure, at_fault, terminate
+from orchestrator.run.members import Crew, Member, RunFailure, at_fault, terminate, terminate_all
 from orchestrator.run.state import Checkpoint, RunState
 
 
@@ -118,8 +118,7 @@ class Recovery:
               f"restart {run.restarts} of at most {config.max_restarts})", file=self.out, flush=True)
         if failed.process is not None and failed.process.poll() is None:
             failed.process.kill()   # hung: it would not answer terminate
-        for member in [*run.members.values(), *run.joining.values()]:
-            terminate(member, timeout=2.0)
+        terminate_all([*run.members.values(), *run.joining.values()], timeout=2.0)
         run.joining.clear()
         run.pending_faults = faults_left(run.pending_faults, failed.name, run.horizon, run.rows.row, step_ns)
         self.listener.discard_stale()
@@ -155,7 +154,7 @@ class Recovery:
         if m is not None:
             m = at_fault(m)   # in a process group, the member whose step holds the others up
             k = m.progress
-            self.listener.salvage(m)
+            self.listener.salvage(m, lost=True)
             raise RunFailure(f"component {m.name!r} did not answer step {k} within {timeout:g} s "
                              f"(hung? raise run.step_timeout if it is just slow)", m, lost=True)
 

@@ -159,6 +159,21 @@ def test_a_failing_component_stops_the_run_with_exit_1(write_config, tmp_path, f
     assert not component_processes("faulty-")
 
 
+def test_every_row_the_failing_component_sent_is_recorded_when_the_others_are_late(write_config, tmp_path):
+    """The failing component's last outputs make rows only with the others' outputs for them. On a
+    loaded machine those may come seconds later: here the counter is held 3 s at step 45 (an
+    injected delay: a component starved of CPU, as it looks to the orchestrator) while 'bad' runs
+    ahead and fails at step 50. Every row up to 50 is recorded, none left out for lateness."""
+    config = write_config(FAULTY.format(fault="raise") +
+                          "faults: [{at: 0.45 s, component: counter, kind: delay, duration: 3 s}]\n")
+    result = orchestrator("run", config, "--record", tmp_path / "rec", timeout=120)
+    assert result.returncode == 1, result.stderr
+    assert "component 'bad' (test.faulty) failed in step 50" in result.stderr, result.stderr
+    data = signals(tmp_path / "rec")
+    assert data["step"] == list(range(51)) and data["counter.n"] == [float(k) for k in range(51)]
+    assert data["bad.y"][-1] == 50
+
+
 def test_component_killed_from_outside_is_seen_quickly(write_config, tmp_path):
     """SIGKILL from another process midway: liveliness tells the orchestrator, not the step
     deadline (an hour here: a run that waited for it would outlast the test's wait)."""

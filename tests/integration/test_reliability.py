@@ -195,7 +195,9 @@ def test_each_fault_kind_stops_a_run_that_does_not_restart(write_config, tmp_pat
     assert "Traceback" not in result.stderr
     events = _events(record)
     assert events[-2]["event"] == "fault" and message in events[-2]["message"]
-    assert events[-1] == {"event": "end", "step": events[-1]["step"], "time": events[-1]["time"], "status": "failed"}
+    end = events[-1]
+    assert end == {"event": "end", "step": end["step"], "time": end["time"], "status": "failed", "wall_s": end["wall_s"]}
+    assert end["wall_s"] >= events[-2]["wall_s"] > 0   # the run's own clock: the fault, then the end
     table = pandas.read_parquet(record / "signals.parquet")
     assert 1000 <= len(table) <= 1301                      # what came before the fault, and nothing after it
     assert table.equals(undisturbed.iloc[:len(table)])

@@ -247,6 +247,8 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
                 log(link.warning)
         publishers = RosPublishers(node, typestore, ros.get("topics"), warn, counts)
         live = LiveTopics(config, setup.get("config_dir"), columns, typestore, warn)
+        if unlinked := frames.wait_linked():
+            warn(f"no mesh link yet to {', '.join(unlinked)}: their first frames may be missing from the view")
         token = session.liveliness().declare_token(bus.ros2_alive_key(run_id))   # rows wait in the FIFO from here
         buffer = RowBuffer(len(columns))
         last = time.monotonic()
@@ -282,6 +284,8 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
                 time.sleep(POLL_S)
         if buffer.bad:
             log(f"ignored {buffer.bad} signal rows of an unexpected size (expected {buffer.size} bytes)")
+        if summary := frames.summary():
+            log(summary)
         if node is not None and (missing := publishers.missing()):
             log(f"ros2.topics: the run had no {', '.join(missing)} "
                 f"(its topics: {', '.join(sorted(publishers.publishers)) or 'none'})")

@@ -195,6 +195,8 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
         frames = LiveFrames(session, run_id, config, setup.get("config_dir"), channels.typestore, channels.warn)
         for topic in frames.topics.values():
             channels._channel(topic.name, topic.msgtype)
+        if unlinked := frames.wait_linked():
+            channels.warn(f"no mesh link yet to {', '.join(unlinked)}: their first frames may be missing from the view")
         token = session.liveliness().declare_token(bus.viewer_alive_key(run_id))
         buffer = RowBuffer(len(columns))
         last_log = time.monotonic()
@@ -220,6 +222,8 @@ def observe(connect: str, run_id: str, setup: dict) -> int:
                 time.sleep(POLL_S)
         if buffer.bad:
             log(f"ignored {buffer.bad} signal rows of an unexpected size (expected {buffer.size} bytes)")
+        if summary := frames.summary():
+            log(summary)
         if ended and not gone and setup.get("linger"):   # a terminal: until Ctrl-C (ViewerLink.stop)
             log(f"run over ({channels.rows_sent} rows sent); still serving until Ctrl-C")
             while not orchestrator_gone(watcher):

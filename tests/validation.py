@@ -155,6 +155,10 @@ ROWS: dict[str, Row] = {
         "space.gravity", "Sun and Moon acceleration (Battin's form) at LEO, GEO, HEO, relative",
         "the direct difference in rational arithmetic", 1e-14, "",
         ("tests/unit/test_space_gravity.py::test_third_body_matches_extended_precision_and_basilisk",)),
+    "gravity_third_body_tidal_exact": Row(
+        "dynamics.environment", "Sun's and Moon's differential pull on links 1-100 m from the orbit point, relative",
+        "the subtraction of the two pulls in rational arithmetic", 1e-12, "",
+        ("tests/unit/test_space_gravity.py::test_third_body_tidal_term_per_link_matches_a_direct_subtraction_in_extended_precision",)),
     "gravity_third_body_basilisk": Row(
         "space.gravity", "Sun and Moon acceleration, relative, over max(1, Basilisk's own cancellation bound / 1e-12)",
         "Basilisk GravityEffector's sum of PointMassGravityModel pulls, same positions", 1e-12, "",

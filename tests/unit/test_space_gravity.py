@@ -310,3 +310,35 @@ def test_de440_ephemeris_is_an_option():
     erfa_run = numerical_orbit(third_bodies=["moon"]).step(600 * 10**9)["a_moon_eci"]
     de440_run = numerical_orbit(third_bodies=["moon"], ephemeris="de440").step(600 * 10**9)["a_moon_eci"]
     assert 0.0 < relative(de440_run, erfa_run) < 1e-3          # moon98 vs DE440: ~10 km of 384000
+
+
+def test_third_body_tidal_term_per_link_matches_a_direct_subtraction_in_extended_precision():
+    """a_3(R + d) - a_3(R) for links a metre to 100 m from the orbit point, the Moon and the Sun:
+    the no-cancellation form against the subtraction of the two accelerations in rational arithmetic."""
+    from components.dynamics.environment import third_body_tidal_acceleration
+
+    R = np.array([5.1e6, 2.4e6, 3.7e6])
+    delta = np.array([[1.0, -0.5, 0.25], [30.0, 70.0, -20.0], [-100.0, 3.0, 41.0]])
+    for s, mu in ((CASES["moon0"], gravity.MU_MOON), (CASES["sun0"], gravity.MU_SUN)):
+        got = third_body_tidal_acceleration(R, delta, np.array(s), mu)
+        exact_R = exact_third_body(R, s, mu)
+        for d, a in zip(delta, got):
+            exact = exact_third_body_difference(R + d, R, s, mu)
+            check("gravity_third_body_tidal_exact", relative(a, exact))
+            naive = third_body_acceleration(R + d, s, mu) - exact_R        # what the direct difference loses
+            assert relative(naive, exact) > 1e-13
+
+
+def exact_third_body_difference(x, R, s, mu) -> np.ndarray:
+    """a_3(x) - a_3(R) with every step in rational arithmetic but the square roots (to ~1e-40)."""
+    from decimal import Decimal, getcontext
+
+    getcontext().prec = 50
+
+    def pull(p):
+        d = [Fraction(si) - Fraction(pi) for si, pi in zip(s, p)]
+        n2 = sum(v * v for v in d)
+        n = Fraction(Decimal(n2.numerator).sqrt() / Decimal(n2.denominator).sqrt())
+        return [Fraction(mu) * v / (n2 * n) for v in d]
+
+    return np.array([float(a - b) for a, b in zip(pull(x), pull(R))])

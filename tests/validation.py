@@ -143,6 +143,40 @@ ROWS: dict[str, Row] = {
         "the pose the pictures were drawn at", 0.6, "deg", tuple(f"tests/unit/test_fiducial_estimator.py::{t}" for t in (
             "test_pose_from_warped_marker_pictures", "test_pose_from_the_committed_marker_meshes",
             "test_a_distorted_lens_is_solved_with_its_distortion"))),
+    "gravity_harmonics_basilisk": Row(
+        "space.gravity", "harmonic field (J2, J2-J6, 20 x 20 GGM03S) at 5 ITRF points, whole and less the point mass, relative",
+        "Basilisk SphericalHarmonicsGravityModel, same coefficient file", 1e-12, "",
+        ("tests/unit/test_space_gravity.py::test_harmonic_field_matches_basilisk",)),
+    "gravity_j2_closed_form": Row(
+        "space.gravity", "degree-2 zonal sum vs the closed-form J2 acceleration, relative",
+        "textbook J2 formula (Vallado eq. 8-30)", 1e-14, "",
+        ("tests/unit/test_space_gravity.py::test_j2_term_equals_the_closed_form",)),
+    "gravity_third_body_exact": Row(
+        "space.gravity", "Sun and Moon acceleration (Battin's form) at LEO, GEO, HEO, relative",
+        "the direct difference in rational arithmetic", 1e-14, "",
+        ("tests/unit/test_space_gravity.py::test_third_body_matches_extended_precision_and_basilisk",)),
+    "gravity_third_body_tidal_exact": Row(
+        "dynamics.environment", "Sun's and Moon's differential pull on links 1-100 m from the orbit point, relative",
+        "the subtraction of the two pulls in rational arithmetic", 1e-12, "",
+        ("tests/unit/test_space_gravity.py::test_third_body_tidal_term_per_link_matches_a_direct_subtraction_in_extended_precision",)),
+    "gravity_third_body_basilisk": Row(
+        "space.gravity", "Sun and Moon acceleration, relative, over max(1, Basilisk's own cancellation bound / 1e-12)",
+        "Basilisk GravityEffector's sum of PointMassGravityModel pulls, same positions", 1e-12, "",
+        ("tests/unit/test_space_gravity.py::test_third_body_matches_extended_precision_and_basilisk",)),
+    "gravity_trajectory_basilisk": Row(
+        "orbit.numerical", "one-day LEO position, J2-J6 + Sun + Moon, RK4 10 s (largest error)",
+        "Basilisk Spacecraft (RK4 10 s), same field, rotation and Sun/Moon inputs", 1.0, "m",
+        ("tests/unit/test_space_gravity.py::test_one_day_trajectory_matches_basilisk",)),
+    "numerical_two_body": Row(
+        "orbit.numerical", "point mass (degree 0) over 93 min, e = 0.02, RK4 5 s (largest position error)",
+        "the Kepler ellipse of the same elements (orbit.kepler's closed form)", 0.01, "m",
+        ("tests/unit/test_space_gravity.py::test_point_mass_orbit_equals_the_kepler_ellipse",)),
+    "ephemeris_sun_de440": Row(
+        "space.ephemeris", "Earth -> Sun (ERFA epv00), 2023-2033 (largest error)", "JPL DE440 (jplephem)", 1e4, "m",
+        ("tests/unit/test_space_gravity.py::test_ephemeris_erfa_agrees_with_de440",)),
+    "ephemeris_moon_de440": Row(
+        "space.ephemeris", "Earth -> Moon (ERFA moon98), 2023-2033 (largest error)", "JPL DE440 (jplephem)", 3.2e4, "m",
+        ("tests/unit/test_space_gravity.py::test_ephemeris_erfa_agrees_with_de440",)),
 }
 
 _measured: dict[str, list[float]] = {}

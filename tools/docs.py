@@ -37,6 +37,7 @@ EXAMPLES = {
     "controller.capture": ("configs/capture_tumbling_target.yaml", "controller", ()),
     "fmu": ("configs/reaction_wheel_fmu.yaml", "wheel", ()),
     "test.constant": ("configs/user_component.yaml", "push", ()),
+    "orbit.numerical": ("configs/one_day_perturbed.yaml", "orbit", ()),
 }
 
 

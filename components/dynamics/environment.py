@@ -9,6 +9,7 @@ freely, so a link feels only the difference between gravity at its CoM and gravi
 | tidal force on link i | F_i = m_i (g(R + d_i) - g(R)), d_i = link CoM in W | N |
 | gravity-gradient torque on link i | tau_i = 3 mu / abs(rho_i)^5 (rho_i x I_i rho_i), rho_i = R + d_i | N m |
 | drag force on link i | F_i = -1/2 rho(h) Cd_i A_i abs(v_rel) v_rel at the CoM | N |
+| third-body tidal acceleration of link i | a_3(R + d_i) - a_3(R) = g_3(R - s + d_i) - g_3(R - s), g_3(x) = -mu_3 x / abs(x)^3 | m/s^2 |
 
 ``I_i`` is the link's inertia about its CoM in W axes; ``v_rel`` is the CoM's ECI velocity
 relative to an atmosphere co-rotating with the Earth (omega_E about ECI z); ``h`` the altitude
@@ -73,6 +74,16 @@ def tidal_acceleration(R: np.ndarray, delta: np.ndarray, mu: float = MU_EARTH) -
     delta = np.asarray(delta, dtype=float)
     force, _ = tidal_force_and_gravity_gradient(R, delta, 1.0, None, mu, gravity_gradient=False)
     return force
+
+
+def third_body_tidal_acceleration(R: np.ndarray, delta: np.ndarray, s: np.ndarray, mu3: float) -> np.ndarray:
+    """The Sun's or the Moon's differential pull on points at offsets delta (n, 3) from the
+    reference point R (3,), m/s^2: a_3(R + d) - a_3(R) with a_3(x) = mu3 ((s - x)/|s - x|^3 - s/|s|^3),
+    the body at s (m, from the Earth's centre, same axes). The s/|s|^3 terms cancel exactly, leaving
+    the Earth's tidal form about the third body: g_3(R - s + d) - g_3(R - s), evaluated without
+    cancellation as ``tidal_force_and_gravity_gradient`` does. Not yet applied per link in a step
+    (components/dynamics/link_forces.py): the model and its check only."""
+    return tidal_acceleration(np.asarray(R, dtype=float) - np.asarray(s, dtype=float), delta, mu3)
 
 
 def gravity_gradient_torque(rho: np.ndarray, inertia_W: np.ndarray, mu: float = MU_EARTH) -> np.ndarray:

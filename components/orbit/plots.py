@@ -49,3 +49,28 @@ def track(run: RecordedRun, c: str) -> dict:
 
 
 TRACK = Plot("{c}_track.png", "altitude, ground track (spherical Earth, UT1 = UTC), r_eci and v_eci over time", track)
+
+
+TERMS = ("point_mass", "harmonics", "sun", "moon", "drag", "srp")
+"""orbit.numerical's accelerations, each published as ``a_<term>_eci``."""
+
+
+def accelerations(run: RecordedRun, c: str) -> dict:
+    """The magnitude of each acceleration orbit.numerical publishes (``a_<term>_eci``), log scale."""
+    t = run.time
+    found = [(term, run.vector(f"{c}.a_{term}_eci", 3)) for term in TERMS]
+    found = [(term, a) for term, a in found if a is not None]
+    if not found:
+        return {}
+    fig = new_figure(9.0, 5.0)
+    ax = fig.add_subplot(1, 1, 1)
+    for term, a in found:
+        ax.semilogy(t / 3600.0, np.linalg.norm(a, axis=1), linewidth=1.0, label=term)
+    ax.set(xlabel="time (h)", ylabel="m/s^2", title=f"{c}: magnitude of each acceleration (ECI)")
+    ax.legend(loc="best", fontsize="small")
+    ax.grid(True, which="both", alpha=0.3)
+    return {f"{c}_accelerations.png": fig}
+
+
+ACCELERATIONS = Plot("{c}_accelerations.png", "magnitude of each acceleration term over time (orbit.numerical)",
+                     accelerations)

@@ -1,0 +1,102 @@
+"""The Earth's orientation: GCRF (the project's ECI) -> ITRF (Earth-fixed, ECEF), plain functions, no I/O.
+
+The CIO-based transformation of IERS Conventions 2010 (ch. 5) without polar motion and with
+UT1 = UTC (no Earth-orientation data is read: none ships offline):
+
+| quantity | formula | unit | source |
+|---|---|---|---|
+| celestial-to-intermediate matrix | C_cirs_gcrf = Q(X, Y, s)^T | 1 | ERFA ``c2i06a`` (IAU 2006/2000A precession-nutation), at TT |
+| Earth rotation angle | ERA = 2 pi (0.7790572732640 + 1.00273781191135448 D_UT1) | rad | ERFA ``era00`` (IAU 2000), D_UT1 = days since J2000 UT1 |
+| GCRF -> ITRF | C_itrf_gcrf = R3(ERA) C_cirs_gcrf | 1 | (polar motion W = I) |
+| Earth's rotation rate | dERA/dt = 2 pi 1.00273781191135448 / 86400 | rad/s | |
+
+R3(a) is the frame rotation about z: [[cos a, sin a, 0], [-sin a, cos a, 0], [0, 0, 1]].
+``r_itrf = C_itrf_gcrf @ r_gcrf``. Neglected: polar motion (~0.3", ~10 m on the surface) and
+UT1 - UTC (< 0.9 s, ~400 m of rotation on the equator): the frame is the ITRF to those amounts,
+which matters for comparing positions with a ground truth, not for the physics of a run (the
+same model is used on both sides of every cross-check: Basilisk is given these matrices).
+
+C_cirs_gcrf moves by ~1e-11 rad/s (precession-nutation); :class:`EarthRotation` evaluates it
+at given times and R3(ERA) at every call.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from components.constants import NS_PER_S
+from components.orbit.timescales import SECONDS_PER_DAY, parse_utc, utc_to_tt
+
+ERA_RATE = 2.0 * math.pi * 1.00273781191135448 / SECONDS_PER_DAY
+"""d ERA / dt, rad/s of UT1 (IAU 2000: the Earth's rotation in the ERA model)."""
+
+
+def celestial_to_intermediate(tt: tuple[float, float]) -> np.ndarray:
+    """C_cirs_gcrf (3x3) at TT ``tt`` (two-part Julian date): IAU 2006/2000A, ERFA ``c2i06a``."""
+    import erfa
+
+    return np.asarray(erfa.c2i06a(tt[0], tt[1]), dtype=np.float64)
+
+
+def earth_rotation_angle(ut1: tuple[float, float]) -> float:
+    """ERA (rad, [0, 2 pi)) at UT1 ``ut1`` (two-part Julian date): ERFA ``era00``."""
+    import erfa
+
+    return float(erfa.era00(ut1[0], ut1[1]))
+
+
+def r3(angle: float) -> np.ndarray:
+    """The frame rotation R3(angle) about z (rad)."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def gcrf_to_itrf(tt: tuple[float, float], ut1: tuple[float, float]) -> np.ndarray:
+    """C_itrf_gcrf = R3(ERA(ut1)) C_cirs_gcrf(tt): r_itrf = C @ r_gcrf (no polar motion)."""
+    return r3(earth_rotation_angle(ut1)) @ celestial_to_intermediate(tt)
+
+
+class EarthRotation:
+    """C_itrf_gcrf at run time (s since the run's UTC ``epoch``), UT1 = UTC.
+
+    ``matrix(t_s)`` evaluates both factors at t_s; ``matrix(t_s, c2i)`` takes a C_cirs_gcrf
+    already evaluated (the propagator holds it over a step: it moves ~1e-10 rad in 10 s) and
+    evaluates only R3(ERA), in closed form from the epoch's ERA (no ERFA call).
+    """
+
+    def __init__(self, epoch):
+        self.utc0 = parse_utc(epoch)
+        self.tt0 = utc_to_tt(self.utc0)
+        self.era0 = earth_rotation_angle(self.utc0)
+
+    def tt(self, t_s: float) -> tuple[float, float]:
+        """TT two-part Julian date t_s seconds after the epoch."""
+        return self.tt0[0], self.tt0[1] + t_s / SECONDS_PER_DAY
+
+    def tt_ns(self, t_ns: int) -> tuple[float, float]:
+        """TT two-part Julian date of run time ``t_ns`` (integer ns)."""
+        return self.tt(t_ns / NS_PER_S)
+
+    def era(self, t_s: float) -> float:
+        """ERA (rad, not reduced) t_s seconds after the epoch (UT1 = UTC, no leap second inside a run)."""
+        return self.era0 + ERA_RATE * t_s
+
+    def intermediate(self, t_s: float) -> np.ndarray:
+        """C_cirs_gcrf at t_s."""
+        return celestial_to_intermediate(self.tt(t_s))
+
+    def matrix(self, t_s: float, c2i: np.ndarray | None = None) -> np.ndarray:
+        """C_itrf_gcrf t_s seconds after the epoch."""
+        if c2i is None:
+            c2i = self.intermediate(t_s)
+        return r3(self.era(t_s)) @ c2i
+
+    def matrix_rate(self, t_s: float, c2i: np.ndarray | None = None) -> np.ndarray:
+        """d C_itrf_gcrf / dt (1/s), the Earth's rotation only (C_cirs_gcrf's drift, 1e-11 rad/s, left out)."""
+        if c2i is None:
+            c2i = self.intermediate(t_s)
+        a = self.era(t_s)
+        c, s = math.cos(a), math.sin(a)
+        d = np.array([[-s, c, 0.0], [-c, -s, 0.0], [0.0, 0.0, 0.0]]) * ERA_RATE
+        return d @ c2i

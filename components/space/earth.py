@@ -11,7 +11,8 @@ ECI is GCRF (the project's ECI and the dynamics' W axes); ECEF is ITRF. The rota
 ``M = W R3(ERA) NPB`` (ERFA's CIO-based chain), here with ``W = I``: polar motion (~0.3" ~ 10 m on
 the ground) and UT1 - UTC (|dUT1| < 0.9 s: < 0.004 deg of longitude, < 420 m at the equator) are
 left out, since no Earth orientation parameters are available offline. IAU 2000B agrees with
-IAU 2000A (``c2t06a``) to 1.8e-9 rad (1 cm on the ground) at a tenth of the cost (7 us against 73 us).
+IAU 2000A (``c2t06a``) to 3e-9 rad (2 cm on the ground) over 2000-2050 at a tenth of the cost (7 us
+against 73 us).
 
 WGS 84: a = 6378137 m, 1/f = 298.257223563 (NIMA TR8350.2). With p = hypot(x, y), e^2 = f (2 - f),
 b = a (1 - f), e'^2 = e^2 / (1 - e^2), Bowring's iteration from beta = atan2(z, (1 - f) p):

@@ -54,7 +54,7 @@ EXPONENTIAL_CASES = [
     (655.0e3, 600e3, 1.454e-13, 71.835e3),
     (1200e3, 1000e3, 3.019e-15, 268.00e3),
     (96.0e3, 90e3, 3.396e-6, 5.382e3),
-    (387.0e3, 400e3, 4e-12, 60e3),       # below the layer's base: the exponential goes on downward
+    (431.7e3, 400e3, 4e-12, 60e3),       # one layer (Basilisk gives 0 below planetRadius - 1 m: no case there)
 ]
 
 

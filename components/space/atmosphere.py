@@ -106,6 +106,7 @@ class Nrlmsise00:
             raise ValueError(f"model: expected one of {', '.join(VERSIONS)}, got {model!r}")
         self.f107, self.f107a, self.ap, self.model = float(f107), float(f107a), float(ap), model
         self.version = VERSIONS[model]
+        self._indices: dict[int, tuple[np.ndarray, ...]] = {}    # the indices as pymsis takes them, per point count
 
     def density_geodetic(self, utc: tuple[float, float], latitude, longitude, height) -> np.ndarray:
         """Density (kg/m^3) at WGS 84 geodetic latitude(s), longitude(s) (rad) and height(s) (m), all
@@ -115,14 +116,19 @@ class Nrlmsise00:
     def outputs_geodetic(self, utc: tuple[float, float], latitude, longitude, height) -> np.ndarray:
         """The model's outputs (..., 11) there (pymsis' order: mass density kg/m^3; N2, O2, O, He, H,
         Ar, N, anomalous O, NO number densities m^-3; temperature K), float64."""
+        lat, lon, h = np.broadcast_arrays(np.degrees(latitude), np.degrees(longitude), np.asarray(height) / 1e3)
+        return self._calculate(utc, lon.ravel(), lat.ravel(), h.ravel()).reshape(lat.shape + (11,))
+
+    def _calculate(self, utc, lon_deg: np.ndarray, lat_deg: np.ndarray, height_km: np.ndarray) -> np.ndarray:
+        """pymsis at n points (1-D arrays, deg, deg, km), the indices given: (n, 11) float64."""
         import pymsis
 
-        lat, lon, h = np.broadcast_arrays(np.degrees(latitude), np.degrees(longitude), np.asarray(height) / 1e3)
-        n = lat.size
-        out = pymsis.calculate(np.full(n, utc_datetime64(utc)), lon.ravel(), lat.ravel(), h.ravel(),
-                               np.full(n, self.f107), np.full(n, self.f107a), np.full((n, 7), self.ap),
-                               version=self.version)
-        return out.astype(np.float64).reshape(lat.shape + (11,))
+        n = len(lon_deg)
+        indices = self._indices.get(n)
+        if indices is None:
+            indices = self._indices[n] = (np.full(n, self.f107), np.full(n, self.f107a), np.full((n, 7), self.ap))
+        return pymsis.calculate(np.full(n, utc_datetime64(utc)), lon_deg, lat_deg, height_km, *indices,
+                                version=self.version).astype(np.float64)
 
     def geodetic(self, r_gcrf, utc: tuple[float, float], tt: tuple[float, float]) -> tuple[float, float, float]:
         """WGS 84 latitude, longitude (rad) and height (m) of r_gcrf (m) at UTC/TT ``utc``, ``tt``."""
@@ -136,7 +142,9 @@ class Nrlmsise00:
         """(rho, H): the density (kg/m^3) at r_gcrf and its local scale height (m),
         1/H = ln(rho(h - dh) / rho(h + dh)) / (2 dh), from one call at the three heights."""
         latitude, longitude, height = self.geodetic(r_gcrf, utc, tt)
-        below, at, above = self.density_geodetic(utc, latitude, longitude, height + np.array([-dh, 0.0, dh]))
+        heights = (height + np.array([-dh, 0.0, dh])) / 1e3
+        below, at, above = self._calculate(utc, np.full(3, math.degrees(longitude)), np.full(3, math.degrees(latitude)),
+                                           heights)[:, 0]
         return float(at), 2.0 * dh / math.log(below / above)
 
 

@@ -209,3 +209,35 @@ def test_the_dynamics_parameter():
                                    ({"model": "msis", "f107": 150, "f107a": 140, "ap": 4}, EPOCH, "atmosphere.model")):
         _, errors = resolve(atmosphere, epoch)
         assert [e.key for e in errors] == [key], errors
+
+
+# NRLMSIS 2.1's reference outputs, published by NRL with the model (msis2.1_test_ref_dp.txt, also in
+# pymsis' tests): iyd (yyddd), UT s, height km, geodetic latitude and longitude deg, F10.7a, F10.7, Ap,
+# total mass density g/cm^3 (4 significant digits); every 9th row between 150 and 900 km.
+MSIS21_REFERENCE = [
+    (6264, 42650, 155.0, 80.8, 150.2, 77.7, 70.9, 3.0, 0.9118E-12),
+    (9305, 984, 175.0, -59.3, 143.7, 72.9, 75.1, 3.0, 0.4316E-12),
+    (74057, 42345, 209.8, 63.4, -59.9, 79.6, 80.2, 28.0, 0.1300E-12),
+    (79080, 80550, 227.7, 50.7, -10.0, 185.9, 185.6, 5.0, 0.1449E-12),
+    (12178, 13881, 250.0, -6.9, -38.6, 127.6, 88.5, 7.0, 0.3556E-13),
+    (3069, 10185, 250.0, 18.6, -175.0, 125.9, 152.8, 16.0, 0.8350E-13),
+    (82137, 51096, 262.3, -78.1, 154.2, 161.1, 135.9, 12.0, 0.4256E-13),
+    (10351, 42720, 282.6, -72.0, -99.4, 83.8, 84.1, 4.0, 0.1527E-13),
+    (6283, 41080, 358.8, 46.2, 160.7, 79.3, 75.0, 2.0, 0.1644E-14),
+    (74213, 39510, 399.1, -24.4, 119.1, 86.5, 84.8, 6.0, 0.9457E-15),
+    (6257, 18301, 500.0, -47.6, 125.3, 77.6, 82.9, 4.0, 0.1879E-15),
+]
+
+
+def test_msis21_reproduces_nrls_reference_outputs():
+    """model: msis21 at NRL's published test points: within the 4 printed digits (5e-4)."""
+    worst = 0.0
+    for iyd, sec, km, lat, lon, f107a, f107, ap, rho_cgs in MSIS21_REFERENCE:
+        year = 2000 + iyd // 1000 if iyd // 1000 < 50 else 1900 + iyd // 1000
+        jd0 = erfa.cal2jd(year, 1, 1)
+        utc = (float(jd0[0]), float(jd0[1]) + iyd % 1000 - 1 + sec / 86400)
+        model = Nrlmsise00(f107, f107a, ap, model="msis21")
+        rho = float(model.density_geodetic(utc, math.radians(lat), math.radians(lon), km * 1e3))
+        worst = max(worst, abs(rho / (rho_cgs * 1e3) - 1))
+    print(f"msis21 vs NRL's reference outputs: {worst:.1e}")
+    assert worst < 5e-4

@@ -99,6 +99,22 @@ ROWS: dict[str, Row] = {
         "dynamics.dart (atmosphere)", "density 250-1000 km, relative (CIRA-72 vs USSA-76)",
         "U.S. Standard Atmosphere 1976 tables", 0.4, "",
         ("tests/unit/test_dynamics_orbital.py::test_atmosphere_density_against_the_us_standard_atmosphere",)),
+    "geodetic_wgs84": Row(
+        "space.earth", "WGS 84 geodetic height from ECEF, 5000 points 6200-43000 km from the centre",
+        "ERFA gc2gd (WGS 84)", 1e-7, "m",
+        ("tests/unit/test_space_earth.py::test_geodetic_from_ecef_matches_erfa_gc2gd",)),
+    "atmosphere_exponential_basilisk": Row(
+        "space.atmosphere (exponential)", "density: 5 bands of the table and 1 layer, relative",
+        "Basilisk exponentialAtmosphere", 1e-13, "",
+        ("tests/unit/test_space_atmosphere.py::test_exponential_matches_basilisk",)),
+    "atmosphere_msis_basilisk": Row(
+        "space.atmosphere (NRLMSISE-00)", "total mass density, 14 points 200-800 km (latitudes, local "
+        "times, seasons, F10.7 65-300, Ap 2-207), relative", "Basilisk msisAtmosphere (NRLMSISE-00, C, double)",
+        5e-5, "", ("tests/unit/test_space_atmosphere.py::test_nrlmsise00_matches_basilisk",)),
+    "atmosphere_msis_drag": Row(
+        "dynamics drag (nrlmsise00)", "density over a 10 s step as rk4 weights its stages (one evaluation "
+        "per step at its midpoint, local scale height), links 30 m apart, ISS orbit, relative",
+        "NRLMSISE-00 at each link and stage", 5e-5, "", ("tests/unit/test_space_atmosphere.py::test_local_exponential_against_the_model_per_link_per_stage",)),
     "generalized_jacobian": Row(
         "controller.computed_torque", "Generalized Jacobian J_g (entries of order 1), largest error",
         "finite differences of the end effector under zero momentum (DART)", 1e-7, "",

@@ -263,6 +263,9 @@ class Body:
     def torques_changed(self) -> None:
         """``tau`` was written."""
 
+    def atmosphere_changed(self) -> None:
+        """The environment's atmosphere bands (h0, rho0, scale) were written in place."""
+
     def forward_dynamics(self, reference) -> np.ndarray:
         """Accelerations (the time derivative of v) under ``tau`` and, unless ``reference`` is None,
         the environment with the reference point s seconds after it was at (R, V) (m, m/s, ECI, from

@@ -81,12 +81,27 @@ BODY = Record("Body", (
                                 MapOf(Float(minimum=0.0, plausible=(0.0, 10.0)), "link"))), default=2.2,
               description=f"drag coefficient: {PER_LINK}"),
 ), description="one free-floating URDF multibody (``bodies.<name>``)")
+EXPONENTIAL_LAYER = ("altitude", "density", "scale_height")
+SPACE_WEATHER = ("f107", "f107a", "ap")
+ATMOSPHERE_MODELS = {"exponential": EXPONENTIAL_LAYER, "nrlmsise00": SPACE_WEATHER, "msis21": SPACE_WEATHER}
 ATMOSPHERE = Record("Atmosphere", (
-    Parameter("altitude", Float("m", plausible=(0.0, 2e6)), description="reference altitude above the WGS 84 ellipsoid"),
-    Parameter("density", Float("kg/m^3", minimum=0.0, plausible=(0.0, 1.3)), description="density at that altitude"),
-    Parameter("scale_height", Float("m", positive=True, plausible=(1e3, 5e5)),
-              description="height over which the density falls by e"),
-), description="one exponential layer instead of the 0-1000 km table")
+    Parameter("model", Str(tuple(ATMOSPHERE_MODELS)), default="exponential",
+              description="exponential: one layer (altitude, density, scale_height), or the 0-1000 km table "
+                          "without them; nrlmsise00: NRLMSISE-00 at the run's time (f107, f107a, ap); "
+                          "msis21: NRLMSIS 2.1, the same inputs (components/space/atmosphere.py)"),
+    Parameter("altitude", Float("m", plausible=(0.0, 2e6)), default=None,
+              description="exponential: reference altitude above the sphere of radius R_E (6378.137 km)"),
+    Parameter("density", Float("kg/m^3", minimum=0.0, plausible=(0.0, 1.3)), default=None,
+              description="exponential: density at that altitude"),
+    Parameter("scale_height", Float("m", positive=True, plausible=(1e3, 5e5)), default=None,
+              description="exponential: height over which the density falls by e"),
+    Parameter("f107", Float(positive=True, maximum=1000.0, plausible=(60.0, 400.0)), default=None,
+              description="nrlmsise00, msis21: F10.7 solar radio flux of the previous day, sfu (1e-22 W/m^2/Hz)"),
+    Parameter("f107a", Float(positive=True, maximum=1000.0, plausible=(60.0, 400.0)), default=None,
+              description="nrlmsise00, msis21: F10.7's 81-day average centred on the day, sfu"),
+    Parameter("ap", Float(minimum=0.0, maximum=400.0), default=None,
+              description="nrlmsise00, msis21: daily geomagnetic index Ap (daily-Ap mode; no 3-hour history)"),
+), description="the drag's atmosphere: an exponential (one layer or the table) or NRLMSISE-00 / NRLMSIS 2.1")
 
 
 TOLERANCE = Record("Tolerance", (
@@ -210,12 +225,38 @@ def body_specs(params: Mapping[str, Any], models: Mapping[str, UrdfModel]):
     return specs
 
 
-def _atmosphere(layer: Mapping | None):
-    from components.dynamics.environment import ExponentialAtmosphere
+def check_atmosphere(atmosphere: Mapping | None, epoch) -> None:
+    """ConfigError naming the key: a model's own parameters, all of them, and no other's; NRLMSISE-00
+    needs the run's epoch (its time of day and year)."""
+    if atmosphere is None:
+        return
+    model = atmosphere["model"]
+    own = ATMOSPHERE_MODELS[model]
+    for key in {k for keys in ATMOSPHERE_MODELS.values() for k in keys} - set(own):
+        if atmosphere[key] is not None:
+            raise ConfigError(f"atmosphere.{key}", f"not a parameter of model {model} (its parameters: "
+                                                   f"{', '.join(own)}), got {atmosphere[key]!r}")
+    given = [k for k in own if atmosphere[k] is not None]
+    if model != "exponential" or given:
+        missing = [k for k in own if atmosphere[k] is None]
+        if missing:
+            raise ConfigError(f"atmosphere.{missing[0]}", f"model {model} needs {', '.join(own)}"
+                                                         f"{'' if model != 'exponential' else ' (or none: the table)'}, "
+                                                         f"got no {', '.join(missing)}")
+    if model != "exponential" and epoch is None:
+        raise ConfigError("_epoch", f"atmosphere model {model} needs the run's epoch (expected run.epoch)")
 
-    if layer is None:
+
+def _atmosphere(atmosphere: Mapping | None, epoch):
+    """The world's atmosphere: None (the table), one exponential layer, or NRLMSISE-00 as a local exponential."""
+    from components.space.atmosphere import ExponentialAtmosphere, LocalExponential, Nrlmsise00
+
+    if atmosphere is None or (atmosphere["model"] == "exponential" and atmosphere["altitude"] is None):
         return None
-    return ExponentialAtmosphere(single=(layer["altitude"], layer["density"], layer["scale_height"]))
+    if atmosphere["model"] == "exponential":
+        return ExponentialAtmosphere(single=(atmosphere["altitude"], atmosphere["density"], atmosphere["scale_height"]))
+    return LocalExponential(Nrlmsise00(atmosphere["f107"], atmosphere["f107a"], atmosphere["ap"],
+                                       model=atmosphere["model"]), epoch)
 
 
 class OrbitalDynamics(Component):
@@ -236,7 +277,8 @@ class OrbitalDynamics(Component):
         Parameter("gravity_gradient", "bool", default=True, description="gravity-gradient torque per link"),
         Parameter("drag", "bool", default=False, description="atmospheric drag on links with a drag_area"),
         Parameter("atmosphere", ATMOSPHERE, default=None,
-                  description="one exponential layer; null (default): the piecewise exponential table 0-1000 km"),
+                  description="the drag's atmosphere (model: exponential, nrlmsise00, msis21); null (default): the "
+                              "piecewise exponential table 0-1000 km"),
         Parameter("mu", Float("m^3/s^2", positive=True, plausible=(1e9, 1e21)), default=MU_EARTH, description="Earth's gravitational parameter"),
         Parameter("joint_limits", "bool", default=True, description="enforce the URDF joint position limits"),
         Parameter("link_outputs", "bool", default=False,
@@ -283,6 +325,7 @@ class OrbitalDynamics(Component):
     def validate(cls, params):
         models = load_models(params)
         body_specs(params, models)
+        check_atmosphere(params["atmosphere"], params.get("_epoch"))
         for i, name in enumerate(params["imu"]):
             if name not in models:
                 raise ConfigError(f"imu[{i}]", f"expected a body name ({', '.join(models)}), got {name!r}")
@@ -354,7 +397,7 @@ class OrbitalDynamics(Component):
             self.world = OrbitalWorld(
                 specs, engine=self.engine, integrator=params["integrator"], substeps=params["substeps"],
                 tidal_force=params["tidal_force"], gravity_gradient=params["gravity_gradient"],
-                drag=params["drag"], mu=params["mu"], atmosphere=_atmosphere(params["atmosphere"]),
+                drag=params["drag"], mu=params["mu"], atmosphere=_atmosphere(params["atmosphere"], params.get("_epoch")),
                 joint_limits=params["joint_limits"], models=models, grasp=self.grasp or None,
                 compile_kernels=compile_kernels)
         except ModelError as e:
@@ -376,6 +419,8 @@ class OrbitalDynamics(Component):
         age = (t_ns - self.input_times_ns.get("r_eci", t_ns)) / NS_PER_S   # < 0 under Gauss-Seidel
         try:
             self.world.set_orbit(*ORBIT_VALUES(inputs), age=age)
+            if self.world.atmosphere_varies:      # NRLMSISE-00 needs the time the orbit point is at
+                self.world.orbit_time = self.input_times_ns.get("r_eci", t_ns) / NS_PER_S
             if torques:
                 for name, key in self.torque_inputs:
                     self.world.set_torques(name, inputs[key])
@@ -408,6 +453,8 @@ class OrbitalDynamics(Component):
     def initialize(self, t0_ns, inputs):
         self._inputs(inputs, torques=False, t_ns=t0_ns)
         self.world.reset_bodies()
+        if self.world.atmosphere_varies and self.world.environment_on:   # (the steps update it at their midpoints)
+            self.world.update_atmosphere(self.world.elapsed)
         self.last_quaternions = {}
         return self._outputs()
 

@@ -13,7 +13,8 @@ freely, so a link feels only the difference between gravity at its CoM and gravi
 
 ``I_i`` is the link's inertia about its CoM in W axes; ``v_rel`` is the CoM's ECI velocity
 relative to an atmosphere co-rotating with the Earth (omega_E about ECI z); ``h`` the altitude
-above a spherical Earth (R_E = ``R_EARTH``, 6378.137 km); ``rho(h)`` a piecewise exponential atmosphere.
+above a spherical Earth (R_E = ``R_EARTH``, 6378.137 km); ``rho(h)`` the atmosphere of
+:mod:`components.space.atmosphere` (a piecewise exponential by default; NRLMSISE-00 as a local exponential).
 All vectors in W (= ECI) axes, SI units. The per-link evaluation in a step is
 :mod:`components.dynamics.link_forces`; the functions here are the same formulas in numpy.
 """
@@ -24,41 +25,7 @@ import math
 import numpy as np
 
 from components.constants import MU_EARTH
-
-# Piecewise exponential atmosphere (Vallado, "Fundamentals of Astrodynamics and Applications",
-# Table 8-4; Wertz): base altitude km, density kg/m^3 at the base, scale height km.
-_EXPONENTIAL_TABLE = np.array([
-    (0, 1.225, 7.249), (25, 3.899e-2, 6.349), (30, 1.774e-2, 6.682), (40, 3.972e-3, 7.554),
-    (50, 1.057e-3, 8.382), (60, 3.206e-4, 7.714), (70, 8.770e-5, 6.549), (80, 1.905e-5, 5.799),
-    (90, 3.396e-6, 5.382), (100, 5.297e-7, 5.877), (110, 9.661e-8, 7.263), (120, 2.438e-8, 9.473),
-    (130, 8.484e-9, 12.636), (140, 3.845e-9, 16.149), (150, 2.070e-9, 22.523), (180, 5.464e-10, 29.740),
-    (200, 2.789e-10, 37.105), (250, 7.248e-11, 45.546), (300, 2.418e-11, 53.628), (350, 9.518e-12, 53.298),
-    (400, 3.725e-12, 58.515), (450, 1.585e-12, 60.828), (500, 6.967e-13, 63.822), (600, 1.454e-13, 71.835),
-    (700, 3.614e-14, 88.667), (800, 1.170e-14, 124.64), (900, 5.245e-15, 181.05), (1000, 3.019e-15, 268.00),
-])
-
-
-class ExponentialAtmosphere:
-    """Density by altitude, rho(h) = rho0_k exp(-(h - h0_k) / H_k) in the band k holding h.
-
-    Default: the 28-band table above (0-1000 km; the last band extends upwards, below 0 km the
-    first band is used). ``single=(h0, rho0, H)`` (m, kg/m^3, m) gives one exponential instead.
-    """
-
-    def __init__(self, single: tuple[float, float, float] | None = None):
-        if single is None:
-            self.h0 = _EXPONENTIAL_TABLE[:, 0] * 1e3
-            self.rho0 = _EXPONENTIAL_TABLE[:, 1].copy()
-            self.scale = _EXPONENTIAL_TABLE[:, 2] * 1e3
-        else:
-            h0, rho0, scale = single
-            self.h0, self.rho0, self.scale = np.array([h0]), np.array([rho0]), np.array([scale])
-
-    def density(self, altitude):
-        """Density in kg/m^3 at altitude(s) in m."""
-        h = np.asarray(altitude, dtype=float)
-        k = np.clip(np.searchsorted(self.h0, h, side="right") - 1, 0, len(self.h0) - 1)
-        return self.rho0[k] * np.exp(-(h - self.h0[k]) / self.scale[k])
+from components.space.atmosphere import ExponentialAtmosphere  # noqa: F401 (the drag's atmosphere; re-exported)
 
 
 def gravity(x: np.ndarray, mu: float = MU_EARTH) -> np.ndarray:

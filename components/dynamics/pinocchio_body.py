@@ -141,6 +141,11 @@ class PinocchioBody(Body):
         self.force, self.torque = self.wrenches
         self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [self.pm.nq, self.pm.nq + self.pm.nv])   # views
 
+    def atmosphere_changed(self) -> None:
+        """The kernels read the bands from the pooled copy: refresh it."""
+        a = self.environment.atmosphere
+        self.atmosphere[0], self.atmosphere[1], self.atmosphere[2] = a.h0, a.rho0, a.scale
+
     # -- state
     def positions(self) -> np.ndarray:
         if self.stage:

@@ -79,7 +79,7 @@ class OrbitalWorld:
     | substeps | 1 | internal steps per ``step(h)`` |
     | tidal_force, gravity_gradient, drag | True, True, False | environment terms, per link |
     | mu | 3.986004418e14 m^3/s^2 | Earth's gravitational parameter |
-    | atmosphere | None | ExponentialAtmosphere; None = the 0-1000 km table |
+    | atmosphere | None | ExponentialAtmosphere; None = the 0-1000 km table; a LocalExponential (NRLMSISE-00) is updated every step |
     | joint_limits | True | enforce URDF position limits |
 
     Use: ``set_orbit(r_eci, v_eci, q_eci_lvlh, w_lvlh)`` then ``reset_bodies()`` (initial state,
@@ -107,6 +107,8 @@ class OrbitalWorld:
         self.mu = float(mu)
         self.atmosphere = atmosphere or env.ExponentialAtmosphere()
         self.environment = Environment(self.mu, self.tidal, self.gg, self.drag, self.atmosphere)
+        self.atmosphere_varies = self.drag and getattr(self.atmosphere, "varies", False)
+        self.orbit_time = 0.0       # run time (s since run.epoch) at which the orbit inputs were sampled
         self.joint_limits = bool(joint_limits)
         self.dart_world = None
         if engine == "dart":
@@ -308,6 +310,15 @@ class OrbitalWorld:
             cached = self._reference_cache[s] = link_forces.propagate_reference(self.r_eci, self.v_eci, s, self.mu)
         return cached
 
+    def update_atmosphere(self, s: float) -> None:
+        """A varying atmosphere (NRLMSISE-00) as the one-band exponential of the reference point s
+        seconds after the orbit inputs were sampled (run time ``orbit_time`` + s); ``step`` takes each
+        (sub)step's midpoint, and the outputs between steps keep the last step's band."""
+        R, _ = self.reference(s)
+        self.atmosphere.update(R, self.orbit_time + s)
+        for body in self.bodies.values():
+            body.atmosphere_changed()
+
     # ----------------------------------------------------------------- integration
 
     def step(self, h: float) -> None:
@@ -320,6 +331,8 @@ class OrbitalWorld:
             self.grasp.reset_peak()
         for k in range(self.substeps):
             s = self.elapsed + k * dt
+            if self.atmosphere_varies and self.env_now:
+                self.update_atmosphere(s + 0.5 * dt)
             if self.integrator == "rk4" and self.grasp is not None and self.grasp.closed:
                 integration.rk4_welded(self, dt, s)
             elif self.integrator == "rk4":

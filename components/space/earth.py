@@ -1,4 +1,6 @@
-"""The Earth's orientation: GCRF (the project's ECI) -> ITRF (Earth-fixed, ECEF), plain functions, no I/O.
+"""The Earth's orientation and shape: GCRF (the project's ECI) -> ITRF (Earth-fixed, ECEF) and WGS 84
+geodetic coordinates; plain functions, no I/O. One Earth-rotation model for every model that needs one
+(gravity harmonics, the atmosphere, the geomagnetic field) and for their cross-checks with Basilisk.
 
 The CIO-based transformation of IERS Conventions 2010 (ch. 5) without polar motion and with
 UT1 = UTC (no Earth-orientation data is read: none ships offline):
@@ -18,6 +20,15 @@ same model is used on both sides of every cross-check: Basilisk is given these m
 
 C_cirs_gcrf moves by ~1e-11 rad/s (precession-nutation); :class:`EarthRotation` evaluates it
 at given times and R3(ERA) at every call.
+
+WGS 84: a = 6378137 m, 1/f = 298.257223563 (NIMA TR8350.2). With p = hypot(x, y), e^2 = f (2 - f),
+b = a (1 - f), e'^2 = e^2 / (1 - e^2), Bowring's iteration from beta = atan2(z, (1 - f) p):
+
+    phi = atan2(z + e'^2 b sin^3 beta, p - e^2 a cos^3 beta),   beta = atan2((1 - f) sin phi, cos phi)
+    h = p cos phi + z sin phi - a sqrt(1 - e^2 sin^2 phi),         lambda = atan2(y, x)
+
+converges in two rounds (three are taken) for any point from the surface to beyond GEO: it agrees with
+ERFA's ``gc2gd`` to 3e-11 rad and 3e-8 m (tests/unit/test_space_earth.py).
 """
 from __future__ import annotations
 
@@ -26,7 +37,14 @@ import math
 import numpy as np
 
 from components.constants import NS_PER_S
+from components.orbit import timescales
 from components.orbit.timescales import SECONDS_PER_DAY, parse_utc, utc_to_tt
+
+WGS84_A = 6378137.0                  # m, semi-major axis
+WGS84_F = 1.0 / 298.257223563        # flattening
+_E2 = WGS84_F * (2.0 - WGS84_F)
+_B = WGS84_A * (1.0 - WGS84_F)
+_EP2 = _E2 / (1.0 - _E2)
 
 ERA_RATE = 2.0 * math.pi * 1.00273781191135448 / SECONDS_PER_DAY
 """d ERA / dt, rad/s of UT1 (IAU 2000: the Earth's rotation in the ERA model)."""
@@ -100,3 +118,43 @@ class EarthRotation:
         c, s = math.cos(a), math.sin(a)
         d = np.array([[-s, c, 0.0], [-c, -s, 0.0], [0.0, 0.0, 0.0]]) * ERA_RATE
         return d @ c2i
+
+
+def geodetic_from_ecef(r_ecef) -> tuple[float, float, float]:
+    """WGS 84 geodetic latitude (rad), longitude (rad, -pi..pi) and height (m) of r_ecef (m, ITRF)."""
+    x, y, z = (float(c) for c in r_ecef)
+    p = math.hypot(x, y)
+    beta = math.atan2(z, (1.0 - WGS84_F) * p)
+    for _ in range(3):
+        s, c = math.sin(beta), math.cos(beta)
+        phi = math.atan2(z + _EP2 * _B * s * s * s, p - _E2 * WGS84_A * c * c * c)
+        beta = math.atan2((1.0 - WGS84_F) * math.sin(phi), math.cos(phi))
+    s = math.sin(phi)
+    height = p * math.cos(phi) + z * s - WGS84_A * math.sqrt(1.0 - _E2 * s * s)
+    return phi, math.atan2(y, x), height
+
+
+def ecef_from_geodetic(latitude: float, longitude: float, height: float) -> np.ndarray:
+    """r_ecef (m, ITRF) of a WGS 84 geodetic latitude, longitude (rad) and height (m)."""
+    s, c = math.sin(latitude), math.cos(latitude)
+    n = WGS84_A / math.sqrt(1.0 - _E2 * s * s)          # prime vertical radius of curvature
+    return np.array([(n + height) * c * math.cos(longitude), (n + height) * c * math.sin(longitude),
+                     (n * (1.0 - _E2) + height) * s])
+
+
+class EarthClock:
+    """UTC and TT at run time t (SI seconds since the run's UTC ``epoch``, leap seconds counted:
+    the seconds are added in TAI), and the Earth's orientation then."""
+
+    def __init__(self, epoch):
+        self.epoch_tai = timescales.utc_to_tai(timescales.parse_utc(epoch))
+
+    def utc_tt(self, t_s: float) -> tuple[tuple[float, float], tuple[float, float]]:
+        """(UTC, TT) two-part Julian dates at run time ``t_s``."""
+        tai = (self.epoch_tai[0], self.epoch_tai[1] + t_s / timescales.SECONDS_PER_DAY)
+        return timescales.tai_to_utc(tai), timescales.tai_to_tt(tai)
+
+    def gcrf_to_itrf(self, t_s: float) -> np.ndarray:
+        """M with r_itrf = M r_gcrf at run time ``t_s`` (UT1 = UTC)."""
+        utc, tt = self.utc_tt(t_s)
+        return gcrf_to_itrf(tt, utc)

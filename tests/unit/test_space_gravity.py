@@ -14,7 +14,7 @@ import pytest
 from components.orbit import numerical
 from components.space import gravity
 from components.space.gravity import GravityField, j2_acceleration, third_body_acceleration
-from tests.validation import check
+from tests import validation
 
 FIXTURE = json.loads((Path(__file__).resolve().parents[1] / "basilisk" / "gravity.json").read_text())
 CASES = FIXTURE["cases"]
@@ -30,8 +30,8 @@ def relative(a, b) -> float:
 def test_harmonic_field_matches_basilisk(case):
     field = GravityField(case["degree"], case["order"])
     r = np.array(case["r_itrf"])
-    check("gravity_harmonics_basilisk", relative(field.perturbation(r), case["perturbation"]))
-    check("gravity_harmonics_basilisk", relative(field.field(r), case["g"]))
+    validation.check("gravity_harmonics_basilisk", relative(field.perturbation(r), case["perturbation"]))
+    validation.check("gravity_harmonics_basilisk", relative(field.field(r), case["g"]))
 
 
 def test_j2_term_equals_the_closed_form():
@@ -39,7 +39,7 @@ def test_j2_term_equals_the_closed_form():
     assert field.j2 == pytest.approx(1.0826e-3, rel=1e-4)
     for r in CASES["points_itrf"]:
         got = field.perturbation(np.array(r))
-        check("gravity_j2_closed_form", relative(got, j2_acceleration(r, field.mu, field.radius, field.j2)))
+        validation.check("gravity_j2_closed_form", relative(got, j2_acceleration(r, field.mu, field.radius, field.j2)))
 
 
 def test_field_is_the_gradient_of_its_potential_at_degree_20():
@@ -99,12 +99,12 @@ def exact_third_body(r, s, mu) -> np.ndarray:
 def test_third_body_matches_extended_precision_and_basilisk(case):
     r, s, mu = case["r_eci"], case["s_eci"], case["mu"]
     ours = third_body_acceleration(r, s, mu)
-    check("gravity_third_body_exact", relative(ours, exact_third_body(r, s, mu)))
+    validation.check("gravity_third_body_exact", relative(ours, exact_third_body(r, s, mu)))
     # Basilisk subtracts the two pulls directly: its own rounding is up to ~eps |mu s/|s|^3| / |a|,
     # 4e-12 relative for the Sun at LEO; the row takes the larger of 1e-12 and that bound
     s_ = np.array(s)
     cancellation = 8 * EPS * (mu / (s_ @ s_)) / np.linalg.norm(case["a"])
-    check("gravity_third_body_basilisk", relative(ours, case["a"]) / max(1.0, cancellation / 1e-12))
+    validation.check("gravity_third_body_basilisk", relative(ours, case["a"]) / max(1.0, cancellation / 1e-12))
 
 
 def test_third_body_sign_and_direction():
@@ -152,7 +152,7 @@ def test_one_day_trajectory_matches_basilisk():
         r, _ = propagator.state_at(int(round(t * 1e9)))
         worst = max(worst, float(np.linalg.norm(r - np.array(r_ref))))
     assert reference["t"][-1] == 86400.0
-    check("gravity_trajectory_basilisk", worst)
+    validation.check("gravity_trajectory_basilisk", worst)
 
 
 def test_one_day_trajectory_sees_each_term():
@@ -182,8 +182,8 @@ def test_ephemeris_erfa_agrees_with_de440():
         tt = (2460000.5, float(day) + 0.123)
         worst_sun = max(worst_sun, float(np.linalg.norm(sun_position_eci(tt) - de440.sun(tt))))
         worst_moon = max(worst_moon, float(np.linalg.norm(moon_position_eci(tt) - de440.moon(tt))))
-    check("ephemeris_sun_de440", worst_sun)
-    check("ephemeris_moon_de440", worst_moon)
+    validation.check("ephemeris_sun_de440", worst_sun)
+    validation.check("ephemeris_moon_de440", worst_moon)
 
 
 def test_basilisk_was_given_the_projects_inputs():
@@ -248,7 +248,7 @@ def test_point_mass_orbit_equals_the_kepler_ellipse():
         out = h.step(60 * 10**9)
         r, _, _ = kepler.state(h.t_ns / 1e9)
         worst = max(worst, float(np.linalg.norm(out["r_eci"] - r)))
-    check("numerical_two_body", worst)
+    validation.check("numerical_two_body", worst)
 
 
 def test_the_trajectory_does_not_depend_on_the_communication_step():
@@ -324,7 +324,7 @@ def test_third_body_tidal_term_per_link_matches_a_direct_subtraction_in_extended
         exact_R = exact_third_body(R, s, mu)
         for d, a in zip(delta, got):
             exact = exact_third_body_difference(R + d, R, s, mu)
-            check("gravity_third_body_tidal_exact", relative(a, exact))
+            validation.check("gravity_third_body_tidal_exact", relative(a, exact))
             naive = third_body_acceleration(R + d, s, mu) - exact_R        # what the direct difference loses
             assert relative(naive, exact) > 1e-13
 

@@ -143,6 +143,18 @@ ROWS: dict[str, Row] = {
         "the pose the pictures were drawn at", 0.6, "deg", tuple(f"tests/unit/test_fiducial_estimator.py::{t}" for t in (
             "test_pose_from_warped_marker_pictures", "test_pose_from_the_committed_marker_meshes",
             "test_a_distorted_lens_is_solved_with_its_distortion"))),
+    "srp_eclipse_basilisk": Row(
+        "space.eclipse (conical)", "illumination factor: Earth and Moon umbra, penumbra (LEO, GEO, lunar), full sun, relative",
+        "Basilisk eclipse (the same Sun, Moon positions and radii)", 1e-9, "",
+        ("tests/unit/test_space_srp.py::test_conical_eclipse_factor_matches_basilisk",)),
+    "srp_cannonball_basilisk": Row(
+        "space.srp (cannonball)", "SRP force, LEO to cislunar, eclipse factor 1 and 0.37, relative",
+        "Basilisk radiationPressure (cannonball; its flux and AU)", 1e-9, "",
+        ("tests/unit/test_space_srp.py::test_cannonball_force_matches_basilisk_radiation_pressure",)),
+    "srp_facets_basilisk": Row(
+        "space.srp (facets)", "SRP force and torque of 6 facets, 4 attitudes, relative",
+        "Basilisk facetSRPDynamicEffector (its flux and AU)", 1e-9, "",
+        ("tests/unit/test_space_srp.py::test_facet_force_and_torque_match_basilisk_facet_srp",)),
 }
 
 _measured: dict[str, list[float]] = {}

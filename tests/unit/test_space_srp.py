@@ -59,13 +59,18 @@ def test_partial_disk_fraction_against_numerical_overlap():
     assert eclipse.disk_fraction(a, b, c) == pytest.approx(visible.sum() / inside_sun.sum(), abs=2e-3)
 
 
-def test_cylindrical_model_is_the_cameras_shadow():
+def test_cylindrical_model_is_the_earths_cylinder():
+    """nu = 0 behind the Earth (r . u < 0) within R_E of the Sun line, else 1; the camera's default."""
     rng = np.random.default_rng(7)
     sun_hat = SUN / np.linalg.norm(SUN)
-    for _ in range(300):
+    shaded = 0
+    for _ in range(400):
         r = rng.normal(size=3) * 7.5e6
+        behind = r @ sun_hat < 0 and np.linalg.norm(r - (r @ sun_hat) * sun_hat) < 6378137.0
         nu = eclipse.illumination(r, SUN, None, "cylindrical")
-        assert nu == (0.0 if in_earth_shadow(r, sun_hat) else 1.0)
+        assert nu == (0.0 if behind else 1.0) and in_earth_shadow(r, sun_hat) == behind
+        shaded += behind
+    assert 20 < shaded < 380
     inside = -7.0e6 * sun_hat
     assert eclipse.illumination(inside, SUN, None, "cylindrical") == 0.0
     assert eclipse.illumination(inside, SUN, None, "none") == 1.0

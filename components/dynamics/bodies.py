@@ -20,7 +20,7 @@ the state last set (``set_state``, ``set_stage``, ``set_velocities``), in these 
 ``link_forces.propagate_reference``'d s seconds on from point = (R, V)), ``inverse_mass()``; for the
 outputs ``base_pose()``, ``orientation()``, ``com()``, ``com_velocity()``, ``momentum()`` (and
 ``state_outputs()``, the body's outputs at once: from those unless an engine has them at hand),
-``link_transforms()``, ``environment_wrenches(R, V)``; for a grasp ``link_pose``,
+``link_transforms()``, ``environment_wrenches(R, V)``, ``srp_wrenches(R, V)``; for a grasp ``link_pose``,
 ``point_jacobian``, ``point_bias``; ``base_coordinates(R, p)`` for an initial state.
 """
 from __future__ import annotations
@@ -388,10 +388,14 @@ class Body:
         """(links, 4, 4): each URDF link's pose in W, file order."""
         raise NotImplementedError
 
-    def environment_wrenches(self, R: np.ndarray, V: np.ndarray) -> tuple[np.ndarray, ...]:
+    def environment_wrenches(self, R: np.ndarray, V: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per URDF link (file order; zero for links without mass), with the reference point at
-        (R, V): tidal force, drag force (N), gravity-gradient torque about the CoM (N m), SRP force
-        (N) and torque about the CoM (N m), W axes."""
+        (R, V): tidal force, drag force (N), gravity-gradient torque about the CoM (N m), W axes."""
+        raise NotImplementedError
+
+    def srp_wrenches(self, R: np.ndarray, V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per URDF link, as ``environment_wrenches``: the SRP force (N) and torque about the CoM
+        (N m), W axes, with the Sun last set (``set_sun``)."""
         raise NotImplementedError
 
     def link_pose(self, link: str) -> tuple[np.ndarray, np.ndarray]:

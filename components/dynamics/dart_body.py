@@ -248,17 +248,23 @@ class DartBody(Body):
         e = self.environment
         _, J = self._environment(R, V, e.tidal, False, False)
         tidal, torque = self.force.copy(), self.torque.copy()
-        drag, srp_force, srp_torque = np.zeros_like(tidal), np.zeros_like(tidal), np.zeros_like(tidal)
+        drag = np.zeros_like(tidal)
         if e.drag and self.has_drag:
             self._environment(R, V, False, True, False)
             drag = self.force.copy()
-        if self.has_srp:
-            self._environment(R, V, False, False, True, gravity_gradient=False)
-            srp_force, srp_torque = self.force.copy(), self.torque.copy()
+        return self._per_link(J, (tidal, drag, torque))
+
+    def srp_wrenches(self, R, V):
+        R, V = np.asarray(R, dtype=float), np.asarray(V, dtype=float)
+        _, J = self._environment(R, V, False, False, True, gravity_gradient=False)
+        return self._per_link(J, (self.force.copy(), self.torque.copy()))
+
+    def _per_link(self, J, wrenches):
+        """Per URDF link, W axes, of the massive links' ``wrenches`` in anchor axes."""
         # R_a^T: the angular rows of each anchor's base rotation columns
         rotation_T = J[:3].take(self.base_rotation_columns, axis=1).transpose(1, 0, 2).take(self.anchor_slot, axis=0)
         out = []
-        for local in (tidal, drag, torque, srp_force, srp_torque):
+        for local in wrenches:
             per_link = np.zeros((len(self.link_names), 3))
             per_link[self.massive_links] = np.einsum("nji,nj->ni", rotation_T, local)[self.massive_slots]
             out.append(per_link)

@@ -270,13 +270,20 @@ class PinocchioBody(Body):
         return np.array([self.data.oMf[self.frame_id[link]].homogeneous for link in self.link_names])
 
     def environment_wrenches(self, R, V):
+        return self._wrenches(R, V, (((True, True, False, False), ((0, 0), (2, 1))),
+                                     ((False, False, True, False), ((1, 0),))), 3)
+
+    def srp_wrenches(self, R, V):
+        return self._wrenches(R, V, (((False, False, False, True), ((0, 0), (1, 1))),), 2)
+
+    def _wrenches(self, R, V, calls, count):
+        """Per URDF link, W axes: ``count`` outputs, each call's terms (tidal, gravity gradient,
+        drag, SRP) on filling outputs from its (output, force 0 or torque 1) pairs."""
         R, V = np.asarray(R, dtype=float), np.asarray(V, dtype=float)
         if self.stage:
             self._sync()
-        out = [np.zeros((len(self.link_names), 3)) for _ in range(5)]
-        # (tidal, gravity gradient, drag, SRP) on: the outputs (tidal, drag, gg, srp force, srp torque) each fills
-        for terms, parts in (((True, True, False, False), ((0, 0), (2, 1))), ((False, False, True, False), ((1, 0),)),
-                             ((False, False, False, True), ((3, 0), (4, 1)))):
+        out = [np.zeros((len(self.link_names), 3)) for _ in range(count)]
+        for terms, parts in calls:
             terms = self.terms & np.array(terms)
             if terms.any():
                 link_forces.tree_generalized_forces(

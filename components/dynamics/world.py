@@ -400,8 +400,9 @@ class OrbitalWorld:
         body = self.bodies[name]
         T = body.link_transforms()
         zeros = np.zeros((len(body.link_names), 3))
-        tidal, drag, gg, srp_force, srp_torque = body.environment_wrenches(*self.reference(self.elapsed)) \
-            if self.environment_on else (zeros,) * 5
+        reference = self.reference(self.elapsed) if self.environment_on else None
+        tidal, drag, gg = body.environment_wrenches(*reference) if reference else (zeros,) * 3
+        srp_force, srp_torque = body.srp_wrenches(*reference) if reference and body.has_srp else (zeros,) * 2
         return {
             "gg_torque": gg.ravel(),
             "tidal_force": tidal.ravel(),

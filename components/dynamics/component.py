@@ -64,7 +64,7 @@ SPIN = Record("Spin", (
 FACET = Record("Facet", (
     Parameter("area", Float("m^2", minimum=0.0, plausible=(0.0, 1e3)), description="the facet's area"),
     Parameter("normal", Vector(3), description="its outward normal in the link frame (any length but zero; normalized)"),
-    Parameter("centre", Vector(3, "m", plausible=OFFSET), description="its centre of pressure in the link frame"),
+    Parameter("centre", Vector(3, "m", plausible=(-100.0, 100.0)), description="its centre of pressure in the link frame"),
     Parameter("specular", Float(minimum=0.0, maximum=1.0), description="specular reflectivity rho_s"),
     Parameter("diffuse", Float(minimum=0.0, maximum=1.0),
               description="diffuse reflectivity rho_d (specular + diffuse <= 1; the rest is absorbed)"),

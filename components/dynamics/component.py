@@ -506,7 +506,7 @@ class DartDynamics(OrbitalDynamics):
 
     Zero gravity in the free-falling, non-rotating world frame W (origin at the reference orbit
     point r_eci(t), axes parallel to ECI), plus per link and each switchable: tidal force,
-    gravity-gradient torque, atmospheric drag. ``integrator: rk4`` (default) is fourth-order
+    gravity-gradient torque, atmospheric drag, solar radiation pressure (docs/environment/sun.md). ``integrator: rk4`` (default) is fourth-order
     Runge-Kutta on the configuration manifold over DART's forward dynamics (no contacts);
     ``integrator: dart`` is DART's own step with its constraint solver (contacts between bodies).
     Quaternions [x, y, z, w]. Takes the state of ``dynamics.pinocchio`` (a swap hands it over).

@@ -3,7 +3,8 @@
 ``OrbitalWorld`` is the physics of the ``dynamics.dart`` and ``dynamics.pinocchio`` components as
 a plain class (no bus, no I/O): several bodies, each a URDF on a free-floating base, in zero
 gravity with the orbital environment of :mod:`components.dynamics.environment` (tidal force,
-gravity-gradient torque, drag) computed per link from the reference orbit inputs at every
+gravity-gradient torque, drag) and solar radiation pressure (:mod:`components.space.srp`; the Sun
+and Moon from ``set_sun``, held over a step) computed per link from the reference orbit inputs at every
 integrator stage (:mod:`components.dynamics.link_forces`). The engine (``engine``: ``dart``,
 ``pinocchio``) computes each body's forward dynamics, mass matrix and kinematics
 (:mod:`components.dynamics.dart_body`, :mod:`components.dynamics.pinocchio_body`) in the one set

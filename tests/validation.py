@@ -143,7 +143,7 @@ ROWS: dict[str, Row] = {
         tuple(f"tests/unit/test_dynamics_engines.py::{t}" for t in (
             "test_demo_humanoid_every_output_agrees", "test_servicer_with_wheels_and_drag_agrees",
             "test_prismatic_joints_and_a_mimic_finger_agree", "test_a_joint_resting_on_its_limit_agrees",
-            "test_capture_grasp_and_weld_agree"))),
+            "test_capture_grasp_and_weld_agree")) + ("tests/unit/test_dynamics_srp.py::test_engines_agree_with_srp_on",)),
     "imu_specific_force": Row(
         "dynamics.dart (imu)", "specific force at the base origin, in orbit and not, relative",
         "central differences of the base velocity minus the tidal gravity there", 1e-6, "",
@@ -193,6 +193,24 @@ ROWS: dict[str, Row] = {
     "ephemeris_moon_de440": Row(
         "space.ephemeris", "Earth -> Moon (ERFA moon98), 2023-2033 (largest error)", "JPL DE440 (jplephem)", 3.2e4, "m",
         ("tests/unit/test_space_gravity.py::test_ephemeris_erfa_agrees_with_de440",)),
+    "srp_eclipse_basilisk": Row(
+        "space.eclipse (conical)", "illumination factor: Earth and Moon umbra, penumbra (LEO, GEO, lunar), full sun, relative",
+        "Basilisk eclipse (the same Sun, Moon positions and radii)", 1e-9, "",
+        ("tests/unit/test_space_srp.py::test_conical_eclipse_factor_matches_basilisk",)),
+    "srp_cannonball_basilisk": Row(
+        "space.srp (cannonball)", "SRP force, LEO to cislunar, eclipse factor 1 and 0.37, relative",
+        "Basilisk radiationPressure (cannonball; its flux and AU)", 1e-9, "",
+        ("tests/unit/test_space_srp.py::test_cannonball_force_matches_basilisk_radiation_pressure",)),
+    "srp_facets_basilisk": Row(
+        "space.srp (facets)", "SRP force and torque of 6 facets, 4 attitudes, relative",
+        "Basilisk facetSRPDynamicEffector (its flux and AU)", 1e-9, "",
+        ("tests/unit/test_space_srp.py::test_facet_force_and_torque_match_basilisk_facet_srp",)),
+    "srp_links": Row(
+        "dynamics.dart, dynamics.pinocchio (srp)", "SRP force and torque per link (servicer: facets on the bus and "
+        "a welded link, cannonballs on two arm links), relative",
+        "space.srp and space.eclipse on each link's output pose (no kernel frames)", 1e-9, "",
+        tuple(f"tests/unit/test_dynamics_srp.py::{t}" for t in (
+            "test_link_srp_wrenches_are_the_facets_and_cannonballs_on_the_link_poses",))),
 }
 
 _measured: dict[str, list[float]] = {}

@@ -26,6 +26,7 @@ from components.sensors.noise import NormalStream, normalized
 from components.signals import body_signals
 
 MAX_SIZE = 8192
+ECLIPSE_MODELS = ("cylindrical", "conical", "none")
 
 CAMERA_PARAMETERS = (
     Parameter("bodies", MapOf(Str(hint="a URDF file path"), "body name", min_items=1),
@@ -50,6 +51,9 @@ CAMERA_PARAMETERS = (
     Parameter("lamp", Float("m^2", minimum=0.0), default=0.0,
               description="a lamp at the camera's origin: light on a face square to it 1 m away, a fraction of its "
                           "colour, falling off as 1/d^2 (Lambert; 0: none)"),
+    Parameter("eclipse", Str(tuple(ECLIPSE_MODELS)), default="cylindrical",
+              description="the shadow that unlights the scene (components/space/eclipse.py): cylindrical (the Earth's "
+                          "cylinder), conical (Earth and Moon, lit while any of the Sun shows), none (always lit)"),
     Parameter("seed", Int(minimum=0), description="seed of the noise (numpy PCG64)"),
     Parameter("pixel_noise", Float(minimum=0.0, plausible=(0.0, 64.0)),
               description="white noise on each colour channel, 1-sigma (counts of 0..255)"),
@@ -146,10 +150,12 @@ class Camera:
         nothing hit), ``K``, ``D`` (plumb_bob, zeros for a pinhole), ``T_link_camera``,
         ``T_W_camera``, ``t`` (s) and ``lit`` (bool)."""
         from components.camera.model import add_depth_noise, add_pixel_noise
-        from components.camera.sun import in_earth_shadow
+        from components.space.eclipse import illumination
 
-        sun_W = self.sun.direction(t_ns)
-        lit = not in_earth_shadow(inputs["r_eci"], sun_W)
+        sun_eci = self.sun.sun(t_ns)
+        sun_W = sun_eci / np.linalg.norm(sun_eci)
+        model = self.camera["eclipse"]
+        lit = illumination(inputs["r_eci"], sun_eci, self.sun.moon(t_ns) if model == "conical" else None, model) > 0.0
         states = {name: (inputs[f"{name}.position"], inputs[f"{name}.orientation"], inputs[f"{name}.q"])
                   for name in self.bodies}
         rgb, depth, T_W_camera = self.model.render(states, sun_W if lit else None)

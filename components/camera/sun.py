@@ -5,15 +5,16 @@
   light time (8 min, 20 arcsec of motion) nor aberration is applied: both under 0.006 deg.
 - :func:`in_earth_shadow`: a point is in the Earth's shadow when it is behind the Earth and within
   a cylinder of the Earth's equatorial radius along the Sun direction (no penumbra, no umbra cone:
-  the cylinder errs by under 0.3 % of the shadow's radius in low orbit).
+  the cylinder errs by under 0.3 % of the shadow's radius in low orbit); the camera's default, its
+  ``eclipse: cylindrical``. The models: :mod:`components.space.eclipse`.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from components.constants import R_EARTH  # noqa: F401 (the shadow's radius)
+from components.space.eclipse import illumination
 from components.space.ephemeris import Ephemeris, sun_direction_eci  # noqa: F401 (the camera's Sun)
-
-R_EARTH = 6378137.0   # m, WGS 84 equatorial radius
 
 
 class SunClock(Ephemeris):
@@ -25,9 +26,6 @@ class SunClock(Ephemeris):
 
 def in_earth_shadow(r_eci: np.ndarray, sun_eci: np.ndarray) -> bool:
     """Whether the point ``r_eci`` (m, from the Earth's centre) is in the Earth's cylindrical shadow
-    for the unit Sun direction ``sun_eci``. The origin (no orbit) is taken as lit."""
-    r = np.asarray(r_eci, dtype=np.float64)
-    along = float(r @ sun_eci)
-    if not np.any(r) or along >= 0.0:
-        return False
-    return float(np.linalg.norm(r - along * sun_eci)) < R_EARTH
+    for the Sun direction ``sun_eci`` (:func:`components.space.eclipse.illumination`, ``cylindrical``).
+    The origin (no orbit) is taken as lit."""
+    return illumination(r_eci, sun_eci, None, "cylindrical") == 0.0

@@ -20,7 +20,7 @@ the state last set (``set_state``, ``set_stage``, ``set_velocities``), in these 
 ``link_forces.propagate_reference``'d s seconds on from point = (R, V)), ``inverse_mass()``; for the
 outputs ``base_pose()``, ``orientation()``, ``com()``, ``com_velocity()``, ``momentum()`` (and
 ``state_outputs()``, the body's outputs at once: from those unless an engine has them at hand),
-``link_transforms()``, ``environment_wrenches(R, V)``; for a grasp ``link_pose``,
+``link_transforms()``, ``environment_wrenches(R, V)``, ``srp_wrenches(R, V)``; for a grasp ``link_pose``,
 ``point_jacobian``, ``point_bias``; ``base_coordinates(R, p)`` for an initial state.
 """
 from __future__ import annotations
@@ -40,6 +40,7 @@ from components.rotations import matrix_to_quat
 FRAMES = ("world", "lvlh")
 TWIST_ORDER = np.array([3, 4, 5, 0, 1, 2])      # (omega, v) coordinates -> the twist output (v, omega)
 DEFAULT_CD = 2.2
+DEFAULT_CR = 1.0        # radiation pressure coefficient of a black (absorbing) cannonball
 
 
 class ModelError(ValueError):
@@ -67,6 +68,9 @@ class BodySpec:
     | locked_joints | - | joints welded at their initial q |
     | drag_area | m^2 | link name -> reference area (links not named: no drag) |
     | drag_cd | - | drag coefficient, one number or link name -> Cd (default 2.2) |
+    | srp_area | m^2 | link name -> cannonball area facing the Sun (links not named: none) |
+    | srp_cr | - | radiation pressure coefficient Cr, one number or link name -> Cr (default 1) |
+    | srp_facets | - | link name -> facets [{area m^2, normal, centre m (link frame), specular, diffuse}] |
     """
     name: str
     urdf: str | Path
@@ -79,6 +83,9 @@ class BodySpec:
     locked_joints: tuple[str, ...] = ()
     drag_area: Mapping[str, float] = field(default_factory=dict)
     drag_cd: float | Mapping[str, float] = DEFAULT_CD
+    srp_area: Mapping[str, float] = field(default_factory=dict)
+    srp_cr: float | Mapping[str, float] = DEFAULT_CR
+    srp_facets: Mapping[str, list] = field(default_factory=dict)
 
 
 def check_spec(spec: BodySpec, model: UrdfModel) -> None:
@@ -132,6 +139,38 @@ def check_spec(spec: BodySpec, model: UrdfModel) -> None:
             raise ModelError(key, f"not a link of {Path(spec.urdf).name}")
         if not (cd >= 0.0 and math.isfinite(cd)):
             raise ModelError(key, f"expected a drag coefficient >= 0, got {cd}")
+    _check_srp(spec, model)
+
+
+def _check_srp(spec: BodySpec, model: UrdfModel) -> None:
+    """SRP on links that exist and have mass (a massless link carries no force); facets that can be."""
+    from components.space.srp import facet_rows
+
+    n, massive = spec.name, {link.name for link in model.links if link.mass > 0.0}
+    crs = spec.srp_cr.items() if isinstance(spec.srp_cr, Mapping) else [(None, spec.srp_cr)]
+    for key, links in (("srp_area", spec.srp_area), ("srp_facets", spec.srp_facets), ("srp_cr", dict(crs))):
+        for link in links:
+            if link is None:
+                continue
+            if link not in model.link_names:
+                raise ModelError(f"{n}.{key}.{link}", f"not a link of {Path(spec.urdf).name} "
+                                                      f"(links: {', '.join(model.link_names)})")
+            if link not in massive and key != "srp_cr":
+                raise ModelError(f"{n}.{key}.{link}", f"a link without mass carries no force in the dynamics: expected "
+                                                      f"one with mass ({', '.join(sorted(massive))})")
+    for link, area in spec.srp_area.items():
+        if not (area >= 0.0 and math.isfinite(area)):
+            raise ModelError(f"{n}.srp_area.{link}", f"expected an area >= 0 m^2, got {area}")
+    for link, cr in crs:
+        if not (cr >= 0.0 and math.isfinite(cr)):
+            raise ModelError(f"{n}.srp_cr" + (f".{link}" if link is not None else ""),
+                             f"expected a radiation pressure coefficient >= 0, got {cr}")
+    for link, facets in spec.srp_facets.items():
+        try:
+            facet_rows(facets, where=f"{n}.srp_facets.{link}")
+        except ValueError as e:
+            key, _, message = str(e).partition(": ")
+            raise ModelError(key, message) from None
 
 
 @dataclass(frozen=True)
@@ -142,6 +181,19 @@ class Environment:
     gravity_gradient: bool
     drag: bool
     atmosphere: env.ExponentialAtmosphere
+    srp: bool = False
+    eclipse: str = "conical"          # components.space.eclipse.MODELS
+    solar_flux: float = 1361.0        # W/m^2 at 1 AU (components.space.srp.SOLAR_FLUX)
+
+    def light(self) -> np.ndarray:
+        """The kernels' ``light`` (link_forces.LIGHT_SIZE); until ``set_sun`` (which a world's step
+        requires with SRP on) the Sun 1 AU along x, the Moon 384 400 km along y."""
+        from components.constants import R_EARTH
+        from components.space import eclipse, srp
+
+        return np.array([srp.pressure_1au(self.solar_flux), srp.AU, eclipse.MODELS[self.eclipse], eclipse.R_SUN,
+                         R_EARTH, eclipse.R_MOON, 1.0 if self.eclipse == "conical" else 0.0, srp.AU, 0.0, 0.0,
+                         0.0, 3.844e8, 0.0])
 
 
 class Body:
@@ -188,9 +240,34 @@ class Body:
         self.drag_k = {link: 0.5 * (float(cd.get(link, DEFAULT_CD)) if isinstance(cd, Mapping) else float(cd))
                        * float(spec.drag_area.get(link, 0.0)) for link in self.link_names}
         self.has_drag = any(k > 0.0 for k in self.drag_k.values())
+        cr = spec.srp_cr
+        self.srp_cr_area = {link: (float(cr.get(link, DEFAULT_CR)) if isinstance(cr, Mapping) else float(cr))
+                            * float(area) for link, area in spec.srp_area.items() if area > 0.0}
+        from components.space.srp import facet_rows
+        self.srp_facets = {link: facet_rows(facets) for link, facets in spec.srp_facets.items() if len(facets)}
+        self.has_srp = environment.srp and bool(self.srp_cr_area or self.srp_facets)
         self.tau = np.zeros(self.ndofs)
         self.stops = np.zeros(0, dtype=int)
         self.stop_sides = np.zeros(0)
+
+    def srp_tables(self, links, rotations, offsets):
+        """The kernels' SRP tables for the massive ``links`` (names, the kernels' order) whose link
+        frames sit in their local axes at rotation ``rotations[k]`` and origin ``offsets[k]`` (m,
+        from the link's CoM): per link (Cr A, first facet row, count), and the facets there."""
+        per_link, rows = np.zeros((len(links), 3)), []
+        for k, link in enumerate(links):
+            facets = self.srp_facets.get(link, np.zeros((0, 9)))
+            per_link[k] = self.srp_cr_area.get(link, 0.0), sum(len(r) for r in rows), len(facets)
+            local = facets.copy()
+            local[:, 1:4] = facets[:, 1:4] @ rotations[k].T
+            local[:, 4:7] = facets[:, 4:7] @ rotations[k].T + offsets[k]
+            rows.append(local)
+        return per_link, (np.concatenate(rows) if rows else np.zeros((0, 9))).reshape(-1, 9)
+
+    def set_sun(self, sun_eci: np.ndarray, moon_eci: np.ndarray) -> None:
+        """The Sun and the Moon from the Earth's centre (m, ECI = W axes) for SRP, held until set again."""
+        self.light[7:10] = sun_eci
+        self.light[10:13] = moon_eci
 
     def joint_positions(self, positions: np.ndarray | None = None) -> np.ndarray:
         """URDF-order joint positions from the coordinates (the body's by default); locked joints at their lock."""
@@ -317,6 +394,11 @@ class Body:
     def environment_wrenches(self, R: np.ndarray, V: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per URDF link (file order; zero for links without mass), with the reference point at
         (R, V): tidal force, drag force (N), gravity-gradient torque about the CoM (N m), W axes."""
+        raise NotImplementedError
+
+    def srp_wrenches(self, R: np.ndarray, V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per URDF link, as ``environment_wrenches``: the SRP force (N) and torque about the CoM
+        (N m), W axes, with the Sun last set (``set_sun``)."""
         raise NotImplementedError
 
     def link_pose(self, link: str) -> tuple[np.ndarray, np.ndarray]:

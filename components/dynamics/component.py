@@ -31,11 +31,14 @@ from components.schema import Float, Int, ListOf, MapOf, OneOf, Record, Str, Vec
 from components.units import DEG
 from components.sdk import Component, Parameter, Variable
 from components.signals import BODY as BODY_OUTPUTS, ORBIT as ORBIT_INPUTS, body_signals, orbit_signals, torque_signal
+from components.space.eclipse import MODELS as ECLIPSE_MODELS
+from components.space.ephemeris import moon_position_eci, sun_position_eci
+from components.space.srp import SOLAR_FLUX
 
 ORBIT_VALUES = itemgetter(*ORBIT_INPUTS)      # inputs -> the orbit inputs' values, in set_orbit's order
 
 NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-LINK_OUTPUTS = ("gg_torque", "tidal_force", "drag_force", "link_position", "link_orientation")
+LINK_OUTPUTS = ("gg_torque", "tidal_force", "drag_force", "srp_force", "srp_torque", "link_position", "link_orientation")
 LAST = "last_output."   # state keys of the last output quaternions
 
 PER_LINK = "one number for the base link, or link name -> number"
@@ -58,6 +61,14 @@ SPIN = Record("Spin", (
     Parameter("linear", Vector(3, "m/s", plausible=SPEED), default=[0.0, 0.0, 0.0],
               description="base origin linear velocity"),
 ), description="a twist from parts: rate times axis, and a linear velocity")
+FACET = Record("Facet", (
+    Parameter("area", Float("m^2", minimum=0.0, plausible=(0.0, 1e3)), description="the facet's area"),
+    Parameter("normal", Vector(3), description="its outward normal in the link frame (any length but zero; normalized)"),
+    Parameter("centre", Vector(3, "m", plausible=(-100.0, 100.0)), description="its centre of pressure in the link frame"),
+    Parameter("specular", Float(minimum=0.0, maximum=1.0), description="specular reflectivity rho_s"),
+    Parameter("diffuse", Float(minimum=0.0, maximum=1.0),
+              description="diffuse reflectivity rho_d (specular + diffuse <= 1; the rest is absorbed)"),
+), description="one flat facet for SRP (Basilisk facetSRPDynamicEffector's)")
 BODY = Record("Body", (
     Parameter("urdf", Str(hint="a URDF file path"),
               description="URDF file, relative to the config file (else to the project root); its root link is the free base"),
@@ -80,6 +91,14 @@ BODY = Record("Body", (
     Parameter("drag_cd", OneOf((Float(minimum=0.0, plausible=(0.0, 10.0)),
                                 MapOf(Float(minimum=0.0, plausible=(0.0, 10.0)), "link"))), default=2.2,
               description=f"drag coefficient: {PER_LINK}"),
+    Parameter("srp_area", OneOf((Float("m^2", minimum=0.0, plausible=(0.0, 1e4)),
+                                 MapOf(Float("m^2", minimum=0.0, plausible=(0.0, 1e4)), "link"))),
+              default={}, description=f"cannonball SRP: area facing the Sun, {PER_LINK}"),
+    Parameter("srp_cr", OneOf((Float(minimum=0.0, plausible=(0.0, 2.0)),
+                               MapOf(Float(minimum=0.0, plausible=(0.0, 2.0)), "link"))), default=1.0,
+              description=f"cannonball SRP: radiation pressure coefficient Cr (1: black, 1 + specular), {PER_LINK}"),
+    Parameter("srp_facets", MapOf(ListOf(FACET), "link"), default={},
+              description="faceted SRP: link name -> its flat facets (instead of or with a cannonball)"),
 ), description="one free-floating URDF multibody (``bodies.<name>``)")
 EXPONENTIAL_LAYER = ("altitude", "density", "scale_height")
 SPACE_WEATHER = ("f107", "f107a", "ap")
@@ -173,6 +192,16 @@ def imu_variables(name: str) -> list[Variable]:
     ]
 
 
+def sun_variables(name: str) -> list[Variable]:
+    """What a sun sensor at the base origin senses, true values (a sensor component adds noise)."""
+    return [
+        Variable(f"{name}.sun_body", "output", (3,), "1", [1.0, 0.0, 0.0],
+                 "unit vector from the base origin to the Sun, base axes (geometric, no light time)"),
+        Variable(f"{name}.sunlit", "output", (), "1", 1.0,
+                 "illumination factor at the base origin: 1 full sun, 0 umbra, between in penumbra (eclipse model)"),
+    ]
+
+
 def load_models(params: Mapping[str, Any]) -> dict[str, UrdfModel]:
     """Parsed URDF of every body (xml.etree only); ConfigError naming ``bodies.<name>.urdf``."""
     return {name: read_model(body["urdf"], params.get("_config_dir"), f"bodies.{name}.urdf", params.get("_packages"))
@@ -211,12 +240,13 @@ def body_specs(params: Mapping[str, Any], models: Mapping[str, UrdfModel]):
     specs = []
     for name, body in body_items(params["bodies"]):
         model = models[name]
-        area, cd = body["drag_area"], body["drag_cd"]
+        area, cd, srp_area = body["drag_area"], body["drag_cd"], body["srp_area"]
         spec = BodySpec(
             name=name, urdf=model.path, frame=body["frame"], position=body["position"],
             orientation=body["orientation"], twist=_twist(name, body), q=dict(body["q"]), qd=dict(body["qd"]),
             locked_joints=tuple(body["locked_joints"]), drag_area=area if isinstance(area, Mapping) else {model.root: area},
-            drag_cd=cd)
+            drag_cd=cd, srp_area=srp_area if isinstance(srp_area, Mapping) else {model.root: srp_area},
+            srp_cr=body["srp_cr"], srp_facets={link: list(facets) for link, facets in body["srp_facets"].items()})
         try:
             check_spec(spec, model)
         except ModelError as e:
@@ -279,6 +309,16 @@ class OrbitalDynamics(Component):
         Parameter("atmosphere", ATMOSPHERE, default=None,
                   description="the drag's atmosphere (model: exponential, nrlmsise00, msis21); null (default): the "
                               "piecewise exponential table 0-1000 km"),
+        Parameter("srp", "bool", default=False,
+                  description="solar radiation pressure on links with an srp_area or srp_facets (needs run.epoch)"),
+        Parameter("eclipse", Str(tuple(ECLIPSE_MODELS)), default="conical",
+                  description="the shadow for SRP and sun_sensor: conical (Earth and Moon, penumbra), cylindrical "
+                              "(the Earth's), none"),
+        Parameter("solar_flux", Float("kg/s^3", positive=True, plausible=(1300.0, 1420.0)), default=SOLAR_FLUX,
+                  description="solar flux at 1 AU, W/m^2 (= kg/s^3; 1361: IAU 2015 nominal total solar irradiance)"),
+        Parameter("sun_sensor", ListOf(Str(), unique=True), default=[],
+                  description="bodies whose base carries a sun sensor: their sun_body and sunlit outputs (true values; "
+                              "needs run.epoch)"),
         Parameter("mu", Float("m^3/s^2", positive=True, plausible=(1e9, 1e21)), default=MU_EARTH, description="Earth's gravitational parameter"),
         Parameter("joint_limits", "bool", default=True, description="enforce the URDF joint position limits"),
         Parameter("link_outputs", "bool", default=False,
@@ -308,6 +348,10 @@ class OrbitalDynamics(Component):
                          "(this and the next four only with link_outputs: true)"),
                 Variable(f"{name}.tidal_force", "output", (3 * m,), "N", 0.0, "tidal force per link, W axes"),
                 Variable(f"{name}.drag_force", "output", (3 * m,), "N", 0.0, "drag force per link, W axes"),
+                Variable(f"{name}.srp_force", "output", (3 * m,), "N", 0.0,
+                         "solar radiation pressure force per link at its CoM, W axes"),
+                Variable(f"{name}.srp_torque", "output", (3 * m,), "N*m", 0.0,
+                         "solar radiation pressure torque per link about its CoM, W axes"),
                 Variable(f"{name}.link_position", "output", (3 * m,), "m", 0.0, "link frame origins in W"),
                 Variable(f"{name}.link_orientation", "output", (4 * m,), "1", np.tile([0.0, 0.0, 0.0, 1.0], m),
                          "q_W_link per link [x, y, z, w]"),
@@ -317,6 +361,8 @@ class OrbitalDynamics(Component):
                 variables += frame_variables(name)
             if name in params.get("imu", ()):
                 variables += imu_variables(name)
+            if name in params.get("sun_sensor", ()):
+                variables += sun_variables(name)
         if params.get("grasp"):
             variables += grasp_variables(params["grasp"])
         return variables
@@ -326,9 +372,12 @@ class OrbitalDynamics(Component):
         models = load_models(params)
         body_specs(params, models)
         check_atmosphere(params["atmosphere"], params.get("_epoch"))
-        for i, name in enumerate(params["imu"]):
-            if name not in models:
-                raise ConfigError(f"imu[{i}]", f"expected a body name ({', '.join(models)}), got {name!r}")
+        for key in ("imu", "sun_sensor"):
+            for i, name in enumerate(params[key]):
+                if name not in models:
+                    raise ConfigError(f"{key}[{i}]", f"expected a body name ({', '.join(models)}), got {name!r}")
+        if (params["srp"] or params["sun_sensor"]) and not params.get("_epoch"):
+            raise ConfigError("_epoch", "SRP and a sun sensor need the run's epoch (run.epoch) for the Sun")
         grasp = params["grasp"]
         if grasp is not None:
             if params["integrator"] != "rk4":
@@ -399,7 +448,8 @@ class OrbitalDynamics(Component):
                 tidal_force=params["tidal_force"], gravity_gradient=params["gravity_gradient"],
                 drag=params["drag"], mu=params["mu"], atmosphere=_atmosphere(params["atmosphere"], params.get("_epoch")),
                 joint_limits=params["joint_limits"], models=models, grasp=self.grasp or None,
-                compile_kernels=compile_kernels)
+                compile_kernels=compile_kernels, srp=params["srp"], eclipse=params["eclipse"],
+                solar_flux=params["solar_flux"])
         except ModelError as e:
             raise ConfigError(f"bodies.{e.key}", e.message) from None
         self.names = [spec.name for spec in specs]
@@ -408,6 +458,11 @@ class OrbitalDynamics(Component):
         self.output_names = {name: {key: f"{name}.{key}" for key in BODY_OUTPUTS + LINK_OUTPUTS} for name in self.names}
         self.frames = params["frame_outputs"]
         self.imu = list(params["imu"])
+        self.sun_sensors = list(params["sun_sensor"])
+        self.ephemeris = None
+        if params["srp"] or self.sun_sensors:                  # the Sun and Moon at each step's start
+            from components.space.ephemeris import Ephemeris
+            self.ephemeris = Ephemeris(params["_epoch"])
         self.quaternion_outputs = [f"{name}.{key}" for name in self.names
                                    for key in ("orientation", "link_orientation")[:2 if self.links else 1]]
         self.quaternion_outputs += [f"{name}.q_lvlh_body" for name in self.names if self.frames]
@@ -417,6 +472,9 @@ class OrbitalDynamics(Component):
 
     def _inputs(self, inputs: Mapping[str, np.ndarray], torques: bool, t_ns: int) -> None:
         age = (t_ns - self.input_times_ns.get("r_eci", t_ns)) / NS_PER_S   # < 0 under Gauss-Seidel
+        if self.ephemeris is not None:
+            tt = self.ephemeris.tt(t_ns)
+            self.world.set_sun(sun_position_eci(tt), moon_position_eci(tt))
         try:
             self.world.set_orbit(*ORBIT_VALUES(inputs), age=age)
             if self.world.atmosphere_varies:      # NRLMSISE-00 needs the time the orbit point is at
@@ -435,6 +493,8 @@ class OrbitalDynamics(Component):
                 out[output_names[key]] = value
             if self.frames:
                 out.update({f"{name}.{k}": v for k, v in self.world.frame_outputs(name).items()})
+        for name in self.sun_sensors:
+            out.update({f"{name}.{k}": v for k, v in self.world.sun_outputs(name).items()})
         grasp = self.world.grasp
         if self.imu or (grasp is not None and grasp.closed):
             accelerations = self.world.accelerations()   # also the weld's wrench, for grasp.wrench
@@ -493,7 +553,7 @@ class DartDynamics(OrbitalDynamics):
 
     Zero gravity in the free-falling, non-rotating world frame W (origin at the reference orbit
     point r_eci(t), axes parallel to ECI), plus per link and each switchable: tidal force,
-    gravity-gradient torque, atmospheric drag. ``integrator: rk4`` (default) is fourth-order
+    gravity-gradient torque, atmospheric drag, solar radiation pressure (docs/environment/sun.md). ``integrator: rk4`` (default) is fourth-order
     Runge-Kutta on the configuration manifold over DART's forward dynamics (no contacts);
     ``integrator: dart`` is DART's own step with its constraint solver (contacts between bodies).
     Quaternions [x, y, z, w]. Takes the state of ``dynamics.pinocchio`` (a swap hands it over).

@@ -92,7 +92,7 @@ class DartBody(Body):
         self.total_mass = float(self.mass.sum())
         anchor_index: dict[str, int] = {}
         self.anchors = []
-        slots, com_in_anchor, inertia_in_anchor = [], [], []
+        slots, com_in_anchor, inertia_in_anchor, link_in_anchor = [], [], [], []
         for bn, com, inertia in zip(self.nodes, self.local_com, self.local_inertia):
             anchor, T = bn, np.eye(4)
             while anchor.getParentJoint().getType() == "WeldJoint":
@@ -104,6 +104,7 @@ class DartBody(Body):
             slots.append(anchor_index[anchor.getName()])
             com_in_anchor.append(T[:3, :3] @ com + T[:3, 3])
             inertia_in_anchor.append(T[:3, :3] @ inertia @ T[:3, :3].T)
+            link_in_anchor.append(T)
         self.anchor_slot = np.array(slots, dtype=int)
         self.com_in_anchor = np.array(com_in_anchor).reshape(-1, 3)
         self.inertia_in_anchor = np.array(inertia_in_anchor).reshape(-1, 3, 3)
@@ -129,6 +130,10 @@ class DartBody(Body):
         self.massive_links = np.array([i for i, (_, slot, _) in enumerate(self.link_source) if slot >= 0], dtype=int)
         self.massive_slots = np.array([slot for _, slot, _ in self.link_source if slot >= 0], dtype=int)
         self.node_drag_k = np.array([self.drag_k.get(bn.getName(), 0.0) for bn in self.nodes])
+        self.srp_links, self.srp_facet_rows = self.srp_tables(
+            [bn.getName() for bn in self.nodes], [T[:3, :3] for T in link_in_anchor],
+            [T[:3, 3] - c for T, c in zip(link_in_anchor, self.com_in_anchor)])
+        self.light = environment.light()                       # the Sun and Moon: world.set_sun
         self.force = np.zeros((len(self.nodes), 3))            # environment per link, anchor axes
         self.torque = np.zeros((len(self.nodes), 3))
         self.dart_tau = self.tau                               # tau in DART's order
@@ -169,7 +174,7 @@ class DartBody(Body):
         self.forces_are_tau = False
 
     # -- dynamics
-    def _environment(self, R: np.ndarray, V: np.ndarray, tidal: bool, drag: bool):
+    def _environment(self, R: np.ndarray, V: np.ndarray, tidal: bool, drag: bool, srp: bool, gravity_gradient=None):
         """The body's generalized forces (DART order), its joint torques and the environment with the
         reference point at (R, V), which also fills ``force`` and ``torque``; and the anchors'
         Jacobians side by side."""
@@ -181,8 +186,9 @@ class DartBody(Body):
         forces = link_forces.generalized_forces(
             J, self.base_rotation_columns, self.jacobian_anchor, self.jacobian_dofs, self.anchor_slot,
             self.com_in_anchor, self.inertia_in_anchor, self.mass, R, V, self.skel.getPositions()[3:6], e.mu,
-            tidal, e.gravity_gradient, drag, self.node_drag_k, v_com, atmosphere.h0, atmosphere.rho0,
-            atmosphere.scale, EARTH_RATE, R_EARTH, self.dart_tau, self.force, self.torque)
+            tidal, e.gravity_gradient if gravity_gradient is None else gravity_gradient, drag, self.node_drag_k, v_com,
+            atmosphere.h0, atmosphere.rho0, atmosphere.scale, EARTH_RATE, R_EARTH, self.dart_tau, self.force, self.torque, srp and self.has_srp,
+            self.light, self.srp_links, self.srp_facet_rows)
         return forces, J
 
     def set_forces(self, reference) -> None:
@@ -190,7 +196,7 @@ class DartBody(Body):
         if reference is not None:
             point, s = reference
             R, V = link_forces.propagate_reference(point[:3], point[3:], s, self.environment.mu)
-            forces, _ = self._environment(R, V, self.environment.tidal, self.environment.drag)
+            forces, _ = self._environment(R, V, self.environment.tidal, self.environment.drag, self.environment.srp)
             self.skel.setForces(forces)
             self.forces_are_tau = False
         elif not self.forces_are_tau:                          # forward dynamics leaves them: set once
@@ -240,16 +246,25 @@ class DartBody(Body):
     def environment_wrenches(self, R, V):
         R, V = np.asarray(R, dtype=float), np.asarray(V, dtype=float)
         e = self.environment
-        _, J = self._environment(R, V, e.tidal, False)
+        _, J = self._environment(R, V, e.tidal, False, False)
         tidal, torque = self.force.copy(), self.torque.copy()
         drag = np.zeros_like(tidal)
         if e.drag and self.has_drag:
-            self._environment(R, V, False, True)
+            self._environment(R, V, False, True, False)
             drag = self.force.copy()
+        return self._per_link(J, (tidal, drag, torque))
+
+    def srp_wrenches(self, R, V):
+        R, V = np.asarray(R, dtype=float), np.asarray(V, dtype=float)
+        _, J = self._environment(R, V, False, False, True, gravity_gradient=False)
+        return self._per_link(J, (self.force.copy(), self.torque.copy()))
+
+    def _per_link(self, J, wrenches):
+        """Per URDF link, W axes, of the massive links' ``wrenches`` in anchor axes."""
         # R_a^T: the angular rows of each anchor's base rotation columns
         rotation_T = J[:3].take(self.base_rotation_columns, axis=1).transpose(1, 0, 2).take(self.anchor_slot, axis=0)
         out = []
-        for local in (tidal, drag, torque):
+        for local in wrenches:
             per_link = np.zeros((len(self.link_names), 3))
             per_link[self.massive_links] = np.einsum("nji,nj->ni", rotation_T, local)[self.massive_slots]
             out.append(per_link)

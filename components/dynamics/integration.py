@@ -49,6 +49,8 @@ def compile_kernels(world: SteppedWorld) -> None:
     for body in world.bodies.values():
         state = body.positions().copy(), body.velocities().copy()
         body.environment_wrenches(R, V)
+        if body.has_srp:
+            body.srp_wrenches(R, V)
         if world.integrator == "rk4":
             zeros = np.zeros(body.ndofs)
             body.set_state(zeros, zeros)

@@ -1,9 +1,10 @@
 """The orbital environment on a body's links, as generalized forces: compiled loops, one per engine.
 
 The formulas are those of :mod:`components.dynamics.environment` (tidal force, gravity-gradient
-torque, drag), evaluated per link by the two functions both engines share, ``link_environment``
-(tidal force and gravity-gradient torque, in whichever axes its vectors are given) and
-``drag_factor``. They run at each of the four rk4 stages of every step; written with numpy they
+torque, drag) and of :mod:`components.space.srp` and :mod:`components.space.eclipse` (solar
+radiation pressure), evaluated per link by the functions both engines share, ``link_environment``
+(tidal force and gravity-gradient torque, in whichever axes its vectors are given),
+``drag_factor`` and ``link_srp``. They run at each of the four rk4 stages of every step; written with numpy they
 cost ~60 us a stage in ~40 calls on arrays of a few rows, so the loops over the links are
 compiled with numba (nopython, no fastmath: IEEE arithmetic, the same bits on every run on a
 machine). ``tests/unit/test_dynamics_world.py`` and ``test_dynamics_pinocchio.py`` check them
@@ -38,6 +39,9 @@ Inputs of ``generalized_forces`` (all float64 or int64 arrays, SI units):
 | earth_rate, earth_radius | - | rad/s about W z, m |
 | tau | (ndofs,) | joint generalized forces (added to the result) |
 | force, torque | (n, 3) | filled with each link's environment force at its CoM and torque about it, anchor axes |
+| srp, light | -, (13,) | solar radiation pressure on or off; the Sun (``LIGHT_SIZE``, below) |
+| srp_links | (n, 3) | per link: Cr A (m^2, 0: no cannonball), first row and count of its facets |
+| facets | (m, 9) | facets (components.space.srp), anchor axes, centres from the link's CoM (m) |
 
 Frames: the base rotation columns of anchor a's Jacobian are R_a^T (angular rows) and
 -[o_a]x R_a^T (linear rows), with o_a = R_a^T (p_a - p) the anchor origin relative to the base
@@ -51,8 +55,32 @@ import numba
 import numpy as np
 
 from components.dynamics.manifold_rk4 import exp_entries
+from components.space.eclipse import illumination_nb
+from components.space.srp import cannonball_nb, facets_nb
 
 REVOLUTE, PRISMATIC = 1, 2     # tree joint kinds (0: the free base)
+# ``light`` (LIGHT_SIZE,): the Sun for SRP: pressure at 1 AU (N/m^2), AU (m), eclipse model
+# (components.space.eclipse), radii of the Sun, Earth, Moon (m), the Moon shades (1) or not (0),
+# Sun and Moon from the Earth's centre (m, W axes)
+LIGHT_SIZE = 13
+
+
+@numba.njit(cache=True)
+def link_srp(x, local_T, light, cr_area, facets, s_W, s_local, f, t):
+    """Adds to ``f`` (N, at the CoM) and ``t`` (N m, about it) the solar radiation pressure on a
+    link whose CoM is at ``x`` (m from the Earth's centre, W): cannonball (Cr A = ``cr_area``) and
+    ``facets`` (rows of components.space.srp, in the link's local axes, centres from its CoM);
+    ``local_T`` (3, 3) turns W into those axes. ``s_W``, ``s_local``: scratch (3,)."""
+    nu = illumination_nb(x, light[7:10], light[10:13], light[6] != 0.0, int(light[2]), light[3], light[4], light[5])
+    if nu <= 0.0:
+        return
+    for i in range(3):
+        s_W[i] = light[7 + i] - x[i]              # CoM -> Sun
+    _rotate(local_T, s_W, s_local)
+    if cr_area > 0.0:
+        cannonball_nb(s_local, cr_area, light[0], light[1], nu, f)
+    if facets.shape[0]:
+        facets_nb(s_local, facets, light[0], light[1], nu, f, t)
 
 
 @numba.njit(cache=True)
@@ -131,7 +159,7 @@ def propagate_reference(R0, V0, s, mu):
 @numba.njit(cache=True)
 def generalized_forces(J, rotation_columns, jacobian_anchor, jacobian_dofs, anchor_slot, com, inertia, mass,
                        R, V, base, mu, tidal, gravity_gradient, drag, drag_k, v_com, h0, rho0, scale_height,
-                       earth_rate, earth_radius, tau, force, torque):
+                       earth_rate, earth_radius, tau, force, torque, srp, light, srp_links, facets):
     k = rotation_columns.shape[0]
     rotation_T = np.empty((k, 3, 3))
     R_local = np.empty((k, 3))
@@ -161,6 +189,7 @@ def generalized_forces(J, rotation_columns, jacobian_anchor, jacobian_dofs, anch
     t = np.empty(3)
     x = np.empty(3)
     v_rel = np.empty(3)
+    lever = np.empty(3)
     for n in range(anchor_slot.shape[0]):
         a = anchor_slot[n]
         for i in range(3):
@@ -177,6 +206,14 @@ def generalized_forces(J, rotation_columns, jacobian_anchor, jacobian_dofs, anch
                 for j in range(3):
                     value += rotation_T[a, i, j] * v_rel[j]
                 f[i] += c * value
+        if srp and (srp_links[n, 0] > 0.0 or srp_links[n, 2] > 0.0):
+            for i in range(3):
+                x[i] = R[i]
+                for j in range(3):
+                    x[i] += rotation_T[a, j, i] * d[j]
+            start = int(srp_links[n, 1])
+            link_srp(x, rotation_T[a], light, srp_links[n, 0], facets[start:start + int(srp_links[n, 2])], v_rel,
+                     lever, f, t)
         force[n, 0], force[n, 1], force[n, 2] = f[0], f[1], f[2]
         torque[n, 0], torque[n, 1], torque[n, 2] = t[0], t[1], t[2]
         c0, c1, c2 = com[n, 0], com[n, 1], com[n, 2]
@@ -281,10 +318,12 @@ def tree_kinematics(x, v, joints, frames, with_velocity, rotation, position, joi
 
 @numba.njit(cache=True)
 def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, mu, tidal, gravity_gradient, drag,
-                            atmosphere, earth_rate, earth_radius, force, torque):
+                            atmosphere, earth_rate, earth_radius, force, torque, srp, light, facets):
     """``tau`` plus the environment's generalized forces (world coordinates) of a body given as a
-    tree (``joints``, ``frames``: see ``tree_kinematics``). Links: ``links`` (n, 14) their CoM (3)
-    and inertia about it (9, row-major) in their joint's frame, mass, 1/2 Cd A; ``link_joint``
+    tree (``joints``, ``frames``: see ``tree_kinematics``). Links: ``links`` (n, 17) their CoM (3)
+    and inertia about it (9, row-major) in their joint's frame, mass, 1/2 Cd A, then for SRP (with
+    ``srp``: ``link_srp``, ``light``) Cr A and their first row and count in ``facets`` (joint's
+    axes, centres from the CoM); ``link_joint``
     (n,) their joint. ``atmosphere`` (3, b): the bands' base altitude, density, scale height.
     Fills ``force``, ``torque`` (n, 3): each link's environment force at its CoM and torque about
     it, W axes."""
@@ -314,6 +353,12 @@ def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, 
             d_local[i] = Rj[0, i] * d[0] + Rj[1, i] * d[1] + Rj[2, i] * d[2]
         link_environment(R_local, d_local, link[12], link[3:12].reshape((3, 3)), r2, r, mu, tidal, gravity_gradient,
                          f_local, t_local)
+        if srp and (link[14] > 0.0 or link[16] > 0.0):
+            for i in range(3):
+                x_earth[i] = R[i] + d[i]
+            start = int(link[15])
+            link_srp(x_earth, Rj.T, light, link[14], facets[start:start + int(link[16])], v_rel, lever, f_local,
+                     t_local)
         _rotate(Rj, f_local, f)
         _rotate(Rj, t_local, t)
         if drag and link[13] > 0.0:

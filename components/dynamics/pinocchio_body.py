@@ -82,24 +82,29 @@ class PinocchioBody(Body):
         # links: each URDF link's frame (its joint, its placement there); those with mass
         self.frame_id = {link: pm.getFrameId(link, pin.BODY) for link in self.link_names}
         self.massive_links = np.array([i for i, link in enumerate(model.links) if link.mass > 0.0], dtype=np.int64)
-        joint_of, rows = [], []
+        joint_of, rows, placements = [], [], []
         for i in self.massive_links:
             link = model.links[i]
             frame = pm.frames[self.frame_id[link.name]]
             P = frame.placement
             joint_of.append(frame.parentJoint)
+            placements.append(P)
             inertia = P.rotation @ np.array(link.inertia).reshape(3, 3) @ P.rotation.T
             rows.append(np.concatenate([P.rotation @ np.array(link.com) + P.translation, inertia.ravel(),
                                         [link.mass, self.drag_k[link.name]]]))
         self.link_joint = np.array(joint_of, dtype=np.int64)
-        self.tree_links = np.array(rows).reshape(-1, 14)                # CoM, inertia, mass, 1/2 Cd A
+        rows = np.array(rows).reshape(-1, 14)
+        srp_links, self.facets = self.srp_tables([model.links[i].name for i in self.massive_links],
+                                                 [P.rotation for P in placements],
+                                                 [P.translation - row[:3] for P, row in zip(placements, rows)])
+        self.tree_links = np.hstack([rows, srp_links])   # CoM, inertia, mass, 1/2 Cd A; Cr A, facet rows (kernels)
         self.total_mass = float(self.tree_links[:, 12].sum())
         self.wrenches = np.zeros((2, len(self.massive_links), 3))   # environment per link, W axes
         self.force, self.torque = self.wrenches
         self.pin_index = np.array([self.idx_q, self.nq, self.idx_v], dtype=np.int64).reshape(3, -1)
         e = environment
-        self.terms = np.array([e.tidal, e.gravity_gradient, e.drag and self.has_drag])
-        self.constants = np.array([e.mu, EARTH_RATE, R_EARTH, *self.terms])
+        self.terms = np.array([e.tidal, e.gravity_gradient, e.drag and self.has_drag, self.has_srp])
+        self.constants = np.array([e.mu, EARTH_RATE, R_EARTH, *self.terms, *e.light()])
         self.atmosphere = np.array([e.atmosphere.h0, e.atmosphere.rho0, e.atmosphere.scale])
         self.x, self.v = np.zeros(self.ndofs), np.zeros(self.ndofs)
         # the RK4 step: its start (q0, v0), the stage not formed yet (stage, c, a: pinocchio_inputs
@@ -129,7 +134,7 @@ class PinocchioBody(Body):
                   len(self.q_pin)]
         for pool, names in (("ints", ("tree_joints", "link_joint", "pin_index")),
                             ("values", ("tree_frames", "tree_links", "constants", "atmosphere", "wrenches", "rotation",
-                                        "buffer", "work", "step_values", "tau", "summary"))):
+                                        "buffer", "work", "step_values", "tau", "summary", "facets"))):
             arrays = [getattr(self, name) for name in names]
             start = [np.array(header, dtype=np.int64)] if pool == "ints" else []
             values = np.concatenate(start + [a.ravel() for a in arrays])
@@ -139,6 +144,7 @@ class PinocchioBody(Body):
                 setattr(self, name, values[offset:offset + a.size].reshape(a.shape))
                 offset += a.size
         self.force, self.torque = self.wrenches
+        self.light = self.constants[7:]                        # the Sun and Moon: set_sun
         self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [self.pm.nq, self.pm.nq + self.pm.nv])   # views
 
     def atmosphere_changed(self) -> None:
@@ -205,7 +211,7 @@ class PinocchioBody(Body):
         kernels.pinocchio_inputs(self.stage, self.stage_c, self.stage_a, self.q0, self.v0, self.work, self.x, self.v,
                                  self.tau, False, NO_STAGE, 0.0, self.tree_joints, self.tree_frames, self.tree_links,
                                  self.link_joint, self.constants, self.atmosphere, self.wrenches, self.pin_index,
-                                 self.rotation, self.buffer)
+                                 self.rotation, self.buffer, self.facets)
         self.stage, self.synced, self.summarized, self.jacobians = 0, True, False, False
 
     def forward_dynamics(self, reference) -> np.ndarray:
@@ -213,7 +219,7 @@ class PinocchioBody(Body):
         kernels.pinocchio_inputs(self.stage, self.stage_c, self.stage_a, self.q0, self.v0, self.work, self.x, self.v,
                                  self.tau, reference is not None, point, float(s), self.tree_joints, self.tree_frames,
                                  self.tree_links, self.link_joint, self.constants, self.atmosphere, self.wrenches,
-                                 self.pin_index, self.rotation, self.buffer)
+                                 self.pin_index, self.rotation, self.buffer, self.facets)
         self.stage, self.synced, self.summarized, self.jacobians = 0, True, False, False
         ddq = self.pin.aba(self.pm, self.data, self.q_pin, self.v_pin, self.tau_pin)
         return kernels.from_pinocchio(ddq, self.v_pin, self.rotation, self.idx_v, np.empty(self.ndofs))
@@ -269,19 +275,28 @@ class PinocchioBody(Body):
         return np.array([self.data.oMf[self.frame_id[link]].homogeneous for link in self.link_names])
 
     def environment_wrenches(self, R, V):
+        return self._wrenches(R, V, (((True, True, False, False), ((0, 0), (2, 1))),
+                                     ((False, False, True, False), ((1, 0),))), 3)
+
+    def srp_wrenches(self, R, V):
+        return self._wrenches(R, V, (((False, False, False, True), ((0, 0), (1, 1))),), 2)
+
+    def _wrenches(self, R, V, calls, count):
+        """Per URDF link, W axes: ``count`` outputs, each call's terms (tidal, gravity gradient,
+        drag, SRP) on filling outputs from its (output, force 0 or torque 1) pairs."""
         R, V = np.asarray(R, dtype=float), np.asarray(V, dtype=float)
         if self.stage:
             self._sync()
-        out = [np.zeros((len(self.link_names), 3)) for _ in range(3)]
-        for terms, parts in (((True, True, False), (0, 2)), ((False, False, True), (1,))):
+        out = [np.zeros((len(self.link_names), 3)) for _ in range(count)]
+        for terms, parts in calls:
             terms = self.terms & np.array(terms)
             if terms.any():
                 link_forces.tree_generalized_forces(
                     self.x, self.v, self.tau, self.tree_joints, self.tree_frames, self.tree_links, self.link_joint,
                     R, V, self.environment.mu, terms[0], terms[1], terms[2], self.atmosphere, EARTH_RATE, R_EARTH,
-                    self.force, self.torque)
-                for part in parts:
-                    out[part][self.massive_links] = self.force if part < 2 else self.torque
+                    self.force, self.torque, terms[3], self.light, self.facets)
+                for part, wrench in parts:
+                    out[part][self.massive_links] = self.wrenches[wrench]
         return tuple(out)
 
     # -- a grasp

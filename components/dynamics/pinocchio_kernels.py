@@ -14,6 +14,9 @@ import numpy as np
 
 from components.dynamics import link_forces, manifold_rk4
 
+LINK_COLUMNS = 17      # a link's row: CoM (3), inertia (9), mass, 1/2 Cd A, Cr A, first facet, facets
+CONSTANTS = 7 + link_forces.LIGHT_SIZE    # mu, Earth's rate, radius, tidal, gravity gradient, drag, SRP; light
+
 
 @numba.njit(cache=True)
 def quaternion_entries(px, py, pz):
@@ -80,14 +83,15 @@ def form_stage(stage, c, a, q0, v0, work, x, v):
 
 @numba.njit(cache=True)
 def pinocchio_inputs(stage, c, a, q0, v0, work, x, v, tau, environment, point, s, joints, frames, links, link_joint,
-                     constants, atmosphere, wrenches, pin_index, rotation, buffer):
+                     constants, atmosphere, wrenches, pin_index, rotation, buffer, facets):
     """One evaluation's inputs in one call (a call's cost grows with its arguments and every call
     costs ~1 us: the RK4's stage arithmetic is here too): the state (``stage`` > 0: x, v formed by
     ``form_stage``; 0: x, v as they are), the generalized forces (tau, plus with ``environment``
     the orbital environment with the reference point s seconds after it was at ``point`` (R, V:
     ``link_forces.propagate_reference``, here): ``link_forces.tree_generalized_forces``;
-    ``constants``: mu, the Earth's rate and radius, and the terms on (tidal, gravity gradient,
-    drag); it fills ``wrenches``: force, torque per link), and Pinocchio's q, v, tau, one after
+    ``constants``: mu, the Earth's rate and radius, the terms on (tidal, gravity gradient,
+    drag, SRP) and the Sun (``link_forces``' ``light``); ``facets``: the links' SRP facets; it
+    fills ``wrenches``: force, torque per link), and Pinocchio's q, v, tau, one after
     the other in ``buffer`` (``to_pinocchio``; ``pin_index`` (3, n): idx_q, nq, idx_v of each
     joint coordinate)."""
     if stage:
@@ -96,7 +100,8 @@ def pinocchio_inputs(stage, c, a, q0, v0, work, x, v, tau, environment, point, s
         R, V = link_forces.propagate_reference(point[0:3], point[3:6], s, constants[0])
         Q = link_forces.tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, constants[0],
                                                 constants[3] != 0.0, constants[4] != 0.0, constants[5] != 0.0,
-                                                atmosphere, constants[1], constants[2], wrenches[0], wrenches[1])
+                                                atmosphere, constants[1], constants[2], wrenches[0], wrenches[1],
+                                                constants[6] != 0.0, constants[7:7 + link_forces.LIGHT_SIZE], facets)
     else:
         Q = tau
     nq, nv = buffer.shape[0] - 2 * v.shape[0], v.shape[0]
@@ -123,7 +128,7 @@ def unpool(ints, values, nv):
     """The body's arrays from its two pools (``PinocchioBody.pool``): joints, link_joint,
     pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work (10, nv: the
     rates and accelerations of ``form_stage``, xi, then the step's q0 and v0), the step's values
-    (environment, h, s, the reference point), tau and the summary (``body_summary``)."""
+    (environment, h, s, the reference point), tau, the summary (``body_summary``) and the SRP facets."""
     nj, nl, m, b, nq = ints[0], ints[1], ints[2], ints[3], ints[4]
     joints = ints[5:5 + 3 * nj].reshape((nj, 3))
     o = 5 + 3 * nj
@@ -131,11 +136,11 @@ def unpool(ints, values, nv):
     pin_index = ints[o + nl:o + nl + 3 * m].reshape((3, m))
     frames = values[:15 * nj].reshape((nj, 15))
     o = 15 * nj
-    links = values[o:o + 14 * nl].reshape((nl, 14))
-    o += 14 * nl
-    constants = values[o:o + 6]
-    atmosphere = values[o + 6:o + 6 + 3 * b].reshape((3, b))
-    o += 6 + 3 * b
+    links = values[o:o + LINK_COLUMNS * nl].reshape((nl, LINK_COLUMNS))
+    o += LINK_COLUMNS * nl
+    constants = values[o:o + CONSTANTS]
+    atmosphere = values[o + CONSTANTS:o + CONSTANTS + 3 * b].reshape((3, b))
+    o += CONSTANTS + 3 * b
     wrenches = values[o:o + 6 * nl].reshape((2, nl, 3))
     o += 6 * nl
     rotation = values[o:o + 9].reshape((3, 3))
@@ -146,14 +151,15 @@ def unpool(ints, values, nv):
     step = values[o:o + 9]
     tau = values[o + 9:o + 9 + nv]
     summary = values[o + 9 + nv:o + 34 + nv]
+    facets = values[o + 34 + nv:].reshape((-1, 9))
     return (joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step,
-            tau, summary)
+            tau, summary, facets)
 
 
 @numba.njit(cache=True)
 def summary(ints, values, x, v):
     """``body_summary`` at (x, v) into the pool's summary (``PinocchioBody.pool``)."""
-    joints, link_joint, _, frames, links, _, _, _, _, _, _, _, _, summary = unpool(ints, values, v.shape[0])
+    joints, link_joint, _, frames, links, _, _, _, _, _, _, _, _, summary, _ = unpool(ints, values, v.shape[0])
     body_summary(x, v, joints, frames, links, link_joint, summary)
 
 
@@ -227,14 +233,14 @@ def rk4_begin(ints, values, x, v, environment, point, h, s):
     for ``rk4_evaluation``. The body's arrays in two pools (``PinocchioBody.pool``): a call's
     cost grows with its arguments."""
     joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step, tau, \
-        _ = unpool(ints, values, v.shape[0])
+        _, facets = unpool(ints, values, v.shape[0])
     work[8] = x
     work[9] = v
     step[0], step[1], step[2] = 1.0 if environment else 0.0, h, s
     if environment:
         step[3:9] = point
     pinocchio_inputs(0, 0.0, v, x, v, work, x, v, tau, environment, point, s, joints, frames, links, link_joint,
-                     constants, atmosphere, wrenches, pin_index, rotation, buffer)
+                     constants, atmosphere, wrenches, pin_index, rotation, buffer, facets)
 
 
 @numba.njit(cache=True)
@@ -247,13 +253,13 @@ def rk4_evaluation(ints, values, stage, ddq, x, v):
     ``rk4_begin``, one call per evaluation and no other (``PinocchioBody.rk4_step``)."""
     nv = v.shape[0]
     joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step, tau, \
-        summary = unpool(ints, values, nv)
+        summary, facets = unpool(ints, values, nv)
     nq = ints[4]
     h, s = step[1], step[2]
     a = from_pinocchio(ddq, buffer[nq:nq + nv], rotation, pin_index[2], work[2 + stage])
     c = 0.5 * h if stage < 3 else h
     pinocchio_inputs(stage, c, a, work[8], work[9], work, x, v, tau, step[0] != 0.0 and stage < 4, step[3:9], s + c,
-                     joints, frames, links, link_joint, constants, atmosphere, wrenches, pin_index, rotation, buffer)
+                     joints, frames, links, link_joint, constants, atmosphere, wrenches, pin_index, rotation, buffer, facets)
     if stage == 4:                                # the outputs at the end, in the same call
         body_summary(x, v, joints, frames, links, link_joint, summary)
 

@@ -3,7 +3,8 @@
 ``OrbitalWorld`` is the physics of the ``dynamics.dart`` and ``dynamics.pinocchio`` components as
 a plain class (no bus, no I/O): several bodies, each a URDF on a free-floating base, in zero
 gravity with the orbital environment of :mod:`components.dynamics.environment` (tidal force,
-gravity-gradient torque, drag) computed per link from the reference orbit inputs at every
+gravity-gradient torque, drag) and solar radiation pressure (:mod:`components.space.srp`; the Sun
+and Moon from ``set_sun``, held over a step) computed per link from the reference orbit inputs at every
 integrator stage (:mod:`components.dynamics.link_forces`). The engine (``engine``: ``dart``,
 ``pinocchio``) computes each body's forward dynamics, mass matrix and kinematics
 (:mod:`components.dynamics.dart_body`, :mod:`components.dynamics.pinocchio_body`) in the one set
@@ -62,6 +63,8 @@ from components.dynamics.capture import CaptureReport, Grasp, GraspSpec
 from components.robots.urdf import UrdfModel, read_urdf
 from components.rotations import cross3, matrix_to_quat, quat_to_matrix
 from components.signals import ORBIT, orbit_signals
+from components.space.eclipse import MODELS as ECLIPSE_MODELS
+from components.space.srp import SOLAR_FLUX
 
 INTEGRATORS = ("rk4", "dart")
 ENGINES = ("dart", "pinocchio")
@@ -81,6 +84,9 @@ class OrbitalWorld:
     | mu | 3.986004418e14 m^3/s^2 | Earth's gravitational parameter |
     | atmosphere | None | ExponentialAtmosphere; None = the 0-1000 km table; a LocalExponential (NRLMSISE-00) is updated every step |
     | joint_limits | True | enforce URDF position limits |
+    | srp | False | solar radiation pressure per link (components/space/srp.py; the Sun: ``set_sun``) |
+    | eclipse | conical | none, cylindrical (the Earth's), conical (Earth and Moon): SRP's and the sun sensor's shadow |
+    | solar_flux | 1361 W/m^2 | the solar flux at 1 AU |
 
     Use: ``set_orbit(r_eci, v_eci, q_eci_lvlh, w_lvlh)`` then ``reset_bodies()`` (initial state,
     which needs LVLH for ``frame: lvlh`` bodies); per step ``set_orbit(...)``,
@@ -94,7 +100,8 @@ class OrbitalWorld:
                  tidal_force: bool = True, gravity_gradient: bool = True, drag: bool = False,
                  mu: float = MU_EARTH, atmosphere: env.ExponentialAtmosphere | None = None,
                  joint_limits: bool = True, models: Mapping[str, UrdfModel] | None = None,
-                 grasp: GraspSpec | None = None, engine: str = "dart", compile_kernels: bool = True):
+                 grasp: GraspSpec | None = None, engine: str = "dart", compile_kernels: bool = True,
+                 srp: bool = False, eclipse: str = "conical", solar_flux: float = SOLAR_FLUX):
         if engine not in ENGINES:
             raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
         integrators = INTEGRATORS if engine == "dart" else ("rk4",)     # contacts: DART's own step only
@@ -106,9 +113,14 @@ class OrbitalWorld:
         self.tidal, self.gg, self.drag = bool(tidal_force), bool(gravity_gradient), bool(drag)
         self.mu = float(mu)
         self.atmosphere = atmosphere or env.ExponentialAtmosphere()
-        self.environment = Environment(self.mu, self.tidal, self.gg, self.drag, self.atmosphere)
+        if eclipse not in ECLIPSE_MODELS:
+            raise ValueError(f"eclipse: expected one of {', '.join(ECLIPSE_MODELS)}, got {eclipse!r}")
+        self.srp = bool(srp)
+        self.environment = Environment(self.mu, self.tidal, self.gg, self.drag, self.atmosphere, self.srp, eclipse,
+                                       float(solar_flux))
         self.atmosphere_varies = self.drag and getattr(self.atmosphere, "varies", False)
         self.orbit_time = 0.0       # run time (s since run.epoch) at which the orbit inputs were sampled
+        self.sun_eci, self.moon_eci = None, None     # set_sun
         self.joint_limits = bool(joint_limits)
         self.dart_world = None
         if engine == "dart":
@@ -244,7 +256,15 @@ class OrbitalWorld:
     def _orbit_changed(self, point=None) -> None:
         self.orbit_point = np.concatenate([self.r_eci, self.v_eci]) if point is None else point   # (r_eci, v_eci)
         self._reference_cache = {}
-        self.environment_on = (self.tidal or self.gg or self.drag) and any(self.r_eci.tolist())
+        self.environment_on = (self.tidal or self.gg or self.drag or self.srp) and any(self.r_eci.tolist())
+
+    def set_sun(self, sun_eci, moon_eci) -> None:
+        """The Sun and the Moon from the Earth's centre (m, ECI = W axes), for SRP and the sun
+        sensor: held until set again (the component sets them at each step's start)."""
+        self.sun_eci = np.array(sun_eci, dtype=float)
+        self.moon_eci = np.array(moon_eci, dtype=float)
+        for body in self.bodies.values():
+            body.set_sun(self.sun_eci, self.moon_eci)
 
     def set_torques(self, name: str, tau) -> None:
         """Joint torques/forces (N m or N) of body ``name`` in URDF joint order; clipped to the
@@ -327,6 +347,8 @@ class OrbitalWorld:
             raise ValueError(f"step: expected a positive duration, got {h} s")
         dt = h / self.substeps
         self.env_now = self.environment_on
+        if self.srp and self.sun_eci is None:
+            raise ValueError("srp: the Sun's position was not set (set_sun) before the step")
         if self.grasp is not None:
             self.grasp.reset_peak()
         for k in range(self.substeps):
@@ -392,15 +414,32 @@ class OrbitalWorld:
         body = self.bodies[name]
         T = body.link_transforms()
         zeros = np.zeros((len(body.link_names), 3))
-        tidal, drag, gg = body.environment_wrenches(*self.reference(self.elapsed)) if self.environment_on \
-            else (zeros, zeros, zeros)
+        reference = self.reference(self.elapsed) if self.environment_on else None
+        tidal, drag, gg = body.environment_wrenches(*reference) if reference else (zeros,) * 3
+        srp_force, srp_torque = body.srp_wrenches(*reference) if reference and body.has_srp else (zeros,) * 2
         return {
             "gg_torque": gg.ravel(),
             "tidal_force": tidal.ravel(),
             "drag_force": drag.ravel(),
+            "srp_force": srp_force.ravel(),
+            "srp_torque": srp_torque.ravel(),
             "link_position": T[:, :3, 3].ravel(),
             "link_orientation": matrix_to_quat(T[:, :3, :3]).ravel(),
         }
+
+    def sun_outputs(self, name: str) -> dict[str, np.ndarray]:
+        """A sun sensor at the base origin, true values: ``sun_body``, the unit vector from it to the
+        Sun in base axes, and ``sunlit``, the illumination factor there (the world's eclipse model;
+        1 without an orbit, r_eci = 0). Needs ``set_sun``."""
+        from components.space.eclipse import illumination
+
+        R_base, p = self.bodies[name].base_pose()
+        orbit = any(self.r_eci.tolist())
+        x = self.reference(self.elapsed)[0] + p if orbit else p
+        s = self.sun_eci - x
+        model = self.environment.eclipse
+        nu = illumination(x, self.sun_eci, self.moon_eci if model == "conical" else None, model) if orbit else 1.0
+        return {"sun_body": R_base.T @ (s / np.linalg.norm(s)), "sunlit": np.float64(nu)}
 
     def lvlh(self) -> tuple[np.ndarray, np.ndarray]:
         """R_W_LVLH and LVLH's angular velocity (rad/s, W axes) now, from the reference point as

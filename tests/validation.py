@@ -143,6 +143,22 @@ ROWS: dict[str, Row] = {
         "the pose the pictures were drawn at", 0.6, "deg", tuple(f"tests/unit/test_fiducial_estimator.py::{t}" for t in (
             "test_pose_from_warped_marker_pictures", "test_pose_from_the_committed_marker_meshes",
             "test_a_distorted_lens_is_solved_with_its_distortion"))),
+    "geomagnetic_dipole": Row(
+        "space.geomagnetic (dipole)", "field vector, 8 points 400 km to GEO, 2025-2029, general Earth orientations",
+        "Basilisk magneticFieldCenteredDipole (its Earth coefficients; the same ECI -> ECEF matrix)", 1e-6, "nT",
+        ("tests/unit/test_space_geomagnetic.py::test_dipole_field_matches_basilisk",)),
+    "geomagnetic_wmm": Row(
+        "space.geomagnetic (wmm)", "field vector, the same 8 points and dates",
+        "Basilisk magneticFieldWMM (WMM2025.COF; the same ECI -> ECEF matrix)", 1.0, "nT",
+        ("tests/unit/test_space_geomagnetic.py::test_wmm_field_matches_basilisk",)),
+    "mtb_torque": Row(
+        "dynamics (magnetorquers)", "torque m x B of four saturating rods, general attitude, relative",
+        "Basilisk MtbEffector", 1e-12, "",
+        ("tests/unit/test_space_geomagnetic.py::test_magnetorquer_torque_matches_basilisk_mtb_effector",)),
+    "mtb_dynamics": Row(
+        "dynamics.dart, dynamics.pinocchio (magnetorquers)", "angular acceleration m x B adds to a tumbling rigid "
+        "body (y saturated), relative", "I^-1 (m x B), B from the field model at the base, R_W_base m", 1e-9, "",
+        ("tests/component/test_magnetic_dynamics.py::test_magnetorquer_torque_drives_both_engines",)),
 }
 
 _measured: dict[str, list[float]] = {}

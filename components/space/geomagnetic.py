@@ -135,8 +135,6 @@ class GeomagneticField:
 
     def b_eci(self, r_eci: np.ndarray, t_ns: int) -> np.ndarray:
         """The field (T, ECI) at ``r_eci`` (m, ECI; (3,) or (n, 3)) at run time ``t_ns``."""
-        utc, tt = self.rotation.dates(t_ns)
-        from components.space.earth_rotation import ecef_from_eci
-
-        C = ecef_from_eci(utc, tt)
+        utc, _ = self.rotation.dates(t_ns)
+        C = self.rotation.ecef_from_eci(t_ns)
         return self.b_ecef(np.asarray(r_eci, dtype=float) @ C.T, utc) @ C

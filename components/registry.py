@@ -39,9 +39,11 @@ TYPES = {
     "controller.computed_torque": "components.controller.components:ComputedTorqueComponent",
     "controller.joint_pd": "components.controller.components:JointPDComponent",
     "controller.capture": "components.controller.capture_component:CaptureComponent",
+    "controller.bdot": "components.controller.bdot:BdotComponent",
     "sensor.imu": "components.sensors.components:ImuComponent",
     "sensor.force_torque": "components.sensors.components:ForceTorqueComponent",
     "sensor.relative_pose": "components.sensors.components:RelativePoseComponent",
+    "sensor.magnetometer": "components.sensors.components:MagnetometerComponent",
     "sensor.camera": "components.camera.component:CameraComponent",
     # estimators
     "estimator.fiducial": "components.estimators.component:FiducialComponent",

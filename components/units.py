@@ -14,17 +14,20 @@ from components.errors import ConfigError
 
 DEG = math.pi / 180.0   # rad per degree, for plausible ranges declared in degrees
 
-# symbol -> (factor to SI, dimension exponents over (m, kg, s, rad))
-_SYMBOLS: dict[str, tuple[float, tuple[int, int, int, int]]] = {
-    "1": (1.0, (0, 0, 0, 0)),
-    "m": (1.0, (1, 0, 0, 0)), "km": (1e3, (1, 0, 0, 0)), "cm": (1e-2, (1, 0, 0, 0)),
-    "mm": (1e-3, (1, 0, 0, 0)),
-    "kg": (1.0, (0, 1, 0, 0)), "g": (1e-3, (0, 1, 0, 0)),
-    "s": (1.0, (0, 0, 1, 0)), "ms": (1e-3, (0, 0, 1, 0)), "us": (1e-6, (0, 0, 1, 0)),
-    "ns": (1e-9, (0, 0, 1, 0)), "min": (60.0, (0, 0, 1, 0)), "h": (3600.0, (0, 0, 1, 0)),
-    "d": (86400.0, (0, 0, 1, 0)), "day": (86400.0, (0, 0, 1, 0)),
-    "rad": (1.0, (0, 0, 0, 1)), "deg": (3.141592653589793 / 180.0, (0, 0, 0, 1)),
-    "N": (1.0, (1, 1, -2, 0)), "Hz": (1.0, (0, 0, -1, 0)),
+# symbol -> (factor to SI, dimension exponents over (m, kg, s, rad, A))
+_SYMBOLS: dict[str, tuple[float, tuple[int, int, int, int, int]]] = {
+    "1": (1.0, (0, 0, 0, 0, 0)),
+    "m": (1.0, (1, 0, 0, 0, 0)), "km": (1e3, (1, 0, 0, 0, 0)), "cm": (1e-2, (1, 0, 0, 0, 0)),
+    "mm": (1e-3, (1, 0, 0, 0, 0)),
+    "kg": (1.0, (0, 1, 0, 0, 0)), "g": (1e-3, (0, 1, 0, 0, 0)),
+    "s": (1.0, (0, 0, 1, 0, 0)), "ms": (1e-3, (0, 0, 1, 0, 0)), "us": (1e-6, (0, 0, 1, 0, 0)),
+    "ns": (1e-9, (0, 0, 1, 0, 0)), "min": (60.0, (0, 0, 1, 0, 0)), "h": (3600.0, (0, 0, 1, 0, 0)),
+    "d": (86400.0, (0, 0, 1, 0, 0)), "day": (86400.0, (0, 0, 1, 0, 0)),
+    "rad": (1.0, (0, 0, 0, 1, 0)), "deg": (3.141592653589793 / 180.0, (0, 0, 0, 1, 0)),
+    "N": (1.0, (1, 1, -2, 0, 0)), "Hz": (1.0, (0, 0, -1, 0, 0)),
+    "A": (1.0, (0, 0, 0, 0, 1)),                                     # magnetic dipoles: A*m^2
+    "T": (1.0, (0, 1, -2, 0, -1)), "mT": (1e-3, (0, 1, -2, 0, -1)),  # magnetic flux density
+    "uT": (1e-6, (0, 1, -2, 0, -1)), "nT": (1e-9, (0, 1, -2, 0, -1)),
 }
 # what a unit expression may be, for messages
 _UNIT_FORM = f"symbols among {', '.join(_SYMBOLS)}, joined by * and / with integer powers as in kg*m^2"
@@ -33,11 +36,11 @@ _QUANTITY = re.compile(rf"^\s*({_NUMBER})\s*([A-Za-z][A-Za-z0-9*/^\-]*)?\s*$")
 
 
 def parse_unit(text: str) -> tuple[float, tuple[int, ...]]:
-    """Factor to SI and dimension (exponents over m, kg, s, rad) of a unit expression such as
-    ``km/s`` or ``kg*m^2``: the symbols m km cm mm, kg g, s ms us ns min h d day, rad deg, N, Hz
-    and 1, joined by ``*`` and ``/``, each with an optional integer power ``^n``. Raises ValueError
+    """Factor to SI and dimension (exponents over m, kg, s, rad, and A when not 0) of a unit expression such as
+    ``km/s`` or ``kg*m^2``: the symbols m km cm mm, kg g, s ms us ns min h d day, rad deg, N, Hz,
+    A, T mT uT nT and 1, joined by ``*`` and ``/``, each with an optional integer power ``^n``. Raises ValueError
     naming the symbols it reads otherwise."""
-    factor, dim = 1.0, [0, 0, 0, 0]
+    factor, dim = 1.0, [0, 0, 0, 0, 0]
     sign = 1
     for token in re.split(r"([*/])", text.replace(" ", "")):
         if token in ("*", "/"):
@@ -50,7 +53,7 @@ def parse_unit(text: str) -> tuple[float, tuple[int, ...]]:
         p = sign * (int(power) if power else 1)
         factor *= f ** p
         dim = [a + p * b for a, b in zip(dim, d)]
-    return factor, tuple(dim)
+    return factor, tuple(dim if dim[4] else dim[:4])      # the ampere's exponent only when a unit has one
 
 
 def parse_quantity(value, key: str) -> tuple[float, str | None]:

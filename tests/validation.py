@@ -211,6 +211,22 @@ ROWS: dict[str, Row] = {
         "space.srp and space.eclipse on each link's output pose (no kernel frames)", 1e-9, "",
         tuple(f"tests/unit/test_dynamics_srp.py::{t}" for t in (
             "test_link_srp_wrenches_are_the_facets_and_cannonballs_on_the_link_poses",))),
+    "geomagnetic_dipole": Row(
+        "space.geomagnetic (dipole)", "field vector, 8 points 400 km to GEO, 2025-2029, general Earth orientations",
+        "Basilisk magneticFieldCenteredDipole (its Earth coefficients; the same ECI -> ECEF matrix)", 1e-6, "nT",
+        ("tests/unit/test_space_geomagnetic.py::test_dipole_field_matches_basilisk",)),
+    "geomagnetic_wmm": Row(
+        "space.geomagnetic (wmm)", "field vector, the same 8 points and dates",
+        "Basilisk magneticFieldWMM (WMM2025.COF; the same ECI -> ECEF matrix)", 1.0, "nT",
+        ("tests/unit/test_space_geomagnetic.py::test_wmm_field_matches_basilisk",)),
+    "mtb_torque": Row(
+        "dynamics (magnetorquers)", "torque m x B of four saturating rods, general attitude, relative",
+        "Basilisk MtbEffector", 1e-12, "",
+        ("tests/unit/test_space_geomagnetic.py::test_magnetorquer_torque_matches_basilisk_mtb_effector",)),
+    "mtb_dynamics": Row(
+        "dynamics.dart, dynamics.pinocchio (magnetorquers)", "angular acceleration m x B adds to a tumbling rigid "
+        "body (y saturated), relative", "I^-1 (m x B), B from the field model at the base, R_W_base m", 1e-9, "",
+        ("tests/component/test_magnetic_dynamics.py::test_magnetorquer_torque_drives_both_engines",)),
 }
 
 _measured: dict[str, list[float]] = {}

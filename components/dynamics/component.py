@@ -30,6 +30,7 @@ from components.rotations import continuous
 from components.schema import Float, Int, ListOf, MapOf, OneOf, Record, Str, Vector
 from components.units import DEG
 from components.sdk import Component, Parameter, Variable
+from components.space.geomagnetic import BASILISK_DIPOLE, MODELS as MAGNETIC_MODELS
 from components.signals import BODY as BODY_OUTPUTS, ORBIT as ORBIT_INPUTS, body_signals, orbit_signals, torque_signal
 from components.space.eclipse import MODELS as ECLIPSE_MODELS
 from components.space.ephemeris import moon_position_eci, sun_position_eci
@@ -40,6 +41,7 @@ ORBIT_VALUES = itemgetter(*ORBIT_INPUTS)      # inputs -> the orbit inputs' valu
 NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 LINK_OUTPUTS = ("gg_torque", "tidal_force", "drag_force", "srp_force", "srp_torque", "link_position", "link_orientation")
 LAST = "last_output."   # state keys of the last output quaternions
+MAGNETIC = "magnetic."   # state keys of the magnetic field and magnetorquers (components/dynamics/magnetic.py)
 
 PER_LINK = "one number for the base link, or link name -> number"
 # preflight: the rotation per (sub)step above which a step is too coarse (rk4's error in the
@@ -123,6 +125,25 @@ ATMOSPHERE = Record("Atmosphere", (
 ), description="the drag's atmosphere: an exponential (one layer or the table) or NRLMSISE-00 / NRLMSIS 2.1")
 
 
+MAGNETIC_FIELD = Record("MagneticField", (
+    Parameter("model", Str(MAGNETIC_MODELS),
+              description="wmm: the World Magnetic Model 2025 (degree 12, 2025.0-2030.0); dipole: a centered tilted dipole"),
+    Parameter("g10", Float("T", plausible=(-1e-4, 1e-4)), default=BASILISK_DIPOLE["g10"],
+              description="dipole coefficient g10 (model: dipole; default Basilisk's Earth, -30926 nT)"),
+    Parameter("g11", Float("T", plausible=(-1e-4, 1e-4)), default=BASILISK_DIPOLE["g11"],
+              description="dipole coefficient g11 (model: dipole; default Basilisk's Earth, -2318 nT)"),
+    Parameter("h11", Float("T", plausible=(-1e-4, 1e-4)), default=BASILISK_DIPOLE["h11"],
+              description="dipole coefficient h11 (model: dipole; default Basilisk's Earth, 5817 nT)"),
+    Parameter("radius", Float("m", positive=True, plausible=(6e6, 7e6)), default=BASILISK_DIPOLE["radius"],
+              description="the dipole's reference radius (model: dipole; default 6371.2 km)"),
+), description="the Earth's magnetic field at each body (components/space/geomagnetic.py)")
+MAGNETORQUERS = Record("Magnetorquers", (
+    Parameter("max_dipole", OneOf((Float("A*m^2", positive=True, plausible=(1e-3, 1e3)),
+                                   Vector(3, "A*m^2", minimum=0.0, plausible=(0.0, 1e3)))),
+              description="saturation of the commanded dipole per base axis: one for every axis or one per axis"),
+), description="three magnetorquers along a body's base axes (``magnetorquers.<body>``)")
+
+
 TOLERANCE = Record("Tolerance", (
     Parameter("position", Float("m", minimum=0.0, plausible=(0.0, 1.0)),
               description="distance between the end effector's and the grasp frame's origins"),
@@ -200,6 +221,20 @@ def sun_variables(name: str) -> list[Variable]:
         Variable(f"{name}.sunlit", "output", (), "1", 1.0,
                  "illumination factor at the base origin: 1 full sun, 0 umbra, between in penumbra (eclipse model)"),
     ]
+
+
+def magnetic_variables(name: str, magnetorquers: bool) -> list[Variable]:
+    """The field at a body's base origin and, with magnetorquers, their command and torque."""
+    variables = [Variable(f"{name}.b_body", "output", (3,), "T", 0.0,
+                          "the Earth's magnetic field at the base origin, base axes (with magnetic_field)")]
+    if magnetorquers:
+        variables += [
+            Variable(f"{name}.dipole", "input", (3,), "A*m^2", 0.0,
+                     "commanded magnetic dipole, base axes (saturated per axis at max_dipole)"),
+            Variable(f"{name}.mtb_torque", "output", (3,), "N*m", 0.0,
+                     "the magnetorquers' torque m x B over the last step, base axes (held over the step in W axes)"),
+        ]
+    return variables
 
 
 def load_models(params: Mapping[str, Any]) -> dict[str, UrdfModel]:
@@ -293,7 +328,7 @@ class OrbitalDynamics(Component):
     """What both dynamics types share: everything but the engine (``engine``)."""
     engine = ""
     state_form = "dynamics"
-    plots = (dynamics_plots.BODIES, dynamics_plots.CAPTURE)
+    plots = (dynamics_plots.BODIES, dynamics_plots.CAPTURE, dynamics_plots.MAGNETIC)
     view = DynamicsView
     rosbag = dynamics_ros.ROS_EXPORT
     parameters = (
@@ -328,6 +363,12 @@ class OrbitalDynamics(Component):
         Parameter("imu", ListOf(Str(), unique=True), default=[],
                   description="bodies whose base carries an IMU: their imu_rate and specific_force outputs (true values)"),
         Parameter("grasp", GRASP, default=None, description="a capture between two bodies; null: none"),
+        Parameter("magnetic_field", MAGNETIC_FIELD, default=None,
+                  description="the Earth's magnetic field at each body's base: its <body>.b_body outputs, and what "
+                              "magnetorquers act on; null (default): none"),
+        Parameter("magnetorquers", MapOf(MAGNETORQUERS, "body"), default={},
+                  description="bodies with magnetorquers: their <body>.dipole input, torque m x B on the base "
+                              "(needs magnetic_field)"),
     )
 
     @classmethod
@@ -365,6 +406,9 @@ class OrbitalDynamics(Component):
                 variables += sun_variables(name)
         if params.get("grasp"):
             variables += grasp_variables(params["grasp"])
+        if params.get("magnetic_field"):
+            for name in load_models(params):
+                variables += magnetic_variables(name, name in (params.get("magnetorquers") or {}))
         return variables
 
     @classmethod
@@ -378,6 +422,12 @@ class OrbitalDynamics(Component):
                     raise ConfigError(f"{key}[{i}]", f"expected a body name ({', '.join(models)}), got {name!r}")
         if (params["srp"] or params["sun_sensor"]) and not params.get("_epoch"):
             raise ConfigError("_epoch", "SRP and a sun sensor need the run's epoch (run.epoch) for the Sun")
+        for name in params["magnetorquers"]:
+            if name not in models:
+                raise ConfigError(f"magnetorquers.{name}", f"expected a body name ({', '.join(models)}), got {name!r}")
+            if params["magnetic_field"] is None:
+                raise ConfigError(f"magnetorquers.{name}", "magnetorquers act on the Earth's magnetic field: expected "
+                                                           "magnetic_field (model: wmm or dipole), got none")
         grasp = params["grasp"]
         if grasp is not None:
             if params["integrator"] != "rk4":
@@ -467,6 +517,18 @@ class OrbitalDynamics(Component):
                                    for key in ("orientation", "link_orientation")[:2 if self.links else 1]]
         self.quaternion_outputs += [f"{name}.q_lvlh_body" for name in self.names if self.frames]
         self.quaternion_outputs += ["grasp.q_ee_grasp", "grasp.q_c_t"] if self.grasp else []
+        self.magnetics = None                # the field and magnetorquers (magnetic_field), else nothing per step
+        field = params["magnetic_field"]
+        if field is not None:
+            from components.dynamics.magnetic import Magnetics
+            from components.space.geomagnetic import GeomagneticField
+
+            if not params.get("_epoch"):
+                raise ConfigError("_epoch", "the magnetic field needs the run's epoch (run.epoch)")
+            dipole = {key: field[key] for key in ("g10", "g11", "h11", "radius")}
+            self.magnetics = Magnetics(self.world, GeomagneticField(field["model"], params["_epoch"], dipole),
+                                       {name: np.broadcast_to(np.asarray(m["max_dipole"], dtype=float), (3,))
+                                        for name, m in params["magnetorquers"].items()})
         self.capture_report = None   # the last step's capture, for the event
         self.last_quaternions: dict[str, np.ndarray] = {}
 
@@ -485,7 +547,7 @@ class OrbitalDynamics(Component):
         except ValueError as e:
             raise ComponentError(str(e)) from None
 
-    def _outputs(self) -> dict[str, np.ndarray]:
+    def _outputs(self, t_ns: int) -> dict[str, np.ndarray]:
         out = {}
         for name in self.names:
             output_names = self.output_names[name]
@@ -506,6 +568,11 @@ class OrbitalDynamics(Component):
                         self.world.relative_frames(self.grasp.chaser, self.grasp.target).items()})
             out["grasp.closed"] = np.float64(grasp.closed)
             out["grasp.wrench"] = grasp.wrench_on_target() if grasp.closed else np.zeros(6)
+        if self.magnetics is not None:
+            try:
+                out.update(self.magnetics.outputs(t_ns))
+            except ValueError as e:          # the WMM outside its years
+                raise ComponentError(f"magnetic_field: {e}") from None
         for key in self.quaternion_outputs:
             out[key] = self.last_quaternions[key] = continuous(out[key], self.last_quaternions.get(key))
         return out
@@ -516,10 +583,12 @@ class OrbitalDynamics(Component):
         if self.world.atmosphere_varies and self.world.environment_on:   # (the steps update it at their midpoints)
             self.world.update_atmosphere(self.world.elapsed)
         self.last_quaternions = {}
-        return self._outputs()
+        return self._outputs(t0_ns)
 
     def do_step(self, t_ns, h_ns, inputs):
         self._inputs(inputs, torques=True, t_ns=t_ns)
+        if self.magnetics is not None:
+            self.magnetics.apply(inputs)
         self.world.step(h_ns / NS_PER_S)
         grasp = self.world.grasp
         if grasp is not None:
@@ -534,16 +603,21 @@ class OrbitalDynamics(Component):
                 self.emit("capture", time=(t_ns + h_ns) / NS_PER_S,
                           relative_twist=report.relative_twist.tolist(), impulse=report.impulse.tolist(),
                           errors=report.errors)
-        return self._outputs()
+        return self._outputs(t_ns + h_ns)
 
     def get_state(self):
-        return {**self.world.get_state(), **{LAST + k: v.copy() for k, v in self.last_quaternions.items()}}
+        magnetic = self.magnetics.get_state() if self.magnetics is not None else {}
+        return {**self.world.get_state(), **{LAST + k: v.copy() for k, v in self.last_quaternions.items()}, **magnetic}
 
     def set_state(self, state):
         try:
-            self.world.set_state({k: v for k, v in state.items() if not k.startswith(LAST)})
+            self.world.set_state({k: v for k, v in state.items() if not k.startswith((LAST, MAGNETIC))})
+            if self.magnetics is not None:
+                self.magnetics.set_state(state)
         except ValueError as e:
             raise ComponentError(str(e)) from None
+        except KeyError as e:
+            raise ComponentError(f"state: missing {e.args[0]!r}") from None
         self.last_quaternions = {k[len(LAST):]: np.array(v, dtype=np.float64) for k, v in state.items()
                                  if k.startswith(LAST)}
 

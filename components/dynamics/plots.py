@@ -147,3 +147,43 @@ CAPTURE = Plot("{c}_capture.png", "with a ``grasp``: distance and relative rate 
                                   "rate, wheel rates (joints named ``*wheel*``), the wrist force and torque, and the "
                                   "total linear and angular momentum's change with what changes it, the capture "
                                   "instant marked", capture)
+
+
+def magnetic(run: RecordedRun, c: str) -> dict:
+    """Per body with the magnetic field: its angular rate, the field in its axes and the
+    magnetorquers' torque (a detumbling on one page)."""
+    t, params = run.time, run.parameters(c)
+    made = {}
+    for body in (params.get("bodies") or {}):
+        b = run.vector(f"{c}.{body}.b_body", 3)
+        twist = run.vector(f"{c}.{body}.twist", 6)
+        if b is None or twist is None:
+            continue
+        torque = run.vector(f"{c}.{body}.mtb_torque", 3)
+        rows = 3 if torque is not None else 2
+        fig = new_figure(9.0, 3.0 * rows)
+        ax = fig.add_subplot(rows, 1, 1)
+        w = np.degrees(twist[:, 3:6])
+        for k, axis in enumerate("xyz"):
+            ax.plot(t, w[:, k], linewidth=0.8, label=f"w_{axis} (W axes)")
+        ax.plot(t, np.linalg.norm(w, axis=1), color="k", linewidth=1.5, label="|w|")
+        ax.set(ylabel="deg/s", title=f"{c}.{body}: angular rate (inertial)")
+        panels = [("b_body", b * 1e6, "uT", "magnetic field, base axes")]
+        if torque is not None:
+            panels.append(("mtb_torque", torque * 1e3, "mN m", "magnetorquers' torque, base axes"))
+        for row, (name, values, unit, what) in enumerate(panels, start=2):
+            ax.legend(loc="upper right", fontsize="x-small", ncols=2)
+            ax.grid(True, alpha=0.3)
+            ax = fig.add_subplot(rows, 1, row)
+            for k, axis in enumerate("xyz"):
+                ax.plot(t, values[:, k], linewidth=0.8, label=f"{name}[{k}]")
+            ax.set(ylabel=unit, title=f"{c}.{body}: {what}")
+        ax.legend(loc="upper right", fontsize="x-small", ncols=2)
+        ax.grid(True, alpha=0.3)
+        ax.set_xlabel("time (s)")
+        made[f"{c}_{body}_magnetic.png"] = fig
+    return made
+
+
+MAGNETIC = Plot("{c}_{body}_magnetic.png", "per body with magnetic_field: its angular rate, the field in its "
+                "axes and the magnetorquers' torque", magnetic)

@@ -282,6 +282,13 @@ class OrbitalWorld:
         body.tau[body.free_dofs] = np.minimum(np.maximum(tau, body.negative_effort), body.effort)[body.free]
         body.torques_changed()
 
+    def set_base_torque(self, name: str, torque_W) -> None:
+        """A pure torque on body ``name``'s base (N m, W axes; a magnetorquer's m x B), held until
+        set again (``set_torques`` of a body with joints clears it: call this after it)."""
+        body = self.bodies[name]
+        body.tau[0:3] = torque_W
+        body.torques_changed()
+
     def reset_bodies(self) -> None:
         """Put every body in its initial state from its spec (``frame: lvlh`` uses the orbit inputs)."""
         R_WL = quat_to_matrix(self.q_eci_lvlh)

@@ -1,4 +1,5 @@
-"""Sensor component types: ``sensor.imu``, ``sensor.force_torque``, ``sensor.relative_pose``.
+"""Sensor component types: ``sensor.imu``, ``sensor.force_torque``, ``sensor.relative_pose``,
+``sensor.magnetometer``.
 
 Each maps true quantities (inputs, from the dynamics or a frame transform) to measurements
 (outputs) with the noise models of :mod:`components.sensors.noise`.
@@ -298,3 +299,49 @@ class RelativePoseComponent(_SeededSensor):
         self.p = np.array(state["p"], dtype=np.float64).reshape(3)
         self.q = np.array(state["q"], dtype=np.float64).reshape(4)
         self.t_measured_ns, self.valid = int(state["t_measured_ns"]), bool(state["valid"])
+
+
+# --------------------------------------------------------------------------- magnetometer
+
+class MagnetometerComponent(_SeededSensor):
+    """A three-axis magnetometer (type ``sensor.magnetometer``), sensor (body) axes.
+
+    ``b = b_true + bias + n``, white noise n (``noise``: 1-sigma per sample, T) and a constant
+    ``bias`` (T). Its ``b_true`` is the dynamics' ``<body>.b_body`` (the Earth's field at the
+    base origin, base axes: components/dynamics/magnetic.py). Rate: the component's own step.
+
+    Draws per step: 3 normals, the noise. State: the generator.
+    """
+    type_name = "sensor.magnetometer"
+    measures = {"b": "b_true"}
+    plots = (measured_against_true(measures),)
+    view = SensorView
+    parameters = (
+        _seed(),
+        # plausible: a spacecraft magnetometer's noise is 0.1-100 nT; its bias up to a few uT
+        _sigma("noise", "T", "white noise", (0.0, 1e-5)),
+        _bias("bias", "T", "bias", (-1e-4, 1e-4), default=0.0),
+    )
+    variables = (
+        Variable("b_true", "input", (3,), "T", [0.0] * 3, "true magnetic field, sensor axes"),
+        Variable("b", "output", (3,), "T", [0.0] * 3, "measured magnetic field, sensor axes (0 until the first step)"),
+    )
+    DRAWS = 3
+
+    def __init__(self, params):
+        super().__init__(params)
+        self.sigma, self.bias = per_axis(params["noise"]), per_axis(params["bias"])
+        self.out = np.zeros(3)
+
+    def initialize(self, t0_ns, inputs):
+        return {"b": self.out}
+
+    def do_step(self, t_ns, h_ns, inputs):
+        self.out = inputs["b_true"] + self.bias + white(self.sigma, self._draw())
+        return {"b": self.out}
+
+    def get_state(self):
+        return self._base_state()
+
+    def set_state(self, state):
+        self._set_base_state(state)

@@ -158,7 +158,7 @@ class LocalExponential(ExponentialAtmosphere):
 
     def __init__(self, model: Nrlmsise00, epoch):
         super().__init__(single=(0.0, 0.0, 1.0))
-        self.model, self.clock = model, earth.EarthClock(epoch)
+        self.model, self.clock = model, earth.EarthRotation(epoch)
 
     def update(self, r_gcrf, t_s: float) -> None:
         """The band at r_gcrf (m) at run time t_s (s since run.epoch)."""

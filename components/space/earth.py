@@ -19,7 +19,9 @@ which matters for comparing positions with a ground truth, not for the physics o
 same model is used on both sides of every cross-check: Basilisk is given these matrices).
 
 C_cirs_gcrf moves by ~1e-11 rad/s (precession-nutation); :class:`EarthRotation` evaluates it
-at given times and R3(ERA) at every call.
+at given times (``matrix``, ``gcrf_to_itrf``) or once a minute (``ecef_from_eci``, for per-step
+models) and R3(ERA) at every call, from the epoch's ERA and the elapsed SI seconds (UT1 runs on
+through a leap second; UTC, for the models that take a date, comes from ``utc_tt`` through TAI).
 
 WGS 84: a = 6378137 m, 1/f = 298.257223563 (NIMA TR8350.2). With p = hypot(x, y), e^2 = f (2 - f),
 b = a (1 - f), e'^2 = e^2 / (1 - e^2), Bowring's iteration from beta = atan2(z, (1 - f) p):
@@ -46,6 +48,7 @@ _E2 = WGS84_F * (2.0 - WGS84_F)
 _B = WGS84_A * (1.0 - WGS84_F)
 _EP2 = _E2 / (1.0 - _E2)
 
+C2I_PERIOD_NS = 60 * 10**9   # EarthRotation.ecef_from_eci: C_cirs_gcrf once a minute
 ERA_RATE = 2.0 * math.pi * 1.00273781191135448 / SECONDS_PER_DAY
 """d ERA / dt, rad/s of UT1 (IAU 2000: the Earth's rotation in the ERA model)."""
 
@@ -87,6 +90,18 @@ class EarthRotation:
         self.utc0 = parse_utc(epoch)
         self.tt0 = utc_to_tt(self.utc0)
         self.era0 = earth_rotation_angle(self.utc0)
+        self.tai0 = timescales.utc_to_tai(self.utc0)
+        self._minute, self._c2i = None, None     # C_cirs_gcrf of the minute last asked (t alone decides)
+
+    def utc_tt(self, t_s: float) -> tuple[tuple[float, float], tuple[float, float]]:
+        """(UTC, TT) two-part Julian dates t_s SI seconds after the epoch (leap seconds counted:
+        the seconds are added in TAI)."""
+        tai = (self.tai0[0], self.tai0[1] + t_s / SECONDS_PER_DAY)
+        return timescales.tai_to_utc(tai), timescales.tai_to_tt(tai)
+
+    def dates(self, t_ns: int) -> tuple[tuple[float, float], tuple[float, float]]:
+        """(UTC, TT) of run time ``t_ns`` (integer ns since the epoch)."""
+        return self.utc_tt(t_ns / NS_PER_S)
 
     def tt(self, t_s: float) -> tuple[float, float]:
         """TT two-part Julian date t_s seconds after the epoch."""
@@ -109,6 +124,19 @@ class EarthRotation:
         if c2i is None:
             c2i = self.intermediate(t_s)
         return r3(self.era(t_s)) @ c2i
+
+    def gcrf_to_itrf(self, t_s: float) -> np.ndarray:
+        """C_itrf_gcrf t_s seconds after the epoch, both factors at t_s (as :meth:`matrix`)."""
+        return self.matrix(t_s)
+
+    def ecef_from_eci(self, t_ns: int) -> np.ndarray:
+        """C_itrf_gcrf at run time ``t_ns`` with C_cirs_gcrf taken at the start of its minute
+        (``C2I_PERIOD_NS``; it moves under 1e-9 rad in a minute) and R3(ERA) at t_ns: per step,
+        one ERFA call a minute instead of one a step (c2i06a: ~70 us)."""
+        minute = t_ns // C2I_PERIOD_NS
+        if minute != self._minute:
+            self._c2i, self._minute = self.intermediate(minute * C2I_PERIOD_NS / NS_PER_S), minute
+        return self.matrix(t_ns / NS_PER_S, self._c2i)
 
     def matrix_rate(self, t_s: float, c2i: np.ndarray | None = None) -> np.ndarray:
         """d C_itrf_gcrf / dt (1/s), the Earth's rotation only (C_cirs_gcrf's drift, 1e-11 rad/s, left out)."""
@@ -140,21 +168,3 @@ def ecef_from_geodetic(latitude: float, longitude: float, height: float) -> np.n
     n = WGS84_A / math.sqrt(1.0 - _E2 * s * s)          # prime vertical radius of curvature
     return np.array([(n + height) * c * math.cos(longitude), (n + height) * c * math.sin(longitude),
                      (n * (1.0 - _E2) + height) * s])
-
-
-class EarthClock:
-    """UTC and TT at run time t (SI seconds since the run's UTC ``epoch``, leap seconds counted:
-    the seconds are added in TAI), and the Earth's orientation then."""
-
-    def __init__(self, epoch):
-        self.epoch_tai = timescales.utc_to_tai(timescales.parse_utc(epoch))
-
-    def utc_tt(self, t_s: float) -> tuple[tuple[float, float], tuple[float, float]]:
-        """(UTC, TT) two-part Julian dates at run time ``t_s``."""
-        tai = (self.epoch_tai[0], self.epoch_tai[1] + t_s / timescales.SECONDS_PER_DAY)
-        return timescales.tai_to_utc(tai), timescales.tai_to_tt(tai)
-
-    def gcrf_to_itrf(self, t_s: float) -> np.ndarray:
-        """M with r_itrf = M r_gcrf at run time ``t_s`` (UT1 = UTC)."""
-        utc, tt = self.utc_tt(t_s)
-        return gcrf_to_itrf(tt, utc)

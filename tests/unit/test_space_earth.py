@@ -64,7 +64,7 @@ def test_gcrf_to_itrf_is_iau_2006_2000a():
 
 def test_earth_clock_counts_the_leap_second():
     """Run time 1 s after 2016-12-31T23:59:59 is 23:59:60 (UTC), 2 s after is 2017-01-01T00:00:00."""
-    clock = earth.EarthClock("2016-12-31T23:59:59Z")
+    clock = earth.EarthRotation("2016-12-31T23:59:59Z")
     after = erfa.d2dtf("UTC", 0, *clock.utc_tt(2.0)[0])
     assert (int(after[0]), int(after[1]), int(after[2])) == (2017, 1, 1) and tuple(after[3])[:3] == (0, 0, 0)
     tt = clock.utc_tt(0.0)[1]

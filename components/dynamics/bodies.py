@@ -20,7 +20,8 @@ the state last set (``set_state``, ``set_stage``, ``set_velocities``), in these 
 ``link_forces.propagate_reference``'d s seconds on from point = (R, V)), ``inverse_mass()``; for the
 outputs ``base_pose()``, ``orientation()``, ``com()``, ``com_velocity()``, ``momentum()`` (and
 ``state_outputs()``, the body's outputs at once: from those unless an engine has them at hand),
-``link_transforms()``, ``environment_wrenches(R, V)``, ``srp_wrenches(R, V)``; for a grasp ``link_pose``,
+``link_transforms()``, ``environment_wrenches(R, V)``, ``srp_wrenches(R, V)``,
+``third_body_forces(R, V)``; for a grasp ``link_pose``,
 ``point_jacobian``, ``point_bias``; ``base_coordinates(R, p)`` for an initial state.
 """
 from __future__ import annotations
@@ -36,11 +37,15 @@ from components.dynamics import environment as env
 from components.dynamics import manifold_rk4
 from components.robots.urdf import UrdfModel
 from components.rotations import matrix_to_quat
+from components.space.gravity import MU_MOON, MU_SUN
 
 FRAMES = ("world", "lvlh")
 TWIST_ORDER = np.array([3, 4, 5, 0, 1, 2])      # (omega, v) coordinates -> the twist output (v, omega)
 DEFAULT_CD = 2.2
 DEFAULT_CR = 1.0        # radiation pressure coefficient of a black (absorbing) cannonball
+# the third bodies whose tidal force may act on every link, in the kernels' order (link_forces.link_third_bodies),
+# with their GMs (JPL DE440, components.space.gravity), m^3/s^2
+THIRD_BODIES = {"sun": MU_SUN, "moon": MU_MOON}
 
 
 class ModelError(ValueError):
@@ -184,10 +189,15 @@ class Environment:
     srp: bool = False
     eclipse: str = "conical"          # components.space.eclipse.MODELS
     solar_flux: float = 1361.0        # W/m^2 at 1 AU (components.space.srp.SOLAR_FLUX)
+    third_bodies: tuple = ()          # THIRD_BODIES whose tidal force acts on every link
+
+    def third(self) -> np.ndarray:
+        """The kernels' ``third`` (2,): the GM (m^3/s^2) of the Sun, of the Moon, 0 for one off."""
+        return np.array([THIRD_BODIES[b] if b in self.third_bodies else 0.0 for b in THIRD_BODIES])
 
     def light(self) -> np.ndarray:
         """The kernels' ``light`` (link_forces.LIGHT_SIZE); until ``set_sun`` (which a world's step
-        requires with SRP on) the Sun 1 AU along x, the Moon 384 400 km along y."""
+        requires with SRP or third bodies on) the Sun 1 AU along x, the Moon 384 400 km along y."""
         from components.constants import R_EARTH
         from components.space import eclipse, srp
 
@@ -265,7 +275,8 @@ class Body:
         return per_link, (np.concatenate(rows) if rows else np.zeros((0, 9))).reshape(-1, 9)
 
     def set_sun(self, sun_eci: np.ndarray, moon_eci: np.ndarray) -> None:
-        """The Sun and the Moon from the Earth's centre (m, ECI = W axes) for SRP, held until set again."""
+        """The Sun and the Moon from the Earth's centre (m, ECI = W axes) for SRP and the third
+        bodies' tidal force, held until set again."""
         self.light[7:10] = sun_eci
         self.light[10:13] = moon_eci
 
@@ -399,6 +410,11 @@ class Body:
     def srp_wrenches(self, R: np.ndarray, V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per URDF link, as ``environment_wrenches``: the SRP force (N) and torque about the CoM
         (N m), W axes, with the Sun last set (``set_sun``)."""
+        raise NotImplementedError
+
+    def third_body_forces(self, R: np.ndarray, V: np.ndarray) -> np.ndarray:
+        """Per URDF link, as ``environment_wrenches``: the Sun's and the Moon's tidal force (N, W
+        axes, at the CoM), with their positions last set (``set_sun``)."""
         raise NotImplementedError
 
     def link_pose(self, link: str) -> tuple[np.ndarray, np.ndarray]:

@@ -20,6 +20,7 @@ import numpy as np
 
 from components.constants import MU_EARTH, NS_PER_S
 from components.dynamics import plots as dynamics_plots
+from components.dynamics.bodies import THIRD_BODIES
 from components.dynamics.capture import OVERLOAD_ACTIONS
 from components.dynamics import ros as dynamics_ros
 from components.dynamics.view import DynamicsView
@@ -39,7 +40,8 @@ from components.space.srp import SOLAR_FLUX
 ORBIT_VALUES = itemgetter(*ORBIT_INPUTS)      # inputs -> the orbit inputs' values, in set_orbit's order
 
 NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-LINK_OUTPUTS = ("gg_torque", "tidal_force", "drag_force", "srp_force", "srp_torque", "link_position", "link_orientation")
+LINK_OUTPUTS = ("gg_torque", "tidal_force", "drag_force", "srp_force", "srp_torque", "link_position", "link_orientation",
+                "third_body_force")
 LAST = "last_output."   # state keys of the last output quaternions
 MAGNETIC = "magnetic."   # state keys of the magnetic field and magnetorquers (components/dynamics/magnetic.py)
 
@@ -351,6 +353,9 @@ class OrbitalDynamics(Component):
                               "(the Earth's), none"),
         Parameter("solar_flux", Float("kg/s^3", positive=True, plausible=(1300.0, 1420.0)), default=SOLAR_FLUX,
                   description="solar flux at 1 AU, W/m^2 (= kg/s^3; 1361: IAU 2015 nominal total solar irradiance)"),
+        Parameter("third_bodies", ListOf(Str(tuple(THIRD_BODIES)), unique=True), default=[],
+                  description="bodies whose tidal force acts on every link: sun, moon (their pull at the link less "
+                              "at the orbit point; JPL DE440 GMs; positions by ERFA at each step's start; needs run.epoch)"),
         Parameter("sun_sensor", ListOf(Str(), unique=True), default=[],
                   description="bodies whose base carries a sun sensor: their sun_body and sunlit outputs (true values; "
                               "needs run.epoch)"),
@@ -397,6 +402,10 @@ class OrbitalDynamics(Component):
                 Variable(f"{name}.link_orientation", "output", (4 * m,), "1", np.tile([0.0, 0.0, 0.0, 1.0], m),
                          "q_W_link per link [x, y, z, w]"),
             ]
+            if params.get("third_bodies"):
+                variables.append(Variable(f"{name}.third_body_force", "output", (3 * m,), "N", 0.0,
+                                          "the third bodies' (Sun's, Moon's) tidal force per link at its CoM, W axes "
+                                          "(with link_outputs and third_bodies)"))
         for name, model in load_models(params).items():
             if params.get("frame_outputs", False):
                 variables += frame_variables(name)
@@ -422,6 +431,9 @@ class OrbitalDynamics(Component):
                     raise ConfigError(f"{key}[{i}]", f"expected a body name ({', '.join(models)}), got {name!r}")
         if (params["srp"] or params["sun_sensor"]) and not params.get("_epoch"):
             raise ConfigError("_epoch", "SRP and a sun sensor need the run's epoch (run.epoch) for the Sun")
+        if params["third_bodies"] and not params.get("_epoch"):
+            raise ConfigError("_epoch", f"third_bodies ({', '.join(params['third_bodies'])}) need the run's epoch "
+                                        f"(run.epoch) for their positions, got none")
         for name in params["magnetorquers"]:
             if name not in models:
                 raise ConfigError(f"magnetorquers.{name}", f"expected a body name ({', '.join(models)}), got {name!r}")
@@ -452,7 +464,7 @@ class OrbitalDynamics(Component):
         models = load_models(params)
         notes = [f"bodies.{name}: {note}" for name, model in models.items() for note in model.notes()]
         h = step_s / params["substeps"]
-        environment = params["tidal_force"] or params["gravity_gradient"]
+        environment = params["tidal_force"] or params["gravity_gradient"] or params["third_bodies"]
         for name, body in body_items(params["bodies"]):
             model = models[name]
             figures = [(float(np.linalg.norm(np.asarray(_twist(name, body), dtype=float)[3:])),
@@ -499,7 +511,7 @@ class OrbitalDynamics(Component):
                 drag=params["drag"], mu=params["mu"], atmosphere=_atmosphere(params["atmosphere"], params.get("_epoch")),
                 joint_limits=params["joint_limits"], models=models, grasp=self.grasp or None,
                 compile_kernels=compile_kernels, srp=params["srp"], eclipse=params["eclipse"],
-                solar_flux=params["solar_flux"])
+                solar_flux=params["solar_flux"], third_bodies=tuple(params["third_bodies"]))
         except ModelError as e:
             raise ConfigError(f"bodies.{e.key}", e.message) from None
         self.names = [spec.name for spec in specs]
@@ -510,7 +522,7 @@ class OrbitalDynamics(Component):
         self.imu = list(params["imu"])
         self.sun_sensors = list(params["sun_sensor"])
         self.ephemeris = None
-        if params["srp"] or self.sun_sensors:                  # the Sun and Moon at each step's start
+        if params["srp"] or self.sun_sensors or params["third_bodies"]:     # the Sun and Moon at each step's start
             from components.space.ephemeris import Ephemeris
             self.ephemeris = Ephemeris(params["_epoch"])
         self.quaternion_outputs = [f"{name}.{key}" for name in self.names
@@ -627,7 +639,8 @@ class DartDynamics(OrbitalDynamics):
 
     Zero gravity in the free-falling, non-rotating world frame W (origin at the reference orbit
     point r_eci(t), axes parallel to ECI), plus per link and each switchable: tidal force,
-    gravity-gradient torque, atmospheric drag, solar radiation pressure (docs/environment/sun.md). ``integrator: rk4`` (default) is fourth-order
+    gravity-gradient torque, atmospheric drag, solar radiation pressure (docs/environment/sun.md),
+    the Sun's and the Moon's tidal force (``third_bodies``, docs/environment/gravity.md). ``integrator: rk4`` (default) is fourth-order
     Runge-Kutta on the configuration manifold over DART's forward dynamics (no contacts);
     ``integrator: dart`` is DART's own step with its constraint solver (contacts between bodies).
     Quaternions [x, y, z, w]. Takes the state of ``dynamics.pinocchio`` (a swap hands it over).

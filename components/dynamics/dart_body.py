@@ -134,6 +134,8 @@ class DartBody(Body):
             [bn.getName() for bn in self.nodes], [T[:3, :3] for T in link_in_anchor],
             [T[:3, 3] - c for T, c in zip(link_in_anchor, self.com_in_anchor)])
         self.light = environment.light()                       # the Sun and Moon: world.set_sun
+        self.third = environment.third()                       # the third bodies' GMs (0: off)
+        self.no_third = np.zeros(2)
         self.force = np.zeros((len(self.nodes), 3))            # environment per link, anchor axes
         self.torque = np.zeros((len(self.nodes), 3))
         self.dart_tau = self.tau                               # tau in DART's order
@@ -174,10 +176,11 @@ class DartBody(Body):
         self.forces_are_tau = False
 
     # -- dynamics
-    def _environment(self, R: np.ndarray, V: np.ndarray, tidal: bool, drag: bool, srp: bool, gravity_gradient=None):
+    def _environment(self, R: np.ndarray, V: np.ndarray, tidal: bool, drag: bool, srp: bool, gravity_gradient=None,
+                     third: bool = True):
         """The body's generalized forces (DART order), its joint torques and the environment with the
         reference point at (R, V), which also fills ``force`` and ``torque``; and the anchors'
-        Jacobians side by side."""
+        Jacobians side by side. ``third``: the third bodies the environment has (else none)."""
         J = np.concatenate([anchor.getJacobian(ORIGIN) for anchor in self.anchors], axis=1)
         drag = drag and self.has_drag
         v_com = np.array([bn.getCOMLinearVelocity() for bn in self.nodes]).reshape(-1, 3) if drag else self.force
@@ -188,7 +191,7 @@ class DartBody(Body):
             self.com_in_anchor, self.inertia_in_anchor, self.mass, R, V, self.skel.getPositions()[3:6], e.mu,
             tidal, e.gravity_gradient if gravity_gradient is None else gravity_gradient, drag, self.node_drag_k, v_com,
             atmosphere.h0, atmosphere.rho0, atmosphere.scale, EARTH_RATE, R_EARTH, self.dart_tau, self.force, self.torque, srp and self.has_srp,
-            self.light, self.srp_links, self.srp_facet_rows)
+            self.light, self.srp_links, self.srp_facet_rows, self.third if third else self.no_third)
         return forces, J
 
     def set_forces(self, reference) -> None:
@@ -246,18 +249,23 @@ class DartBody(Body):
     def environment_wrenches(self, R, V):
         R, V = np.asarray(R, dtype=float), np.asarray(V, dtype=float)
         e = self.environment
-        _, J = self._environment(R, V, e.tidal, False, False)
+        _, J = self._environment(R, V, e.tidal, False, False, third=False)
         tidal, torque = self.force.copy(), self.torque.copy()
         drag = np.zeros_like(tidal)
         if e.drag and self.has_drag:
-            self._environment(R, V, False, True, False)
+            self._environment(R, V, False, True, False, third=False)
             drag = self.force.copy()
         return self._per_link(J, (tidal, drag, torque))
 
     def srp_wrenches(self, R, V):
         R, V = np.asarray(R, dtype=float), np.asarray(V, dtype=float)
-        _, J = self._environment(R, V, False, False, True, gravity_gradient=False)
+        _, J = self._environment(R, V, False, False, True, gravity_gradient=False, third=False)
         return self._per_link(J, (self.force.copy(), self.torque.copy()))
+
+    def third_body_forces(self, R, V):
+        R, V = np.asarray(R, dtype=float), np.asarray(V, dtype=float)
+        _, J = self._environment(R, V, False, False, False, gravity_gradient=False)
+        return self._per_link(J, (self.force.copy(),))[0]
 
     def _per_link(self, J, wrenches):
         """Per URDF link, W axes, of the massive links' ``wrenches`` in anchor axes."""

@@ -1,10 +1,11 @@
 """The orbital environment on a body's links, as generalized forces: compiled loops, one per engine.
 
 The formulas are those of :mod:`components.dynamics.environment` (tidal force, gravity-gradient
-torque, drag) and of :mod:`components.space.srp` and :mod:`components.space.eclipse` (solar
-radiation pressure), evaluated per link by the functions both engines share, ``link_environment``
-(tidal force and gravity-gradient torque, in whichever axes its vectors are given),
-``drag_factor`` and ``link_srp``. They run at each of the four rk4 stages of every step; written with numpy they
+torque, drag, the Sun's and the Moon's tidal force) and of :mod:`components.space.srp` and
+:mod:`components.space.eclipse` (solar radiation pressure), evaluated per link by the functions
+both engines share, ``link_environment`` (tidal force and gravity-gradient torque, in whichever
+axes its vectors are given), ``link_third_bodies`` (the same tidal form about the Sun and the
+Moon), ``drag_factor`` and ``link_srp``. They run at each of the four rk4 stages of every step; written with numpy they
 cost ~60 us a stage in ~40 calls on arrays of a few rows, so the loops over the links are
 compiled with numba (nopython, no fastmath: IEEE arithmetic, the same bits on every run on a
 machine). ``tests/unit/test_dynamics_world.py`` and ``test_dynamics_pinocchio.py`` check them
@@ -42,6 +43,7 @@ Inputs of ``generalized_forces`` (all float64 or int64 arrays, SI units):
 | srp, light | -, (13,) | solar radiation pressure on or off; the Sun (``LIGHT_SIZE``, below) |
 | srp_links | (n, 3) | per link: Cr A (m^2, 0: no cannonball), first row and count of its facets |
 | facets | (m, 9) | facets (components.space.srp), anchor axes, centres from the link's CoM (m) |
+| third | (2,) | GM of the Sun, of the Moon (m^3/s^2) whose tidal force acts; 0: that body off (their positions: ``light``) |
 
 Frames: the base rotation columns of anchor a's Jacobian are R_a^T (angular rows) and
 -[o_a]x R_a^T (linear rows), with o_a = R_a^T (p_a - p) the anchor origin relative to the base
@@ -63,6 +65,7 @@ REVOLUTE, PRISMATIC = 1, 2     # tree joint kinds (0: the free base)
 # (components.space.eclipse), radii of the Sun, Earth, Moon (m), the Moon shades (1) or not (0),
 # Sun and Moon from the Earth's centre (m, W axes)
 LIGHT_SIZE = 13
+SUN, MOON = 7, 10      # where the Sun's and the Moon's positions start in ``light`` (also the third bodies')
 
 
 @numba.njit(cache=True)
@@ -118,6 +121,27 @@ def link_environment(R, d, mass, inertia, r2, r, mu, tidal, gravity_gradient, f,
 
 
 @numba.njit(cache=True)
+def link_third_bodies(R, d, mass, inertia, third, light, rotation_T, rel, f3, t3, f):
+    """Adds to ``f`` (N, at the CoM) the Sun's and the Moon's tidal force on a link of ``mass`` (kg)
+    whose CoM is at ``d`` from the reference point, in the axes ``rotation_T`` (3, 3) turns W into
+    (``R``: the reference point from the Earth's centre in W): for each body b with GM
+    ``third[b]`` > 0 at s_b (``light``, W), m (g_b(R - s_b + d) - g_b(R - s_b)), g_b(x) =
+    -mu_b x / abs(x)^3: ``link_environment``'s tidal form about the body, without cancellation.
+    ``rel``, ``f3``, ``t3``: scratch (3,)."""
+    for b in range(2):
+        mu3 = third[b]
+        if mu3 > 0.0:
+            start = SUN if b == 0 else MOON
+            x0, x1, x2 = R[0] - light[start], R[1] - light[start + 1], R[2] - light[start + 2]   # R - s_b, W
+            r2 = x0 * x0 + x1 * x1 + x2 * x2
+            for i in range(3):
+                rel[i] = rotation_T[i, 0] * x0 + rotation_T[i, 1] * x1 + rotation_T[i, 2] * x2
+            link_environment(rel, d, mass, inertia, r2, math.sqrt(r2), mu3, True, False, f3, t3)
+            for i in range(3):
+                f[i] += f3[i]
+
+
+@numba.njit(cache=True)
 def drag_factor(x, V, v_com, drag_k, h0, rho0, scale_height, earth_rate, earth_radius, v_rel):
     """Drag on a link whose CoM is at x (from the Earth's centre, W) moving at V + v_com (W):
     fills ``v_rel``, the velocity against an atmosphere turning with the Earth (W), and returns c
@@ -159,7 +183,7 @@ def propagate_reference(R0, V0, s, mu):
 @numba.njit(cache=True)
 def generalized_forces(J, rotation_columns, jacobian_anchor, jacobian_dofs, anchor_slot, com, inertia, mass,
                        R, V, base, mu, tidal, gravity_gradient, drag, drag_k, v_com, h0, rho0, scale_height,
-                       earth_rate, earth_radius, tau, force, torque, srp, light, srp_links, facets):
+                       earth_rate, earth_radius, tau, force, torque, srp, light, srp_links, facets, third):
     k = rotation_columns.shape[0]
     rotation_T = np.empty((k, 3, 3))
     R_local = np.empty((k, 3))
@@ -190,11 +214,14 @@ def generalized_forces(J, rotation_columns, jacobian_anchor, jacobian_dofs, anch
     x = np.empty(3)
     v_rel = np.empty(3)
     lever = np.empty(3)
+    third_on = third[0] > 0.0 or third[1] > 0.0
     for n in range(anchor_slot.shape[0]):
         a = anchor_slot[n]
         for i in range(3):
             d[i] = base_local[a, i] + com[n, i]   # link CoM from the reference point
         link_environment(R_local[a], d, mass[n], inertia[n], r2, r, mu, tidal, gravity_gradient, f, t)
+        if third_on:
+            link_third_bodies(R, d, mass[n], inertia[n], third, light, rotation_T[a], x, v_rel, lever, f)
         if drag and drag_k[n] > 0.0:
             for i in range(3):
                 x[i] = R[i]
@@ -318,7 +345,7 @@ def tree_kinematics(x, v, joints, frames, with_velocity, rotation, position, joi
 
 @numba.njit(cache=True)
 def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, mu, tidal, gravity_gradient, drag,
-                            atmosphere, earth_rate, earth_radius, force, torque, srp, light, facets):
+                            atmosphere, earth_rate, earth_radius, force, torque, srp, light, facets, third):
     """``tau`` plus the environment's generalized forces (world coordinates) of a body given as a
     tree (``joints``, ``frames``: see ``tree_kinematics``). Links: ``links`` (n, 17) their CoM (3)
     and inertia about it (9, row-major) in their joint's frame, mass, 1/2 Cd A, then for SRP (with
@@ -341,6 +368,7 @@ def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, 
     f, t, d, c_W, v_rel, x_earth, v_com, lever = (scratch[0], scratch[1], scratch[2], scratch[3], scratch[4],
                                                    scratch[5], scratch[6], scratch[7])
     about, R_local, d_local, f_local, t_local = scratch[8], scratch[9], scratch[10], scratch[11], scratch[12]
+    third_on = third[0] > 0.0 or third[1] > 0.0
     for n in range(link_joint.shape[0]):
         j = link_joint[n]
         Rj = rotation[j]
@@ -351,8 +379,10 @@ def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, 
         for i in range(3):                        # R and d in the joint's frame, where the inertia is given
             R_local[i] = Rj[0, i] * R[0] + Rj[1, i] * R[1] + Rj[2, i] * R[2]
             d_local[i] = Rj[0, i] * d[0] + Rj[1, i] * d[1] + Rj[2, i] * d[2]
-        link_environment(R_local, d_local, link[12], link[3:12].reshape((3, 3)), r2, r, mu, tidal, gravity_gradient,
-                         f_local, t_local)
+        inertia = link[3:12].reshape((3, 3))
+        link_environment(R_local, d_local, link[12], inertia, r2, r, mu, tidal, gravity_gradient, f_local, t_local)
+        if third_on:
+            link_third_bodies(R, d_local, link[12], inertia, third, light, Rj.T, x_earth, v_rel, lever, f_local)
         if srp and (link[14] > 0.0 or link[16] > 0.0):
             for i in range(3):
                 x_earth[i] = R[i] + d[i]

@@ -104,7 +104,8 @@ class PinocchioBody(Body):
         self.pin_index = np.array([self.idx_q, self.nq, self.idx_v], dtype=np.int64).reshape(3, -1)
         e = environment
         self.terms = np.array([e.tidal, e.gravity_gradient, e.drag and self.has_drag, self.has_srp])
-        self.constants = np.array([e.mu, EARTH_RATE, R_EARTH, *self.terms, *e.light()])
+        self.constants = np.array([e.mu, EARTH_RATE, R_EARTH, *self.terms, *e.light(), *e.third()])
+        self.no_third = np.zeros(2)
         self.atmosphere = np.array([e.atmosphere.h0, e.atmosphere.rho0, e.atmosphere.scale])
         self.x, self.v = np.zeros(self.ndofs), np.zeros(self.ndofs)
         # the RK4 step: its start (q0, v0), the stage not formed yet (stage, c, a: pinocchio_inputs
@@ -144,7 +145,8 @@ class PinocchioBody(Body):
                 setattr(self, name, values[offset:offset + a.size].reshape(a.shape))
                 offset += a.size
         self.force, self.torque = self.wrenches
-        self.light = self.constants[7:]                        # the Sun and Moon: set_sun
+        self.light = self.constants[kernels.LIGHT:kernels.THIRD]      # the Sun and Moon: set_sun
+        self.third = self.constants[kernels.THIRD:]                   # the third bodies' GMs (0: off)
         self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [self.pm.nq, self.pm.nq + self.pm.nv])   # views
 
     def atmosphere_changed(self) -> None:
@@ -275,26 +277,30 @@ class PinocchioBody(Body):
         return np.array([self.data.oMf[self.frame_id[link]].homogeneous for link in self.link_names])
 
     def environment_wrenches(self, R, V):
-        return self._wrenches(R, V, (((True, True, False, False), ((0, 0), (2, 1))),
-                                     ((False, False, True, False), ((1, 0),))), 3)
+        return self._wrenches(R, V, (((True, True, False, False, False), ((0, 0), (2, 1))),
+                                     ((False, False, True, False, False), ((1, 0),))), 3)
 
     def srp_wrenches(self, R, V):
-        return self._wrenches(R, V, (((False, False, False, True), ((0, 0), (1, 1))),), 2)
+        return self._wrenches(R, V, (((False, False, False, True, False), ((0, 0), (1, 1))),), 2)
+
+    def third_body_forces(self, R, V):
+        return self._wrenches(R, V, (((False, False, False, False, True), ((0, 0),)),), 1)[0]
 
     def _wrenches(self, R, V, calls, count):
         """Per URDF link, W axes: ``count`` outputs, each call's terms (tidal, gravity gradient,
-        drag, SRP) on filling outputs from its (output, force 0 or torque 1) pairs."""
+        drag, SRP, third bodies) on filling outputs from its (output, force 0 or torque 1) pairs."""
         R, V = np.asarray(R, dtype=float), np.asarray(V, dtype=float)
         if self.stage:
             self._sync()
         out = [np.zeros((len(self.link_names), 3)) for _ in range(count)]
         for terms, parts in calls:
-            terms = self.terms & np.array(terms)
-            if terms.any():
+            third = terms[4] and self.third.any()
+            terms = self.terms & np.array(terms[:4])
+            if terms.any() or third:
                 link_forces.tree_generalized_forces(
                     self.x, self.v, self.tau, self.tree_joints, self.tree_frames, self.tree_links, self.link_joint,
                     R, V, self.environment.mu, terms[0], terms[1], terms[2], self.atmosphere, EARTH_RATE, R_EARTH,
-                    self.force, self.torque, terms[3], self.light, self.facets)
+                    self.force, self.torque, terms[3], self.light, self.facets, self.third if third else self.no_third)
                 for part, wrench in parts:
                     out[part][self.massive_links] = self.wrenches[wrench]
         return tuple(out)

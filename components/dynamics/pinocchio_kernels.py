@@ -15,7 +15,10 @@ import numpy as np
 from components.dynamics import link_forces, manifold_rk4
 
 LINK_COLUMNS = 17      # a link's row: CoM (3), inertia (9), mass, 1/2 Cd A, Cr A, first facet, facets
-CONSTANTS = 7 + link_forces.LIGHT_SIZE    # mu, Earth's rate, radius, tidal, gravity gradient, drag, SRP; light
+# mu, Earth's rate, radius, tidal, gravity gradient, drag, SRP; light; the GMs of the third bodies (Sun, Moon; 0: off)
+LIGHT = 7
+THIRD = LIGHT + link_forces.LIGHT_SIZE
+CONSTANTS = THIRD + 2
 
 
 @numba.njit(cache=True)
@@ -90,7 +93,7 @@ def pinocchio_inputs(stage, c, a, q0, v0, work, x, v, tau, environment, point, s
     the orbital environment with the reference point s seconds after it was at ``point`` (R, V:
     ``link_forces.propagate_reference``, here): ``link_forces.tree_generalized_forces``;
     ``constants``: mu, the Earth's rate and radius, the terms on (tidal, gravity gradient,
-    drag, SRP) and the Sun (``link_forces``' ``light``); ``facets``: the links' SRP facets; it
+    drag, SRP), the Sun (``link_forces``' ``light``) and the third bodies' GMs; ``facets``: the links' SRP facets; it
     fills ``wrenches``: force, torque per link), and Pinocchio's q, v, tau, one after
     the other in ``buffer`` (``to_pinocchio``; ``pin_index`` (3, n): idx_q, nq, idx_v of each
     joint coordinate)."""
@@ -101,7 +104,8 @@ def pinocchio_inputs(stage, c, a, q0, v0, work, x, v, tau, environment, point, s
         Q = link_forces.tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, constants[0],
                                                 constants[3] != 0.0, constants[4] != 0.0, constants[5] != 0.0,
                                                 atmosphere, constants[1], constants[2], wrenches[0], wrenches[1],
-                                                constants[6] != 0.0, constants[7:7 + link_forces.LIGHT_SIZE], facets)
+                                                constants[6] != 0.0, constants[LIGHT:THIRD], facets,
+                                                constants[THIRD:CONSTANTS])
     else:
         Q = tau
     nq, nv = buffer.shape[0] - 2 * v.shape[0], v.shape[0]

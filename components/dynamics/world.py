@@ -3,9 +3,9 @@
 ``OrbitalWorld`` is the physics of the ``dynamics.dart`` and ``dynamics.pinocchio`` components as
 a plain class (no bus, no I/O): several bodies, each a URDF on a free-floating base, in zero
 gravity with the orbital environment of :mod:`components.dynamics.environment` (tidal force,
-gravity-gradient torque, drag) and solar radiation pressure (:mod:`components.space.srp`; the Sun
-and Moon from ``set_sun``, held over a step) computed per link from the reference orbit inputs at every
-integrator stage (:mod:`components.dynamics.link_forces`). The engine (``engine``: ``dart``,
+gravity-gradient torque, drag, the Sun's and the Moon's tidal force) and solar radiation pressure
+(:mod:`components.space.srp`; the Sun and Moon from ``set_sun``, held over a step) computed per
+link from the reference orbit inputs at every integrator stage (:mod:`components.dynamics.link_forces`). The engine (``engine``: ``dart``,
 ``pinocchio``) computes each body's forward dynamics, mass matrix and kinematics
 (:mod:`components.dynamics.dart_body`, :mod:`components.dynamics.pinocchio_body`) in the one set
 of coordinates this world integrates (:mod:`components.dynamics.bodies`); everything else (the
@@ -58,7 +58,7 @@ import numpy as np
 from components.constants import MU_EARTH
 from components.dynamics import environment as env
 from components.dynamics import integration, link_forces
-from components.dynamics.bodies import Body, BodySpec, Environment, ModelError, check_spec  # noqa: F401 (re-exported)
+from components.dynamics.bodies import THIRD_BODIES, Body, BodySpec, Environment, ModelError, check_spec  # noqa: F401 (re-exported)
 from components.dynamics.capture import CaptureReport, Grasp, GraspSpec
 from components.robots.urdf import UrdfModel, read_urdf
 from components.rotations import cross3, matrix_to_quat, quat_to_matrix
@@ -87,6 +87,7 @@ class OrbitalWorld:
     | srp | False | solar radiation pressure per link (components/space/srp.py; the Sun: ``set_sun``) |
     | eclipse | conical | none, cylindrical (the Earth's), conical (Earth and Moon): SRP's and the sun sensor's shadow |
     | solar_flux | 1361 W/m^2 | the solar flux at 1 AU |
+    | third_bodies | () | of sun, moon: their tidal force per link, a_3(R + d) - a_3(R) (the positions: ``set_sun``) |
 
     Use: ``set_orbit(r_eci, v_eci, q_eci_lvlh, w_lvlh)`` then ``reset_bodies()`` (initial state,
     which needs LVLH for ``frame: lvlh`` bodies); per step ``set_orbit(...)``,
@@ -101,7 +102,8 @@ class OrbitalWorld:
                  mu: float = MU_EARTH, atmosphere: env.ExponentialAtmosphere | None = None,
                  joint_limits: bool = True, models: Mapping[str, UrdfModel] | None = None,
                  grasp: GraspSpec | None = None, engine: str = "dart", compile_kernels: bool = True,
-                 srp: bool = False, eclipse: str = "conical", solar_flux: float = SOLAR_FLUX):
+                 srp: bool = False, eclipse: str = "conical", solar_flux: float = SOLAR_FLUX,
+                 third_bodies: tuple[str, ...] = ()):
         if engine not in ENGINES:
             raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
         integrators = INTEGRATORS if engine == "dart" else ("rk4",)     # contacts: DART's own step only
@@ -116,8 +118,12 @@ class OrbitalWorld:
         if eclipse not in ECLIPSE_MODELS:
             raise ValueError(f"eclipse: expected one of {', '.join(ECLIPSE_MODELS)}, got {eclipse!r}")
         self.srp = bool(srp)
+        unknown = [b for b in third_bodies if b not in THIRD_BODIES]
+        if unknown or len(set(third_bodies)) < len(third_bodies):
+            raise ValueError(f"third_bodies: expected distinct names of {', '.join(THIRD_BODIES)}, got {list(third_bodies)}")
+        self.third_bodies = tuple(third_bodies)
         self.environment = Environment(self.mu, self.tidal, self.gg, self.drag, self.atmosphere, self.srp, eclipse,
-                                       float(solar_flux))
+                                       float(solar_flux), self.third_bodies)
         self.atmosphere_varies = self.drag and getattr(self.atmosphere, "varies", False)
         self.orbit_time = 0.0       # run time (s since run.epoch) at which the orbit inputs were sampled
         self.sun_eci, self.moon_eci = None, None     # set_sun
@@ -256,11 +262,12 @@ class OrbitalWorld:
     def _orbit_changed(self, point=None) -> None:
         self.orbit_point = np.concatenate([self.r_eci, self.v_eci]) if point is None else point   # (r_eci, v_eci)
         self._reference_cache = {}
-        self.environment_on = (self.tidal or self.gg or self.drag or self.srp) and any(self.r_eci.tolist())
+        self.environment_on = (self.tidal or self.gg or self.drag or self.srp or bool(self.third_bodies)) \
+            and any(self.r_eci.tolist())
 
     def set_sun(self, sun_eci, moon_eci) -> None:
-        """The Sun and the Moon from the Earth's centre (m, ECI = W axes), for SRP and the sun
-        sensor: held until set again (the component sets them at each step's start)."""
+        """The Sun and the Moon from the Earth's centre (m, ECI = W axes), for SRP, the third bodies'
+        tidal force and the sun sensor: held until set again (the component sets them at each step's start)."""
         self.sun_eci = np.array(sun_eci, dtype=float)
         self.moon_eci = np.array(moon_eci, dtype=float)
         for body in self.bodies.values():
@@ -354,8 +361,9 @@ class OrbitalWorld:
             raise ValueError(f"step: expected a positive duration, got {h} s")
         dt = h / self.substeps
         self.env_now = self.environment_on
-        if self.srp and self.sun_eci is None:
-            raise ValueError("srp: the Sun's position was not set (set_sun) before the step")
+        if (self.srp or self.third_bodies) and self.sun_eci is None:
+            raise ValueError(f"{'srp' if self.srp else 'third_bodies'}: the Sun's and the Moon's positions were not "
+                             f"set (set_sun) before the step")
         if self.grasp is not None:
             self.grasp.reset_peak()
         for k in range(self.substeps):
@@ -417,14 +425,15 @@ class OrbitalWorld:
 
     def link_outputs(self, name: str) -> dict[str, np.ndarray]:
         """Per URDF link (file order), W axes: environment wrenches at the current state
-        (``gg_torque``, ``tidal_force``, ``drag_force``) and ``link_position``, ``link_orientation``."""
+        (``gg_torque``, ``tidal_force``, ``drag_force``, ``srp_force``, ``srp_torque``; with
+        third bodies ``third_body_force``) and ``link_position``, ``link_orientation``."""
         body = self.bodies[name]
         T = body.link_transforms()
         zeros = np.zeros((len(body.link_names), 3))
         reference = self.reference(self.elapsed) if self.environment_on else None
         tidal, drag, gg = body.environment_wrenches(*reference) if reference else (zeros,) * 3
         srp_force, srp_torque = body.srp_wrenches(*reference) if reference and body.has_srp else (zeros,) * 2
-        return {
+        out = {
             "gg_torque": gg.ravel(),
             "tidal_force": tidal.ravel(),
             "drag_force": drag.ravel(),
@@ -433,6 +442,9 @@ class OrbitalWorld:
             "link_position": T[:, :3, 3].ravel(),
             "link_orientation": matrix_to_quat(T[:, :3, :3]).ravel(),
         }
+        if self.third_bodies:
+            out["third_body_force"] = (body.third_body_forces(*reference) if reference else zeros).ravel()
+        return out
 
     def sun_outputs(self, name: str) -> dict[str, np.ndarray]:
         """A sun sensor at the base origin, true values: ``sun_body``, the unit vector from it to the
@@ -486,14 +498,19 @@ class OrbitalWorld:
     def imu_outputs(self, name: str, accelerations: np.ndarray) -> dict[str, np.ndarray]:
         """An IMU at the base origin: ``imu_rate`` (rad/s) and ``specific_force`` (m/s^2: the
         origin's acceleration minus the gravity the world applies there, i.e. the tidal
-        acceleration when tidal_force is on), base axes. ``accelerations``: the body's, from
-        ``accelerations()``."""
+        acceleration when tidal_force is on and the third bodies' when they are), base axes.
+        ``accelerations``: the body's, from ``accelerations()``."""
         body = self.bodies[name]
         R_base, p = body.base_pose()
         a = np.array(accelerations[3:6], dtype=float)     # classical acceleration of the base origin, W
         if self.tidal and self.environment_on:
             R, _ = self.reference(self.elapsed)
             a = a - env.tidal_acceleration(R, p[None, :], self.mu)[0]
+        if self.third_bodies and self.environment_on:
+            R, _ = self.reference(self.elapsed)
+            for b, s in (("sun", self.sun_eci), ("moon", self.moon_eci)):
+                if b in self.third_bodies:
+                    a = a - env.third_body_tidal_acceleration(R, p[None, :], s, THIRD_BODIES[b])[0]
         return {"imu_rate": R_base.T @ body.velocities()[:3], "specific_force": R_base.T @ a}
 
     # ----------------------------------------------------------------- state

@@ -143,7 +143,8 @@ ROWS: dict[str, Row] = {
         tuple(f"tests/unit/test_dynamics_engines.py::{t}" for t in (
             "test_demo_humanoid_every_output_agrees", "test_servicer_with_wheels_and_drag_agrees",
             "test_prismatic_joints_and_a_mimic_finger_agree", "test_a_joint_resting_on_its_limit_agrees",
-            "test_capture_grasp_and_weld_agree")) + ("tests/unit/test_dynamics_srp.py::test_engines_agree_with_srp_on",)),
+            "test_capture_grasp_and_weld_agree")) + ("tests/unit/test_dynamics_srp.py::test_engines_agree_with_srp_on",
+                                                   "tests/unit/test_dynamics_third_body.py::test_engines_agree_with_third_bodies_on")),
     "imu_specific_force": Row(
         "dynamics.dart (imu)", "specific force at the base origin, in orbit and not, relative",
         "central differences of the base velocity minus the tidal gravity there", 1e-6, "",
@@ -211,6 +212,14 @@ ROWS: dict[str, Row] = {
         "space.srp and space.eclipse on each link's output pose (no kernel frames)", 1e-9, "",
         tuple(f"tests/unit/test_dynamics_srp.py::{t}" for t in (
             "test_link_srp_wrenches_are_the_facets_and_cannonballs_on_the_link_poses",))),
+    "third_body_links": Row(
+        "dynamics.dart, dynamics.pinocchio (third_bodies)", "Sun's and Moon's tidal force per link (servicer: a "
+        "welded link, a tumble, 3-5 m off the orbit point), relative; and the two engines' after 0.3 s",
+        "environment.third_body_tidal_acceleration and the subtraction of the two pulls in extended precision, "
+        "on each link's output pose (no kernel frames)", 1e-9, "",
+        tuple(f"tests/unit/test_dynamics_third_body.py::{t}" for t in (
+            "test_link_third_body_forces_are_the_tidal_form_on_the_link_poses",
+            "test_engines_agree_with_third_bodies_on"))),
     "geomagnetic_dipole": Row(
         "space.geomagnetic (dipole)", "field vector, 8 points 400 km to GEO, 2025-2029, general Earth orientations",
         "Basilisk magneticFieldCenteredDipole (its Earth coefficients; the same ECI -> ECEF matrix)", 1e-6, "nT",

@@ -15,6 +15,7 @@ freely, so a link feels only the difference between gravity at its CoM and gravi
 relative to an atmosphere co-rotating with the Earth (omega_E about ECI z); ``h`` the altitude
 above a spherical Earth (R_E = ``R_EARTH``, 6378.137 km); ``rho(h)`` the atmosphere of
 :mod:`components.space.atmosphere` (a piecewise exponential by default; NRLMSISE-00 as a local exponential).
+``s`` is the Sun or the Moon from the Earth's centre, ``mu_3`` its GM (the dynamics' ``third_bodies``).
 All vectors in W (= ECI) axes, SI units. The per-link evaluation in a step is
 :mod:`components.dynamics.link_forces`; the functions here are the same formulas in numpy.
 """
@@ -48,8 +49,8 @@ def third_body_tidal_acceleration(R: np.ndarray, delta: np.ndarray, s: np.ndarra
     reference point R (3,), m/s^2: a_3(R + d) - a_3(R) with a_3(x) = mu3 ((s - x)/|s - x|^3 - s/|s|^3),
     the body at s (m, from the Earth's centre, same axes). The s/|s|^3 terms cancel exactly, leaving
     the Earth's tidal form about the third body: g_3(R - s + d) - g_3(R - s), evaluated without
-    cancellation as ``tidal_force_and_gravity_gradient`` does. Not yet applied per link in a step
-    (components/dynamics/link_forces.py): the model and its check only."""
+    cancellation as ``tidal_force_and_gravity_gradient`` does. The dynamics' ``third_bodies`` apply
+    it per link at every stage (``link_forces.link_third_bodies``, compiled); this is its reference."""
     return tidal_acceleration(np.asarray(R, dtype=float) - np.asarray(s, dtype=float), delta, mu3)
 
 

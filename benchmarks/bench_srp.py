@@ -77,20 +77,26 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args()
+    compare("SRP", VARIANTS, harness, args.steps, args.rounds)
+
+
+def compare(what: str, variants, make, steps: int, rounds: int) -> None:
+    """Prints the table: per engine and body, each variant's CPU time per step (``make(engine,
+    body, variant)`` gives its Harness; the variants alternate over the rounds) against "off"."""
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cpus, load {os.getloadavg()[0]:.2f}")
-    print("| engine | body | SRP | us per step | vs off |")
+    print(f"| engine | body | {what} | us per step | vs off |")
     print("|---|---|---|---|---|")
     for engine in ("dart", "pinocchio"):
         for body in BODIES:
-            harnesses = {v: harness(engine, body, v) for v in VARIANTS}
-            figures = {v: [] for v in VARIANTS}
-            for _ in range(args.rounds):
+            harnesses = {v: make(engine, body, v) for v in variants}
+            figures = {v: [] for v in variants}
+            for _ in range(rounds):
                 for v, h in harnesses.items():
-                    figures[v].append(per_step(h, args.steps))
+                    figures[v].append(per_step(h, steps))
             off = statistics.median(figures["off"])
-            for v in VARIANTS:
+            for v in variants:
                 value = statistics.median(figures[v])
-                print(f"| dynamics.{engine} | {body} | {v} | {value * 1e6:.1f} | {value - off:+.2e} s ({value / off:.2f}x) |")
+                print(f"| dynamics.{engine} | {body} | {v} | {value * 1e6:.1f} | {(value - off) * 1e6:+.1f} us ({value / off:.2f}x) |")
     print(f"load after: {os.getloadavg()[0]:.2f}")
 
 

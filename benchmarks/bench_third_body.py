@@ -11,16 +11,13 @@ batches of 100 steps and over the rounds, the variants alternating), each engine
 from __future__ import annotations
 
 import argparse
-import os
-import platform
-import statistics
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.bench_srp import BODIES, EPOCH, orbit, per_step  # noqa: E402
+from benchmarks.bench_srp import BODIES, EPOCH, compare, orbit  # noqa: E402
 from components.testing.harness import Harness  # noqa: E402
 
 VARIANTS = {"off": [], "sun": ["sun"], "sun, moon": ["sun", "moon"]}
@@ -40,21 +37,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args()
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cpus, load {os.getloadavg()[0]:.2f}")
-    print("| engine | body | third_bodies | us per step | vs off |")
-    print("|---|---|---|---|---|")
-    for engine in ("dart", "pinocchio"):
-        for body in BODIES:
-            harnesses = {v: harness(engine, body, v) for v in VARIANTS}
-            figures = {v: [] for v in VARIANTS}
-            for _ in range(args.rounds):
-                for v, h in harnesses.items():
-                    figures[v].append(per_step(h, args.steps))
-            off = statistics.median(figures["off"])
-            for v in VARIANTS:
-                value = statistics.median(figures[v])
-                print(f"| dynamics.{engine} | {body} | {v} | {value * 1e6:.1f} | {(value - off) * 1e6:+.1f} us |")
-    print(f"load after: {os.getloadavg()[0]:.2f}")
+    compare("third_bodies", VARIANTS, harness, args.steps, args.rounds)
 
 
 if __name__ == "__main__":

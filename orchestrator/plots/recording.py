@@ -8,18 +8,22 @@ both record, orchestrator/plots/shadows.py). The registered types' plots (:func:
 
 | file | for | content |
 |---|---|---|
-| ``<c>_track.png`` | orbit.kepler, orbit.sgp4, orbit.custom_path, orbit.fixed | altitude, ground track (spherical Earth, UT1 = UTC), r_eci and v_eci over time |
+| ``<c>_track.png`` | orbit.kepler, orbit.numerical, orbit.sgp4, orbit.custom_path, orbit.fixed | altitude, ground track (spherical Earth, UT1 = UTC), r_eci and v_eci over time |
+| ``<c>_accelerations.png`` | orbit.numerical | magnitude of each acceleration term over time (orbit.numerical) |
 | ``<c>_<body>.png`` | dynamics.dart, dynamics.pinocchio | per body: attitude against LVLH as a rotation vector (about z: the pitch of a libration; against the body's t0 attitude if q_eci_lvlh is not connected), momentum change from t0, joint positions |
 | ``<c>_capture.png`` | dynamics.dart, dynamics.pinocchio | with a ``grasp``: distance and relative rate to the grasp frame, the assembly's rate, wheel rates (joints named ``*wheel*``), the wrist force and torque, and the total linear and angular momentum's change with what changes it, the capture instant marked |
+| ``<c>_<body>_magnetic.png`` | dynamics.dart, dynamics.pinocchio | per body with magnetic_field: its angular rate, the field in its axes and the magnetorquers' torque |
 | ``<c>_path.png`` | controller.computed_torque | desired (black) and obtained (red) 3D end-effector path relative to its start, in the axes of the base at t0 (inertial; W axes if the base orientation is not recorded) (paper Fig. 5) |
 | ``<c>_error.png`` | controller.computed_torque | position error (mm) and orientation error (mrad) per W axis and norm, over time (Fig. 6) |
 | ``<c>_torque.png`` | controller.computed_torque, controller.joint_pd, controller.capture | torques of the driven joints, N m (Fig. 7) |
 | ``<c>_base.png`` | controller.computed_torque | the body's base displacement (mm, W) and rotation (deg) from t0, and sigma_min of J_g |
 | ``<c>_joints.png`` | controller.joint_pd | joint positions and their references |
 | ``<c>_phases.png`` | controller.capture | the capture's phase and attempts, the estimated distance to the grasp frame and the estimated errors behind close (position, attitude, velocity, rate: an axis each) |
+| ``<c>_bdot.png`` | controller.bdot | the commanded dipole and |dB/dt| over time |
 | ``<c>_measured.png`` | sensor.imu | rate, specific_force (solid) against the outputs feeding rate_true, specific_force_true (dashed), per element |
 | ``<c>_measured.png`` | sensor.force_torque | wrench (solid) against the outputs feeding wrench_true (dashed), per element |
 | ``<c>_measured.png`` | sensor.relative_pose | p, q (solid) against the outputs feeding p_true, q_true (dashed), per element |
+| ``<c>_measured.png`` | sensor.magnetometer | b (solid) against the outputs feeding b_true (dashed), per element |
 | ``<c>_pose.png`` | estimator.fiducial | each frame's position and attitude error against the dynamics' grasp pose (when recorded), markers found, valid, RMS reprojection error |
 
 ``signals=[name, ...]`` plots those columns instead (``signals.png``): a column such as

@@ -14,7 +14,8 @@ batches. The process exits after ``terminate``, or when the orchestrator's livel
 goes away.
 
 With ``--member NAME:GENERATION`` repeated instead of ``--name``, it runs a process group: those
-components in this one process (see :mod:`components.group`).
+components in this one process (see :mod:`components.group`); either way :mod:`components.serving`
+serves them.
 """
 from __future__ import annotations
 
@@ -23,8 +24,8 @@ import os
 import sys
 
 from components import bus, bus_security
-from components.group import serve_group
-from components.serving import ORPHANED, serve
+from components.group import ORPHANED
+from components.serving import serve
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -51,12 +52,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("give either --name (one component) or --member (each component of a group)")
     if args.member and len(args.member) == 1:
         parser.error("a group of one is a component: give --name")
-    if args.member:
-        ended = serve_group(args.connect, args.run_id, args.member, args.listen, secret, args.cpu,
-                            bus_security.from_env(), args.orchestrator, args.stepping)
-    else:
-        ended = serve(args.connect, args.run_id, args.name, args.generation, args.listen, secret, args.cpu,
-                      bus_security.from_env(), args.orchestrator)
+    ended = serve(args.connect, args.run_id, args.member or [(args.name, args.generation)], args.listen, secret,
+                  args.cpu, bus_security.from_env(), args.orchestrator, args.stepping)
     return 1 if ended == ORPHANED else 0
 
 

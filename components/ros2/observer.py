@@ -3,12 +3,12 @@ rmw_zenoh (``orchestrator run CFG --ros2 [ENDPOINT]`` or a ``ros2:`` config sect
 
     python -m components.ros2.observer --connect tcp/127.0.0.1:7447 --run-id demo-1a2b3c4d --setup ros2.json
 
-Started by the orchestrator, like the live viewers (components/viewer/observer.py): it subscribes
-to the run's signal rows (a dropping publisher, so it never holds up a step), runs niced, declares
-its liveliness token ``alive/_ros2/0`` at once, and leaves at the run's END or when the
-orchestrator goes. The setup JSON: ``columns``, ``config`` (resolved), ``config_dir``, and
-``ros2``: ``endpoint`` (the ROS side's router, rmw_zenohd), ``domain_id``, ``distro``, ``topics``
-(None: all), ``node`` (the node's name).
+Started by the orchestrator, it runs in the observer shell (components/observer_shell.py): it
+subscribes to the run's signal rows (a dropping publisher, so it never holds up a step), runs
+niced, declares its liveliness token ``alive/_ros2/0`` once its camera frames are subscribed, and
+leaves at the run's END or when the orchestrator goes. The setup JSON: ``columns``, ``config``
+(resolved), ``config_dir``, and ``ros2``: ``endpoint`` (the ROS side's router, rmw_zenohd),
+``domain_id``, ``distro``, ``topics`` (None: all), ``node`` (the node's name).
 
 The ROS side is a second Zenoh session, a client of that router (no secret, no TLS: the run's own
 bus keeps both; no port opened here). On it a ROS 2 node (:class:`components.ros2.rmw_zenoh.Node`) publishes the
@@ -23,31 +23,21 @@ still gets the rest of the run.
 """
 from __future__ import annotations
 
-import argparse
-import json
-import os
-import signal
 import sys
 import threading
 import time
-from pathlib import Path
 
-from components import bus, bus_security
+from components import bus, observer_shell
+from components.observer_shell import Stop, View
 from components.ros2 import rmw_zenoh, router
 from components.ros2.stream_report import FAILED, NO_LINK, StreamCounts
 from components.ros2.rclpy_transport import RCLPY, RclpyNode
-from components.viewer.observer import (LIVE_BATCH_S, MAX_BATCH_ROWS, NICENESS, POLL_S, RowBuffer, Stop,
-                                        orchestrator_gone, raise_stop, take_rows)
 
 CONNECT_TIMEOUT_S = 3.0   # how long a link to the ROS router may take to come up
 LINK_POLL_S = 0.1         # how often the link's state is looked at
 RETRY_S = 2.0             # between tries when it did not
 DISCOVER_S = 3.0          # rclpy: at most this long for DDS discovery before the run starts (rclpy_side.discover)
 DISTROS = {"jazzy": "ros2_jazzy", "kilted": "ros2_kilted", "lyrical": "ros2_lyrical"}   # rmw_zenoh with type hashes
-
-
-def log(message: str) -> None:
-    print(f"ros2: {message}", file=sys.stderr, flush=True)
 
 
 class RosLink:
@@ -205,138 +195,92 @@ class RosPublishers:
         return sorted((self.wanted or set()) - self.seen)
 
 
-def observe(connect: str, run_id: str, setup: dict) -> int:
-    """Publish the run to ROS 2 until END or the orchestrator is gone."""
-    import zenoh
-    from rosbags.typesys import Stores, get_typestore
+class Ros2View(View):
+    """The rows and frames as ROS 2 messages, published by a node on the ROS side (over rmw_zenoh's
+    wire through its router, or with rclpy); every message counted in the report."""
 
-    from components.ros_frames import LiveFrames
-    from components.ros_topics import LiveTopics
+    name = "ros2"
 
-    columns = list(setup["columns"])
-    config = setup.get("config") or {}
-    ros = setup["ros2"]
-    warned: set[str] = set()
+    def __init__(self, shell):
+        super().__init__(shell)
+        # the latched topics' AdvancedPublisher answers a late joiner from Zenoh's thread with congestion
+        # control BLOCK: on bus.RUNTIME's one thread that wait stops the transmit that would end it
+        bus.prefer_runtime(bus.RUNTIME_OWN_TX)
+        self.counts = StreamCounts()
+        self.link = self.node = self.publishers = None
+        self.ros, self.report = shell.setup["ros2"], shell.setup.get("report")
 
-    def warn(message: str) -> None:
-        if message not in warned:   # the builders run per batch: say each thing once
-            warned.add(message)
-            log(message)
+    def alive_key(self, run_id: str) -> str:
+        return bus.ros2_alive_key(run_id)
 
-    # the latched topics' AdvancedPublisher answers a late joiner from Zenoh's thread with congestion
-    # control BLOCK: on bus.RUNTIME's one thread that wait stops the transmit that would end it
-    bus.prefer_runtime(bus.RUNTIME_OWN_TX)
-    counts = StreamCounts()
-    session = bus.open_view_session(connect, os.environ.get(bus.SECRET_ENV), bus_security.from_env())   # frames: from the mesh
-    token = watcher = signals = link = node = publishers = frames = None
-    try:
-        signals = session.declare_subscriber(bus.signals_key(run_id), zenoh.handlers.FifoChannel(16384))
-        watcher = session.liveliness().declare_subscriber(bus.orchestrator_alive_key(run_id),
-                                                          zenoh.handlers.FifoChannel(16))
+    def prepare(self) -> None:
+        from rosbags.typesys import Stores, get_typestore
+
+        from components.ros_topics import LiveTopics
+
+        shell, ros = self.shell, self.ros
         typestore = get_typestore(Stores(DISTROS[ros["distro"]]))
         # camera frames from the bus (subscribed before the token: the run's first frames come)
-        frames = LiveFrames(session, run_id, config, setup.get("config_dir"), typestore, warn, ros.get("topics"))
+        self.frames = shell.live_frames(typestore, ros.get("topics"))
         if ros.get("why"):
-            log(ros["why"])
+            self.log(ros["why"])
         if ros.get("transport") == RCLPY:   # up before the run starts: a node that cannot start stops it
-            node = RclpyNode(ros["python"], ros["domain_id"], ros["node"], warn=warn, discover_s=DISCOVER_S)
-            log(f"publishing the run to ROS 2 (domain {ros['domain_id']}, {node.rmw}) with rclpy as node /{ros['node']}")
+            self.node = RclpyNode(ros["python"], ros["domain_id"], ros["node"], warn=shell.warn, discover_s=DISCOVER_S)
+            self.log(f"publishing the run to ROS 2 (domain {ros['domain_id']}, {self.node.rmw}) with rclpy "
+                     f"as node /{ros['node']}")
         else:
-            link = RosLink(ros["endpoint"])
-            if link.warning:
-                log(link.warning)
-        publishers = RosPublishers(node, typestore, ros.get("topics"), warn, counts)
-        live = LiveTopics(config, setup.get("config_dir"), columns, typestore, warn)
-        if unlinked := frames.wait_linked():
-            warn(f"no mesh link yet to {', '.join(unlinked)}: their first frames may be missing from the view")
-        token = session.liveliness().declare_token(bus.ros2_alive_key(run_id))   # rows wait in the FIFO from here
-        buffer = RowBuffer(len(columns))
-        last = time.monotonic()
-        ended = gone = False
-        while not ended and not gone:
-            ended, empty = take_rows(signals, buffer)
-            if node is None and link is not None and link.session is not None:
-                node = rmw_zenoh.Node(link.session, ros["domain_id"], ros["node"])
-                log(f"publishing the run to ROS 2 (domain {ros['domain_id']}) over rmw_zenoh's wire through "
-                    f"{ros['endpoint']} as node /{ros['node']}")
-                publishers.node = node
-            if link is not None and (change := link.poll()):
-                if change == "lost":
-                    counts.links_lost += 1
-                    log(f"the link to the ROS 2 router at {ros['endpoint']} is down: messages are dropped "
-                        f"(counted) until it is back")
-                else:
-                    counts.links_back += 1
-                    log(f"the link to the ROS 2 router at {ros['endpoint']} is back: the stream resumes")
-                    publishers.link_back()
-            up = link is None or link.up is not False
-            if up:
-                publishers.resend_latched()
-            now = time.monotonic()
-            if buffer and (ended or now - last >= LIVE_BATCH_S or len(buffer) >= MAX_BATCH_ROWS):
-                _, times, rows = buffer.take()
-                counts.rows += len(rows)
-                publishers.publish(live.batch(times, rows)[0], up)   # without the router, dropped (counted)
-                last = now
-            publishers.publish(frames.take(), up)
-            gone = orchestrator_gone(watcher)
-            if empty and not ended:
-                time.sleep(POLL_S)
-        if buffer.bad:
-            log(f"ignored {buffer.bad} signal rows of an unexpected size (expected {buffer.size} bytes)")
-        if summary := frames.summary():
-            log(summary)
-        if node is not None and (missing := publishers.missing()):
-            log(f"ros2.topics: the run had no {', '.join(missing)} "
-                f"(its topics: {', '.join(sorted(publishers.publishers)) or 'none'})")
+            self.link = RosLink(ros["endpoint"])
+            if self.link.warning:
+                self.log(self.link.warning)
+        self.publishers = RosPublishers(self.node, typestore, ros.get("topics"), shell.warn, self.counts)
+        self.live = LiveTopics(shell.config, shell.config_dir, shell.columns, typestore, shell.warn)
+
+    def step(self, batch) -> None:
+        ros, link, publishers, counts = self.ros, self.link, self.publishers, self.counts
+        if self.node is None and link is not None and link.session is not None:
+            self.node = publishers.node = rmw_zenoh.Node(link.session, ros["domain_id"], ros["node"])
+            self.log(f"publishing the run to ROS 2 (domain {ros['domain_id']}) over rmw_zenoh's wire through "
+                     f"{ros['endpoint']} as node /{ros['node']}")
+        if link is not None and (change := link.poll()):
+            if change == "lost":
+                counts.links_lost += 1
+                self.log(f"the link to the ROS 2 router at {ros['endpoint']} is down: messages are dropped "
+                         f"(counted) until it is back")
+            else:
+                counts.links_back += 1
+                self.log(f"the link to the ROS 2 router at {ros['endpoint']} is back: the stream resumes")
+                publishers.link_back()
+        up = link is None or link.up is not False
+        if up:
+            publishers.resend_latched()
+        if batch is not None:
+            _, times, rows = batch
+            counts.rows += len(rows)
+            publishers.publish(self.live.batch(times, rows)[0], up)   # without the router, dropped (counted)
+        publishers.publish(self.frames.take(), up)
+
+    def finish(self, ended: bool) -> None:
+        publishers = self.publishers
+        if self.node is not None and (missing := publishers.missing()):
+            self.log(f"ros2.topics: the run had no {', '.join(missing)} "
+                     f"(its topics: {', '.join(sorted(publishers.publishers)) or 'none'})")
         if ended:
-            log(f"run over: {publishers.sent} messages published on {len(publishers.publishers)} topics")
-    except Stop:
-        pass
-    finally:
-        if setup.get("report"):   # what was delivered, for the orchestrator's summary
+            self.log(f"run over: {publishers.sent} messages published on {len(publishers.publishers)} topics")
+
+    def close(self, completed: bool) -> None:
+        if self.report:   # what was delivered, for the orchestrator's summary
             try:
-                counts.write(setup["report"])
+                self.counts.write(self.report)
             except OSError as e:
-                log(f"cannot write {setup['report']}: {e}")
-        if node is not None:
-            node.close()
-        if link is not None:
-            link.close()
-        for declared in (token, watcher, signals, frames):
-            if declared is not None:
-                try:
-                    declared.undeclare()
-                except Exception:
-                    pass
-        session.close()
-    return 0
+                self.log(f"cannot write {self.report}: {e}")
+        if self.node is not None:
+            self.node.close()
+        if self.link is not None:
+            self.link.close()
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m components.ros2.observer", description=__doc__.splitlines()[0])
-    parser.add_argument("--connect", required=True, help="the orchestrator's Zenoh endpoint, e.g. tcp/127.0.0.1:7447")
-    parser.add_argument("--run-id", required=True)
-    parser.add_argument("--setup", required=True, help="the JSON file the orchestrator wrote")
-    args = parser.parse_args(argv)
-    signal.signal(signal.SIGTERM, raise_stop)
-    signal.signal(signal.SIGINT, raise_stop)
-    try:
-        os.nice(NICENESS)   # best effort: on a busy machine the lockstep processes go first
-    except (AttributeError, OSError):
-        pass
-    try:
-        setup = json.loads(Path(args.setup).read_text())
-    except (OSError, ValueError) as e:
-        log(f"cannot read the setup file {args.setup}: {e}")
-        return 2
-    try:
-        return observe(args.connect, args.run_id, setup)
-    except Stop:
-        return 0
-    except Exception as e:  # one line, not a traceback; the run goes on without the ROS 2 view
-        log(f"stopped: {type(e).__name__}: {e}")
-        return 1
+    return observer_shell.main(Ros2View, argv, "python -m components.ros2.observer", __doc__.splitlines()[0])
 
 
 if __name__ == "__main__":

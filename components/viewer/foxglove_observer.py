@@ -19,38 +19,27 @@ to them: the server keeps no history. The meshes the robots' ``robot_description
 (``package://`` URIs as written) are served to Foxglove's 3D panel on request (the protocol's
 ``fetchAsset``); no other file is. Camera frames come from the bus as the cameras send them
 (:class:`components.ros_frames.LiveFrames`: the export's Image and CameraInfo, stamped when taken)
-on channels advertised from the start. Like the Rerun observer it runs niced and reads a dropping
-publisher: a slow client never holds up a step (the server drops its oldest messages for it).
+on channels advertised from the start. It runs in the observer shell (components/observer_shell.py),
+niced, reading a dropping publisher: a slow client never holds up a step (the server drops its
+oldest messages for it).
 """
 from __future__ import annotations
 
-import argparse
-import json
-import os
-import signal
 import socket
 import sys
 import threading
-import time
 from pathlib import Path
 
 import numpy as np
 
-from components import bus, bus_security
+from components import observer_shell
+from components.observer_shell import View, ViewError, logger, once
 from components.ros_topics import LiveTopics
-from components.viewer.observer import (LIVE_BATCH_S, MAX_BATCH_ROWS, NICENESS, POLL_S, RowBuffer, Stop,
-                                        orchestrator_gone, raise_stop, take_rows)
 
 HOST = "127.0.0.1"
 DISTRO = "ros2_jazzy"   # message definitions, as the rosbag2 export writes them
 
-
-class ServeError(Exception):
-    """The WebSocket server could not start (its port taken since the orchestrator checked it)."""
-
-
-def log(message: str) -> None:
-    print(f"viewer foxglove: {message}", file=sys.stderr, flush=True)
+log = logger("viewer foxglove")
 
 
 def port_problem(port: int) -> str | None:
@@ -69,7 +58,7 @@ def port_problem(port: int) -> str | None:
 class RosChannels:
     """Rows to ROS 2 messages (the rosbag2 exporter's builders) on Foxglove channels, one per topic."""
 
-    def __init__(self, columns: list[str], config: dict, config_dir: str | None, context):
+    def __init__(self, columns: list[str], config: dict, config_dir: str | None, context, warn=None):
         from rosbags.typesys import Stores, get_typestore
         self.columns = columns
         self.config = config
@@ -79,18 +68,13 @@ class RosChannels:
         self.channels: dict[str, object] = {}
         self.latched: dict[str, bytes] = {}        # topic -> its one message (sent again on subscribe)
         self.latched_ns: dict[str, int] = {}
-        self.warned: set[str] = set()
+        self.warn = warn or once(log)             # the builders run per batch: say each thing once
         self.rows_sent = 0
         self.live = LiveTopics(config, config_dir, columns, self.typestore, self.warn)
         self.assets = self._assets()               # URI -> file: what robot_description references
         self._resend: set[str] = set()             # latched topics subscribed to since the last batch
         self.subscriptions: dict[str, int] = {}    # topic -> clients subscribed to it
         self._lock = threading.Lock()
-
-    def warn(self, message: str) -> None:
-        if message not in self.warned:             # the builders run per batch: say each thing once
-            self.warned.add(message)
-            log(message)
 
     def subscribed(self, topic: str) -> None:
         """A client subscribed (server thread): a latched topic's message goes out again."""
@@ -173,118 +157,68 @@ def _listener(channels: RosChannels):
     return Subscriptions()
 
 
-def observe(connect: str, run_id: str, setup: dict) -> int:
-    """Serve the run until END (then, with a terminal, until Ctrl-C) or the orchestrator is gone."""
-    import foxglove
-    import zenoh
+class FoxgloveView(View):
+    """The rows and frames as ROS 2 messages on a Foxglove WebSocket server, from the first batch on."""
 
-    from components.ros_frames import LiveFrames
+    name = "viewer foxglove"
 
-    columns = list(setup["columns"])
-    config = setup.get("config") or {}
-    port = int(setup.get("port") or 8765)
-    settings = bus_security.from_env()
-    session = bus.open_view_session(connect, os.environ.get(bus.SECRET_ENV), settings)   # frames come from the mesh
-    token = watcher = signals = server = frames = None
-    try:
-        signals = session.declare_subscriber(bus.signals_key(run_id), zenoh.handlers.FifoChannel(16384))
-        watcher = session.liveliness().declare_subscriber(bus.orchestrator_alive_key(run_id),
-                                                          zenoh.handlers.FifoChannel(16))
-        channels = RosChannels(columns, config, setup.get("config_dir"), foxglove.Context())
-        # camera frames from the bus, on channels made now (before the server: see below)
-        frames = LiveFrames(session, run_id, config, setup.get("config_dir"), channels.typestore, channels.warn)
-        for topic in frames.topics.values():
-            channels._channel(topic.name, topic.msgtype)
-        if unlinked := frames.wait_linked():
-            channels.warn(f"no mesh link yet to {', '.join(unlinked)}: their first frames may be missing from the view")
-        token = session.liveliness().declare_token(bus.viewer_alive_key(run_id))
-        buffer = RowBuffer(len(columns))
-        last_log = time.monotonic()
-        ended = gone = False
-        while not ended and not gone:
-            ended, empty = take_rows(signals, buffer)
-            now = time.monotonic()
-            if buffer and (ended or now - last_log >= LIVE_BATCH_S or len(buffer) >= MAX_BATCH_ROWS):
-                steps, times, rows = buffer.take()
-                queue, stamp = channels.build(times, rows)
-                if server is None:
-                    # only now: every channel exists before a client can subscribe (foxglove-sdk
-                    # 0.30 may answer "unknown channel" to a subscription racing an advertisement)
-                    server = serve(channels, name=(config.get("run") or {}).get("name") or run_id, port=port)
-                channels.log(queue)
-                server.broadcast_time(stamp)
-                last_log = now
-            if channels.watched(frames.topics):   # till then the frames wait (LiveFrames.BACKLOG)
-                channels.log(channels.queue(frames.take()))
-            channels.resend_latched()
-            gone = orchestrator_gone(watcher)
-            if empty and not ended:
-                time.sleep(POLL_S)
-        if buffer.bad:
-            log(f"ignored {buffer.bad} signal rows of an unexpected size (expected {buffer.size} bytes)")
-        if summary := frames.summary():
-            log(summary)
-        if ended and not gone and setup.get("linger"):   # a terminal: until Ctrl-C (ViewerLink.stop)
-            log(f"run over ({channels.rows_sent} rows sent); still serving until Ctrl-C")
-            while not orchestrator_gone(watcher):
-                channels.resend_latched()
-                time.sleep(0.1)
-    except Stop:
-        pass
-    finally:
-        for declared in (token, watcher, signals, frames):
-            if declared is not None:
-                try:
-                    declared.undeclare()
-                except Exception:
-                    pass
-        session.close()
-        if server is not None:
-            server.stop()
-    return 0
+    def __init__(self, shell):
+        super().__init__(shell)
+        self.server = None
+
+    def prepare(self) -> None:
+        import foxglove
+
+        shell = self.shell
+        self.port = int(shell.setup.get("port") or 8765)
+        self.lingers = shell.setup.get("linger")
+        self.run_name = (shell.config.get("run") or {}).get("name") or shell.run_id
+        self.channels = RosChannels(shell.columns, shell.config, shell.config_dir, foxglove.Context(), shell.warn)
+        # camera frames from the bus, on channels made now (before the server: see step)
+        self.frames = shell.live_frames(self.channels.typestore)
+        for topic in self.frames.topics.values():
+            self.channels._channel(topic.name, topic.msgtype)
+
+    def step(self, batch) -> None:
+        channels = self.channels
+        if batch is not None:
+            _, times, rows = batch
+            queue, stamp = channels.build(times, rows)
+            if self.server is None:
+                # only now: every channel exists before a client can subscribe (foxglove-sdk
+                # 0.30 may answer "unknown channel" to a subscription racing an advertisement)
+                self.server = serve(channels, name=self.run_name, port=self.port)
+            channels.log(queue)
+            self.server.broadcast_time(stamp)
+        if channels.watched(self.frames.topics):   # till then the frames wait (LiveFrames.BACKLOG)
+            channels.log(channels.queue(self.frames.take()))
+        channels.resend_latched()
+
+    def linger(self) -> str | None:   # a terminal: until Ctrl-C (ViewerLink.stop)
+        return f"run over ({self.channels.rows_sent} rows sent); still serving until Ctrl-C" if self.lingers else None
+
+    def close(self, completed: bool) -> None:
+        if self.server is not None:
+            self.server.stop()
 
 
 def serve(channels: RosChannels, name: str, port: int):
-    """Start the WebSocket server on the channels' context; raises ServeError naming the port."""
+    """Start the WebSocket server on the channels' context; raises ViewError naming the port (its
+    port taken since the orchestrator checked it: exit 2, the run goes on without the view)."""
     import foxglove
     try:
         server = foxglove.start_server(name=name, host=HOST, port=port, context=channels.context,
                                        server_listener=_listener(channels), capabilities=[foxglove.Capability.Time],
                                        asset_handler=channels.asset)
     except RuntimeError as e:
-        raise ServeError(f"cannot listen on port {port}: {e}") from None
+        raise ViewError(f"cannot listen on port {port}: {e}", 2) from None
     log(f"serving the run on ws://localhost:{server.port} (Foxglove: Open connection, Foxglove WebSocket)")
     return server
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m components.viewer.foxglove_observer",
-                                     description=__doc__.splitlines()[0])
-    parser.add_argument("--connect", required=True, help="the orchestrator's Zenoh endpoint, e.g. tcp/127.0.0.1:7447")
-    parser.add_argument("--run-id", required=True)
-    parser.add_argument("--setup", required=True, help="the JSON file the orchestrator wrote")
-    args = parser.parse_args(argv)
-    signal.signal(signal.SIGTERM, raise_stop)
-    signal.signal(signal.SIGINT, raise_stop)
-    try:
-        os.nice(NICENESS)   # best effort: on a busy machine the lockstep processes go first
-    except (AttributeError, OSError):
-        pass
-    try:
-        setup = json.loads(Path(args.setup).read_text())
-    except (OSError, ValueError) as e:
-        log(f"cannot read the setup file {args.setup}: {e}")
-        return 2
-    try:
-        return observe(args.connect, args.run_id, setup)
-    except Stop:
-        return 0
-    except ServeError as e:   # the run goes on without the view
-        log(str(e))
-        return 2
-    except Exception as e:  # one line, not a traceback; the run goes on without the viewer
-        log(f"stopped: {type(e).__name__}: {e}")
-        return 1
+    return observer_shell.main(FoxgloveView, argv, "python -m components.viewer.foxglove_observer",
+                               __doc__.splitlines()[0])
 
 
 if __name__ == "__main__":

@@ -143,7 +143,8 @@ def _connect(body: dict, endpoints: list[str], listen: str | None, settings: dic
 def join(path: Path, connect: list[str] | None = None, listen: str | None = None, cpu: int | None = None,
          out=sys.stderr) -> int:
     """Serve the component of a join file for as long as the run wants it; the exit code."""
-    from components.serving import ORPHANED, RELEASED, beat_interval, serve_session
+    from components.group import ORPHANED, RELEASED
+    from components.serving import beat_interval, serve_session
 
     body = read_join_file(path, "component")
     name, endpoints = body["component"], connect or body["connect"]
@@ -161,7 +162,7 @@ def join(path: Path, connect: list[str] | None = None, listen: str | None = None
                     if status == "granted":
                         print(f"joined run {body['run']!r} ({body['run_id']}) at {endpoint} as {name!r}, "
                               f"generation {answer['generation']}", file=out, flush=True)
-                        ended = serve_session(session, body["run_id"], name, answer["generation"], cpu,
+                        ended = serve_session(session, body["run_id"], [(name, answer["generation"])], cpu,
                                               answer.get("orchestrator"), beat_interval(settings))
                         served = True
                         deadline = time.monotonic() + timeout

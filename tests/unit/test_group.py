@@ -8,9 +8,8 @@ import queue
 import numpy as np
 
 from components import bus, protocol
-from components.group import Group, read_mark
+from components.group import TERMINATED, Group, read_mark
 from components.schedule import Route
-from components.serving import TERMINATED
 
 RUN = "loop-0"
 STEP_NS = 1_000_000

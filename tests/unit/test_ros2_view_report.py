@@ -124,7 +124,7 @@ def test_a_file_that_is_not_a_report_is_none(tmp_path):
 
 
 def test_a_signal_during_a_publish_still_stops_the_view():
-    from components.viewer.observer import Stop
+    from components.observer_shell import Stop
 
     class Stopped(Node):
         def publisher(self, topic, msgtype, typestore, latched=False, block=False):

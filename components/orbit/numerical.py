@@ -174,12 +174,15 @@ class CannonballSrp:
         moon = instant.moon_eci if self.with_moon else self._no_moon
         return self._illumination(r_eci, instant.sun_eci, moon, self.with_moon, self.model, *self.radii)
 
-    def acceleration(self, instant, r_eci, v_eci):
+    def pressure(self, sun_eci, r_eci, nu: float) -> np.ndarray:
+        """The acceleration (m/s^2) at r_eci with the Sun at sun_eci (m, ECI) and illumination nu."""
         a = np.zeros(3)
-        nu = self.illumination(instant, r_eci)
         if nu > 0.0:
-            self._cannonball(instant.sun_eci - r_eci, self.cr_area_per_mass, self.p_1au, self.au, nu, a)
+            self._cannonball(sun_eci - r_eci, self.cr_area_per_mass, self.p_1au, self.au, nu, a)
         return a
+
+    def acceleration(self, instant, r_eci, v_eci):
+        return self.pressure(instant.sun_eci, r_eci, self.illumination(instant, r_eci))
 
 
 class Surroundings:

@@ -416,3 +416,77 @@ def exact_third_body_difference(x, R, s, mu) -> np.ndarray:
         return [Fraction(mu) * v / (n2 * n) for v in d]
 
     return np.array([float(a - b) for a, b in zip(pull(x), pull(R))])
+
+
+def test_srp_term_is_the_cannonball_in_sun_zero_in_umbra_and_scaled_in_penumbra():
+    """CannonballSrp against the closed form nu P (AU/d)^2 Cr A/m, d = s - r away from the Sun, with
+    nu 1 (day side), 0 (the Earth's umbra) and the conical model's fraction (its penumbra)."""
+    from components.space import eclipse, srp
+
+    sun, moon = np.array(CASES["sun0"]), np.array(CASES["moon0"])
+    u = sun / np.linalg.norm(sun)
+    side = np.cross(u, [0.3, -0.2, 0.9])
+    side /= np.linalg.norm(side)
+    term = numerical.CannonballSrp(1.3, 30.0, 500.0, "conical")
+    instant = numerical.Instant(0.0, (0.0, 0.0), None, sun, moon)
+
+    def closed_form(r):
+        d = sun - r
+        return -(1361.0 / 299_792_458.0) * (srp.AU / np.linalg.norm(d)) ** 2 * 1.3 * 30.0 / 500.0 * d / np.linalg.norm(d)
+
+    day = 6.9e6 * u + 1.1e6 * side
+    assert relative(term.acceleration(instant, day, None), closed_form(day)) < 1e-14
+    umbra = -6.9e6 * u + 1.0e6 * side
+    assert np.array_equal(term.acceleration(instant, umbra, None), np.zeros(3))
+    penumbra = -6.9e6 * u + (eclipse.R_EARTH + 8e3) * side
+    nu = eclipse.illumination(penumbra, sun, moon, "conical")
+    assert 0.05 < nu < 0.95
+    assert relative(term.acceleration(instant, penumbra, None), nu * closed_form(penumbra)) < 1e-14
+    cylinder = numerical.CannonballSrp(1.3, 30.0, 500.0, "cylindrical")
+    assert cylinder.needs == {"sun"} and term.needs == {"sun", "moon"}
+    assert relative(cylinder.acceleration(instant, penumbra, None), closed_form(penumbra)) < 1e-14   # outside the cylinder
+    assert np.array_equal(cylinder.acceleration(instant, umbra, None), np.zeros(3))
+
+
+def test_nrlmsise_drag_in_orbit_numerical_is_the_model_at_the_orbits_point_and_time():
+    """With atmosphere nrlmsise00 (and msis21), a_drag = -1/2 rho Cd A/m |v_rel| v_rel with rho
+    NRLMSISE-00 at the point's WGS 84 coordinates and UTC (the full GCRF -> ITRF of components.space,
+    evaluated independently), within the model's single precision."""
+    from components.constants import EARTH_RATE
+    from components.space.atmosphere import Nrlmsise00
+    from components.space.earth import EarthRotation
+
+    weather = {"f107": 180.0, "f107a": 160.0, "ap": 15.0}
+    rotation = EarthRotation(EPOCH)
+    for model in ("nrlmsise00", "msis21"):
+        h = numerical_orbit(drag={"cd": 2.2, "area": "10 m^2"}, mass="500 kg", atmosphere={"model": model, **weather})
+        msis = Nrlmsise00(**weather, model=model)
+        for _ in range(3):
+            out = h.step(1234 * 10**9)
+            r, v = out["r_eci"], out["v_eci"]
+            utc, tt = rotation.utc_tt(h.t_ns / 1e9)
+            rho = msis.density(r, utc, tt)
+            v_rel = v - EARTH_RATE * np.cross([0.0, 0.0, 1.0], r)
+            expected = -0.5 * rho * 2.2 * 10.0 / 500.0 * np.linalg.norm(v_rel) * v_rel
+            assert relative(out["a_drag_eci"], expected) < 1e-6
+        exponential = numerical_orbit(drag={"cd": 2.2, "area": "10 m^2"}, mass="500 kg").step(h.t_ns)["a_drag_eci"]
+        assert relative(out["a_drag_eci"], exponential) > 0.05          # a different atmosphere
+
+
+def test_srp_in_orbit_numerical_is_on_only_when_asked_and_uses_the_ephemeris_sun():
+    """srp adds a_srp_eci (nu P Cr A/m away from the ERFA Sun); the Sun's and the Moon's pulls stay off."""
+    from components.space.earth import EarthRotation
+    from components.space.ephemeris import moon_position_eci, sun_position_eci
+
+    h = numerical_orbit(srp={"cr": 1.3, "area": "30 m^2"}, mass="500 kg", solar_flux=1361.0)
+    rotation = EarthRotation(EPOCH)
+    lit = 0
+    for _ in range(12):
+        out = h.step(600 * 10**9)
+        assert set(out) == {"r_eci", "v_eci", "q_eci_lvlh", "w_lvlh", "a_point_mass_eci", "a_srp_eci"}
+        tt = rotation.tt(h.t_ns / 1e9)
+        instant = numerical.Instant(h.t_ns / 1e9, tt, None, sun_position_eci(tt), moon_position_eci(tt))
+        expected = numerical.CannonballSrp(1.3, 30.0, 500.0, "conical").acceleration(instant, out["r_eci"], None)
+        assert np.array_equal(out["a_srp_eci"], expected)
+        lit += bool(np.any(expected))
+    assert 0 < lit < 12                                                 # day and night were both seen

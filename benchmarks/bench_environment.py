@@ -7,7 +7,8 @@ and on, the wall time and the CPU time of the process and every process it waite
 the variants of a round alternating, the median over rounds. Orbit models on
 configs/one_day_perturbed.yaml (``orbit.numerical``) from a point-mass baseline, 6 h of 60 s run
 steps (2160 RK4 steps of 10 s); the dynamics' models on configs/detumble_magnetorquer.yaml
-(``dynamics.dart``, one rigid body, WMM, magnetorquers, magnetometer, B-dot), 5 min of 500 ms steps.
+(``dynamics.dart``, one rigid body, WMM, magnetorquers, magnetometer, B-dot), 30 min of 500 ms
+steps (3600 steps). ``--match TEXT`` keeps the variants whose label holds TEXT (e.g. ``dynamics``).
 Each row is the config's own ``--set`` overrides: the same text a user types.
 
 In process (``--only steps``): the same variants' step through components.testing.harness.Harness,
@@ -57,7 +58,7 @@ VARIANTS = (
     ("dynamics: drag, exponential table", DYNAMICS_CONFIG, DRAG, 9),
     ("dynamics: drag, NRLMSISE-00", DYNAMICS_CONFIG, DRAG + [f"{DYNAMICS}atmosphere={WEATHER}"], 9),
 )
-DURATION = {ORBIT_CONFIG: "6h", DYNAMICS_CONFIG: "5min"}
+DURATION = {ORBIT_CONFIG: "6h", DYNAMICS_CONFIG: "30min"}
 
 
 def machine() -> str:
@@ -85,19 +86,25 @@ def whole_run(config: str, overrides: list[str], duration: str) -> tuple[float, 
     return wall, usage.ru_utime + usage.ru_stime
 
 
-def processes(rounds: int, quick: bool) -> None:
+def chosen(match: str | None) -> list[int]:
+    return [k for k, (label, *_) in enumerate(VARIANTS) if match is None or match in label]
+
+
+def processes(rounds: int, quick: bool, match: str | None = None) -> None:
     durations = {ORBIT_CONFIG: "1h", DYNAMICS_CONFIG: "1min"} if quick else DURATION
     print(f"\nWhole runs (python -m orchestrator.cli run CFG --set ...), median of {rounds} alternating rounds; "
           f"{machine()}; {load()} before")
-    figures: list[list[tuple[float, float]]] = [[] for _ in VARIANTS]
+    figures: dict[int, list[tuple[float, float]]] = {k: [] for k in chosen(match)}
     for _ in range(rounds):
-        for k, (_, config, overrides, _) in enumerate(VARIANTS):
+        for k in figures:
+            _, config, overrides, _ = VARIANTS[k]
             figures[k].append(whole_run(config, overrides, durations[config]))
     print(f"({load()} after)\n")
     print("| model (config, run.duration) | wall | CPU | CPU added |\n|---|---|---|---|")
-    medians = [(statistics.median(w for w, _ in f), statistics.median(c for _, c in f)) for f in figures]
-    for (label, config, _, base), (wall, cpu) in zip(VARIANTS, medians):
-        added = "" if base is None else f"{cpu - medians[base][1]:+.2f} s"
+    medians = {k: (statistics.median(w for w, _ in f), statistics.median(c for _, c in f)) for k, f in figures.items()}
+    for k, (wall, cpu) in medians.items():
+        label, config, _, base = VARIANTS[k]
+        added = "" if base is None or base not in medians else f"{cpu - medians[base][1]:+.2f} s"
         print(f"| {label} ({Path(config).name}, {durations[config]}) | {wall:.1f} s | {cpu:.2f} s | {added} |")
 
 
@@ -162,12 +169,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--only", choices=("processes", "steps"), default=None)
+    parser.add_argument("--match", default=None, help="only the variants whose label holds this text")
     parser.add_argument("--quick", action="store_true", help="short runs and few batches (a smoke test of the script)")
     args = parser.parse_args()
     if args.only in (None, "steps"):
         steps(args.rounds, args.quick)
     if args.only in (None, "processes"):
-        processes(args.rounds, args.quick)
+        processes(args.rounds, args.quick, args.match)
 
 
 if __name__ == "__main__":

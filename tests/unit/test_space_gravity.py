@@ -369,6 +369,7 @@ def test_each_term_is_an_output_and_sums_to_what_the_lvlh_rate_uses():
      "atmosphere.f107", "not a parameter of model exponential"),
     ({"srp": {"cr": 1.3, "area": 1.0}, "mass": 9.0, "eclipse": "penumbral"}, "eclipse", "conical"),
     ({"srp": {"cr": 1.3}, "mass": 9.0}, "srp.area", ""),
+    ({"eclipse": "cylindrical"}, "eclipse", "got no srp"),
     ({"third_bodies": ["jupiter"]}, "third_bodies[0]", "sun"),
     ({"gravity": {"degree": 2, "order": 0, "field": "egm96"}}, "gravity.field", "ggm03s"),
     ({"step": 0.0}, "step", "> 0"),

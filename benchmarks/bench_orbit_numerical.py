@@ -3,7 +3,8 @@
     python benchmarks/bench_orbit_numerical.py [--steps 2000] [--repeat 3]
 
 Rows: one evaluation of each term's ``acceleration`` (point mass; harmonics to 2 x 0, 6 x 0,
-20 x 20; Sun and Moon with ERFA's positions given; drag in the exponential atmosphere), then one
+20 x 20; Sun and Moon with ERFA's positions given; drag in the config's atmosphere, NRLMSISE-00;
+SRP in the conical shadow), then one
 integrator step (four stages: C_cirs_gcrf once, the Earth rotation angle, the Sun and the Moon at
 each new time) for configs/one_day_perturbed.yaml's parameters with terms switched off one at a
 time, and the component's ``do_step`` (60 s of 10 s steps, its outputs packed). CPU time of the
@@ -52,15 +53,17 @@ def main() -> None:
     terms = {t.name: t for t in propagator.terms}
     rows = [("point_mass", terms["point_mass"])]
     rows += [(f"harmonics {n} x {m}", numerical.Harmonics(GravityField(n, m))) for n, m in ((2, 0), (6, 0), (20, 20))]
-    rows += [(name, terms[name]) for name in ("sun", "moon", "drag")]
+    rows += [(name, terms[name]) for name in ("sun", "moon", "drag", "srp")]
     for label, term in rows:
         us = cpu_time_per_step(lambda k: term.acceleration(instant, r, v), args.steps, args.repeat) * 1e6
         print(f"  term {label:<34}{us:9.1f} us/evaluation")
-    for label, h in (("all on (20 x 20, sun, moon, drag)", full),
-                     ("no drag", harness(drag=None, mass=None)),
+    alone = dict(third_bodies=[], drag=None, atmosphere=None, srp=None, mass=None)
+    for label, h in (("all on (20 x 20, sun, moon, drag, srp)", full),
+                     ("no drag", harness(drag=None, atmosphere=None)),
+                     ("no srp", harness(srp=None)),
                      ("no sun, moon", harness(third_bodies=[])),
-                     ("gravity 2 x 0 only", harness(gravity={"degree": 2, "order": 0}, third_bodies=[], drag=None, mass=None)),
-                     ("point mass only", harness(gravity={"degree": 0, "order": 0}, third_bodies=[], drag=None, mass=None))):
+                     ("gravity 2 x 0 only", harness(gravity={"degree": 2, "order": 0}, **alone)),
+                     ("point mass only", harness(gravity={"degree": 0, "order": 0}, **alone))):
         p = h.component.propagator
         us = cpu_time_per_step(lambda k: p.state_at(p.t_ns + p.step_ns), args.steps, args.repeat) * 1e6
         print(f"  RK4 step (10 s), {label:<34}{us:9.1f} us/step")

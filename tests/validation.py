@@ -181,9 +181,15 @@ ROWS: dict[str, Row] = {
         "Basilisk GravityEffector's sum of PointMassGravityModel pulls, same positions", 1e-12, "",
         ("tests/unit/test_space_gravity.py::test_third_body_matches_extended_precision_and_basilisk",)),
     "gravity_trajectory_basilisk": Row(
-        "orbit.numerical", "one-day LEO position, J2-J6 + Sun + Moon, RK4 10 s (largest error)",
-        "Basilisk Spacecraft (RK4 10 s), same field, rotation and Sun/Moon inputs", 1.0, "m",
+        "orbit.numerical", "one-day LEO position, J2-J6 + Sun + Moon + drag (one exponential layer) + SRP (conical "
+        "eclipse), RK4 10 s, drag's and SRP's inputs held over each step as Basilisk's modules give them (largest error)",
+        "Basilisk Spacecraft (RK4 10 s) with DragDynamicEffector, exponentialAtmosphere, zeroWindModel, "
+        "radiationPressure, eclipse; same field, rotation, Sun/Moon and constants", 1e-3, "m",
         ("tests/unit/test_space_gravity.py::test_one_day_trajectory_matches_basilisk",)),
+    "numerical_trajectory_step": Row(
+        "orbit.numerical", "the same day with drag and SRP evaluated at every RK4 stage (orbit.numerical's way), "
+        "RK4 10 s (largest distance)", "itself at RK4 5 s (16x smaller error)", 1.0, "m",
+        ("tests/unit/test_space_gravity.py::test_drag_and_srp_at_every_stage_keep_rk4s_accuracy_that_held_inputs_lose",)),
     "numerical_two_body": Row(
         "orbit.numerical", "point mass (degree 0) over 93 min, e = 0.02, RK4 5 s (largest position error)",
         "the Kepler ellipse of the same elements (orbit.kepler's closed form)", 0.01, "m",

@@ -32,6 +32,7 @@ from components.schema import Float, Int, ListOf, MapOf, OneOf, Record, Str, Vec
 from components.units import DEG
 from components.sdk import Component, Parameter, Variable
 from components.space.geomagnetic import BASILISK_DIPOLE, MODELS as MAGNETIC_MODELS
+from components.space.parameters import ATMOSPHERE, check_atmosphere
 from components.signals import BODY as BODY_OUTPUTS, ORBIT as ORBIT_INPUTS, body_signals, orbit_signals, torque_signal
 from components.space.eclipse import MODELS as ECLIPSE_MODELS
 from components.space.ephemeris import moon_position_eci, sun_position_eci
@@ -104,27 +105,6 @@ BODY = Record("Body", (
     Parameter("srp_facets", MapOf(ListOf(FACET), "link"), default={},
               description="faceted SRP: link name -> its flat facets (instead of or with a cannonball)"),
 ), description="one free-floating URDF multibody (``bodies.<name>``)")
-EXPONENTIAL_LAYER = ("altitude", "density", "scale_height")
-SPACE_WEATHER = ("f107", "f107a", "ap")
-ATMOSPHERE_MODELS = {"exponential": EXPONENTIAL_LAYER, "nrlmsise00": SPACE_WEATHER, "msis21": SPACE_WEATHER}
-ATMOSPHERE = Record("Atmosphere", (
-    Parameter("model", Str(tuple(ATMOSPHERE_MODELS)), default="exponential",
-              description="exponential: one layer (altitude, density, scale_height), or the 0-1000 km table "
-                          "without them; nrlmsise00: NRLMSISE-00 at the run's time (f107, f107a, ap); "
-                          "msis21: NRLMSIS 2.1, the same inputs (components/space/atmosphere.py)"),
-    Parameter("altitude", Float("m", plausible=(0.0, 2e6)), default=None,
-              description="exponential: reference altitude above the sphere of radius R_E (6378.137 km)"),
-    Parameter("density", Float("kg/m^3", minimum=0.0, plausible=(0.0, 1.3)), default=None,
-              description="exponential: density at that altitude"),
-    Parameter("scale_height", Float("m", positive=True, plausible=(1e3, 5e5)), default=None,
-              description="exponential: height over which the density falls by e"),
-    Parameter("f107", Float(positive=True, maximum=1000.0, plausible=(60.0, 400.0)), default=None,
-              description="nrlmsise00, msis21: F10.7 solar radio flux of the previous day, sfu (1e-22 W/m^2/Hz)"),
-    Parameter("f107a", Float(positive=True, maximum=1000.0, plausible=(60.0, 400.0)), default=None,
-              description="nrlmsise00, msis21: F10.7's 81-day average centred on the day, sfu"),
-    Parameter("ap", Float(minimum=0.0, maximum=400.0), default=None,
-              description="nrlmsise00, msis21: daily geomagnetic index Ap (daily-Ap mode; no 3-hour history)"),
-), description="the drag's atmosphere: an exponential (one layer or the table) or NRLMSISE-00 / NRLMSIS 2.1")
 
 
 MAGNETIC_FIELD = Record("MagneticField", (
@@ -290,28 +270,6 @@ def body_specs(params: Mapping[str, Any], models: Mapping[str, UrdfModel]):
             raise ConfigError(f"bodies.{e.key}", e.message) from None
         specs.append(spec)
     return specs
-
-
-def check_atmosphere(atmosphere: Mapping | None, epoch) -> None:
-    """ConfigError naming the key: a model's own parameters, all of them, and no other's; NRLMSISE-00
-    needs the run's epoch (its time of day and year)."""
-    if atmosphere is None:
-        return
-    model = atmosphere["model"]
-    own = ATMOSPHERE_MODELS[model]
-    for key in {k for keys in ATMOSPHERE_MODELS.values() for k in keys} - set(own):
-        if atmosphere[key] is not None:
-            raise ConfigError(f"atmosphere.{key}", f"not a parameter of model {model} (its parameters: "
-                                                   f"{', '.join(own)}), got {atmosphere[key]!r}")
-    given = [k for k in own if atmosphere[k] is not None]
-    if model != "exponential" or given:
-        missing = [k for k in own if atmosphere[k] is None]
-        if missing:
-            raise ConfigError(f"atmosphere.{missing[0]}", f"model {model} needs {', '.join(own)}"
-                                                         f"{'' if model != 'exponential' else ' (or none: the table)'}, "
-                                                         f"got no {', '.join(missing)}")
-    if model != "exponential" and epoch is None:
-        raise ConfigError("_epoch", f"atmosphere model {model} needs the run's epoch (expected run.epoch)")
 
 
 def _atmosphere(atmosphere: Mapping | None, epoch):

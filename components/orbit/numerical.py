@@ -15,8 +15,8 @@ The terms (each an :class:`AccelerationTerm`, each published as ``a_<name>_eci``
 | ``point_mass`` | -mu r/abs(r)^3 | ECI | the field's GM |
 | ``harmonics`` | C^T a_harm(C r), C = C_itrf_gcrf | ITRF -> ECI | :class:`components.space.gravity.GravityField` (degrees 1..N) |
 | ``sun``, ``moon`` | mu_3 ((s - r)/abs(s - r)^3 - s/abs(s)^3) (Battin's form) | ECI | :func:`components.space.gravity.third_body_acceleration`, s from the ephemeris |
-| ``drag`` | -1/2 rho Cd A/m abs(v_rel) v_rel, v_rel = v - omega_E z x r | ECI | cannonball; rho from a :data:`Density` |
-| ``srp`` | any :class:`AccelerationTerm` (``components/space/srp.py``) | ECI | cannonball |
+| ``drag`` | -1/2 rho Cd A/m abs(v_rel) v_rel, v_rel = v - omega_E z x r | ECI | cannonball; rho from a :data:`Density`: exponential (h = abs(r) - R_E) or NRLMSISE-00 / MSIS 2.1 (WGS 84 geodetic, at UTC) |
+| ``srp`` | -nu P_1AU (AU/abs(d))^2 Cr A/m d/abs(d), d = s - r | ECI | cannonball (:mod:`components.space.srp`), nu by :mod:`components.space.eclipse` |
 
 What a term may use at time t is an :class:`Instant`: t (s since the run's start), the TT date,
 C_itrf_gcrf and the Sun's and Moon's positions (m, ECI, from the Earth's centre). The Earth's
@@ -100,11 +100,14 @@ class ThirdBody:
 
 class Drag:
     """Cannonball drag -1/2 rho(r) Cd A/m |v_rel| v_rel, v_rel = v - EARTH_RATE z x r (an atmosphere
-    turning with the Earth about ECI z, as the dynamics' drag on links)."""
-    name, needs = "drag", frozenset()
+    turning with the Earth about ECI z, as the dynamics' drag on links). ``needs``: what the
+    density reads from the :class:`Instant` (``earth_rotation`` for NRLMSISE-00)."""
+    name = "drag"
 
-    def __init__(self, density: Density, cd: float, area: float, mass: float, earth_rate: float = EARTH_RATE):
+    def __init__(self, density: Density, cd: float, area: float, mass: float, earth_rate: float = EARTH_RATE,
+                 needs: frozenset[str] = frozenset()):
         self.density, self.k, self.earth_rate = density, 0.5 * cd * area / mass, float(earth_rate)
+        self.needs = frozenset(needs)
 
     def acceleration(self, instant, r_eci, v_eci):
         w = self.earth_rate
@@ -114,9 +117,9 @@ class Drag:
 
 
 def exponential_density(atmosphere) -> Density:
-    """The dynamics' exponential atmosphere (:class:`components.dynamics.environment.ExponentialAtmosphere`)
-    as a :data:`Density`: altitude above a sphere of radius R_EARTH (its bands in plain floats: a
-    scalar call is ~10x cheaper than its numpy form)."""
+    """An exponential atmosphere (:class:`components.space.atmosphere.ExponentialAtmosphere`: the
+    table or one layer) as a :data:`Density`: altitude above a sphere of radius R_EARTH (its bands
+    in plain floats: a scalar call is ~10x cheaper than its numpy form)."""
     from bisect import bisect_right
 
     bases, densities, scales = (atmosphere.h0.tolist(), atmosphere.rho0.tolist(), atmosphere.scale.tolist())
@@ -126,6 +129,60 @@ def exponential_density(atmosphere) -> Density:
         k = min(max(bisect_right(bases, altitude) - 1, 0), len(bases) - 1)
         return densities[k] * math.exp(-(altitude - bases[k]) / scales[k])
     return density
+
+
+def msis_density(model, rotation) -> Density:
+    """NRLMSISE-00 / NRLMSIS 2.1 (:class:`components.space.atmosphere.Nrlmsise00`) as a
+    :data:`Density`: r_itrf = C_itrf_gcrf r_eci (the instant's), its WGS 84 geodetic latitude,
+    longitude and height, at the UTC of the instant (``rotation``: the run's
+    :class:`components.space.earth.EarthRotation`). Needs ``earth_rotation``; ~130 us a call."""
+    from components.space.earth import geodetic_from_ecef
+
+    def density(instant, r_eci):
+        latitude, longitude, height = geodetic_from_ecef(instant.c_itrf_gcrf @ r_eci)
+        return float(model.density_geodetic(rotation.utc_tt(instant.t_s)[0], latitude, longitude, height))
+    return density
+
+
+class CannonballSrp:
+    """Cannonball solar radiation pressure -nu P Cr A/m s_hat (:mod:`components.space.srp`), nu the
+    illumination factor of ``eclipse`` (:mod:`components.space.eclipse`: none, cylindrical by the
+    Earth, conical by the Earth and the Moon), s_hat from the spacecraft to the Sun. ``flux`` (W/m^2
+    at 1 AU), ``au`` and the radii (m) default to the project's constants (Basilisk's are given in
+    its cross-check)."""
+    name = "srp"
+
+    def __init__(self, cr: float, area: float, mass: float, eclipse: str = "conical", *, flux: float | None = None,
+                 au: float | None = None, r_sun: float | None = None, r_earth: float = R_EARTH,
+                 r_moon: float | None = None):
+        from components.space import eclipse as shadow, srp
+
+        if eclipse not in shadow.MODELS:
+            raise ValueError(f"eclipse: expected one of {', '.join(shadow.MODELS)}, got {eclipse!r}")
+        self.model, self.with_moon = shadow.MODELS[eclipse], eclipse == "conical"
+        self.needs = frozenset(("sun", "moon") if self.with_moon else ("sun",))
+        self.cr_area_per_mass = float(cr) * float(area) / float(mass)
+        self.p_1au = srp.pressure_1au(srp.SOLAR_FLUX if flux is None else flux)
+        self.au = srp.AU if au is None else float(au)
+        self.radii = (shadow.R_SUN if r_sun is None else float(r_sun), float(r_earth),
+                      shadow.R_MOON if r_moon is None else float(r_moon))
+        self._illumination, self._cannonball = shadow.illumination_nb, srp.cannonball_nb
+        self._no_moon = np.zeros(3)
+
+    def illumination(self, instant, r_eci) -> float:
+        """nu at r_eci (1 full sun, 0 umbra)."""
+        moon = instant.moon_eci if self.with_moon else self._no_moon
+        return self._illumination(r_eci, instant.sun_eci, moon, self.with_moon, self.model, *self.radii)
+
+    def pressure(self, sun_eci, r_eci, nu: float) -> np.ndarray:
+        """The acceleration (m/s^2) at r_eci with the Sun at sun_eci (m, ECI) and illumination nu."""
+        a = np.zeros(3)
+        if nu > 0.0:
+            self._cannonball(sun_eci - r_eci, self.cr_area_per_mass, self.p_1au, self.au, nu, a)
+        return a
+
+    def acceleration(self, instant, r_eci, v_eci):
+        return self.pressure(instant.sun_eci, r_eci, self.illumination(instant, r_eci))
 
 
 class Surroundings:

@@ -55,20 +55,29 @@ TERMS = ("point_mass", "harmonics", "sun", "moon", "drag", "srp")
 """orbit.numerical's accelerations, each published as ``a_<term>_eci``."""
 
 
+LABELS = {"point_mass": "point mass (GM)", "harmonics": "harmonics (J2 and up)", "sun": "Sun (third body)",
+          "moon": "Moon (third body)", "drag": "drag", "srp": "solar radiation pressure"}
+
+
 def accelerations(run: RecordedRun, c: str) -> dict:
-    """The magnitude of each acceleration orbit.numerical publishes (``a_<term>_eci``), log scale."""
+    """The magnitude of each acceleration orbit.numerical publishes (``a_<term>_eci``), log scale;
+    a zero (SRP in eclipse) is a gap in its line, each label gives the term's mean over the run."""
     t = run.time
     found = [(term, run.vector(f"{c}.a_{term}_eci", 3)) for term in TERMS]
     found = [(term, a) for term, a in found if a is not None]
     if not found:
         return {}
-    fig = new_figure(9.0, 5.0)
+    fig = new_figure(10.0, 5.5)
     ax = fig.add_subplot(1, 1, 1)
-    for term, a in found:
-        ax.semilogy(t / 3600.0, np.linalg.norm(a, axis=1), linewidth=1.0, label=term)
-    ax.set(xlabel="time (h)", ylabel="m/s^2", title=f"{c}: magnitude of each acceleration (ECI)")
-    ax.legend(loc="best", fontsize="small")
+    for k, (term, a) in enumerate(found):
+        magnitude = np.linalg.norm(a, axis=1)
+        ax.semilogy(t / 3600.0, np.where(magnitude > 0.0, magnitude, np.nan), linewidth=1.0,
+                    linestyle="-" if k < 5 else "--", label=f"{LABELS[term]}: {magnitude.mean():.2g}")
+    ax.set(xlabel="time since run.epoch (h)", ylabel="acceleration magnitude (m/s^2)",
+           title=f"{c}: each acceleration term (ECI; a gap: zero, e.g. SRP in eclipse)")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", title="term: mean (m/s^2)")
     ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
     return {f"{c}_accelerations.png": fig}
 
 

@@ -1,4 +1,5 @@
-"""Basilisk's gravity: spherical harmonics, third bodies, and a one-day orbit under J2-J6 + Sun + Moon.
+"""Basilisk's gravity: spherical harmonics, third bodies, and a one-day orbit under J2-J6 + Sun + Moon
++ drag + SRP.
 
 Run in Basilisk's own environment by ``python -m tests.basilisk gravity`` (prints JSON, written to
 gravity.json). Needs Basilisk and numpy only. What Basilisk is given, the same as Zenorbit:
@@ -10,13 +11,24 @@ gravity.json). Needs Basilisk and numpy only. What Basilisk is given, the same a
 - third-body cases: the Sun's and the Moon's positions at the epoch as constants (Zenorbit's
   ERFA ephemeris), through Basilisk's ``PointMassGravityModel`` as its ``GravityEffector`` sums
   them (the body's pull at the spacecraft plus the pull on the central body);
-- the trajectory: Basilisk's ``Spacecraft`` with its RK4 integrator at a 10 s step; the Earth
-  (central body) with the J2-J6 field and a constant C_itrf_gcrf (the project's at the epoch:
-  zonal terms see only the pole); the Sun and the Moon as planet-state messages written every hour
-  with the project's positions and velocities, which Basilisk extrapolates linearly from the time
-  written (the test gives Zenorbit the very same inputs). Drag and SRP are not in this case yet:
-  add a ``DragDynamicEffector``/``RadiationPressure`` to ``sc`` and the matching terms on
-  Zenorbit's side (tests/unit/test_space_gravity.py, ``trajectory_terms``) once they exist.
+- the trajectory: Basilisk's ``Spacecraft`` (hub mass ``mass``, attitude fixed at identity) with
+  its RK4 integrator at a 10 s step; the Earth (central body) with the J2-J6 field and a constant
+  C_itrf_gcrf (the project's at the epoch: zonal terms see only the pole); the Sun and the Moon as
+  planet-state messages written every hour with the project's positions and velocities, which
+  Basilisk's gravity extrapolates linearly from the time written (the test gives Zenorbit the very
+  same inputs);
+- drag: ``DragDynamicEffector`` (cannonball, Cd, A) with the density of ``exponentialAtmosphere``
+  (one layer: ``planetRadius`` = R_E + h0, ``baseDensity`` = rho0, ``scaleHeight`` = H, so rho =
+  rho0 exp(-(abs(r) - R_E - h0)/H), as Zenorbit's one-layer exponential; ``envMinReach`` lowered so
+  points below h0 get it too) and the air turning with the Earth from ``zeroWindModel`` (omega =
+  EARTH_RATE about the inertial z axis, as Zenorbit's drag);
+- SRP: ``radiationPressure`` (cannonball, Cr, A) lit by ``eclipse`` (conical, the Earth and the
+  Moon), its Sun and the eclipse's Sun and Moon written at every step's start with the hourly
+  nodes' linear extrapolation.
+
+Basilisk's environment modules run once per step: the density, the wind, the Sun for SRP and the
+illumination factor are those at the step's start, held over its four RK4 stages; Zenorbit
+evaluates them at every stage (tests/unit/test_space_gravity.py says what that costs in metres).
 """
 from __future__ import annotations
 
@@ -25,7 +37,9 @@ from pathlib import Path
 
 import numpy as np
 from Basilisk.architecture import messaging
-from Basilisk.simulation import gravityEffector, spacecraft
+from Basilisk.architecture import astroConstants
+from Basilisk.simulation import (dragDynamicEffector, eclipse, exponentialAtmosphere, gravityEffector,
+                                 radiationPressure, spacecraft, zeroWindModel)
 from Basilisk.utilities import SimulationBaseClass, macros
 
 FIELD = str(Path(__file__).resolve().parents[2] / "components" / "space" / "data" / "GGM03S_20.txt")
@@ -46,6 +60,10 @@ CASES = {'epoch': '2026-03-20T00:00:00Z',
  'trajectory': {'step': 10.0,
                 'sample': 600.0,
                 'degree': 6,
+                'mass': 500.0,
+                'drag': {'cd': 2.2, 'area': 10.0, 'altitude': 400000.0, 'density': 3.725e-12,
+                         'scale_height': 58515.0, 'earth_rate': 7.292115e-05, 'r_earth': 6378137.0},
+                'srp': {'cr': 1.3, 'area': 30.0, 'eclipse': 'conical'},
                 'c_itrf_gcrf': [[-0.9988075304699542, 0.048754406151082334, 0.002554399609887295],
                                 [-0.04875415244975307, -0.9988107961603799, 0.00016153134143520915],
                                 [0.0025592372726897543, 3.680113223436532e-05, 0.9999967244697648]],
@@ -223,6 +241,13 @@ def planet_state(name, position, velocity, dcm=None):
     return payload
 
 
+def extrapolated(nodes, t):
+    """The Sun and the Moon at t (s) from the last node at or before t, as Basilisk's gravity takes them."""
+    node = max((n for n in nodes if n["t"] <= t), key=lambda n: n["t"])
+    return {body: (np.array(node[body]) + (t - node["t"]) * np.array(node[body + "_velocity"])).tolist()
+            for body in ("sun", "moon")}
+
+
 def trajectory():
     case = CASES["trajectory"]
     step = case["step"]
@@ -231,7 +256,8 @@ def trajectory():
     process.addTask(sim.CreateNewTask("t", macros.sec2nano(step)))
     sc = spacecraft.Spacecraft()
     sc.ModelTag = "sc"
-    sim.AddModelToTask("t", sc)
+    sc.hub.mHub = case["mass"]
+    sim.AddModelToTask("t", sc, None, 0)          # last: the environment and the effectors read first
 
     earth = gravityEffector.GravBodyData()
     earth.planetName = "earth"
@@ -257,24 +283,88 @@ def trajectory():
     sc.gravField.gravBodies = spacecraft.GravBodyVector(list(bodies.values()))
     sc.hub.r_CN_NInit = case["r0"]
     sc.hub.v_CN_NInit = case["v0"]
+
+    d = case["drag"]
+    atmosphere = exponentialAtmosphere.ExponentialAtmosphere()
+    atmosphere.ModelTag = "atmosphere"
+    atmosphere.planetRadius = d["r_earth"] + d["altitude"]
+    atmosphere.baseDensity = d["density"]
+    atmosphere.scaleHeight = d["scale_height"]
+    atmosphere.envMinReach = -1e7                  # below h0 too (its default, -1 m, gives 0 there)
+    atmosphere.addSpacecraftToModel(sc.scStateOutMsg)
+    wind = zeroWindModel.ZeroWindModel()
+    wind.ModelTag = "wind"
+    wind.setPlanetOmega_N([0.0, 0.0, d["earth_rate"]])
+    wind.planetPosInMsg.subscribeTo(earth_msg)
+    wind.addSpacecraftToModel(sc.scStateOutMsg)
+    drag = dragDynamicEffector.DragDynamicEffector()
+    drag.ModelTag = "drag"
+    drag.coreParams.dragCoeff = d["cd"]
+    drag.coreParams.projectedArea = d["area"]
+    drag.atmoDensInMsg.subscribeTo(atmosphere.envOutMsgs[0])
+    drag.windVelInMsg.subscribeTo(wind.envOutMsgs[0])
+    sc.addDynamicEffector(drag)
+
+    light = {"sun": messaging.SpicePlanetStateMsg(), "moon": messaging.SpicePlanetStateMsg()}
+    shadow = eclipse.Eclipse()
+    shadow.ModelTag = "eclipse"
+    shadow.sunInMsg.subscribeTo(light["sun"])
+    shadow.addPlanetToModel(earth_msg)
+    shadow.addPlanetToModel(light["moon"])
+    shadow.addSpacecraftToModel(sc.scStateOutMsg)
+    srp = radiationPressure.RadiationPressure()
+    srp.ModelTag = "srp"
+    srp.setUseCannonballModel()
+    srp.area = case["srp"]["area"]
+    srp.coefficientReflection = case["srp"]["cr"]
+    srp.sunEphmInMsg.subscribeTo(light["sun"])
+    srp.sunEclipseInMsg.subscribeTo(shadow.eclipseOutMsgs[0])
+    sc.addDynamicEffector(srp)
+    for priority, model in ((40, atmosphere), (40, wind), (40, shadow), (20, drag), (20, srp)):
+        sim.AddModelToTask("t", model, None, priority)
+
     recorder = sc.scStateOutMsg.recorder(macros.sec2nano(case["sample"]))
     sim.AddModelToTask("t", recorder)
+    density = atmosphere.envOutMsgs[0].recorder(macros.sec2nano(case["sample"]))
+    sim.AddModelToTask("t", density)
+    sunlit = shadow.eclipseOutMsgs[0].recorder(macros.sec2nano(step))
+    sim.AddModelToTask("t", sunlit)
 
     def write_nodes(node):
         when = macros.sec2nano(node["t"])
         for body in ("sun", "moon"):
             messages[body].write(planet_state(body, node[body], node[body + "_velocity"]), when)
 
+    def write_light(t):
+        """The Sun and the Moon for the step from t (what the call at t + step integrates over)."""
+        for body, position in extrapolated(case["nodes"], t).items():
+            light[body].write(planet_state(body, position, [0.0] * 3), macros.sec2nano(t))
+
+    nodes = {n["t"]: n for n in case["nodes"]}
     write_nodes(case["nodes"][0])
+    write_light(0.0)
     sim.InitializeSimulation()
-    for node, following in zip(case["nodes"], case["nodes"][1:]):
-        sim.ConfigureStopTime(macros.sec2nano(following["t"]))
+    end, k = case["nodes"][-1]["t"], 0
+    while k * step < end:
+        k += 1
+        sim.ConfigureStopTime(macros.sec2nano(k * step))
         sim.ExecuteSimulation()
-        write_nodes(following)
+        if k * step in nodes:
+            write_nodes(nodes[k * step])
+        write_light(k * step)
+    factors = np.asarray(sunlit.shadowFactor)
     return {"t": (recorder.times() * 1e-9).tolist(), "r_eci": recorder.r_BN_N.tolist(),
-            "v_eci": recorder.v_BN_N.tolist()}
+            "v_eci": recorder.v_BN_N.tolist(), "density": np.asarray(density.neutralDensity).tolist(),
+            "steps_in_shadow": int(np.sum(factors < 1.0)), "steps_in_penumbra": int(np.sum((factors > 0) & (factors < 1)))}
+
+
+def constants():
+    """Basilisk's radii, solar flux and AU (m, W/m^2) that its eclipse and radiationPressure use."""
+    return {"REQ_SUN": astroConstants.REQ_SUN * 1e3, "REQ_EARTH": astroConstants.REQ_EARTH * 1e3,
+            "REQ_MOON": astroConstants.REQ_MOON * 1e3, "SOLAR_FLUX_EARTH": astroConstants.SOLAR_FLUX_EARTH,
+            "AU": astroConstants.AU * 1e3}
 
 
 if __name__ == "__main__":
-    print(json.dumps({"cases": CASES, "fields": field_cases(), "third_body": third_body_cases(),
-                      "trajectory": trajectory()}))
+    print(json.dumps({"cases": CASES, "constants": constants(), "fields": field_cases(),
+                      "third_body": third_body_cases(), "trajectory": trajectory()}))

@@ -1,6 +1,6 @@
 """The ``controller.capture`` component type: a thin wrapper around
-:mod:`components.controller.capture` (the estimator, the phases, the limits and the detumbling are
-described there).
+:mod:`components.controller.capture` (the phases; the estimator, the planner and the laws are in
+the modules it names).
 
 Connections (a capture run): the servicer's state from the dynamics (``position``,
 ``orientation``, ``twist``, ``q``, ``qd`` as for ``controller.computed_torque``), the relative-pose
@@ -270,7 +270,8 @@ class CaptureComponent(Component):
         compile_kernels(warm.arm, warm.law)
 
     def _build(self):
-        from components.controller.capture import CaptureController, CaptureSettings
+        from components.controller.capture import CaptureController
+        from components.controller.capture_settings import CaptureSettings
         from components.controller.computed_torque import ComputedTorqueLaw, FreeFloatingArm
 
         c, p = self.config, self.params

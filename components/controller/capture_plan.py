@@ -37,6 +37,17 @@ Joint move (``JointMove``)
 --------------------------
 The quintic polynomial from (q0, qd0, 0) to (q1, qd1, 0) in time T: the arm leaves where it is,
 with its rates, and arrives at the pre-grasp configuration with the rates that follow the grapple.
+
+Windows (``WindowPlanner``)
+---------------------------
+While the arm waits, the planner predicts the grapple's motion at the estimated rate and looks,
+from ``SHORTEST_APPROACH`` on in steps of ``PLAN_STEP``, for the earliest meeting time after which
+the arm can follow the grapple for ``closing_time + tolerance_time + WINDOW_MARGIN``: a feasible
+solution at every sample of that window, moving continuously, and a pre-grasp configuration (the
+grasp frame moved back ``standoff`` along its z) the arm reaches by then within
+``MOVE_RATE_FRACTION`` of its rate limits. It scans one turn of the relative tumble (at most
+``LONGEST_SCAN``, and not past ``capture_timeout``); a grapple that turns less than ``STILL`` over
+that, or slower than the estimator can tell, is still: its one pose is its whole turn.
 """
 from __future__ import annotations
 
@@ -45,8 +56,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from components.controller.capture_estimate import GraspEstimator
+from components.controller.capture_settings import CaptureSettings
+from components.controller.computed_torque import ArmState, FreeFloatingArm
 from components.controller.trajectory import PoseSample
 from components.rotations import exp_so3, skew
+
+PLAN_STEP = 0.5           # s between the planner's samples of the predicted grapple motion
+WINDOW_MARGIN = 0.5       # s of following beyond closing_time + tolerance_time a window must offer
+LONGEST_SCAN = 180.0      # s: the planner looks no further ahead than this
+SHORTEST_APPROACH = 1.0   # s: the quickest joint move onto the pre-grasp pose
+STILL = 0.02              # rad over LONGEST_SCAN: a grapple turning less is taken as still
+MOVE_RATE_FRACTION = 0.8  # share of the URDF velocity limits a joint move may reach
+CONTINUITY = 0.5          # rad: the largest joint change between two samples of one window
 
 
 # --------------------------------------------------------------------------- prediction
@@ -243,3 +265,161 @@ class JointMove:
         move.c = x[2:2 + 5 * n].reshape(5, n).copy()
         move.q1, move.qd1 = x[2 + 5 * n:2 + 6 * n].copy(), x[2 + 6 * n:2 + 7 * n].copy()
         return move
+
+
+# --------------------------------------------------------------------------- windows
+
+@dataclass(frozen=True)
+class Look:
+    """One look for a window (module doc).
+
+    | field | meaning |
+    |---|---|
+    | approach | (duration s, q rad, qd rad/s) of the move onto the pre-grasp configuration, or None |
+    | reason | why there is no approach now: the check that failed at the best sample ('' when waiting for a window) |
+    | give_up | why the capture should be given up ('' while a window may still come) |
+    """
+    approach: tuple[float, np.ndarray, np.ndarray] | None
+    reason: str = ""
+    give_up: str = ""
+
+
+class WindowPlanner:
+    """The planner of one servicer's arm (module doc): ``look`` gives the approach to start now,
+    or why not, and whether to give up."""
+
+    def __init__(self, arm: FreeFloatingArm, settings: CaptureSettings):
+        self.arm, self.cfg = arm, settings
+        shoulder = arm.model.getJointId(settings.shoulder)
+        names = list(arm.arm_joints)
+        arm_q = np.array([arm.model.joints[arm.model.getJointId(j)].idx_q for j in names])
+        self.kinematics = ArmKinematics(arm.model, arm.arm_v, arm_q, arm.ee, shoulder, names, Limits(
+            np.asarray(settings.arm_lower, float), np.asarray(settings.arm_upper, float),
+            np.asarray(settings.arm_velocity, float), settings.joint_margin, settings.singularity_margin,
+            settings.rate_fraction, settings.reach))
+
+    def look(self, t: float, s: ArmState, g: PoseSample, base_p, base_twist, estimator: GraspEstimator,
+             q_posture: np.ndarray) -> Look:
+        """The window from the grapple's estimate g at t, the base's position and twist (W) and the
+        arm's state s; ``q_posture`` seeds the inverse kinematics besides the arm's configuration."""
+        cfg = self.cfg
+        base_v, base_w = np.asarray(base_twist[:3], dtype=float), np.asarray(base_twist[3:], dtype=float)
+        prediction = RigidPrediction(t, g, base_p, base_v, base_w)
+        distance = self.kinematics.shoulder_distance(self.arm.q_pin, prediction.c)
+        # the tumble relative to the servicer (both co-rotate with LVLH); one that turns the grapple
+        # by less than STILL over the longest scan is still: its one pose is its whole turn
+        relative_rate = float(np.linalg.norm(prediction.w - base_w))
+        fit = estimator.fit
+        negligible = relative_rate * LONGEST_SCAN < STILL
+        unresolved = not negligible and estimator.full and relative_rate < 3.0 * fit.rate_sigma   # noise
+        still = negligible or unresolved
+        turn = 0.0 if still else 2.0 * math.pi / relative_rate
+        horizon = min(turn, LONGEST_SCAN, max(cfg.capture_timeout - t - SHORTEST_APPROACH, 0.0))
+        approach, reason, found = self._plan(t, s, prediction, horizon, q_posture)
+        if approach is not None:
+            return Look(approach)
+        if not (t >= cfg.capture_timeout or (not found and horizon >= turn)):
+            return Look(None, reason)
+        if turn == 0.0:
+            scope = ("(it does not turn)" if not unresolved else
+                     f"(it does not turn that the estimator can tell: {math.degrees(relative_rate):.2g} deg/s, "
+                     f"standard error {math.degrees(fit.rate_sigma):.2g} deg/s)")
+        else:
+            scope = (f"{'in a whole turn of the tumble' if horizon >= turn else 'by capture_timeout'} "
+                     f"({math.degrees(relative_rate):.3g} deg/s about a centre {distance:.3g} m from the "
+                     f"shoulder; the arm reaches {cfg.reach:.3g} m)")
+        return Look(None, reason, f"the grapple never comes where the arm can follow it {scope}: {reason}")
+
+    def _plan(self, t: float, s: ArmState, prediction: RigidPrediction, horizon: float, q_posture: np.ndarray):
+        """(the approach: (duration, q, qd) of the pre-grasp configuration, or None; the reason of
+        the best infeasible sample when there is none; whether a window exists within the horizon).
+
+        The meeting time runs from SHORTEST_APPROACH on in steps of PLAN_STEP. At each the grapple's
+        pose is solved from the last feasible solution, or, after an infeasible one, from every
+        seed (the best is kept); a window is a run of feasible solutions that move continuously.
+        The first meeting time at which the window starts and the pre-grasp pose can be reached in
+        time within the rate limits is taken if it is at most approach_time away."""
+        cfg = self.cfg
+        q_pin = self.arm.q_pin.copy()
+        window = int(math.ceil((cfg.closing_time + cfg.tolerance_time + WINDOW_MARGIN) / PLAN_STEP))
+        samples = int(horizon / PLAN_STEP) + window + 1
+        seeds = ik_seeds(s.q, q_posture)
+        best, q_prev, run, chain = None, None, 0, []
+        for k in range(samples):
+            g = prediction.sample(t + SHORTEST_APPROACH + k * PLAN_STEP)
+            verdict = self._solve(q_pin, g, q_prev, seeds, s.q)
+            chain.append(verdict.q)
+            if verdict.feasible and (q_prev is None or np.max(np.abs(verdict.q - q_prev)) < CONTINUITY):
+                run += 1
+            else:
+                run = 1 if verdict.feasible else 0
+                if not verdict.feasible and (best is None or verdict.score > best.score):
+                    best = verdict
+            q_prev = verdict.q if verdict.feasible else None
+            if run > window:
+                start = k - window                   # the window's first sample: the meeting time
+                duration = SHORTEST_APPROACH + start * PLAN_STEP
+                if duration > cfg.approach_time:
+                    return None, best.reason if best else "", True      # further away: wait for it
+                plan = self._pre_grasp(q_pin, prediction.sample(t + duration), chain[start], s, duration)
+                if plan is not None:
+                    return (duration, *plan), "", True
+                run -= 1                             # too far to reach in time: a later meeting
+        return None, best.reason if best else "no window", False
+
+    def _solve(self, q_pin, g: PoseSample, q_prev, seeds, q_now) -> Verdict:
+        """The grapple's pose solved from q_prev (when feasible), else from every seed: of the
+        feasible solutions the one the arm reaches soonest from ``q_now`` (the largest joint
+        change over its rate limit), or the best infeasible one (its reason)."""
+        kin = self.kinematics
+        twist = np.concatenate([g.v, g.w])
+        target = _se3(g.R, g.p)
+        if q_prev is not None:
+            verdict = kin.judge(q_pin, kin.solve(q_pin, target, q_prev), twist, g.p)
+            if verdict.feasible:
+                return verdict
+        if kin.shoulder_distance(q_pin, g.p) > self.cfg.reach:
+            return kin.judge(q_pin, None, twist, g.p)
+        verdicts = [kin.judge(q_pin, kin.solve(q_pin, target, seed), twist, g.p) for seed in seeds]
+        feasible = [v for v in verdicts if v.feasible]
+        if feasible:
+            return min(feasible, key=lambda v: float(np.max(np.abs(v.q - q_now) / self.cfg.arm_velocity)))
+        return max(verdicts, key=lambda v: v.score)
+
+    def _pre_grasp(self, q_pin, g: PoseSample, seed: np.ndarray, s: ArmState, duration: float):
+        """(q, qd) at the pre-grasp pose of the predicted grapple g, or None when the move there
+        in ``duration`` would exceed the rate limits or the configuration is not feasible."""
+        cfg, kin = self.cfg, self.kinematics
+        z = g.R[:, 2]
+        p = g.p - cfg.standoff * z
+        v = g.v - cfg.standoff * np.cross(g.w, z)
+        q = kin.solve(q_pin, _se3(g.R, p), seed)
+        verdict = kin.judge(q_pin, q, np.concatenate([v, g.w]), p)
+        if not verdict.feasible:
+            return None
+        move = JointMove(0.0, duration, s.q, s.qd, verdict.q, verdict.qd)
+        if np.any(move.peak_rate() > MOVE_RATE_FRACTION * cfg.arm_velocity):
+            return None
+        return verdict.q, verdict.qd
+
+
+def ik_seeds(q: np.ndarray, q_posture: np.ndarray) -> list[np.ndarray]:
+    """Starting configurations for the inverse kinematics: the arm now and its posture, each
+    also with the elbow and the wrist turned over (a 6-joint arm of the UR kind: elbow q2 + q3,
+    -q3, q4 + q3; wrist q4 + pi, -q5, q6 + pi), wrapped to (-pi, pi]."""
+    def elbow(x):
+        return np.array([x[0], x[1] + x[2], -x[2], x[3] + x[2], x[4], x[5]])
+
+    def wrist(x):
+        return np.array([x[0], x[1], x[2], x[3] + math.pi, -x[4], x[5] + math.pi])
+
+    seeds = [q.copy(), q_posture.copy()]
+    if q.size == 6:
+        seeds += [f(x) for x in seeds for f in (elbow, wrist, lambda y: wrist(elbow(y)))]
+    return [(x + math.pi) % (2.0 * math.pi) - math.pi for x in seeds]
+
+
+def _se3(R: np.ndarray, p: np.ndarray):
+    import pinocchio as pin
+
+    return pin.SE3(np.ascontiguousarray(R), np.asarray(p, dtype=float))

@@ -15,15 +15,15 @@ Components send the orchestrator their outputs in batches (see :mod:`components.
 Every message the orchestrator receives lands in one inbox queue (callbacks only enqueue) and the
 main thread does all the work. Times are integer nanoseconds, step k covers [k*h, (k+1)*h).
 
-This module is the run's life and its loop; the parts it drives: :mod:`.state` (what the run
-holds), :mod:`.messages` (decoding the inbox), :mod:`.listener` (applying it), :mod:`.members` (the
-processes), :mod:`.wiring` (who feeds whom), :mod:`.pacing` (the horizon), :mod:`.rows` (the
-recorded row), :mod:`.recovery` (swap, checkpoint, restart), :mod:`.viewer_link` and :mod:`.report`.
+This module is the run's life: start, end, and what the control server sees; the parts it drives:
+:mod:`.loop` (the lockstep loop), :mod:`.state` (what the run holds), :mod:`.messages` (decoding the
+inbox), :mod:`.listener` (applying it), :mod:`.members` (the processes), :mod:`.wiring` (who feeds
+whom), :mod:`.pacing` (the horizon), :mod:`.rows` (the recorded row), :mod:`.recovery` (swap,
+checkpoint, restart), :mod:`.viewer_link` and :mod:`.report`.
 """
 from __future__ import annotations
 
 import os
-import queue
 import secrets
 import shutil
 import signal
@@ -34,13 +34,14 @@ import traceback
 import uuid
 from pathlib import Path
 
-from components import bus, protocol
+from components import bus
 from components.constants import NS_PER_S
-from orchestrator.run import outcome, pacing, recovery, report, runs, supervisor, wiring
+from orchestrator.run import outcome, recovery, report, runs, supervisor, wiring
 from orchestrator.config import groups, shadows
 from orchestrator.config.specs import ComponentSpec, Ros2Spec, RunConfig, ViewerSpec
 from orchestrator.run.control import ControlServer, StopRequested, raise_stop
 from orchestrator.run.listener import Listener
+from orchestrator.run.loop import Loop
 from orchestrator.run.members import Crew, RunFailure, terminate_all
 from orchestrator.run.messages import subscribe
 from orchestrator.run.recording import Recording, RecordingError
@@ -104,69 +105,6 @@ class Run:
     def swap(self, spec: ComponentSpec, planned: bool = False) -> int:
         return self.recovery.swap(spec, planned)
 
-    # ---------------------------------------------------------------- the loop
-
-    def _loop(self) -> None:
-        """Grant, record and watch until the last row is in or a stop is asked for."""
-        steps = self.config.steps
-        wall_start = time.perf_counter()
-        try:
-            while True:
-                try:
-                    self._step_until(steps, wall_start)
-                    return
-                except RunFailure as failure:
-                    if not self.recovery.may_restart(failure):
-                        raise
-                    self.recovery.restart(failure)   # or, past run.max_restarts, fail
-        finally:
-            self.loop_s = time.perf_counter() - wall_start
-
-    def _step_until(self, steps: int, wall_start: float) -> None:
-        last_progress = last_check = time.monotonic()
-        expect: dict[str, str] = {}
-        state, listener, rows = self.state, self.listener, self.state.rows
-        while rows.row < steps and not state.stop_reason:
-            if rows.row == state.horizon:   # everyone is at this boundary: control happens here
-                self.recovery.at_boundary()
-                self.controls.serve(quiescent=True)
-            elif self.controls.queries:
-                self.controls.serve(quiescent=False)
-            wake = self._grant(wall_start)
-            try:
-                listener.handle(state.inbox.get(timeout=wake), expect)
-                while True:
-                    listener.handle(state.inbox.get_nowait(), expect)
-            except queue.Empty:
-                pass
-            rows.advance(state.members, state.horizon)
-            now = time.monotonic()
-            if now - last_check > 0.2:
-                last_check = now
-                self.recovery.check_hung()
-                listener.check_processes(list(state.members))
-            if self.progress and now - last_progress > 0.5:
-                last_progress = now
-                print(report.progress(rows.row, self.config.step_ns, self.config.duration_ns,
-                                      time.perf_counter() - wall_start), end="", file=self.out, flush=True)
-
-    def _grant(self, wall_start: float) -> float:
-        """Extend the horizon (pacing.grant) and tell everyone; how long the loop may sleep."""
-        config, state = self.config, self.state
-        limit = config.steps   # the step boundary the run must stop at next: the end, an event, a swap, a checkpoint
-        for boundary in (state.next_event_step(), self.controls.swap_boundary(), self.recovery.next_checkpoint()):
-            if boundary is not None:
-                limit = min(limit, max(boundary, state.rows.row))
-        realtime = config.realtime
-        horizon, wake = pacing.grant(state.rows.row, state.horizon, limit, realtime, config.step_ns,
-                                     time.perf_counter() - wall_start if realtime > 0 else 0.0)
-        if horizon is not None:
-            state.horizon, state.horizon_at = horizon, time.monotonic()
-            grant = protocol.Horizon(horizon).encode()
-            for member in state.members.values():
-                member.command.put(grant)
-        return wake
-
     # ---------------------------------------------------------------- the run's life
 
     def execute(self) -> int:
@@ -226,6 +164,13 @@ class Run:
                              time.perf_counter() - run_start, self.loop_s, self.state.restarts, self.record_dir,
                              words), file=self.out, flush=True)
         return code
+
+    def _loop(self) -> None:
+        loop = Loop(self.state, self.listener, self.recovery, self.controls, self.progress, self.out)
+        try:
+            loop.run()
+        finally:
+            self.loop_s = loop.seconds
 
     def _outcome(self, code: int) -> tuple[str | None, str | None]:
         """The run's outcome (name, words); none for a failed run or one whose components declare none."""

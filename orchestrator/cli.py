@@ -14,6 +14,7 @@ import sys
 import threading
 from pathlib import Path
 
+from components.extras import missing
 from components.outputs import output_problem
 from orchestrator.run.wording import count
 
@@ -311,6 +312,8 @@ def cmd_describe(args) -> int:
 
 
 def cmd_export_fmu(args) -> int:
+    if problem := missing("fmi", "orchestrator export-fmu"):
+        return _fail(problem)
     from components.fmi.exported import ExportError, export_fmu, fmu_summary
     from orchestrator.config.yaml_file import ConfigErrors
     from orchestrator.config.yaml_file import apply_overrides
@@ -408,6 +411,8 @@ def cmd_figure(args) -> int:
 
 
 def cmd_markers(args) -> int:
+    if problem := missing("vision", "orchestrator markers"):
+        return _fail(problem)
     from components.errors import ConfigError
     from components.estimators.marker_meshes import write
     try:

@@ -6,9 +6,11 @@ each): the robots of example-robot-data, the Rerun viewer, OpenCV, FMPy and pyth
 """
 from __future__ import annotations
 
-from importlib.metadata import PackageNotFoundError, version
+import json
+from importlib.metadata import PackageNotFoundError, distribution, version
 from importlib.util import find_spec
 from pathlib import Path
+from urllib.parse import unquote
 
 from components.errors import ConfigError
 
@@ -24,12 +26,19 @@ PACKAGES = {"example-robot-data": "robots"}
 
 
 def install_command(extra: str) -> str:
-    """``pip install -e ".[EXTRA]"`` in this clone (its path when run elsewhere); from an index otherwise."""
-    root = Path(__file__).resolve().parents[1]
-    if not (root / "pyproject.toml").is_file():
-        return f'pip install "zenorbit[{extra}]"'
-    here = "." if root == Path.cwd().resolve() else str(root)
-    return f'pip install -e "{here}[{extra}]"'
+    """The pip command that adds ``extra`` to this install: from the clone this code runs from, or
+    from the directory pip installed it from (its direct_url.json), else from an index."""
+    clone, editable = Path(__file__).resolve().parents[1], True
+    if not (clone / "pyproject.toml").is_file():
+        try:
+            origin = json.loads(distribution("zenorbit").read_text("direct_url.json") or "{}")
+        except PackageNotFoundError:
+            origin = {}
+        if not origin.get("url", "").startswith("file://"):
+            return f'pip install "zenorbit[{extra}]"'
+        clone, editable = Path(unquote(origin["url"][len("file://"):])), origin.get("dir_info", {}).get("editable")
+    here = "." if clone == Path.cwd().resolve() else str(clone)
+    return f'pip install {"-e " if editable else ""}"{here}[{extra}]"'
 
 
 def _installed(distribution: str) -> bool:

@@ -98,10 +98,10 @@ def find_package(name: str, packages: Mapping[str, str] | None = None) -> tuple[
 
 
 def not_found(name: str, looked: list[str]) -> str:
-    """The package ``name`` not found: where it was looked for, and, for one a Zenorbit extra ships
-    (example-robot-data), that extra's install command first."""
+    """The package ``name`` not found, where it was looked for, and, for one a Zenorbit extra ships
+    (example-robot-data), that extra and its install command."""
     extra = PACKAGES.get(name)
-    ships = f": it comes with Zenorbit's extra [{extra}], {install_command(extra)}" if extra else ""
+    ships = f": it comes with the extra [{extra}], {install_command(extra)}" if extra else ""
     return f"package {name!r} not found{ships} (looked in: {'; '.join(looked)})"
 
 

@@ -110,6 +110,32 @@ def orchestrator(*args, timeout=300, cwd=None, **kw) -> subprocess.CompletedProc
                           text=True, timeout=timeout, cwd=cwd or ROOT, **kw)
 
 
+def needs(extra: str, feature: str = "this test"):
+    """Skip a test whose feature needs pyproject's ``extra`` when it is not installed, saying which
+    and how to install it ([test] brings them all, so CI runs these tests)."""
+    from components.extras import missing
+    problem = missing(extra, feature)
+    return pytest.mark.skipif(problem is not None, reason=str(problem))
+
+
+#: the shipped configs that need an extra beyond the default install (tests/unit/test_extras.py checks it)
+CONFIG_EXTRAS = {"panda_on_bus.yaml": "robots", "capture_vision.yaml": "vision", "reaction_wheel_fmu.yaml": "fmi"}
+SHIPPED = sorted((ROOT / "configs").glob("*.yaml"))
+
+
+def config_missing(path: Path) -> str | None:
+    """Why a shipped config cannot run here (the extra it needs is not installed), or None."""
+    from components.extras import missing
+    extra = CONFIG_EXTRAS.get(path.name)
+    return missing(extra, path.name) if extra else None
+
+
+def shipped_configs() -> list:
+    """configs/*.yaml as test parameters, each skipped when its extra is not installed."""
+    return [pytest.param(path, id=path.name, marks=needs(CONFIG_EXTRAS[path.name], path.name))
+            if path.name in CONFIG_EXTRAS else pytest.param(path, id=path.name) for path in SHIPPED]
+
+
 @pytest.fixture
 def write_config(tmp_path):
     """Write a YAML config text to a file in tmp_path and return its path."""

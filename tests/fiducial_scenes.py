@@ -17,11 +17,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import cv2
 import numpy as np
+import pytest
 
 from components.estimators.marker_layout import MarkerLayout
+from components.extras import missing
 from components.rotations import exp_so3
+
+cv2 = pytest.importorskip("cv2", reason=missing("vision", "testing the fiducial estimator"))
 
 ROOT = Path(__file__).resolve().parents[1]
 LAYOUT = ROOT / "models" / "capture" / "grapple_markers.yaml"

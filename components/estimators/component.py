@@ -8,6 +8,7 @@ import numpy as np
 
 from components.constants import NS_PER_S
 from components.errors import ConfigError
+from components.extras import require
 from components.estimators.marker_layout import MarkerLayout, layout_path, read_layout
 from components.estimators import plots as fiducial_plots
 from components.estimators import ros as fiducial_ros
@@ -142,6 +143,12 @@ class FiducialComponent(Component):
         if params["min_markers"] > len(layout.markers):
             raise ConfigError("min_markers", f"expected at most the layout's {len(layout.markers)} markers, "
                                              f"got {params['min_markers']}")
+
+    @classmethod
+    def preflight(cls, params, step_s, full=False):
+        """ArUco detection needs OpenCV (the extra [vision]): checked at check and run."""
+        require("vision", "estimator.fiducial")
+        return []
 
     def __init__(self, params):
         from components.estimators.fiducial import FiducialEstimator

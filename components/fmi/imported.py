@@ -25,6 +25,7 @@ import numpy as np
 
 from components.constants import NS_PER_S
 from components.errors import ComponentError, ConfigError
+from components.extras import require
 from components.schema import Anything, MapOf, Str
 from components.fmi.pythonfmu_exit import hold_binary_until_exit   # pythonfmu's crash at exit, worked around
 from components.sdk import Component, Parameter, Variable, layouts
@@ -253,6 +254,7 @@ class FMUComponent(Component):
 
     @classmethod
     def _model(cls, params):
+        require("fmi", "type fmu", "path")
         file = fmu_file(params["path"], params.get("_config_dir"))
         return file, model_description(file)
 

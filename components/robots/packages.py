@@ -24,6 +24,8 @@ from pathlib import Path
 from typing import Iterable, Mapping
 from urllib.parse import unquote
 
+from components.extras import PACKAGES, install_command
+
 _PACKAGE_NAME = re.compile(r"<name>\s*([^<\s]+)\s*</name>")
 
 
@@ -95,6 +97,14 @@ def find_package(name: str, packages: Mapping[str, str] | None = None) -> tuple[
     return None, looked
 
 
+def not_found(name: str, looked: list[str]) -> str:
+    """The package ``name`` not found, where it was looked for, and, for one a Zenorbit extra ships
+    (example-robot-data), that extra and its install command."""
+    extra = PACKAGES.get(name)
+    ships = f": it comes with the extra [{extra}], {install_command(extra)}" if extra else ""
+    return f"package {name!r} not found{ships} (looked in: {'; '.join(looked)})"
+
+
 def resolve_uri(uri: str, base: Path, packages: Mapping[str, str] | None = None) -> Path:
     """The file a URDF's ``filename`` names: ``package://NAME/rest``, ``file:///abs`` or a path
     (relative to ``base``, the URDF's directory); PackageError naming the URI and where it looked."""
@@ -103,8 +113,8 @@ def resolve_uri(uri: str, base: Path, packages: Mapping[str, str] | None = None)
         name, _, relative = rest.partition("/")
         directory, looked = find_package(name, packages)
         if directory is None:
-            raise PackageError(f"{uri}: package {name!r} not found (looked in: {'; '.join(looked)}); "
-                               f"give its directory in run.packages or ROS_PACKAGE_PATH")
+            raise PackageError(f"{uri}: {not_found(name, looked)}; give its directory in run.packages or "
+                               f"ROS_PACKAGE_PATH")
         path = directory / relative
         if not path.is_file():
             raise PackageError(f"{uri}: no file {relative!r} in package {name!r} ({directory})")
@@ -132,8 +142,7 @@ def process_xacro(path: Path, packages: Mapping[str, str] | None = None) -> str:
     def find(name: str) -> str:
         directory, looked = find_package(name, packages)
         if directory is None:
-            raise PackageError(f"$(find {name}) in {path.name}: package {name!r} not found "
-                               f"(looked in: {'; '.join(looked)})")
+            raise PackageError(f"$(find {name}) in {path.name}: {not_found(name, looked)}")
         return str(directory)
 
     saved = substitution_args._eval_find, dict(substitution_args._eval_dict) \
@@ -147,9 +156,9 @@ def process_xacro(path: Path, packages: Mapping[str, str] | None = None) -> str:
     except PackageError:
         raise
     except Exception as e:   # xacro raises its own XacroException, NameError, ... for a bad file
-        cause = e.__cause__ if isinstance(e.__cause__, PackageError) else None
-        if cause is not None:
-            raise cause from None
+        for cause in (e.__cause__, getattr(e, "exc", None)):   # xacro wraps it in .exc or as the cause
+            if isinstance(cause, PackageError):
+                raise cause from None
         raise ValueError(f"{path}: xacro could not process it: {type(e).__name__}: {e}") from None
     finally:
         substitution_args._eval_find = saved[0]

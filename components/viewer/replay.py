@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 from components.constants import NS_PER_S
+from components.extras import missing
 from components.outputs import output_problem
 
 USAGE_ERROR = 2
@@ -157,6 +158,9 @@ def cmd_view(args) -> int:
     mode, _, file = args.view.partition(":")
     if mode not in ("spawn", "web", "save") or (mode == "save") != bool(file) or (file and not file.endswith(".rrd")):
         print(f"error: --view: expected spawn, web or save:FILE.rrd, got {args.view!r}", file=sys.stderr)
+        return USAGE_ERROR
+    if problem := missing("view", "orchestrator view (Rerun)"):
+        print(f"error: {problem}", file=sys.stderr)
         return USAGE_ERROR
     if mode == "spawn":
         from components.viewer.sinks import spawn_problem

@@ -49,7 +49,7 @@ def spawn_problem() -> str | None:
     import sys
 
     if shutil.which("rerun") is None:
-        return "the Rerun viewer executable `rerun` is not on PATH (pip install rerun-sdk); use web or save:FILE.rrd"
+        return "the Rerun viewer executable `rerun` is not on PATH; use web or save:FILE.rrd"
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         return "no display here (neither DISPLAY nor WAYLAND_DISPLAY is set); use web or save:FILE.rrd"
     return None

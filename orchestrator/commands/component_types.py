@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from components.extras import missing
 from components.outputs import output_problem
 from orchestrator.commands.exits import fail, fail_all
 from orchestrator.run.wording import count
@@ -109,6 +110,8 @@ def cmd_describe(args) -> int:
 
 
 def cmd_export_fmu(args) -> int:
+    if problem := missing("fmi", "orchestrator export-fmu"):
+        return fail(problem)
     from components.fmi.exported import ExportError, export_fmu, fmu_summary
     from orchestrator.config.yaml_file import ConfigErrors
     from orchestrator.config.yaml_file import apply_overrides
@@ -130,6 +133,8 @@ def cmd_export_fmu(args) -> int:
 
 
 def cmd_markers(args) -> int:
+    if problem := missing("vision", "orchestrator markers"):
+        return fail(problem)
     from components.errors import ConfigError
     from components.estimators.marker_meshes import write
     try:

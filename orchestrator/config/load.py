@@ -11,6 +11,7 @@ from typing import Any
 from components import registry
 from components.constants import NS_PER_S
 from components.errors import ConfigError
+from components.extras import missing
 from components.schema import implausible_values
 from components.units import duration_text
 from orchestrator.config import groups
@@ -46,6 +47,9 @@ def _viewer(section: dict, where: str, errors: list[str], base: Path) -> ViewerS
         return None
     if section["mode"] == "save" and section["file"] is None:
         errors.append(f"{where}.file: save needs a file name ending in .rrd (e.g. save:run.rrd), got none")
+        return None
+    if section["mode"] != "foxglove" and (problem := missing("view", f"the Rerun viewer ({section['mode']})")):
+        errors.append(f"{where}: {problem}")
         return None
     file = section["file"]
     if section["port"] > 65535:

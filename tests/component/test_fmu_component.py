@@ -13,7 +13,9 @@ from components.constants import NS_PER_S
 from components.errors import ComponentError, ConfigError
 from components.fmi.imported import FMUComponent, build_python_model
 from components.testing.harness import Harness
-from tests.conftest import ROOT
+from tests.conftest import ROOT, needs
+
+pytestmark = needs("fmi", "type fmu")
 
 H_NS = 15_625_000            # 1/64 s: n h is exact in binary, so FMPy's times and Zenorbit's are the same floats
 H_S = H_NS / NS_PER_S

@@ -9,11 +9,12 @@ from __future__ import annotations
 import subprocess
 import sys
 
-from tests.conftest import ROOT
+from tests.conftest import ROOT, needs
 
 PROCESSES = 3
 
 
+@needs("fmi", "a pythonfmu FMU")
 def test_processes_that_ran_a_pythonfmu_fmu_and_dart_exit_cleanly(tmp_path):
     for i in range(PROCESSES):
         run = subprocess.run(

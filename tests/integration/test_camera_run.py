@@ -19,7 +19,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from components.camera.render import EGL_PACKAGES, egl_problem
-from tests.conftest import ROOT, component_processes, orchestrator
+from tests.conftest import ROOT, component_processes, needs, orchestrator
 
 pytestmark = [pytest.mark.integration,
               pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}")]
@@ -90,6 +90,7 @@ def rrd_camera(rrd: Path, entity: str):
     return pinhole, images
 
 
+@needs("view", "the recording's live view")
 def test_a_wrist_camera_records_frames_whose_depth_at_the_grapple_is_the_dynamics_truth(recorded):
     record = recorded
     signals = pandas.read_parquet(record / "signals.parquet")
@@ -126,6 +127,7 @@ def test_a_wrist_camera_records_frames_whose_depth_at_the_grapple_is_the_dynamic
     assert signals["camera.lit"].iloc[-1] in (0.0, 1.0)
 
 
+@needs("view", "the recording's live view")
 def test_a_second_run_records_the_same_frames_bit_for_bit(recorded, tmp_path):
     done = orchestrator("run", recorded / "config.yaml", "--record", tmp_path / "again", timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
@@ -138,6 +140,7 @@ def test_a_second_run_records_the_same_frames_bit_for_bit(recorded, tmp_path):
             assert x["rgb"].max() > 0                      # something lit is in view
 
 
+@needs("view", "the recording's live view")
 def test_the_view_draws_the_frustum_on_the_end_effector_and_the_frames(recorded, tmp_path):
     """`orchestrator view DIR` into an .rrd, read back with Rerun: the camera's pinhole (its K) and
     mount under the ee link's entity, its images on the timeline, each the recorded frame's pixels."""
@@ -161,6 +164,7 @@ def test_the_view_draws_the_frustum_on_the_end_effector_and_the_frames(recorded,
     assert len(live) >= 5 and all(bytes(np.asarray(image[0], dtype=np.uint8)) in recorded_frames for image in live)
 
 
+@needs("view", "the recording's live view")
 def test_the_rosbag2_export_carries_the_frames_their_intrinsics_and_the_mount(recorded, tmp_path):
     """`orchestrator export DIR --rosbag2 OUT`, read back with the independent MCAP reader: every
     frame as sensor_msgs/Image (rgb8 and 32FC1, the recorded bytes), CameraInfo with K and a zero

@@ -22,9 +22,9 @@ import pytest
 
 from components.camera.render import egl_problem
 from components.rotations import log_so3, quat_to_matrix
-from tests.conftest import ROOT, component_processes, orchestrator
+from tests.conftest import ROOT, component_processes, needs, orchestrator
 
-pytestmark = [pytest.mark.integration,
+pytestmark = [pytest.mark.integration, needs("vision", "estimator.fiducial"),
               pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}")]
 CONFIG = ROOT / "configs" / "capture_vision.yaml"
 FRAME_STEPS = 5                     # the estimator's 50 ms in the run's 10 ms steps

@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from orchestrator.plots.recording import figures
-from tests.conftest import ROOT, orchestrator
+from tests.conftest import ROOT, needs, orchestrator
 
 pytestmark = pytest.mark.integration
 
@@ -97,6 +97,7 @@ def test_the_capture_controller_and_the_sensors_plot_what_they_recorded(capture)
     assert np.array_equal(_line(wrench, "wrench", "wrench[5]")[1], columns["wrist_ft.wrench[5]"])
 
 
+@needs("view", "orchestrator view")
 def test_the_sensors_view_shows_measured_beside_true(capture, tmp_path):
     from tests.integration.test_viewer import read_rrd
 

@@ -23,9 +23,9 @@ import yaml
 from components.camera.render import egl_problem
 from components.rotations import log_so3, matrix_to_quat, quat_to_matrix
 from orchestrator.plots.recording import figures
-from tests.conftest import ROOT, component_processes, orchestrator
+from tests.conftest import ROOT, component_processes, needs, orchestrator
 
-pytestmark = [pytest.mark.integration,
+pytestmark = [pytest.mark.integration, needs("vision", "estimator.fiducial"),
               pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}")]
 CAPTURE = ROOT / "configs" / "capture_tumbling_target.yaml"
 KEY = "components.pose_sensor.parameters"
@@ -80,6 +80,7 @@ def config(tmp_path):
     return vision_config(tmp_path / "vision.yaml")
 
 
+@needs("view", "orchestrator view")
 def test_the_estimator_over_a_run_against_the_dynamics_and_again_bit_for_bit(tmp_path):
     """1.2 s, 12 frames, the arm still: every frame the estimator reads gives a pose within 5 mm
     and 0.6 deg of the dynamics' (measured: 0.2-3.1 mm, 0.1-0.4 deg, 4 markers each, 0.88 m away)."""

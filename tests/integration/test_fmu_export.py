@@ -9,18 +9,20 @@ import subprocess
 import sys
 import zipfile
 
-import fmpy
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
 import yaml
-from fmpy.fmi2 import FMU2Slave
-from fmpy.validation import validate_fmu
 
 from components.constants import NS_PER_S
-from components.fmi.exported import element_units, export_fmu
+from components.extras import missing
 from components.testing.harness import Harness
 from tests.conftest import ROOT, orchestrator
+
+fmpy = pytest.importorskip("fmpy", reason=missing("fmi", "testing the FMU export"))
+from fmpy.fmi2 import FMU2Slave  # noqa: E402  (the extra [fmi]: skipped above without it)
+from fmpy.validation import validate_fmu  # noqa: E402
+from components.fmi.exported import element_units, export_fmu  # noqa: E402  (pythonfmu: the same extra)
 
 pytestmark = pytest.mark.integration
 

@@ -9,9 +9,9 @@ import pandas
 import pytest
 import yaml
 
-from tests.conftest import ROOT, component_processes, orchestrator
+from tests.conftest import ROOT, component_processes, needs, orchestrator
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, needs("fmi", "type fmu")]
 
 CONFIG = ROOT / "configs" / "reaction_wheel_fmu.yaml"
 I_BUS_Z, J_WHEEL = 24.4, 0.05   # models/wheel_sat.urdf: bus izz, wheel izz (the FMU's inertia)

@@ -5,9 +5,9 @@ import pandas
 import pytest
 import yaml
 
-from tests.conftest import ROOT, orchestrator
+from tests.conftest import ROOT, needs, orchestrator
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, needs("fmi", "type fmu")]
 
 NATIVE = f"""
 run: {{name: round_trip, epoch: 2022-09-18T12:00:00Z, duration: 0.5 s, step: 10 ms, algorithm: jacobi}}

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import ROOT, orchestrator
+from tests.conftest import ROOT, needs, orchestrator
 
 pytestmark = pytest.mark.integration
 
@@ -164,6 +164,7 @@ def test_bad_view(view, expected):
 
 
 
+@needs("robots", "the Panda of example-robot-data")
 def test_meshes_are_served_to_the_3d_panel():
     """Foxglove's fetchAsset for the Panda's meshes (package:// URIs as its robot_description names
     them) answers the file's bytes, found independently in the installed example-robot-data; any

@@ -13,7 +13,7 @@ import pytest
 
 from components.camera.frames import frame_path, write_frame
 from orchestrator.cli import build_parser
-from tests.conftest import ROOT, orchestrator
+from tests.conftest import ROOT, needs, orchestrator
 
 pytestmark = pytest.mark.integration
 
@@ -48,6 +48,13 @@ INPUTS = {
     "markers": ["markers", "missing.yaml"],
 }
 NO_PATHS = {"ps", "stop", "swap", "types"}   # they take no path
+# command -> the extra it needs (without it, it is refused for that: tests/unit/test_extras.py)
+EXTRAS = {"run --view save:": "view", "view --view save:": "view", "view": "view", "export-fmu -o": "fmi",
+          "export-fmu": "fmi", "markers": "vision"}
+
+
+def cases(commands: dict) -> list:
+    return [pytest.param(case, marks=needs(EXTRAS[case]) if case in EXTRAS else ()) for case in commands]
 
 
 @pytest.fixture(scope="module")
@@ -83,7 +90,7 @@ def test_every_command_with_a_path_is_walked():
     assert commands == covered, f"expected {sorted(commands)} covered, got {sorted(covered)}"
 
 
-@pytest.mark.parametrize("case", list(OUTPUTS))
+@pytest.mark.parametrize("case", cases(OUTPUTS))
 def test_an_unwritable_output_is_refused_naming_it_before_anything_starts(case, recording, tmp_path):
     (tmp_path / "file.txt").write_text("a file, not a directory\n")
     args = [str(a).format(rec=recording, out=UNWRITABLE) for a in OUTPUTS[case]]
@@ -94,7 +101,7 @@ def test_an_unwritable_output_is_refused_naming_it_before_anything_starts(case, 
     assert "started" not in done.stdout + done.stderr and not done.stdout, done.stdout
 
 
-@pytest.mark.parametrize("case", list(INPUTS))
+@pytest.mark.parametrize("case", cases(INPUTS))
 def test_a_missing_input_is_refused_naming_it(case, tmp_path):
     done = orchestrator(*INPUTS[case], cwd=tmp_path, timeout=120)
     named = next(a for a in INPUTS[case] if a.startswith("missing")).split(":")[0]

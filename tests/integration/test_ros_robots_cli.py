@@ -18,7 +18,7 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 
-from tests.conftest import ROOT, orchestrator, part_files, wait_for_step, wait_until
+from tests.conftest import ROOT, needs, orchestrator, part_files, wait_for_step, wait_until
 
 pytestmark = pytest.mark.integration
 
@@ -39,6 +39,8 @@ def panda_config(tmp_path, duration="0.3 s", **run) -> str:
     return path
 
 
+@needs("robots", "the Panda of example-robot-data")
+@needs("view", "the Rerun view (save:)")
 def test_panda_from_example_robot_data_checks_runs_and_is_drawn(tmp_path):
     from tests.integration.test_viewer import read_rrd
 

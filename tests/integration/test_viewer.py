@@ -24,9 +24,10 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 import yaml
-from rerun.chunk import RrdReader
-
+from components.extras import missing
 from tests.conftest import ROOT, component_processes, orchestrator
+
+RrdReader = pytest.importorskip("rerun.chunk", reason=missing("view", "testing the viewer")).RrdReader
 
 pytestmark = pytest.mark.integration
 

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from components.camera.render import egl_problem
+from tests.conftest import needs
 
 pytestmark = pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}")
 
@@ -93,6 +94,7 @@ def test_a_plate_at_a_known_distance_has_its_analytic_depth_and_edges():
     assert np.max(np.abs(depth[inside] - 2.0)) <= 2.0 * np.finfo(np.float32).eps * 2
 
 
+@needs("vision", "OpenCV's projection")
 def test_points_land_where_opencv_projects_them():
     """Quads in general poses seen by a camera turned and moved (rvec, tvec): a quad's image is the
     polygon of its corners' projections, so every pixel centre inside the polygon OpenCV's
@@ -268,6 +270,7 @@ def test_a_meshs_face_colours_are_kept_and_a_plain_shape_takes_the_urdf_colour(t
     assert {tuple(c) for c in plain.colours} == {(0.0, 1.0, 0.0)}
 
 
+@needs("vision", "OpenCV's undistortion")
 def test_a_distorted_camera_sees_what_opencvs_undistortion_says_each_pixel_sees():
     """plumb_bob distortion (barrel, tangential terms, an off-centre principal point): for every
     pixel, OpenCV's cv2.undistortPoints (200 iterations) gives its ray; the ray meets a tilted plate or not,

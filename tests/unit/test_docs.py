@@ -44,7 +44,7 @@ def test_the_readme_gives_what_ci_runs_and_its_links_resolve():
     ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]   # pip install -q -e ".[test]" && ...
     tests = 'pip install -e ".[test]" && ' + ci.split(" && ", 1)[1]
     assert tests in readme, f"the README's test command is not .ci/run's: {tests}"
-    assert 'pip install -e ".[test]" && orchestrator run configs/humanoid_tracking.yaml --record runs/demo' in readme
+    assert 'pip install -e . && orchestrator run configs/humanoid_tracking.yaml --record runs/demo' in readme
     for target in re.findall(r"\]\(([^)\s]+)\)", readme):
         if not re.match(r"\w+://", target):
             assert (ROOT / target.split("#")[0]).exists(), f"README.md links to {target}, which does not exist"

@@ -24,6 +24,7 @@ import yaml
 
 from components.testing.harness import Harness
 from tests import validation
+from tests.conftest import shipped_configs
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIGS, MODELS = ROOT / "configs", ROOT / "models"
@@ -201,10 +202,11 @@ def test_state_handed_over_between_engines_continues(first, second):
 
 def shipped_configs_for_both_engines():
     """(config, dynamics component) of every shipped config whose dynamics suits both engines (rk4)."""
-    for path in sorted(CONFIGS.glob("*.yaml")):
+    for config in shipped_configs():
+        path = config.values[0]
         for name, entry in yaml.safe_load(path.read_text())["components"].items():
             if entry["type"] == "dynamics.dart" and (entry.get("parameters") or {}).get("integrator", "rk4") == "rk4":
-                yield path.name, name
+                yield pytest.param(path.name, name, marks=config.marks)
 
 
 @pytest.mark.parametrize("config, component", list(shipped_configs_for_both_engines()))

@@ -14,7 +14,6 @@ import dataclasses
 import math
 import re
 
-import cv2
 import numpy as np
 import pytest
 
@@ -22,9 +21,11 @@ from components.errors import ConfigError
 from components.estimators.fiducial import FiducialEstimator
 from components.estimators.marker_layout import Marker, read_layout
 from components.rotations import exp_so3, log_so3, quat_to_matrix
-from tests import fiducial_scenes as scenes
+from tests import fiducial_scenes as scenes   # skips this module without the extra [vision]
 from tests import validation
 from components.estimators import marker_meshes as fiducial_markers
+
+cv2 = scenes.cv2
 
 LAYOUT = read_layout(scenes.LAYOUT)
 # the wrist camera's mount in E used throughout: off the tool's axis, tilted towards it

@@ -5,6 +5,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from tests.conftest import needs
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -26,6 +28,7 @@ def test_no_component_module_imports_the_orchestrator():
     assert not offenders, offenders
 
 
+@needs("fmi", "type fmu")
 def test_running_an_fmu_does_not_import_pythonfmu():
     imported = ROOT / "components" / "fmi" / "imported.py"
     assert "components.fmi.exported" not in imported_modules(ast.parse(imported.read_text()))

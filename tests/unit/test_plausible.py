@@ -8,6 +8,7 @@ from components.schema import Float, OneOf, Parameter, Record, Vector, implausib
 from components.units import DEG
 from orchestrator.config.load import load
 from orchestrator.config.yaml_file import ConfigErrors
+from tests.conftest import shipped_configs
 
 ROOT = Path(__file__).resolve().parents[2]
 CAPTURE = ROOT / "configs" / "capture_tumbling_target.yaml"
@@ -87,7 +88,7 @@ def test_a_default_outside_its_range_is_a_declaration_error():
         Parameter("n", "int", plausible=(0, 1))
 
 
-@pytest.mark.parametrize("config", sorted((ROOT / "configs").glob("*.yaml")), ids=lambda p: p.name)
+@pytest.mark.parametrize("config", shipped_configs())
 def test_every_shipped_config_is_clean_under_strict(config):
     assert load(config, full=True, strict=True).notes == []
 

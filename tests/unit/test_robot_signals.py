@@ -8,13 +8,13 @@ from pathlib import Path
 import pytest
 
 from components import registry
-from components.fmi.exported import element_units
 from components.robots.model import joint_units
 from components.robots.urdf import read_urdf
 from components.sdk import resolve_parameters
 from components.signals import BODY_STATE
 from orchestrator.config.yaml_file import ConfigErrors
 from orchestrator.config.load import load
+from tests.conftest import needs
 
 MODELS = Path(__file__).resolve().parents[2] / "models"
 LINK = '<link name="{0}"><inertial><mass value="{1}"/><inertia ixx="1" iyy="1" izz="1"/></inertial></link>'
@@ -49,7 +49,10 @@ def test_joint_units_follow_the_joint_types(tmp_path, kinds, units):
     assert joint_units(read_urdf(robot(tmp_path, *kinds))) == units
 
 
+@needs("fmi", "an FMU's units")
 def test_a_mixed_body_has_one_unit_per_joint_in_fmus_too(tmp_path):
+    from components.fmi.exported import element_units
+
     dynamics = variables("dynamics.dart", {"bodies": {"r": {"urdf": str(robot(tmp_path, "prismatic", "revolute"))}}})
     assert element_units(dynamics["r.q"].unit, 2) == ["m", "rad"]
     assert element_units(dynamics["r.tau"].unit, 2) == ["N", "N*m"]

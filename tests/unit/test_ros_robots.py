@@ -14,9 +14,10 @@ import pytest
 from components.errors import ConfigError
 from components.robots.packages import resolve_uri
 from components.robots.urdf import UrdfError, read_urdf
-from tests.conftest import ROOT
+from tests.conftest import ROOT, needs
 
 PANDA_BUS = ROOT / "models" / "ros" / "panda_on_bus.urdf.xacro"
+needs_robots = needs("robots", "the Panda of example-robot-data")
 
 
 def urdf(tmp_path: Path, body: str, name: str = "robot.urdf") -> Path:
@@ -82,6 +83,7 @@ def test_missing_mesh_file_in_a_found_package(tmp_path):
         read_urdf(mesh_urdf(tmp_path, "package://my_robot/meshes/gone.dae"), {"my_robot": str(package)})
 
 
+@needs_robots
 def test_installed_python_package_and_xacro_wrapper():
     model = read_urdf(PANDA_BUS)           # $(find example-robot-data) and package:// through the wheel
     assert model.root == "bus" and "panda_hand" in model.link_names
@@ -191,6 +193,7 @@ def test_waypoint_time_is_described_as_absolute():
 
 # ---------------------------------------------------------------- mimic joints in DART and Pinocchio
 
+@needs_robots
 @pytest.mark.parametrize("limits", [False, True])
 def test_mimic_joint_kept_and_momentum_conserved_rk4(limits):
     from components.dynamics.world import BodySpec, OrbitalWorld
@@ -212,6 +215,7 @@ def test_mimic_joint_kept_and_momentum_conserved_rk4(limits):
     assert np.linalg.norm(world.momentum("sat") - h0) < 1e-11 * np.linalg.norm(h0)
 
 
+@needs_robots
 def test_controller_model_with_a_mimic_finger_matches_the_dynamics():
     """M* qdd + C* = tau of the controller's Pinocchio model (mimic applied to M, c, J) against
     DART's forward dynamics with the mimic constraint: equal to rounding (0.15 rad/s^2 off when
@@ -239,6 +243,7 @@ def test_controller_model_with_a_mimic_finger_matches_the_dynamics():
         FreeFloatingArm(model, model.movable_joints, joints + ["panda_finger_joint1"], "panda_hand_tcp")
 
 
+@needs_robots
 def test_dae_visuals_become_triangles():
     from components.viewer.robot import mesh_arrays, read_geometry
 

@@ -4,12 +4,14 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import pytest
-import rerun as rr
-from rerun.chunk import RrdReader
 
 from components.constants import NS_PER_S
+from components.extras import missing
 from components.viewer.robot import Kinematics, read_geometry
 from components.viewer.scene import SceneLogger, parse_columns
+
+rr = pytest.importorskip("rerun", reason=missing("view", "testing the viewer"))
+RrdReader = pytest.importorskip("rerun.chunk").RrdReader
 
 ROOT = Path(__file__).resolve().parents[2]
 URDF = ROOT / "models" / "humanoid_torso.urdf"

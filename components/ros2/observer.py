@@ -176,7 +176,12 @@ class RosPublishers:
             self._put(topic, data)
 
     def link_back(self) -> None:
-        """The link came back: the latched topics go again (:meth:`resend_latched`)."""
+        """The link came back: the volatile publishers are declared again, the latched topics go
+        again (:meth:`resend_latched`)."""
+        for publisher in self.publishers.values():
+            redeclare = getattr(publisher, "declare_again", None)   # rmw_zenoh's; rclpy's child has its own link
+            if redeclare is not None:
+                redeclare()
         self.resend |= set(self.latched)
 
     def resend_latched(self) -> None:

@@ -172,7 +172,8 @@ class Publisher:
         self.gid = gid_of(token)
         self.sequence = 0
         congestion = zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP
-        options = dict(congestion_control=congestion, reliability=zenoh.Reliability.RELIABLE)
+        options = self._options = dict(congestion_control=congestion, reliability=zenoh.Reliability.RELIABLE)
+        self._session = session
         if latched:   # late joiners get the cache through their AdvancedSubscriber's history query
             self._publisher = zenoh.ext.declare_advanced_publisher(
                 session, key, cache=zenoh.ext.CacheConfig(depth), publisher_detection=True,
@@ -181,6 +182,19 @@ class Publisher:
         else:
             self._publisher = session.declare_publisher(key, **options)
         self._token = session.liveliness().declare_token(token)
+
+    def declare_again(self) -> None:
+        """After the link to the router came back: a volatile publisher's declaration anew, so that
+        its session asks again which subscribers match (seen under load: a publisher whose matching
+        state was not renewed across a router restart sent nothing more). Its token, gid and
+        sequence numbers stay; a latched one keeps its cache (it is sent again anyway)."""
+        if self.latched:
+            return
+        old, self._publisher = self._publisher, self._session.declare_publisher(self.key, **self._options)
+        try:
+            old.undeclare()
+        except Exception:   # the session may be closing
+            pass
 
     def has_subscribers(self) -> bool:
         """Whether a ROS 2 subscription to this topic and type is known: its liveliness token (MS),

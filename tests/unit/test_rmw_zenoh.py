@@ -216,6 +216,53 @@ def test_a_subscriber_gets_the_payload_and_attachment_and_a_latched_one_the_cach
         a.close()
 
 
+def test_a_publisher_declared_again_keeps_its_gid_and_numbers_on():
+    """declare_again (after a router restart): the next message is numbered on from the last, with
+    the same GID, and arrives; the old declaration is gone (one publisher per key on the link)."""
+    import queue
+    import socket
+
+    from components import bus
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        endpoint = f"tcp/127.0.0.1:{s.getsockname()[1]}"
+    a = bus.open_session(listen=[endpoint])
+    b = bus.open_session(connect=[endpoint], connect_timeout_s=10)
+    try:
+        talker, listener = rz.Node(a, 0, "talker"), rz.Node(b, 0, "listener")
+        String = TYPESTORE.types["std_msgs/msg/String"]
+        got: queue.Queue = queue.Queue()
+        listener.subscriber("/chatter", "std_msgs/msg/String", TYPESTORE, lambda data, info: got.put(info))
+        publisher = talker.publisher("/chatter", "std_msgs/msg/String", TYPESTORE)
+        message = TYPESTORE.serialize_cdr(String(data="x"), "std_msgs/msg/String")
+        for i in range(1, 201):   # until the subscription's declaration has reached the publisher
+            publisher.put(message, i)
+            try:
+                first = got.get(timeout=0.05)
+                break
+            except queue.Empty:
+                continue
+        declared = publisher._publisher
+        publisher.declare_again()
+        assert publisher._publisher is not declared
+        before = publisher.sequence
+        for i in range(200):   # the new declaration's matching, as after a reconnect
+            publisher.put(message, 7)
+            try:
+                sequence, timestamp, gid = got.get(timeout=0.05)
+            except queue.Empty:
+                continue
+            if timestamp == 7:
+                break
+        assert sequence > before and gid == first[2] == publisher.gid
+        talker.close()
+        listener.close()
+    finally:
+        b.close()
+        a.close()
+
+
 def test_a_publisher_knows_a_subscription_by_its_token():
     """has_subscribers: a subscription's liveliness token (MS) on the publisher's topic and type,
     from another session; not one on another topic; gone when the subscription is."""

@@ -29,3 +29,6 @@ EARTH_RATE = 7.292115e-5
 
 NS_PER_S = 1e9
 """Nanoseconds per second: seconds = t_ns / NS_PER_S."""
+
+MAX_IMAGE_SIZE = 8192
+"""The largest image width or height, pixels, a camera renders or an estimator takes."""

@@ -177,3 +177,13 @@ def source_of(run: RecordedRun, component: str, variable: str) -> tuple[str, str
         return None
     owner, _, name = source.partition(".")
     return owner, name
+
+
+def measurement_rows(valid: np.ndarray, t_measured: np.ndarray) -> list[int]:
+    """Rows where a new measurement comes out: valid, and t_measured unlike the previous one's."""
+    rows, last = [], None
+    for row, (ok, t) in enumerate(zip(valid, t_measured)):
+        if ok and t != last:
+            rows.append(row)
+            last = t
+    return rows

@@ -17,15 +17,14 @@ import numpy as np
 
 from components.camera.lens import inversion_problem
 from components.camera.render import EGL_PACKAGES, egl_problem
-from components.constants import NS_PER_S
+from components.constants import MAX_IMAGE_SIZE, NS_PER_S
 from components.errors import ConfigError
 from components.robots.model import read_model
 from components.schema import Bool, Float, Int, MapOf, Str, Vector
 from components.sdk import Parameter, Variable
-from components.sensors.noise import NormalStream, normalized
+from components.noise import NormalStream, normalized
 from components.signals import body_signals
 
-MAX_SIZE = 8192
 ECLIPSE_MODELS = ("cylindrical", "conical", "none")
 
 CAMERA_PARAMETERS = (
@@ -35,8 +34,8 @@ CAMERA_PARAMETERS = (
     Parameter("link", Str(), description="the link of that body the camera is fixed to"),
     Parameter("position", Vector(3, "m", plausible=(-100.0, 100.0)), description="camera origin in the link frame"),
     Parameter("orientation", Vector(4), description="q_link_camera [x, y, z, w]; camera axes: z forward, x right, y down"),
-    Parameter("width", Int(minimum=1), description=f"image width (pixels, at most {MAX_SIZE})"),
-    Parameter("height", Int(minimum=1), description=f"image height (pixels, at most {MAX_SIZE})"),
+    Parameter("width", Int(minimum=1), description=f"image width (pixels, at most {MAX_IMAGE_SIZE})"),
+    Parameter("height", Int(minimum=1), description=f"image height (pixels, at most {MAX_IMAGE_SIZE})"),
     Parameter("fx", Float(positive=True), description="focal length along x (pixels)"),
     Parameter("fy", Float(positive=True), description="focal length along y (pixels)"),
     Parameter("cx", Float(), description="principal point x (pixels; pixel centres at integers, OpenCV's convention)"),
@@ -91,8 +90,8 @@ def check_camera(camera: Mapping[str, Any], run: Mapping[str, Any]) -> None:
     except ValueError as e:
         raise ConfigError("orientation", str(e)) from None
     for key in ("width", "height"):
-        if camera[key] > MAX_SIZE:
-            raise ConfigError(key, f"expected 1 to {MAX_SIZE} pixels, got {camera[key]}")
+        if camera[key] > MAX_IMAGE_SIZE:
+            raise ConfigError(key, f"expected 1 to {MAX_IMAGE_SIZE} pixels, got {camera[key]}")
     for key, size in (("cx", camera["width"]), ("cy", camera["height"])):
         if not -0.5 <= camera[key] <= size - 0.5:
             raise ConfigError(key, f"expected a principal point within the image (-0.5 to {size - 0.5:g} pixels "

@@ -15,7 +15,7 @@ from components.estimators import ros as fiducial_ros
 from components.robots.model import read_model
 from components.robots.urdf import UrdfModel
 from components.rotations import continuous, rpy_to_matrix
-from components.camera.camera import MAX_SIZE
+from components.constants import MAX_IMAGE_SIZE
 from components.schema import Float, Int, Str
 from components.sdk import Component, Parameter, Variable
 
@@ -98,8 +98,8 @@ class FiducialComponent(Component):
         Parameter("urdf", Str(hint="a URDF file path"), description="that body's URDF (relative to the config)"),
         Parameter("link", Str(), description="the link of that body the camera is fixed to (the camera's link)"),
         Parameter("end_effector", Str(), description="the link whose frame E the pose is in: link, or one fixed to it"),
-        Parameter("width", Int(minimum=1), description=f"the camera's image width (pixels, at most {MAX_SIZE})"),
-        Parameter("height", Int(minimum=1), description=f"the camera's image height (pixels, at most {MAX_SIZE})"),
+        Parameter("width", Int(minimum=1), description=f"the camera's image width (pixels, at most {MAX_IMAGE_SIZE})"),
+        Parameter("height", Int(minimum=1), description=f"the camera's image height (pixels, at most {MAX_IMAGE_SIZE})"),
         Parameter("markers", Str(hint="a marker layout (YAML) file path"),
                   description="the marker layout: dictionary, link, markers' ids, sizes and poses "
                               "(relative to the config)"),
@@ -136,8 +136,8 @@ class FiducialComponent(Component):
     @classmethod
     def validate(cls, params):
         for key in ("width", "height"):
-            if params[key] > MAX_SIZE:
-                raise ConfigError(key, f"expected 1 to {MAX_SIZE} pixels, got {params[key]}")
+            if params[key] > MAX_IMAGE_SIZE:
+                raise ConfigError(key, f"expected 1 to {MAX_IMAGE_SIZE} pixels, got {params[key]}")
         _link_in_ee(params)
         layout = _layout(params)
         if params["min_markers"] > len(layout.markers):

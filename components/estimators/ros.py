@@ -5,8 +5,7 @@ link frames; the component's own name when its camera's body is not connected to
 from __future__ import annotations
 
 from components.estimators.plots import chaser_dynamics
-from components.rosbag import RosContext, RosExport, RosTopic, link_frame
-from components.sensors.ros import measurement_rows
+from components.rosbag import RosContext, RosExport, RosTopic, link_frame, measurement_rows
 
 
 def _pose(context: RosContext, c: str) -> list[RosTopic]:

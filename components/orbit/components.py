@@ -39,7 +39,7 @@ ORBIT_OUTPUTS = tuple(orbit_signals("output"))
 
 def _epoch(params: Mapping[str, Any]) -> tuple[float, float]:
     """The run epoch as a UTC two-part Julian date; ConfigError if missing or unreadable."""
-    from components.orbit import timescales
+    from components import timescales
 
     value = params.get("_epoch")
     if value is None:
@@ -106,7 +106,7 @@ ELEMENTS = (
 
 def _check_elements(params) -> None:
     """ConfigError unless the elements are an ellipse above the surface with one of mean_anomaly, time_of_perigee."""
-    from components.orbit.timescales import parse_utc
+    from components.timescales import parse_utc
 
     try:
         check_elements(params["semi_major_axis"], params["eccentricity"], params["inclination"])
@@ -126,7 +126,7 @@ def _check_elements(params) -> None:
 
 def _mean_anomaly(params, mean_rate: float) -> float:
     """The mean anomaly at run.epoch (rad): given, or from time_of_perigee at ``mean_rate`` (rad/s)."""
-    from components.orbit import timescales
+    from components import timescales
 
     if params.get("time_of_perigee") is not None:
         return mean_rate * timescales.seconds_between(timescales.parse_utc(params["time_of_perigee"]), _epoch(params))
@@ -396,7 +396,7 @@ class SGP4Component(_OrbitComponent):
             raise ConfigError(key, f"cannot propagate to run.epoch {params['_epoch']}: {e}") from None
 
     def __init__(self, params):
-        from components.orbit import timescales
+        from components import timescales
         from components.orbit.tle import SGP4Propagator
 
         super().__init__(params)
@@ -406,7 +406,7 @@ class SGP4Component(_OrbitComponent):
 
     def _utc(self, t_s: float) -> tuple[tuple[float, float], tuple[float, float]]:
         """(UTC, TT) two-part Julian dates t_s seconds after run.epoch (leap seconds counted)."""
-        from components.orbit import timescales
+        from components import timescales
 
         tai = (self.epoch_tai[0], self.epoch_tai[1] + t_s / timescales.SECONDS_PER_DAY)
         return timescales.tai_to_utc(tai), timescales.tai_to_tt(tai)

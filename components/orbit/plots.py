@@ -11,7 +11,7 @@ def track(run: RecordedRun, c: str) -> dict:
     import erfa
 
     from components.constants import R_EARTH
-    from components.orbit import timescales
+    from components import timescales
 
     t = run.time
     r, v = run.vector(f"{c}.r_eci", 3), run.vector(f"{c}.v_eci", 3)

@@ -1,6 +1,6 @@
 """Sensor components: truth in, measurement out, with declared units, their own rate and seeded
 noise that replays bit for bit (:mod:`components.sensors.components`; the shared noise models,
-the seeded stream and the latency buffer are in :mod:`components.sensors.noise`).
+the seeded stream and the latency buffer are in :mod:`components.noise`).
 
 - ``sensor.imu``: angular rate and specific force, body axes, + bias (constant or a random walk)
   + white noise.

@@ -2,7 +2,7 @@
 ``sensor.magnetometer``.
 
 Each maps true quantities (inputs, from the dynamics or a frame transform) to measurements
-(outputs) with the noise models of :mod:`components.sensors.noise`.
+(outputs) with the noise models of :mod:`components.noise`.
 
 Rate: one sample per step of the component, its own ``step:`` in the config (an integer multiple
 of run.step; its outputs hold in between). ``do_step(t, h)`` samples the inputs it holds (the
@@ -33,7 +33,7 @@ from components.sdk import Component, Parameter, Variable
 from components.sensors.plots import measured_against_true
 from components.sensors import ros as sensor_ros
 from components.sensors.view import SensorView
-from components.sensors.noise import (BiasRandomWalk, LatencyBuffer, NormalStream, latency_samples, normalized,
+from components.noise import (BiasRandomWalk, LatencyBuffer, NormalStream, latency_samples, normalized,
                                       per_axis, perturb_quaternion, white)
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from components.rosbag import RosContext, RosExport, RosTopic
+from components.rosbag import RosContext, RosExport, RosTopic, measurement_rows
 
 
 def _static_mount(context: RosContext, sensor: str, true_input: str) -> list[RosTopic]:
@@ -51,16 +51,6 @@ def _wrench(context: RosContext, sensor: str):
                                 wrench=Wrench(force=context.vector3(wrench[row, :3]),
                                               torque=context.vector3(wrench[row, 3:]))))
         for row, ns in enumerate(context.stamps)])]
-
-
-def measurement_rows(valid: np.ndarray, t_measured: np.ndarray) -> list[int]:
-    """Rows where a new measurement comes out: valid, and t_measured unlike the previous one's."""
-    rows, last = [], None
-    for row, (ok, t) in enumerate(zip(valid, t_measured)):
-        if ok and t != last:
-            rows.append(row)
-            last = t
-    return rows
 
 
 def _relative_pose(context: RosContext, sensor: str):

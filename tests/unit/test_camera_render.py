@@ -193,7 +193,7 @@ def test_the_sun_is_where_the_astronomical_almanac_puts_it():
     equinox of date: turned into GCRF with the IAU 2006 precession matrix), over four seasons."""
     import erfa
     from components.camera.sun import sun_direction_eci
-    from components.orbit.timescales import parse_utc, utc_to_tt
+    from components.timescales import parse_utc, utc_to_tt
     for date in ("2022-09-18T12:00:00Z", "2024-03-20T03:06:00Z", "2025-06-21T00:00:00Z", "2030-12-25T18:30:00Z"):
         tt = utc_to_tt(parse_utc(date))
         n = tt[0] + tt[1] - 2451545.0

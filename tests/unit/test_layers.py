@@ -118,3 +118,33 @@ def test_the_private_import_check_finds_one():
         "planted.py:3: from components.units import _unit",
         "planted.py:5: from orchestrator.run import _hidden",
         "planted.py:6: from . import _sibling"]
+
+
+# the component domains: each keeps to itself. What several of them use lives below them: the
+# modules at components/ (time scales, noise, rotations, constants, the ROS export's helpers) and
+# the shared packages (space: the environment's models; robots: URDFs; viewer: the Rerun toolkit).
+DOMAINS = ("orbit", "dynamics", "controller", "sensors", "camera", "estimators")
+SHARED_BELOW_THE_DOMAINS = ("space", "robots")
+
+
+def _package_imports(package: str) -> list[tuple[str, str]]:
+    """(file, imported components.<X> package) of every import in components/<package>/."""
+    found = []
+    for path in sorted((ROOT / "components" / package).rglob("*.py")):
+        for name in imported_modules(ast.parse(path.read_text(), str(path))):
+            parts = name.split(".")
+            if parts[0] == "components" and len(parts) > 1 and (ROOT / "components" / parts[1]).is_dir():
+                found.append((str(path.relative_to(ROOT)), parts[1]))
+    return found
+
+
+def test_no_component_domain_imports_another():
+    offenders = [f"{path}: components.{other}" for domain in DOMAINS
+                 for path, other in _package_imports(domain) if other in DOMAINS and other != domain]
+    assert not offenders, offenders
+
+
+def test_the_shared_packages_import_no_component_domain():
+    offenders = [f"{path}: components.{other}" for package in SHARED_BELOW_THE_DOMAINS
+                 for path, other in _package_imports(package) if other in DOMAINS]
+    assert not offenders, offenders

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import sgp4
 
-from components.orbit import timescales
+from components import timescales
 from components.orbit.tle import (SGP4Propagator, TLEFormatError, check_tle, read_tle_file, teme_to_gcrf_matrix,
                                   tle_checksum)
 from tests import validation

@@ -1,4 +1,4 @@
-"""The sensors' noise models (components/sensors/noise.py) against independent references:
+"""The sensors' noise models (components/noise.py) against independent references:
 numpy's own generator for the seeded stream, the rotation-matrix helpers of components.rotations
 for the quaternion product and exponential, closed forms for the random walk and the latency."""
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 from components.bus import decode_state, encode_state
 from components.errors import ConfigError
 from components.rotations import exp_so3, matrix_to_quat, quat_to_matrix
-from components.sensors.noise import (BiasRandomWalk, LatencyBuffer, NormalStream, latency_samples, normalized,
+from components.noise import (BiasRandomWalk, LatencyBuffer, NormalStream, latency_samples, normalized,
                                       per_axis, perturb_quaternion, quat_exp, quat_multiply, white)
 
 MS = 1_000_000

@@ -7,7 +7,7 @@ import math
 import erfa
 import numpy as np
 
-from components.orbit import timescales
+from components import timescales
 from components.space import earth
 from tests import validation
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.orbit.timescales import parse_utc
+from components.timescales import parse_utc
 from components.space.earth import EarthRotation, gcrf_to_itrf
 from components.space.geomagnetic import (BASILISK_DIPOLE, GeomagneticField, WorldMagneticModel, decimal_year,
                                           dipole_field_ecef, wmm_coefficients)

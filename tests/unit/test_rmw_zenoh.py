@@ -172,126 +172,110 @@ def test_a_node_declares_its_tokens_and_undeclares_them(tmp_path):
         session.close()
 
 
-def test_a_subscriber_gets_the_payload_and_attachment_and_a_latched_one_the_cache():
+@pytest.fixture
+def linked():
+    """Two sessions linked over the loopback (one listens, one connects): two nodes' processes."""
+    import socket
+
+    from components import bus
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        endpoint = f"tcp/127.0.0.1:{s.getsockname()[1]}"
+    a = bus.open_session(listen=[endpoint])
+    b = bus.open_session(connect=[endpoint], connect_timeout_s=10)
+    yield a, b
+    b.close()
+    a.close()
+
+
+def test_a_subscriber_gets_the_payload_and_attachment_and_a_latched_one_the_cache(linked):
     """Two nodes on two linked sessions: a subscription gets each CDR payload with (sequence,
     timestamp, the publisher's GID); a TRANSIENT_LOCAL subscription made after the message was
     published gets it from the publisher's cache."""
     import queue
-    import socket
 
-    from components import bus
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        endpoint = f"tcp/127.0.0.1:{s.getsockname()[1]}"
-    a = bus.open_session(listen=[endpoint])
-    b = bus.open_session(connect=[endpoint], connect_timeout_s=10)
-    try:
-        talker, listener = rz.Node(a, 0, "talker"), rz.Node(b, 0, "listener")
-        String = TYPESTORE.types["std_msgs/msg/String"]
-        got: queue.Queue = queue.Queue()
-        listener.subscriber("/chatter", "std_msgs/msg/String", TYPESTORE, lambda data, info: got.put((data, info)))
-        publisher = talker.publisher("/chatter", "std_msgs/msg/String", TYPESTORE)
-        static = talker.publisher("/latched", "std_msgs/msg/String", TYPESTORE, latched=True)
-        static.put(TYPESTORE.serialize_cdr(String(data="kept"), "std_msgs/msg/String"), 5)
-        for i in range(1, 201):   # until the subscription's declaration has reached the publisher
-            publisher.put(TYPESTORE.serialize_cdr(String(data=f"hello {i}"), "std_msgs/msg/String"), 1000 + i)
-            try:
-                data, (sequence, timestamp, gid) = got.get(timeout=0.05)
-                break
-            except queue.Empty:
-                continue
-        assert TYPESTORE.deserialize_cdr(data, "std_msgs/msg/String").data == f"hello {sequence}"
-        assert timestamp == 1000 + sequence and gid == publisher.gid
-        late: queue.Queue = queue.Queue()
-        listener.subscriber("/latched", "std_msgs/msg/String", TYPESTORE, lambda data, info: late.put((data, info)),
-                            latched=True)
-        data, (sequence, timestamp, gid) = late.get(timeout=10)
-        assert TYPESTORE.deserialize_cdr(data, "std_msgs/msg/String").data == "kept"
-        assert (sequence, timestamp, gid) == (1, 5, static.gid)
-        talker.close()
-        listener.close()
-    finally:
-        b.close()
-        a.close()
+    a, b = linked
+    talker, listener = rz.Node(a, 0, "talker"), rz.Node(b, 0, "listener")
+    String = TYPESTORE.types["std_msgs/msg/String"]
+    got: queue.Queue = queue.Queue()
+    listener.subscriber("/chatter", "std_msgs/msg/String", TYPESTORE, lambda data, info: got.put((data, info)))
+    publisher = talker.publisher("/chatter", "std_msgs/msg/String", TYPESTORE)
+    static = talker.publisher("/latched", "std_msgs/msg/String", TYPESTORE, latched=True)
+    static.put(TYPESTORE.serialize_cdr(String(data="kept"), "std_msgs/msg/String"), 5)
+    for i in range(1, 201):   # until the subscription's declaration has reached the publisher
+        publisher.put(TYPESTORE.serialize_cdr(String(data=f"hello {i}"), "std_msgs/msg/String"), 1000 + i)
+        try:
+            data, (sequence, timestamp, gid) = got.get(timeout=0.05)
+            break
+        except queue.Empty:
+            continue
+    assert TYPESTORE.deserialize_cdr(data, "std_msgs/msg/String").data == f"hello {sequence}"
+    assert timestamp == 1000 + sequence and gid == publisher.gid
+    late: queue.Queue = queue.Queue()
+    listener.subscriber("/latched", "std_msgs/msg/String", TYPESTORE, lambda data, info: late.put((data, info)),
+                        latched=True)
+    data, (sequence, timestamp, gid) = late.get(timeout=10)
+    assert TYPESTORE.deserialize_cdr(data, "std_msgs/msg/String").data == "kept"
+    assert (sequence, timestamp, gid) == (1, 5, static.gid)
+    talker.close()
+    listener.close()
 
 
-def test_a_publisher_declared_again_keeps_its_gid_and_numbers_on():
+def test_a_publisher_declared_again_keeps_its_gid_and_numbers_on(linked):
     """declare_again (after a router restart): the next message is numbered on from the last, with
-    the same GID, and arrives; the old declaration is gone (one publisher per key on the link)."""
+    the same GID, and arrives on the new declaration."""
     import queue
-    import socket
 
-    from components import bus
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        endpoint = f"tcp/127.0.0.1:{s.getsockname()[1]}"
-    a = bus.open_session(listen=[endpoint])
-    b = bus.open_session(connect=[endpoint], connect_timeout_s=10)
-    try:
-        talker, listener = rz.Node(a, 0, "talker"), rz.Node(b, 0, "listener")
-        String = TYPESTORE.types["std_msgs/msg/String"]
-        got: queue.Queue = queue.Queue()
-        listener.subscriber("/chatter", "std_msgs/msg/String", TYPESTORE, lambda data, info: got.put(info))
-        publisher = talker.publisher("/chatter", "std_msgs/msg/String", TYPESTORE)
-        message = TYPESTORE.serialize_cdr(String(data="x"), "std_msgs/msg/String")
-        for i in range(1, 201):   # until the subscription's declaration has reached the publisher
-            publisher.put(message, i)
-            try:
-                first = got.get(timeout=0.05)
-                break
-            except queue.Empty:
-                continue
-        declared = publisher._publisher
-        publisher.declare_again()
-        assert publisher._publisher is not declared
-        before = publisher.sequence
-        for i in range(200):   # the new declaration's matching, as after a reconnect
-            publisher.put(message, 7)
-            try:
-                sequence, timestamp, gid = got.get(timeout=0.05)
-            except queue.Empty:
-                continue
-            if timestamp == 7:
-                break
-        assert sequence > before and gid == first[2] == publisher.gid
-        talker.close()
-        listener.close()
-    finally:
-        b.close()
-        a.close()
+    a, b = linked
+    talker, listener = rz.Node(a, 0, "talker"), rz.Node(b, 0, "listener")
+    String = TYPESTORE.types["std_msgs/msg/String"]
+    got: queue.Queue = queue.Queue()
+    listener.subscriber("/chatter", "std_msgs/msg/String", TYPESTORE, lambda data, info: got.put(info))
+    publisher = talker.publisher("/chatter", "std_msgs/msg/String", TYPESTORE)
+    message = TYPESTORE.serialize_cdr(String(data="x"), "std_msgs/msg/String")
+    for i in range(1, 201):   # until the subscription's declaration has reached the publisher
+        publisher.put(message, i)
+        try:
+            first = got.get(timeout=0.05)
+            break
+        except queue.Empty:
+            continue
+    declared = publisher._publisher
+    publisher.declare_again()
+    assert publisher._publisher is not declared
+    before = publisher.sequence
+    for i in range(200):   # the new declaration's matching, as after a reconnect
+        publisher.put(message, 7)
+        try:
+            sequence, timestamp, gid = got.get(timeout=0.05)
+        except queue.Empty:
+            continue
+        if timestamp == 7:
+            break
+    assert sequence > before and gid == first[2] == publisher.gid
+    talker.close()
+    listener.close()
 
 
-def test_a_publisher_knows_a_subscription_by_its_token():
+def test_a_publisher_knows_a_subscription_by_its_token(linked):
     """has_subscribers: a subscription's liveliness token (MS) on the publisher's topic and type,
     from another session; not one on another topic; gone when the subscription is."""
-    import socket
-
-    from components import bus
     from tests.conftest import wait_until
 
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        endpoint = f"tcp/127.0.0.1:{s.getsockname()[1]}"
-    a = bus.open_session(listen=[endpoint])
-    b = bus.open_session(connect=[endpoint], connect_timeout_s=10)
-    try:
-        talker, listener = rz.Node(a, 0, "talker"), rz.Node(b, 0, "listener")
-        static = talker.publisher("/latched", "std_msgs/msg/String", TYPESTORE, latched=True)
-        assert not static.has_subscribers()
-        other = listener.subscriber("/other", "std_msgs/msg/String", TYPESTORE, lambda data, info: None)
-        wait_until(lambda: any("/MS/" in str(r.ok.key_expr) for r in a.liveliness().get("@ros2_lv/0/**")),
-                   "the other subscription's token", 10)
-        assert not static.has_subscribers()
-        subscription = listener.subscriber("/latched", "std_msgs/msg/String", TYPESTORE, lambda data, info: None,
-                                           latched=True)
-        wait_until(static.has_subscribers, "the subscription known", 10)
-        subscription.close()
-        wait_until(lambda: not static.has_subscribers(), "the subscription gone", 10)
-        other.close()
-        talker.close()
-        listener.close()
-    finally:
-        b.close()
-        a.close()
+    a, b = linked
+    talker, listener = rz.Node(a, 0, "talker"), rz.Node(b, 0, "listener")
+    static = talker.publisher("/latched", "std_msgs/msg/String", TYPESTORE, latched=True)
+    assert not static.has_subscribers()
+    other = listener.subscriber("/other", "std_msgs/msg/String", TYPESTORE, lambda data, info: None)
+    wait_until(lambda: any("/MS/" in str(r.ok.key_expr) for r in a.liveliness().get("@ros2_lv/0/**")),
+               "the other subscription's token", 10)
+    assert not static.has_subscribers()
+    subscription = listener.subscriber("/latched", "std_msgs/msg/String", TYPESTORE, lambda data, info: None,
+                                       latched=True)
+    wait_until(static.has_subscribers, "the subscription known", 10)
+    subscription.close()
+    wait_until(lambda: not static.has_subscribers(), "the subscription gone", 10)
+    other.close()
+    talker.close()
+    listener.close()

@@ -11,6 +11,7 @@ dependency of Zenorbit). The spec (JSON on stdin, SI units, ECI = Basilisk's N f
 Basilisk steps its processes on a thread of its own, and the wall time) and ``q`` (q_N_B
 [x, y, z, w] at ``t_ns`` = 0, sample_every steps, ... of a run with it).
 """
+
 from __future__ import annotations
 
 import json
@@ -35,7 +36,7 @@ def spacecraft_sim(spec: dict, record: bool):
     x, y, z, w = spec["q"]
     if w < 0.0:
         x, y, z, w = -x, -y, -z, -w
-    body.hub.sigma_BNInit = [[x / (1.0 + w)], [y / (1.0 + w)], [z / (1.0 + w)]]   # MRP of q_N_B
+    body.hub.sigma_BNInit = [[x / (1.0 + w)], [y / (1.0 + w)], [z / (1.0 + w)]]  # MRP of q_N_B
     body.hub.omega_BN_BInit = [[c] for c in spec["w"]]
     body.hub.r_CN_NInit = [[c] for c in spec["r"]]
     body.hub.v_CN_NInit = [[c] for c in spec["v"]]
@@ -56,7 +57,7 @@ def spacecraft_sim(spec: dict, record: bool):
         recorder = body.scStateOutMsg.recorder(spec["step_ns"] * spec["sample_every"])
         sim.AddModelToTask("step", recorder)
     sim.InitializeSimulation()
-    sim._keep = (body, gravity, earth, gradient, integrator)   # SWIG objects live as long as the simulation
+    sim._keep = (body, gravity, earth, gradient, integrator)  # SWIG objects live as long as the simulation
     return sim, recorder
 
 
@@ -88,8 +89,9 @@ def main() -> None:
         sim.ExecuteSimulation()
         cpu_ns.append((time.process_time_ns() - cpu) / n)
         wall_ns.append((time.perf_counter_ns() - wall) / n)
-    json.dump({"version": version("bsk"), "cpu_ns": cpu_ns, "wall_ns": wall_ns, "q": attitude, "t_ns": times},
-              sys.stdout)
+    json.dump(
+        {"version": version("bsk"), "cpu_ns": cpu_ns, "wall_ns": wall_ns, "q": attitude, "t_ns": times}, sys.stdout
+    )
 
 
 if __name__ == "__main__":

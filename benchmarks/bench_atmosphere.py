@@ -5,6 +5,7 @@ gravity gradient on, 1 s steps, on each engine: drag off, drag with the exponent
 default), drag with NRLMSISE-00 (one model call per step). Prints the best of 7 batches of 300
 steps, us per step (the machine's other load only adds).
 """
+
 from __future__ import annotations
 
 import math
@@ -39,7 +40,7 @@ def per_step(engine: str, drag: bool, atmosphere) -> float:
             world.orbit_time = float(k)
             world.step(1.0)
             k += 1
-        if batch:                                   # (the first batch warms up)
+        if batch:  # (the first batch warms up)
             best = min(best, (time.perf_counter() - start) / 300)
     return best * 1e6
 
@@ -49,8 +50,10 @@ def main() -> None:
         off = per_step(engine, False, None)
         table = per_step(engine, True, None)
         msis = per_step(engine, True, LocalExponential(Nrlmsise00(150.0, 150.0, 4.0), "2026-03-20T08:00:00Z"))
-        print(f"{engine}: drag off {off:.0f} us/step, exponential table {table:.0f}, NRLMSISE-00 {msis:.0f} "
-              f"(+{msis - table:.0f})")
+        print(
+            f"{engine}: drag off {off:.0f} us/step, exponential table {table:.0f}, NRLMSISE-00 {msis:.0f} "
+            f"(+{msis - table:.0f})"
+        )
 
 
 if __name__ == "__main__":

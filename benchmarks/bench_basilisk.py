@@ -24,6 +24,7 @@ too). Attitude: the largest angle between the two bodies' attitudes over the run
 ``SAMPLE`` steps. A benchmark, never run by the tests: the numbers depend on the machine, which
 it names, with its load average before and after.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -48,8 +49,8 @@ from components.testing.harness import Harness  # noqa: E402
 
 CONFIG = ROOT / "configs" / "gravity_gradient_libration.yaml"
 BASILISK = ROOT / "benchmarks" / "basilisk_rigid_body.py"
-BATCH = 100     # steps per timed batch
-SAMPLE = 60     # steps between compared attitudes
+BATCH = 100  # steps per timed batch
+SAMPLE = 60  # steps between compared attitudes
 
 
 def machine() -> str:
@@ -58,7 +59,9 @@ def machine() -> str:
         if line.startswith("model name"):
             model = line.split(":", 1)[1].strip()
             break
-    return f"{model}, {os.cpu_count()} cores, {platform.system()} {platform.release()}, Python {platform.python_version()}"
+    return (
+        f"{model}, {os.cpu_count()} cores, {platform.system()} {platform.release()}, Python {platform.python_version()}"
+    )
 
 
 def load() -> str:
@@ -80,11 +83,16 @@ def rigid_body(urdf: Path) -> tuple[float, list[list[float]]]:
     links = ET.parse(urdf).getroot().findall("link")
     inertial = links[0].find("inertial") if len(links) == 1 else None
     origin = inertial.find("origin") if inertial is not None else None
-    if inertial is None or origin is not None and any(float(x) for a in ("xyz", "rpy") for x in origin.get(a, "0 0 0").split()):
+    if inertial is None or (
+        origin is not None and any(float(x) for a in ("xyz", "rpy") for x in origin.get(a, "0 0 0").split())
+    ):
         raise SystemExit(f"{urdf}: expected one link with its inertial at the link origin")
     i = {k: float(v) for k, v in inertial.find("inertia").attrib.items()}
-    return float(inertial.find("mass").get("value")), [[i["ixx"], i["ixy"], i["ixz"]], [i["ixy"], i["iyy"], i["iyz"]],
-                                                        [i["ixz"], i["iyz"], i["izz"]]]
+    return float(inertial.find("mass").get("value")), [
+        [i["ixx"], i["ixy"], i["ixz"]],
+        [i["ixy"], i["iyy"], i["iyz"]],
+        [i["ixz"], i["iyz"], i["izz"]],
+    ]
 
 
 class Scenario:
@@ -95,11 +103,11 @@ class Scenario:
         self.epoch = str(config["run"]["epoch"]).replace(" ", "T").replace("+00:00", "Z")
         self.orbit = config["components"]["orbit"]["parameters"]
         self.dynamics = config["components"]["dynamics"]["parameters"]
-        (self.body, spec), = self.dynamics["bodies"].items()
+        ((self.body, spec),) = self.dynamics["bodies"].items()
         self.mass, self.inertia = rigid_body((CONFIG.parent / spec["urdf"]).resolve())
         a = Harness("orbit.kepler", self.orbit, epoch=self.epoch).params["semi_major_axis"]
         self.type, self.step_ns = component_type, step_ns
-        self.steps = round(orbits * 2 * math.pi * math.sqrt(a ** 3 / MU_EARTH) / (step_ns * 1e-9))
+        self.steps = round(orbits * 2 * math.pi * math.sqrt(a**3 / MU_EARTH) / (step_ns * 1e-9))
 
     def zenorbit(self) -> tuple[dict, list[float], list[float], np.ndarray]:
         """(the initial state for Basilisk, process CPU and wall ns per step of each batch, the
@@ -113,8 +121,12 @@ class Scenario:
         out = plant.initialize()
         twist = out[f"{self.body}.twist"]
         R = _matrix(out[f"{self.body}.orientation"])
-        start = {"r": orbit_out["r_eci"].tolist(), "v": (orbit_out["v_eci"] + twist[:3]).tolist(),
-                 "q": out[f"{self.body}.orientation"].tolist(), "w": (R.T @ twist[3:]).tolist()}
+        start = {
+            "r": orbit_out["r_eci"].tolist(),
+            "v": (orbit_out["v_eci"] + twist[:3]).tolist(),
+            "q": out[f"{self.body}.orientation"].tolist(),
+            "w": (R.T @ twist[3:]).tolist(),
+        }
         input_vector, output_vector = inputs.start_vector(), outputs.start_vector()
         orientation = outputs.offsets[f"{self.body}.orientation"]
         attitude = [out[f"{self.body}.orientation"].copy()]
@@ -139,10 +151,19 @@ class Scenario:
         return start, cpu_ns, wall_ns, np.array(attitude)
 
     def basilisk(self, python: Path, start: dict) -> dict:
-        spec = {"mass": self.mass, "inertia": self.inertia, "mu": MU_EARTH, **start, "step_ns": self.step_ns,
-                "steps": self.steps, "batch": BATCH, "sample_every": SAMPLE}
-        result = subprocess.run([str(python), str(BASILISK)], input=json.dumps(spec), capture_output=True, text=True,
-                                timeout=3600)
+        spec = {
+            "mass": self.mass,
+            "inertia": self.inertia,
+            "mu": MU_EARTH,
+            **start,
+            "step_ns": self.step_ns,
+            "steps": self.steps,
+            "batch": BATCH,
+            "sample_every": SAMPLE,
+        }
+        result = subprocess.run(
+            [str(python), str(BASILISK)], input=json.dumps(spec), capture_output=True, text=True, timeout=3600
+        )
         if result.returncode != 0:
             raise SystemExit(f"the Basilisk run failed:\n{result.stderr[-3000:]}")
         return json.loads(result.stdout)
@@ -150,6 +171,7 @@ class Scenario:
 
 def _matrix(q) -> np.ndarray:
     from components.rotations import quat_to_matrix
+
     return quat_to_matrix(np.asarray(q, dtype=float))
 
 
@@ -169,11 +191,16 @@ def main() -> None:
     parser.add_argument("--step", type=float, default=1.0, help="step, s (1)")
     parser.add_argument("--orbits", type=float, default=2.0, help="simulated orbits (2)")
     parser.add_argument("--rounds", type=int, default=5, help="alternating rounds (5)")
-    parser.add_argument("--venv", type=Path, default=ROOT / "benchmarks" / ".venv-basilisk",
-                        help="Basilisk's virtual environment (made on first use)")
+    parser.add_argument(
+        "--venv",
+        type=Path,
+        default=ROOT / "benchmarks" / ".venv-basilisk",
+        help="Basilisk's virtual environment (made on first use)",
+    )
     args = parser.parse_args()
     from components.errors import ConfigError
     from components.registry import load as load_type
+
     try:
         load_type(args.type)
     except ConfigError as e:
@@ -181,25 +208,33 @@ def main() -> None:
     python = basilisk_python(args.venv)
     scenario = Scenario(args.type, round(args.step * NS_PER_S), args.orbits)
     print(f"machine: {machine()}; load average {load()}")
-    print(f"{scenario.body} ({scenario.mass:g} kg, I = diag{tuple(round(scenario.inertia[i][i], 2) for i in range(3))} "
-          f"kg m^2) from {CONFIG.name}, {scenario.steps} steps of {args.step:g} s ({args.orbits:g} orbits), "
-          f"rk4, gravity gradient on")
+    print(
+        f"{scenario.body} ({scenario.mass:g} kg, I = diag{tuple(round(scenario.inertia[i][i], 2) for i in range(3))} "
+        f"kg m^2) from {CONFIG.name}, {scenario.steps} steps of {args.step:g} s ({args.orbits:g} orbits), "
+        f"rk4, gravity gradient on"
+    )
     rows = []
     for r in range(args.rounds):
         start, z_cpu, z_wall, z_attitude = scenario.zenorbit()
         b = scenario.basilisk(python, start)
         rows.append((np.median(z_cpu), np.median(z_wall), np.median(b["cpu_ns"]), np.median(b["wall_ns"])))
-        print(f"  round {r + 1}: {args.type} {rows[-1][0] * 1e-3:8.1f} us   Basilisk {rows[-1][2] * 1e-3:6.1f} us   "
-              f"ratio {rows[-1][0] / rows[-1][2]:5.1f}   (CPU per step; load {load()})")
+        print(
+            f"  round {r + 1}: {args.type} {rows[-1][0] * 1e-3:8.1f} us   Basilisk {rows[-1][2] * 1e-3:6.1f} us   "
+            f"ratio {rows[-1][0] / rows[-1][2]:5.1f}   (CPU per step; load {load()})"
+        )
     z_cpu, z_wall, b_cpu, b_wall = np.median(np.array(rows), axis=0)
     angle = largest_angle_deg(z_attitude, np.array(b["q"]))
-    print(f"\nBasilisk {b['version']} against {args.type}, medians of {args.rounds} alternating rounds "
-          f"(the median of {math.ceil(scenario.steps / BATCH)} batches of {BATCH} steps each):")
+    print(
+        f"\nBasilisk {b['version']} against {args.type}, medians of {args.rounds} alternating rounds "
+        f"(the median of {math.ceil(scenario.steps / BATCH)} batches of {BATCH} steps each):"
+    )
     print(f"| | {args.type} | Basilisk | ratio |\n|---|---|---|---|")
     print(f"| CPU time per step (process) | {z_cpu * 1e-3:.1f} us | {b_cpu * 1e-3:.1f} us | {z_cpu / b_cpu:.1f}x |")
     print(f"| wall time per step | {z_wall * 1e-3:.1f} us | {b_wall * 1e-3:.1f} us | {z_wall / b_wall:.1f}x |")
-    print(f"attitudes over {args.orbits:g} orbits: at most {angle:.2g} deg apart "
-          f"(every {SAMPLE} steps, {min(len(z_attitude), len(b['q']))} samples); load average {load()}")
+    print(
+        f"attitudes over {args.orbits:g} orbits: at most {angle:.2g} deg apart "
+        f"(every {SAMPLE} steps, {min(len(z_attitude), len(b['q']))} samples); load average {load()}"
+    )
 
 
 if __name__ == "__main__":

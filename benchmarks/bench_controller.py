@@ -12,6 +12,7 @@ Each row is the median over batches of ``BATCH`` consecutive states of the threa
 (``time.thread_time_ns``, so that another process busy on the other core does not count), the
 lowest such median of ``--repeat`` passes.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -37,16 +38,30 @@ BATCH = 10
 
 
 def controller(base_model="free_floating"):
-    return Harness("controller.computed_torque", {
-        "urdf": URDF, "joints": ARM, "end_effector": "arm_right_tool_link", "locked_joints": LEFT,
-        "base_model": base_model,
-        "trajectory": {"type": "parabola", "start": 0.0, "duration": 10.0, "displacement": 0.5, "height": 0.1}})
+    return Harness(
+        "controller.computed_torque",
+        {
+            "urdf": URDF,
+            "joints": ARM,
+            "end_effector": "arm_right_tool_link",
+            "locked_joints": LEFT,
+            "base_model": base_model,
+            "trajectory": {"type": "parabola", "start": 0.0, "duration": 10.0, "displacement": 0.5, "height": 0.1},
+        },
+    )
 
 
 def recorded_states(n: int) -> list[dict]:
     """n states of the demo's first n ms (closed loop, dynamics.dart, Jacobi)."""
-    plant = Harness("dynamics.dart", {"link_outputs": False, "tidal_force": False, "gravity_gradient": False,
-                                      "bodies": {"humanoid": {"urdf": URDF, "q": START, "locked_joints": LEFT}}})
+    plant = Harness(
+        "dynamics.dart",
+        {
+            "link_outputs": False,
+            "tidal_force": False,
+            "gravity_gradient": False,
+            "bodies": {"humanoid": {"urdf": URDF, "q": START, "locked_joints": LEFT}},
+        },
+    )
     c = controller()
     state = plant.initialize()
     c.inputs.update({k: state[f"humanoid.{k}"] for k in STATE})
@@ -79,9 +94,11 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=3000)
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
-    print(f"controller CPU time per step ({args.steps} demo states; median of batches of {BATCH}, "
-          f"lowest of {args.repeat} passes; "
-          f"{platform.processor() or platform.machine()}, Python {platform.python_version()})")
+    print(
+        f"controller CPU time per step ({args.steps} demo states; median of batches of {BATCH}, "
+        f"lowest of {args.repeat} passes; "
+        f"{platform.processor() or platform.machine()}, Python {platform.python_version()})"
+    )
     states = recorded_states(args.steps)
 
     c = controller()
@@ -95,7 +112,9 @@ def main() -> None:
         arm.compute()
 
     timed("model terms (M*, C*, J_g, a_drift) incl. state mapping", terms, states, args.repeat)
-    timed("ArmController.step (terms + trajectory + DLS + law)", lambda k, s: ctl.step(k * 1e-3, s), states, args.repeat)
+    timed(
+        "ArmController.step (terms + trajectory + DLS + law)", lambda k, s: ctl.step(k * 1e-3, s), states, args.repeat
+    )
 
     def as_the_runner(h: Harness):
         """do_step on inputs unpacked from one float64 vector, outputs packed into another: the
@@ -110,6 +129,7 @@ def main() -> None:
 
         def run(k, s):
             h.output_layout.pack(h.component.do_step(k * MS, MS, h.input_layout.unpack(vectors[k])), outputs)
+
         return run
 
     timed("controller.computed_torque do_step + input/output layout", as_the_runner(c), states, args.repeat)
@@ -121,6 +141,7 @@ def main() -> None:
     pd.inputs.update(states[0])
     pd.initialize()
     timed("controller.joint_pd do_step + input/output layout", as_the_runner(pd), states, args.repeat)
+
 
 if __name__ == "__main__":
     main()

@@ -18,6 +18,7 @@ Each row is the median over the steps of the thread's CPU time (``time.thread_ti
 that another process busy on the other core does not count), the lowest such median of
 ``--repeat`` passes. A benchmark, not a test: the numbers depend on the machine.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -39,13 +40,37 @@ from components.testing.harness import Harness  # noqa: E402
 CONFIGS = ROOT / "configs"
 DEMO = CONFIGS / "humanoid_tracking.yaml"
 URDF = str(ROOT / "models" / "humanoid_torso.urdf")
-BOX = {"integrator": "rk4", "tidal_force": True, "gravity_gradient": True,
-       "bodies": {"box": {"urdf": str(ROOT / "models" / "target.urdf"), "frame": "lvlh",
-                          "orientation": [0, 0, 0.0087265355, 0.9999619231]}}}
-SERVICER = {"integrator": "rk4", "tidal_force": True, "gravity_gradient": True,
-            "bodies": {"servicer": {"urdf": str(ROOT / "models" / "capture" / "servicer.urdf"), "frame": "lvlh",
-                                    "q": {"arm_1_joint": -0.9, "arm_2_joint": 0.2, "arm_3_joint": 1.6,
-                                          "arm_4_joint": -0.3, "arm_5_joint": 1.2, "arm_6_joint": 0.3}}}}
+BOX = {
+    "integrator": "rk4",
+    "tidal_force": True,
+    "gravity_gradient": True,
+    "bodies": {
+        "box": {
+            "urdf": str(ROOT / "models" / "target.urdf"),
+            "frame": "lvlh",
+            "orientation": [0, 0, 0.0087265355, 0.9999619231],
+        }
+    },
+}
+SERVICER = {
+    "integrator": "rk4",
+    "tidal_force": True,
+    "gravity_gradient": True,
+    "bodies": {
+        "servicer": {
+            "urdf": str(ROOT / "models" / "capture" / "servicer.urdf"),
+            "frame": "lvlh",
+            "q": {
+                "arm_1_joint": -0.9,
+                "arm_2_joint": 0.2,
+                "arm_3_joint": 1.6,
+                "arm_4_joint": -0.3,
+                "arm_5_joint": 1.2,
+                "arm_6_joint": 0.3,
+            },
+        }
+    },
+}
 A = 6778e3
 MS = 1_000_000
 
@@ -54,10 +79,12 @@ def circular_orbit(t: float) -> dict[str, np.ndarray]:
     """The orbit inputs of dynamics.dart on an equatorial circular orbit of radius A at time t."""
     n = math.sqrt(MU_EARTH / A**3)
     th = n * t
-    return {"r_eci": A * np.array([math.cos(th), math.sin(th), 0.0]),
-            "v_eci": A * n * np.array([-math.sin(th), math.cos(th), 0.0]),
-            "q_eci_lvlh": np.array([0.0, 0.0, math.sin(th / 2), math.cos(th / 2)]),
-            "w_lvlh": np.array([0.0, 0.0, n])}
+    return {
+        "r_eci": A * np.array([math.cos(th), math.sin(th), 0.0]),
+        "v_eci": A * n * np.array([-math.sin(th), math.cos(th), 0.0]),
+        "q_eci_lvlh": np.array([0.0, 0.0, math.sin(th / 2), math.cos(th / 2)]),
+        "w_lvlh": np.array([0.0, 0.0, n]),
+    }
 
 
 def step_times(engine: str, params: dict, steps: int) -> np.ndarray:
@@ -72,8 +99,10 @@ def step_times(engine: str, params: dict, steps: int) -> np.ndarray:
     posture = out[f"{body}.q"].copy()
     times = np.empty(steps)
     for k in range(steps):
-        values = {**circular_orbit(k * 1e-3),
-                  f"{body}.tau": 0.5 * (posture - out[f"{body}.q"]) - 0.2 * out[f"{body}.qd"]}
+        values = {
+            **circular_orbit(k * 1e-3),
+            f"{body}.tau": 0.5 * (posture - out[f"{body}.q"]) - 0.2 * out[f"{body}.qd"],
+        }
         for name, value in values.items():
             input_vector[inputs.offsets[name]] = value
         started = time.thread_time_ns()
@@ -101,8 +130,10 @@ def main() -> None:
     parser.add_argument("--table", action="store_true", help="also time rk4 and dart, with and without environment")
     parser.add_argument("--engines", nargs="+", default=["dart", "pinocchio"], choices=("dart", "pinocchio"))
     args = parser.parse_args()
-    print(f"dynamics compute per 1 ms step, CPU time, median of {args.steps} steps, best of {args.repeat} "
-          f"({platform.processor() or platform.machine()}, Python {platform.python_version()})")
+    print(
+        f"dynamics compute per 1 ms step, CPU time, median of {args.steps} steps, best of {args.repeat} "
+        f"({platform.processor() or platform.machine()}, Python {platform.python_version()})"
+    )
     demo = yaml.safe_load(DEMO.read_text())["components"]["dynamics"]["parameters"]
     engines = tuple(args.engines)
     timed(f"demo ({DEMO.name})", demo, args.steps, args.repeat, engines)
@@ -114,8 +145,13 @@ def main() -> None:
         humanoid = {"urdf": URDF, "q": dict(demo["bodies"]["humanoid"]["q"])}
         for integrator in ("rk4", "dart"):
             for environment in (False, True):
-                params = {"integrator": integrator, "tidal_force": environment, "gravity_gradient": environment,
-                          "link_outputs": False, "bodies": {"humanoid": humanoid}}
+                params = {
+                    "integrator": integrator,
+                    "tidal_force": environment,
+                    "gravity_gradient": environment,
+                    "link_outputs": False,
+                    "bodies": {"humanoid": humanoid},
+                }
                 label = f"{integrator}, unlocked, {'tidal + gravity gradient' if environment else 'no environment'}"
                 timed(label, params, args.steps, args.repeat)
 

@@ -16,6 +16,7 @@ CPU time per step (the orbit's 60 s step: 6 RK4 steps; the dynamics' 500 ms step
 inputs), the median of batches, the variants alternating. A benchmark, never run by the tests; it
 prints the machine and its load before and after.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,8 +36,13 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 ORBIT_CONFIG, ORBIT = "configs/one_day_perturbed.yaml", "components.orbit.parameters."
 DYNAMICS_CONFIG, DYNAMICS = "configs/detumble_magnetorquer.yaml", "components.dynamics.parameters."
-OFF = [f"{ORBIT}gravity={{degree: 0, order: 0}}", f"{ORBIT}third_bodies=[]", f"{ORBIT}drag=null",
-       f"{ORBIT}atmosphere=null", f"{ORBIT}srp=null"]
+OFF = [
+    f"{ORBIT}gravity={{degree: 0, order: 0}}",
+    f"{ORBIT}third_bodies=[]",
+    f"{ORBIT}drag=null",
+    f"{ORBIT}atmosphere=null",
+    f"{ORBIT}srp=null",
+]
 SRP = [f"{DYNAMICS}srp=true", f"{DYNAMICS}bodies.target.srp_area=4.0", f"{DYNAMICS}bodies.target.srp_cr=1.3"]
 DRAG = [f"{DYNAMICS}drag=true", f"{DYNAMICS}bodies.target.drag_area=2.0"]
 WEATHER = "{model: nrlmsise00, f107: 150, f107a: 150, ap: 15}"
@@ -47,9 +53,24 @@ VARIANTS = (
     ("orbit: harmonics 20 x 20", ORBIT_CONFIG, OFF + [f"{ORBIT}gravity={{degree: 20, order: 20}}"], 0),
     ("orbit: Sun and Moon (third bodies)", ORBIT_CONFIG, OFF + [f"{ORBIT}third_bodies=[sun, moon]"], 0),
     ("orbit: drag, exponential table", ORBIT_CONFIG, OFF + [f"{ORBIT}drag={{cd: 2.2, area: 10}}"], 0),
-    ("orbit: drag, NRLMSISE-00", ORBIT_CONFIG, OFF + [f"{ORBIT}drag={{cd: 2.2, area: 10}}", f"{ORBIT}atmosphere={WEATHER}"], 0),
-    ("orbit: SRP, no shadow (eclipse none)", ORBIT_CONFIG, OFF + [f"{ORBIT}srp={{cr: 1.3, area: 30}}", f"{ORBIT}eclipse=none"], 0),
-    ("orbit: SRP, conical eclipse", ORBIT_CONFIG, OFF + [f"{ORBIT}srp={{cr: 1.3, area: 30}}", f"{ORBIT}eclipse=conical"], 0),
+    (
+        "orbit: drag, NRLMSISE-00",
+        ORBIT_CONFIG,
+        OFF + [f"{ORBIT}drag={{cd: 2.2, area: 10}}", f"{ORBIT}atmosphere={WEATHER}"],
+        0,
+    ),
+    (
+        "orbit: SRP, no shadow (eclipse none)",
+        ORBIT_CONFIG,
+        OFF + [f"{ORBIT}srp={{cr: 1.3, area: 30}}", f"{ORBIT}eclipse=none"],
+        0,
+    ),
+    (
+        "orbit: SRP, conical eclipse",
+        ORBIT_CONFIG,
+        OFF + [f"{ORBIT}srp={{cr: 1.3, area: 30}}", f"{ORBIT}eclipse=conical"],
+        0,
+    ),
     ("orbit: everything (the config as shipped)", ORBIT_CONFIG, [], 0),
     ("dynamics: WMM (the config as shipped)", DYNAMICS_CONFIG, [], None),
     ("dynamics: dipole instead of WMM", DYNAMICS_CONFIG, [f"{DYNAMICS}magnetic_field={{model: dipole}}"], 9),
@@ -63,6 +84,7 @@ DURATION = {ORBIT_CONFIG: "6h", DYNAMICS_CONFIG: "30min"}
 
 def machine() -> str:
     from bench_performance import machine as described
+
     return described()
 
 
@@ -92,8 +114,10 @@ def chosen(match: str | None) -> list[int]:
 
 def processes(rounds: int, quick: bool, match: str | None = None) -> None:
     durations = {ORBIT_CONFIG: "1h", DYNAMICS_CONFIG: "1min"} if quick else DURATION
-    print(f"\nWhole runs (python -m orchestrator.cli run CFG --set ...), median of {rounds} alternating rounds; "
-          f"{machine()}; {load()} before")
+    print(
+        f"\nWhole runs (python -m orchestrator.cli run CFG --set ...), median of {rounds} alternating rounds; "
+        f"{machine()}; {load()} before"
+    )
     figures: dict[int, list[tuple[float, float]]] = {k: [] for k in chosen(match)}
     for _ in range(rounds):
         for k in figures:
@@ -118,8 +142,8 @@ def parameters(config: str, overrides: list[str], component: str) -> tuple[dict,
 
 
 def harness(config: str, overrides: list[str]):
-    from components.orbit.kepler import KeplerOrbit
     from components.orbit.frames import lvlh_state
+    from components.orbit.kepler import KeplerOrbit
     from components.testing.harness import Harness
 
     if config == ORBIT_CONFIG:
@@ -136,6 +160,7 @@ def harness(config: str, overrides: list[str]):
         q, w = lvlh_state(r, v, a)
         h.inputs.update(r_eci=np.array(r), v_eci=np.array(v), q_eci_lvlh=q, w_lvlh=w)
         h.inputs["target.dipole"] = np.array([20.0, -30.0, 10.0])
+
     feed(0.0)
     h.initialize()
     return h, 500_000_000, feed
@@ -143,8 +168,10 @@ def harness(config: str, overrides: list[str]):
 
 def steps(rounds: int, quick: bool) -> None:
     batches, size = (3, 10) if quick else (5, 40)
-    print(f"\nIn process (Harness), CPU time per step, median of {batches} batches x {rounds} alternating rounds; "
-          f"{machine()}; {load()} before")
+    print(
+        f"\nIn process (Harness), CPU time per step, median of {batches} batches x {rounds} alternating rounds; "
+        f"{machine()}; {load()} before"
+    )
     made = [harness(config, overrides) for _, config, overrides, _ in VARIANTS]
     figures: list[list[float]] = [[] for _ in VARIANTS]
     for _ in range(rounds):

@@ -13,6 +13,7 @@ frames refused counted. Time: the thread's CPU time (``time.thread_time_ns``) an
 (OpenCV's threads: ``--threads``, ``cv2.setNumThreads``; the wall time counts them, the thread's
 CPU time does not).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -51,13 +52,15 @@ def main(argv=None) -> int:
     estimator = FiducialEstimator(layout, args.min_markers, 1.5)
     rng = np.random.Generator(np.random.PCG64(2026))
     print(f"{platform.processor() or platform.machine()}, OpenCV {cv2.__version__}, {args.threads} OpenCV thread(s)")
-    print("| distance (m) | frames | refused | position median / worst (mm) | attitude median / worst (deg) "
-          "| markers (median) |")
+    print(
+        "| distance (m) | frames | refused | position median / worst (mm) | attitude median / worst (deg) "
+        "| markers (median) |"
+    )
     print("|---|---|---|---|---|---|")
     images = []
     for low, high in BANDS:
         dps, das, refused, counts = [], [], 0, []
-        for k in range(args.poses):
+        for _k in range(args.poses):
             distance = rng.uniform(low, high)
             offset = rng.uniform(-0.05, 0.05, 2)
             tilt = rng.uniform(-1.0, 1.0, 2) * math.radians(8.0)
@@ -72,8 +75,10 @@ def main(argv=None) -> int:
             R = quat_to_matrix(estimate.q_ee_grasp)
             dps.append(1e3 * np.linalg.norm(estimate.p_ee_grasp - (R_EE_CAMERA @ p_C_G + P_EE_CAMERA)))
             das.append(math.degrees(np.linalg.norm(log_so3((R_EE_CAMERA @ R_C_G).T @ R))))
-        print(f"| {low}-{high} | {args.poses} | {refused} | {np.median(dps):.2f} / {max(dps):.2f} | "
-              f"{np.median(das):.3f} / {max(das):.3f} | {np.median(counts):.0f} |")
+        print(
+            f"| {low}-{high} | {args.poses} | {refused} | {np.median(dps):.2f} / {max(dps):.2f} | "
+            f"{np.median(das):.3f} / {max(das):.3f} | {np.median(counts):.0f} |"
+        )
     cpu, wall = [], []
     for _ in range(args.repeat):
         c, w = [], []
@@ -84,8 +89,10 @@ def main(argv=None) -> int:
             w.append(time.perf_counter_ns() - t0)
         cpu.append(np.median(c))
         wall.append(np.median(w))
-    print(f"\nper 640x480 frame ({len(images)} frames, lowest median of {args.repeat} passes): "
-          f"{min(cpu) / 1e6:.1f} ms CPU (this thread), {min(wall) / 1e6:.1f} ms wall")
+    print(
+        f"\nper 640x480 frame ({len(images)} frames, lowest median of {args.repeat} passes): "
+        f"{min(cpu) / 1e6:.1f} ms CPU (this thread), {min(wall) / 1e6:.1f} ms wall"
+    )
     return 0
 
 

@@ -8,6 +8,7 @@
    imported back as type ``fmu`` (both FMI layers around the same model).
 Medians of 5 repeats of ``--steps`` steps each, alternated; the machine is printed.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -32,13 +33,18 @@ H_NS = 10_000_000
 
 class NativeWheel(Component):
     """models/reaction_wheel.py's arithmetic as a native component (the benchmark's reference)."""
+
     type_name = "bench.native_wheel"
-    parameters = tuple(Parameter(n, "float", default=d) for n, d in
-                       (("inertia", 0.05), ("max_torque", 0.2), ("max_speed", 600.0), ("time_constant", 0.05)))
-    variables = (Variable("torque_command", "input", (), "N*m", 0.0, ""),
-                 Variable("motor_torque", "output", (), "N*m", 0.0, ""),
-                 Variable("reaction_torque", "output", (), "N*m", 0.0, ""),
-                 Variable("wheel_speed", "output", (), "rad/s", 0.0, ""))
+    parameters = tuple(
+        Parameter(n, "float", default=d)
+        for n, d in (("inertia", 0.05), ("max_torque", 0.2), ("max_speed", 600.0), ("time_constant", 0.05))
+    )
+    variables = (
+        Variable("torque_command", "input", (), "N*m", 0.0, ""),
+        Variable("motor_torque", "output", (), "N*m", 0.0, ""),
+        Variable("reaction_torque", "output", (), "N*m", 0.0, ""),
+        Variable("wheel_speed", "output", (), "rad/s", 0.0, ""),
+    )
 
     def initialize(self, t0_ns, inputs):
         self.tau = self.w = 0.0
@@ -68,8 +74,7 @@ def compare(label: str, make_native, make_fmu, steps: int) -> None:
         native.append(per_step_us(make_native(), steps))
         fmu.append(per_step_us(make_fmu(), steps))
     n, f = statistics.median(native), statistics.median(fmu)
-    print(f"{label}: native {n:.1f} us/step, through FMI {f:.1f} us/step "
-          f"(+{f - n:.1f} us/step, x{f / n:.2f})")
+    print(f"{label}: native {n:.1f} us/step, through FMI {f:.1f} us/step (+{f - n:.1f} us/step, x{f / n:.2f})")
 
 
 def main() -> None:
@@ -80,20 +85,34 @@ def main() -> None:
     from components.fmi.imported import build_python_model
 
     wheel = build_python_model(ROOT / "models" / "reaction_wheel.py")
-    compare("reaction wheel", lambda: Harness(NativeWheel, {"inertia": 0.05}),
-            lambda: Harness("fmu", {"path": str(wheel), "start_values": {"torque_command": 0.1}}), steps)
+    compare(
+        "reaction wheel",
+        lambda: Harness(NativeWheel, {"inertia": 0.05}),
+        lambda: Harness("fmu", {"path": str(wheel), "start_values": {"torque_command": 0.1}}),
+        steps,
+    )
     try:
         from components.fmi.exported import export_fmu
     except ImportError:
         return
-    kepler = {"semi_major_axis": "6778 km", "eccentricity": 0.0004, "inclination": "51.64 deg",
-              "raan": "236.55 deg", "arg_perigee": "262.44 deg", "mean_anomaly": "0 deg", "j2": True}
+    kepler = {
+        "semi_major_axis": "6778 km",
+        "eccentricity": 0.0004,
+        "inclination": "51.64 deg",
+        "raan": "236.55 deg",
+        "arg_perigee": "262.44 deg",
+        "mean_anomaly": "0 deg",
+        "j2": True,
+    }
     epoch = "2022-09-18T12:00:00Z"
     with tempfile.TemporaryDirectory() as tmp:
-        out = export_fmu("orbit.kepler", kepler, Path(tmp) / "kepler.fmu",
-                         epoch, ROOT)
-        compare("orbit.kepler", lambda: Harness("orbit.kepler", kepler, epoch=epoch),
-                lambda: Harness("fmu", {"path": str(out)}), steps // 4)
+        out = export_fmu("orbit.kepler", kepler, Path(tmp) / "kepler.fmu", epoch, ROOT)
+        compare(
+            "orbit.kepler",
+            lambda: Harness("orbit.kepler", kepler, epoch=epoch),
+            lambda: Harness("fmu", {"path": str(out)}),
+            steps // 4,
+        )
 
 
 if __name__ == "__main__":

@@ -19,6 +19,7 @@ decoding, not of the disk); prints bytes, write (wall and the thread's CPU: the 
 inflate the latter) and read ms per frame, and checks that every
 array reads back bit for bit.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -38,18 +39,25 @@ import yaml
 def render_times(n: int) -> tuple[list[float], dict]:
     from components.testing.harness import Harness
     from tests.conftest import ROOT
+
     capture = yaml.safe_load((ROOT / "configs" / "capture_vision.yaml").read_text())
     run = capture["run"]
-    orbit = Harness("orbit.kepler", capture["components"]["orbit"]["parameters"], epoch=run["epoch"],
-                    config_dir=ROOT / "configs")
-    dynamics = Harness("dynamics.dart", capture["components"]["dynamics"]["parameters"], epoch=run["epoch"],
-                       config_dir=ROOT / "configs")
+    orbit = Harness(
+        "orbit.kepler", capture["components"]["orbit"]["parameters"], epoch=run["epoch"], config_dir=ROOT / "configs"
+    )
+    dynamics = Harness(
+        "dynamics.dart",
+        capture["components"]["dynamics"]["parameters"],
+        epoch=run["epoch"],
+        config_dir=ROOT / "configs",
+    )
     o = orbit.initialize()
     for key in ("r_eci", "v_eci", "q_eci_lvlh", "w_lvlh"):
         dynamics.inputs[key] = o[key]
     d = dynamics.initialize()
-    camera = Harness("sensor.camera", capture["components"]["wrist"]["parameters"], epoch=run["epoch"],
-                     config_dir=ROOT / "configs")
+    camera = Harness(
+        "sensor.camera", capture["components"]["wrist"]["parameters"], epoch=run["epoch"], config_dir=ROOT / "configs"
+    )
     for name in camera.inputs:
         camera.inputs[name] = o["r_eci"] if name == "r_eci" else d[name]
     times = []
@@ -64,8 +72,9 @@ def render_times(n: int) -> tuple[list[float], dict]:
 
 def transport_times(frames: dict, n: int) -> list[float]:
     from components import bus
+
     secret = "bench"
-    with socket.socket() as probe:      # a free port on loopback
+    with socket.socket() as probe:  # a free port on loopback
         probe.bind(("127.0.0.1", 0))
         endpoint = f"tcp/127.0.0.1:{probe.getsockname()[1]}"
     receiver = bus.open_session([endpoint], secret=secret)
@@ -80,7 +89,7 @@ def transport_times(frames: dict, n: int) -> list[float]:
 
     sub = receiver.declare_subscriber("bench/frame", on_frame)
     pub = bus.publisher(sender, "bench/frame")
-    time.sleep(0.5)   # the subscription reaches the sender (a benchmark, not a test)
+    time.sleep(0.5)  # the subscription reaches the sender (a benchmark, not a test)
     times = []
     for k in range(n):
         got.clear()
@@ -109,10 +118,14 @@ def disk(directory: Path) -> None:
     if not frames:
         raise SystemExit(f"--disk {directory}: expected the frame files of a recorded camera (NNNNNN.npz), got none")
     raw = statistics.mean(sum(a.nbytes for a in f.values()) for f in frames)
-    print(f"{len(frames)} frames of {directory}, {frames[0]['rgb'].shape[1]}x{frames[0]['rgb'].shape[0]}, "
-          f"{raw / 1e6:.2f} MB of arrays each")
-    formats = {"uncompressed (numpy.savez, before)": lambda f, arrays: np.savez(f, **arrays),
-               "deflated (write_frame, level 1, now)": write_frame}
+    print(
+        f"{len(frames)} frames of {directory}, {frames[0]['rgb'].shape[1]}x{frames[0]['rgb'].shape[0]}, "
+        f"{raw / 1e6:.2f} MB of arrays each"
+    )
+    formats = {
+        "uncompressed (numpy.savez, before)": lambda f, arrays: np.savez(f, **arrays),
+        "deflated (write_frame, level 1, now)": write_frame,
+    }
     for label, write in formats.items():
         out = Path(tempfile.mkdtemp(prefix=".bench_frames.", dir=directory.parent))
         try:
@@ -130,20 +143,28 @@ def disk(directory: Path) -> None:
                 started = time.perf_counter()
                 back = read_frame(out / f"{k:06d}.npz")
                 reads.append(time.perf_counter() - started)
-                if any(back[key].tobytes() != value.tobytes() or back[key].dtype != value.dtype
-                       for key, value in arrays.items()):
+                if any(
+                    back[key].tobytes() != value.tobytes() or back[key].dtype != value.dtype
+                    for key, value in arrays.items()
+                ):
                     raise SystemExit(f"{label}: frame {k} does not read back bit for bit")
         finally:
             shutil.rmtree(out, ignore_errors=True)
-        print(f"{label}: {statistics.mean(sizes) / 1e6:.3f} MB a frame (min {min(sizes) / 1e6:.3f}, "
-              f"max {max(sizes) / 1e6:.3f}); write {summary(writes)} (CPU {summary(cpu)}); read {summary(reads)}")
+        print(
+            f"{label}: {statistics.mean(sizes) / 1e6:.3f} MB a frame (min {min(sizes) / 1e6:.3f}, "
+            f"max {max(sizes) / 1e6:.3f}); write {summary(writes)} (CPU {summary(cpu)}); read {summary(reads)}"
+        )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=60)
-    parser.add_argument("--disk", type=Path, metavar="DIR", help="a recorded camera's frames: bytes and "
-                        "write/read time per frame, uncompressed against deflated")
+    parser.add_argument(
+        "--disk",
+        type=Path,
+        metavar="DIR",
+        help="a recorded camera's frames: bytes and write/read time per frame, uncompressed against deflated",
+    )
     args = parser.parse_args()
     if args.disk is not None:
         print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
@@ -154,7 +175,9 @@ def main() -> None:
     transport = transport_times(frames, args.frames)
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
     print(f"render (sensor.camera step, 640x480, pixel noise as configured): {summary(render)}")
-    print(f"bus (rgb + depth, {size / 1e6:.2f} MB, loopback TCP, encode + send + receive + decode): {summary(transport)}")
+    print(
+        f"bus (rgb + depth, {size / 1e6:.2f} MB, loopback TCP, encode + send + receive + decode): {summary(transport)}"
+    )
     print(f"ratio bus / render (medians): {statistics.median(transport) / statistics.median(render):.2f}")
 
 

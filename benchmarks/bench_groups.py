@@ -26,6 +26,7 @@ times; each figure is the median over the rounds, with every run's figure printe
 
 A benchmark, never run by the tests: it names the machine and its load average.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -50,11 +51,13 @@ CONFIGS = ROOT / "configs"
 DEMO = CONFIGS / "humanoid_tracking.yaml"
 CAPTURE = CONFIGS / "capture_tumbling_target.yaml"
 RIGID = CONFIGS / "gravity_gradient_libration.yaml"
-LOOP = ["dynamics", "controller"]   # the members of the demo's and capture's commented group
+LOOP = ["dynamics", "controller"]  # the members of the demo's and capture's commented group
 PINOCCHIO = ["components.dynamics.type=dynamics.pinocchio"]
-RIGID_STEPS = 11106                 # two orbits of 6778 km at 1 s
-SUMMARY = re.compile(r"(\d+) steps? of (\d+), ([\d.e+]+) s simulated; ([\d.]+) s wall "
-                     r"\(([\d.]+) s stepping, real-time factor ([\d.]+)\)")
+RIGID_STEPS = 11106  # two orbits of 6778 km at 1 s
+SUMMARY = re.compile(
+    r"(\d+) steps? of (\d+), ([\d.e+]+) s simulated; ([\d.]+) s wall "
+    r"\(([\d.]+) s stepping, real-time factor ([\d.]+)\)"
+)
 
 
 def grouped(names: list[str], group: str = "loop") -> list[str]:
@@ -97,9 +100,14 @@ def campaign_file(folder: Path, cases: int, group: bool) -> Path:
     grid = {"run.duration": ["5 s"], "components.dynamics.type": ["dynamics.pinocchio"]}
     if group:
         grid.update({f"components.{name}.process": ["loop"] for name in LOOP})
-    campaign = {"config": str(CAPTURE), "samples": cases, "seed": 36, "grid": grid,
-                "disperse": {"components.dynamics.parameters.bodies.target.twist.rate": {"uniform": ["0.5 deg/s", "4 deg/s"]}},
-                "outcomes": {"captured": "capture", "aborted": "capture_aborted"}}
+    campaign = {
+        "config": str(CAPTURE),
+        "samples": cases,
+        "seed": 36,
+        "grid": grid,
+        "disperse": {"components.dynamics.parameters.bodies.target.twist.rate": {"uniform": ["0.5 deg/s", "4 deg/s"]}},
+        "outcomes": {"captured": "capture", "aborted": "capture_aborted"},
+    }
     path = folder / ("grouped.yaml" if group else "separate.yaml")
     path.write_text(yaml.safe_dump(campaign))
     return path
@@ -111,9 +119,14 @@ def sweep_rate(cases: int, group: bool) -> float:
         path = campaign_file(Path(folder), cases, group)
         env = {**os.environ, "PYTHONPATH": str(ROOT)}
         started = time.perf_counter()
-        result = subprocess.run([sys.executable, "-m", "orchestrator.cli", "sweep", str(path), "--out",
-                                 str(Path(folder) / "out")], cwd=ROOT, env=env, capture_output=True, text=True,
-                                timeout=3600)
+        result = subprocess.run(
+            [sys.executable, "-m", "orchestrator.cli", "sweep", str(path), "--out", str(Path(folder) / "out")],
+            cwd=ROOT,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=3600,
+        )
         wall = time.perf_counter() - started
     if result.returncode != 0:
         raise SystemExit(f"the sweep failed:\n{result.stderr[-3000:]}")
@@ -126,7 +139,8 @@ def basilisk_step_us() -> float | None:
     if not python.exists():
         return None
     from bench_basilisk import Scenario
-    scenario = Scenario("dynamics.pinocchio", 10 ** 9, 2.0)
+
+    scenario = Scenario("dynamics.pinocchio", 10**9, 2.0)
     if not hasattr(basilisk_step_us, "start"):
         basilisk_step_us.start = scenario.zenorbit()[0]
     return float(np.median(scenario.basilisk(python, basilisk_step_us.start)["cpu_ns"])) * 1e-3
@@ -143,8 +157,9 @@ def main() -> None:
     parser.add_argument("--only", default="demo,capture,rigid,loop,campaign", help="scenarios, comma-separated")
     parser.add_argument("--cases", type=int, default=4, help="cases of the campaign (4)")
     parser.add_argument("--loop-steps", type=int, default=5000, help="steps of the no-op loop (5000)")
-    parser.add_argument("--basilisk-us", type=float, default=10.7,
-                        help="Basilisk's per step, us, when its environment is absent (10.7)")
+    parser.add_argument(
+        "--basilisk-us", type=float, default=10.7, help="Basilisk's per step, us, when its environment is absent (10.7)"
+    )
     args = parser.parse_args()
     only = set(args.only.split(","))
     short = [f"run.duration={args.seconds} s"]
@@ -152,36 +167,53 @@ def main() -> None:
     variants: list[tuple[str, object]] = []
     if "demo" in only:
         for engine, extra in (("dart", []), ("pinocchio", PINOCCHIO)):
-            variants += [(f"demo {engine}, separate", lambda e=extra: orchestrator_run(DEMO, short + e)["factor"]),
-                         (f"demo {engine}, grouped", lambda e=extra: orchestrator_run(DEMO, short + e + grouped(LOOP))["factor"])]
+            variants += [
+                (f"demo {engine}, separate", lambda e=extra: orchestrator_run(DEMO, short + e)["factor"]),
+                (
+                    f"demo {engine}, grouped",
+                    lambda e=extra: orchestrator_run(DEMO, short + e + grouped(LOOP))["factor"],
+                ),
+            ]
         variants.append(("demo dart, one process", lambda: in_process_factor(DEMO, short)))
     if "capture" in only:
-        variants += [("capture, separate", lambda: orchestrator_run(CAPTURE, short)["factor"]),
-                     ("capture, grouped", lambda: orchestrator_run(CAPTURE, short + grouped(LOOP))["factor"])]
+        variants += [
+            ("capture, separate", lambda: orchestrator_run(CAPTURE, short)["factor"]),
+            ("capture, grouped", lambda: orchestrator_run(CAPTURE, short + grouped(LOOP))["factor"]),
+        ]
     if "rigid" in only:
         rigid = rigid_overrides()
         both = grouped(["orbit", "dynamics"], "rigid")
-        variants += [("rigid us/step, separate", lambda: 1e6 / orchestrator_run(RIGID, rigid)["factor"]),
-                     ("rigid us/step, separate, recorded",
-                      lambda: 1e6 / orchestrator_run(RIGID, rigid, record=True)["factor"]),
-                     ("rigid us/step, grouped", lambda: 1e6 / orchestrator_run(RIGID, rigid + both)["factor"]),
-                     ("rigid us/step, grouped, recorded",
-                      lambda: 1e6 / orchestrator_run(RIGID, rigid + both, record=True)["factor"])]
+        variants += [
+            ("rigid us/step, separate", lambda: 1e6 / orchestrator_run(RIGID, rigid)["factor"]),
+            ("rigid us/step, separate, recorded", lambda: 1e6 / orchestrator_run(RIGID, rigid, record=True)["factor"]),
+            ("rigid us/step, grouped", lambda: 1e6 / orchestrator_run(RIGID, rigid + both)["factor"]),
+            (
+                "rigid us/step, grouped, recorded",
+                lambda: 1e6 / orchestrator_run(RIGID, rigid + both, record=True)["factor"],
+            ),
+        ]
         if not (ROOT / "benchmarks" / ".venv-basilisk" / "bin" / "python").exists():
-            print(f"(no Basilisk environment: its per step is --basilisk-us, {args.basilisk_us} us; "
-                  f"python benchmarks/bench_basilisk.py makes it)")
+            print(
+                f"(no Basilisk environment: its per step is --basilisk-us, {args.basilisk_us} us; "
+                f"python benchmarks/bench_basilisk.py makes it)"
+            )
         variants.append(("Basilisk us/step", lambda: basilisk_step_us() or args.basilisk_us))
     if "loop" in only:
         from bench_lockstep import round_trip
+
         text = noop_loop(3, args.loop_steps)
         group = "".join(f"  n{i}: {{type: test.noop, parameters: {{size: 1}}, process: ring}}\n" for i in range(3))
         grouped_text = re.sub(r"(?m)^  n\d: .*\n", "", text).replace("components:\n", "components:\n" + group)
-        variants += [("loop us/step, separate", lambda: 1e6 / run_config(text)),
-                     ("loop us/step, grouped", lambda: 1e6 / run_config(grouped_text)),
-                     ("zenoh round trip us", lambda: float(np.median(round_trip(args.loop_steps))) * 1e6)]
+        variants += [
+            ("loop us/step, separate", lambda: 1e6 / run_config(text)),
+            ("loop us/step, grouped", lambda: 1e6 / run_config(grouped_text)),
+            ("zenoh round trip us", lambda: float(np.median(round_trip(args.loop_steps))) * 1e6),
+        ]
     if "campaign" in only:
-        variants += [("campaign cases/min, separate", lambda: sweep_rate(args.cases, False)),
-                     ("campaign cases/min, grouped", lambda: sweep_rate(args.cases, True))]
+        variants += [
+            ("campaign cases/min, separate", lambda: sweep_rate(args.cases, False)),
+            ("campaign cases/min, grouped", lambda: sweep_rate(args.cases, True)),
+        ]
 
     print(f"machine: {machine()}; load average {load()}")
     figures: dict[str, list[float]] = {label: [] for label, _ in variants}
@@ -197,26 +229,36 @@ def main() -> None:
     m = median.get
     if "rigid us/step, separate" in median:
         base = m("Basilisk us/step")
-        print(f"| rigid body per step / Basilisk's ({base:.1f} us) | {m('rigid us/step, separate') / base:.1f}x "
-              f"({m('rigid us/step, separate, recorded') / base:.1f}x recorded) | "
-              f"{m('rigid us/step, grouped') / base:.1f}x ({m('rigid us/step, grouped, recorded') / base:.1f}x recorded) |")
+        print(
+            f"| rigid body per step / Basilisk's ({base:.1f} us) | {m('rigid us/step, separate') / base:.1f}x "
+            f"({m('rigid us/step, separate, recorded') / base:.1f}x recorded) | "
+            f"{m('rigid us/step, grouped') / base:.1f}x ({m('rigid us/step, grouped, recorded') / base:.1f}x recorded) |"
+        )
     if "demo dart, separate" in median:
-        print(f"| demo, pinocchio / dart (real-time factor) | {m('demo pinocchio, separate') / m('demo dart, separate'):.2f}x | "
-              f"{m('demo pinocchio, grouped') / m('demo dart, grouped'):.2f}x |")
+        print(
+            f"| demo, pinocchio / dart (real-time factor) | {m('demo pinocchio, separate') / m('demo dart, separate'):.2f}x | "
+            f"{m('demo pinocchio, grouped') / m('demo dart, grouped'):.2f}x |"
+        )
     if "loop us/step, separate" in median:
         rtt = m("zenoh round trip us")
-        print(f"| 3 no-op in a loop per step / Zenoh round trip ({rtt:.0f} us) | {m('loop us/step, separate') / rtt:.2f}x | "
-              f"{m('loop us/step, grouped') / rtt:.2f}x |")
+        print(
+            f"| 3 no-op in a loop per step / Zenoh round trip ({rtt:.0f} us) | {m('loop us/step, separate') / rtt:.2f}x | "
+            f"{m('loop us/step, grouped') / rtt:.2f}x |"
+        )
     if "demo dart, separate" in median:
         one = m("demo dart, one process")
-        print(f"| demo (dart) over the bus / one process (real-time factor {one:.2f}) | "
-              f"{m('demo dart, separate') / one:.2f}x | {m('demo dart, grouped') / one:.2f}x |")
+        print(
+            f"| demo (dart) over the bus / one process (real-time factor {one:.2f}) | "
+            f"{m('demo dart, separate') / one:.2f}x | {m('demo dart, grouped') / one:.2f}x |"
+        )
     if "demo pinocchio, grouped" in median:
         print(f"demo, dynamics.pinocchio, controller grouped: real-time factor {m('demo pinocchio, grouped'):.2f}")
     if "campaign cases/min, separate" in median:
-        print(f"campaign ({args.cases} cases of {CAPTURE.name}, 5 s): {m('campaign cases/min, separate'):.1f} cases/min "
-              f"separate, {m('campaign cases/min, grouped'):.1f} grouped "
-              f"({m('campaign cases/min, grouped') / m('campaign cases/min, separate'):.2f}x)")
+        print(
+            f"campaign ({args.cases} cases of {CAPTURE.name}, 5 s): {m('campaign cases/min, separate'):.1f} cases/min "
+            f"separate, {m('campaign cases/min, grouped'):.1f} grouped "
+            f"({m('campaign cases/min, grouped') / m('campaign cases/min, separate'):.2f}x)"
+        )
 
 
 if __name__ == "__main__":

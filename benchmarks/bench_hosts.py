@@ -7,6 +7,7 @@ Hosts are network namespaces on one link (tests/hosts/netns.py): the orchestrato
 components on two others (`orchestrator join`). Each figure alternates its variants (A B A B...)
 so that a busy machine weighs on both alike; medians and their ratios are printed.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -54,15 +55,23 @@ def run(network, args: list, external: list[str], directory: Path) -> tuple[int,
     """(steps, stepping seconds, real-time factor) of `orchestrator run ARGS --record DIR` on host
     orch (or here, without a network), its external components joined from hosts a and b."""
     record = directory / f"rec{time.monotonic_ns()}"
-    orchestrator = subprocess.Popen(cli(network and network["orch"], "run", *args, "--record", record), cwd=ROOT,
-                                    stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    orchestrator = subprocess.Popen(
+        cli(network and network["orch"], "run", *args, "--record", record),
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     joins = []
     for name, host in zip(external, ("a", "b")):
         path = record / "join" / f"{name}.join"
         while not path.exists():
             time.sleep(0.05)
-        joins.append(subprocess.Popen(cli(network[host], "join", path), cwd=ROOT, stdout=subprocess.DEVNULL,
-                                      stderr=subprocess.DEVNULL))
+        joins.append(
+            subprocess.Popen(
+                cli(network[host], "join", path), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+            )
+        )
     _, err = orchestrator.communicate(timeout=900)
     for join in joins:
         join.wait(timeout=60)
@@ -77,18 +86,26 @@ def detection(network, directory: Path, lease: str) -> float:
     config = directory / "cut.yaml"
     config.write_text(CHAIN.format(lease=lease))
     record = directory / f"cut{time.monotonic_ns()}"
-    orchestrator = subprocess.Popen(cli(network["orch"], "run", config, "--record", record), cwd=ROOT,
-                                    stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    orchestrator = subprocess.Popen(
+        cli(network["orch"], "run", config, "--record", record),
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     joins = []
     for name, host in (("b", "a"), ("c", "b")):
         path = record / "join" / f"{name}.join"
         while not path.exists():
             time.sleep(0.05)
-        joins.append(subprocess.Popen(cli(network[host], "join", path), cwd=ROOT, stdout=subprocess.DEVNULL,
-                                      stderr=subprocess.DEVNULL))
+        joins.append(
+            subprocess.Popen(
+                cli(network[host], "join", path), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+            )
+        )
     signals = record / "signals.parquet"
     while not any(p.suffix == ".parquet" and not p.name.startswith(".") for p in signals.glob("*")):
-        time.sleep(0.05)   # stepping: the first 1000 rows are in
+        time.sleep(0.05)  # stepping: the first 1000 rows are in
     network.cut("a")
     cut = time.monotonic()
     try:
@@ -106,7 +123,7 @@ def detection(network, directory: Path, lease: str) -> float:
 
 def median(values: list[float]) -> float:
     values = sorted(values)
-    return values[len(values) // 2] if len(values) % 2 else sum(values[len(values) // 2 - 1:][:2]) / 2
+    return values[len(values) // 2] if len(values) % 2 else sum(values[len(values) // 2 - 1 :][:2]) / 2
 
 
 def main() -> None:
@@ -118,8 +135,10 @@ def main() -> None:
     args = parser.parse_args()
     if missing():
         raise SystemExit(f"cannot run: {missing()}")
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-          f"Python {platform.python_version()}; load {os.getloadavg()[0]:.1f}")
+    print(
+        f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+        f"Python {platform.python_version()}; load {os.getloadavg()[0]:.1f}"
+    )
     directory = Path(tempfile.mkdtemp(prefix="bench-hosts-"))
     os.environ["ZENORBIT_RUNTIME_DIR"] = str(directory / "runtime")
     with Network(["orch", "a", "b"]) as network:
@@ -129,15 +148,19 @@ def main() -> None:
             demo_figures(network, directory, args)
         if args.only in (None, "cut"):
             seen = [detection(network, directory, "1 s") for _ in range(args.repeats)]
-            print(f"\ncut link (bus.lease 1 s): seen after {', '.join(f'{s:.2f}' for s in seen)} s "
-                  f"(median {median(seen):.2f} s)")
+            print(
+                f"\ncut link (bus.lease 1 s): seen after {', '.join(f'{s:.2f}' for s in seen)} s "
+                f"(median {median(seen):.2f} s)"
+            )
 
 
 def ring_figures(network, directory: Path, args) -> None:
     ring = {}
-    for name, listen, tls, launch in (("loopback", "tcp/127.0.0.1:0", "false", "local"),
-                                      ("hosts, TLS", "tcp/0.0.0.0:0", "auto", "external"),
-                                      ("hosts, plain TCP", "tcp/0.0.0.0:0", "false", "external")):
+    for name, listen, tls, launch in (
+        ("loopback", "tcp/127.0.0.1:0", "false", "local"),
+        ("hosts, TLS", "tcp/0.0.0.0:0", "auto", "external"),
+        ("hosts, plain TCP", "tcp/0.0.0.0:0", "false", "external"),
+    ):
         path = directory / f"ring-{len(ring)}.yaml"
         path.write_text(RING.format(steps=args.steps, listen=listen, tls=tls, launch=launch))
         ring[name] = (path, ["b", "c"] if launch == "external" else [])
@@ -149,8 +172,10 @@ def ring_figures(network, directory: Path, args) -> None:
     base = median(rates["loopback"])
     print(f"\nlockstep, 3 no-op components in a ring (b and c on hosts a and b), {args.steps} steps of 1 ms:")
     for name, values in rates.items():
-        print(f"  {name:<18} {median(values):7.0f} steps/s ({1e6 / median(values):5.0f} us/step), "
-              f"x{median(values) / base:.2f} of loopback")
+        print(
+            f"  {name:<18} {median(values):7.0f} steps/s ({1e6 / median(values):5.0f} us/step), "
+            f"x{median(values) / base:.2f} of loopback"
+        )
     tls_cost = 1e6 / median(rates["hosts, TLS"]) - 1e6 / median(rates["hosts, plain TCP"])
     print(f"  TLS per step (hosts, TLS against hosts, plain TCP): {tls_cost:+.0f} us", flush=True)
 
@@ -160,9 +185,15 @@ def demo_figures(network, directory: Path, args) -> None:
     common = ["--set", f"run.duration={args.demo}", "--set", "components.dynamics.dedicated_cpu=false"]
     variants = {
         "loopback": common,
-        "hosts, TLS": common + ["--set", "bus.listen=[tcp/0.0.0.0:0]",
-                                "--set", "components.dynamics.launch=external",
-                                "--set", "components.controller.launch=external"],
+        "hosts, TLS": common
+        + [
+            "--set",
+            "bus.listen=[tcp/0.0.0.0:0]",
+            "--set",
+            "components.dynamics.launch=external",
+            "--set",
+            "components.controller.launch=external",
+        ],
     }
     factors: dict[str, list[float]] = {name: [] for name in variants}
     for _ in range(args.repeats):
@@ -171,8 +202,11 @@ def demo_figures(network, directory: Path, args) -> None:
             factors[name].append(run(network if external else None, [demo, *extra], external, directory)[2])
     print(f"\ndemo (configs/humanoid_tracking.yaml, {args.demo}; dynamics and controller on hosts a and b):")
     for name, values in factors.items():
-        print(f"  {name:<18} real-time factor {median(values):5.2f} (x{median(values) / median(factors['loopback']):.2f} "
-              f"of loopback; runs: {', '.join(f'{v:.2f}' for v in values)})", flush=True)
+        print(
+            f"  {name:<18} real-time factor {median(values):5.2f} (x{median(values) / median(factors['loopback']):.2f} "
+            f"of loopback; runs: {', '.join(f'{v:.2f}' for v in values)})",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

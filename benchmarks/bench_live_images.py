@@ -12,6 +12,7 @@
 Prints the medians and the CDR sizes. Timings on a shared machine are upper bounds: state the load
 beside them. A benchmark, never run by the tests.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -25,6 +26,7 @@ import yaml
 
 class _Sample:
     """A message as the view's subscriber gets it (``sample.payload.to_bytes()``)."""
+
     def __init__(self, payload: bytes):
         self.payload, self._bytes = self, payload
 
@@ -37,14 +39,15 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=100)
     args = parser.parse_args()
 
+    import tempfile
+    from pathlib import Path
+
     from rosbags.typesys import Stores, get_typestore
 
     from components import bus
     from components.ros_frames import LiveFrames
     from tests.integration.test_camera_run import camera_config
 
-    import tempfile
-    from pathlib import Path
     with tempfile.TemporaryDirectory() as tmp:
         config = yaml.safe_load(camera_config(Path(tmp) / "camera.yaml").read_text())
     rng = np.random.default_rng(0)
@@ -64,8 +67,10 @@ def main() -> None:
         encode, payloads = [], []
         for k in range(args.frames):
             started = time.perf_counter()
-            pair = (bus.encode_view_frame(k * 100_000_000, 0, k, "rgb", rgb),
-                    bus.encode_view_frame(k * 100_000_000, 0, k, "depth", depth))
+            pair = (
+                bus.encode_view_frame(k * 100_000_000, 0, k, "rgb", rgb),
+                bus.encode_view_frame(k * 100_000_000, 0, k, "depth", depth),
+            )
             encode.append(time.perf_counter() - started)
             payloads.append(pair)
         frames = LiveFrames(session, "bench", config, None, get_typestore(Stores.ROS2_JAZZY), print)
@@ -82,7 +87,7 @@ def main() -> None:
         sender.undeclare()
     finally:
         session.close()
-    ms = lambda values: 1e3 * statistics.median(values)   # noqa: E731
+    ms = lambda values: 1e3 * statistics.median(values)  # noqa: E731
     print(f"640x480 RGB + depth, {args.frames} frames")
     print(f"camera, nobody watching: {1e6 * statistics.median(idle):.2f} us a step (nothing encoded)")
     print(f"camera, a view watching: encode {ms(encode):.2f} ms a frame (RGB + depth view messages)")

@@ -5,6 +5,7 @@
 The ping-pong uses the same session settings and publishers as the orchestrator (peer mode,
 loopback TCP, reliable, BLOCK, express) between two processes, so the two numbers compare.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -18,11 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # run from anywhere, installed or not
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from anywhere, installed or not
 
 
 def pong(endpoint: str) -> None:
     import zenoh
+
     from components import bus
 
     session = zenoh.open(bus.session_config(connect=[endpoint]))
@@ -41,7 +43,9 @@ def pong(endpoint: str) -> None:
 def round_trip(n: int) -> np.ndarray:
     """Round-trip times (s) of n 64-byte messages between this process and a second one."""
     import queue
+
     import zenoh
+
     from components import bus
     from orchestrator.run.supervisor import resolve_endpoints
 
@@ -84,7 +88,8 @@ def lockstep(steps: int) -> float:
     config.write_text(
         "run: {name: bench, epoch: 2022-09-18T12:00:00Z, duration: %d ms, step: 1 ms, algorithm: jacobi}\n"
         "components:\n  a: {type: test.noop}\n  b: {type: test.noop}\n  c: {type: test.noop}\n"
-        "connections: {b.u: a.y, c.u: b.y, a.u: c.y}\n" % steps)
+        "connections: {b.u: a.y, c.u: b.y, a.u: c.y}\n" % steps
+    )
     run = Run(load(config), out=open(os.devnull, "w"))
     assert run.execute() == 0
     return steps / run.loop_s
@@ -100,9 +105,13 @@ def main() -> None:
         return
     rtt = round_trip(args.steps)
     rate = lockstep(args.steps)
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}")
-    print(f"zenoh pub/sub round trip: median {np.median(rtt) * 1e6:.0f} us, p99 {np.percentile(rtt, 99) * 1e6:.0f} us "
-          f"(-> at most {1 / np.median(rtt):.0f} round trips/s)")
+    print(
+        f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}"
+    )
+    print(
+        f"zenoh pub/sub round trip: median {np.median(rtt) * 1e6:.0f} us, p99 {np.percentile(rtt, 99) * 1e6:.0f} us "
+        f"(-> at most {1 / np.median(rtt):.0f} round trips/s)"
+    )
     print(f"lockstep, 3 no-op components, jacobi: {rate:.0f} steps/s ({1e6 / rate:.0f} us/step)")
 
 

@@ -7,6 +7,7 @@ gravity gradient on, stepped by the harness at 50 ms: without ``magnetic_field``
 with the dipole, with the WMM, and with the WMM and magnetorquers. Prints the median of five
 batches of 400 steps, per step (us), as a Markdown table. Never asserted in tests.
 """
+
 from __future__ import annotations
 
 import statistics
@@ -27,11 +28,17 @@ CASES = {
 def per_step_us(extra: dict, batches: int = 5, steps: int = 400) -> float:
     from components.testing.harness import Harness
 
-    params = {"bodies": {"target": {"urdf": str(ROOT / "models" / "target.urdf"),
-                                    "twist": [0, 0, 0, 0.03, -0.05, 0.07]}}, **extra}
+    params = {
+        "bodies": {"target": {"urdf": str(ROOT / "models" / "target.urdf"), "twist": [0, 0, 0, 0.03, -0.05, 0.07]}},
+        **extra,
+    }
     h = Harness("dynamics.dart", params, epoch="2026-03-20T00:00:00Z")
-    h.inputs.update(r_eci=np.array([2100e3, -6200e3, 2300e3]), v_eci=np.array([6900.0, 1800.0, -1500.0]),
-                    q_eci_lvlh=np.array([0.0, 0.0, 0.0, 1.0]), w_lvlh=np.zeros(3))
+    h.inputs.update(
+        r_eci=np.array([2100e3, -6200e3, 2300e3]),
+        v_eci=np.array([6900.0, 1800.0, -1500.0]),
+        q_eci_lvlh=np.array([0.0, 0.0, 0.0, 1.0]),
+        w_lvlh=np.zeros(3),
+    )
     if "magnetorquers" in extra:
         h.inputs["target.dipole"] = np.array([20.0, -30.0, 10.0])
     for _ in range(50):

@@ -10,6 +10,7 @@ Each row is the median over batches of ``BATCH`` consecutive steps of the thread
 lowest such median of ``--repeat`` passes (on a shared machine CPU time still varies from pass
 to pass, with the caches and the other core's load).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -59,9 +60,11 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=5000)
     parser.add_argument("--repeat", type=int, default=5)
     args = parser.parse_args()
-    print(f"orbit.kepler CPU time per step ({args.steps} steps of 1 ms; median of batches of {BATCH}, "
-          f"lowest of {args.repeat} passes; "
-          f"{platform.processor() or platform.machine()}, Python {platform.python_version()})")
+    print(
+        f"orbit.kepler CPU time per step ({args.steps} steps of 1 ms; median of batches of {BATCH}, "
+        f"lowest of {args.repeat} passes; "
+        f"{platform.processor() or platform.machine()}, Python {platform.python_version()})"
+    )
     for j2 in (True, False):
         harness = kepler(j2)
         component, orbit = harness.component, harness.component.orbit

@@ -10,6 +10,7 @@ each new time) for configs/one_day_perturbed.yaml's parameters with terms switch
 time, and the component's ``do_step`` (60 s of 10 s steps, its outputs packed). CPU time of the
 thread, median over batches, lowest of ``--repeat`` passes (as benchmarks/bench_orbit.py).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,7 +18,6 @@ import platform
 import sys
 from pathlib import Path
 
-import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,13 +43,16 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
-    print(f"orbit.numerical CPU time ({platform.processor() or platform.machine()}, Python {platform.python_version()})")
+    print(
+        f"orbit.numerical CPU time ({platform.processor() or platform.machine()}, Python {platform.python_version()})"
+    )
     full = harness()
     propagator = full.component.propagator
     r, v = propagator.r, propagator.v
     instant = propagator.surroundings.at(0.0)
     from components.orbit import numerical
     from components.space.gravity import GravityField
+
     terms = {t.name: t for t in propagator.terms}
     rows = [("point_mass", terms["point_mass"])]
     rows += [(f"harmonics {n} x {m}", numerical.Harmonics(GravityField(n, m))) for n, m in ((2, 0), (6, 0), (20, 20))]
@@ -58,12 +61,14 @@ def main() -> None:
         us = cpu_time_per_step(lambda k: term.acceleration(instant, r, v), args.steps, args.repeat) * 1e6
         print(f"  term {label:<34}{us:9.1f} us/evaluation")
     alone = dict(third_bodies=[], drag=None, atmosphere=None, srp=None, mass=None)
-    for label, h in (("all on (20 x 20, sun, moon, drag, srp)", full),
-                     ("no drag", harness(drag=None, atmosphere=None)),
-                     ("no srp", harness(srp=None)),
-                     ("no sun, moon", harness(third_bodies=[])),
-                     ("gravity 2 x 0 only", harness(gravity={"degree": 2, "order": 0}, **alone)),
-                     ("point mass only", harness(gravity={"degree": 0, "order": 0}, **alone))):
+    for label, h in (
+        ("all on (20 x 20, sun, moon, drag, srp)", full),
+        ("no drag", harness(drag=None, atmosphere=None)),
+        ("no srp", harness(srp=None)),
+        ("no sun, moon", harness(third_bodies=[])),
+        ("gravity 2 x 0 only", harness(gravity={"degree": 2, "order": 0}, **alone)),
+        ("point mass only", harness(gravity={"degree": 0, "order": 0}, **alone)),
+    ):
         p = h.component.propagator
         us = cpu_time_per_step(lambda k: p.state_at(p.t_ns + p.step_ns), args.steps, args.repeat) * 1e6
         print(f"  RK4 step (10 s), {label:<34}{us:9.1f} us/step")

@@ -28,6 +28,7 @@ per step of each process's main thread, its Zenoh threads and any other thread. 
 medians over the rounds. Wall-clock figures on a shared machine are noisy: the load average is
 printed with each run, and the CPU times hold better than the real-time factor.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -43,7 +44,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-if "--child" not in sys.argv:   # a child runs on the tree its PYTHONPATH names
+if "--child" not in sys.argv:  # a child runs on the tree its PYTHONPATH names
     sys.path.insert(0, str(ROOT))
 
 from components.constants import NS_PER_S  # noqa: E402
@@ -52,8 +53,8 @@ DEMO = ROOT / "configs" / "humanoid_tracking.yaml"
 STAND_IN = "benchmarks.paced_stand_ins:PacedDynamics"
 CONTROLLER_STAND_IN = "benchmarks.paced_stand_ins:PacedController"
 TICKS = os.sysconf("SC_CLK_TCK")
-ZENOH_THREADS = ("app", "rx", "tx", "acc", "net")   # Zenoh's runtime threads are named <runtime>-<n>
-WINDOW = (0.25, 0.85)   # the part of the run whose CPU time is counted
+ZENOH_THREADS = ("app", "rx", "tx", "acc", "net")  # Zenoh's runtime threads are named <runtime>-<n>
+WINDOW = (0.25, 0.85)  # the part of the run whose CPU time is counted
 
 
 def machine() -> str:
@@ -78,7 +79,7 @@ def record_demo(seconds: float, folder: Path) -> None:
     for name, spec in config.components.items():
         size = resolve(spec.cls, {**spec.parameters, **config.run_parameters}).outputs.size
         if name in ("dynamics", "controller"):
-            np.save(folder / f"{name}.npy", rows[:, start:start + size])
+            np.save(folder / f"{name}.npy", rows[:, start : start + size])
         start += size
 
 
@@ -115,7 +116,7 @@ def cpu_sample(root: int, exclude: int) -> dict[tuple[str, str], float]:
                 group = "main" if int(tid) == pid else "zenoh" if comm.split("-")[0] in ZENOH_THREADS else "other"
                 sample[(name, group)] += (int(fields[11]) + int(fields[12])) / TICKS
         except (OSError, ValueError, IndexError):
-            pass   # a process or thread that ended meanwhile
+            pass  # a process or thread that ended meanwhile
     return sample
 
 
@@ -125,7 +126,7 @@ def cpu_window(run, root: int, exclude: int, window: tuple[float, float], out: l
     steps = run.config.steps
     for fraction in window:
         while run.row < fraction * steps:
-            if run.loop_s:   # the loop ended (too early for this sample)
+            if run.loop_s:  # the loop ended (too early for this sample)
                 return
             time.sleep(0.005)
         sample, row = cpu_sample(root, exclude), run.row
@@ -143,8 +144,9 @@ def child(overrides: list[str]) -> None:
 
     run = Run(load(DEMO, overrides), out=open(os.devnull, "w"))
     samples: list = []
-    sampler = threading.Thread(target=lambda: cpu_window(run, os.getpid(), threading.get_native_id(), WINDOW, samples),
-                               daemon=True)
+    sampler = threading.Thread(
+        target=lambda: cpu_window(run, os.getpid(), threading.get_native_id(), WINDOW, samples), daemon=True
+    )
     sampler.start()
     if run.execute() != 0:
         raise SystemExit(f"the run failed: {overrides}")
@@ -161,8 +163,9 @@ def bus_run(overrides: list[str], tree: Path) -> tuple[float, dict]:
     import json
 
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tree), str(ROOT)])}
-    result = subprocess.run([sys.executable, __file__, "--child", *overrides], cwd=tree, env=env,
-                            capture_output=True, text=True)
+    result = subprocess.run(
+        [sys.executable, __file__, "--child", *overrides], cwd=tree, env=env, capture_output=True, text=True
+    )
     if result.returncode != 0:
         raise SystemExit(f"the run failed ({' '.join(overrides)}):\n{result.stderr[-3000:]}")
     data = json.loads(result.stdout)
@@ -174,12 +177,19 @@ def main() -> None:
     parser.add_argument("--cost", type=float, nargs="*", default=[100.0], help="stand-in costs, us per step (100)")
     parser.add_argument("--dart", action="store_true", help="also the demo with dynamics.dart")
     parser.add_argument("--pinocchio", action="store_true", help="also the demo with dynamics.pinocchio")
-    parser.add_argument("--floor", action="store_true", help="also both the dynamics and the controller as stand-ins at 0 us")
+    parser.add_argument(
+        "--floor", action="store_true", help="also both the dynamics and the controller as stand-ins at 0 us"
+    )
     parser.add_argument("--seconds", type=float, default=10.0, help="simulated seconds per run (10)")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--baseline", type=Path, help="another Zenorbit tree to run each variant on as well")
-    parser.add_argument("--dedicated", nargs="*", choices=("true", "process", "false"), default=[],
-                        help="run each variant with the dynamics' dedicated_cpu set to each of these (default: the config's)")
+    parser.add_argument(
+        "--dedicated",
+        nargs="*",
+        choices=("true", "process", "false"),
+        default=[],
+        help="run each variant with the dynamics' dedicated_cpu set to each of these (default: the config's)",
+    )
     parser.add_argument("--child", nargs="*", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child is not None:
@@ -192,20 +202,29 @@ def main() -> None:
 
     def stand_in(name: str, kind: str, cost: float) -> list[str]:
         """The overrides that put stand-in ``kind`` of ``cost`` us per step in place of ``name``."""
-        return [f"components.{name}.type={kind}", f"components.{name}.parameters.replay={recorded / f'{name}.npy'}",
-                f"components.{name}.parameters.cost={cost:g} us"]
+        return [
+            f"components.{name}.type={kind}",
+            f"components.{name}.parameters.replay={recorded / f'{name}.npy'}",
+            f"components.{name}.parameters.cost={cost:g} us",
+        ]
 
     variants = {f"stand-in {c:g} us": [duration, *stand_in("dynamics", STAND_IN, c)] for c in args.cost}
     if args.floor:
-        variants["both stand-ins at 0 us"] = [duration, *stand_in("dynamics", STAND_IN, 0),
-                                              *stand_in("controller", CONTROLLER_STAND_IN, 0)]
+        variants["both stand-ins at 0 us"] = [
+            duration,
+            *stand_in("dynamics", STAND_IN, 0),
+            *stand_in("controller", CONTROLLER_STAND_IN, 0),
+        ]
     if args.dart:
         variants["dynamics.dart"] = [duration]
     if args.pinocchio:
         variants["dynamics.pinocchio"] = [duration, "components.dynamics.type=dynamics.pinocchio"]
     if args.dedicated:
-        variants = {f"{label}, dedicated_cpu {mode}": [*overrides, f"components.dynamics.dedicated_cpu={mode}"]
-                    for label, overrides in variants.items() for mode in args.dedicated}
+        variants = {
+            f"{label}, dedicated_cpu {mode}": [*overrides, f"components.dynamics.dedicated_cpu={mode}"]
+            for label, overrides in variants.items()
+            for mode in args.dedicated
+        }
     trees = {"": ROOT} if args.baseline is None else {"": ROOT, " (baseline)": args.baseline.resolve()}
     results = collections.defaultdict(list)
     for r in range(args.rounds):
@@ -213,19 +232,27 @@ def main() -> None:
             for suffix, tree in trees.items():
                 factor, budget = bus_run(overrides, tree)
                 results[variant + suffix].append((factor, budget))
-                print(f"  round {r + 1}: {variant + suffix:<48} real-time factor {factor:5.2f}   "
-                      f"(load average {load()})", flush=True)
-    print(f"\nthe demo over the bus, {args.seconds:g} s simulated, medians of {args.rounds} rounds "
-          f"(CPU per step between {WINDOW[0]:.0%} and {WINDOW[1]:.0%} of the run):")
+                print(
+                    f"  round {r + 1}: {variant + suffix:<48} real-time factor {factor:5.2f}   (load average {load()})",
+                    flush=True,
+                )
+    print(
+        f"\nthe demo over the bus, {args.seconds:g} s simulated, medians of {args.rounds} rounds "
+        f"(CPU per step between {WINDOW[0]:.0%} and {WINDOW[1]:.0%} of the run):"
+    )
     for label, runs in results.items():
-        print(f"\n{label}: real-time factor {np.median([f for f, _ in runs]):.2f} "
-              f"(runs: {', '.join(f'{f:.2f}' for f, _ in runs)})")
+        print(
+            f"\n{label}: real-time factor {np.median([f for f, _ in runs]):.2f} "
+            f"(runs: {', '.join(f'{f:.2f}' for f, _ in runs)})"
+        )
         keys = sorted({k for _, b in runs for k in b})
         processes = list(dict.fromkeys(k.split("/")[0] for k in keys))
         print(f"  {'CPU us per step':<16}{'main':>8}{'zenoh':>8}{'other':>8}{'total':>8}")
         total = 0.0
         for process in processes:
-            cells = [float(np.median([b.get(f"{process}/{g}", 0.0) for _, b in runs])) for g in ("main", "zenoh", "other")]
+            cells = [
+                float(np.median([b.get(f"{process}/{g}", 0.0) for _, b in runs])) for g in ("main", "zenoh", "other")
+            ]
             total += sum(cells)
             print(f"  {process:<16}" + "".join(f"{c:8.1f}" for c in cells) + f"{sum(cells):8.1f}")
         print(f"  {'all':<16}{'':>24}{total:8.1f}   (= {total / 1e3:.2f} CPU-ms per simulated ms)")

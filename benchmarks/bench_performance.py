@@ -14,6 +14,7 @@ Rows:
 - steps/s for 1, 2, 4 and 8 no-op components in a loop, and us/step against the payload size.
 Steps/s count the stepping loop only (start-up excluded); figures are medians of ``--repeat`` runs.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -41,7 +42,10 @@ def machine() -> str:
     except OSError:
         pass
     from importlib.metadata import version
-    return f"{model}, {os.cpu_count()} cores, Python {platform.python_version()}, eclipse-zenoh {version('eclipse-zenoh')}"
+
+    return (
+        f"{model}, {os.cpu_count()} cores, Python {platform.python_version()}, eclipse-zenoh {version('eclipse-zenoh')}"
+    )
 
 
 def run_config(text: str, name: str = "bench.yaml") -> float:
@@ -63,8 +67,10 @@ def noop_loop(count: int, steps: int, size: int = 1, closed: bool = True) -> str
     components = "".join(f"  {n}: {{type: test.noop, parameters: {{size: {size}}}}}\n" for n in names)
     pairs = [(names[(i + 1) % count], names[i]) for i in range(count if closed else count - 1)]
     connections = ", ".join(f"{d}.u: {s}.y" for d, s in pairs)
-    return ("run: {name: bench, epoch: 2022-09-18T12:00:00Z, duration: %d ms, step: 1 ms, algorithm: jacobi}\n"
-            "components:\n%sconnections: {%s}\n" % (steps, components, connections))
+    return (
+        "run: {name: bench, epoch: 2022-09-18T12:00:00Z, duration: %d ms, step: 1 ms, algorithm: jacobi}\n"
+        "components:\n%sconnections: {%s}\n" % (steps, components, connections)
+    )
 
 
 def demo(seconds: float, repeat: int, more: list[str] = ()) -> tuple[float, float]:
@@ -97,8 +103,12 @@ def mosaik_rate(venv: Path, steps: int) -> float | None:
         print(f"(making the mosaik 3 environment in {venv})", file=sys.stderr)
         subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
         subprocess.run([str(python), "-m", "pip", "install", "-q", "mosaik>=3,<4"], check=True)
-    result = subprocess.run([str(python), str(ROOT / "benchmarks" / "mosaik_chain.py"), "--steps", str(steps)],
-                            capture_output=True, text=True, timeout=600)
+    result = subprocess.run(
+        [str(python), str(ROOT / "benchmarks" / "mosaik_chain.py"), "--steps", str(steps)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     if result.returncode != 0:
         print(f"mosaik run failed:\n{result.stderr[-2000:]}", file=sys.stderr)
         return None
@@ -132,26 +142,34 @@ def main() -> None:
     print(f"| paper's demo over the bus ({demo_s:g} s, 1 kHz, rk4, Jacobi) | real-time factor {bus_rtf:.2f} |")
     print(f"| same components in one process, one after another | real-time factor {local_rtf:.2f} |")
     print(f"| bus / one process | {bus_rtf / local_rtf:.2f}x |")
-    print(f"| the demo over the bus without dedicated_cpu | real-time factor {shared_rtf:.2f} "
-          f"({shared_rtf / local_rtf:.2f}x one process) |")
+    print(
+        f"| the demo over the bus without dedicated_cpu | real-time factor {shared_rtf:.2f} "
+        f"({shared_rtf / local_rtf:.2f}x one process) |"
+    )
 
     loop3 = median_rate(noop_loop(3, steps), repeat)
-    print(f"| 3 no-op components in a loop | {loop3:.0f} steps/s = {1e6 / loop3:.0f} us/step "
-          f"= {1 / loop3 / rtt:.2f}x the round trip |")
+    print(
+        f"| 3 no-op components in a loop | {loop3:.0f} steps/s = {1e6 / loop3:.0f} us/step "
+        f"= {1 / loop3 / rtt:.2f}x the round trip |"
+    )
 
     chain3 = median_rate(noop_loop(3, steps, closed=False), repeat)
     if not args.no_mosaik:
         rate = mosaik_rate(args.mosaik_venv, min(steps, 5000))
         if rate:
-            print(f"| 3 no-op chain a->b->c: Zenorbit / mosaik 3 | {chain3:.0f} / {rate:.0f} steps/s "
-                  f"= {chain3 / rate:.1f}x |")
+            print(
+                f"| 3 no-op chain a->b->c: Zenorbit / mosaik 3 | {chain3:.0f} / {rate:.0f} steps/s "
+                f"= {chain3 / rate:.1f}x |"
+            )
     else:
         print(f"| 3 no-op chain a->b->c | {chain3:.0f} steps/s |")
 
     for count in (1, 2, 4, 8):
         rate = median_rate(noop_loop(count, steps), repeat)
-        print(f"| {count} no-op component{'s' if count > 1 else ''} in a loop | {rate:.0f} steps/s "
-              f"({1e6 / rate:.0f} us/step) |")
+        print(
+            f"| {count} no-op component{'s' if count > 1 else ''} in a loop | {rate:.0f} steps/s "
+            f"({1e6 / rate:.0f} us/step) |"
+        )
     for size in (1, 10, 100, 1000, 10000):
         rate = median_rate(noop_loop(3, steps // 2, size=size), repeat)
         print(f"| 3 in a loop, {size} float64 per output | {1e6 / rate:.0f} us/step |")

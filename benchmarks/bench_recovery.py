@@ -11,6 +11,7 @@
 
 Whole runs, as a user starts them (``orchestrator run``); medians of ``--repeat`` runs, alternated.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -39,8 +40,18 @@ def events(record: Path) -> list[dict]:
 
 def run(record: Path, duration: float, *overrides: str, kill_at_step: int | None = None) -> dict:
     """One run; with ``kill_at_step``, SIGKILL the dynamics once the checkpoint of that step is taken."""
-    command = [sys.executable, "-m", "orchestrator.cli", "run", DEMO, "--record", str(record),
-               "--set", f"run.duration={duration} s", *overrides]
+    command = [
+        sys.executable,
+        "-m",
+        "orchestrator.cli",
+        "run",
+        DEMO,
+        "--record",
+        str(record),
+        "--set",
+        f"run.duration={duration} s",
+        *overrides,
+    ]
     start = time.perf_counter()
     process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     killed_at = detected_at = None
@@ -62,8 +73,7 @@ def run(record: Path, duration: float, *overrides: str, kill_at_step: int | None
     if process.returncode != 0:
         raise SystemExit(f"run failed: {err}")
     found = events(record)
-    return {"wall": wall, "events": found,
-            "detection": None if killed_at is None else detected_at - killed_at}
+    return {"wall": wall, "events": found, "detection": None if killed_at is None else detected_at - killed_at}
 
 
 def dynamics_pid(record: Path) -> int:
@@ -80,7 +90,7 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=8.0, help="simulated seconds per run")
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
-    half = int(args.duration / 2 * 1000)   # the demo steps 1 ms
+    half = int(args.duration / 2 * 1000)  # the demo steps 1 ms
     restartable = ["--set", "components.dynamics.on_failure=restart", "--set", "run.checkpoint_every=1 s"]
     kinds = {
         "undisturbed": ([], None),
@@ -101,17 +111,25 @@ def main() -> None:
         return median(kind, lambda r: next(e[key] for e in r["events"] if e["event"] == name))
 
     base = median("undisturbed", lambda r: r["wall"])
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-          f"Python {platform.python_version()}; {DEMO}, {args.duration:g} s simulated, medians of {args.repeat}")
+    print(
+        f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+        f"Python {platform.python_version()}; {DEMO}, {args.duration:g} s simulated, medians of {args.repeat}"
+    )
     print(f"undisturbed run: {base:.2f} s wall")
-    print(f"checkpoints every 1 s: {median('checkpointed', lambda r: r['wall']) - base:+.2f} s wall "
-          f"({int(args.duration)} checkpoints)")
-    print(f"same-type swap of the controller: holds the run {event('swapped', 'swap', 'wall_s'):.2f} s "
-          f"(whole run {median('swapped', lambda r: r['wall']) - base:+.2f} s)")
-    print(f"SIGKILL of the dynamics: detected in {median('killed', lambda r: r['detection']) * 1e3:.1f} ms; "
-          f"restart {event('killed', 'restart', 'wall_s'):.2f} s; "
-          f"whole run {median('killed', lambda r: r['wall']) - base:+.2f} s "
-          f"(re-runs the steps since the last checkpoint)")
+    print(
+        f"checkpoints every 1 s: {median('checkpointed', lambda r: r['wall']) - base:+.2f} s wall "
+        f"({int(args.duration)} checkpoints)"
+    )
+    print(
+        f"same-type swap of the controller: holds the run {event('swapped', 'swap', 'wall_s'):.2f} s "
+        f"(whole run {median('swapped', lambda r: r['wall']) - base:+.2f} s)"
+    )
+    print(
+        f"SIGKILL of the dynamics: detected in {median('killed', lambda r: r['detection']) * 1e3:.1f} ms; "
+        f"restart {event('killed', 'restart', 'wall_s'):.2f} s; "
+        f"whole run {median('killed', lambda r: r['wall']) - base:+.2f} s "
+        f"(re-runs the steps since the last checkpoint)"
+    )
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ Jazzy venv of tests/ros2_rclpy). Both nodes are Python, so the figures are trans
 round trip per step. Prints the stepping time per step (the orchestrator's own count of the loop)
 and the run's wall time, medians over ``--repeats`` alternated pairs.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -24,9 +25,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.integration.test_ros2_bridge import KD, KP, STANDIN, _free_port, config   # noqa: E402
-from tests.integration.test_ros2_rclpy import BOTH_OUTPUTS, bridge_config           # noqa: E402
-from tests.ros2_rclpy.environment import ensure                                      # noqa: E402
+from tests.integration.test_ros2_bridge import KD, KP, STANDIN, _free_port, config  # noqa: E402
+from tests.integration.test_ros2_rclpy import BOTH_OUTPUTS, bridge_config  # noqa: E402
+from tests.ros2_rclpy.environment import ensure  # noqa: E402
 
 SUMMARY = re.compile(r"completed: (\d+) steps.*?; ([0-9.]+) s wall \(([0-9.]+) s stepping")
 SPRING_NODE = ROOT / "tests" / "ros2_rclpy" / "spring_node.py"
@@ -53,8 +54,12 @@ def stop(process: subprocess.Popen) -> None:
 def run(text: str, tmp: Path) -> tuple[int, float, float]:
     path = tmp / "config.yaml"
     path.write_text(text)
-    done = subprocess.run([sys.executable, "-m", "orchestrator.cli", "run", str(path), "--record", str(tmp / "rec")],
-                          cwd=ROOT, capture_output=True, text=True)
+    done = subprocess.run(
+        [sys.executable, "-m", "orchestrator.cli", "run", str(path), "--record", str(tmp / "rec")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     match = SUMMARY.search(done.stderr)
     if done.returncode != 0 or match is None:
         raise RuntimeError(done.stdout + done.stderr)
@@ -63,9 +68,25 @@ def run(text: str, tmp: Path) -> tuple[int, float, float]:
 
 def zenoh_once(steps: int, tmp: Path) -> tuple[int, float, float]:
     port = _free_port()
-    node = subprocess.Popen([sys.executable, str(STANDIN), "--listen", f"tcp/127.0.0.1:{port}", "--kp", str(KP),
-                             "--kd", str(KD), "--ready", str(tmp / "ready"), "--clock-log", str(tmp / "clock.log")],
-                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    node = subprocess.Popen(
+        [
+            sys.executable,
+            str(STANDIN),
+            "--listen",
+            f"tcp/127.0.0.1:{port}",
+            "--kp",
+            str(KP),
+            "--kd",
+            str(KD),
+            "--ready",
+            str(tmp / "ready"),
+            "--clock-log",
+            str(tmp / "clock.log"),
+        ],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         wait_for(tmp / "ready", node, "the stand-in node")
         return run(config("bench_zenoh", port, steps=steps), tmp)
@@ -74,9 +95,24 @@ def zenoh_once(steps: int, tmp: Path) -> tuple[int, float, float]:
 
 
 def rclpy_once(steps: int, tmp: Path, python: str) -> tuple[int, float, float]:
-    node = subprocess.Popen([python, str(SPRING_NODE), "--domain", str(DOMAIN), "--kp", str(KP), "--kd", str(KD),
-                             "--ready", str(tmp / "ready"), "--log", str(tmp / "answers.log")],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    node = subprocess.Popen(
+        [
+            python,
+            str(SPRING_NODE),
+            "--domain",
+            str(DOMAIN),
+            "--kp",
+            str(KP),
+            "--kd",
+            str(KD),
+            "--ready",
+            str(tmp / "ready"),
+            "--log",
+            str(tmp / "answers.log"),
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         wait_for(tmp / "ready", node, "the rclpy node")
         return run(bridge_config("bench_rclpy", python, DOMAIN, BOTH_OUTPUTS, steps=steps), tmp)

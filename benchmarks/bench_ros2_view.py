@@ -15,6 +15,7 @@ turn, comparing the lockstep loop time (``--profile``) and the CPU time of the w
 (orchestrator, components, observer), which depends less on what else the machine does. Medians
 over ``--repeats`` rounds.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -55,8 +56,9 @@ def free_port() -> int:
 class Router:
     def __init__(self):
         self.endpoint = f"tcp/127.0.0.1:{free_port()}"
-        self.process = subprocess.Popen([sys.executable, "-c", ROUTER % self.endpoint], stdin=subprocess.PIPE,
-                                        stdout=subprocess.PIPE, text=True)
+        self.process = subprocess.Popen(
+            [sys.executable, "-c", ROUTER % self.endpoint], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+        )
         assert self.process.stdout.readline().strip() == "ready"
 
     def close(self):
@@ -77,9 +79,22 @@ def throughput(args) -> None:
 
     with tempfile.TemporaryDirectory(prefix="zenorbit-bench-ros2-") as tmp:
         record = Path(tmp) / "rec"
-        result = subprocess.run([sys.executable, "-m", "orchestrator.cli", "run", args.config, "--set",
-                                 f"run.duration={args.duration}", "--record", str(record)], cwd=ROOT,
-                                capture_output=True, text=True)
+        result = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "orchestrator.cli",
+                "run",
+                args.config,
+                "--set",
+                f"run.duration={args.duration}",
+                "--record",
+                str(record),
+            ],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+        )
         if result.returncode:
             sys.exit(result.stderr[-2000:])
         table = pq.read_table(record / "signals.parquet")
@@ -99,17 +114,19 @@ def throughput(args) -> None:
     build = put = 0.0
     for start in range(0, len(times), 200):
         t0 = time.perf_counter()
-        batch = live.batch(times[start:start + 200], rows[start:start + 200])[0]
+        batch = live.batch(times[start : start + 200], rows[start : start + 200])[0]
         t1 = time.perf_counter()
         publishers.publish(batch)
         t2 = time.perf_counter()
         build, put = build + t1 - t0, put + t2 - t1
-    time.sleep(3.0)   # let the last samples arrive before counting
+    time.sleep(3.0)  # let the last samples arrive before counting
     total = build + put
-    print(f"{Path(args.config).name}: {len(times)} rows, {publishers.sent} messages on {len(publishers.publishers)} "
-          f"topics in {total:.2f} s: {len(times) / total:.0f} rows/s, {publishers.sent / total:.0f} messages/s "
-          f"(building and CDR {100 * build / total:.0f} %, put {100 * put / total:.0f} %); "
-          f"{received[0]} received by a subscriber through the router")
+    print(
+        f"{Path(args.config).name}: {len(times)} rows, {publishers.sent} messages on {len(publishers.publishers)} "
+        f"topics in {total:.2f} s: {len(times) / total:.0f} rows/s, {publishers.sent / total:.0f} messages/s "
+        f"(building and CDR {100 * build / total:.0f} %, put {100 * put / total:.0f} %); "
+        f"{received[0]} received by a subscriber through the router"
+    )
     node.close()
     session.close()
     counter.undeclare()
@@ -147,18 +164,25 @@ def cost(args) -> None:
         for i in range(args.repeats):
             for view, extra in views.items():
                 results[view].append(run_once(args.config, args.duration, extra, args.rate))
-            print(f"  round {i + 1}: " + "; ".join(f"{view} loop {r[-1][0]:.3f} s, CPU {r[-1][3]:.2f} s"
-                                                   for view, r in results.items()), flush=True)
+            print(
+                f"  round {i + 1}: "
+                + "; ".join(f"{view} loop {r[-1][0]:.3f} s, CPU {r[-1][3]:.2f} s" for view, r in results.items()),
+                flush=True,
+            )
     finally:
         router.close()
     loop0 = np.median([r[0] for r in results["none"]])
     cpu0 = np.median([r[3] for r in results["none"]])
-    print(f"{Path(args.config).name}, {results['none'][0][2]} steps, ros2 at {args.rate} Hz of sim time, medians of "
-          f"{args.repeats} ({os.cpu_count()} CPUs); without a view: loop {loop0:.3f} s, CPU of all processes {cpu0:.2f} s")
+    print(
+        f"{Path(args.config).name}, {results['none'][0][2]} steps, ros2 at {args.rate} Hz of sim time, medians of "
+        f"{args.repeats} ({os.cpu_count()} CPUs); without a view: loop {loop0:.3f} s, CPU of all processes {cpu0:.2f} s"
+    )
     for view in list(views)[1:]:
         loop, cpu = np.median([r[0] for r in results[view]]), np.median([r[3] for r in results[view]])
-        print(f"  {view}: loop {loop:.3f} s ({100 * (loop / loop0 - 1):+.1f} %), CPU {cpu:.2f} s "
-              f"({100 * (cpu / cpu0 - 1):+.1f} %)")
+        print(
+            f"  {view}: loop {loop:.3f} s ({100 * (loop / loop0 - 1):+.1f} %), CPU {cpu:.2f} s "
+            f"({100 * (cpu / cpu0 - 1):+.1f} %)"
+        )
 
 
 def main() -> int:
@@ -168,8 +192,11 @@ def main() -> int:
     parser.add_argument("--duration", default=None, help="sim time (default: 2s throughput, 5s cost)")
     parser.add_argument("--rate", default="30", help="cost: ros2.rate, Hz of sim time")
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--ros2-python", default=None,
-                        help="cost: also the rclpy transport, with this Python (python -m tests.ros2_rclpy.environment)")
+    parser.add_argument(
+        "--ros2-python",
+        default=None,
+        help="cost: also the rclpy transport, with this Python (python -m tests.ros2_rclpy.environment)",
+    )
     args = parser.parse_args()
     args.duration = args.duration or ("2s" if args.what == "throughput" else "5s")
     (throughput if args.what == "throughput" else cost)(args)

@@ -10,6 +10,7 @@ the medians: the ratio of the real-time factors with / without, the extra CPU ti
 compute per step of the dynamics, the controller and the shadow (wall time of do_step,
 preemption included).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -36,7 +37,9 @@ def shadow_override() -> str:
 
 def cpu_s() -> float:
     """CPU time of this process and its children that have ended (the run's component processes)."""
-    return sum(r.ru_utime + r.ru_stime for r in map(resource.getrusage, (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)))
+    return sum(
+        r.ru_utime + r.ru_stime for r in map(resource.getrusage, (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    )
 
 
 def demo(seconds: float, more: list[str]) -> tuple[float, float, dict[str, float]]:
@@ -45,12 +48,17 @@ def demo(seconds: float, more: list[str]) -> tuple[float, float, dict[str, float
     from orchestrator.run.engine import Run
 
     before = cpu_s()
-    run = Run(load(ROOT / "configs" / "humanoid_tracking.yaml", [f"run.duration={seconds} s", *more]),
-              out=open(os.devnull, "w"))
+    run = Run(
+        load(ROOT / "configs" / "humanoid_tracking.yaml", [f"run.duration={seconds} s", *more]),
+        out=open(os.devnull, "w"),
+    )
     if run.execute() != 0:
         raise RuntimeError("the demo failed over the bus")
-    return (seconds / run.loop_s, cpu_s() - before,
-            {m.name: m.compute_s / max(m.steps, 1) for m in run.state.members.values()})
+    return (
+        seconds / run.loop_s,
+        cpu_s() - before,
+        {m.name: m.compute_s / max(m.steps, 1) for m in run.state.members.values()},
+    )
 
 
 def main() -> None:
@@ -75,9 +83,12 @@ def main() -> None:
         if variants[name]:
             ratio = np.median([r[0] / p[0] for r, p in zip(runs, plain)])
             extra = np.median([r[1] - p[1] for r, p in zip(runs, plain)])
-            compute = {c: np.median([r[2][c] for r in runs]) * 1e6 for c in ("dynamics", "controller", "controller_shadow")}
-            line += (f"; ratio to without {ratio:.2f} (same round), +{extra:.1f} CPU s; compute per step: "
-                     + ", ".join(f"{c} {us:.0f} us" for c, us in compute.items()))
+            compute = {
+                c: np.median([r[2][c] for r in runs]) * 1e6 for c in ("dynamics", "controller", "controller_shadow")
+            }
+            line += f"; ratio to without {ratio:.2f} (same round), +{extra:.1f} CPU s; compute per step: " + ", ".join(
+                f"{c} {us:.0f} us" for c, us in compute.items()
+            )
         print(line)
 
 

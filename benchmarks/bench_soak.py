@@ -12,6 +12,7 @@ and several runs at once.
 
 Whole runs as a user starts them; psutil reads the memory. The machine is printed first.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -31,12 +32,22 @@ CONFIG = ROOT / "configs" / "capture_tumbling_target.yaml"
 
 
 def command(record: Path, duration: float) -> list[str]:
-    return [sys.executable, "-m", "orchestrator.cli", "run", str(CONFIG), "--record", str(record),
-            "--set", f"run.duration={duration:g} s"]
+    return [
+        sys.executable,
+        "-m",
+        "orchestrator.cli",
+        "run",
+        str(CONFIG),
+        "--record",
+        str(record),
+        "--set",
+        f"run.duration={duration:g} s",
+    ]
 
 
 def rows_of(record: Path) -> int:
     import pyarrow.parquet as pq
+
     return pq.read_table(record / "signals.parquet", columns=["step"]).num_rows
 
 
@@ -62,8 +73,9 @@ def soak(duration: float, every: float) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         record = Path(tmp) / "soak"
         started = time.monotonic()
-        run = subprocess.Popen(command(record, duration), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                               text=True)
+        run = subprocess.Popen(
+            command(record, duration), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+        )
         root = psutil.Process(run.pid)
         samples: dict[str, list[tuple[float, int]]] = {}
         while run.poll() is None:
@@ -73,11 +85,13 @@ def soak(duration: float, every: float) -> int:
                     rss = process.memory_info().rss
                 except psutil.Error:
                     continue
-                if rss:                      # 0: the process has ended (a zombie)
+                if rss:  # 0: the process has ended (a zombie)
                     samples.setdefault(role, []).append((time.monotonic() - started, rss))
         err = run.stderr.read()
         wall = time.monotonic() - started
-        print(f"soak: exit {run.returncode}, {duration:g} s simulated in {wall:.0f} s of wall; {err.strip().splitlines()[-1:]}")
+        print(
+            f"soak: exit {run.returncode}, {duration:g} s simulated in {wall:.0f} s of wall; {err.strip().splitlines()[-1:]}"
+        )
         steps = round(duration / 0.01)
         print(f"rows {rows_of(record)} of {steps + 1}; warnings in events.jsonl: {warnings_of(record) or 'none'}")
         print(f"{'process':<14}{'RSS at ~1 min (MB)':>20}{'RSS at the end (MB)':>22}{'growth':>9}")
@@ -96,8 +110,12 @@ def parallel(runs: int, duration: float) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         records = [Path(tmp) / f"run{i}" for i in range(runs)]
         started = time.monotonic()
-        procs = [subprocess.Popen(command(r, duration), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                  text=True) for r in records]
+        procs = [
+            subprocess.Popen(
+                command(r, duration), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+            )
+            for r in records
+        ]
         codes = [p.wait() for p in procs]
         wall = time.monotonic() - started
         steps = round(duration / 0.01)

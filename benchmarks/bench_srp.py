@@ -11,6 +11,7 @@ conical (Earth and Moon). The figure is the process's CPU time per step, the med
 of 100 steps and then over the rounds (the variants alternate). A benchmark, never run by the
 tests; it prints the machine and its load.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -32,8 +33,10 @@ from components.testing.harness import Harness  # noqa: E402
 
 BATCH = 100
 EPOCH = "2024-03-20T06:00:00Z"
-BOX = [{"area": 4.0, "normal": n, "centre": [c * 1.0 for c in n], "specular": 0.2, "diffuse": 0.3}
-       for n in ([1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1])]
+BOX = [
+    {"area": 4.0, "normal": n, "centre": [c * 1.0 for c in n], "specular": 0.2, "diffuse": 0.3}
+    for n in ([1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1])
+]
 BODIES = {"target": ("../models/target.urdf", "target"), "servicer": ("../models/capture/servicer.urdf", "bus")}
 VARIANTS = {"off": {}, "cannonball": {"srp_area": 4.0}, "facets": {"srp_facets": "BOX"}}
 
@@ -41,9 +44,12 @@ VARIANTS = {"off": {}, "cannonball": {"srp_area": 4.0}, "facets": {"srp_facets":
 def orbit(t: float, a: float = 6778e3) -> dict[str, np.ndarray]:
     n = math.sqrt(MU_EARTH / a**3)
     th = n * t
-    return {"r_eci": a * np.array([math.cos(th), math.sin(th), 0.0]),
-            "v_eci": a * n * np.array([-math.sin(th), math.cos(th), 0.0]),
-            "q_eci_lvlh": np.array([0.0, 0.0, math.sin(th / 2), math.cos(th / 2)]), "w_lvlh": np.array([0.0, 0.0, n])}
+    return {
+        "r_eci": a * np.array([math.cos(th), math.sin(th), 0.0]),
+        "v_eci": a * n * np.array([-math.sin(th), math.cos(th), 0.0]),
+        "q_eci_lvlh": np.array([0.0, 0.0, math.sin(th / 2), math.cos(th / 2)]),
+        "w_lvlh": np.array([0.0, 0.0, n]),
+    }
 
 
 def harness(engine: str, body: str, variant: str) -> Harness:
@@ -51,8 +57,10 @@ def harness(engine: str, body: str, variant: str) -> Harness:
     extra = dict(VARIANTS[variant])
     if extra.get("srp_facets") == "BOX":
         extra["srp_facets"] = {root: BOX}
-    params = {"srp": variant != "off", "bodies": {body: {"urdf": urdf, "frame": "lvlh", "orientation": [0.1, 0.2, 0.3, 0.93],
-                                                         **extra}}}
+    params = {
+        "srp": variant != "off",
+        "bodies": {body: {"urdf": urdf, "frame": "lvlh", "orientation": [0.1, 0.2, 0.3, 0.93], **extra}},
+    }
     h = Harness(f"dynamics.{engine}", params, config_dir=ROOT / "configs", epoch=EPOCH)
     h.inputs.update(orbit(0.0))
     h.initialize()
@@ -62,9 +70,9 @@ def harness(engine: str, body: str, variant: str) -> Harness:
 def per_step(h: Harness, steps: int) -> float:
     """Median CPU seconds per step over batches of BATCH steps."""
     batches = []
-    for b in range(steps // BATCH):
+    for _b in range(steps // BATCH):
         start = time.process_time()
-        for k in range(BATCH):
+        for _k in range(BATCH):
             t = h.t_ns / 1e9
             h.inputs.update(orbit(t))
             h.step(1_000_000_000)
@@ -83,7 +91,9 @@ def main() -> None:
 def compare(what: str, variants, make, steps: int, rounds: int) -> None:
     """Prints the table: per engine and body, each variant's CPU time per step (``make(engine,
     body, variant)`` gives its Harness; the variants alternate over the rounds) against "off"."""
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cpus, load {os.getloadavg()[0]:.2f}")
+    print(
+        f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cpus, load {os.getloadavg()[0]:.2f}"
+    )
     print(f"| engine | body | {what} | us per step | vs off |")
     print("|---|---|---|---|---|")
     for engine in ("dart", "pinocchio"):
@@ -96,7 +106,9 @@ def compare(what: str, variants, make, steps: int, rounds: int) -> None:
             off = statistics.median(figures["off"])
             for v in variants:
                 value = statistics.median(figures[v])
-                print(f"| dynamics.{engine} | {body} | {v} | {value * 1e6:.1f} | {(value - off) * 1e6:+.1f} us ({value / off:.2f}x) |")
+                print(
+                    f"| dynamics.{engine} | {body} | {v} | {value * 1e6:.1f} | {(value - off) * 1e6:+.1f} us ({value / off:.2f}x) |"
+                )
     print(f"load after: {os.getloadavg()[0]:.2f}")
 
 

@@ -8,6 +8,7 @@ in this process through components.testing.harness.Harness, CPU time per step, t
 batches of 100 steps and over the rounds, the variants alternating), each engine. Variants:
 ``third_bodies`` off (the default), [sun], [sun, moon]. A benchmark, never run by the tests.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -24,8 +25,10 @@ VARIANTS = {"off": [], "sun": ["sun"], "sun, moon": ["sun", "moon"]}
 
 
 def harness(engine: str, body: str, variant: str) -> Harness:
-    params = {"third_bodies": VARIANTS[variant],
-              "bodies": {body: {"urdf": BODIES[body][0], "frame": "lvlh", "orientation": [0.1, 0.2, 0.3, 0.93]}}}
+    params = {
+        "third_bodies": VARIANTS[variant],
+        "bodies": {body: {"urdf": BODIES[body][0], "frame": "lvlh", "orientation": [0.1, 0.2, 0.3, 0.93]}},
+    }
     h = Harness(f"dynamics.{engine}", params, config_dir=ROOT / "configs", epoch=EPOCH)
     h.inputs.update(orbit(0.0))
     h.initialize()

@@ -5,6 +5,7 @@
 Run by bench_performance.py with the interpreter of its own mosaik environment (mosaik is not a
 dependency of Zenorbit). The same file is the simulator that each process runs.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -57,7 +58,7 @@ def scenario(steps: int) -> float:
 
 if __name__ == "__main__":
     if len(sys.argv) == 2 and not sys.argv[1].startswith("-"):
-        simulator()   # started by mosaik with the address to connect to
+        simulator()  # started by mosaik with the address to connect to
     else:
         parser = argparse.ArgumentParser()
         parser.add_argument("--steps", type=int, default=5000)

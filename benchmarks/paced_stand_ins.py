@@ -8,6 +8,7 @@ outputs) and ``cost`` (CPU time per step). A step spends ``cost`` of its thread'
 returns row k + 1: the values of a recorded run, so that what they feed computes on the values it
 would see. Their inputs are read and ignored.
 """
+
 from __future__ import annotations
 
 import time

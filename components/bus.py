@@ -16,6 +16,7 @@ ignores a replaced generation. Step outputs are raw float64 in the layout ``decl
 JSON per step. The sessions form a mesh (gossip through the orchestrator's session): outputs go
 straight from producer to consumer, one hop.
 """
+
 from __future__ import annotations
 
 import datetime as dt
@@ -25,15 +26,16 @@ import os
 import struct
 import tempfile
 import threading
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
 from components import protocol
 from components.protocol import BATCH, FRAME, FRAME_DTYPES, OUTPUT, SYNC, VIEW_FRAME, Malformed
 
-_OUTPUT_HEADER = struct.Struct("<qq")    # generation, tag
-_BATCH_HEADER = struct.Struct("<qqq")    # generation, number of steps, outputs per step
+_OUTPUT_HEADER = struct.Struct("<qq")  # generation, tag
+_BATCH_HEADER = struct.Struct("<qqq")  # generation, number of steps, outputs per step
 _INT = struct.Struct("<q")
 # a frame's header: generation, tag, dtype (index in FRAME_DTYPES), ndim, H, W, C (1 when 2-D),
 # length of the output's name (UTF-8, after the header); the raw bytes follow the name
@@ -49,8 +51,10 @@ def count_drop(counts: dict[str, int], key: str) -> int | None:
 
 def _expect(payload: bytes, kind: bytes, minimum: int) -> None:
     if len(payload) < minimum or payload[:1] != kind:
-        raise Malformed(f"expected a {kind.decode()} message of at least {minimum} bytes, got {len(payload)} "
-                        f"bytes starting {bytes(payload[:1])!r}")
+        raise Malformed(
+            f"expected a {kind.decode()} message of at least {minimum} bytes, got {len(payload)} "
+            f"bytes starting {bytes(payload[:1])!r}"
+        )
 
 
 def run_key(run_id: str, *parts: str) -> str:
@@ -88,8 +92,8 @@ def output_prefix(run_id: str, consumer: str) -> str:
     return protocol.OUTPUTS.key(run_id, name=consumer, source="")
 
 
-VIEWER = "_viewer"              # the observer's liveliness name (component names cannot start with _)
-ROS2 = "_ros2"                  # the ROS 2 observer's (--ros2)
+VIEWER = "_viewer"  # the observer's liveliness name (component names cannot start with _)
+ROS2 = "_ros2"  # the ROS 2 observer's (--ros2)
 
 
 def alive_key(run_id: str, name: str, generation: int) -> str:
@@ -161,11 +165,11 @@ def alive_source(key: str) -> tuple[str, int] | None:
 
 
 def _is_number(text: str) -> bool:
-    return text.isascii() and text.isdigit()   # str.isdigit alone accepts "²", which int() refuses
+    return text.isascii() and text.isdigit()  # str.isdigit alone accepts "²", which int() refuses
 
 
-SIGNALS_HEADER = struct.Struct("<qd")   # a signals row: k, time in s; then one float64 per recorded column
-SIGNALS_END = b"END"                    # on the signals key: the run is over
+SIGNALS_HEADER = struct.Struct("<qd")  # a signals row: k, time in s; then one float64 per recorded column
+SIGNALS_END = b"END"  # on the signals key: the run is over
 
 
 def encode_output(generation: int, tag: int, outputs: np.ndarray) -> bytes:
@@ -203,7 +207,7 @@ def decode_view_frame(payload) -> tuple[int, int, int, str, np.ndarray]:
     read-only view of the payload. Malformed otherwise."""
     _expect(payload, VIEW_FRAME, 1 + _INT.size)
     taken = _INT.unpack_from(payload, 1)[0]
-    return (taken, *decode_frame(memoryview(payload)[1 + _INT.size:]))
+    return (taken, *decode_frame(memoryview(payload)[1 + _INT.size :]))
 
 
 def decode_frame(payload: bytes) -> tuple[int, int, str, np.ndarray]:
@@ -212,13 +216,13 @@ def decode_frame(payload: bytes) -> tuple[int, int, str, np.ndarray]:
     _expect(payload, FRAME, 1 + _FRAME_HEADER.size)
     generation, tag, dtype, ndim, h, w, c, n = _FRAME_HEADER.unpack_from(payload, 1)
     start = 1 + _FRAME_HEADER.size + n
-    if dtype >= len(FRAME_DTYPES) or ndim not in (2, 3) or ndim == 2 and c != 1:
+    if dtype >= len(FRAME_DTYPES) or ndim not in (2, 3) or (ndim == 2 and c != 1):
         raise Malformed(f"frame message with dtype {dtype}, {ndim} dimensions, shape {(h, w, c)}")
     shape, dtype = (h, w, c)[:ndim], np.dtype(FRAME_DTYPES[dtype])
     if len(payload) != start + h * w * c * dtype.itemsize:
         raise Malformed(f"frame message of {len(payload)} bytes does not hold a {dtype.name} frame of shape {shape}")
     try:
-        output = bytes(payload[1 + _FRAME_HEADER.size:start]).decode()
+        output = bytes(payload[1 + _FRAME_HEADER.size : start]).decode()
     except UnicodeDecodeError:
         raise Malformed("frame message whose output name is not UTF-8") from None
     return generation, tag, output, np.frombuffer(payload, dtype=dtype, offset=start).reshape(shape)
@@ -227,8 +231,13 @@ def decode_frame(payload: bytes) -> tuple[int, int, str, np.ndarray]:
 def encode_batch(generation: int, tags: np.ndarray, timings: np.ndarray, outputs: np.ndarray) -> bytes:
     """n steps' outputs: tags (n,) int64, timings (n, 2) compute and idle seconds, outputs (n, size)."""
     n, size = outputs.shape
-    return (BATCH + _BATCH_HEADER.pack(generation, n, size) + tags.astype(np.int64).tobytes()
-            + timings.tobytes() + outputs.tobytes())
+    return (
+        BATCH
+        + _BATCH_HEADER.pack(generation, n, size)
+        + tags.astype(np.int64).tobytes()
+        + timings.tobytes()
+        + outputs.tobytes()
+    )
 
 
 def decode_batch(payload: bytes) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
@@ -281,16 +290,23 @@ def decode_state(blob: bytes) -> dict[str, np.ndarray]:
     try:
         with np.load(io.BytesIO(blob), allow_pickle=False) as data:
             return {k: data[k] for k in data.files}
-    except Exception as e:   # np.load raises whatever its parsers meet in a corrupt file
+    except Exception as e:  # np.load raises whatever its parsers meet in a corrupt file
         raise Malformed(f"state blob of {len(blob)} bytes is not an .npz archive ({type(e).__name__}: {e})") from None
 
 
-SECRET_ENV = "ZENORBIT_SECRET"   # how a run's processes get its secret (never on a command line)
+SECRET_ENV = "ZENORBIT_SECRET"  # how a run's processes get its secret (never on a command line)
 USER = "zenorbit"
 
 
-def open_session(listen: list[str] = (), connect: list[str] = (), *, mesh: bool = False,
-                 secret: str | None = None, settings: dict | None = None, connect_timeout_s: float | None = None):
+def open_session(
+    listen: list[str] = (),
+    connect: list[str] = (),
+    *,
+    mesh: bool = False,
+    secret: str | None = None,
+    settings: dict | None = None,
+    connect_timeout_s: float | None = None,
+):
     """A Zenoh session (see :func:`session_config`). With ``secret``, every link to or from
     it is authenticated: Zenoh's user/password challenge-response, the secret never sent. Peers
     without it are refused; they cannot publish, subscribe or query (docs/design.md §7).
@@ -311,14 +327,14 @@ def open_session(listen: list[str] = (), connect: list[str] = (), *, mesh: bool 
         return zenoh.open(config)
     config.insert_json5("transport/auth/usrpwd/user", json.dumps(USER))
     config.insert_json5("transport/auth/usrpwd/password", json.dumps(secret))
-    if not listen:   # only who accepts links checks them
+    if not listen:  # only who accepts links checks them
         return zenoh.open(config)
-    fd, path = tempfile.mkstemp(prefix="zenorbit-", suffix=".auth")   # mode 0600
+    fd, path = tempfile.mkstemp(prefix="zenorbit-", suffix=".auth")  # mode 0600
     try:
         with os.fdopen(fd, "w") as file:
             file.write(f"{USER}:{secret}\n")
         config.insert_json5("transport/auth/usrpwd/dictionary_file", json.dumps(path))
-        return zenoh.open(config)   # reads the dictionary here, once
+        return zenoh.open(config)  # reads the dictionary here, once
     finally:
         os.unlink(path)
 
@@ -329,13 +345,15 @@ def open_session(listen: list[str] = (), connect: list[str] = (), *, mesh: bool 
 # Measured on 2 cores: the pub/sub round trip between two processes 0.6-0.75x, the Zenoh threads'
 # CPU time per step ~0.9x (benchmarks/bench_pace.py). Every callback of ours only enqueues, so
 # one thread cannot deadlock on them. A ZENOH_RUNTIME set by the user wins.
-RUNTIME = "(app: (worker_threads: 1), rx: (handover: app), tx: (handover: app), acc: (handover: app), net: (handover: app))"
+RUNTIME = (
+    "(app: (worker_threads: 1), rx: (handover: app), tx: (handover: app), acc: (handover: app), net: (handover: app))"
+)
 # The same, but the links' transmit on a thread of its own: for a process whose Zenoh thread may
 # itself block sending (congestion control BLOCK from a Zenoh task, as an AdvancedPublisher's
 # cache answering a late joiner). On the one thread of RUNTIME that wait holds up the very task
 # that would drain the queue: a deadlock until the link is closed (block/wait_before_close).
 RUNTIME_OWN_TX = "(app: (worker_threads: 1), rx: (handover: app), tx: (worker_threads: 1), acc: (handover: app), net: (handover: app))"
-DEFAULT_RUNTIME = "()"   # Zenoh's own: a runtime per task kind
+DEFAULT_RUNTIME = "()"  # Zenoh's own: a runtime per task kind
 
 
 def prefer_runtime(runtime: str) -> None:
@@ -356,7 +374,7 @@ def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: boo
     """
     import zenoh
 
-    os.environ.setdefault("ZENOH_RUNTIME", RUNTIME)   # read once, when the first session starts Zenoh's runtime
+    os.environ.setdefault("ZENOH_RUNTIME", RUNTIME)  # read once, when the first session starts Zenoh's runtime
 
     config = zenoh.Config()
     config.insert_json5("mode", json.dumps(mode))
@@ -382,7 +400,7 @@ def close_session(session, wait_s: float = CLOSE_WAIT_S) -> None:
     def close() -> None:
         try:
             session.close()
-        except zenoh.ZError:   # a link that cannot be closed cleanly: it goes with the process
+        except zenoh.ZError:  # a link that cannot be closed cleanly: it goes with the process
             pass
 
     closer = threading.Thread(target=close, name="zenorbit-close", daemon=True)
@@ -405,8 +423,9 @@ def open_view_session(connect: str, secret: str | None, settings: dict | None):
     from them; in the settings' mode ``client``, a client of the run's router."""
     settings = settings or {}
     peer = settings.get("mode", "peer") == "peer"
-    return open_session([listen_beside(connect)] if peer else [], [connect], mesh=peer, secret=secret,
-                        settings=settings)
+    return open_session(
+        [listen_beside(connect)] if peer else [], [connect], mesh=peer, secret=secret, settings=settings
+    )
 
 
 def publisher(session, key: str, *, drop: bool = False):
@@ -430,16 +449,21 @@ class LiveFrameSender:
         self.session, self.run_id, self.name = session, run_id, name
         self.publishers: dict[str, object] = {}
         self.listeners: list = []
-        self.watched: dict[str, bool] = {}   # output -> a view subscribes (set from Zenoh's thread)
+        self.watched: dict[str, bool] = {}  # output -> a view subscribes (set from Zenoh's thread)
 
     def declare(self, outputs) -> None:
         """Publishers for ``outputs`` (once each), declared early so that matching is known by the first step."""
         for output in outputs:
             if output in self.publishers:
                 continue
-            publisher = self.publishers[output] = publisher_for_views(self.session, view_key(self.run_id, self.name, output))
-            self.listeners.append(publisher.declare_matching_listener(
-                lambda status, output=output: self.watched.__setitem__(output, status.matching)))
+            publisher = self.publishers[output] = publisher_for_views(
+                self.session, view_key(self.run_id, self.name, output)
+            )
+            self.listeners.append(
+                publisher.declare_matching_listener(
+                    lambda status, output=output: self.watched.__setitem__(output, status.matching)
+                )
+            )
             self.watched[output] = self.watched.get(output, False) or publisher.matching_status.matching
 
     def send(self, output: str, taken_ns: int, generation: int, tag: int, frame: np.ndarray) -> bool:
@@ -447,9 +471,10 @@ class LiveFrameSender:
         if not self.watched.get(output):
             return False
         import zenoh
+
         try:
             self.publishers[output].put(encode_view_frame(taken_ns, generation, tag, output, frame))
-        except zenoh.ZError:   # a view must never stop a step
+        except zenoh.ZError:  # a view must never stop a step
             return False
         return True
 
@@ -457,7 +482,7 @@ class LiveFrameSender:
         for declared in (*self.listeners, *self.publishers.values()):
             try:
                 declared.undeclare()
-            except Exception:   # the session is gone: so are they
+            except Exception:  # the session is gone: so are they
                 pass
         self.listeners, self.publishers, self.watched = [], {}, {}
 
@@ -467,6 +492,10 @@ def publisher_for_views(session, key: str):
     for views yield to the step data on every link."""
     import zenoh
 
-    return session.declare_publisher(key, congestion_control=zenoh.CongestionControl.DROP,
-                                     reliability=zenoh.Reliability.RELIABLE,
-                                     priority=zenoh.Priority.DATA_LOW, express=False)
+    return session.declare_publisher(
+        key,
+        congestion_control=zenoh.CongestionControl.DROP,
+        reliability=zenoh.Reliability.RELIABLE,
+        priority=zenoh.Priority.DATA_LOW,
+        express=False,
+    )

@@ -16,6 +16,7 @@ writes the PEM text it holds to such a directory and points the settings at it).
 The per-run secret (user/password, :func:`components.bus.open_session`) stays what it was: a
 link needs both the secret and a certificate of the run.
 """
+
 from __future__ import annotations
 
 import json
@@ -23,9 +24,9 @@ import os
 
 from components import protocol
 
-BUS_ENV = "ZENORBIT_BUS"   # the settings, for the processes the orchestrator starts
+BUS_ENV = "ZENORBIT_BUS"  # the settings, for the processes the orchestrator starts
 
-ORCHESTRATOR_NAME = "zenorbit orchestrator"   # the certificates' common names: who holds them
+ORCHESTRATOR_NAME = "zenorbit orchestrator"  # the certificates' common names: who holds them
 CLI_NAME = "zenorbit cli"
 ROUTER_NAME = "zenorbit router"
 
@@ -43,6 +44,7 @@ def from_env() -> dict:
 def apply(config, settings: dict, *, listening: bool) -> None:
     """Write ``settings`` into a Zenoh config. ``listening``: the session accepts links (a TLS
     listener needs its certificate there too)."""
+
     def put(key: str, value) -> None:
         config.insert_json5(key, json.dumps(value))
 
@@ -80,13 +82,27 @@ def access_control(run_id: str, components: list[str]) -> dict:
         "enabled": True,
         "default_permission": "allow",
         "rules": [
-            {"id": "control", "permission": "deny", "flows": ["ingress"], "messages": ["put", "delete"],
-             "key_exprs": [protocol.COMMANDS.covering(run_id)]},
-            {"id": "orchestrator", "permission": "deny", "flows": ["ingress"],
-             "messages": ["liveliness_token", "declare_queryable"],
-             "key_exprs": [t.covering(run_id) for t in (protocol.ORCHESTRATOR_ALIVE, protocol.JOIN, protocol.CTL)]},
-            {"id": "quit", "permission": "deny", "flows": ["ingress"], "messages": ["put", "delete"],
-             "key_exprs": [protocol.QUITS.covering(run_id)]},
+            {
+                "id": "control",
+                "permission": "deny",
+                "flows": ["ingress"],
+                "messages": ["put", "delete"],
+                "key_exprs": [protocol.COMMANDS.covering(run_id)],
+            },
+            {
+                "id": "orchestrator",
+                "permission": "deny",
+                "flows": ["ingress"],
+                "messages": ["liveliness_token", "declare_queryable"],
+                "key_exprs": [t.covering(run_id) for t in (protocol.ORCHESTRATOR_ALIVE, protocol.JOIN, protocol.CTL)],
+            },
+            {
+                "id": "quit",
+                "permission": "deny",
+                "flows": ["ingress"],
+                "messages": ["put", "delete"],
+                "key_exprs": [protocol.QUITS.covering(run_id)],
+            },
         ],
         "subjects": [
             {"id": "not the orchestrator", "cert_common_names": others},

@@ -16,6 +16,7 @@ Earth (one set, used by the orbit, dynamics and viewer components):
 Time: ``NS_PER_S``; convert the integer nanoseconds of the clock with ``t_ns / NS_PER_S``
 (a division, correctly rounded: 1.2e11 ns -> exactly 120.0 s; ``t_ns * 1e-9`` is not).
 """
+
 from __future__ import annotations
 
 MU_EARTH = 3.986004418e14

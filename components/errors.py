@@ -1,4 +1,5 @@
 """Errors shared by the SDK, the components and the orchestrator."""
+
 import re
 
 # numpy 2 scalars print as np.float64(0.5): a message shows the number a person wrote

@@ -4,6 +4,7 @@ extra is not installed: what is missing, and the command that installs it.
 The default install runs the demo; an extra brings what only some features need (hundreds of MB
 each): the robots of example-robot-data, the Rerun viewer, OpenCV, FMPy and pythonfmu.
 """
+
 from __future__ import annotations
 
 import json
@@ -36,7 +37,7 @@ def install_command(extra: str) -> str:
             origin = {}
         if not origin.get("url", "").startswith("file://"):
             return f'pip install "zenorbit[{extra}]"'
-        clone, editable = Path(unquote(origin["url"][len("file://"):])), origin.get("dir_info", {}).get("editable")
+        clone, editable = Path(unquote(origin["url"][len("file://") :])), origin.get("dir_info", {}).get("editable")
     here = "." if clone == Path.cwd().resolve() else str(clone)
     return f'pip install {"-e " if editable else ""}"{here}[{extra}]"'
 

@@ -15,6 +15,7 @@ Before it runs a member's code the stepping thread marks that member in ``steppi
 file the orchestrator maps, :func:`read_mark`), so that a crash or hang of the process names the
 component whose step failed.
 """
+
 from __future__ import annotations
 
 import struct
@@ -24,9 +25,9 @@ import threading
 from components import bus, protocol
 from components.process import ComponentProcess, Halt
 
-TERMINATED, RELEASED, ORPHANED = "terminated", "released", "orphaned"   # how serving a generation ended
+TERMINATED, RELEASED, ORPHANED = "terminated", "released", "orphaned"  # how serving a generation ended
 
-_MARK = struct.Struct("<I")   # 1 + the index of the member whose code runs; 0: none
+_MARK = struct.Struct("<I")  # 1 + the index of the member whose code runs; 0: none
 MARK_SIZE = _MARK.size
 _IDLE = _MARK.pack(0)
 _BEAT = protocol.Beat().encode()
@@ -50,7 +51,7 @@ class Member:
     def __init__(self, name: str, index: int, run_id: str, generation: int, process: ComponentProcess):
         self.name, self.process = name, process
         self.mark = _MARK.pack(index + 1)
-        self.interruptible = False   # its type's steps may wait on the outside (Component.interrupt)
+        self.interruptible = False  # its type's steps may wait on the outside (Component.interrupt)
         self.command = bus.command_key(run_id, name, generation)
         self.output_prefix = bus.output_prefix(run_id, name)
 
@@ -63,9 +64,9 @@ class Group:
 
     def __init__(self, run_id: str, members: list[tuple[str, int]], transport, inbox, stepping):
         self.run_id, self.transport, self.inbox, self.stepping = run_id, transport, inbox, stepping
-        self.lock = threading.Lock()   # members leave while the watchdog goes over them
+        self.lock = threading.Lock()  # members leave while the watchdog goes over them
         self.members: dict[str, Member] = {}
-        self.local_keys: dict[tuple[str, str], str] = {}   # (consumer, source) -> the output key
+        self.local_keys: dict[tuple[str, str], str] = {}  # (consumer, source) -> the output key
         for index, (name, generation) in enumerate(members):
             process = ComponentProcess(name, self._replies(name), self._outputs(name), self._batches(name))
             self.members[name] = Member(name, index, run_id, generation, process)
@@ -79,13 +80,14 @@ class Group:
     def _outputs(self, source: str):
         def publish_output(consumers: list[str], payload: bytes) -> None:
             for consumer in consumers:
-                if consumer in self.members:   # hosted here: on the queue, read after this step
+                if consumer in self.members:  # hosted here: on the queue, read after this step
                     key = self.local_keys.get((consumer, source))
                     if key is None:
                         key = self.local_keys[consumer, source] = bus.output_key(self.run_id, consumer, source)
                     self.inbox.put((consumer, key, payload))
                 else:
                     self.transport.publish_output(consumer, source, payload)
+
         return publish_output
 
     def serve(self) -> str:
@@ -105,18 +107,18 @@ class Group:
             return ORPHANED
         member = self.members.get(name)
         if member is None:
-            return None   # for a member that has left
-        self.stepping[:_MARK.size] = member.mark
+            return None  # for a member that has left
+        self.stepping[: _MARK.size] = member.mark
         try:
             return self._apply(member, key, payload)
         finally:
-            self.stepping[:_MARK.size] = _IDLE
+            self.stepping[: _MARK.size] = _IDLE
 
     def _apply(self, member: Member, key: str, payload: bytes) -> str | None:
         process = member.process
         try:
             if key.startswith(member.output_prefix):
-                process.source_output(key[len(member.output_prefix):], payload)
+                process.source_output(key[len(member.output_prefix) :], payload)
             elif key == member.command:
                 if not process.command(payload):
                     self._leave(member)
@@ -125,8 +127,8 @@ class Group:
                     member.interruptible = True
                     self.transport.interrupt_on_terminate(member.name, member.command, process.component)
             else:
-                return None   # for another generation of this component
-        except bus.Malformed as e:   # whoever reaches the bus cannot stop a member
+                return None  # for another generation of this component
+        except bus.Malformed as e:  # whoever reaches the bus cannot stop a member
             process.dropped(key, str(e))
             return None
         try:
@@ -143,7 +145,7 @@ class Group:
     def interrupt(self) -> None:
         """From another thread, the run ending (the orchestrator gone): a step that waits on the
         outside ends that wait now."""
-        for member in list(self.members.values()):   # a copy: members leave on the stepping thread
+        for member in list(self.members.values()):  # a copy: members leave on the stepping thread
             if member.interruptible:
                 member.process.component.interrupt()
 

@@ -14,11 +14,13 @@ Determinism: every sample draws the same fixed number of normals, in a fixed ord
 sigmas (a sigma of 0 scales its draws to 0): the noise of the k-th sample depends only on the
 seed and k, and the same seed with other sigmas gives the same draws, scaled.
 """
+
 from __future__ import annotations
 
 import math
 from collections import deque
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -43,17 +45,22 @@ class NormalStream:
         low), has_uint32, uinteger. Exact: :meth:`set_state` continues the same sequence."""
         s = self.rng.bit_generator.state
         state, inc = int(s["state"]["state"]), int(s["state"]["inc"])
-        return np.array([state >> 64, state & _MASK64, inc >> 64, inc & _MASK64,
-                         int(s["has_uint32"]), int(s["uinteger"])], dtype=np.uint64)
+        return np.array(
+            [state >> 64, state & _MASK64, inc >> 64, inc & _MASK64, int(s["has_uint32"]), int(s["uinteger"])],
+            dtype=np.uint64,
+        )
 
     def set_state(self, words: Any) -> None:
         words = np.asarray(words)
         if words.shape != (6,) or words.dtype != np.uint64:
             raise ValueError(f"noise generator state: expected 6 uint64 words, got {words.dtype} {words.shape}")
         w = [int(x) for x in words]
-        self.rng.bit_generator.state = {"bit_generator": "PCG64",
-                                        "state": {"state": (w[0] << 64) | w[1], "inc": (w[2] << 64) | w[3]},
-                                        "has_uint32": w[4], "uinteger": w[5]}
+        self.rng.bit_generator.state = {
+            "bit_generator": "PCG64",
+            "state": {"state": (w[0] << 64) | w[1], "inc": (w[2] << 64) | w[3]},
+            "has_uint32": w[4],
+            "uinteger": w[5],
+        }
 
 
 def per_axis(value: Any, n: int = 3) -> np.ndarray:
@@ -82,9 +89,12 @@ def latency_samples(latency_ns: int, step_ns: int, key: str = "latency") -> int:
     """The number of samples of ``step_ns`` in ``latency_ns``; ConfigError naming ``key`` when it
     is not a whole non-negative number."""
     if latency_ns < 0 or latency_ns % step_ns:
-        raise ConfigError(key, f"must be a non-negative integer multiple of the component's step "
-                               f"({duration_text(step_ns)}: its `step:` in the config, run.step by default), "
-                               f"got {duration_text(latency_ns) if latency_ns >= 0 else f'{latency_ns} ns'}")
+        raise ConfigError(
+            key,
+            f"must be a non-negative integer multiple of the component's step "
+            f"({duration_text(step_ns)}: its `step:` in the config, run.step by default), "
+            f"got {duration_text(latency_ns) if latency_ns >= 0 else f'{latency_ns} ns'}",
+        )
     return latency_ns // step_ns
 
 
@@ -107,31 +117,39 @@ class LatencyBuffer:
 
     def get_state(self, prefix: str) -> dict[str, np.ndarray]:
         values = np.array([v for _, v in self.samples], dtype=np.float64).reshape(-1, self.width)
-        return {f"{prefix}delay": np.int64(-1 if self.delay is None else self.delay),
-                f"{prefix}times": np.array([t for t, _ in self.samples], dtype=np.int64),
-                f"{prefix}values": values}
+        return {
+            f"{prefix}delay": np.int64(-1 if self.delay is None else self.delay),
+            f"{prefix}times": np.array([t for t, _ in self.samples], dtype=np.int64),
+            f"{prefix}values": values,
+        }
 
     def set_state(self, state: Mapping[str, Any], prefix: str) -> None:
         delay = int(state[f"{prefix}delay"])
         times = np.asarray(state[f"{prefix}times"], dtype=np.int64).reshape(-1)
         values = np.asarray(state[f"{prefix}values"], dtype=np.float64).reshape(-1, self.width)
         if len(times) != len(values) or (delay >= 0 and len(times) > delay) or (delay < 0 and len(times)):
-            raise ValueError(f"latency buffer state: {len(times)} times and {len(values)} samples "
-                             f"for a delay of {delay}")
+            raise ValueError(
+                f"latency buffer state: {len(times)} times and {len(values)} samples for a delay of {delay}"
+            )
         self.delay = None if delay < 0 else delay
         self.samples = deque((int(t), v.copy()) for t, v in zip(times, values))
 
 
 # --------------------------------------------------------------------------- rotation noise
 
+
 def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The Hamilton product a b of quaternions [x, y, z, w]: q_A_C = q_A_B q_B_C."""
     ax, ay, az, aw = (float(v) for v in a)
     bx, by, bz, bw = (float(v) for v in b)
-    return np.array([aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw,
-                     aw * bw - ax * bx - ay * by - az * bz])
+    return np.array(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ]
+    )
 
 
 def quat_exp(phi: np.ndarray) -> np.ndarray:

@@ -16,6 +16,7 @@ The publisher drops rather than waits and this process runs niced, so a slow vie
 the lockstep. All work happens on the main thread, polling FIFO channels; rows go to the view in
 batches (at most every ``View.batch_s``: batches are far cheaper per row).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -24,18 +25,18 @@ import os
 import signal
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
 from components import bus, bus_security
 
-HEADER = bus.SIGNALS_HEADER          # k, time in s
+HEADER = bus.SIGNALS_HEADER  # k, time in s
 END = bus.SIGNALS_END
-LIVE_BATCH_S = 0.2                   # live views: at most 5 batches a second
+LIVE_BATCH_S = 0.2  # live views: at most 5 batches a second
 MAX_BATCH_ROWS = 4096
-POLL_S = 0.01                        # idle poll of the FIFO channels (about 0.5 % of a core)
+POLL_S = 0.01  # idle poll of the FIFO channels (about 0.5 % of a core)
 LINGER_POLL_S = 0.1
 NICENESS = 10
 
@@ -59,6 +60,7 @@ class ViewError(Exception):
 def logger(prefix: str) -> Callable[[str], None]:
     def log(message: str) -> None:
         print(f"{prefix}: {message}", file=sys.stderr, flush=True)
+
     return log
 
 
@@ -70,6 +72,7 @@ def once(log: Callable[[str], None]) -> Callable[[str], None]:
         if message not in said:
             said.add(message)
             log(message)
+
     return warn
 
 
@@ -122,6 +125,7 @@ def take_rows(signals, buffer: RowBuffer) -> tuple[bool, bool]:
 
 def orchestrator_gone(watcher) -> bool:
     import zenoh
+
     sample = watcher.try_recv()
     while sample is not None:
         if sample.kind == zenoh.SampleKind.DELETE:
@@ -176,7 +180,7 @@ class Shell:
         self.config = setup.get("config") or {}
         self.config_dir = setup.get("config_dir")
         self.session = None
-        self.frames = None   # components.ros_frames.LiveFrames, when the view asked for them
+        self.frames = None  # components.ros_frames.LiveFrames, when the view asked for them
         self.view = view(self)
 
     def live_frames(self, typestore, topics: list[str] | None = None):
@@ -200,8 +204,9 @@ class Shell:
         completed = False
         try:
             signals = self.session.declare_subscriber(bus.signals_key(self.run_id), zenoh.handlers.FifoChannel(16384))
-            watcher = self.session.liveliness().declare_subscriber(bus.orchestrator_alive_key(self.run_id),
-                                                                   zenoh.handlers.FifoChannel(16))
+            watcher = self.session.liveliness().declare_subscriber(
+                bus.orchestrator_alive_key(self.run_id), zenoh.handlers.FifoChannel(16)
+            )
             view.prepare()
             if self.frames is not None and (unlinked := self.frames.wait_linked()):
                 self.warn(f"no mesh link yet to {', '.join(unlinked)}: their first frames may be missing from the view")
@@ -220,7 +225,7 @@ class Shell:
                 gone = orchestrator_gone(watcher)
                 if empty and not ended:
                     time.sleep(POLL_S)
-            if buffer:   # the orchestrator went: what came still goes to the view
+            if buffer:  # the orchestrator went: what came still goes to the view
                 view.step(buffer.take())
             if buffer.bad:
                 log(f"ignored {buffer.bad} signal rows of an unexpected size (expected {buffer.size} bytes)")
@@ -258,7 +263,7 @@ def main(view: type[View], argv: list[str] | None, prog: str, description: str) 
     signal.signal(signal.SIGTERM, raise_stop)
     signal.signal(signal.SIGINT, raise_stop)
     try:
-        os.nice(NICENESS)   # a best-effort observer: on a busy machine the lockstep processes go first
+        os.nice(NICENESS)  # a best-effort observer: on a busy machine the lockstep processes go first
     except (AttributeError, OSError):
         pass
     try:
@@ -270,7 +275,7 @@ def main(view: type[View], argv: list[str] | None, prog: str, description: str) 
         return Shell(view, args.connect, args.run_id, setup, log).run()
     except Stop:
         return 0
-    except ViewError as e:   # the run goes on without the view
+    except ViewError as e:  # the run goes on without the view
         log(str(e))
         return e.code
     except Exception as e:  # one line, not a traceback; the run goes on without the view

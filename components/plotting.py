@@ -3,12 +3,13 @@ the :class:`RecordedRun` a plot draws from, a figure on Matplotlib's Agg canvas 
 :class:`PlotError`. ``orchestrator plot DIR`` draws the plots of the types in the recording
 (orchestrator/plots/recording.py); Matplotlib is imported only when a figure is made.
 """
+
 from __future__ import annotations
 
 import re
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Mapping
 
 import numpy as np
 
@@ -19,6 +20,7 @@ class PlotError(Exception):
 
 def new_figure(*size):
     from matplotlib.figure import Figure
+
     return Figure(figsize=size, layout="constrained")
 
 
@@ -31,9 +33,10 @@ class Plot:
     the docs' table. ``draw(run, c)``: {file name: Figure} for component ``c`` of ``run``; empty
     when the recording holds nothing this plot shows, PlotError when it holds part of it only.
     """
+
     file: str
     description: str
-    draw: Callable[["RecordedRun", str], Mapping[str, object]]
+    draw: Callable[[RecordedRun, str], Mapping[str, object]]
 
     def matches(self, component: str, file: str) -> bool:
         """Whether ``file`` is one this plot declares for ``component``."""
@@ -46,11 +49,12 @@ class RecordedRun:
     """A recording as the plots read it: the resolved ``config`` (config.yaml), the ``columns`` of
     signals.parquet by name and ``time`` (s). ``config_dir``: the directory of the run's original
     config file (relative paths in ``config`` start there), None when unknown."""
+
     config: dict
     columns: dict[str, np.ndarray]
     time: np.ndarray
     config_dir: Path | None
-    record_dir: Path | None = None      # the recording directory (files beside signals.parquet), if read from one
+    record_dir: Path | None = None  # the recording directory (files beside signals.parquet), if read from one
 
     def parameters(self, component: str) -> dict:
         """The component's parameters as the config gives them (raw: units as written)."""

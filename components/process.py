@@ -4,6 +4,7 @@ horizon (see :mod:`components.schedule`), its outputs sent once per step to each
 batches to the orchestrator. Nothing here touches Zenoh (:mod:`components.serving` feeds it from
 the component's inbox), so the step logic is tested without the bus.
 """
+
 from __future__ import annotations
 
 import collections
@@ -17,14 +18,14 @@ import traceback
 import numpy as np
 
 from components import bus, protocol, registry
-from components.sdk import ComponentOutputError
 from components.schedule import FrameRoute, Route, fed_inputs
+from components.sdk import ComponentOutputError
 
-BATCH_STEPS = 32   # outputs go to the orchestrator in batches of this many steps ...
+BATCH_STEPS = 32  # outputs go to the orchestrator in batches of this many steps ...
 BATCH_MIN_S = 0.002  # ... more (up to BATCH_CAPACITY) while this long has not passed since the last (each
 BATCH_CAPACITY = 256  # send costs a light model's several steps; a crash loses at most this long of rows) ...
 IDLE_FLUSH_S = 0.02  # ... or sooner: at the horizon, before a reply or fault, after this long idle,
-SLOW_STEP_S = 0.05   # or when a step takes this long (a hung step leaves the steps before it recorded)
+SLOW_STEP_S = 0.05  # or when a step takes this long (a hung step leaves the steps before it recorded)
 
 
 class Halt(Exception):
@@ -44,35 +45,35 @@ class ComponentProcess:
         self.publish_reply = publish_reply
         self.publish_output = publish_output
         self.publish_batch = publish_batch
-        self.consumers: list[str] = []         # get its outputs at every step (they feed it back)
-        self.batch_consumers: list[str] = []   # get them in batches, as the orchestrator does (they never hold it up)
+        self.consumers: list[str] = []  # get its outputs at every step (they feed it back)
+        self.batch_consumers: list[str] = []  # get them in batches, as the orchestrator does (they never hold it up)
         self.batched = 0
-        self.flushed_at = 0.0   # perf_counter at the last batch sent
+        self.flushed_at = 0.0  # perf_counter at the last batch sent
         self.batch_lock = threading.Lock()
-        self.stepping_since: float | None = None   # perf_counter at the start of a running do_step
+        self.stepping_since: float | None = None  # perf_counter at the start of a running do_step
         self.component = None
         self.generation = 0
         self.routes = []
         self.float_sources: set[str] = set()
-        self.route_inputs: list[list[str]] = []   # the input variables each route feeds
-        self.sources: dict[str, int] = {}        # source -> the generation whose outputs count
-        self.held: dict[str, collections.deque] = {}   # source -> (tag, outputs), tags increasing
-        self.heard: set[str] = set()             # sources whose sync message arrived
+        self.route_inputs: list[list[str]] = []  # the input variables each route feeds
+        self.sources: dict[str, int] = {}  # source -> the generation whose outputs count
+        self.held: dict[str, collections.deque] = {}  # source -> (tag, outputs), tags increasing
+        self.heard: set[str] = set()  # sources whose sync message arrived
         self.frame_routes: list[FrameRoute] = []
-        self.frames_held: dict[tuple[str, str], dict[int, np.ndarray]] = {}   # (source, output) -> tag -> frame
-        self.frame_consumers: dict[str, list[str]] = {}   # our frame output -> who gets it
-        self.frame_messages: dict[str, bytes] = {}        # our frame output -> its latest message (sent again at sync)
-        self.view = None   # a bus.LiveFrameSender: our frame outputs for the live views, while one watches
-        self.source_sizes: dict[str, int] = {}   # source -> the outputs its routes read
-        self.drops: dict[str, int] = {}          # key -> messages dropped from it
+        self.frames_held: dict[tuple[str, str], dict[int, np.ndarray]] = {}  # (source, output) -> tag -> frame
+        self.frame_consumers: dict[str, list[str]] = {}  # our frame output -> who gets it
+        self.frame_messages: dict[str, bytes] = {}  # our frame output -> its latest message (sent again at sync)
+        self.view = None  # a bus.LiveFrameSender: our frame outputs for the live views, while one watches
+        self.source_sizes: dict[str, int] = {}  # source -> the outputs its routes read
+        self.drops: dict[str, int] = {}  # key -> messages dropped from it
         self.synced = False
         self.next_k = 0
         self.horizon = 0
-        self.final = True     # terminated because the run is over
-        self.halted = False   # a step failed: no further step, whatever horizon comes (the run ends or restarts)
+        self.final = True  # terminated because the run is over
+        self.halted = False  # a step failed: no further step, whatever horizon comes (the run ends or restarts)
         self.step_ns = 0
         self.ratio = 1
-        self.faults: list[tuple[int, str, float]] = []   # (step, kind, seconds) to inject, in step order
+        self.faults: list[tuple[int, str, float]] = []  # (step, kind, seconds) to inject, in step order
         self.idle_since = time.perf_counter()
 
     # ------------------------------------------------------------------ messages
@@ -116,7 +117,7 @@ class ComponentProcess:
             if held is None:
                 raise bus.Malformed(f"frame {output!r} of {source!r} feeds no input of {self.name}")
             if self.sources[source] == generation:
-                held[tag] = frame   # by tag: a frame sent again (at sync) replaces its copy
+                held[tag] = frame  # by tag: a frame sent again (at sync) replaces its copy
         elif kind == bus.SYNC:
             if self.sources.get(source) == bus.decode_sync(payload) and not self.synced:
                 self.heard.add(source)
@@ -128,7 +129,7 @@ class ComponentProcess:
         if source not in self.sources:
             raise bus.Malformed(f"{source!r} is not a source of {self.name}")
         if self.sources[source] != generation:
-            return False   # a replaced generation's outputs still in flight
+            return False  # a replaced generation's outputs still in flight
         if size < self.source_sizes.get(source, 0):
             raise bus.Malformed(f"{size} outputs from {source!r}, its routes read {self.source_sizes[source]}")
         return True
@@ -144,7 +145,7 @@ class ComponentProcess:
         op, kind = message.OP, type(message)
         if kind is protocol.Instantiate:
             try:
-                resolved = registry.resolve(message.type, message.params)   # run parameters included
+                resolved = registry.resolve(message.type, message.params)  # run parameters included
             except registry.Unresolved as e:
                 raise e.errors[0] from None
             self.inputs, self.outputs = resolved.inputs, resolved.outputs
@@ -177,7 +178,7 @@ class ComponentProcess:
             self.input_vector[:] = message.inputs
             self.input_times.clear()
             self.input_times.update(message.input_times_ns)
-            self.input_views.update((v.name, v.start) for v in self.inputs.frames)   # no frame before the first step
+            self.input_views.update((v.name, v.start) for v in self.inputs.frames)  # no frame before the first step
             result = self.component.initialize(message.t0_ns, self.input_views)
             self.outputs.pack(result, self.output_vector)
             self._frames(result, self.next_k, send=False)
@@ -206,7 +207,7 @@ class ComponentProcess:
             self.component.set_state(bus.decode_state(message.state))
             self.reply(op)
         elif kind is protocol.Terminate:
-            self.final = message.final   # the run is over (else: a restart may want this component again)
+            self.final = message.final  # the run is over (else: a restart may want this component again)
             if self.component is not None:
                 self.component.terminate()
             self.reply(op)
@@ -217,7 +218,7 @@ class ComponentProcess:
 
     def _set_routes(self, routes: list[Route]) -> None:
         self.routes = list(routes)
-        self.float_sources = {route.source for route in self.routes}   # a source of frames alone: none held
+        self.float_sources = {route.source for route in self.routes}  # a source of frames alone: none held
         self.source_sizes = {}
         for route in self.routes:
             needed = int(route.src.max()) + 1 if route.src.size else 0
@@ -254,7 +255,7 @@ class ComponentProcess:
         """Do every step whose inputs are all held and which lies below the horizon."""
         while not self.halted:
             if self.next_k >= self.horizon:
-                self.flush()   # the orchestrator needs these outputs to grant more steps
+                self.flush()  # the orchestrator needs these outputs to grant more steps
                 return
             k = self.next_k
             vectors, tags = [], []
@@ -267,20 +268,25 @@ class ComponentProcess:
                 if not held:
                     return
                 if held[0][0] != tag:
-                    raise Halt(self._report("step", k, f"input from {route.source!r} for step {k} "
-                                                         f"(tag {tag}) never arrived; got tag {held[0][0]}"))
+                    raise Halt(
+                        self._report(
+                            "step",
+                            k,
+                            f"input from {route.source!r} for step {k} (tag {tag}) never arrived; got tag {held[0][0]}",
+                        )
+                    )
                 vectors.append(held[0][1])
             frames = []
             for route in self.frame_routes:
                 frame = self.frames_held[route.source, route.output].get(route.tag(k))
                 if frame is None:
-                    return   # it comes before its step's outputs, unless the bus reordered them
+                    return  # it comes before its step's outputs, unless the bus reordered them
                 frames.append(frame)
             for route, frame in zip(self.frame_routes, frames):
                 self.input_views[route.input] = frame
                 self.input_times[route.input] = route.tag(k) * self.step_ns
                 held = self.frames_held[route.source, route.output]
-                for old in [t for t in held if t < route.tag(k)]:   # never read again: tags only grow
+                for old in [t for t in held if t < route.tag(k)]:  # never read again: tags only grow
                     del held[old]
             for route, names, vector, tag in zip(self.routes, self.route_inputs, vectors, tags):
                 self.input_vector[route.dst] = vector[route.src]
@@ -299,12 +305,17 @@ class ComponentProcess:
             if fault and fault[0] == "nan":
                 self.output_vector[0] = np.nan
             if self.frame_outputs:
-                self._frames(result, k + self.ratio, send=True)   # before the outputs: consumers hold it first
+                self._frames(result, k + self.ratio, send=True)  # before the outputs: consumers hold it first
                 if self.view is not None:
                     taken = self.component.frame_time_ns
                     for name in self.frame_outputs:
-                        self.view.send(name, k * self.step_ns if taken is None else taken, self.generation,
-                                       k + self.ratio, result[name])
+                        self.view.send(
+                            name,
+                            k * self.step_ns if taken is None else taken,
+                            self.generation,
+                            k + self.ratio,
+                            result[name],
+                        )
         except Exception as error:
             traceback.print_exc(file=sys.stderr)
             raise Halt(self._report("step", k, f"{type(error).__name__}: {error}")) from None
@@ -321,7 +332,7 @@ class ComponentProcess:
         tag = k + self.ratio
         if self.consumers:
             self.publish_output(self.consumers, bus.encode_output(self.generation, tag, vector))
-        if self.name in self.held:   # a component fed by its own outputs
+        if self.name in self.held:  # a component fed by its own outputs
             self.held[self.name].append((tag, vector.copy()))
         with self.batch_lock:
             i = self.batched
@@ -343,9 +354,11 @@ class ComponentProcess:
             except KeyError:
                 raise ComponentOutputError(f"frame output {name!r} missing from the step's result") from None
             if not isinstance(frame, np.ndarray) or frame.dtype.name != variable.dtype or frame.shape != variable.shape:
-                raise ComponentOutputError(f"frame output {name!r}: expected a {variable.dtype} array of shape "
-                                           f"{variable.shape}, got {getattr(frame, 'dtype', type(frame).__name__)} "
-                                           f"{getattr(frame, 'shape', '')}")
+                raise ComponentOutputError(
+                    f"frame output {name!r}: expected a {variable.dtype} array of shape "
+                    f"{variable.shape}, got {getattr(frame, 'dtype', type(frame).__name__)} "
+                    f"{getattr(frame, 'shape', '')}"
+                )
             consumers = self.frame_consumers.get(name)
             if consumers:
                 payload = self.frame_messages[name] = bus.encode_frame(self.generation, tag, name, frame)
@@ -375,7 +388,7 @@ class ComponentProcess:
 
     def _report(self, op: str, k: int, error: str) -> str:
         self.fault(op, k, error)
-        self.halted = True   # a horizon granted later must not run the failed step again
+        self.halted = True  # a horizon granted later must not run the failed step again
         return error
 
 

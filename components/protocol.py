@@ -47,6 +47,7 @@ or :func:`decode_command` / :func:`decode_report` for whatever comes on a topic)
 raises :class:`Malformed` for anything but a well-formed message of its type, whose fields then
 have their declared types.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -61,7 +62,7 @@ import numpy as np
 from components.schedule import Route
 
 ROOT = "zenorbit"
-ORCHESTRATOR = "orchestrator"   # the orchestrator's liveliness name
+ORCHESTRATOR = "orchestrator"  # the orchestrator's liveliness name
 
 
 class Malformed(ValueError):
@@ -70,9 +71,11 @@ class Malformed(ValueError):
 
 # ---------------------------------------------------------------------------------------- topics
 
+
 @dataclass(frozen=True)
 class Topic:
     """Keys under ``zenorbit/<run_id>/``: ``template``'s chunks, each literal or a ``{field}``."""
+
     template: str
 
     def key(self, run_id: str, **fields) -> str:
@@ -136,32 +139,34 @@ JOIN = Topic("join/{name}")
 
 # -------------------------------------------------------------------------------- message kinds
 
-CONTROL = b"C"   # orchestrator -> component: a command (JSON + blob)
-HORIZON = b"H"   # orchestrator -> component: steps k < horizon may run
-OUTPUT = b"O"    # component -> consumers: header + outputs (components.bus)
-BATCH = b"B"     # component -> orchestrator: several steps' outputs (components.bus)
-FRAME_DTYPES = ("uint8", "float32")   # a frame's element types, as numpy names them (index: its code)
-FRAME = b"F"     # component -> consumers: one frame output of one step (components.bus)
-VIEW_FRAME = b"L"   # component -> live views: when the frame was taken, then a FRAME message (components.bus)
-SYNC = b"Y"      # component -> consumers: "you hear me" (the start-up handshake, components.bus)
-REPLY = b"R"     # component -> orchestrator: JSON + blob
-FAULT = b"E"     # component -> orchestrator: JSON {op, k, error}
-EVENT = b"V"     # component -> orchestrator: JSON {op: "events", k, events}
-QUIT = b"Q"      # a component to itself, when the orchestrator's liveliness token is gone
-BEAT = b"K"      # component -> orchestrator: "still here"
+CONTROL = b"C"  # orchestrator -> component: a command (JSON + blob)
+HORIZON = b"H"  # orchestrator -> component: steps k < horizon may run
+OUTPUT = b"O"  # component -> consumers: header + outputs (components.bus)
+BATCH = b"B"  # component -> orchestrator: several steps' outputs (components.bus)
+FRAME_DTYPES = ("uint8", "float32")  # a frame's element types, as numpy names them (index: its code)
+FRAME = b"F"  # component -> consumers: one frame output of one step (components.bus)
+VIEW_FRAME = b"L"  # component -> live views: when the frame was taken, then a FRAME message (components.bus)
+SYNC = b"Y"  # component -> consumers: "you hear me" (the start-up handshake, components.bus)
+REPLY = b"R"  # component -> orchestrator: JSON + blob
+FAULT = b"E"  # component -> orchestrator: JSON {op, k, error}
+EVENT = b"V"  # component -> orchestrator: JSON {op: "events", k, events}
+QUIT = b"Q"  # a component to itself, when the orchestrator's liveliness token is gone
+BEAT = b"K"  # component -> orchestrator: "still here"
 
 _INT = struct.Struct("<q")
 _JSON_LENGTH = struct.Struct("<I")
 
-Json = Any   # a field holding any JSON value, taken as it comes
+Json = Any  # a field holding any JSON value, taken as it comes
 
 
 # ----------------------------------------------------------------------------- the codec
+
 
 class Message:
     """A control message: a frozen dataclass whose fields, in order, are its JSON object after
     ``op`` (see the module's table); a field typed ``bytes`` or ``np.ndarray`` (float64) is the
     blob. ``KIND`` is its first byte, ``OP`` its fixed ``op`` (None: an ``op`` field instead)."""
+
     KIND: ClassVar[bytes]
     OP: ClassVar[str | None] = None
 
@@ -222,19 +227,19 @@ def _unframe(payload: bytes, kind: bytes, name: str) -> tuple[dict, bytes]:
     if start + n > len(payload):
         raise Malformed(f"{name}: announces {n} bytes of JSON, got {len(payload) - start} bytes after the header")
     try:
-        body = json.loads(payload[start:start + n])
-    except (ValueError, RecursionError) as e:   # JSONDecodeError, UnicodeDecodeError; nesting too deep
+        body = json.loads(payload[start : start + n])
+    except (ValueError, RecursionError) as e:  # JSONDecodeError, UnicodeDecodeError; nesting too deep
         raise Malformed(f"{name}: expected a JSON object, got text that is not JSON ({e})") from None
     if not isinstance(body, dict):
         raise Malformed(f"{name}: expected a JSON object, got {body!r:.60}")
-    return body, bytes(payload[start + n:])
+    return body, bytes(payload[start + n :])
 
 
 def _hints(cls) -> dict:
     hints = cls.__dict__.get("_resolved_hints")
     if hints is None:
         hints = typing.get_type_hints(cls)
-        setattr(cls, "_resolved_hints", hints)
+        cls._resolved_hints = hints
     return hints
 
 
@@ -263,9 +268,9 @@ def _from_json(value, hint, where: str):
     if hint is Json:
         return value
     if hint in _SCALARS:
-        if hint is float and isinstance(value, int) and not isinstance(value, bool) and abs(value) < 2 ** 1023:
+        if hint is float and isinstance(value, int) and not isinstance(value, bool) and abs(value) < 2**1023:
             return float(value)
-        if not isinstance(value, hint) or hint is int and (isinstance(value, bool) or not -2 ** 63 <= value < 2 ** 63):
+        if not isinstance(value, hint) or (hint is int and (isinstance(value, bool) or not -(2**63) <= value < 2**63)):
             raise Malformed(f"{where}: expected {_SCALARS[hint]}, got {value!r:.40}")
         return value
     if hint is Route:
@@ -283,7 +288,7 @@ def _from_json(value, hint, where: str):
         if not isinstance(value, dict):
             raise Malformed(f"{where}: expected an object, got {value!r:.40}")
         return {k: _from_json(v, args[1], f"{where}[{k!r:.20}]") for k, v in value.items()}
-    raise TypeError(f"{where}: no JSON form for {hint!r}")   # a declaration this codec cannot carry
+    raise TypeError(f"{where}: no JSON form for {hint!r}")  # a declaration this codec cannot carry
 
 
 def _route(data: dict, where: str) -> Route:
@@ -293,10 +298,17 @@ def _route(data: dict, where: str) -> Route:
     src, dst = (_from_json(data[k], list[int], f"{where}.{k}") for k in ("src", "dst"))
     ratio, ahead = (_from_json(data[k], int, f"{where}.{k}") for k in ("ratio", "ahead"))
     if len(src) != len(dst) or min(src + dst, default=0) < 0 or ratio < 1 or ahead not in (0, 1):
-        raise Malformed(f"{where}: expected src and dst of one length, indices >= 0, ratio >= 1 and ahead 0 or 1, "
-                        f"got {len(src)} and {len(dst)} indices, ratio {ratio}, ahead {ahead}")
-    return Route(_from_json(data["source"], str, f"{where}.source"), np.asarray(src, dtype=np.int64),
-                 np.asarray(dst, dtype=np.int64), ratio, ahead)
+        raise Malformed(
+            f"{where}: expected src and dst of one length, indices >= 0, ratio >= 1 and ahead 0 or 1, "
+            f"got {len(src)} and {len(dst)} indices, ratio {ratio}, ahead {ahead}"
+        )
+    return Route(
+        _from_json(data["source"], str, f"{where}.source"),
+        np.asarray(src, dtype=np.int64),
+        np.asarray(dst, dtype=np.int64),
+        ratio,
+        ahead,
+    )
 
 
 def _from_blob(blob: bytes, hint, where: str):
@@ -309,6 +321,7 @@ def _from_blob(blob: bytes, hint, where: str):
 
 # ------------------------------------------------------------------------------ the messages
 
+
 @dataclass(frozen=True)
 class Horizon(Message):
     KIND = HORIZON
@@ -320,8 +333,10 @@ class Horizon(Message):
     @classmethod
     def decode(cls, payload: bytes) -> Horizon:
         if payload[:1] != HORIZON or len(payload) != 1 + _INT.size:
-            raise Malformed(f"Horizon: expected {HORIZON!r} and an int64 ({1 + _INT.size} bytes), "
-                            f"got {len(payload)} bytes starting {bytes(payload[:1])!r}")
+            raise Malformed(
+                f"Horizon: expected {HORIZON!r} and an int64 ({1 + _INT.size} bytes), "
+                f"got {len(payload)} bytes starting {bytes(payload[:1])!r}"
+            )
         return cls(_INT.unpack_from(payload, 1)[0])
 
 
@@ -344,8 +359,10 @@ class Wire(Message):
     routes: list[Route]
     sources: dict[str, int]
     faults: list[tuple[int, str, float]]
-    frame_routes: list[tuple[str, str, str, int, int]] = field(default_factory=list)   # source, output, input, ratio, ahead
-    frame_consumers: dict[str, list[str]] = field(default_factory=dict)                # frame output -> consumers
+    frame_routes: list[tuple[str, str, str, int, int]] = field(
+        default_factory=list
+    )  # source, output, input, ratio, ahead
+    frame_consumers: dict[str, list[str]] = field(default_factory=dict)  # frame output -> consumers
 
 
 @dataclass(frozen=True)
@@ -362,14 +379,16 @@ class _Holding:
     def _check(self) -> None:
         sizes = [size for _, _, size in self.held]
         if min(sizes, default=0) < 0 or sum(sizes) != self.values.size:
-            raise Malformed(f"{type(self).__name__}: expected held sizes >= 0 adding up to the {self.values.size} "
-                            f"values of the blob, got {sizes}")
+            raise Malformed(
+                f"{type(self).__name__}: expected held sizes >= 0 adding up to the {self.values.size} "
+                f"values of the blob, got {sizes}"
+            )
 
     def held_values(self) -> list[tuple[str, int, np.ndarray]]:
         """(source, tag, outputs) of each entry of ``held``, outputs a copy."""
         offset, entries = 0, []
         for source, tag, size in self.held:
-            entries.append((source, tag, self.values[offset:offset + size].copy()))
+            entries.append((source, tag, self.values[offset : offset + size].copy()))
             offset += size
         return entries
 
@@ -377,8 +396,10 @@ class _Holding:
 def holding(entries: list[tuple[str, int, np.ndarray]]) -> tuple[list[tuple[str, int, int]], np.ndarray]:
     """``held`` and ``values`` for Start and Rewire from (source, tag, outputs) entries."""
     vectors = [np.asarray(vector, dtype=np.float64) for _, _, vector in entries]
-    return ([(source, tag, int(v.size)) for (source, tag, _), v in zip(entries, vectors)],
-            np.concatenate(vectors) if vectors else np.empty(0))
+    return (
+        [(source, tag, int(v.size)) for (source, tag, _), v in zip(entries, vectors)],
+        np.concatenate(vectors) if vectors else np.empty(0),
+    )
 
 
 @dataclass(frozen=True)
@@ -423,6 +444,7 @@ class Terminate(Message):
 @dataclass(frozen=True)
 class Reply(Message):
     """The answer to command ``op``; ``details`` are the JSON object's other keys."""
+
     KIND = REPLY
     op: str
     details: dict[str, Json] = field(default_factory=dict)
@@ -440,7 +462,7 @@ class Reply(Message):
 @dataclass(frozen=True)
 class Fault(Message):
     KIND = FAULT
-    op: str          # where it failed: "step", "nan" (a non-finite output, named in error), or a command's op
+    op: str  # where it failed: "step", "nan" (a non-finite output, named in error), or a command's op
     k: int
     error: str
 
@@ -462,8 +484,9 @@ class _Bare(Message):
     @classmethod
     def decode(cls, payload: bytes):
         if payload != cls.KIND:
-            raise Malformed(f"{cls.__name__}: expected the one byte {cls.KIND!r}, got {bytes(payload[:8])!r} "
-                            f"({len(payload)} bytes)")
+            raise Malformed(
+                f"{cls.__name__}: expected the one byte {cls.KIND!r}, got {bytes(payload[:8])!r} ({len(payload)} bytes)"
+            )
         return cls()
 
 
@@ -501,6 +524,5 @@ def decode_report(payload: bytes) -> Message:
     """What came on a component's REPLIES key: a Reply, Fault, Events or Beat; Malformed otherwise."""
     kind = _REPORT_BY_KIND.get(bytes(payload[:1]))
     if kind is None:
-        raise Malformed(f"report: expected first byte one of {b''.join(_REPORT_BY_KIND)!r}, "
-                        f"got {bytes(payload[:1])!r}")
+        raise Malformed(f"report: expected first byte one of {b''.join(_REPORT_BY_KIND)!r}, got {bytes(payload[:1])!r}")
     return kind.decode(payload)

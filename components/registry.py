@@ -5,14 +5,16 @@ in-process loop, the harness and exported FMUs).
 A config's ``type`` is a registered name (``orbit.kepler``), an importable ``module:Class``, or a
 Python file relative to the config, ``path/to/file.py:Class``.
 """
+
 from __future__ import annotations
 
 import importlib
 import importlib.util
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from components.errors import ConfigError
 from components.sdk import Component, Layout, layouts, resolve_parameters, run_parameters
@@ -61,8 +63,11 @@ def load(type_name: str, config_dir: str | Path | None = None) -> type[Component
     target = TYPES.get(type_name, type_name)
     module_name, sep, class_name = target.rpartition(":")
     if not sep or not module_name or not class_name:
-        raise ConfigError("type", f"unknown component type {type_name!r} (known: {', '.join(TYPES)}; "
-                                  "or give module:Class or file.py:Class; `orchestrator types` lists them)")
+        raise ConfigError(
+            "type",
+            f"unknown component type {type_name!r} (known: {', '.join(TYPES)}; "
+            "or give module:Class or file.py:Class; `orchestrator types` lists them)",
+        )
     try:
         if module_name.endswith(".py"):
             path = Path(config_dir or ".") / module_name
@@ -79,8 +84,9 @@ def load(type_name: str, config_dir: str | Path | None = None) -> type[Component
     except ImportError as e:
         raise ConfigError("type", f"cannot import {module_name!r} for type {type_name!r}: {e}") from None
     except Exception as e:  # the user's module fails while loading: one line naming it
-        raise ConfigError("type", f"loading {module_name!r} for type {type_name!r} failed: "
-                                  f"{type(e).__name__}: {e}") from None
+        raise ConfigError(
+            "type", f"loading {module_name!r} for type {type_name!r} failed: {type(e).__name__}: {e}"
+        ) from None
     cls = getattr(module, class_name, None)
     if not (isinstance(cls, type) and issubclass(cls, Component)):
         raise ConfigError("type", f"{target!r} is not a Component subclass")
@@ -91,6 +97,7 @@ def load(type_name: str, config_dir: str | Path | None = None) -> type[Component
 class Resolved:
     """A component type with validated parameters and the layouts of its variables: all that
     comes before an instance."""
+
     cls: type[Component]
     params: dict
     inputs: Layout
@@ -110,8 +117,14 @@ class Unresolved(Exception):
         self.stage, self.errors = stage, errors
 
 
-def resolve(component_type: str | type[Component], params: Mapping[str, Any], *, epoch: str | None = None,
-            config_dir: str | Path | None = None, packages: Mapping[str, str] | None = None) -> Resolved:
+def resolve(
+    component_type: str | type[Component],
+    params: Mapping[str, Any],
+    *,
+    epoch: str | None = None,
+    config_dir: str | Path | None = None,
+    packages: Mapping[str, str] | None = None,
+) -> Resolved:
     """The one way from raw parameters to a component: load the type (a name or the class), add
     the run parameters (``params`` may hold them already, as the instantiate message does),
     validate, declare and lay out the inputs and outputs. Unresolved when any of it fails."""

@@ -9,12 +9,13 @@ oldest frames (``skipped``); the run never waits for it (the cameras' publishers
 no later than the last one taken of its output (seen once on a loaded machine: the same frame
 twice) is not shown again (``repeated``).
 """
+
 from __future__ import annotations
 
 import collections
 import threading
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -22,8 +23,8 @@ from components import bus, protocol, registry
 from components.errors import ConfigError
 from components.rosbag import FrameTopics, RosContext, RosTopic
 
-BACKLOG = 16   # frames kept per output until the view takes them (bursts pass; a view behind for long skips)
-LINK_WAIT_S = 10.0   # at most this long before the run starts for the mesh links to the frames' components
+BACKLOG = 16  # frames kept per output until the view takes them (bursts pass; a view behind for long skips)
+LINK_WAIT_S = 10.0  # at most this long before the run starts for the mesh links to the frames' components
 
 
 def frame_topics(context: RosContext) -> dict[str, FrameTopics]:
@@ -33,7 +34,7 @@ def frame_topics(context: RosContext) -> dict[str, FrameTopics]:
         try:
             cls = registry.load((spec or {}).get("type"), context.run.config_dir)
         except ConfigError:
-            continue   # the views' row topics say so
+            continue  # the views' row topics say so
         if cls.rosbag is not None and cls.rosbag.frames is not None:
             topics = cls.rosbag.frames(context, name)
             if topics is not None:
@@ -45,8 +46,16 @@ class LiveFrames:
     """The run's frame outputs as ROS 2 messages. ``topics``: only the outputs with a topic among
     them are subscribed to (None: all); ``topics_of`` lists every topic they go on."""
 
-    def __init__(self, session, run_id: str, config: dict, config_dir, typestore, warn: Callable[[str], None],
-                 topics: list[str] | None = None):
+    def __init__(
+        self,
+        session,
+        run_id: str,
+        config: dict,
+        config_dir,
+        typestore,
+        warn: Callable[[str], None],
+        topics: list[str] | None = None,
+    ):
         from components.plotting import RecordedRun
 
         self.typestore = typestore
@@ -55,21 +64,22 @@ class LiveFrames:
         self.specs = frame_topics(self.context)
         wanted = set(topics) if topics is not None else None
         self.topics: dict[str, RosTopic] = {}
-        self._waiting: dict[tuple[str, str], collections.deque] = {}   # (component, output) -> messages
+        self._waiting: dict[tuple[str, str], collections.deque] = {}  # (component, output) -> messages
         self._lock = threading.Lock()
         self.received = self.skipped = self.bad = self.published = self.repeated = 0
-        self._last_ns: dict[tuple[str, str], int] = {}   # (component, output) -> the latest frame's time taken
-        self._outputs: list[tuple[str, str]] = []   # (component, output) subscribed to
+        self._last_ns: dict[tuple[str, str], int] = {}  # (component, output) -> the latest frame's time taken
+        self._outputs: list[tuple[str, str]] = []  # (component, output) subscribed to
         self.subscribers = []
         self.session, self.run_id = session, run_id
         for component, spec in self.specs.items():
             for output, output_topics in spec.outputs.items():
                 if wanted is not None and not wanted & {t.name for t in output_topics}:
-                    continue   # nobody asked for it: not subscribed, so the camera sends nothing
+                    continue  # nobody asked for it: not subscribed, so the camera sends nothing
                 self.topics.update((t.name, t) for t in output_topics)
                 self._outputs.append((component, output))
-                self.subscribers.append(session.declare_subscriber(
-                    bus.view_key(run_id, component, output), self._keeper(component, output)))
+                self.subscribers.append(
+                    session.declare_subscriber(bus.view_key(run_id, component, output), self._keeper(component, output))
+                )
 
     def wait_linked(self, timeout_s: float = LINK_WAIT_S) -> list[str]:
         """Wait until the view is linked to every component whose frames it subscribes to; the
@@ -98,7 +108,8 @@ class LiveFrames:
                     arrived.notify_all()
 
         subscriber = self.session.liveliness().declare_subscriber(
-            protocol.ALIVE.pattern(self.run_id), token, history=True)
+            protocol.ALIVE.pattern(self.run_id), token, history=True
+        )
         try:
             deadline = time.monotonic() + timeout_s
             with arrived:
@@ -114,8 +125,9 @@ class LiveFrames:
             with self._lock:
                 self.received += 1
                 waiting = self._waiting.setdefault((component, output), collections.deque(maxlen=BACKLOG))
-                self.skipped += len(waiting) == BACKLOG   # the oldest goes: the view fell behind
+                self.skipped += len(waiting) == BACKLOG  # the oldest goes: the view fell behind
                 waiting.append(payload)
+
         return keep
 
     def take(self) -> list[tuple[RosTopic, list[tuple[int, bytes]]]]:
@@ -134,7 +146,7 @@ class LiveFrames:
                 self.bad += 1
                 continue
             if taken_ns <= self._last_ns.get((component, output), -1):
-                self.repeated += 1   # a frame again, or an older one after it: a view shows each once, in order
+                self.repeated += 1  # a frame again, or an older one after it: a view shows each once, in order
                 continue
             self._last_ns[component, output] = taken_ns
             ns = self.context.epoch_ns + taken_ns
@@ -148,13 +160,15 @@ class LiveFrames:
         """A line on the frames the view did not show, or None when it showed every one it got."""
         if not (self.skipped or self.repeated or self.bad):
             return None
-        return (f"camera frames: {self.received} received, {self.skipped} skipped (the view fell behind), "
-                f"{self.repeated} repeated or late (not shown again), {self.bad} malformed")
+        return (
+            f"camera frames: {self.received} received, {self.skipped} skipped (the view fell behind), "
+            f"{self.repeated} repeated or late (not shown again), {self.bad} malformed"
+        )
 
     def undeclare(self) -> None:
         for subscriber in self.subscribers:
             try:
                 subscriber.undeclare()
-            except Exception:   # the session is gone: so is it
+            except Exception:  # the session is gone: so is it
                 pass
         self.subscribers = []

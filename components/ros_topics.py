@@ -2,10 +2,11 @@
 (``Component.rosbag``, found through the registry), merged by topic name. The rosbag2 export
 (orchestrator/export/rosbag2.py) writes them; the live Foxglove view
 (components/viewer/foxglove_observer.py) sends them."""
+
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -27,9 +28,16 @@ def signal_topics(context: RosContext, component: str) -> list[RosTopic]:
             continue
         values = np.ascontiguousarray(values, dtype=np.float64)
         topic = "/" + name.replace(".", "/")
-        topics.append(RosTopic(topic, "std_msgs/msg/Float64MultiArray", [
-            (int(ns), Array(layout=Layout(dim=[], data_offset=0), data=values[row]))
-            for row, ns in enumerate(context.stamps)]))
+        topics.append(
+            RosTopic(
+                topic,
+                "std_msgs/msg/Float64MultiArray",
+                [
+                    (int(ns), Array(layout=Layout(dim=[], data_offset=0), data=values[row]))
+                    for row, ns in enumerate(context.stamps)
+                ],
+            )
+        )
     return topics
 
 
@@ -49,15 +57,18 @@ def component_topics(context: RosContext, warn: Callable[[str], None], all_signa
             if all_signals:
                 generic.append(name)
             else:
-                warn(f"{name}: its type {type_name} declares no ROS messages (rosbag); not exported "
-                     "(--all-signals: its variables as Float64MultiArray)")
+                warn(
+                    f"{name}: its type {type_name} declares no ROS messages (rosbag); not exported "
+                    "(--all-signals: its variables as Float64MultiArray)"
+                )
             continue
         exports.append((name, cls.rosbag))
-    for name, export in exports:   # first: where outputs are measured, for the sensors reading them
+    for name, export in exports:  # first: where outputs are measured, for the sensors reading them
         if export.output_frames is not None:
             context.output_frames.update({f"{name}.{v}": f for v, f in export.output_frames(context, name).items()})
-    return ([topic for name, export in exports for topic in export.topics(context, name)]
-            + [topic for name in generic for topic in signal_topics(context, name)])
+    return [topic for name, export in exports for topic in export.topics(context, name)] + [
+        topic for name in generic for topic in signal_topics(context, name)
+    ]
 
 
 def merged(context: RosContext, topics: list[RosTopic]) -> list[RosTopic]:
@@ -76,7 +87,7 @@ def merged(context: RosContext, topics: list[RosTopic]) -> list[RosTopic]:
             by_name[name] = RosTopic(name, first.msgtype, first.messages, first.latched)
             continue
         messages = [message for topic in group for message in topic.messages]
-        messages.sort(key=lambda item: item[0])   # stable: components' order within a stamp
+        messages.sort(key=lambda item: item[0])  # stable: components' order within a stamp
         by_name[name] = RosTopic(name, first.msgtype, messages, first.latched)
     static = by_name.get("/tf_static")
     if static is not None and static.messages:
@@ -89,8 +100,9 @@ def run_topics(context: RosContext, warn: Callable[[str], None], all_signals: bo
     """Every topic of the recording in ``context``: ``/clock`` (one message per row), then the
     component types' topics merged by name (the rosbag2 export and the live Foxglove view)."""
     Clock = context.msg("rosgraph_msgs/msg/Clock")
-    clock = RosTopic("/clock", "rosgraph_msgs/msg/Clock", [(int(ns), Clock(clock=context.time(ns)))
-                                                          for ns in context.stamps])
+    clock = RosTopic(
+        "/clock", "rosgraph_msgs/msg/Clock", [(int(ns), Clock(clock=context.time(ns))) for ns in context.stamps]
+    )
     return [clock] + merged(context, component_topics(context, warn, all_signals))
 
 
@@ -102,7 +114,7 @@ def run_assets(context: RosContext, warn: Callable[[str], None]) -> dict[str, Pa
         try:
             cls = registry.load((spec or {}).get("type"), context.run.config_dir)
         except ConfigError:
-            continue   # component_topics has said so
+            continue  # component_topics has said so
         if cls.rosbag is not None and cls.rosbag.assets is not None:
             for uri, path in cls.rosbag.assets(context, name).items():
                 assets.setdefault(uri, path)
@@ -121,7 +133,7 @@ class LiveTopics:
         self.config, self.columns, self.typestore, self.warn = config, columns, typestore, warn
         self.config_dir = Path(config_dir) if config_dir else None
         self.latched_sent: set[str] = set()
-        self._lead = None   # (time s, row) of the previous batch's last row
+        self._lead = None  # (time s, row) of the previous batch's last row
 
     def batch(self, times, rows) -> tuple[list[tuple[RosTopic, list[tuple[int, bytes]]]], int]:
         """``times`` (s) and ``rows`` (one column per name of ``columns``): each topic with its
@@ -131,8 +143,9 @@ class LiveTopics:
         times, rows = np.asarray(times, dtype=np.float64), np.asarray(rows, dtype=np.float64)
         if self._lead is not None:
             times, rows = np.concatenate([[self._lead[0]], times]), np.vstack([self._lead[1], rows])
-        run = RecordedRun(self.config, {name: rows[:, i] for i, name in enumerate(self.columns)}, times,
-                          self.config_dir)
+        run = RecordedRun(
+            self.config, {name: rows[:, i] for i, name in enumerate(self.columns)}, times, self.config_dir
+        )
         context = RosContext(run, self.typestore, self.warn)
         sent_until = int(context.stamps[0]) if self._lead is not None else None
         batch = []
@@ -143,7 +156,14 @@ class LiveTopics:
                     self.latched_sent.add(topic.name)
             else:
                 messages = [(ns, m) for ns, m in topic.messages if sent_until is None or ns > sent_until]
-            batch.append((topic, [(int(ns), bytes(self.typestore.serialize_cdr(message, topic.msgtype)))
-                                  for ns, message in messages]))
+            batch.append(
+                (
+                    topic,
+                    [
+                        (int(ns), bytes(self.typestore.serialize_cdr(message, topic.msgtype)))
+                        for ns, message in messages
+                    ],
+                )
+            )
         self._lead = (times[-1], rows[-1].copy())
         return batch, int(context.stamps[-1])

@@ -11,12 +11,13 @@ Conventions every builder follows (docs/guides/ros2.md):
   ``<sensor>`` (a sensor component's frame); see :func:`link_frame`;
 - values: copied from the recording (float64 to float64), quaternions [x, y, z, w] as recorded.
 """
+
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -68,6 +69,7 @@ class RosTopic:
     (``sensor_msgs/msg/JointState``), ``messages`` as (log time ns, message), a list or, for
     messages too big to hold together, :class:`LazyMessages` (already in time order); ``latched``:
     offered with transient-local durability, depth 1 (``/tf_static``, ``robot_description``)."""
+
     name: str
     msgtype: str
     messages: list[tuple[int, object]] | LazyMessages = field(default_factory=list)
@@ -88,11 +90,12 @@ class RosExport:
     ``frames(context, c)``: the :class:`FrameTopics` of component ``c``'s frame outputs, which the
     live views (``--ros2``, ``--view foxglove``) publish from the bus as they come (None: none).
     """
+
     description: str
-    topics: Callable[["RosContext", str], Iterable[RosTopic]]
-    output_frames: Callable[["RosContext", str], dict[str, str]] | None = None
-    assets: Callable[["RosContext", str], dict[str, Path]] | None = None
-    frames: Callable[["RosContext", str], "FrameTopics | None"] | None = None
+    topics: Callable[[RosContext, str], Iterable[RosTopic]]
+    output_frames: Callable[[RosContext, str], dict[str, str]] | None = None
+    assets: Callable[[RosContext, str], dict[str, Path]] | None = None
+    frames: Callable[[RosContext, str], FrameTopics | None] | None = None
 
 
 @dataclass
@@ -100,6 +103,7 @@ class FrameTopics:
     """A component's frame outputs as live ROS 2 topics: ``outputs`` {frame output: the topics
     (no messages) its frames go on}; ``messages(output, stamp ns, frame)`` -> [(RosTopic, message)],
     the messages of one frame, as the export builds them from the recorded frame."""
+
     outputs: dict[str, list[RosTopic]]
     messages: Callable[[str, int, np.ndarray], list[tuple[RosTopic, object]]]
 
@@ -118,7 +122,7 @@ class RosContext:
         self.warn = warn
         self.epoch_ns = epoch_ns((run.config.get("run") or {}).get("epoch"))
         self.stamps = self.epoch_ns + np.rint(run.time * 1e9).astype(np.int64)
-        self.output_frames: dict[str, str] = {}   # "<component>.<variable>" -> frame (RosExport.output_frames)
+        self.output_frames: dict[str, str] = {}  # "<component>.<variable>" -> frame (RosExport.output_frames)
 
     def mount_of(self, component: str, variable: str) -> str | None:
         """The frame the output feeding ``component.variable`` is measured in, if a type said so."""
@@ -145,15 +149,19 @@ class RosContext:
         return self.msg("geometry_msgs/msg/Point")(x=float(xyz[0]), y=float(xyz[1]), z=float(xyz[2]))
 
     def quaternion(self, xyzw):
-        return self.msg("geometry_msgs/msg/Quaternion")(x=float(xyzw[0]), y=float(xyzw[1]), z=float(xyzw[2]),
-                                                       w=float(xyzw[3]))
+        return self.msg("geometry_msgs/msg/Quaternion")(
+            x=float(xyzw[0]), y=float(xyzw[1]), z=float(xyzw[2]), w=float(xyzw[3])
+        )
 
     def transform(self, ns: int, parent: str, child: str, translation, rotation_xyzw):
         """geometry_msgs/TransformStamped: ``child`` in ``parent`` (m; quaternion [x, y, z, w])."""
         return self.msg("geometry_msgs/msg/TransformStamped")(
-            header=self.header(ns, parent), child_frame_id=child,
-            transform=self.msg("geometry_msgs/msg/Transform")(translation=self.vector3(translation),
-                                                              rotation=self.quaternion(rotation_xyzw)))
+            header=self.header(ns, parent),
+            child_frame_id=child,
+            transform=self.msg("geometry_msgs/msg/Transform")(
+                translation=self.vector3(translation), rotation=self.quaternion(rotation_xyzw)
+            ),
+        )
 
     def tf(self, transforms: list):
         return self.msg("tf2_msgs/msg/TFMessage")(transforms=transforms)
@@ -165,8 +173,8 @@ def epoch_ns(epoch) -> int:
         return 0
     moment = datetime.fromisoformat(str(epoch).replace("Z", "+00:00"))
     if moment.tzinfo is None:
-        moment = moment.replace(tzinfo=timezone.utc)
-    delta = moment - datetime(1970, 1, 1, tzinfo=timezone.utc)
+        moment = moment.replace(tzinfo=UTC)
+    delta = moment - datetime(1970, 1, 1, tzinfo=UTC)
     return (delta.days * 86_400 + delta.seconds) * 1_000_000_000 + delta.microseconds * 1_000
 
 

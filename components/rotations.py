@@ -14,14 +14,15 @@ Conventions (Zenorbit contract, docs/design.md §2):
 and ``cross`` (row-wise, broadcasting) are there because ``np.cross`` is ~20x slower on small
 inputs and the dynamics calls them in its integration loop.
 """
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
-
 # --------------------------------------------------------------------------- vectors
+
 
 def cross3(a, b) -> np.ndarray:
     """a × b for one pair of 3-vectors (np.cross is ~20x slower on single vectors)."""
@@ -46,6 +47,7 @@ def skew(w) -> np.ndarray:
 
 # --------------------------------------------------------------------------- quaternions
 
+
 def quat_to_matrix(q) -> np.ndarray:
     """Rotation matrix R_A_B of a quaternion q_A_B = [x, y, z, w], normalized first.
 
@@ -53,9 +55,13 @@ def quat_to_matrix(q) -> np.ndarray:
     q = np.asarray(q, dtype=float)
     if q.ndim == 1:
         x, y, z, w = q / np.linalg.norm(q)
-        return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+        return np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+            ]
+        )
     x, y, z, w = np.moveaxis(q / np.linalg.norm(q, axis=-1, keepdims=True), -1, 0)
     R = np.empty(q.shape[:-1] + (3, 3))
     R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
@@ -64,8 +70,9 @@ def quat_to_matrix(q) -> np.ndarray:
     return R
 
 
-def matrix_entries_to_quat(m00: float, m01: float, m02: float, m10: float, m11: float, m12: float,
-                           m20: float, m21: float, m22: float) -> np.ndarray:
+def matrix_entries_to_quat(
+    m00: float, m01: float, m02: float, m10: float, m11: float, m12: float, m20: float, m21: float, m22: float
+) -> np.ndarray:
     """``matrix_to_quat`` of one rotation given as its nine entries (row-major floats): the fast
     path for per-step callers, with no 3x3 array to build."""
     d = (1.0 + m00 - m11 - m22, 1.0 - m00 + m11 - m22, 1.0 - m00 - m11 + m22, 1.0 + m00 + m11 + m22)
@@ -126,9 +133,13 @@ def continuous(q, q_previous) -> np.ndarray:
     q = np.array(q, dtype=np.float64)
     if q_previous is None:
         return q
-    if q.size == 4:       # the common case, in plain floats (a step's budget is microseconds)
+    if q.size == 4:  # the common case, in plain floats (a step's budget is microseconds)
         a = q.tolist()
-        b = q_previous.tolist() if q_previous.__class__ is np.ndarray else np.asarray(q_previous, dtype=np.float64).tolist()
+        b = (
+            q_previous.tolist()
+            if q_previous.__class__ is np.ndarray
+            else np.asarray(q_previous, dtype=np.float64).tolist()
+        )
         if a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] < 0.0:
             q *= -1.0
         return q
@@ -138,6 +149,7 @@ def continuous(q, q_previous) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- rotation vectors (SO(3))
+
 
 def exp_so3(phi) -> np.ndarray:
     """Rotation matrix of a rotation vector phi (axis times angle, rad): Rodrigues' formula.
@@ -162,14 +174,14 @@ def log_so3(R) -> np.ndarray:
     """
     m = np.asarray(R, dtype=float)
     v = np.array([m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]])
-    s = 0.5 * math.sqrt(float(v @ v))                      # sin t
-    c = 0.5 * (m[0, 0] + m[1, 1] + m[2, 2] - 1.0)          # cos t
+    s = 0.5 * math.sqrt(float(v @ v))  # sin t
+    c = 0.5 * (m[0, 0] + m[1, 1] + m[2, 2] - 1.0)  # cos t
     t = math.atan2(s, c)
     if c >= 0.0:
         if s == 0.0:
             return np.zeros(3)
         return v * (0.5 * t / s)
-    S = 0.5 * (m + m.T) - c * np.eye(3)                    # (1 - cos t) axis axis^T
+    S = 0.5 * (m + m.T) - c * np.eye(3)  # (1 - cos t) axis axis^T
     k = int(np.argmax(np.diag(S)))
     axis = S[:, k] / math.sqrt(S[k, k])
     axis /= np.linalg.norm(axis)
@@ -180,13 +192,18 @@ def log_so3(R) -> np.ndarray:
 
 # --------------------------------------------------------------------------- URDF roll-pitch-yaw
 
+
 def rpy_to_matrix(rpy) -> np.ndarray:
     """R = Rz(yaw) Ry(pitch) Rx(roll) of rpy = (roll, pitch, yaw) in rad (URDF convention)."""
     r, p, y = rpy
     cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
 
 
 def matrix_to_rpy(R) -> tuple[float, float, float]:
@@ -196,7 +213,7 @@ def matrix_to_rpy(R) -> tuple[float, float, float]:
     if cp > 1e-9:
         roll = math.atan2(R[2, 1], R[2, 2])
         yaw = math.atan2(R[1, 0], R[0, 0])
-    else:   # gimbal lock: put everything in roll
+    else:  # gimbal lock: put everything in roll
         yaw = 0.0
         roll = math.atan2(-R[1, 2], R[1, 1])
     return roll, pitch, yaw

@@ -17,6 +17,7 @@ With ``--member NAME:GENERATION`` repeated instead of ``--name``, it runs a proc
 components in this one process (see :mod:`components.group`); either way :mod:`components.serving`
 serves them.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -34,26 +35,52 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--run-id", required=True)
     parser.add_argument("--name", help="the component's name in the config")
     parser.add_argument("--generation", type=int, default=0)
-    parser.add_argument("--member", action="append", type=_member, default=[], metavar="NAME:GENERATION",
-                        help="a component of a process group (repeated, instead of --name): all in this process")
-    parser.add_argument("--stepping", metavar="FILE", help="a group's file of 4 bytes where it marks the member "
-                                                           "whose code runs (the orchestrator reads it)")
-    parser.add_argument("--listen", help="where the other components reach this one directly "
-                                         "(default: port 0 on the address used to reach the orchestrator)")
+    parser.add_argument(
+        "--member",
+        action="append",
+        type=_member,
+        default=[],
+        metavar="NAME:GENERATION",
+        help="a component of a process group (repeated, instead of --name): all in this process",
+    )
+    parser.add_argument(
+        "--stepping",
+        metavar="FILE",
+        help="a group's file of 4 bytes where it marks the member whose code runs (the orchestrator reads it)",
+    )
+    parser.add_argument(
+        "--listen",
+        help="where the other components reach this one directly "
+        "(default: port 0 on the address used to reach the orchestrator)",
+    )
     parser.add_argument("--cpu", type=int, help="step on this CPU alone (the config's dedicated_cpu)")
-    parser.add_argument("--orchestrator", metavar="ZID", help="the Zenoh id of the orchestrator's session: "
-                                                              "exit when the link to it closes")
+    parser.add_argument(
+        "--orchestrator",
+        metavar="ZID",
+        help="the Zenoh id of the orchestrator's session: exit when the link to it closes",
+    )
     args = parser.parse_args(argv)
     secret = os.environ.get(bus.SECRET_ENV)
     if not secret:
-        parser.error(f"{bus.SECRET_ENV} is not set: give the run's secret in it, as the orchestrator's "
-                     f"command for an external component does")
+        parser.error(
+            f"{bus.SECRET_ENV} is not set: give the run's secret in it, as the orchestrator's "
+            f"command for an external component does"
+        )
     if (args.name is None) == (not args.member):
         parser.error("give either --name (one component) or --member (each component of a group)")
     if args.member and len(args.member) == 1:
         parser.error("a group of one is a component: give --name")
-    ended = serve(args.connect, args.run_id, args.member or [(args.name, args.generation)], args.listen, secret,
-                  args.cpu, bus_security.from_env(), args.orchestrator, args.stepping)
+    ended = serve(
+        args.connect,
+        args.run_id,
+        args.member or [(args.name, args.generation)],
+        args.listen,
+        secret,
+        args.cpu,
+        bus_security.from_env(),
+        args.orchestrator,
+        args.stepping,
+    )
     return 1 if ended == ORPHANED else 0
 
 

@@ -16,6 +16,7 @@ Because each step consumes exactly the inputs tagged for it, the same config giv
 numbers whether the components run in one process, one after another, or in parallel processes
 that exchange outputs directly (the data dependencies are the barrier).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -28,24 +29,35 @@ ALGORITHMS = ("jacobi", "gauss-seidel")
 @dataclass(frozen=True)
 class Route:
     """Inputs of one consumer fed by one source: ``inputs[dst] = source_outputs[src]``."""
+
     source: str
-    src: np.ndarray      # indices in the source's output vector
-    dst: np.ndarray      # indices in the consumer's input vector
-    ratio: int           # the source's step in run steps
-    ahead: int           # 1: the consumer reads the source's values at t_(k+1) (Gauss-Seidel)
+    src: np.ndarray  # indices in the source's output vector
+    dst: np.ndarray  # indices in the consumer's input vector
+    ratio: int  # the source's step in run steps
+    ahead: int  # 1: the consumer reads the source's values at t_(k+1) (Gauss-Seidel)
 
     def tag(self, k: int) -> int:
         """The source output tag read by the consumer's step ``k``."""
         return (k + self.ahead) // self.ratio * self.ratio
 
     def to_json(self) -> dict:
-        return {"source": self.source, "src": self.src.tolist(), "dst": self.dst.tolist(),
-                "ratio": self.ratio, "ahead": self.ahead}
+        return {
+            "source": self.source,
+            "src": self.src.tolist(),
+            "dst": self.dst.tolist(),
+            "ratio": self.ratio,
+            "ahead": self.ahead,
+        }
 
     @classmethod
-    def from_json(cls, data: dict) -> "Route":
-        return cls(data["source"], np.asarray(data["src"], dtype=np.int64),
-                   np.asarray(data["dst"], dtype=np.int64), int(data["ratio"]), int(data["ahead"]))
+    def from_json(cls, data: dict) -> Route:
+        return cls(
+            data["source"],
+            np.asarray(data["src"], dtype=np.int64),
+            np.asarray(data["dst"], dtype=np.int64),
+            int(data["ratio"]),
+            int(data["ahead"]),
+        )
 
 
 def fed_inputs(route: Route, input_offsets: dict[str, slice]) -> list[str]:
@@ -55,8 +67,15 @@ def fed_inputs(route: Route, input_offsets: dict[str, slice]) -> list[str]:
     return [name for name, s in input_offsets.items() if s.start in dst]
 
 
-def routes(consumer: str, input_offsets: dict[str, slice], connections, output_offsets: dict[str, dict[str, slice]],
-           ratios: dict[str, int], order: list[str], algorithm: str) -> list[Route]:
+def routes(
+    consumer: str,
+    input_offsets: dict[str, slice],
+    connections,
+    output_offsets: dict[str, dict[str, slice]],
+    ratios: dict[str, int],
+    order: list[str],
+    algorithm: str,
+) -> list[Route]:
     """The routes into ``consumer``, one per source component.
 
     ``connections`` are (dst component, dst variable, src component, src variable);
@@ -66,7 +85,7 @@ def routes(consumer: str, input_offsets: dict[str, slice], connections, output_o
         raise ValueError(f"algorithm must be one of {ALGORITHMS}, got {algorithm!r}")
     by_source: dict[str, tuple[list, list]] = {}
     for dst, dst_var, src, src_var in connections:
-        if dst != consumer or dst_var not in input_offsets:   # not ours, or a frame (frame_routes)
+        if dst != consumer or dst_var not in input_offsets:  # not ours, or a frame (frame_routes)
             continue
         d, s = input_offsets[dst_var], output_offsets[src][src_var]
         pair = by_source.setdefault(src, ([], []))
@@ -83,9 +102,10 @@ def routes(consumer: str, input_offsets: dict[str, slice], connections, output_o
 class FrameRoute:
     """A frame input of one consumer fed by a frame output of one source; read by tag as a
     :class:`Route` is (a frame travels on its own message, not in the float64 vector)."""
+
     source: str
-    output: str          # the source's frame output
-    input: str           # the consumer's frame input
+    output: str  # the source's frame output
+    input: str  # the consumer's frame input
     ratio: int
     ahead: int
 
@@ -93,12 +113,21 @@ class FrameRoute:
         return (k + self.ahead) // self.ratio * self.ratio
 
 
-def frame_routes(consumer: str, frame_inputs: list[str], connections, ratios: dict[str, int], order: list[str],
-                 algorithm: str) -> list[FrameRoute]:
+def frame_routes(
+    consumer: str, frame_inputs: list[str], connections, ratios: dict[str, int], order: list[str], algorithm: str
+) -> list[FrameRoute]:
     """The frame routes into ``consumer`` (its frame inputs named in ``frame_inputs``), one per connection."""
-    return [FrameRoute(src, src_var, dst_var, ratios[src],
-                       int(algorithm == "gauss-seidel" and order.index(src) < order.index(consumer)))
-            for dst, dst_var, src, src_var in connections if dst == consumer and dst_var in frame_inputs]
+    return [
+        FrameRoute(
+            src,
+            src_var,
+            dst_var,
+            ratios[src],
+            int(algorithm == "gauss-seidel" and order.index(src) < order.index(consumer)),
+        )
+        for dst, dst_var, src, src_var in connections
+        if dst == consumer and dst_var in frame_inputs
+    ]
 
 
 def frame_consumers(name: str, frame_outputs: list[str], connections) -> dict[str, list[str]]:
@@ -160,4 +189,5 @@ def batch_consumers(name: str, connections) -> list[str]:
                 seen.add(node)
                 stack.extend(consumers.get(node, ()))
         return False
+
     return sorted(c for c in consumers.get(name, ()) if not reaches(c))

@@ -14,14 +14,16 @@ A quantity may declare a ``plausible`` range (SI, inclusive) beside its unit: a 
 converts all the same, and is collected (:func:`implausible_values`) for a warning said in the
 unit people use for it (components.units.implausible); ``--strict`` makes it an error.
 """
+
 from __future__ import annotations
 
 import datetime as dt
 import re
+from collections.abc import Mapping
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -43,6 +45,7 @@ class Problems(ConfigError):
 @dataclass(frozen=True)
 class Implausible:
     """A value outside its declared plausible range: ``key`` and why, in the unit people use."""
+
     key: str
     message: str
 
@@ -113,7 +116,7 @@ class Kind:
         """Whether ``value`` has this kind's shape (a number, a list, a mapping...): OneOf picks by it."""
         return True
 
-    def records(self) -> list["Record"]:
+    def records(self) -> list[Record]:
         """The records nested in this kind, for describe."""
         return []
 
@@ -131,10 +134,11 @@ class Anything(Kind):
 class Float(Kind):
     """A real number in ``unit`` (a bare number is SI; "6778 km" is converted); optional bounds
     (beyond them: an error) and ``plausible`` range (SI; beyond it: a warning)."""
+
     unit: str = "1"
-    minimum: float | None = None      # inclusive
+    minimum: float | None = None  # inclusive
     positive: bool = False
-    maximum: float | None = None      # inclusive
+    maximum: float | None = None  # inclusive
     plausible: tuple[float, float] | None = None
 
     @property
@@ -191,6 +195,7 @@ class Bool(Kind):
 @dataclass(frozen=True)
 class Str(Kind):
     """A string: one of ``choices``, or matching ``pattern`` (``hint`` says what that means)."""
+
     choices: tuple[str, ...] = ()
     pattern: str | None = None
     hint: str = ""
@@ -212,13 +217,14 @@ class Str(Kind):
         return isinstance(value, str)
 
 
-MAX_DURATION_NS = 100 * 31_557_600 * 10 ** 9   # 100 Julian years: well inside int64 nanoseconds
+MAX_DURATION_NS = 100 * 31_557_600 * 10**9  # 100 Julian years: well inside int64 nanoseconds
 
 
 @dataclass(frozen=True)
 class Duration(Kind):
     """A time span, exact integer nanoseconds ("1 ms", "20 s", or a number of seconds);
     ``plausible``: a range in s."""
+
     positive: bool = True
     plausible: tuple[float, float] | None = None
     text = "duration"
@@ -232,7 +238,9 @@ class Duration(Kind):
         if ns < 0 or (self.positive and ns == 0):
             raise ConfigError(key, f"expected a duration {'>' if self.positive else '>='} 0, got {value!r}")
         if ns > MAX_DURATION_NS:
-            raise ConfigError(key, f"expected a duration of at most 100 years (times are int64 nanoseconds), got {value!r}")
+            raise ConfigError(
+                key, f"expected a duration of at most 100 years (times are int64 nanoseconds), got {value!r}"
+            )
         _plausible(value, ns / 1e9, "s", self.plausible, key)
         return ns
 
@@ -245,11 +253,12 @@ class Duration(Kind):
 
 class UtcTime(Kind):
     """A UTC time, e.g. 2022-09-18T12:00:00Z; kept as that ISO-8601 text."""
+
     text = "UTC time"
 
     def convert(self, value, key):
         if isinstance(value, dt.datetime):
-            moment = value if value.tzinfo else value.replace(tzinfo=dt.timezone.utc)
+            moment = value if value.tzinfo else value.replace(tzinfo=dt.UTC)
         elif isinstance(value, str):
             try:
                 moment = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
@@ -259,7 +268,7 @@ class UtcTime(Kind):
                 raise ConfigError(key, f"give the time zone, e.g. 2022-09-18T12:00:00Z, got {value!r}")
         else:
             raise ConfigError(key, f"expected a UTC time like 2022-09-18T12:00:00Z, got {value!r}")
-        return moment.astimezone(dt.timezone.utc).isoformat().replace("+00:00", "Z")
+        return moment.astimezone(dt.UTC).isoformat().replace("+00:00", "Z")
 
     def accepts(self, value):
         return isinstance(value, (str, dt.datetime))
@@ -269,10 +278,11 @@ class UtcTime(Kind):
 class Vector(Kind):
     """``size`` numbers (any number if None) in ``unit``, or in ``units`` element by element;
     ``plausible``: one range (SI) for every element, or one per element (with ``units``)."""
+
     size: int | None = None
     unit: str = "1"
     units: tuple[str, ...] | None = None
-    minimum: float | None = None      # inclusive, for every element
+    minimum: float | None = None  # inclusive, for every element
     plausible: tuple | None = None
 
     def _ranges(self, n: int) -> list:
@@ -298,8 +308,7 @@ class Vector(Kind):
         if self.size is not None and len(values) != self.size:
             raise ConfigError(key, f"expected {self.size} values, got {len(values)}")
         units = self.units or (self.unit,) * len(values)
-        array = np.array([to_si(v, u, f"{key}[{i}]") for i, (v, u) in enumerate(zip(values, units))],
-                         dtype=np.float64)
+        array = np.array([to_si(v, u, f"{key}[{i}]") for i, (v, u) in enumerate(zip(values, units))], dtype=np.float64)
         if self.minimum is not None and np.any(array < self.minimum):
             i = int(np.argmax(array < self.minimum))
             raise ConfigError(f"{key}[{i}]", f"expected a quantity >= {self.minimum:g}, got {values[i]!r}")
@@ -359,6 +368,7 @@ class ListOf(Kind):
 @dataclass(frozen=True)
 class MapOf(Kind):
     """A mapping from names (``key_text`` says of what; ``key_pattern`` restricts them) to ``item``."""
+
     item: Kind
     key_text: str = "name"
     key_pattern: str | None = None
@@ -376,8 +386,12 @@ class MapOf(Kind):
         out, problems = {}, []
         for name, v in value.items():
             if not isinstance(name, str) or (self.key_pattern and not re.fullmatch(self.key_pattern, name)):
-                problems.append(ConfigError(_join(key, str(name)), f"a {self.key_text} must be an identifier "
-                                                                  f"(letters, digits, _), got {name!r}"))
+                problems.append(
+                    ConfigError(
+                        _join(key, str(name)),
+                        f"a {self.key_text} must be an identifier (letters, digits, _), got {name!r}",
+                    )
+                )
                 continue
             try:
                 out[name] = self.item.convert(v, _join(key, name))
@@ -406,6 +420,7 @@ class MapOf(Kind):
 @dataclass(frozen=True)
 class OneOf(Kind):
     """One of several kinds, told apart by shape: the first option that ``accepts`` the value."""
+
     options: tuple[Kind, ...]
 
     @property
@@ -426,7 +441,7 @@ class OneOf(Kind):
                     return option.convert(value, key)
                 except ConfigError as e:
                     first = first or e
-                    if found is not None:     # what a rejected option found is not about the value
+                    if found is not None:  # what a rejected option found is not about the value
                         del found[before:]
         raise first or ConfigError(key, f"expected {self.text}, got {value!r}")
 
@@ -456,6 +471,7 @@ class Parameter:
     warning). ``default`` REQUIRED makes it required; a default of None makes it optional (null,
     or absent, means "not given"); a default must lie within the plausible range.
     """
+
     name: str
     kind: Kind | str
     unit: str | None = None
@@ -467,17 +483,24 @@ class Parameter:
 
     def __post_init__(self):
         if self.plausible is not None and not (isinstance(self.kind, str) and self.kind in ("float", "vector")):
-            raise ValueError(f"parameter {self.name}: plausible= goes with kind 'float' or 'vector'; "
-                             f"give a Kind its own (Float(unit, plausible=...))")
+            raise ValueError(
+                f"parameter {self.name}: plausible= goes with kind 'float' or 'vector'; "
+                f"give a Kind its own (Float(unit, plausible=...))"
+            )
         if isinstance(self.kind, str):
             unit = self.unit or "1"
-            shorthand = {"float": lambda: Float(unit, plausible=self.plausible), "int": Int, "bool": Bool,
-                         "str": lambda: Str(tuple(self.choices or ())), "any": Anything,
-                         "vector": lambda: Vector(self.shape[0] if self.shape else None, unit,
-                                                  plausible=self.plausible)}
+            shorthand = {
+                "float": lambda: Float(unit, plausible=self.plausible),
+                "int": Int,
+                "bool": Bool,
+                "str": lambda: Str(tuple(self.choices or ())),
+                "any": Anything,
+                "vector": lambda: Vector(self.shape[0] if self.shape else None, unit, plausible=self.plausible),
+            }
             if self.kind not in shorthand:
-                raise ValueError(f"parameter {self.name}: kind must be a Kind or one of "
-                                 f"{', '.join(shorthand)}, got {self.kind!r}")
+                raise ValueError(
+                    f"parameter {self.name}: kind must be a Kind or one of {', '.join(shorthand)}, got {self.kind!r}"
+                )
             object.__setattr__(self, "kind", shorthand[self.kind]())
         if self.unit is None and getattr(self.kind, "unit", "1") != "1":
             object.__setattr__(self, "unit", self.kind.unit)
@@ -524,6 +547,7 @@ class Record(Kind):
     ``noun`` names a field in messages ("key", "parameter of orbit.kepler"); ``extra`` lists
     keys passed through unchecked (the run parameters the orchestrator injects).
     """
+
     name: str
     fields: tuple[Parameter, ...]
     description: str = ""
@@ -548,14 +572,22 @@ class Record(Kind):
         problems: list[ConfigError] = []
         for name in raw:
             if name not in self.by_name and name not in self.extra:
-                problems.append(ConfigError(_join(key, str(name)), f"unknown {self.noun} "
-                                            f"(known: {', '.join(self.by_name) or 'none'})"))
+                problems.append(
+                    ConfigError(
+                        _join(key, str(name)), f"unknown {self.noun} (known: {', '.join(self.by_name) or 'none'})"
+                    )
+                )
         for name, p in self.by_name.items():
             sub = _join(key, name)
-            if name not in raw or (raw[name] is None and not p.required):   # null: not given
+            if name not in raw or (raw[name] is None and not p.required):  # null: not given
                 if p.required:
-                    problems.append(ConfigError(sub, f"missing required {self.noun.split(' of ')[0]}"
-                                                     + (f" ({p.description})" if p.description else "")))
+                    problems.append(
+                        ConfigError(
+                            sub,
+                            f"missing required {self.noun.split(' of ')[0]}"
+                            + (f" ({p.description})" if p.description else ""),
+                        )
+                    )
                     continue
                 value = p.default
             else:
@@ -590,6 +622,7 @@ class Record(Kind):
 @dataclass(frozen=True)
 class Tagged(Kind):
     """A record chosen by its ``tag`` key (e.g. ``type: parabola``); ``default_tag`` when absent."""
+
     name: str
     tag: str
     variants: tuple[Record, ...]
@@ -609,8 +642,9 @@ class Tagged(Kind):
 
     def convert(self, value, key):
         if not isinstance(value, Mapping):
-            raise ConfigError(key, f"expected a mapping with {self.tag}: "
-                                   f"{' | '.join(r.name for r in self.variants)}, got {value!r}")
+            raise ConfigError(
+                key, f"expected a mapping with {self.tag}: {' | '.join(r.name for r in self.variants)}, got {value!r}"
+            )
         variant = self._variant(value, key)
         body = {k: v for k, v in value.items() if k != self.tag}
         return {self.tag: variant.name, **variant.convert(body, key)}
@@ -632,8 +666,15 @@ def _cell(text: Any) -> str:
 
 def table(fields: tuple[Parameter, ...]) -> list[tuple[str, str, str, str]]:
     """Rows (name, type with its unit and plausible range, default, description) of declared parameters."""
-    return [(p.name, p.kind.text + (f"; plausible {r}" if (r := p.kind.plausible_text) else ""), p.default_text,
-             p.description) for p in fields]
+    return [
+        (
+            p.name,
+            p.kind.text + (f"; plausible {r}" if (r := p.kind.plausible_text) else ""),
+            p.default_text,
+            p.description,
+        )
+        for p in fields
+    ]
 
 
 def markdown(record: Record, where: str = "") -> str:

@@ -7,14 +7,16 @@ FMI co-simulation's: ``__init__(params)`` (instantiate) -> ``initialize(t0_ns, i
 for swap and restart. The component never sees the bus: :mod:`components.runner` runs it as a
 process, :mod:`components.testing.harness` runs it in-process. See docs/component_api.md.
 """
+
 from __future__ import annotations
 
 import inspect
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -40,6 +42,7 @@ class Variable:
     float64 payload, and left out of the layouts, the rows and ``signals.parquet``
     (docs/component_api.md, "Images in a step"). Its start value is all zeros, read-only.
     """
+
     name: str
     causality: str
     shape: tuple[int, ...]
@@ -54,8 +57,10 @@ class Variable:
             raise ValueError(f"variable {self.name}: causality must be one of {CAUSALITIES}, got {self.causality!r}")
         if self.frame:
             if self.dtype not in FRAME_DTYPES or len(self.shape) not in (2, 3) or min(self.shape) < 1:
-                raise ValueError(f"frame {self.name}: expected a dtype of {FRAME_DTYPES} and a shape (H, W[, C]) "
-                                 f"of positive sizes, got {self.dtype!r} and {self.shape}")
+                raise ValueError(
+                    f"frame {self.name}: expected a dtype of {FRAME_DTYPES} and a shape (H, W[, C]) "
+                    f"of positive sizes, got {self.dtype!r} and {self.shape}"
+                )
             start = np.zeros(self.shape, dtype=self.dtype)
             start.flags.writeable = False
         elif self.dtype != "float64":
@@ -79,6 +84,7 @@ class Outcome:
     this outcome; at the end the last such event decides, and with none the first outcome declared
     holds. ``says``: the run's summary line for it, a format string over the deciding event's
     fields and ``end`` (the run's end, s), e.g. ``"captured at {time:g} s"``."""
+
     name: str
     says: str
     events: tuple[str, ...] = ()
@@ -86,12 +92,14 @@ class Outcome:
 
     def text(self, fields: Mapping[str, Any], end_s: float) -> str:
         """``says`` filled in; a field the event lacks reads '?' (the line is still written)."""
+
         class Missing(dict):
             def __missing__(self, key):
                 return "?"
+
         try:
             return self.says.format_map(Missing({**fields, "end": end_s}))
-        except (ValueError, TypeError):   # a field of another type than the format expects
+        except (ValueError, TypeError):  # a field of another type than the format expects
             return self.name
 
 
@@ -135,9 +143,13 @@ class Component:
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         _check_outcomes(cls)
-        cls.schema = Record(cls.type_name or cls.__name__, tuple(cls.parameters),
-                            noun=f"parameter of {cls.type_name or cls.__name__}", extra=RUN_PARAMETERS)
-        if cls.__dict__.get("__doc__"):   # its own docstring, not an inherited one
+        cls.schema = Record(
+            cls.type_name or cls.__name__,
+            tuple(cls.parameters),
+            noun=f"parameter of {cls.type_name or cls.__name__}",
+            extra=RUN_PARAMETERS,
+        )
+        if cls.__dict__.get("__doc__"):  # its own docstring, not an inherited one
             cls.__doc__ = inspect.cleandoc(cls.__doc__) + "\n\n" + declaration_tables(cls)
 
     @classmethod
@@ -197,8 +209,10 @@ class Component:
         step that emitted it). ``kind`` is an identifier that is not one of the orchestrator's own
         events; fields are JSON values."""
         if not kind.isidentifier() or kind in ORCHESTRATOR_EVENTS:
-            raise ValueError(f"emit: expected an event name that is an identifier and not one of "
-                             f"{', '.join(ORCHESTRATOR_EVENTS)}, got {kind!r}")
+            raise ValueError(
+                f"emit: expected an event name that is an identifier and not one of "
+                f"{', '.join(ORCHESTRATOR_EVENTS)}, got {kind!r}"
+            )
         if "kind" in fields:
             raise ValueError("emit: 'kind' cannot be a field name (it is the event's)")
         self.__dict__.setdefault("pending_events", []).append((kind, fields))
@@ -213,7 +227,7 @@ class Component:
         return cls.get_state is not Component.get_state and cls.set_state is not Component.set_state
 
     @classmethod
-    def takes_state_of(cls, other: type["Component"]) -> bool:
+    def takes_state_of(cls, other: type[Component]) -> bool:
         """Whether an instance of this type continues from the state of an ``other`` (a swap
         hands it over instead of initializing): the same type, or one of the same ``state_form``."""
         return other is cls or (cls.state_form is not None and cls.state_form == other.state_form)
@@ -253,20 +267,31 @@ def declaration_tables(cls: type[Component]) -> str:
     """Markdown tables of a type's parameters (nested ones too) and, when fixed, its variables."""
     parts = ["Parameters:", "", markdown(cls.schema) if cls.parameters else "(none)", ""]
     if cls.variables is None:
-        parts.append(f"Its variables depend on its parameters: ``orchestrator describe {cls.type_name or cls.__name__} "
-                     "--set PARAM=VALUE`` lists them.")
+        parts.append(
+            f"Its variables depend on its parameters: ``orchestrator describe {cls.type_name or cls.__name__} "
+            "--set PARAM=VALUE`` lists them."
+        )
     else:
         parts += ["Variables:", "", "| variable | causality | shape | unit | description |", "|---|---|---|---|---|"]
-        parts += [f"| {v.name} | {v.causality} | {v.shape}{f' {v.dtype} frame' if v.frame else ''} | {v.unit} | "
-                  f"{v.description} |" for v in cls.variables]
+        parts += [
+            f"| {v.name} | {v.causality} | {v.shape}{f' {v.dtype} frame' if v.frame else ''} | {v.unit} | "
+            f"{v.description} |"
+            for v in cls.variables
+        ]
     if cls.plots:
         parts += ["", "Plots (``orchestrator plot``):", "", "| file | content |", "|---|---|"]
         parts += [f"| ``{plot.file}`` | {plot.description} |" for plot in cls.plots]
     if cls.outcomes:
-        parts += ["", "Outcomes (the run's summary line, ``run --expect NAME``; the first holds until an event "
-                      "decides):", "", "| outcome | decided by the event | description |", "|---|---|---|"]
-        parts += [f"| {o.name} | {', '.join(o.events) or '(none: the start)'} | {o.description} |"
-                  for o in cls.outcomes]
+        parts += [
+            "",
+            "Outcomes (the run's summary line, ``run --expect NAME``; the first holds until an event decides):",
+            "",
+            "| outcome | decided by the event | description |",
+            "|---|---|---|",
+        ]
+        parts += [
+            f"| {o.name} | {', '.join(o.events) or '(none: the start)'} | {o.description} |" for o in cls.outcomes
+        ]
     if cls.rosbag is not None:
         parts += ["", f"ROS 2 messages (``orchestrator export --rosbag2``): {cls.rosbag.description}."]
     return "\n".join(parts)
@@ -277,8 +302,10 @@ def _check_outcomes(cls) -> None:
     names = [o.name for o in cls.outcomes]
     events = [e for o in cls.outcomes for e in o.events]
     if len(set(names)) < len(names) or len(set(events)) < len(events):
-        raise TypeError(f"{cls.type_name or cls.__name__}: outcomes need distinct names and an event deciding one "
-                        f"outcome at most, got {[(o.name, o.events) for o in cls.outcomes]}")
+        raise TypeError(
+            f"{cls.type_name or cls.__name__}: outcomes need distinct names and an event deciding one "
+            f"outcome at most, got {[(o.name, o.events) for o in cls.outcomes]}"
+        )
 
 
 # The events the orchestrator itself writes to events.jsonl; a component's emit() cannot use them.
@@ -290,13 +317,17 @@ ORCHESTRATOR_EVENTS = ("start", "end", "fault", "warning", "swap", "checkpoint",
 RUN_PARAMETERS = ("_epoch", "_config_dir", "_packages", "_frames")
 
 
-def run_parameters(epoch: str | None, config_dir: str | Path | None,
-                   packages: Mapping[str, str] | None = None) -> dict[str, Any]:
+def run_parameters(
+    epoch: str | None, config_dir: str | Path | None, packages: Mapping[str, str] | None = None
+) -> dict[str, Any]:
     """RUN_PARAMETERS for a run starting at ``epoch`` (UTC text) whose relative paths start at
     ``config_dir``, with ``packages`` (``run.packages``: ROS package name -> absolute directory);
     one given as None (or empty) is left out (a type that needs it says so)."""
-    given = {"_epoch": epoch, "_config_dir": None if config_dir is None else str(config_dir),
-             "_packages": {str(k): str(v) for k, v in packages.items()} if packages else None}
+    given = {
+        "_epoch": epoch,
+        "_config_dir": None if config_dir is None else str(config_dir),
+        "_packages": {str(k): str(v) for k, v in packages.items()} if packages else None,
+    }
     return {key: value for key, value in given.items() if value is not None}
 
 
@@ -304,6 +335,7 @@ def run_parameters(epoch: str | None, config_dir: str | Path | None,
 class Layout:
     """Fixed float64 layout of a list of variables, for binary payloads and recording columns.
     Frame variables among them are set aside in ``frames``: they have no place in the layout."""
+
     variables: list[Variable]
     offsets: dict[str, slice] = field(init=False)
     size: int = field(init=False)
@@ -320,8 +352,9 @@ class Layout:
         # (name, slice, size, shape) once, for the per-step pack/unpack
         self._plan = [(v.name, self.offsets[v.name], v.size, v.shape) for v in self.variables]
         # unpack's: the shape to reshape a slice to, None for a vector (its slice has its shape)
-        self._views = [(v.name, self.offsets[v.name], None if tuple(v.shape) == (v.size,) else v.shape)
-                       for v in self.variables]
+        self._views = [
+            (v.name, self.offsets[v.name], None if tuple(v.shape) == (v.size,) else v.shape) for v in self.variables
+        ]
         self._zeros = np.zeros(self.size)
 
     def start_vector(self) -> np.ndarray:
@@ -357,14 +390,17 @@ class Layout:
 
     def unpack(self, vector: np.ndarray) -> dict[str, np.ndarray]:
         """Views of ``vector`` by variable name (scalars as 0-d arrays)."""
-        return {name: vector[where] if shape is None else vector[where].reshape(shape)
-                for name, where, shape in self._views}
+        return {
+            name: vector[where] if shape is None else vector[where].reshape(shape) for name, where, shape in self._views
+        }
 
 
 def layouts(variables: list[Variable]) -> tuple[Layout, Layout]:
     """The input and the output layout of declared variables, each in declaration order."""
-    return (Layout([v for v in variables if v.causality == "input"]),
-            Layout([v for v in variables if v.causality == "output"]))
+    return (
+        Layout([v for v in variables if v.causality == "input"]),
+        Layout([v for v in variables if v.causality == "output"]),
+    )
 
 
 class ComponentOutputError(Exception):

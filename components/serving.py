@@ -4,6 +4,7 @@ router), the keys of each component served, and the loop that feeds their
 component (``python -m components.runner --name``), or a process group (``--member`` repeated);
 ``orchestrator join`` serves one after another on one session (:mod:`orchestrator.hosts.joiner`).
 """
+
 from __future__ import annotations
 
 import mmap
@@ -16,9 +17,9 @@ from components import bus, protocol
 from components.group import MARK_SIZE, Group
 from components.process import IDLE_FLUSH_S
 
-INBOX_CAPACITY = 4096   # messages waiting in a component's inbox FIFO (a full one holds the senders back)
+INBOX_CAPACITY = 4096  # messages waiting in a component's inbox FIFO (a full one holds the senders back)
 _QUIT = protocol.Quit().encode()
-_GONE = (None, "", b"")   # the orchestrator went away (Group.handle)
+_GONE = (None, "", b"")  # the orchestrator went away (Group.handle)
 
 
 class FifoInbox:
@@ -34,8 +35,9 @@ class FifoInbox:
         import zenoh
 
         self.name, self.quit = name, bus.quit_key(self.run_id, name, generation)
-        self.fifo = self.session.declare_subscriber(bus.inbox_pattern(self.run_id, name),
-                                                    zenoh.handlers.FifoChannel(INBOX_CAPACITY))
+        self.fifo = self.session.declare_subscriber(
+            bus.inbox_pattern(self.run_id, name), zenoh.handlers.FifoChannel(INBOX_CAPACITY)
+        )
         return self.fifo
 
     def get(self) -> tuple[str | None, str, bytes]:
@@ -60,7 +62,8 @@ class QueueInbox:
         put = self.put
         return self.session.declare_subscriber(
             bus.inbox_pattern(self.run_id, name),
-            lambda sample: put((name, str(sample.key_expr), sample.payload.to_bytes())))
+            lambda sample: put((name, str(sample.key_expr), sample.payload.to_bytes())),
+        )
 
     def wake(self) -> None:
         self.put(_GONE)
@@ -72,19 +75,22 @@ class ZenohTransport:
 
     def __init__(self, session, run_id: str, inbox):
         self.session, self.run_id, self.inbox = session, run_id, inbox
-        self.held: dict[str, list] = {}            # member -> what it declared
+        self.held: dict[str, list] = {}  # member -> what it declared
         self.replies: dict[str, object] = {}
         self.batches: dict[str, object] = {}
-        self.outputs: dict[tuple[str, str], object] = {}   # (consumer, source) -> publisher
-        self.views: dict[str, bus.LiveFrameSender] = {}   # member -> its frames for the live views
+        self.outputs: dict[tuple[str, str], object] = {}  # (consumer, source) -> publisher
+        self.views: dict[str, bus.LiveFrameSender] = {}  # member -> its frames for the live views
 
     def join(self, name: str, generation: int) -> None:
         session, run_id = self.session, self.run_id
         self.held[name] = [self.inbox.subscribe(name, generation)]
         self.replies[name] = bus.publisher(session, bus.reply_key(run_id, name, generation))
         self.batches[name] = bus.publisher(session, bus.batch_key(run_id, name))
-        self.held[name] += [self.replies[name], self.batches[name],
-                            session.liveliness().declare_token(bus.alive_key(run_id, name, generation))]
+        self.held[name] += [
+            self.replies[name],
+            self.batches[name],
+            session.liveliness().declare_token(bus.alive_key(run_id, name, generation)),
+        ]
         self.views[name] = bus.LiveFrameSender(session, run_id, name)
         self.held[name].append(self.views[name])
 
@@ -98,7 +104,8 @@ class ZenohTransport:
         publisher = self.outputs.get((consumer, source))
         if publisher is None:
             publisher = self.outputs[consumer, source] = bus.publisher(
-                self.session, bus.output_key(self.run_id, consumer, source))
+                self.session, bus.output_key(self.run_id, consumer, source)
+            )
             self.held[source].append(publisher)
         publisher.put(payload)
 
@@ -106,14 +113,16 @@ class ZenohTransport:
         """For a component whose steps may wait on the outside: a subscriber that interrupts it as
         soon as a terminate arrives, while the stepping thread, which reads it from the inbox, may
         be inside such a step."""
+
         def on_command(sample) -> None:
             payload = sample.payload.to_bytes()
-            if payload[:1] != b"H":   # not a horizon grant, the frequent one
+            if payload[:1] != b"H":  # not a horizon grant, the frequent one
                 try:
                     if type(protocol.decode_command(payload)) is protocol.Terminate:
                         component.interrupt()
                 except protocol.Malformed:
                     pass
+
         self.held[name].append(self.session.declare_subscriber(command, on_command))
 
     def leave(self, name: str) -> None:
@@ -129,10 +138,11 @@ class ZenohTransport:
 
 def _undeclare(held) -> None:
     import zenoh
+
     try:
         held.undeclare()
-    except (zenoh.ZError, RuntimeError):   # the session is gone, or (PyO3: "Already borrowed") the
-        pass                               # watchdog's send is blocked on a cut link: it goes with the session
+    except (zenoh.ZError, RuntimeError):  # the session is gone, or (PyO3: "Already borrowed") the
+        pass  # watchdog's send is blocked on a cut link: it goes with the session
 
 
 def _watchdog(group: Group, stop: threading.Event, beat_s: float | None) -> None:
@@ -147,13 +157,21 @@ def _watchdog(group: Group, stop: threading.Event, beat_s: float | None) -> None
             if beat:
                 beat_at = time.monotonic() + beat_s
             group.tick(beat)
-    except zenoh.ZError:   # the session closed under it (Ctrl-C, a cut link): the stepping thread ends too
+    except zenoh.ZError:  # the session closed under it (Ctrl-C, a cut link): the stepping thread ends too
         pass
 
 
-def serve(connect: str, run_id: str, members: list[tuple[str, int]], listen: str | None, secret: str,
-          cpu: int | None = None, settings: dict | None = None, orchestrator: str | None = None,
-          stepping: str | None = None) -> str:
+def serve(
+    connect: str,
+    run_id: str,
+    members: list[tuple[str, int]],
+    listen: str | None,
+    secret: str,
+    cpu: int | None = None,
+    settings: dict | None = None,
+    orchestrator: str | None = None,
+    stepping: str | None = None,
+) -> str:
     """Run the components ``members`` ((name, generation) each: one, or a process group's) of run
     ``run_id`` until none is left or the orchestrator goes away; ``secret``: the run's (see
     :func:`bus.open_session`); ``settings``: the run's bus settings (TLS, access control, lease,
@@ -165,16 +183,22 @@ def serve(connect: str, run_id: str, members: list[tuple[str, int]], listen: str
         bus.close_session(session)
 
 
-def open_component_session(connect: str | list[str], listen: str | None, secret: str, settings: dict | None,
-                           connect_timeout_s: float | None = None):
+def open_component_session(
+    connect: str | list[str],
+    listen: str | None,
+    secret: str,
+    settings: dict | None,
+    connect_timeout_s: float | None = None,
+):
     """A component's session: a peer of the run's mesh listening on ``listen``, or (settings'
     mode ``client``) a client of the run's router, listening nowhere."""
     settings = settings or {}
     connect = [connect] if isinstance(connect, str) else list(connect)
     peer = settings.get("mode", "peer") == "peer"
     listen_on = [listen or bus.listen_beside(connect[0])] if peer else []
-    return bus.open_session(listen_on, connect, mesh=peer, secret=secret, settings=settings,
-                            connect_timeout_s=connect_timeout_s)
+    return bus.open_session(
+        listen_on, connect, mesh=peer, secret=secret, settings=settings, connect_timeout_s=connect_timeout_s
+    )
 
 
 def beat_interval(settings: dict | None) -> float | None:
@@ -183,8 +207,15 @@ def beat_interval(settings: dict | None) -> float | None:
     return lease_ms / 4000 if lease_ms else None
 
 
-def serve_session(session, run_id: str, members: list[tuple[str, int]], cpu: int | None = None,
-                  orchestrator: str | None = None, beat_s: float | None = None, stepping: str | None = None) -> str:
+def serve_session(
+    session,
+    run_id: str,
+    members: list[tuple[str, int]],
+    cpu: int | None = None,
+    orchestrator: str | None = None,
+    beat_s: float | None = None,
+    stepping: str | None = None,
+) -> str:
     """Serve one generation of the components ``members`` on an open session until it ends:
     TERMINATED (the run is over), RELEASED (terminated for a restart: the run may want them
     again, in a new generation) or ORPHANED (the orchestrator died, or the link to it was cut).
@@ -203,27 +234,35 @@ def serve_session(session, run_id: str, members: list[tuple[str, int]], cpu: int
     group = Group(run_id, members, transport, inbox, mark)
     stop, keep = threading.Event(), []
     try:
+
         def gone() -> None:
             group.interrupt()
             inbox.wake()
 
         if orchestrator in {str(t.zid) for t in session.info.transports()}:
-            keep.append(session.info.declare_transport_events_listener(
-                lambda e: gone() if e.kind == zenoh.SampleKind.DELETE and str(e.transport.zid) == orchestrator
-                else None))
+            keep.append(
+                session.info.declare_transport_events_listener(
+                    lambda e: (
+                        gone() if e.kind == zenoh.SampleKind.DELETE and str(e.transport.zid) == orchestrator else None
+                    )
+                )
+            )
         else:
-            keep.append(session.liveliness().declare_subscriber(
-                bus.orchestrator_alive_key(run_id), lambda s: gone() if s.kind == zenoh.SampleKind.DELETE else None))
+            keep.append(
+                session.liveliness().declare_subscriber(
+                    bus.orchestrator_alive_key(run_id), lambda s: gone() if s.kind == zenoh.SampleKind.DELETE else None
+                )
+            )
         for name, generation in members:
             transport.join(name, generation)
             group.members[name].process.view = transport.views[name]
         threading.Thread(target=_watchdog, args=(group, stop, beat_s), daemon=True).start()
         if cpu is not None:
-            os.sched_setaffinity(0, {cpu})   # this thread only
+            os.sched_setaffinity(0, {cpu})  # this thread only
         return group.serve()
     finally:
         stop.set()
-        with group.lock:   # not while the watchdog goes over the members
+        with group.lock:  # not while the watchdog goes over the members
             transport.close()
         for held in keep:
             _undeclare(held)

@@ -6,9 +6,10 @@ The functions give the variables with the causality asked for, so producer and c
 on name, shape, unit and start. A consumer may add ``notes`` (name -> text) on how it uses a
 signal; they are appended to the description.
 """
+
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 from components.robots.model import joint_units
 from components.robots.urdf import UrdfModel
@@ -16,7 +17,7 @@ from components.sdk import Variable
 
 ORBIT = ("r_eci", "v_eci", "q_eci_lvlh", "w_lvlh")
 BODY = ("position", "orientation", "twist", "q", "qd", "com", "momentum")
-BODY_STATE = ("position", "orientation", "twist", "q", "qd")     # what a controller reads
+BODY_STATE = ("position", "orientation", "twist", "q", "qd")  # what a controller reads
 
 
 def _noted(description: str, note: str | None) -> str:
@@ -26,14 +27,21 @@ def _noted(description: str, note: str | None) -> str:
 def orbit_signals(causality: str, notes: Mapping[str, str] | None = None) -> list[Variable]:
     """``r_eci``, ``v_eci``, ``q_eci_lvlh``, ``w_lvlh`` (SI, ECI = GCRF axes)."""
     notes = notes or {}
-    return [Variable(name, causality, shape, unit, start, _noted(description, notes.get(name)))
-            for name, shape, unit, start, description in (
-        ("r_eci", (3,), "m", [0.0, 0.0, 0.0], "position of the reference orbit point, ECI (GCRF axes)"),
-        ("v_eci", (3,), "m/s", [0.0, 0.0, 0.0], "velocity of the reference orbit point, ECI"),
-        ("q_eci_lvlh", (4,), "1", [0.0, 0.0, 0.0, 1.0],
-         "attitude of LVLH: quaternion [x, y, z, w] rotating LVLH vectors into ECI"),
-        ("w_lvlh", (3,), "rad/s", [0.0, 0.0, 0.0], "angular velocity of LVLH with respect to ECI, in ECI axes"),
-    )]
+    return [
+        Variable(name, causality, shape, unit, start, _noted(description, notes.get(name)))
+        for name, shape, unit, start, description in (
+            ("r_eci", (3,), "m", [0.0, 0.0, 0.0], "position of the reference orbit point, ECI (GCRF axes)"),
+            ("v_eci", (3,), "m/s", [0.0, 0.0, 0.0], "velocity of the reference orbit point, ECI"),
+            (
+                "q_eci_lvlh",
+                (4,),
+                "1",
+                [0.0, 0.0, 0.0, 1.0],
+                "attitude of LVLH: quaternion [x, y, z, w] rotating LVLH vectors into ECI",
+            ),
+            ("w_lvlh", (3,), "rad/s", [0.0, 0.0, 0.0], "angular velocity of LVLH with respect to ECI, in ECI axes"),
+        )
+    ]
 
 
 def body_signals(causality: str, model: UrdfModel, prefix: str = "", names: tuple[str, ...] = BODY) -> list[Variable]:
@@ -49,10 +57,19 @@ def body_signals(causality: str, model: UrdfModel, prefix: str = "", names: tupl
         ("q", (n,), q_unit, 0.0, f"joint positions, URDF order: {joints}"),
         ("qd", (n,), qd_unit, 0.0, "joint rates, URDF order"),
         ("com", (3,), "m", 0.0, "body CoM in W"),
-        ("momentum", (6,), "kg*m/s, kg*m^2/s", 0.0, "linear momentum, then angular momentum about the body CoM, W axes"),
+        (
+            "momentum",
+            (6,),
+            "kg*m/s, kg*m^2/s",
+            0.0,
+            "linear momentum, then angular momentum about the body CoM, W axes",
+        ),
     )
-    return [Variable(_named(prefix, name), causality, shape, unit, start, description)
-            for name, shape, unit, start, description in signals if name in names]
+    return [
+        Variable(_named(prefix, name), causality, shape, unit, start, description)
+        for name, shape, unit, start, description in signals
+        if name in names
+    ]
 
 
 def torque_signal(causality: str, model: UrdfModel, prefix: str = "", note: str | None = None) -> Variable:

@@ -9,6 +9,7 @@ A date is a pair ``(jd1, jd2)`` of floats whose sum is the Julian date (ERFA's c
 ``jd1`` holds the large part so ``jd2`` keeps sub-microsecond resolution).
 No function here reads the wall clock.
 """
+
 from __future__ import annotations
 
 import datetime as _dt
@@ -23,9 +24,11 @@ TT_MINUS_TAI = 32.184  # s, by definition
 
 
 _ISO = re.compile(
-    r"^\s*(\d{4})-(\d{2})-(\d{2})"            # date
+    r"^\s*(\d{4})-(\d{2})-(\d{2})"  # date
     r"(?:[T ](\d{2}):(\d{2})(?::(\d{2}(?:\.\d*)?))?)?"  # time, seconds optional
-    r"\s*(Z|[+-]00:?00|UTC)?\s*$", re.IGNORECASE)
+    r"\s*(Z|[+-]00:?00|UTC)?\s*$",
+    re.IGNORECASE,
+)
 
 
 def parse_utc(value) -> tuple[float, float]:
@@ -38,9 +41,8 @@ def parse_utc(value) -> tuple[float, float]:
     """
     if isinstance(value, _dt.datetime):
         if value.tzinfo is not None:
-            value = value.astimezone(_dt.timezone.utc).replace(tzinfo=None)
-        parts = (value.year, value.month, value.day, value.hour, value.minute,
-                 value.second + value.microsecond * 1e-6)
+            value = value.astimezone(_dt.UTC).replace(tzinfo=None)
+        parts = (value.year, value.month, value.day, value.hour, value.minute, value.second + value.microsecond * 1e-6)
     elif isinstance(value, _dt.date):
         parts = (value.year, value.month, value.day, 0, 0, 0.0)
     elif isinstance(value, str):
@@ -57,7 +59,7 @@ def parse_utc(value) -> tuple[float, float]:
             jd1, jd2 = erfa.dtf2d("UTC", *parts)
     except (erfa.ErfaError, ValueError) as e:
         raise ValueError(f"expected a valid UTC time like '2022-09-18T12:00:00Z', got {value!r} ({e})") from None
-    for w in caught:   # "time is after end of day": second 60 on a day without a leap second
+    for w in caught:  # "time is after end of day": second 60 on a day without a leap second
         if "dubious year" not in str(w.message):
             raise ValueError(f"expected a valid UTC time like '2022-09-18T12:00:00Z', got {value!r} ({w.message})")
     return float(jd1), float(jd2)

@@ -4,6 +4,7 @@ Everything in code, on the bus and in recordings is SI; units only exist at the 
 A declared unit ("m", "rad", "m/s", "N*m", "kg*m^2", "1") fixes the dimension a value must have;
 a bare number is taken as already SI.
 """
+
 from __future__ import annotations
 
 import math
@@ -12,22 +13,34 @@ from decimal import ROUND_HALF_EVEN, Decimal
 
 from components.errors import ConfigError
 
-DEG = math.pi / 180.0   # rad per degree, for plausible ranges declared in degrees
+DEG = math.pi / 180.0  # rad per degree, for plausible ranges declared in degrees
 
 # symbol -> (factor to SI, dimension exponents over (m, kg, s, rad, A))
 _SYMBOLS: dict[str, tuple[float, tuple[int, int, int, int, int]]] = {
     "1": (1.0, (0, 0, 0, 0, 0)),
-    "m": (1.0, (1, 0, 0, 0, 0)), "km": (1e3, (1, 0, 0, 0, 0)), "cm": (1e-2, (1, 0, 0, 0, 0)),
+    "m": (1.0, (1, 0, 0, 0, 0)),
+    "km": (1e3, (1, 0, 0, 0, 0)),
+    "cm": (1e-2, (1, 0, 0, 0, 0)),
     "mm": (1e-3, (1, 0, 0, 0, 0)),
-    "kg": (1.0, (0, 1, 0, 0, 0)), "g": (1e-3, (0, 1, 0, 0, 0)),
-    "s": (1.0, (0, 0, 1, 0, 0)), "ms": (1e-3, (0, 0, 1, 0, 0)), "us": (1e-6, (0, 0, 1, 0, 0)),
-    "ns": (1e-9, (0, 0, 1, 0, 0)), "min": (60.0, (0, 0, 1, 0, 0)), "h": (3600.0, (0, 0, 1, 0, 0)),
-    "d": (86400.0, (0, 0, 1, 0, 0)), "day": (86400.0, (0, 0, 1, 0, 0)),
-    "rad": (1.0, (0, 0, 0, 1, 0)), "deg": (3.141592653589793 / 180.0, (0, 0, 0, 1, 0)),
-    "N": (1.0, (1, 1, -2, 0, 0)), "Hz": (1.0, (0, 0, -1, 0, 0)),
-    "A": (1.0, (0, 0, 0, 0, 1)),                                     # magnetic dipoles: A*m^2
-    "T": (1.0, (0, 1, -2, 0, -1)), "mT": (1e-3, (0, 1, -2, 0, -1)),  # magnetic flux density
-    "uT": (1e-6, (0, 1, -2, 0, -1)), "nT": (1e-9, (0, 1, -2, 0, -1)),
+    "kg": (1.0, (0, 1, 0, 0, 0)),
+    "g": (1e-3, (0, 1, 0, 0, 0)),
+    "s": (1.0, (0, 0, 1, 0, 0)),
+    "ms": (1e-3, (0, 0, 1, 0, 0)),
+    "us": (1e-6, (0, 0, 1, 0, 0)),
+    "ns": (1e-9, (0, 0, 1, 0, 0)),
+    "min": (60.0, (0, 0, 1, 0, 0)),
+    "h": (3600.0, (0, 0, 1, 0, 0)),
+    "d": (86400.0, (0, 0, 1, 0, 0)),
+    "day": (86400.0, (0, 0, 1, 0, 0)),
+    "rad": (1.0, (0, 0, 0, 1, 0)),
+    "deg": (3.141592653589793 / 180.0, (0, 0, 0, 1, 0)),
+    "N": (1.0, (1, 1, -2, 0, 0)),
+    "Hz": (1.0, (0, 0, -1, 0, 0)),
+    "A": (1.0, (0, 0, 0, 0, 1)),  # magnetic dipoles: A*m^2
+    "T": (1.0, (0, 1, -2, 0, -1)),
+    "mT": (1e-3, (0, 1, -2, 0, -1)),  # magnetic flux density
+    "uT": (1e-6, (0, 1, -2, 0, -1)),
+    "nT": (1e-9, (0, 1, -2, 0, -1)),
 }
 # what a unit expression may be, for messages
 _UNIT_FORM = f"symbols among {', '.join(_SYMBOLS)}, joined by * and / with integer powers as in kg*m^2"
@@ -51,9 +64,9 @@ def parse_unit(text: str) -> tuple[float, tuple[int, ...]]:
             raise ValueError(f"unknown unit {text!r} (expected {_UNIT_FORM})")
         f, d = _SYMBOLS[name]
         p = sign * (int(power) if power else 1)
-        factor *= f ** p
+        factor *= f**p
         dim = [a + p * b for a, b in zip(dim, d)]
-    return factor, tuple(dim if dim[4] else dim[:4])      # the ampere's exponent only when a unit has one
+    return factor, tuple(dim if dim[4] else dim[:4])  # the ampere's exponent only when a unit has one
 
 
 def parse_quantity(value, key: str) -> tuple[float, str | None]:
@@ -127,8 +140,16 @@ def to_si(value, unit: str, key: str) -> float:
     return number * factor
 
 
-_TIME_NS = {"ns": 1, "us": 10**3, "ms": 10**6, "s": 10**9, "min": 60 * 10**9, "h": 3600 * 10**9,
-            "d": 86400 * 10**9, "day": 86400 * 10**9}
+_TIME_NS = {
+    "ns": 1,
+    "us": 10**3,
+    "ms": 10**6,
+    "s": 10**9,
+    "min": 60 * 10**9,
+    "h": 3600 * 10**9,
+    "d": 86400 * 10**9,
+    "day": 86400 * 10**9,
+}
 
 
 def duration_text(ns: int) -> str:
@@ -166,11 +187,27 @@ def duration_ns(value, key: str) -> int:
 _ANGLE_DISPLAY = {(0, 0, 0, 1): "deg", (0, 0, -1, 1): "deg/s", (0, 0, -2, 1): "deg/s^2"}
 _TIME, _LENGTH = (0, 0, 1, 0), (1, 0, 0, 0)
 # a bare number the user may have meant in another unit: the units to suggest, by dimension
-_MEANT = {(0, 0, 0, 1): ("deg",), (0, 0, -1, 1): ("deg/s",), (0, 0, -2, 1): ("deg/s^2",),
-          _TIME: ("ms", "us", "min", "h"), _LENGTH: ("km", "mm", "cm"), (0, 1, 0, 0): ("g",)}
-_UNIT_NAMES = {"deg": "degrees", "deg/s": "degrees", "deg/s^2": "degrees", "ms": "milliseconds",
-               "us": "microseconds", "min": "minutes", "h": "hours", "km": "kilometres", "mm": "millimetres",
-               "cm": "centimetres", "g": "grams"}
+_MEANT = {
+    (0, 0, 0, 1): ("deg",),
+    (0, 0, -1, 1): ("deg/s",),
+    (0, 0, -2, 1): ("deg/s^2",),
+    _TIME: ("ms", "us", "min", "h"),
+    _LENGTH: ("km", "mm", "cm"),
+    (0, 1, 0, 0): ("g",),
+}
+_UNIT_NAMES = {
+    "deg": "degrees",
+    "deg/s": "degrees",
+    "deg/s^2": "degrees",
+    "ms": "milliseconds",
+    "us": "microseconds",
+    "min": "minutes",
+    "h": "hours",
+    "km": "kilometres",
+    "mm": "millimetres",
+    "cm": "centimetres",
+    "g": "grams",
+}
 
 
 def figure(x: float) -> str:
@@ -215,7 +252,7 @@ def implausible(written, si: float, unit: str, lo: float, hi: float) -> str | No
     if lo <= si <= hi:
         return None
     number, given = parse_quantity(written, "")
-    typed = written.strip() if isinstance(written, str) else f"{number:.12g}"   # the user's own text
+    typed = written.strip() if isinstance(written, str) else f"{number:.12g}"  # the user's own text
     shown = display_unit(si, unit)
     if given is None:
         as_written = typed + ("" if unit == "1" else f" (read as {unit})")

@@ -13,6 +13,7 @@ Build the FMU (pythonfmu, nothing compiled; the state is the registered variable
 
 A config may also name this file as the FMU's path: Zenorbit builds it on first use.
 """
+
 import math
 from xml.etree.ElementTree import Element, SubElement
 
@@ -38,24 +39,33 @@ class ReactionWheel(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.inertia = 0.05          # kg m^2, spin axis
-        self.max_torque = 0.2        # N m
-        self.max_speed = 600.0       # rad/s
-        self.time_constant = 0.05    # s
-        self.torque_command = 0.0    # N m
+        self.inertia = 0.05  # kg m^2, spin axis
+        self.max_torque = 0.2  # N m
+        self.max_speed = 600.0  # rad/s
+        self.time_constant = 0.05  # s
+        self.torque_command = 0.0  # N m
         self.motor_torque = 0.0
         self.reaction_torque = 0.0
-        self.wheel_speed = 0.0       # rad/s, also the initial speed
-        for name, unit, what in (("inertia", "kg.m2", "wheel spin inertia"), ("max_torque", "N.m", "motor torque limit"),
-                                 ("max_speed", "rad/s", "wheel speed limit"),
-                                 ("time_constant", "s", "motor torque lag")):
-            self.register_variable(Quantity(name, unit, causality=Fmi2Causality.parameter,
-                                            variability=Fmi2Variability.tunable, description=what))
-        self.register_variable(Quantity("torque_command", "N.m", causality=Fmi2Causality.input,
-                                        description="commanded motor torque"))
-        for name, unit, what in (("motor_torque", "N.m", "torque of the motor on the wheel"),
-                                 ("reaction_torque", "N.m", "torque on the bus about the wheel axis"),
-                                 ("wheel_speed", "rad/s", "inertial wheel speed")):
+        self.wheel_speed = 0.0  # rad/s, also the initial speed
+        for name, unit, what in (
+            ("inertia", "kg.m2", "wheel spin inertia"),
+            ("max_torque", "N.m", "motor torque limit"),
+            ("max_speed", "rad/s", "wheel speed limit"),
+            ("time_constant", "s", "motor torque lag"),
+        ):
+            self.register_variable(
+                Quantity(
+                    name, unit, causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable, description=what
+                )
+            )
+        self.register_variable(
+            Quantity("torque_command", "N.m", causality=Fmi2Causality.input, description="commanded motor torque")
+        )
+        for name, unit, what in (
+            ("motor_torque", "N.m", "torque of the motor on the wheel"),
+            ("reaction_torque", "N.m", "torque on the bus about the wheel axis"),
+            ("wheel_speed", "rad/s", "inertial wheel speed"),
+        ):
             self.register_variable(Quantity(name, unit, causality=Fmi2Causality.output, description=what))
 
     def to_xml(self, model_options=dict()) -> Element:
@@ -68,7 +78,7 @@ class ReactionWheel(Fmi2Slave):
         return root
 
     def do_step(self, current_time, step_size):
-        self.wheel_speed += self.motor_torque / self.inertia * step_size   # the torque held over the step
+        self.wheel_speed += self.motor_torque / self.inertia * step_size  # the torque held over the step
         target = max(-self.max_torque, min(self.max_torque, self.torque_command))
         self.motor_torque += (target - self.motor_torque) * (1.0 - math.exp(-step_size / self.time_constant))
         if abs(self.wheel_speed) >= self.max_speed and self.motor_torque * self.wheel_speed > 0.0:

@@ -5,6 +5,7 @@ Exit codes: 0 success; 1 the run failed (a component crashed, hung or produced N
 2 bad usage or bad config; 3 the run ended in another outcome than --expect (run.expect) names;
 130 interrupted (Ctrl-C).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -22,33 +23,61 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     def with_set(p):
-        p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                       help="override a config key, e.g. run.duration=2s (repeatable)")
+        p.add_argument(
+            "--set",
+            action="append",
+            default=[],
+            metavar="KEY=VALUE",
+            help="override a config key, e.g. run.duration=2s (repeatable)",
+        )
 
     def with_strict(p):
-        p.add_argument("--strict", action="store_true", help="the check's warnings (a value outside its plausible "
-                       "range, suspect physics) are errors: exit 2, nothing started (as run.strict: true)")
+        p.add_argument(
+            "--strict",
+            action="store_true",
+            help="the check's warnings (a value outside its plausible "
+            "range, suspect physics) are errors: exit 2, nothing started (as run.strict: true)",
+        )
 
     p = sub.add_parser("run", help="run a config")
     p.add_argument("config")
-    p.add_argument("--record", metavar="DIR", help="write signals.parquet, events.jsonl and config.yaml to DIR "
-                   "(a new or empty directory)")
+    p.add_argument(
+        "--record",
+        metavar="DIR",
+        help="write signals.parquet, events.jsonl and config.yaml to DIR (a new or empty directory)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace the recording already in --record DIR")
     with_set(p)
     with_strict(p)
-    p.add_argument("--view", metavar="{spawn,web,save:FILE.rrd,foxglove[:PORT]}",
-                   help="live view in Rerun, or served to Foxglove on ws://localhost:PORT (default 8765)")
-    p.add_argument("--ros2", nargs="?", const="", metavar="rclpy|zenoh|auto|ENDPOINT",
-                   help="publish the run live to ROS 2: rclpy (a real rclpy node, on your ROS 2's middleware, "
-                        "Fast DDS by default), zenoh (rmw_zenoh's wire through its router at tcp/localhost:7447), "
-                        "ENDPOINT (zenoh through that router), auto (rclpy if a Python here imports it, else "
-                        "zenoh); default: the ros2: section's, else auto. ROS_DOMAIN_ID is the domain")
-    p.add_argument("--expect", metavar="OUTCOME", help="the outcome the run must come to, one its components declare "
-                   "(controller.capture: captured, aborted, undecided): another ends it with exit code 3 "
-                   "(overrides run.expect)")
-    p.add_argument("--profile", action="store_true", help="print, at the end, each component's compute time and "
-                   "waiting time per step (waiting: for its inputs or the horizon, the bus included) and the share "
-                   "of the wall time it computes")
+    p.add_argument(
+        "--view",
+        metavar="{spawn,web,save:FILE.rrd,foxglove[:PORT]}",
+        help="live view in Rerun, or served to Foxglove on ws://localhost:PORT (default 8765)",
+    )
+    p.add_argument(
+        "--ros2",
+        nargs="?",
+        const="",
+        metavar="rclpy|zenoh|auto|ENDPOINT",
+        help="publish the run live to ROS 2: rclpy (a real rclpy node, on your ROS 2's middleware, "
+        "Fast DDS by default), zenoh (rmw_zenoh's wire through its router at tcp/localhost:7447), "
+        "ENDPOINT (zenoh through that router), auto (rclpy if a Python here imports it, else "
+        "zenoh); default: the ros2: section's, else auto. ROS_DOMAIN_ID is the domain",
+    )
+    p.add_argument(
+        "--expect",
+        metavar="OUTCOME",
+        help="the outcome the run must come to, one its components declare "
+        "(controller.capture: captured, aborted, undecided): another ends it with exit code 3 "
+        "(overrides run.expect)",
+    )
+    p.add_argument(
+        "--profile",
+        action="store_true",
+        help="print, at the end, each component's compute time and "
+        "waiting time per step (waiting: for its inputs or the horizon, the bus included) and the share "
+        "of the wall time it computes",
+    )
     p.set_defaults(func=running.cmd_run)
 
     p = sub.add_parser("check", help="validate a config without running it")
@@ -75,16 +104,21 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("plot", help="PNG plots of a recording: orbit, dynamics, and the paper's Figs. 5-7")
     p.add_argument("recording", metavar="DIR", help="a directory written by run --record")
     p.add_argument("--out", metavar="DIR", help="where to write the PNGs (default: DIR/plots)")
-    p.add_argument("--signals", metavar="NAME,NAME", help="plot these columns instead (orbit.r_eci, "
-                   "dynamics.target.q[0], ...)")
+    p.add_argument(
+        "--signals", metavar="NAME,NAME", help="plot these columns instead (orbit.r_eci, dynamics.target.q[0], ...)"
+    )
     p.set_defaults(func=recordings.cmd_plot)
 
     p = sub.add_parser("export", help="a recording as a rosbag2 folder (MCAP storage) for ros2 bag and Foxglove")
     p.add_argument("recording", metavar="DIR", help="a directory written by run --record")
     p.add_argument("--rosbag2", required=True, metavar="OUT", help="the bag folder to write (must not exist)")
     p.add_argument("--overwrite", action="store_true", help="replace OUT (a bag folder) once the new bag is written")
-    p.add_argument("--all-signals", action="store_true", help="also the variables of components whose type "
-                   "declares no ROS messages, as std_msgs/Float64MultiArray on /COMPONENT/VARIABLE")
+    p.add_argument(
+        "--all-signals",
+        action="store_true",
+        help="also the variables of components whose type "
+        "declares no ROS messages, as std_msgs/Float64MultiArray on /COMPONENT/VARIABLE",
+    )
     p.set_defaults(func=recordings.cmd_export)
 
     p = sub.add_parser("figure", help="a camera's recorded frame as a PNG: its colour image beside its depth")
@@ -104,32 +138,60 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="DIR", help="where cases.parquet and the cases go")
     p.add_argument("--jobs", type=int, metavar="N", help="cases at once on this machine (default: the CPUs)")
     p.add_argument("--cluster", metavar="tcp://HOST:8786", help="run the cases on this dask.distributed scheduler")
-    p.add_argument("--retries", type=int, default=2, metavar="N",
-                   help="--cluster: times a case is retried after an error on its worker (default 2)")
+    p.add_argument(
+        "--retries",
+        type=int,
+        default=2,
+        metavar="N",
+        help="--cluster: times a case is retried after an error on its worker (default 2)",
+    )
     p.add_argument("--resume", action="store_true", help="finish an interrupted campaign in DIR")
     p.add_argument("--only", metavar="N[,N]", help="run only these cases (numbered from 0)")
     p.set_defaults(func=running.cmd_sweep)
 
-    p = sub.add_parser("join", help="on another host: serve a launch: external component of a run, from the "
-                       "join file the orchestrator wrote")
-    p.add_argument("file", metavar="FILE.join", help="DIR/join/<component>.join (copy it over; it holds the run's "
-                   "secret: keep it private)")
-    p.add_argument("--connect", action="append", metavar="ENDPOINT", help="reach the run here instead of the "
-                   "file's endpoints (repeatable)")
-    p.add_argument("--listen", metavar="ENDPOINT", help="where the run's other components reach this one "
-                   "(default: a free port on every interface)")
+    p = sub.add_parser(
+        "join",
+        help="on another host: serve a launch: external component of a run, from the join file the orchestrator wrote",
+    )
+    p.add_argument(
+        "file",
+        metavar="FILE.join",
+        help="DIR/join/<component>.join (copy it over; it holds the run's secret: keep it private)",
+    )
+    p.add_argument(
+        "--connect",
+        action="append",
+        metavar="ENDPOINT",
+        help="reach the run here instead of the file's endpoints (repeatable)",
+    )
+    p.add_argument(
+        "--listen",
+        metavar="ENDPOINT",
+        help="where the run's other components reach this one (default: a free port on every interface)",
+    )
     p.add_argument("--cpu", type=int, help="step on this CPU alone")
     p.set_defaults(func=hosts.cmd_join)
 
-    p = sub.add_parser("router", help="the run's Zenoh router (bus.router), for hosts that cannot reach each other; "
-                       "with --ros2, a ROS 2 router (as rmw_zenohd) for --ros2 on a machine without ROS")
-    p.add_argument("--listen", action="append", metavar="ENDPOINT",
-                   help="where the run's processes reach it, e.g. tls/0.0.0.0:7447 (repeatable); with --ros2: "
-                        "where ROS 2 nodes and runs reach it (default tcp/[::]:7447, rmw_zenohd's)")
+    p = sub.add_parser(
+        "router",
+        help="the run's Zenoh router (bus.router), for hosts that cannot reach each other; "
+        "with --ros2, a ROS 2 router (as rmw_zenohd) for --ros2 on a machine without ROS",
+    )
+    p.add_argument(
+        "--listen",
+        action="append",
+        metavar="ENDPOINT",
+        help="where the run's processes reach it, e.g. tls/0.0.0.0:7447 (repeatable); with --ros2: "
+        "where ROS 2 nodes and runs reach it (default tcp/[::]:7447, rmw_zenohd's)",
+    )
     p.add_argument("--join", metavar="FILE", help="DIR/join/router.join, which the orchestrator wrote")
-    p.add_argument("--ros2", action="store_true", help="a ROS 2 router instead, in the foreground, with rmw_zenohd's "
-                   "default configuration: rmw_zenoh's nodes, `run --ros2` and ros2.bridge (transport zenoh) meet "
-                   "there; SIGTERM or Ctrl-C stops it")
+    p.add_argument(
+        "--ros2",
+        action="store_true",
+        help="a ROS 2 router instead, in the foreground, with rmw_zenohd's "
+        "default configuration: rmw_zenoh's nodes, `run --ros2` and ros2.bridge (transport zenoh) meet "
+        "there; SIGTERM or Ctrl-C stops it",
+    )
     p.set_defaults(func=hosts.cmd_router)
 
     p = sub.add_parser("types", help="list the component types, with a line each")
@@ -137,22 +199,36 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("describe", help="print a component type's parameters and variables")
     p.add_argument("type", help="a type from `orchestrator types`, module:Class or file.py:Class")
-    p.add_argument("--set", action="append", default=[], metavar="PARAM=VALUE",
-                   help="a parameter value (YAML), to see the variables that depend on it (repeatable)")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="PARAM=VALUE",
+        help="a parameter value (YAML), to see the variables that depend on it (repeatable)",
+    )
     p.set_defaults(func=component_types.cmd_describe)
 
-    p = sub.add_parser("export-fmu", help="package a component type, its parameters fixed, as an FMI 2.0 "
-                       "co-simulation FMU")
+    p = sub.add_parser(
+        "export-fmu", help="package a component type, its parameters fixed, as an FMI 2.0 co-simulation FMU"
+    )
     p.add_argument("type", help="a type from `orchestrator types`, module:Class or file.py:Class")
-    p.add_argument("--set", action="append", default=[], metavar="PARAM=VALUE",
-                   help="a parameter value (YAML), fixed in the FMU (repeatable); files it names go into the FMU")
-    p.add_argument("--epoch", metavar="UTC", help="the UTC of t = 0 (run.epoch), e.g. 2022-09-18T12:00:00Z, "
-                   "for types that need it")
-    p.add_argument("-o", "--output", required=True, metavar="NAME.fmu", help="the FMU to write; NAME is its model "
-                   "identifier")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="PARAM=VALUE",
+        help="a parameter value (YAML), fixed in the FMU (repeatable); files it names go into the FMU",
+    )
+    p.add_argument(
+        "--epoch", metavar="UTC", help="the UTC of t = 0 (run.epoch), e.g. 2022-09-18T12:00:00Z, for types that need it"
+    )
+    p.add_argument(
+        "-o", "--output", required=True, metavar="NAME.fmu", help="the FMU to write; NAME is its model identifier"
+    )
     p.set_defaults(func=component_types.cmd_export_fmu)
 
-    from components.viewer.replay import add_view_command   # orchestrator view DIR: replay in Rerun
+    from components.viewer.replay import add_view_command  # orchestrator view DIR: replay in Rerun
+
     add_view_command(sub)
     return parser
 
@@ -167,7 +243,7 @@ def main(argv: list[str] | None = None) -> int:
         return args.func(args)
     except KeyboardInterrupt:
         return 130
-    except BrokenPipeError:   # `orchestrator types | head`: the reader left; no traceback
+    except BrokenPipeError:  # `orchestrator types | head`: the reader left; no traceback
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
 

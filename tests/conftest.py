@@ -1,4 +1,5 @@
 """Shared helpers: run the real `orchestrator` CLI in a subprocess and find leftover processes."""
+
 from __future__ import annotations
 
 import json
@@ -27,15 +28,22 @@ def component_processes(run_tag: str = "") -> list[str]:
     def ours(line: str) -> bool:
         try:
             return mine in Path(f"/proc/{line.split()[0]}/environ").read_bytes().split(b"\0")
-        except OSError:          # gone since ps listed it (or not ours to read): not a leftover of this test
+        except OSError:  # gone since ps listed it (or not ours to read): not a leftover of this test
             return False
+
     return [line for line in found if ours(line)]
 
 
 def start_run(config, record, **popen) -> subprocess.Popen:
     """`orchestrator run CONFIG --record DIR` in the background (text pipes for its output)."""
-    return subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", str(config), "--record", str(record)],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **popen)
+    return subprocess.Popen(
+        [sys.executable, "-m", "orchestrator.cli", "run", str(config), "--record", str(record)],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        **popen,
+    )
 
 
 def wait_for_components(run_tag: str, count: int, timeout: float = 60.0) -> list[str]:
@@ -78,6 +86,7 @@ def wait_for_step(name: str, step: int, timeout: float = 120.0, run: subprocess.
                 row = json.loads(reply.ok.payload.to_bytes()).get("step", -1)
                 return row if row >= step else None
         return None
+
     try:
         return wait_until(reached, f"step {step} of run {name}", timeout, run)
     finally:
@@ -87,13 +96,17 @@ def wait_for_step(name: str, step: int, timeout: float = 120.0, run: subprocess.
 def part_files(parquet: Path) -> list[Path]:
     """The part files of a recording's signals.parquet (each written under a hidden name, then
     renamed into place; the last may be the unfinished chunk, replaced as it grows)."""
-    return sorted(p for p in Path(parquet).glob("*.parquet") if not p.name.startswith(".")) \
-        if Path(parquet).is_dir() else []
+    return (
+        sorted(p for p in Path(parquet).glob("*.parquet") if not p.name.startswith("."))
+        if Path(parquet).is_dir()
+        else []
+    )
 
 
 def recorded_rows(parquet: Path) -> int:
     """The rows on disk in a recording's signals.parquet now (0 while a part is being replaced)."""
     import pyarrow.parquet as pq
+
     try:
         return sum(pq.ParquetFile(path).metadata.num_rows for path in part_files(parquet))
     except (OSError, ValueError):
@@ -106,14 +119,21 @@ def signal_files(record: Path) -> dict[str, bytes]:
 
 
 def orchestrator(*args, timeout=300, cwd=None, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "orchestrator.cli", *map(str, args)], capture_output=True,
-                          text=True, timeout=timeout, cwd=cwd or ROOT, **kw)
+    return subprocess.run(
+        [sys.executable, "-m", "orchestrator.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=cwd or ROOT,
+        **kw,
+    )
 
 
 def needs(extra: str, feature: str = "this test"):
     """Skip a test whose feature needs pyproject's ``extra`` when it is not installed, saying which
     and how to install it ([test] brings them all, so CI runs these tests)."""
     from components.extras import missing
+
     problem = missing(extra, feature)
     return pytest.mark.skipif(problem is not None, reason=str(problem))
 
@@ -126,23 +146,30 @@ SHIPPED = sorted((ROOT / "configs").glob("*.yaml"))
 def config_missing(path: Path) -> str | None:
     """Why a shipped config cannot run here (the extra it needs is not installed), or None."""
     from components.extras import missing
+
     extra = CONFIG_EXTRAS.get(path.name)
     return missing(extra, path.name) if extra else None
 
 
 def shipped_configs() -> list:
     """configs/*.yaml as test parameters, each skipped when its extra is not installed."""
-    return [pytest.param(path, id=path.name, marks=needs(CONFIG_EXTRAS[path.name], path.name))
-            if path.name in CONFIG_EXTRAS else pytest.param(path, id=path.name) for path in SHIPPED]
+    return [
+        pytest.param(path, id=path.name, marks=needs(CONFIG_EXTRAS[path.name], path.name))
+        if path.name in CONFIG_EXTRAS
+        else pytest.param(path, id=path.name)
+        for path in SHIPPED
+    ]
 
 
 @pytest.fixture
 def write_config(tmp_path):
     """Write a YAML config text to a file in tmp_path and return its path."""
+
     def write(text: str, name: str = "config.yaml") -> Path:
         path = tmp_path / name
         path.write_text(text)
         return path
+
     return write
 
 
@@ -179,10 +206,16 @@ def suite_processes(root: str) -> list[str]:
         try:
             environ = (entry / "environ").read_bytes().split(b"\0")
             args = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace").strip()
-        except OSError:           # gone, or not ours to read
+        except OSError:  # gone, or not ours to read
             continue
-        runtime = next((v[len(b"ZENORBIT_RUNTIME_DIR="):].decode(errors="replace") for v in environ
-                        if v.startswith(b"ZENORBIT_RUNTIME_DIR=")), None)
+        runtime = next(
+            (
+                v[len(b"ZENORBIT_RUNTIME_DIR=") :].decode(errors="replace")
+                for v in environ
+                if v.startswith(b"ZENORBIT_RUNTIME_DIR=")
+            ),
+            None,
+        )
         if runtime and runtime.startswith(root) and args and any(mark in args for mark in LEFTOVER_MARKS):
             found.append(f"{entry.name} {args}")
     return found
@@ -199,13 +232,13 @@ def pytest_sessionfinish(session, exitstatus):
         while (left := suite_processes(root)) and time.monotonic() < deadline:
             time.sleep(0.2)
         if left:
-            print("\nerror: the test session left these processes running (failing the run):\n  "
-                  + "\n  ".join(left), file=sys.stderr)
+            print(
+                "\nerror: the test session left these processes running (failing the run):\n  " + "\n  ".join(left),
+                file=sys.stderr,
+            )
             for line in left:
                 try:
                     os.kill(int(line.split()[0]), 9)
                 except OSError:
                     pass
             session.exitstatus = 1
-
-

@@ -13,6 +13,7 @@ Poses: ``camera_pose(distance, ...)`` puts the camera on the servicer's side of 
 (``distance`` back along -z of G from its origin, looking along +z with a tilt and a roll), and
 returns ``R_C_G``, ``p_C_G`` (the truth the estimator must find).
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -55,7 +56,7 @@ def warp(layout: MarkerLayout, R_C_G, p_C_G, K=K, size=(HEIGHT, WIDTH), shift=No
     offset (m, G) to draw that marker displaced from where the layout says."""
     image = np.full(size, float(BACKGROUND))
     rvec = cv2.Rodrigues(np.asarray(R_C_G, dtype=np.float64))[0]
-    order = sorted(layout.markers, key=lambda m: -(R_C_G @ m.p_link_marker + p_C_G)[2])   # far first
+    order = sorted(layout.markers, key=lambda m: -(R_C_G @ m.p_link_marker + p_C_G)[2])  # far first
     for marker in order:
         corners = marker.corners(marker.size * layout.quad_scale) + (shift or {}).get(marker.id, 0.0)
         if np.any((corners @ np.asarray(R_C_G).T + p_C_G)[:, 2] <= 0.01):
@@ -73,11 +74,15 @@ def warp(layout: MarkerLayout, R_C_G, p_C_G, K=K, size=(HEIGHT, WIDTH), shift=No
     return _rgb(image)
 
 
-def ray_cast(layout: MarkerLayout, R_C_G, p_C_G, K=K, distortion=None, size=(HEIGHT, WIDTH), sub: int = 2) -> np.ndarray:
+def ray_cast(
+    layout: MarkerLayout, R_C_G, p_C_G, K=K, distortion=None, size=(HEIGHT, WIDTH), sub: int = 2
+) -> np.ndarray:
     """RGB image (uint8) of the layout's committed meshes (white cells 255, black cells 0, vertices
     in G, read by trimesh) from (R_C_G, p_C_G)."""
     import trimesh
+
     from components.estimators.marker_meshes import mesh_path
+
     h, w = size
     # sub-pixel (r, c) of the (h sub) x (w sub) grid: its centre at u = (c + 0.5) / sub - 0.5, and its ray
     c, r = np.meshgrid((np.arange(w * sub) + 0.5) / sub - 0.5, (np.arange(h * sub) + 0.5) / sub - 0.5)
@@ -88,11 +93,12 @@ def ray_cast(layout: MarkerLayout, R_C_G, p_C_G, K=K, distortion=None, size=(HEI
     rvec = cv2.Rodrigues(np.asarray(R_C_G, dtype=np.float64))[0]
     for colour, grey in (("white", 255.0), ("black", 0.0)):
         mesh = trimesh.load(str(mesh_path(layout, colour)), force="mesh", process=False)
-        vertices = np.asarray(mesh.vertices) @ np.asarray(R_C_G).T + p_C_G          # camera frame
+        vertices = np.asarray(mesh.vertices) @ np.asarray(R_C_G).T + p_C_G  # camera frame
         if np.any(vertices[:, 2] <= 0.0):
             raise ValueError("a marker reaches behind the camera")
-        projected, _ = cv2.projectPoints(np.asarray(mesh.vertices, dtype=np.float64), rvec,
-                                         np.asarray(p_C_G, dtype=np.float64), K, distortion)
+        projected, _ = cv2.projectPoints(
+            np.asarray(mesh.vertices, dtype=np.float64), rvec, np.asarray(p_C_G, dtype=np.float64), K, distortion
+        )
         projected = projected.reshape(-1, 2)
         for face in np.asarray(mesh.faces):
             # only the sub-pixels around the triangle's image (2 pixels of margin for the lens)

@@ -16,6 +16,7 @@ nothing is hit; absent with ``depth: false``), ``K`` (3x3), ``D`` (plumb_bob, ze
 (4x4), ``t`` (s); see :mod:`components.camera.frames`. Noise: :mod:`components.camera.camera`.
 State: the noise generators, the frame count, the last frame's time and light.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -37,6 +38,7 @@ class CameraComponent(Component):
     (``camera.r_eci: orbit.r_eci``) for the Earth's shadow. The Sun direction comes from
     ``run.epoch`` and the run's time.
     """
+
     type_name = "sensor.camera"
     view = CameraView
     rosbag = CAMERA_ROS
@@ -44,18 +46,54 @@ class CameraComponent(Component):
 
     @classmethod
     def declare(cls, params):
-        return camera_inputs(params, params) + [
-            Variable("t_frame", "output", (), "s", 0.0, "when the latest frame was taken (0 before the first)"),
-            Variable("frame", "output", (), "1", 0.0, "frames taken so far (the latest is frames/<component>/<frame - 1>.npz)"),
-            Variable("lit", "output", (), "1", 0.0, "1 when the latest frame was in sunlight, 0 in the Earth's shadow"),
-            Variable("rgb", "output", (params["height"], params["width"], 3), "1", 0, "the latest frame's colour image",
-                     frame=True, dtype="uint8"),
-            Variable("K", "output", (3, 3), "px", 0.0, "the intrinsic matrix (pixel centres at integers)"),
-            Variable("D", "output", (5,), "1", 0.0, "plumb_bob distortion [k1, k2, p1, p2, k3] (zeros: a pinhole)"),
-            Variable("T_link_camera", "output", (4, 4), "1", 0.0, "the camera's pose in its link (translation in m)"),
-        ] + ([Variable("depth", "output", (params["height"], params["width"]), "m", 0,
-                       "the latest frame's depth along the optical axis (0: nothing hit)", frame=True, dtype="float32")]
-             if params["depth"] else [])
+        return (
+            camera_inputs(params, params)
+            + [
+                Variable("t_frame", "output", (), "s", 0.0, "when the latest frame was taken (0 before the first)"),
+                Variable(
+                    "frame",
+                    "output",
+                    (),
+                    "1",
+                    0.0,
+                    "frames taken so far (the latest is frames/<component>/<frame - 1>.npz)",
+                ),
+                Variable(
+                    "lit", "output", (), "1", 0.0, "1 when the latest frame was in sunlight, 0 in the Earth's shadow"
+                ),
+                Variable(
+                    "rgb",
+                    "output",
+                    (params["height"], params["width"], 3),
+                    "1",
+                    0,
+                    "the latest frame's colour image",
+                    frame=True,
+                    dtype="uint8",
+                ),
+                Variable("K", "output", (3, 3), "px", 0.0, "the intrinsic matrix (pixel centres at integers)"),
+                Variable("D", "output", (5,), "1", 0.0, "plumb_bob distortion [k1, k2, p1, p2, k3] (zeros: a pinhole)"),
+                Variable(
+                    "T_link_camera", "output", (4, 4), "1", 0.0, "the camera's pose in its link (translation in m)"
+                ),
+            ]
+            + (
+                [
+                    Variable(
+                        "depth",
+                        "output",
+                        (params["height"], params["width"]),
+                        "m",
+                        0,
+                        "the latest frame's depth along the optical axis (0: nothing hit)",
+                        frame=True,
+                        dtype="float32",
+                    )
+                ]
+                if params["depth"]
+                else []
+            )
+        )
 
     @classmethod
     def validate(cls, params):
@@ -71,15 +109,21 @@ class CameraComponent(Component):
         self.params = params
         self.camera = Camera(params, params)
         self.writer = FrameWriter(params["_frames"]) if params.get("_frames") else None
-        self.k = 0                       # frames taken
+        self.k = 0  # frames taken
         self.t_frame_ns, self.lit = 0, False
         h, w = params["height"], params["width"]
         self.constants = {"K": self.camera.intrinsics.K, "D": self.camera.D, "T_link_camera": self.camera.T_link_camera}
         self.blank = {"rgb": np.zeros((h, w, 3), np.uint8), "depth": np.zeros((h, w), np.float32)}
 
     def _outputs(self, frame):
-        return {"t_frame": self.t_frame_ns / NS_PER_S, "frame": float(self.k), "lit": float(self.lit),
-                "rgb": frame["rgb"], "depth": frame.get("depth"), **self.constants}
+        return {
+            "t_frame": self.t_frame_ns / NS_PER_S,
+            "frame": float(self.k),
+            "lit": float(self.lit),
+            "rgb": frame["rgb"],
+            "depth": frame.get("depth"),
+            **self.constants,
+        }
 
     def initialize(self, t0_ns, inputs):
         return self._outputs(self.blank)
@@ -89,7 +133,7 @@ class CameraComponent(Component):
         taken = self.input_times_ns.get(f"{self.params['body']}.position", t_ns)
         frame = self.camera.frame(taken, inputs)
         self.t_frame_ns, self.lit = taken, frame.pop("lit")
-        self.frame_time_ns = taken   # the live views' stamp, as t_frame is the recording's
+        self.frame_time_ns = taken  # the live views' stamp, as t_frame is the recording's
         if not self.params["depth"]:
             del frame["depth"]
         return frame
@@ -107,8 +151,12 @@ class CameraComponent(Component):
         self.camera.release()
 
     def get_state(self):
-        return {**self.camera.get_state(), "k": np.int64(self.k), "t_frame_ns": np.int64(self.t_frame_ns),
-                "lit": np.bool_(self.lit)}
+        return {
+            **self.camera.get_state(),
+            "k": np.int64(self.k),
+            "t_frame_ns": np.int64(self.t_frame_ns),
+            "lit": np.bool_(self.lit),
+        }
 
     def set_state(self, state):
         self.camera.set_state(state)

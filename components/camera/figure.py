@@ -8,6 +8,7 @@ nearest ``--time`` (s): the image on the left, the depth (m along the optical ax
 nothing is hit) on the right, titled with the frame's time. The README's vision figure
 (docs/images/capture_vision.png) is made this way from configs/capture_vision.yaml.
 """
+
 from __future__ import annotations
 
 import io
@@ -22,8 +23,10 @@ def nearest_frame(frames: Path, t: float) -> Path:
     """The recorded frame (``<k>.npz`` in ``frames``) taken nearest ``t`` (s)."""
     paths = frame_files(frames)
     if not paths:
-        raise FileNotFoundError(f"{frames}: expected the camera's frame files (NNNNNN.npz), got "
-                                + ("none" if frames.is_dir() else "no such directory"))
+        raise FileNotFoundError(
+            f"{frames}: expected the camera's frame files (NNNNNN.npz), got "
+            + ("none" if frames.is_dir() else "no such directory")
+        )
     times = [float(read_frame(path, ("t",))["t"]) for path in paths]
     return paths[int(np.argmin(np.abs(np.array(times) - t)))]
 
@@ -31,6 +34,7 @@ def nearest_frame(frames: Path, t: float) -> Path:
 def draw(path: Path, out: Path, width_inches: float = 8.0) -> None:
     """Write ``out`` (PNG): the frame at ``path``, colour beside depth."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from PIL import Image
@@ -39,8 +43,9 @@ def draw(path: Path, out: Path, width_inches: float = 8.0) -> None:
     rgb, t, depth = frame["rgb"], float(frame["t"]), frame.get("depth")
     panels = 1 if depth is None else 2
     height, width = rgb.shape[:2]
-    figure, axes = plt.subplots(1, panels, figsize=(width_inches, width_inches / panels * height / width + 0.5),
-                                squeeze=False)
+    figure, axes = plt.subplots(
+        1, panels, figsize=(width_inches, width_inches / panels * height / width + 0.5), squeeze=False
+    )
     axes[0, 0].imshow(rgb)
     axes[0, 0].set_title(f"colour, t = {t:.2f} s", fontsize=9)
     if depth is not None:

@@ -12,6 +12,7 @@ complete, so a reader never sees half a file. ``close()`` writes what is queued 
 thread: a run that ends (terminate) loses no frame. A write that fails is raised by the next
 ``put`` or by ``close``, naming the file.
 """
+
 from __future__ import annotations
 
 import os
@@ -22,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-LEVEL = 1   # deflate level: 6 (numpy's savez_compressed) costs ~3x the time for <1 % fewer bytes here
+LEVEL = 1  # deflate level: 6 (numpy's savez_compressed) costs ~3x the time for <1 % fewer bytes here
 
 
 def frame_path(directory: str | Path, k: int) -> Path:

@@ -14,6 +14,7 @@ the render's pixel nearest its ray: colour and depth (the depth along the optica
 depend on the lens). The ray a pixel shows is off by at most half a render pixel: 1/4 of an image
 pixel at the default supersample of 2.
 """
+
 from __future__ import annotations
 
 import math
@@ -21,7 +22,7 @@ import math
 import numpy as np
 
 ITERATIONS = 100
-RESIDUAL = 1e-9        # normalized units (rad, near the axis): the inversion must reach this
+RESIDUAL = 1e-9  # normalized units (rad, near the axis): the inversion must reach this
 
 
 def distort(x: np.ndarray, y: np.ndarray, D) -> tuple[np.ndarray, np.ndarray]:
@@ -29,8 +30,10 @@ def distort(x: np.ndarray, y: np.ndarray, D) -> tuple[np.ndarray, np.ndarray]:
     k1, k2, p1, p2, k3 = (float(c) for c in D)
     r2 = x * x + y * y
     radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    return (x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
-            y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y)
+    return (
+        x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
+        y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y,
+    )
 
 
 def undistort(x_d: np.ndarray, y_d: np.ndarray, D) -> tuple[np.ndarray, np.ndarray, float]:
@@ -42,8 +45,10 @@ def undistort(x_d: np.ndarray, y_d: np.ndarray, D) -> tuple[np.ndarray, np.ndarr
         for _ in range(ITERATIONS):
             r2 = x * x + y * y
             radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-            x, y = ((x_d - 2.0 * p1 * x * y - p2 * (r2 + 2.0 * x * x)) / radial,
-                    (y_d - p1 * (r2 + 2.0 * y * y) - 2.0 * p2 * x * y) / radial)
+            x, y = (
+                (x_d - 2.0 * p1 * x * y - p2 * (r2 + 2.0 * x * x)) / radial,
+                (y_d - p1 * (r2 + 2.0 * y * y) - 2.0 * p2 * x * y) / radial,
+            )
         xr, yr = distort(x, y, D)
         residual = np.hypot(xr - x_d, yr - y_d)
     worst = float(np.max(residual)) if residual.size else 0.0
@@ -65,8 +70,10 @@ def inversion_problem(width: int, height: int, K: np.ndarray, D, step: int = 16)
     x_d, y_d = pixel_grid(width, height, K, step)
     _, _, residual = undistort(x_d, y_d, D)
     if not residual <= RESIDUAL:
-        return (f"the distortion does not invert over the image (residual {residual:.3g} after {ITERATIONS} "
-                "iterations): too strong for this field of view")
+        return (
+            f"the distortion does not invert over the image (residual {residual:.3g} after {ITERATIONS} "
+            "iterations): too strong for this field of view"
+        )
     return None
 
 

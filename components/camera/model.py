@@ -11,10 +11,11 @@ dynamics' world frame, ECI axes, so the Sun direction in ECI is the one in W.
 and clipped); :func:`add_depth_noise`: white depth noise (m, 1-sigma, only where something is hit);
 both from standard normals the caller draws.
 """
+
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping
 
 import numpy as np
 
@@ -23,7 +24,7 @@ from components.camera.render import Renderer
 from components.camera.scene import BodyPoses, pose_matrix, visual_meshes
 from components.viewer.robot import Geometry
 
-MAX_RENDER = 16384     # pixels: the largest framebuffer side the camera asks OpenGL for
+MAX_RENDER = 16384  # pixels: the largest framebuffer side the camera asks OpenGL for
 
 
 @dataclass(frozen=True)
@@ -31,6 +32,7 @@ class Intrinsics:
     """A camera: ``width`` x ``height`` pixels, focal lengths and principal point (pixels), clip
     distances ``near`` and ``far`` (m), plumb_bob ``distortion`` [k1, k2, p1, p2, k3] (None: a
     pinhole)."""
+
     width: int
     height: int
     fx: float
@@ -50,8 +52,16 @@ class CameraModel:
     """Renders the ``bodies`` (name -> Geometry) from a camera on link ``link`` of body ``body``,
     at ``T_link_camera`` (4x4, OpenCV axes: z forward, x right, y down)."""
 
-    def __init__(self, bodies: Mapping[str, Geometry], body: str, link: str, T_link_camera: np.ndarray,
-                 intrinsics: Intrinsics, ambient: float, lamp: float = 0.0):
+    def __init__(
+        self,
+        bodies: Mapping[str, Geometry],
+        body: str,
+        link: str,
+        T_link_camera: np.ndarray,
+        intrinsics: Intrinsics,
+        ambient: float,
+        lamp: float = 0.0,
+    ):
         self.intrinsics = intrinsics
         self.T_link_camera = np.asarray(T_link_camera, dtype=np.float64)
         self.lens = None
@@ -62,19 +72,26 @@ class CameraModel:
             self.lens = Lens(K, width, height, intrinsics.distortion, supersample)
             K, width, height = self.lens.K_render, self.lens.render_width, self.lens.render_height
             if max(width, height) > MAX_RENDER:
-                raise ValueError(f"the distortion needs a pinhole render of {width}x{height} pixels, "
-                                 f"above OpenGL's {MAX_RENDER}")
+                raise ValueError(
+                    f"the distortion needs a pinhole render of {width}x{height} pixels, above OpenGL's {MAX_RENDER}"
+                )
         self.renderer = Renderer(K, width, height, intrinsics.near, intrinsics.far, ambient, lamp)
         self.poses = {name: BodyPoses(geometry) for name, geometry in bodies.items()}
         self.mount = (body, bodies[body].links.index(link))
-        self.drawn: list[tuple[str, int]] = []     # per renderer mesh: (body, link index)
+        self.drawn: list[tuple[str, int]] = []  # per renderer mesh: (body, link index)
         self.notes: list[str] = []
         for name, geometry in bodies.items():
             meshes, notes = visual_meshes(geometry)
             self.notes += notes
             for mesh in meshes:
-                self.renderer.add_mesh(mesh.vertices, np.arange(len(mesh.vertices)).reshape(-1, 3), mesh.normals,
-                                       mesh.colours, mesh.uv, mesh.texture)
+                self.renderer.add_mesh(
+                    mesh.vertices,
+                    np.arange(len(mesh.vertices)).reshape(-1, 3),
+                    mesh.normals,
+                    mesh.colours,
+                    mesh.uv,
+                    mesh.texture,
+                )
                 self.drawn.append((name, mesh.link))
 
     def camera_pose(self, links: Mapping[str, np.ndarray]) -> np.ndarray:

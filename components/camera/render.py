@@ -28,6 +28,7 @@ only decides what is in front.
 No shadows between objects (a body shading another is lit as if it did not), no reflections, no
 Earth in the scene: the sky is black. Units: m, rad, pixels.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -94,12 +95,14 @@ def projection_matrix(K: np.ndarray, width: int, height: int, near: float, far: 
     x_ndc = 2 (fx x/z + cx + 0.5) / W - 1, y_ndc = 2 (fy y/z + cy + 0.5) / H - 1, and z_ndc from -1
     at ``near`` to 1 at ``far`` (m)."""
     fx, fy, cx, cy, skew = K[0, 0], K[1, 1], K[0, 2], K[1, 2], K[0, 1]
-    return np.array([
-        [2.0 * fx / width, 2.0 * skew / width, 2.0 * (cx + 0.5) / width - 1.0, 0.0],
-        [0.0, 2.0 * fy / height, 2.0 * (cy + 0.5) / height - 1.0, 0.0],
-        [0.0, 0.0, (far + near) / (far - near), -2.0 * far * near / (far - near)],
-        [0.0, 0.0, 1.0, 0.0],
-    ])
+    return np.array(
+        [
+            [2.0 * fx / width, 2.0 * skew / width, 2.0 * (cx + 0.5) / width - 1.0, 0.0],
+            [0.0, 2.0 * fy / height, 2.0 * (cy + 0.5) / height - 1.0, 0.0],
+            [0.0, 0.0, (far + near) / (far - near), -2.0 * far * near / (far - near)],
+            [0.0, 0.0, 1.0, 0.0],
+        ]
+    )
 
 
 def egl_problem() -> str | None:
@@ -119,9 +122,10 @@ def _context():
         raise RenderError(f"moderngl is not installed ({e}): pip install moderngl") from None
     try:
         return moderngl.create_standalone_context(backend="egl", require=330)
-    except Exception as e:   # glcontext raises plain Exceptions: a missing libEGL, no driver
-        raise RenderError(f"no EGL OpenGL 3.3 context ({type(e).__name__}: {e}); on Debian/Ubuntu: "
-                          f"apt-get install {EGL_PACKAGES}") from None
+    except Exception as e:  # glcontext raises plain Exceptions: a missing libEGL, no driver
+        raise RenderError(
+            f"no EGL OpenGL 3.3 context ({type(e).__name__}: {e}); on Debian/Ubuntu: apt-get install {EGL_PACKAGES}"
+        ) from None
 
 
 class Renderer:
@@ -130,30 +134,40 @@ class Renderer:
     (0..1 of its colour); ``lamp`` the light of a lamp at the camera's origin on a face square to
     it 1 m away (0..1 of its colour, m^2: it falls off as 1/d^2)."""
 
-    def __init__(self, K: np.ndarray, width: int, height: int, near: float, far: float, ambient: float = 0.0,
-                 lamp: float = 0.0):
+    def __init__(
+        self, K: np.ndarray, width: int, height: int, near: float, far: float, ambient: float = 0.0, lamp: float = 0.0
+    ):
         self.K = np.array(K, dtype=np.float64).reshape(3, 3)
         self.width, self.height, self.ambient, self.lamp = int(width), int(height), float(ambient), float(lamp)
         self.ctx = _context()
-        with self.ctx:   # every GL call in this context: another camera's may be current in this process
+        with self.ctx:  # every GL call in this context: another camera's may be current in this process
             self._build(near, far)
 
     def _build(self, near: float, far: float) -> None:
         ctx = self.ctx
         self.program = ctx.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)
         self.program["projection"].write(
-            projection_matrix(self.K, self.width, self.height, near, far).T.astype("f4").tobytes())
+            projection_matrix(self.K, self.width, self.height, near, far).T.astype("f4").tobytes()
+        )
         size = (self.width, self.height)
         self.colour_buffer = ctx.renderbuffer(size, components=4, dtype="f1")
         self.depth_buffer = ctx.renderbuffer(size, components=1, dtype="f4")
         self.z_buffer = ctx.depth_renderbuffer(size)
-        self.fbo = ctx.framebuffer(color_attachments=[self.colour_buffer, self.depth_buffer],
-                                   depth_attachment=self.z_buffer)
+        self.fbo = ctx.framebuffer(
+            color_attachments=[self.colour_buffer, self.depth_buffer], depth_attachment=self.z_buffer
+        )
         self.program["image"].value = 0
-        self.meshes: list[tuple[object, object, object]] = []   # (vao, buffer, texture or None)
+        self.meshes: list[tuple[object, object, object]] = []  # (vao, buffer, texture or None)
 
-    def add_mesh(self, vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray, colour,
-                 uv: np.ndarray | None = None, texture: np.ndarray | None = None) -> int:
+    def add_mesh(
+        self,
+        vertices: np.ndarray,
+        triangles: np.ndarray,
+        normals: np.ndarray,
+        colour,
+        uv: np.ndarray | None = None,
+        texture: np.ndarray | None = None,
+    ) -> int:
         """Add a mesh: vertices (n, 3) in its own frame (m), triangles (m, 3) indices, vertex
         normals (n, 3); ``colour`` (r, g, b) in 0..1, one for the mesh or one per vertex (n, 3);
         or a ``texture`` (h, w, 3 or 4) uint8, its row 0 the image's top, with texture
@@ -164,8 +178,10 @@ class Renderer:
         normals = np.asarray(normals, dtype=np.float32).reshape(-1, 3)
         triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
         if len(normals) != n or not len(triangles) or triangles.max() >= n or triangles.min() < 0:
-            raise RenderError(f"mesh of {n} vertices, {len(normals)} normals and {len(triangles)} "
-                              "triangles: expected one normal per vertex and triangle indices within the vertices")
+            raise RenderError(
+                f"mesh of {n} vertices, {len(normals)} normals and {len(triangles)} "
+                "triangles: expected one normal per vertex and triangle indices within the vertices"
+            )
         colours = np.broadcast_to(np.asarray(colour, dtype=np.float32).reshape(-1, 3), (n, 3))
         if (uv is None) != (texture is None):
             raise RenderError("a textured mesh needs both uv and texture")
@@ -185,7 +201,7 @@ class Renderer:
         image = np.asarray(image, dtype=np.uint8)
         if image.ndim != 3 or image.shape[2] not in (3, 4):
             raise RenderError(f"a texture is (h, w, 3 or 4) uint8, got shape {image.shape}")
-        rows = np.ascontiguousarray(image[::-1, :, :3])      # OpenGL's row 0 is the bottom
+        rows = np.ascontiguousarray(image[::-1, :, :3])  # OpenGL's row 0 is the bottom
         texture = self.ctx.texture((rows.shape[1], rows.shape[0]), 3, rows.tobytes(), alignment=1)
         texture.build_mipmaps()
         texture.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)

@@ -9,6 +9,7 @@ shapes, as the viewer does. Colour: a mesh file's texture (its base colour image
 coordinates: .obj with .mtl, .glb/.gltf, .dae) or its face or vertex colours when it has them,
 else the URDF's colour. Normals are per triangle (flat shading). Units: m.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -24,6 +25,7 @@ class VisualMesh:
     """One visual's triangles in its link's frame: ``vertices`` (3 per triangle, (3m, 3)), their
     ``normals`` (the triangle's) and ``colours`` (r, g, b in 0..1), or ``uv`` and a ``texture``
     ((h, w, 3) uint8, row 0 the top); ``link`` its index in the body's links."""
+
     link: int
     vertices: np.ndarray
     normals: np.ndarray
@@ -70,7 +72,11 @@ def _appearance(mesh, colour: tuple[float, float, float]):
     corners = mesh.faces.ravel()
     visual = mesh.visual
     try:
-        if visual.kind == "texture" and getattr(visual, "uv", None) is not None and len(visual.uv) == len(mesh.vertices):
+        if (
+            visual.kind == "texture"
+            and getattr(visual, "uv", None) is not None
+            and len(visual.uv) == len(mesh.vertices)
+        ):
             material = visual.material
             image = getattr(material, "image", None) or getattr(material, "baseColorTexture", None)
             if image is not None:
@@ -80,7 +86,7 @@ def _appearance(mesh, colour: tuple[float, float, float]):
             return np.repeat(np.asarray(visual.face_colors, dtype=np.float64)[:, :3] / 255.0, 3, axis=0), None, None
         if visual.kind == "vertex":
             return np.asarray(visual.vertex_colors, dtype=np.float64)[corners, :3] / 255.0, None, None
-    except Exception:   # a material trimesh cannot read: the URDF's colour instead
+    except Exception:  # a material trimesh cannot read: the URDF's colour instead
         pass
     return np.tile(colour, (len(corners), 1)), None, None
 
@@ -92,18 +98,20 @@ def visual_meshes(geometry: Geometry) -> tuple[list[VisualMesh], list[str]]:
     for visual in geometry.visuals:
         try:
             shapes = [(_shape_trimesh(visual), visual)]
-        except Exception as e:   # trimesh's and pycollada's own exceptions for a file they cannot read
+        except Exception as e:  # trimesh's and pycollada's own exceptions for a file they cannot read
             shapes = []
             for collision in (c for c in geometry.collisions if c.link == visual.link):
                 try:
                     shapes.append((_shape_trimesh(collision), collision))
                 except Exception:
                     continue
-            notes.append(f"{geometry.name}: visual of link {visual.link} cannot be read ({e}); "
-                         f"{'its collision shapes drawn instead' if shapes else 'not drawn'}")
+            notes.append(
+                f"{geometry.name}: visual of link {visual.link} cannot be read ({e}); "
+                f"{'its collision shapes drawn instead' if shapes else 'not drawn'}"
+            )
         for mesh, placed in shapes:
             T = transform(rpy_to_matrix(placed.rpy), np.asarray(placed.xyz, dtype=np.float64))
-            corners = mesh.vertices[mesh.faces.ravel()]                       # 3 per triangle
+            corners = mesh.vertices[mesh.faces.ravel()]  # 3 per triangle
             corners = corners @ T[:3, :3].T + T[:3, 3]
             normals = np.repeat(np.asarray(mesh.face_normals) @ T[:3, :3].T, 3, axis=0)
             colours, uv, texture = _appearance(mesh, np.array(visual.color[:3], dtype=np.float64) / 255.0)
@@ -120,9 +128,11 @@ class BodyPoses:
     def link_transforms(self, position: np.ndarray, orientation: np.ndarray, q: np.ndarray) -> np.ndarray:
         """(L, 4, 4): T_W_link for every link, base ``position`` (m, W), ``orientation``
         (q_W_base [x, y, z, w]) and joint positions ``q`` (URDF order of the movable joints)."""
-        translations, rotations = self.kinematics.link_poses(np.asarray(position, dtype=np.float64)[None],
-                                                             np.asarray(orientation, dtype=np.float64)[None],
-                                                             np.asarray(q, dtype=np.float64)[None])
+        translations, rotations = self.kinematics.link_poses(
+            np.asarray(position, dtype=np.float64)[None],
+            np.asarray(orientation, dtype=np.float64)[None],
+            np.asarray(q, dtype=np.float64)[None],
+        )
         T = np.tile(np.eye(4), (translations.shape[1], 1, 1))
         T[:, :3, :3], T[:, :3, 3] = rotations[0], translations[0]
         return T

@@ -8,6 +8,7 @@
   the cylinder errs by under 0.3 % of the shadow's radius in low orbit); the camera's default, its
   ``eclipse: cylindrical``. The models: :mod:`components.space.eclipse`.
 """
+
 from __future__ import annotations
 
 import numpy as np

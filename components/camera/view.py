@@ -13,6 +13,7 @@ first includes it; live, a frame whose file is not written yet is shown at a lat
 frames (no ``--record``, or ``orchestrator view`` of a recording without them) nothing but the
 frustum is drawn.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -32,7 +33,7 @@ class CameraView(View):
         self.frame = scene.take(name, "frame", 1)
         self.frames_dir = Path(scene.frames_dir) / name if getattr(scene, "frames_dir", None) else None
         self.entity = entity_path("world", name)
-        self.shown = 0          # frames shown so far (the next to show is file shown, ...)
+        self.shown = 0  # frames shown so far (the next to show is file shown, ...)
 
     def connect(self, scene):
         import rerun as rr
@@ -42,7 +43,9 @@ class CameraView(View):
         dynamics = source.partition(".")[0]
         for drawn in scene.bodies:
             if drawn.dynamics == dynamics and drawn.name == body and drawn.drawn and link in drawn.geometry.links:
-                self.entity = f"{drawn.base}/links/{rr.escape_entity_path_part(link)}/{rr.escape_entity_path_part(self.name)}"
+                self.entity = (
+                    f"{drawn.base}/links/{rr.escape_entity_path_part(link)}/{rr.escape_entity_path_part(self.name)}"
+                )
 
     def log_static(self, scene):
         import rerun as rr
@@ -51,15 +54,24 @@ class CameraView(View):
         try:
             K = [[float(p["fx"]), 0.0, float(p["cx"])], [0.0, float(p["fy"]), float(p["cy"])], [0.0, 0.0, 1.0]]
             resolution = [int(p["width"]), int(p["height"])]
-            mount = rr.Transform3D(translation=[float(v) for v in p["position"]],
-                                   quaternion=[float(v) for v in p["orientation"]])
-        except (KeyError, TypeError, ValueError) as e:   # a raw config with units: no frustum, images only
+            mount = rr.Transform3D(
+                translation=[float(v) for v in p["position"]], quaternion=[float(v) for v in p["orientation"]]
+            )
+        except (KeyError, TypeError, ValueError) as e:  # a raw config with units: no frustum, images only
             scene.warn(f"{self.name}: cannot read its intrinsics or mount from the config ({e}); no frustum drawn")
             return
         far = float(p["far"]) if isinstance(p.get("far"), (int, float)) else 1.0
-        scene.log(self.entity, mount, rr.Pinhole(image_from_camera=K, resolution=resolution,
-                                                 camera_xyz=rr.ViewCoordinates.RDF, image_plane_distance=min(far, 0.5)),
-                  static=True)
+        scene.log(
+            self.entity,
+            mount,
+            rr.Pinhole(
+                image_from_camera=K,
+                resolution=resolution,
+                camera_xyz=rr.ViewCoordinates.RDF,
+                image_plane_distance=min(far, 0.5),
+            ),
+            static=True,
+        )
 
     def log_rows(self, scene, batch: Batch):
         import rerun as rr
@@ -71,7 +83,7 @@ class CameraView(View):
             if count <= self.shown:
                 continue
             path = frame_path(self.frames_dir, int(count) - 1)
-            if not path.is_file():           # live: not written yet; tried again at the next row
+            if not path.is_file():  # live: not written yet; tried again at the next row
                 continue
             frame = read_frame(path, ("rgb", "depth"))
             rgb, depth = frame["rgb"], frame.get("depth")
@@ -85,7 +97,10 @@ class CameraView(View):
     def layout(self, scene):
         import rerun.blueprint as rrb
 
-        return Layout(world=True, figures=[rrb.Spatial2DView(origin=self.entity, contents=f"{self.entity}/rgb",
-                                                             name=f"{self.name}: image"),
-                                           rrb.Spatial2DView(origin=self.entity, contents=f"{self.entity}/depth",
-                                                             name=f"{self.name}: depth (m)")])
+        return Layout(
+            world=True,
+            figures=[
+                rrb.Spatial2DView(origin=self.entity, contents=f"{self.entity}/rgb", name=f"{self.name}: image"),
+                rrb.Spatial2DView(origin=self.entity, contents=f"{self.entity}/depth", name=f"{self.name}: depth (m)"),
+            ],
+        )

@@ -16,6 +16,7 @@ rate (the field turns twice per orbit in a polar orbit). Stabilski, Avanzini and
 The first step has one sample: no rate yet, the command is zero. The command computed at step t
 from the sample at t is the output at t + h (held over the next step by the dynamics).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -74,15 +75,22 @@ class BdotComponent(Component):
     (the law and its figures: :mod:`components.controller.bdot`). Connect ``b`` to a
     ``sensor.magnetometer``'s ``b`` (or the dynamics' ``<body>.b_body``) and ``dipole`` to the
     dynamics' ``<body>.dipole``. State: the last sample and the last outputs."""
+
     type_name = "controller.bdot"
     plots = (Plot("{c}_bdot.png", "the commanded dipole and |dB/dt| over time", _dipole_and_rate),)
     parameters = (
-        Parameter("gain", Float("A*m^2*s/T", positive=True, plausible=(1e2, 1e10)),
-                  description="k in m = -k dB/dt"),
-        Parameter("max_dipole", OneOf((Float("A*m^2", positive=True, plausible=(1e-3, 1e3)),
-                                       Vector(3, "A*m^2", minimum=0.0, plausible=(0.0, 1e3)))),
-                  description="the largest dipole per body axis: one for every axis or one per axis (the command "
-                              "is scaled as a whole to fit)"),
+        Parameter("gain", Float("A*m^2*s/T", positive=True, plausible=(1e2, 1e10)), description="k in m = -k dB/dt"),
+        Parameter(
+            "max_dipole",
+            OneOf(
+                (
+                    Float("A*m^2", positive=True, plausible=(1e-3, 1e3)),
+                    Vector(3, "A*m^2", minimum=0.0, plausible=(0.0, 1e3)),
+                )
+            ),
+            description="the largest dipole per body axis: one for every axis or one per axis (the command "
+            "is scaled as a whole to fit)",
+        ),
     )
     variables = (
         Variable("b", "input", (3,), "T", [0.0] * 3, "measured magnetic field, body axes"),
@@ -104,10 +112,16 @@ class BdotComponent(Component):
 
     def get_state(self):
         last = self.law.last_b
-        return {"has_last": np.bool_(last is not None), "last_b": np.zeros(3) if last is None else last.copy(),
-                "dipole": self.out["dipole"].copy(), "b_rate": self.out["b_rate"].copy()}
+        return {
+            "has_last": np.bool_(last is not None),
+            "last_b": np.zeros(3) if last is None else last.copy(),
+            "dipole": self.out["dipole"].copy(),
+            "b_rate": self.out["b_rate"].copy(),
+        }
 
     def set_state(self, state):
         self.law.last_b = np.array(state["last_b"], dtype=float).reshape(3) if bool(state["has_last"]) else None
-        self.out = {"dipole": np.array(state["dipole"], dtype=float).reshape(3),
-                    "b_rate": np.array(state["b_rate"], dtype=float).reshape(3)}
+        self.out = {
+            "dipole": np.array(state["dipole"], dtype=float).reshape(3),
+            "b_rate": np.array(state["b_rate"], dtype=float).reshape(3),
+        }

@@ -62,10 +62,11 @@ check that failed at the best sample, with its figure), or at ``capture_timeout`
 approach under way (no window, or no estimate). Not capturing is an outcome: the run goes on and
 ends normally.
 """
+
 from __future__ import annotations
 
 import math
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -78,8 +79,18 @@ from components.controller.trajectory import PoseSample
 from components.rotations import log_so3
 
 # fit_motion: the estimator's fit, for the controller's tests
-__all__ = ["CaptureController", "PHASES", "fit_motion",
-           "WAIT", "APPROACH", "CLOSING", "TRACK", "RETREAT", "CAPTURED", "ABORTED"]
+__all__ = [
+    "ABORTED",
+    "APPROACH",
+    "CAPTURED",
+    "CLOSING",
+    "PHASES",
+    "RETREAT",
+    "TRACK",
+    "WAIT",
+    "CaptureController",
+    "fit_motion",
+]
 
 WAIT, APPROACH, CLOSING, TRACK, RETREAT, CAPTURED, ABORTED = range(7)
 PHASES = ("wait", "approach", "closing", "track", "retreat", "captured", "aborted")
@@ -92,16 +103,16 @@ class CaptureController:
     measured at t (h: the control period, s). ``wheels`` are the wheel joints' names (body joints).
     ``take_events()`` returns the events of the steps since the last call (name, fields)."""
 
-    def __init__(self, arm: FreeFloatingArm, law: ComputedTorqueLaw, settings: CaptureSettings,
-                 wheels: Sequence[str]):
+    def __init__(self, arm: FreeFloatingArm, law: ComputedTorqueLaw, settings: CaptureSettings, wheels: Sequence[str]):
         self.arm, self.law, self.cfg = arm, law, settings
         self.wheel_index = np.array([arm.body_joints.index(j) for j in wheels], dtype=int)
         self.wheels = WheelLaw(settings, self.wheel_index)
         self.joints = JointLaw(settings, law.effort)
         self.planner = WindowPlanner(arm, settings)
         self.limits = LimitWatch(arm, law, settings)
-        self.tracker = GraspTracker(settings.estimator_window, settings.estimator_memory, settings.estimator_minimum,
-                                    settings.pose_history)
+        self.tracker = GraspTracker(
+            settings.estimator_window, settings.estimator_memory, settings.estimator_minimum, settings.pose_history
+        )
         self.estimator = self.tracker.estimator
         n = arm.n
         self.started = False
@@ -109,12 +120,12 @@ class CaptureController:
         self.phase = WAIT
         self.close = False
         self.move: JointMove | None = None
-        self.closing = (math.nan, np.zeros(3), np.zeros(3))      # start time, offset and rotation in G
+        self.closing = (math.nan, np.zeros(3), np.zeros(3))  # start time, offset and rotation in G
         self.track_since = math.nan
-        self.track_stats = np.zeros(10)       # track: steps, steps above each tolerance, sums of the errors, singular steps
+        self.track_stats = np.zeros(10)  # track: steps, steps above each tolerance, sums of the errors, singular steps
         self.attempt = 0
         self.next_plan = -math.inf
-        self.reason = ""                                          # why the last attempt or plan failed
+        self.reason = ""  # why the last attempt or plan failed
         self.errors = np.zeros(4)
         self.q_hold = np.zeros(n)
         self.within_since = math.nan
@@ -140,8 +151,12 @@ class CaptureController:
             self.phase, self.close, self.q_hold = CAPTURED, True, s.q.copy()
             self.events.append(("capture_closed", {"time": t, "attempt": self.attempt}))
         elif self.phase == CAPTURED and not captured:
-            self._retreat(t, s, "the grasp opened after the capture (the dynamics' grasp_overload event: the wrist "
-                                "loads exceeded the fixture's limits)")
+            self._retreat(
+                t,
+                s,
+                "the grasp opened after the capture (the dynamics' grasp_overload event: the wrist "
+                "loads exceeded the fixture's limits)",
+            )
         estimate = self.tracker.estimate(t)
         tau = np.zeros(arm.n_body)
         reference = None
@@ -156,8 +171,9 @@ class CaptureController:
             if self.phase in (CLOSING, TRACK):
                 reference = self._reference(t, estimate)
                 out = self.law.control(s, reference, self.q_posture)
-                problem = (self.limits.check(t, s, estimate, reference, out.qdd)
-                           or self._update_close(t, s, estimate, out.sigma_min))
+                problem = self.limits.check(t, s, estimate, reference, out.qdd) or self._update_close(
+                    t, s, estimate, out.sigma_min
+                )
                 tau_arm = out.tau
                 if problem:
                     self._retreat(t, s, problem)
@@ -177,9 +193,12 @@ class CaptureController:
             return
         if g is None:
             if t >= cfg.capture_timeout:
-                self._abort(t, f"no estimate of the grapple's motion by capture_timeout = {cfg.capture_timeout:g} s: "
-                               f"{self.estimator.t.size} of the estimator_minimum = {self.estimator.minimum} "
-                               f"measurements arrived (is the pose sensor connected and is the grapple in view?)")
+                self._abort(
+                    t,
+                    f"no estimate of the grapple's motion by capture_timeout = {cfg.capture_timeout:g} s: "
+                    f"{self.estimator.t.size} of the estimator_minimum = {self.estimator.minimum} "
+                    f"measurements arrived (is the pose sensor connected and is the grapple in view?)",
+                )
             return
         self.next_plan = t + cfg.replan_period
         look = self.planner.look(t, s, g, x["position"], x["twist"], self.estimator, self.q_posture)
@@ -238,16 +257,24 @@ class CaptureController:
         direction as a load), for tolerance_time; '' or, after track_time without that, what
         blocked it most of the time."""
         cfg = self.cfg
-        self.errors = np.array([float(np.linalg.norm(g.p - s.p)), float(np.linalg.norm(log_so3(g.R @ s.R.T))),
-                                float(np.linalg.norm(g.v - s.xdot[:3])), float(np.linalg.norm(g.w - s.xdot[3:]))])
+        self.errors = np.array(
+            [
+                float(np.linalg.norm(g.p - s.p)),
+                float(np.linalg.norm(log_so3(g.R @ s.R.T))),
+                float(np.linalg.norm(g.v - s.xdot[:3])),
+                float(np.linalg.norm(g.w - s.xdot[3:])),
+            ]
+        )
         if self.phase != TRACK:
             return ""
-        if self.close:          # asked for: the dynamics closes when the true errors are within its tolerance
+        if self.close:  # asked for: the dynamics closes when the true errors are within its tolerance
             if t - self.within_since - cfg.tolerance_time <= cfg.track_time:
                 return ""
-            return (f"close was asked for track_time = {cfg.track_time:g} s and the grasp did not close: the true "
-                    f"errors stayed outside the dynamics' grasp.tolerance while the estimated ones were within the "
-                    f"controller's (tighter tolerances, or a better sensor, would tell)")
+            return (
+                f"close was asked for track_time = {cfg.track_time:g} s and the grasp did not close: the true "
+                f"errors stayed outside the dynamics' grasp.tolerance while the estimated ones were within the "
+                f"controller's (tighter tolerances, or a better sensor, would tell)"
+            )
         tolerance = cfg.close_tolerances
         ratio = self.errors / tolerance
         singular = sigma < cfg.singularity_margin
@@ -261,17 +288,26 @@ class CaptureController:
         self.within_since = math.nan
         if t - self.track_since < cfg.track_time:
             return ""
-        steps, above, total, singular = self.track_stats[0], self.track_stats[1:5], self.track_stats[5:9], self.track_stats[9]
+        steps, above, total, singular = (
+            self.track_stats[0],
+            self.track_stats[1:5],
+            self.track_stats[5:9],
+            self.track_stats[9],
+        )
         i = int(np.argmax(above))
         if singular > above[i]:
-            return (f"the arm stayed near a singularity on the grapple (the smallest singular value of J_g below "
-                    f"singularity_margin = {cfg.singularity_margin:g}) {100.0 * singular / steps:.0f}% of "
-                    f"track_time = {cfg.track_time:g} s")
+            return (
+                f"the arm stayed near a singularity on the grapple (the smallest singular value of J_g below "
+                f"singularity_margin = {cfg.singularity_margin:g}) {100.0 * singular / steps:.0f}% of "
+                f"track_time = {cfg.track_time:g} s"
+            )
         unit, scale = (("mm", 1e3), ("deg", 180.0 / math.pi), ("mm/s", 1e3), ("deg/s", 180.0 / math.pi))[i]
-        return (f"the estimated errors did not stay within the tolerances for tolerance_time = {cfg.tolerance_time:g} s "
-                f"in track_time = {cfg.track_time:g} s: the {CLOSE_ERRORS[i]} error was above "
-                f"{CLOSE_ERRORS[i]}_tolerance = {tolerance[i] * scale:.3g} {unit} {100.0 * above[i] / steps:.0f}% of the "
-                f"time (mean {total[i] / steps * scale:.3g} {unit})")
+        return (
+            f"the estimated errors did not stay within the tolerances for tolerance_time = {cfg.tolerance_time:g} s "
+            f"in track_time = {cfg.track_time:g} s: the {CLOSE_ERRORS[i]} error was above "
+            f"{CLOSE_ERRORS[i]}_tolerance = {tolerance[i] * scale:.3g} {unit} {100.0 * above[i] / steps:.0f}% of the "
+            f"time (mean {total[i] / steps * scale:.3g} {unit})"
+        )
 
     def _detumble(self, h: float, x: Mapping[str, np.ndarray]) -> np.ndarray:
         """The wheels' torques, the wrench factor updated once per control period (not at initialize)."""
@@ -289,29 +325,43 @@ class CaptureController:
         error = np.zeros(6) if d is None else np.concatenate([d.p - s.p, log_so3(d.R @ s.R.T)])
         tolerance = self.cfg.close_tolerances
         errors = self.errors if self.phase in (TRACK, CLOSING) else np.zeros(4)
-        return {"tau": tau, "close": np.float64(1.0 if self.close else 0.0), "phase": np.float64(self.phase),
-                "attempt": np.float64(self.attempt),
-                "grasp_distance": np.float64(self.tracker.last_distance if g is None else np.linalg.norm(g.p - s.p)),
-                "ee_error": error, "close_errors": errors.copy(),
-                "close_within": (errors < tolerance).astype(np.float64) if self.phase in (TRACK, CLOSING)
-                else np.zeros(4),
-                "grasp_position_est": zero if g is None else g.p,
-                "grasp_velocity_est": zero.copy() if g is None else g.v,
-                "grasp_rate_est": zero.copy() if g is None else g.w}
+        return {
+            "tau": tau,
+            "close": np.float64(1.0 if self.close else 0.0),
+            "phase": np.float64(self.phase),
+            "attempt": np.float64(self.attempt),
+            "grasp_distance": np.float64(self.tracker.last_distance if g is None else np.linalg.norm(g.p - s.p)),
+            "ee_error": error,
+            "close_errors": errors.copy(),
+            "close_within": (errors < tolerance).astype(np.float64) if self.phase in (TRACK, CLOSING) else np.zeros(4),
+            "grasp_position_est": zero if g is None else g.p,
+            "grasp_velocity_est": zero.copy() if g is None else g.v,
+            "grasp_rate_est": zero.copy() if g is None else g.w,
+        }
 
     def get_state(self) -> dict[str, np.ndarray]:
         t0, d0, psi0 = self.closing
-        return {"started": np.float64(self.started), "q_posture": self.q_posture.copy(),
-                "phase": np.float64(self.phase), "close": np.float64(self.close),
-                "move": self.move.to_array() if self.move is not None else np.zeros(0),
-                "closing_t": np.float64(t0), "closing_d": d0.copy(), "closing_psi": psi0.copy(),
-                "track_since": np.float64(self.track_since), "track_stats": self.track_stats.copy(),
-                "attempt": np.float64(self.attempt), "next_plan": np.float64(self.next_plan),
-                "reason": np.frombuffer(self.reason.encode(), dtype=np.uint8).astype(float),
-                "errors": self.errors.copy(), "q_hold": self.q_hold.copy(),
-                "within_since": np.float64(self.within_since), **self.limits.get_state(),
-                "wheel_scale": np.float64(self.wheel_scale),
-                **self.tracker.get_state()}
+        return {
+            "started": np.float64(self.started),
+            "q_posture": self.q_posture.copy(),
+            "phase": np.float64(self.phase),
+            "close": np.float64(self.close),
+            "move": self.move.to_array() if self.move is not None else np.zeros(0),
+            "closing_t": np.float64(t0),
+            "closing_d": d0.copy(),
+            "closing_psi": psi0.copy(),
+            "track_since": np.float64(self.track_since),
+            "track_stats": self.track_stats.copy(),
+            "attempt": np.float64(self.attempt),
+            "next_plan": np.float64(self.next_plan),
+            "reason": np.frombuffer(self.reason.encode(), dtype=np.uint8).astype(float),
+            "errors": self.errors.copy(),
+            "q_hold": self.q_hold.copy(),
+            "within_since": np.float64(self.within_since),
+            **self.limits.get_state(),
+            "wheel_scale": np.float64(self.wheel_scale),
+            **self.tracker.get_state(),
+        }
 
     def set_state(self, state: Mapping[str, np.ndarray]) -> None:
         n = self.arm.n
@@ -342,4 +392,3 @@ class CaptureController:
         self.limits.set_state(vector)
         self.wheel_scale = float(vector("wheel_scale", 1)[0])
         self.tracker.set_state(state, vector)
-

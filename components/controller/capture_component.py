@@ -11,6 +11,7 @@ IMU's ``rate_imu`` and the wrist force-torque sensor's ``wrench``; ``tau`` goes 
 Time: ``do_step(t, h)`` reads the state measured at t (its sample time, ``input_times_ns``) and
 returns the torques to apply from t + h on, as ``controller.computed_torque`` does.
 """
+
 from __future__ import annotations
 
 import math
@@ -31,10 +32,12 @@ from components.sdk import Component, Outcome, Parameter, Variable
 from components.signals import BODY_STATE, body_signals, torque_signal
 from components.units import DEG
 
+
 @dataclass(frozen=True)
 class CaptureSetup:
     """The parameters checked against the URDF: arm and wheel joints, the wheels' axes in the base
     frame (columns) and limits, the arm's limits, the shoulder and reach, the gains per axis or joint."""
+
     model: Any
     joints: list[str]
     wheels: list[str]
@@ -89,88 +92,208 @@ class CaptureComponent(Component):
     the phase, ``close``, the approach's anchor, the hold configurations, the tolerance and limit
     timers and the wheel-torque factor: ``set_state`` on a fresh instance continues bit for bit.
     """
+
     type_name = "controller.capture"
     plots = (controller_plots.TORQUES, controller_plots.PHASES)
     view = ControllerView
     # the controller's own events: a capture the grasp lost again (capture_retreat) is undecided again
     outcomes = (
-        Outcome("undecided", "undecided: neither captured nor aborted by {end:g} s", ("capture_retreat",),
-                "neither captured nor aborted at the end (or the grasp opened again after a capture)"),
-        Outcome("captured", "captured at {time:g} s", ("capture_closed",),
-                "the dynamics closed the grasp and it held to the end"),
-        Outcome("aborted", "capture aborted at {time:g} s: {reason}", ("capture_aborted",),
-                "the capture was given up (attempts, no window, capture_timeout)"),
+        Outcome(
+            "undecided",
+            "undecided: neither captured nor aborted by {end:g} s",
+            ("capture_retreat",),
+            "neither captured nor aborted at the end (or the grasp opened again after a capture)",
+        ),
+        Outcome(
+            "captured",
+            "captured at {time:g} s",
+            ("capture_closed",),
+            "the dynamics closed the grasp and it held to the end",
+        ),
+        Outcome(
+            "aborted",
+            "capture aborted at {time:g} s: {reason}",
+            ("capture_aborted",),
+            "the capture was given up (attempts, no window, capture_timeout)",
+        ),
     )
     parameters = (
         Parameter("urdf", "str", description="the servicer's URDF, relative to the config file"),
-        Parameter("joints", ListOf(Str(), min_items=1, unique=True),
-                  description="the arm's joints (driven), e.g. [arm_1_joint, ..., arm_6_joint]"),
-        Parameter("wheels", ListOf(Str(), unique=True),
-                  description="the reaction wheels' joints (continuous joints on the base link), "
-                              "e.g. [wheel_x_joint, wheel_y_joint, wheel_z_joint]"),
-        Parameter("end_effector", "str",
-                  description="link whose frame is brought onto the grasp frame (z out of the tool)"),
-        Parameter("approach_time", Float("s", positive=True, plausible=(0.1, 3600.0)),
-                  description="duration of the joint-space move onto the pre-grasp pose (and of a retreat)"),
-        Parameter("closing_time", Float("s", positive=True, plausible=(0.01, 600.0)), default=1.0,
-                  description="duration of the straight-line close from the pre-grasp pose onto the grapple"),
-        Parameter("standoff", Float("m", minimum=0.0, plausible=(0.0, 10.0)), default=0.1,
-                  description="the pre-grasp pose: the grasp frame moved back this far along its z (out of the target)"),
-        Parameter("track_time", Float("s", positive=True, plausible=(0.01, 3600.0)), default=4.0,
-                  description="how long tracking may wait for the tolerances before the arm retreats and tries again"),
-        Parameter("attempts", Int(minimum=1), default=3,
-                  description="approaches before the capture is given up (capture_aborted)"),
-        Parameter("capture_timeout", Float("s", positive=True, plausible=(0.1, 2.6e6)), default=300.0,
-                  description="time from t = 0 after which a capture not under way is given up (capture_aborted)"),
-        Parameter("replan_period", Float("s", positive=True, plausible=(1e-3, 600.0)), default=0.5,
-                  description="how often the planner looks for a window while the arm waits"),
-        Parameter("singularity_margin", Float(positive=True), default=0.08,
-                  description="lowest smallest singular value of the arm's Jacobian (m/rad and 1, W axes) for planning a window and for closing"),
-        Parameter("rate_fraction", Float(positive=True, maximum=1.0), default=0.5,
-                  description="share of the URDF velocity limits the planner allows for following the grapple"),
-        Parameter("joint_margin", Float("rad", minimum=0.0, plausible=(0.0, 45 * DEG)), default=0.15,
-                  description="the planner keeps the arm this far inside the URDF position limits"),
-        Parameter("position_tolerance", Float("m", positive=True, plausible=(0.0, 1.0)),
-                  description="close when the estimated position error stays below this (and the other tolerances)"),
-        Parameter("attitude_tolerance", Float("rad", positive=True, plausible=(0.0, 45 * DEG)),
-                  description="bound of the estimated attitude error angle for closing"),
-        Parameter("velocity_tolerance", Float("m/s", positive=True, plausible=(0.0, 1.0)),
-                  description="bound of the estimated relative linear velocity for closing"),
-        Parameter("rate_tolerance", Float("rad/s", positive=True, plausible=(0.0, 60 * DEG)),
-                  description="bound of the estimated relative angular velocity for closing"),
-        Parameter("tolerance_time", Float("s", minimum=0.0, plausible=(0.0, 600.0)),
-                  description="how long the errors must stay within the tolerances before close goes to 1"),
-        Parameter("grasp_force_limit", Float("N", positive=True, plausible=(0.1, 1e6)),
-                  description="bound of the measured wrist force while detumbling (the wheel torques are scaled down)"),
-        Parameter("grasp_torque_limit", Float("N*m", positive=True, plausible=(0.01, 1e6)),
-                  description="bound of the measured wrist torque while detumbling"),
-        Parameter("detumble_gain", Float("N*m*s/rad", minimum=0.0, plausible=(0.0, 1e6)),
-                  description="bus torque per unit of IMU rate (rate damping) after capture"),
-        Parameter("captured_kp", gain("N*m/rad", (0.0, 1e6)),
-                  description="joint stiffness holding the arm after capture (torque units: the target's inertia "
-                              "is not in the model), one or per arm joint"),
-        Parameter("captured_kd", gain("N*m*s/rad", (0.0, 1e5)),
-                  description="joint damping holding the arm after capture, one or per arm joint (stable for "
-                              "kd * step well below the smallest joint-space inertia of the assembly)"),
-        Parameter("wrench_recovery_time", Float("s", positive=True, plausible=(1e-3, 600.0)), default=2.0,
-                  description="time for the wheel-torque factor to recover from 0 to 1 once the wrench is "
-                              "within limits"),
+        Parameter(
+            "joints",
+            ListOf(Str(), min_items=1, unique=True),
+            description="the arm's joints (driven), e.g. [arm_1_joint, ..., arm_6_joint]",
+        ),
+        Parameter(
+            "wheels",
+            ListOf(Str(), unique=True),
+            description="the reaction wheels' joints (continuous joints on the base link), "
+            "e.g. [wheel_x_joint, wheel_y_joint, wheel_z_joint]",
+        ),
+        Parameter(
+            "end_effector", "str", description="link whose frame is brought onto the grasp frame (z out of the tool)"
+        ),
+        Parameter(
+            "approach_time",
+            Float("s", positive=True, plausible=(0.1, 3600.0)),
+            description="duration of the joint-space move onto the pre-grasp pose (and of a retreat)",
+        ),
+        Parameter(
+            "closing_time",
+            Float("s", positive=True, plausible=(0.01, 600.0)),
+            default=1.0,
+            description="duration of the straight-line close from the pre-grasp pose onto the grapple",
+        ),
+        Parameter(
+            "standoff",
+            Float("m", minimum=0.0, plausible=(0.0, 10.0)),
+            default=0.1,
+            description="the pre-grasp pose: the grasp frame moved back this far along its z (out of the target)",
+        ),
+        Parameter(
+            "track_time",
+            Float("s", positive=True, plausible=(0.01, 3600.0)),
+            default=4.0,
+            description="how long tracking may wait for the tolerances before the arm retreats and tries again",
+        ),
+        Parameter(
+            "attempts",
+            Int(minimum=1),
+            default=3,
+            description="approaches before the capture is given up (capture_aborted)",
+        ),
+        Parameter(
+            "capture_timeout",
+            Float("s", positive=True, plausible=(0.1, 2.6e6)),
+            default=300.0,
+            description="time from t = 0 after which a capture not under way is given up (capture_aborted)",
+        ),
+        Parameter(
+            "replan_period",
+            Float("s", positive=True, plausible=(1e-3, 600.0)),
+            default=0.5,
+            description="how often the planner looks for a window while the arm waits",
+        ),
+        Parameter(
+            "singularity_margin",
+            Float(positive=True),
+            default=0.08,
+            description="lowest smallest singular value of the arm's Jacobian (m/rad and 1, W axes) for planning a window and for closing",
+        ),
+        Parameter(
+            "rate_fraction",
+            Float(positive=True, maximum=1.0),
+            default=0.5,
+            description="share of the URDF velocity limits the planner allows for following the grapple",
+        ),
+        Parameter(
+            "joint_margin",
+            Float("rad", minimum=0.0, plausible=(0.0, 45 * DEG)),
+            default=0.15,
+            description="the planner keeps the arm this far inside the URDF position limits",
+        ),
+        Parameter(
+            "position_tolerance",
+            Float("m", positive=True, plausible=(0.0, 1.0)),
+            description="close when the estimated position error stays below this (and the other tolerances)",
+        ),
+        Parameter(
+            "attitude_tolerance",
+            Float("rad", positive=True, plausible=(0.0, 45 * DEG)),
+            description="bound of the estimated attitude error angle for closing",
+        ),
+        Parameter(
+            "velocity_tolerance",
+            Float("m/s", positive=True, plausible=(0.0, 1.0)),
+            description="bound of the estimated relative linear velocity for closing",
+        ),
+        Parameter(
+            "rate_tolerance",
+            Float("rad/s", positive=True, plausible=(0.0, 60 * DEG)),
+            description="bound of the estimated relative angular velocity for closing",
+        ),
+        Parameter(
+            "tolerance_time",
+            Float("s", minimum=0.0, plausible=(0.0, 600.0)),
+            description="how long the errors must stay within the tolerances before close goes to 1",
+        ),
+        Parameter(
+            "grasp_force_limit",
+            Float("N", positive=True, plausible=(0.1, 1e6)),
+            description="bound of the measured wrist force while detumbling (the wheel torques are scaled down)",
+        ),
+        Parameter(
+            "grasp_torque_limit",
+            Float("N*m", positive=True, plausible=(0.01, 1e6)),
+            description="bound of the measured wrist torque while detumbling",
+        ),
+        Parameter(
+            "detumble_gain",
+            Float("N*m*s/rad", minimum=0.0, plausible=(0.0, 1e6)),
+            description="bus torque per unit of IMU rate (rate damping) after capture",
+        ),
+        Parameter(
+            "captured_kp",
+            gain("N*m/rad", (0.0, 1e6)),
+            description="joint stiffness holding the arm after capture (torque units: the target's inertia "
+            "is not in the model), one or per arm joint",
+        ),
+        Parameter(
+            "captured_kd",
+            gain("N*m*s/rad", (0.0, 1e5)),
+            description="joint damping holding the arm after capture, one or per arm joint (stable for "
+            "kd * step well below the smallest joint-space inertia of the assembly)",
+        ),
+        Parameter(
+            "wrench_recovery_time",
+            Float("s", positive=True, plausible=(1e-3, 600.0)),
+            default=2.0,
+            description="time for the wheel-torque factor to recover from 0 to 1 once the wrench is within limits",
+        ),
         *CARTESIAN_GAINS,
-        Parameter("hold_kp", gain("1/s^2", STIFFNESS), default=25.0,
-                  description="computed-torque joint hold stiffness before the first estimate, one or per arm joint"),
-        Parameter("hold_kd", gain("1/s", DAMPING), default=10.0,
-                  description="computed-torque joint hold damping before the first estimate, one or per arm joint"),
-        Parameter("estimator_window", Int(minimum=3), default=10,
-                  description="measurements in the least-squares fit (the latest)"),
-        Parameter("estimator_minimum", Int(minimum=3), default=None,
-                  description="measurements before the estimate is first used (the first plan); null: estimator_window. "
-                              "Fewer plan sooner, more keep the estimate steadier while the arm tracks"),
-        Parameter("estimator_memory", Float("s", positive=True, plausible=(1e-3, 3600.0)), default=0.5,
-                  description="fading-memory time constant: a measurement tau seconds older weighs exp(-tau/memory)"),
-        Parameter("pose_history", Float("s", positive=True, plausible=(1e-3, 600.0)), default=1.0,
-                  description="end-effector poses kept by time: the longest measurement latency handled"),
-        Parameter("limit_window", Float("s", minimum=0.0, plausible=(0.0, 60.0)), default=0.2,
-                  description="how long needed joint rates or torques may exceed the URDF limits before the arm retreats"),
+        Parameter(
+            "hold_kp",
+            gain("1/s^2", STIFFNESS),
+            default=25.0,
+            description="computed-torque joint hold stiffness before the first estimate, one or per arm joint",
+        ),
+        Parameter(
+            "hold_kd",
+            gain("1/s", DAMPING),
+            default=10.0,
+            description="computed-torque joint hold damping before the first estimate, one or per arm joint",
+        ),
+        Parameter(
+            "estimator_window",
+            Int(minimum=3),
+            default=10,
+            description="measurements in the least-squares fit (the latest)",
+        ),
+        Parameter(
+            "estimator_minimum",
+            Int(minimum=3),
+            default=None,
+            description="measurements before the estimate is first used (the first plan); null: estimator_window. "
+            "Fewer plan sooner, more keep the estimate steadier while the arm tracks",
+        ),
+        Parameter(
+            "estimator_memory",
+            Float("s", positive=True, plausible=(1e-3, 3600.0)),
+            default=0.5,
+            description="fading-memory time constant: a measurement tau seconds older weighs exp(-tau/memory)",
+        ),
+        Parameter(
+            "pose_history",
+            Float("s", positive=True, plausible=(1e-3, 600.0)),
+            default=1.0,
+            description="end-effector poses kept by time: the longest measurement latency handled",
+        ),
+        Parameter(
+            "limit_window",
+            Float("s", minimum=0.0, plausible=(0.0, 60.0)),
+            default=0.2,
+            description="how long needed joint rates or torques may exceed the URDF limits before the arm retreats",
+        ),
     )
 
     @classmethod
@@ -181,8 +304,9 @@ class CaptureComponent(Component):
         for key in ("joints", "wheels"):
             for name in params[key]:
                 if name not in movable:
-                    raise ConfigError(key, f"{name!r} is not a movable joint of the URDF "
-                                           f"(expected one of: {', '.join(movable)})")
+                    raise ConfigError(
+                        key, f"{name!r} is not a movable joint of the URDF (expected one of: {', '.join(movable)})"
+                    )
         joints, wheels = list(params["joints"]), list(params["wheels"])
         both = [j for j in wheels if j in joints]
         if both:
@@ -192,14 +316,19 @@ class CaptureComponent(Component):
         for name in wheels:
             joint = model.joint(name)
             if joint.type != "continuous" or joint.parent != model.root:
-                raise ConfigError("wheels", f"{name!r} is a {joint.type} joint on {joint.parent!r}: expected a "
-                                            f"continuous joint on the base link {model.root!r}")
+                raise ConfigError(
+                    "wheels",
+                    f"{name!r} is a {joint.type} joint on {joint.parent!r}: expected a "
+                    f"continuous joint on the base link {model.root!r}",
+                )
             axes.append(rpy_to_matrix(joint.rpy) @ np.array(joint.axis))
             if not math.isfinite(joint.effort):
                 raise ConfigError("wheels", f"{name!r} has no effort limit in the URDF: the wheel torques need one")
         n = len(joints)
         return CaptureSetup(
-            model=model, joints=joints, wheels=wheels,
+            model=model,
+            joints=joints,
+            wheels=wheels,
             wheel_axes=np.array(axes, dtype=float).reshape(-1, 3).T,
             wheel_effort=np.array([model.joint(j).effort for j in wheels]),
             wheel_velocity=np.array([model.joint(j).velocity for j in wheels]),
@@ -207,57 +336,110 @@ class CaptureComponent(Component):
             velocity=np.array([model.joint(j).velocity for j in joints]),
             lower=np.array([model.joint(j).lower for j in joints]),
             upper=np.array([model.joint(j).upper for j in joints]),
-            shoulder=shoulder, reach=reach,
-            kp=per_item(params["kp"], 6, "kp", TASK_AXES), kd=per_item(params["kd"], 6, "kd", TASK_AXES),
-            null_kp=per_item(params["null_kp"], n, "null_kp"), null_kd=per_item(params["null_kd"], n, "null_kd"),
-            hold_kp=per_item(params["hold_kp"], n, "hold_kp"), hold_kd=per_item(params["hold_kd"], n, "hold_kd"),
+            shoulder=shoulder,
+            reach=reach,
+            kp=per_item(params["kp"], 6, "kp", TASK_AXES),
+            kd=per_item(params["kd"], 6, "kd", TASK_AXES),
+            null_kp=per_item(params["null_kp"], n, "null_kp"),
+            null_kd=per_item(params["null_kd"], n, "null_kd"),
+            hold_kp=per_item(params["hold_kp"], n, "hold_kp"),
+            hold_kd=per_item(params["hold_kd"], n, "hold_kd"),
             captured_kp=per_item(params["captured_kp"], n, "captured_kp"),
-            captured_kd=per_item(params["captured_kd"], n, "captured_kd"))
+            captured_kd=per_item(params["captured_kd"], n, "captured_kd"),
+        )
 
     @classmethod
     def validate(cls, params):
         cls.setup(params)
         minimum = params["estimator_minimum"]
         if minimum is not None and minimum > params["estimator_window"]:
-            raise ConfigError("estimator_minimum", f"expected at most estimator_window = {params['estimator_window']} "
-                                                   f"measurements, got {minimum}")
+            raise ConfigError(
+                "estimator_minimum",
+                f"expected at most estimator_window = {params['estimator_window']} measurements, got {minimum}",
+            )
 
     @classmethod
     def declare(cls, params):
         model = read_model(params["urdf"], params.get("_config_dir"), "urdf", params.get("_packages"))
         return body_signals("input", model, names=BODY_STATE) + [
-            Variable("grasp_p", "input", (3,), "m", [0.0] * 3,
-                     "measured position of the grasp frame's origin relative to the end effector, EE axes"),
-            Variable("grasp_q", "input", (4,), "1", [0.0, 0.0, 0.0, 1.0],
-                     "measured orientation of the grasp frame, q_ee_grasp [x, y, z, w]"),
+            Variable(
+                "grasp_p",
+                "input",
+                (3,),
+                "m",
+                [0.0] * 3,
+                "measured position of the grasp frame's origin relative to the end effector, EE axes",
+            ),
+            Variable(
+                "grasp_q",
+                "input",
+                (4,),
+                "1",
+                [0.0, 0.0, 0.0, 1.0],
+                "measured orientation of the grasp frame, q_ee_grasp [x, y, z, w]",
+            ),
             Variable("grasp_t", "input", (), "s", -1.0, "time the measurement was taken (it arrives late)"),
             Variable("grasp_valid", "input", (), "1", 0.0, "1 when the measurement is valid, else 0"),
             Variable("captured", "input", (), "1", 0.0, "1 once the grasp holds the target (from the dynamics)"),
-            Variable("rate_imu", "input", (3,), "rad/s", [0.0] * 3,
-                     "the bus's angular rate measured by the IMU, bus axes"),
-            Variable("wrench", "input", (6,), "N, N*m", [0.0] * 6,
-                     "wrench measured at the wrist: force then torque, EE axes"),
+            Variable(
+                "rate_imu", "input", (3,), "rad/s", [0.0] * 3, "the bus's angular rate measured by the IMU, bus axes"
+            ),
+            Variable(
+                "wrench", "input", (6,), "N, N*m", [0.0] * 6, "wrench measured at the wrist: force then torque, EE axes"
+            ),
             torque_signal("output", model, note="arm and wheels; zero on other joints"),
-            Variable("close", "output", (), "1", 0.0,
-                     "1: close the grasp (the estimated errors stayed within tolerance)"),
-            Variable("phase", "output", (), "1", 0.0,
-                     "0 wait, 1 approach, 2 closing, 3 track, 4 retreat, 5 captured, 6 aborted"),
+            Variable(
+                "close", "output", (), "1", 0.0, "1: close the grasp (the estimated errors stayed within tolerance)"
+            ),
+            Variable(
+                "phase",
+                "output",
+                (),
+                "1",
+                0.0,
+                "0 wait, 1 approach, 2 closing, 3 track, 4 retreat, 5 captured, 6 aborted",
+            ),
             Variable("attempt", "output", (), "1", 0.0, "approaches started so far"),
-            Variable("close_errors", "output", (4,), "m, rad, m/s, rad/s", [0.0] * 4,
-                     "estimated errors behind close (closing and track; else 0): position, attitude angle, "
-                     "linear velocity, angular velocity"),
-            Variable("close_within", "output", (4,), "1", [0.0] * 4,
-                     "1 where close_errors is within its tolerance (position, attitude, velocity, rate)"),
-            Variable("grasp_distance", "output", (), "m", 0.0,
-                     "estimated distance from the end effector to the grasp frame (the last measured one before "
-                     "the first estimate)"),
-            Variable("ee_error", "output", (6,), "m, rad", [0.0] * 6,
-                     "reference minus end effector: position (m), then log(R_ref R_ee^T) (rad), W; the reference "
-                     "is the blend in approach, the estimated grasp frame after"),
+            Variable(
+                "close_errors",
+                "output",
+                (4,),
+                "m, rad, m/s, rad/s",
+                [0.0] * 4,
+                "estimated errors behind close (closing and track; else 0): position, attitude angle, "
+                "linear velocity, angular velocity",
+            ),
+            Variable(
+                "close_within",
+                "output",
+                (4,),
+                "1",
+                [0.0] * 4,
+                "1 where close_errors is within its tolerance (position, attitude, velocity, rate)",
+            ),
+            Variable(
+                "grasp_distance",
+                "output",
+                (),
+                "m",
+                0.0,
+                "estimated distance from the end effector to the grasp frame (the last measured one before "
+                "the first estimate)",
+            ),
+            Variable(
+                "ee_error",
+                "output",
+                (6,),
+                "m, rad",
+                [0.0] * 6,
+                "reference minus end effector: position (m), then log(R_ref R_ee^T) (rad), W; the reference "
+                "is the blend in approach, the estimated grasp frame after",
+            ),
             Variable("grasp_position_est", "output", (3,), "m", [0.0] * 3, "estimated grasp frame origin, W"),
             Variable("grasp_velocity_est", "output", (3,), "m/s", [0.0] * 3, "its estimated velocity, W"),
-            Variable("grasp_rate_est", "output", (3,), "rad/s", [0.0] * 3,
-                     "estimated angular velocity of the grasp frame, W"),
+            Variable(
+                "grasp_rate_est", "output", (3,), "rad/s", [0.0] * 3, "estimated angular velocity of the grasp frame, W"
+            ),
         ]
 
     def __init__(self, params):
@@ -266,7 +448,7 @@ class CaptureComponent(Component):
         super().__init__(params)
         self.config = self.setup(params)
         self.controller = self._build()
-        warm = self._build()   # the first control step comes with the approach, seconds into the run
+        warm = self._build()  # the first control step comes with the approach, seconds into the run
         compile_kernels(warm.arm, warm.law)
 
     def _build(self):
@@ -276,32 +458,64 @@ class CaptureComponent(Component):
 
         c, p = self.config, self.params
         arm = FreeFloatingArm(c.model, c.model.movable_joints, c.joints, p["end_effector"])
-        law = ComputedTorqueLaw(c.kp, c.kd, c.null_kp, c.null_kd, c.effort,
-                                dls_threshold=p["dls_threshold"], dls_damping=p["dls_damping"])
+        law = ComputedTorqueLaw(
+            c.kp, c.kd, c.null_kp, c.null_kd, c.effort, dls_threshold=p["dls_threshold"], dls_damping=p["dls_damping"]
+        )
         settings = CaptureSettings(
-            approach_time=p["approach_time"], closing_time=p["closing_time"], standoff=p["standoff"],
-            track_time=p["track_time"], attempts=p["attempts"], capture_timeout=p["capture_timeout"],
-            replan_period=p["replan_period"], singularity_margin=p["singularity_margin"],
-            rate_fraction=p["rate_fraction"], joint_margin=p["joint_margin"],
+            approach_time=p["approach_time"],
+            closing_time=p["closing_time"],
+            standoff=p["standoff"],
+            track_time=p["track_time"],
+            attempts=p["attempts"],
+            capture_timeout=p["capture_timeout"],
+            replan_period=p["replan_period"],
+            singularity_margin=p["singularity_margin"],
+            rate_fraction=p["rate_fraction"],
+            joint_margin=p["joint_margin"],
             position_tolerance=p["position_tolerance"],
-            attitude_tolerance=p["attitude_tolerance"], velocity_tolerance=p["velocity_tolerance"],
-            rate_tolerance=p["rate_tolerance"], tolerance_time=p["tolerance_time"],
-            grasp_force_limit=p["grasp_force_limit"], grasp_torque_limit=p["grasp_torque_limit"],
-            detumble_gain=p["detumble_gain"], wrench_recovery_time=p["wrench_recovery_time"],
-            hold_kp=c.hold_kp, hold_kd=c.hold_kd, captured_kp=c.captured_kp, captured_kd=c.captured_kd,
+            attitude_tolerance=p["attitude_tolerance"],
+            velocity_tolerance=p["velocity_tolerance"],
+            rate_tolerance=p["rate_tolerance"],
+            tolerance_time=p["tolerance_time"],
+            grasp_force_limit=p["grasp_force_limit"],
+            grasp_torque_limit=p["grasp_torque_limit"],
+            detumble_gain=p["detumble_gain"],
+            wrench_recovery_time=p["wrench_recovery_time"],
+            hold_kp=c.hold_kp,
+            hold_kd=c.hold_kd,
+            captured_kp=c.captured_kp,
+            captured_kd=c.captured_kd,
             estimator_window=p["estimator_window"],
             estimator_minimum=p["estimator_window"] if p["estimator_minimum"] is None else p["estimator_minimum"],
-            estimator_memory=p["estimator_memory"], pose_history=p["pose_history"], limit_window=p["limit_window"],
-            shoulder=c.shoulder, reach=c.reach, arm_velocity=c.velocity, arm_lower=c.lower, arm_upper=c.upper,
+            estimator_memory=p["estimator_memory"],
+            pose_history=p["pose_history"],
+            limit_window=p["limit_window"],
+            shoulder=c.shoulder,
+            reach=c.reach,
+            arm_velocity=c.velocity,
+            arm_lower=c.lower,
+            arm_upper=c.upper,
             wheel_axes=c.wheel_axes,
-            wheel_effort=c.wheel_effort, wheel_velocity=c.wheel_velocity)
+            wheel_effort=c.wheel_effort,
+            wheel_velocity=c.wheel_velocity,
+        )
         return CaptureController(arm, law, settings, c.wheels)
 
     def _idle_outputs(self) -> dict[str, np.ndarray]:
         z3 = np.zeros(3)
-        return {"tau": np.zeros(self.controller.arm.n_body), "close": 0.0, "phase": 0.0, "attempt": 0.0,
-                "grasp_distance": 0.0, "ee_error": np.zeros(6), "close_errors": np.zeros(4), "close_within": np.zeros(4),
-                "grasp_position_est": z3, "grasp_velocity_est": z3, "grasp_rate_est": z3}
+        return {
+            "tau": np.zeros(self.controller.arm.n_body),
+            "close": 0.0,
+            "phase": 0.0,
+            "attempt": 0.0,
+            "grasp_distance": 0.0,
+            "ee_error": np.zeros(6),
+            "close_errors": np.zeros(4),
+            "close_within": np.zeros(4),
+            "grasp_position_est": z3,
+            "grasp_velocity_est": z3,
+            "grasp_rate_est": z3,
+        }
 
     def initialize(self, t0_ns, inputs):
         self.controller = self._build()

@@ -36,11 +36,12 @@ polynomials to ``tau = t - t_N``: ``R = exp(phi) R_N``, ``w = J_l(phi) phi'``,
 extrapolated (``grasp_valid`` = 0 keeps measurements out, not the fit). Deterministic (LAPACK
 least squares on the same numbers).
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Callable, Mapping
 
 import numpy as np
 
@@ -49,15 +50,15 @@ from components.controller.trajectory import PoseSample
 from components.errors import ComponentError
 from components.rotations import exp_so3, log_so3, quat_to_matrix, skew
 
-
 # --------------------------------------------------------------------------- SO(3)
+
 
 def left_jacobian(phi) -> np.ndarray:
     """Left Jacobian of SO(3): d/dt exp(phi) = [J_l(phi) phi']x exp(phi)."""
     phi = np.asarray(phi, dtype=float)
     t2 = float(phi @ phi)
     K = skew(phi)
-    if t2 < 1e-4:                                 # series: the closed forms cancel at small angles
+    if t2 < 1e-4:  # series: the closed forms cancel at small angles
         a, b = 0.5 - t2 * (1.0 / 24.0 - t2 / 720.0), 1.0 / 6.0 - t2 * (1.0 / 120.0 - t2 / 5040.0)
     else:
         t = math.sqrt(t2)
@@ -71,21 +72,22 @@ def left_jacobian_rate(phi, dphi) -> np.ndarray:
     phi, dphi = np.asarray(phi, dtype=float), np.asarray(dphi, dtype=float)
     t2 = float(phi @ phi)
     K, dK = skew(phi), skew(dphi)
-    dot = float(phi @ dphi)                                  # t t'
-    if t2 < 1e-4:                                            # series (the closed forms cancel)
+    dot = float(phi @ dphi)  # t t'
+    if t2 < 1e-4:  # series (the closed forms cancel)
         a, b = 0.5 - t2 * (1.0 / 24.0 - t2 / 720.0), 1.0 / 6.0 - t2 * (1.0 / 120.0 - t2 / 5040.0)
-        da_t = -1.0 / 12.0 + t2 * (1.0 / 180.0 - t2 / 6720.0)   # a'(t) / t
+        da_t = -1.0 / 12.0 + t2 * (1.0 / 180.0 - t2 / 6720.0)  # a'(t) / t
         db_t = -1.0 / 60.0 + t2 * (1.0 / 1260.0 - t2 / 90720.0)  # b'(t) / t
     else:
         t = math.sqrt(t2)
         c, sn = math.cos(t), math.sin(t)
         a, b = (1.0 - c) / t2, (t - sn) / (t2 * t)
-        da_t = (t * sn - 2.0 * (1.0 - c)) / (t2 * t2)        # a'(t) / t
+        da_t = (t * sn - 2.0 * (1.0 - c)) / (t2 * t2)  # a'(t) / t
         db_t = ((1.0 - c) * t - 3.0 * (t - sn)) / (t2 * t2 * t)
     return (da_t * dot) * K + a * dK + (db_t * dot) * (K @ K) + b * (dK @ K + K @ dK)
 
 
 # --------------------------------------------------------------------------- estimator
+
 
 @dataclass(frozen=True)
 class MotionFit:
@@ -99,6 +101,7 @@ class MotionFit:
     | phi, dphi, ddphi | rad, rad/s, rad/s^2 | fitted rotation vector relative to R and its rates at t |
     | rate_sigma | rad/s | standard error of |dphi| from the fit's residuals (NaN: too few measurements) |
     """
+
     t: float
     p: np.ndarray
     v: np.ndarray
@@ -116,20 +119,36 @@ class MotionFit:
         phi = self.phi + tau * self.dphi + (0.5 * tau * tau) * self.ddphi
         dphi = self.dphi + tau * self.ddphi
         J = left_jacobian(phi)
-        return PoseSample(p, self.v + tau * self.a, self.a.copy(), exp_so3(phi) @ self.R,
-                          J @ dphi, J @ self.ddphi + left_jacobian_rate(phi, dphi) @ dphi)
+        return PoseSample(
+            p,
+            self.v + tau * self.a,
+            self.a.copy(),
+            exp_so3(phi) @ self.R,
+            J @ dphi,
+            J @ self.ddphi + left_jacobian_rate(phi, dphi) @ dphi,
+        )
 
     def to_array(self) -> np.ndarray:
-        return np.concatenate([[self.t], self.p, self.v, self.a, self.R.ravel(), self.phi, self.dphi, self.ddphi,
-                               [self.rate_sigma]])
+        return np.concatenate(
+            [[self.t], self.p, self.v, self.a, self.R.ravel(), self.phi, self.dphi, self.ddphi, [self.rate_sigma]]
+        )
 
     @classmethod
-    def from_array(cls, x) -> "MotionFit":
+    def from_array(cls, x) -> MotionFit:
         x = np.asarray(x, dtype=float)
         if x.size != 29:
             raise ValueError(f"state: a motion fit has 29 values, got {x.size}")
-        return cls(float(x[0]), x[1:4].copy(), x[4:7].copy(), x[7:10].copy(), x[10:19].reshape(3, 3).copy(),
-                   x[19:22].copy(), x[22:25].copy(), x[25:28].copy(), float(x[28]))
+        return cls(
+            float(x[0]),
+            x[1:4].copy(),
+            x[4:7].copy(),
+            x[7:10].copy(),
+            x[10:19].reshape(3, 3).copy(),
+            x[19:22].copy(),
+            x[22:25].copy(),
+            x[25:28].copy(),
+            float(x[28]),
+        )
 
 
 def fit_motion(times, positions, rotations, memory: float) -> MotionFit:
@@ -142,19 +161,21 @@ def fit_motion(times, positions, rotations, memory: float) -> MotionFit:
     rotations = np.asarray(rotations, dtype=float).reshape(-1, 3, 3)
     k = times.size
     if k == 0 or positions.shape[0] != k or rotations.shape[0] != k:
-        raise ValueError(f"fit_motion: expected as many times, positions and rotations (>= 1), got "
-                         f"{k}, {positions.shape[0]}, {rotations.shape[0]}")
+        raise ValueError(
+            f"fit_motion: expected as many times, positions and rotations (>= 1), got "
+            f"{k}, {positions.shape[0]}, {rotations.shape[0]}"
+        )
     t_ref, R_ref = float(times[-1]), rotations[-1].copy()
     tau = times - t_ref
     span = float(-tau[0]) if k > 1 else 1.0
     if not span > 0.0:
         raise ValueError("fit_motion: expected increasing times")
-    u = tau / span                                            # in [-1, 0]: a well-conditioned basis
+    u = tau / span  # in [-1, 0]: a well-conditioned basis
     Y = np.empty((k, 6))
     Y[:, :3] = positions
     Y[:, 3:] = [log_so3(R @ R_ref.T) for R in rotations]
     order = min(2, k - 1)
-    A = np.column_stack([np.ones(k), u, 0.5 * u * u][:order + 1])
+    A = np.column_stack([np.ones(k), u, 0.5 * u * u][: order + 1])
     sw = np.sqrt(np.exp(tau / memory)) if math.isfinite(memory) else np.ones(k)
     Aw = A * sw[:, None]
     coef = np.linalg.lstsq(Aw, Y * sw[:, None], rcond=None)[0]
@@ -166,7 +187,7 @@ def fit_motion(times, positions, rotations, memory: float) -> MotionFit:
         variance = float(np.sum(residual * residual)) / (3.0 * (k - order - 1))
         rate_sigma = math.sqrt(3.0 * variance * np.linalg.inv(Aw.T @ Aw)[1, 1]) / span
     c = np.zeros((3, 6))
-    c[:order + 1] = coef
+    c[: order + 1] = coef
     c[1] /= span
     c[2] /= span * span
     return MotionFit(t_ref, c[0, :3], c[1, :3], c[2, :3], R_ref, c[0, 3:], c[1, 3:], c[2, 3:], rate_sigma)
@@ -182,8 +203,9 @@ class GraspEstimator:
         self.window, self.memory = int(window), float(memory)
         self.minimum = self.window if minimum is None else int(minimum)
         if not 1 <= self.minimum <= self.window:
-            raise ValueError(f"estimator_minimum: expected 1 to estimator_window = {self.window} measurements, "
-                             f"got {self.minimum}")
+            raise ValueError(
+                f"estimator_minimum: expected 1 to estimator_window = {self.window} measurements, got {self.minimum}"
+            )
         self.t, self.p, self.R = np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3, 3))
         self.fit: MotionFit | None = None
 
@@ -207,8 +229,12 @@ class GraspEstimator:
         self.fit = fit_motion(self.t, self.p, self.R, self.memory)
 
     def get_state(self, prefix: str) -> dict[str, np.ndarray]:
-        return {f"{prefix}t": self.t.copy(), f"{prefix}p": self.p.copy(), f"{prefix}R": self.R.copy(),
-                f"{prefix}fit": self.fit.to_array() if self.fit is not None else np.zeros(0)}
+        return {
+            f"{prefix}t": self.t.copy(),
+            f"{prefix}p": self.p.copy(),
+            f"{prefix}R": self.R.copy(),
+            f"{prefix}fit": self.fit.to_array() if self.fit is not None else np.zeros(0),
+        }
 
     def set_state(self, state: Mapping[str, np.ndarray], prefix: str) -> None:
         t = np.asarray(state[f"{prefix}t"], dtype=float).ravel()
@@ -233,12 +259,17 @@ class PoseHistory:
         return bool(self.t) and self.t[-1] - self.t[0] >= self.span
 
     def record(self, t: float, p, R, v, w) -> None:
-        entry = (float(t), np.array(p, dtype=float), np.array(R, dtype=float), np.array(v, dtype=float),
-                 np.array(w, dtype=float))
+        entry = (
+            float(t),
+            np.array(p, dtype=float),
+            np.array(R, dtype=float),
+            np.array(v, dtype=float),
+            np.array(w, dtype=float),
+        )
         if self.t and t <= self.t[-1]:
             if t < self.t[-1]:
                 raise ValueError(f"end-effector pose at t = {t} s is older than the last one ({self.t[-1]} s)")
-            for column, value in zip((self.t, self.p, self.R, self.v, self.w), entry):   # same time: replace
+            for column, value in zip((self.t, self.p, self.R, self.v, self.w), entry):  # same time: replace
                 column[-1] = value
             return
         for column, value in zip((self.t, self.p, self.R, self.v, self.w), entry):
@@ -264,9 +295,13 @@ class PoseHistory:
 
     def get_state(self, prefix: str) -> dict[str, np.ndarray]:
         n = len(self.t)
-        return {f"{prefix}t": np.array(self.t, dtype=float), f"{prefix}p": np.array(self.p).reshape(n, 3),
-                f"{prefix}R": np.array(self.R).reshape(n, 3, 3), f"{prefix}v": np.array(self.v).reshape(n, 3),
-                f"{prefix}w": np.array(self.w).reshape(n, 3)}
+        return {
+            f"{prefix}t": np.array(self.t, dtype=float),
+            f"{prefix}p": np.array(self.p).reshape(n, 3),
+            f"{prefix}R": np.array(self.R).reshape(n, 3, 3),
+            f"{prefix}v": np.array(self.v).reshape(n, 3),
+            f"{prefix}w": np.array(self.w).reshape(n, 3),
+        }
 
     def set_state(self, state: Mapping[str, np.ndarray], prefix: str) -> None:
         t = np.asarray(state[f"{prefix}t"], dtype=float).ravel()
@@ -286,8 +321,8 @@ class GraspTracker:
     def __init__(self, window: int, memory: float, minimum: int, pose_history: float):
         self.estimator = GraspEstimator(window, memory, minimum)
         self.history = PoseHistory(pose_history)
-        self.last_seen = -math.inf            # time of the last measurement looked at
-        self.last_distance = 0.0              # |grasp_p| of the last measurement taken
+        self.last_seen = -math.inf  # time of the last measurement looked at
+        self.last_distance = 0.0  # |grasp_p| of the last measurement taken
 
     def record(self, t: float, s: ArmState) -> None:
         """The end effector's pose and twist at t (the state measured then)."""
@@ -306,8 +341,9 @@ class GraspTracker:
             if self.history.full:
                 raise ComponentError(
                     f"the grasp measurement of t = {t_m:.6g} s arrives {t - t_m:.6g} s late; the controller keeps "
-                    f"end-effector poses for pose_history = {self.history.span:g} s: raise pose_history")
-            return                                  # taken before the controller's first state
+                    f"end-effector poses for pose_history = {self.history.span:g} s: raise pose_history"
+                )
+            return  # taken before the controller's first state
         q = np.asarray(x["grasp_q"], dtype=float)
         if not 0.5 < float(np.linalg.norm(q)) < 2.0:
             raise ComponentError(f"grasp_q: expected a unit quaternion [x, y, z, w], got {q.tolist()}")
@@ -321,8 +357,12 @@ class GraspTracker:
         return self.estimator.fit.sample(t) if self.estimator.ready else None
 
     def get_state(self) -> dict[str, np.ndarray]:
-        return {"last_seen": np.float64(self.last_seen), "last_distance": np.float64(self.last_distance),
-                **self.estimator.get_state("estimator."), **self.history.get_state("history.")}
+        return {
+            "last_seen": np.float64(self.last_seen),
+            "last_distance": np.float64(self.last_distance),
+            **self.estimator.get_state("estimator."),
+            **self.history.get_state("history."),
+        }
 
     def set_state(self, state: Mapping[str, np.ndarray], read: Callable[[str, int], np.ndarray]) -> None:
         """``read(key, size)``: the state's value, checked."""

@@ -42,10 +42,11 @@ the grapple leaves the reach sphere about the shoulder, or when following it nee
 (the Generalized Jacobian's inverse on the reference twist, or the measured rates when larger) or
 torques beyond the URDF limits for longer than ``limit_window``.
 """
+
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -56,17 +57,23 @@ from components.controller.trajectory import PoseSample, quintic
 from components.rotations import exp_so3
 
 
-def closing_reference(t: float, start: float, offset: np.ndarray, rotation: np.ndarray, duration: float,
-                      g: PoseSample) -> PoseSample:
+def closing_reference(
+    t: float, start: float, offset: np.ndarray, rotation: np.ndarray, duration: float, g: PoseSample
+) -> PoseSample:
     """The grasp frame g with the end effector's offset and rotation vector at ``start`` (grasp
     frame axes) shrinking to zero by a quintic over ``duration`` (module doc)."""
     s, ds, dds = quintic(t, start, duration)
     f, df, ddf = 1.0 - s, -ds, -dds
     r, dr, ddr = g.R @ (f * offset), g.R @ (df * offset), g.R @ (ddf * offset)
     u, du = g.R @ (df * rotation), g.R @ (ddf * rotation)
-    return PoseSample(g.p + r, g.v + np.cross(g.w, r) + dr,
-                      g.a + np.cross(g.dw, r) + np.cross(g.w, np.cross(g.w, r)) + 2.0 * np.cross(g.w, dr) + ddr,
-                      g.R @ exp_so3(f * rotation), g.w + u, g.dw + np.cross(g.w, u) + du)
+    return PoseSample(
+        g.p + r,
+        g.v + np.cross(g.w, r) + dr,
+        g.a + np.cross(g.dw, r) + np.cross(g.w, np.cross(g.w, r)) + 2.0 * np.cross(g.w, dr) + ddr,
+        g.R @ exp_so3(f * rotation),
+        g.w + u,
+        g.dw + np.cross(g.w, u) + du,
+    )
 
 
 class JointLaw:
@@ -122,8 +129,10 @@ class WheelLaw:
         """The wrench factor after a control period h with the wrist ``wrench`` measured."""
         cfg = self.cfg
         wrench = np.asarray(wrench, dtype=float)
-        excess = max(float(np.linalg.norm(wrench[:3])) / cfg.grasp_force_limit,
-                     float(np.linalg.norm(wrench[3:])) / cfg.grasp_torque_limit)
+        excess = max(
+            float(np.linalg.norm(wrench[:3])) / cfg.grasp_force_limit,
+            float(np.linalg.norm(wrench[3:])) / cfg.grasp_torque_limit,
+        )
         return scale / excess if excess > 1.0 else min(1.0, scale + h / cfg.wrench_recovery_time)
 
 
@@ -149,26 +158,34 @@ class LimitWatch:
         centre = np.array(self.arm.data.oMi[self.shoulder_id].translation)
         distance = float(np.linalg.norm(g.p - centre))
         if distance > cfg.reach:
-            return (f"the grasp point is {distance:.2f} m from the shoulder; the arm reaches "
-                    f"{cfg.reach:.2f} m (estimated at t = {t:.3f} s, from {cfg.shoulder})")
+            return (
+                f"the grasp point is {distance:.2f} m from the shoulder; the arm reaches "
+                f"{cfg.reach:.2f} m (estimated at t = {t:.3f} s, from {cfg.shoulder})"
+            )
         J_plus, _, _ = dls_inverse(s.J_g, law.eps, law.lam)
         momentum_share = s.xdot - s.J_g @ s.qd
         qd_needed = J_plus @ (np.concatenate([d.v, d.w]) - momentum_share)
         qd_needed = np.where(np.abs(s.qd) > np.abs(qd_needed), s.qd, qd_needed)
         tau_needed = s.M_star @ qdd + s.C_star
         for since, needed, limit, what, unit in (
-                (self.rate_since, qd_needed, cfg.arm_velocity, "velocity", "rad/s"),
-                (self.torque_since, tau_needed, law.effort, "effort", "N m")):
+            (self.rate_since, qd_needed, cfg.arm_velocity, "velocity", "rad/s"),
+            (self.torque_since, tau_needed, law.effort, "effort", "N m"),
+        ):
             over = np.abs(needed) > limit
             since[~over] = math.nan
             since[over & np.isnan(since)] = t
             late = over & (t - since > cfg.limit_window)
             if np.any(late):
                 i = int(np.flatnonzero(late)[np.argmax((np.abs(needed) / limit)[late])])
-                doing = (f"following the grasp point needs {self.arm_names[i]} at" if what == "velocity" else
-                         f"the arm's torques saturate: {self.arm_names[i]} needs")
-                return (f"{doing} {abs(needed[i]):.3g} {unit} for {t - since[i]:.3g} s (longer than limit_window = "
-                        f"{cfg.limit_window:g} s); its URDF {what} limit is {limit[i]:.3g} {unit}")
+                doing = (
+                    f"following the grasp point needs {self.arm_names[i]} at"
+                    if what == "velocity"
+                    else f"the arm's torques saturate: {self.arm_names[i]} needs"
+                )
+                return (
+                    f"{doing} {abs(needed[i]):.3g} {unit} for {t - since[i]:.3g} s (longer than limit_window = "
+                    f"{cfg.limit_window:g} s); its URDF {what} limit is {limit[i]:.3g} {unit}"
+                )
         return ""
 
     def get_state(self) -> dict[str, np.ndarray]:

@@ -49,6 +49,7 @@ grasp frame moved back ``standoff`` along its z) the arm reaches by then within
 ``LONGEST_SCAN``, and not past ``capture_timeout``); a grapple that turns less than ``STILL`` over
 that, or slower than the estimator can tell, is still: its one pose is its whole turn.
 """
+
 from __future__ import annotations
 
 import math
@@ -62,16 +63,17 @@ from components.controller.computed_torque import ArmState, FreeFloatingArm
 from components.controller.trajectory import PoseSample
 from components.rotations import exp_so3, skew
 
-PLAN_STEP = 0.5           # s between the planner's samples of the predicted grapple motion
-WINDOW_MARGIN = 0.5       # s of following beyond closing_time + tolerance_time a window must offer
-LONGEST_SCAN = 180.0      # s: the planner looks no further ahead than this
-SHORTEST_APPROACH = 1.0   # s: the quickest joint move onto the pre-grasp pose
-STILL = 0.02              # rad over LONGEST_SCAN: a grapple turning less is taken as still
+PLAN_STEP = 0.5  # s between the planner's samples of the predicted grapple motion
+WINDOW_MARGIN = 0.5  # s of following beyond closing_time + tolerance_time a window must offer
+LONGEST_SCAN = 180.0  # s: the planner looks no further ahead than this
+SHORTEST_APPROACH = 1.0  # s: the quickest joint move onto the pre-grasp pose
+STILL = 0.02  # rad over LONGEST_SCAN: a grapple turning less is taken as still
 MOVE_RATE_FRACTION = 0.8  # share of the URDF velocity limits a joint move may reach
-CONTINUITY = 0.5          # rad: the largest joint change between two samples of one window
+CONTINUITY = 0.5  # rad: the largest joint change between two samples of one window
 
 
 # --------------------------------------------------------------------------- prediction
+
 
 class RigidPrediction:
     """The grapple as a point of a rigid body turning at a constant rate about a point that
@@ -97,11 +99,13 @@ class RigidPrediction:
         E = exp_so3(self.w * dt)
         r = E @ self.r
         v = self.v_c + np.cross(self.w, r)
-        return PoseSample(self.c + self.v_c * dt + r, v, np.cross(self.w, np.cross(self.w, r)), E @ self.R,
-                          self.w.copy(), np.zeros(3))
+        return PoseSample(
+            self.c + self.v_c * dt + r, v, np.cross(self.w, np.cross(self.w, r)), E @ self.R, self.w.copy(), np.zeros(3)
+        )
 
 
 # --------------------------------------------------------------------------- kinematics
+
 
 @dataclass(frozen=True)
 class Verdict:
@@ -115,6 +119,7 @@ class Verdict:
     | reason | - | the first check that failed, with its figure ('' when feasible) |
     | score | - | how far inside the limits (min of the margins' ratios; < 1: infeasible) |
     """
+
     q: np.ndarray
     qd: np.ndarray
     feasible: bool
@@ -125,6 +130,7 @@ class Verdict:
 @dataclass(frozen=True)
 class Limits:
     """What the planner asks of a configuration (module doc)."""
+
     lower: np.ndarray
     upper: np.ndarray
     velocity: np.ndarray
@@ -139,12 +145,13 @@ class ArmKinematics:
     (module doc). ``names`` are the arm joints (for messages)."""
 
     ITERATIONS = 30
-    TOLERANCE = 1e-7         # |log6| (m, rad) at convergence
+    TOLERANCE = 1e-7  # |log6| (m, rad) at convergence
     DAMPING = 1e-3
-    MAX_STEP = 0.5           # rad: the largest joint change of one Newton step (far seeds converge)
+    MAX_STEP = 0.5  # rad: the largest joint change of one Newton step (far seeds converge)
 
-    def __init__(self, model, arm_v: np.ndarray, arm_q: np.ndarray, ee: int, shoulder: int,
-                 names: list[str], limits: Limits):
+    def __init__(
+        self, model, arm_v: np.ndarray, arm_q: np.ndarray, ee: int, shoulder: int, names: list[str], limits: Limits
+    ):
         import pinocchio as pin
 
         self.pin, self.model, self.data = pin, model, model.createData()
@@ -166,10 +173,10 @@ class ArmKinematics:
             pin.forwardKinematics(model, data, x)
             M = pin.updateFramePlacement(model, data, self.ee)
             e = pin.log6(M.actInv(target)).vector
-            if float(e @ e) < self.TOLERANCE ** 2:
+            if float(e @ e) < self.TOLERANCE**2:
                 return q
             J = pin.computeFrameJacobian(model, data, x, self.ee, pin.LOCAL)[:, self.arm_v]
-            dq = J.T @ np.linalg.solve(J @ J.T + self.DAMPING ** 2 * np.eye(6), e)
+            dq = J.T @ np.linalg.solve(J @ J.T + self.DAMPING**2 * np.eye(6), e)
             size = float(np.max(np.abs(dq)))
             q = q + (dq if size <= self.MAX_STEP else dq * (self.MAX_STEP / size))
         return None
@@ -181,10 +188,19 @@ class ArmKinematics:
         if q is None:
             nan = np.full(n, math.nan)
             distance = self.shoulder_distance(q_pin, point)
-            where = ("the arm reaches" if distance > L.reach else
-                     "within the arm's reach but not in this orientation; the arm reaches")
-            return Verdict(nan, nan, False, f"no inverse kinematics solution: the grasp point is {distance:.2f} m "
-                                            f"from the shoulder, {where} {L.reach:.2f} m", 0.0)
+            where = (
+                "the arm reaches"
+                if distance > L.reach
+                else "within the arm's reach but not in this orientation; the arm reaches"
+            )
+            return Verdict(
+                nan,
+                nan,
+                False,
+                f"no inverse kinematics solution: the grasp point is {distance:.2f} m "
+                f"from the shoulder, {where} {L.reach:.2f} m",
+                0.0,
+            )
         pin, model, data = self.pin, self.model, self.data
         x = self._configure(q_pin, q)
         pin.computeJointJacobians(model, data, x)
@@ -192,26 +208,33 @@ class ArmKinematics:
         J = pin.getFrameJacobian(model, data, self.ee, pin.LOCAL_WORLD_ALIGNED)[:, self.arm_v]
         sigma = np.linalg.svd(J, compute_uv=False)
         qd = np.linalg.solve(J, twist) if sigma[-1] > 1e-9 else np.full(n, math.inf)
-        margins = [(min(float(np.min(q - L.lower)), float(np.min(L.upper - q))) / L.joint_margin,
-                    "joint position", q),
-                   (float(sigma[-1]) / L.sigma_min, "singularity", None),
-                   (float(np.min(L.rate_fraction * L.velocity / np.maximum(np.abs(qd), 1e-12))), "joint rate", qd)]
+        margins = [
+            (min(float(np.min(q - L.lower)), float(np.min(L.upper - q))) / L.joint_margin, "joint position", q),
+            (float(sigma[-1]) / L.sigma_min, "singularity", None),
+            (float(np.min(L.rate_fraction * L.velocity / np.maximum(np.abs(qd), 1e-12))), "joint rate", qd),
+        ]
         score = min(m for m, _, _ in margins)
         reason = ""
-        if score < 1.0:     # the first that fails, in this order: a singular arm's rates follow from it
-            ratio, what, values = next(m for m in margins if m[0] < 1.0)
+        if score < 1.0:  # the first that fails, in this order: a singular arm's rates follow from it
+            _ratio, what, _values = next(m for m in margins if m[0] < 1.0)
             if what == "joint position":
                 gap = np.minimum(q - L.lower, L.upper - q)
                 i = int(np.argmin(gap))
-                reason = (f"{self.names[i]} at {q[i]:.3g} rad is within {L.joint_margin:g} rad of its URDF limits "
-                          f"[{L.lower[i]:.3g}, {L.upper[i]:.3g}]")
+                reason = (
+                    f"{self.names[i]} at {q[i]:.3g} rad is within {L.joint_margin:g} rad of its URDF limits "
+                    f"[{L.lower[i]:.3g}, {L.upper[i]:.3g}]"
+                )
             elif what == "singularity":
-                reason = (f"the arm is near a singularity (smallest singular value of its Jacobian "
-                          f"{sigma[-1]:.3g} < {L.sigma_min:g})")
+                reason = (
+                    f"the arm is near a singularity (smallest singular value of its Jacobian "
+                    f"{sigma[-1]:.3g} < {L.sigma_min:g})"
+                )
             else:
                 i = int(np.argmax(np.abs(qd) / L.velocity))
-                reason = (f"following the grapple needs {self.names[i]} at {abs(qd[i]):.3g} rad/s, more than "
-                          f"{L.rate_fraction:g} of its URDF velocity limit {L.velocity[i]:.3g} rad/s")
+                reason = (
+                    f"following the grapple needs {self.names[i]} at {abs(qd[i]):.3g} rad/s, more than "
+                    f"{L.rate_fraction:g} of its URDF velocity limit {L.velocity[i]:.3g} rad/s"
+                )
         return Verdict(np.array(q), qd, score >= 1.0, reason, score)
 
     def shoulder_distance(self, q_pin: np.ndarray, point: np.ndarray) -> float:
@@ -221,6 +244,7 @@ class ArmKinematics:
 
 
 # --------------------------------------------------------------------------- joint move
+
 
 class JointMove:
     """Quintic joint trajectory from (q0, qd0, qdd 0) at t0 to (q1, qd1, qdd 0) at t0 + T; beyond
@@ -258,16 +282,17 @@ class JointMove:
         return np.concatenate([[self.t0, self.T], self.c.ravel(), self.q1, self.qd1])
 
     @classmethod
-    def from_array(cls, x, n: int) -> "JointMove":
+    def from_array(cls, x, n: int) -> JointMove:
         x = np.asarray(x, dtype=float)
         move = cls.__new__(cls)
         move.t0, move.T = float(x[0]), float(x[1])
-        move.c = x[2:2 + 5 * n].reshape(5, n).copy()
-        move.q1, move.qd1 = x[2 + 5 * n:2 + 6 * n].copy(), x[2 + 6 * n:2 + 7 * n].copy()
+        move.c = x[2 : 2 + 5 * n].reshape(5, n).copy()
+        move.q1, move.qd1 = x[2 + 5 * n : 2 + 6 * n].copy(), x[2 + 6 * n : 2 + 7 * n].copy()
         return move
 
 
 # --------------------------------------------------------------------------- windows
+
 
 @dataclass(frozen=True)
 class Look:
@@ -279,6 +304,7 @@ class Look:
     | reason | why there is no approach now: the check that failed at the best sample ('' when waiting for a window) |
     | give_up | why the capture should be given up ('' while a window may still come) |
     """
+
     approach: tuple[float, np.ndarray, np.ndarray] | None
     reason: str = ""
     give_up: str = ""
@@ -293,13 +319,27 @@ class WindowPlanner:
         shoulder = arm.model.getJointId(settings.shoulder)
         names = list(arm.arm_joints)
         arm_q = np.array([arm.model.joints[arm.model.getJointId(j)].idx_q for j in names])
-        self.kinematics = ArmKinematics(arm.model, arm.arm_v, arm_q, arm.ee, shoulder, names, Limits(
-            np.asarray(settings.arm_lower, float), np.asarray(settings.arm_upper, float),
-            np.asarray(settings.arm_velocity, float), settings.joint_margin, settings.singularity_margin,
-            settings.rate_fraction, settings.reach))
+        self.kinematics = ArmKinematics(
+            arm.model,
+            arm.arm_v,
+            arm_q,
+            arm.ee,
+            shoulder,
+            names,
+            Limits(
+                np.asarray(settings.arm_lower, float),
+                np.asarray(settings.arm_upper, float),
+                np.asarray(settings.arm_velocity, float),
+                settings.joint_margin,
+                settings.singularity_margin,
+                settings.rate_fraction,
+                settings.reach,
+            ),
+        )
 
-    def look(self, t: float, s: ArmState, g: PoseSample, base_p, base_twist, estimator: GraspEstimator,
-             q_posture: np.ndarray) -> Look:
+    def look(
+        self, t: float, s: ArmState, g: PoseSample, base_p, base_twist, estimator: GraspEstimator, q_posture: np.ndarray
+    ) -> Look:
         """The window from the grapple's estimate g at t, the base's position and twist (W) and the
         arm's state s; ``q_posture`` seeds the inverse kinematics besides the arm's configuration."""
         cfg = self.cfg
@@ -311,7 +351,7 @@ class WindowPlanner:
         relative_rate = float(np.linalg.norm(prediction.w - base_w))
         fit = estimator.fit
         negligible = relative_rate * LONGEST_SCAN < STILL
-        unresolved = not negligible and estimator.full and relative_rate < 3.0 * fit.rate_sigma   # noise
+        unresolved = not negligible and estimator.full and relative_rate < 3.0 * fit.rate_sigma  # noise
         still = negligible or unresolved
         turn = 0.0 if still else 2.0 * math.pi / relative_rate
         horizon = min(turn, LONGEST_SCAN, max(cfg.capture_timeout - t - SHORTEST_APPROACH, 0.0))
@@ -321,13 +361,18 @@ class WindowPlanner:
         if not (t >= cfg.capture_timeout or (not found and horizon >= turn)):
             return Look(None, reason)
         if turn == 0.0:
-            scope = ("(it does not turn)" if not unresolved else
-                     f"(it does not turn that the estimator can tell: {math.degrees(relative_rate):.2g} deg/s, "
-                     f"standard error {math.degrees(fit.rate_sigma):.2g} deg/s)")
+            scope = (
+                "(it does not turn)"
+                if not unresolved
+                else f"(it does not turn that the estimator can tell: {math.degrees(relative_rate):.2g} deg/s, "
+                f"standard error {math.degrees(fit.rate_sigma):.2g} deg/s)"
+            )
         else:
-            scope = (f"{'in a whole turn of the tumble' if horizon >= turn else 'by capture_timeout'} "
-                     f"({math.degrees(relative_rate):.3g} deg/s about a centre {distance:.3g} m from the "
-                     f"shoulder; the arm reaches {cfg.reach:.3g} m)")
+            scope = (
+                f"{'in a whole turn of the tumble' if horizon >= turn else 'by capture_timeout'} "
+                f"({math.degrees(relative_rate):.3g} deg/s about a centre {distance:.3g} m from the "
+                f"shoulder; the arm reaches {cfg.reach:.3g} m)"
+            )
         return Look(None, reason, f"the grapple never comes where the arm can follow it {scope}: {reason}")
 
     def _plan(self, t: float, s: ArmState, prediction: RigidPrediction, horizon: float, q_posture: np.ndarray):
@@ -357,14 +402,14 @@ class WindowPlanner:
                     best = verdict
             q_prev = verdict.q if verdict.feasible else None
             if run > window:
-                start = k - window                   # the window's first sample: the meeting time
+                start = k - window  # the window's first sample: the meeting time
                 duration = SHORTEST_APPROACH + start * PLAN_STEP
                 if duration > cfg.approach_time:
-                    return None, best.reason if best else "", True      # further away: wait for it
+                    return None, best.reason if best else "", True  # further away: wait for it
                 plan = self._pre_grasp(q_pin, prediction.sample(t + duration), chain[start], s, duration)
                 if plan is not None:
                     return (duration, *plan), "", True
-                run -= 1                             # too far to reach in time: a later meeting
+                run -= 1  # too far to reach in time: a later meeting
         return None, best.reason if best else "no window", False
 
     def _solve(self, q_pin, g: PoseSample, q_prev, seeds, q_now) -> Verdict:
@@ -407,6 +452,7 @@ def ik_seeds(q: np.ndarray, q_posture: np.ndarray) -> list[np.ndarray]:
     """Starting configurations for the inverse kinematics: the arm now and its posture, each
     also with the elbow and the wrist turned over (a 6-joint arm of the UR kind: elbow q2 + q3,
     -q3, q4 + q3; wrist q4 + pi, -q5, q6 + pi), wrapped to (-pi, pi]."""
+
     def elbow(x):
         return np.array([x[0], x[1] + x[2], -x[2], x[3] + x[2], x[4], x[5]])
 

@@ -1,5 +1,6 @@
 """What the capture controller is told (:mod:`components.controller.capture`): the parameters of
 ``controller.capture`` resolved against the servicer's URDF (its limits, shoulder and reach)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -45,6 +46,7 @@ class CaptureSettings:
     | wheel_axes | - (3, m) | wheel spin axes in bus axes (columns) |
     | wheel_effort, wheel_velocity | N m, rad/s (m) | URDF limits of the wheels |
     """
+
     approach_time: float
     closing_time: float
     standoff: float
@@ -85,6 +87,6 @@ class CaptureSettings:
     @property
     def close_tolerances(self) -> np.ndarray:
         """The tolerances of the close, in the order of CLOSE_ERRORS (m, rad, m/s, rad/s)."""
-        return np.array([self.position_tolerance, self.attitude_tolerance, self.velocity_tolerance,
-                         self.rate_tolerance])
-
+        return np.array(
+            [self.position_tolerance, self.attitude_tolerance, self.velocity_tolerance, self.rate_tolerance]
+        )

@@ -12,27 +12,29 @@ the previous step) and returns the torque to apply from t + h on: the loop has o
 as a sampled controller. The diagnostic outputs (``ee_*``, ``sigma_min``, ``q_desired``) describe
 that measured state at t and the reference at t.
 """
+
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
 from components.constants import NS_PER_S
-from components.errors import ConfigError
-from components.rotations import continuous
 from components.controller import plots as controller_plots
 from components.controller.gains import CARTESIAN_GAINS, TASK_AXES, per_item
 from components.controller.trajectory import CARTESIAN
 from components.controller.view import ControllerView
+from components.errors import ConfigError
 from components.robots.model import JOINT_VALUE, arm_reach, joint_units, read_model
+from components.rotations import continuous
 from components.schema import Float, ListOf, MapOf, Record, Str
 from components.sdk import Component, Parameter, Variable
 from components.signals import BODY_STATE, body_signals, torque_signal
 
-
 # --------------------------------------------------------------------------- shared helpers
+
 
 def _urdf(params: Mapping[str, Any]):
     """The parsed URDF of ``params['urdf']``, found as ``dynamics.dart`` finds it; ConfigError naming ``urdf``."""
@@ -50,16 +52,19 @@ def _check_names(names: list[str], key: str, allowed: list[str], what: str) -> l
 def _loop_signals(model) -> list[Variable]:
     """The body state read (inputs) and the joint torques published (output ``tau``)."""
     return body_signals("input", model, names=BODY_STATE) + [
-        torque_signal("output", model, note="zero on joints not driven")]
+        torque_signal("output", model, note="zero on joints not driven")
+    ]
 
 
 # --------------------------------------------------------------------------- computed torque
+
 
 @dataclass(frozen=True)
 class ArmSetup:
     """The computed-torque parameters checked against the URDF: the arm's joints in the
     config's order, the gains one per axis (6) or per joint, the trajectory in SI (parse_cartesian)
     and the reach (first moving joint, m) the trajectory was checked against."""
+
     model: Any
     joints: list[str]
     locked: list[str]
@@ -72,7 +77,8 @@ class ArmSetup:
 
 
 QUATERNION_OUTPUTS = ("ee_orientation", "ee_orientation_desired")
-INITIAL = "initial."   # state keys of the inputs seen at an unsampled initialize, until the first step
+INITIAL = "initial."  # state keys of the inputs seen at an unsampled initialize, until the first step
+
 
 class ComputedTorqueComponent(Component):
     """Computed-torque control of one arm of a free-floating body with the Generalized Jacobian
@@ -106,25 +112,42 @@ class ComputedTorqueComponent(Component):
     ``orchestrator check`` and against the measured initial pose at ``initialize``). A joint of
     ``locked_joints`` that moves (not locked in the dynamics) stops the run with a message.
     """
+
     type_name = "controller.computed_torque"
     plots = (controller_plots.PATH, controller_plots.ERROR, controller_plots.TORQUES, controller_plots.BASE)
     view = ControllerView
     parameters = (
         Parameter("urdf", "str", description="the body's URDF, relative to the config file"),
-        Parameter("joints", ListOf(Str(), min_items=1, unique=True),
-                  description="names of the driven joints (the arm), e.g. [arm_right_1_joint, ...]"),
+        Parameter(
+            "joints",
+            ListOf(Str(), min_items=1, unique=True),
+            description="names of the driven joints (the arm), e.g. [arm_right_1_joint, ...]",
+        ),
         Parameter("end_effector", "str", description="link (frame) name of the end effector"),
-        Parameter("locked_joints", ListOf(Str(), unique=True), default=[],
-                  description="joints welded in the dynamics (the same list as there)"),
+        Parameter(
+            "locked_joints",
+            ListOf(Str(), unique=True),
+            default=[],
+            description="joints welded in the dynamics (the same list as there)",
+        ),
         *CARTESIAN_GAINS,
-        Parameter("base_model", "str", default="free_floating", choices=("free_floating", "fixed"),
-                  description="free_floating (Generalized Jacobian) or fixed (ignores the base reaction)"),
-        Parameter("trajectory", CARTESIAN, default={"type": "hold"},
-                  description="end-effector trajectory, anchored at the pose measured at initialize"),
+        Parameter(
+            "base_model",
+            "str",
+            default="free_floating",
+            choices=("free_floating", "fixed"),
+            description="free_floating (Generalized Jacobian) or fixed (ignores the base reaction)",
+        ),
+        Parameter(
+            "trajectory",
+            CARTESIAN,
+            default={"type": "hold"},
+            description="end-effector trajectory, anchored at the pose measured at initialize",
+        ),
     )
 
     @classmethod
-    def setup(cls, params) -> "ArmSetup":
+    def setup(cls, params) -> ArmSetup:
         """What the parameters mean for this URDF (validate checks it; __init__ uses it)."""
         from components.controller.trajectory import max_offset, parse_cartesian
 
@@ -140,12 +163,22 @@ class ComputedTorqueComponent(Component):
         trajectory = parse_cartesian(params["trajectory"])
         key, size = max_offset(trajectory)
         if size > 2.0 * reach:
-            raise ConfigError(f"trajectory.{key}", f"out of reach: {size:.3f} m from the initial end-effector "
-                                                   f"position, the arm spans at most {2 * reach:.3f} m")
-        return ArmSetup(model=model, joints=joints, locked=locked, trajectory=trajectory,
-                        kp=per_item(params["kp"], 6, "kp", TASK_AXES), kd=per_item(params["kd"], 6, "kd", TASK_AXES),
-                        null_kp=per_item(params["null_kp"], n, "null_kp"),
-                        null_kd=per_item(params["null_kd"], n, "null_kd"), reach=(shoulder, reach))
+            raise ConfigError(
+                f"trajectory.{key}",
+                f"out of reach: {size:.3f} m from the initial end-effector "
+                f"position, the arm spans at most {2 * reach:.3f} m",
+            )
+        return ArmSetup(
+            model=model,
+            joints=joints,
+            locked=locked,
+            trajectory=trajectory,
+            kp=per_item(params["kp"], 6, "kp", TASK_AXES),
+            kd=per_item(params["kd"], 6, "kd", TASK_AXES),
+            null_kp=per_item(params["null_kp"], n, "null_kp"),
+            null_kd=per_item(params["null_kd"], n, "null_kd"),
+            reach=(shoulder, reach),
+        )
 
     @classmethod
     def validate(cls, params):
@@ -166,12 +199,19 @@ class ComputedTorqueComponent(Component):
         return _loop_signals(_urdf(params)) + [
             Variable("ee_position", "output", (3,), "m", [0.0] * 3, "end-effector frame origin, W"),
             Variable("ee_position_desired", "output", (3,), "m", [0.0] * 3, "its reference, W"),
-            Variable("ee_error", "output", (6,), "m, rad", [0.0] * 6,
-                     "position error p_d - p (m), then orientation error log(R_d R^T) (rad), W"),
+            Variable(
+                "ee_error",
+                "output",
+                (6,),
+                "m, rad",
+                [0.0] * 6,
+                "position error p_d - p (m), then orientation error log(R_d R^T) (rad), W",
+            ),
             Variable("ee_orientation", "output", (4,), "1", [0.0, 0.0, 0.0, 1.0], "q_W_ee [x, y, z, w]"),
             Variable("ee_orientation_desired", "output", (4,), "1", [0.0, 0.0, 0.0, 1.0], "its reference"),
-            Variable("ee_twist", "output", (6,), "m/s, rad/s", [0.0] * 6,
-                     "end-effector linear then angular velocity, W"),
+            Variable(
+                "ee_twist", "output", (6,), "m/s, rad/s", [0.0] * 6, "end-effector linear then angular velocity, W"
+            ),
             Variable("sigma_min", "output", (), "1", 0.0, "smallest singular value of the (generalized) Jacobian"),
         ]
 
@@ -196,9 +236,16 @@ class ComputedTorqueComponent(Component):
         locked = {j: float(x) for j, x in zip(a.locked, locked_q)}
         arm = FreeFloatingArm(a.model, body, a.joints, p["end_effector"], locked)
         effort = np.array([a.model.joint(j).effort for j in a.joints])
-        law = ComputedTorqueLaw(a.kp, a.kd, a.null_kp, a.null_kd, effort,
-                                dls_threshold=p["dls_threshold"], dls_damping=p["dls_damping"],
-                                base_model=p["base_model"])
+        law = ComputedTorqueLaw(
+            a.kp,
+            a.kd,
+            a.null_kp,
+            a.null_kd,
+            effort,
+            dls_threshold=p["dls_threshold"],
+            dls_damping=p["dls_damping"],
+            base_model=p["base_model"],
+        )
         return ArmController(arm, law, a.trajectory, reach=a.reach)
 
     def _continuous(self, out: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -233,11 +280,15 @@ class ComputedTorqueComponent(Component):
             raise RuntimeError("get_state before initialize: the trajectory is not anchored yet")
         p0, R0, Rb = self.controller.anchor
         locked = self.controller.arm.locked
-        state = {"ee_position_0": p0.copy(), "ee_rotation_0": R0.ravel().copy(), "base_rotation_0": Rb.ravel().copy(),
-                 "q_posture": self.controller.q_posture.copy(),
-                 "locked_q": np.array([locked[j] for j in self.arm.locked], dtype=np.float64),
-                 **{f"last_{k}": q.copy() for k, q in self.last_quaternions.items()}}
-        if self._initial_inputs is not None:      # initialized unsampled, not stepped yet
+        state = {
+            "ee_position_0": p0.copy(),
+            "ee_rotation_0": R0.ravel().copy(),
+            "base_rotation_0": Rb.ravel().copy(),
+            "q_posture": self.controller.q_posture.copy(),
+            "locked_q": np.array([locked[j] for j in self.arm.locked], dtype=np.float64),
+            **{f"last_{k}": q.copy() for k, q in self.last_quaternions.items()},
+        }
+        if self._initial_inputs is not None:  # initialized unsampled, not stepped yet
             state.update({INITIAL + k: v.copy() for k, v in self._initial_inputs.items()})
         return state
 
@@ -245,45 +296,93 @@ class ComputedTorqueComponent(Component):
         """Restore on a fresh instance (``initialize`` is not called): the model welded at the
         locked positions and the trajectory anchored as in the state; no re-anchoring and no reach
         check (both happened once, at the run's ``initialize``)."""
-        for key, size in (("ee_position_0", 3), ("ee_rotation_0", 9), ("base_rotation_0", 9),
-                          ("q_posture", len(self.arm.joints)), ("locked_q", len(self.arm.locked))):
+        for key, size in (
+            ("ee_position_0", 3),
+            ("ee_rotation_0", 9),
+            ("base_rotation_0", 9),
+            ("q_posture", len(self.arm.joints)),
+            ("locked_q", len(self.arm.locked)),
+        ):
             if key not in state or np.asarray(state[key]).size != size:
-                raise ValueError(f"state: {key} expected {size} values, got "
-                                 f"{None if key not in state else np.asarray(state[key]).size}")
+                raise ValueError(
+                    f"state: {key} expected {size} values, got "
+                    f"{None if key not in state else np.asarray(state[key]).size}"
+                )
         self.controller = self._build(np.asarray(state["locked_q"], dtype=float).ravel())
-        self.controller.restore(np.asarray(state["ee_position_0"], float),
-                                np.asarray(state["ee_rotation_0"], float).reshape(3, 3),
-                                np.asarray(state["base_rotation_0"], float).reshape(3, 3),
-                                np.asarray(state["q_posture"], float))
-        self.last_quaternions = {k: np.array(state[f"last_{k}"], dtype=float) for k in QUATERNION_OUTPUTS
-                                 if f"last_{k}" in state}
-        initial = {k[len(INITIAL):]: np.array(v, dtype=float) for k, v in state.items() if k.startswith(INITIAL)}
+        self.controller.restore(
+            np.asarray(state["ee_position_0"], float),
+            np.asarray(state["ee_rotation_0"], float).reshape(3, 3),
+            np.asarray(state["base_rotation_0"], float).reshape(3, 3),
+            np.asarray(state["q_posture"], float),
+        )
+        self.last_quaternions = {
+            k: np.array(state[f"last_{k}"], dtype=float) for k in QUATERNION_OUTPUTS if f"last_{k}" in state
+        }
+        initial = {k[len(INITIAL) :]: np.array(v, dtype=float) for k, v in state.items() if k.startswith(INITIAL)}
         self._initial_inputs = initial or None
 
 
 # --------------------------------------------------------------------------- joint PID
 
-PID_GAINS = Record("PID gains", (
-    Parameter("p", Float("N*m/rad", minimum=0.0, plausible=(0.0, 1e6)), description="proportional gain (N/m for prismatic)"),
-    Parameter("i", Float("N*m/rad/s", minimum=0.0, plausible=(0.0, 1e6)), default=0.0, description="integral gain"),
-    Parameter("d", Float("N*m*s/rad", minimum=0.0, plausible=(0.0, 1e5)), default=0.0, description="derivative gain"),
-    Parameter("i_clamp", Float("N*m", minimum=0.0, plausible=(0.0, 1e5)), default=None,
-              description="bound of the integral term's torque (default: the URDF effort)"),
-), description="one joint's gains (``gains.<joint>``, ros_control pid style)")
-JOINT_TRAJECTORY = Record("Joint trajectory", (
-    Parameter("start", Float("s", minimum=0.0), default=0.0, description="time the first segment starts"),
-    Parameter("waypoints", ListOf(Record("Joint waypoint", (
-        Parameter("time", Float("s"), description="the run time (s from t = 0, not from the previous waypoint) at which it is reached; later than the previous one (or start)"),
-        Parameter("q", MapOf(JOINT_VALUE, "joint"), default={},
-                  description="positions of driven joints; joints not named keep their previous value"),
-    ), description="one waypoint of a joint trajectory"), min_items=1), description="reached one after the other"),
-), description="rest-to-rest quintic segments from the initial positions through waypoints")
+PID_GAINS = Record(
+    "PID gains",
+    (
+        Parameter(
+            "p",
+            Float("N*m/rad", minimum=0.0, plausible=(0.0, 1e6)),
+            description="proportional gain (N/m for prismatic)",
+        ),
+        Parameter("i", Float("N*m/rad/s", minimum=0.0, plausible=(0.0, 1e6)), default=0.0, description="integral gain"),
+        Parameter(
+            "d", Float("N*m*s/rad", minimum=0.0, plausible=(0.0, 1e5)), default=0.0, description="derivative gain"
+        ),
+        Parameter(
+            "i_clamp",
+            Float("N*m", minimum=0.0, plausible=(0.0, 1e5)),
+            default=None,
+            description="bound of the integral term's torque (default: the URDF effort)",
+        ),
+    ),
+    description="one joint's gains (``gains.<joint>``, ros_control pid style)",
+)
+JOINT_TRAJECTORY = Record(
+    "Joint trajectory",
+    (
+        Parameter("start", Float("s", minimum=0.0), default=0.0, description="time the first segment starts"),
+        Parameter(
+            "waypoints",
+            ListOf(
+                Record(
+                    "Joint waypoint",
+                    (
+                        Parameter(
+                            "time",
+                            Float("s"),
+                            description="the run time (s from t = 0, not from the previous waypoint) at which it is reached; later than the previous one (or start)",
+                        ),
+                        Parameter(
+                            "q",
+                            MapOf(JOINT_VALUE, "joint"),
+                            default={},
+                            description="positions of driven joints; joints not named keep their previous value",
+                        ),
+                    ),
+                    description="one waypoint of a joint trajectory",
+                ),
+                min_items=1,
+            ),
+            description="reached one after the other",
+        ),
+    ),
+    description="rest-to-rest quintic segments from the initial positions through waypoints",
+)
 
 
 @dataclass(frozen=True)
 class JointSetup:
     """The joint PID parameters checked against the URDF: the driven joints in URDF order, the
     gains per joint (arrays by p, i, d, i_clamp), the targets and trajectory in SI."""
+
     model: Any
     joints: list[str]
     targets: dict[str, float]
@@ -312,37 +411,49 @@ class JointPDComponent(Component):
     measured at ``initialize``, targets applied); ``set_state`` rebuilds the reference from them,
     on a fresh instance too (no ``initialize``).
     """
+
     type_name = "controller.joint_pd"
     plots = (controller_plots.TORQUES, controller_plots.JOINTS)
     view = ControllerView
     parameters = (
         Parameter("urdf", "str", description="the body's URDF, relative to the config file"),
         Parameter("gains", MapOf(PID_GAINS, "joint", min_items=1), description="the driven joints and their gains"),
-        Parameter("targets", MapOf(JOINT_VALUE, "joint"), default={},
-                  description="fixed target positions (rad, m for prismatic); a joint not named holds its initial q"),
-        Parameter("trajectory", JOINT_TRAJECTORY, default=None, description="joint-space waypoints (instead of targets)"),
+        Parameter(
+            "targets",
+            MapOf(JOINT_VALUE, "joint"),
+            default={},
+            description="fixed target positions (rad, m for prismatic); a joint not named holds its initial q",
+        ),
+        Parameter(
+            "trajectory", JOINT_TRAJECTORY, default=None, description="joint-space waypoints (instead of targets)"
+        ),
     )
 
     @classmethod
-    def setup(cls, params) -> "JointSetup":
+    def setup(cls, params) -> JointSetup:
         """What the parameters mean for this URDF (validate checks it; __init__ uses it)."""
         model = _urdf(params)
         movable = model.movable_joints
         gains = params["gains"]
         for name in gains:
             _check_names([name], f"gains.{name}", movable, "movable joint")
-        joints = [j for j in movable if j in gains]           # URDF order
-        table = {k: np.array([gains[j][k] if gains[j][k] is not None else model.joint(j).effort for j in joints])
-                 for k in ("p", "i", "d", "i_clamp")}
+        joints = [j for j in movable if j in gains]  # URDF order
+        table = {
+            k: np.array([gains[j][k] if gains[j][k] is not None else model.joint(j).effort for j in joints])
+            for k in ("p", "i", "d", "i_clamp")
+        }
 
         def positions(mapping: Mapping[str, float], key: str) -> dict[str, float]:
             for name, x in mapping.items():
                 if name not in joints:
-                    raise ConfigError(f"{key}.{name}", f"{name!r} is not a driven joint (the joints in gains: "
-                                                       f"{', '.join(joints)})")
+                    raise ConfigError(
+                        f"{key}.{name}", f"{name!r} is not a driven joint (the joints in gains: {', '.join(joints)})"
+                    )
                 j = model.joint(name)
                 if not (j.lower - 1e-9 <= x <= j.upper + 1e-9):
-                    raise ConfigError(f"{key}.{name}", f"expected within the URDF limits [{j.lower}, {j.upper}], got {x}")
+                    raise ConfigError(
+                        f"{key}.{name}", f"expected within the URDF limits [{j.lower}, {j.upper}], got {x}"
+                    )
             return dict(mapping)
 
         targets = positions(params["targets"], "targets")
@@ -355,8 +466,14 @@ class JointPDComponent(Component):
                     raise ConfigError(f"{key}.time", f"expected a time after {previous:g} s, got {point['time']:g} s")
                 previous = point["time"]
                 positions(point["q"], f"{key}.q")
-        return JointSetup(model=model, joints=joints, targets=targets, trajectory=trajectory,
-                          gains=table, effort=np.array([model.joint(j).effort for j in joints]))
+        return JointSetup(
+            model=model,
+            joints=joints,
+            targets=targets,
+            trajectory=trajectory,
+            gains=table,
+            effort=np.array([model.joint(j).effort for j in joints]),
+        )
 
     @classmethod
     def validate(cls, params):
@@ -367,8 +484,14 @@ class JointPDComponent(Component):
         model = _urdf(params)
         n = len(model.movable_joints)
         return _loop_signals(model) + [
-            Variable("q_desired", "output", (n,), joint_units(model)[0], [0.0] * n,
-                     "reference of the driven joints; the measured q elsewhere"),
+            Variable(
+                "q_desired",
+                "output",
+                (n,),
+                joint_units(model)[0],
+                [0.0] * n,
+                "reference of the driven joints; the measured q elsewhere",
+            ),
         ]
 
     def __init__(self, params):

@@ -60,12 +60,13 @@ term holds the arm near its initial posture. The torques are clipped to the URDF
 base is assumed not to accelerate): ``M* = M_mm``, ``C* = c_m``, ``J_g = J_m``, ``a_drift = Jdot_m
 qdot``. It ignores the base's reaction; it is there to show what the free-floating model buys.
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import numpy as np
 from scipy.linalg.lapack import dgesdd
@@ -92,6 +93,7 @@ class ArmState:
     | xdot | (6,) | m/s, rad/s | end-effector twist (origin velocity, angular velocity), W |
     | q, qd | (n,) | rad, rad/s | arm joint positions and rates |
     """
+
     M_star: np.ndarray
     C_star: np.ndarray
     J_g: np.ndarray
@@ -119,13 +121,19 @@ class FreeFloatingArm:
     model would be wrong).
     """
 
-    def __init__(self, urdf, body_joints: Sequence[str], arm_joints: Sequence[str],
-                 end_effector: str, locked: Mapping[str, float] | None = None):
+    def __init__(
+        self,
+        urdf,
+        body_joints: Sequence[str],
+        arm_joints: Sequence[str],
+        end_effector: str,
+        locked: Mapping[str, float] | None = None,
+    ):
         import pinocchio as pin
 
         self.pin = pin
         mimics = {}
-        if hasattr(urdf, "text"):      # a UrdfModel: the text as parsed, package URIs resolved
+        if hasattr(urdf, "text"):  # a UrdfModel: the text as parsed, package URIs resolved
             mimics = urdf.mimics
             # Pinocchio's own mimic joints are not in computeAllTerms: the mimic joints are
             # independent in the model, and the constraint is applied to M, c and J (compute)
@@ -138,8 +146,8 @@ class FreeFloatingArm:
             reference = pin.neutral(full)
             for name, value in locked.items():
                 joint = full.joints[full.getJointId(name)]
-                if joint.nq == 2:        # continuous joint: (cos, sin)
-                    reference[joint.idx_q:joint.idx_q + 2] = math.cos(value), math.sin(value)
+                if joint.nq == 2:  # continuous joint: (cos, sin)
+                    reference[joint.idx_q : joint.idx_q + 2] = math.cos(value), math.sin(value)
                 else:
                     reference[joint.idx_q] = value
             model = pin.buildReducedModel(full, [full.getJointId(n) for n in locked], reference)
@@ -155,7 +163,7 @@ class FreeFloatingArm:
             if name in locked:
                 continue
             joint = model.joints[model.getJointId(name)]
-            if joint.nv == 0:        # a mimic joint: Pinocchio moves it with the joint it follows
+            if joint.nv == 0:  # a mimic joint: Pinocchio moves it with the joint it follows
                 continue
             if joint.nq == 2:
                 self._q2.append((joint.idx_q, k))
@@ -170,14 +178,18 @@ class FreeFloatingArm:
         self._locked_body = [(self.body_joints.index(j), j, float(locked[j])) for j in locked]
         self.body_arm = np.array([self.body_joints.index(j) for j in self.arm_joints])
         self.arm_v = np.array([model.joints[model.getJointId(j)].idx_v for j in self.arm_joints])
-        passive = [model.joints[model.getJointId(j)].idx_v for j in self.body_joints
-                   if j not in locked and j not in self.arm_joints and model.joints[model.getJointId(j)].nv > 0]
+        passive = [
+            model.joints[model.getJointId(j)].idx_v
+            for j in self.body_joints
+            if j not in locked and j not in self.arm_joints and model.joints[model.getJointId(j)].nv > 0
+        ]
         self.base_v = np.array(list(range(6)) + sorted(passive))
         # (base, arm) ordering of the velocity coordinates (kernels.gather reads M's upper triangle in it)
         self._perm = np.concatenate([self.base_v, self.arm_v])
         if self._perm.size != model.nv:
-            raise ValueError(f"joints: the model has {model.nv - 6} free joints, {self.arm_v.size} driven "
-                             f"and {len(passive)} passive")
+            raise ValueError(
+                f"joints: the model has {model.nv - 6} free joints, {self.arm_v.size} driven and {len(passive)} passive"
+            )
         # mimic joints (v_k = multiplier v_f, both passive): v_b = G v_b', M_bb' = G^T M_bb G,
         # [M_bm, c_b]' = G^T [M_bm, c_b], J_b' = J_b G (the constraint's Jacobian is constant)
         self._G = None
@@ -218,25 +230,34 @@ class FreeFloatingArm:
         (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = self._R_base = (
             (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)),
             (2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)),
-            (2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)))
+            (2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)),
+        )
         vx, vy, vz, wx, wy, wz = np.asarray(twist, dtype=float).tolist()
         qp, vp = self.q_pin, self.v_pin
         qp[:3] = position
         qp[3:7] = x, y, z, w
-        vp[:6] = (r00 * vx + r10 * vy + r20 * vz, r01 * vx + r11 * vy + r21 * vz, r02 * vx + r12 * vy + r22 * vz,
-                  r00 * wx + r10 * wy + r20 * wz, r01 * wx + r11 * wy + r21 * wz, r02 * wx + r12 * wy + r22 * wz)
+        vp[:6] = (
+            r00 * vx + r10 * vy + r20 * vz,
+            r01 * vx + r11 * vy + r21 * vz,
+            r02 * vx + r12 * vy + r22 * vz,
+            r00 * wx + r10 * wy + r20 * wz,
+            r01 * wx + r11 * wy + r21 * wz,
+            r02 * wx + r12 * wy + r22 * wz,
+        )
         q = np.asarray(q, dtype=float)
         qd = np.asarray(qd, dtype=float)
         if self._locked_body:
             q_list, qd_list = q.tolist(), qd.tolist()
             for k, name, value in self._locked_body:
                 if qd_list[k] != 0.0 or abs(q_list[k] - value) > 1e-9:
-                    raise ValueError(f"locked_joints: {name} moves (q = {q_list[k]:.9g}, locked at {value:.9g}; "
-                                     f"qd = {qd_list[k]:.3g}): lock it in the dynamics too "
-                                     "(bodies.<body>.locked_joints) or remove it from the controller's")
+                    raise ValueError(
+                        f"locked_joints: {name} moves (q = {q_list[k]:.9g}, locked at {value:.9g}; "
+                        f"qd = {qd_list[k]:.3g}): lock it in the dynamics too "
+                        "(bodies.<body>.locked_joints) or remove it from the controller's"
+                    )
         qp[self._q1_pin] = q[self._q1_body]
         vp[self._v_pin] = qd[self._v_body]
-        for iq, k in self._q2:                     # continuous joints: (cos, sin)
+        for iq, k in self._q2:  # continuous joints: (cos, sin)
             qp[iq], qp[iq + 1] = math.cos(q[k]), math.sin(q[k])
         self._q_arm = q[self.body_arm]
         self._qd_arm = qd[self.body_arm]
@@ -259,28 +280,39 @@ class FreeFloatingArm:
         # dnu = 0 (data.a: a_0 of the module doc)
         pin.computeAllTerms(model, data, self.q_pin, self.v_pin)
         frame = pin.updateFramePlacement(model, data, ee)
-        pose = pin.SE3ToXYZQUAT(frame)                      # a new array: origin, quaternion [x, y, z, w]
+        pose = pin.SE3ToXYZQUAT(frame)  # a new array: origin, quaternion [x, y, z, w]
         if pose[6] < 0.0:
-            pose[3:] *= -1.0                                # w >= 0, as rotations.matrix_to_quat
+            pose[3:] *= -1.0  # w >= 0, as rotations.matrix_to_quat
         J = pin.getFrameJacobian(model, data, ee, pin.LOCAL_WORLD_ALIGNED)
         velocity = pin.getFrameVelocity(model, data, ee, pin.LOCAL_WORLD_ALIGNED)
         a_0 = pin.getFrameClassicalAcceleration(model, data, ee, pin.LOCAL_WORLD_ALIGNED)
-        xdot = velocity.vector.copy()                       # a view of the Motion's memory until copied
+        xdot = velocity.vector.copy()  # a view of the Motion's memory until copied
         # [M | c] reordered (b, m), from crba's upper triangle, and [J_m | a_0]: each pair of
         # blocks then takes one product (kernels.py: the arithmetic, compiled)
         Mc, Ja, J_b = kernels.gather(data.M, data.nle, J, a_0.vector, self._perm, self.base_v, self.arm_v)
-        if self._G is not None:                            # mimic joints: the reduced coordinates
+        if self._G is not None:  # mimic joints: the reduced coordinates
             G, nb = self._G, self.base_v.size
-            Mc = np.vstack([np.hstack([G.T @ Mc[:nb, :nb] @ G, G.T @ Mc[:nb, nb:]]),
-                            np.hstack([Mc[nb:, :nb] @ G, Mc[nb:, nb:]])])
+            Mc = np.vstack(
+                [np.hstack([G.T @ Mc[:nb, :nb] @ G, G.T @ Mc[:nb, nb:]]), np.hstack([Mc[nb:, :nb] @ G, Mc[nb:, nb:]])]
+            )
             J_b = J_b @ G
         # free floating: M_bb^-1 [M_bm, c_b] by Cholesky (M_bb is symmetric positive definite), then
         # [M*, C*] = [M_mm, c_m] - M_bm^T X and [J_g, a_drift] = [J_m, a_0] - J_b X (module doc)
         M_star, C_star, J_g, a_drift, info = kernels.schur(Mc, Ja, J_b, base_model == "fixed")
         if info != 0:
             raise np.linalg.LinAlgError(f"M_bb is not positive definite (LAPACK dposv info {info})")
-        return ArmState(M_star, C_star, J_g, a_drift, pose[:3], np.array(frame.rotation), pose[3:], xdot,
-                        self._q_arm.copy(), self._qd_arm.copy())
+        return ArmState(
+            M_star,
+            C_star,
+            J_g,
+            a_drift,
+            pose[:3],
+            np.array(frame.rotation),
+            pose[3:],
+            xdot,
+            self._q_arm.copy(),
+            self._qd_arm.copy(),
+        )
 
 
 def compile_kernels(arm: FreeFloatingArm, law: ComputedTorqueLaw) -> None:
@@ -314,11 +346,11 @@ def damped_svd(J: np.ndarray, eps: float, lambda_max: float):
     """(U, s, Vt, s_min, lambda^2): J's thin SVD and the damping of ``dls_inverse``."""
     # LAPACK's gesdd (as numpy's svd) called directly: numpy's wrapper costs more than the
     # decomposition of a 6x7 matrix
-    U, s, Vt, info = dgesdd(J, compute_uv=1, full_matrices=0)     # Vt: the first m rows of V^T
+    U, s, Vt, info = dgesdd(J, compute_uv=1, full_matrices=0)  # Vt: the first m rows of V^T
     if info != 0:
         raise np.linalg.LinAlgError(f"SVD did not converge (LAPACK dgesdd info {info})")
     s_min = float(s[-1])
-    lam2 = lambda_max ** 2 * (1.0 - (s_min / eps) ** 2) if s_min < eps else 0.0
+    lam2 = lambda_max**2 * (1.0 - (s_min / eps) ** 2) if s_min < eps else 0.0
     return U, s, Vt, s_min, lam2
 
 
@@ -333,6 +365,7 @@ class ControlOutput:
     | sigma_min | - | smallest singular value of J_g (J_m for ``fixed``) |
     | qdd | rad/s^2 | the commanded joint acceleration |
     """
+
     tau: np.ndarray
     error: np.ndarray
     sigma_min: float
@@ -354,8 +387,18 @@ class ComputedTorqueLaw:
     | base_model | - | free_floating (paper) or fixed (ignores the base's reaction) |
     """
 
-    def __init__(self, kp, kd, null_kp, null_kd, effort, *, dls_threshold: float = 0.02,
-                 dls_damping: float = 0.05, base_model: str = "free_floating"):
+    def __init__(
+        self,
+        kp,
+        kd,
+        null_kp,
+        null_kd,
+        effort,
+        *,
+        dls_threshold: float = 0.02,
+        dls_damping: float = 0.05,
+        base_model: str = "free_floating",
+    ):
         import pinocchio as pin
 
         if base_model not in BASE_MODELS:
@@ -365,16 +408,38 @@ class ComputedTorqueLaw:
         self.effort = np.asarray(effort, dtype=float)
         self.eps, self.lam = float(dls_threshold), float(dls_damping)
         self.base_model = base_model
-        self._log3 = pin.log3           # log of SO(3): on one 3x3 a tenth of rotations.log_so3's cost
+        self._log3 = pin.log3  # log of SO(3): on one 3x3 a tenth of rotations.log_so3's cost
 
     def control(self, s: ArmState, d: PoseSample, q_posture: np.ndarray) -> ControlOutput:
         """error = (p_d - p, log(R_d R^T)); xdd_r = xdd_d + K_d edot + K_p e;
         qdd = J_g^+ (xdd_r - a_drift) + N qdd_0 with qdd_0 = k_np (q_posture - q) - k_nd qd;
         tau = M* qdd + C*, clipped to the efforts (kernels.law)."""
         U, sv, Vt, s_min, lam2 = damped_svd(s.J_g, self.eps, self.lam)
-        tau, error, qdd = kernels.law(U, sv, Vt, lam2, d.p, s.p, self._log3(d.R @ s.R.T), d.v, d.w, d.a, d.dw, s.xdot,
-                                      self.kp, self.kd, s.a_drift, self.null_kp, self.null_kd, q_posture, s.q, s.qd,
-                                      s.M_star, s.C_star, self.effort)
+        tau, error, qdd = kernels.law(
+            U,
+            sv,
+            Vt,
+            lam2,
+            d.p,
+            s.p,
+            self._log3(d.R @ s.R.T),
+            d.v,
+            d.w,
+            d.a,
+            d.dw,
+            s.xdot,
+            self.kp,
+            self.kd,
+            s.a_drift,
+            self.null_kp,
+            self.null_kd,
+            q_posture,
+            s.q,
+            s.qd,
+            s.M_star,
+            s.C_star,
+            self.effort,
+        )
         return ControlOutput(tau, error, s_min, qdd)
 
 
@@ -387,13 +452,18 @@ class ArmController:
     The returned ``tau`` covers the whole body (URDF joint order), zero on joints not driven.
     """
 
-    def __init__(self, arm: FreeFloatingArm, law: ComputedTorqueLaw, trajectory_spec: Mapping,
-                 reach: tuple[str, float] | None = None):
+    def __init__(
+        self,
+        arm: FreeFloatingArm,
+        law: ComputedTorqueLaw,
+        trajectory_spec: Mapping,
+        reach: tuple[str, float] | None = None,
+    ):
         self.arm, self.law, self.spec = arm, law, trajectory_spec
-        self.reach = reach                        # (centre joint, reach m) for the out-of-reach check
+        self.reach = reach  # (centre joint, reach m) for the out-of-reach check
         self.trajectory = None
         self.q_posture = np.zeros(arm.n)
-        self.anchor = None                        # p0 (3), R0 (3x3), R_base0 (3x3)
+        self.anchor = None  # p0 (3), R0 (3x3), R_base0 (3x3)
 
     def start(self, state: Mapping[str, np.ndarray]) -> None:
         from components.controller.trajectory import build_cartesian
@@ -410,8 +480,11 @@ class ArmController:
             for key, point in self.trajectory.checkpoints():
                 distance = float(np.linalg.norm(point - centre))
                 if distance > reach:
-                    raise ConfigError(f"trajectory.{key}", f"out of reach: the path passes {distance:.3f} m from "
-                                                           f"{joint}, the arm reaches at most {reach:.3f} m")
+                    raise ConfigError(
+                        f"trajectory.{key}",
+                        f"out of reach: the path passes {distance:.3f} m from "
+                        f"{joint}, the arm reaches at most {reach:.3f} m",
+                    )
 
     def restore(self, p0, R0, R_base0, q_posture) -> None:
         """Take a saved anchor and posture (the component's set_state): the same trajectory as
@@ -429,6 +502,13 @@ class ArmController:
         out = self.law.control(s, d, self.q_posture)
         tau = np.zeros(self.arm.n_body)
         tau[self.arm.body_arm] = out.tau
-        return {"tau": tau, "ee_position": s.p, "ee_position_desired": d.p, "ee_error": out.error,
-                "ee_orientation": s.quat, "ee_orientation_desired": matrix_to_quat(d.R),
-                "ee_twist": s.xdot, "sigma_min": np.float64(out.sigma_min)}
+        return {
+            "tau": tau,
+            "ee_position": s.p,
+            "ee_position_desired": d.p,
+            "ee_error": out.error,
+            "ee_orientation": s.quat,
+            "ee_orientation_desired": matrix_to_quat(d.R),
+            "ee_twist": s.xdot,
+            "sigma_min": np.float64(out.sigma_min),
+        }

@@ -1,6 +1,7 @@
 """The Cartesian controller's gains, declared once for the computed-torque and the capture
 controllers (both run the same task-space law: K_p and K_d per task axis, a null-space posture
 term per arm joint, a damped pseudo-inverse near singularities)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -33,15 +34,33 @@ def per_item(value: float | np.ndarray, n: int, key: str, each: str = "one per a
 
 
 CARTESIAN_GAINS = (
-    Parameter("kp", gain("1/s^2", STIFFNESS), default=100.0,
-              description=f"Cartesian K_p, one for all six axes or per axis: {TASK_AXES} (W)"),
-    Parameter("kd", gain("1/s", DAMPING), default=20.0,
-              description=f"Cartesian K_d, one for all six axes or per axis: {TASK_AXES} (W)"),
-    Parameter("null_kp", gain("1/s^2", STIFFNESS), default=4.0,
-              description="null-space posture stiffness (towards the initial configuration), one or per arm joint"),
-    Parameter("null_kd", gain("1/s", DAMPING), default=4.0, description="null-space joint damping, one or per arm joint"),
-    Parameter("dls_threshold", Float(minimum=0.0), default=0.02,
-              description="sigma_min(J_g) below which the pseudo-inverse is damped"),
+    Parameter(
+        "kp",
+        gain("1/s^2", STIFFNESS),
+        default=100.0,
+        description=f"Cartesian K_p, one for all six axes or per axis: {TASK_AXES} (W)",
+    ),
+    Parameter(
+        "kd",
+        gain("1/s", DAMPING),
+        default=20.0,
+        description=f"Cartesian K_d, one for all six axes or per axis: {TASK_AXES} (W)",
+    ),
+    Parameter(
+        "null_kp",
+        gain("1/s^2", STIFFNESS),
+        default=4.0,
+        description="null-space posture stiffness (towards the initial configuration), one or per arm joint",
+    ),
+    Parameter(
+        "null_kd", gain("1/s", DAMPING), default=4.0, description="null-space joint damping, one or per arm joint"
+    ),
+    Parameter(
+        "dls_threshold",
+        Float(minimum=0.0),
+        default=0.02,
+        description="sigma_min(J_g) below which the pseudo-inverse is damped",
+    ),
     Parameter("dls_damping", Float(minimum=0.0), default=0.05, description="damping at sigma_min = 0"),
 )
 """kp, kd, null_kp, null_kd, dls_threshold, dls_damping: the parameters of the task-space law."""

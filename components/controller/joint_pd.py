@@ -11,6 +11,7 @@ For each driven joint i, with the reference (q_d, qd_d) and the measurement (q, 
 position command: the derivative acts on -qd). A joint-space trajectory gives (q_d, qd_d) from
 rest-to-rest quintic segments between waypoints (:class:`trajectory.JointWaypoints`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -29,6 +30,7 @@ class PidGains:
     | d | N m s / rad | derivative gain |
     | i_clamp | N m | bound of the integral term (anti-windup) |
     """
+
     p: np.ndarray
     i: np.ndarray
     d: np.ndarray

@@ -19,6 +19,7 @@ used). ``tests/unit/test_controller_model.py`` checks the kernels against the nu
 The kernels are cached on disk by numba (``cache=True``): the first process compiles them (a few
 seconds), the next ones load them.
 """
+
 from __future__ import annotations
 
 import llvmlite.binding as llvm
@@ -37,13 +38,18 @@ llvm.add_symbol(_DPOSV, get_cython_function_address("scipy.linalg.cython_lapack"
 @intrinsic
 def _dposv(typingctx, uplo, n, nrhs, a, lda, b, ldb, info):
     """LAPACK dposv on arrays (Fortran calling convention: every argument by pointer)."""
+
     def codegen(context, builder, signature, args):
-        pointers = [builder.bitcast(context.make_array(kind)(context, builder, value).data, cgutils.voidptr_t)
-                    for kind, value in zip(signature.args, args)]
+        pointers = [
+            builder.bitcast(context.make_array(kind)(context, builder, value).data, cgutils.voidptr_t)
+            for kind, value in zip(signature.args, args)
+        ]
         function = cgutils.get_or_insert_function(
-            builder.module, ir.FunctionType(ir.VoidType(), [cgutils.voidptr_t] * 8), _DPOSV)
+            builder.module, ir.FunctionType(ir.VoidType(), [cgutils.voidptr_t] * 8), _DPOSV
+        )
         builder.call(function, pointers)
         return context.get_dummy_value()
+
     return types.void(uplo, n, nrhs, a, lda, b, ldb, info), codegen
 
 
@@ -82,8 +88,8 @@ def schur(Mc, Ja, J_b, fixed):
     else:
         a = np.asfortranarray(Mc[:nb, :nb])
         x = np.asfortranarray(Mc[:nb, nb:])
-        uplo = np.full(1, 85, dtype=np.uint8)                      # 'U'
-        sizes = np.array([nb, n + 1, 0], dtype=np.int32)          # n, nrhs, info
+        uplo = np.full(1, 85, dtype=np.uint8)  # 'U'
+        sizes = np.array([nb, n + 1, 0], dtype=np.int32)  # n, nrhs, info
         _dposv(uplo, sizes[0:1], sizes[1:2], a, sizes[0:1], x, sizes[0:1], sizes[2:3])
         info = sizes[2]
         x = np.ascontiguousarray(x)
@@ -105,8 +111,31 @@ def pseudo_inverse(U, s, Vt, lam2):
 
 
 @numba.njit(cache=True)
-def law(U, s, Vt, lam2, p_d, p, rotation_error, v_d, w_d, a_d, dw_d, xdot, kp, kd, a_drift,
-        null_kp, null_kd, q_posture, q, qd, M_star, C_star, effort):
+def law(
+    U,
+    s,
+    Vt,
+    lam2,
+    p_d,
+    p,
+    rotation_error,
+    v_d,
+    w_d,
+    a_d,
+    dw_d,
+    xdot,
+    kp,
+    kd,
+    a_drift,
+    null_kp,
+    null_kd,
+    q_posture,
+    q,
+    qd,
+    M_star,
+    C_star,
+    effort,
+):
     """(tau clipped to +-effort, the task error (p_d - p, rotation_error), qdd) of eqs. 6 and 8
     (ComputedTorqueLaw.control)."""
     error = np.concatenate((p_d - p, rotation_error))

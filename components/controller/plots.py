@@ -1,6 +1,7 @@
 """The controllers' plots (``orchestrator plot``): the computed-torque controller's path, error,
 torques and base (the paper's Figs. 5-7), joint_pd's torques and joints, and the capture
 controller's phases."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -62,8 +63,10 @@ def error(run: RecordedRun, c: str) -> dict:
     t = run.time
     fig = new_figure(8.0, 6.0)
     axes = fig.subplots(2, 1, sharex=True)
-    for ax, part, scale, unit, title in ((axes[0], error[:, :3], 1e3, "mm", "a) position error p_d - p"),
-                                         (axes[1], error[:, 3:], 1e3, "mrad", "b) orientation error log(R_d R^T)")):
+    for ax, part, scale, unit, title in (
+        (axes[0], error[:, :3], 1e3, "mm", "a) position error p_d - p"),
+        (axes[1], error[:, 3:], 1e3, "mrad", "b) orientation error log(R_d R^T)"),
+    ):
         for i, axis in enumerate("xyz"):
             ax.plot(t, part[:, i] * scale, linewidth=1.0, label=axis)
         ax.plot(t, np.linalg.norm(part, axis=1) * scale, color="black", linewidth=1.0, label="norm")
@@ -154,8 +157,12 @@ def joints(run: RecordedRun, c: str) -> dict:
 
 
 # close_errors' elements: (title, unit, scale to that unit), each on an axis of its own
-CLOSE_ERRORS = (("position error", "mm", 1e3), ("attitude error", "deg", np.degrees(1.0)),
-                ("velocity error", "mm/s", 1e3), ("rate error", "deg/s", np.degrees(1.0)))
+CLOSE_ERRORS = (
+    ("position error", "mm", 1e3),
+    ("attitude error", "deg", np.degrees(1.0)),
+    ("velocity error", "mm/s", 1e3),
+    ("rate error", "deg/s", np.degrees(1.0)),
+)
 
 
 def phases(run: RecordedRun, c: str) -> dict:
@@ -167,12 +174,11 @@ def phases(run: RecordedRun, c: str) -> dict:
     phase, attempt, distance, errors = _required(run, c, "phase", "attempt", "grasp_distance", "close_errors")
     t = run.time
     fig = new_figure(9.0, 10.0)
-    axes = fig.subplot_mosaic([["phase", "phase"], ["distance", "distance"], ["e0", "e1"], ["e2", "e3"]],
-                              sharex=True)
+    axes = fig.subplot_mosaic([["phase", "phase"], ["distance", "distance"], ["e0", "e1"], ["e2", "e3"]], sharex=True)
     ax = axes["phase"]
     ax.step(t, phase[:, 0], where="post", color="black", linewidth=1.0, label="phase")
     ax.set_yticks(range(len(NAMES)), [f"{k} {name}" for k, name in enumerate(NAMES)], fontsize="small")
-    ax.set_ylim(-0.5, len(NAMES) - 0.5)   # every phase inside the frame, none on its border
+    ax.set_ylim(-0.5, len(NAMES) - 0.5)  # every phase inside the frame, none on its border
     ax.set_ylabel("phase")
     ax.set_title(f"{c}: phase, and approaches started", loc="left")
     twin = ax.twinx()
@@ -197,15 +203,25 @@ def phases(run: RecordedRun, c: str) -> dict:
     return {f"{c}_phases.png": fig}
 
 
-PATH = Plot("{c}_path.png", "desired (black) and obtained (red) 3D end-effector path relative to its start, in the "
-                            "axes of the base at t0 (inertial; W axes if the base orientation is not recorded) "
-                            "(paper Fig. 5)", path)
-ERROR = Plot("{c}_error.png", "position error (mm) and orientation error (mrad) per W axis and norm, over time "
-                              "(Fig. 6)", error)
+PATH = Plot(
+    "{c}_path.png",
+    "desired (black) and obtained (red) 3D end-effector path relative to its start, in the "
+    "axes of the base at t0 (inertial; W axes if the base orientation is not recorded) "
+    "(paper Fig. 5)",
+    path,
+)
+ERROR = Plot(
+    "{c}_error.png", "position error (mm) and orientation error (mrad) per W axis and norm, over time (Fig. 6)", error
+)
 TORQUES = Plot("{c}_torque.png", "torques of the driven joints, N m (Fig. 7)", torques)
-BASE = Plot("{c}_base.png", "the body's base displacement (mm, W) and rotation (deg) from t0, and sigma_min of J_g",
-            base)
+BASE = Plot(
+    "{c}_base.png", "the body's base displacement (mm, W) and rotation (deg) from t0, and sigma_min of J_g", base
+)
 JOINTS = Plot("{c}_joints.png", "joint positions and their references", joints)
-PHASES = Plot("{c}_phases.png", "the capture's phase and attempts, the estimated distance to the grasp frame and "
-                                "the estimated errors behind close (position, attitude, velocity, rate: an axis "
-                                "each)", phases)
+PHASES = Plot(
+    "{c}_phases.png",
+    "the capture's phase and attempts, the estimated distance to the grasp frame and "
+    "the estimated errors behind close (position, attitude, velocity, rate: an axis "
+    "each)",
+    phases,
+)

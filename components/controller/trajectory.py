@@ -32,11 +32,13 @@ end-effector position and ``rotation`` a rotation vector (rad) applied to the in
 both in ``axes``; each waypoint is reached at its ``time``, leaving the previous one (or the
 initial pose) at the previous ``time`` (or ``start``).
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -49,6 +51,7 @@ AXES = ("body", "world")
 
 # --------------------------------------------------------------------------- time law
 
+
 def quintic(t: float, t0: float, duration: float) -> tuple[float, float, float]:
     """Rest-to-rest quintic time law: (s, ds/dt, d2s/dt2) with s from 0 at t0 to 1 at t0 + T."""
     if duration <= 0.0:
@@ -60,15 +63,17 @@ def quintic(t: float, t0: float, duration: float) -> tuple[float, float, float]:
         return 1.0, 0.0, 0.0
     s = u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
     ds = 30.0 * u * u * (1.0 - u) ** 2 / duration
-    dds = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / duration ** 2
+    dds = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / duration**2
     return s, ds, dds
 
 
 # --------------------------------------------------------------------------- Cartesian trajectories
 
+
 @dataclass(frozen=True)
 class PoseSample:
     """Desired end-effector pose and derivatives at one time, W (see the module table)."""
+
     p: np.ndarray
     v: np.ndarray
     a: np.ndarray
@@ -108,10 +113,14 @@ class Parabola(Hold):
         derivatives for the path rates ds/dt = ds, d2s/dt2 = dds (built from floats in one array:
         the per-step cost is numpy's per-call overhead)."""
         d, h = self.d, self.h
-        slope = 4.0 * h * (1.0 - 2.0 * s)                  # dz/ds; d2z/ds2 = -8 h
-        return np.array(((d * s, 0.0, 4.0 * h * s * (1.0 - s)),
-                         (d * ds, 0.0, slope * ds),
-                         (d * dds, 0.0, -8.0 * h * ds * ds + slope * dds)))
+        slope = 4.0 * h * (1.0 - 2.0 * s)  # dz/ds; d2z/ds2 = -8 h
+        return np.array(
+            (
+                (d * s, 0.0, 4.0 * h * s * (1.0 - s)),
+                (d * ds, 0.0, slope * ds),
+                (d * dds, 0.0, -8.0 * h * ds * ds + slope * dds),
+            )
+        )
 
     def sample(self, t: float) -> PoseSample:
         s, ds, dds = quintic(t, self.start, self.duration)
@@ -136,8 +145,10 @@ class Waypoints(Hold):
         Ra = np.array(R_axes, dtype=float)
         self.t = np.concatenate([[float(start)], np.asarray(times, dtype=float)])
         self.p = np.vstack([self.p0, self.p0 + np.asarray(positions, dtype=float).reshape(-1, 3) @ Ra.T])
-        self.R = [self.R0] + [exp_so3(Ra @ np.asarray(r, dtype=float)) @ self.R0
-                              for r in np.asarray(rotations, dtype=float).reshape(-1, 3)]
+        self.R = [self.R0] + [
+            exp_so3(Ra @ np.asarray(r, dtype=float)) @ self.R0
+            for r in np.asarray(rotations, dtype=float).reshape(-1, 3)
+        ]
         # rotation vector of each segment, W axes: R_{i+1} = exp(phi_i) R_i
         self.phi = [log_so3(self.R[i + 1] @ self.R[i].T) for i in range(len(self.R) - 1)]
 
@@ -160,30 +171,75 @@ class Waypoints(Hold):
 # --------------------------------------------------------------------------- config parsing
 
 _START = Parameter("start", Float("s", minimum=0.0), default=0.0, description="time the move starts")
-_AXES = Parameter("axes", Str(AXES), default="body",
-                  description="axes of the offsets: body (the base's initial axes) or world (W)")
-CARTESIAN_WAYPOINT = Record("Cartesian waypoint", (
-    Parameter("time", Float("s"), description="the run time (s from t = 0, not from the previous waypoint) at which it is reached; later than the previous one (or start)"),
-    Parameter("position", Vector(3, "m", plausible=(-100.0, 100.0)), default=[0.0, 0.0, 0.0],
-              description="offset from the initial end-effector position"),
-    Parameter("rotation", Vector(3, "rad", plausible=(-2 * math.pi, 2 * math.pi)), default=[0.0, 0.0, 0.0],
-              description="rotation vector applied to the initial orientation"),
-), description="one waypoint of a waypoints trajectory (offsets in its axes)")
-CARTESIAN = Tagged("Trajectory", "type", (
-    Record("hold", (), description="keep the initial pose (type: hold)"),
-    Record("parabola", (
-        _START,
-        Parameter("duration", Float("s", positive=True, plausible=(1e-3, 86400.0)),
-                  description="time from the start to the end of the move"),
-        Parameter("displacement", Float("m", plausible=(-100.0, 100.0)), default=0.5, description="along the x axis of axes"),
-        Parameter("height", Float("m", plausible=(-100.0, 100.0)), default=0.1, description="apex of the parabola, halfway"),
-        _AXES,
-    ), description="the paper's move (type: parabola)"),
-    Record("waypoints", (
-        _START, _AXES,
-        Parameter("waypoints", ListOf(CARTESIAN_WAYPOINT, min_items=1), description="reached one after the other"),
-    ), description="rest-to-rest segments through waypoints (type: waypoints)"),
-))
+_AXES = Parameter(
+    "axes", Str(AXES), default="body", description="axes of the offsets: body (the base's initial axes) or world (W)"
+)
+CARTESIAN_WAYPOINT = Record(
+    "Cartesian waypoint",
+    (
+        Parameter(
+            "time",
+            Float("s"),
+            description="the run time (s from t = 0, not from the previous waypoint) at which it is reached; later than the previous one (or start)",
+        ),
+        Parameter(
+            "position",
+            Vector(3, "m", plausible=(-100.0, 100.0)),
+            default=[0.0, 0.0, 0.0],
+            description="offset from the initial end-effector position",
+        ),
+        Parameter(
+            "rotation",
+            Vector(3, "rad", plausible=(-2 * math.pi, 2 * math.pi)),
+            default=[0.0, 0.0, 0.0],
+            description="rotation vector applied to the initial orientation",
+        ),
+    ),
+    description="one waypoint of a waypoints trajectory (offsets in its axes)",
+)
+CARTESIAN = Tagged(
+    "Trajectory",
+    "type",
+    (
+        Record("hold", (), description="keep the initial pose (type: hold)"),
+        Record(
+            "parabola",
+            (
+                _START,
+                Parameter(
+                    "duration",
+                    Float("s", positive=True, plausible=(1e-3, 86400.0)),
+                    description="time from the start to the end of the move",
+                ),
+                Parameter(
+                    "displacement",
+                    Float("m", plausible=(-100.0, 100.0)),
+                    default=0.5,
+                    description="along the x axis of axes",
+                ),
+                Parameter(
+                    "height",
+                    Float("m", plausible=(-100.0, 100.0)),
+                    default=0.1,
+                    description="apex of the parabola, halfway",
+                ),
+                _AXES,
+            ),
+            description="the paper's move (type: parabola)",
+        ),
+        Record(
+            "waypoints",
+            (
+                _START,
+                _AXES,
+                Parameter(
+                    "waypoints", ListOf(CARTESIAN_WAYPOINT, min_items=1), description="reached one after the other"
+                ),
+            ),
+            description="rest-to-rest segments through waypoints (type: waypoints)",
+        ),
+    ),
+)
 
 
 def parse_cartesian(spec: Any, prefix: str = "trajectory") -> dict:
@@ -195,12 +251,17 @@ def parse_cartesian(spec: Any, prefix: str = "trajectory") -> dict:
     previous = out["start"]
     for i, point in enumerate(out["waypoints"]):
         if not point["time"] > previous:
-            raise ConfigError(f"{prefix}.waypoints[{i}].time", f"expected a time after {previous:g} s "
-                                                               f"(the previous waypoint or start), got {point['time']:g} s")
+            raise ConfigError(
+                f"{prefix}.waypoints[{i}].time",
+                f"expected a time after {previous:g} s (the previous waypoint or start), got {point['time']:g} s",
+            )
         previous = point["time"]
     points = out.pop("waypoints")
-    out.update(times=[p["time"] for p in points], positions=[p["position"] for p in points],
-               rotations=[p["rotation"] for p in points])
+    out.update(
+        times=[p["time"] for p in points],
+        positions=[p["position"] for p in points],
+        rotations=[p["rotation"] for p in points],
+    )
     return out
 
 
@@ -232,6 +293,7 @@ def max_offset(parsed: Mapping) -> tuple[str, float]:
 
 
 # --------------------------------------------------------------------------- joint-space trajectories
+
 
 class JointWaypoints:
     """Rest-to-rest quintic segments between joint-space waypoints.

@@ -24,12 +24,13 @@ outputs ``base_pose()``, ``orientation()``, ``com()``, ``com_velocity()``, ``mom
 ``third_body_forces(R, V)``; for a grasp ``link_pose``,
 ``point_jacobian``, ``point_bias``; ``base_coordinates(R, p)`` for an initial state.
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
@@ -40,9 +41,9 @@ from components.rotations import matrix_to_quat
 from components.space.gravity import MU_MOON, MU_SUN
 
 FRAMES = ("world", "lvlh")
-TWIST_ORDER = np.array([3, 4, 5, 0, 1, 2])      # (omega, v) coordinates -> the twist output (v, omega)
+TWIST_ORDER = np.array([3, 4, 5, 0, 1, 2])  # (omega, v) coordinates -> the twist output (v, omega)
 DEFAULT_CD = 2.2
-DEFAULT_CR = 1.0        # radiation pressure coefficient of a black (absorbing) cannonball
+DEFAULT_CR = 1.0  # radiation pressure coefficient of a black (absorbing) cannonball
 # the third bodies whose tidal force may act on every link, in the kernels' order (link_forces.link_third_bodies),
 # with their GMs (JPL DE440, components.space.gravity), m^3/s^2
 THIRD_BODIES = {"sun": MU_SUN, "moon": MU_MOON}
@@ -77,6 +78,7 @@ class BodySpec:
     | srp_cr | - | radiation pressure coefficient Cr, one number or link name -> Cr (default 1) |
     | srp_facets | - | link name -> facets [{area m^2, normal, centre m (link frame), specular, diffuse}] |
     """
+
     name: str
     urdf: str | Path
     frame: str = "world"
@@ -98,8 +100,11 @@ def check_spec(spec: BodySpec, model: UrdfModel) -> None:
     n = spec.name
     if spec.frame not in FRAMES:
         raise ModelError(f"{n}.frame", f"expected one of {', '.join(FRAMES)}, got {spec.frame!r}")
-    for key, value, size in (("position", spec.position, 3), ("orientation", spec.orientation, 4),
-                             ("twist", spec.twist, 6)):
+    for key, value, size in (
+        ("position", spec.position, 3),
+        ("orientation", spec.orientation, 4),
+        ("twist", spec.twist, 6),
+    ):
         array = np.asarray(value, dtype=float)
         if array.shape != (size,) or not np.all(np.isfinite(array)):
             raise ModelError(f"{n}.{key}", f"expected {size} finite numbers, got {value!r}")
@@ -109,15 +114,19 @@ def check_spec(spec: BodySpec, model: UrdfModel) -> None:
     for key in ("q", "qd"):
         for joint, value in getattr(spec, key).items():
             if joint not in movable:
-                raise ModelError(f"{n}.{key}.{joint}", f"not a movable joint of {Path(spec.urdf).name} "
-                                                       f"(joints: {', '.join(movable) or 'none'})")
+                raise ModelError(
+                    f"{n}.{key}.{joint}",
+                    f"not a movable joint of {Path(spec.urdf).name} (joints: {', '.join(movable) or 'none'})",
+                )
             if not math.isfinite(value):
                 raise ModelError(f"{n}.{key}.{joint}", f"expected a finite number, got {value!r}")
     for key in ("q", "qd"):
         for joint in getattr(spec, key):
             if joint in model.mimics:
-                raise ModelError(f"{n}.{key}.{joint}", f"a mimic joint: it follows {model.mimics[joint][0]!r}; "
-                                                       f"set {key} of that joint instead")
+                raise ModelError(
+                    f"{n}.{key}.{joint}",
+                    f"a mimic joint: it follows {model.mimics[joint][0]!r}; set {key} of that joint instead",
+                )
     for joint, value in spec.q.items():
         j = model.joint(joint)
         if not j.lower - 1e-9 <= value <= j.upper + 1e-9:
@@ -158,18 +167,24 @@ def _check_srp(spec: BodySpec, model: UrdfModel) -> None:
             if link is None:
                 continue
             if link not in model.link_names:
-                raise ModelError(f"{n}.{key}.{link}", f"not a link of {Path(spec.urdf).name} "
-                                                      f"(links: {', '.join(model.link_names)})")
+                raise ModelError(
+                    f"{n}.{key}.{link}", f"not a link of {Path(spec.urdf).name} (links: {', '.join(model.link_names)})"
+                )
             if link not in massive and key != "srp_cr":
-                raise ModelError(f"{n}.{key}.{link}", f"a link without mass carries no force in the dynamics: expected "
-                                                      f"one with mass ({', '.join(sorted(massive))})")
+                raise ModelError(
+                    f"{n}.{key}.{link}",
+                    f"a link without mass carries no force in the dynamics: expected "
+                    f"one with mass ({', '.join(sorted(massive))})",
+                )
     for link, area in spec.srp_area.items():
         if not (area >= 0.0 and math.isfinite(area)):
             raise ModelError(f"{n}.srp_area.{link}", f"expected an area >= 0 m^2, got {area}")
     for link, cr in crs:
         if not (cr >= 0.0 and math.isfinite(cr)):
-            raise ModelError(f"{n}.srp_cr" + (f".{link}" if link is not None else ""),
-                             f"expected a radiation pressure coefficient >= 0, got {cr}")
+            raise ModelError(
+                f"{n}.srp_cr" + (f".{link}" if link is not None else ""),
+                f"expected a radiation pressure coefficient >= 0, got {cr}",
+            )
     for link, facets in spec.srp_facets.items():
         try:
             facet_rows(facets, where=f"{n}.srp_facets.{link}")
@@ -181,15 +196,16 @@ def _check_srp(spec: BodySpec, model: UrdfModel) -> None:
 @dataclass(frozen=True)
 class Environment:
     """The orbital environment's settings, shared by a world's bodies."""
+
     mu: float
     tidal: bool
     gravity_gradient: bool
     drag: bool
     atmosphere: env.ExponentialAtmosphere
     srp: bool = False
-    eclipse: str = "conical"          # components.space.eclipse.MODELS
-    solar_flux: float = 1361.0        # W/m^2 at 1 AU (components.space.srp.SOLAR_FLUX)
-    third_bodies: tuple = ()          # THIRD_BODIES whose tidal force acts on every link
+    eclipse: str = "conical"  # components.space.eclipse.MODELS
+    solar_flux: float = 1361.0  # W/m^2 at 1 AU (components.space.srp.SOLAR_FLUX)
+    third_bodies: tuple = ()  # THIRD_BODIES whose tidal force acts on every link
 
     def third(self) -> np.ndarray:
         """The kernels' ``third`` (2,): the GM (m^3/s^2) of the Sun, of the Moon, 0 for one off."""
@@ -201,9 +217,23 @@ class Environment:
         from components.constants import R_EARTH
         from components.space import eclipse, srp
 
-        return np.array([srp.pressure_1au(self.solar_flux), srp.AU, eclipse.MODELS[self.eclipse], eclipse.R_SUN,
-                         R_EARTH, eclipse.R_MOON, 1.0 if self.eclipse == "conical" else 0.0, srp.AU, 0.0, 0.0,
-                         0.0, 3.844e8, 0.0])
+        return np.array(
+            [
+                srp.pressure_1au(self.solar_flux),
+                srp.AU,
+                eclipse.MODELS[self.eclipse],
+                eclipse.R_SUN,
+                R_EARTH,
+                eclipse.R_MOON,
+                1.0 if self.eclipse == "conical" else 0.0,
+                srp.AU,
+                0.0,
+                0.0,
+                0.0,
+                3.844e8,
+                0.0,
+            ]
+        )
 
 
 class Body:
@@ -239,21 +269,31 @@ class Body:
         self.limited = bool(np.any(np.isfinite(self.lower) | np.isfinite(self.upper)))
         # mimic pairs: rows of J (J a = 0); both joints free (a locked one holds the other through
         # the weld, or the mimic joint is locked itself)
-        self.mimic = [(coordinate[j], coordinate[followed], multiplier, offset)
-                      for j, (followed, multiplier, offset) in model.mimics.items()
-                      if j in coordinate and followed in coordinate]
+        self.mimic = [
+            (coordinate[j], coordinate[followed], multiplier, offset)
+            for j, (followed, multiplier, offset) in model.mimics.items()
+            if j in coordinate and followed in coordinate
+        ]
         self.mimic_J = np.zeros((len(self.mimic), self.ndofs))
         for row, (k, f, multiplier, _) in enumerate(self.mimic):
             self.mimic_J[row, k], self.mimic_J[row, f] = 1.0, -multiplier
         self.link_names = model.link_names
         cd = spec.drag_cd
-        self.drag_k = {link: 0.5 * (float(cd.get(link, DEFAULT_CD)) if isinstance(cd, Mapping) else float(cd))
-                       * float(spec.drag_area.get(link, 0.0)) for link in self.link_names}
+        self.drag_k = {
+            link: 0.5
+            * (float(cd.get(link, DEFAULT_CD)) if isinstance(cd, Mapping) else float(cd))
+            * float(spec.drag_area.get(link, 0.0))
+            for link in self.link_names
+        }
         self.has_drag = any(k > 0.0 for k in self.drag_k.values())
         cr = spec.srp_cr
-        self.srp_cr_area = {link: (float(cr.get(link, DEFAULT_CR)) if isinstance(cr, Mapping) else float(cr))
-                            * float(area) for link, area in spec.srp_area.items() if area > 0.0}
+        self.srp_cr_area = {
+            link: (float(cr.get(link, DEFAULT_CR)) if isinstance(cr, Mapping) else float(cr)) * float(area)
+            for link, area in spec.srp_area.items()
+            if area > 0.0
+        }
         from components.space.srp import facet_rows
+
         self.srp_facets = {link: facet_rows(facets) for link, facets in spec.srp_facets.items() if len(facets)}
         self.has_srp = environment.srp and bool(self.srp_cr_area or self.srp_facets)
         self.tau = np.zeros(self.ndofs)
@@ -282,7 +322,7 @@ class Body:
 
     def joint_positions(self, positions: np.ndarray | None = None) -> np.ndarray:
         """URDF-order joint positions from the coordinates (the body's by default); locked joints at their lock."""
-        if not self.locked:                                    # the joints are the coordinates 6...
+        if not self.locked:  # the joints are the coordinates 6...
             return (self.positions() if positions is None else positions)[6:].copy()
         q = self.locked_q.copy()
         q[self.free] = (self.positions() if positions is None else positions)[self.free_dofs]
@@ -318,7 +358,7 @@ class Body:
     def begin_step(self) -> None:
         """A step starts from the current state (q0, v0)."""
         self.step_start = self.positions(), self.velocities()
-        self.step_rates = [self.step_start[1]]                 # d(xi)/dt of each stage: d1 = v0
+        self.step_rates = [self.step_start[1]]  # d(xi)/dt of each stage: d1 = v0
         self.step_accelerations = []
 
     def next_stage(self, stage: int, c: float, a: np.ndarray) -> None:

@@ -24,6 +24,7 @@ fine); the weld's state (P, the relative attitude) is held in their frames, the 
 engine. Outputs use E's axes: ``p_ee_grasp`` (G's origin in E), ``q_ee_grasp`` (q_E_G) and the
 relative twist of G seen from E.
 """
+
 from __future__ import annotations
 
 import math
@@ -43,6 +44,7 @@ BAUMGARTE = 0.1
 @dataclass(frozen=True)
 class Tolerance:
     """When the grasp may close: pose and velocity errors between E and G (m, rad, m/s, rad/s)."""
+
     position: float
     orientation: float
     linear_velocity: float
@@ -57,6 +59,7 @@ class GraspSpec:
     """``chaser``'s link ``end_effector`` grasps ``target``'s link ``grasp_frame``. The fixture
     carries at most ``force_limit`` (N) and ``torque_limit`` (N m, about the grasp point); beyond
     either the weld opens (``on_overload: release``) or stays closed (``hold``)."""
+
     chaser: str
     end_effector: str
     target: str
@@ -72,6 +75,7 @@ class CaptureReport:
     """What the closing impact was: the relative twist it cancelled (target relative to chaser at
     P: linear m/s, angular rad/s, W axes) and the impulse the chaser gave the target (linear N s,
     angular N m s about P, W axes)."""
+
     relative_twist: np.ndarray
     impulse: np.ndarray
     errors: dict
@@ -119,13 +123,13 @@ class Grasp:
         self.ee = _Frame(chaser, spec.end_effector)
         self.grasp = _Frame(target, spec.grasp_frame)
         self.closed = False
-        self.p_in_chaser = np.zeros(3)      # P in the end effector's link frame E
-        self.p_in_target = np.zeros(3)      # P in the grasp frame G
-        self.R_target_chaser = np.eye(3)    # E's attitude in G's, welded
-        self.wrench = np.zeros(6)           # last constraint wrench on the chaser (angular, linear; W, about P)
-        self.peak = np.zeros(2)             # largest |force| (N) and |torque| (N m) of the weld since reset_peak
-        self.armed = True                   # closes when asked; False after a release until close is lowered
-        self.overloaded = False             # the last step was beyond the load limits
+        self.p_in_chaser = np.zeros(3)  # P in the end effector's link frame E
+        self.p_in_target = np.zeros(3)  # P in the grasp frame G
+        self.R_target_chaser = np.eye(3)  # E's attitude in G's, welded
+        self.wrench = np.zeros(6)  # last constraint wrench on the chaser (angular, linear; W, about P)
+        self.peak = np.zeros(2)  # largest |force| (N) and |torque| (N m) of the weld since reset_peak
+        self.armed = True  # closes when asked; False after a release until close is lowered
+        self.overloaded = False  # the last step was beyond the load limits
 
     # ------------------------------------------------------------------ measuring
 
@@ -138,8 +142,11 @@ class Grasp:
         w_G, v_G = np.split(_twist(self.grasp, self.grasp.point_in_link(p_G)), 2)
         d = p_G - p_E
         linear = v_G - v_E - cross3(w_E, d)
-        return {"p_ee_grasp": R_E.T @ d, "q_ee_grasp": matrix_to_quat(R_E.T @ R_G),
-                "twist_ee_grasp": np.concatenate([R_E.T @ linear, R_E.T @ (w_G - w_E)])}
+        return {
+            "p_ee_grasp": R_E.T @ d,
+            "q_ee_grasp": matrix_to_quat(R_E.T @ R_G),
+            "twist_ee_grasp": np.concatenate([R_E.T @ linear, R_E.T @ (w_G - w_E)]),
+        }
 
     def errors(self) -> dict[str, float]:
         """Pose and velocity errors between E and G: distance of the origins (m), attitude angle
@@ -148,15 +155,22 @@ class Grasp:
         p_G, R_G = self.grasp.pose()
         relative = self._relative_twist(p_E)
         cos = np.clip((np.trace(R_E.T @ R_G) - 1.0) / 2.0, -1.0, 1.0)
-        return {"position": float(np.linalg.norm(p_G - p_E)), "orientation": float(math.acos(cos)),
-                "linear_velocity": float(np.linalg.norm(relative[3:])),
-                "angular_velocity": float(np.linalg.norm(relative[:3]))}
+        return {
+            "position": float(np.linalg.norm(p_G - p_E)),
+            "orientation": float(math.acos(cos)),
+            "linear_velocity": float(np.linalg.norm(relative[3:])),
+            "angular_velocity": float(np.linalg.norm(relative[:3])),
+        }
 
     def within_tolerance(self) -> bool:
         tol = self.spec.tolerance
         e = self.errors()
-        return (e["position"] <= tol.position and e["orientation"] <= tol.orientation
-                and e["linear_velocity"] <= tol.linear_velocity and e["angular_velocity"] <= tol.angular_velocity)
+        return (
+            e["position"] <= tol.position
+            and e["orientation"] <= tol.orientation
+            and e["linear_velocity"] <= tol.linear_velocity
+            and e["angular_velocity"] <= tol.angular_velocity
+        )
 
     def _relative_twist(self, p_W: np.ndarray) -> np.ndarray:
         """Target minus chaser velocity at the point p_W (angular, linear; W)."""
@@ -176,8 +190,11 @@ class Grasp:
         impulse = self.project()
         self.closed = True
         # the impulse on the target is the opposite of the chaser's: (linear, angular) for the report
-        return CaptureReport(relative_twist=np.concatenate([relative[3:], relative[:3]]),
-                             impulse=-np.concatenate([impulse[3:], impulse[:3]]), errors=errors)
+        return CaptureReport(
+            relative_twist=np.concatenate([relative[3:], relative[:3]]),
+            impulse=-np.concatenate([impulse[3:], impulse[:3]]),
+            errors=errors,
+        )
 
     def _terms(self):
         J_c = self.ee.jacobian(self.p_in_chaser)
@@ -244,8 +261,13 @@ class Grasp:
             return None
         if spec.on_overload == "release":
             self.closed, self.armed, self.overloaded = False, False, False
-        return {"force": float(self.peak[0]), "torque": float(self.peak[1]), "force_limit": spec.force_limit,
-                "torque_limit": spec.torque_limit, "action": spec.on_overload}
+        return {
+            "force": float(self.peak[0]),
+            "torque": float(self.peak[1]),
+            "force_limit": spec.force_limit,
+            "torque_limit": spec.torque_limit,
+            "action": spec.on_overload,
+        }
 
     def rearm(self, close: bool) -> None:
         """A released grasp closes again only once ``close`` has been lowered."""
@@ -255,15 +277,26 @@ class Grasp:
     # ------------------------------------------------------------------ state
 
     def get_state(self) -> dict[str, np.ndarray]:
-        return {"grasp.closed": np.float64(self.closed), "grasp.p_in_chaser": self.p_in_chaser.copy(),
-                "grasp.p_in_target": self.p_in_target.copy(),
-                "grasp.R_target_chaser": self.R_target_chaser.ravel().copy(), "grasp.wrench": self.wrench.copy(),
-                "grasp.armed": np.float64(self.armed), "grasp.overloaded": np.float64(self.overloaded)}
+        return {
+            "grasp.closed": np.float64(self.closed),
+            "grasp.p_in_chaser": self.p_in_chaser.copy(),
+            "grasp.p_in_target": self.p_in_target.copy(),
+            "grasp.R_target_chaser": self.R_target_chaser.ravel().copy(),
+            "grasp.wrench": self.wrench.copy(),
+            "grasp.armed": np.float64(self.armed),
+            "grasp.overloaded": np.float64(self.overloaded),
+        }
 
     def set_state(self, state) -> None:
-        for key, size in (("grasp.closed", 1), ("grasp.p_in_chaser", 3), ("grasp.p_in_target", 3),
-                          ("grasp.R_target_chaser", 9), ("grasp.wrench", 6), ("grasp.armed", 1),
-                          ("grasp.overloaded", 1)):
+        for key, size in (
+            ("grasp.closed", 1),
+            ("grasp.p_in_chaser", 3),
+            ("grasp.p_in_target", 3),
+            ("grasp.R_target_chaser", 9),
+            ("grasp.wrench", 6),
+            ("grasp.armed", 1),
+            ("grasp.overloaded", 1),
+        ):
             if key not in state or np.size(state[key]) != size:
                 raise ValueError(f"state: {key} expected {size} values")
         self.closed = bool(float(state["grasp.closed"]))

@@ -10,6 +10,7 @@ anchor, the nearest ancestor that is not welded (or itself). It takes one DART c
 its Jacobian, which gives the anchor's pose and maps the wrench of its links to generalized
 forces (``link_forces.generalized_forces``: no DART call per link and wrench).
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -32,6 +33,7 @@ ORIGIN = np.zeros(3)
 
 class DartBody(Body):
     """A body as a DART skeleton (``skel``); ``nodes``: its body nodes with mass."""
+
     engine = "dart"
 
     def __init__(self, spec: BodySpec, model: UrdfModel, environment: Environment, dart, integrator: str = "rk4"):
@@ -42,23 +44,32 @@ class DartBody(Body):
         options.mDefaultRootJointType = dart.utils.DartLoader.RootJointType.FLOATING
         frames = model.frame_links()
         if any(not link.has_inertial and link.name not in frames for link in model.links):
-            massless = dart.dynamics.Inertia()                  # links without <inertial>: 0 kg, as in URDF
-            massless.setMass(0.0)                               # (DART's default is 1 kg; it warns on 0)
+            massless = dart.dynamics.Inertia()  # links without <inertial>: 0 kg, as in URDF
+            massless.setMass(0.0)  # (DART's default is 1 kg; it warns on 0)
             massless.setMoment(np.zeros((3, 3)))
             options.mDefaultInertia = massless
         loader.setOptions(options)
         uri = dart.common.Uri.createFromPath(str(Path(spec.urdf).resolve()))
-        with _captured_stderr() as said:           # DART's C++ warnings: one note instead of raw lines
+        with _captured_stderr() as said:  # DART's C++ warnings: one note instead of raw lines
             skel = loader.parseSkeletonString(dart_urdf_text(model, self.locked), uri)
         # a massless link a fixed joint holds is harmless (it only adds a frame): no warning of it
         held = {j.child for j in model.joints if j.type == "fixed"}
-        massless = [name for name in re.findall(r"zero mass \[[^\]]*\] is set to BodyNode \[([^\]]+)\]", said.text)
-                    if name not in held]
+        massless = [
+            name
+            for name in re.findall(r"zero mass \[[^\]]*\] is set to BodyNode \[([^\]]+)\]", said.text)
+            if name not in held
+        ]
         other = [line for line in said.text.splitlines() if line.strip() and "zero mass" not in line]
         if other:
             print("\n".join(other), file=sys.stderr)
-        self.engine_notes = [f"{len(massless)} link(s) without mass that a joint moves, as the URDF gives them "
-                             f"(no <inertial>): {', '.join(massless)}; DART warns of them"] if massless else []
+        self.engine_notes = (
+            [
+                f"{len(massless)} link(s) without mass that a joint moves, as the URDF gives them "
+                f"(no <inertial>): {', '.join(massless)}; DART warns of them"
+            ]
+            if massless
+            else []
+        )
         if skel is None:
             raise ModelError(f"{spec.name}.urdf", f"DART could not load {spec.urdf}")
         skel.setName(spec.name)
@@ -66,14 +77,16 @@ class DartBody(Body):
         skel.disableSelfCollisionCheck()
         self.skel = skel
         if skel.getRootJoint().getType() != "FreeJoint":
-            raise ModelError(f"{spec.name}.urdf", f"expected a free-floating base, DART made a {skel.getRootJoint().getType()}")
+            raise ModelError(
+                f"{spec.name}.urdf", f"expected a free-floating base, DART made a {skel.getRootJoint().getType()}"
+            )
         dof_names = [skel.getDof(i).getName() for i in range(skel.getNumDofs())]
         # DART's dof of each coordinate; None when they agree (the usual case)
         order = np.array(list(range(6)) + [dof_names.index(j) for j in self.free_joints], dtype=int)
         identity = np.array_equal(order, np.arange(self.ndofs))
         self.order = None if identity else order
-        self.dart_order = None if identity else np.argsort(order)     # DART dof -> coordinate
-        for i in range(6, self.ndofs):                         # no joint friction, springs or damping
+        self.dart_order = None if identity else np.argsort(order)  # DART dof -> coordinate
+        for i in range(6, self.ndofs):  # no joint friction, springs or damping
             dof = skel.getDof(i)
             dof.setDampingCoefficient(0.0)
             dof.setCoulombFriction(0.0)
@@ -110,15 +123,19 @@ class DartBody(Body):
         self.inertia_in_anchor = np.array(inertia_in_anchor).reshape(-1, 3, 3)
         # columns of the anchors' Jacobians side by side: their dof, their anchor; and the
         # columns of the base rotation (the FreeJoint's first three dofs come first in each)
-        dofs = [[anchor.getDependentGenCoordIndex(i) for i in range(anchor.getNumDependentGenCoords())]
-                for anchor in self.anchors]
+        dofs = [
+            [anchor.getDependentGenCoordIndex(i) for i in range(anchor.getNumDependentGenCoords())]
+            for anchor in self.anchors
+        ]
         self.jacobian_dofs = np.array([dof for anchor_dofs in dofs for dof in anchor_dofs], dtype=int)
-        self.jacobian_anchor = np.repeat(np.arange(len(self.anchors)), [len(anchor_dofs) for anchor_dofs in dofs]).astype(int)
+        self.jacobian_anchor = np.repeat(
+            np.arange(len(self.anchors)), [len(anchor_dofs) for anchor_dofs in dofs]
+        ).astype(int)
         starts = np.cumsum([0] + [len(anchor_dofs) for anchor_dofs in dofs[:-1]])
         self.base_rotation_columns = (starts[:, None] + np.arange(3)).astype(int)
         self.root = skel.getRootBodyNode()
         node_slot = {bn.getName(): i for i, bn in enumerate(self.nodes)}
-        self.link_source = []                                  # (node, env slot or -1, fixed offset or None)
+        self.link_source = []  # (node, env slot or -1, fixed offset or None)
         for link in self.link_names:
             if link in frames:
                 joint = frames[link]
@@ -131,15 +148,17 @@ class DartBody(Body):
         self.massive_slots = np.array([slot for _, slot, _ in self.link_source if slot >= 0], dtype=int)
         self.node_drag_k = np.array([self.drag_k.get(bn.getName(), 0.0) for bn in self.nodes])
         self.srp_links, self.srp_facet_rows = self.srp_tables(
-            [bn.getName() for bn in self.nodes], [T[:3, :3] for T in link_in_anchor],
-            [T[:3, 3] - c for T, c in zip(link_in_anchor, self.com_in_anchor)])
-        self.light = environment.light()                       # the Sun and Moon: world.set_sun
-        self.third = environment.third()                       # the third bodies' GMs (0: off)
+            [bn.getName() for bn in self.nodes],
+            [T[:3, :3] for T in link_in_anchor],
+            [T[:3, 3] - c for T, c in zip(link_in_anchor, self.com_in_anchor)],
+        )
+        self.light = environment.light()  # the Sun and Moon: world.set_sun
+        self.third = environment.third()  # the third bodies' GMs (0: off)
         self.no_third = np.zeros(2)
-        self.force = np.zeros((len(self.nodes), 3))            # environment per link, anchor axes
+        self.force = np.zeros((len(self.nodes), 3))  # environment per link, anchor axes
         self.torque = np.zeros((len(self.nodes), 3))
-        self.dart_tau = self.tau                               # tau in DART's order
-        self.forces_are_tau = False                            # the skeleton's forces are tau alone
+        self.dart_tau = self.tau  # tau in DART's order
+        self.forces_are_tau = False  # the skeleton's forces are tau alone
         self.world_frame = dart.dynamics.Frame.World()
 
     # -- state
@@ -176,8 +195,16 @@ class DartBody(Body):
         self.forces_are_tau = False
 
     # -- dynamics
-    def _environment(self, R: np.ndarray, V: np.ndarray, tidal: bool, drag: bool, srp: bool, gravity_gradient=None,
-                     third: bool = True):
+    def _environment(
+        self,
+        R: np.ndarray,
+        V: np.ndarray,
+        tidal: bool,
+        drag: bool,
+        srp: bool,
+        gravity_gradient=None,
+        third: bool = True,
+    ):
         """The body's generalized forces (DART order), its joint torques and the environment with the
         reference point at (R, V), which also fills ``force`` and ``torque``; and the anchors'
         Jacobians side by side. ``third``: the third bodies the environment has (else none)."""
@@ -187,11 +214,37 @@ class DartBody(Body):
         e = self.environment
         atmosphere = e.atmosphere
         forces = link_forces.generalized_forces(
-            J, self.base_rotation_columns, self.jacobian_anchor, self.jacobian_dofs, self.anchor_slot,
-            self.com_in_anchor, self.inertia_in_anchor, self.mass, R, V, self.skel.getPositions()[3:6], e.mu,
-            tidal, e.gravity_gradient if gravity_gradient is None else gravity_gradient, drag, self.node_drag_k, v_com,
-            atmosphere.h0, atmosphere.rho0, atmosphere.scale, EARTH_RATE, R_EARTH, self.dart_tau, self.force, self.torque, srp and self.has_srp,
-            self.light, self.srp_links, self.srp_facet_rows, self.third if third else self.no_third)
+            J,
+            self.base_rotation_columns,
+            self.jacobian_anchor,
+            self.jacobian_dofs,
+            self.anchor_slot,
+            self.com_in_anchor,
+            self.inertia_in_anchor,
+            self.mass,
+            R,
+            V,
+            self.skel.getPositions()[3:6],
+            e.mu,
+            tidal,
+            e.gravity_gradient if gravity_gradient is None else gravity_gradient,
+            drag,
+            self.node_drag_k,
+            v_com,
+            atmosphere.h0,
+            atmosphere.rho0,
+            atmosphere.scale,
+            EARTH_RATE,
+            R_EARTH,
+            self.dart_tau,
+            self.force,
+            self.torque,
+            srp and self.has_srp,
+            self.light,
+            self.srp_links,
+            self.srp_facet_rows,
+            self.third if third else self.no_third,
+        )
         return forces, J
 
     def set_forces(self, reference) -> None:
@@ -202,7 +255,7 @@ class DartBody(Body):
             forces, _ = self._environment(R, V, self.environment.tidal, self.environment.drag, self.environment.srp)
             self.skel.setForces(forces)
             self.forces_are_tau = False
-        elif not self.forces_are_tau:                          # forward dynamics leaves them: set once
+        elif not self.forces_are_tau:  # forward dynamics leaves them: set once
             self.skel.setForces(self.dart_tau)
             self.forces_are_tau = True
 

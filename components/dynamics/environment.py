@@ -19,6 +19,7 @@ above a spherical Earth (R_E = ``R_EARTH``, 6378.137 km); ``rho(h)`` the atmosph
 All vectors in W (= ECI) axes, SI units. The per-link evaluation in a step is
 :mod:`components.dynamics.link_forces`; the functions here are the same formulas in numpy.
 """
+
 from __future__ import annotations
 
 import math
@@ -62,8 +63,9 @@ def gravity_gradient_torque(rho: np.ndarray, inertia_W: np.ndarray, mu: float = 
     return torque
 
 
-def tidal_force_and_gravity_gradient(R, delta: np.ndarray, mass, inertia, mu: float = MU_EARTH,
-                                     tidal: bool = True, gravity_gradient: bool = True):
+def tidal_force_and_gravity_gradient(
+    R, delta: np.ndarray, mass, inertia, mu: float = MU_EARTH, tidal: bool = True, gravity_gradient: bool = True
+):
     """Tidal force m (g(R + d) - g(R)) (N) and gravity-gradient torque 3 mu / |rho|^5 (rho x I rho)
     (N m, about the CoM), rho = R + d, on n bodies of mass (n,) and inertia about their CoMs
     (n, 3, 3) at offsets d = ``delta`` (n, 3) from the reference point R: (force, torque), each
@@ -81,7 +83,7 @@ def tidal_force_and_gravity_gradient(R, delta: np.ndarray, mass, inertia, mu: fl
     x, y, z = R.ravel()[:3].tolist()
     r2 = x * x + y * y + z * z
     rho = R + d
-    w = np.einsum("ni,ni->n", d, rho + R)                    # 2 R.d + d.d = s^2 - r^2
+    w = np.einsum("ni,ni->n", d, rho + R)  # 2 R.d + d.d = s^2 - r^2
     s2 = w + r2
     s = np.sqrt(s2)
     s3 = s2 * s
@@ -90,7 +92,7 @@ def tidal_force_and_gravity_gradient(R, delta: np.ndarray, mass, inertia, mu: fl
     if tidal:
         r = math.sqrt(r2)
         scale = mass / s3 * -mu
-        factor = scale * w * (s + r2 / (s + r)) / (r2 * r)          # (r s + s^2 + r^2) / (r + s) = s + r^2 / (r + s)
+        factor = scale * w * (s + r2 / (s + r)) / (r2 * r)  # (r s + s^2 + r^2) / (r + s) = s + r^2 / (r + s)
         force = scale[:, None] * d - factor[:, None] * R
     if gravity_gradient:
         torque = (3.0 * mu / (s2 * s3))[:, None] * row_cross(rho, np.einsum("nij,nj->ni", inertia, rho))

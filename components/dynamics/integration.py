@@ -11,9 +11,11 @@ impulse and rests on the stop until its acceleration points back inside; mimic j
 stage's accelerations projected onto the constraint. Both act through joint-space forces, internal
 to the body: its momentum is unchanged.
 """
+
 from __future__ import annotations
 
-from typing import Mapping, Protocol
+from collections.abc import Mapping
+from typing import Protocol
 
 import numpy as np
 
@@ -25,11 +27,12 @@ from components.dynamics.capture import Grasp
 
 class SteppedWorld(Protocol):
     """What a step reads of its world (an OrbitalWorld)."""
+
     bodies: Mapping[str, Body]
-    integrator: str              # "rk4" or "dart"
-    mu: float                    # m^3/s^2
-    orbit_point: object          # the reference orbit's state at the stage (None before the first)
-    env_now: bool                # the environment's forces act
+    integrator: str  # "rk4" or "dart"
+    mu: float  # m^3/s^2
+    orbit_point: object  # the reference orbit's state at the stage (None before the first)
+    env_now: bool  # the environment's forces act
     joint_limits: bool
     grasp: Grasp | None
 
@@ -44,7 +47,7 @@ def compile_kernels(world: SteppedWorld) -> None:
     would have compiled: the numbers do not change. The bodies' states are kept: the environment
     calls only fill per-link scratch arrays that every later use fills again first, and the rk4
     kernels get zeros and return new arrays."""
-    R, V = np.array([R_EARTH + 400e3, 0.0, 0.0]), np.zeros(3)     # any point off the Earth's centre
+    R, V = np.array([R_EARTH + 400e3, 0.0, 0.0]), np.zeros(3)  # any point off the Earth's centre
     link_forces.propagate_reference(R, V, 0.5, world.mu)
     for body in world.bodies.values():
         state = body.positions().copy(), body.velocities().copy()
@@ -63,9 +66,9 @@ def compile_kernels(world: SteppedWorld) -> None:
             body.rk4_step(1.0, (np.concatenate([R, V]), 0.5))
             body.rk4_step(1.0, None)
             try:
-                body.inverse_mass()                 # (limit stops, mimic joints, a grasp)
+                body.inverse_mass()  # (limit stops, mimic joints, a grasp)
             except np.linalg.LinAlgError:
-                pass   # singular at zero q (a massless link a joint moves, warned at check): compiled at first use
+                pass  # singular at zero q (a massless link a joint moves, warned at check): compiled at first use
             body.point_jacobian(body.link_names[0], zeros[:3])
             body.point_bias(body.link_names[0], zeros[:3])
         body.set_state(*state)
@@ -117,7 +120,7 @@ def joint_stops(body: Body) -> None:
     q = body.positions()
     over, under = q >= body.upper, q <= body.lower
     hit = over | under
-    if not hit.any():                               # the common case, quickly
+    if not hit.any():  # the common case, quickly
         if body.stops.size:
             body.stops, body.stop_sides = np.zeros(0, dtype=int), np.zeros(0)
         return
@@ -133,7 +136,7 @@ def joint_stops(body: Body) -> None:
 
 def rk4(world: SteppedWorld, body: Body, h: float, s: float) -> None:
     """One RK4 step of h seconds of one body, from s seconds after the orbit inputs."""
-    if not body.mimic and not body.stops.size:     # nothing acts between the stages: the body steps itself
+    if not body.mimic and not body.stops.size:  # nothing acts between the stages: the body steps itself
         body.rk4_step(h, (world.orbit_point, s) if world.env_now else None)
     else:
         rk4_held(world, body, h, s)
@@ -144,7 +147,7 @@ def rk4(world: SteppedWorld, body: Body, h: float, s: float) -> None:
 def rk4_held(world: SteppedWorld, body: Body, h: float, s: float) -> None:
     """``rk4`` with each stage's accelerations held to the mimic joints and limit stops."""
     body.begin_step()
-    a = acceleration(world, body, s)                # at (q0, v0), the current state
+    a = acceleration(world, body, s)  # at (q0, v0), the current state
     body.next_stage(1, 0.5 * h, a)
     a = acceleration(world, body, s + 0.5 * h)
     body.next_stage(2, 0.5 * h, a)
@@ -181,4 +184,4 @@ def rk4_welded(world: SteppedWorld, h: float, s: float) -> None:
                 joint_stops(b)
                 stopped = stopped or b.stops.size > 0
     if stopped:
-        grasp.project()   # a stop's impulse moved one side of the weld: the other follows, momentum kept
+        grasp.project()  # a stop's impulse moved one side of the weld: the other follows, momentum kept

@@ -49,6 +49,7 @@ Frames: the base rotation columns of anchor a's Jacobian are R_a^T (angular rows
 -[o_a]x R_a^T (linear rows), with o_a = R_a^T (p_a - p) the anchor origin relative to the base
 origin p in anchor axes: one Jacobian gives the anchor's pose too.
 """
+
 from __future__ import annotations
 
 import math
@@ -60,12 +61,12 @@ from components.dynamics.manifold_rk4 import exp_entries
 from components.space.eclipse import illumination_nb
 from components.space.srp import cannonball_nb, facets_nb
 
-REVOLUTE, PRISMATIC = 1, 2     # tree joint kinds (0: the free base)
+REVOLUTE, PRISMATIC = 1, 2  # tree joint kinds (0: the free base)
 # ``light`` (LIGHT_SIZE,): the Sun for SRP: pressure at 1 AU (N/m^2), AU (m), eclipse model
 # (components.space.eclipse), radii of the Sun, Earth, Moon (m), the Moon shades (1) or not (0),
 # Sun and Moon from the Earth's centre (m, W axes)
 LIGHT_SIZE = 13
-SUN, MOON = 7, 10      # where the Sun's and the Moon's positions start in ``light`` (also the third bodies')
+SUN, MOON = 7, 10  # where the Sun's and the Moon's positions start in ``light`` (also the third bodies')
 
 
 @numba.njit(cache=True)
@@ -78,7 +79,7 @@ def link_srp(x, local_T, light, cr_area, facets, s_W, s_local, f, t):
     if nu <= 0.0:
         return
     for i in range(3):
-        s_W[i] = light[7 + i] - x[i]              # CoM -> Sun
+        s_W[i] = light[7 + i] - x[i]  # CoM -> Sun
     _rotate(local_T, s_W, s_local)
     if cr_area > 0.0:
         cannonball_nb(s_local, cr_area, light[0], light[1], nu, f)
@@ -97,7 +98,7 @@ def link_environment(R, d, mass, inertia, r2, r, mu, tidal, gravity_gradient, f,
     torque 3 mu / s^5 (rho x I rho), rho = R + d."""
     rho0, rho1, rho2 = R[0] + d[0], R[1] + d[1], R[2] + d[2]
     w = 0.0
-    w += d[0] * (rho0 + R[0])                 # 2 R.d + d.d = s^2 - r^2
+    w += d[0] * (rho0 + R[0])  # 2 R.d + d.d = s^2 - r^2
     w += d[1] * (rho1 + R[1])
     w += d[2] * (rho2 + R[2])
     s2 = w + r2
@@ -107,7 +108,7 @@ def link_environment(R, d, mass, inertia, r2, r, mu, tidal, gravity_gradient, f,
     t[0], t[1], t[2] = 0.0, 0.0, 0.0
     if tidal:
         scale = mass / s3 * -mu
-        factor = scale * w * (s + r2 / (s + r)) / (r2 * r)      # (r s + s^2 + r^2) / (r + s) = s + r^2 / (r + s)
+        factor = scale * w * (s + r2 / (s + r)) / (r2 * r)  # (r s + s^2 + r^2) / (r + s) = s + r^2 / (r + s)
         for i in range(3):
             f[i] = scale * d[i] - factor * R[i]
     if gravity_gradient:
@@ -132,7 +133,7 @@ def link_third_bodies(R, d, mass, inertia, third, light, rotation_T, rel, f3, t3
         mu3 = third[b]
         if mu3 > 0.0:
             start = SUN if b == 0 else MOON
-            x0, x1, x2 = R[0] - light[start], R[1] - light[start + 1], R[2] - light[start + 2]   # R - s_b, W
+            x0, x1, x2 = R[0] - light[start], R[1] - light[start + 1], R[2] - light[start + 2]  # R - s_b, W
             r2 = x0 * x0 + x1 * x1 + x2 * x2
             for i in range(3):
                 rel[i] = rotation_T[i, 0] * x0 + rotation_T[i, 1] * x1 + rotation_T[i, 2] * x2
@@ -175,15 +176,51 @@ def propagate_reference(R0, V0, s, mu):
     gx, gy, gz = -k * x, -k * y, -k * z
     jx, jy, jz = -k * (u - c * x), -k * (v - c * y), -k * (w - c * z)
     a, b = 0.5 * s, s / 6.0
-    return (np.array([x + s * (u + s * (0.5 * gx + b * jx)), y + s * (v + s * (0.5 * gy + b * jy)),
-                      z + s * (w + s * (0.5 * gz + b * jz))]),
-            np.array([u + s * (gx + a * jx), v + s * (gy + a * jy), w + s * (gz + a * jz)]))
+    return (
+        np.array(
+            [
+                x + s * (u + s * (0.5 * gx + b * jx)),
+                y + s * (v + s * (0.5 * gy + b * jy)),
+                z + s * (w + s * (0.5 * gz + b * jz)),
+            ]
+        ),
+        np.array([u + s * (gx + a * jx), v + s * (gy + a * jy), w + s * (gz + a * jz)]),
+    )
 
 
 @numba.njit(cache=True)
-def generalized_forces(J, rotation_columns, jacobian_anchor, jacobian_dofs, anchor_slot, com, inertia, mass,
-                       R, V, base, mu, tidal, gravity_gradient, drag, drag_k, v_com, h0, rho0, scale_height,
-                       earth_rate, earth_radius, tau, force, torque, srp, light, srp_links, facets, third):
+def generalized_forces(
+    J,
+    rotation_columns,
+    jacobian_anchor,
+    jacobian_dofs,
+    anchor_slot,
+    com,
+    inertia,
+    mass,
+    R,
+    V,
+    base,
+    mu,
+    tidal,
+    gravity_gradient,
+    drag,
+    drag_k,
+    v_com,
+    h0,
+    rho0,
+    scale_height,
+    earth_rate,
+    earth_radius,
+    tau,
+    force,
+    torque,
+    srp,
+    light,
+    srp_links,
+    facets,
+    third,
+):
     k = rotation_columns.shape[0]
     rotation_T = np.empty((k, 3, 3))
     R_local = np.empty((k, 3))
@@ -197,17 +234,17 @@ def generalized_forces(J, rotation_columns, jacobian_anchor, jacobian_dofs, anch
             value = 0.0
             for j in range(3):
                 value += J[3 + row, rotation_columns[a, j]] * rotation_T[a, col, j]
-            base_local[a, i] = value              # o_a for now
+            base_local[a, i] = value  # o_a for now
         for i in range(3):
             r_i, b_i = 0.0, 0.0
             for j in range(3):
                 r_i += rotation_T[a, i, j] * R[j]
                 b_i += rotation_T[a, i, j] * base[j]
             R_local[a, i] = r_i
-            base_local[a, i] += b_i               # R_a^T p + o_a: the anchor origin in W, anchor axes
+            base_local[a, i] += b_i  # R_a^T p + o_a: the anchor origin in W, anchor axes
     r2 = R[0] * R[0] + R[1] * R[1] + R[2] * R[2]
     r = math.sqrt(r2)
-    wrench = np.zeros((k, 6))                     # per anchor, about its origin: [torque; force]
+    wrench = np.zeros((k, 6))  # per anchor, about its origin: [torque; force]
     d = np.empty(3)
     f = np.empty(3)
     t = np.empty(3)
@@ -218,7 +255,7 @@ def generalized_forces(J, rotation_columns, jacobian_anchor, jacobian_dofs, anch
     for n in range(anchor_slot.shape[0]):
         a = anchor_slot[n]
         for i in range(3):
-            d[i] = base_local[a, i] + com[n, i]   # link CoM from the reference point
+            d[i] = base_local[a, i] + com[n, i]  # link CoM from the reference point
         link_environment(R_local[a], d, mass[n], inertia[n], r2, r, mu, tidal, gravity_gradient, f, t)
         if third_on:
             link_third_bodies(R, d, mass[n], inertia[n], third, light, rotation_T[a], x, v_rel, lever, f)
@@ -239,8 +276,17 @@ def generalized_forces(J, rotation_columns, jacobian_anchor, jacobian_dofs, anch
                 for j in range(3):
                     x[i] += rotation_T[a, j, i] * d[j]
             start = int(srp_links[n, 1])
-            link_srp(x, rotation_T[a], light, srp_links[n, 0], facets[start:start + int(srp_links[n, 2])], v_rel,
-                     lever, f, t)
+            link_srp(
+                x,
+                rotation_T[a],
+                light,
+                srp_links[n, 0],
+                facets[start : start + int(srp_links[n, 2])],
+                v_rel,
+                lever,
+                f,
+                t,
+            )
         force[n, 0], force[n, 1], force[n, 2] = f[0], f[1], f[2]
         torque[n, 0], torque[n, 1], torque[n, 2] = t[0], t[1], t[2]
         c0, c1, c2 = com[n, 0], com[n, 1], com[n, 2]
@@ -317,7 +363,7 @@ def tree_kinematics(x, v, joints, frames, with_velocity, rotation, position, joi
         p, kind, k = joints[j, 0], joints[j, 1], joints[j, 2]
         f = frames[j]
         Rp = rotation[p]
-        for r in range(3):                        # Rj = R_p placement_R, origin = R_p placement_p + p_p
+        for r in range(3):  # Rj = R_p placement_R, origin = R_p placement_p + p_p
             for c in range(3):
                 Rj[r, c] = Rp[r, 0] * f[c] + Rp[r, 1] * f[3 + c] + Rp[r, 2] * f[6 + c]
             position[j, r] = Rp[r, 0] * f[9] + Rp[r, 1] * f[10] + Rp[r, 2] * f[11] + position[p, r]
@@ -344,8 +390,30 @@ def tree_kinematics(x, v, joints, frames, with_velocity, rotation, position, joi
 
 
 @numba.njit(cache=True)
-def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, mu, tidal, gravity_gradient, drag,
-                            atmosphere, earth_rate, earth_radius, force, torque, srp, light, facets, third):
+def tree_generalized_forces(
+    x,
+    v,
+    tau,
+    joints,
+    frames,
+    links,
+    link_joint,
+    R,
+    V,
+    mu,
+    tidal,
+    gravity_gradient,
+    drag,
+    atmosphere,
+    earth_rate,
+    earth_radius,
+    force,
+    torque,
+    srp,
+    light,
+    facets,
+    third,
+):
     """``tau`` plus the environment's generalized forces (world coordinates) of a body given as a
     tree (``joints``, ``frames``: see ``tree_kinematics``). Links: ``links`` (n, 17) their CoM (3)
     and inertia about it (9, row-major) in their joint's frame, mass, 1/2 Cd A, then for SRP (with
@@ -355,18 +423,25 @@ def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, 
     Fills ``force``, ``torque`` (n, 3): each link's environment force at its CoM and torque about
     it, W axes."""
     nj = joints.shape[0]
-    block = np.zeros(27 * nj + 63)                # one allocation (a call's few microseconds count)
-    per_joint = block[:18 * nj].reshape((6, nj, 3))
-    rotation = block[18 * nj:27 * nj].reshape((nj, 3, 3))
+    block = np.zeros(27 * nj + 63)  # one allocation (a call's few microseconds count)
+    per_joint = block[: 18 * nj].reshape((6, nj, 3))
+    rotation = block[18 * nj : 27 * nj].reshape((nj, 3, 3))
     position, joint_axis, angular, linear = per_joint[0], per_joint[1], per_joint[2], per_joint[3]
-    total_force, total_torque = per_joint[4], per_joint[5]      # per joint: its links' wrench about the W origin
-    tree_kinematics(x, v, joints, frames, drag, rotation, position, joint_axis, angular, linear,
-                    block[27 * nj + 39:])
+    total_force, total_torque = per_joint[4], per_joint[5]  # per joint: its links' wrench about the W origin
+    tree_kinematics(x, v, joints, frames, drag, rotation, position, joint_axis, angular, linear, block[27 * nj + 39 :])
     r2 = R[0] * R[0] + R[1] * R[1] + R[2] * R[2]
     r = math.sqrt(r2)
-    scratch = block[27 * nj:27 * nj + 39].reshape((13, 3))
-    f, t, d, c_W, v_rel, x_earth, v_com, lever = (scratch[0], scratch[1], scratch[2], scratch[3], scratch[4],
-                                                   scratch[5], scratch[6], scratch[7])
+    scratch = block[27 * nj : 27 * nj + 39].reshape((13, 3))
+    f, t, d, c_W, v_rel, x_earth, v_com, lever = (
+        scratch[0],
+        scratch[1],
+        scratch[2],
+        scratch[3],
+        scratch[4],
+        scratch[5],
+        scratch[6],
+        scratch[7],
+    )
     about, R_local, d_local, f_local, t_local = scratch[8], scratch[9], scratch[10], scratch[11], scratch[12]
     third_on = third[0] > 0.0 or third[1] > 0.0
     for n in range(link_joint.shape[0]):
@@ -375,8 +450,8 @@ def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, 
         link = links[n]
         _rotate(Rj, link[0:3], c_W)
         for i in range(3):
-            d[i] = c_W[i] + position[j, i]        # CoM from the reference point, W
-        for i in range(3):                        # R and d in the joint's frame, where the inertia is given
+            d[i] = c_W[i] + position[j, i]  # CoM from the reference point, W
+        for i in range(3):  # R and d in the joint's frame, where the inertia is given
             R_local[i] = Rj[0, i] * R[0] + Rj[1, i] * R[1] + Rj[2, i] * R[2]
             d_local[i] = Rj[0, i] * d[0] + Rj[1, i] * d[1] + Rj[2, i] * d[2]
         inertia = link[3:12].reshape((3, 3))
@@ -387,8 +462,9 @@ def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, 
             for i in range(3):
                 x_earth[i] = R[i] + d[i]
             start = int(link[15])
-            link_srp(x_earth, Rj.T, light, link[14], facets[start:start + int(link[16])], v_rel, lever, f_local,
-                     t_local)
+            link_srp(
+                x_earth, Rj.T, light, link[14], facets[start : start + int(link[16])], v_rel, lever, f_local, t_local
+            )
         _rotate(Rj, f_local, f)
         _rotate(Rj, t_local, t)
         if drag and link[13] > 0.0:
@@ -396,8 +472,18 @@ def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, 
             for i in range(3):
                 v_com[i] = linear[j, i] + lever[i]
                 x_earth[i] = R[i] + d[i]
-            c = drag_factor(x_earth, V, v_com, link[13], atmosphere[0], atmosphere[1], atmosphere[2],
-                            earth_rate, earth_radius, v_rel)
+            c = drag_factor(
+                x_earth,
+                V,
+                v_com,
+                link[13],
+                atmosphere[0],
+                atmosphere[1],
+                atmosphere[2],
+                earth_rate,
+                earth_radius,
+                v_rel,
+            )
             for i in range(3):
                 f[i] += c * v_rel[i]
         for i in range(3):
@@ -407,7 +493,7 @@ def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, 
         total_torque[j, 0] += t[0] + d[1] * f[2] - d[2] * f[1]
         total_torque[j, 1] += t[1] + d[2] * f[0] - d[0] * f[2]
         total_torque[j, 2] += t[2] + d[0] * f[1] - d[1] * f[0]
-    for j in range(nj - 1, 1, -1):                # children before parents
+    for j in range(nj - 1, 1, -1):  # children before parents
         for i in range(3):
             total_force[joints[j, 0], i] += total_force[j, i]
             total_torque[joints[j, 0], i] += total_torque[j, i]
@@ -416,7 +502,7 @@ def tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, 
         F, T = total_force[j], total_torque[j]
         _cross(position[j], F, about)
         for i in range(3):
-            about[i] = T[i] - about[i]            # about the joint's origin
+            about[i] = T[i] - about[i]  # about the joint's origin
         if j == 1:
             for i in range(3):
                 out[i] += about[i]

@@ -14,9 +14,10 @@ torque uses that field and the attitude at its start (the same instant), and hol
 W axes over the step (a zero-order hold, as an actuator commanded once per step; the body turns
 by w h within it: 0.25 deg at 5 deg/s and 50 ms). No orbit (r_eci = 0): no field, no torque.
 """
+
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -63,8 +64,10 @@ class Magnetics:
             self.torque_body[name] = rotation.T @ torque_W
 
     def get_state(self) -> dict[str, np.ndarray]:
-        return {**{f"magnetic.b_eci.{n}": b.copy() for n, b in self.b_eci.items()},
-                **{f"magnetic.mtb_torque.{n}": t.copy() for n, t in self.torque_body.items()}}
+        return {
+            **{f"magnetic.b_eci.{n}": b.copy() for n, b in self.b_eci.items()},
+            **{f"magnetic.mtb_torque.{n}": t.copy() for n, t in self.torque_body.items()},
+        }
 
     def set_state(self, state: Mapping[str, np.ndarray]) -> None:
         for name in self.names:

@@ -12,6 +12,7 @@ a tumbling body's attitude drifted to 4e-7 where it should reach 1e-13). ``exp_s
 ``log_so3`` are the compiled twins of :mod:`components.rotations`' (which the processes without
 numba use), exact to rounding at every angle.
 """
+
 from __future__ import annotations
 
 import math
@@ -39,8 +40,8 @@ def rate_entries(phi: np.ndarray, omega: np.ndarray):
     else:
         t = math.sqrt(t2)
         c = (1.0 - 0.5 * t / math.tan(0.5 * t)) / t2
-    cx, cy, cz = py * wz - pz * wy, pz * wx - px * wz, px * wy - py * wx          # phi x omega
-    dx, dy, dz = py * cz - pz * cy, pz * cx - px * cz, px * cy - py * cx          # phi x (phi x omega)
+    cx, cy, cz = py * wz - pz * wy, pz * wx - px * wz, px * wy - py * wx  # phi x omega
+    dx, dy, dz = py * cz - pz * cy, pz * cx - px * cz, px * cy - py * cx  # phi x (phi x omega)
     return wx - 0.5 * cx + c * dx, wy - 0.5 * cy + c * dy, wz - 0.5 * cz + c * dz
 
 
@@ -81,9 +82,17 @@ def exp_entries(x: float, y: float, z: float):
         a = math.sin(t) / t
         s = math.sin(0.5 * t) / t
         b = 2.0 * s * s
-    return (1.0 - b * (y * y + z * z), b * x * y - a * z, b * x * z + a * y,
-            b * x * y + a * z, 1.0 - b * (x * x + z * z), b * y * z - a * x,
-            b * x * z - a * y, b * y * z + a * x, 1.0 - b * (x * x + y * y))
+    return (
+        1.0 - b * (y * y + z * z),
+        b * x * y - a * z,
+        b * x * z + a * y,
+        b * x * y + a * z,
+        1.0 - b * (x * x + z * z),
+        b * y * z - a * x,
+        b * x * z - a * y,
+        b * y * z + a * x,
+        1.0 - b * (x * x + y * y),
+    )
 
 
 @numba.njit(cache=True)
@@ -96,15 +105,15 @@ def log_so3(m: np.ndarray) -> np.ndarray:
 def log_entries(m: np.ndarray):
     """``log_so3`` as three floats."""
     v0, v1, v2 = m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]
-    s = 0.5 * math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)     # sin t
-    c = 0.5 * (m[0, 0] + m[1, 1] + m[2, 2] - 1.0)                  # cos t
+    s = 0.5 * math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)  # sin t
+    c = 0.5 * (m[0, 0] + m[1, 1] + m[2, 2] - 1.0)  # cos t
     t = math.atan2(s, c)
     if c >= 0.0:
         if s == 0.0:
             return 0.0, 0.0, 0.0
         k = 0.5 * t / s
         return v0 * k, v1 * k, v2 * k
-    k = 0                                                          # obtuse: axis from the symmetric part
+    k = 0  # obtuse: axis from the symmetric part
     for i in range(1, 3):
         if m[i, i] > m[k, k]:
             k = i

@@ -20,6 +20,7 @@ the links' inertia from the URDF). The compiled kernels are in
 the step's last call also forms the outputs (pose, twist, CoM and momentum over the same tree:
 ``body_summary``, which agrees with Pinocchio's centroidal momentum to rounding).
 """
+
 from __future__ import annotations
 
 import functools
@@ -33,11 +34,12 @@ from components.dynamics import pinocchio_kernels as kernels
 from components.dynamics.bodies import Body, BodySpec, Environment, ModelError
 from components.robots.urdf import UrdfModel
 
-NO_STAGE = np.zeros(0)     # pinocchio_inputs' a when x, v are formed (and its R, V without environment)
+NO_STAGE = np.zeros(0)  # pinocchio_inputs' a when x, v are formed (and its R, V without environment)
 
 
 class PinocchioBody(Body):
     """A body as a Pinocchio model; the state is held here, in the world's coordinates (``x``, ``v``)."""
+
     engine = "pinocchio"
 
     def __init__(self, spec: BodySpec, model: UrdfModel, environment: Environment):
@@ -53,8 +55,8 @@ class PinocchioBody(Body):
             reference = pin.neutral(full)
             for name, value in self.locked.items():
                 joint = full.joints[full.getJointId(name)]
-                if joint.nq == 2:                              # continuous: (cos, sin)
-                    reference[joint.idx_q:joint.idx_q + 2] = math.cos(value), math.sin(value)
+                if joint.nq == 2:  # continuous: (cos, sin)
+                    reference[joint.idx_q : joint.idx_q + 2] = math.cos(value), math.sin(value)
                 else:
                     reference[joint.idx_q] = value
             pm = pin.buildReducedModel(full, [full.getJointId(n) for n in self.locked], reference)
@@ -68,8 +70,8 @@ class PinocchioBody(Body):
         self.idx_v = np.array([j.idx_v for j in joints], dtype=np.int64)
         # the tree for the environment (link_forces.tree_kinematics): joint 1 is the free flyer
         nj = pm.njoints
-        self.tree_joints = np.zeros((nj, 3), dtype=np.int64)            # parent, kind, coordinate
-        self.tree_frames = np.zeros((nj, 15))                           # placement R, p; axis
+        self.tree_joints = np.zeros((nj, 3), dtype=np.int64)  # parent, kind, coordinate
+        self.tree_frames = np.zeros((nj, 15))  # placement R, p; axis
         for j in range(1, nj):
             placement = pm.jointPlacements[j]
             self.tree_frames[j, :12] = np.concatenate([placement.rotation.ravel(), placement.translation])
@@ -90,16 +92,25 @@ class PinocchioBody(Body):
             joint_of.append(frame.parentJoint)
             placements.append(P)
             inertia = P.rotation @ np.array(link.inertia).reshape(3, 3) @ P.rotation.T
-            rows.append(np.concatenate([P.rotation @ np.array(link.com) + P.translation, inertia.ravel(),
-                                        [link.mass, self.drag_k[link.name]]]))
+            rows.append(
+                np.concatenate(
+                    [
+                        P.rotation @ np.array(link.com) + P.translation,
+                        inertia.ravel(),
+                        [link.mass, self.drag_k[link.name]],
+                    ]
+                )
+            )
         self.link_joint = np.array(joint_of, dtype=np.int64)
         rows = np.array(rows).reshape(-1, 14)
-        srp_links, self.facets = self.srp_tables([model.links[i].name for i in self.massive_links],
-                                                 [P.rotation for P in placements],
-                                                 [P.translation - row[:3] for P, row in zip(placements, rows)])
-        self.tree_links = np.hstack([rows, srp_links])   # CoM, inertia, mass, 1/2 Cd A; Cr A, facet rows (kernels)
+        srp_links, self.facets = self.srp_tables(
+            [model.links[i].name for i in self.massive_links],
+            [P.rotation for P in placements],
+            [P.translation - row[:3] for P, row in zip(placements, rows)],
+        )
+        self.tree_links = np.hstack([rows, srp_links])  # CoM, inertia, mass, 1/2 Cd A; Cr A, facet rows (kernels)
         self.total_mass = float(self.tree_links[:, 12].sum())
-        self.wrenches = np.zeros((2, len(self.massive_links), 3))   # environment per link, W axes
+        self.wrenches = np.zeros((2, len(self.massive_links), 3))  # environment per link, W axes
         self.force, self.torque = self.wrenches
         self.pin_index = np.array([self.idx_q, self.nq, self.idx_v], dtype=np.int64).reshape(3, -1)
         e = environment
@@ -113,41 +124,63 @@ class PinocchioBody(Body):
         self.q0, self.v0 = self.x, self.v
         self.stage, self.stage_c, self.stage_a = 0, 0.0, NO_STAGE
         self.work = np.zeros((10, self.ndofs))
-        self.stage_x, self.stage_v = np.zeros(self.ndofs), np.zeros(self.ndofs)   # (rk4_step's stages)
+        self.stage_x, self.stage_v = np.zeros(self.ndofs), np.zeros(self.ndofs)  # (rk4_step's stages)
         self.rotation = np.eye(3)
         self.buffer = np.concatenate([pin.neutral(pm), np.zeros(2 * pm.nv)])
-        self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [pm.nq, pm.nq + pm.nv])   # views
-        self.step_values = np.zeros(9)                        # (rk4_begin's: environment, h, s, point)
-        self.summary = np.zeros(25)                           # (kernels.body_summary's: pose, twist, CoM, momentum)
+        self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [pm.nq, pm.nq + pm.nv])  # views
+        self.step_values = np.zeros(9)  # (rk4_begin's: environment, h, s, point)
+        self.summary = np.zeros(25)  # (kernels.body_summary's: pose, twist, CoM, momentum)
         self.pool()
         self.begin = functools.partial(kernels.rk4_begin, self.ints, self.values)
         self.evaluate = functools.partial(kernels.rk4_evaluation, self.ints, self.values)
-        self.synced = False                                    # q_pin, v_pin, rotation hold x, v
-        self.summarized = False                                # summary holds the outputs there
-        self.jacobians = False                                 # data holds the joints' Jacobians there
+        self.synced = False  # q_pin, v_pin, rotation hold x, v
+        self.summarized = False  # summary holds the outputs there
+        self.jacobians = False  # data holds the joints' Jacobians there
 
     def pool(self) -> None:
         """The fixed arrays made views of two (``rk4_evaluation`` takes those: a call's cost grows
         with its arguments): ints (nj, links, joints, atmosphere bands, nq; tree_joints, link_joint,
         pin_index) and values (the model's tree_frames, tree_links, constants, atmosphere; then
         wrenches, rotation, buffer, work, step_values, tau, summary); see ``unpool``."""
-        header = [len(self.tree_joints), len(self.link_joint), self.pin_index.shape[1], self.atmosphere.shape[1],
-                  len(self.q_pin)]
-        for pool, names in (("ints", ("tree_joints", "link_joint", "pin_index")),
-                            ("values", ("tree_frames", "tree_links", "constants", "atmosphere", "wrenches", "rotation",
-                                        "buffer", "work", "step_values", "tau", "summary", "facets"))):
+        header = [
+            len(self.tree_joints),
+            len(self.link_joint),
+            self.pin_index.shape[1],
+            self.atmosphere.shape[1],
+            len(self.q_pin),
+        ]
+        for pool, names in (
+            ("ints", ("tree_joints", "link_joint", "pin_index")),
+            (
+                "values",
+                (
+                    "tree_frames",
+                    "tree_links",
+                    "constants",
+                    "atmosphere",
+                    "wrenches",
+                    "rotation",
+                    "buffer",
+                    "work",
+                    "step_values",
+                    "tau",
+                    "summary",
+                    "facets",
+                ),
+            ),
+        ):
             arrays = [getattr(self, name) for name in names]
             start = [np.array(header, dtype=np.int64)] if pool == "ints" else []
             values = np.concatenate(start + [a.ravel() for a in arrays])
             setattr(self, pool, values)
             offset = len(header) if pool == "ints" else 0
             for name, a in zip(names, arrays):
-                setattr(self, name, values[offset:offset + a.size].reshape(a.shape))
+                setattr(self, name, values[offset : offset + a.size].reshape(a.shape))
                 offset += a.size
         self.force, self.torque = self.wrenches
-        self.light = self.constants[kernels.LIGHT:kernels.THIRD]      # the Sun and Moon: set_sun
-        self.third = self.constants[kernels.THIRD:]                   # the third bodies' GMs (0: off)
-        self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [self.pm.nq, self.pm.nq + self.pm.nv])   # views
+        self.light = self.constants[kernels.LIGHT : kernels.THIRD]  # the Sun and Moon: set_sun
+        self.third = self.constants[kernels.THIRD :]  # the third bodies' GMs (0: off)
+        self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [self.pm.nq, self.pm.nq + self.pm.nv])  # views
 
     def atmosphere_changed(self) -> None:
         """The kernels read the bands from the pooled copy: refresh it."""
@@ -185,7 +218,7 @@ class PinocchioBody(Body):
         self.q0, self.v0 = self.x, self.v
 
     def next_stage(self, stage: int, c: float, a: np.ndarray) -> None:
-        self.x, self.v = np.empty(self.ndofs), np.empty(self.ndofs)     # (an x, v is never written once formed)
+        self.x, self.v = np.empty(self.ndofs), np.empty(self.ndofs)  # (an x, v is never written once formed)
         self.stage, self.stage_c, self.stage_a, self.synced = stage, c, a, False
 
     def finish_step(self, h: float, a: np.ndarray) -> None:
@@ -204,24 +237,66 @@ class PinocchioBody(Body):
         evaluate(2, aba(pm, data, q_pin, v_pin, tau_pin), x, v)
         evaluate(3, aba(pm, data, q_pin, v_pin, tau_pin), x, v)
         self.x, self.v = np.empty(self.ndofs), np.empty(self.ndofs)
-        evaluate(4, aba(pm, data, q_pin, v_pin, tau_pin), self.x, self.v)    # (and the summary)
+        evaluate(4, aba(pm, data, q_pin, v_pin, tau_pin), self.x, self.v)  # (and the summary)
         self.stage, self.synced, self.summarized, self.jacobians = 0, True, True, False
 
     # -- dynamics
     def _sync(self) -> None:
         """x, v formed, Pinocchio's q, v, tau and R_W_base at them."""
-        kernels.pinocchio_inputs(self.stage, self.stage_c, self.stage_a, self.q0, self.v0, self.work, self.x, self.v,
-                                 self.tau, False, NO_STAGE, 0.0, self.tree_joints, self.tree_frames, self.tree_links,
-                                 self.link_joint, self.constants, self.atmosphere, self.wrenches, self.pin_index,
-                                 self.rotation, self.buffer, self.facets)
+        kernels.pinocchio_inputs(
+            self.stage,
+            self.stage_c,
+            self.stage_a,
+            self.q0,
+            self.v0,
+            self.work,
+            self.x,
+            self.v,
+            self.tau,
+            False,
+            NO_STAGE,
+            0.0,
+            self.tree_joints,
+            self.tree_frames,
+            self.tree_links,
+            self.link_joint,
+            self.constants,
+            self.atmosphere,
+            self.wrenches,
+            self.pin_index,
+            self.rotation,
+            self.buffer,
+            self.facets,
+        )
         self.stage, self.synced, self.summarized, self.jacobians = 0, True, False, False
 
     def forward_dynamics(self, reference) -> np.ndarray:
-        point, s = (NO_STAGE, 0.0) if reference is None else reference    # (_sync inlined: four times a step)
-        kernels.pinocchio_inputs(self.stage, self.stage_c, self.stage_a, self.q0, self.v0, self.work, self.x, self.v,
-                                 self.tau, reference is not None, point, float(s), self.tree_joints, self.tree_frames,
-                                 self.tree_links, self.link_joint, self.constants, self.atmosphere, self.wrenches,
-                                 self.pin_index, self.rotation, self.buffer, self.facets)
+        point, s = (NO_STAGE, 0.0) if reference is None else reference  # (_sync inlined: four times a step)
+        kernels.pinocchio_inputs(
+            self.stage,
+            self.stage_c,
+            self.stage_a,
+            self.q0,
+            self.v0,
+            self.work,
+            self.x,
+            self.v,
+            self.tau,
+            reference is not None,
+            point,
+            float(s),
+            self.tree_joints,
+            self.tree_frames,
+            self.tree_links,
+            self.link_joint,
+            self.constants,
+            self.atmosphere,
+            self.wrenches,
+            self.pin_index,
+            self.rotation,
+            self.buffer,
+            self.facets,
+        )
         self.stage, self.synced, self.summarized, self.jacobians = 0, True, False, False
         ddq = self.pin.aba(self.pm, self.data, self.q_pin, self.v_pin, self.tau_pin)
         return kernels.from_pinocchio(ddq, self.v_pin, self.rotation, self.idx_v, np.empty(self.ndofs))
@@ -236,7 +311,7 @@ class PinocchioBody(Body):
     def base_pose(self):
         if not self.synced:
             self._sync()
-        return self.rotation.copy(), self.x[3:6]                # (an x is never written once formed)
+        return self.rotation.copy(), self.x[3:6]  # (an x is never written once formed)
 
     def orientation(self, R: np.ndarray) -> np.ndarray:
         """The configuration's quaternion (w = cos(|phi|/2), made >= 0)."""
@@ -255,8 +330,15 @@ class PinocchioBody(Body):
 
     def state_outputs(self) -> dict[str, np.ndarray]:
         o = self._summary().copy()
-        return {"position": o[0:3], "orientation": o[3:7], "twist": o[7:13], "q": self.joint_positions(self.x),
-                "qd": self.joint_velocities(self.v), "com": o[13:16], "momentum": o[19:25]}
+        return {
+            "position": o[0:3],
+            "orientation": o[3:7],
+            "twist": o[7:13],
+            "q": self.joint_positions(self.x),
+            "qd": self.joint_velocities(self.v),
+            "com": o[13:16],
+            "momentum": o[19:25],
+        }
 
     def com(self) -> np.ndarray:
         return self._summary()[13:16].copy()
@@ -265,7 +347,7 @@ class PinocchioBody(Body):
         return self._summary()[16:19].copy()
 
     def momentum(self, com=None, base_position=None) -> np.ndarray:
-        return self._summary()[19:25].copy()             # (linear, angular about the CoM), W axes
+        return self._summary()[19:25].copy()  # (linear, angular about the CoM), W axes
 
     def _frames(self) -> None:
         if not self.synced:
@@ -277,8 +359,12 @@ class PinocchioBody(Body):
         return np.array([self.data.oMf[self.frame_id[link]].homogeneous for link in self.link_names])
 
     def environment_wrenches(self, R, V):
-        return self._wrenches(R, V, (((True, True, False, False, False), ((0, 0), (2, 1))),
-                                     ((False, False, True, False, False), ((1, 0),))), 3)
+        return self._wrenches(
+            R,
+            V,
+            (((True, True, False, False, False), ((0, 0), (2, 1))), ((False, False, True, False, False), ((1, 0),))),
+            3,
+        )
 
     def srp_wrenches(self, R, V):
         return self._wrenches(R, V, (((False, False, False, True, False), ((0, 0), (1, 1))),), 2)
@@ -298,9 +384,29 @@ class PinocchioBody(Body):
             terms = self.terms & np.array(terms[:4])
             if terms.any() or third:
                 link_forces.tree_generalized_forces(
-                    self.x, self.v, self.tau, self.tree_joints, self.tree_frames, self.tree_links, self.link_joint,
-                    R, V, self.environment.mu, terms[0], terms[1], terms[2], self.atmosphere, EARTH_RATE, R_EARTH,
-                    self.force, self.torque, terms[3], self.light, self.facets, self.third if third else self.no_third)
+                    self.x,
+                    self.v,
+                    self.tau,
+                    self.tree_joints,
+                    self.tree_frames,
+                    self.tree_links,
+                    self.link_joint,
+                    R,
+                    V,
+                    self.environment.mu,
+                    terms[0],
+                    terms[1],
+                    terms[2],
+                    self.atmosphere,
+                    EARTH_RATE,
+                    R_EARTH,
+                    self.force,
+                    self.torque,
+                    terms[3],
+                    self.light,
+                    self.facets,
+                    self.third if third else self.no_third,
+                )
                 for part, wrench in parts:
                     out[part][self.massive_links] = self.wrenches[wrench]
         return tuple(out)
@@ -315,11 +421,11 @@ class PinocchioBody(Body):
         pin = self.pin
         if not self.synced:
             self._sync()
-        if not self.jacobians:                                 # the joints' Jacobians, once per state
+        if not self.jacobians:  # the joints' Jacobians, once per state
             pin.computeJointJacobians(self.pm, self.data, self.q_pin)
             self.jacobians = True
         frame = self.frame_id[link]
-        J = pin.getFrameJacobian(self.pm, self.data, frame, pin.LOCAL_WORLD_ALIGNED)   # [linear; angular]
+        J = pin.getFrameJacobian(self.pm, self.data, frame, pin.LOCAL_WORLD_ALIGNED)  # [linear; angular]
         r = pin.updateFramePlacement(self.pm, self.data, frame).rotation @ point
         return kernels.world_point_jacobian(J, r, self.rotation, self.idx_v)
 
@@ -330,7 +436,7 @@ class PinocchioBody(Body):
         if not self.synced:
             self._sync()
         a = kernels.zero_world_acceleration(self.v_pin)
-        pin.forwardKinematics(self.pm, self.data, self.q_pin, self.v_pin, a)   # (the same q: data.J holds)
+        pin.forwardKinematics(self.pm, self.data, self.q_pin, self.v_pin, a)  # (the same q: data.J holds)
         frame = self.frame_id[link]
         r = pin.updateFramePlacement(self.pm, self.data, frame).rotation @ point
         acceleration = pin.getFrameClassicalAcceleration(self.pm, self.data, frame, pin.LOCAL_WORLD_ALIGNED)

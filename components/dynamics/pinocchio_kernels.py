@@ -5,6 +5,7 @@ arithmetic, the environment and Pinocchio's inputs in it; a call's cost grows wi
 so the body's arrays come in two pools, ``unpool``). numba, no fastmath: IEEE arithmetic, the
 same bits at every run.
 """
+
 from __future__ import annotations
 
 import math
@@ -14,7 +15,7 @@ import numpy as np
 
 from components.dynamics import link_forces, manifold_rk4
 
-LINK_COLUMNS = 17      # a link's row: CoM (3), inertia (9), mass, 1/2 Cd A, Cr A, first facet, facets
+LINK_COLUMNS = 17  # a link's row: CoM (3), inertia (9), mass, 1/2 Cd A, Cr A, first facet, facets
 # mu, Earth's rate, radius, tidal, gravity gradient, drag, SRP; light; the GMs of the third bodies (Sun, Moon; 0: off)
 LIGHT = 7
 THIRD = LIGHT + link_forces.LIGHT_SIZE
@@ -25,7 +26,7 @@ CONSTANTS = THIRD + 2
 def quaternion_entries(px, py, pz):
     """The quaternion [x, y, z, w] of the rotation vector (px, py, pz), w = cos(|phi|/2)."""
     t = math.sqrt(px * px + py * py + pz * pz)
-    s = 0.5 - t * t / 48.0 if t < 1e-6 else math.sin(0.5 * t) / t     # sin(t/2) / t
+    s = 0.5 - t * t / 48.0 if t < 1e-6 else math.sin(0.5 * t) / t  # sin(t/2) / t
     return s * px, s * py, s * pz, math.cos(0.5 * t)
 
 
@@ -85,8 +86,31 @@ def form_stage(stage, c, a, q0, v0, work, x, v):
 
 
 @numba.njit(cache=True)
-def pinocchio_inputs(stage, c, a, q0, v0, work, x, v, tau, environment, point, s, joints, frames, links, link_joint,
-                     constants, atmosphere, wrenches, pin_index, rotation, buffer, facets):
+def pinocchio_inputs(
+    stage,
+    c,
+    a,
+    q0,
+    v0,
+    work,
+    x,
+    v,
+    tau,
+    environment,
+    point,
+    s,
+    joints,
+    frames,
+    links,
+    link_joint,
+    constants,
+    atmosphere,
+    wrenches,
+    pin_index,
+    rotation,
+    buffer,
+    facets,
+):
     """One evaluation's inputs in one call (a call's cost grows with its arguments and every call
     costs ~1 us: the RK4's stage arithmetic is here too): the state (``stage`` > 0: x, v formed by
     ``form_stage``; 0: x, v as they are), the generalized forces (tau, plus with ``environment``
@@ -101,16 +125,45 @@ def pinocchio_inputs(stage, c, a, q0, v0, work, x, v, tau, environment, point, s
         form_stage(stage, c, a, q0, v0, work, x, v)
     if environment:
         R, V = link_forces.propagate_reference(point[0:3], point[3:6], s, constants[0])
-        Q = link_forces.tree_generalized_forces(x, v, tau, joints, frames, links, link_joint, R, V, constants[0],
-                                                constants[3] != 0.0, constants[4] != 0.0, constants[5] != 0.0,
-                                                atmosphere, constants[1], constants[2], wrenches[0], wrenches[1],
-                                                constants[6] != 0.0, constants[LIGHT:THIRD], facets,
-                                                constants[THIRD:CONSTANTS])
+        Q = link_forces.tree_generalized_forces(
+            x,
+            v,
+            tau,
+            joints,
+            frames,
+            links,
+            link_joint,
+            R,
+            V,
+            constants[0],
+            constants[3] != 0.0,
+            constants[4] != 0.0,
+            constants[5] != 0.0,
+            atmosphere,
+            constants[1],
+            constants[2],
+            wrenches[0],
+            wrenches[1],
+            constants[6] != 0.0,
+            constants[LIGHT:THIRD],
+            facets,
+            constants[THIRD:CONSTANTS],
+        )
     else:
         Q = tau
     nq, nv = buffer.shape[0] - 2 * v.shape[0], v.shape[0]
-    to_pinocchio(x, v, Q, pin_index[0], pin_index[1], pin_index[2], rotation, buffer[:nq], buffer[nq:nq + nv],
-                 buffer[nq + nv:])
+    to_pinocchio(
+        x,
+        v,
+        Q,
+        pin_index[0],
+        pin_index[1],
+        pin_index[2],
+        rotation,
+        buffer[:nq],
+        buffer[nq : nq + nv],
+        buffer[nq + nv :],
+    )
 
 
 @numba.njit(cache=True)
@@ -134,30 +187,45 @@ def unpool(ints, values, nv):
     rates and accelerations of ``form_stage``, xi, then the step's q0 and v0), the step's values
     (environment, h, s, the reference point), tau, the summary (``body_summary``) and the SRP facets."""
     nj, nl, m, b, nq = ints[0], ints[1], ints[2], ints[3], ints[4]
-    joints = ints[5:5 + 3 * nj].reshape((nj, 3))
+    joints = ints[5 : 5 + 3 * nj].reshape((nj, 3))
     o = 5 + 3 * nj
-    link_joint = ints[o:o + nl]
-    pin_index = ints[o + nl:o + nl + 3 * m].reshape((3, m))
-    frames = values[:15 * nj].reshape((nj, 15))
+    link_joint = ints[o : o + nl]
+    pin_index = ints[o + nl : o + nl + 3 * m].reshape((3, m))
+    frames = values[: 15 * nj].reshape((nj, 15))
     o = 15 * nj
-    links = values[o:o + LINK_COLUMNS * nl].reshape((nl, LINK_COLUMNS))
+    links = values[o : o + LINK_COLUMNS * nl].reshape((nl, LINK_COLUMNS))
     o += LINK_COLUMNS * nl
-    constants = values[o:o + CONSTANTS]
-    atmosphere = values[o + CONSTANTS:o + CONSTANTS + 3 * b].reshape((3, b))
+    constants = values[o : o + CONSTANTS]
+    atmosphere = values[o + CONSTANTS : o + CONSTANTS + 3 * b].reshape((3, b))
     o += CONSTANTS + 3 * b
-    wrenches = values[o:o + 6 * nl].reshape((2, nl, 3))
+    wrenches = values[o : o + 6 * nl].reshape((2, nl, 3))
     o += 6 * nl
-    rotation = values[o:o + 9].reshape((3, 3))
-    buffer = values[o + 9:o + 9 + nq + 2 * nv]
+    rotation = values[o : o + 9].reshape((3, 3))
+    buffer = values[o + 9 : o + 9 + nq + 2 * nv]
     o += 9 + nq + 2 * nv
-    work = values[o:o + 10 * nv].reshape((10, nv))
+    work = values[o : o + 10 * nv].reshape((10, nv))
     o += 10 * nv
-    step = values[o:o + 9]
-    tau = values[o + 9:o + 9 + nv]
-    summary = values[o + 9 + nv:o + 34 + nv]
-    facets = values[o + 34 + nv:].reshape((-1, 9))
-    return (joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step,
-            tau, summary, facets)
+    step = values[o : o + 9]
+    tau = values[o + 9 : o + 9 + nv]
+    summary = values[o + 9 + nv : o + 34 + nv]
+    facets = values[o + 34 + nv :].reshape((-1, 9))
+    return (
+        joints,
+        link_joint,
+        pin_index,
+        frames,
+        links,
+        constants,
+        atmosphere,
+        wrenches,
+        rotation,
+        buffer,
+        work,
+        step,
+        tau,
+        summary,
+        facets,
+    )
 
 
 @numba.njit(cache=True)
@@ -188,11 +256,22 @@ def tree_centroidal(x, v, joints, frames, links, link_joint, out):
     L = sum (I w + m (c - com) x v_c)."""
     nj, nl = joints.shape[0], link_joint.shape[0]
     block = np.zeros(21 * nj + 12 * nl + 24)
-    per_joint = block[:12 * nj].reshape((4, nj, 3))
-    rotation = block[12 * nj:21 * nj].reshape((nj, 3, 3))
-    link_values = block[21 * nj:21 * nj + 12 * nl].reshape((nl, 4, 3))     # per link: c, v_c, I w, R^T w
-    link_forces.tree_kinematics(x, v, joints, frames, True, rotation, per_joint[0], per_joint[1], per_joint[2],
-                                per_joint[3], block[21 * nj + 12 * nl:21 * nj + 12 * nl + 24])
+    per_joint = block[: 12 * nj].reshape((4, nj, 3))
+    rotation = block[12 * nj : 21 * nj].reshape((nj, 3, 3))
+    link_values = block[21 * nj : 21 * nj + 12 * nl].reshape((nl, 4, 3))  # per link: c, v_c, I w, R^T w
+    link_forces.tree_kinematics(
+        x,
+        v,
+        joints,
+        frames,
+        True,
+        rotation,
+        per_joint[0],
+        per_joint[1],
+        per_joint[2],
+        per_joint[3],
+        block[21 * nj + 12 * nl : 21 * nj + 12 * nl + 24],
+    )
     out[:] = 0.0
     mass = 0.0
     for n in range(nl):
@@ -202,7 +281,7 @@ def tree_centroidal(x, v, joints, frames, links, link_joint, out):
         m = link[12]
         mass += m
         for i in range(3):
-            c[i] = Rj[i, 0] * link[0] + Rj[i, 1] * link[1] + Rj[i, 2] * link[2]    # CoM from the joint's origin
+            c[i] = Rj[i, 0] * link[0] + Rj[i, 1] * link[1] + Rj[i, 2] * link[2]  # CoM from the joint's origin
         v_c[0] = per_joint[3, j, 0] + w[1] * c[2] - w[2] * c[1]
         v_c[1] = per_joint[3, j, 1] + w[2] * c[0] - w[0] * c[2]
         v_c[2] = per_joint[3, j, 2] + w[0] * c[1] - w[1] * c[0]
@@ -210,7 +289,7 @@ def tree_centroidal(x, v, joints, frames, links, link_joint, out):
             c[i] += per_joint[0, j, i]
             out[i] += m * c[i]
             out[6 + i] += m * v_c[i]
-        local = link_values[n, 3]                # I w = Rj I_local Rj^T w
+        local = link_values[n, 3]  # I w = Rj I_local Rj^T w
         for i in range(3):
             local[i] = Rj[0, i] * w[0] + Rj[1, i] * w[1] + Rj[2, i] * w[2]
         t0 = link[3] * local[0] + link[4] * local[1] + link[5] * local[2]
@@ -236,15 +315,53 @@ def rk4_begin(ints, values, x, v, environment, point, h, s):
     with the environment at ``point`` (``pinocchio_inputs``); keeps the step's start and values
     for ``rk4_evaluation``. The body's arrays in two pools (``PinocchioBody.pool``): a call's
     cost grows with its arguments."""
-    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step, tau, \
-        _, facets = unpool(ints, values, v.shape[0])
+    (
+        joints,
+        link_joint,
+        pin_index,
+        frames,
+        links,
+        constants,
+        atmosphere,
+        wrenches,
+        rotation,
+        buffer,
+        work,
+        step,
+        tau,
+        _,
+        facets,
+    ) = unpool(ints, values, v.shape[0])
     work[8] = x
     work[9] = v
     step[0], step[1], step[2] = 1.0 if environment else 0.0, h, s
     if environment:
         step[3:9] = point
-    pinocchio_inputs(0, 0.0, v, x, v, work, x, v, tau, environment, point, s, joints, frames, links, link_joint,
-                     constants, atmosphere, wrenches, pin_index, rotation, buffer, facets)
+    pinocchio_inputs(
+        0,
+        0.0,
+        v,
+        x,
+        v,
+        work,
+        x,
+        v,
+        tau,
+        environment,
+        point,
+        s,
+        joints,
+        frames,
+        links,
+        link_joint,
+        constants,
+        atmosphere,
+        wrenches,
+        pin_index,
+        rotation,
+        buffer,
+        facets,
+    )
 
 
 @numba.njit(cache=True)
@@ -256,15 +373,53 @@ def rk4_evaluation(ints, values, stage, ddq, x, v):
     body's outputs there: ``body_summary``). With
     ``rk4_begin``, one call per evaluation and no other (``PinocchioBody.rk4_step``)."""
     nv = v.shape[0]
-    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work, step, tau, \
-        summary, facets = unpool(ints, values, nv)
+    (
+        joints,
+        link_joint,
+        pin_index,
+        frames,
+        links,
+        constants,
+        atmosphere,
+        wrenches,
+        rotation,
+        buffer,
+        work,
+        step,
+        tau,
+        summary,
+        facets,
+    ) = unpool(ints, values, nv)
     nq = ints[4]
     h, s = step[1], step[2]
-    a = from_pinocchio(ddq, buffer[nq:nq + nv], rotation, pin_index[2], work[2 + stage])
+    a = from_pinocchio(ddq, buffer[nq : nq + nv], rotation, pin_index[2], work[2 + stage])
     c = 0.5 * h if stage < 3 else h
-    pinocchio_inputs(stage, c, a, work[8], work[9], work, x, v, tau, step[0] != 0.0 and stage < 4, step[3:9], s + c,
-                     joints, frames, links, link_joint, constants, atmosphere, wrenches, pin_index, rotation, buffer, facets)
-    if stage == 4:                                # the outputs at the end, in the same call
+    pinocchio_inputs(
+        stage,
+        c,
+        a,
+        work[8],
+        work[9],
+        work,
+        x,
+        v,
+        tau,
+        step[0] != 0.0 and stage < 4,
+        step[3:9],
+        s + c,
+        joints,
+        frames,
+        links,
+        link_joint,
+        constants,
+        atmosphere,
+        wrenches,
+        pin_index,
+        rotation,
+        buffer,
+        facets,
+    )
+    if stage == 4:  # the outputs at the end, in the same call
         body_summary(x, v, joints, frames, links, link_joint, summary)
 
 
@@ -274,8 +429,8 @@ def velocity_map(rotation, idx_v, nv):
     T = np.zeros((nv, 6 + idx_v.shape[0]))
     for i in range(3):
         for k in range(3):
-            T[i, 3 + k] = rotation[k, i]                  # v_b = R^T v
-            T[3 + i, k] = rotation[k, i]                  # omega_b = R^T omega
+            T[i, 3 + k] = rotation[k, i]  # v_b = R^T v
+            T[3 + i, k] = rotation[k, i]  # omega_b = R^T omega
     for m in range(idx_v.shape[0]):
         T[idx_v[m], 6 + m] = 1.0
     return T
@@ -302,7 +457,7 @@ def world_point_jacobian(J, r, rotation, idx_v):
     for c in range(nv):
         w0, w1, w2 = J[3, c], J[4, c], J[5, c]
         point[0, c], point[1, c], point[2, c] = w0, w1, w2
-        point[3, c] = J[0, c] - (r[1] * w2 - r[2] * w1)     # v + omega x r
+        point[3, c] = J[0, c] - (r[1] * w2 - r[2] * w1)  # v + omega x r
         point[4, c] = J[1, c] - (r[2] * w0 - r[0] * w2)
         point[5, c] = J[2, c] - (r[0] * w1 - r[1] * w0)
     return point @ velocity_map(rotation, idx_v, nv)

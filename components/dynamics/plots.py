@@ -1,5 +1,6 @@
 """The dynamics' plots (``orchestrator plot``): per body, its attitude, momentum and joints; and
 a grasp's capture on one page."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -29,7 +30,7 @@ def bodies(run: RecordedRun, c: str) -> dict:
     """Per body: attitude (against LVLH when known), momentum, joint angles."""
     t, params = run.time, run.parameters(c)
     made = {}
-    for body in (params.get("bodies") or {}):
+    for body in params.get("bodies") or {}:
         attitude = attitude_in_lvlh(run, c, body)
         momentum = run.vector(f"{c}.{body}.momentum", 6)
         q = run.vector(f"{c}.{body}.q")
@@ -49,8 +50,13 @@ def bodies(run: RecordedRun, c: str) -> dict:
                 for k, label in enumerate(("p_x", "p_y", "p_z")):
                     ax.plot(t, momentum[:, k] - momentum[0, k], linewidth=1.0, label=label + " (kg m/s)")
                 for k, label in enumerate(("L_x", "L_y", "L_z")):
-                    ax.plot(t, momentum[:, 3 + k] - momentum[0, 3 + k], linewidth=1.0, linestyle="--",
-                            label=label + " (kg m^2/s)")
+                    ax.plot(
+                        t,
+                        momentum[:, 3 + k] - momentum[0, 3 + k],
+                        linewidth=1.0,
+                        linestyle="--",
+                        label=label + " (kg m^2/s)",
+                    )
                 ax.set(ylabel="change from t0", title=f"{c}.{body}: momentum (W axes, angular about the CoM)")
             else:
                 names = run.joint_names((params["bodies"][body] or {}).get("urdf"), q.shape[1])
@@ -89,8 +95,9 @@ def capture(run: RecordedRun, c: str) -> dict:
         total[:, :3] += momentum[:, :3]
         total[:, 3:] += momentum[:, 3:] + np.cross(com, momentum[:, :3])
     fig = new_figure(12.0, 15.0)
-    axes = fig.subplot_mosaic([["distance", "rate"], ["rel_v", "rel_w"], ["force", "torque"], ["wheels", "wheels"],
-                               ["p", "L"]])
+    axes = fig.subplot_mosaic(
+        [["distance", "rate"], ["rel_v", "rel_w"], ["force", "torque"], ["wheels", "wheels"], ["p", "L"]]
+    )
     # one quantity per axis, its unit the axis' label
     axes["distance"].plot(t, 1e3 * np.linalg.norm(p, axis=1))
     axes["distance"].set(yscale="log", ylabel="mm", title=f"{c}: end effector to grasp frame, distance")
@@ -134,19 +141,31 @@ def capture(run: RecordedRun, c: str) -> dict:
 def _momentum_changed_by(params: dict) -> str:
     """What changes the bodies' total momentum in this run (all bodies, wheels included: the
     capture and the wheels exchange it, the environment's external forces change it)."""
-    external = [name for key, name in (("tidal_force", "the tidal force"), ("gravity_gradient", "gravity gradient")) if params.get(key, True)]
+    external = [
+        name
+        for key, name in (("tidal_force", "the tidal force"), ("gravity_gradient", "gravity gradient"))
+        if params.get(key, True)
+    ]
     if not external:
         return "(no external force: the capture and wheels only exchange it)"
     return f"(changed by {' and '.join(external)})"
 
 
-BODIES = Plot("{c}_{body}.png", "per body: attitude against LVLH as a rotation vector (about z: the pitch of a "
-                                "libration; against the body's t0 attitude if q_eci_lvlh is not connected), momentum "
-                                "change from t0, joint positions", bodies)
-CAPTURE = Plot("{c}_capture.png", "with a ``grasp``: distance and relative rate to the grasp frame, the assembly's "
-                                  "rate, wheel rates (joints named ``*wheel*``), the wrist force and torque, and the "
-                                  "total linear and angular momentum's change with what changes it, the capture "
-                                  "instant marked", capture)
+BODIES = Plot(
+    "{c}_{body}.png",
+    "per body: attitude against LVLH as a rotation vector (about z: the pitch of a "
+    "libration; against the body's t0 attitude if q_eci_lvlh is not connected), momentum "
+    "change from t0, joint positions",
+    bodies,
+)
+CAPTURE = Plot(
+    "{c}_capture.png",
+    "with a ``grasp``: distance and relative rate to the grasp frame, the assembly's "
+    "rate, wheel rates (joints named ``*wheel*``), the wrist force and torque, and the "
+    "total linear and angular momentum's change with what changes it, the capture "
+    "instant marked",
+    capture,
+)
 
 
 def magnetic(run: RecordedRun, c: str) -> dict:
@@ -154,7 +173,7 @@ def magnetic(run: RecordedRun, c: str) -> dict:
     magnetorquers' torque (a detumbling on one page)."""
     t, params = run.time, run.parameters(c)
     made = {}
-    for body in (params.get("bodies") or {}):
+    for body in params.get("bodies") or {}:
         b = run.vector(f"{c}.{body}.b_body", 3)
         twist = run.vector(f"{c}.{body}.twist", 6)
         if b is None or twist is None:
@@ -185,5 +204,8 @@ def magnetic(run: RecordedRun, c: str) -> dict:
     return made
 
 
-MAGNETIC = Plot("{c}_{body}_magnetic.png", "per body with magnetic_field: its angular rate, the field in its "
-                "axes and the magnetorquers' torque", magnetic)
+MAGNETIC = Plot(
+    "{c}_{body}_magnetic.png",
+    "per body with magnetic_field: its angular rate, the field in its axes and the magnetorquers' torque",
+    magnetic,
+)

@@ -11,6 +11,7 @@
 Base pose and twist are in W, not LVLH: they are what the dynamics records, so the bag is exact;
 ``/tf`` places W and LVLH in ECI, so tf gives the base in LVLH.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -25,7 +26,7 @@ from components.rosbag import ROOT_FRAME, RosContext, RosExport, RosTopic, link_
 def _packages(context: RosContext) -> dict:
     run = context.run
     packages = (run.config.get("run") or {}).get("packages") or {}
-    base = Path(run.config_dir or ".")   # as the run resolved them: relative to the config's directory
+    base = Path(run.config_dir or ".")  # as the run resolved them: relative to the config's directory
     return {str(k): str(base / str(v)) for k, v in packages.items()} if isinstance(packages, dict) else {}
 
 
@@ -81,9 +82,14 @@ def _topics(context: RosContext, dynamics: str):
             context.warn(f"{prefix}: its URDF cannot be read ({e}); no joint names, links or robot_description")
             urdf = model = None
         if model is not None:
-            topics.append(RosTopic(f"/{dynamics}/{body}/robot_description", "std_msgs/msg/String",
-                                   [(int(stamps[0]), context.msg("std_msgs/msg/String")(data=description))],
-                                   latched=True))
+            topics.append(
+                RosTopic(
+                    f"/{dynamics}/{body}/robot_description",
+                    "std_msgs/msg/String",
+                    [(int(stamps[0]), context.msg("std_msgs/msg/String")(data=description))],
+                    latched=True,
+                )
+            )
         if position is None or orientation is None:
             continue
         base = link_frame(dynamics, body, model.root if model else "base")
@@ -93,32 +99,68 @@ def _topics(context: RosContext, dynamics: str):
             if links is not None:
                 for j, link in enumerate(model.link_names):
                     if link != model.root:
-                        transforms[row].append(context.transform(ns, world, link_frame(dynamics, body, link),
-                                                                  links[0][row, j], links[1][row, j]))
+                        transforms[row].append(
+                            context.transform(
+                                ns, world, link_frame(dynamics, body, link), links[0][row, j], links[1][row, j]
+                            )
+                        )
         Pose, PoseStamped = context.msg("geometry_msgs/msg/Pose"), context.msg("geometry_msgs/msg/PoseStamped")
-        topics.append(RosTopic(f"/{dynamics}/{body}/pose", "geometry_msgs/msg/PoseStamped", [
-            (int(ns), PoseStamped(header=context.header(ns, world),
-                                  pose=Pose(position=context.point(position[row]),
-                                            orientation=context.quaternion(orientation[row]))))
-            for row, ns in enumerate(stamps)]))
+        topics.append(
+            RosTopic(
+                f"/{dynamics}/{body}/pose",
+                "geometry_msgs/msg/PoseStamped",
+                [
+                    (
+                        int(ns),
+                        PoseStamped(
+                            header=context.header(ns, world),
+                            pose=Pose(
+                                position=context.point(position[row]), orientation=context.quaternion(orientation[row])
+                            ),
+                        ),
+                    )
+                    for row, ns in enumerate(stamps)
+                ],
+            )
+        )
         if twist is not None:
             Twist, TwistStamped = context.msg("geometry_msgs/msg/Twist"), context.msg("geometry_msgs/msg/TwistStamped")
-            topics.append(RosTopic(f"/{dynamics}/{body}/twist", "geometry_msgs/msg/TwistStamped", [
-                (int(ns), TwistStamped(header=context.header(ns, world),
-                                       twist=Twist(linear=context.vector3(twist[row, :3]),
-                                                   angular=context.vector3(twist[row, 3:]))))
-                for row, ns in enumerate(stamps)]))
+            topics.append(
+                RosTopic(
+                    f"/{dynamics}/{body}/twist",
+                    "geometry_msgs/msg/TwistStamped",
+                    [
+                        (
+                            int(ns),
+                            TwistStamped(
+                                header=context.header(ns, world),
+                                twist=Twist(
+                                    linear=context.vector3(twist[row, :3]), angular=context.vector3(twist[row, 3:])
+                                ),
+                            ),
+                        )
+                        for row, ns in enumerate(stamps)
+                    ],
+                )
+            )
         if q is not None:
             topics.append(_joint_states(context, dynamics, body, model, q, qd))
-    topics.insert(0, RosTopic("/tf", "tf2_msgs/msg/TFMessage",
-                              [(int(ns), context.tf(ts)) for ns, ts in zip(stamps, transforms) if ts]))
+    topics.insert(
+        0,
+        RosTopic(
+            "/tf", "tf2_msgs/msg/TFMessage", [(int(ns), context.tf(ts)) for ns, ts in zip(stamps, transforms) if ts]
+        ),
+    )
     return topics
 
 
 def _joint_states(context: RosContext, dynamics: str, body: str, model, q, qd) -> RosTopic:
     run = context.run
-    names = model.movable_joints if model is not None and len(model.movable_joints) == q.shape[1] \
+    names = (
+        model.movable_joints
+        if model is not None and len(model.movable_joints) == q.shape[1]
         else [f"q[{i}]" for i in range(q.shape[1])]
+    )
     tau_source = source_of(run, dynamics, f"{body}.tau")
     effort = run.vector(".".join(tau_source)) if tau_source else None
     if effort is not None and effort.shape[1] != q.shape[1]:
@@ -126,12 +168,23 @@ def _joint_states(context: RosContext, dynamics: str, body: str, model, q, qd) -
     empty = np.empty(0)
     JointState = context.msg("sensor_msgs/msg/JointState")
     frame = link_frame(dynamics, body, model.root) if model is not None else ""
-    return RosTopic(f"/{dynamics}/{body}/joint_states", "sensor_msgs/msg/JointState", [
-        (int(ns), JointState(header=context.header(ns, frame), name=list(names),
-                             position=np.ascontiguousarray(q[row]),
-                             velocity=np.ascontiguousarray(qd[row]) if qd is not None else empty,
-                             effort=np.ascontiguousarray(effort[row]) if effort is not None else empty))
-        for row, ns in enumerate(context.stamps)])
+    return RosTopic(
+        f"/{dynamics}/{body}/joint_states",
+        "sensor_msgs/msg/JointState",
+        [
+            (
+                int(ns),
+                JointState(
+                    header=context.header(ns, frame),
+                    name=list(names),
+                    position=np.ascontiguousarray(q[row]),
+                    velocity=np.ascontiguousarray(qd[row]) if qd is not None else empty,
+                    effort=np.ascontiguousarray(effort[row]) if effort is not None else empty,
+                ),
+            )
+            for row, ns in enumerate(context.stamps)
+        ],
+    )
 
 
 def _output_frames(context: RosContext, dynamics: str) -> dict[str, str]:
@@ -147,8 +200,9 @@ def _output_frames(context: RosContext, dynamics: str) -> dict[str, str]:
         return frames
     for body, spec in bodies.items():
         try:
-            root = read_urdf(resolve_urdf(spec["urdf"], context.run.config_dir, "urdf", _packages(context)),
-                             _packages(context)).root
+            root = read_urdf(
+                resolve_urdf(spec["urdf"], context.run.config_dir, "urdf", _packages(context)), _packages(context)
+            ).root
         except (ConfigError, ValueError, OSError):
             continue
         for variable in ("imu_rate", "specific_force", "position", "orientation", "twist"):
@@ -180,7 +234,7 @@ def _assets(context: RosContext, dynamics: str) -> dict[str, Path]:
             text = source_text(urdf, packages)
             meshes = ET.fromstring(text).iter("mesh")
         except (ConfigError, ValueError, OSError, ET.ParseError):
-            continue   # the topics' builder says why the URDF cannot be read
+            continue  # the topics' builder says why the URDF cannot be read
         for mesh in meshes:
             uri = mesh.get("filename")
             try:
@@ -192,4 +246,7 @@ def _assets(context: RosContext, dynamics: str) -> dict[str, Path]:
 
 ROS_EXPORT = RosExport(
     "per body: joint_states, base pose and twist in W, robot_description; /tf: W in ECI, every link in W",
-    _topics, _output_frames, _assets)
+    _topics,
+    _output_frames,
+    _assets,
+)

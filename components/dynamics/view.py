@@ -13,6 +13,7 @@
 | ``/plots/<dyn>/grasp/distance`` (``/capture``), ``grasp/wrench`` | norm of ``grasp.p_ee_grasp`` (a point at the capture); norms of the force and of the torque of ``grasp.wrench`` |
 | ``/events/<dyn>/grasp`` | text log: "capture at t = ... s" on the row where ``grasp.closed`` turns 1 |
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -24,16 +25,15 @@ from components.errors import ConfigError
 from components.robots.model import body_items, resolve_urdf
 from components.rotations import matrix_to_quat, rpy_to_matrix
 from components.viewer.robot import Geometry, Kinematics, mesh_arrays, read_geometry
-from components.viewer.scene import (AXIS_COLORS, LIGHT_AXIS_COLORS, Batch, Layout, View, entity_path,
-                                     transform_columns)
+from components.viewer.scene import AXIS_COLORS, LIGHT_AXIS_COLORS, Batch, Layout, View, entity_path, transform_columns
 
-VECTOR_FIELDS = {            # per-link 3-vectors drawn as arrows: colour, label, unit
+VECTOR_FIELDS = {  # per-link 3-vectors drawn as arrows: colour, label, unit
     "gg_torque": ((190, 90, 230), "gravity-gradient torque", "N m"),
     "tidal_force": ((40, 200, 210), "tidal force", "N"),
     "drag_force": ((240, 150, 40), "drag force", "N"),
 }
-GRASP_AXES = {"E": (0.15, AXIS_COLORS, -2.0), "G": (0.25, LIGHT_AXIS_COLORS, -1.5)}   # m, colours, radius (ui)
-GRASP_OPEN = ((250, 170, 40), 0.02, "G")           # G marker while open: colour, radius (m), label
+GRASP_AXES = {"E": (0.15, AXIS_COLORS, -2.0), "G": (0.25, LIGHT_AXIS_COLORS, -1.5)}  # m, colours, radius (ui)
+GRASP_OPEN = ((250, 170, 40), 0.02, "G")  # G marker while open: colour, radius (m), label
 GRASP_CLOSED = ((60, 220, 90), 0.07, "G captured")  # ... once the grasp has closed
 
 
@@ -41,15 +41,17 @@ def _start(spec: dict) -> tuple[str, np.ndarray] | None:
     """A body's initial base position as configured (``frame``, ``position`` in m; defaults world,
     origin); None when not plain numbers (a raw config with units)."""
     try:
-        return str(spec.get("frame", "world")), np.asarray(spec.get("position", (0.0, 0.0, 0.0)), dtype=float).reshape(3)
+        return str(spec.get("frame", "world")), np.asarray(spec.get("position", (0.0, 0.0, 0.0)), dtype=float).reshape(
+            3
+        )
     except (TypeError, ValueError):
         return None
-
 
 
 @dataclass
 class Body:
     """A robot of a dynamics component, drawn from its URDF: column indices of its outputs (None: absent)."""
+
     dynamics: str
     name: str
     geometry: Geometry | None
@@ -60,7 +62,7 @@ class Body:
     com: np.ndarray | None
     momentum: np.ndarray | None
     fields: dict[str, np.ndarray] = field(default_factory=dict)
-    start: tuple[str, np.ndarray] | None = None     # its initial base position: (frame, m), None if unreadable
+    start: tuple[str, np.ndarray] | None = None  # its initial base position: (frame, m), None if unreadable
 
     @property
     def base(self) -> str:
@@ -76,6 +78,7 @@ class Body:
 class Grasp:
     """A dynamics' ``grasp``: E (``end_effector``, a link of ``chaser``) meets G (``grasp_frame``, a
     link of ``target``). ``ee_link``/``grasp_link``: the link entities, None when that body is not drawn."""
+
     dynamics: str
     ee_link: str | None
     grasp_link: str | None
@@ -83,7 +86,7 @@ class Grasp:
     closed: np.ndarray | None
     wrench: np.ndarray | None
     label: str
-    was_closed: bool | None = None      # grasp.closed at the last row logged (None: no row yet)
+    was_closed: bool | None = None  # grasp.closed at the last row logged (None: no row yet)
 
     @property
     def plots(self) -> str:
@@ -125,19 +128,28 @@ class DynamicsView(View):
                     geometry = read_geometry(urdf, scene.packages)
                     kinematics = Kinematics(geometry)
                 except Exception as e:  # a URDF Pinocchio cannot load: the plots still work
-                    scene.warn(f"{dynamics}.{name}: cannot build the kinematics of {urdf} ({e}); the robot is not drawn")
+                    scene.warn(
+                        f"{dynamics}.{name}: cannot build the kinematics of {urdf} ({e}); the robot is not drawn"
+                    )
                     kinematics = None
             n_joints = len(geometry.joints) if geometry else None
             n_links = len(geometry.links) if geometry else None
-            body = Body(dynamics, name, geometry, kinematics,
-                        position=scene.find(dynamics, f"{name}.position", 3),
-                        orientation=scene.find(dynamics, f"{name}.orientation", 4),
-                        q=scene.find(dynamics, f"{name}.q"),
-                        com=scene.take(dynamics, f"{name}.com", 3),
-                        momentum=scene.take(dynamics, f"{name}.momentum", 6), start=_start(spec))
+            body = Body(
+                dynamics,
+                name,
+                geometry,
+                kinematics,
+                position=scene.find(dynamics, f"{name}.position", 3),
+                orientation=scene.find(dynamics, f"{name}.orientation", 4),
+                q=scene.find(dynamics, f"{name}.q"),
+                com=scene.take(dynamics, f"{name}.com", 3),
+                momentum=scene.take(dynamics, f"{name}.momentum", 6),
+                start=_start(spec),
+            )
             if body.q is not None and n_joints is not None and len(body.q) != n_joints:
-                scene.warn(f"{dynamics}.{name}.q has {len(body.q)} values, the URDF {n_joints} joints; "
-                          "the robot is not drawn")
+                scene.warn(
+                    f"{dynamics}.{name}.q has {len(body.q)} values, the URDF {n_joints} joints; the robot is not drawn"
+                )
                 body.kinematics = None
             if n_links:
                 for key in VECTOR_FIELDS:
@@ -154,11 +166,17 @@ class DynamicsView(View):
         if not isinstance(spec, dict):
             return []
         chaser, ee, target, frame = (str(spec.get(k, "")) for k in ("chaser", "end_effector", "target", "grasp_frame"))
-        return [Grasp(dynamics, self._link_entity(scene, dynamics, chaser, ee),
-                      self._link_entity(scene, dynamics, target, frame),
-                      p_ee_grasp=scene.find(dynamics, "grasp.p_ee_grasp", 3),
-                      closed=scene.find(dynamics, "grasp.closed", 1),
-                      wrench=scene.find(dynamics, "grasp.wrench", 6), label=f"{chaser}.{ee} -> {target}.{frame}")]
+        return [
+            Grasp(
+                dynamics,
+                self._link_entity(scene, dynamics, chaser, ee),
+                self._link_entity(scene, dynamics, target, frame),
+                p_ee_grasp=scene.find(dynamics, "grasp.p_ee_grasp", 3),
+                closed=scene.find(dynamics, "grasp.closed", 1),
+                wrench=scene.find(dynamics, "grasp.wrench", 6),
+                label=f"{chaser}.{ee} -> {target}.{frame}",
+            )
+        ]
 
     def _link_entity(self, scene, dynamics: str, body_name: str, link: str) -> str | None:
         """The entity of ``link`` of a drawn body (its pose logged per row), else None."""
@@ -215,22 +233,30 @@ class DynamicsView(View):
                     if shape.kind == "box":
                         scene.log(where, rr.Boxes3D(half_sizes=[np.array(shape.size) / 2], **style), static=True)
                     elif shape.kind == "cylinder":
-                        scene.log(where, rr.Cylinders3D(radii=[shape.size[0]], lengths=[shape.size[1]], **style), static=True)
+                        scene.log(
+                            where, rr.Cylinders3D(radii=[shape.size[0]], lengths=[shape.size[1]], **style), static=True
+                        )
                     elif shape.kind == "sphere":
                         scene.log(where, rr.Ellipsoids3D(half_sizes=[[shape.size[0]] * 3], **style), static=True)
-                    elif shape.kind == "mesh" and self._log_mesh(scene, where, dataclasses.replace(shape, color=visual.color),
-                                                                 q) is not None:
+                    elif (
+                        shape.kind == "mesh"
+                        and self._log_mesh(scene, where, dataclasses.replace(shape, color=visual.color), q) is not None
+                    ):
                         continue
                     drawn += 1
                 if drawn:
-                    scene.warn(f"{body.name}: visual mesh of link {visual.link} cannot be drawn ({problem}); "
-                              f"drawn from its collision geometry instead")
+                    scene.warn(
+                        f"{body.name}: visual mesh of link {visual.link} cannot be drawn ({problem}); "
+                        f"drawn from its collision geometry instead"
+                    )
                 else:
-                    scene.warn(f"{body.name}: visual mesh of link {visual.link} cannot be drawn ({problem}) and the link "
-                              f"has no collision geometry that can; not drawn")
+                    scene.warn(
+                        f"{body.name}: visual mesh of link {visual.link} cannot be drawn ({problem}) and the link "
+                        f"has no collision geometry that can; not drawn"
+                    )
         if body.com is not None:
             scene.log(f"{body.base}/com", rr.Points3D.from_fields(colors=[(255, 230, 0)], radii=[-4.0]), static=True)
-        for key, index in body.fields.items():
+        for key, _index in body.fields.items():
             color, _, _ = VECTOR_FIELDS[key]
             scene.log(f"{body.base}/{key}", rr.Arrows3D.from_fields(colors=[color], radii=[-1.5]), static=True)
 
@@ -247,12 +273,18 @@ class DynamicsView(View):
             return None
         try:
             vertices, triangles, normals, colors = mesh_arrays(visual.mesh)
-        except Exception as e:   # trimesh's and pycollada's own exceptions for a file they cannot read
+        except Exception as e:  # trimesh's and pycollada's own exceptions for a file they cannot read
             return f"{visual.mesh.name}: {type(e).__name__}: {e}"
         if colors is None:
             colors = np.tile(np.array(visual.color, dtype=np.uint8), (len(vertices), 1))
-        scene.log(path, transform, rr.Mesh3D(vertex_positions=vertices, triangle_indices=triangles,
-                                             vertex_normals=normals, vertex_colors=colors), static=True)
+        scene.log(
+            path,
+            transform,
+            rr.Mesh3D(
+                vertex_positions=vertices, triangle_indices=triangles, vertex_normals=normals, vertex_colors=colors
+            ),
+            static=True,
+        )
         return None
 
     def _log_grasp_static(self, scene, g: Grasp) -> None:
@@ -262,17 +294,27 @@ class DynamicsView(View):
         for link, frame in ((g.ee_link, "E"), (g.grasp_link, "G")):
             if link is not None:
                 length, colors, radius = GRASP_AXES[frame]
-                scene.log(f"{link}/grasp_{frame}", rr.Arrows3D(origins=np.zeros((3, 3)), vectors=length * np.eye(3),
-                                                              colors=colors, radii=[radius]), static=True)
+                scene.log(
+                    f"{link}/grasp_{frame}",
+                    rr.Arrows3D(origins=np.zeros((3, 3)), vectors=length * np.eye(3), colors=colors, radii=[radius]),
+                    static=True,
+                )
         if g.ee_link is not None and g.p_ee_grasp is not None:
-            scene.log(f"{g.ee_link}/grasp_line", rr.LineStrips3D.from_fields(colors=[GRASP_OPEN[0]], radii=[-1.5]),
-                      static=True)
+            scene.log(
+                f"{g.ee_link}/grasp_line",
+                rr.LineStrips3D.from_fields(colors=[GRASP_OPEN[0]], radii=[-1.5]),
+                static=True,
+            )
         if g.p_ee_grasp is not None:
             scene.series(g.plots + "/distance", ["|p_ee_grasp| (m)"], [GRASP_OPEN[0]])
             if g.closed is not None:
-                scene.log(g.plots + "/distance/capture", rr.SeriesPoints(colors=[GRASP_CLOSED[0]], names=["capture"],
-                                                                          markers=["circle"], marker_sizes=[6.0]),
-                          static=True)
+                scene.log(
+                    g.plots + "/distance/capture",
+                    rr.SeriesPoints(
+                        colors=[GRASP_CLOSED[0]], names=["capture"], markers=["circle"], marker_sizes=[6.0]
+                    ),
+                    static=True,
+                )
         if g.wrench is not None:
             scene.series(g.plots + "/wrench", ["|force| (N)", "|torque| (N m)"], AXIS_COLORS[::2])
 
@@ -297,8 +339,10 @@ class DynamicsView(View):
             translations, rotations = body.kinematics.link_poses(rows[:, body.position], rows[:, body.orientation], q)
             quaternions = matrix_to_quat(rotations)
             for j, link in enumerate(body.geometry.links):
-                send(f"{body.base}/links/{rr.escape_entity_path_part(link)}",
-                     transform_columns(translations[:, j], quaternions[:, j]))
+                send(
+                    f"{body.base}/links/{rr.escape_entity_path_part(link)}",
+                    transform_columns(translations[:, j], quaternions[:, j]),
+                )
         if body.com is not None:
             send(f"{body.base}/com", rr.Points3D.columns(positions=rows[:, body.com]))
         if body.momentum is not None:
@@ -306,7 +350,7 @@ class DynamicsView(View):
             send(plots + "/momentum/angular", rr.Scalars.columns(scalars=rows[:, body.momentum[3:]]))
         if body.fields:
             L = len(body.geometry.links)
-            if rotations is not None:     # arrows start at the link CoMs, in W
+            if rotations is not None:  # arrows start at the link CoMs, in W
                 origins = translations + np.einsum("nlij,lj->nli", rotations, body.geometry.coms)
             for key, index in body.fields.items():
                 vectors = rows[:, index].reshape(n, L, 3)
@@ -317,8 +361,12 @@ class DynamicsView(View):
                 scale = scene.arrow_scale((body.dynamics, body.name, key), VECTOR_FIELDS[key][2], vectors)
                 if scale is None:
                     continue
-                send(f"{body.base}/{key}", rr.Arrows3D.columns(
-                    origins=origins.reshape(-1, 3), vectors=scale * vectors.reshape(-1, 3)).partition([L] * n))
+                send(
+                    f"{body.base}/{key}",
+                    rr.Arrows3D.columns(
+                        origins=origins.reshape(-1, 3), vectors=scale * vectors.reshape(-1, 3)
+                    ).partition([L] * n),
+                )
 
     def _log_grasp(self, g: Grasp, batch: Batch) -> None:
         """The E-G line while open, the distance and wrench magnitudes, and the changes of ``grasp.closed``."""
@@ -330,12 +378,14 @@ class DynamicsView(View):
         if g.p_ee_grasp is not None:
             p = rows[:, g.p_ee_grasp]
             send(g.plots + "/distance", rr.Scalars.columns(scalars=np.linalg.norm(p, axis=1, keepdims=True)))
-            if g.ee_link is not None:      # in E's axes: a child of E's link; no line once closed
+            if g.ee_link is not None:  # in E's axes: a child of E's link; no line once closed
                 strips = np.stack([np.zeros_like(p), p], axis=1)[~closed]
-                send(f"{g.ee_link}/grasp_line", rr.LineStrips3D.columns(strips=strips).partition(
-                    (~closed).astype(np.int32)))
+                send(
+                    f"{g.ee_link}/grasp_line",
+                    rr.LineStrips3D.columns(strips=strips).partition((~closed).astype(np.int32)),
+                )
         if g.wrench is not None:
-            norms = np.linalg.norm(rows[:, g.wrench].reshape(n, 2, 3), axis=2)     # force, torque
+            norms = np.linalg.norm(rows[:, g.wrench].reshape(n, 2, 3), axis=2)  # force, torque
             send(g.plots + "/wrench", rr.Scalars.columns(scalars=norms))
         if g.closed is not None:
             self._log_grasp_changes(g, batch, closed)
@@ -346,7 +396,7 @@ class DynamicsView(View):
         import rerun as rr
 
         steps, times, rows = batch.steps, batch.times, batch.rows
-        first = g.was_closed is None               # the first row of all: the marker's initial look
+        first = g.was_closed is None  # the first row of all: the marker's initial look
         changed = closed != np.concatenate([[bool(g.was_closed)], closed[:-1]])
         changed[0] |= first
         g.was_closed = bool(closed[-1])
@@ -355,18 +405,33 @@ class DynamicsView(View):
             return
         if g.grasp_link is not None:
             looks = [GRASP_CLOSED if closed[i] else GRASP_OPEN for i in at]
-            batch.send_at(f"{g.grasp_link}/grasp_G/marker", at, rr.Points3D.columns(
-                positions=np.zeros((len(at), 3)), colors=[look[0] for look in looks],
-                radii=[look[1] for look in looks], labels=[look[2] for look in looks]))
+            batch.send_at(
+                f"{g.grasp_link}/grasp_G/marker",
+                at,
+                rr.Points3D.columns(
+                    positions=np.zeros((len(at), 3)),
+                    colors=[look[0] for look in looks],
+                    radii=[look[1] for look in looks],
+                    labels=[look[2] for look in looks],
+                ),
+            )
         texts = {i: self._grasp_text(g, steps[i], times[i], rows[i], closed[i], first and i == 0) for i in at}
         logged = np.array([i for i, text in texts.items() if text], dtype=np.int64)
         if len(logged):
-            batch.send_at(g.events, logged, rr.TextLog.columns(
-                text=[texts[i] for i in logged], level=["INFO" if closed[i] else "WARN" for i in logged]))
+            batch.send_at(
+                g.events,
+                logged,
+                rr.TextLog.columns(
+                    text=[texts[i] for i in logged], level=["INFO" if closed[i] else "WARN" for i in logged]
+                ),
+            )
         captures = at[closed[at]]
         if len(captures) and g.p_ee_grasp is not None:
-            batch.send_at(g.plots + "/distance/capture", captures, rr.Scalars.columns(
-                scalars=np.linalg.norm(rows[captures][:, g.p_ee_grasp], axis=1, keepdims=True)))
+            batch.send_at(
+                g.plots + "/distance/capture",
+                captures,
+                rr.Scalars.columns(scalars=np.linalg.norm(rows[captures][:, g.p_ee_grasp], axis=1, keepdims=True)),
+            )
 
     @staticmethod
     def _grasp_text(g: Grasp, step: int, time: float, row: np.ndarray, closed: bool, first_row: bool) -> str | None:
@@ -386,16 +451,27 @@ class DynamicsView(View):
         layout = Layout(world=bool(self.bodies), events=any(g.closed is not None for g in self.grasps))
         for g in self.grasps:
             if g.p_ee_grasp is not None:
-                layout.figures.append(rrb.TimeSeriesView(origin=g.plots + "/distance",
-                                                         name=f"{g.dynamics}: grasp, E to G distance (m)"))
+                layout.figures.append(
+                    rrb.TimeSeriesView(origin=g.plots + "/distance", name=f"{g.dynamics}: grasp, E to G distance (m)")
+                )
             if g.wrench is not None:
-                layout.figures.append(rrb.TimeSeriesView(origin=g.plots + "/wrench",
-                                                         name=f"{g.dynamics}: grasp wrench on the target (N, N m)"))
+                layout.figures.append(
+                    rrb.TimeSeriesView(
+                        origin=g.plots + "/wrench", name=f"{g.dynamics}: grasp wrench on the target (N, N m)"
+                    )
+                )
         for b in self.bodies:
             if b.momentum is not None:
-                layout.tabs.append(rrb.TimeSeriesView(origin=b.base.replace("/world", "/plots", 1) + "/momentum",
-                                                      name=f"{b.name}: momentum (W)"))
+                layout.tabs.append(
+                    rrb.TimeSeriesView(
+                        origin=b.base.replace("/world", "/plots", 1) + "/momentum", name=f"{b.name}: momentum (W)"
+                    )
+                )
             if "gg_torque" in b.fields:
-                layout.tabs.append(rrb.TimeSeriesView(origin=b.base.replace("/world", "/plots", 1) + "/gg_torque_norm",
-                                                      name=f"{b.name}: gravity-gradient torque per link (N m)"))
+                layout.tabs.append(
+                    rrb.TimeSeriesView(
+                        origin=b.base.replace("/world", "/plots", 1) + "/gg_torque_norm",
+                        name=f"{b.name}: gravity-gradient torque per link (N m)",
+                    )
+                )
         return layout

@@ -48,17 +48,18 @@ a torque on it acts through the constraint.
 The state (``get_state``) has one form for both engines: a world continues bit-exactly from its
 own engine's state and, to the engines' rounding, from the other's.
 """
+
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
 from components.constants import MU_EARTH
 from components.dynamics import environment as env
 from components.dynamics import integration, link_forces
-from components.dynamics.bodies import THIRD_BODIES, Body, BodySpec, Environment, ModelError, check_spec  # noqa: F401 (re-exported)
+from components.dynamics.bodies import THIRD_BODIES, Body, BodySpec, Environment, ModelError, check_spec
 from components.dynamics.capture import CaptureReport, Grasp, GraspSpec
 from components.robots.urdf import UrdfModel, read_urdf
 from components.rotations import cross3, matrix_to_quat, quat_to_matrix
@@ -68,7 +69,7 @@ from components.space.srp import SOLAR_FLUX
 
 INTEGRATORS = ("rk4", "dart")
 ENGINES = ("dart", "pinocchio")
-BODY_STATE = {"position": 3, "rotation_vector": 3, "twist": 6}     # + q, qd, tau, stop_side: one per joint
+BODY_STATE = {"position": 3, "rotation_vector": 3, "twist": 6}  # + q, qd, tau, stop_side: one per joint
 
 
 class OrbitalWorld:
@@ -97,18 +98,34 @@ class OrbitalWorld:
     r_eci = 0 means "no orbit": the environment forces are then zero (deep space).
     """
 
-    def __init__(self, bodies: list[BodySpec], *, integrator: str = "rk4", substeps: int = 1,
-                 tidal_force: bool = True, gravity_gradient: bool = True, drag: bool = False,
-                 mu: float = MU_EARTH, atmosphere: env.ExponentialAtmosphere | None = None,
-                 joint_limits: bool = True, models: Mapping[str, UrdfModel] | None = None,
-                 grasp: GraspSpec | None = None, engine: str = "dart", compile_kernels: bool = True,
-                 srp: bool = False, eclipse: str = "conical", solar_flux: float = SOLAR_FLUX,
-                 third_bodies: tuple[str, ...] = ()):
+    def __init__(
+        self,
+        bodies: list[BodySpec],
+        *,
+        integrator: str = "rk4",
+        substeps: int = 1,
+        tidal_force: bool = True,
+        gravity_gradient: bool = True,
+        drag: bool = False,
+        mu: float = MU_EARTH,
+        atmosphere: env.ExponentialAtmosphere | None = None,
+        joint_limits: bool = True,
+        models: Mapping[str, UrdfModel] | None = None,
+        grasp: GraspSpec | None = None,
+        engine: str = "dart",
+        compile_kernels: bool = True,
+        srp: bool = False,
+        eclipse: str = "conical",
+        solar_flux: float = SOLAR_FLUX,
+        third_bodies: tuple[str, ...] = (),
+    ):
         if engine not in ENGINES:
             raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
-        integrators = INTEGRATORS if engine == "dart" else ("rk4",)     # contacts: DART's own step only
+        integrators = INTEGRATORS if engine == "dart" else ("rk4",)  # contacts: DART's own step only
         if integrator not in integrators:
-            raise ValueError(f"integrator: expected one of {', '.join(integrators)} with engine {engine}, got {integrator!r}")
+            raise ValueError(
+                f"integrator: expected one of {', '.join(integrators)} with engine {engine}, got {integrator!r}"
+            )
         if not (isinstance(substeps, int) and substeps >= 1):
             raise ValueError(f"substeps: expected an integer >= 1, got {substeps!r}")
         self.engine, self.integrator, self.substeps = engine, integrator, substeps
@@ -120,13 +137,24 @@ class OrbitalWorld:
         self.srp = bool(srp)
         unknown = [b for b in third_bodies if b not in THIRD_BODIES]
         if unknown or len(set(third_bodies)) < len(third_bodies):
-            raise ValueError(f"third_bodies: expected distinct names of {', '.join(THIRD_BODIES)}, got {list(third_bodies)}")
+            raise ValueError(
+                f"third_bodies: expected distinct names of {', '.join(THIRD_BODIES)}, got {list(third_bodies)}"
+            )
         self.third_bodies = tuple(third_bodies)
-        self.environment = Environment(self.mu, self.tidal, self.gg, self.drag, self.atmosphere, self.srp, eclipse,
-                                       float(solar_flux), self.third_bodies)
+        self.environment = Environment(
+            self.mu,
+            self.tidal,
+            self.gg,
+            self.drag,
+            self.atmosphere,
+            self.srp,
+            eclipse,
+            float(solar_flux),
+            self.third_bodies,
+        )
         self.atmosphere_varies = self.drag and getattr(self.atmosphere, "varies", False)
-        self.orbit_time = 0.0       # run time (s since run.epoch) at which the orbit inputs were sampled
-        self.sun_eci, self.moon_eci = None, None     # set_sun
+        self.orbit_time = 0.0  # run time (s since run.epoch) at which the orbit inputs were sampled
+        self.sun_eci, self.moon_eci = None, None  # set_sun
         self.joint_limits = bool(joint_limits)
         self.dart_world = None
         if engine == "dart":
@@ -146,10 +174,10 @@ class OrbitalWorld:
         self.v_eci = np.zeros(3)
         self.q_eci_lvlh = np.array([0.0, 0.0, 0.0, 1.0])
         self.w_lvlh = np.zeros(3)
-        self.elapsed = 0.0          # s since the orbit inputs were sampled (the reference point moved on)
-        self.env_now = False        # the environment applies in this step
-        self._orbit_changed()       # environment_on: the environment applies (r_eci = 0: no orbit, none)
-        if compile_kernels:         # not for a check of the models (orchestrator check stays quick)
+        self.elapsed = 0.0  # s since the orbit inputs were sampled (the reference point moved on)
+        self.env_now = False  # the environment applies in this step
+        self._orbit_changed()  # environment_on: the environment applies (r_eci = 0: no orbit, none)
+        if compile_kernels:  # not for a check of the models (orchestrator check stays quick)
             integration.compile_kernels(self)
 
     def overlaps(self) -> list[tuple[str, str, str, str, float]]:
@@ -188,15 +216,22 @@ class OrbitalWorld:
         option = dart.collision.CollisionOption()
         option.enableContact, option.maxNumContacts = True, 100
         for i, a in enumerate(names):
-            for b in names[i + 1:]:
+            for b in names[i + 1 :]:
                 result = dart.collision.CollisionResult()
                 if not groups[a].collide(groups[b], option, result) or not result.getNumContacts():
                     continue
-                deepest = max((result.getContact(k) for k in range(result.getNumContacts())),
-                              key=lambda c: c.penetrationDepth)
-                found.append((a, deepest.collisionObject1.getShapeFrame().getBodyNode().getName(), b,
-                              deepest.collisionObject2.getShapeFrame().getBodyNode().getName(),
-                              float(deepest.penetrationDepth)))
+                deepest = max(
+                    (result.getContact(k) for k in range(result.getNumContacts())), key=lambda c: c.penetrationDepth
+                )
+                found.append(
+                    (
+                        a,
+                        deepest.collisionObject1.getShapeFrame().getBodyNode().getName(),
+                        b,
+                        deepest.collisionObject2.getShapeFrame().getBodyNode().getName(),
+                        float(deepest.penetrationDepth),
+                    )
+                )
         return found
 
     def _body(self, spec: BodySpec, model: UrdfModel) -> Body:
@@ -220,17 +255,21 @@ class OrbitalWorld:
 
     def _make_grasp(self, spec: GraspSpec) -> Grasp:
         if self.integrator != "rk4":
-            raise ModelError("grasp", f"a capture needs integrator rk4 (its weld is solved at every stage), "
-                                      f"got {self.integrator!r}")
-        for key, body_name, link in (("chaser", spec.chaser, spec.end_effector),
-                                     ("target", spec.target, spec.grasp_frame)):
+            raise ModelError(
+                "grasp", f"a capture needs integrator rk4 (its weld is solved at every stage), got {self.integrator!r}"
+            )
+        for key, body_name, link in (
+            ("chaser", spec.chaser, spec.end_effector),
+            ("target", spec.target, spec.grasp_frame),
+        ):
             body = self.bodies.get(body_name)
             if body is None:
                 raise ModelError(f"grasp.{key}", f"no body {body_name!r} (bodies: {', '.join(self.bodies)})")
             if link not in body.link_names:
                 what = "end_effector" if key == "chaser" else "grasp_frame"
-                raise ModelError(f"grasp.{what}", f"{link!r} is not a link of {body_name} "
-                                                  f"(links: {', '.join(body.link_names)})")
+                raise ModelError(
+                    f"grasp.{what}", f"{link!r} is not a link of {body_name} (links: {', '.join(body.link_names)})"
+                )
         if spec.chaser == spec.target:
             raise ModelError("grasp.target", "the chaser cannot grasp itself")
         return Grasp(spec, self.bodies[spec.chaser], self.bodies[spec.target])
@@ -244,13 +283,17 @@ class OrbitalWorld:
 
     # ----------------------------------------------------------------- inputs
 
-    def set_orbit(self, r_eci, v_eci, q_eci_lvlh=(0.0, 0.0, 0.0, 1.0), w_lvlh=(0.0, 0.0, 0.0), age: float = 0.0) -> None:
+    def set_orbit(
+        self, r_eci, v_eci, q_eci_lvlh=(0.0, 0.0, 0.0, 1.0), w_lvlh=(0.0, 0.0, 0.0), age: float = 0.0
+    ) -> None:
         """Reference orbit point (m, m/s, ECI), LVLH attitude q_ECI_LVLH and rate (rad/s, ECI axes),
         sampled ``age`` seconds before the current time (negative: after it, as a Gauss-Seidel run
         gives the next step's): the reference point is propagated from its own time."""
         values = (r_eci, v_eci, q_eci_lvlh, w_lvlh)
         orbit = np.concatenate(values, axis=None, dtype=float)
-        if orbit.size != 13 or not math.isfinite(orbit.dot(orbit)):  # (one product: finite unless one is not; .dot: half @'s cost)
+        if orbit.size != 13 or not math.isfinite(
+            orbit.dot(orbit)
+        ):  # (one product: finite unless one is not; .dot: half @'s cost)
             for signal, value in zip(orbit_signals("input"), values):
                 value = np.asarray(value, dtype=float)
                 if value.size != signal.size or not np.isfinite(value).all():
@@ -260,10 +303,11 @@ class OrbitalWorld:
         self._orbit_changed(orbit[0:6])
 
     def _orbit_changed(self, point=None) -> None:
-        self.orbit_point = np.concatenate([self.r_eci, self.v_eci]) if point is None else point   # (r_eci, v_eci)
+        self.orbit_point = np.concatenate([self.r_eci, self.v_eci]) if point is None else point  # (r_eci, v_eci)
         self._reference_cache = {}
-        self.environment_on = (self.tidal or self.gg or self.drag or self.srp or bool(self.third_bodies)) \
-            and any(self.r_eci.tolist())
+        self.environment_on = (self.tidal or self.gg or self.drag or self.srp or bool(self.third_bodies)) and any(
+            self.r_eci.tolist()
+        )
 
     def set_sun(self, sun_eci, moon_eci) -> None:
         """The Sun and the Moon from the Earth's centre (m, ECI = W axes), for SRP, the third bodies'
@@ -328,7 +372,7 @@ class OrbitalWorld:
             if k >= 0:
                 positions[k] = q.get(j, 0.0)
                 velocities[k] = qd.get(j, 0.0)
-        for k, f, multiplier, offset in body.mimic:          # where the constraint puts them
+        for k, f, multiplier, offset in body.mimic:  # where the constraint puts them
             positions[k] = multiplier * positions[f] + offset
             velocities[k] = multiplier * velocities[f]
         body.set_state(positions, velocities)
@@ -362,8 +406,10 @@ class OrbitalWorld:
         dt = h / self.substeps
         self.env_now = self.environment_on
         if (self.srp or self.third_bodies) and self.sun_eci is None:
-            raise ValueError(f"{'srp' if self.srp else 'third_bodies'}: the Sun's and the Moon's positions were not "
-                             f"set (set_sun) before the step")
+            raise ValueError(
+                f"{'srp' if self.srp else 'third_bodies'}: the Sun's and the Moon's positions were not "
+                f"set (set_sun) before the step"
+            )
         if self.grasp is not None:
             self.grasp.reset_peak()
         for k in range(self.substeps):
@@ -463,7 +509,7 @@ class OrbitalWorld:
     def lvlh(self) -> tuple[np.ndarray, np.ndarray]:
         """R_W_LVLH and LVLH's angular velocity (rad/s, W axes) now, from the reference point as
         propagated to the current time (the orbit inputs may be a step old)."""
-        cached = self._reference_cache.get(("lvlh", self.elapsed))     # (every body's frame outputs ask)
+        cached = self._reference_cache.get(("lvlh", self.elapsed))  # (every body's frame outputs ask)
         if cached is None:
             R, V = self.reference(self.elapsed)
             h = cross3(R, V)
@@ -481,8 +527,12 @@ class OrbitalWorld:
         R_base = body.base_pose()[0]
         w = body.velocities()[:3]
         R_WL, w_L = self.lvlh() if any(self.r_eci.tolist()) else (np.eye(3), np.zeros(3))
-        return {"p_lvlh_com": R_WL.T @ c, "q_lvlh_body": matrix_to_quat(R_WL.T @ R_base),
-                "v_lvlh_com": R_WL.T @ (v_c - cross3(w_L, c)), "w_lvlh_body": R_WL.T @ (w - w_L)}
+        return {
+            "p_lvlh_com": R_WL.T @ c,
+            "q_lvlh_body": matrix_to_quat(R_WL.T @ R_base),
+            "v_lvlh_com": R_WL.T @ (v_c - cross3(w_L, c)),
+            "w_lvlh_body": R_WL.T @ (w - w_L),
+        }
 
     def relative_frames(self, chaser: str, target: str) -> dict[str, np.ndarray]:
         """Target's CoM frame F_t relative to the chaser's F_c, in F_c axes: ``p_c_t`` (m),
@@ -492,8 +542,12 @@ class OrbitalWorld:
         w_c, w_t = c.velocities()[:3], t.velocities()[:3]
         d = t.com() - c.com()
         v = t.com_velocity() - c.com_velocity() - cross3(w_c, d)
-        return {"p_c_t": R_c.T @ d, "q_c_t": matrix_to_quat(R_c.T @ R_t), "v_c_t": R_c.T @ v,
-                "w_c_t": R_c.T @ (w_t - w_c)}
+        return {
+            "p_c_t": R_c.T @ d,
+            "q_c_t": matrix_to_quat(R_c.T @ R_t),
+            "v_c_t": R_c.T @ v,
+            "w_c_t": R_c.T @ (w_t - w_c),
+        }
 
     def imu_outputs(self, name: str, accelerations: np.ndarray) -> dict[str, np.ndarray]:
         """An IMU at the base origin: ``imu_rate`` (rad/s) and ``specific_force`` (m/s^2: the
@@ -502,7 +556,7 @@ class OrbitalWorld:
         ``accelerations``: the body's, from ``accelerations()``."""
         body = self.bodies[name]
         R_base, p = body.base_pose()
-        a = np.array(accelerations[3:6], dtype=float)     # classical acceleration of the base origin, W
+        a = np.array(accelerations[3:6], dtype=float)  # classical acceleration of the base origin, W
         if self.tidal and self.environment_on:
             R, _ = self.reference(self.elapsed)
             a = a - env.tidal_acceleration(R, p[None, :], self.mu)[0]
@@ -545,10 +599,13 @@ class OrbitalWorld:
             for key, size in sizes.items():
                 value = state.get(f"{name}.{key}")
                 if value is None or np.shape(value) != (size,):
-                    raise ValueError(f"state: {name}.{key} expected {size} values, "
-                                     f"got {None if value is None else np.shape(value)}")
+                    raise ValueError(
+                        f"state: {name}.{key} expected {size} values, got {None if value is None else np.shape(value)}"
+                    )
             if not np.all(np.isin(state[f"{name}.stop_side"], (-1.0, 0.0, 1.0))):
-                raise ValueError(f"state: {name}.stop_side expected -1, 0 or 1 per joint, got {state[f'{name}.stop_side']}")
+                raise ValueError(
+                    f"state: {name}.stop_side expected -1, 0 or 1 per joint, got {state[f'{name}.stop_side']}"
+                )
         self.r_eci, self.v_eci, self.q_eci_lvlh, self.w_lvlh = (np.array(state[key], dtype=float) for key in ORBIT)
         self.elapsed = float(state["elapsed"])
         self._orbit_changed()

@@ -1,21 +1,22 @@
 """``estimator.fiducial``: the grasp frame's pose in the end effector from a camera's images, read
 from the bus (thin wrapper of :class:`components.estimators.fiducial.FiducialEstimator`)."""
+
 from __future__ import annotations
 
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
-from components.constants import NS_PER_S
+from components.constants import MAX_IMAGE_SIZE, NS_PER_S
 from components.errors import ConfigError
-from components.extras import require
-from components.estimators.marker_layout import MarkerLayout, layout_path, read_layout
 from components.estimators import plots as fiducial_plots
 from components.estimators import ros as fiducial_ros
+from components.estimators.marker_layout import MarkerLayout, layout_path, read_layout
+from components.extras import require
 from components.robots.model import read_model
 from components.robots.urdf import UrdfModel
 from components.rotations import continuous, rpy_to_matrix
-from components.constants import MAX_IMAGE_SIZE
 from components.schema import Float, Int, Str
 from components.sdk import Component, Parameter, Variable
 
@@ -39,14 +40,14 @@ def fixed_transform(model: UrdfModel, a: str, b: str) -> np.ndarray:
 
     def to_common(chain: list[str]) -> np.ndarray:
         T = np.eye(4)
-        for link in chain[:chain.index(common)]:
+        for link in chain[: chain.index(common)]:
             joint = parent[link]
             if joint.type != "fixed":
                 raise ValueError(f"joint {joint.name} between them is {joint.type}, not fixed")
             step = np.eye(4)
             step[:3, :3], step[:3, 3] = rpy_to_matrix(joint.rpy), joint.xyz
             T = step @ T
-        return T                                  # T_common_link
+        return T  # T_common_link
 
     return np.linalg.inv(to_common(up_a)) @ to_common(up_b)
 
@@ -56,13 +57,15 @@ def _link_in_ee(params: Mapping[str, Any]) -> np.ndarray:
     model = read_model(params["urdf"], params.get("_config_dir"), "urdf", params.get("_packages"))
     for key in ("end_effector", "link"):
         if params[key] not in model.link_names:
-            raise ConfigError(key, f"expected a link of {params['urdf']} ({', '.join(model.link_names)}), "
-                                   f"got {params[key]!r}")
+            raise ConfigError(
+                key, f"expected a link of {params['urdf']} ({', '.join(model.link_names)}), got {params[key]!r}"
+            )
     try:
         return fixed_transform(model, params["end_effector"], params["link"])
     except ValueError as e:
-        raise ConfigError("end_effector", f"the camera's link {params['link']} must be {params['end_effector']} or "
-                                          f"fixed to it: {e}") from None
+        raise ConfigError(
+            "end_effector", f"the camera's link {params['link']} must be {params['end_effector']} or fixed to it: {e}"
+        ) from None
 
 
 class FiducialComponent(Component):
@@ -90,6 +93,7 @@ class FiducialComponent(Component):
 
     State: the last outputs.
     """
+
     type_name = "estimator.fiducial"
     plots = (fiducial_plots.POSE,)
     rosbag = fiducial_ros.POSE
@@ -99,33 +103,66 @@ class FiducialComponent(Component):
         Parameter("link", Str(), description="the link of that body the camera is fixed to (the camera's link)"),
         Parameter("end_effector", Str(), description="the link whose frame E the pose is in: link, or one fixed to it"),
         Parameter("width", Int(minimum=1), description=f"the camera's image width (pixels, at most {MAX_IMAGE_SIZE})"),
-        Parameter("height", Int(minimum=1), description=f"the camera's image height (pixels, at most {MAX_IMAGE_SIZE})"),
-        Parameter("markers", Str(hint="a marker layout (YAML) file path"),
-                  description="the marker layout: dictionary, link, markers' ids, sizes and poses "
-                              "(relative to the config)"),
+        Parameter(
+            "height", Int(minimum=1), description=f"the camera's image height (pixels, at most {MAX_IMAGE_SIZE})"
+        ),
+        Parameter(
+            "markers",
+            Str(hint="a marker layout (YAML) file path"),
+            description="the marker layout: dictionary, link, markers' ids, sizes and poses (relative to the config)",
+        ),
         Parameter("min_markers", Int(minimum=1), description="fewest markers seen for a pose (fewer: valid 0)"),
-        Parameter("max_reprojection_error", Float(positive=True),
-                  description="largest RMS reprojection error over the markers' corners for a pose (pixels)"),
+        Parameter(
+            "max_reprojection_error",
+            Float(positive=True),
+            description="largest RMS reprojection error over the markers' corners for a pose (pixels)",
+        ),
     )
     OUTPUTS = (
         Variable("p", "output", (3,), "m", [0.0] * 3, "the grasp frame's origin in E (the last accepted pose)"),
-        Variable("q", "output", (4,), "1", [0.0, 0.0, 0.0, 1.0],
-                 "q_E_G [x, y, z, w] (the last accepted pose), unit, sign-continuous"),
+        Variable(
+            "q",
+            "output",
+            (4,),
+            "1",
+            [0.0, 0.0, 0.0, 1.0],
+            "q_E_G [x, y, z, w] (the last accepted pose), unit, sign-continuous",
+        ),
         Variable("t_measured", "output", (), "s", 0.0, "when the latest frame was taken"),
         Variable("valid", "output", (), "1", 0.0, "1 when the latest frame gave a pose, else 0"),
         Variable("markers", "output", (), "1", 0.0, "markers of the layout found in the latest frame"),
-        Variable("reprojection_error", "output", (), "px", 0.0,
-                 "RMS reprojection error of the latest frame's solve (0 without one)"),
-        Variable("frame_solved", "output", (), "1", 0.0,
-                 "the camera's count of the latest frame solved (0: none yet; with --record, its file is "
-                 "frames/<camera>/<frame - 1>.npz)"),
+        Variable(
+            "reprojection_error",
+            "output",
+            (),
+            "px",
+            0.0,
+            "RMS reprojection error of the latest frame's solve (0 without one)",
+        ),
+        Variable(
+            "frame_solved",
+            "output",
+            (),
+            "1",
+            0.0,
+            "the camera's count of the latest frame solved (0: none yet; with --record, its file is "
+            "frames/<camera>/<frame - 1>.npz)",
+        ),
     )
 
     @classmethod
     def declare(cls, params):
         return [
-            Variable("rgb", "input", (params["height"], params["width"], 3), "1", 0, "the camera's image",
-                     frame=True, dtype="uint8"),
+            Variable(
+                "rgb",
+                "input",
+                (params["height"], params["width"], 3),
+                "1",
+                0,
+                "the camera's image",
+                frame=True,
+                dtype="uint8",
+            ),
             Variable("K", "input", (3, 3), "px", np.eye(3), "the camera's intrinsic matrix"),
             Variable("D", "input", (5,), "1", 0.0, "the camera's plumb_bob distortion [k1, k2, p1, p2, k3]"),
             Variable("T_link_camera", "input", (4, 4), "1", np.eye(4), "the camera's pose in its link (m)"),
@@ -141,8 +178,10 @@ class FiducialComponent(Component):
         _link_in_ee(params)
         layout = _layout(params)
         if params["min_markers"] > len(layout.markers):
-            raise ConfigError("min_markers", f"expected at most the layout's {len(layout.markers)} markers, "
-                                             f"got {params['min_markers']}")
+            raise ConfigError(
+                "min_markers",
+                f"expected at most the layout's {len(layout.markers)} markers, got {params['min_markers']}",
+            )
 
     @classmethod
     def preflight(cls, params, step_s, full=False):
@@ -152,25 +191,32 @@ class FiducialComponent(Component):
 
     def __init__(self, params):
         from components.estimators.fiducial import FiducialEstimator
+
         self.params = params
         self.estimator = FiducialEstimator(_layout(params), params["min_markers"], params["max_reprojection_error"])
         self.T_E_link = _link_in_ee(params)
         self.p, self.q = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
-        self.accepted = False                       # a pose was accepted (q's sign follows it)
+        self.accepted = False  # a pose was accepted (q's sign follows it)
         self.t_measured_ns, self.valid, self.markers, self.error = 0, False, 0, 0.0
         self.frame = 0
 
     def _outputs(self) -> dict[str, Any]:
-        return {"p": self.p, "q": self.q, "t_measured": self.t_measured_ns / NS_PER_S, "valid": float(self.valid),
-                "markers": float(self.markers), "reprojection_error": self.error,
-                "frame_solved": float(self.frame)}
+        return {
+            "p": self.p,
+            "q": self.q,
+            "t_measured": self.t_measured_ns / NS_PER_S,
+            "valid": float(self.valid),
+            "markers": float(self.markers),
+            "reprojection_error": self.error,
+            "frame_solved": float(self.frame),
+        }
 
     def initialize(self, t0_ns, inputs):
         return self._outputs()
 
     def do_step(self, t_ns, h_ns, inputs):
         self.t_measured_ns, self.frame = round(float(inputs["t_frame"]) * NS_PER_S), int(inputs["frame"])
-        if not self.frame:                       # no frame yet (the camera's start values)
+        if not self.frame:  # no frame yet (the camera's start values)
             self.valid, self.markers, self.error = False, 0, 0.0
             return self._outputs()
         T_E_C = self.T_E_link @ inputs["T_link_camera"]
@@ -184,9 +230,16 @@ class FiducialComponent(Component):
         return self._outputs()
 
     def get_state(self):
-        return {"p": self.p.copy(), "q": self.q.copy(), "accepted": np.bool_(self.accepted),
-                "t_measured_ns": np.int64(self.t_measured_ns), "valid": np.bool_(self.valid),
-                "markers": np.int64(self.markers), "error": np.float64(self.error), "frame": np.int64(self.frame)}
+        return {
+            "p": self.p.copy(),
+            "q": self.q.copy(),
+            "accepted": np.bool_(self.accepted),
+            "t_measured_ns": np.int64(self.t_measured_ns),
+            "valid": np.bool_(self.valid),
+            "markers": np.int64(self.markers),
+            "error": np.float64(self.error),
+            "frame": np.int64(self.frame),
+        }
 
     def set_state(self, state):
         self.p = np.array(state["p"], dtype=np.float64).reshape(3)

@@ -22,6 +22,7 @@ With one marker the pose is that of a 4-point square (its ambiguity is resolved 
 score above: keep ``min_markers`` at 2 when the markers are small in the image); several markers
 off one plane (the layout's tip and root markers) give a well-conditioned solve.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -37,6 +38,7 @@ class Estimate:
     """One image's answer. ``p_ee_grasp`` (m), ``q_ee_grasp`` ([x, y, z, w]) are NaN when no pose
     was solved; ``markers``: the layout's markers used; ``reprojection_error``: RMS over their
     corners (px, NaN without a pose); ``reason``: why it is not valid ("" when it is)."""
+
     valid: bool
     p_ee_grasp: np.ndarray
     q_ee_grasp: np.ndarray
@@ -50,7 +52,8 @@ class FiducialEstimator:
     and ``max_reprojection_error`` (px RMS)."""
 
     def __init__(self, layout: MarkerLayout, min_markers: int, max_reprojection_error: float):
-        import cv2   # heavy: only when an estimator is built
+        import cv2  # heavy: only when an estimator is built
+
         self.cv2 = cv2
         if min_markers < 1:
             raise ValueError(f"min_markers: expected at least 1, got {min_markers}")
@@ -63,7 +66,8 @@ class FiducialEstimator:
         # 0.02 finds some markers twice)
         parameters.minMarkerDistanceRate = 0.05
         self.detector = cv2.aruco.ArucoDetector(
-            cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, layout.dictionary)), parameters)
+            cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, layout.dictionary)), parameters
+        )
         self.markers = layout.by_id()
         # each marker's corners in its own frame (IPPE_SQUARE's order) and in G
         self.square = {i: _square(m.size) for i, m in self.markers.items()}
@@ -78,11 +82,15 @@ class FiducialEstimator:
         if ids is None:
             return {}
         ids = ids.ravel().tolist()
-        return {i: c.reshape(4, 2).astype(np.float64) for i, c in zip(ids, corners)
-                if i in self.markers and ids.count(i) == 1}
+        return {
+            i: c.reshape(4, 2).astype(np.float64)
+            for i, c in zip(ids, corners)
+            if i in self.markers and ids.count(i) == 1
+        }
 
-    def estimate(self, rgb: np.ndarray, K: np.ndarray, distortion: np.ndarray,
-                 p_ee_camera: np.ndarray, R_ee_camera: np.ndarray) -> Estimate:
+    def estimate(
+        self, rgb: np.ndarray, K: np.ndarray, distortion: np.ndarray, p_ee_camera: np.ndarray, R_ee_camera: np.ndarray
+    ) -> Estimate:
         """G's pose in E from one image (RGB, H x W x 3 uint8) taken with intrinsics ``K`` (3x3,
         px) and ``distortion`` (OpenCV's k1, k2, p1, p2[, k3]; empty: none) by a camera at
         ``p_ee_camera`` (m), ``R_ee_camera`` in E."""
@@ -98,8 +106,9 @@ class FiducialEstimator:
         best = None
         for i in ids:
             marker = self.markers[i]
-            count, rvecs, tvecs, _ = cv2.solvePnPGeneric(self.square[i], seen[i], K, distortion,
-                                                         flags=cv2.SOLVEPNP_IPPE_SQUARE)
+            count, rvecs, tvecs, _ = cv2.solvePnPGeneric(
+                self.square[i], seen[i], K, distortion, flags=cv2.SOLVEPNP_IPPE_SQUARE
+            )
             for rvec, tvec in zip(rvecs[:count], tvecs[:count]):
                 R_C_M = cv2.Rodrigues(rvec)[0]
                 R_C_G = R_C_M @ marker.R_link_marker.T

@@ -10,6 +10,7 @@ cells around that square (a detector needs white around the border), so the draw
 ``size * (cells + 2 quiet_zone) / cells`` on a side, ``cells`` the dictionary's bits plus its
 one-cell black border.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -24,35 +25,64 @@ from components.rotations import quat_to_matrix
 from components.schema import Float, Int, ListOf, Parameter, Problems, Record, Str, Vector
 
 # dictionary name (cv2.aruco's) -> bits on a side of its markers
-DICTIONARIES = {"DICT_4X4_50": 4, "DICT_4X4_100": 4, "DICT_5X5_50": 5, "DICT_5X5_100": 5,
-                "DICT_6X6_50": 6, "DICT_6X6_100": 6, "DICT_APRILTAG_36h11": 6}
+DICTIONARIES = {
+    "DICT_4X4_50": 4,
+    "DICT_4X4_100": 4,
+    "DICT_5X5_50": 5,
+    "DICT_5X5_100": 5,
+    "DICT_6X6_50": 6,
+    "DICT_6X6_100": 6,
+    "DICT_APRILTAG_36h11": 6,
+}
 # how many markers each dictionary holds (ids 0 .. n-1)
-DICTIONARY_SIZES = {"DICT_4X4_50": 50, "DICT_4X4_100": 100, "DICT_5X5_50": 50, "DICT_5X5_100": 100,
-                    "DICT_6X6_50": 50, "DICT_6X6_100": 100, "DICT_APRILTAG_36h11": 587}
+DICTIONARY_SIZES = {
+    "DICT_4X4_50": 50,
+    "DICT_4X4_100": 100,
+    "DICT_5X5_50": 50,
+    "DICT_5X5_100": 100,
+    "DICT_6X6_50": 50,
+    "DICT_6X6_100": 100,
+    "DICT_APRILTAG_36h11": 587,
+}
 
-MARKER = Record("Marker", (
-    Parameter("id", Int(minimum=0), description="the marker's id in the dictionary"),
-    Parameter("size", Float("m", positive=True, plausible=(1e-3, 10.0)),
-              description="side of its black square (the outer edge of its border)"),
-    Parameter("position", Vector(3, "m", plausible=(-100.0, 100.0)), description="its centre in the link frame"),
-    Parameter("orientation", Vector(4), description="q_link_marker [x, y, z, w]: marker x right, y up, z out of its face"),
-))
-LAYOUT = Record("MarkerLayout", (
-    Parameter("dictionary", Str(tuple(DICTIONARIES)), description="the markers' dictionary (OpenCV aruco)"),
-    Parameter("link", Str(), description="the link they are fixed to: the estimator measures its frame's pose"),
-    Parameter("quiet_zone", Int(minimum=1), description="white cells drawn around each marker's black square"),
-    Parameter("mesh", Str(), description="where the generator writes the markers' meshes, relative to this file: "
-                                         "<mesh>_white.obj and <mesh>_black.obj"),
-    Parameter("markers", ListOf(MARKER, min_items=1), description="the markers"),
-))
+MARKER = Record(
+    "Marker",
+    (
+        Parameter("id", Int(minimum=0), description="the marker's id in the dictionary"),
+        Parameter(
+            "size",
+            Float("m", positive=True, plausible=(1e-3, 10.0)),
+            description="side of its black square (the outer edge of its border)",
+        ),
+        Parameter("position", Vector(3, "m", plausible=(-100.0, 100.0)), description="its centre in the link frame"),
+        Parameter(
+            "orientation", Vector(4), description="q_link_marker [x, y, z, w]: marker x right, y up, z out of its face"
+        ),
+    ),
+)
+LAYOUT = Record(
+    "MarkerLayout",
+    (
+        Parameter("dictionary", Str(tuple(DICTIONARIES)), description="the markers' dictionary (OpenCV aruco)"),
+        Parameter("link", Str(), description="the link they are fixed to: the estimator measures its frame's pose"),
+        Parameter("quiet_zone", Int(minimum=1), description="white cells drawn around each marker's black square"),
+        Parameter(
+            "mesh",
+            Str(),
+            description="where the generator writes the markers' meshes, relative to this file: "
+            "<mesh>_white.obj and <mesh>_black.obj",
+        ),
+        Parameter("markers", ListOf(MARKER, min_items=1), description="the markers"),
+    ),
+)
 
 
 @dataclass(frozen=True)
 class Marker:
     id: int
-    size: float                 # m: side of the black square
-    p_link_marker: np.ndarray   # m: centre, link frame
-    R_link_marker: np.ndarray   # 3x3: marker axes in the link frame
+    size: float  # m: side of the black square
+    p_link_marker: np.ndarray  # m: centre, link frame
+    R_link_marker: np.ndarray  # 3x3: marker axes in the link frame
 
     def corners(self, side: float | None = None) -> np.ndarray:
         """The square's corners (m, link frame) in OpenCV's order: top-left, top-right,
@@ -68,7 +98,7 @@ class MarkerLayout:
     dictionary: str
     link: str
     quiet_zone: int
-    mesh: Path                  # absolute: the meshes' common stem
+    mesh: Path  # absolute: the meshes' common stem
     markers: tuple[Marker, ...]
 
     @property
@@ -89,6 +119,7 @@ def layout_path(value: str, config_dir: str | Path | None) -> Path:
     """A layout file a config names: absolute, else relative to the config, else to the project
     root; ConfigError (key ``markers``) when none exists."""
     from components.robots.model import PROJECT_ROOT
+
     path = Path(value)
     candidates = [path] if path.is_absolute() else [Path(config_dir or ".") / path, PROJECT_ROOT / path]
     for candidate in candidates:
@@ -116,8 +147,11 @@ def read_layout(path: str | Path, key: str = "markers") -> MarkerLayout:
     for i, m in enumerate(data["markers"]):
         where = f"{path}: markers[{i}]"
         if m["id"] >= DICTIONARY_SIZES[data["dictionary"]]:
-            raise ConfigError(key, f"{where}.id: {data['dictionary']} has ids 0 to "
-                                   f"{DICTIONARY_SIZES[data['dictionary']] - 1}, got {m['id']}")
+            raise ConfigError(
+                key,
+                f"{where}.id: {data['dictionary']} has ids 0 to "
+                f"{DICTIONARY_SIZES[data['dictionary']] - 1}, got {m['id']}",
+            )
         norm = float(np.linalg.norm(m["orientation"]))
         if not abs(norm - 1.0) < 1e-6:
             raise ConfigError(key, f"{where}.orientation: expected a unit quaternion, got norm {norm:.9g}")
@@ -126,5 +160,11 @@ def read_layout(path: str | Path, key: str = "markers") -> MarkerLayout:
     repeated = sorted({i for i in ids if ids.count(i) > 1})
     if repeated:
         raise ConfigError(key, f"{path}: marker id {repeated[0]} listed twice (each id once: it names the marker)")
-    return MarkerLayout(path.resolve(), data["dictionary"], data["link"], data["quiet_zone"],
-                        (path.parent / data["mesh"]).resolve(), tuple(markers))
+    return MarkerLayout(
+        path.resolve(),
+        data["dictionary"],
+        data["link"],
+        data["quiet_zone"],
+        (path.parent / data["mesh"]).resolve(),
+        tuple(markers),
+    )

@@ -14,6 +14,7 @@ Each cell is two triangles facing along the marker's z (counter-clockwise seen f
 grid's first row is the marker's top (its +y). The cells' colours come from OpenCV's own marker
 drawing (``cv2.aruco.generateImageMarker`` at one pixel per cell).
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -29,6 +30,7 @@ COLOURS = ("white", "black")
 def cells(layout: MarkerLayout, marker: Marker) -> np.ndarray:
     """The marker's cells, quiet zone included, top row first: True where black."""
     import cv2
+
     dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, layout.dictionary))
     image = cv2.aruco.generateImageMarker(dictionary, marker.id, layout.cells, borderBits=1)
     return np.pad(image, layout.quiet_zone, constant_values=255) < 128
@@ -47,8 +49,7 @@ def grid(layout: MarkerLayout, marker: Marker) -> np.ndarray:
 
 def obj_text(layout: MarkerLayout, colour: str, relative_to: Path) -> str:
     """One colour's OBJ: the cells of that colour of every marker, two triangles each."""
-    lines = [HEADER.format(layout=_relative(layout.path, relative_to)).rstrip("\n"),
-             f"o {layout.mesh.name}_{colour}"]
+    lines = [HEADER.format(layout=_relative(layout.path, relative_to)).rstrip("\n"), f"o {layout.mesh.name}_{colour}"]
     vertices, normals, faces = [], [], []
     for marker in layout.markers:
         black = cells(layout, marker)
@@ -59,7 +60,7 @@ def obj_text(layout: MarkerLayout, colour: str, relative_to: Path) -> str:
         def vertex(i, j):
             if (i, j) not in index:
                 vertices.append(corners[i, j])
-                index[(i, j)] = len(vertices)          # OBJ counts from 1
+                index[(i, j)] = len(vertices)  # OBJ counts from 1
             return index[(i, j)]
 
         for i, j in zip(*np.nonzero(black if colour == "black" else ~black)):
@@ -96,6 +97,7 @@ def write(layout_path: str | Path, check: bool = False, out=print, err=None) -> 
     """Write the meshes of the layout in ``layout_path`` (``check``: only say which are stale, 1 if
     any). Paths in the files' headers are relative to the repository (the committed models')."""
     import sys
+
     err = err or (lambda line: print(line, file=sys.stderr))
     root = Path(__file__).resolve().parents[2]
     layout = read_layout(layout_path, "layout")

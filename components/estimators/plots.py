@@ -2,6 +2,7 @@
 the dynamics' own grasp pose when the recording holds it (a ``grasp`` of the same chaser, end
 effector and grasp frame as the estimator's: ``<dynamics>.grasp.p_ee_grasp``, ``.q_ee_grasp``, taken
 at the frame's time)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -36,7 +37,7 @@ def _truth(run: RecordedRun, c: str) -> str | None:
         return None
     try:
         link = read_layout(layout_path(params["markers"], run.config_dir)).link
-    except ConfigError:   # the layout file is not where the run found it: no truth to compare with
+    except ConfigError:  # the layout file is not where the run found it: no truth to compare with
         return None
     if grasp.get("grasp_frame") != link or run.variable(f"{dynamics}.grasp.p_ee_grasp") is None:
         return None
@@ -54,7 +55,7 @@ def frame_errors(run: RecordedRun, c: str, dynamics: str):
     for k in rows:
         j = int(np.argmin(np.abs(run.time - t_measured[k])))
         if abs(run.time[j] - t_measured[k]) > 1e-9:
-            continue                                  # the frame's time is not a recorded row
+            continue  # the frame's time is not a recorded row
         R_error = quat_to_matrix(q_true[j]).T @ quat_to_matrix(q[k])
         out.append((t_measured[k], float(np.linalg.norm(p[k] - p_true[j])), float(np.linalg.norm(log_so3(R_error)))))
     return np.array(out).reshape(-1, 3)
@@ -93,5 +94,9 @@ def draw(run: RecordedRun, c: str) -> dict:
     return {f"{c}_pose.png": fig}
 
 
-POSE = Plot("{c}_pose.png", "each frame's position and attitude error against the dynamics' grasp pose (when "
-                            "recorded), markers found, valid, RMS reprojection error", draw)
+POSE = Plot(
+    "{c}_pose.png",
+    "each frame's position and attitude error against the dynamics' grasp pose (when "
+    "recorded), markers found, valid, RMS reprojection error",
+    draw,
+)

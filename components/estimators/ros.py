@@ -2,6 +2,7 @@
 ``/<c>/pose``, a geometry_msgs/PoseStamped once per accepted frame, stamped when the frame was
 taken, in the end effector's tf frame (``<dynamics>/<body>/<end_effector>``, the dynamics'
 link frames; the component's own name when its camera's body is not connected to a dynamics)."""
+
 from __future__ import annotations
 
 from components.estimators.plots import chaser_dynamics
@@ -18,12 +19,22 @@ def _pose(context: RosContext, c: str) -> list[RosTopic]:
     dynamics = chaser_dynamics(run, c)
     frame = link_frame(dynamics, params.get("body"), params.get("end_effector")) if dynamics else c
     Pose, PoseStamped = context.msg("geometry_msgs/msg/Pose"), context.msg("geometry_msgs/msg/PoseStamped")
-    return [RosTopic(f"/{c}/pose", "geometry_msgs/msg/PoseStamped", [
-        (int(context.stamps[row]),
-         PoseStamped(header=context.header(context.stamp_of(float(t_measured[row])), frame),
-                     pose=Pose(position=context.point(p[row]), orientation=context.quaternion(q[row]))))
-        for row in measurement_rows(valid, t_measured)])]
+    return [
+        RosTopic(
+            f"/{c}/pose",
+            "geometry_msgs/msg/PoseStamped",
+            [
+                (
+                    int(context.stamps[row]),
+                    PoseStamped(
+                        header=context.header(context.stamp_of(float(t_measured[row])), frame),
+                        pose=Pose(position=context.point(p[row]), orientation=context.quaternion(q[row])),
+                    ),
+                )
+                for row in measurement_rows(valid, t_measured)
+            ],
+        )
+    ]
 
 
-POSE = RosExport("``/<c>/pose`` geometry_msgs/PoseStamped in the end effector's frame, once per accepted frame",
-                 _pose)
+POSE = RosExport("``/<c>/pose`` geometry_msgs/PoseStamped in the end effector's frame, once per accepted frame", _pose)

@@ -1,10 +1,12 @@
 """A user-written component: a mass on a spring, as docs/guides/writing-a-component.md shows it."""
+
 from components.constants import NS_PER_S
 from components.sdk import Component, Parameter, Variable
 
 
 class Oscillator(Component):
     """x'' = (force - stiffness * x) / mass, by semi-implicit Euler over each step."""
+
     type_name = "example.oscillator"
     parameters = (
         Parameter("mass", "float", unit="kg", plausible=(1e-3, 1e6), description="moving mass"),
@@ -14,9 +16,11 @@ class Oscillator(Component):
 
     @classmethod
     def declare(cls, params):
-        return [Variable("force", "input", (), "N", 0.0, "external force"),
-                Variable("x", "output", (), "m", params["x0"], "position"),
-                Variable("v", "output", (), "m/s", 0.0, "velocity")]
+        return [
+            Variable("force", "input", (), "N", 0.0, "external force"),
+            Variable("x", "output", (), "m", params["x0"], "position"),
+            Variable("v", "output", (), "m/s", 0.0, "velocity"),
+        ]
 
     def __init__(self, params):
         self.m, self.k, self.x, self.v = params["mass"], params["stiffness"], params["x0"], 0.0
@@ -25,7 +29,7 @@ class Oscillator(Component):
         return {"x": self.x, "v": self.v}
 
     def do_step(self, t_ns, h_ns, inputs):
-        h = h_ns / NS_PER_S          # integer ns -> s: a division (components/constants.py)
+        h = h_ns / NS_PER_S  # integer ns -> s: a division (components/constants.py)
         self.v += h * (float(inputs["force"]) - self.k * self.x) / self.m
         self.x += h * self.v
         return {"x": self.x, "v": self.v}

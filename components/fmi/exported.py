@@ -9,6 +9,7 @@ runs inside: it maps each element of a Zenorbit variable to one FMI Real (``r_ec
 -> ``r_eci[0]``..``r_eci[2]``), FMI's lifecycle to the component's, and, for a type with
 get_state/set_state, the FMU state to the component's state plus the input and output vectors.
 """
+
 from __future__ import annotations
 
 import base64
@@ -34,11 +35,11 @@ from components.fmi.pythonfmu_exit import hold_binary_until_exit
 
 SPEC_FILE = "zenorbit.json"
 FILES_DIR = "files"
-OUTSIDE_DIR = "_outside"       # files/ place of a parameter's file that lies above the config dir
+OUTSIDE_DIR = "_outside"  # files/ place of a parameter's file that lies above the config dir
 STATE_FORMAT = "zenorbit-fmu-state/1"
 IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 EPOCH_EXAMPLE = "2022-09-18T12:00:00Z"
-PACKAGE_DIR = Path(__file__).resolve().parents[1]     # the components package
+PACKAGE_DIR = Path(__file__).resolve().parents[1]  # the components package
 
 
 class ExportError(Exception):
@@ -51,6 +52,7 @@ class ExportError(Exception):
 
 # ---------------------------------------------------------------------------------------------
 # Variables: one FMI Real per element
+
 
 def element_units(unit: str, size: int) -> list[str | None] | None:
     """The unit of each element of a variable, or None when its unit text cannot be spread over
@@ -105,6 +107,7 @@ def unit_definition(name: str) -> ElementTree.Element:
 # ---------------------------------------------------------------------------------------------
 # Loading the component from a spec (export time and run time alike)
 
+
 def resolve_spec(spec: dict, files_dir: Path):
     """The spec's type and parameters resolved (a registry.Resolved); ExportError naming the key."""
     from components import registry
@@ -121,8 +124,9 @@ def resolve_spec(spec: dict, files_dir: Path):
         if isinstance(e, ConfigError):
             raise ExportError(_set_problem(e, spec)) from None
         if isinstance(e, KeyError):
-            raise ExportError(_missing_epoch(spec) if e.args == ("_epoch",)
-                              else f"declare failed: KeyError {e}") from None
+            raise ExportError(
+                _missing_epoch(spec) if e.args == ("_epoch",) else f"declare failed: KeyError {e}"
+            ) from None
         raise e from None
 
 
@@ -141,8 +145,10 @@ def instantiate(resolved, spec: dict):
 
 
 def _missing_epoch(spec: dict) -> str:
-    return (f"{spec['type']} needs the run epoch (run.epoch, the UTC of t = 0): pass --epoch UTC, "
-            f"e.g. --epoch {EPOCH_EXAMPLE}")
+    return (
+        f"{spec['type']} needs the run epoch (run.epoch, the UTC of t = 0): pass --epoch UTC, "
+        f"e.g. --epoch {EPOCH_EXAMPLE}"
+    )
 
 
 def _set_problem(error, spec: dict) -> str:
@@ -181,8 +187,11 @@ class ComponentSlave(Fmi2Slave):
         hold_binary_until_exit(resources, self.modelName)
         self.resolved = resolve_spec(self.spec, self.files_dir)
         self.cls = self.resolved.cls
-        summary = re.sub(r":\w+:`~?([^`]+)`|``([^`]+)``", lambda m: m.group(1) or m.group(2),
-                         " ".join((self.cls.__doc__ or "").strip().split("\n\n")[0].split()))   # rST roles as plain text
+        summary = re.sub(
+            r":\w+:`~?([^`]+)`|``([^`]+)``",
+            lambda m: m.group(1) or m.group(2),
+            " ".join((self.cls.__doc__ or "").strip().split("\n\n")[0].split()),
+        )  # rST roles as plain text
         self.description = f"Zenorbit {self.spec['type']}" + (f": {summary}" if summary else "")
         self.input_layout, self.output_layout = self.resolved.inputs, self.resolved.outputs
         self.input_names = [v.name for v in self.input_layout.variables]
@@ -192,8 +201,10 @@ class ComponentSlave(Fmi2Slave):
         self.initialized = False
         self.component = instantiate(self.resolved, self.spec)
         self.units: list[str] = []
-        for layout, vector, causality in ((self.input_layout, self.inputs, Fmi2Causality.input),
-                                          (self.output_layout, self.outputs, Fmi2Causality.output)):
+        for layout, vector, causality in (
+            (self.input_layout, self.inputs, Fmi2Causality.input),
+            (self.output_layout, self.outputs, Fmi2Causality.output),
+        ):
             for v in layout.variables:
                 self._register(v, vector, layout.offsets[v.name].start, causality)
 
@@ -203,7 +214,7 @@ class ComponentSlave(Fmi2Slave):
         for i, name in enumerate(names):
             description = variable.description if variable.shape == () else f"{variable.description} (element {i})"
             unit = units[i] if units else None
-            if units is None:   # the unit list does not split evenly: keep it readable in the text
+            if units is None:  # the unit list does not split evenly: keep it readable in the text
                 description += f" [units: {variable.unit}]"
             if unit and unit not in self.units:
                 self.units.append(unit)
@@ -213,8 +224,17 @@ class ComponentSlave(Fmi2Slave):
             else:
                 setter = self._refuse_output(name)
             # nested=False: names such as robot.tau[0] are not attribute paths
-            self.register_variable(UnitReal(name, unit=unit, causality=causality, description=description,
-                                            getter=self._getter(vector, index), setter=setter), nested=False)
+            self.register_variable(
+                UnitReal(
+                    name,
+                    unit=unit,
+                    causality=causality,
+                    description=description,
+                    getter=self._getter(vector, index),
+                    setter=setter,
+                ),
+                nested=False,
+            )
 
     @staticmethod
     def _getter(vector: np.ndarray, index: int):
@@ -224,12 +244,14 @@ class ComponentSlave(Fmi2Slave):
     def _input_setter(vector: np.ndarray, index: int):
         def set_input(value):
             vector[index] = value
+
         return set_input
 
     def _refuse_output(self, name: str):
         # logged, not raised: pythonfmu turns an exception into fmi2Fatal and frees the instance
         def refuse(value):
             self.log(f"{name} is an output: setting it to {value!r} is ignored", Fmi2Status.error)
+
         return refuse
 
     def to_xml(self, model_options: dict[str, str] | None = None) -> ElementTree.Element:
@@ -243,7 +265,7 @@ class ComponentSlave(Fmi2Slave):
             root.insert(after[-1] + 1, definitions)
         structure = root.find("ModelStructure")
         outputs = structure.find("Outputs")
-        if outputs is not None:   # outputs are initial="calculated" (the default): list them
+        if outputs is not None:  # outputs are initial="calculated" (the default): list them
             initial = ElementTree.SubElement(structure, "InitialUnknowns")
             initial.extend(ElementTree.Element("Unknown", {"index": unknown.get("index")}) for unknown in outputs)
         return root
@@ -251,7 +273,7 @@ class ComponentSlave(Fmi2Slave):
     # lifecycle -------------------------------------------------------------------------------
 
     def _input_views(self) -> dict[str, np.ndarray]:
-        return self.input_layout.unpack(self.inputs.copy())   # the component may keep them
+        return self.input_layout.unpack(self.inputs.copy())  # the component may keep them
 
     def _store(self, result) -> str | None:
         """Pack a result into the outputs; the name of a non-finite output (then nothing changes)."""
@@ -270,7 +292,9 @@ class ComponentSlave(Fmi2Slave):
         try:
             bad = self._store(self.component.initialize(self.t0_ns, self._input_views()))
         except Exception as e:
-            message = f"{self.spec['type']}: initialize at t = {self.t0_ns / NS_PER_S:g} s failed: {type(e).__name__}: {e}"
+            message = (
+                f"{self.spec['type']}: initialize at t = {self.t0_ns / NS_PER_S:g} s failed: {type(e).__name__}: {e}"
+            )
             self.log(message, Fmi2Status.error)
             raise RuntimeError(message) from None
         if bad is not None:
@@ -285,16 +309,19 @@ class ComponentSlave(Fmi2Slave):
         if not self.initialized:
             self.log(f"{self.spec['type']}: do_step before initialization", Fmi2Status.error)
             return False
-        self.component.input_times_ns = dict.fromkeys(self.input_names, t_ns)   # held over the step
+        self.component.input_times_ns = dict.fromkeys(self.input_names, t_ns)  # held over the step
         try:
             bad = self._store(self.component.do_step(t_ns, h_ns, self._input_views()))
         except Exception as e:
-            self.log(f"{self.spec['type']}: step at t = {current_time:g} s failed: {type(e).__name__}: {e}",
-                     Fmi2Status.error)
+            self.log(
+                f"{self.spec['type']}: step at t = {current_time:g} s failed: {type(e).__name__}: {e}", Fmi2Status.error
+            )
             return False
         if bad is not None:
-            self.log(f"{self.spec['type']}: output {bad} is not finite after the step at t = {current_time:g} s",
-                     Fmi2Status.error)
+            self.log(
+                f"{self.spec['type']}: output {bad} is not finite after the step at t = {current_time:g} s",
+                Fmi2Status.error,
+            )
             return False
         return True
 
@@ -309,9 +336,14 @@ class ComponentSlave(Fmi2Slave):
         if not self.cls.restorable():
             raise NotImplementedError(f"{self.spec['type']} has no get_state/set_state: its FMU state cannot be taken")
         blob = encode_state(self.component.get_state()) if self.initialized else None
-        return {"format": STATE_FORMAT, "initialized": self.initialized, "t0_ns": self.t0_ns,
-                "component": None if blob is None else base64.b64encode(blob).decode("ascii"),
-                "inputs": _vector_text(self.inputs), "outputs": _vector_text(self.outputs)}
+        return {
+            "format": STATE_FORMAT,
+            "initialized": self.initialized,
+            "t0_ns": self.t0_ns,
+            "component": None if blob is None else base64.b64encode(blob).decode("ascii"),
+            "inputs": _vector_text(self.inputs),
+            "outputs": _vector_text(self.outputs),
+        }
 
     def _set_fmu_state(self, state: dict[str, Any]) -> None:
         from components.bus import decode_state
@@ -374,8 +406,10 @@ def export_fmu(type_name: str, parameters: dict, out: Path, epoch: str | None, c
     if not IDENTIFIER.match(identifier):
         suggestion = re.sub(r"\W", "_", identifier)
         suggestion = suggestion if IDENTIFIER.match(suggestion) else f"fmu_{suggestion}"
-        raise ExportError(f"-o {out.name}: the file name is the FMU's model identifier and must be a C identifier "
-                          f"(letters, digits and _, not starting with a digit), e.g. -o {suggestion}.fmu")
+        raise ExportError(
+            f"-o {out.name}: the file name is the FMU's model identifier and must be a C identifier "
+            f"(letters, digits and _, not starting with a digit), e.g. -o {suggestion}.fmu"
+        )
     if epoch is not None:
         epoch = _checked_epoch(epoch)
     given = bus.jsonable(parameters)
@@ -386,20 +420,26 @@ def export_fmu(type_name: str, parameters: dict, out: Path, epoch: str | None, c
         files_dir.mkdir(parents=True)
         type_in_fmu = _copy_type_file(type_name, config_dir, files_dir)
         parameters = _copy_named_files(given, config_dir, files_dir)
-        spec = {"type": type_in_fmu, "parameters": parameters, "epoch": epoch, "model_identifier": identifier,
-                "exported_type": type_name}
+        spec = {
+            "type": type_in_fmu,
+            "parameters": parameters,
+            "epoch": epoch,
+            "model_identifier": identifier,
+            "exported_type": type_name,
+        }
         # the checks the slave does when the FMU is instantiated, here with errors worth reading
         try:
             resolved = resolve_spec(spec, files_dir)
             instantiate(resolved, spec).terminate()
         except ExportError:
             raise
-        except Exception as e:   # the type's own code failed: one line naming it, no traceback
+        except Exception as e:  # the type's own code failed: one line naming it, no traceback
             raise ExportError(f"{type_name}: instantiating it failed: {type(e).__name__}: {e}") from None
 
         (staging / SPEC_FILE).write_text(json.dumps(spec, indent=2, sort_keys=True) + "\n")
-        shutil.copytree(PACKAGE_DIR, staging / "components",
-                        ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc"))
+        shutil.copytree(
+            PACKAGE_DIR, staging / "components", ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc")
+        )
         # pythonfmu imports the script by module name: one name per export, not a cached module
         digest = hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:12]
         module = f"zenorbit_fmu_{identifier}_{digest}"
@@ -419,12 +459,17 @@ def _build(script: Path, destination: Path, staging: Path, restorable: bool) -> 
 
     saved_path = list(sys.path)
     try:
-        return Path(FmuBuilder.build_FMU(
-            script, dest=destination,
-            project_files=[staging / SPEC_FILE, staging / "components", staging / FILES_DIR],
-            canGetAndSetFMUstate=restorable, canSerializeFMUstate=restorable))
+        return Path(
+            FmuBuilder.build_FMU(
+                script,
+                dest=destination,
+                project_files=[staging / SPEC_FILE, staging / "components", staging / FILES_DIR],
+                canGetAndSetFMUstate=restorable,
+                canSerializeFMUstate=restorable,
+            )
+        )
     finally:
-        sys.path[:] = saved_path   # the builder leaves the script's (temporary) directory on it
+        sys.path[:] = saved_path  # the builder leaves the script's (temporary) directory on it
         sys.modules.pop(script.stem, None)
 
 
@@ -456,7 +501,7 @@ def _copy_file(relative: str, config_dir: Path, files_dir: Path) -> str | None:
     try:
         if not source.is_file():
             return None
-    except OSError:   # a string too long or odd to be a path
+    except OSError:  # a string too long or odd to be a path
         return None
     place = _place_in_files(relative)
     target = files_dir / place
@@ -493,6 +538,10 @@ def fmu_summary(path: Path) -> dict[str, Any]:
         root = ElementTree.fromstring(archive.read("modelDescription.xml"))
     causalities = [v.get("causality") for v in root.iter("ScalarVariable")]
     co_simulation = root.find("CoSimulation")
-    return {"fmi_version": root.get("fmiVersion"), "model_identifier": co_simulation.get("modelIdentifier"),
-            "inputs": causalities.count("input"), "outputs": causalities.count("output"),
-            "state": co_simulation.get("canGetAndSetFMUstate") == "true"}
+    return {
+        "fmi_version": root.get("fmiVersion"),
+        "model_identifier": co_simulation.get("modelIdentifier"),
+        "inputs": causalities.count("input"),
+        "outputs": causalities.count("output"),
+        "state": co_simulation.get("canGetAndSetFMUstate") == "true",
+    }

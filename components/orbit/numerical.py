@@ -23,11 +23,13 @@ C_itrf_gcrf and the Sun's and Moon's positions (m, ECI, from the Earth's centre)
 rotation is :class:`components.space.earth.EarthRotation` (its slow C_cirs_gcrf factor evaluated
 once per grid step, at the step's start, the Earth rotation angle at every stage).
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from typing import Protocol
 
 import numpy as np
 
@@ -39,6 +41,7 @@ class Instant:
     """What the accelerations share at one time: ``t_s`` (s since the run's start), ``tt`` (TT
     two-part Julian date), ``c_itrf_gcrf`` (3x3, or None when no term needs it), ``sun_eci``, ``moon_eci`` (m, Earth's centre ->
     body, GCRF; None when no term asked for them)."""
+
     t_s: float
     tt: tuple[float, float]
     c_itrf_gcrf: np.ndarray | None
@@ -51,6 +54,7 @@ class AccelerationTerm(Protocol):
 
     ``name``: the output ``a_<name>_eci``; ``needs``: which of "sun", "moon", "earth_rotation" the
     :class:`Instant` must carry (without "earth_rotation" in any term, ``c_itrf_gcrf`` is None); ``acceleration(instant, r_eci, v_eci)`` -> m/s^2, ECI (r in m, v in m/s, ECI)."""
+
     name: str
     needs: frozenset[str]
 
@@ -76,6 +80,7 @@ class PointMass:
 
 class Harmonics:
     """The field's degrees 1..N (orders to M), evaluated in ITRF and turned to ECI."""
+
     name, needs = "harmonics", frozenset(("earth_rotation",))
 
     def __init__(self, field):
@@ -102,10 +107,18 @@ class Drag:
     """Cannonball drag -1/2 rho(r) Cd A/m |v_rel| v_rel, v_rel = v - EARTH_RATE z x r (an atmosphere
     turning with the Earth about ECI z, as the dynamics' drag on links). ``needs``: what the
     density reads from the :class:`Instant` (``earth_rotation`` for NRLMSISE-00)."""
+
     name = "drag"
 
-    def __init__(self, density: Density, cd: float, area: float, mass: float, earth_rate: float = EARTH_RATE,
-                 needs: frozenset[str] = frozenset()):
+    def __init__(
+        self,
+        density: Density,
+        cd: float,
+        area: float,
+        mass: float,
+        earth_rate: float = EARTH_RATE,
+        needs: frozenset[str] = frozenset(),
+    ):
         self.density, self.k, self.earth_rate = density, 0.5 * cd * area / mass, float(earth_rate)
         self.needs = frozenset(needs)
 
@@ -128,6 +141,7 @@ def exponential_density(atmosphere) -> Density:
         altitude = math.sqrt(float(r_eci @ r_eci)) - R_EARTH
         k = min(max(bisect_right(bases, altitude) - 1, 0), len(bases) - 1)
         return densities[k] * math.exp(-(altitude - bases[k]) / scales[k])
+
     return density
 
 
@@ -141,6 +155,7 @@ def msis_density(model, rotation) -> Density:
     def density(instant, r_eci):
         latitude, longitude, height = geodetic_from_ecef(instant.c_itrf_gcrf @ r_eci)
         return float(model.density_geodetic(rotation.utc_tt(instant.t_s)[0], latitude, longitude, height))
+
     return density
 
 
@@ -150,12 +165,24 @@ class CannonballSrp:
     Earth, conical by the Earth and the Moon), s_hat from the spacecraft to the Sun. ``flux`` (W/m^2
     at 1 AU), ``au`` and the radii (m) default to the project's constants (Basilisk's are given in
     its cross-check)."""
+
     name = "srp"
 
-    def __init__(self, cr: float, area: float, mass: float, eclipse: str = "conical", *, flux: float | None = None,
-                 au: float | None = None, r_sun: float | None = None, r_earth: float = R_EARTH,
-                 r_moon: float | None = None):
-        from components.space import eclipse as shadow, srp
+    def __init__(
+        self,
+        cr: float,
+        area: float,
+        mass: float,
+        eclipse: str = "conical",
+        *,
+        flux: float | None = None,
+        au: float | None = None,
+        r_sun: float | None = None,
+        r_earth: float = R_EARTH,
+        r_moon: float | None = None,
+    ):
+        from components.space import eclipse as shadow
+        from components.space import srp
 
         if eclipse not in shadow.MODELS:
             raise ValueError(f"eclipse: expected one of {', '.join(shadow.MODELS)}, got {eclipse!r}")
@@ -164,8 +191,11 @@ class CannonballSrp:
         self.cr_area_per_mass = float(cr) * float(area) / float(mass)
         self.p_1au = srp.pressure_1au(srp.SOLAR_FLUX if flux is None else flux)
         self.au = srp.AU if au is None else float(au)
-        self.radii = (shadow.R_SUN if r_sun is None else float(r_sun), float(r_earth),
-                      shadow.R_MOON if r_moon is None else float(r_moon))
+        self.radii = (
+            shadow.R_SUN if r_sun is None else float(r_sun),
+            float(r_earth),
+            shadow.R_MOON if r_moon is None else float(r_moon),
+        )
         self._illumination, self._cannonball = shadow.illumination_nb, srp.cannonball_nb
         self._no_moon = np.zeros(3)
 
@@ -255,8 +285,10 @@ class CowellPropagator:
         k3a = self.total(mid, r + 0.5 * h * k2v, k3v)
         k4v = v + h * k3a
         k4a = self.total(end, r + h * k3v, k4v)
-        return (r + (h / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v),
-                v + (h / 6.0) * (k1a + 2.0 * k2a + 2.0 * k3a + k4a))
+        return (
+            r + (h / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v),
+            v + (h / 6.0) * (k1a + 2.0 * k2a + 2.0 * k3a + k4a),
+        )
 
     def state_at(self, t_ns: int) -> tuple[np.ndarray, np.ndarray]:
         """(r, v) at run time t_ns (m, m/s, ECI); t_ns must not precede the grid point reached."""

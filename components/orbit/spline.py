@@ -10,6 +10,7 @@ both ends. With P = p1 - p0 - h v0 - h^2 a0 / 2, V = h (v1 - v0) - h^2 a0, A = h
     c3 = 10 P - 4 V + A / 2,  c4 = -15 P + 7 V - A,  c5 = 6 P - 3 V + A / 2.
 Neighbouring segments share the waypoint's p, v, a, so the spline is C2 everywhere.
 """
+
 from __future__ import annotations
 
 import bisect
@@ -51,8 +52,11 @@ class QuinticHermiteSpline:
         steps = np.diff(t)
         if np.any(steps <= 0.0):
             k = int(np.argmax(steps <= 0.0)) + 1
-            raise SplineError(f"expected strictly increasing times, got t[{k - 1}] = {float(t[k - 1])!r} s "
-                              f"then t[{k}] = {float(t[k])!r} s", k)
+            raise SplineError(
+                f"expected strictly increasing times, got t[{k - 1}] = {float(t[k - 1])!r} s "
+                f"then t[{k}] = {float(t[k])!r} s",
+                k,
+            )
         self.times = t
         h = steps[:, None]
         p0, p1, v0, v1, a0, a1 = p[:-1], p[1:], v[:-1], v[1:], a[:-1], a[1:]
@@ -60,10 +64,17 @@ class QuinticHermiteSpline:
         big_v = h * (v1 - v0) - h * h * a0
         big_a = h * h * (a1 - a0)
         # coefficients in s, shape (segments, 6, d)
-        self._coef = np.stack([p0, h * v0, 0.5 * h * h * a0,
-                               10.0 * big_p - 4.0 * big_v + 0.5 * big_a,
-                               -15.0 * big_p + 7.0 * big_v - big_a,
-                               6.0 * big_p - 3.0 * big_v + 0.5 * big_a], axis=1)
+        self._coef = np.stack(
+            [
+                p0,
+                h * v0,
+                0.5 * h * h * a0,
+                10.0 * big_p - 4.0 * big_v + 0.5 * big_a,
+                -15.0 * big_p + 7.0 * big_v - big_a,
+                6.0 * big_p - 3.0 * big_v + 0.5 * big_a,
+            ],
+            axis=1,
+        )
 
     @property
     def start(self) -> float:

@@ -24,6 +24,7 @@ EOP corrections, is reproduced to 4 mm at 8000 km), far below SGP4's own ~1 km e
 Velocity is rotated with the same matrix (the rotation rate of ~1e-11 rad/s is neglected:
 < 1e-4 m/s).
 """
+
 from __future__ import annotations
 
 import math
@@ -43,7 +44,11 @@ class TLEFormatError(ValueError):
     def __init__(self, line: int, column: int, message: str, last_column: int | None = None):
         where = f"line {line}" if line else "TLE"
         if column:
-            where += f", column {column}" if not last_column or last_column == column else f", columns {column}-{last_column}"
+            where += (
+                f", column {column}"
+                if not last_column or last_column == column
+                else f", columns {column}-{last_column}"
+            )
         super().__init__(f"{where}: {message}")
         self.line, self.column, self.message = line, column, message
 
@@ -61,7 +66,13 @@ _LINE1 = (
     (19, 20, "epoch year", r"[0-9]{2}", "2 digits (YY)"),
     (21, 32, "epoch day of year", r"[ 0-9]{2}[0-9]\.[0-9]{8}", "DDD.DDDDDDDD"),
     (33, 33, "separator", r" ", "a blank"),
-    (34, 43, "first derivative of mean motion", r"[ +-]\.[0-9]{8}|[ +-][0-9]\.[0-9]{7}", "' .NNNNNNNN' or '-.NNNNNNNN'"),
+    (
+        34,
+        43,
+        "first derivative of mean motion",
+        r"[ +-]\.[0-9]{8}|[ +-][0-9]\.[0-9]{7}",
+        "' .NNNNNNNN' or '-.NNNNNNNN'",
+    ),
     (44, 44, "separator", r" ", "a blank"),
     (45, 52, "second derivative of mean motion", r"[ +-][ 0-9]{5}[+-][0-9]", "' NNNNN-N' (implied decimal point)"),
     (53, 53, "separator", r" ", "a blank"),
@@ -104,7 +115,7 @@ def _check_line(number: int, line: str, layout) -> None:
     if len(line) != LINE_LENGTH:
         raise TLEFormatError(number, 0, f"expected {LINE_LENGTH} characters, got {len(line)}: {line!r}")
     for first, last, name, pattern, form in layout:
-        text = line[first - 1:last]
+        text = line[first - 1 : last]
         if not re.fullmatch(pattern, text):
             raise TLEFormatError(number, first, f"{name}: expected {form}, got {text!r}", last)
     expected = tle_checksum(line)
@@ -122,7 +133,9 @@ def check_tle(line1: str, line2: str) -> tuple[str, str]:
         _check_line(number, line, layout)
         lines.append(line)
     if lines[0][2:7] != lines[1][2:7]:
-        raise TLEFormatError(2, 3, f"satellite number: expected {lines[0][2:7]!r} as on line 1, got {lines[1][2:7]!r}", 7)
+        raise TLEFormatError(
+            2, 3, f"satellite number: expected {lines[0][2:7]!r} as on line 1, got {lines[1][2:7]!r}", 7
+        )
     ecc = float("0." + lines[1][26:33])
     if ecc >= 1.0:  # cannot happen with 7 digits, kept as documentation of the range
         raise TLEFormatError(2, 27, f"eccentricity: expected < 1, got {ecc}", 33)
@@ -143,10 +156,13 @@ def read_tle_file(path: str | Path) -> tuple[str, str]:
     text = Path(path).read_text(encoding="ascii", errors="replace")
     lines = [ln.rstrip("\r\n ") for ln in text.splitlines() if ln.strip()]
     if len(lines) == 3 and not lines[0].startswith("1 "):
-        lines = lines[1:]                      # three-line form: name first
+        lines = lines[1:]  # three-line form: name first
     if len(lines) != 2:
-        raise TLEFormatError(0, 0, f"expected one TLE in {path} (2 lines, optionally after a name line), "
-                                   f"got {len(lines)} non-blank lines")
+        raise TLEFormatError(
+            0,
+            0,
+            f"expected one TLE in {path} (2 lines, optionally after a name line), got {len(lines)} non-blank lines",
+        )
     return check_tle(lines[0], lines[1])
 
 
@@ -157,7 +173,7 @@ def teme_to_gcrf_matrix(tt: tuple[float, float], ut1: tuple[float, float]) -> np
     see the module docstring for the chain and its accuracy.
     """
     npb = erfa.pnm06a(*tt)
-    angle = erfa.gst06a(*ut1, *tt) - erfa.gmst82(*ut1)   # rad, GAST - GMST82
+    angle = erfa.gst06a(*ut1, *tt) - erfa.gmst82(*ut1)  # rad, GAST - GMST82
     c, s = math.cos(angle), math.sin(angle)
     tod_from_teme = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     return npb.T @ tod_from_teme
@@ -187,8 +203,10 @@ class SGP4Propagator:
     def _error_text(self, code: int, when: str) -> str:
         from sgp4.api import SGP4_ERRORS
 
-        return (f"SGP4 error {code} {when} for satellite {self.line1[2:7].strip()}: "
-                f"{SGP4_ERRORS.get(code, 'unknown error')}")
+        return (
+            f"SGP4 error {code} {when} for satellite {self.line1[2:7].strip()}: "
+            f"{SGP4_ERRORS.get(code, 'unknown error')}"
+        )
 
     def teme(self, utc: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
         """TEME position (m) and velocity (m/s) at a UTC two-part Julian date (days)."""

@@ -7,6 +7,7 @@ robot view's axes.
 | ``/orbit/earth`` | the Earth, R = 6378.137 km |
 | ``/orbit/<orbit>/trail``, ``/orbit/<orbit>/spacecraft/lvlh`` | ``r_eci`` trail, LVLH axes at the spacecraft |
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -25,19 +26,39 @@ class OrbitView(View):
     def log_static(self, scene):
         import rerun as rr
 
-        scene.log("/orbit/earth", rr.Ellipsoids3D(half_sizes=[[R_EARTH] * 3], colors=[(40, 100, 210)],
-                                                  line_radii=[-0.6], fill_mode="transparentfillmajorwireframe"),
-                  static=True)
+        scene.log(
+            "/orbit/earth",
+            rr.Ellipsoids3D(
+                half_sizes=[[R_EARTH] * 3],
+                colors=[(40, 100, 210)],
+                line_radii=[-0.6],
+                fill_mode="transparentfillmajorwireframe",
+            ),
+            static=True,
+        )
         if self.r_eci is None:
             return
-        scene.log(entity_path("orbit", self.name, "trail"),
-                  rr.Points3D.from_fields(colors=[(250, 220, 90)], radii=[-1.5]), static=True)
-        scene.log(entity_path("orbit", self.name, "spacecraft", "marker"),
-                  rr.Points3D([[0.0, 0.0, 0.0]], colors=[(255, 255, 255)], radii=[-5.0]), static=True)
+        scene.log(
+            entity_path("orbit", self.name, "trail"),
+            rr.Points3D.from_fields(colors=[(250, 220, 90)], radii=[-1.5]),
+            static=True,
+        )
+        scene.log(
+            entity_path("orbit", self.name, "spacecraft", "marker"),
+            rr.Points3D([[0.0, 0.0, 0.0]], colors=[(255, 255, 255)], radii=[-5.0]),
+            static=True,
+        )
         if self.lvlh is not None:
-            scene.log(entity_path("orbit", self.name, "spacecraft", "lvlh"),
-                      rr.Arrows3D(origins=np.zeros((3, 3)), vectors=1.5e6 * np.eye(3), colors=AXIS_COLORS,
-                                  labels=["radial", "along-track", "normal"]), static=True)
+            scene.log(
+                entity_path("orbit", self.name, "spacecraft", "lvlh"),
+                rr.Arrows3D(
+                    origins=np.zeros((3, 3)),
+                    vectors=1.5e6 * np.eye(3),
+                    colors=AXIS_COLORS,
+                    labels=["radial", "along-track", "normal"],
+                ),
+                static=True,
+            )
 
     def log_rows(self, scene, batch: Batch):
         import rerun as rr
@@ -47,8 +68,10 @@ class OrbitView(View):
         r = batch.rows[:, self.r_eci]
         batch.send(entity_path("orbit", self.name, "trail"), rr.Points3D.columns(positions=r))
         if self.lvlh is not None:
-            batch.send(entity_path("orbit", self.name, "spacecraft"), transform_columns(
-                translation=r, quaternion=normalized_quaternions(batch.rows[:, self.lvlh])))
+            batch.send(
+                entity_path("orbit", self.name, "spacecraft"),
+                transform_columns(translation=r, quaternion=normalized_quaternions(batch.rows[:, self.lvlh])),
+            )
         else:
             batch.send(entity_path("orbit", self.name, "spacecraft"), transform_columns(translation=r))
 

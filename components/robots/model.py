@@ -1,10 +1,12 @@
 """What components make of a URDF: its path in a config, the ``bodies`` of a multibody
 component, and the units of a body's joint variables (no physics engine, xml.etree only)."""
+
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from components.errors import ConfigError
 from components.robots.packages import PackageError, resolve_uri
@@ -19,8 +21,11 @@ PROJECT_ROOT = Path(__file__).resolve().parents[2]
 JOINT_VALUE = OneOf((Float("rad", plausible=(-2 * math.pi, 2 * math.pi)), Float("m", plausible=(-10.0, 10.0))))
 JOINT_RATE = OneOf((Float("rad/s", plausible=(-2 * math.pi, 2 * math.pi)), Float("m/s", plausible=(-10.0, 10.0))))
 # units of a joint's position, rate and effort, by URDF joint type
-JOINT_UNITS = {"revolute": ("rad", "rad/s", "N*m"), "continuous": ("rad", "rad/s", "N*m"),
-               "prismatic": ("m", "m/s", "N")}
+JOINT_UNITS = {
+    "revolute": ("rad", "rad/s", "N*m"),
+    "continuous": ("rad", "rad/s", "N*m"),
+    "prismatic": ("m", "m/s", "N"),
+}
 
 
 def resolve_urdf(value: Any, config_dir: str | Path | None, key: str, packages: Mapping | None = None) -> Path:
@@ -88,8 +93,10 @@ def arm_reach(model: UrdfModel, joints: list[str], end_effector: str) -> tuple[s
     reach from it (m: the sum of the joint offsets after it, an upper bound); ConfigError naming
     ``end_effector`` or ``joints`` when the link is not in the URDF or a joint does not move it."""
     if end_effector not in model.link_names:
-        raise ConfigError("end_effector", f"{end_effector!r} is not a link of {model.path.name} "
-                                          f"(links: {', '.join(model.link_names)})")
+        raise ConfigError(
+            "end_effector",
+            f"{end_effector!r} is not a link of {model.path.name} (links: {', '.join(model.link_names)})",
+        )
     chain = kinematic_chain(model, end_effector)
     if not chain:
         raise ConfigError("end_effector", f"{end_effector!r} is the base link: expected a link the joints move")
@@ -97,7 +104,10 @@ def arm_reach(model: UrdfModel, joints: list[str], end_effector: str) -> tuple[s
     movable = model.movable_joints
     for j in joints:
         if j not in names:
-            raise ConfigError("joints", f"{j!r} does not move end_effector {end_effector!r} (its chain: "
-                                        f"{', '.join(n for n in names if n in movable)})")
+            raise ConfigError(
+                "joints",
+                f"{j!r} does not move end_effector {end_effector!r} (its chain: "
+                f"{', '.join(n for n in names if n in movable)})",
+            )
     first = min(names.index(j) for j in joints)
-    return chain[first].name, float(sum(math.sqrt(sum(x * x for x in j.xyz)) for j in chain[first + 1:]))
+    return chain[first].name, float(sum(math.sqrt(sum(x * x for x in j.xyz)) for j in chain[first + 1 :]))

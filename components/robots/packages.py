@@ -15,13 +15,14 @@ A package NAME is looked up, first match wins, in:
 
 ``PackageError`` names the package and every place looked.
 """
+
 from __future__ import annotations
 
 import os
 import re
 import sys
+from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Iterable, Mapping
 from urllib.parse import unquote
 
 from components.extras import PACKAGES, install_command
@@ -88,12 +89,16 @@ def find_package(name: str, packages: Mapping[str, str] | None = None) -> tuple[
         if entry and Path(entry).is_dir() and entry not in sites:
             sites.append(entry)
     for site in sites:
-        for candidate in (Path(site) / "cmeel.prefix" / "share" / name, Path(site) / name,
-                          Path(site) / name.replace("-", "_")):
+        for candidate in (
+            Path(site) / "cmeel.prefix" / "share" / name,
+            Path(site) / name,
+            Path(site) / name.replace("-", "_"),
+        ):
             if candidate.is_dir() and (candidate.parent.name == "share" or (candidate / "package.xml").is_file()):
                 return candidate, looked
-    looked.append("installed Python packages (<site-packages>/cmeel.prefix/share/NAME, "
-                  "<site-packages>/NAME with a package.xml)")
+    looked.append(
+        "installed Python packages (<site-packages>/cmeel.prefix/share/NAME, <site-packages>/NAME with a package.xml)"
+    )
     return None, looked
 
 
@@ -109,18 +114,19 @@ def resolve_uri(uri: str, base: Path, packages: Mapping[str, str] | None = None)
     """The file a URDF's ``filename`` names: ``package://NAME/rest``, ``file:///abs`` or a path
     (relative to ``base``, the URDF's directory); PackageError naming the URI and where it looked."""
     if uri.startswith("package://"):
-        rest = unquote(uri[len("package://"):])
+        rest = unquote(uri[len("package://") :])
         name, _, relative = rest.partition("/")
         directory, looked = find_package(name, packages)
         if directory is None:
-            raise PackageError(f"{uri}: {not_found(name, looked)}; give its directory in run.packages or "
-                               f"ROS_PACKAGE_PATH")
+            raise PackageError(
+                f"{uri}: {not_found(name, looked)}; give its directory in run.packages or ROS_PACKAGE_PATH"
+            )
         path = directory / relative
         if not path.is_file():
             raise PackageError(f"{uri}: no file {relative!r} in package {name!r} ({directory})")
         return path.resolve()
     if uri.startswith("file://"):
-        path = Path(unquote(uri[len("file://"):]))
+        path = Path(unquote(uri[len("file://") :]))
     else:
         path = Path(uri)
     if not path.is_absolute():
@@ -136,7 +142,7 @@ def process_xacro(path: Path, packages: Mapping[str, str] | None = None) -> str:
     try:
         import xacro
         from xacro import substitution_args
-    except ImportError as e:   # pragma: no cover - a dependency of the project
+    except ImportError as e:  # pragma: no cover - a dependency of the project
         raise ValueError(f"{path}: reading a .xacro needs the xacro package (pip install xacro): {e}") from None
 
     def find(name: str) -> str:
@@ -145,8 +151,10 @@ def process_xacro(path: Path, packages: Mapping[str, str] | None = None) -> str:
             raise PackageError(f"$(find {name}) in {path.name}: {not_found(name, looked)}")
         return str(directory)
 
-    saved = substitution_args._eval_find, dict(substitution_args._eval_dict) \
-        if hasattr(substitution_args, "_eval_dict") else None
+    saved = (
+        substitution_args._eval_find,
+        dict(substitution_args._eval_dict) if hasattr(substitution_args, "_eval_dict") else None,
+    )
     substitution_args._eval_find = find
     if hasattr(substitution_args, "_eval_dict"):
         substitution_args._eval_dict["find"] = find
@@ -155,8 +163,8 @@ def process_xacro(path: Path, packages: Mapping[str, str] | None = None) -> str:
         return document.toxml()
     except PackageError:
         raise
-    except Exception as e:   # xacro raises its own XacroException, NameError, ... for a bad file
-        for cause in (e.__cause__, getattr(e, "exc", None)):   # xacro wraps it in .exc or as the cause
+    except Exception as e:  # xacro raises its own XacroException, NameError, ... for a bad file
+        for cause in (e.__cause__, getattr(e, "exc", None)):  # xacro wraps it in .exc or as the cause
             if isinstance(cause, PackageError):
                 raise cause from None
         raise ValueError(f"{path}: xacro could not process it: {type(e).__name__}: {e}") from None

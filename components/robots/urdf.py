@@ -19,6 +19,7 @@ text handed to DART and Pinocchio (``UrdfModel.text``, ``dart_urdf_text``) needs
 lookup of its own. A mesh not found, an inertia that is not positive definite or breaks the
 triangle inequality (ixx <= iyy + izz, ...) are errors naming the link.
 """
+
 from __future__ import annotations
 
 import math
@@ -43,6 +44,7 @@ class UrdfError(ValueError):
 class UrdfJoint:
     """One URDF joint. ``lower``/``upper`` are -inf/+inf without position limits (continuous);
     ``effort`` and ``velocity`` are +inf when the URDF gives none."""
+
     name: str
     type: str
     parent: str
@@ -54,7 +56,7 @@ class UrdfJoint:
     upper: float
     effort: float
     velocity: float
-    mimic: tuple[str, float, float] | None = None   # (joint followed, multiplier, offset)
+    mimic: tuple[str, float, float] | None = None  # (joint followed, multiplier, offset)
 
     @property
     def movable(self) -> bool:
@@ -66,6 +68,7 @@ class UrdfLink:
     """One URDF link: mass (0 without ``<inertial>``), CoM in the link frame, has collision shapes,
     and the inertia about the CoM in the link's axes (kg m^2, row-major 3x3: the inertial origin's
     rpy applied, R I R^T)."""
+
     name: str
     mass: float
     com: tuple[float, float, float]
@@ -78,6 +81,7 @@ class UrdfLink:
 class UrdfModel:
     """A parsed URDF. ``links`` and ``joints`` are in file order; ``movable_joints`` are the
     names of the non-fixed joints in file order (the layout of q, qd and tau)."""
+
     path: Path
     name: str
     links: list[UrdfLink]
@@ -123,14 +127,17 @@ class UrdfModel:
             by_parent.setdefault(j.parent, []).append(j)
 
         def welded_mass(link: str) -> float:
-            return self.link(link).mass + sum(welded_mass(j.child) for j in by_parent.get(link, ())
-                                              if j.type == "fixed")
+            return self.link(link).mass + sum(
+                welded_mass(j.child) for j in by_parent.get(link, ()) if j.type == "fixed"
+            )
 
         notes = []
         for j in self.joints:
             if j.movable and j.mimic is None and welded_mass(j.child) <= 0.0:
-                notes.append(f"{self.path.name}: link {j.child!r} has no mass (nor anything welded to it), "
-                             f"but joint {j.name!r} moves it: a torque on it has nothing to accelerate")
+                notes.append(
+                    f"{self.path.name}: link {j.child!r} has no mass (nor anything welded to it), "
+                    f"but joint {j.name!r} moves it: a torque on it has nothing to accelerate"
+                )
         return notes
 
     def frame_links(self) -> dict[str, UrdfJoint]:
@@ -141,8 +148,13 @@ class UrdfModel:
         frames = {}
         for link in self.links:
             joint = by_child.get(link.name)
-            if (joint is not None and joint.type == "fixed" and link.mass == 0.0
-                    and not link.has_collision and link.name not in parents):
+            if (
+                joint is not None
+                and joint.type == "fixed"
+                and link.mass == 0.0
+                and not link.has_collision
+                and link.name not in parents
+            ):
                 frames[link.name] = joint
         return frames
 
@@ -179,22 +191,30 @@ def _check_inertia(inertia: ET.Element, mass: float, where: str) -> np.ndarray:
     values = {a: _float(inertia, a, 0.0, f"{where} inertia") for a in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
     if not all(math.isfinite(v) for v in values.values()):
         raise UrdfError(f"{where}: inertia values must be finite, got {values}")
-    I = np.array([[values["ixx"], values["ixy"], values["ixz"]],
-                  [values["ixy"], values["iyy"], values["iyz"]],
-                  [values["ixz"], values["iyz"], values["izz"]]])
-    if not np.any(I):   # a point mass (a sensor frame's, say): DART and Pinocchio take it
+    I = np.array(
+        [
+            [values["ixx"], values["ixy"], values["ixz"]],
+            [values["ixy"], values["iyy"], values["iyz"]],
+            [values["ixz"], values["iyz"], values["izz"]],
+        ]
+    )
+    if not np.any(I):  # a point mass (a sensor frame's, say): DART and Pinocchio take it
         return I
     moments = np.linalg.eigvalsh(I)
     scale = max(float(np.abs(moments).max()), 1e-300)
     if moments[0] <= 1e-12 * scale:
-        raise UrdfError(f"{where}: the inertia is not positive definite (principal moments "
-                        f"{', '.join(f'{m:.6g}' for m in moments)} kg m^2; ixx {values['ixx']:g}, iyy {values['iyy']:g}, "
-                        f"izz {values['izz']:g})")
+        raise UrdfError(
+            f"{where}: the inertia is not positive definite (principal moments "
+            f"{', '.join(f'{m:.6g}' for m in moments)} kg m^2; ixx {values['ixx']:g}, iyy {values['iyy']:g}, "
+            f"izz {values['izz']:g})"
+        )
     a, b, c = moments
     if c > a + b + 1e-9 * scale:
-        raise UrdfError(f"{where}: the inertia breaks the triangle inequality: principal moment {c:.6g} > "
-                        f"{a:.6g} + {b:.6g} kg m^2 (no rigid body has it; ixx {values['ixx']:g}, "
-                        f"iyy {values['iyy']:g}, izz {values['izz']:g})")
+        raise UrdfError(
+            f"{where}: the inertia breaks the triangle inequality: principal moment {c:.6g} > "
+            f"{a:.6g} + {b:.6g} kg m^2 (no rigid body has it; ixx {values['ixx']:g}, "
+            f"iyy {values['iyy']:g}, izz {values['izz']:g})"
+        )
     return I
 
 
@@ -219,7 +239,7 @@ def _source(path: Path, packages) -> str | bytes:
     try:
         if path.suffix == ".xacro":
             return process_xacro(path, packages)
-        return path.read_bytes()              # bytes: the XML declaration's encoding applies
+        return path.read_bytes()  # bytes: the XML declaration's encoding applies
     except (PackageError, ValueError) as e:
         raise UrdfError(str(e)) from None
 
@@ -272,8 +292,11 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
             if inertia is not None:
                 R = rpy_to_matrix(rpy)
                 I = R @ _check_inertia(inertia, mass, where) @ R.T
-        links.append(UrdfLink(name, mass, com, inertial is not None, element.find("collision") is not None,
-                              tuple(I.ravel().tolist())))
+        links.append(
+            UrdfLink(
+                name, mass, com, inertial is not None, element.find("collision") is not None, tuple(I.ravel().tolist())
+            )
+        )
     if not links:
         raise UrdfError(f"{path.name}: no <link> elements")
     link_names = {link.name for link in links}
@@ -292,11 +315,14 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
             raise UrdfError(f"{where}: unsupported joint type {kind!r} (expected one of {', '.join(SUPPORTED_TYPES)})")
         mimic = None
         mimic_el = element.find("mimic")
-        if mimic_el is not None and kind in MOVABLE_TYPES:   # on a fixed joint it means nothing (as in ROS)
+        if mimic_el is not None and kind in MOVABLE_TYPES:  # on a fixed joint it means nothing (as in ROS)
             if not mimic_el.get("joint"):
                 raise UrdfError(f"{where}: <mimic> needs joint=...")
-            mimic = (mimic_el.get("joint"), _float(mimic_el, "multiplier", 1.0, f"{where} mimic"),
-                     _float(mimic_el, "offset", 0.0, f"{where} mimic"))
+            mimic = (
+                mimic_el.get("joint"),
+                _float(mimic_el, "multiplier", 1.0, f"{where} mimic"),
+                _float(mimic_el, "offset", 0.0, f"{where} mimic"),
+            )
         parent_el, child_el = element.find("parent"), element.find("child")
         if parent_el is None or child_el is None:
             raise UrdfError(f"{where}: expected <parent link=...> and <child link=...>")
@@ -309,10 +335,18 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
             held = {c.get("link") for c in robot.findall("joint/child")}
             own_root = next((p for p in (first.parent, parent) if p not in held), None)
             mount = parent if own_root == first.parent else first.parent
-            hint = (f"; {own_root!r} is a root of the file already: mount the robot by it (a joint from "
-                    f"{mount!r} to {own_root!r}), or leave {own_root!r} and its joint out") if own_root else ""
-            raise UrdfError(f"{where}: link {child!r} has two parent joints, {first.name!r} (from {first.parent!r}) and "
-                            f"{name!r} (from {parent!r}){hint}")
+            hint = (
+                (
+                    f"; {own_root!r} is a root of the file already: mount the robot by it (a joint from "
+                    f"{mount!r} to {own_root!r}), or leave {own_root!r} and its joint out"
+                )
+                if own_root
+                else ""
+            )
+            raise UrdfError(
+                f"{where}: link {child!r} has two parent joints, {first.name!r} (from {first.parent!r}) and "
+                f"{name!r} (from {parent!r}){hint}"
+            )
         children.add(child)
         origin = element.find("origin")
         xyz = _floats(origin.get("xyz") if origin is not None else None, 3, (0.0, 0.0, 0.0), f"{where} origin xyz")
@@ -329,7 +363,7 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
         if limit is not None:
             effort = _float(limit, "effort", math.inf, f"{where} limit")
             velocity = _float(limit, "velocity", math.inf, f"{where} limit")
-            if effort <= 0.0:   # URDF convention: 0 effort means "not given"
+            if effort <= 0.0:  # URDF convention: 0 effort means "not given"
                 effort = math.inf
             if kind in ("revolute", "prismatic"):
                 lower = _float(limit, "lower", 0.0, f"{where} limit")
@@ -345,16 +379,22 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
             continue
         followed = by_name.get(j.mimic[0])
         if followed is None or not followed.movable:
-            raise UrdfError(f"{path.name}: joint {j.name!r} mimics {j.mimic[0]!r}, which is not a movable joint of the file")
+            raise UrdfError(
+                f"{path.name}: joint {j.name!r} mimics {j.mimic[0]!r}, which is not a movable joint of the file"
+            )
         if followed.mimic is not None:
-            raise UrdfError(f"{path.name}: joint {j.name!r} mimics {followed.name!r}, itself a mimic joint "
-                            f"(make both follow {followed.mimic[0]!r})")
+            raise UrdfError(
+                f"{path.name}: joint {j.name!r} mimics {followed.name!r}, itself a mimic joint "
+                f"(make both follow {followed.mimic[0]!r})"
+            )
         if not all(math.isfinite(v) for v in j.mimic[1:]):
             raise UrdfError(f"{path.name}: joint {j.name!r}: mimic multiplier and offset must be finite")
 
     roots = [link.name for link in links if link.name not in children]
     if len(roots) != 1:
-        raise UrdfError(f"{path.name}: expected one root link (the free-floating base), got {roots or 'none (a cycle)'}")
+        raise UrdfError(
+            f"{path.name}: expected one root link (the free-floating base), got {roots or 'none (a cycle)'}"
+        )
     root = roots[0]
     # every link reachable from the root (no cycles, nothing detached)
     by_parent: dict[str, list[str]] = {}
@@ -403,8 +443,12 @@ def dart_urdf_text(model: UrdfModel, locked: dict[str, float]) -> str:
         for tag in ("origin", "axis", "limit", "dynamics", "safety_controller", "calibration"):
             for child in element.findall(tag):
                 element.remove(child)
-        ET.SubElement(element, "origin", xyz=" ".join(repr(float(v)) for v in p),
-                      rpy=" ".join(repr(float(v)) for v in matrix_to_rpy(R)))
+        ET.SubElement(
+            element,
+            "origin",
+            xyz=" ".join(repr(float(v)) for v in p),
+            rpy=" ".join(repr(float(v)) for v in matrix_to_rpy(R)),
+        )
     for element in list(robot.findall("link")):
         if element.get("name") in frames:
             robot.remove(element)

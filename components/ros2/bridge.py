@@ -13,59 +13,95 @@ gives the outputs at t_{k+1}, as a controller's outputs are. ROS time = ``run.ep
 as components/rosbag.py stamps a recording). The state of the ROS node lives outside the run: no
 get_state (a restart or a swap with state is refused, naming why).
 """
+
 from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping
 
 import numpy as np
 
 from components.constants import NS_PER_S
 from components.errors import ComponentError, ConfigError
-from components.rosbag import epoch_ns
 from components.ros2 import lockstep, messages
 from components.ros2.rclpy_transport import AUTO, RCLPY, TRANSPORTS, RclpyNode, choose
-from components.ros2.router import hint
 from components.ros2.rmw_zenoh import ADMIN_SPACE, PUBLISHER, SUBSCRIPTION, check_topic_name, dds_type_name
-from components.schema import Bool, Duration, Int, ListOf, MapOf, OneOf, Float, Problems, Record, Str, Vector
+from components.ros2.router import hint
+from components.rosbag import epoch_ns
+from components.schema import Bool, Duration, Float, Int, ListOf, MapOf, OneOf, Problems, Record, Str, Vector
 from components.sdk import Component, Parameter, Variable
 
-DEFAULT_ENDPOINT = "tcp/localhost:7447"   # rmw_zenohd's own default
-DEFAULT_DOMAIN_ID = 0                     # ROS_DOMAIN_ID's own default
+DEFAULT_ENDPOINT = "tcp/localhost:7447"  # rmw_zenohd's own default
+DEFAULT_DOMAIN_ID = 0  # ROS_DOMAIN_ID's own default
 ENDPOINT = r"(tcp|udp|tls|quic)/(\[[0-9a-fA-F:]+\]|[A-Za-z0-9.\-]+):\d{1,5}"
 CLOCK_TOPIC = "/clock"
 CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
 
 _TOPIC = (
     Parameter("topic", Str(hint="a ROS 2 topic name such as /effort_command"), description="the ROS 2 topic"),
-    Parameter("type", Str(hint="a ROS 2 message type such as std_msgs/msg/Float64MultiArray"),
-              description="its message type, one of the supported ones (docs/guides/ros2.md)"),
-    Parameter("field", Str(hint="a field of the message type"), default=None,
-              description="the message's field the variable is (may be left out when the type has one)"),
-    Parameter("size", Int(minimum=1), default=None,
-              description="the variable's length, for a field that is a sequence (joint values, data)"),
-    Parameter("unit", Str(hint="a unit such as N*m"), default=None,
-              description="the variable's unit (a field with a unit of its own has it by default)"),
-    Parameter("names", ListOf(Str(hint="a joint name"), min_items=1, unique=True), default=None,
-              description="joint names (JointState, JointTrajectory): published with the values, or the "
-                          "joints whose values are read, by name, in this order"),
+    Parameter(
+        "type",
+        Str(hint="a ROS 2 message type such as std_msgs/msg/Float64MultiArray"),
+        description="its message type, one of the supported ones (docs/guides/ros2.md)",
+    ),
+    Parameter(
+        "field",
+        Str(hint="a field of the message type"),
+        default=None,
+        description="the message's field the variable is (may be left out when the type has one)",
+    ),
+    Parameter(
+        "size",
+        Int(minimum=1),
+        default=None,
+        description="the variable's length, for a field that is a sequence (joint values, data)",
+    ),
+    Parameter(
+        "unit",
+        Str(hint="a unit such as N*m"),
+        default=None,
+        description="the variable's unit (a field with a unit of its own has it by default)",
+    ),
+    Parameter(
+        "names",
+        ListOf(Str(hint="a joint name"), min_items=1, unique=True),
+        default=None,
+        description="joint names (JointState, JointTrajectory): published with the values, or the "
+        "joints whose values are read, by name, in this order",
+    ),
 )
-OUTPUT = Record("RosOutput", _TOPIC + (
-    Parameter("start", OneOf((Float(), Vector())), default=None,
-              description="the output at t0, before any answer (default: zeros; identity for a quaternion)"),
-), description="an output of the bridge: the field of the messages on a ROS 2 topic")
-INPUT = Record("RosInput", _TOPIC + (
-    Parameter("frame_id", Str(hint="a tf frame"), default="",
-              description="the header's frame_id (types with a header)"),
-), description="an input of the bridge: published each step as the field of a ROS 2 message")
+OUTPUT = Record(
+    "RosOutput",
+    _TOPIC
+    + (
+        Parameter(
+            "start",
+            OneOf((Float(), Vector())),
+            default=None,
+            description="the output at t0, before any answer (default: zeros; identity for a quaternion)",
+        ),
+    ),
+    description="an output of the bridge: the field of the messages on a ROS 2 topic",
+)
+INPUT = Record(
+    "RosInput",
+    _TOPIC
+    + (
+        Parameter(
+            "frame_id", Str(hint="a tf frame"), default="", description="the header's frame_id (types with a header)"
+        ),
+    ),
+    description="an input of the bridge: published each step as the field of a ROS 2 message",
+)
 VARIABLE_NAME = r"[A-Za-z_][A-Za-z0-9_]*"
 
 
 @dataclass(frozen=True)
 class Binding:
     """A variable of the bridge and the field of the ROS 2 topic it is."""
+
     variable: str
     causality: str
     topic: str
@@ -104,39 +140,55 @@ def _binding(causality: str, key: str, name: str, spec: Mapping) -> Binding:
         raise ConfigError(f"{key}.topic", f"{CLOCK_TOPIC} is the bridge's own (the run's time); choose another topic")
     message = messages.MAPS.get(spec["type"])
     if message is None:
-        raise ConfigError(f"{key}.type", f"topic {topic}: the bridge cannot map message type {spec['type']!r}; "
-                                         f"supported types (fields): {messages.supported()}")
+        raise ConfigError(
+            f"{key}.type",
+            f"topic {topic}: the bridge cannot map message type {spec['type']!r}; "
+            f"supported types (fields): {messages.supported()}",
+        )
     field_name = spec["field"]
     if field_name is None:
         if len(message.fields) > 1:
-            raise ConfigError(f"{key}.field", f"topic {topic}: {message.msgtype} has several fields: give one of "
-                                              f"{', '.join(message.fields)}")
+            raise ConfigError(
+                f"{key}.field",
+                f"topic {topic}: {message.msgtype} has several fields: give one of {', '.join(message.fields)}",
+            )
         field_name = next(iter(message.fields))
     field = message.fields.get(field_name)
     if field is None:
-        raise ConfigError(f"{key}.field", f"topic {topic}: expected a field of {message.msgtype} "
-                                          f"({', '.join(message.fields)}), got {field_name!r}")
+        raise ConfigError(
+            f"{key}.field",
+            f"topic {topic}: expected a field of {message.msgtype} ({', '.join(message.fields)}), got {field_name!r}",
+        )
     size = spec["size"]
     if field.size is None:
         if size is None:
             size = len(spec["names"]) if spec["names"] else None
         if size is None:
-            raise ConfigError(f"{key}.size", f"topic {topic}: {message.msgtype}.{field.name} is a sequence: give the "
-                                             f"variable's length (size, or names)")
+            raise ConfigError(
+                f"{key}.size",
+                f"topic {topic}: {message.msgtype}.{field.name} is a sequence: give the "
+                f"variable's length (size, or names)",
+            )
     elif size is not None and size != field.size:
         raise ConfigError(f"{key}.size", f"{message.msgtype}.{field.name} holds {field.size} values, got size {size}")
     else:
         size = field.size
     if spec["names"] is not None:
         if not message.named:
-            raise ConfigError(f"{key}.names", f"{message.msgtype} carries no joint names (only "
-                                              f"{', '.join(t for t, m in messages.MAPS.items() if m.named)} do)")
+            raise ConfigError(
+                f"{key}.names",
+                f"{message.msgtype} carries no joint names (only "
+                f"{', '.join(t for t, m in messages.MAPS.items() if m.named)} do)",
+            )
         if len(spec["names"]) != size:
             raise ConfigError(f"{key}.names", f"expected {size} joint names (size), got {len(spec['names'])}")
     unit = spec["unit"] or field.unit
     if unit is None:
-        raise ConfigError(f"{key}.unit", f"topic {topic}: {message.msgtype}.{field.name} has no unit of its own: "
-                                         f"give the variable's (e.g. rad, N*m)")
+        raise ConfigError(
+            f"{key}.unit",
+            f"topic {topic}: {message.msgtype}.{field.name} has no unit of its own: "
+            f"give the variable's (e.g. rad, N*m)",
+        )
     shape = () if message.msgtype == "std_msgs/msg/Float64" else (size,)
     start = spec.get("start")
     if start is None:
@@ -144,9 +196,18 @@ def _binding(causality: str, key: str, name: str, spec: Mapping) -> Binding:
     start = np.asarray(start, dtype=np.float64)
     if start.size not in (1, size):
         raise ConfigError(f"{key}.start", f"expected one value or {size}, got {start.size}")
-    return Binding(name, causality, topic, message, field, shape, unit,
-                   tuple(spec["names"]) if spec["names"] else None,
-                   np.broadcast_to(start, (size,)).reshape(shape).copy(), spec.get("frame_id", ""))
+    return Binding(
+        name,
+        causality,
+        topic,
+        message,
+        field,
+        shape,
+        unit,
+        tuple(spec["names"]) if spec["names"] else None,
+        np.broadcast_to(start, (size,)).reshape(shape).copy(),
+        spec.get("frame_id", ""),
+    )
 
 
 def _across(params: Mapping, found: list[Binding]) -> list[ConfigError]:
@@ -160,8 +221,9 @@ def _across(params: Mapping, found: list[Binding]) -> list[ConfigError]:
         group = f"{b.causality}s"
         other = direction.setdefault(b.topic, group)
         if other != group:
-            problems.append(ConfigError(f"{group}.{b.variable}.topic",
-                                        f"{b.topic} is also among the {other}: a topic goes one way"))
+            problems.append(
+                ConfigError(f"{group}.{b.variable}.topic", f"{b.topic} is also among the {other}: a topic goes one way")
+            )
     by_topic: dict[tuple[str, str], list[Binding]] = {}
     for b in found:
         by_topic.setdefault((b.causality, b.topic), []).append(b)
@@ -170,20 +232,31 @@ def _across(params: Mapping, found: list[Binding]) -> list[ConfigError]:
         for b in group[1:]:
             key = f"{causality}s.{b.variable}"
             if b.message is not first.message:
-                problems.append(ConfigError(f"{key}.type", f"topic {topic} is {first.message.msgtype} "
-                                                           f"(for {first.variable}), got {b.message.msgtype}"))
+                problems.append(
+                    ConfigError(
+                        f"{key}.type",
+                        f"topic {topic} is {first.message.msgtype} (for {first.variable}), got {b.message.msgtype}",
+                    )
+                )
                 continue
             if b.names and first.names and b.names != first.names and causality == "input":
                 problems.append(ConfigError(f"{key}.names", f"topic {topic}: {first.variable} gives other joint names"))
             if b.frame_id != first.frame_id:
-                problems.append(ConfigError(f"{key}.frame_id", f"topic {topic}: {first.variable} gives frame_id "
-                                                               f"{first.frame_id!r}, got {b.frame_id!r}"))
+                problems.append(
+                    ConfigError(
+                        f"{key}.frame_id",
+                        f"topic {topic}: {first.variable} gives frame_id {first.frame_id!r}, got {b.frame_id!r}",
+                    )
+                )
         covered: dict[str, str] = {}
         for b in group:
             for part in b.field.parts:
                 if part in covered and covered[part] != b.variable:
-                    problems.append(ConfigError(f"{causality}s.{b.variable}.field",
-                                                f"topic {topic}: {covered[part]} is its {part} already"))
+                    problems.append(
+                        ConfigError(
+                            f"{causality}s.{b.variable}.field", f"topic {topic}: {covered[part]} is its {part} already"
+                        )
+                    )
                 covered[part] = b.variable
     return problems
 
@@ -191,34 +264,78 @@ def _across(params: Mapping, found: list[Binding]) -> list[ConfigError]:
 class Ros2Bridge(Component):
     """A ROS 2 node in the loop: inputs published to ROS 2 topics, outputs taken from ROS 2 topics,
     in lockstep with the run (``wait_for: stamped``) or not (``latest``); ``/clock`` follows the run."""
+
     type_name = "ros2.bridge"
     parameters = (
-        Parameter("wait_for", Str((lockstep.STAMPED, lockstep.LATEST)),
-                  description="stamped: step k waits for the messages stamped t_k (deterministic if the node "
-                              "is); latest: takes the newest message (not deterministic)"),
-        Parameter("transport", Str(TRANSPORTS), default=AUTO,
-                  description="rclpy: a real rclpy node on your ROS 2's middleware (Fast DDS by default); zenoh: "
-                              "rmw_zenoh's wire through its router; auto: rclpy if a Python here imports it"),
-        Parameter("python", Str(hint="a Python that imports rclpy, e.g. /opt/venvs/ros/bin/python"), default=None,
-                  description="rclpy: the Python to run the node with (default: ZENORBIT_ROS2_PYTHON, else this "
-                              "Python, else python3 on the PATH)"),
-        Parameter("endpoint", Str(pattern=ENDPOINT, hint="a Zenoh endpoint like tcp/localhost:7447"),
-                  default=DEFAULT_ENDPOINT, description="zenoh: the ROS side's Zenoh router (rmw_zenohd's default)"),
-        Parameter("domain_id", Int(minimum=0), default=DEFAULT_DOMAIN_ID,
-                  description="the ROS domain (ROS_DOMAIN_ID; ROS's default 0)"),
-        Parameter("node", Str(pattern=r"[A-Za-z][A-Za-z0-9_]*", hint="a ROS node name (letters, digits, _)"),
-                  default="zenorbit_bridge", description="the bridge's node name in the ROS graph"),
-        Parameter("namespace", Str(pattern=r"/|(/[A-Za-z][A-Za-z0-9_]*)+", hint="a ROS namespace such as /robot"),
-                  default="/", description="the node's namespace"),
-        Parameter("timeout", Duration(), default="5 s",
-                  description="wall time a step waits for the node (stamped), and to reach the router; keep it "
-                              "below run.step_timeout so the error names the topic"),
-        Parameter("clock", Bool(), default=True,
-                  description="publish /clock (rosgraph_msgs/Clock) at each step, for nodes with use_sim_time"),
-        Parameter("outputs", MapOf(OUTPUT, "variable", key_pattern=VARIABLE_NAME), default={},
-                  description="output variable -> the ROS 2 topic field it is read from"),
-        Parameter("inputs", MapOf(INPUT, "variable", key_pattern=VARIABLE_NAME), default={},
-                  description="input variable -> the ROS 2 topic field it is published as"),
+        Parameter(
+            "wait_for",
+            Str((lockstep.STAMPED, lockstep.LATEST)),
+            description="stamped: step k waits for the messages stamped t_k (deterministic if the node "
+            "is); latest: takes the newest message (not deterministic)",
+        ),
+        Parameter(
+            "transport",
+            Str(TRANSPORTS),
+            default=AUTO,
+            description="rclpy: a real rclpy node on your ROS 2's middleware (Fast DDS by default); zenoh: "
+            "rmw_zenoh's wire through its router; auto: rclpy if a Python here imports it",
+        ),
+        Parameter(
+            "python",
+            Str(hint="a Python that imports rclpy, e.g. /opt/venvs/ros/bin/python"),
+            default=None,
+            description="rclpy: the Python to run the node with (default: ZENORBIT_ROS2_PYTHON, else this "
+            "Python, else python3 on the PATH)",
+        ),
+        Parameter(
+            "endpoint",
+            Str(pattern=ENDPOINT, hint="a Zenoh endpoint like tcp/localhost:7447"),
+            default=DEFAULT_ENDPOINT,
+            description="zenoh: the ROS side's Zenoh router (rmw_zenohd's default)",
+        ),
+        Parameter(
+            "domain_id",
+            Int(minimum=0),
+            default=DEFAULT_DOMAIN_ID,
+            description="the ROS domain (ROS_DOMAIN_ID; ROS's default 0)",
+        ),
+        Parameter(
+            "node",
+            Str(pattern=r"[A-Za-z][A-Za-z0-9_]*", hint="a ROS node name (letters, digits, _)"),
+            default="zenorbit_bridge",
+            description="the bridge's node name in the ROS graph",
+        ),
+        Parameter(
+            "namespace",
+            Str(pattern=r"/|(/[A-Za-z][A-Za-z0-9_]*)+", hint="a ROS namespace such as /robot"),
+            default="/",
+            description="the node's namespace",
+        ),
+        Parameter(
+            "timeout",
+            Duration(),
+            default="5 s",
+            description="wall time a step waits for the node (stamped), and to reach the router; keep it "
+            "below run.step_timeout so the error names the topic",
+        ),
+        Parameter(
+            "clock",
+            Bool(),
+            default=True,
+            description="publish /clock (rosgraph_msgs/Clock) at each step, for nodes with use_sim_time",
+        ),
+        Parameter(
+            "outputs",
+            MapOf(OUTPUT, "variable", key_pattern=VARIABLE_NAME),
+            default={},
+            description="output variable -> the ROS 2 topic field it is read from",
+        ),
+        Parameter(
+            "inputs",
+            MapOf(INPUT, "variable", key_pattern=VARIABLE_NAME),
+            default={},
+            description="input variable -> the ROS 2 topic field it is published as",
+        ),
     )
 
     @classmethod
@@ -226,7 +343,7 @@ class Ros2Bridge(Component):
         if not params["outputs"] and not params["inputs"]:
             raise ConfigError("outputs", "the bridge has no variable: declare outputs (read from ROS 2) or inputs")
         bindings(params)
-        if params["transport"] == RCLPY:   # auto falls back to zenoh; rclpy asked for must be there
+        if params["transport"] == RCLPY:  # auto falls back to zenoh; rclpy asked for must be there
             try:
                 choose(RCLPY, params["python"])
             except ComponentError as e:
@@ -234,13 +351,19 @@ class Ros2Bridge(Component):
 
     @classmethod
     def declare(cls, params):
-        return [Variable(b.variable, b.causality, b.shape, b.unit, b.start,
-                         f"{b.topic} ({b.message.msgtype}.{b.field.name})") for b in bindings(params)]
+        return [
+            Variable(
+                b.variable, b.causality, b.shape, b.unit, b.start, f"{b.topic} ({b.message.msgtype}.{b.field.name})"
+            )
+            for b in bindings(params)
+        ]
 
     @classmethod
     def state_problem(cls, params):
-        return ("ros2.bridge: the ROS 2 node's state lives outside the run, so a restart or a swap cannot "
-                "take it back to a checkpoint")
+        return (
+            "ros2.bridge: the ROS 2 node's state lives outside the run, so a restart or a swap cannot "
+            "take it back to a checkpoint"
+        )
 
     @classmethod
     def group_problem(cls, params):
@@ -258,7 +381,7 @@ class Ros2Bridge(Component):
         self.domain_id, self.endpoint = params["domain_id"], params["endpoint"]
         self.timeout_s = params["timeout"] / NS_PER_S
         self.outputs = [b for b in self.bindings if b.causality == "output"]
-        self.published: dict[str, list[Binding]] = {}   # topic -> its input variables
+        self.published: dict[str, list[Binding]] = {}  # topic -> its input variables
         for b in self.bindings:
             if b.causality == "input":
                 self.published.setdefault(b.topic, []).append(b)
@@ -278,10 +401,11 @@ class Ros2Bridge(Component):
             self.node = RclpyNode(python, params["domain_id"], params["node"], params["namespace"])
         else:
             self.node = self._zenoh_node(params)
-        self.clock = (self.node.publisher(CLOCK_TOPIC, CLOCK_TYPE, self.typestore)
-                      if params["clock"] else None)
-        self.publishers = {topic: self.node.publisher(topic, group[0].message.msgtype, self.typestore)
-                           for topic, group in self.published.items()}
+        self.clock = self.node.publisher(CLOCK_TOPIC, CLOCK_TYPE, self.typestore) if params["clock"] else None
+        self.publishers = {
+            topic: self.node.publisher(topic, group[0].message.msgtype, self.typestore)
+            for topic, group in self.published.items()
+        }
         for topic, message in listened.items():
             self.node.subscriber(topic, message.msgtype, self.typestore, self._receiver(topic, message.stamped))
 
@@ -298,20 +422,23 @@ class Ros2Bridge(Component):
         try:
             self.session = zenoh.open(config)
         except zenoh.ZError:
-            raise ComponentError(f"cannot reach the ROS 2 router at {params['endpoint']} within {self.timeout_s:g} s "
-                                 f"(endpoint sets where): {hint('transport: rclpy')}") from None
+            raise ComponentError(
+                f"cannot reach the ROS 2 router at {params['endpoint']} within {self.timeout_s:g} s "
+                f"(endpoint sets where): {hint('transport: rclpy')}"
+            ) from None
         return Node(self.session, params["domain_id"], params["node"], params["namespace"])
 
     def _receiver(self, topic: str, stamped: bool):
         arrivals = self.arrivals
 
-        def on_message(cdr: bytes, attachment) -> None:   # on Zenoh's thread: store only
+        def on_message(cdr: bytes, attachment) -> None:  # on Zenoh's thread: store only
             try:
                 stamp = messages.cdr_stamp(cdr) if stamped else None
             except ValueError as e:
                 print(f"warning: {topic}: dropped a message: {e}", file=sys.stderr, flush=True)
                 return
             arrivals.put(topic, stamp, cdr)
+
         return on_message
 
     def initialize(self, t0_ns, inputs):
@@ -336,19 +463,25 @@ class Ros2Bridge(Component):
                 raise lockstep.Interrupted("the run is ending: stopped waiting for the ROS graph")
             if time.monotonic() > deadline:
                 role, topic, msgtype = missing[0]
-                other_types = [f"{node} has it as {node_type}" for _, _, node_type, node
-                               in self.node.graph([topic], self.timeout_s) if node_type != msgtype]
+                other_types = [
+                    f"{node} has it as {node_type}"
+                    for _, _, node_type, node in self.node.graph([topic], self.timeout_s)
+                    if node_type != msgtype
+                ]
                 wrong = f"; {other_types[0]}" if other_types else ""
                 role = "subscribes to" if role == "publisher" else "publishes"
-                raise ComponentError(f"no ROS 2 node {role} {topic} ({msgtype}) in domain {self.domain_id} "
-                                     f"({self.node.rmw}) within {self.timeout_s:g} s{wrong}: start the node before "
-                                     f"the run, with the same ROS_DOMAIN_ID and RMW_IMPLEMENTATION (or raise timeout)")
+                raise ComponentError(
+                    f"no ROS 2 node {role} {topic} ({msgtype}) in domain {self.domain_id} "
+                    f"({self.node.rmw}) within {self.timeout_s:g} s{wrong}: start the node before "
+                    f"the run, with the same ROS_DOMAIN_ID and RMW_IMPLEMENTATION (or raise timeout)"
+                )
             time.sleep(0.02)
 
     def _await_tokens(self) -> None:
         """zenoh: until rmw_zenoh's liveliness tokens show the other side of each topic."""
-        wanted = {(SUBSCRIPTION, topic, dds_type_name(group[0].message.msgtype))
-                  for topic, group in self.published.items()}
+        wanted = {
+            (SUBSCRIPTION, topic, dds_type_name(group[0].message.msgtype)) for topic, group in self.published.items()
+        }
         wanted |= {(PUBLISHER, topic, dds_type_name(msgtype)) for topic, msgtype in self.listened.items()}
         own = str(self.session.info.zid())
         deadline = time.monotonic() + self.timeout_s
@@ -367,9 +500,11 @@ class Ros2Bridge(Component):
             if time.monotonic() > deadline:
                 kind, topic, dds_type = missing[0]
                 role = "subscribes to" if kind == SUBSCRIPTION else "publishes"
-                raise ComponentError(f"no ROS 2 node {role} {topic} ({dds_type}) in domain {self.domain_id} at "
-                                     f"{self.endpoint} within {self.timeout_s:g} s: start the node before the run "
-                                     f"(or raise timeout)" + ("" if seen else f"; {hint('transport: rclpy')}"))
+                raise ComponentError(
+                    f"no ROS 2 node {role} {topic} ({dds_type}) in domain {self.domain_id} at "
+                    f"{self.endpoint} within {self.timeout_s:g} s: start the node before the run "
+                    f"(or raise timeout)" + ("" if seen else f"; {hint('transport: rclpy')}")
+                )
             time.sleep(0.05)
 
     def do_step(self, t_ns, h_ns, inputs):
@@ -400,8 +535,10 @@ class Ros2Bridge(Component):
             raise ComponentError(f"{b.topic}: {e}") from None
         size = int(np.prod(b.shape)) if b.shape else 1
         if values.size != size:
-            raise ComponentError(f"{b.topic}: {b.message.msgtype}.{b.field.name} holds {values.size} values, "
-                                 f"output {b.variable} has {size}")
+            raise ComponentError(
+                f"{b.topic}: {b.message.msgtype}.{b.field.name} holds {values.size} values, "
+                f"output {b.variable} has {size}"
+            )
         return values.reshape(b.shape)
 
     def _publish_clock(self, stamp: int) -> None:

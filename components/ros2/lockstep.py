@@ -8,6 +8,7 @@ by one of two rules, with a wall-clock timeout and an interrupt. No Zenoh, no RO
   later ones kept for their step. Nothing by the timeout: :class:`Timeout`, naming the topic.
 - ``latest``: step k takes the newest message of each topic, whatever its stamp (or none yet).
 """
+
 from __future__ import annotations
 
 import threading
@@ -16,7 +17,7 @@ import time
 from components.errors import ComponentError
 
 STAMPED, LATEST = "stamped", "latest"
-HELD_PER_TOPIC = 1024   # messages stamped ahead of the step kept per topic (a node far ahead is dropped from)
+HELD_PER_TOPIC = 1024  # messages stamped ahead of the step kept per topic (a node far ahead is dropped from)
 
 
 class Timeout(ComponentError):
@@ -37,7 +38,7 @@ class Arrivals:
         self._by_stamp: dict[str, dict[int, object]] = {t: {} for t, s in stamped.items() if s}
         self._answers: dict[str, list] = {t: [] for t, s in stamped.items() if not s}
         self._newest: dict[str, object] = {}
-        self._floor: dict[str, int] = {t: -1 for t in stamped}   # stamps below it are stale
+        self._floor: dict[str, int] = {t: -1 for t in stamped}  # stamps below it are stale
         self.dropped: dict[str, int] = {t: 0 for t in stamped}
         self._interrupted = False
 
@@ -48,7 +49,7 @@ class Arrivals:
             if stamp is None:
                 self._answers[topic].append(message)
             elif stamp >= self._floor[topic] and len(self._by_stamp[topic]) < HELD_PER_TOPIC:
-                self._by_stamp[topic][stamp] = message   # a repeated stamp: the newer message wins
+                self._by_stamp[topic][stamp] = message  # a repeated stamp: the newer message wins
             else:
                 self.dropped[topic] += 1
             self._lock.notify_all()
@@ -67,7 +68,7 @@ class Arrivals:
         deadline = time.monotonic() + timeout_s
         taken: dict[str, object] = {}
         with self._lock:
-            for topic, held in self._by_stamp.items():   # older ones can no longer be taken
+            for topic, held in self._by_stamp.items():  # older ones can no longer be taken
                 self._floor[topic] = stamp
                 stale = [s for s in held if s < stamp]
                 for s in stale:
@@ -113,8 +114,12 @@ class Arrivals:
         if self.stamped[topic]:
             held = sorted(self._by_stamp[topic])
             seen = f"holding stamps {held[0]}..{held[-1]} ns" if held else "holding none ahead of it"
-            return (f"no message on {topic} stamped {when} (ROS time, s) within {timeout_s:g} s (wait_for: stamped; "
-                    f"{seen}, {self.dropped[topic]} older dropped); is the node running, and does it stamp its "
-                    f"answer with the stamp of the inputs it answers?")
-        return (f"no message on {topic} within {timeout_s:g} s of the inputs stamped {when} (wait_for: stamped; "
-                f"its type has no header: the bridge waits for one answer per step); is the node running?")
+            return (
+                f"no message on {topic} stamped {when} (ROS time, s) within {timeout_s:g} s (wait_for: stamped; "
+                f"{seen}, {self.dropped[topic]} older dropped); is the node running, and does it stamp its "
+                f"answer with the stamp of the inputs it answers?"
+            )
+        return (
+            f"no message on {topic} within {timeout_s:g} s of the inputs stamped {when} (wait_for: stamped; "
+            f"its type has no header: the bridge waits for one answer per step); is the node running?"
+        )

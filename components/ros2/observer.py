@@ -21,6 +21,7 @@ answers late joiners. A router that cannot be reached within ``CONNECT_TIMEOUT_S
 it, the rows are dropped, and a thread tries again every ``RETRY_S``, so a router started later
 still gets the rest of the run.
 """
+
 from __future__ import annotations
 
 import sys
@@ -30,14 +31,14 @@ import time
 from components import bus, observer_shell
 from components.observer_shell import Stop, View
 from components.ros2 import rmw_zenoh, router
-from components.ros2.stream_report import FAILED, NO_LINK, StreamCounts
 from components.ros2.rclpy_transport import RCLPY, RclpyNode
+from components.ros2.stream_report import FAILED, NO_LINK, StreamCounts
 
-CONNECT_TIMEOUT_S = 3.0   # how long a link to the ROS router may take to come up
-LINK_POLL_S = 0.1         # how often the link's state is looked at
-RETRY_S = 2.0             # between tries when it did not
-DISCOVER_S = 3.0          # rclpy: at most this long for DDS discovery before the run starts (rclpy_side.discover)
-DISTROS = {"jazzy": "ros2_jazzy", "kilted": "ros2_kilted", "lyrical": "ros2_lyrical"}   # rmw_zenoh with type hashes
+CONNECT_TIMEOUT_S = 3.0  # how long a link to the ROS router may take to come up
+LINK_POLL_S = 0.1  # how often the link's state is looked at
+RETRY_S = 2.0  # between tries when it did not
+DISCOVER_S = 3.0  # rclpy: at most this long for DDS discovery before the run starts (rclpy_side.discover)
+DISTROS = {"jazzy": "ros2_jazzy", "kilted": "ros2_kilted", "lyrical": "ros2_lyrical"}  # rmw_zenoh with type hashes
 
 
 class RosLink:
@@ -50,21 +51,24 @@ class RosLink:
         self.endpoint = endpoint
         self.session = None
         self.warning: str | None = None
-        self.up: bool | None = None   # None: not yet looked at
+        self.up: bool | None = None  # None: not yet looked at
         self._polled = 0.0
         self._stop = threading.Event()
         self._thread = None
         try:
             self.session = self._open()
         except Exception as e:
-            self.warning = (f"warning: cannot reach the ROS 2 router at {endpoint} ({str(e).split(' at ')[0]}): "
-                            f"{router.hint()}; the run goes on, and the ROS 2 view connects if a router comes up there")
+            self.warning = (
+                f"warning: cannot reach the ROS 2 router at {endpoint} ({str(e).split(' at ')[0]}): "
+                f"{router.hint()}; the run goes on, and the ROS 2 view connects if a router comes up there"
+            )
             self._thread = threading.Thread(target=self._retry, name="ros2-link", daemon=True)
             self._thread.start()
 
     def _open(self):
-        return bus.open_session(connect=[self.endpoint], settings={"mode": "client"},
-                                connect_timeout_s=CONNECT_TIMEOUT_S)
+        return bus.open_session(
+            connect=[self.endpoint], settings={"mode": "client"}, connect_timeout_s=CONNECT_TIMEOUT_S
+        )
 
     def _retry(self) -> None:
         while not self._stop.wait(RETRY_S):
@@ -79,7 +83,7 @@ class RosLink:
             return
 
     def poll(self) -> str | None:
-        """"lost" when the link to the router has gone down since the last call, "back" when it is
+        """ "lost" when the link to the router has gone down since the last call, "back" when it is
         up again (the client session reconnects by itself; declarations go to the new router)."""
         now = time.monotonic()
         if self.session is None or now - self._polled < LINK_POLL_S:
@@ -113,9 +117,9 @@ class RosPublishers:
         self.counts = counts or StreamCounts()
         self.publishers: dict[str, object] = {}
         self.skipped: set[str] = set()
-        self.latched: dict[str, tuple[object, bytes]] = {}   # topic name -> (RosTopic, its last message)
-        self.resend: set[str] = set()                        # latched topics to send again
-        self.seen: set[str] = set()                          # topics that had messages
+        self.latched: dict[str, tuple[object, bytes]] = {}  # topic name -> (RosTopic, its last message)
+        self.resend: set[str] = set()  # latched topics to send again
+        self.seen: set[str] = set()  # topics that had messages
 
     @property
     def sent(self) -> int:
@@ -138,16 +142,17 @@ class RosPublishers:
         if topic.name not in self.publishers:
             # block: a batch's burst would overflow the link's queue and be dropped; waiting holds
             # up this process only, never the run (its rows come through a dropping publisher)
-            self.publishers[topic.name] = self.node.publisher(topic.name, topic.msgtype, self.typestore,
-                                                              latched=topic.latched, block=True)
+            self.publishers[topic.name] = self.node.publisher(
+                topic.name, topic.msgtype, self.typestore, latched=topic.latched, block=True
+            )
         return self.publishers[topic.name]
 
     def _put(self, topic, data: bytes) -> None:
         try:
-            self._publisher(topic).put(data, time.time_ns())   # rmw_zenoh's source timestamp: the system clock
+            self._publisher(topic).put(data, time.time_ns())  # rmw_zenoh's source timestamp: the system clock
         except Stop:
             raise
-        except Exception as e:   # a dead rclpy process, a closed session: this message is lost, the run goes on
+        except Exception as e:  # a dead rclpy process, a closed session: this message is lost, the run goes on
             self.counts.drop(topic.name, FAILED)
             self.warn(f"publishing on {topic.name} failed ({type(e).__name__}); its messages are dropped (counted)")
         else:
@@ -171,7 +176,7 @@ class RosPublishers:
                     self.resend.add(topic.name)
                 continue
             queue += [(ns, topic, data) for ns, data in messages]
-        queue.sort(key=lambda item: item[0])   # stable: the exporter's topic order within a stamp
+        queue.sort(key=lambda item: item[0])  # stable: the exporter's topic order within a stamp
         for _, topic, data in queue:
             self._put(topic, data)
 
@@ -179,7 +184,7 @@ class RosPublishers:
         """The link came back: the volatile publishers are declared again, the latched topics go
         again (:meth:`resend_latched`)."""
         for publisher in self.publishers.values():
-            redeclare = getattr(publisher, "declare_again", None)   # rmw_zenoh's; rclpy's child has its own link
+            redeclare = getattr(publisher, "declare_again", None)  # rmw_zenoh's; rclpy's child has its own link
             if redeclare is not None:
                 redeclare()
         self.resend |= set(self.latched)
@@ -229,10 +234,12 @@ class Ros2View(View):
         self.frames = shell.live_frames(typestore, ros.get("topics"))
         if ros.get("why"):
             self.log(ros["why"])
-        if ros.get("transport") == RCLPY:   # up before the run starts: a node that cannot start stops it
+        if ros.get("transport") == RCLPY:  # up before the run starts: a node that cannot start stops it
             self.node = RclpyNode(ros["python"], ros["domain_id"], ros["node"], warn=shell.warn, discover_s=DISCOVER_S)
-            self.log(f"publishing the run to ROS 2 (domain {ros['domain_id']}, {self.node.rmw}) with rclpy "
-                     f"as node /{ros['node']}")
+            self.log(
+                f"publishing the run to ROS 2 (domain {ros['domain_id']}, {self.node.rmw}) with rclpy "
+                f"as node /{ros['node']}"
+            )
         else:
             self.link = RosLink(ros["endpoint"])
             if self.link.warning:
@@ -244,13 +251,17 @@ class Ros2View(View):
         ros, link, publishers, counts = self.ros, self.link, self.publishers, self.counts
         if self.node is None and link is not None and link.session is not None:
             self.node = publishers.node = rmw_zenoh.Node(link.session, ros["domain_id"], ros["node"])
-            self.log(f"publishing the run to ROS 2 (domain {ros['domain_id']}) over rmw_zenoh's wire through "
-                     f"{ros['endpoint']} as node /{ros['node']}")
+            self.log(
+                f"publishing the run to ROS 2 (domain {ros['domain_id']}) over rmw_zenoh's wire through "
+                f"{ros['endpoint']} as node /{ros['node']}"
+            )
         if link is not None and (change := link.poll()):
             if change == "lost":
                 counts.links_lost += 1
-                self.log(f"the link to the ROS 2 router at {ros['endpoint']} is down: messages are dropped "
-                         f"(counted) until it is back")
+                self.log(
+                    f"the link to the ROS 2 router at {ros['endpoint']} is down: messages are dropped "
+                    f"(counted) until it is back"
+                )
             else:
                 counts.links_back += 1
                 self.log(f"the link to the ROS 2 router at {ros['endpoint']} is back: the stream resumes")
@@ -261,19 +272,21 @@ class Ros2View(View):
         if batch is not None:
             _, times, rows = batch
             counts.rows += len(rows)
-            publishers.publish(self.live.batch(times, rows)[0], up)   # without the router, dropped (counted)
+            publishers.publish(self.live.batch(times, rows)[0], up)  # without the router, dropped (counted)
         publishers.publish(self.frames.take(), up)
 
     def finish(self, ended: bool) -> None:
         publishers = self.publishers
         if self.node is not None and (missing := publishers.missing()):
-            self.log(f"ros2.topics: the run had no {', '.join(missing)} "
-                     f"(its topics: {', '.join(sorted(publishers.publishers)) or 'none'})")
+            self.log(
+                f"ros2.topics: the run had no {', '.join(missing)} "
+                f"(its topics: {', '.join(sorted(publishers.publishers)) or 'none'})"
+            )
         if ended:
             self.log(f"run over: {publishers.sent} messages published on {len(publishers.publishers)} topics")
 
     def close(self, completed: bool) -> None:
-        if self.report:   # what was delivered, for the orchestrator's summary
+        if self.report:  # what was delivered, for the orchestrator's summary
             try:
                 self.counts.write(self.report)
             except OSError as e:

@@ -25,6 +25,7 @@ this side -> parent:
 A closed stdin (the parent gone) ends the process too. Nothing else may write to stdout: it is
 moved to a private descriptor at once, and fd 1 points at stderr for the libraries' own prints.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -38,9 +39,9 @@ import time
 
 HEADER = struct.Struct("<IB")
 ENTITY_ID = struct.Struct("<I")
-FLUSH_S = 2.0        # at the end, how long the subscribers may take to acknowledge the last messages
-MATCH_WAIT_S = 2.0   # how long a new publisher waits to be matched by subscriptions the graph knows of
-SETTLED_S = 0.5      # discovery: a graph unchanged this long, once another node is known, is taken as whole
+FLUSH_S = 2.0  # at the end, how long the subscribers may take to acknowledge the last messages
+MATCH_WAIT_S = 2.0  # how long a new publisher waits to be matched by subscriptions the graph knows of
+SETTLED_S = 0.5  # discovery: a graph unchanged this long, once another node is known, is taken as whole
 
 
 def read_exact(fd: int, size: int) -> bytes | None:
@@ -66,7 +67,7 @@ class Channel:
         with self.lock:
             view = memoryview(frame)
             while view:
-                view = view[os.write(self.fd, view):]
+                view = view[os.write(self.fd, view) :]
 
     def send_json(self, kind: bytes, value: dict) -> None:
         self.send(kind, json.dumps(value).encode())
@@ -96,14 +97,15 @@ def discover(node, limit_s: float) -> None:
 
 
 def main() -> int:
-    out = os.dup(1)          # the protocol's descriptor; fd 1 becomes stderr for everything else
+    out = os.dup(1)  # the protocol's descriptor; fd 1 becomes stderr for everything else
     os.dup2(2, 1)
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--domain", type=int, required=True)
     parser.add_argument("--node", required=True)
     parser.add_argument("--namespace", default="/")
-    parser.add_argument("--discover", type=float, default=0.0,
-                        help="at most this long (s), learn the graph before saying ready")
+    parser.add_argument(
+        "--discover", type=float, default=0.0, help="at most this long (s), learn the graph before saying ready"
+    )
     args = parser.parse_args()
 
     import rclpy
@@ -120,22 +122,34 @@ def main() -> int:
     spinner.start()
     publishers: dict[int, object] = {}
     subscriptions: dict[int, object] = {}
-    unpublished: set[str] = set()   # topics a publish failed on (said once each)
+    unpublished: set[str] = set()  # topics a publish failed on (said once each)
 
     def qos(spec: dict) -> QoSProfile:
-        if spec["depth"] is None:   # KEEP_ALL: reliable delivery of every sample to the readers it matched
-            return QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
-                              durability=DurabilityPolicy.VOLATILE)
-        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=int(spec["depth"]),
-                          reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.TRANSIENT_LOCAL if spec["latched"] else DurabilityPolicy.VOLATILE)
+        if spec["depth"] is None:  # KEEP_ALL: reliable delivery of every sample to the readers it matched
+            return QoSProfile(
+                history=HistoryPolicy.KEEP_ALL,
+                reliability=ReliabilityPolicy.RELIABLE,
+                durability=DurabilityPolicy.VOLATILE,
+            )
+        return QoSProfile(
+            history=HistoryPolicy.KEEP_LAST,
+            depth=int(spec["depth"]),
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if spec["latched"] else DurabilityPolicy.VOLATILE,
+        )
 
     def declare(kind: bytes, spec: dict) -> None:
         try:
             cls = message_class(spec["type"])
         except (ImportError, AttributeError, ValueError) as e:
-            channel.send_json(b"W", {"id": spec["id"], "text": f"{spec['topic']}: no message type {spec['type']} in "
-                                     f"this ROS 2 environment ({type(e).__name__}: {e}); install its package"})
+            channel.send_json(
+                b"W",
+                {
+                    "id": spec["id"],
+                    "text": f"{spec['topic']}: no message type {spec['type']} in "
+                    f"this ROS 2 environment ({type(e).__name__}: {e}); install its package",
+                },
+            )
             return
         if kind == b"P":
             publisher = node.create_publisher(cls, spec["topic"], qos(spec))
@@ -144,7 +158,8 @@ def main() -> int:
         else:
             header = ENTITY_ID.pack(spec["id"])
             subscriptions[spec["id"]] = node.create_subscription(
-                cls, spec["topic"], lambda data: channel.send(b"M", header + data), qos(spec), raw=True)
+                cls, spec["topic"], lambda data: channel.send(b"M", header + data), qos(spec), raw=True
+            )
 
     def await_matches(publisher, topic: str) -> None:
         # a message published before DDS matched a subscription the graph already knows is lost to it
@@ -158,15 +173,27 @@ def main() -> int:
         others = []
         own = (node.get_name(), node.get_namespace())
         for topic in request["topics"]:
-            for role, infos in (("publisher", node.get_publishers_info_by_topic(topic)),
-                                ("subscription", node.get_subscriptions_info_by_topic(topic))):
-                others += [[role, topic, info.topic_type, info.node_namespace.rstrip("/") + "/" + info.node_name]
-                           for info in infos if (info.node_name, info.node_namespace) != own]
+            for role, infos in (
+                ("publisher", node.get_publishers_info_by_topic(topic)),
+                ("subscription", node.get_subscriptions_info_by_topic(topic)),
+            ):
+                others += [
+                    [role, topic, info.topic_type, info.node_namespace.rstrip("/") + "/" + info.node_name]
+                    for info in infos
+                    if (info.node_name, info.node_namespace) != own
+                ]
         return {"request": request["request"], "matched": matched, "graph": others}
 
     discover(node, args.discover)
-    channel.send_json(b"R", {"rmw": rclpy.get_rmw_implementation_identifier(), "domain": args.domain,
-                             "python": sys.executable, "node": node.get_fully_qualified_name()})
+    channel.send_json(
+        b"R",
+        {
+            "rmw": rclpy.get_rmw_implementation_identifier(),
+            "domain": args.domain,
+            "python": sys.executable,
+            "node": node.get_fully_qualified_name(),
+        },
+    )
     try:
         while True:
             header = read_exact(0, HEADER.size)
@@ -182,12 +209,18 @@ def main() -> int:
                 publisher = publishers.get(entity)
                 if publisher is not None:
                     try:
-                        publisher.publish(payload[ENTITY_ID.size:])
-                    except Exception as e:   # rclpy's RCLError: the writer's history full past its wait
+                        publisher.publish(payload[ENTITY_ID.size :])
+                    except Exception as e:  # rclpy's RCLError: the writer's history full past its wait
                         if publisher.topic_name not in unpublished:
                             unpublished.add(publisher.topic_name)
-                            channel.send_json(b"W", {"id": None, "text": f"{publisher.topic_name}: a message "
-                                                     f"could not be published ({type(e).__name__}: {e})"})
+                            channel.send_json(
+                                b"W",
+                                {
+                                    "id": None,
+                                    "text": f"{publisher.topic_name}: a message "
+                                    f"could not be published ({type(e).__name__}: {e})",
+                                },
+                            )
             elif kind in (b"P", b"S"):
                 declare(kind, json.loads(payload))
             elif kind == b"G":
@@ -197,12 +230,13 @@ def main() -> int:
     except KeyboardInterrupt:
         pass
     finally:
-        deadline = time.monotonic() + FLUSH_S   # reliable: what was published reaches who matched
+        deadline = time.monotonic() + FLUSH_S  # reliable: what was published reaches who matched
         for publisher in publishers.values():
-            publisher.wait_for_all_acked(rclpy.duration.Duration(nanoseconds=max(0, int(
-                (deadline - time.monotonic()) * 1e9))))
+            publisher.wait_for_all_acked(
+                rclpy.duration.Duration(nanoseconds=max(0, int((deadline - time.monotonic()) * 1e9)))
+            )
         executor.shutdown(timeout_sec=1.0)
-        rclpy.try_shutdown()   # wakes the spinning thread, which must end before the process does
+        rclpy.try_shutdown()  # wakes the spinning thread, which must end before the process does
         spinner.join(timeout=2.0)
         node.destroy_node()
     return 0

@@ -11,6 +11,7 @@ with their own ``LD_LIBRARY_PATH``), and so that nothing of ROS shares a process
 Which Python: the one given (``ros2.python``, a bridge's ``python``), else ``ZENORBIT_ROS2_PYTHON``,
 else this Python, else ``python3`` on the PATH: the first that imports rclpy.
 """
+
 from __future__ import annotations
 
 import functools
@@ -21,8 +22,8 @@ import struct
 import subprocess
 import sys
 import threading
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from components.errors import ComponentError
 
@@ -30,20 +31,25 @@ PYTHON_ENV = "ZENORBIT_ROS2_PYTHON"
 SIDE = Path(__file__).with_name("rclpy_side.py")
 HEADER = struct.Struct("<IB")
 ENTITY_ID = struct.Struct("<I")
-START_TIMEOUT_S = 60.0   # importing rclpy and joining the DDS domain; a first import compiles .pyc files
+START_TIMEOUT_S = 60.0  # importing rclpy and joining the DDS domain; a first import compiles .pyc files
 PROBE_TIMEOUT_S = 60.0
-STREAM_DEPTH = 100       # KEEP_LAST depth of a volatile subscription: a burst of answers waits whole
-LATCHED_DEPTH = 1        # as tf2's static broadcaster and robot_state_publisher
+STREAM_DEPTH = 100  # KEEP_LAST depth of a volatile subscription: a burst of answers waits whole
+LATCHED_DEPTH = 1  # as tf2's static broadcaster and robot_state_publisher
 ZENOH, RCLPY, AUTO = "zenoh", "rclpy", "auto"
 TRANSPORTS = (ZENOH, RCLPY, AUTO)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _imports_rclpy(python: str) -> str | None:
     """None if ``python`` imports rclpy, else why not (one line)."""
     try:
-        done = subprocess.run([python, "-c", "import rclpy"], capture_output=True, text=True,
-                              timeout=PROBE_TIMEOUT_S, stdin=subprocess.DEVNULL)
+        done = subprocess.run(
+            [python, "-c", "import rclpy"],
+            capture_output=True,
+            text=True,
+            timeout=PROBE_TIMEOUT_S,
+            stdin=subprocess.DEVNULL,
+        )
     except (OSError, subprocess.TimeoutExpired) as e:
         return f"{python}: {type(e).__name__}: {e}"
     if done.returncode == 0:
@@ -76,15 +82,17 @@ def choose(transport: str, configured_python: str | None = None) -> tuple[str, s
     if python is not None:
         return RCLPY, python, f"transport: rclpy ({python} imports rclpy)"
     if transport == RCLPY:
-        raise ComponentError("transport rclpy: no Python here imports rclpy (" + "; ".join(tried) + "): source your "
-                             f"ROS 2 (source /opt/ros/jazzy/setup.bash), or give the Python that has it (ros2.python, "
-                             f"or {PYTHON_ENV}), or use transport: zenoh with rmw_zenoh's router (rmw_zenohd, "
-                             f"or orchestrator router --ros2 without ROS)")
+        raise ComponentError(
+            "transport rclpy: no Python here imports rclpy (" + "; ".join(tried) + "): source your "
+            f"ROS 2 (source /opt/ros/jazzy/setup.bash), or give the Python that has it (ros2.python, "
+            f"or {PYTHON_ENV}), or use transport: zenoh with rmw_zenoh's router (rmw_zenohd, "
+            f"or orchestrator router --ros2 without ROS)"
+        )
     return ZENOH, None, "transport: auto chose zenoh (no Python here imports rclpy: " + "; ".join(tried) + ")"
 
 
 class _Entity:
-    def __init__(self, node: "RclpyNode", entity_id: int, topic: str, msgtype: str, role: str):
+    def __init__(self, node: RclpyNode, entity_id: int, topic: str, msgtype: str, role: str):
         self.node, self.id, self.topic, self.msgtype, self.role = node, entity_id, topic, msgtype, role
         self.sequence = 0
 
@@ -106,13 +114,20 @@ class RclpyNode:
     long, at most, the node gives the middleware's discovery before it reports ready (see
     rclpy_side.py), so that subscribers already running get the first messages."""
 
-    def __init__(self, python: str, domain_id: int, name: str, namespace: str = "/",
-                 warn: Callable[[str], None] | None = None, start_timeout_s: float = START_TIMEOUT_S,
-                 discover_s: float = 0.0):
+    def __init__(
+        self,
+        python: str,
+        domain_id: int,
+        name: str,
+        namespace: str = "/",
+        warn: Callable[[str], None] | None = None,
+        start_timeout_s: float = START_TIMEOUT_S,
+        discover_s: float = 0.0,
+    ):
         self.python, self.domain_id, self.name, self.namespace = python, int(domain_id), name, namespace
         self.warn = warn or (lambda text: print(f"ros2: {text}", file=sys.stderr, flush=True))
         self.entities: list[_Entity] = []
-        self.failed: dict[int, str] = {}        # entity id -> why it could not be made
+        self.failed: dict[int, str] = {}  # entity id -> why it could not be made
         self._handlers: dict[int, Callable] = {}
         self._lock = threading.Condition()
         self._replies: dict[int, dict] = {}
@@ -120,20 +135,35 @@ class RclpyNode:
         self._send_lock = threading.Lock()
         self.ready: dict | None = None
         self.process = subprocess.Popen(
-            [python, str(SIDE), "--domain", str(self.domain_id), "--node", name, "--namespace", namespace,
-             "--discover", f"{discover_s:g}"],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=None)
+            [
+                python,
+                str(SIDE),
+                "--domain",
+                str(self.domain_id),
+                "--node",
+                name,
+                "--namespace",
+                namespace,
+                "--discover",
+                f"{discover_s:g}",
+            ],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=None,
+        )
         self._reader = threading.Thread(target=self._read, name="rclpy-reader", daemon=True)
         self._reader.start()
         with self._lock:
-            if not self._lock.wait_for(lambda: self.ready is not None or self.process.poll() is not None,
-                                       start_timeout_s):
+            if not self._lock.wait_for(
+                lambda: self.ready is not None or self.process.poll() is not None, start_timeout_s
+            ):
                 self.close()
                 raise ComponentError(f"the rclpy node ({python}) did not come up within {start_timeout_s:g} s")
         if self.ready is None:
             code = self.process.wait()
-            raise ComponentError(f"the rclpy node ({python}) exited with code {code} before it came up "
-                                 f"(its message is above)")
+            raise ComponentError(
+                f"the rclpy node ({python}) exited with code {code} before it came up (its message is above)"
+            )
 
     @property
     def rmw(self) -> str:
@@ -143,16 +173,18 @@ class RclpyNode:
     def alive(self) -> bool:
         return self.process.poll() is None
 
-    def publisher(self, topic: str, msgtype: str, typestore=None, latched: bool = False,
-                  block: bool = False) -> RclpyPublisher:
+    def publisher(
+        self, topic: str, msgtype: str, typestore=None, latched: bool = False, block: bool = False
+    ) -> RclpyPublisher:
         """A publisher of ``msgtype`` on ``topic``: reliable, TRANSIENT_LOCAL depth 1 if ``latched``,
         else volatile KEEP_ALL (a sample stays until every matched reader has it: a reader that lost
         one gets it again, however far the writer has gone on; KEEP_LAST would let it go).
         (``typestore`` and ``block``: for the interface of rmw_zenoh.Node; a pipe blocks.)"""
         return self._declare(b"P", RclpyPublisher, topic, msgtype, latched)
 
-    def subscriber(self, topic: str, msgtype: str, typestore, handler: Callable[[bytes, object], None],
-                   latched: bool = False) -> RclpySubscription:
+    def subscriber(
+        self, topic: str, msgtype: str, typestore, handler: Callable[[bytes, object], None], latched: bool = False
+    ) -> RclpySubscription:
         """A subscription to ``topic``; ``handler(cdr, None)`` on this node's reader thread."""
         subscription = self._declare(b"S", RclpySubscription, topic, msgtype, latched)
         self._handlers[subscription.id] = handler
@@ -161,17 +193,22 @@ class RclpyNode:
     def _declare(self, kind: bytes, cls, topic: str, msgtype: str, latched: bool):
         entity = cls(self, len(self.entities), topic, msgtype, "publisher" if kind == b"P" else "subscription")
         self.entities.append(entity)
-        depth = LATCHED_DEPTH if latched else (None if kind == b"P" else STREAM_DEPTH)   # None: KEEP_ALL
-        self._send(kind, json.dumps({"id": entity.id, "topic": topic, "type": msgtype, "latched": latched,
-                                     "depth": depth}).encode())
+        depth = LATCHED_DEPTH if latched else (None if kind == b"P" else STREAM_DEPTH)  # None: KEEP_ALL
+        self._send(
+            kind,
+            json.dumps({"id": entity.id, "topic": topic, "type": msgtype, "latched": latched, "depth": depth}).encode(),
+        )
         return entity
 
     def unmatched(self, timeout_s: float, exclude: tuple[str, ...] = ()) -> list[tuple[str, str, str]]:
         """(role, topic, type) of each publisher no subscription is matched with and each subscription
         no publisher is matched with (DDS matching: data would flow), but the ``exclude`` topics."""
         reply = self._ask({"topics": []}, timeout_s)
-        return [(e.role, e.topic, e.msgtype) for e in self.entities
-                if e.topic not in exclude and e.id not in self.failed and not reply["matched"].get(str(e.id))]
+        return [
+            (e.role, e.topic, e.msgtype)
+            for e in self.entities
+            if e.topic not in exclude and e.id not in self.failed and not reply["matched"].get(str(e.id))
+        ]
 
     def graph(self, topics: list[str], timeout_s: float) -> list[tuple[str, str, str, str]]:
         """(role, topic, type, node) of every other node's publisher and subscription on ``topics``."""
@@ -196,8 +233,9 @@ class RclpyNode:
                 self.process.stdin.write(frame)
                 self.process.stdin.flush()
         except (BrokenPipeError, ValueError, OSError):
-            raise ComponentError(f"the rclpy node ({self.python}) has exited "
-                                 f"(code {self.process.poll()}; its message is above)") from None
+            raise ComponentError(
+                f"the rclpy node ({self.python}) has exited (code {self.process.poll()}; its message is above)"
+            ) from None
 
     def _read(self) -> None:
         stream = self.process.stdout
@@ -213,7 +251,7 @@ class RclpyNode:
                 (entity,) = ENTITY_ID.unpack_from(payload)
                 handler = self._handlers.get(entity)
                 if handler is not None:
-                    handler(payload[ENTITY_ID.size:], None)
+                    handler(payload[ENTITY_ID.size :], None)
             elif kind == ord("W"):
                 message = json.loads(payload)
                 if message.get("id") is not None:

@@ -31,27 +31,28 @@ era of the Jazzy branch and rolling) and its ``docs/design.md``:
   Jazzy has them since rmw_zenoh 0.2.2 (its release notes in ros/rosdistro#44533: "Introduce the
   advanced publisher and subscriber (#469)"); before, a PublicationCache and a QueryingSubscriber.
 """
+
 from __future__ import annotations
 
 import itertools
 import re
 import struct
 import threading
-from typing import Callable
+from collections.abc import Callable
 
-ADMIN_SPACE = "@ros2_lv"          # liveliness_utils.cpp ADMIN_SPACE
+ADMIN_SPACE = "@ros2_lv"  # liveliness_utils.cpp ADMIN_SPACE
 NODE, PUBLISHER, SUBSCRIPTION = "NN", "MP", "MS"
-GID_SIZE = 16                     # rmw/types.h RMW_GID_STORAGE_SIZE (Iron and later)
-ATTACHMENT = struct.Struct("<qqB16s")   # seq, source timestamp, LEB128(16) = 0x10, GID
-TOPIC_MAX_LENGTH = 255 - 8        # rmw/validate_full_topic_name.h RMW_TOPIC_MAX_NAME_LENGTH
-HEARTBEAT_MS = 500                # rmw_publisher_data.cpp SAMPLE_MISS_DETECTION_HEARTBEAT_PERIOD
+GID_SIZE = 16  # rmw/types.h RMW_GID_STORAGE_SIZE (Iron and later)
+ATTACHMENT = struct.Struct("<qqB16s")  # seq, source timestamp, LEB128(16) = 0x10, GID
+TOPIC_MAX_LENGTH = 255 - 8  # rmw/validate_full_topic_name.h RMW_TOPIC_MAX_NAME_LENGTH
+HEARTBEAT_MS = 500  # rmw_publisher_data.cpp SAMPLE_MISS_DETECTION_HEARTBEAT_PERIOD
 
 # rmw/types.h enum values, as qos_to_keyexpr writes them
 RELIABLE, BEST_EFFORT = 1, 2
 TRANSIENT_LOCAL, VOLATILE = 1, 2
 KEEP_LAST, KEEP_ALL = 1, 2
-DEFAULT_DEPTH = 10                # rclcpp's default publisher/subscription depth (rmw_qos_profile_default)
-_ZENOH_DEFAULTS = {"reliability": RELIABLE, "durability": VOLATILE, "history": KEEP_LAST, "depth": 42}   # qos.cpp
+DEFAULT_DEPTH = 10  # rclcpp's default publisher/subscription depth (rmw_qos_profile_default)
+_ZENOH_DEFAULTS = {"reliability": RELIABLE, "durability": VOLATILE, "history": KEEP_LAST, "depth": 42}  # qos.cpp
 
 _HASH = re.compile(r"RIHS01_[0-9a-f]{64}")
 _MSGTYPE = re.compile(r"([A-Za-z][A-Za-z0-9_]*)/(msg|srv|action)/([A-Za-z][A-Za-z0-9_]*)")
@@ -124,21 +125,44 @@ def mangle(name: str) -> str:
     return name.replace("/", "%")
 
 
-def qos_keyexpr(*, reliability: int = RELIABLE, durability: int = VOLATILE, history: int = KEEP_LAST,
-                depth: int = DEFAULT_DEPTH) -> str:
+def qos_keyexpr(
+    *, reliability: int = RELIABLE, durability: int = VOLATILE, history: int = KEEP_LAST, depth: int = DEFAULT_DEPTH
+) -> str:
     """The QoS part of a token (liveliness_utils.cpp ``qos_to_keyexpr``): fields equal to rmw_zenoh's
     defaults are left empty; deadline, lifespan and liveliness are the defaults (infinite, AUTOMATIC)."""
+
     def field(key, value):
         return "" if value == _ZENOH_DEFAULTS[key] else str(value)
-    return (f"{field('reliability', reliability)}:{field('durability', durability)}:"
-            f"{field('history', history)},{field('depth', depth)}:,:,:,,")
+
+    return (
+        f"{field('reliability', reliability)}:{field('durability', durability)}:"
+        f"{field('history', history)},{field('depth', depth)}:,:,:,,"
+    )
 
 
-def token_key(domain_id: int, zid: str, node_id: int, entity_id: int, kind: str, enclave: str, namespace: str,
-              node_name: str, topic: tuple[str, str, str, str] | None = None) -> str:
+def token_key(
+    domain_id: int,
+    zid: str,
+    node_id: int,
+    entity_id: int,
+    kind: str,
+    enclave: str,
+    namespace: str,
+    node_name: str,
+    topic: tuple[str, str, str, str] | None = None,
+) -> str:
     """A liveliness token's key; ``topic``: (name, DDS type name, type hash, QoS) for MP and MS."""
-    parts = [ADMIN_SPACE, str(int(domain_id)), zid, str(node_id), str(entity_id), kind,
-             mangle(enclave), mangle(namespace), mangle(node_name)]
+    parts = [
+        ADMIN_SPACE,
+        str(int(domain_id)),
+        zid,
+        str(node_id),
+        str(entity_id),
+        kind,
+        mangle(enclave),
+        mangle(namespace),
+        mangle(node_name),
+    ]
     if topic is not None:
         name, dds_type, hash_, qos = topic
         parts += [mangle(name), mangle(dds_type), mangle(hash_), qos]
@@ -148,6 +172,7 @@ def token_key(domain_id: int, zid: str, node_id: int, entity_id: int, kind: str,
 def gid_of(token: str) -> bytes:
     """An entity's GID: XXH3-128 of its token's key, low then high 64 bits, little endian."""
     import xxhash
+
     return xxhash.xxh3_128_intdigest(token.encode()).to_bytes(GID_SIZE, "little")
 
 
@@ -161,10 +186,19 @@ def qualify(topic: str, namespace: str) -> str:
 class Publisher:
     """One ROS 2 publisher: its key expression, token and sequence numbers (made by :meth:`Node.publisher`)."""
 
-    def __init__(self, session, key: str, token: str, latched: bool, depth: int, block: bool = False,
-                 subscribed: Callable[[], bool] = lambda: False):
+    def __init__(
+        self,
+        session,
+        key: str,
+        token: str,
+        latched: bool,
+        depth: int,
+        block: bool = False,
+        subscribed: Callable[[], bool] = lambda: False,
+    ):
         import zenoh
         import zenoh.ext
+
         self.key = key
         self.token_key = token
         self.latched = latched
@@ -174,11 +208,15 @@ class Publisher:
         congestion = zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP
         options = self._options = dict(congestion_control=congestion, reliability=zenoh.Reliability.RELIABLE)
         self._session = session
-        if latched:   # late joiners get the cache through their AdvancedSubscriber's history query
+        if latched:  # late joiners get the cache through their AdvancedSubscriber's history query
             self._publisher = zenoh.ext.declare_advanced_publisher(
-                session, key, cache=zenoh.ext.CacheConfig(depth), publisher_detection=True,
+                session,
+                key,
+                cache=zenoh.ext.CacheConfig(depth),
+                publisher_detection=True,
                 sample_miss_detection=zenoh.ext.MissDetectionConfig(sporadic_heartbeat=HEARTBEAT_MS / 1000),
-                **options)
+                **options,
+            )
         else:
             self._publisher = session.declare_publisher(key, **options)
         self._token = session.liveliness().declare_token(token)
@@ -193,7 +231,7 @@ class Publisher:
         old, self._publisher = self._publisher, self._session.declare_publisher(self.key, **self._options)
         try:
             old.undeclare()
-        except Exception:   # the session may be closing
+        except Exception:  # the session may be closing
             pass
 
     def has_subscribers(self) -> bool:
@@ -210,7 +248,7 @@ class Publisher:
         for declared in (self._token, self._publisher):
             try:
                 declared.undeclare()
-            except Exception:   # the session may be closed already
+            except Exception:  # the session may be closed already
                 pass
 
 
@@ -218,14 +256,16 @@ class Subscriber:
     """One ROS 2 subscription: ``handler(cdr bytes, (sequence, source timestamp ns, gid))`` is
     called on Zenoh's thread for each sample (made by :meth:`Node.subscriber`)."""
 
-    def __init__(self, session, key: str, token: str, handler: Callable[[bytes, tuple], None], latched: bool,
-                 depth: int):
+    def __init__(
+        self, session, key: str, token: str, handler: Callable[[bytes, tuple], None], latched: bool, depth: int
+    ):
         import zenoh.ext
+
         self.key = key
         self.token_key = token
 
         def on_sample(sample) -> None:
-            if sample.attachment is None:   # rmw_zenoh drops such a sample too
+            if sample.attachment is None:  # rmw_zenoh drops such a sample too
                 return
             try:
                 attachment = decode_attachment(sample.attachment.to_bytes())
@@ -235,9 +275,13 @@ class Subscriber:
 
         if latched:
             self._subscriber = zenoh.ext.declare_advanced_subscriber(
-                session, key, on_sample, subscriber_detection=True,
+                session,
+                key,
+                on_sample,
+                subscriber_detection=True,
                 history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=depth),
-                recovery=zenoh.ext.RecoveryConfig(heartbeat=True))
+                recovery=zenoh.ext.RecoveryConfig(heartbeat=True),
+            )
         else:
             self._subscriber = session.declare_subscriber(key, on_sample)
         self._token = session.liveliness().declare_token(token)
@@ -251,7 +295,7 @@ class Subscriber:
 
 
 _ids_lock = threading.Lock()
-_ids: dict[str, itertools.count] = {}   # zid -> the session's entity ids (rmw_zenoh: one counter per context)
+_ids: dict[str, itertools.count] = {}  # zid -> the session's entity ids (rmw_zenoh: one counter per context)
 
 
 def _next_id(zid: str) -> int:
@@ -277,17 +321,18 @@ class Node:
         self.token_key = token_key(self.domain_id, self.zid, self.id, self.id, NODE, enclave, namespace, name)
         self._token = session.liveliness().declare_token(self.token_key)
         self.entities: list[Publisher | Subscriber] = []
-        self._subscriptions: dict[str, tuple[str, str]] = {}   # MS token -> (topic, DDS type): the graph's subscriptions
+        self._subscriptions: dict[str, tuple[str, str]] = {}  # MS token -> (topic, DDS type): the graph's subscriptions
         self._graph = None
 
     def _graph_sample(self, sample) -> None:
         import zenoh
+
         key = str(sample.key_expr)
         parts = key.split("/")
         if len(parts) != 13 or parts[5] != SUBSCRIPTION:
             return
         if sample.kind == zenoh.SampleKind.PUT:
-            self._subscriptions[key] = (parts[9], parts[10])   # mangled topic, DDS type name
+            self._subscriptions[key] = (parts[9], parts[10])  # mangled topic, DDS type name
         else:
             self._subscriptions.pop(key, None)
 
@@ -296,10 +341,12 @@ class Node:
         wanted = (mangle(topic), dds_type_name(msgtype))
 
         def subscribed() -> bool:
-            if self._graph is None:   # on first use only; the tokens already there come too (history)
+            if self._graph is None:  # on first use only; the tokens already there come too (history)
                 self._graph = self.session.liveliness().declare_subscriber(
-                    f"{ADMIN_SPACE}/{self.domain_id}/**", self._graph_sample, history=True)
+                    f"{ADMIN_SPACE}/{self.domain_id}/**", self._graph_sample, history=True
+                )
             return wanted in list(self._subscriptions.values())
+
         return subscribed
 
     def _entity_token(self, kind: str, topic: str, msgtype: str, typestore, qos: str) -> tuple[str, str]:
@@ -307,8 +354,17 @@ class Node:
         if problem := check_topic_name(topic):
             raise ValueError(f"topic {topic!r}: ROS 2 rejects it: {problem}")
         key = topic_key(self.domain_id, topic, msgtype, typestore)
-        token = token_key(self.domain_id, self.zid, self.id, _next_id(self.zid), kind, self.enclave, self.namespace,
-                          self.name, (topic, dds_type_name(msgtype), type_hash(typestore, msgtype), qos))
+        token = token_key(
+            self.domain_id,
+            self.zid,
+            self.id,
+            _next_id(self.zid),
+            kind,
+            self.enclave,
+            self.namespace,
+            self.name,
+            (topic, dds_type_name(msgtype), type_hash(typestore, msgtype), qos),
+        )
         return key, token
 
     @staticmethod
@@ -323,13 +379,15 @@ class Node:
         for a congested link rather than dropping the message (for a sender that may wait)."""
         qos, depth = self._qos(latched)
         key, token = self._entity_token(PUBLISHER, topic, msgtype, typestore, qos)
-        publisher = Publisher(self.session, key, token, latched, depth, block,
-                              self._subscribed(qualify(topic, self.namespace), msgtype))
+        publisher = Publisher(
+            self.session, key, token, latched, depth, block, self._subscribed(qualify(topic, self.namespace), msgtype)
+        )
         self.entities.append(publisher)
         return publisher
 
-    def subscriber(self, topic: str, msgtype: str, typestore, handler: Callable[[bytes, tuple], None],
-                   latched: bool = False) -> Subscriber:
+    def subscriber(
+        self, topic: str, msgtype: str, typestore, handler: Callable[[bytes, tuple], None], latched: bool = False
+    ) -> Subscriber:
         """A subscription to ``topic``; ``handler(cdr, (sequence, source timestamp ns, gid))``."""
         qos, depth = self._qos(latched)
         key, token = self._entity_token(SUBSCRIPTION, topic, msgtype, typestore, qos)

@@ -15,6 +15,7 @@ linked to it, whatever the ROS domain (the domain is the first part of each key)
 ``hint(option)`` is the text the live view and ``ros2.bridge`` add where no router, or no ROS node,
 answers.
 """
+
 from __future__ import annotations
 
 import json
@@ -23,9 +24,9 @@ import re
 import signal
 import sys
 import threading
-from typing import Callable
+from collections.abc import Callable
 
-DEFAULT_LISTEN = "tcp/[::]:7447"   # rmw_zenohd's listen/endpoints: every interface, IPv4 and IPv6
+DEFAULT_LISTEN = "tcp/[::]:7447"  # rmw_zenohd's listen/endpoints: every interface, IPv4 and IPv6
 DEFAULT_PORT = 7447
 
 # ros2/rmw_zenoh rmw_zenoh_cpp/config/DEFAULT_RMW_ZENOH_ROUTER_CONFIG.json5 (rolling, read at commit
@@ -33,30 +34,30 @@ DEFAULT_PORT = 7447
 # every key not here keeps Zenoh's default, which that file repeats. Values as JSON.
 SETTINGS: dict[str, object] = {
     "mode": "router",
-    "listen/timeout_ms": 0,                          # no retry: a taken port fails at once ...
-    "listen/exit_on_failure": True,                  # ... and the router does not start
+    "listen/timeout_ms": 0,  # no retry: a taken port fails at once ...
+    "listen/exit_on_failure": True,  # ... and the router does not start
     "connect/endpoints": [],
-    "scouting/multicast/enabled": False,             # "ROS setting: disable multicast discovery by default"
+    "scouting/multicast/enabled": False,  # "ROS setting: disable multicast discovery by default"
     "scouting/gossip/enabled": True,
     "scouting/gossip/multihop": False,
-    "scouting/gossip/target": {"router": ["router", "peer"], "peer": ["router"]},   # peers learn each other here
-    "timestamping/enabled": {"router": True, "peer": True, "client": True},        # transient local needs them
-    "queries_default_timeout": 600000,               # ms: slow service servers at launch
-    "routing/router/peers_failover_brokering": False,   # each rmw_zenoh peer connects to every other
-    "transport/unicast/open_timeout": 60000,         # ms: many nodes starting at once
+    "scouting/gossip/target": {"router": ["router", "peer"], "peer": ["router"]},  # peers learn each other here
+    "timestamping/enabled": {"router": True, "peer": True, "client": True},  # transient local needs them
+    "queries_default_timeout": 600000,  # ms: slow service servers at launch
+    "routing/router/peers_failover_brokering": False,  # each rmw_zenoh peer connects to every other
+    "transport/unicast/open_timeout": 60000,  # ms: many nodes starting at once
     "transport/unicast/accept_timeout": 60000,
     "transport/unicast/accept_pending": 10000,
     "transport/unicast/max_sessions": 10000,
     "transport/unicast/max_links": 1,
-    "transport/link/tx/lease": 60000,                # ms
-    "transport/link/tx/keep_alive": 2,               # per lease: nodes on the loopback
-    "transport/shared_memory/enabled": False,        # "ROS setting: disabled by default until fully tested"
+    "transport/link/tx/lease": 60000,  # ms
+    "transport/link/tx/keep_alive": 2,  # per lease: nodes on the loopback
+    "transport/shared_memory/enabled": False,  # "ROS setting: disabled by default until fully tested"
     "adminspace/enabled": True,
     "adminspace/permissions/read": True,
     "adminspace/permissions/write": False,
 }
 
-PROTOCOLS = ("tcp", "udp")   # rmw_zenoh's nodes link over tcp; tls and quic would need certificates here
+PROTOCOLS = ("tcp", "udp")  # rmw_zenoh's nodes link over tcp; tls and quic would need certificates here
 _ENDPOINT = re.compile(r"(?P<protocol>[A-Za-z0-9\-]+)/(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.\-]+):(?P<port>\d+)")
 _ANY_HOST = ("[::]", "0.0.0.0")
 
@@ -68,18 +69,24 @@ class RouterError(Exception):
 def hint(rclpy_option: str = "--ros2 rclpy") -> str:
     """What to check when no router, or no ROS node, answers: the ROS side may be on DDS, or
     rmw_zenoh without its router. ``rclpy_option``: how the caller's user picks rclpy."""
-    return (f"nothing on this ROS domain answers; is your ROS on Fast DDS? use `{rclpy_option}`, or rmw_zenoh "
-            f"with its router (`orchestrator router --ros2` or `ros2 run rmw_zenoh_cpp rmw_zenohd`)")
+    return (
+        f"nothing on this ROS domain answers; is your ROS on Fast DDS? use `{rclpy_option}`, or rmw_zenoh "
+        f"with its router (`orchestrator router --ros2` or `ros2 run rmw_zenoh_cpp rmw_zenohd`)"
+    )
 
 
 def check_endpoint(endpoint: str) -> str | None:
     """Why ``endpoint`` cannot be a listen endpoint of the router, or None."""
-    example = f"e.g. {DEFAULT_LISTEN} (rmw_zenohd's: every interface) or tcp/127.0.0.1:{DEFAULT_PORT} (this machine only)"
+    example = (
+        f"e.g. {DEFAULT_LISTEN} (rmw_zenohd's: every interface) or tcp/127.0.0.1:{DEFAULT_PORT} (this machine only)"
+    )
     match = _ENDPOINT.fullmatch(endpoint)
     if match is None:
         return f"expected PROTOCOL/HOST:PORT, {example}; got {endpoint!r}"
     if match["protocol"] not in PROTOCOLS:
-        return f"expected the protocol {' or '.join(PROTOCOLS)} (rmw_zenoh's nodes use tcp), {example}; got {endpoint!r}"
+        return (
+            f"expected the protocol {' or '.join(PROTOCOLS)} (rmw_zenoh's nodes use tcp), {example}; got {endpoint!r}"
+        )
     port = int(match["port"])
     if not 1 <= port <= 65535:
         return f"expected a port from 1 to 65535 (ROS nodes must be told it: not 0), {example}; got {endpoint!r}"
@@ -117,8 +124,9 @@ def _reason(error: Exception) -> str:
     return re.sub(r" at \S+\.rs:\d+\.?", "", text).strip()
 
 
-def serve(listen: list[str] | None = None, out: Callable[[str], None] | None = None,
-          stop: threading.Event | None = None) -> int:
+def serve(
+    listen: list[str] | None = None, out: Callable[[str], None] | None = None, stop: threading.Event | None = None
+) -> int:
     """Route until SIGTERM or SIGINT (or ``stop`` is set); 0. RouterError when it cannot listen."""
     import zenoh
 
@@ -143,15 +151,26 @@ def serve(listen: list[str] | None = None, out: Callable[[str], None] | None = N
             taken = "in use" in reason
             raise RouterError(
                 f"cannot listen on {', '.join(listen)}: {reason}"
-                + (" (is a router there already, rmw_zenohd or another `orchestrator router --ros2`? use it, or "
-                   f"give a free port: --listen tcp/[::]:PORT)" if taken else "")) from None
+                + (
+                    " (is a router there already, rmw_zenohd or another `orchestrator router --ros2`? use it, or "
+                    "give a free port: --listen tcp/[::]:PORT)"
+                    if taken
+                    else ""
+                )
+            ) from None
         try:
             reach = run_endpoint(listen[0])
             everywhere = any(_ENDPOINT.fullmatch(e)["host"] in _ANY_HOST for e in listen)
-            override = ("" if reach == f"tcp/localhost:{DEFAULT_PORT}" else   # rmw_zenoh's nodes look there
-                        f" ZENOH_CONFIG_OVERRIDE='connect/endpoints=[\"{reach}\"]'")
-            out(f"ROS 2 router (rmw_zenohd's configuration) listening on {', '.join(listen)}"
-                f"{' (every interface of this machine)' if everywhere else ''}; SIGTERM or Ctrl-C stops it")
+            override = (
+                ""
+                if reach == f"tcp/localhost:{DEFAULT_PORT}"
+                # rmw_zenoh's nodes look there
+                else f" ZENOH_CONFIG_OVERRIDE='connect/endpoints=[\"{reach}\"]'"
+            )
+            out(
+                f"ROS 2 router (rmw_zenohd's configuration) listening on {', '.join(listen)}"
+                f"{' (every interface of this machine)' if everywhere else ''}; SIGTERM or Ctrl-C stops it"
+            )
             out(f"  a run:          orchestrator run CONFIG --ros2 {reach}")
             out(f"  a ros2.bridge:  transport: zenoh, endpoint: {reach}")
             out(f"  ROS 2 nodes:    RMW_IMPLEMENTATION=rmw_zenoh_cpp{override}, the run's ROS_DOMAIN_ID")

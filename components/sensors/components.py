@@ -18,30 +18,43 @@ the same noise bit for bit, and the same seed with other sigmas gives the same d
 densities): the same sigma at another step gives the same per-sample spread. The generator's
 state is part of ``get_state``, so a restored instance draws what the original would have.
 """
+
 from __future__ import annotations
 
-from typing import Any, ClassVar, Mapping
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
 import numpy as np
 
 from components.constants import NS_PER_S
 from components.errors import ConfigError
+from components.noise import (
+    BiasRandomWalk,
+    LatencyBuffer,
+    NormalStream,
+    latency_samples,
+    normalized,
+    per_axis,
+    perturb_quaternion,
+    white,
+)
 from components.rotations import continuous
 from components.schema import Duration, Float, Int, OneOf, Vector
-from components.units import DEG
 from components.sdk import Component, Parameter, Variable
-from components.sensors.plots import measured_against_true
 from components.sensors import ros as sensor_ros
+from components.sensors.plots import measured_against_true
 from components.sensors.view import SensorView
-from components.noise import (BiasRandomWalk, LatencyBuffer, NormalStream, latency_samples, normalized,
-                                      per_axis, perturb_quaternion, white)
-
+from components.units import DEG
 
 # --------------------------------------------------------------------------- shared declarations
 
+
 def _seed() -> Parameter:
-    return Parameter("seed", Int(minimum=0), description="seed of the noise (numpy PCG64): the same seed "
-                                                         "replays the same noise bit for bit")
+    return Parameter(
+        "seed",
+        Int(minimum=0),
+        description="seed of the noise (numpy PCG64): the same seed replays the same noise bit for bit",
+    )
 
 
 def _sigma(name: str, unit: str, what: str, plausible: tuple[float, float], default: Any = ...) -> Parameter:
@@ -62,6 +75,7 @@ def _bias(name: str, unit: str, what: str, plausible: tuple[float, float], defau
 
 class _SeededSensor(Component):
     """Shared plumbing: the seeded normal stream, ``DRAWS`` normals per step."""
+
     #: Its measurements: output -> the input it measures (its plot and its view show them side by side).
     measures: ClassVar[Mapping[str, str]]
 
@@ -83,6 +97,7 @@ class _SeededSensor(Component):
 
 # --------------------------------------------------------------------------- IMU
 
+
 class ImuComponent(_SeededSensor):
     """An inertial measurement unit (type ``sensor.imu``): gyro and accelerometer, body axes.
 
@@ -96,6 +111,7 @@ class ImuComponent(_SeededSensor):
     Draws per step: 12 normals, gyro noise (3), accelerometer noise (3), gyro bias increment (3),
     accelerometer bias increment (3). State: the generator and the current biases.
     """
+
     type_name = "sensor.imu"
     measures = {"rate": "rate_true", "specific_force": "specific_force_true"}
     plots = (measured_against_true(measures),)
@@ -113,11 +129,25 @@ class ImuComponent(_SeededSensor):
     )
     variables = (
         Variable("rate_true", "input", (3,), "rad/s", [0.0] * 3, "true angular rate of the body, body axes"),
-        Variable("specific_force_true", "input", (3,), "m/s^2", [0.0] * 3,
-                 "true specific force (non-gravitational acceleration), body axes"),
-        Variable("rate", "output", (3,), "rad/s", [0.0] * 3, "measured angular rate, body axes (0 until the first step)"),
-        Variable("specific_force", "output", (3,), "m/s^2", [0.0] * 3,
-                 "measured specific force, body axes (0 until the first step)"),
+        Variable(
+            "specific_force_true",
+            "input",
+            (3,),
+            "m/s^2",
+            [0.0] * 3,
+            "true specific force (non-gravitational acceleration), body axes",
+        ),
+        Variable(
+            "rate", "output", (3,), "rad/s", [0.0] * 3, "measured angular rate, body axes (0 until the first step)"
+        ),
+        Variable(
+            "specific_force",
+            "output",
+            (3,),
+            "m/s^2",
+            [0.0] * 3,
+            "measured specific force, body axes (0 until the first step)",
+        ),
     )
     DRAWS = 12
 
@@ -141,8 +171,11 @@ class ImuComponent(_SeededSensor):
         return self.out
 
     def get_state(self):
-        return {**self._base_state(), "rate_bias": self.gyro_bias.bias.copy(),
-                "accel_bias": self.accel_bias.bias.copy()}
+        return {
+            **self._base_state(),
+            "rate_bias": self.gyro_bias.bias.copy(),
+            "accel_bias": self.accel_bias.bias.copy(),
+        }
 
     def set_state(self, state):
         self._set_base_state(state)
@@ -151,6 +184,7 @@ class ImuComponent(_SeededSensor):
 
 
 # --------------------------------------------------------------------------- force/torque
+
 
 class ForceTorqueComponent(_SeededSensor):
     """A six-axis force/torque sensor (type ``sensor.force_torque``), sensor axes.
@@ -161,6 +195,7 @@ class ForceTorqueComponent(_SeededSensor):
 
     Draws per step: 6 normals, force noise (3), torque noise (3). State: the generator.
     """
+
     type_name = "sensor.force_torque"
     measures = {"wrench": "wrench_true"}
     plots = (measured_against_true(measures),)
@@ -174,10 +209,22 @@ class ForceTorqueComponent(_SeededSensor):
         _bias("torque_bias", "N*m", "torque bias", (-1e3, 1e3), default=0.0),
     )
     variables = (
-        Variable("wrench_true", "input", (6,), "N, N*m", [0.0] * 6,
-                 "true force (N), then torque (N m) about the sensor origin, sensor axes"),
-        Variable("wrench", "output", (6,), "N, N*m", [0.0] * 6,
-                 "measured force, then torque, sensor axes (0 until the first step)"),
+        Variable(
+            "wrench_true",
+            "input",
+            (6,),
+            "N, N*m",
+            [0.0] * 6,
+            "true force (N), then torque (N m) about the sensor origin, sensor axes",
+        ),
+        Variable(
+            "wrench",
+            "output",
+            (6,),
+            "N, N*m",
+            [0.0] * 6,
+            "measured force, then torque, sensor axes (0 until the first step)",
+        ),
     )
     DRAWS = 6
 
@@ -204,6 +251,7 @@ class ForceTorqueComponent(_SeededSensor):
 
 # --------------------------------------------------------------------------- relative pose
 
+
 class RelativePoseComponent(_SeededSensor):
     """A relative pose sensor (type ``sensor.relative_pose``: a camera with pose estimation, a
     lidar): the target frame's pose in the sensor frame, noisy and late.
@@ -223,6 +271,7 @@ class RelativePoseComponent(_SeededSensor):
     Draws per step: 6 normals, position noise (3), rotation noise (3). State: the generator, the
     step it learnt, the samples in the latency pipeline and the last outputs.
     """
+
     type_name = "sensor.relative_pose"
     measures = {"p": "p_true", "q": "q_true"}
     plots = (measured_against_true(measures),)
@@ -232,15 +281,24 @@ class RelativePoseComponent(_SeededSensor):
         _seed(),
         _sigma("position_noise", "m", "position white noise, sensor axes", (0.0, 1.0)),
         _sigma("angle_noise", "rad", "rotation white noise, a small rotation vector in target axes", (0.0, 10 * DEG)),
-        Parameter("latency", Duration(positive=False, plausible=(0.0, 10.0)),
-                  description="age of a measurement when published, a whole number of the component's steps (0 allowed)"),
+        Parameter(
+            "latency",
+            Duration(positive=False, plausible=(0.0, 10.0)),
+            description="age of a measurement when published, a whole number of the component's steps (0 allowed)",
+        ),
     )
     variables = (
         Variable("p_true", "input", (3,), "m", [0.0] * 3, "true position of the target frame's origin, sensor frame"),
         Variable("q_true", "input", (4,), "1", [0.0, 0.0, 0.0, 1.0], "true q_sensor_target [x, y, z, w]"),
         Variable("p", "output", (3,), "m", [0.0] * 3, "measured position of the target, sensor frame"),
-        Variable("q", "output", (4,), "1", [0.0, 0.0, 0.0, 1.0],
-                 "measured q_sensor_target [x, y, z, w], unit, sign-continuous"),
+        Variable(
+            "q",
+            "output",
+            (4,),
+            "1",
+            [0.0, 0.0, 0.0, 1.0],
+            "measured q_sensor_target [x, y, z, w], unit, sign-continuous",
+        ),
         Variable("t_measured", "output", (), "s", 0.0, "when the published measurement was taken (before latency)"),
         Variable("valid", "output", (), "1", 0.0, "1 once a measurement has come through the latency, else 0"),
     )
@@ -257,8 +315,8 @@ class RelativePoseComponent(_SeededSensor):
         super().__init__(params)
         self.position_noise, self.angle_noise = per_axis(params["position_noise"]), per_axis(params["angle_noise"])
         self.latency_ns = int(params["latency"])
-        self.step_ns = 0                         # learnt at the first do_step
-        self.pipeline = LatencyBuffer(7)         # p (3), q (4)
+        self.step_ns = 0  # learnt at the first do_step
+        self.pipeline = LatencyBuffer(7)  # p (3), q (4)
         self.p, self.q = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
         self.t_measured_ns, self.valid = 0, False
 
@@ -273,8 +331,11 @@ class RelativePoseComponent(_SeededSensor):
             self.pipeline.delay = latency_samples(self.latency_ns, h_ns, "latency")
             self.step_ns = h_ns
         elif h_ns != self.step_ns:
-            raise ConfigError("latency", f"counted in steps of {self.step_ns} ns, but this step is {h_ns} ns: "
-                                         "a relative_pose sensor needs a constant step")
+            raise ConfigError(
+                "latency",
+                f"counted in steps of {self.step_ns} ns, but this step is {h_ns} ns: "
+                "a relative_pose sensor needs a constant step",
+            )
         z = self._draw()
         p = inputs["p_true"] + white(self.position_noise, z[0:3])
         q = perturb_quaternion(normalized(inputs["q_true"], "q_true"), white(self.angle_noise, z[3:6]))
@@ -288,9 +349,15 @@ class RelativePoseComponent(_SeededSensor):
         return self._outputs()
 
     def get_state(self):
-        return {**self._base_state(), **self.pipeline.get_state("pipeline_"), "step_ns": np.int64(self.step_ns),
-                "p": self.p.copy(), "q": self.q.copy(), "t_measured_ns": np.int64(self.t_measured_ns),
-                "valid": np.bool_(self.valid)}
+        return {
+            **self._base_state(),
+            **self.pipeline.get_state("pipeline_"),
+            "step_ns": np.int64(self.step_ns),
+            "p": self.p.copy(),
+            "q": self.q.copy(),
+            "t_measured_ns": np.int64(self.t_measured_ns),
+            "valid": np.bool_(self.valid),
+        }
 
     def set_state(self, state):
         self._set_base_state(state)
@@ -303,6 +370,7 @@ class RelativePoseComponent(_SeededSensor):
 
 # --------------------------------------------------------------------------- magnetometer
 
+
 class MagnetometerComponent(_SeededSensor):
     """A three-axis magnetometer (type ``sensor.magnetometer``), sensor (body) axes.
 
@@ -312,6 +380,7 @@ class MagnetometerComponent(_SeededSensor):
 
     Draws per step: 3 normals, the noise. State: the generator.
     """
+
     type_name = "sensor.magnetometer"
     measures = {"b": "b_true"}
     plots = (measured_against_true(measures),)

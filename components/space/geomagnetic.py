@@ -32,19 +32,20 @@ plain functions and classes, no I/O.
   about 11.5 deg from the spin axis). At the dipole's own pole the field is twice the field at
   its equator at the same radius (a closed form the tests use).
 """
+
 from __future__ import annotations
 
 import datetime as _dt
 import math
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
-WMM_RADIUS = 6371200.0          # m, the WMM's (and the IGRF's) reference radius a
-WMM_EPOCH = 2025.0              # decimal years: WMM2025's epoch; valid for 5 years
+WMM_RADIUS = 6371200.0  # m, the WMM's (and the IGRF's) reference radius a
+WMM_EPOCH = 2025.0  # decimal years: WMM2025's epoch; valid for 5 years
 WMM_LIFESPAN = 5.0
-NT = 1e-9                       # T per nT
+NT = 1e-9  # T per nT
 # Basilisk's centered dipole of the Earth (simSetPlanetEnvironment.centeredDipoleMagField), T and m
 BASILISK_DIPOLE = {"g10": -30926.0e-9, "g11": -2318.0e-9, "h11": 5817.0e-9, "radius": 6371.2e3}
 MODELS = ("wmm", "dipole")
@@ -55,7 +56,7 @@ def decimal_year(utc: tuple[float, float]) -> float:
     seconds_of_day / 86400) / days_in_year."""
     import erfa
 
-    year, month, day, fraction = erfa.jd2cal(utc[0], utc[1])     # (no leap-second table: no warning past it)
+    year, month, day, fraction = erfa.jd2cal(utc[0], utc[1])  # (no leap-second table: no warning past it)
     year, month, day = int(year), int(month), int(day)
     doy = (_dt.date(year, month, day) - _dt.date(year, 1, 1)).days
     days = 366 if (year % 4 == 0 and year % 100 != 0) or year % 400 == 0 else 365
@@ -91,12 +92,15 @@ class WorldMagneticModel:
         import erfa
 
         if not WMM_EPOCH <= year <= WMM_EPOCH + WMM_LIFESPAN:
-            raise ValueError(f"the WMM2025 is valid from {WMM_EPOCH:g} to {WMM_EPOCH + WMM_LIFESPAN:g}: expected a "
-                             f"time within it, got the decimal year {year:.4f} (use the dipole model outside it)")
-        lon, lat, height = erfa.gc2gd(1, np.asarray(r_ecef, dtype=float))      # 1: WGS 84
+            raise ValueError(
+                f"the WMM2025 is valid from {WMM_EPOCH:g} to {WMM_EPOCH + WMM_LIFESPAN:g}: expected a "
+                f"time within it, got the decimal year {year:.4f} (use the dipole model outside it)"
+            )
+        lon, lat, height = erfa.gc2gd(1, np.asarray(r_ecef, dtype=float))  # 1: WGS 84
         lon, lat, height = float(lon), float(lat), float(height)
-        result = self.geomag.calculate(math.degrees(lat), math.degrees(lon), height / 1e3, year,
-                                       allow_date_outside_lifespan=True)
+        result = self.geomag.calculate(
+            math.degrees(lat), math.degrees(lon), height / 1e3, year, allow_date_outside_lifespan=True
+        )
         ned = np.array([result.x, result.y, result.z]) * NT
         return ned @ geodetic_ned_axes(lat, lon)
 

@@ -35,6 +35,7 @@ The coefficient file (``data/GGM03S_20.txt``, see ``data/README.md``) is GGM03S 
 order 20 in the format Basilisk's ``loadGravFromFile`` reads, so both sides of the cross-check
 read the same numbers. The field is compiled with numba (no fastmath: IEEE arithmetic).
 """
+
 from __future__ import annotations
 
 import math
@@ -69,12 +70,17 @@ def read_coefficients(path: str | Path, degree: int):
         head = [float(x) for x in rows[0].split(",")[:8]]
         radius, mu, max_degree, max_order, normalized = head[0], head[1], int(head[3]), int(head[4]), head[5]
     except (IndexError, ValueError):
-        raise GravityFileError(f"{path}: expected a first row 'R, mu, sigma, max_degree, max_order, 1, 0, 0', "
-                               f"got {rows[0][:80]!r}" if rows else f"{path}: empty") from None
+        raise GravityFileError(
+            f"{path}: expected a first row 'R, mu, sigma, max_degree, max_order, 1, 0, 0', got {rows[0][:80]!r}"
+            if rows
+            else f"{path}: empty"
+        ) from None
     if normalized != 1:
         raise GravityFileError(f"{path}: expected fully normalized coefficients (6th field 1), got {normalized:g}")
     if degree > min(max_degree, max_order):
-        raise GravityFileError(f"degree and order {degree} asked of {path}, which holds degree {max_degree}, order {max_order}")
+        raise GravityFileError(
+            f"degree and order {degree} asked of {path}, which holds degree {max_degree}, order {max_order}"
+        )
     c = np.zeros((degree + 1, degree + 1))
     s = np.zeros((degree + 1, degree + 1))
     for k, row in enumerate(rows[1:], start=2):
@@ -121,11 +127,11 @@ def pines_field(x, y, z, mu, radius, c, s, degree, order, first, diagonal, below
     ``order``) at (x, y, z) (m) into ``out``; ``a_bar`` (degree+2, order+2) scratch."""
     r = math.sqrt(x * x + y * y + z * z)
     su, tu, u = x / r, y / r, z / r
-    top = order + 1                              # orders of Abar needed: 0..order+1
+    top = order + 1  # orders of Abar needed: 0..order+1
     for n in range(degree + 2):
         for m in range(min(n, top) + 1):
             a_bar[n, m] = 0.0
-    for m in range(min(degree + 1, top) + 1):   # each column's seeds: Abar_mm, Abar_{m+1,m}
+    for m in range(min(degree + 1, top) + 1):  # each column's seeds: Abar_mm, Abar_{m+1,m}
         a_bar[m, m] = diagonal[m]
         if m + 1 <= degree + 1:
             a_bar[m + 1, m] = below[m + 1] * u * diagonal[m + 1]
@@ -188,8 +194,21 @@ class GravityField:
 
     def _evaluate(self, r, first: int) -> np.ndarray:
         out = np.empty(3)
-        pines_field(float(r[0]), float(r[1]), float(r[2]), self.mu, self.radius, self.c, self.s, self.degree,
-                    self.order, first, *self._factors, self._a_bar, out)
+        pines_field(
+            float(r[0]),
+            float(r[1]),
+            float(r[2]),
+            self.mu,
+            self.radius,
+            self.c,
+            self.s,
+            self.degree,
+            self.order,
+            first,
+            *self._factors,
+            self._a_bar,
+            out,
+        )
         return out
 
     def field(self, r_itrf) -> np.ndarray:
@@ -223,4 +242,3 @@ def third_body_acceleration(r, s, mu3: float) -> np.ndarray:
     d2 = dx * dx + dy * dy + dz * dz
     k = -mu3 / (d2 * math.sqrt(d2))
     return np.array([k * (rx + f * sx), k * (ry + f * sy), k * (rz + f * sz)])
-

@@ -24,6 +24,7 @@ Basilisk uses 1372.5398 W/m^2 in ``radiationPressure`` and 1368 W/m^2 in ``facet
 
 Facet arrays: one row per facet, ``FACET_COLUMNS`` = area, normal (3), centre (3), specular, diffuse.
 """
+
 from __future__ import annotations
 
 import math
@@ -33,8 +34,8 @@ import numpy as np
 
 from components.space.ephemeris import AU
 
-SOLAR_FLUX = 1361.0                  # W/m^2 at 1 AU (IAU 2015 Resolution B3, nominal total solar irradiance)
-SPEED_OF_LIGHT = 299_792_458.0       # m/s (exact)
+SOLAR_FLUX = 1361.0  # W/m^2 at 1 AU (IAU 2015 Resolution B3, nominal total solar irradiance)
+SPEED_OF_LIGHT = 299_792_458.0  # m/s (exact)
 FACET_COLUMNS = ("area", "nx", "ny", "nz", "cx", "cy", "cz", "specular", "diffuse")
 
 
@@ -90,12 +91,21 @@ def cannonball_force(s, cr_area: float, nu: float = 1.0, *, flux: float = SOLAR_
     return f
 
 
-def facet_wrench(s, facets, nu: float = 1.0, *, flux: float = SOLAR_FLUX, au: float = AU) -> tuple[np.ndarray, np.ndarray]:
+def facet_wrench(
+    s, facets, nu: float = 1.0, *, flux: float = SOLAR_FLUX, au: float = AU
+) -> tuple[np.ndarray, np.ndarray]:
     """(force N, torque N m about the origin of the facets' centres) of ``facets`` (rows:
     ``FACET_COLUMNS``) for ``s`` the point -> Sun (m), in the facets' axes."""
     f, t = np.zeros(3), np.zeros(3)
-    facets_nb(np.asarray(s, dtype=np.float64), np.ascontiguousarray(facets, dtype=np.float64).reshape(-1, 9),
-              pressure_1au(flux), float(au), float(nu), f, t)
+    facets_nb(
+        np.asarray(s, dtype=np.float64),
+        np.ascontiguousarray(facets, dtype=np.float64).reshape(-1, 9),
+        pressure_1au(flux),
+        float(au),
+        float(nu),
+        f,
+        t,
+    )
     return f, t
 
 
@@ -107,11 +117,15 @@ def facet_rows(facets, *, where: str = "facets") -> np.ndarray:
         normal = np.asarray(facet["normal"], dtype=np.float64)
         norm = float(np.linalg.norm(normal))
         if not norm > 0.0 or not math.isfinite(norm):
-            raise ValueError(f"{where}[{i}].normal: expected a direction (a vector that is not zero), got {list(facet['normal'])}")
+            raise ValueError(
+                f"{where}[{i}].normal: expected a direction (a vector that is not zero), got {list(facet['normal'])}"
+            )
         specular, diffuse = float(facet["specular"]), float(facet["diffuse"])
         if specular + diffuse > 1.0:
-            raise ValueError(f"{where}[{i}]: expected specular + diffuse <= 1 (the rest is absorbed), "
-                             f"got {specular} + {diffuse}")
-        rows.append([float(facet["area"]), *(normal / norm), *np.asarray(facet["centre"], dtype=np.float64),
-                     specular, diffuse])
+            raise ValueError(
+                f"{where}[{i}]: expected specular + diffuse <= 1 (the rest is absorbed), got {specular} + {diffuse}"
+            )
+        rows.append(
+            [float(facet["area"]), *(normal / norm), *np.asarray(facet["centre"], dtype=np.float64), specular, diffuse]
+        )
     return np.array(rows, dtype=np.float64).reshape(-1, 9)

@@ -1,4 +1,5 @@
 """Small components with closed-form behaviour, for tests, benchmarks and examples."""
+
 from __future__ import annotations
 
 import os
@@ -12,8 +13,8 @@ from components.sdk import Component, Parameter, Variable
 
 
 class Counter(Component):
-    """Counts its steps.
-    """
+    """Counts its steps."""
+
     type_name = "test.counter"
     variables = (Variable("n", "output", (), "1", 0.0, "number of steps done"),)
 
@@ -35,8 +36,8 @@ class Counter(Component):
 
 
 class Constant(Component):
-    """Outputs a constant.
-    """
+    """Outputs a constant."""
+
     type_name = "test.constant"
     parameters = (Parameter("value", "float", unit="1", description="the constant output"),)
 
@@ -61,8 +62,8 @@ class Constant(Component):
 
 
 class Integrator(Component):
-    """x' = gain * u by explicit Euler: x(t + h) = x(t) + gain * u * h.
-    """
+    """x' = gain * u by explicit Euler: x(t + h) = x(t) + gain * u * h."""
+
     type_name = "test.integrator"
     parameters = (
         Parameter("gain", "float", unit="1", default=1.0, description="multiplies u"),
@@ -71,10 +72,18 @@ class Integrator(Component):
 
     @classmethod
     def declare(cls, params):
-        return [Variable("u", "input", (), "1", 0.0, "rate (held over the step)"),
-                Variable("x", "output", (), "1", params["x0"], "integral of gain * u"),
-                Variable("u_time", "output", (), "s", 0.0,
-                         "when the u it last stepped on was sampled (input_times_ns; t if unconnected)")]
+        return [
+            Variable("u", "input", (), "1", 0.0, "rate (held over the step)"),
+            Variable("x", "output", (), "1", params["x0"], "integral of gain * u"),
+            Variable(
+                "u_time",
+                "output",
+                (),
+                "s",
+                0.0,
+                "when the u it last stepped on was sampled (input_times_ns; t if unconnected)",
+            ),
+        ]
 
     def __init__(self, params):
         self.gain, self.x = params["gain"], params["x0"]
@@ -94,16 +103,15 @@ class Integrator(Component):
 
 
 class NoOp(Component):
-    """Does nothing with a small input and output vector; for measuring the lockstep overhead.
-    """
+    """Does nothing with a small input and output vector; for measuring the lockstep overhead."""
+
     type_name = "test.noop"
     parameters = (Parameter("size", "int", default=1, description="length of u and y"),)
 
     @classmethod
     def declare(cls, params):
         n = params["size"]
-        return [Variable("u", "input", (n,), "1", 0.0, "ignored"),
-                Variable("y", "output", (n,), "1", 0.0, "zeros")]
+        return [Variable("u", "input", (n,), "1", 0.0, "ignored"), Variable("y", "output", (n,), "1", 0.0, "zeros")]
 
     def __init__(self, params):
         self.y = np.zeros(params["size"])
@@ -126,10 +134,10 @@ class Faulty(Component):
 
     State: the number of steps done (a restored instance misbehaves at the same step).
     """
+
     type_name = "test.faulty"
     parameters = (
-        Parameter("fault", "str", choices=("raise", "exit", "kill", "hang", "nan"),
-                  description="what goes wrong"),
+        Parameter("fault", "str", choices=("raise", "exit", "kill", "hang", "nan"), description="what goes wrong"),
         Parameter("at_step", "int", description="the step (0-based) at which it goes wrong"),
     )
 
@@ -169,23 +177,28 @@ class Imager(Component):
     count, every pixel different: ``rgb[i, j, c] = (n + 3 i + 5 j + 7 c + floor(1000 u)) mod 256``,
     ``depth[i, j] = u + n + (i W + j) / 2^16`` (float32), n the frames made so far (0 at initialize).
     """
+
     type_name = "test.imager"
-    parameters = (Parameter("width", "int", description="frame width (pixels)"),
-                  Parameter("height", "int", description="frame height (pixels)"))
+    parameters = (
+        Parameter("width", "int", description="frame width (pixels)"),
+        Parameter("height", "int", description="frame height (pixels)"),
+    )
 
     @classmethod
     def declare(cls, params):
         h, w = params["height"], params["width"]
-        return [Variable("u", "input", (), "1", 0.0, "shifts every pixel"),
-                Variable("rgb", "output", (h, w, 3), "1", 0, "the image", frame=True, dtype="uint8"),
-                Variable("depth", "output", (h, w), "m", 0, "the depth", frame=True, dtype="float32"),
-                Variable("n", "output", (), "1", 0.0, "frames made so far")]
+        return [
+            Variable("u", "input", (), "1", 0.0, "shifts every pixel"),
+            Variable("rgb", "output", (h, w, 3), "1", 0, "the image", frame=True, dtype="uint8"),
+            Variable("depth", "output", (h, w), "m", 0, "the depth", frame=True, dtype="float32"),
+            Variable("n", "output", (), "1", 0.0, "frames made so far"),
+        ]
 
     def __init__(self, params):
         h, w = params["height"], params["width"]
         i, j, c = np.meshgrid(np.arange(h), np.arange(w), np.arange(3), indexing="ij")
         self.pattern = 3 * i + 5 * j + 7 * c
-        self.ramp = (np.arange(h * w).reshape(h, w) / 65536.0)
+        self.ramp = np.arange(h * w).reshape(h, w) / 65536.0
         self.n = 0
 
     def _outputs(self, u: float):
@@ -205,18 +218,23 @@ class ImageSum(Component):
     their index (so a pixel out of place changes it) mod 1, and ``d``, the depth's sum; ``t_image``
     when the image was made (its ``input_times_ns``).
     """
+
     type_name = "test.image_sum"
-    parameters = (Parameter("width", "int", description="frame width (pixels)"),
-                  Parameter("height", "int", description="frame height (pixels)"))
+    parameters = (
+        Parameter("width", "int", description="frame width (pixels)"),
+        Parameter("height", "int", description="frame height (pixels)"),
+    )
 
     @classmethod
     def declare(cls, params):
         h, w = params["height"], params["width"]
-        return [Variable("rgb", "input", (h, w, 3), "1", 0, "an image", frame=True, dtype="uint8"),
-                Variable("depth", "input", (h, w), "m", 0, "a depth", frame=True, dtype="float32"),
-                Variable("s", "output", (), "1", 0.0, "the weighted pixel sum, mod 1"),
-                Variable("d", "output", (), "m", 0.0, "the depth's sum"),
-                Variable("t_image", "output", (), "s", 0.0, "when the image was made")]
+        return [
+            Variable("rgb", "input", (h, w, 3), "1", 0, "an image", frame=True, dtype="uint8"),
+            Variable("depth", "input", (h, w), "m", 0, "a depth", frame=True, dtype="float32"),
+            Variable("s", "output", (), "1", 0.0, "the weighted pixel sum, mod 1"),
+            Variable("d", "output", (), "m", 0.0, "the depth's sum"),
+            Variable("t_image", "output", (), "s", 0.0, "when the image was made"),
+        ]
 
     def __init__(self, params):
         self.weights = np.arange(params["height"] * params["width"] * 3, dtype=np.float64) + 1.0

@@ -19,10 +19,12 @@ and shape, handed to the component read-only, as the bus does); it holds zeros u
 ``initialize`` always (a frame is first read at a step). ``h.frames`` holds the frame outputs of
 the last step (or ``initialize``).
 """
+
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -35,8 +37,15 @@ from components.sdk import Component
 class Harness:
     """One component instance, stepped by hand. ``t_ns`` is the current time."""
 
-    def __init__(self, component_type: str | type[Component], params: Mapping[str, Any] | None = None,
-                 *, t0_ns: int = 0, epoch: str = "2000-01-01T12:00:00Z", config_dir: str | Path = "."):
+    def __init__(
+        self,
+        component_type: str | type[Component],
+        params: Mapping[str, Any] | None = None,
+        *,
+        t0_ns: int = 0,
+        epoch: str = "2000-01-01T12:00:00Z",
+        config_dir: str | Path = ".",
+    ):
         try:
             resolved = registry.resolve(component_type, params or {}, epoch=epoch, config_dir=config_dir)
         except registry.Unresolved as e:
@@ -76,8 +85,11 @@ class Harness:
         for v in self.output_layout.frames:
             frame = result.get(v.name)
             if not isinstance(frame, np.ndarray) or frame.dtype.name != v.dtype or frame.shape != v.shape:
-                raise ConfigError(v.name, f"frame output is {v.dtype} {v.shape}, got "
-                                          f"{getattr(frame, 'dtype', type(frame).__name__)} {getattr(frame, 'shape', '')}")
+                raise ConfigError(
+                    v.name,
+                    f"frame output is {v.dtype} {v.shape}, got "
+                    f"{getattr(frame, 'dtype', type(frame).__name__)} {getattr(frame, 'shape', '')}",
+                )
             self.frames[v.name] = frame.copy()
 
     def initialize(self) -> dict[str, np.ndarray]:
@@ -92,8 +104,10 @@ class Harness:
         """One do_step over [t, t + h_ns); initializes first if needed."""
         if not self._initialized:
             self.initialize()
-        self.component.input_times_ns = {**{v.name: self.t_ns for v in self.input_layout.variables + self.input_layout.frames},
-                                         **self.input_times_ns}
+        self.component.input_times_ns = {
+            **{v.name: self.t_ns for v in self.input_layout.variables + self.input_layout.frames},
+            **self.input_times_ns,
+        }
         self._take(self.component.do_step(self.t_ns, h_ns, self._input_views()))
         self.t_ns += h_ns
         return self.outputs

@@ -23,6 +23,7 @@ on channels advertised from the start. It runs in the observer shell (components
 niced, reading a dropping publisher: a slow client never holds up a step (the server drops its
 oldest messages for it).
 """
+
 from __future__ import annotations
 
 import socket
@@ -37,7 +38,7 @@ from components.observer_shell import View, ViewError, logger, once
 from components.ros_topics import LiveTopics
 
 HOST = "127.0.0.1"
-DISTRO = "ros2_jazzy"   # message definitions, as the rosbag2 export writes them
+DISTRO = "ros2_jazzy"  # message definitions, as the rosbag2 export writes them
 
 log = logger("viewer foxglove")
 
@@ -45,7 +46,7 @@ log = logger("viewer foxglove")
 def port_problem(port: int) -> str | None:
     """Why the server could not listen on ``port`` (in use, not allowed), or None."""
     probe = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)   # as the server binds: TIME_WAIT is no conflict
+    probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as the server binds: TIME_WAIT is no conflict
     try:
         probe.bind((HOST, port))
     except OSError as e:
@@ -60,20 +61,21 @@ class RosChannels:
 
     def __init__(self, columns: list[str], config: dict, config_dir: str | None, context, warn=None):
         from rosbags.typesys import Stores, get_typestore
+
         self.columns = columns
         self.config = config
         self.config_dir = Path(config_dir) if config_dir else None
         self.context = context
         self.typestore = get_typestore(Stores(DISTRO))
         self.channels: dict[str, object] = {}
-        self.latched: dict[str, bytes] = {}        # topic -> its one message (sent again on subscribe)
+        self.latched: dict[str, bytes] = {}  # topic -> its one message (sent again on subscribe)
         self.latched_ns: dict[str, int] = {}
-        self.warn = warn or once(log)             # the builders run per batch: say each thing once
+        self.warn = warn or once(log)  # the builders run per batch: say each thing once
         self.rows_sent = 0
         self.live = LiveTopics(config, config_dir, columns, self.typestore, self.warn)
-        self.assets = self._assets()               # URI -> file: what robot_description references
-        self._resend: set[str] = set()             # latched topics subscribed to since the last batch
-        self.subscriptions: dict[str, int] = {}    # topic -> clients subscribed to it
+        self.assets = self._assets()  # URI -> file: what robot_description references
+        self._resend: set[str] = set()  # latched topics subscribed to since the last batch
+        self.subscriptions: dict[str, int] = {}  # topic -> clients subscribed to it
         self._lock = threading.Lock()
 
     def subscribed(self, topic: str) -> None:
@@ -94,10 +96,14 @@ class RosChannels:
     def _channel(self, topic: str, msgtype: str):
         if topic not in self.channels:
             from foxglove import Channel, Schema
+
             definition, _ = self.typestore.generate_msgdef(msgtype, ros_version=2)
-            self.channels[topic] = Channel(topic, message_encoding="cdr", context=self.context,
-                                           schema=Schema(name=msgtype, encoding="ros2msg",
-                                                         data=definition.encode()))
+            self.channels[topic] = Channel(
+                topic,
+                message_encoding="cdr",
+                context=self.context,
+                schema=Schema(name=msgtype, encoding="ros2msg", data=definition.encode()),
+            )
         return self.channels[topic]
 
     def build(self, times, rows) -> tuple[list, int]:
@@ -115,13 +121,13 @@ class RosChannels:
             if topic.latched and messages:
                 self.latched_ns[topic.name], self.latched[topic.name] = messages[0]
             queue += [(ns, channel, data) for ns, data in messages]
-        queue.sort(key=lambda item: item[0])   # stable: topics in the exporter's order within a stamp
+        queue.sort(key=lambda item: item[0])  # stable: topics in the exporter's order within a stamp
         return queue
 
     def _assets(self) -> dict[str, Path]:
         from components.plotting import RecordedRun
-        from components.rosbag import RosContext
         from components.ros_topics import run_assets
+        from components.rosbag import RosContext
 
         run = RecordedRun(self.config, {}, np.zeros(1), self.config_dir)
         return run_assets(RosContext(run, self.typestore, self.warn), self.warn)
@@ -190,11 +196,11 @@ class FoxgloveView(View):
                 self.server = serve(channels, name=self.run_name, port=self.port)
             channels.log(queue)
             self.server.broadcast_time(stamp)
-        if channels.watched(self.frames.topics):   # till then the frames wait (LiveFrames.BACKLOG)
+        if channels.watched(self.frames.topics):  # till then the frames wait (LiveFrames.BACKLOG)
             channels.log(channels.queue(self.frames.take()))
         channels.resend_latched()
 
-    def linger(self) -> str | None:   # a terminal: until Ctrl-C (ViewerLink.stop)
+    def linger(self) -> str | None:  # a terminal: until Ctrl-C (ViewerLink.stop)
         return f"run over ({self.channels.rows_sent} rows sent); still serving until Ctrl-C" if self.lingers else None
 
     def close(self, completed: bool) -> None:
@@ -206,10 +212,17 @@ def serve(channels: RosChannels, name: str, port: int):
     """Start the WebSocket server on the channels' context; raises ViewError naming the port (its
     port taken since the orchestrator checked it: exit 2, the run goes on without the view)."""
     import foxglove
+
     try:
-        server = foxglove.start_server(name=name, host=HOST, port=port, context=channels.context,
-                                       server_listener=_listener(channels), capabilities=[foxglove.Capability.Time],
-                                       asset_handler=channels.asset)
+        server = foxglove.start_server(
+            name=name,
+            host=HOST,
+            port=port,
+            context=channels.context,
+            server_listener=_listener(channels),
+            capabilities=[foxglove.Capability.Time],
+            asset_handler=channels.asset,
+        )
     except RuntimeError as e:
         raise ViewError(f"cannot listen on port {port}: {e}", 2) from None
     log(f"serving the run on ws://localhost:{server.port} (Foxglove: Open connection, Foxglove WebSocket)")
@@ -217,8 +230,9 @@ def serve(channels: RosChannels, name: str, port: int):
 
 
 def main(argv: list[str] | None = None) -> int:
-    return observer_shell.main(FoxgloveView, argv, "python -m components.viewer.foxglove_observer",
-                               __doc__.splitlines()[0])
+    return observer_shell.main(
+        FoxgloveView, argv, "python -m components.viewer.foxglove_observer", __doc__.splitlines()[0]
+    )
 
 
 if __name__ == "__main__":

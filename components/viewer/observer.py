@@ -12,6 +12,7 @@ wait for that. ``END``: the data is flushed and the process exits, except in web
 keeps serving until SIGINT/SIGTERM or until the orchestrator's token goes away. Rows are logged in
 batches (a few per second live, every 2 s when saving: far cheaper per row).
 """
+
 from __future__ import annotations
 
 import sys
@@ -19,14 +20,14 @@ import sys
 from components import observer_shell
 from components.observer_shell import View, ViewError
 
-FILE_BATCH_S = 2.0                   # save: nobody watches, so larger batches still
+FILE_BATCH_S = 2.0  # save: nobody watches, so larger batches still
 
 
 class RerunView(View):
     """The rows as Rerun entities (:class:`components.viewer.scene.SceneLogger`), streamed or saved."""
 
     name = "viewer"
-    mesh = False   # no camera frames from the bus: the recording's own, from ``frames_dir``
+    mesh = False  # no camera frames from the bus: the recording's own, from ``frames_dir``
 
     def __init__(self, shell):
         super().__init__(shell)
@@ -43,12 +44,17 @@ class RerunView(View):
         setup, config = shell.setup, shell.config
         if self.mode == "spawn" and spawn_problem():
             raise ViewError(f"cannot spawn the desktop viewer: {spawn_problem()}", 1)
-        self.scene = SceneLogger(shell.columns, config, shell.config_dir, warn=shell.log,
-                                 frames_dir=setup.get("frames_dir"))
-        self.stream, self.url = open_stream(self.mode, recording_id=shell.run_id, file=self.file,
-                                            blueprint=self.scene.blueprint(),
-                                            open_browser=bool(setup.get("open_browser")),
-                                            name=(config.get("run") or {}).get("name") or shell.run_id)
+        self.scene = SceneLogger(
+            shell.columns, config, shell.config_dir, warn=shell.log, frames_dir=setup.get("frames_dir")
+        )
+        self.stream, self.url = open_stream(
+            self.mode,
+            recording_id=shell.run_id,
+            file=self.file,
+            blueprint=self.scene.blueprint(),
+            open_browser=bool(setup.get("open_browser")),
+            name=(config.get("run") or {}).get("name") or shell.run_id,
+        )
         self.scene.rec = self.stream
         self.scene.log_static()
         if self.url:

@@ -11,6 +11,7 @@ resolved as ``dynamics.dart`` resolves them: relative to the original config fil
 started: looked up from the current directory, then from the project root; the current directory
 without one), else to the project root.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -39,7 +40,9 @@ def read_recording(directory: str | Path) -> tuple[dict, Path | None, str]:
 
     directory = Path(directory)
     if not (directory / "signals.parquet").exists():
-        raise ReplayError(f"{directory}: no signals.parquet here (record one with `orchestrator run CONFIG --record DIR`)")
+        raise ReplayError(
+            f"{directory}: no signals.parquet here (record one with `orchestrator run CONFIG --record DIR`)"
+        )
     try:
         config = yaml.safe_load((directory / "config.yaml").read_text()) or {}
     except (OSError, yaml.YAMLError) as e:
@@ -85,8 +88,15 @@ def decimation(config: dict, rate_hz: float, times=None) -> int:
     return max(1, round(NS_PER_S / (rate_hz * step_ns)))
 
 
-def replay(directory: str | Path, mode: str = "spawn", file: str | Path | None = None, *,
-           rate_hz: float = DEFAULT_RATE_HZ, open_browser: bool = False, out=sys.stderr) -> int:
+def replay(
+    directory: str | Path,
+    mode: str = "spawn",
+    file: str | Path | None = None,
+    *,
+    rate_hz: float = DEFAULT_RATE_HZ,
+    open_browser: bool = False,
+    out=sys.stderr,
+) -> int:
     """Log a recording into Rerun; returns the number of rows logged. Web mode serves until Ctrl-C."""
     import numpy as np
 
@@ -96,18 +106,31 @@ def replay(directory: str | Path, mode: str = "spawn", file: str | Path | None =
     config, config_dir, run_id = read_recording(directory)
     import pyarrow.dataset as ds
 
-    parquet = ds.dataset(Path(directory) / "signals.parquet", format="parquet")   # a file, or a dataset directory
+    parquet = ds.dataset(Path(directory) / "signals.parquet", format="parquet")  # a file, or a dataset directory
     names = parquet.schema.names
     if not names or not parquet.count_rows():
-        raise ReplayError(f"{directory}/signals.parquet: the recording holds no rows (the run wrote none before it ended: its events.jsonl says why)")
+        raise ReplayError(
+            f"{directory}/signals.parquet: the recording holds no rows (the run wrote none before it ended: its events.jsonl says why)"
+        )
     if names[:2] != ["step", "time"]:
         raise ReplayError(f"{directory}/signals.parquet: expected the columns step, time first, got {names[:2]}")
     columns = names[2:]
     n = decimation(config, rate_hz)
-    scene = SceneLogger(columns, config, config_dir, warn=lambda m: print(f"view: {m}", file=out, flush=True),
-                        frames_dir=Path(directory) / "frames")
-    stream, url = open_stream(mode, recording_id=f"{run_id}-replay", file=file, blueprint=scene.blueprint(),
-                              open_browser=open_browser, name=f"{(config.get('run') or {}).get('name', run_id)} (replay)")
+    scene = SceneLogger(
+        columns,
+        config,
+        config_dir,
+        warn=lambda m: print(f"view: {m}", file=out, flush=True),
+        frames_dir=Path(directory) / "frames",
+    )
+    stream, url = open_stream(
+        mode,
+        recording_id=f"{run_id}-replay",
+        file=file,
+        blueprint=scene.blueprint(),
+        open_browser=open_browser,
+        name=f"{(config.get('run') or {}).get('name', run_id)} (replay)",
+    )
     scene.rec = stream
     try:
         scene.log_static()
@@ -117,8 +140,11 @@ def replay(directory: str | Path, mode: str = "spawn", file: str | Path | None =
             if not len(keep):
                 continue
             times = batch.column(1).to_numpy()[keep]
-            rows = np.column_stack([batch.column(j).to_numpy()[keep] for j in range(2, batch.num_columns)]) \
-                if columns else np.zeros((len(keep), 0))
+            rows = (
+                np.column_stack([batch.column(j).to_numpy()[keep] for j in range(2, batch.num_columns)])
+                if columns
+                else np.zeros((len(keep), 0))
+            )
             scene.log_rows(steps[keep], times, rows)
         stream.flush(timeout_sec=60.0)
         if url:
@@ -144,10 +170,19 @@ def add_view_command(subparsers) -> argparse.ArgumentParser:
     """Add ``view`` to the ``orchestrator`` command line (``subparsers`` of its parser)."""
     p = subparsers.add_parser("view", help="replay a recording (run --record DIR) in Rerun")
     p.add_argument("dir", metavar="DIR", help="a recording directory (signals.parquet, config.yaml)")
-    p.add_argument("--view", default="spawn", metavar="{spawn,web,save:FILE.rrd}",
-                   help="desktop viewer (default), web viewer on localhost, or an .rrd file")
-    p.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, metavar="HZ",
-                   help=f"rows per second of sim time (default {DEFAULT_RATE_HZ:g}, as the live view)")
+    p.add_argument(
+        "--view",
+        default="spawn",
+        metavar="{spawn,web,save:FILE.rrd}",
+        help="desktop viewer (default), web viewer on localhost, or an .rrd file",
+    )
+    p.add_argument(
+        "--rate",
+        type=float,
+        default=DEFAULT_RATE_HZ,
+        metavar="HZ",
+        help=f"rows per second of sim time (default {DEFAULT_RATE_HZ:g}, as the live view)",
+    )
     p.add_argument("--open-browser", action="store_true", help="web: open the page in the default browser")
     p.set_defaults(func=cmd_view)
     return p
@@ -164,6 +199,7 @@ def cmd_view(args) -> int:
         return USAGE_ERROR
     if mode == "spawn":
         from components.viewer.sinks import spawn_problem
+
         if spawn_problem():
             print(f"error: --view spawn: {spawn_problem()}", file=sys.stderr)
             return USAGE_ERROR

@@ -12,6 +12,7 @@ whole batch of rows at once: the base is a free flyer (``position`` = base link 
 ``orientation`` = q_W_base [x, y, z, w]) and ``q`` follows the movable joints in URDF file order,
 as the ``dynamics.dart`` outputs do. Units: m, rad.
 """
+
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
@@ -30,6 +31,7 @@ class Visual:
     """One ``<visual>`` of a link: ``kind`` box | cylinder | sphere | mesh, placed by ``xyz``/``rpy``
     in the link frame. ``size``: box (x, y, z) full lengths; cylinder (radius, length) along its z;
     sphere (radius,); mesh (scale x, y, z) with ``mesh`` the file, resolved when it exists."""
+
     link: str
     kind: str
     size: tuple[float, ...]
@@ -43,14 +45,15 @@ class Visual:
 class Geometry:
     """A URDF as the viewer sees it: link names and CoMs (link frame) in file order, movable
     joints in file order, visuals."""
+
     path: Path
     name: str
     links: list[str]
-    coms: np.ndarray                         # (n_links, 3), m, link frame
-    joints: list[str]                        # movable joints, file order (layout of q and tau)
+    coms: np.ndarray  # (n_links, 3), m, link frame
+    joints: list[str]  # movable joints, file order (layout of q and tau)
     visuals: list[Visual] = field(default_factory=list)
     collisions: list[Visual] = field(default_factory=list)
-    text: str = ""                           # the URDF as parsed (xacro expanded, mesh paths absolute)
+    text: str = ""  # the URDF as parsed (xacro expanded, mesh paths absolute)
 
 
 def _floats(text: str | None, n: int, default: tuple[float, ...]) -> tuple[float, ...]:
@@ -85,10 +88,14 @@ def mesh_arrays(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, 
             colors = np.asarray(mesh.visual.to_color().vertex_colors, dtype=np.uint8)
             if colors.shape != (len(mesh.vertices), 4):
                 colors = None
-    except Exception:   # a texture trimesh cannot bake into colours: the URDF's colour instead
+    except Exception:  # a texture trimesh cannot bake into colours: the URDF's colour instead
         colors = None
-    return (np.asarray(mesh.vertices, dtype=np.float32), np.asarray(mesh.faces, dtype=np.uint32),
-            np.asarray(mesh.vertex_normals, dtype=np.float32), colors)
+    return (
+        np.asarray(mesh.vertices, dtype=np.float32),
+        np.asarray(mesh.faces, dtype=np.uint32),
+        np.asarray(mesh.vertex_normals, dtype=np.float32),
+        colors,
+    )
 
 
 def _shape(name: str, element: ET.Element, color) -> Visual | None:
@@ -102,13 +109,22 @@ def _shape(name: str, element: ET.Element, color) -> Visual | None:
     if shape.tag == "box":
         return Visual(name, "box", _floats(shape.get("size"), 3, (0.1, 0.1, 0.1)), xyz, rpy, color)
     if shape.tag == "cylinder":
-        return Visual(name, "cylinder", (float(shape.get("radius", 0.05)), float(shape.get("length", 0.1))), xyz, rpy, color)
+        return Visual(
+            name, "cylinder", (float(shape.get("radius", 0.05)), float(shape.get("length", 0.1))), xyz, rpy, color
+        )
     if shape.tag == "sphere":
         return Visual(name, "sphere", (float(shape.get("radius", 0.05)),), xyz, rpy, color)
     if shape.tag == "mesh" and shape.get("filename"):
-        mesh = Path(shape.get("filename"))      # resolved by read_urdf: an absolute path that exists
-        return Visual(name, "mesh", _floats(shape.get("scale"), 3, (1.0, 1.0, 1.0)), xyz, rpy, color,
-                      mesh if mesh.is_file() else None)
+        mesh = Path(shape.get("filename"))  # resolved by read_urdf: an absolute path that exists
+        return Visual(
+            name,
+            "mesh",
+            _floats(shape.get("scale"), 3, (1.0, 1.0, 1.0)),
+            xyz,
+            rpy,
+            color,
+            mesh if mesh.is_file() else None,
+        )
     return None
 
 
@@ -132,9 +148,16 @@ def read_geometry(path: str | Path, packages=None) -> Geometry:
             shape = _shape(name, visual, color or DEFAULT_COLOR)
             if shape is not None:
                 visuals.append(shape)
-    return Geometry(path=model.path, name=model.name, links=model.link_names,
-                    coms=np.array([link.com for link in model.links], dtype=float).reshape(-1, 3),
-                    joints=model.movable_joints, visuals=visuals, collisions=collisions, text=model.text)
+    return Geometry(
+        path=model.path,
+        name=model.name,
+        links=model.link_names,
+        coms=np.array([link.com for link in model.links], dtype=float).reshape(-1, 3),
+        joints=model.movable_joints,
+        visuals=visuals,
+        collisions=collisions,
+        text=model.text,
+    )
 
 
 def normalized_quaternions(q: np.ndarray) -> np.ndarray:
@@ -155,7 +178,7 @@ class Kinematics:
 
         self._pin = pin
         self.geometry = geometry
-        if geometry.text:     # as parsed: xacro expanded, package URIs resolved
+        if geometry.text:  # as parsed: xacro expanded, package URIs resolved
             self.model = pin.buildModelFromXML(geometry.text, pin.JointModelFreeFlyer())
         else:
             self.model = pin.buildModelFromUrdf(str(geometry.path), pin.JointModelFreeFlyer())

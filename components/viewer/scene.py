@@ -17,13 +17,14 @@ What it draws itself (SI units; W = the dynamics world frame, ECI = GCRF axes):
 
 The views: components/orbit/view.py, components/dynamics/view.py, components/controller/view.py.
 """
+
 from __future__ import annotations
 
 import re
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -34,10 +35,10 @@ STEP_TIMELINE = "step"
 COLUMN = re.compile(r"^(?P<component>[^.\[]+)\.(?P<name>[^\[]+?)(?:\[(?P<index>\d+)\])?$")
 AXIS_COLORS = [(230, 60, 60), (60, 200, 80), (70, 110, 240)]
 LIGHT_AXIS_COLORS = [(250, 160, 150), (150, 230, 160), (150, 180, 250)]
-BULK = ("link_position", "link_orientation")      # drawn through the link poses, never plotted
-ARROW_LENGTH = 0.25                                # m, the longest arrow of a field when first seen
-ROBOT_EYE = (1.9, -1.6, 1.0)                       # m, initial camera of the robot view
-BODY_REACH = 1.5                                   # m, about a body's extent around its base (the camera's margin)
+BULK = ("link_position", "link_orientation")  # drawn through the link poses, never plotted
+ARROW_LENGTH = 0.25  # m, the longest arrow of a field when first seen
+ROBOT_EYE = (1.9, -1.6, 1.0)  # m, initial camera of the robot view
+BODY_REACH = 1.5  # m, about a body's extent around its base (the camera's margin)
 
 
 def parse_columns(columns: list[str]) -> dict[tuple[str, str], np.ndarray]:
@@ -59,8 +60,10 @@ def transform_columns(translation=None, quaternion=None) -> list:
     from rerun.components import RotationQuatBatch, Translation3DBatch
 
     columns = []
-    for values, batch, descriptor in ((translation, Translation3DBatch, rr.Transform3D.descriptor_translation),
-                                      (quaternion, RotationQuatBatch, rr.Transform3D.descriptor_quaternion)):
+    for values, batch, descriptor in (
+        (translation, Translation3DBatch, rr.Transform3D.descriptor_translation),
+        (quaternion, RotationQuatBatch, rr.Transform3D.descriptor_quaternion),
+    ):
         if values is not None:
             values = np.asarray(values, dtype=np.float32)
             columns.append(batch(values).described(descriptor()).partition(np.ones(len(values), dtype=np.int32)))
@@ -70,20 +73,24 @@ def transform_columns(translation=None, quaternion=None) -> list:
 def indexes(steps: np.ndarray, times: np.ndarray) -> list:
     """The two timelines of rows: ``sim_time`` (a duration, from ``times`` in s) and ``step``."""
     import rerun as rr
+
     return [rr.TimeColumn(TIMELINE, duration=times), rr.TimeColumn(STEP_TIMELINE, sequence=steps)]
 
 
 def entity_path(*parts: str) -> str:
     """An entity path of escaped parts: ``entity_path("world", name)`` is ``/world/<name>``."""
     import rerun as rr
+
     return "/" + "/".join(rr.escape_entity_path_part(p) for p in parts)
 
 
 def trail():
     """A blueprint override: an entity's past points stay shown (a path drawn as it goes)."""
     import rerun.blueprint as rrb
-    return rrb.VisibleTimeRanges(timeline=TIMELINE, start=rrb.TimeRangeBoundary.infinite(),
-                                 end=rrb.TimeRangeBoundary.cursor_relative())
+
+    return rrb.VisibleTimeRanges(
+        timeline=TIMELINE, start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.cursor_relative()
+    )
 
 
 @dataclass
@@ -92,6 +99,7 @@ class Layout:
     space (/world, W) or in the ECI space (/orbit); ``trails``: its entities there whose past
     points stay shown; ``figures``: time-series views beside the 3D ones; ``tabs``: views among
     the tabs; ``events``: it logs text under /events."""
+
     world: bool = False
     orbit: bool = False
     trails: list[str] = field(default_factory=list)
@@ -104,6 +112,7 @@ class Layout:
 class Batch:
     """Rows to log: ``steps`` (n,) int, ``times`` (n,) s, ``rows`` (n, n_columns) float64, sent
     to ``recording`` on both timelines."""
+
     steps: np.ndarray
     times: np.ndarray
     rows: np.ndarray
@@ -111,18 +120,22 @@ class Batch:
 
     def send(self, path: str, columns) -> None:
         import rerun as rr
+
         rr.send_columns(path, indexes=indexes(self.steps, self.times), columns=columns, recording=self.recording)
 
     def scalars(self, path: str, index: np.ndarray) -> None:
         """The columns ``index`` of every row as one plot series each."""
         import rerun as rr
+
         self.send(path, rr.Scalars.columns(scalars=self.rows[:, index]))
 
     def send_at(self, path: str, at: np.ndarray, columns) -> None:
         """``send`` for the rows ``at`` only (their steps and times)."""
         import rerun as rr
-        rr.send_columns(path, indexes=indexes(self.steps[at], self.times[at]), columns=columns,
-                        recording=self.recording)
+
+        rr.send_columns(
+            path, indexes=indexes(self.steps[at], self.times[at]), columns=columns, recording=self.recording
+        )
 
 
 class View:
@@ -136,22 +149,23 @@ class View:
     and ``start``: the camera frames them, a controller finds the one it drives). ``lvlh``: the
     column indices of an LVLH attitude it outputs (``q_eci_lvlh``), the robot view's axes.
     """
+
     bodies: list = []
     lvlh: np.ndarray | None = None
 
-    def __init__(self, name: str, parameters: dict, scene: "SceneLogger"):
+    def __init__(self, name: str, parameters: dict, scene: SceneLogger):
         self.name = name
 
-    def connect(self, scene: "SceneLogger") -> None:
+    def connect(self, scene: SceneLogger) -> None:
         """Look at the other views (``scene.views``, ``scene.bodies``)."""
 
-    def log_static(self, scene: "SceneLogger") -> None:
+    def log_static(self, scene: SceneLogger) -> None:
         """What does not change: shapes, styles, plot series names and colours."""
 
-    def log_rows(self, scene: "SceneLogger", batch: Batch) -> None:
+    def log_rows(self, scene: SceneLogger, batch: Batch) -> None:
         """One batch of rows, in time order."""
 
-    def layout(self, scene: "SceneLogger") -> Layout:
+    def layout(self, scene: SceneLogger) -> Layout:
         return Layout()
 
 
@@ -162,16 +176,27 @@ class SceneLogger:
     order (``rows``: shape (n, len(columns)), float64). ``blueprint()`` lays the views out.
     """
 
-    def __init__(self, columns: list[str], config: dict, config_dir: str | Path | None = None, *,
-                 recording=None, warn: Callable[[str], None] | None = None, frames_dir: str | Path | None = None):
+    def __init__(
+        self,
+        columns: list[str],
+        config: dict,
+        config_dir: str | Path | None = None,
+        *,
+        recording=None,
+        warn: Callable[[str], None] | None = None,
+        frames_dir: str | Path | None = None,
+    ):
         self.columns = list(columns)
-        self.frames_dir = Path(frames_dir) if frames_dir else None   # the recording's frames/ (camera images)
+        self.frames_dir = Path(frames_dir) if frames_dir else None  # the recording's frames/ (camera images)
         self.config = config or {}
         self.config_dir = Path(config_dir) if config_dir else None
         # run.packages as the run resolved them: relative to the config's directory
         packages = (self.config.get("run") or {}).get("packages") or {}
-        self.packages = {str(k): str((self.config_dir or Path(".")) / str(v)) for k, v in packages.items()} \
-            if isinstance(packages, dict) else {}
+        self.packages = (
+            {str(k): str((self.config_dir or Path(".")) / str(v)) for k, v in packages.items()}
+            if isinstance(packages, dict)
+            else {}
+        )
         self.rec = recording
         self.warn = warn or (lambda message: print(f"viewer: {message}", file=sys.stderr, flush=True))
         self.variables = parse_columns(self.columns)
@@ -179,7 +204,7 @@ class SceneLogger:
         self.connections = {str(k): str(v) for k, v in (self.config.get("connections") or {}).items()}
         self.arrow_scales: dict[tuple[str, ...], float] = {}
         self.arrow_units: dict[tuple[str, ...], str] = {}
-        self.types: dict[str, type] = {}          # the components' types that could be loaded
+        self.types: dict[str, type] = {}  # the components' types that could be loaded
         self.views: dict[str, View] = {}
         for name, entry in (self.config.get("components") or {}).items():
             view = self._view_of(name, entry or {})
@@ -241,8 +266,11 @@ class SceneLogger:
     def _world_lvlh(self) -> np.ndarray | None:
         """LVLH attitude for the robot view: the output feeding the bodies' component, else the first offered."""
         drawing = {body.dynamics for body in self.bodies}
-        feeding = [source for destination, source in self.connections.items()
-                   if destination.endswith(".q_eci_lvlh") and destination.split(".")[0] in drawing]
+        feeding = [
+            source
+            for destination, source in self.connections.items()
+            if destination.endswith(".q_eci_lvlh") and destination.split(".")[0] in drawing
+        ]
         offered = [(name, view.lvlh) for name, view in self.views.items() if view.lvlh is not None]
         for name, lvlh in offered:
             if f"{name}.q_eci_lvlh" in feeding:
@@ -270,7 +298,7 @@ class SceneLogger:
             return eye, target
         axis = offsets[np.argmax(np.linalg.norm(offsets, axis=1))] / spread
         side = eye / np.linalg.norm(eye)
-        side = side - (side @ axis) * axis                    # at right angles to the line of the bodies
+        side = side - (side @ axis) * axis  # at right angles to the line of the bodies
         side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-6 else eye / np.linalg.norm(eye)
         return center + max(np.linalg.norm(eye), 2.0 * (spread + BODY_REACH)) * side, center
 
@@ -283,17 +311,32 @@ class SceneLogger:
         eye, target = self._camera()
         if any(layout.world for layout in layouts):
             trails = {path: trail() for layout in layouts for path in layout.trails if path.startswith("/world/")}
-            if self.world_lvlh is not None:   # seen from LVLH (z orbit normal up): a steady camera
-                spatial.append(rrb.Spatial3DView(
-                    origin="/world/lvlh", contents="/world/**", name="Robots (W, seen in LVLH axes)",
-                    overrides=trails, eye_controls=rrb.EyeControls3D(position=eye, look_target=target)))
+            if self.world_lvlh is not None:  # seen from LVLH (z orbit normal up): a steady camera
+                spatial.append(
+                    rrb.Spatial3DView(
+                        origin="/world/lvlh",
+                        contents="/world/**",
+                        name="Robots (W, seen in LVLH axes)",
+                        overrides=trails,
+                        eye_controls=rrb.EyeControls3D(position=eye, look_target=target),
+                    )
+                )
             else:
-                spatial.append(rrb.Spatial3DView(origin="/world", name="Robots (W frame)", overrides=trails,
-                                                 eye_controls=rrb.EyeControls3D(position=eye, look_target=target)))
+                spatial.append(
+                    rrb.Spatial3DView(
+                        origin="/world",
+                        name="Robots (W frame)",
+                        overrides=trails,
+                        eye_controls=rrb.EyeControls3D(position=eye, look_target=target),
+                    )
+                )
         if any(layout.orbit for layout in layouts):
             trails = {path: trail() for layout in layouts for path in layout.trails if path.startswith("/orbit/")}
-            spatial.append(rrb.Spatial3DView(origin="/orbit", name="Orbit (ECI)", overrides=trails,
-                                             line_grid=rrb.LineGrid3D(visible=False)))
+            spatial.append(
+                rrb.Spatial3DView(
+                    origin="/orbit", name="Orbit (ECI)", overrides=trails, line_grid=rrb.LineGrid3D(visible=False)
+                )
+            )
         figures = [figure for layout in layouts for figure in layout.figures]
         tabs = [tab for layout in layouts for tab in layout.tabs]
         for component in dict.fromkeys(c for c, _ in self.signals):
@@ -307,14 +350,19 @@ class SceneLogger:
         if figures:
             columns.append(rrb.Vertical(*figures))
         columns.append(rrb.Tabs(*tabs))
-        layout = rrb.Horizontal(*columns, column_shares=[3, 2, 2][:len(columns)] if len(columns) > 1 else None)
-        return rrb.Blueprint(layout, rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
-                             rrb.TimePanel(state="collapsed", timeline=TIMELINE, play_state="following"))
+        layout = rrb.Horizontal(*columns, column_shares=[3, 2, 2][: len(columns)] if len(columns) > 1 else None)
+        return rrb.Blueprint(
+            layout,
+            rrb.BlueprintPanel(state="collapsed"),
+            rrb.SelectionPanel(state="collapsed"),
+            rrb.TimePanel(state="collapsed", timeline=TIMELINE, play_state="following"),
+        )
 
     # ------------------------------------------------------------------ static content
 
     def log(self, path: str, *archetypes, static: bool = False) -> None:
         import rerun as rr
+
         rr.log(path, *archetypes, static=static, recording=self.rec)
 
     def log_static(self) -> None:
@@ -326,27 +374,38 @@ class SceneLogger:
         for view in self.views.values():
             view.log_static(self)
         if self.world_lvlh is not None:
-            self.log("/world/lvlh/axes", rr.Arrows3D(origins=np.zeros((3, 3)), vectors=0.3 * np.eye(3),
-                                                     colors=AXIS_COLORS, radii=[-1.5]), static=True)
+            self.log(
+                "/world/lvlh/axes",
+                rr.Arrows3D(origins=np.zeros((3, 3)), vectors=0.3 * np.eye(3), colors=AXIS_COLORS, radii=[-1.5]),
+                static=True,
+            )
         for component, name in self.signals:
             n = len(self.variables[component, name])
-            self.series(entity_path("signals", component, name), [name] if n == 1 else [f"{name}[{i}]" for i in range(n)])
+            self.series(
+                entity_path("signals", component, name), [name] if n == 1 else [f"{name}[{i}]" for i in range(n)]
+            )
         self._notes()
 
     def series(self, path: str, names: list[str], colors=None) -> None:
         """A plot's series: their names and colours (the axis colours for up to three)."""
         import rerun as rr
+
         if colors is None and len(names) <= 3:
             colors = AXIS_COLORS
-        self.log(path, rr.SeriesLines(names=names, colors=colors[:len(names)] if colors else None), static=True)
+        self.log(path, rr.SeriesLines(names=names, colors=colors[: len(names)] if colors else None), static=True)
 
     def _notes(self) -> None:
         import rerun as rr
 
         run = self.config.get("run") or {}
-        lines = [f"# {run.get('name', 'Zenorbit run')}", "",
-                 f"epoch {run.get('epoch', '?')}, step {run.get('step', '?')}, duration {run.get('duration', '?')}", "",
-                 "| component | type |", "|---|---|"]
+        lines = [
+            f"# {run.get('name', 'Zenorbit run')}",
+            "",
+            f"epoch {run.get('epoch', '?')}, step {run.get('step', '?')}, duration {run.get('duration', '?')}",
+            "",
+            "| component | type |",
+            "|---|---|",
+        ]
         for name, entry in (self.config.get("components") or {}).items():
             lines.append(f"| {name} | {(entry or {}).get('type', '?')} |")
         if self.arrow_scales:

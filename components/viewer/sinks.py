@@ -12,6 +12,7 @@ Ports: ``ZENORBIT_RERUN_WEB_PORT`` and ``ZENORBIT_RERUN_GRPC_PORT`` fix the web 
 SSH tunnel); by default free ports are chosen. ``ZENORBIT_RERUN_SPAWN_PORT`` (default 9876, Rerun's)
 is the desktop viewer's.
 """
+
 from __future__ import annotations
 
 import json
@@ -34,9 +35,17 @@ def analytics_off() -> None:
     try:
         config.parent.mkdir(parents=True, exist_ok=True)
         if not config.is_file():
-            config.write_text(json.dumps({
-                "analytics_enabled": False, "analytics_id": "zenorbit-disabled", "metadata": {},
-                "config_file_path": str(config), "data_dir_path": str(base / "analytics-data")}))
+            config.write_text(
+                json.dumps(
+                    {
+                        "analytics_enabled": False,
+                        "analytics_id": "zenorbit-disabled",
+                        "metadata": {},
+                        "config_file_path": str(config),
+                        "data_dir_path": str(base / "analytics-data"),
+                    }
+                )
+            )
     except OSError:
         return  # read-only home: nothing we can do without touching the user's config
     os.environ["XDG_CONFIG_HOME"] = str(base)
@@ -73,8 +82,15 @@ def web_url(web_port: int, grpc_uri: str) -> str:
     return f"http://127.0.0.1:{web_port}/?url={quote(grpc_uri, safe='')}&notebook=true"
 
 
-def open_stream(mode: str, *, recording_id: str, file: str | Path | None = None, blueprint=None,
-                open_browser: bool = False, name: str | None = None):
+def open_stream(
+    mode: str,
+    *,
+    recording_id: str,
+    file: str | Path | None = None,
+    blueprint=None,
+    open_browser: bool = False,
+    name: str | None = None,
+):
     """A ``rr.RecordingStream`` sending to ``mode``; returns (stream, URL of the web viewer or None).
 
     save: ``file`` (.rrd), written as logged and completed by ``close_stream``. spawn: the desktop

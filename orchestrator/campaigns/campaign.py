@@ -28,6 +28,7 @@ the draw's index and the key (numpy ``SeedSequence(seed, spawn_key=(draw, crc32(
 case reproduces by itself, adding a dispersed key leaves the others' draws alone, and every grid
 point sees the same dispersions (common random numbers).
 """
+
 from __future__ import annotations
 
 import copy
@@ -43,11 +44,10 @@ import yaml
 
 from components.errors import ConfigError
 from components.units import parse_quantity, parse_unit
-from orchestrator.campaigns.metrics import Metric, metric, signals_of
-from orchestrator.config.yaml_file import ConfigErrors
-from orchestrator.config.load import validate
-from orchestrator.config.yaml_file import read_yaml
 from orchestrator.campaigns.dispersions import Dispersion, dispersion
+from orchestrator.campaigns.metrics import Metric, metric, signals_of
+from orchestrator.config.load import validate
+from orchestrator.config.yaml_file import ConfigErrors, read_yaml
 
 CAMPAIGN_KEYS = ("config", "grid", "disperse", "samples", "seed", "metrics", "outcomes", "keep")
 RESERVED_OUTCOMES = ("completed", "failed", "interrupted")
@@ -89,11 +89,13 @@ def set_key(raw: dict, key: str, value: Any) -> None:
         raise ValueError(f"no component {path[1]!r} (components: {', '.join(map(str, components)) or 'none'})")
     node: Any = raw
     for i, part in enumerate(path[:-1]):
-        here = _text(path[:i + 1])
+        here = _text(path[: i + 1])
         if isinstance(part, int):
             if not isinstance(node, list) or part >= len(node):
-                raise ValueError(f"{_text(path[:i])} is not a list with an element [{part}] in the config "
-                                 f"(give it in full in the base config)")
+                raise ValueError(
+                    f"{_text(path[:i])} is not a list with an element [{part}] in the config "
+                    f"(give it in full in the base config)"
+                )
             node = node[part]
             continue
         if not isinstance(node, dict):
@@ -101,15 +103,16 @@ def set_key(raw: dict, key: str, value: Any) -> None:
         child = node.get(part)
         if child is None:
             if isinstance(path[i + 1], int):
-                raise ValueError(f"{here} is not in the config: give it in full in the base config to set "
-                                 f"one element")
+                raise ValueError(f"{here} is not in the config: give it in full in the base config to set one element")
             child = node[part] = {}
         node = child
     last = path[-1]
     if isinstance(last, int):
         if not isinstance(node, list) or last >= len(node):
-            raise ValueError(f"{_text(path[:-1])} is not a list with an element [{last}] in the config "
-                             f"(give it in full in the base config)")
+            raise ValueError(
+                f"{_text(path[:-1])} is not a list with an element [{last}] in the config "
+                f"(give it in full in the base config)"
+            )
     elif not isinstance(node, dict):
         raise ValueError(f"{_text(path[:-1])} is not a mapping")
     node[last] = value
@@ -143,23 +146,23 @@ def si_value(value: Any) -> Any:
 @dataclass
 class Case:
     index: int
-    params: dict[str, Any]         # key -> value as put in the config (with its unit)
-    raw: dict                      # the case's config, paths absolute
+    params: dict[str, Any]  # key -> value as put in the config (with its unit)
+    raw: dict  # the case's config, paths absolute
 
 
 @dataclass
 class Campaign:
-    path: Path                     # the campaign file (or where an inline config is taken from)
-    base: dict                     # the base config, raw, relative paths made absolute
-    base_path: Path                # relative paths in the base config were relative to its directory
+    path: Path  # the campaign file (or where an inline config is taken from)
+    base: dict  # the base config, raw, relative paths made absolute
+    base_path: Path  # relative paths in the base config were relative to its directory
     grid: dict[str, list]
     dispersions: list[Dispersion]
     samples: int
     seed: int
     metrics: list[Metric]
     keep: str
-    raw: dict = field(default_factory=dict)   # the campaign as read
-    outcomes: dict[str, str] = field(default_factory=dict)   # outcome name -> the event that makes it
+    raw: dict = field(default_factory=dict)  # the campaign as read
+    outcomes: dict[str, str] = field(default_factory=dict)  # outcome name -> the event that makes it
 
     def outcome(self, status: str, events: list[str], declared: str = "") -> str:
         """A case's outcome: failed (or interrupted) as its run; else the outcome whose event came
@@ -202,11 +205,20 @@ class Campaign:
 
     def fingerprint(self) -> str:
         """A hash of what decides the cases and their results (for --resume)."""
-        text = json.dumps({"base": self.base, "grid": self.grid, "disperse": [repr(d) for d in self.dispersions],
-                           "samples": self.samples, "seed": self.seed,
-                           "metrics": [repr(m) for m in self.metrics], "keep": self.keep,
-                           "outcomes": self.outcomes},
-                          sort_keys=True, default=str)
+        text = json.dumps(
+            {
+                "base": self.base,
+                "grid": self.grid,
+                "disperse": [repr(d) for d in self.dispersions],
+                "samples": self.samples,
+                "seed": self.seed,
+                "metrics": [repr(m) for m in self.metrics],
+                "keep": self.keep,
+                "outcomes": self.outcomes,
+            },
+            sort_keys=True,
+            default=str,
+        )
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -217,8 +229,15 @@ def absolute_paths(node: Any, base_dir: Path) -> Any:
         return {k: absolute_paths(v, base_dir) for k, v in node.items()}
     if isinstance(node, list):
         return [absolute_paths(v, base_dir) for v in node]
-    if (isinstance(node, str) and node and not node.startswith("/") and "://" not in node
-            and ("/" in node or "." in node) and "\n" not in node and len(node) < 4096):
+    if (
+        isinstance(node, str)
+        and node
+        and not node.startswith("/")
+        and "://" not in node
+        and ("/" in node or "." in node)
+        and "\n" not in node
+        and len(node) < 4096
+    ):
         try:
             candidate = base_dir / node
             if candidate.exists():
@@ -236,8 +255,9 @@ def load_campaign(path: str | Path, *, check_cases: bool | list[int] = True) -> 
     try:
         raw = read_yaml(path)
     except ConfigErrors as e:
-        raise CampaignErrors([m.replace("with run, components, connections", "with config, grid, disperse, "
-                                        "metrics") for m in e.errors]) from None
+        raise CampaignErrors(
+            [m.replace("with run, components, connections", "with config, grid, disperse, metrics") for m in e.errors]
+        ) from None
     errors: list[str] = []
 
     def fail(key: str, message: str) -> None:
@@ -306,12 +326,17 @@ def load_campaign(path: str | Path, *, check_cases: bool | list[int] = True) -> 
         raw_outcomes = {}
     for name, event in raw_outcomes.items():
         if str(name) in RESERVED_OUTCOMES:
-            fail(f"outcomes.{name}", f"{', '.join(RESERVED_OUTCOMES)} are the outcomes of a run itself: give another name")
+            fail(
+                f"outcomes.{name}",
+                f"{', '.join(RESERVED_OUTCOMES)} are the outcomes of a run itself: give another name",
+            )
         elif not isinstance(event, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", event):
             fail(f"outcomes.{name}", f"expected an event name (e.g. capture), got {event!r}")
         elif event in outcomes.values():
-            fail(f"outcomes.{name}", f"event {event!r} already makes outcome "
-                                     f"{next(k for k, v in outcomes.items() if v == event)!r}")
+            fail(
+                f"outcomes.{name}",
+                f"event {event!r} already makes outcome {next(k for k, v in outcomes.items() if v == event)!r}",
+            )
         else:
             outcomes[str(name)] = event
     keep = raw.get("keep", "failed")
@@ -338,11 +363,22 @@ def load_campaign(path: str | Path, *, check_cases: bool | list[int] = True) -> 
         raw_metrics = {}
     campaign = None
     signals = None
-    if base is not None and not bad_keys:   # the cases and metrics are checked even when other keys are wrong
-        campaign = Campaign(path=path, base=base, base_path=base_path, grid=grid, dispersions=dispersions,
-                            samples=samples or 1, seed=seed or 0, metrics=[], keep=keep, raw=raw, outcomes=outcomes)
+    if base is not None and not bad_keys:  # the cases and metrics are checked even when other keys are wrong
+        campaign = Campaign(
+            path=path,
+            base=base,
+            base_path=base_path,
+            grid=grid,
+            dispersions=dispersions,
+            samples=samples or 1,
+            seed=seed or 0,
+            metrics=[],
+            keep=keep,
+            raw=raw,
+            outcomes=outcomes,
+        )
         indexes = range(campaign.count) if check_cases is True else (check_cases or [])
-        seen: dict[str, list[int]] = {}   # a config key's problem: reported for its first case, counted after
+        seen: dict[str, list[int]] = {}  # a config key's problem: reported for its first case, counted after
         for index in indexes:
             if not 0 <= index < campaign.count:
                 errors.append(f"{path}: --only {index}: the campaign has cases 0..{campaign.count - 1}")
@@ -366,7 +402,7 @@ def load_campaign(path: str | Path, *, check_cases: bool | list[int] = True) -> 
             if len(cases) > 1:
                 listed = ", ".join(map(str, cases[1:6])) + (", ..." if len(cases) > 6 else "")
                 errors.append(f"{path}: {key}: the same problem in {len(cases) - 1} more case(s) ({listed})")
-    if base is not None and signals is None:   # the metrics are checked against the base config then
+    if base is not None and signals is None:  # the metrics are checked against the base config then
         try:
             signals = signals_of(validate(copy.deepcopy(base), base_path))
         except ConfigErrors:
@@ -376,8 +412,11 @@ def load_campaign(path: str | Path, *, check_cases: bool | list[int] = True) -> 
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.\-]*", str(name)):
             fail(f"metrics.{name}", "a metric's name is letters, digits, '_', '-' or '.'")
             continue
-        if str(name) in ("case", "status", "outcome", "error", "wall_time", "attempts", "host", "recording") \
-                or str(name) in grid or str(name) in raw_disperse:
+        if (
+            str(name) in ("case", "status", "outcome", "error", "wall_time", "attempts", "host", "recording")
+            or str(name) in grid
+            or str(name) in raw_disperse
+        ):
             fail(f"metrics.{name}", "the name of a column cases.parquet has already: give another")
             continue
         try:
@@ -405,7 +444,9 @@ def _config_problem(message: str) -> str:
 
 def case_yaml(case: Case, campaign: Campaign) -> str:
     """The case's config as a YAML file (it runs by itself: ``orchestrator run`` it)."""
-    head = (f"# case {case.index} of the campaign {campaign.path}\n"
-            + "".join(f"#   {k}: {json.dumps(v, default=str)}\n" for k, v in case.params.items())
-            + "# relative paths of the base config are made absolute\n")
+    head = (
+        f"# case {case.index} of the campaign {campaign.path}\n"
+        + "".join(f"#   {k}: {json.dumps(v, default=str)}\n" for k, v in case.params.items())
+        + "# relative paths of the base config are made absolute\n"
+    )
     return head + yaml.safe_dump(case.raw, sort_keys=False, default_flow_style=None, width=120)

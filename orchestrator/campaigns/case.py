@@ -1,4 +1,5 @@
 """One case of a campaign: its own ``orchestrator run`` process, stopped cleanly, its metrics read."""
+
 from __future__ import annotations
 
 import math
@@ -16,25 +17,26 @@ import numpy as np
 
 from orchestrator.campaigns.metrics import Metric
 
-STOP_GRACE_S = 20.0      # a stopped case's run gets this long to stop cleanly before it is killed
-MAX_EVENTS = 1000        # event names kept per case (the outcome is decided from them)
+STOP_GRACE_S = 20.0  # a stopped case's run gets this long to stop cleanly before it is killed
+MAX_EVENTS = 1000  # event names kept per case (the outcome is decided from them)
 
 
 def _libc_prctl():
     try:
         import ctypes
+
         return ctypes.CDLL("libc.so.6", use_errno=True).prctl
     except (OSError, AttributeError):
         return None
 
 
-_PRCTL = _libc_prctl()   # resolved here, not in the forked child (which must not import or load anything)
+_PRCTL = _libc_prctl()  # resolved here, not in the forked child (which must not import or load anything)
 
 
 def _die_with_parent() -> None:
     """In the child: SIGTERM if the process that started it dies (a Dask worker killed outright)."""
     if _PRCTL is not None:
-        _PRCTL(1, signal.SIGTERM)   # PR_SET_PDEATHSIG
+        _PRCTL(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
 
 
 def _affinity(cpus):
@@ -45,6 +47,7 @@ def _affinity(cpus):
                 os.sched_setaffinity(0, cpus)
             except OSError:
                 pass
+
     return setup
 
 
@@ -80,8 +83,16 @@ def metric_values(recording: Path, metrics: list[Metric]) -> dict[str, float | s
     return {m.name: m.value(t, data, events) for m in metrics}
 
 
-def execute_case(index: int, config_file: Path, record_dir: Path, metrics: list[Metric], keep: str,
-                 stop: threading.Event | None = None, cpus=None, stopped=None) -> dict:
+def execute_case(
+    index: int,
+    config_file: Path,
+    record_dir: Path,
+    metrics: list[Metric],
+    keep: str,
+    stop: threading.Event | None = None,
+    cpus=None,
+    stopped=None,
+) -> dict:
     """Run one case as ``orchestrator run CONFIG --record DIR``; its result: status (completed,
     failed, interrupted), error, metrics (from the recording, failed or not), the names of its
     events in order, the outcome its components declare ('' for none), wall_time, host. ``stop`` set: the run is stopped
@@ -92,8 +103,14 @@ def execute_case(index: int, config_file: Path, record_dir: Path, metrics: list[
     record_dir.parent.mkdir(parents=True, exist_ok=True)
     command = [sys.executable, "-m", "orchestrator.cli", "run", str(config_file), "--record", str(record_dir)]
     start = time.perf_counter()
-    process = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                               start_new_session=True, preexec_fn=_affinity(cpus))
+    process = subprocess.Popen(
+        command,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+        preexec_fn=_affinity(cpus),
+    )
     chunks: list[bytes] = []
     reader = threading.Thread(target=lambda: chunks.extend(iter(lambda: process.stderr.read(4096), b"")), daemon=True)
     reader.start()
@@ -116,8 +133,11 @@ def execute_case(index: int, config_file: Path, record_dir: Path, metrics: list[
         status, error = "interrupted", "stopped (Ctrl-C)"
     else:
         lines = [ln.strip() for ln in stderr.splitlines() if ln.strip().startswith("error:")]
-        error = lines[0][len("error:"):].strip() if lines else (
-            f"killed by signal {-rc}" if rc < 0 else f"exit code {rc}: {stderr.strip().splitlines()[-1:] or ''}")
+        error = (
+            lines[0][len("error:") :].strip()
+            if lines
+            else (f"killed by signal {-rc}" if rc < 0 else f"exit code {rc}: {stderr.strip().splitlines()[-1:] or ''}")
+        )
         status = "failed"
     values = {m.name: math.nan for m in metrics}
     events: list[str] = []
@@ -130,16 +150,25 @@ def execute_case(index: int, config_file: Path, record_dir: Path, metrics: list[
         outcome = next((e["outcome"] for e in reversed(recorded) if e.get("event") == "end" and e.get("outcome")), "")
         try:
             values = metric_values(record_dir, metrics)
-        except Exception as e:   # an unreadable recording: the case failed, the campaign goes on
+        except Exception as e:  # an unreadable recording: the case failed, the campaign goes on
             values = {m.name: math.nan for m in metrics}
             if status == "completed":
                 status, error = "failed", f"metrics: {type(e).__name__}: {e}"
     kept = status != "interrupted" and (keep == "all" or (keep == "failed" and status == "failed"))
     if not kept and record_dir.exists():
         shutil.rmtree(record_dir, ignore_errors=True)
-    return {"case": index, "status": status, "error": error, "metrics": values, "events": events, "outcome": outcome,
-            "wall_time": wall,
-            "host": socket.gethostname(), "kept": kept, "attempts": 1}
+    return {
+        "case": index,
+        "status": status,
+        "error": error,
+        "metrics": values,
+        "events": events,
+        "outcome": outcome,
+        "wall_time": wall,
+        "host": socket.gethostname(),
+        "kept": kept,
+        "attempts": 1,
+    }
 
 
 def _stop(process: subprocess.Popen) -> None:

@@ -10,6 +10,7 @@ come, the progress line, and what ``--resume`` and ``--only`` find there:
 | ``cases/NNNN.json`` | its result, once it completed or failed (``--resume`` skips it) |
 | ``cases.parquet`` | one row per case: case, status, error, parameters, metrics, wall_time, attempts, host, recording |
 """
+
 from __future__ import annotations
 
 import io
@@ -57,29 +58,50 @@ class CampaignDir:
             raise CampaignError(f"--out {self.out}: exists and is not a directory")
         if self.out.is_dir() and any(self.out.iterdir()):
             if not meta.exists():
-                raise CampaignError(f"--out {self.out}: the directory is in use and holds no campaign; "
-                                    f"give a new or empty directory")
+                raise CampaignError(
+                    f"--out {self.out}: the directory is in use and holds no campaign; give a new or empty directory"
+                )
             stored = json.loads(meta.read_text())
             if stored.get("fingerprint") != fingerprint:
-                raise CampaignError(f"--out {self.out}: holds another campaign (or this one changed since); "
-                                    f"give a new directory")
+                raise CampaignError(
+                    f"--out {self.out}: holds another campaign (or this one changed since); give a new directory"
+                )
             if not resume and only is None:
-                raise CampaignError(f"--out {self.out}: holds this campaign already: --resume finishes it, "
-                                    f"--only N reruns a case")
+                raise CampaignError(
+                    f"--out {self.out}: holds this campaign already: --resume finishes it, --only N reruns a case"
+                )
         elif resume:
             raise CampaignError(f"--resume: {self.out} holds no campaign to resume")
         self.cases.mkdir(parents=True, exist_ok=True)
         if self.campaign.path.exists():
             shutil.copyfile(self.campaign.path, self.out / "campaign.yaml")
         c = self.campaign
-        meta.write_text(json.dumps({
-            "fingerprint": fingerprint, "campaign": str(c.path.resolve()), "cases": c.count,
-            "grid": list(c.grid), "dispersed": [d.key for d in c.dispersions],
-            "metrics": {m.name: {"signal": m.signal, "event": m.event, "field": m.field, "reduce": m.reduce,
-                                 "unit": m.unit} for m in c.metrics},
-            "units": {d.key: d.unit for d in c.dispersions if d.unit}, "grid_values": c.grid, "outcomes": c.outcomes,
-            "keep": c.keep},
-            indent=2))
+        meta.write_text(
+            json.dumps(
+                {
+                    "fingerprint": fingerprint,
+                    "campaign": str(c.path.resolve()),
+                    "cases": c.count,
+                    "grid": list(c.grid),
+                    "dispersed": [d.key for d in c.dispersions],
+                    "metrics": {
+                        m.name: {
+                            "signal": m.signal,
+                            "event": m.event,
+                            "field": m.field,
+                            "reduce": m.reduce,
+                            "unit": m.unit,
+                        }
+                        for m in c.metrics
+                    },
+                    "units": {d.key: d.unit for d in c.dispersions if d.unit},
+                    "grid_values": c.grid,
+                    "outcomes": c.outcomes,
+                    "keep": c.keep,
+                },
+                indent=2,
+            )
+        )
 
     def done(self, index: int) -> dict | None:
         path = self.result_file(index)
@@ -116,24 +138,45 @@ class CampaignDir:
         rows = []
         for index in indexes:
             params = c.case(index).params
-            result = self.done(index) or {"case": index, "status": pending_status, "error": "", "metrics": {},
-                                          "wall_time": math.nan, "attempts": 0, "host": "", "recording": ""}
-            row = {"case": index, "status": result["status"],
-                   "outcome": c.outcome(result["status"], result.get("events", []), result.get("outcome", "")), "error": result.get("error", "")}
+            result = self.done(index) or {
+                "case": index,
+                "status": pending_status,
+                "error": "",
+                "metrics": {},
+                "wall_time": math.nan,
+                "attempts": 0,
+                "host": "",
+                "recording": "",
+            }
+            row = {
+                "case": index,
+                "status": result["status"],
+                "outcome": c.outcome(result["status"], result.get("events", []), result.get("outcome", "")),
+                "error": result.get("error", ""),
+            }
             row.update({k: params[k] for k in c.keys})
             row.update({m.name: _metric_value(result["metrics"].get(m.name, math.nan)) for m in c.metrics})
-            row.update({"wall_time": float(result["wall_time"]), "attempts": int(result.get("attempts", 1)),
-                        "host": result.get("host", ""), "recording": result.get("recording", "")})
+            row.update(
+                {
+                    "wall_time": float(result["wall_time"]),
+                    "attempts": int(result.get("attempts", 1)),
+                    "host": result.get("host", ""),
+                    "recording": result.get("recording", ""),
+                }
+            )
             rows.append(row)
         columns = {}
         for name in [*FIXED_COLUMNS, *c.keys, *(m.name for m in c.metrics), *TAIL_COLUMNS]:
             values = [r[name] for r in rows]
             if name in c.keys:
                 converted = [si_value(v) for v in values]
-                values = converted if all(isinstance(v, float) for v in converted) else \
-                    [v if isinstance(v, str) else json.dumps(v) for v in values]
+                values = (
+                    converted
+                    if all(isinstance(v, float) for v in converted)
+                    else [v if isinstance(v, str) else json.dumps(v) for v in values]
+                )
             elif any(isinstance(v, str) for v in values) and name not in FIXED_COLUMNS + TAIL_COLUMNS:
-                values = [v if isinstance(v, str) else "" for v in values]     # a text metric: '' for none
+                values = [v if isinstance(v, str) else "" for v in values]  # a text metric: '' for none
             columns[name] = values
         schema_types = {"case": pa.int64(), "attempts": pa.int64(), "wall_time": pa.float64()}
         arrays = {n: pa.array(v, type=schema_types.get(n)) for n, v in columns.items()}
@@ -174,9 +217,15 @@ class Progress:
         elapsed = now - self.start
         rate = done / elapsed * 60 if elapsed > 0 else 0.0
         eta = (self.total - done) / (done / elapsed) if done else math.nan
-        print(f"\r  {done}/{self.total} cases ({self.counts['completed']} completed, {self.counts['failed']} failed)"
-              f", {self.running} {self.label}, {rate:.1f} cases/min" + (f", about {eta:.0f} s left" if done else "")
-              + "   ", end="", file=self.out, flush=True)
+        print(
+            f"\r  {done}/{self.total} cases ({self.counts['completed']} completed, {self.counts['failed']} failed)"
+            f", {self.running} {self.label}, {rate:.1f} cases/min"
+            + (f", about {eta:.0f} s left" if done else "")
+            + "   ",
+            end="",
+            file=self.out,
+            flush=True,
+        )
 
     def end(self) -> None:
         if self.tty:

@@ -1,4 +1,5 @@
 """Dispersions of a campaign: parsing ``{normal: [mean, sigma]}`` and the like, and drawing a case's value."""
+
 from __future__ import annotations
 
 import copy
@@ -12,9 +13,13 @@ from components.errors import ConfigError
 from components.units import parse_quantity, parse_unit, to_si
 
 DISTRIBUTIONS = {"normal": 2, "uniform": 2, "truncated_normal": 4, "choice": None, "direction": 0}
-DISTRIBUTION_ARGS = {"normal": "[mean, sigma]", "uniform": "[low, high]",
-                     "truncated_normal": "[mean, sigma, low, high]", "choice": "[value, value, ...]",
-                     "direction": "uniform (a unit 3-vector, uniform on the sphere)"}
+DISTRIBUTION_ARGS = {
+    "normal": "[mean, sigma]",
+    "uniform": "[low, high]",
+    "truncated_normal": "[mean, sigma, low, high]",
+    "choice": "[value, value, ...]",
+    "direction": "uniform (a unit 3-vector, uniform on the sphere)",
+}
 
 
 # ---------------------------------------------------------------- distributions
@@ -23,6 +28,7 @@ DISTRIBUTION_ARGS = {"normal": "[mean, sigma]", "uniform": "[low, high]",
 @dataclass(frozen=True)
 class Dispersion:
     """One dispersed key: ``kind`` over ``args`` (numbers in ``unit``; choice: the values as given)."""
+
     key: str
     kind: str
     args: tuple
@@ -30,19 +36,21 @@ class Dispersion:
 
     def draw(self, seed: int, sample: int) -> Any:
         """The value of draw ``sample``: a number (with its unit, as text) or a choice's value."""
-        rng = np.random.Generator(np.random.PCG64(
-            np.random.SeedSequence(seed, spawn_key=(sample, zlib.crc32(self.key.encode())))))
+        rng = np.random.Generator(
+            np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(sample, zlib.crc32(self.key.encode()))))
+        )
         if self.kind == "choice":
             return copy.deepcopy(self.args[int(rng.integers(len(self.args)))])
-        if self.kind == "direction":       # three normal draws, normalized: uniform on the sphere
+        if self.kind == "direction":  # three normal draws, normalized: uniform on the sphere
             v = rng.normal(size=3)
             return [float(x) for x in v / np.linalg.norm(v)]
         if self.kind == "normal":
             x = float(rng.normal(self.args[0], self.args[1]))
         elif self.kind == "uniform":
             x = float(rng.uniform(self.args[0], self.args[1]))
-        else:   # truncated normal by the inverse CDF: one uniform draw, no rejection loop
+        else:  # truncated normal by the inverse CDF: one uniform draw, no rejection loop
             from scipy.special import ndtr, ndtri
+
             mean, sigma, low, high = self.args
             a, b = ndtr((low - mean) / sigma), ndtr((high - mean) / sigma)
             x = float(min(max(mean + sigma * ndtri(a + (b - a) * rng.random()), low), high))
@@ -52,9 +60,12 @@ class Dispersion:
 def dispersion(key: str, spec: Any, where: str) -> Dispersion:
     """Parse ``{normal: [mean, sigma]}`` and the like; ConfigError naming ``where``."""
     if not isinstance(spec, dict) or len(spec) != 1:
-        raise ConfigError(where, f"expected one distribution, e.g. {{normal: [0 rad/s, 0.001 rad/s]}} "
-                                 f"({', '.join(DISTRIBUTIONS)}), got {spec!r}")
-    (kind, args), = spec.items()
+        raise ConfigError(
+            where,
+            f"expected one distribution, e.g. {{normal: [0 rad/s, 0.001 rad/s]}} "
+            f"({', '.join(DISTRIBUTIONS)}), got {spec!r}",
+        )
+    ((kind, args),) = spec.items()
     if kind not in DISTRIBUTIONS:
         raise ConfigError(f"{where}.{kind}", f"unknown distribution (known: {', '.join(DISTRIBUTIONS)})")
     here = f"{where}.{kind}"
@@ -75,14 +86,16 @@ def dispersion(key: str, spec: Any, where: str) -> Dispersion:
             numbers.append(number)
             continue
         factor = parse_unit(unit)[0]
-        if u is None:      # a bare number is SI
+        if u is None:  # a bare number is SI
             numbers.append(number / factor)
             continue
         try:
             numbers.append(to_si(arg, unit, f"{here}[{i}]") / factor)
         except ConfigError:
-            raise ConfigError(f"{here}[{i}]", f"unit {u!r} does not measure what {args[0]!r} does "
-                                              f"(the values of one distribution share a unit)") from None
+            raise ConfigError(
+                f"{here}[{i}]",
+                f"unit {u!r} does not measure what {args[0]!r} does (the values of one distribution share a unit)",
+            ) from None
     if kind in ("normal", "truncated_normal") and not numbers[1] > 0:
         raise ConfigError(f"{here}[1]", f"sigma must be positive, got {args[1]!r}")
     if kind == "uniform" and not numbers[0] < numbers[1]:

@@ -1,4 +1,5 @@
 """The cases of a campaign on a dask.distributed cluster (``orchestrator sweep --cluster``)."""
+
 from __future__ import annotations
 
 import io
@@ -20,9 +21,10 @@ def remote_case(payload: dict) -> dict:
     stop_event = None
     try:
         from distributed import Event, get_worker
+
         worker = get_worker().address
         stop_event = Event(payload["stop_event"])
-    except Exception:   # run outside a worker (tests): no stop event
+    except Exception:  # run outside a worker (tests): no stop event
         worker = "local"
     work = Path(tempfile.mkdtemp(prefix=f"zenorbit-case{payload['case']}-"))
     last_check = [0.0, False]
@@ -43,8 +45,9 @@ def remote_case(payload: dict) -> dict:
         config_file = work / f"{payload['case']:04d}.yaml"
         config_file.write_text(payload["config"])
         record = work / f"{payload['case']:04d}"
-        result = execute_case(payload["case"], config_file, record, payload["metrics"], payload["keep"],
-                              stopped=stopped)
+        result = execute_case(
+            payload["case"], config_file, record, payload["metrics"], payload["keep"], stopped=stopped
+        )
         if result["kept"] and record.exists():
             buffer = io.BytesIO()
             with tarfile.open(fileobj=buffer, mode="w:gz") as tar:
@@ -72,8 +75,13 @@ def run_dask(directory: CampaignDir, todo: list[int], address: str, retries: int
     try:
         submitted = []
         for index in todo:
-            payload = {"case": index, "config": directory.config_file(index).read_text(),
-                       "metrics": campaign.metrics, "keep": campaign.keep, "stop_event": stop_name}
+            payload = {
+                "case": index,
+                "config": directory.config_file(index).read_text(),
+                "metrics": campaign.metrics,
+                "keep": campaign.keep,
+                "stop_event": stop_name,
+            }
             key = f"zenorbit-case-{campaign.fingerprint()}-{index:04d}-{token}"
             future = client.submit(remote_case, payload, key=key, retries=retries, pure=False)
             keys[future.key] = index
@@ -86,10 +94,17 @@ def run_dask(directory: CampaignDir, todo: list[int], address: str, retries: int
                 index = keys[future.key]
                 try:
                     result = future.result()
-                except Exception as e:   # the task raised on every try, or its workers kept dying
-                    result = {"case": index, "status": "failed", "error": f"dask: {type(e).__name__}: {e}",
-                              "metrics": {m.name: math.nan for m in campaign.metrics}, "wall_time": math.nan,
-                              "host": "", "kept": False, "attempts": retries + 1}
+                except Exception as e:  # the task raised on every try, or its workers kept dying
+                    result = {
+                        "case": index,
+                        "status": "failed",
+                        "error": f"dask: {type(e).__name__}: {e}",
+                        "metrics": {m.name: math.nan for m in campaign.metrics},
+                        "wall_time": math.nan,
+                        "host": "",
+                        "kept": False,
+                        "attempts": retries + 1,
+                    }
                 result["attempts"] = max(result.get("attempts", 1), _attempts(client, future.key))
                 if result["status"] != "interrupted":
                     directory.store(result)
@@ -114,6 +129,7 @@ def run_dask(directory: CampaignDir, todo: list[int], address: str, retries: int
                     if result["status"] != "interrupted":
                         directory.store(result)
                 client.cancel(list(pending))
+
             ignore_interrupts(wind_down)
         return completed
     finally:
@@ -135,7 +151,7 @@ def _attempts(client, key: str) -> int:
     except Exception:
         return 1
     starts = 0
-    for entry in story:   # the scheduler's transitions: (origin, key, start, finish, ...)
+    for entry in story:  # the scheduler's transitions: (origin, key, start, finish, ...)
         fields = entry if isinstance(entry, (tuple, list)) else ()
         if len(fields) >= 4 and fields[0] == "scheduler" and fields[1] == key and fields[3] == "processing":
             starts += 1

@@ -9,6 +9,7 @@ recording's signal, or its events, to one value.
 | ``{event: NAME, field: F, reduce: first, last, min, max}`` | over the NAME events |
 | ``{event: NAME, reduce: count}`` | how many NAME events |
 """
+
 from __future__ import annotations
 
 import json
@@ -32,6 +33,7 @@ _SLICE = re.compile(r"^(.+)\[(\d+):(\d+)\]$")
 class Metric:
     """``name``: ``reduce`` of the columns ``columns`` (several: the row-wise norm), or of the
     field ``field`` of the events ``event``."""
+
     name: str
     signal: str
     reduce: str
@@ -101,7 +103,9 @@ def event_value(m: Metric, events: list[dict]) -> float | str:
         return math.nan
     if m.reduce in ("first", "last"):
         value = values[0] if m.reduce == "first" else values[-1]
-        return value if isinstance(value, str) else float(value) if isinstance(value, (int, float)) else json.dumps(value)
+        return (
+            value if isinstance(value, str) else float(value) if isinstance(value, (int, float)) else json.dumps(value)
+        )
     numbers = [float(v) for v in values if isinstance(v, (int, float)) and not isinstance(v, bool)]
     if not numbers:
         return math.nan
@@ -112,28 +116,39 @@ def metric(name: str, spec: Any, signals: dict[str, tuple[tuple[str, ...], str]]
     """Parse ``{signal, reduce[, threshold]}`` (against the signals of the base config) or
     ``{event, field, reduce}``."""
     if not isinstance(spec, dict):
-        raise ConfigError(where, f"expected {{signal: COMPONENT.OUTPUT, reduce: ...}} or {{event: NAME, field: "
-                                 f"FIELD}}, got {spec!r}")
+        raise ConfigError(
+            where, f"expected {{signal: COMPONENT.OUTPUT, reduce: ...}} or {{event: NAME, field: FIELD}}, got {spec!r}"
+        )
     if "event" in spec:
         unknown = [k for k in spec if k not in ("event", "field", "reduce")]
         if unknown:
             raise ConfigError(f"{where}.{unknown[0]}", "unknown key (known for an event metric: event, field, reduce)")
         how = spec.get("reduce", "first")
         if how not in EVENT_REDUCERS:
-            raise ConfigError(f"{where}.reduce", f"expected one of {', '.join(EVENT_REDUCERS)} for an event metric, "
-                                                 f"got {how!r}")
+            raise ConfigError(
+                f"{where}.reduce", f"expected one of {', '.join(EVENT_REDUCERS)} for an event metric, got {how!r}"
+            )
         if how != "count" and "field" not in spec:
-            raise ConfigError(f"{where}.field", f"missing: which field of the {spec['event']!r} events "
-                                                f"(e.g. time), or reduce: count")
+            raise ConfigError(
+                f"{where}.field", f"missing: which field of the {spec['event']!r} events (e.g. time), or reduce: count"
+            )
         if not isinstance(spec["event"], str) or not spec["event"]:
             raise ConfigError(f"{where}.event", f"expected an event name, got {spec['event']!r}")
         field = spec.get("field")
-        return Metric(name, "", how, (), event=spec["event"], field=None if field is None else str(field),
-                      unit="s" if field == "time" else "1")
+        return Metric(
+            name,
+            "",
+            how,
+            (),
+            event=spec["event"],
+            field=None if field is None else str(field),
+            unit="s" if field == "time" else "1",
+        )
     unknown = [k for k in spec if k not in ("signal", "reduce", "threshold")]
     if unknown:
-        raise ConfigError(f"{where}.{unknown[0]}", "unknown key (known: signal, reduce, threshold; or event, field, "
-                                                   "reduce)")
+        raise ConfigError(
+            f"{where}.{unknown[0]}", "unknown key (known: signal, reduce, threshold; or event, field, reduce)"
+        )
     for k in ("signal", "reduce"):
         if k not in spec:
             raise ConfigError(f"{where}.{k}", "missing")
@@ -148,16 +163,19 @@ def metric(name: str, spec: Any, signals: dict[str, tuple[tuple[str, ...], str]]
         whole = sliced.group(1) if sliced else signal
         if whole not in signals:
             near = sorted(k for k in signals if "[" not in k)
-            raise ConfigError(f"{where}.signal", f"no signal {whole!r} in a recording of the config "
-                                                 f"(signals: {', '.join(near)})")
+            raise ConfigError(
+                f"{where}.signal", f"no signal {whole!r} in a recording of the config (signals: {', '.join(near)})"
+            )
         columns, unit = signals[whole]
         if sliced:
             i, j = int(sliced.group(2)), int(sliced.group(3))
             if not 0 <= i < j <= len(columns):
-                raise ConfigError(f"{where}.signal", f"expected a slice [i:j] with 0 <= i < j <= {len(columns)} "
-                                                     f"(the size of {whole}), got [{i}:{j}]")
+                raise ConfigError(
+                    f"{where}.signal",
+                    f"expected a slice [i:j] with 0 <= i < j <= {len(columns)} (the size of {whole}), got [{i}:{j}]",
+                )
             parts = [u.strip() for u in unit.split(",")]
-            if len(columns) % len(parts) == 0:       # "N, N*m" over 6 elements: each unit covers a half
+            if len(columns) % len(parts) == 0:  # "N, N*m" over 6 elements: each unit covers a half
                 per = len(columns) // len(parts)
                 covered = {parts[k // per] for k in range(i, j)}
                 unit = covered.pop() if len(covered) == 1 else unit
@@ -175,5 +193,3 @@ def metric(name: str, spec: Any, signals: dict[str, tuple[tuple[str, ...], str]]
     elif "threshold" in spec:
         raise ConfigError(f"{where}.threshold", f"only first_crossing takes a threshold, not {how}")
     return Metric(name, signal, how, columns, threshold, unit=unit)
-
-

@@ -6,6 +6,7 @@ Every case is one ``orchestrator run`` process of its own (own run id, own bus o
 own component processes), started with the case's config file, so a case's numbers are those of
 a plain ``orchestrator run`` of that file, wherever it runs.
 """
+
 from __future__ import annotations
 
 import concurrent.futures as futures
@@ -18,11 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from orchestrator.campaigns.case import STOP_GRACE_S, execute_case
 from orchestrator.campaigns.campaign import Campaign, case_yaml
+from orchestrator.campaigns.case import STOP_GRACE_S, execute_case
 from orchestrator.campaigns.directory import CampaignDir, Progress, ignore_interrupts
-
-
 
 # ---------------------------------------------------------------- the pools
 
@@ -39,7 +38,7 @@ def _slots(jobs: int, dedicated: bool) -> list:
     if jobs < 2 or not dedicated or len(cpus) < jobs:
         return [None] * jobs
     per = len(cpus) // jobs
-    return [frozenset(cpus[i * per:(i + 1) * per]) for i in range(jobs)]
+    return [frozenset(cpus[i * per : (i + 1) * per]) for i in range(jobs)]
 
 
 def _dedicated(campaign: Campaign, todo: list[int]) -> int:
@@ -71,8 +70,15 @@ def run_local(directory: CampaignDir, todo: list[int], jobs: int, progress: Prog
         try:
             if stop.is_set():
                 return {"case": index, "status": "interrupted"}
-            return execute_case(index, directory.config_file(index), directory.record_dir(index), campaign.metrics,
-                                campaign.keep, stop=stop, cpus=slots[slot])
+            return execute_case(
+                index,
+                directory.config_file(index),
+                directory.record_dir(index),
+                campaign.metrics,
+                campaign.keep,
+                stop=stop,
+                cpus=slots[slot],
+            )
         finally:
             with lock:
                 free.append(slot)
@@ -125,34 +131,45 @@ def summary(rows: list[dict], campaign: Campaign, wall: float, out, ran: int | N
         statuses[row["status"]] = statuses.get(row["status"], 0) + 1
     counts = ", ".join(f"{n} {s}" for s, n in statuses.items())
     finished = statuses.get("completed", 0) + statuses.get("failed", 0) if ran is None else ran
-    print(f"campaign: {len(rows)} cases: {counts}; {wall:.1f} s wall"
-          + (f", {finished / wall * 60:.1f} cases/min" if wall > 0 and finished else ""), file=out)
-    if any(row["outcome"] != row["status"] for row in rows):   # declared or named outcomes: say them
+    print(
+        f"campaign: {len(rows)} cases: {counts}; {wall:.1f} s wall"
+        + (f", {finished / wall * 60:.1f} cases/min" if wall > 0 and finished else ""),
+        file=out,
+    )
+    if any(row["outcome"] != row["status"] for row in rows):  # declared or named outcomes: say them
         outcomes: dict[str, int] = {}
         for row in rows:
             outcomes[row["outcome"]] = outcomes.get(row["outcome"], 0) + 1
-        print("  outcomes: " + ", ".join(f"{n} {o} ({100.0 * n / len(rows):.0f}%)" for o, n in outcomes.items()),
-              file=out)
+        print(
+            "  outcomes: " + ", ".join(f"{n} {o} ({100.0 * n / len(rows):.0f}%)" for o, n in outcomes.items()), file=out
+        )
     ok = [r for r in rows if r["status"] == "completed"]
     numeric = [m for m in campaign.metrics if not any(isinstance(r[m.name], str) for r in ok)]
     for m in campaign.metrics:
         texts = sorted({r[m.name] for r in ok if isinstance(r[m.name], str) and r[m.name]})
-        if texts:                            # a text metric (an event's reason): how often each
+        if texts:  # a text metric (an event's reason): how often each
             counts = {t: sum(1 for r in ok if r[m.name] == t) for t in texts}
-            print(f"  {m.name}: " + "; ".join(f"{n} x {t[:160]}" for t, n in sorted(counts.items(), key=lambda x: -x[1])[:5]),
-                  file=out)
+            print(
+                f"  {m.name}: "
+                + "; ".join(f"{n} x {t[:160]}" for t, n in sorted(counts.items(), key=lambda x: -x[1])[:5]),
+                file=out,
+            )
     if numeric and ok:
         print(f"  {'metric':<24}{'mean':>13}{'std':>13}{'min':>13}{'max':>13}", file=out)
         for m in numeric:
             values = np.array([r[m.name] for r in ok], dtype=float)
             finite = values[np.isfinite(values)]
             if not len(finite):
-                print(f"  {m.name:<24}" + (f"no case had a {m.event} event" if m.event else "(no finite value)"),
-                      file=out)
+                print(
+                    f"  {m.name:<24}" + (f"no case had a {m.event} event" if m.event else "(no finite value)"), file=out
+                )
                 continue
-            print(f"  {m.name:<24}{np.mean(finite):>13.6g}{np.std(finite):>13.6g}{np.min(finite):>13.6g}"
-                  f"{np.max(finite):>13.6g}" + (f"   ({len(values) - len(finite)} NaN)" if len(finite) < len(values)
-                                                 else ""), file=out)
+            print(
+                f"  {m.name:<24}{np.mean(finite):>13.6g}{np.std(finite):>13.6g}{np.min(finite):>13.6g}"
+                f"{np.max(finite):>13.6g}"
+                + (f"   ({len(values) - len(finite)} NaN)" if len(finite) < len(values) else ""),
+                file=out,
+            )
     failed = [r for r in rows if r["status"] == "failed"]
     for r in failed[:10]:
         print(f"  case {r['case']} failed: {r['error']}", file=out)
@@ -164,14 +181,23 @@ def summary(rows: list[dict], campaign: Campaign, wall: float, out, ran: int | N
         print(f"  retried: {listed}", file=out)
 
 
-def sweep(campaign: Campaign, out: Path, *, jobs: int | None = None, cluster: str | None = None,
-          resume: bool = False, only: list[int] | None = None, retries: int = 2, stream=sys.stderr) -> int:
+def sweep(
+    campaign: Campaign,
+    out: Path,
+    *,
+    jobs: int | None = None,
+    cluster: str | None = None,
+    resume: bool = False,
+    only: list[int] | None = None,
+    retries: int = 2,
+    stream=sys.stderr,
+) -> int:
     """Run a validated campaign into ``out``: 0 when every case in scope ran (completed or
     failed), 130 when interrupted."""
     directory = CampaignDir(out, campaign)
     directory.prepare(resume, only)
     scope = list(only) if only is not None else list(range(campaign.count))
-    for index in scope:   # each case's config beside its recording, written before any runs
+    for index in scope:  # each case's config beside its recording, written before any runs
         path = directory.config_file(index)
         text = case_yaml(campaign.case(index), campaign)
         if not path.exists() or path.read_text() != text:
@@ -192,11 +218,14 @@ def sweep(campaign: Campaign, out: Path, *, jobs: int | None = None, cluster: st
     start = time.perf_counter()
     completed = True
     main = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGTERM, _interrupt) if main else None   # a SIGTERM (a batch system's stop) is a Ctrl-C
+    previous = (
+        signal.signal(signal.SIGTERM, _interrupt) if main else None
+    )  # a SIGTERM (a batch system's stop) is a Ctrl-C
     try:
         if todo:
             if cluster:
                 from orchestrator.campaigns.distributed import run_dask
+
                 completed = run_dask(directory, todo, cluster, retries, progress)
             else:
                 completed = run_local(directory, todo, jobs, progress)
@@ -204,11 +233,17 @@ def sweep(campaign: Campaign, out: Path, *, jobs: int | None = None, cluster: st
         if main:
             signal.signal(signal.SIGTERM, previous)
         progress.end()
-        rows_scope = scope if only is None else sorted(
-            set(scope) | {i for i in range(campaign.count) if directory.result_file(i).exists()})
+        rows_scope = (
+            scope
+            if only is None
+            else sorted(set(scope) | {i for i in range(campaign.count) if directory.result_file(i).exists()})
+        )
         rows = directory.table(rows_scope)
     ran = sum(1 for i in todo if directory.done(i) is not None)
     summary(rows, campaign, time.perf_counter() - start, stream, ran)
-    print(f"results in {out / 'cases.parquet'}" + ("" if completed else
-          f"; interrupted: orchestrator sweep {campaign.path} --out {out} --resume finishes it"), file=stream)
+    print(
+        f"results in {out / 'cases.parquet'}"
+        + ("" if completed else f"; interrupted: orchestrator sweep {campaign.path} --out {out} --resume finishes it"),
+        file=stream,
+    )
     return 0 if completed else 130

@@ -1,9 +1,10 @@
 """How a command ends: the exit code of bad usage or a bad config (the others:
 orchestrator/cli.py's docstring) and its error lines on stderr."""
+
 from __future__ import annotations
 
 import sys
-from typing import Iterable
+from collections.abc import Iterable
 
 USAGE_ERROR = 2
 

@@ -1,4 +1,5 @@
 """``orchestrator ps``, ``stop`` and ``swap``: requests to the runs alive on this machine."""
+
 from __future__ import annotations
 
 import json
@@ -21,6 +22,7 @@ def _query(entry: dict, request: dict, timeout: float = 30.0) -> dict:
 
 def _one_run(name: str):
     from orchestrator.run import runs
+
     found = runs.find(name)
     if not found:
         names = ", ".join(r["name"] for r in runs.alive()) or "none"
@@ -32,6 +34,7 @@ def _one_run(name: str):
 
 def cmd_ps(args) -> int:
     from orchestrator.run import runs
+
     entries = runs.alive()
     if not entries:
         print("no runs alive")
@@ -63,8 +66,9 @@ def cmd_swap(args) -> int:
     entry, error = _one_run(args.run)
     if error:
         return fail(error)
-    answer = _query(entry, {"op": "swap", "component": args.component, "type": args.type, "set": args.set},
-                    timeout=120.0)
+    answer = _query(
+        entry, {"op": "swap", "component": args.component, "type": args.type, "set": args.set}, timeout=120.0
+    )
     if not answer.get("ok"):  # bad parameters or type: 2; a replacement that failed to start: 1
         return fail(answer.get("error", "swap refused"), USAGE_ERROR if answer.get("usage", True) else 1)
     print(f"swapped {args.component} at step {answer['step']} (generation {answer['generation']})")

@@ -1,4 +1,5 @@
 """``orchestrator plot``, ``export`` and ``figure``: what is made from a recording (run --record DIR)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -10,6 +11,7 @@ from orchestrator.commands.exits import fail
 def cmd_plot(args) -> int:
     from components.plotting import PlotError
     from orchestrator.plots.recording import plot_recording
+
     out = Path(args.out) if args.out else Path(args.recording) / "plots"
     if problem := output_problem(out, "--out" if args.out else "plot: DIR/plots"):
         return fail(problem)
@@ -27,6 +29,7 @@ def cmd_plot(args) -> int:
 
 def cmd_export(args) -> int:
     from orchestrator.export.rosbag2 import ExportError, export_rosbag2
+
     if problem := output_problem(args.rosbag2, "--rosbag2"):
         return fail(problem)
     try:
@@ -42,6 +45,7 @@ def cmd_export(args) -> int:
 
 def cmd_figure(args) -> int:
     from components.camera.figure import draw, nearest_frame
+
     if problem := output_problem(args.out, "--out", "file"):
         return fail(problem)
     frames = Path(args.recording) / "frames" / args.component

@@ -1,4 +1,5 @@
 """``orchestrator check``, ``run`` and ``sweep``: a config (or a campaign) checked, run, or swept."""
+
 from __future__ import annotations
 
 import sys
@@ -10,20 +11,24 @@ from orchestrator.run.wording import count
 
 
 def _load(path: str, overrides: list[str], full: bool = False, strict: bool = False):
-    from orchestrator.config.yaml_file import ConfigErrors
     from orchestrator.config.load import load
+    from orchestrator.config.yaml_file import ConfigErrors
+
     try:
         return load(path, overrides, full, strict), None
     except ConfigErrors as e:
         if _is_campaign(path):
-            return None, [f"{path}: a campaign file (config:, disperse:, metrics:), not a run's config: "
-                          f"orchestrator sweep {path} --out DIR runs it"]
+            return None, [
+                f"{path}: a campaign file (config:, disperse:, metrics:), not a run's config: "
+                f"orchestrator sweep {path} --out DIR runs it"
+            ]
         return None, e.errors
 
 
 def _is_campaign(path: str) -> bool:
     """A YAML mapping with the campaign's ``config`` key and none of a run config's."""
     import yaml
+
     try:
         raw = yaml.safe_load(Path(path).read_text())
     except (OSError, ValueError, yaml.YAMLError):
@@ -33,18 +38,22 @@ def _is_campaign(path: str) -> bool:
 
 def _check_campaign(path: str) -> int:
     from orchestrator.campaigns.campaign import CampaignErrors, load_campaign
+
     try:
         campaign = load_campaign(path)
     except CampaignErrors as e:
         return fail_all(e.errors)
-    print(f"{path}: ok — a campaign of {count(campaign.count, 'case')}, {count(len(campaign.metrics), 'metric')} "
-          f"(orchestrator sweep {path} --out DIR runs it)")
+    print(
+        f"{path}: ok — a campaign of {count(campaign.count, 'case')}, {count(len(campaign.metrics), 'metric')} "
+        f"(orchestrator sweep {path} --out DIR runs it)"
+    )
     return 0
 
 
 def _expect_problem(config, expect: str | None) -> str | None:
     """--expect NAME against the outcomes the run's components declare."""
     from orchestrator.run.outcome import expect_problem
+
     return f"--expect {problem}" if expect and (problem := expect_problem(config.components, expect)) else None
 
 
@@ -59,10 +68,13 @@ def cmd_check(args) -> int:
     for line in config.notes:
         print(f"warning: {line}", file=sys.stderr)
     shadows = [n for n, s in config.components.items() if s.shadow_of]
-    print(f"{args.config}: ok — {count(len(config.components) - len(shadows), 'component')}"
-          + (f" and {count(len(shadows), 'shadow')}" if shadows else "") + ", "
-          f"{count(len(config.resolved['connections']), 'connection')}, {count(config.steps, 'step')} of "
-          f"{config.step_ns / 1e6:g} ms ({config.algorithm})")
+    print(
+        f"{args.config}: ok — {count(len(config.components) - len(shadows), 'component')}"
+        + (f" and {count(len(shadows), 'shadow')}" if shadows else "")
+        + ", "
+        f"{count(len(config.resolved['connections']), 'connection')}, {count(config.steps, 'step')} of "
+        f"{config.step_ns / 1e6:g} ms ({config.algorithm})"
+    )
     return 0
 
 
@@ -72,9 +84,10 @@ def cmd_run(args) -> int:
         return fail_all(errors)
     if problem := _expect_problem(config, args.expect):
         return fail(problem)
-    lock = None   # held (open, flock'ed) until this process ends: the directory is this run's
+    lock = None  # held (open, flock'ed) until this process ends: the directory is this run's
     if args.record:
         from orchestrator.run.recording import RecordingError, claim_directory
+
         try:
             lock = claim_directory(Path(args.record), args.overwrite, config.name)
         except RecordingError as e:
@@ -90,14 +103,21 @@ def cmd_run(args) -> int:
     if problem is not None:
         return fail(problem)
     from orchestrator.run.engine import Run
-    run = Run(config, record=args.record, profile=args.profile, progress=sys.stderr.isatty(), viewer=viewer,
-              ros2=ros2, expect=args.expect)
+
+    run = Run(
+        config,
+        record=args.record,
+        profile=args.profile,
+        progress=sys.stderr.isatty(),
+        viewer=viewer,
+        ros2=ros2,
+        expect=args.expect,
+    )
     try:
         return run.execute()
     finally:
         if lock is not None:
             lock.close()
-
 
 
 def _viewer(view: str | None, config):
@@ -107,21 +127,24 @@ def _viewer(view: str | None, config):
         config.viewer = None
     elif view:
         from orchestrator.config.load import viewer_spec
+
         errors: list[str] = []
         viewer = viewer_spec(view, "--view", errors, Path.cwd())
         if errors or viewer is None:
             return None, "; ".join(errors) or "--view: expected spawn, web, save:FILE.rrd or foxglove[:PORT]"
     chosen = viewer or config.viewer
     mode = getattr(chosen, "mode", None)
-    if mode == "save":   # an .rrd it cannot write: before the run
+    if mode == "save":  # an .rrd it cannot write: before the run
         if problem := output_problem(chosen.file, "--view save:", "file"):
             return None, problem
-    if mode == "spawn":   # fail before the run, not after
+    if mode == "spawn":  # fail before the run, not after
         from components.viewer.sinks import spawn_problem
+
         if spawn_problem():
             return None, f"viewer spawn: {spawn_problem()}"
-    if mode == "foxglove":   # a taken port: before the run, not after
+    if mode == "foxglove":  # a taken port: before the run, not after
         from components.viewer.foxglove_observer import port_problem
+
         if problem := port_problem(chosen.port):
             return None, f"viewer foxglove: {problem}"
     return viewer, None
@@ -133,6 +156,7 @@ def _ros2(endpoint: str | None, config):
     if endpoint is None:
         return None, None
     from orchestrator.config.load import clock_clash, ros2_spec
+
     errors: list[str] = []
     ros2 = ros2_spec(config.resolved.get("ros2"), "--ros2", errors, endpoint=endpoint or None)
     if errors or ros2 is None:
@@ -141,9 +165,10 @@ def _ros2(endpoint: str | None, config):
 
 
 def cmd_sweep(args) -> int:
+    from orchestrator.campaigns.campaign import CampaignErrors, load_campaign
     from orchestrator.campaigns.directory import CampaignError
     from orchestrator.campaigns.runner import sweep
-    from orchestrator.campaigns.campaign import CampaignErrors, load_campaign
+
     only = None
     if args.only is not None:
         try:
@@ -152,14 +177,21 @@ def cmd_sweep(args) -> int:
             return fail(f"--only {args.only}: expected case numbers, e.g. --only 17 or --only 3,17")
     if args.jobs is not None and args.jobs < 1:
         return fail(f"--jobs {args.jobs}: expected 1 or more")
-    if problem := output_problem(args.out, "--out"):   # before any case starts
+    if problem := output_problem(args.out, "--out"):  # before any case starts
         return fail(problem)
     try:
         campaign = load_campaign(args.campaign, check_cases=True if only is None else only)
     except CampaignErrors as e:
         return fail_all(e.errors)
     try:
-        return sweep(campaign, Path(args.out), jobs=args.jobs, cluster=args.cluster, resume=args.resume, only=only,
-                     retries=args.retries)
+        return sweep(
+            campaign,
+            Path(args.out),
+            jobs=args.jobs,
+            cluster=args.cluster,
+            resume=args.resume,
+            only=only,
+            retries=args.retries,
+        )
     except CampaignError as e:
         return fail(str(e))

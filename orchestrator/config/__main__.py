@@ -1,4 +1,5 @@
 """python -m orchestrator.config --docs: the config tables of docs/design.md, from the schema."""
+
 import sys
 
 from orchestrator.config.schema import write_docs

@@ -1,6 +1,7 @@
 """Checking connections between components (both ends exist, shapes and units agree) and what a
 component's replacement (a swap) must keep: the connected variables, and, when the swap hands the
 state over, the state's form and the outputs."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -21,11 +22,12 @@ def check_replacement(spec: ComponentSpec, connections: list[tuple[str, str, str
                 continue
             if any(v.name == var for v in layout.frames):
                 # a frame is part of no state and is not sent again to a new generation
-                problems.append(f"the connection {d}.{dv}: {s}.{sv} carries frames (images): a component joined "
-                                f"by one cannot be swapped yet")
+                problems.append(
+                    f"the connection {d}.{dv}: {s}.{sv} carries frames (images): a component joined "
+                    f"by one cannot be swapped yet"
+                )
             elif var not in layout.offsets:
-                problems.append(f"{spec.type} has no {causality} {var!r}, which the connection "
-                                f"{d}.{dv}: {s}.{sv} uses")
+                problems.append(f"{spec.type} has no {causality} {var!r}, which the connection {d}.{dv}: {s}.{sv} uses")
     return problems
 
 
@@ -53,10 +55,13 @@ def handover_problem(old: ComponentSpec, new: ComponentSpec) -> str | None:
     ours = [(v.name, v.shape) for v in old.outputs.variables]
     theirs = [(v.name, v.shape) for v in new.outputs.variables]
     if ours != theirs:
-        differ = [f"{n}{list(s)}" for n, s in theirs if (n, s) not in ours][:3] + \
-                 [f"no {n}{list(s)}" for n, s in ours if (n, s) not in theirs][:3]
-        return (f"a swap from {old.type} to {what} hands the state over, so the new outputs must be the old ones "
-                f"(the same parameters), got {', '.join(differ) or 'them in another order'}")
+        differ = [f"{n}{list(s)}" for n, s in theirs if (n, s) not in ours][:3] + [
+            f"no {n}{list(s)}" for n, s in ours if (n, s) not in theirs
+        ][:3]
+        return (
+            f"a swap from {old.type} to {what} hands the state over, so the new outputs must be the old ones "
+            f"(the same parameters), got {', '.join(differ) or 'them in another order'}"
+        )
     return None
 
 
@@ -67,8 +72,9 @@ def _split(ref: Any) -> tuple[str, str] | None:
     return component, variable
 
 
-def parse_connections(raw: Any, components: dict[str, ComponentSpec], entries: dict, file: Path,
-                      errors: list[str]) -> list[tuple[str, str, str, str]]:
+def parse_connections(
+    raw: Any, components: dict[str, ComponentSpec], entries: dict, file: Path, errors: list[str]
+) -> list[tuple[str, str, str, str]]:
     """The config's ``connections`` as (input component, input, output component, output); each
     problem (unknown names, shapes or units that differ) appended to ``errors``."""
     if not isinstance(raw, dict):
@@ -91,8 +97,10 @@ def parse_connections(raw: Any, components: dict[str, ComponentSpec], entries: d
                 if v is None or v.causality != causality:
                     layout = spec.inputs if causality == "input" else spec.outputs
                     names = [x.name for x in layout.variables + layout.frames]
-                    problem = (f"{comp} ({spec.type}) has no {causality} {var!r} "
-                               f"(its {causality}s: {', '.join(names) or 'none'})")
+                    problem = (
+                        f"{comp} ({spec.type}) has no {causality} {var!r} "
+                        f"(its {causality}s: {', '.join(names) or 'none'})"
+                    )
             if problem:
                 break
         if problem:
@@ -102,19 +110,25 @@ def parse_connections(raw: Any, components: dict[str, ComponentSpec], entries: d
             dv, sv = components[d[0]].variables[d[1]], components[s[0]].variables[s[1]]
             if dv.frame != sv.frame:
                 kinds = {True: "a frame (image)", False: "a float variable"}
-                errors.append(f"{file}: {key}: kind mismatch: input {dst} is {kinds[dv.frame]}, output {src} is "
-                              f"{kinds[sv.frame]} (a frame connects only to a frame)")
+                errors.append(
+                    f"{file}: {key}: kind mismatch: input {dst} is {kinds[dv.frame]}, output {src} is "
+                    f"{kinds[sv.frame]} (a frame connects only to a frame)"
+                )
                 continue
             if dv.frame and (dv.shape, dv.dtype) != (sv.shape, sv.dtype):
-                errors.append(f"{file}: {key}: frame mismatch: input {dst} is {dv.dtype} {dv.shape}, output {src} "
-                              f"is {sv.dtype} {sv.shape}")
+                errors.append(
+                    f"{file}: {key}: frame mismatch: input {dst} is {dv.dtype} {dv.shape}, output {src} "
+                    f"is {sv.dtype} {sv.shape}"
+                )
                 continue
             if dv.size != sv.size:
                 errors.append(f"{file}: {key}: shape mismatch: input {dst} is {dv.shape}, output {src} is {sv.shape}")
                 continue
             if units_differ(dv.unit, sv.unit):
-                errors.append(f"{file}: {key}: unit mismatch: input {dst} is in {dv.unit}, output {src} in "
-                              f"{sv.unit} (connections do not convert units)")
+                errors.append(
+                    f"{file}: {key}: unit mismatch: input {dst} is in {dv.unit}, output {src} in "
+                    f"{sv.unit} (connections do not convert units)"
+                )
                 continue
             result.append((d[0], d[1], s[0], s[1]))
     return result

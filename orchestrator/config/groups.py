@@ -1,5 +1,6 @@
 """Process groups (``components.<name>.process: <group>``): which components share a process, and
 what the members of a group must agree on for that to be possible."""
+
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
@@ -40,22 +41,30 @@ def problems(specs: list[ComponentSpec]) -> list[str]:
         external = [m.name for m in members if m.launch == "external"]
         if external and len(external) < len(members):
             local = ", ".join(m.name for m in members if m.launch == "local")
-            found.append(f"components.{external[0]}.process: group {group!r} is one process, started by the "
-                         f"orchestrator or by you: expected its members all launch: local, got launch: external "
-                         f"({', '.join(external)}) beside launch: local ({local})")
+            found.append(
+                f"components.{external[0]}.process: group {group!r} is one process, started by the "
+                f"orchestrator or by you: expected its members all launch: local, got launch: external "
+                f"({', '.join(external)}) beside launch: local ({local})"
+            )
         elif external:
-            found.append(f"components.{external[0]}.process: group {group!r} ({names}) is launch: external; "
-                         f"orchestrator join serves one component: expected launch: local members, or no "
-                         f"process: on external ones")
+            found.append(
+                f"components.{external[0]}.process: group {group!r} ({names}) is launch: external; "
+                f"orchestrator join serves one component: expected launch: local members, or no "
+                f"process: on external ones"
+            )
         asking = {m.name: m.dedicated_cpu for m in members if m.dedicated_cpu}
         if len(set(asking.values())) > 1:
             given = ", ".join(f"{n}: {str(v).lower()}" for n, v in asking.items())
-            found.append(f"components.{next(iter(asking))}.dedicated_cpu: the members of group {group!r} share one "
-                         f"process and its CPU: expected those that ask for one to agree (true or process), "
-                         f"got {given}")
+            found.append(
+                f"components.{next(iter(asking))}.dedicated_cpu: the members of group {group!r} share one "
+                f"process and its CPU: expected those that ask for one to agree (true or process), "
+                f"got {given}"
+            )
         for member in members:
             problem = member.cls.group_problem(member.resolved)
             if problem:
-                found.append(f"components.{member.name}.process: {member.name} ({member.type}) cannot join group "
-                             f"{group!r}: {problem}; run it in a process of its own (no process: key)")
+                found.append(
+                    f"components.{member.name}.process: {member.name} ({member.type}) cannot join group "
+                    f"{group!r}: {problem}; run it in a process of its own (no process: key)"
+                )
     return found

@@ -3,6 +3,7 @@
 Every problem is collected and reported at once, each naming its key and file; nothing is
 started before the whole config is valid. Unknown keys are errors, as are missing required ones.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -15,13 +16,14 @@ from components.extras import missing
 from components.schema import implausible_values
 from components.units import duration_text
 from orchestrator.config import groups
-from orchestrator.hosts import bus_config
+from orchestrator.config.connections import check_replacement, handover_problem, hands_over, parse_connections
 from orchestrator.config.schema import BUS, COMPONENT, CONFIG, FAULT, MAX_STEPS, ROS2, RUN, VIEWER
+from orchestrator.config.shadows import mismatches, shadow_spec, with_shadows
 from orchestrator.config.specs import ComponentSpec, Event, Fault, Ros2Spec, RunConfig, ViewerSpec
 from orchestrator.config.yaml_file import ConfigErrors, apply_overrides, read_yaml
-from orchestrator.config.connections import check_replacement, hands_over, handover_problem, parse_connections
-from orchestrator.config.shadows import mismatches, shadow_spec, with_shadows
+from orchestrator.hosts import bus_config
 from orchestrator.run.outcome import expect_problem
+
 
 def viewer_spec(raw: Any, where: str, errors: list[str], base: Path) -> ViewerSpec | None:
     """Parse a ``viewer:`` section or a ``--view`` value (``spawn``, ``web``, ``save:FILE.rrd``,
@@ -55,8 +57,13 @@ def _viewer(section: dict, where: str, errors: list[str], base: Path) -> ViewerS
     if section["port"] > 65535:
         errors.append(f"{where}.port: expected a port number 1..65535, got {section['port']}")
         return None
-    return ViewerSpec(mode=section["mode"], file=(base / file) if file else None, rate_hz=section["rate"],
-                      open_browser=section["open_browser"], port=section["port"])
+    return ViewerSpec(
+        mode=section["mode"],
+        file=(base / file) if file else None,
+        rate_hz=section["rate"],
+        open_browser=section["open_browser"],
+        port=section["port"],
+    )
 
 
 def clock_clash(components: dict[str, ComponentSpec], ros2: Ros2Spec | None, where: str) -> str | None:
@@ -66,9 +73,11 @@ def clock_clash(components: dict[str, ComponentSpec], ros2: Ros2Spec | None, whe
         return None
     for name, spec in components.items():
         if spec.type == "ros2.bridge" and spec.resolved["clock"] and spec.resolved["domain_id"] == ros2.domain_id:
-            return (f"{where}: the live ROS 2 view would publish /clock in domain {ros2.domain_id}, where the bridge "
-                    f"{name!r} publishes the run's /clock in lockstep (a node with use_sim_time would hear both): "
-                    f"give ros2.topics without /clock, or components.{name}.parameters.clock: false")
+            return (
+                f"{where}: the live ROS 2 view would publish /clock in domain {ros2.domain_id}, where the bridge "
+                f"{name!r} publishes the run's /clock in lockstep (a node with use_sim_time would hear both): "
+                f"give ros2.topics without /clock, or components.{name}.parameters.clock: false"
+            )
     return None
 
 
@@ -102,8 +111,11 @@ def ros2_spec(raw: Any, where: str, errors: list[str], endpoint: str | None = No
             errors.append(f"{where}.domain_id: from ROS_DOMAIN_ID, expected an integer >= 0, got {text!r}")
             return None
         domain_id = int(text) if text else 0
-    rejected = [f"{where}.topics[{i}]: ROS 2 rejects the topic name {topic!r}: {problem}"
-                for i, topic in enumerate(section["topics"] or []) if (problem := check_topic_name(topic))]
+    rejected = [
+        f"{where}.topics[{i}]: ROS 2 rejects the topic name {topic!r}: {problem}"
+        for i, topic in enumerate(section["topics"] or [])
+        if (problem := check_topic_name(topic))
+    ]
     if rejected:
         errors += rejected
         return None
@@ -112,8 +124,16 @@ def ros2_spec(raw: Any, where: str, errors: list[str], endpoint: str | None = No
     except ComponentError as e:
         errors.append(f"{where}.transport: {e}")
         return None
-    return Ros2Spec(endpoint=section["endpoint"], domain_id=domain_id, distro=section["distro"],
-                    topics=section["topics"], rate_hz=section["rate"], transport=transport, python=python, why=why)
+    return Ros2Spec(
+        endpoint=section["endpoint"],
+        domain_id=domain_id,
+        distro=section["distro"],
+        topics=section["topics"],
+        rate_hz=section["rate"],
+        transport=transport,
+        python=python,
+        why=why,
+    )
 
 
 def load(path: str | Path, overrides: list[str] = (), full: bool = False, strict: bool = False) -> RunConfig:
@@ -126,8 +146,9 @@ def load(path: str | Path, overrides: list[str] = (), full: bool = False, strict
     return validate(raw, path, full, strict)
 
 
-def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, epoch: str,
-                   key: str, packages: dict | None = None) -> ComponentSpec:
+def component_spec(
+    name: str, entry: dict, run_step_ns: int, config_dir: Path, epoch: str, key: str, packages: dict | None = None
+) -> ComponentSpec:
     """One component's spec from its entry as COMPONENT converts it; ConfigErrors naming ``key.<...>``."""
     errors: list[str] = []
     type_name = entry["type"]
@@ -137,8 +158,10 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
         raise ConfigErrors([f"{key}.type: {e.message}"]) from None
     step_ns = run_step_ns if entry["step"] is None else entry["step"]
     if step_ns % run_step_ns:
-        errors.append(f"{key}.step: must be a positive integer multiple of run.step "
-                      f"({duration_text(run_step_ns)}), got {duration_text(step_ns)}")
+        errors.append(
+            f"{key}.step: must be a positive integer multiple of run.step "
+            f"({duration_text(run_step_ns)}), got {duration_text(step_ns)}"
+        )
     params_raw = entry["parameters"]
     if not isinstance(params_raw, dict):
         raise ConfigErrors([f"{key}.parameters: expected a mapping, got {params_raw!r}"])
@@ -149,21 +172,41 @@ def component_spec(name: str, entry: dict, run_step_ns: int, config_dir: Path, e
     except registry.Unresolved as e:
         unresolved = e
     if unresolved and unresolved.stage == "parameters":
-        errors += [f"{key}.parameters.{e.key}: {e.message}" if e.key else f"{key}.parameters: {e.message}"
-                   for e in unresolved.errors]
+        errors += [
+            f"{key}.parameters.{e.key}: {e.message}" if e.key else f"{key}.parameters: {e.message}"
+            for e in unresolved.errors
+        ]
     if entry["dedicated_cpu"] and entry["launch"] == "external":
-        errors.append(f"{key}.dedicated_cpu: only for components the orchestrator starts (launch: local); "
-                      f"pin an external component where it runs (taskset)")
+        errors.append(
+            f"{key}.dedicated_cpu: only for components the orchestrator starts (launch: local); "
+            f"pin an external component where it runs (taskset)"
+        )
     if errors:
         raise ConfigErrors(errors)
-    if unresolved:   # declare failed; a component's own bug or a file it cannot read is one line too
+    if unresolved:  # declare failed; a component's own bug or a file it cannot read is one line too
         e = unresolved.errors[0]
-        raise ConfigErrors([f"{key}.parameters.{e.key}: {e.message}" if isinstance(e, ConfigError) else
-                            f"{key}.parameters: {type_name} cannot declare its variables: {type(e).__name__}: {e}"])
-    return ComponentSpec(name=name, type=type_name, cls=cls, step_ns=step_ns, parameters=params_raw,
-                         resolved=resolved.params, launch=entry["launch"], dedicated_cpu=entry["dedicated_cpu"],
-                         on_failure=entry["on_failure"], process=entry["process"], inputs=resolved.inputs,
-                         outputs=resolved.outputs, implausible=[f"{key}.parameters.{f}" for f in found])
+        raise ConfigErrors(
+            [
+                f"{key}.parameters.{e.key}: {e.message}"
+                if isinstance(e, ConfigError)
+                else f"{key}.parameters: {type_name} cannot declare its variables: {type(e).__name__}: {e}"
+            ]
+        )
+    return ComponentSpec(
+        name=name,
+        type=type_name,
+        cls=cls,
+        step_ns=step_ns,
+        parameters=params_raw,
+        resolved=resolved.params,
+        launch=entry["launch"],
+        dedicated_cpu=entry["dedicated_cpu"],
+        on_failure=entry["on_failure"],
+        process=entry["process"],
+        inputs=resolved.inputs,
+        outputs=resolved.outputs,
+        implausible=[f"{key}.parameters.{f}" for f in found],
+    )
 
 
 def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) -> RunConfig:
@@ -177,11 +220,15 @@ def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) ->
     run = config.get("run", {})
     step_ns, total_ns, epoch = run.get("step"), run.get("duration"), run.get("epoch")
     if step_ns and total_ns and total_ns % step_ns:
-        errors.append(f"{file}: run.duration: must be a whole number of steps of {duration_text(step_ns)}, "
-                      f"got {raw['run']['duration']!r}")
+        errors.append(
+            f"{file}: run.duration: must be a whole number of steps of {duration_text(step_ns)}, "
+            f"got {raw['run']['duration']!r}"
+        )
     elif step_ns and total_ns and total_ns // step_ns > MAX_STEPS:
-        errors.append(f"{file}: run.duration: {total_ns // step_ns:.3g} steps of {duration_text(step_ns)}; at most "
-                      f"{MAX_STEPS:.0e} steps (at a million steps per second, 11 days of wall time)")
+        errors.append(
+            f"{file}: run.duration: {total_ns // step_ns:.3g} steps of {duration_text(step_ns)}; at most "
+            f"{MAX_STEPS:.0e} steps (at a million steps per second, 11 days of wall time)"
+        )
     components: dict[str, ComponentSpec] = {}
     config_dir = path.parent.resolve()
     packages = {}
@@ -191,15 +238,20 @@ def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) ->
             errors.append(f"{file}: run.packages.{package}: directory {directory!r} not found ({where})")
         packages[package] = str(where)
     entries = config.get("components", {})
-    shadows: dict[str, ComponentSpec] = {}   # main's name -> its shadow
+    shadows: dict[str, ComponentSpec] = {}  # main's name -> its shadow
     if step_ns is not None and epoch is not None:
         for name, entry in entries.items():
             try:
-                components[name] = component_spec(name, entry, step_ns, config_dir, epoch, f"components.{name}",
-                                                  packages)
+                components[name] = component_spec(
+                    name, entry, step_ns, config_dir, epoch, f"components.{name}", packages
+                )
                 if entry["shadow"] is not None:
-                    shadows[name] = shadow_spec(components[name], entry["shadow"], entries, lambda n, e, key: (
-                        component_spec(n, e, step_ns, config_dir, epoch, key, packages)))
+                    shadows[name] = shadow_spec(
+                        components[name],
+                        entry["shadow"],
+                        entries,
+                        lambda n, e, key: component_spec(n, e, step_ns, config_dir, epoch, key, packages),
+                    )
             except ConfigErrors as e:
                 errors += [f"{file}: {m}" for m in e.errors]
     notes = [f"{file}: {f}" for f in found]
@@ -207,10 +259,12 @@ def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) ->
     for spec in [*components.values(), *shadows.values()]:
         key = f"{spec.key}.parameters"
         try:
-            notes += [f"{file}: {key}.{note}" for note in spec.cls.preflight(spec.resolved, spec.step_ns / NS_PER_S, full)]
+            notes += [
+                f"{file}: {key}.{note}" for note in spec.cls.preflight(spec.resolved, spec.step_ns / NS_PER_S, full)
+            ]
         except ConfigError as e:
             errors.append(f"{file}: {key}.{e.key}: {e.message}" if e.key else f"{file}: {key}: {e.message}")
-        except Exception as e:   # a component's own check failing is a line too, not a traceback
+        except Exception as e:  # a component's own check failing is a line too, not a traceback
             errors.append(f"{file}: {key}: {spec.type} cannot load its model: {type(e).__name__}: {e}")
     raw_entries = raw.get("components") if isinstance(raw.get("components"), dict) else {}
     connections = parse_connections(config.get("connections", {}), components, raw_entries, file, errors)
@@ -218,8 +272,9 @@ def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) ->
         errors += [f"{file}: {shadow.key}: {p}" for p in mismatches(components[name], shadow, connections)]
     errors += [f"{file}: {p}" for p in groups.problems(list(components.values()))]
     components, connections = with_shadows(components, shadows, connections)
-    events = _events(config.get("events", []), components, connections, step_ns, total_ns, config_dir, epoch,
-                     file, errors, packages)
+    events = _events(
+        config.get("events", []), components, connections, step_ns, total_ns, config_dir, epoch, file, errors, packages
+    )
     faults = _faults(config.get("faults", []), components, total_ns, file, errors)
     notes += [f"{file}: {line}" for event in events for line in event.spec.implausible]
     restarting = [n for n, spec in components.items() if spec.on_failure == "restart"]
@@ -227,21 +282,27 @@ def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) ->
     for name, spec in components.items():
         problem = spec.cls.state_problem(spec.resolved) if restarting else None
         if problem:
-            errors.append(f"{file}: components.{restarting[0]}.on_failure: restart needs the state of every "
-                          f"component, and {name} ({spec.type}) cannot give it: {problem}")
+            errors.append(
+                f"{file}: components.{restarting[0]}.on_failure: restart needs the state of every "
+                f"component, and {name} ({spec.type}) cannot give it: {problem}"
+            )
     checkpoint_ns = run.get("checkpoint_every")
     if checkpoint_ns is not None and components:
         for name, spec in components.items():
             if checkpoint_ns % spec.step_ns:
-                errors.append(f"{file}: run.checkpoint_every: must be a multiple of every component's step "
-                              f"(all are at a step boundary then); {name} steps {duration_text(spec.step_ns)}, "
-                              f"got {duration_text(checkpoint_ns)}")
+                errors.append(
+                    f"{file}: run.checkpoint_every: must be a multiple of every component's step "
+                    f"(all are at a step boundary then); {name} steps {duration_text(spec.step_ns)}, "
+                    f"got {duration_text(checkpoint_ns)}"
+                )
     if run.get("expect") is not None and (problem := expect_problem(components, run["expect"])):
         errors.append(f"{file}: run.expect: {problem}")
     bus_spec = bus_config.check(config["bus"], config_dir, errors, file) if "bus" in config else None
     if bus_spec is not None and bus_spec.plaintext_beyond:
-        notes.append(f"{file}: bus: plain TCP beyond loopback ({', '.join(bus_spec.plaintext_beyond)}), as "
-                     f"bus.plaintext: accept-the-risk allows: anyone on those networks can read the run's traffic")
+        notes.append(
+            f"{file}: bus: plain TCP beyond loopback ({', '.join(bus_spec.plaintext_beyond)}), as "
+            f"bus.plaintext: accept-the-risk allows: anyone on those networks can read the run's traffic"
+        )
     viewer = None
     if config.get("viewer") is not None:
         problems_of_viewer: list[str] = []
@@ -256,8 +317,11 @@ def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) ->
             errors.append(f"{file}: {clash}")
     if not errors and notes and (strict or run["strict"]):
         why = "--strict" if strict else "run.strict: true"
-        errors = notes + [f"{file}: {why} makes the warning above an error" if len(notes) == 1 else
-                          f"{file}: {why} makes the {len(notes)} warnings above errors"]
+        errors = notes + [
+            f"{file}: {why} makes the warning above an error"
+            if len(notes) == 1
+            else f"{file}: {why} makes the {len(notes)} warnings above errors"
+        ]
     if errors:
         raise ConfigErrors(errors)
     resolved = {
@@ -265,32 +329,70 @@ def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) ->
         "bus": BUS.plain(config["bus"]),
         "components": {n: _resolved_entry(s, shadows.get(n)) for n, s in components.items() if not s.shadow_of},
         "connections": {f"{d}.{dv}": f"{s}.{sv}" for d, dv, s, sv in connections if not components[d].shadow_of},
-        "events": [{"at": duration_text(e.at_ns), "swap": e.swap, "type": e.type,
-                    "parameters": e.spec.cls.schema.plain(e.spec.resolved)} for e in events],
-        "faults": [FAULT.plain({"at": f.at_ns, "component": f.component, "kind": f.kind, "duration": f.duration_ns})
-                   for f in faults],
+        "events": [
+            {
+                "at": duration_text(e.at_ns),
+                "swap": e.swap,
+                "type": e.type,
+                "parameters": e.spec.cls.schema.plain(e.spec.resolved),
+            }
+            for e in events
+        ],
+        "faults": [
+            FAULT.plain({"at": f.at_ns, "component": f.component, "kind": f.kind, "duration": f.duration_ns})
+            for f in faults
+        ],
     }
     if viewer is not None:
         resolved["viewer"] = VIEWER.plain(config["viewer"])
     if ros2 is not None:
         resolved["ros2"] = ROS2.plain({**config["ros2"], "domain_id": ros2.domain_id})
-    return RunConfig(path=path, name=run["name"], epoch=epoch, duration_ns=total_ns, step_ns=step_ns,
-                     algorithm=run["algorithm"], realtime=run["realtime"], step_timeout_s=run["step_timeout"] / NS_PER_S,
-                     start_timeout_s=run["start_timeout"] / NS_PER_S, components=components, connections=connections,
-                     listen=config["bus"]["listen"], bus=bus_spec, join_timeout_s=run["join_timeout"] / NS_PER_S,
-                     events=events, faults=faults, checkpoint_ns=checkpoint_ns,
-                     max_restarts=run["max_restarts"], viewer=viewer, ros2=ros2, resolved=resolved, packages=packages, notes=notes,
-                     record_flush_s=run["record_flush"] / NS_PER_S, expect=run.get("expect"))
+    return RunConfig(
+        path=path,
+        name=run["name"],
+        epoch=epoch,
+        duration_ns=total_ns,
+        step_ns=step_ns,
+        algorithm=run["algorithm"],
+        realtime=run["realtime"],
+        step_timeout_s=run["step_timeout"] / NS_PER_S,
+        start_timeout_s=run["start_timeout"] / NS_PER_S,
+        components=components,
+        connections=connections,
+        listen=config["bus"]["listen"],
+        bus=bus_spec,
+        join_timeout_s=run["join_timeout"] / NS_PER_S,
+        events=events,
+        faults=faults,
+        checkpoint_ns=checkpoint_ns,
+        max_restarts=run["max_restarts"],
+        viewer=viewer,
+        ros2=ros2,
+        resolved=resolved,
+        packages=packages,
+        notes=notes,
+        record_flush_s=run["record_flush"] / NS_PER_S,
+        expect=run.get("expect"),
+    )
 
 
 def _resolved_entry(spec: ComponentSpec, shadow: ComponentSpec | None) -> dict:
     """A component's entry in the resolved config.yaml, its shadow nested in it."""
-    entry = {**COMPONENT.plain({"type": spec.type, "step": spec.step_ns, "launch": spec.launch,
-                                "dedicated_cpu": spec.dedicated_cpu, "on_failure": spec.on_failure,
-                                "process": spec.process}),
-             "parameters": spec.cls.schema.plain(spec.resolved)}
+    entry = {
+        **COMPONENT.plain(
+            {
+                "type": spec.type,
+                "step": spec.step_ns,
+                "launch": spec.launch,
+                "dedicated_cpu": spec.dedicated_cpu,
+                "on_failure": spec.on_failure,
+                "process": spec.process,
+            }
+        ),
+        "parameters": spec.cls.schema.plain(spec.resolved),
+    }
     del entry["shadow"]
-    if spec.process is None:   # one process per component: the default, unwritten
+    if spec.process is None:  # one process per component: the default, unwritten
         del entry["process"]
     if shadow is not None:
         entry["shadow"] = {"type": shadow.type, "parameters": shadow.cls.schema.plain(shadow.resolved)}
@@ -303,15 +405,31 @@ def frame_problems(components: dict[str, ComponentSpec], connections: list, rest
     wait for a frame that never comes (a swap: :func:`check_replacement`)."""
     frames = [(d, dv, s, sv) for d, dv, s, sv in connections if components[d].variables[dv].frame]
     framed = {n for d, _, s, _ in frames for n in (d, s)}
-    problems = [f"connections.{d}.{dv}: a component cannot read its own frames (from {s}.{sv})"
-                for d, dv, s, sv in frames if d == s]
-    return problems + [f"components.{n}.on_failure: restart is not supported yet in a run with frame connections "
-                       f"({', '.join(sorted(framed))} exchange images)" for n in restarting[:1] if framed]
+    problems = [
+        f"connections.{d}.{dv}: a component cannot read its own frames (from {s}.{sv})"
+        for d, dv, s, sv in frames
+        if d == s
+    ]
+    return problems + [
+        f"components.{n}.on_failure: restart is not supported yet in a run with frame connections "
+        f"({', '.join(sorted(framed))} exchange images)"
+        for n in restarting[:1]
+        if framed
+    ]
 
 
-def _events(entries: list[dict], components: dict[str, ComponentSpec], connections: list, step_ns: int | None,
-            total_ns: int | None, config_dir: Path, epoch: str | None, file: Path, errors: list[str],
-            packages: dict | None = None) -> list[Event]:
+def _events(
+    entries: list[dict],
+    components: dict[str, ComponentSpec],
+    connections: list,
+    step_ns: int | None,
+    total_ns: int | None,
+    config_dir: Path,
+    epoch: str | None,
+    file: Path,
+    errors: list[str],
+    packages: dict | None = None,
+) -> list[Event]:
     events = []
     for i, entry in enumerate(entries):
         key = f"events[{i}]"
@@ -321,12 +439,15 @@ def _events(entries: list[dict], components: dict[str, ComponentSpec], connectio
             continue
         old = components[target]
         if total_ns is not None and at_ns >= total_ns:
-            errors.append(f"{file}: {key}.at: must be within the run, 0 <= at < run.duration, "
-                          f"got {duration_text(at_ns)}")
+            errors.append(
+                f"{file}: {key}.at: must be within the run, 0 <= at < run.duration, got {duration_text(at_ns)}"
+            )
             continue
         if at_ns % old.step_ns:
-            errors.append(f"{file}: {key}.at: must fall on a step boundary of {target} "
-                          f"(a multiple of {duration_text(old.step_ns)}), got {duration_text(at_ns)}")
+            errors.append(
+                f"{file}: {key}.at: must fall on a step boundary of {target} "
+                f"(a multiple of {duration_text(old.step_ns)}), got {duration_text(at_ns)}"
+            )
             continue
         new_type = entry["type"] or old.type
         try:
@@ -337,17 +458,32 @@ def _events(entries: list[dict], components: dict[str, ComponentSpec], connectio
         problem = old.cls.state_problem(old.resolved) if handed_over else None
         if problem:
             what = "the same type" if new_type == old.type else new_type
-            errors.append(f"{file}: {key}.swap: a swap to {what} hands the state over, and {target} "
-                          f"cannot: {problem} (give another type)")
+            errors.append(
+                f"{file}: {key}.swap: a swap to {what} hands the state over, and {target} "
+                f"cannot: {problem} (give another type)"
+            )
             continue
         params = entry["parameters"]
         if params is None:
             params = old.parameters if handed_over else {}
         try:
-            spec = component_spec(target, {"type": new_type, "parameters": params, "step": old.step_ns,
-                                           "launch": "local", "dedicated_cpu": False, "on_failure": old.on_failure,
-                                           "process": None},   # a new generation runs in a process of its own
-                                  step_ns, config_dir, epoch, key, packages)
+            spec = component_spec(
+                target,
+                {
+                    "type": new_type,
+                    "parameters": params,
+                    "step": old.step_ns,
+                    "launch": "local",
+                    "dedicated_cpu": False,
+                    "on_failure": old.on_failure,
+                    "process": None,
+                },  # a new generation runs in a process of its own
+                step_ns,
+                config_dir,
+                epoch,
+                key,
+                packages,
+            )
         except ConfigErrors as e:
             errors += [f"{file}: {m}" for m in e.errors]
             continue
@@ -357,7 +493,8 @@ def _events(entries: list[dict], components: dict[str, ComponentSpec], connectio
             continue
         spec.shadow_of = old.shadow_of
         problems = check_replacement(spec, connections) + (
-            mismatches(components[old.shadow_of], spec, connections) if old.shadow_of else [])
+            mismatches(components[old.shadow_of], spec, connections) if old.shadow_of else []
+        )
         if problems:
             errors += [f"{file}: {key}: {p}" for p in problems]
             continue
@@ -365,22 +502,32 @@ def _events(entries: list[dict], components: dict[str, ComponentSpec], connectio
     return sorted(events, key=lambda e: e.at_ns)
 
 
-def _faults(entries: list[dict], components: dict[str, ComponentSpec], total_ns: int | None, file: Path,
-            errors: list[str]) -> list[Fault]:
+def _faults(
+    entries: list[dict], components: dict[str, ComponentSpec], total_ns: int | None, file: Path, errors: list[str]
+) -> list[Fault]:
     faults = []
     for i, entry in enumerate(entries):
         key = f"faults[{i}]"
         if entry["component"] not in components:
-            errors.append(f"{file}: {key}.component: no component named {entry['component']!r} "
-                          f"(components: {', '.join(components)})")
+            errors.append(
+                f"{file}: {key}.component: no component named {entry['component']!r} "
+                f"(components: {', '.join(components)})"
+            )
         elif total_ns is not None and entry["at"] >= total_ns:
-            errors.append(f"{file}: {key}.at: must be within the run, 0 <= at < run.duration, "
-                          f"got {duration_text(entry['at'])}")
+            errors.append(
+                f"{file}: {key}.at: must be within the run, 0 <= at < run.duration, got {duration_text(entry['at'])}"
+            )
         elif entry["kind"] == "nan" and not components[entry["component"]].outputs.size:
             errors.append(f"{file}: {key}.kind: {entry['component']} has no output to make NaN")
         elif (entry["kind"] == "delay") != (entry["duration"] is not None):
-            errors.append(f"{file}: {key}.duration: " + ("a delay needs one (e.g. duration: 2 s)"
-                          if entry["kind"] == "delay" else f"only a delay has one, not a {entry['kind']}"))
+            errors.append(
+                f"{file}: {key}.duration: "
+                + (
+                    "a delay needs one (e.g. duration: 2 s)"
+                    if entry["kind"] == "delay"
+                    else f"only a delay has one, not a {entry['kind']}"
+                )
+            )
         else:
             faults.append(Fault(entry["at"], entry["component"], entry["kind"], entry["duration"]))
     return sorted(faults, key=lambda f: f.at_ns)

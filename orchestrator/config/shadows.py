@@ -7,9 +7,11 @@ under Jacobi and Gauss-Seidel alike), and nothing reads its outputs: they are re
 ``<c>_shadow.<output>`` and never feed the loop. A connection of ``<c>`` to itself becomes one
 of the shadow to itself: the loop a component closes on itself is part of what is shadowed.
 """
+
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Callable
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from components import schedule
 from components.units import unit_scale
@@ -25,17 +27,32 @@ def shadow_name(main: str) -> str:
     return main + SUFFIX
 
 
-def shadow_spec(main: ComponentSpec, entry: dict, entries: dict,
-                build: Callable[[str, dict, str], ComponentSpec]) -> ComponentSpec:
+def shadow_spec(
+    main: ComponentSpec, entry: dict, entries: dict, build: Callable[[str, dict, str], ComponentSpec]
+) -> ComponentSpec:
     """The spec of ``main``'s shadow from its ``entry`` (config.SHADOW converted); its step and
     on_failure are the main's, the orchestrator starts it, in a process of its own. ``entries``: the config's components;
     ``build(name, entry, key)``: config.component_spec."""
     name, key = shadow_name(main.name), f"components.{main.name}.shadow"
     if name in entries:
-        raise ConfigErrors([f"{key}: its outputs are recorded as {name}.<output>, and a component is named "
-                            f"{name!r} already (rename it)"])
-    spec = build(name, {**entry, "step": main.step_ns, "launch": "local", "dedicated_cpu": False,
-                        "on_failure": main.on_failure, "process": None}, key)
+        raise ConfigErrors(
+            [
+                f"{key}: its outputs are recorded as {name}.<output>, and a component is named "
+                f"{name!r} already (rename it)"
+            ]
+        )
+    spec = build(
+        name,
+        {
+            **entry,
+            "step": main.step_ns,
+            "launch": "local",
+            "dedicated_cpu": False,
+            "on_failure": main.on_failure,
+            "process": None,
+        },
+        key,
+    )
     spec.shadow_of = main.name
     return spec
 
@@ -70,8 +87,9 @@ def connections_of(main: str, connections) -> list[tuple[str, str, str, str]]:
     return [(shadow, dv, shadow if s == main else s, sv) for d, dv, s, sv in connections if d == main]
 
 
-def with_shadows(components: dict[str, ComponentSpec], shadows: dict[str, ComponentSpec],
-                 connections: list) -> tuple[dict[str, ComponentSpec], list]:
+def with_shadows(
+    components: dict[str, ComponentSpec], shadows: dict[str, ComponentSpec], connections: list
+) -> tuple[dict[str, ComponentSpec], list]:
     """The components with each shadow (``shadows``: main name -> spec) right after its main, so
     that Gauss-Seidel gives it the main's inputs (schedule.routes reads the order), and the
     connections with the shadows'."""

@@ -1,4 +1,5 @@
 """What a valid run config is, as typed structures: a run, its components, events and faults."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -14,16 +15,16 @@ class ComponentSpec:
     type: str
     cls: type[Component]
     step_ns: int
-    parameters: dict        # raw, as in the config (+ injected run parameters)
-    resolved: dict          # validated, SI
+    parameters: dict  # raw, as in the config (+ injected run parameters)
+    resolved: dict  # validated, SI
     inputs: Layout
     outputs: Layout
     launch: str = "local"
-    dedicated_cpu: bool | str = False   # true: its stepping thread on a CPU of its own; "process": all its threads
-    on_failure: str = "stop"      # or "restart": the run goes back to its last checkpoint
-    process: str | None = None    # its process group: the components naming it share one process
+    dedicated_cpu: bool | str = False  # true: its stepping thread on a CPU of its own; "process": all its threads
+    on_failure: str = "stop"  # or "restart": the run goes back to its last checkpoint
+    process: str | None = None  # its process group: the components naming it share one process
     shadow_of: str | None = None  # the component this one shadows (orchestrator/config/shadows.py)
-    implausible: list = field(default_factory=list)   # "<key>: why" of parameters outside their plausible range
+    implausible: list = field(default_factory=list)  # "<key>: why" of parameters outside their plausible range
 
     @property
     def key(self) -> str:
@@ -32,13 +33,16 @@ class ComponentSpec:
 
     @property
     def variables(self) -> dict[str, Variable]:
-        return {v.name: v for v in self.inputs.variables + self.inputs.frames + self.outputs.variables + self.outputs.frames}
+        return {
+            v.name: v for v in self.inputs.variables + self.inputs.frames + self.outputs.variables + self.outputs.frames
+        }
 
 
 @dataclass
 class ViewerSpec:
     """The live view: ``mode`` spawn | web | save (Rerun) or foxglove; ``file`` for save; ``rate_hz``
     of sim time; ``port`` for foxglove."""
+
     mode: str
     file: Path | None
     rate_hz: float
@@ -51,6 +55,7 @@ class Ros2Spec:
     """The live ROS 2 view: ``transport`` as chosen (rclpy or zenoh; ``why``: how), the ``python``
     that runs rclpy, the ROS side's router ``endpoint`` (zenoh), ``domain_id``, ``distro``,
     ``topics`` (None: all), ``rate_hz`` of sim time."""
+
     endpoint: str
     domain_id: int
     distro: str
@@ -73,6 +78,7 @@ class Event:
 @dataclass(frozen=True)
 class Fault:
     """An injected failure: ``component`` fails in its first step at or after ``at_ns``."""
+
     at_ns: int
     component: str
     kind: str
@@ -101,11 +107,13 @@ class RunConfig:
     max_restarts: int = 3
     viewer: ViewerSpec | None = None
     ros2: Ros2Spec | None = None
-    resolved: dict = field(default_factory=dict)   # the config as written to config.yaml
-    packages: dict = field(default_factory=dict)   # run.packages: name -> absolute directory
-    notes: list = field(default_factory=list)      # warnings found by the check (implausible values, physics), one line each
-    record_flush_s: float = 1.0                    # run.record_flush
-    expect: str | None = None                      # run.expect: the outcome the run must come to
+    resolved: dict = field(default_factory=dict)  # the config as written to config.yaml
+    packages: dict = field(default_factory=dict)  # run.packages: name -> absolute directory
+    notes: list = field(
+        default_factory=list
+    )  # warnings found by the check (implausible values, physics), one line each
+    record_flush_s: float = 1.0  # run.record_flush
+    expect: str | None = None  # run.expect: the outcome the run must come to
 
     @property
     def steps(self) -> int:

@@ -1,4 +1,5 @@
 """Reading a config file: YAML with duplicate keys refused, and ``--set KEY=VALUE`` overrides."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -49,15 +50,16 @@ def apply_overrides(raw: dict, overrides: list[str]) -> None:
         path, value = parse_override(text)
         components = raw.get("components")
         if path[0] == "components" and len(path) > 2 and isinstance(components, dict) and path[1] not in components:
-            raise ConfigErrors([f"--set {text!r}: no component {path[1]!r} (components: "
-                                f"{', '.join(map(str, components)) or 'none'})"])
+            raise ConfigErrors(
+                [f"--set {text!r}: no component {path[1]!r} (components: {', '.join(map(str, components)) or 'none'})"]
+            )
         node = raw
         for i, part in enumerate(path[:-1]):
             child = node.get(part) if isinstance(node, dict) else None
             if child is None:
                 child = node[part] = {}
             if not isinstance(child, dict):
-                raise ConfigErrors([f"--set {text!r}: {'.'.join(path[:i + 1])} is not a mapping"])
+                raise ConfigErrors([f"--set {text!r}: {'.'.join(path[: i + 1])} is not a mapping"])
             node = child
         node[path[-1]] = value
 
@@ -71,8 +73,11 @@ def _yaml_problem(error: yaml.YAMLError, text: str) -> str:
     context = getattr(error, "context", None)
     lines = text.splitlines()
     source = lines[mark.line] if mark.line < len(lines) else ""
-    return (f" at line {mark.line + 1}, column {mark.column + 1}: {problem}"
-            + (f" ({context})" if context else "") + f"\n    {source}\n    {' ' * mark.column}^")
+    return (
+        f" at line {mark.line + 1}, column {mark.column + 1}: {problem}"
+        + (f" ({context})" if context else "")
+        + f"\n    {source}\n    {' ' * mark.column}^"
+    )
 
 
 def read_yaml(path: Path) -> dict:
@@ -81,9 +86,10 @@ def read_yaml(path: Path) -> dict:
     except OSError as e:
         raise ConfigErrors([f"{path}: cannot read config ({e.strerror})"]) from None
     except UnicodeDecodeError as e:
-        line = path.read_bytes()[:e.start].count(b"\n") + 1
-        raise ConfigErrors([f"{path}: not UTF-8 text (byte 0x{e.object[e.start]:02x} at line {line}); "
-                            f"save the config as UTF-8"]) from None
+        line = path.read_bytes()[: e.start].count(b"\n") + 1
+        raise ConfigErrors(
+            [f"{path}: not UTF-8 text (byte 0x{e.object[e.start]:02x} at line {line}); save the config as UTF-8"]
+        ) from None
     try:
         raw = yaml.load(text, Loader=_UniqueKeyLoader)
     except yaml.YAMLError as e:

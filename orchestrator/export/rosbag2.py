@@ -15,22 +15,22 @@ version 9, ROS 2 Jazzy message definitions and their RIHS01 type hashes) with th
 Every message's log time is its header's stamp (``/tf_static`` and ``robot_description``: the
 first row's). Topics that are transient local (``latched``) say so in their offered QoS profile.
 """
+
 from __future__ import annotations
 
 import heapq
 import shutil
 import sys
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
-
 
 from components.ros_topics import run_topics
 from components.rosbag import RosContext, RosTopic, TopicError
 
-DISTRO = "ros2_jazzy"      # message definitions and type hashes (rosbags' typestore)
-BAG_VERSION = 9            # rosbag2's metadata.yaml version (Jazzy)
+DISTRO = "ros2_jazzy"  # message definitions and type hashes (rosbags' typestore)
+BAG_VERSION = 9  # rosbag2's metadata.yaml version (Jazzy)
 
 
 class ExportError(Exception):
@@ -40,19 +40,27 @@ class ExportError(Exception):
 @dataclass
 class Exported:
     """What was written: the bag's folder, messages per topic, the bag's size (bytes)."""
+
     path: Path
     counts: dict[str, int]
     size: int
 
 
 def _qos(latched: bool):
-    from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, QosReliability,
-                                    QosTime)
-    never = QosTime(sec=0x7FFFFFFF, nsec=0xFFFFFFFF)   # rclcpp's "infinite" duration
-    return Qos(history=QosHistory.KEEP_LAST, depth=1 if latched else 10, reliability=QosReliability.RELIABLE,
-               durability=QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
-               deadline=never, lifespan=never, liveliness=QosLiveliness.AUTOMATIC,
-               liveliness_lease_duration=never, avoid_ros_namespace_conventions=False)
+    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+
+    never = QosTime(sec=0x7FFFFFFF, nsec=0xFFFFFFFF)  # rclcpp's "infinite" duration
+    return Qos(
+        history=QosHistory.KEEP_LAST,
+        depth=1 if latched else 10,
+        reliability=QosReliability.RELIABLE,
+        durability=QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
+        deadline=never,
+        lifespan=never,
+        liveliness=QosLiveliness.AUTOMATIC,
+        liveliness_lease_duration=never,
+        avoid_ros_namespace_conventions=False,
+    )
 
 
 def _stream(topic: RosTopic, order: int, connection):
@@ -69,8 +77,9 @@ def _write(path: Path, topics: list[RosTopic], typestore) -> None:
     with Writer(path, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP) as writer:
         streams = []
         for order, topic in enumerate(topics):
-            connection = writer.add_connection(topic.name, topic.msgtype, typestore=typestore,
-                                               offered_qos_profiles=[_qos(topic.latched)])
+            connection = writer.add_connection(
+                topic.name, topic.msgtype, typestore=typestore, offered_qos_profiles=[_qos(topic.latched)]
+            )
             streams.append(_stream(topic, order, connection))
         for ns, _, _, connection, msgtype, message in heapq.merge(*streams, key=lambda item: item[:3]):
             writer.write(connection, ns, typestore.serialize_cdr(message, msgtype))
@@ -86,27 +95,33 @@ def _name_distro(metadata: Path, distro: str) -> None:
     metadata.write_text(text.replace(written, f"  ros_distro: {distro}\n"))
 
 
-def export_rosbag2(record_dir, out, overwrite: bool = False, all_signals: bool = False,
-                   warn: Callable[[str], None] | None = None) -> Exported:
+def export_rosbag2(
+    record_dir, out, overwrite: bool = False, all_signals: bool = False, warn: Callable[[str], None] | None = None
+) -> Exported:
     """Write the recording in ``record_dir`` as a rosbag2 folder ``out`` (see the module's docstring).
 
     ExportError when ``record_dir`` holds no recording, or ``out`` exists and ``overwrite`` is not
     set. With ``overwrite``, ``out`` is replaced only once the new bag is complete.
     """
+    from rosbags.typesys import Stores, get_typestore
+
     from components.plotting import PlotError
     from orchestrator.plots.recording import load_run
-    from rosbags.typesys import Stores, get_typestore
 
     record_dir, out = Path(record_dir), Path(out)
     warn = warn or (lambda message: print(f"export: {message}", file=sys.stderr, flush=True))
     if out.exists() and not overwrite:
-        raise ExportError(f"--rosbag2 {out}: expected a path that does not exist yet, got an existing "
-                          f"{'directory' if out.is_dir() else 'file'} (--overwrite replaces it)")
+        raise ExportError(
+            f"--rosbag2 {out}: expected a path that does not exist yet, got an existing "
+            f"{'directory' if out.is_dir() else 'file'} (--overwrite replaces it)"
+        )
     if out.exists() and not out.is_dir():
         raise ExportError(f"--rosbag2 {out}: expected a bag folder to replace, got a file")
     if out.exists() and not (out / "metadata.yaml").exists() and any(out.iterdir()):
-        raise ExportError(f"--rosbag2 {out}: expected a rosbag2 folder (metadata.yaml) to replace, got a "
-                          "directory of other files; not touched")
+        raise ExportError(
+            f"--rosbag2 {out}: expected a rosbag2 folder (metadata.yaml) to replace, got a "
+            "directory of other files; not touched"
+        )
     try:
         run = load_run(record_dir)
     except PlotError as e:
@@ -120,7 +135,7 @@ def export_rosbag2(record_dir, out, overwrite: bool = False, all_signals: bool =
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        bag = staging / out.name    # the bag's files are named after its folder
+        bag = staging / out.name  # the bag's files are named after its folder
         _write(bag, topics, typestore)
         if out.exists():
             shutil.rmtree(out)

@@ -1,5 +1,6 @@
 """The ``bus:`` section, checked across its keys: where the run listens and links, through a router
 or not, its lease, and whether its links are TLS (docs/design.md §4, §7)."""
+
 from __future__ import annotations
 
 import ipaddress
@@ -9,14 +10,14 @@ from pathlib import Path
 
 @dataclass(frozen=True)
 class BusSpec:
-    listen: list[str]            # tls/ in place of tcp/ when ``tls``
+    listen: list[str]  # tls/ in place of tcp/ when ``tls``
     connect: list[str]
-    mode: str                    # peer | client
+    mode: str  # peer | client
     router: str | None
     lease_ns: int
     tls: bool
-    ca: tuple[Path, Path] | None   # the user's CA (certificate, key), else one made for the run
-    plaintext_beyond: tuple[str, ...] = ()   # endpoints beyond loopback in plain TCP (bus.plaintext allowed it)
+    ca: tuple[Path, Path] | None  # the user's CA (certificate, key), else one made for the run
+    plaintext_beyond: tuple[str, ...] = ()  # endpoints beyond loopback in plain TCP (bus.plaintext allowed it)
 
     @property
     def lease_ms(self) -> int:
@@ -36,7 +37,7 @@ def is_loopback(endpoint: str) -> bool:
     try:
         return ipaddress.ip_address(host).is_loopback
     except ValueError:
-        return False   # a host name: another machine, as far as we can tell
+        return False  # a host name: another machine, as far as we can tell
 
 
 def with_protocol(endpoint: str, protocol: str) -> str:
@@ -47,8 +48,10 @@ def check(section: dict, config_dir: Path, errors: list[str], file) -> BusSpec |
     """The section as a BusSpec, or None with the problems added to ``errors``."""
     before = len(errors)
     router = section["router"]
-    named = [*(("listen", i, e) for i, e in enumerate(section["listen"])),
-             *(("connect", i, e) for i, e in enumerate(section["connect"]))]
+    named = [
+        *(("listen", i, e) for i, e in enumerate(section["listen"])),
+        *(("connect", i, e) for i, e in enumerate(section["connect"])),
+    ]
     if router:
         named.append(("router", None, router))
     beyond = [e for _, _, e in named if not is_loopback(e)]
@@ -58,22 +61,32 @@ def check(section: dict, config_dir: Path, errors: list[str], file) -> BusSpec |
         where = f"bus.{key}" + (f"[{i}]" if i is not None else "")
         protocol = endpoint.partition("/")[0]
         if tls and protocol not in ("tcp", "tls"):
-            errors.append(f"{file}: {where}: {endpoint} cannot carry TLS (bus.tls is {asked}"
-                          f"{', and the bus leaves loopback' if asked == 'auto' else ''}); expected tcp/ or tls/")
+            errors.append(
+                f"{file}: {where}: {endpoint} cannot carry TLS (bus.tls is {asked}"
+                f"{', and the bus leaves loopback' if asked == 'auto' else ''}); expected tcp/ or tls/"
+            )
         if not tls and protocol == "tls":
-            errors.append(f"{file}: {where}: {endpoint} is TLS, and bus.tls is {asked}"
-                          f"{' (the bus stays on loopback)' if asked == 'auto' else ''}; "
-                          f"write tcp/, or set bus.tls: true")
+            errors.append(
+                f"{file}: {where}: {endpoint} is TLS, and bus.tls is {asked}"
+                f"{' (the bus stays on loopback)' if asked == 'auto' else ''}; "
+                f"write tcp/, or set bus.tls: true"
+            )
     if beyond and not tls and section["plaintext"] != "accept-the-risk":
-        errors.append(f"{file}: bus.tls: false, and the bus leaves loopback ({', '.join(beyond)}): every process "
-                      f"would listen there in plain TCP, the run's traffic and secret readable on that network; "
-                      f"set bus.tls: true (or auto), or say bus.plaintext: accept-the-risk")
+        errors.append(
+            f"{file}: bus.tls: false, and the bus leaves loopback ({', '.join(beyond)}): every process "
+            f"would listen there in plain TCP, the run's traffic and secret readable on that network; "
+            f"set bus.tls: true (or auto), or say bus.plaintext: accept-the-risk"
+        )
     if section["mode"] == "client" and not router:
-        errors.append(f"{file}: bus.mode: client sends everything through a router; give bus.router "
-                      f"(started with orchestrator router)")
+        errors.append(
+            f"{file}: bus.mode: client sends everything through a router; give bus.router "
+            f"(started with orchestrator router)"
+        )
     if section["lease"] < 100_000_000:
-        errors.append(f"{file}: bus.lease: expected at least 100 ms (keep-alives go every quarter of it), "
-                      f"got {section['lease'] / 1e6:g} ms")
+        errors.append(
+            f"{file}: bus.lease: expected at least 100 ms (keep-alives go every quarter of it), "
+            f"got {section['lease'] / 1e6:g} ms"
+        )
     ca = None
     if section["ca"] is not None:
         if not tls:
@@ -87,6 +100,7 @@ def check(section: dict, config_dir: Path, errors: list[str], file) -> BusSpec |
         ca = tuple(paths)
         if len(errors) == before:
             from orchestrator.hosts.tls import load_ca
+
             try:
                 load_ca(*ca)
             except ValueError as e:
@@ -97,6 +111,14 @@ def check(section: dict, config_dir: Path, errors: list[str], file) -> BusSpec |
 
     def tcp_as(endpoint: str) -> str:
         return with_protocol(endpoint, protocol) if endpoint.startswith(("tcp/", "tls/")) else endpoint
-    return BusSpec(listen=[tcp_as(e) for e in section["listen"]], connect=[tcp_as(e) for e in section["connect"]],
-                   mode=section["mode"], router=tcp_as(router) if router else None, lease_ns=section["lease"],
-                   tls=tls, ca=ca, plaintext_beyond=tuple(beyond) if not tls else ())
+
+    return BusSpec(
+        listen=[tcp_as(e) for e in section["listen"]],
+        connect=[tcp_as(e) for e in section["connect"]],
+        mode=section["mode"],
+        router=tcp_as(router) if router else None,
+        lease_ns=section["lease"],
+        tls=tls,
+        ca=ca,
+        plaintext_beyond=tuple(beyond) if not tls else (),
+    )

@@ -8,6 +8,7 @@ FILE`` (:mod:`orchestrator.hosts.joiner`) opens a session with them and asks the
 ``join/<component>``, which generation to serve: the desk grants a generation it waits for, and
 refuses a second join while the first one's process serves.
 """
+
 from __future__ import annotations
 
 import json
@@ -17,21 +18,40 @@ from pathlib import Path
 from components import protocol
 from orchestrator.hosts.tls import write_private
 
-FORMAT = "zenorbit join 1"   # the file's first key, so that a wrong file is told apart
+FORMAT = "zenorbit join 1"  # the file's first key, so that a wrong file is told apart
 
 
 def join_key(run_id: str, name: str) -> str:
     return protocol.JOIN.key(run_id, name=name)
 
 
-def write_join_file(path: Path, *, role: str, run_id: str, run_name: str, connect: list[str], secret: str,
-                    settings: dict, join_timeout_s: float, component: str | None = None,
-                    generation: int | None = None) -> Path:
+def write_join_file(
+    path: Path,
+    *,
+    role: str,
+    run_id: str,
+    run_name: str,
+    connect: list[str],
+    secret: str,
+    settings: dict,
+    join_timeout_s: float,
+    component: str | None = None,
+    generation: int | None = None,
+) -> Path:
     """A join file (mode 0600) for a component (``role`` component) or the run's router."""
     path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
-    body = {"format": FORMAT, "role": role, "run_id": run_id, "run": run_name, "component": component,
-            "generation": generation, "connect": connect, "join_timeout_s": join_timeout_s,
-            "secret": secret, "settings": settings}
+    body = {
+        "format": FORMAT,
+        "role": role,
+        "run_id": run_id,
+        "run": run_name,
+        "component": component,
+        "generation": generation,
+        "connect": connect,
+        "join_timeout_s": join_timeout_s,
+        "secret": secret,
+        "settings": settings,
+    }
     return write_private(path, json.dumps(body, indent=1).encode())
 
 
@@ -44,7 +64,7 @@ class JoinDesk:
     def __init__(self, session, run_id: str, out):
         self.run_id, self.out = run_id, out
         self.lock = threading.Lock()
-        self.entries: dict[str, dict] = {}   # name -> {generation, member, joined, host}
+        self.entries: dict[str, dict] = {}  # name -> {generation, member, joined, host}
         self.zid = str(session.zid())
         self.over = False
         self.queryable = session.declare_queryable(protocol.JOIN.pattern(run_id), self._answer)
@@ -66,10 +86,13 @@ class JoinDesk:
             return {"status": "refused", "error": f"no component {name!r} of this run joins from another host"}
         member = entry["member"]
         if entry["joined"] and not member.ended:
-            return {"status": "joined", "error": f"component {name!r} has joined already (generation "
-                                                 f"{entry['generation']}, {entry['host']}): a second join is refused"}
+            return {
+                "status": "joined",
+                "error": f"component {name!r} has joined already (generation "
+                f"{entry['generation']}, {entry['host']}): a second join is refused",
+            }
         if entry["joined"]:
-            return {"status": "wait"}   # terminated: a restart will invite the next generation
+            return {"status": "wait"}  # terminated: a restart will invite the next generation
         entry["joined"], entry["host"] = True, request_host(request)
         member.host, member.zid = entry["host"], str(request.get("zid", ""))
         return {"status": "granted", "generation": entry["generation"], "orchestrator": self.zid}
@@ -85,8 +108,11 @@ class JoinDesk:
         with self.lock:
             answer = self._decide(name, request)
         if answer["status"] in ("joined", "refused"):
-            print(f"warning: refused a join for {name!r} from {request_host(request)}: {answer['error']}",
-                  file=self.out, flush=True)
+            print(
+                f"warning: refused a join for {name!r} from {request_host(request)}: {answer['error']}",
+                file=self.out,
+                flush=True,
+            )
         query.reply(query.key_expr, json.dumps(answer))
 
 

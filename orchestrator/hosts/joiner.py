@@ -6,6 +6,7 @@ it asks to join again, and when its link to the orchestrator is lost (cut, or th
 host gone) it tries to reach the run again, for up to run.join_timeout. It exits 0 when the run
 ends, 1 when the run refuses it or is gone, 2 for a file that is not a join file.
 """
+
 from __future__ import annotations
 
 import json
@@ -24,8 +25,8 @@ from orchestrator.hosts.tls import write_pem_files
 
 ASK_TIMEOUT_S = 5.0
 PROBE_TIMEOUT_S = 2.0
-CONNECT_TIMEOUT_S = 4.0   # a reachable run that does not take the link by then refused it (Zenoh retries meanwhile)
-DEAD_AFTER_S = 10.0       # every endpoint refusing TCP this long: nothing listens, the run has ended
+CONNECT_TIMEOUT_S = 4.0  # a reachable run that does not take the link by then refused it (Zenoh retries meanwhile)
+DEAD_AFTER_S = 10.0  # every endpoint refusing TCP this long: nothing listens, the run has ended
 
 
 class JoinError(Exception):
@@ -41,9 +42,12 @@ def read_join_file(path: Path, role: str) -> dict:
         mode = Path(path).stat().st_mode
     except OSError as e:
         raise JoinError(f"{path}: cannot read it ({e.strerror})", 2) from None
-    if mode & 0o077:        # it holds the run's secret and key: as ssh refuses such a key file
-        raise JoinError(f"{path}: readable or writable by others (mode {mode & 0o777:o}), and it holds the run's "
-                        f"secret: chmod 600 {path}", 2)
+    if mode & 0o077:  # it holds the run's secret and key: as ssh refuses such a key file
+        raise JoinError(
+            f"{path}: readable or writable by others (mode {mode & 0o777:o}), and it holds the run's "
+            f"secret: chmod 600 {path}",
+            2,
+        )
     try:
         body = json.loads(Path(path).read_text())
     except OSError as e:
@@ -83,7 +87,7 @@ def reachable(endpoints: list[str]) -> tuple[str | None, bool]:
         except ConnectionRefusedError:
             continue
         except OSError:
-            refused = False          # a timeout or no route: something may be there, out of reach
+            refused = False  # a timeout or no route: something may be there, out of reach
     return None, refused
 
 
@@ -99,10 +103,15 @@ def own_address(endpoint: str) -> str:
 
 
 def _ask(session, body: dict, endpoint: str) -> dict | None:
-    request = {"address": own_address(endpoint), "hostname": socket.gethostname(), "pid": os.getpid(),
-               "zid": str(session.zid())}
-    for reply in session.get(join_key(body["run_id"], body["component"]), payload=json.dumps(request),
-                             timeout=ASK_TIMEOUT_S):
+    request = {
+        "address": own_address(endpoint),
+        "hostname": socket.gethostname(),
+        "pid": os.getpid(),
+        "zid": str(session.zid()),
+    }
+    for reply in session.get(
+        join_key(body["run_id"], body["component"]), payload=json.dumps(request), timeout=ASK_TIMEOUT_S
+    ):
         if reply.ok is not None:
             try:
                 return json.loads(reply.ok.payload.to_bytes())
@@ -113,35 +122,47 @@ def _ask(session, body: dict, endpoint: str) -> dict | None:
 
 def _connect(body: dict, endpoints: list[str], listen: str | None, settings: dict, deadline: float):
     """A session with the run (retried until ``deadline``), and the endpoint it went to."""
-    from components.serving import open_component_session
     import zenoh
+
+    from components.serving import open_component_session
 
     refused_since = None
     while True:
         endpoint, refused = reachable(endpoints)
         if endpoint is not None:
             try:
-                session = open_component_session(endpoint, listen, body["secret"], settings,
-                                                 connect_timeout_s=CONNECT_TIMEOUT_S)
+                session = open_component_session(
+                    endpoint, listen, body["secret"], settings, connect_timeout_s=CONNECT_TIMEOUT_S
+                )
                 return session, endpoint
             except zenoh.ZError:
-                raise JoinError(f"the run at {endpoint} refused the link: wrong secret or certificate (is {body['run']!r} "
-                                f"still the run this join file is from?)") from None
+                raise JoinError(
+                    f"the run at {endpoint} refused the link: wrong secret or certificate (is {body['run']!r} "
+                    f"still the run this join file is from?)"
+                ) from None
         now = time.monotonic()
         refused_since = (refused_since or now) if refused else None
         if refused_since is not None and now - refused_since >= DEAD_AFTER_S:
-            raise JoinError(f"the run {body['run']!r} at {', '.join(endpoints)} is not alive: nothing has listened "
-                            f"there for {DEAD_AFTER_S:g} s (it has ended, or the join file is from an earlier run)")
+            raise JoinError(
+                f"the run {body['run']!r} at {', '.join(endpoints)} is not alive: nothing has listened "
+                f"there for {DEAD_AFTER_S:g} s (it has ended, or the join file is from an earlier run)"
+            )
         if now > deadline:
-            raise JoinError(f"cannot reach the run {body['run']!r} at {', '.join(endpoints)} "
-                            f"(run.join_timeout, {body['join_timeout_s']:g} s)"
-                            + ("" if refused else ": something answers slowly or not at all there (alive but out of "
-                                                  "reach: a firewall, a route?)"))
+            raise JoinError(
+                f"cannot reach the run {body['run']!r} at {', '.join(endpoints)} "
+                f"(run.join_timeout, {body['join_timeout_s']:g} s)"
+                + (
+                    ""
+                    if refused
+                    else ": something answers slowly or not at all there (alive but out of reach: a firewall, a route?)"
+                )
+            )
         time.sleep(1.0)
 
 
-def join(path: Path, connect: list[str] | None = None, listen: str | None = None, cpu: int | None = None,
-         out=sys.stderr) -> int:
+def join(
+    path: Path, connect: list[str] | None = None, listen: str | None = None, cpu: int | None = None, out=sys.stderr
+) -> int:
     """Serve the component of a join file for as long as the run wants it; the exit code."""
     from components.group import ORPHANED, RELEASED
     from components.serving import beat_interval, serve_session
@@ -160,15 +181,29 @@ def join(path: Path, connect: list[str] | None = None, listen: str | None = None
                     answer = _ask(session, body, endpoint)
                     status = (answer or {}).get("status")
                     if status == "granted":
-                        print(f"joined run {body['run']!r} ({body['run_id']}) at {endpoint} as {name!r}, "
-                              f"generation {answer['generation']}", file=out, flush=True)
-                        ended = serve_session(session, body["run_id"], [(name, answer["generation"])], cpu,
-                                              answer.get("orchestrator"), beat_interval(settings))
+                        print(
+                            f"joined run {body['run']!r} ({body['run_id']}) at {endpoint} as {name!r}, "
+                            f"generation {answer['generation']}",
+                            file=out,
+                            flush=True,
+                        )
+                        ended = serve_session(
+                            session,
+                            body["run_id"],
+                            [(name, answer["generation"])],
+                            cpu,
+                            answer.get("orchestrator"),
+                            beat_interval(settings),
+                        )
                         served = True
                         deadline = time.monotonic() + timeout
                         if ended == ORPHANED:
-                            print(f"lost the run {body['run']!r}: trying to join again for "
-                                  f"{timeout:g} s (run.join_timeout)", file=out, flush=True)
+                            print(
+                                f"lost the run {body['run']!r}: trying to join again for "
+                                f"{timeout:g} s (run.join_timeout)",
+                                file=out,
+                                flush=True,
+                            )
                             break
                         if ended != RELEASED:
                             return 0
@@ -178,11 +213,15 @@ def join(path: Path, connect: list[str] | None = None, listen: str | None = None
                     if status in ("joined", "refused") and not served:
                         raise JoinError(f"the run refused the join: {answer['error']}")
                     if answer is None and not served:
-                        raise JoinError(f"the run {body['run']!r} at {endpoint} did not answer the join "
-                                        f"(it ended, or this file is from another run)")
+                        raise JoinError(
+                            f"the run {body['run']!r} at {endpoint} did not answer the join "
+                            f"(it ended, or this file is from another run)"
+                        )
                     if time.monotonic() > deadline:
-                        raise JoinError(f"the run {body['run']!r} did not take {name!r} back within "
-                                        f"{timeout:g} s (run.join_timeout)")
+                        raise JoinError(
+                            f"the run {body['run']!r} did not take {name!r} back within "
+                            f"{timeout:g} s (run.join_timeout)"
+                        )
                     time.sleep(0.2)
             finally:
                 bus.close_session(session)
@@ -215,11 +254,17 @@ def route(path: Path, listen: list[str]) -> int:
                 seen.set()
             elif seen.is_set():
                 done.set()
+
         previous = {sig: signal.signal(sig, lambda *_: done.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
-        watch = session.liveliness().declare_subscriber(bus.orchestrator_alive_key(body["run_id"]), orchestrator,
-                                                        history=True)
-        print(f"router of run {body['run']!r} ({body['run_id']}) listening on {', '.join(listen)}"
-              f"{' (TLS)' if settings.get('tls') else ''}", file=sys.stderr, flush=True)
+        watch = session.liveliness().declare_subscriber(
+            bus.orchestrator_alive_key(body["run_id"]), orchestrator, history=True
+        )
+        print(
+            f"router of run {body['run']!r} ({body['run_id']}) listening on {', '.join(listen)}"
+            f"{' (TLS)' if settings.get('tls') else ''}",
+            file=sys.stderr,
+            flush=True,
+        )
         try:
             while not done.wait(0.2):
                 pass

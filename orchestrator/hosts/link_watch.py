@@ -3,6 +3,7 @@ not of the run's CA never becomes a link, so only Zenoh's log knows of it. Zenoh
 process's stdout; while a run watches, stdout goes through a pipe whose reader turns Zenoh's
 lines about refused links into one warning each (on the run's ``out``) and passes every other
 line that is not Zenoh's on to the real stdout."""
+
 from __future__ import annotations
 
 import os
@@ -14,8 +15,12 @@ import threading
 FILTER = "zenoh_link_tls::unicast=warn,zenoh_transport::unicast::establishment::accept=debug"
 REFUSALS = (
     (re.compile(r"Invalid password"), "wrong secret (user/password)"),
-    (re.compile(r"invalid peer certificate|UnknownIssuer|UnknownCA|BadCertificate|certificate required",
-                re.IGNORECASE), "a certificate not of this run's CA, or none"),
+    (
+        re.compile(
+            r"invalid peer certificate|UnknownIssuer|UnknownCA|BadCertificate|certificate required", re.IGNORECASE
+        ),
+        "a certificate not of this run's CA, or none",
+    ),
 )
 ZENOH_LINE = re.compile(r"^\S+Z\s+(TRACE|DEBUG|INFO|WARN|ERROR)\b")
 
@@ -39,7 +44,7 @@ class LinkWatch:
 
         self.out = out
         sys.stdout.flush()
-        os.environ.setdefault("NO_COLOR", "1")   # plain lines to read
+        os.environ.setdefault("NO_COLOR", "1")  # plain lines to read
         self.saved = os.dup(1)
         read, write = os.pipe()
         os.dup2(write, 1)

@@ -1,14 +1,15 @@
 """The run's bus as each of its processes sees it: the settings (TLS certificates, access control,
 lease, mode) of the orchestrator, of the components it starts, of the CLI, of a joining component
 and of the router, and the endpoints another host connects to (docs/design.md §7)."""
+
 from __future__ import annotations
 
 import fcntl
 import json
-import time
 import shutil
 import socket
 import struct
+import time
 from pathlib import Path
 
 from components import bus, bus_security
@@ -25,7 +26,7 @@ def interface_addresses() -> list[str]:
         for _, name in socket.if_nameindex():
             try:
                 answer = fcntl.ioctl(probe.fileno(), SIOCGIFADDR, struct.pack("256s", name.encode()[:15]))
-            except OSError:   # no IPv4 address on it
+            except OSError:  # no IPv4 address on it
                 continue
             address = socket.inet_ntoa(answer[20:24])
             if not address.startswith("127."):
@@ -58,6 +59,7 @@ class RunBus:
 
     def __init__(self, config, run_id: str, secret: str, record_dir: Path | None, out):
         from orchestrator.run import runs
+
         spec: BusSpec = config.bus
         self.config, self.spec, self.run_id, self.secret, self.out = config, spec, run_id, secret, out
         self.directory = runs.directory() / f"{run_id}.bus"
@@ -65,15 +67,19 @@ class RunBus:
         self.join_dir = (record_dir / "join") if record_dir else runs.directory().parent / "join" / run_id
         self.certificates = self.acl = self.desk = self.watch = None
         self.base = {"mode": spec.mode, "lease_ms": spec.lease_ms}
-        self.endpoints: list[str] = []      # where other hosts reach the run
-        self.local: str = ""                # where processes of this host (and the CLI) connect
+        self.endpoints: list[str] = []  # where other hosts reach the run
+        self.local: str = ""  # where processes of this host (and the CLI) connect
         self.listen: list[str] = []
         if spec.tls:
             from orchestrator.hosts.tls import RunCertificates
+
             components = list(config.components)
-            holders = {"orchestrator": bus_security.ORCHESTRATOR_NAME, "cli": bus_security.CLI_NAME,
-                       "router": bus_security.ROUTER_NAME,
-                       **{f"component.{n}": bus_security.component_name(n) for n in components}}
+            holders = {
+                "orchestrator": bus_security.ORCHESTRATOR_NAME,
+                "cli": bus_security.CLI_NAME,
+                "router": bus_security.ROUTER_NAME,
+                **{f"component.{n}": bus_security.component_name(n) for n in components},
+            }
             self.certificates = RunCertificates(self.directory, holders, spec.ca, run_id)
             self.acl = bus_security.access_control(run_id, components)
 
@@ -91,32 +97,43 @@ class RunBus:
         waits for the router (run.join_timeout)."""
         import zenoh
 
-        from orchestrator.run import supervisor
         from orchestrator.hosts.join import JoinDesk
+        from orchestrator.run import supervisor
         from orchestrator.run.members import RunFailure
 
         spec = self.spec
         if spec.tls or any(c.launch == "external" for c in self.config.components.values()):
             from orchestrator.hosts.link_watch import LinkWatch
-            self.watch = LinkWatch(self.out)   # says so when a link with a wrong secret or certificate is refused
+
+            self.watch = LinkWatch(self.out)  # says so when a link with a wrong secret or certificate is refused
         connect = ([spec.router] if spec.router else []) + spec.connect
         if spec.router:
             path = self._write("router", self.join_dir.resolve() / "router.join", [spec.router])
-            print(f"the run goes through the router at {spec.router}: start it there with\n"
-                  f"    orchestrator router --listen {_any_host(spec.router)} --join {path}",
-                  file=self.out, flush=True)
+            print(
+                f"the run goes through the router at {spec.router}: start it there with\n"
+                f"    orchestrator router --listen {_any_host(spec.router)} --join {path}",
+                file=self.out,
+                flush=True,
+            )
         listen_asked = [] if spec.mode == "client" else spec.listen
         for attempt in range(3):  # a free port picked here may be taken by another run before Zenoh binds it
             listen, local = supervisor.resolve_endpoints(listen_asked) if listen_asked else ([], spec.router)
             try:
-                session = bus.open_session(listen, connect, mesh=spec.mode == "peer", secret=self.secret,
-                                           settings=self.settings("orchestrator"),
-                                           connect_timeout_s=self.config.join_timeout_s if spec.mode == "client" else None)
+                session = bus.open_session(
+                    listen,
+                    connect,
+                    mesh=spec.mode == "peer",
+                    secret=self.secret,
+                    settings=self.settings("orchestrator"),
+                    connect_timeout_s=self.config.join_timeout_s if spec.mode == "client" else None,
+                )
                 break
             except zenoh.ZError as e:
                 if spec.mode == "client":
-                    raise RunFailure(f"cannot reach the router at {spec.router} (bus.router) within "
-                                     f"{self.config.join_timeout_s:g} s (run.join_timeout): {e}") from None
+                    raise RunFailure(
+                        f"cannot reach the router at {spec.router} (bus.router) within "
+                        f"{self.config.join_timeout_s:g} s (run.join_timeout): {e}"
+                    ) from None
                 if attempt == 2 or not any(e.endswith(":0") for e in spec.listen):
                     raise RunFailure(f"cannot open the bus on {', '.join(listen)} (bus.listen): {e}") from None
         self.listen, self.local = listen, local
@@ -126,20 +143,31 @@ class RunBus:
 
     def _write(self, role: str, path: Path, connect: list[str], member=None) -> Path:
         from orchestrator.hosts.join import write_join_file
+
         holder = f"component.{member.name}" if member is not None else "router"
-        return write_join_file(path, role=role, run_id=self.run_id, run_name=self.config.name, connect=connect,
-                               secret=self.secret, settings=self.settings(holder, portable=True),
-                               join_timeout_s=self.config.join_timeout_s,
-                               component=member.name if member is not None else None,
-                               generation=member.generation if member is not None else None)
+        return write_join_file(
+            path,
+            role=role,
+            run_id=self.run_id,
+            run_name=self.config.name,
+            connect=connect,
+            secret=self.secret,
+            settings=self.settings(holder, portable=True),
+            join_timeout_s=self.config.join_timeout_s,
+            component=member.name if member is not None else None,
+            generation=member.generation if member is not None else None,
+        )
 
     def invite(self, member) -> Path:
         """Write the join file of an external member, say where it is, and wait for its join."""
         path = self._write("component", self.join_dir.resolve() / f"{member.name}.join", self.endpoints, member)
         self.desk.invite(member)
-        print(f"waiting for external component {member.name!r} (generation {member.generation}, up to "
-              f"{self.config.join_timeout_s:g} s): on its host, run\n    orchestrator join {path}",
-              file=self.out, flush=True)
+        print(
+            f"waiting for external component {member.name!r} (generation {member.generation}, up to "
+            f"{self.config.join_timeout_s:g} s): on its host, run\n    orchestrator join {path}",
+            file=self.out,
+            flush=True,
+        )
         return path
 
     def child_env(self, name: str | None) -> dict[str, str]:
@@ -159,8 +187,10 @@ class RunBus:
 
     def lost(self, member) -> str:
         """How losing an external member (its link closed, or silent for a lease) reads."""
-        return (f"lost: nothing heard from it within bus.lease ({self.spec.lease_ns / NS_PER_S:g} s), its link "
-                f"was cut, its host went down or its process ended")
+        return (
+            f"lost: nothing heard from it within bus.lease ({self.spec.lease_ns / NS_PER_S:g} s), its link "
+            f"was cut, its host went down or its process ended"
+        )
 
     def link_closed(self, zid: str, members) -> None:
         """Zenoh closed the link to session ``zid``: the live member it was is lost."""
@@ -178,8 +208,10 @@ class RunBus:
         return self.lost(member)
 
     def late(self, names: list[str]) -> str:
-        return (f"component {', '.join(map(repr, names))} did not join within {self.config.join_timeout_s:g} s "
-                f"(run.join_timeout): run `orchestrator join {self.join_dir}/<component>.join` on its host")
+        return (
+            f"component {', '.join(map(repr, names))} did not join within {self.config.join_timeout_s:g} s "
+            f"(run.join_timeout): run `orchestrator join {self.join_dir}/<component>.join` on its host"
+        )
 
     def close(self) -> None:
         if self.desk is not None:

@@ -1,5 +1,6 @@
 """The run's certificates: a CA (made for the run, or the user's) and one certificate per process
 of the run, each naming who holds it (:mod:`components.bus_security`), for mutual TLS."""
+
 from __future__ import annotations
 
 import datetime as dt
@@ -11,23 +12,28 @@ VALID_FOR = dt.timedelta(days=365)
 
 def _key():
     from cryptography.hazmat.primitives.asymmetric import ec
+
     return ec.generate_private_key(ec.SECP256R1())
 
 
 def _pem_key(key) -> bytes:
     from cryptography.hazmat.primitives import serialization
-    return key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
-                             serialization.NoEncryption())
+
+    return key.private_bytes(
+        serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption()
+    )
 
 
 def _pem_certificate(certificate) -> bytes:
     from cryptography.hazmat.primitives import serialization
+
     return certificate.public_bytes(serialization.Encoding.PEM)
 
 
 def _name(common_name: str):
     from cryptography import x509
     from cryptography.x509.oid import NameOID
+
     return x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, common_name)])
 
 
@@ -35,16 +41,33 @@ def make_ca(common_name: str):
     """(key, certificate) of a new CA."""
     from cryptography import x509
     from cryptography.hazmat.primitives import hashes
-    key, now = _key(), dt.datetime.now(dt.timezone.utc)
-    certificate = (x509.CertificateBuilder().subject_name(_name(common_name)).issuer_name(_name(common_name))
-                   .public_key(key.public_key()).serial_number(x509.random_serial_number())
-                   .not_valid_before(now - dt.timedelta(hours=1)).not_valid_after(now + VALID_FOR)
-                   .add_extension(x509.BasicConstraints(ca=True, path_length=0), critical=True)
-                   .add_extension(x509.KeyUsage(digital_signature=True, key_cert_sign=True, crl_sign=True,
-                                                content_commitment=False, key_encipherment=False,
-                                                data_encipherment=False, key_agreement=False, encipher_only=False,
-                                                decipher_only=False), critical=True)
-                   .sign(key, hashes.SHA256()))
+
+    key, now = _key(), dt.datetime.now(dt.UTC)
+    certificate = (
+        x509.CertificateBuilder()
+        .subject_name(_name(common_name))
+        .issuer_name(_name(common_name))
+        .public_key(key.public_key())
+        .serial_number(x509.random_serial_number())
+        .not_valid_before(now - dt.timedelta(hours=1))
+        .not_valid_after(now + VALID_FOR)
+        .add_extension(x509.BasicConstraints(ca=True, path_length=0), critical=True)
+        .add_extension(
+            x509.KeyUsage(
+                digital_signature=True,
+                key_cert_sign=True,
+                crl_sign=True,
+                content_commitment=False,
+                key_encipherment=False,
+                data_encipherment=False,
+                key_agreement=False,
+                encipher_only=False,
+                decipher_only=False,
+            ),
+            critical=True,
+        )
+        .sign(key, hashes.SHA256())
+    )
     return key, certificate
 
 
@@ -52,6 +75,7 @@ def load_ca(certificate_path: Path, key_path: Path):
     """(key, certificate) of the user's CA; ValueError saying what is wrong with them."""
     from cryptography import x509
     from cryptography.hazmat.primitives import serialization
+
     try:
         certificate = x509.load_pem_x509_certificate(Path(certificate_path).read_bytes())
     except ValueError as e:
@@ -76,14 +100,22 @@ def issue(ca_key, ca_certificate, common_name: str):
     from cryptography import x509
     from cryptography.hazmat.primitives import hashes
     from cryptography.x509.oid import ExtendedKeyUsageOID
-    key, now = _key(), dt.datetime.now(dt.timezone.utc)
-    certificate = (x509.CertificateBuilder().subject_name(_name(common_name)).issuer_name(ca_certificate.subject)
-                   .public_key(key.public_key()).serial_number(x509.random_serial_number())
-                   .not_valid_before(now - dt.timedelta(hours=1)).not_valid_after(now + VALID_FOR)
-                   .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
-                   .add_extension(x509.ExtendedKeyUsage([ExtendedKeyUsageOID.SERVER_AUTH,
-                                                         ExtendedKeyUsageOID.CLIENT_AUTH]), critical=False)
-                   .sign(ca_key, hashes.SHA256()))
+
+    key, now = _key(), dt.datetime.now(dt.UTC)
+    certificate = (
+        x509.CertificateBuilder()
+        .subject_name(_name(common_name))
+        .issuer_name(ca_certificate.subject)
+        .public_key(key.public_key())
+        .serial_number(x509.random_serial_number())
+        .not_valid_before(now - dt.timedelta(hours=1))
+        .not_valid_after(now + VALID_FOR)
+        .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
+        .add_extension(
+            x509.ExtendedKeyUsage([ExtendedKeyUsageOID.SERVER_AUTH, ExtendedKeyUsageOID.CLIENT_AUTH]), critical=False
+        )
+        .sign(ca_key, hashes.SHA256())
+    )
     return key, certificate
 
 
@@ -100,8 +132,7 @@ class RunCertificates:
     (mode 0700): ``files(label)`` are bus settings' ``tls`` for that holder, ``pem(label)`` the same
     as text, for a join file."""
 
-    def __init__(self, directory: Path, holders: dict[str, str], ca: tuple[Path, Path] | None = None,
-                 run_id: str = ""):
+    def __init__(self, directory: Path, holders: dict[str, str], ca: tuple[Path, Path] | None = None, run_id: str = ""):
         self.directory = Path(directory)
         self.directory.mkdir(mode=0o700, parents=True, exist_ok=True)
         ca_key, ca_certificate = load_ca(*ca) if ca else make_ca(f"zenorbit run {run_id}")
@@ -115,8 +146,11 @@ class RunCertificates:
             write_private(self.directory / f"{label}.key", self._texts[label][1])
 
     def files(self, label: str) -> dict[str, str]:
-        return {"ca": str(self.ca_path), "certificate": str(self.directory / f"{label}.pem"),
-                "key": str(self.directory / f"{label}.key")}
+        return {
+            "ca": str(self.ca_path),
+            "certificate": str(self.directory / f"{label}.pem"),
+            "key": str(self.directory / f"{label}.key"),
+        }
 
     def pem(self, label: str) -> dict[str, str]:
         certificate, key = self._texts[label]

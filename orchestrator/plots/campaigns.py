@@ -11,6 +11,7 @@ A quantity that has one value over the campaign (a grid of one point) or is a se
 which were left out. Axes carry the unit the campaign file gives (a dispersion's, or
 the grid's first value's), metrics their signal's SI unit.
 """
+
 from __future__ import annotations
 
 import json
@@ -25,15 +26,22 @@ from components.errors import ConfigError
 from components.plotting import PlotError, new_figure
 from components.units import parse_quantity, unit_scale
 
-OUTCOME_COLOURS = {"completed": "tab:blue", "failed": "tab:red", "interrupted": "tab:grey",
-                   "captured": "tab:green", "aborted": "tab:orange", "undecided": "tab:purple"}
-SEED = re.compile(r"(.*_)?seed$")   # a key's last part naming a random draw's seed
+OUTCOME_COLOURS = {
+    "completed": "tab:blue",
+    "failed": "tab:red",
+    "interrupted": "tab:grey",
+    "captured": "tab:green",
+    "aborted": "tab:orange",
+    "undecided": "tab:purple",
+}
+SEED = re.compile(r"(.*_)?seed$")  # a key's last part naming a random draw's seed
 PALETTE = ("tab:green", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
 
 
 @dataclass(frozen=True)
 class Quantity:
     """One axis a campaign varies: a number per case, in ``unit`` (as the campaign file gives it)."""
+
     label: str
     values: np.ndarray
     unit: str
@@ -60,7 +68,7 @@ def quantities(columns: dict[str, list], keys: list[str], meta: dict) -> tuple[l
     out, left_out, vectors = [], [], {}
     for key in keys:
         values = columns[key]
-        if SEED.match(re.sub(r"\[\d+\]", "", key.split(".")[-1])):   # which draw, not a quantity
+        if SEED.match(re.sub(r"\[\d+\]", "", key.split(".")[-1])):  # which draw, not a quantity
             left_out.append(f"{key} (a seed)")
             continue
         short = ".".join([p for p in key.split(".") if p not in ("components", "parameters")][-2:])
@@ -99,14 +107,14 @@ def _outcome_colours(outcomes: list[str]) -> dict[str, str]:
 def campaign_figures(directory: Path) -> list[tuple[str, object]]:
     import pyarrow.parquet as pq
 
-
     table = pq.read_table(directory / "cases.parquet")
     columns = {name: table.column(name).to_pylist() for name in table.column_names}
     meta_path = directory / "campaign.json"
     meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
     metric_meta = meta.get("metrics") or {}
-    metrics = [m for m in metric_meta if m in columns and all(isinstance(v, (int, float)) or v is None
-                                                              for v in columns[m])]
+    metrics = [
+        m for m in metric_meta if m in columns and all(isinstance(v, (int, float)) or v is None for v in columns[m])
+    ]
     keys = [k for k in (meta.get("dispersed") or []) + (meta.get("grid") or []) if k in columns]
     if not metrics and "outcome" not in columns:
         raise PlotError(f"{directory}: the campaign has no metrics to plot (metrics: in the campaign file)")
@@ -124,8 +132,11 @@ def campaign_figures(directory: Path) -> list[tuple[str, object]]:
             values = values[np.isfinite(values)]
             if len(values):
                 ax.hist(values, bins=max(5, min(50, int(np.sqrt(len(values))) + 1)), color="tab:blue", alpha=0.8)
-            ax.set(title=_fits(f"{name} ({len(values)} of {len(outcome)} cases)", cols), xlabel=_metric_label(name, metric_meta),
-                   ylabel="cases")
+            ax.set(
+                title=_fits(f"{name} ({len(values)} of {len(outcome)} cases)", cols),
+                xlabel=_metric_label(name, metric_meta),
+                ylabel="cases",
+            )
             ax.grid(True, alpha=0.3)
         out.append(("metrics_histograms.png", fig))
     axes, left_out, vectors = quantities(columns, keys, meta)
@@ -138,7 +149,9 @@ def campaign_figures(directory: Path) -> list[tuple[str, object]]:
             for kind, colour in colours.items():
                 chosen = outcome == kind
                 if chosen.any():
-                    ax.plot(q.values[chosen], y[chosen], "o", markersize=3, color=colour, label=f"{kind} ({chosen.sum()})")
+                    ax.plot(
+                        q.values[chosen], y[chosen], "o", markersize=3, color=colour, label=f"{kind} ({chosen.sum()})"
+                    )
             ax.set(xlabel=_label(q), ylabel=_metric_label(name, metric_meta))
             ax.grid(True, alpha=0.3)
             ax.legend(fontsize="x-small")
@@ -153,12 +166,14 @@ def campaign_figures(directory: Path) -> list[tuple[str, object]]:
 def _wrapped(text: str, fig) -> str:
     """``text`` in lines that fit the figure's width (small type: ~15 characters an inch)."""
     import textwrap
+
     return textwrap.fill(text, width=max(40, int(fig.get_figwidth() * 15)))
 
 
 def _fits(title: str, cols: int) -> str:
     """A panel's title in lines that fit its width (4.2 in; ~9 characters an inch at the title's size)."""
     import textwrap
+
     return textwrap.fill(title, width=int(4.2 * 9)) if cols > 1 else title
 
 
@@ -189,10 +204,22 @@ def _outcomesnew_figure(axes: list[Quantity], vectors: dict, outcome: np.ndarray
         for row, kind in enumerate(kinds):
             chosen = outcome == kind
             if chosen.any():
-                ax.plot(q.values[chosen], np.full(chosen.sum(), row), "o", markersize=4, color=colours[kind],
-                        alpha=0.7, label=f"{kind} ({chosen.sum()})")
-        ax.set(xlabel=_label(q), yticks=range(len(kinds)), yticklabels=kinds,
-               ylim=(-0.5, len(kinds) - 0.5), title=_fits(f"outcome against {q.label}", cols))
+                ax.plot(
+                    q.values[chosen],
+                    np.full(chosen.sum(), row),
+                    "o",
+                    markersize=4,
+                    color=colours[kind],
+                    alpha=0.7,
+                    label=f"{kind} ({chosen.sum()})",
+                )
+        ax.set(
+            xlabel=_label(q),
+            yticks=range(len(kinds)),
+            yticklabels=kinds,
+            ylim=(-0.5, len(kinds) - 0.5),
+            title=_fits(f"outcome against {q.label}", cols),
+        )
         ax.grid(True, axis="x", alpha=0.3)
     for j, (label, v) in enumerate(vectors.items(), start=len(axes) + 1):
         ax = fig.add_subplot(rows, cols, j)
@@ -203,10 +230,21 @@ def _outcomesnew_figure(axes: list[Quantity], vectors: dict, outcome: np.ndarray
         for kind in kinds:
             chosen = outcome == kind
             if chosen.any():
-                ax.plot(azimuth[chosen], elevation[chosen], "o", markersize=5, color=colours[kind],
-                        label=f"{kind} ({chosen.sum()})")
-        ax.set(xlabel=f"{label}: azimuth (deg)", ylabel=f"{label}: elevation (deg)", xlim=(-180, 180),
-               ylim=(-90, 90), title=_fits(f"outcome over the direction of {label}", cols))
+                ax.plot(
+                    azimuth[chosen],
+                    elevation[chosen],
+                    "o",
+                    markersize=5,
+                    color=colours[kind],
+                    label=f"{kind} ({chosen.sum()})",
+                )
+        ax.set(
+            xlabel=f"{label}: azimuth (deg)",
+            ylabel=f"{label}: elevation (deg)",
+            xlim=(-180, 180),
+            ylim=(-90, 90),
+            title=_fits(f"outcome over the direction of {label}", cols),
+        )
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize="x-small")
     if note:

@@ -30,12 +30,13 @@ both record, orchestrator/plots/shadows.py). The registered types' plots (:func:
 ``dynamics.target.q[0]``, or all elements of a vector, ``orbit.r_eci``. ``<c>`` is the component's
 name in the config. Matplotlib's Agg canvas is used directly (no pyplot, no display).
 """
+
 from __future__ import annotations
 
 import re
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -56,14 +57,18 @@ def load_run(record_dir: Path) -> RecordedRun:
     table = pq.read_table(signals)
     columns = {name: table.column(name).to_numpy() for name in table.column_names}
     if "time" not in columns or not len(columns["time"]):
-        raise PlotError(f"{signals}: the recording holds no rows (the run wrote none before it ended: its events.jsonl says why)")
-    return RecordedRun(resolved, columns, np.asarray(columns["time"], dtype=float), _config_dir(record_dir),
-                       Path(record_dir))
+        raise PlotError(
+            f"{signals}: the recording holds no rows (the run wrote none before it ended: its events.jsonl says why)"
+        )
+    return RecordedRun(
+        resolved, columns, np.asarray(columns["time"], dtype=float), _config_dir(record_dir), Path(record_dir)
+    )
 
 
 def _config_dir(record_dir: Path) -> Path | None:
     """The directory of the run's original config file (a ``file.py:Class`` type is relative to it)."""
     from components.viewer.replay import ReplayError, read_recording
+
     try:
         return read_recording(record_dir)[1]
     except ReplayError:
@@ -86,8 +91,10 @@ def _declared(run: RecordedRun, warn: Callable[[str], None]) -> list[tuple[str, 
         for plot in cls.plots:
             for file, fig in plot.draw(run, name).items():
                 if not plot.matches(name, file):
-                    raise PlotError(f"{name} ({type_name}): its plot {plot.file!r} made {file!r}, which that "
-                                    "file name does not describe")
+                    raise PlotError(
+                        f"{name} ({type_name}): its plot {plot.file!r} made {file!r}, which that "
+                        "file name does not describe"
+                    )
                 made.append((file, fig))
     return made
 
@@ -116,8 +123,9 @@ def _signals(names: list[str], run: RecordedRun) -> list[tuple[str, object]]:
     return [("signals.png", fig)]
 
 
-def figures(record_dir, signals: list[str] | None = None,
-            warn: Callable[[str], None] | None = None) -> list[tuple[str, object]]:
+def figures(
+    record_dir, signals: list[str] | None = None, warn: Callable[[str], None] | None = None
+) -> list[tuple[str, object]]:
     """(file name, matplotlib Figure) for a recording: the figures its component types declare,
     or one figure of the named ``signals``. ``warn`` (default: print to stderr) hears of a type
     that cannot be loaded (its components are not plotted).
@@ -126,27 +134,31 @@ def figures(record_dir, signals: list[str] | None = None,
     to plot.
     """
     record_dir = Path(record_dir)
-    if (record_dir / "cases.parquet").exists() and not signals:   # a campaign (orchestrator sweep --out DIR)
+    if (record_dir / "cases.parquet").exists() and not signals:  # a campaign (orchestrator sweep --out DIR)
         from orchestrator.plots.campaigns import campaign_figures
+
         return campaign_figures(record_dir)
     run = load_run(record_dir)
     if signals:
         return _signals(signals, run)
     warn = warn or (lambda message: print(f"plot: {message}", file=sys.stderr, flush=True))
     written = _declared(run, warn) + shadow_figures(run.config, run.columns, run.time)
-    if outcome := recorded_outcome(record_dir):   # every figure says how the run ended (a figure is shown alone)
+    if outcome := recorded_outcome(record_dir):  # every figure says how the run ended (a figure is shown alone)
         for _, fig in written:
             _titled(fig, outcome)
     if not written:
         types = ", ".join(sorted({(s or {}).get("type", "?") for s in (run.config.get("components") or {}).values()}))
-        raise PlotError(f"nothing to plot in {record_dir}: no figures for its component types ({types}); "
-                        f"name columns to plot with --signals NAME,NAME")
+        raise PlotError(
+            f"nothing to plot in {record_dir}: no figures for its component types ({types}); "
+            f"name columns to plot with --signals NAME,NAME"
+        )
     return written
 
 
 def recorded_outcome(record_dir: Path) -> str | None:
     """The run's outcome in words (events.jsonl's end event, orchestrator/run/outcome.py), if any."""
     import json
+
     try:
         lines = (Path(record_dir) / "events.jsonl").read_text().splitlines()
     except OSError:
@@ -154,7 +166,7 @@ def recorded_outcome(record_dir: Path) -> str | None:
     for line in reversed(lines):
         try:
             event = json.loads(line)
-        except ValueError:   # a run killed mid-line
+        except ValueError:  # a run killed mid-line
             continue
         if event.get("event") == "end":
             return event.get("outcome_text")
@@ -164,6 +176,7 @@ def recorded_outcome(record_dir: Path) -> str | None:
 def _titled(fig, outcome: str) -> None:
     """The outcome above the figure's own title, in lines that fit its width."""
     import textwrap
+
     own = fig._suptitle.get_text() if fig._suptitle is not None else ""
     text = textwrap.fill(f"run outcome: {outcome}", width=max(40, int(fig.get_figwidth() * 11)))
     fig.suptitle(f"{text}\n{own}" if own else text, fontsize="medium")

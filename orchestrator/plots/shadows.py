@@ -1,6 +1,7 @@
 """The plot of a shadow (``orchestrator plot DIR``): ``<c>_shadow.png`` for each component ``<c>``
 with a ``shadow`` in the recording's config.yaml, one panel per output both record: main - shadow
 over time, per element for up to ``PER_ELEMENT`` elements, else the norm of the difference."""
+
 from __future__ import annotations
 
 import math
@@ -18,7 +19,7 @@ def _outputs(columns: dict, component: str) -> dict[str, list[str]]:
     prefix = f"{component}."
     for column in columns:
         if column.startswith(prefix):
-            match = _COLUMN.match(column[len(prefix):])
+            match = _COLUMN.match(column[len(prefix) :])
             found.setdefault(match["variable"], []).append((int(match["index"] or 0), column))
     return {name: [c for _, c in sorted(entries)] for name, entries in found.items()}
 
@@ -41,8 +42,9 @@ def shadow_figures(config: dict, columns: dict, t: np.ndarray) -> list[tuple[str
         fig.suptitle(f"{name} - {shadow} ({entry['type']} - {entry['shadow']['type']})")
         for i, variable in enumerate(shared):
             ax = fig.add_subplot(rows, cols, i + 1)
-            difference = (np.column_stack([columns[c] for c in mains[variable]])
-                          - np.column_stack([columns[c] for c in shadows[variable]]))
+            difference = np.column_stack([columns[c] for c in mains[variable]]) - np.column_stack(
+                [columns[c] for c in shadows[variable]]
+            )
             if difference.shape[1] <= PER_ELEMENT:
                 for k in range(difference.shape[1]):
                     ax.plot(t, difference[:, k], linewidth=1.0, label=f"[{k}]" if difference.shape[1] > 1 else None)

@@ -1,20 +1,21 @@
 """The control server of a run: status, stop and swap requests from the CLI (`orchestrator ps`,
 `stop`, `swap`), answered between steps. A bad request gets an error answer; it never ends the run."""
+
 from __future__ import annotations
 
 import copy
 import json
-from typing import Mapping, Protocol
+from collections.abc import Mapping
+from typing import Protocol
 
 from components import registry
 from components.errors import ConfigError
-from orchestrator.config.schema import COMPONENT
-from orchestrator.config.specs import ComponentSpec, RunConfig
-from orchestrator.config.yaml_file import ConfigErrors
-from orchestrator.config.load import component_spec
-from orchestrator.config.yaml_file import apply_overrides
 from orchestrator.config.connections import check_replacement, hands_over
+from orchestrator.config.load import component_spec
+from orchestrator.config.schema import COMPONENT
 from orchestrator.config.shadows import mismatches
+from orchestrator.config.specs import ComponentSpec, RunConfig
+from orchestrator.config.yaml_file import ConfigErrors, apply_overrides
 
 
 class SwapFailed(Exception):
@@ -32,18 +33,19 @@ def raise_stop(signum, frame):
 
 class Controlled(Protocol):
     """What the control server needs of a run."""
+
     config: RunConfig
 
     @property
-    def row(self) -> int: ...   # the step boundary the run is at
+    def row(self) -> int: ...  # the step boundary the run is at
 
-    def specs(self) -> Mapping[str, ComponentSpec]: ...   # the live components, in config order
+    def specs(self) -> Mapping[str, ComponentSpec]: ...  # the live components, in config order
 
     def status(self) -> dict: ...
 
     def request_stop(self, reason: str) -> None: ...
 
-    def swap(self, spec: ComponentSpec) -> int: ...   # the new generation; SwapFailed if it cannot start
+    def swap(self, spec: ComponentSpec) -> int: ...  # the new generation; SwapFailed if it cannot start
 
 
 class ControlServer:
@@ -84,8 +86,7 @@ class ControlServer:
         for query in self.queries:
             request = _request(query)
             target = self._swap_target(request)
-            if target is not None and (
-                    not quiescent or self._boundary(target) != self.run.row):
+            if target is not None and (not quiescent or self._boundary(target) != self.run.row):
                 waiting.append(query)
                 continue
             try:
@@ -110,27 +111,36 @@ class ControlServer:
             name = request["component"]
             specs = run.specs()
             if not isinstance(name, str) or name not in specs:
-                return {"ok": False, "error": f"no component {name!r} (components: {', '.join(specs)})",
-                        "usage": True}
+                return {"ok": False, "error": f"no component {name!r} (components: {', '.join(specs)})", "usage": True}
             old = specs[name]
             new_type = request.get("type") or old.type
             try:
                 handed_over = hands_over(old, new_type, registry.load(new_type, run.config.path.parent.resolve()))
             except ConfigError as e:
                 return {"ok": False, "error": f"--type: {e.message}", "usage": True}
-            entry = {"type": new_type, "parameters": copy.deepcopy(old.parameters if handed_over else {}),
-                     "on_failure": old.on_failure}
+            entry = {
+                "type": new_type,
+                "parameters": copy.deepcopy(old.parameters if handed_over else {}),
+                "on_failure": old.on_failure,
+            }
             try:
                 apply_overrides(entry, [f"parameters.{s}" for s in request.get("set", [])])
                 converted, problems = COMPONENT.resolve(entry, f"components.{name}")
                 if problems:
                     raise ConfigErrors([str(e) for e in problems])
-                spec = component_spec(name, {**converted, "step": old.step_ns}, run.config.step_ns,
-                                      run.config.path.parent.resolve(), run.config.epoch, f"components.{name}",
-                                      run.config.packages)
-                spec.shadow_of = old.shadow_of   # a shadow swapped stays one, and fits its main
+                spec = component_spec(
+                    name,
+                    {**converted, "step": old.step_ns},
+                    run.config.step_ns,
+                    run.config.path.parent.resolve(),
+                    run.config.epoch,
+                    f"components.{name}",
+                    run.config.packages,
+                )
+                spec.shadow_of = old.shadow_of  # a shadow swapped stays one, and fits its main
                 problems = check_replacement(spec, run.config.connections) + (
-                    mismatches(specs[old.shadow_of], spec, run.config.connections) if old.shadow_of else [])
+                    mismatches(specs[old.shadow_of], spec, run.config.connections) if old.shadow_of else []
+                )
                 if problems:
                     raise ConfigErrors(problems)
             except ConfigErrors as e:

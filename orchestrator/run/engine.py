@@ -21,6 +21,7 @@ inbox), :mod:`.listener` (applying it), :mod:`.members` (the processes), :mod:`.
 whom), :mod:`.pacing` (the horizon), :mod:`.rows` (the recorded row), :mod:`.recovery` (swap,
 checkpoint, restart), :mod:`.viewer_link` and :mod:`.report`.
 """
+
 from __future__ import annotations
 
 import os
@@ -36,9 +37,10 @@ from pathlib import Path
 
 from components import bus
 from components.constants import NS_PER_S
-from orchestrator.run import outcome, recovery, report, runs, supervisor, wiring
 from orchestrator.config import groups, shadows
 from orchestrator.config.specs import ComponentSpec, Ros2Spec, RunConfig, ViewerSpec
+from orchestrator.hosts.run_bus import RunBus
+from orchestrator.run import outcome, recovery, report, runs, supervisor, wiring
 from orchestrator.run.control import ControlServer, StopRequested, raise_stop
 from orchestrator.run.listener import Listener
 from orchestrator.run.loop import Loop
@@ -46,7 +48,6 @@ from orchestrator.run.members import Crew, RunFailure, terminate_all
 from orchestrator.run.messages import subscribe
 from orchestrator.run.recording import Recording, RecordingError
 from orchestrator.run.state import RunState
-from orchestrator.hosts.run_bus import RunBus
 from orchestrator.run.viewer_link import ViewerLink
 
 
@@ -54,9 +55,18 @@ class Run:
     """One execution of a validated config. ``execute()`` returns the exit code (0, 1, 130; 3: the
     run ended normally in another outcome than ``expect``, validated by the caller)."""
 
-    def __init__(self, config: RunConfig, *, record: str | Path | None = None, profile: bool = False,
-                 progress: bool = False, out=sys.stderr, viewer: ViewerSpec | None = None,
-                 ros2: Ros2Spec | None = None, expect: str | None = None):
+    def __init__(
+        self,
+        config: RunConfig,
+        *,
+        record: str | Path | None = None,
+        profile: bool = False,
+        progress: bool = False,
+        out=sys.stderr,
+        viewer: ViewerSpec | None = None,
+        ros2: Ros2Spec | None = None,
+        expect: str | None = None,
+    ):
         self.config = config
         self.expect = expect or config.expect
         self.viewer = viewer or config.viewer
@@ -66,20 +76,22 @@ class Run:
         self.progress = progress
         self.out = out
         self.run_id = f"{config.name}-{uuid.uuid4().hex[:8]}"
-        self.secret = secrets.token_hex(32)   # the run's processes hold it; nothing else can join (§7)
+        self.secret = secrets.token_hex(32)  # the run's processes hold it; nothing else can join (§7)
         self.child_env = {**os.environ, bus.SECRET_ENV: self.secret}
         self.state = RunState.of(config)
         self.controls = ControlServer(self)
         # component logs: kept with the recording, else in a temporary directory removed after a clean run
-        self.log_dir = (self.record_dir / "logs") if self.record_dir else Path(
-            tempfile.mkdtemp(prefix=f"zenorbit-{self.run_id}-"))
+        self.log_dir = (
+            (self.record_dir / "logs") if self.record_dir else Path(tempfile.mkdtemp(prefix=f"zenorbit-{self.run_id}-"))
+        )
         self.log_dir.mkdir(parents=True, exist_ok=True)
         self.loop_s = 0.0
         processes = groups.processes(list(config.components.values()))
-        self.placement = supervisor.place([[s.name for s in specs] for specs in processes if groups.dedicated_cpu(specs)],
-                                          os.sched_getaffinity(0))
+        self.placement = supervisor.place(
+            [[s.name for s in specs] for specs in processes if groups.dedicated_cpu(specs)], os.sched_getaffinity(0)
+        )
         self.session = self.crew = self.viewer_link = self.hosts = self.listener = self.recovery = None
-        self.ros2_line: str | None = None   # the ROS 2 view's summary, printed before the run's
+        self.ros2_line: str | None = None  # the ROS 2 view's summary, printed before the run's
         self._subscriptions: list = []
 
     # ---------------------------------------------------------------- what the control server sees
@@ -93,11 +105,21 @@ class Run:
         return {n: m.spec for n, m in self.state.members.items()}
 
     def status(self) -> dict:
-        return {"run_id": self.run_id, "name": self.config.name, "step": self.row,
-                "steps": self.config.steps, "time": self.row * self.config.step_ns / NS_PER_S,
-                "components": {n: {"type": m.spec.type, "generation": m.generation,
-                                   **({"shadow_of": m.spec.shadow_of} if m.spec.shadow_of else {})}
-                               for n, m in self.state.members.items()}}
+        return {
+            "run_id": self.run_id,
+            "name": self.config.name,
+            "step": self.row,
+            "steps": self.config.steps,
+            "time": self.row * self.config.step_ns / NS_PER_S,
+            "components": {
+                n: {
+                    "type": m.spec.type,
+                    "generation": m.generation,
+                    **({"shadow_of": m.spec.shadow_of} if m.spec.shadow_of else {}),
+                }
+                for n, m in self.state.members.items()
+            },
+        }
 
     def request_stop(self, reason: str) -> None:
         self.state.stop_reason = reason
@@ -117,7 +139,7 @@ class Run:
         own_cpus = os.sched_getaffinity(0)
         run_start = time.perf_counter()
         try:
-            supervisor.keep_to(self.placement.shared)   # this thread, and the bus threads it starts
+            supervisor.keep_to(self.placement.shared)  # this thread, and the bus threads it starts
             self._open_bus()
             self._start(len(own_cpus))
             self._loop()
@@ -126,14 +148,18 @@ class Run:
             # who and when, as numbers: the wall seconds since the start (and how long a lost
             # link had been silent) say how soon the run ended after a cut
             member, silent_s = getattr(failure, "member", None), getattr(failure, "silent_s", None)
-            self.state.log("fault", step=self.row, message=message,
-                           **({"component": member.name} if member is not None else {}),
-                           **({"silent_s": round(silent_s, 3)} if silent_s is not None else {}),
-                           wall_s=round(time.perf_counter() - run_start, 3))
+            self.state.log(
+                "fault",
+                step=self.row,
+                message=message,
+                **({"component": member.name} if member is not None else {}),
+                **({"silent_s": round(silent_s, 3)} if silent_s is not None else {}),
+                wall_s=round(time.perf_counter() - run_start, 3),
+            )
         except (KeyboardInterrupt, StopRequested):
             self.state.stop_reason = "interrupted"
             code = 130
-        except Exception as error:   # a bug of ours: still a clean end, and no "completed" in events.jsonl
+        except Exception as error:  # a bug of ours: still a clean end, and no "completed" in events.jsonl
             traceback.print_exc(file=self.out)
             code, message = 1, f"internal error: {type(error).__name__}: {error}"
             self.state.log("fault", step=self.row, message=message)
@@ -149,8 +175,14 @@ class Run:
         if message:
             print(report.error(message, self.state.members.values()), file=self.out)
         if self.profile:
-            print("\n".join(report.profile(self.state.members.values(), self.row, self.config.step_ns, self.loop_s,
-                                           self.config.algorithm)), file=self.out)
+            print(
+                "\n".join(
+                    report.profile(
+                        self.state.members.values(), self.row, self.config.step_ns, self.loop_s, self.config.algorithm
+                    )
+                ),
+                file=self.out,
+            )
         if self.ros2_line:
             print(self.ros2_line, file=self.out)
         # as events.jsonl's end line says it ("stopped by request" ends with exit code 0 too)
@@ -158,11 +190,25 @@ class Run:
         name, words = self._outcome(code)
         if code == 0 and self.expect is not None and name != self.expect:
             code = outcome.EXPECT_MISMATCH
-            print(f"error: the run's outcome is {name}, not {self.expect} as expected (exit code {code})",
-                  file=self.out)
-        print(report.summary(self.config.name, status, self.row, self.config.steps, self.config.step_ns,
-                             time.perf_counter() - run_start, self.loop_s, self.state.restarts, self.record_dir,
-                             words), file=self.out, flush=True)
+            print(
+                f"error: the run's outcome is {name}, not {self.expect} as expected (exit code {code})", file=self.out
+            )
+        print(
+            report.summary(
+                self.config.name,
+                status,
+                self.row,
+                self.config.steps,
+                self.config.step_ns,
+                time.perf_counter() - run_start,
+                self.loop_s,
+                self.state.restarts,
+                self.record_dir,
+                words,
+            ),
+            file=self.out,
+            flush=True,
+        )
         return code
 
     def _loop(self) -> None:
@@ -187,13 +233,25 @@ class Run:
         self._subscriptions = subscribe(session, run_id, self.state.inbox.put)
         self.viewer_link = ViewerLink(self.viewer, session, run_id, ros2=self.ros2)
         self.listener = Listener(self.state, self.controls, self.hosts, self.viewer_link, self.out)
-        self.crew = Crew(self.config, run_id=run_id, session=session, endpoint=self.hosts.local, secret=self.secret,
-                         env=self.child_env, log_dir=self.log_dir, placement=self.placement, out=self.out,
-                         place=self.state.rows.placement, wait=self.listener.wait, hosts=self.hosts,
-                         frames_dir=self.record_dir / "frames" if self.record_dir else None)
+        self.crew = Crew(
+            self.config,
+            run_id=run_id,
+            session=session,
+            endpoint=self.hosts.local,
+            secret=self.secret,
+            env=self.child_env,
+            log_dir=self.log_dir,
+            placement=self.placement,
+            out=self.out,
+            place=self.state.rows.placement,
+            wait=self.listener.wait,
+            hosts=self.hosts,
+            frames_dir=self.record_dir / "frames" if self.record_dir else None,
+        )
         self.recovery = recovery.Recovery(self.state, self.crew, self.listener, self.out)
-        runs.register(run_id, self.config.name, self.hosts.local, self.config.path, self.secret,
-                      self.hosts.settings("cli"))
+        runs.register(
+            run_id, self.config.name, self.hosts.local, self.config.path, self.secret, self.hosts.settings("cli")
+        )
 
     def _start(self, cpus: int) -> None:
         """Start, wire and initialize every component, the recording and the viewer; let them go.
@@ -201,17 +259,25 @@ class Run:
         config, state, rows = self.config, self.state, self.state.rows
         if self.record_dir is not None:
             rows.recording = Recording(self.record_dir, rows.columns, config.resolved, flush_s=config.record_flush_s)
-        state.log("start", run_id=self.run_id, config=str(config.path.resolve()), steps=config.steps,
-                  step_ns=config.step_ns, algorithm=config.algorithm,
-                  components={n: s.type for n, s in config.components.items()},
-                  shadows={n: s.shadow_of for n, s in config.components.items() if s.shadow_of},
-                  cpus={**self.placement.dedicated, "shared": sorted(self.placement.shared)})
-        for note in config.notes:       # suspect physics the check found (orchestrator check shows them too)
+        state.log(
+            "start",
+            run_id=self.run_id,
+            config=str(config.path.resolve()),
+            steps=config.steps,
+            step_ns=config.step_ns,
+            algorithm=config.algorithm,
+            components={n: s.type for n, s in config.components.items()},
+            shadows={n: s.shadow_of for n, s in config.components.items() if s.shadow_of},
+            cpus={**self.placement.dedicated, "shared": sorted(self.placement.shared)},
+        )
+        for note in config.notes:  # suspect physics the check found (orchestrator check shows them too)
             print(f"warning: {note}", file=self.out)
             state.log("warning", message=note, step=0)
         if self.placement.unplaced:
-            message = (f"no CPU to spare for {', '.join(self.placement.unplaced)} (dedicated_cpu; "
-                       f"{cpus} CPU(s) available): they share the others'")
+            message = (
+                f"no CPU to spare for {', '.join(self.placement.unplaced)} (dedicated_cpu; "
+                f"{cpus} CPU(s) available): they share the others'"
+            )
             print(f"note: {message}", file=self.out)
             state.log("warning", message=message, step=0)
         self.crew.start(list(config.components.values()), {n: 0 for n in config.components}, state.members)
@@ -224,17 +290,29 @@ class Run:
             rows.take(member)
         if rows.recording is not None:
             rows.recording.append(0, 0.0, rows.values)
-        rows.decimation = self.viewer_link.start(config, rows.columns, setup=self.log_dir / "viewer.json",
-                                                 endpoint=self.crew.endpoint, run_id=self.run_id, env=self.child_env,
-                                                 cpus=self.placement.shared, wait=self.listener.wait,
-                                                 frames_dir=self.record_dir / "frames" if self.record_dir else None,
-                                                 record_dir=self.record_dir)
+        rows.decimation = self.viewer_link.start(
+            config,
+            rows.columns,
+            setup=self.log_dir / "viewer.json",
+            endpoint=self.crew.endpoint,
+            run_id=self.run_id,
+            env=self.child_env,
+            cpus=self.placement.shared,
+            wait=self.listener.wait,
+            frames_dir=self.record_dir / "frames" if self.record_dir else None,
+            record_dir=self.record_dir,
+        )
         if rows.decimation:
             if self.viewer is not None:
                 state.log("viewer", mode=self.viewer.mode, rate_hz=self.viewer.rate_hz)
             if self.ros2 is not None:
-                state.log("ros2", transport=self.ros2.transport, endpoint=self.ros2.endpoint,
-                          domain_id=self.ros2.domain_id, rate_hz=self.ros2.rate_hz)
+                state.log(
+                    "ros2",
+                    transport=self.ros2.transport,
+                    endpoint=self.ros2.endpoint,
+                    domain_id=self.ros2.domain_id,
+                    rate_hz=self.ros2.rate_hz,
+                )
             rows.signals = self.viewer_link.signals
             rows.publish()
         self.listener.sync(list(state.members.values()))
@@ -249,7 +327,7 @@ class Run:
         if self.progress:
             print(file=self.out)
         if self.hosts is not None:
-            self.hosts.close()   # joins from now on are told the run is over
+            self.hosts.close()  # joins from now on are told the run is over
         state, rows = self.state, self.state.rows
         terminate_all(list(state.members.values()) + list(state.joining.values()), 2.0 if code else 5.0, final=True)
         if self.viewer_link is not None:
@@ -258,10 +336,14 @@ class Run:
                 event, self.ros2_line = stream
                 state.log("ros2_stream", **event)
         name, words = self._outcome(code)
-        state.log("end", step=rows.row, time=rows.row * self.config.step_ns / NS_PER_S,
-                  status="failed" if code == 1 else (state.stop_reason or "completed"),
-                  wall_s=round(time.perf_counter() - run_start, 3),
-                  **({"outcome": name, "outcome_text": words} if name else {}))
+        state.log(
+            "end",
+            step=rows.row,
+            time=rows.row * self.config.step_ns / NS_PER_S,
+            status="failed" if code == 1 else (state.stop_reason or "completed"),
+            wall_s=round(time.perf_counter() - run_start, 3),
+            **({"outcome": name, "outcome_text": words} if name else {}),
+        )
         if rows.recording is not None:
             try:
                 rows.recording.close()

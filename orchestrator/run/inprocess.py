@@ -7,6 +7,7 @@ carries), step on the inputs that :mod:`components.schedule` tags for each step,
 in config order, and their outputs go through the same float64 layouts as in a bus run. The
 result is the recording's signal columns, row k = t_k.
 """
+
 from __future__ import annotations
 
 import json
@@ -33,17 +34,17 @@ class _Stepped:
         self.inputs, self.outputs = resolved.inputs, resolved.outputs
         self.input_vector = self.inputs.start_vector()
         self.input_views = self.inputs.unpack(self.input_vector)
-        self.input_views.update((v.name, v.start) for v in self.inputs.frames)   # none before the first step
+        self.input_views.update((v.name, v.start) for v in self.inputs.frames)  # none before the first step
         self.component = resolved.build()
         self.ratio = spec.step_ns // config.step_ns
         self.by_tag: dict[int, np.ndarray] = {}
-        self.frames_by_tag: dict[int, dict[str, np.ndarray]] = {}   # its frame outputs, read-only copies
+        self.frames_by_tag: dict[int, dict[str, np.ndarray]] = {}  # its frame outputs, read-only copies
         self.routes: list[schedule.Route] = []
         self.frame_routes: list[schedule.FrameRoute] = []
         self.route_inputs: list[list[str]] = []
         self.component.input_times_ns = self.input_times = {}
 
-    def take_inputs(self, members: dict[str, "_Stepped"], k: int, step_ns: int) -> None:
+    def take_inputs(self, members: dict[str, _Stepped], k: int, step_ns: int) -> None:
         for route, names in zip(self.routes, self.route_inputs):
             tag = route.tag(k)
             self.input_vector[route.dst] = members[route.source].by_tag[tag][route.src]
@@ -68,8 +69,9 @@ def _frozen(frame: np.ndarray) -> np.ndarray:
     return frame
 
 
-def run_in_process(config: RunConfig, steps: int | None = None, timing: dict | None = None,
-                   events: list | None = None) -> np.ndarray:
+def run_in_process(
+    config: RunConfig, steps: int | None = None, timing: dict | None = None, events: list | None = None
+) -> np.ndarray:
     """Rows (steps + 1, number of recorded columns) of the config run for ``steps`` steps
     (default: its duration). ``timing``, if given, gets ``loop_s``: the wall time of the stepping
     loop (start-up excluded, as a bus run's ``loop_s``), for benchmarks. ``events``, if given, gets
@@ -80,15 +82,17 @@ def run_in_process(config: RunConfig, steps: int | None = None, timing: dict | N
     offsets = {name: m.outputs.offsets for name, m in members.items()}
     ratios = {name: m.ratio for name, m in members.items()}
     for name, member in members.items():
-        member.routes = schedule.routes(name, member.inputs.offsets, config.connections, offsets, ratios,
-                                        order, config.algorithm)
+        member.routes = schedule.routes(
+            name, member.inputs.offsets, config.connections, offsets, ratios, order, config.algorithm
+        )
         member.route_inputs = [schedule.fed_inputs(r, member.inputs.offsets) for r in member.routes]
-        member.frame_routes = schedule.frame_routes(name, [v.name for v in member.inputs.frames], config.connections,
-                                                    ratios, order, config.algorithm)
+        member.frame_routes = schedule.frame_routes(
+            name, [v.name for v in member.inputs.frames], config.connections, ratios, order, config.algorithm
+        )
     for name in shadows.initialization_order(config.components, config.connections):
         member = members[name]
         for route, names in zip(member.routes, member.route_inputs):  # sources not initialized yet
-            source = members[route.source]                              # hold their start values
+            source = members[route.source]  # hold their start values
             member.input_vector[route.dst] = source.by_tag.get(0, source.outputs.start_vector())[route.src]
             if 0 in source.by_tag:
                 member.input_times.update(dict.fromkeys(names, 0))
@@ -101,8 +105,7 @@ def run_in_process(config: RunConfig, steps: int | None = None, timing: dict | N
         for name, member in members.items():
             if schedule.is_due(member.ratio, k):
                 member.take_inputs(members, k, config.step_ns)
-                result = member.component.do_step(k * config.step_ns, member.ratio * config.step_ns,
-                                                  member.input_views)
+                result = member.component.do_step(k * config.step_ns, member.ratio * config.step_ns, member.input_views)
                 member.by_tag[k + member.ratio] = member.pack(result, k + member.ratio)
                 for kind, fields in member.component.take_events():
                     if events is not None:

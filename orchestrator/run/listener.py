@@ -1,6 +1,7 @@
 """The orchestrator's side of the inbox: applies each message to the run's state, waits for the
 answers a step of the run's life expects, and watches the processes; a member that faults or dies
 first has the rows it completed recorded (salvaged)."""
+
 from __future__ import annotations
 
 import queue
@@ -9,12 +10,23 @@ import time
 from components import bus, protocol
 from orchestrator.run.control import ControlServer
 from orchestrator.run.members import Member, RunFailure, at_fault, death, exited, fault_message
-from orchestrator.run.messages import CONTROL, OUTPUTS, REPLY, Beat, Events, LinkLost, Liveliness, Outputs, Reply, decode
+from orchestrator.run.messages import (
+    CONTROL,
+    OUTPUTS,
+    REPLY,
+    Beat,
+    Events,
+    LinkLost,
+    Liveliness,
+    Outputs,
+    Reply,
+    decode,
+)
 from orchestrator.run.state import RunState
 from orchestrator.run.viewer_link import ViewerLink
 
 SYNC_ROUND_S = 0.05  # the start-up handshake is repeated at this interval until everyone hears everyone
-SLOW_START_S = 5.0   # an instantiate this long gets a note (a first run on a machine compiles the kernels)
+SLOW_START_S = 5.0  # an instantiate this long gets a note (a first run on a machine compiles the kernels)
 
 
 class Listener:
@@ -23,7 +35,7 @@ class Listener:
 
     def __init__(self, run: RunState, controls: ControlServer, hosts, viewer_link: ViewerLink, out):
         self.run, self.controls, self.hosts, self.viewer_link, self.out = run, controls, hosts, viewer_link, out
-        self.dropped: dict[str, int] = {}   # key -> messages dropped from it (malformed, stranger, stale)
+        self.dropped: dict[str, int] = {}  # key -> messages dropped from it (malformed, stranger, stale)
 
     def handle(self, message, expect: dict[str, str]) -> None:
         """Apply one inbox message; ``expect`` maps component name -> the reply we wait for. A
@@ -43,8 +55,11 @@ class Listener:
     def _drop(self, key: str, reason: str) -> None:
         """Warn of a dropped message in events.jsonl (bus.count_drop says when)."""
         if n := bus.count_drop(self.dropped, key):
-            self.run.log("warning", step=self.run.rows.row, message=f"dropped a message on {key}: {reason}"
-                                                                    + (f" ({n} so far)" if n > 1 else ""))
+            self.run.log(
+                "warning",
+                step=self.run.rows.row,
+                message=f"dropped a message on {key}: {reason}" + (f" ({n} so far)" if n > 1 else ""),
+            )
 
     def _apply(self, message, expect: dict[str, str]) -> None:
         run = self.run
@@ -55,7 +70,7 @@ class Listener:
             member.receive(message)
             member.heard_at = member.progress_at
             return
-        if type(message) is LinkLost:   # the member it was is lost: check_processes says so (hosts.silent)
+        if type(message) is LinkLost:  # the member it was is lost: check_processes says so (hosts.silent)
             self.hosts.link_closed(message.zid, [*run.members.values(), *run.joining.values()])
             return
         name = message.name
@@ -74,11 +89,11 @@ class Listener:
                 if expect.get(name) == "alive":
                     del expect[name]
                 return
-            return   # a token may go with another peer's link: its process or link tells (check_processes)
+            return  # a token may go with another peer's link: its process or link tells (check_processes)
         member = self._member(name, message.generation)
         if member is None:
             if type(message) is Beat or self._replaced(name, message.generation):
-                return   # a generation swapped out (or restarted) on purpose may still say its last
+                return  # a generation swapped out (or restarted) on purpose may still say its last
             raise bus.Malformed(f"no component {name!r} of generation {message.generation} in this run")
         member.heard_at = time.monotonic()
         if type(message) is Beat:
@@ -89,7 +104,7 @@ class Listener:
                 del expect[name]
             return
         if type(message) is Events:
-            for kind, fields in message.events:   # what a component reports cannot rename the line's keys
+            for kind, fields in message.events:  # what a component reports cannot rename the line's keys
                 run.log(kind, **{**fields, "component": name, "step": message.k})
             return
         if message.k >= 0:  # a fault: it published every output before the failing step's
@@ -118,13 +133,19 @@ class Listener:
         while expect:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
-                raise RunFailure(f"component {_names(expect)} did not answer {what} within {timeout:g} s "
-                                 f"(hung? raise run.step_timeout / run.start_timeout if it is just slow)")
+                raise RunFailure(
+                    f"component {_names(expect)} did not answer {what} within {timeout:g} s "
+                    f"(hung? raise run.step_timeout / run.start_timeout if it is just slow)"
+                )
             if not noted and time.monotonic() - started > SLOW_START_S:
                 noted = True
-                print(f"note: waiting for {_names(expect)} to instantiate: the first run on a machine compiles "
-                      f"{'its' if len(expect) == 1 else 'their'} kernels (numba; 20-45 s on 2 cores), later runs "
-                      f"load them from the cache (run.start_timeout: {timeout:g} s)", file=self.out, flush=True)
+                print(
+                    f"note: waiting for {_names(expect)} to instantiate: the first run on a machine compiles "
+                    f"{'its' if len(expect) == 1 else 'their'} kernels (numba; 20-45 s on 2 cores), later runs "
+                    f"load them from the cache (run.start_timeout: {timeout:g} s)",
+                    file=self.out,
+                    flush=True,
+                )
             try:
                 message = self.run.inbox.get(timeout=min(remaining, 0.2))
             except queue.Empty:
@@ -140,8 +161,10 @@ class Listener:
         deadline = time.monotonic() + run.config.start_timeout_s
         while expect:
             if time.monotonic() > deadline:
-                raise RunFailure(f"component {', '.join(map(repr, expect))} did not hear its sources within "
-                                 f"{run.config.start_timeout_s:g} s (run.start_timeout)")
+                raise RunFailure(
+                    f"component {', '.join(map(repr, expect))} did not hear its sources within "
+                    f"{run.config.start_timeout_s:g} s (run.start_timeout)"
+                )
             for member in run.members.values():
                 member.control(protocol.Sync())
             round_end = time.monotonic() + SYNC_ROUND_S
@@ -162,7 +185,7 @@ class Listener:
             member = self.run.joining.get(name) or self.run.members[name]
             if how := exited(member) or self.hosts.silent(member):
                 silent_s = None if exited(member) else time.monotonic() - member.heard_at
-                member = at_fault(member)   # in a process group: the member whose code was running
+                member = at_fault(member)  # in a process group: the member whose code was running
                 self.salvage(member, lost=True)
                 raise RunFailure(death(member, how), member, lost=True, silent_s=silent_s)
 
@@ -179,10 +202,12 @@ class Listener:
             return
         target = min(failed.progress, run.horizon)
         heard = time.monotonic()
-        run.rows.advance(run.members, run.horizon)   # outputs handled before the failure may still wait
+        run.rows.advance(run.members, run.horizon)  # outputs handled before the failure may still wait
         while run.rows.row < target and time.monotonic() - heard <= run.config.step_timeout_s:
             row = run.rows.row + 1
-            if not all(self._deliverable(m, row // m.ratio * m.ratio, failed, lost, set()) for m in run.members.values()):
+            if not all(
+                self._deliverable(m, row // m.ratio * m.ratio, failed, lost, set()) for m in run.members.values()
+            ):
                 break
             if self._take_outputs(0.1):
                 heard = time.monotonic()
@@ -191,9 +216,14 @@ class Listener:
         # a row lacks the output of a member fed by one that is gone: whether that member got
         # its last inputs (a killed process's may have left; a cut link's never arrive), only
         # it knows. Ask: a member answers a sync after sending every output it has made.
-        asked = {m.name for m in run.members.values()
-                 if m is not failed and not exited(m) and not self.hosts.silent(m)
-                 and not (lost and m.shared is not None and m.shared is failed.shared)}
+        asked = {
+            m.name
+            for m in run.members.values()
+            if m is not failed
+            and not exited(m)
+            and not self.hosts.silent(m)
+            and not (lost and m.shared is not None and m.shared is failed.shared)
+        }
         for name in asked:
             run.members[name].control(protocol.Sync())
         heard = time.monotonic()
@@ -233,26 +263,35 @@ class Listener:
         not have delivered what it sent: False then, and salvage asks."""
         if m.progress >= tag:
             return True
-        if (m is failed or exited(m) or self.hosts.silent(m)
-                or (lost and m.shared is not None and m.shared is failed.shared)):
+        if (
+            m is failed
+            or exited(m)
+            or self.hosts.silent(m)
+            or (lost and m.shared is not None and m.shared is failed.shared)
+        ):
             return False
-        if (m.name, tag) in seen:   # a loop: the step_timeout bound decides
+        if (m.name, tag) in seen:  # a loop: the step_timeout bound decides
             return True
         seen.add((m.name, tag))
-        k = tag - m.ratio   # the step that makes it
+        k = tag - m.ratio  # the step that makes it
         for route in (*m.routes, *m.frame_routes):
             source = self.run.members.get(route.source)
             if source is None or source is m:
                 continue
             if not self._deliverable(source, route.tag(k), failed, lost, seen) or (
-                    source.progress >= route.tag(k) and self._gone(source, failed, lost)):
+                source.progress >= route.tag(k) and self._gone(source, failed, lost)
+            ):
                 return False
         return True
 
     def _gone(self, m: Member, failed: Member, lost: bool) -> bool:
         """``m`` sends nothing more, and what it sent may not all have arrived."""
-        return ((m is failed and lost) or exited(m) is not None or self.hosts.silent(m) is not None
-                or (lost and m.shared is not None and m.shared is failed.shared))
+        return (
+            (m is failed and lost)
+            or exited(m) is not None
+            or self.hosts.silent(m) is not None
+            or (lost and m.shared is not None and m.shared is failed.shared)
+        )
 
     def discard_stale(self) -> None:
         """Empty the inbox of what stopped generations sent; requests from the CLI are kept."""

@@ -2,6 +2,7 @@
 boundary that needs everyone (the end, a config event, a swap, a checkpoint), apply the inbox,
 assemble the recorded rows, watch for hangs and deaths, serve control at a boundary, and, for a
 member that asks for it, restart the run from its last checkpoint."""
+
 from __future__ import annotations
 
 import queue
@@ -21,8 +22,15 @@ class Loop:
     """``run()`` steps until the last row is in or a stop is asked for; ``seconds`` is the wall time
     it took (set however it ended). ``progress``: print the progress line to ``out``."""
 
-    def __init__(self, state: RunState, listener: Listener, recovery: Recovery, controls: ControlServer,
-                 progress: bool, out: TextIO):
+    def __init__(
+        self,
+        state: RunState,
+        listener: Listener,
+        recovery: Recovery,
+        controls: ControlServer,
+        progress: bool,
+        out: TextIO,
+    ):
         self.config, self.state = state.config, state
         self.listener, self.recovery, self.controls = listener, recovery, controls
         self.progress, self.out = progress, out
@@ -40,7 +48,7 @@ class Loop:
                 except RunFailure as failure:
                     if not self.recovery.may_restart(failure):
                         raise
-                    self.recovery.restart(failure)   # or, past run.max_restarts, fail
+                    self.recovery.restart(failure)  # or, past run.max_restarts, fail
         finally:
             self.seconds = time.perf_counter() - wall_start
 
@@ -49,7 +57,7 @@ class Loop:
         expect: dict[str, str] = {}
         state, listener, rows = self.state, self.listener, self.state.rows
         while rows.row < steps and not state.stop_reason:
-            if rows.row == state.horizon:   # everyone is at this boundary: control happens here
+            if rows.row == state.horizon:  # everyone is at this boundary: control happens here
                 self.recovery.at_boundary()
                 self.controls.serve(quiescent=True)
             elif self.controls.queries:
@@ -69,19 +77,31 @@ class Loop:
                 listener.check_processes(list(state.members))
             if self.progress and now - last_progress > 0.5:
                 last_progress = now
-                print(report.progress(rows.row, self.config.step_ns, self.config.duration_ns,
-                                      time.perf_counter() - wall_start), end="", file=self.out, flush=True)
+                print(
+                    report.progress(
+                        rows.row, self.config.step_ns, self.config.duration_ns, time.perf_counter() - wall_start
+                    ),
+                    end="",
+                    file=self.out,
+                    flush=True,
+                )
 
     def _grant(self, wall_start: float) -> float:
         """Extend the horizon (pacing.grant) and tell everyone; how long the loop may sleep."""
         config, state = self.config, self.state
-        limit = config.steps   # the step boundary the run must stop at next: the end, an event, a swap, a checkpoint
+        limit = config.steps  # the step boundary the run must stop at next: the end, an event, a swap, a checkpoint
         for boundary in (state.next_event_step(), self.controls.swap_boundary(), self.recovery.next_checkpoint()):
             if boundary is not None:
                 limit = min(limit, max(boundary, state.rows.row))
         realtime = config.realtime
-        horizon, wake = pacing.grant(state.rows.row, state.horizon, limit, realtime, config.step_ns,
-                                     time.perf_counter() - wall_start if realtime > 0 else 0.0)
+        horizon, wake = pacing.grant(
+            state.rows.row,
+            state.horizon,
+            limit,
+            realtime,
+            config.step_ns,
+            time.perf_counter() - wall_start if realtime > 0 else 0.0,
+        )
         if horizon is not None:
             state.horizon, state.horizon_at = horizon, time.monotonic()
             grant = protocol.Horizon(horizon).encode()

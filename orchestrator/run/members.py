@@ -1,14 +1,15 @@
 """The run's component processes: a live member, starting one (launch, wait for its liveliness
 token, instantiate), asking it something, stopping it, and how their deaths and faults read. A
 process group's members share one process (:class:`SharedProcess`)."""
+
 from __future__ import annotations
 
 import collections
 import subprocess
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -16,9 +17,9 @@ from components import bus, protocol
 from components.constants import NS_PER_S
 from components.group import read_mark
 from components.schedule import Route
-from orchestrator.run import supervisor
 from orchestrator.config import groups
 from orchestrator.config.specs import ComponentSpec, RunConfig
+from orchestrator.run import supervisor
 from orchestrator.run.messages import Fault, Outputs
 
 
@@ -27,8 +28,7 @@ class RunFailure(Exception):
     ``lost``: ``member`` died or hung (a restart may cure that), rather than reported a fault.
     ``silent_s``: for a member lost with its link, how long nothing had come from it."""
 
-    def __init__(self, message: str, member: "Member | None" = None, lost: bool = False,
-                 silent_s: float | None = None):
+    def __init__(self, message: str, member: Member | None = None, lost: bool = False, silent_s: float | None = None):
         super().__init__(message)
         self.member = member
         self.lost = lost
@@ -38,32 +38,33 @@ class RunFailure(Exception):
 @dataclass
 class Member:
     """A live component: its spec, its process, its routes, and the outputs seen from it."""
+
     spec: ComponentSpec
     generation: int
     process: subprocess.Popen | None
     log_path: Path | None
-    ratio: int                             # its step in run steps
-    command: object = None                 # Zenoh publisher of its command key
+    ratio: int  # its step in run steps
+    command: object = None  # Zenoh publisher of its command key
     routes: list[Route] = field(default_factory=list)
-    frame_routes: list = field(default_factory=list)   # schedule.FrameRoute: its frame inputs' sources
-    out_dst: np.ndarray = None             # where its outputs go in the recorded row ...
-    out_src: np.ndarray = None             # ... from these indices of its output vector
-    tag: int = 0                           # the tag of ``latest``: what the recorded rows hold now
+    frame_routes: list = field(default_factory=list)  # schedule.FrameRoute: its frame inputs' sources
+    out_dst: np.ndarray = None  # where its outputs go in the recorded row ...
+    out_src: np.ndarray = None  # ... from these indices of its output vector
+    tag: int = 0  # the tag of ``latest``: what the recorded rows hold now
     latest: np.ndarray = None
-    initialized: bool = False              # ``latest`` holds its outputs (not its start values)
+    initialized: bool = False  # ``latest`` holds its outputs (not its start values)
     received: collections.deque = field(default_factory=collections.deque)  # (tag, outputs), not yet recorded
-    progress: int = 0                      # the highest tag it has published
-    progress_at: float = 0.0               # wall time of its last output
+    progress: int = 0  # the highest tag it has published
+    progress_at: float = 0.0  # wall time of its last output
     compute_s: float = 0.0
     idle_s: float = 0.0
     steps: int = 0
     reply: dict | None = field(default=None, repr=False)
-    host: str = ""                         # where an external member joined from
-    zid: str = ""                          # the Zenoh id of its session, when linked to ours directly
-    heard_at: float = 0.0                  # wall time of its last message (heartbeats included)
-    cut: bool = False                      # Zenoh closed the link to it
-    ended: bool = False                    # asked to terminate
-    shared: "SharedProcess | None" = field(default=None, repr=False)   # its process group's process
+    host: str = ""  # where an external member joined from
+    zid: str = ""  # the Zenoh id of its session, when linked to ours directly
+    heard_at: float = 0.0  # wall time of its last message (heartbeats included)
+    cut: bool = False  # Zenoh closed the link to it
+    ended: bool = False  # asked to terminate
+    shared: SharedProcess | None = field(default=None, repr=False)  # its process group's process
 
     @property
     def name(self) -> str:
@@ -84,7 +85,7 @@ class Member:
         # max: a fault message (which raises progress to its step) may overtake the batches
         # sent before it, which travel under another key
         self.progress, self.progress_at = max(self.progress, tags[-1]), time.monotonic()
-        compute_s, idle_s = message.timings.sum(axis=0).tolist()   # Python floats: cheaper to add up
+        compute_s, idle_s = message.timings.sum(axis=0).tolist()  # Python floats: cheaper to add up
         self.compute_s += compute_s
         self.idle_s += idle_s
         self.steps += len(tags)
@@ -94,6 +95,7 @@ class Member:
 class SharedProcess:
     """The process of a process group: its members in the runner's ``--member`` order, and the
     file where it marks the member whose code runs (components.group)."""
+
     group: str
     members: list[Member]
     stepping: Path
@@ -119,45 +121,71 @@ class Crew:
     inbox messages until every member named in ``expect`` (name -> op) has answered, or raises
     RunFailure. ``place(spec)`` says where a member's outputs go in the recorded row."""
 
-    def __init__(self, config: RunConfig, *, run_id: str, session, endpoint: str, secret: str, env: dict,
-                 log_dir: Path, placement: supervisor.Placement, out,
-                 place: Callable[[ComponentSpec], tuple[np.ndarray, np.ndarray]], wait: Wait, hosts,
-                 frames_dir: Path | None = None):
+    def __init__(
+        self,
+        config: RunConfig,
+        *,
+        run_id: str,
+        session,
+        endpoint: str,
+        secret: str,
+        env: dict,
+        log_dir: Path,
+        placement: supervisor.Placement,
+        out,
+        place: Callable[[ComponentSpec], tuple[np.ndarray, np.ndarray]],
+        wait: Wait,
+        hosts,
+        frames_dir: Path | None = None,
+    ):
         self.config, self.run_id, self.session, self.endpoint = config, run_id, session, endpoint
         self.secret, self.env, self.log_dir, self.placement, self.out = secret, env, log_dir, placement, out
-        self.place, self.wait, self.hosts = place, wait, hosts   # hosts: the run's bus (orchestrator.hosts.run_bus)
-        self.frames_dir = frames_dir         # DIR/frames with --record DIR: the members' _frames are in it
-        self.launches: dict[str, int] = {}   # process group -> its processes started so far (their log names)
+        self.place, self.wait, self.hosts = place, wait, hosts  # hosts: the run's bus (orchestrator.hosts.run_bus)
+        self.frames_dir = frames_dir  # DIR/frames with --record DIR: the members' _frames are in it
+        self.launches: dict[str, int] = {}  # process group -> its processes started so far (their log names)
 
     def launch(self, specs: list[ComponentSpec], generation: dict[str, int]) -> list[Member]:
         """Start the process of a member, or of a process group's members (or ask the user to,
         for an external one)."""
-        spec = specs[0]   # a group's members agree on launch (config.groups)
+        spec = specs[0]  # a group's members agree on launch (config.groups)
         process = log_path = shared = None
         if spec.launch == "local":
-            args = supervisor.runner_arguments(self.endpoint, self.run_id, [(s.name, generation[s.name]) for s in specs])
+            args = supervisor.runner_arguments(
+                self.endpoint, self.run_id, [(s.name, generation[s.name]) for s in specs]
+            )
             args += ["--orchestrator", str(self.session.zid())]
             if len(specs) > 1:
                 launches = self.launches[spec.process] = self.launches.get(spec.process, -1) + 1
                 log_path = self.log_dir / f"group.{spec.process}.{launches}.log"
                 shared = SharedProcess(spec.process, [], log_path.with_suffix(".stepping"))
-                shared.stepping.write_bytes(bytes(4))   # the process maps it: no member running yet
+                shared.stepping.write_bytes(bytes(4))  # the process maps it: no member running yet
                 args += ["--stepping", str(shared.stepping)]
             else:
                 log_path = self.log_dir / f"{spec.name}.{generation[spec.name]}.log"
             listen = self.hosts.component_listen()
             cpu = self.placement.dedicated.get(spec.name)
             args += (["--listen", listen] if listen else []) + (["--cpu", str(cpu)] if cpu is not None else [])
-            whole = cpu is not None and groups.dedicated_cpu(specs) == "process"   # its bus threads on its CPU too
+            whole = cpu is not None and groups.dedicated_cpu(specs) == "process"  # its bus threads on its CPU too
             # a group's process holds its first member's certificate: any component's may do what one does
-            process = supervisor.start_component(args, log_path, frozenset({cpu}) if whole else self.placement.shared,
-                                                 {**self.env, **self.hosts.child_env(spec.name)})
+            process = supervisor.start_component(
+                args,
+                log_path,
+                frozenset({cpu}) if whole else self.placement.shared,
+                {**self.env, **self.hosts.child_env(spec.name)},
+            )
         members = []
         for spec in specs:
-            member = Member(spec=spec, generation=generation[spec.name], process=process, log_path=log_path,
-                            ratio=spec.step_ns // self.config.step_ns, latest=spec.outputs.start_vector(), shared=shared)
+            member = Member(
+                spec=spec,
+                generation=generation[spec.name],
+                process=process,
+                log_path=log_path,
+                ratio=spec.step_ns // self.config.step_ns,
+                latest=spec.outputs.start_vector(),
+                shared=shared,
+            )
             if spec.launch != "local":
-                self.hosts.invite(member)   # writes its join file and says where
+                self.hosts.invite(member)  # writes its join file and says where
             member.command = bus.publisher(self.session, bus.command_key(self.run_id, spec.name, member.generation))
             member.out_dst, member.out_src = self.place(spec)
             members.append(member)
@@ -170,7 +198,7 @@ class Crew:
         or those joining) as soon as launched, so that their messages are taken. The members of a
         process group started together share one process."""
         launched = {m.name: m for together in groups.processes(specs) for m in self.launch(together, generation)}
-        started = [launched[spec.name] for spec in specs]   # in config order, as the run lists them
+        started = [launched[spec.name] for spec in specs]  # in config order, as the run lists them
         into.update((m.name, m) for m in started)
         timeout = self.config.start_timeout_s
         expect = {m.name: "alive" for m in started}
@@ -206,7 +234,7 @@ def terminate(member: Member, timeout: float = 5.0, final: bool = False) -> None
     ``final``: the run is over (an external member's `orchestrator join` then exits)."""
     member.ended = True
     member.control(protocol.Terminate(final))
-    if member.shared is None or all(m.ended for m in member.shared.members):   # the last of a group ends its process
+    if member.shared is None or all(m.ended for m in member.shared.members):  # the last of a group ends its process
         supervisor.reap(member.process, timeout)
     member.command.undeclare()
 
@@ -236,8 +264,10 @@ def death(member: Member, how: str) -> str:
     if member.shared is not None:
         others = [m.name for m in member.shared.members if m is not member]
         where += f", in process group {member.shared.group!r} with {', '.join(others)},"
-    return (f"component {member.name!r} ({member.spec.type}){where} died at step {member.progress}: {how}"
-            f"{supervisor.last_words(member.log_path)}")
+    return (
+        f"component {member.name!r} ({member.spec.type}){where} died at step {member.progress}: {how}"
+        f"{supervisor.last_words(member.log_path)}"
+    )
 
 
 def fault_message(member: Member, fault: Fault, step_ns: int) -> str:

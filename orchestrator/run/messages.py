@@ -2,6 +2,7 @@
 payload), and :func:`decode`, a pure function from that to a typed message, or
 :class:`components.bus.Malformed`. Whether the message is from a live member is for the engine to
 check; here only its form is."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -11,27 +12,27 @@ import numpy as np
 from components import bus, protocol
 
 # inbox kinds: what the subscription callbacks enqueue, with the key and the payload
-OUTPUTS = "o"      # a batch of step outputs (payload: bytes)
-REPLY = "r"        # a reply or a fault (payload: bytes)
-LIVELINESS = "l"   # a liveliness token came (payload: True) or went (False)
-LINK = "t"         # the link to a session closed (key: its Zenoh id): lease expired, or the session ended
-CONTROL = "ctl"    # a query from the CLI (key: the query; not decoded here)
+OUTPUTS = "o"  # a batch of step outputs (payload: bytes)
+REPLY = "r"  # a reply or a fault (payload: bytes)
+LIVELINESS = "l"  # a liveliness token came (payload: True) or went (False)
+LINK = "t"  # the link to a session closed (key: its Zenoh id): lease expired, or the session ended
+CONTROL = "ctl"  # a query from the CLI (key: the query; not decoded here)
 
 
 @dataclass(slots=True)
 class Outputs:
     name: str
     generation: int
-    tags: np.ndarray        # (n,), increasing, >= 1
-    timings: np.ndarray     # (n, 2): compute and idle seconds of each step
-    outputs: np.ndarray     # (n, size)
+    tags: np.ndarray  # (n,), increasing, >= 1
+    timings: np.ndarray  # (n, 2): compute and idle seconds of each step
+    outputs: np.ndarray  # (n, size)
 
 
 @dataclass(slots=True)
 class Reply:
     name: str
     generation: int
-    body: dict              # holds "op", the request answered
+    body: dict  # holds "op", the request answered
     blob: bytes
 
 
@@ -39,8 +40,8 @@ class Reply:
 class Fault:
     name: str
     generation: int
-    op: str                 # where it failed: "step", "nan" (a non-finite output), or a control op
-    k: int                  # the failing step; < 0 if not in a step
+    op: str  # where it failed: "step", "nan" (a non-finite output), or a control op
+    k: int  # the failing step; < 0 if not in a step
     error: str
 
 
@@ -48,8 +49,8 @@ class Fault:
 class Events:
     name: str
     generation: int
-    k: int                  # the step that emitted them
-    events: list            # [kind, fields] pairs (Component.emit)
+    k: int  # the step that emitted them
+    events: list  # [kind, fields] pairs (Component.emit)
 
 
 @dataclass(slots=True)
@@ -99,6 +100,7 @@ def subscribe(session, run_id: str, put) -> list:
     """The orchestrator's subscriptions on ``session``, each callback only enqueuing with ``put``,
     and its liveliness token; they last as long as the list is held."""
     import zenoh
+
     put_kind = zenoh.SampleKind.PUT
 
     def outputs(sample) -> None:
@@ -113,7 +115,7 @@ def subscribe(session, run_id: str, put) -> list:
     def control(query) -> None:
         put((CONTROL, query, None))
 
-    def link(event) -> None:   # the one sure sign of a cut link: a token may stay known through another peer
+    def link(event) -> None:  # the one sure sign of a cut link: a token may stay known through another peer
         if event.kind != put_kind:
             put((LINK, str(event.transport.zid), None))
 

@@ -6,19 +6,22 @@ the end the last of its events that decides an outcome names it, and with none t
 declared holds. The summary line states it, events.jsonl's end event records it (``outcome``,
 ``outcome_text``), ``run --expect NAME`` (``run.expect``) exits 3 when it differs.
 """
+
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Mapping
+from typing import Any
 
 from components.sdk import Outcome
 
-EXPECT_MISMATCH = 3   # the exit code of a run whose outcome is not the one expected
+EXPECT_MISMATCH = 3  # the exit code of a run whose outcome is not the one expected
 
 
 @dataclass(frozen=True)
 class Declared:
     """The outcomes of a run: those of ``component`` (of type ``type``)."""
+
     component: str
     type: str
     outcomes: tuple[Outcome, ...]
@@ -31,8 +34,7 @@ class Declared:
         """Why ``expect`` cannot be this run's outcome (None: it can)."""
         if expect in self.names:
             return None
-        return (f"{expect!r} is not an outcome of {self.component} ({self.type}); its outcomes: "
-                f"{', '.join(self.names)}")
+        return f"{expect!r} is not an outcome of {self.component} ({self.type}); its outcomes: {', '.join(self.names)}"
 
 
 def declared(components: Mapping[str, Any]) -> Declared | None:
@@ -55,6 +57,7 @@ def expect_problem(components: Mapping[str, Any], expect: str) -> str | None:
 @dataclass
 class Tracker:
     """The outcome so far, as the declaring component's events come in."""
+
     declared: Declared
     outcome: Outcome = None
     fields: dict = field(default_factory=dict)

@@ -2,17 +2,19 @@
 
 Granting is in chunks, so that a fast run sends few horizon messages; a realtime run lets step k
 start once k steps' worth of time has passed on the wall clock."""
+
 from __future__ import annotations
 
 from components.constants import NS_PER_S
 
-WINDOW = 256         # steps a component may run ahead of the recorded rows
-IDLE_WAKE_S = 0.2    # the loop looks again at least this often
+WINDOW = 256  # steps a component may run ahead of the recorded rows
+IDLE_WAKE_S = 0.2  # the loop looks again at least this often
 REALTIME_CHUNK_S = 0.005
 
 
-def grant(row: int, horizon: int, limit: int, realtime: float, step_ns: int,
-          elapsed_s: float) -> tuple[int | None, float]:
+def grant(
+    row: int, horizon: int, limit: int, realtime: float, step_ns: int, elapsed_s: float
+) -> tuple[int | None, float]:
     """(the new horizon, or None to keep ``horizon``; how long the loop may sleep before it must look
     again). ``row``: the last recorded row; ``limit``: the boundary the run must stop at next;
     ``realtime``: the wanted real-time factor (0: as fast as possible); ``elapsed_s``: wall time

@@ -9,6 +9,7 @@ full disk), what is on disk reads with pyarrow and pandas (``pandas.read_parquet
 "signals.parquet")``) and lacks at most the rows of the last ``flush_s``; a failed write leaves
 no partial file and its error names the path and the rows kept.
 """
+
 from __future__ import annotations
 
 import json
@@ -28,8 +29,19 @@ class RecordingError(Exception):
 # The lock of a recording directory: a live run holds an flock on it (see ``claim_directory``).
 LOCK_FILE = ".lock"
 # What a run (and `orchestrator plot`) leaves in a recording directory: all that --overwrite removes.
-RECORDING_ENTRIES = frozenset({"signals.parquet", "swaps", "events.jsonl", "config.yaml", "logs", "plots", "frames", "ros2.report.json",
-                               LOCK_FILE})
+RECORDING_ENTRIES = frozenset(
+    {
+        "signals.parquet",
+        "swaps",
+        "events.jsonl",
+        "config.yaml",
+        "logs",
+        "plots",
+        "frames",
+        "ros2.report.json",
+        LOCK_FILE,
+    }
+)
 
 
 def _holder(lock) -> str:
@@ -65,24 +77,37 @@ def claim_directory(directory: Path, overwrite: bool, run: str = "") -> object:
     except BlockingIOError:
         holder = _holder(lock)
         lock.close()
-        raise RecordingError(f"--record {directory}: {holder} is recording into this directory now; "
-                             f"give another directory (it stays locked until that run ends)") from None
+        raise RecordingError(
+            f"--record {directory}: {holder} is recording into this directory now; "
+            f"give another directory (it stays locked until that run ends)"
+        ) from None
     try:
         entries = sorted(e for e in directory.iterdir() if e.name != LOCK_FILE)
         if entries and not overwrite:
-            raise RecordingError(f"--record {directory}: the directory is in use (it holds "
-                                 f"{', '.join(e.name for e in entries[:4])}{', ...' if len(entries) > 4 else ''}); "
-                                 f"give another directory, or --overwrite to replace the recording there")
+            raise RecordingError(
+                f"--record {directory}: the directory is in use (it holds "
+                f"{', '.join(e.name for e in entries[:4])}{', ...' if len(entries) > 4 else ''}); "
+                f"give another directory, or --overwrite to replace the recording there"
+            )
         foreign = [e.name for e in entries if e.name not in RECORDING_ENTRIES]
         if foreign:
-            raise RecordingError(f"--record {directory} --overwrite: the directory holds more than a recording "
-                                 f"({', '.join(foreign[:4])}); not deleting it: give another directory")
+            raise RecordingError(
+                f"--record {directory} --overwrite: the directory holds more than a recording "
+                f"({', '.join(foreign[:4])}); not deleting it: give another directory"
+            )
         for entry in entries:
             shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
         lock.seek(0)
         lock.truncate()
-        lock.write(json.dumps({"run": run, "pid": os.getpid(), "started": datetime.datetime.now(
-            datetime.timezone.utc).isoformat(timespec="seconds").replace("+00:00", "Z")}))
+        lock.write(
+            json.dumps(
+                {
+                    "run": run,
+                    "pid": os.getpid(),
+                    "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
+                }
+            )
+        )
         lock.flush()
     except BaseException:
         lock.close()
@@ -98,19 +123,18 @@ class Table:
 
     def __init__(self, path: Path, columns: list[str], chunk_rows: int, flush_s: float = 1.0):
         import pyarrow as pa
-        import pyarrow.parquet  # noqa: F401 - here, before the stepping: its first import (pandas) takes ~0.3 s
+        import pyarrow.parquet
 
         self.path = path
         self.path.mkdir(parents=True)
         self.columns = columns
-        self.schema = pa.schema([("step", pa.int64()), ("time", pa.float64())]
-                                + [(c, pa.float64()) for c in columns])
-        self._parts: list[tuple[int, int]] = []   # (first step, last step) of each part on disk
+        self.schema = pa.schema([("step", pa.int64()), ("time", pa.float64())] + [(c, pa.float64()) for c in columns])
+        self._parts: list[tuple[int, int]] = []  # (first step, last step) of each part on disk
         self._steps = np.empty(chunk_rows, dtype=np.int64)
         self._times = np.empty(chunk_rows)
         self._values = np.empty((chunk_rows, len(columns)))
         self._rows = 0
-        self._durable = 0                         # rows of the unfinished chunk on disk (its part, partial)
+        self._durable = 0  # rows of the unfinished chunk on disk (its part, partial)
         self.flush_s = float(flush_s)
         self._flushed_at = time.monotonic()
 
@@ -138,13 +162,13 @@ class Table:
         """Forget the rows after ``step`` (a restart goes back there), on disk too."""
         import pyarrow.parquet as pq
 
-        self._rows = int(np.searchsorted(self._steps[:self._rows], step, side="right"))
-        if self._durable > self._rows and self._rows:     # the unfinished part on disk holds rows after step
+        self._rows = int(np.searchsorted(self._steps[: self._rows], step, side="right"))
+        if self._durable > self._rows and self._rows:  # the unfinished part on disk holds rows after step
             self._write_part(self._rows, complete=False)
         elif self._durable > self._rows:
             self._remove_partial()
         if self._rows:
-            return   # the parts on disk all come before the buffer
+            return  # the parts on disk all come before the buffer
         while self._parts and self._parts[-1][0] > step:
             self._remove_last_part()
         if self._parts and self._parts[-1][1] > step:
@@ -156,11 +180,11 @@ class Table:
             for j, column in enumerate(self.columns):
                 self._values[:n, j] = table.column(column).to_numpy()[:n]
             if n:
-                self._write_part(n, complete=False)     # the rows kept stay on disk
+                self._write_part(n, complete=False)  # the rows kept stay on disk
 
     def close(self) -> None:
         self.flush()
-        if not self._parts:   # no row at all: still leave a readable, empty table
+        if not self._parts:  # no row at all: still leave a readable, empty table
             self._write_part(0)
 
     def _remove_partial(self) -> None:
@@ -185,22 +209,23 @@ class Table:
         arrays = [pa.array(self._steps[:n]), pa.array(self._times[:n])]
         arrays += [pa.array(self._values[:n, j]) for j in range(len(self.columns))]
         final = self._part_path(len(self._parts))
-        hidden = self.path / f".{final.name}.tmp"          # readers skip names starting with '.'
+        hidden = self.path / f".{final.name}.tmp"  # readers skip names starting with '.'
         try:
-            if not self.path.is_dir():   # writes would still succeed, into a directory no one can see
+            if not self.path.is_dir():  # writes would still succeed, into a directory no one can see
                 raise RecordingError(f"cannot write {self.path}: it was removed during the run")
             with open(hidden, "wb") as file:
                 pq.write_table(pa.Table.from_arrays(arrays, schema=self.schema), file)
                 file.flush()
-                os.fsync(file.fileno())       # the data on disk before the name: a power cut leaves no empty part
+                os.fsync(file.fileno())  # the data on disk before the name: a power cut leaves no empty part
             os.replace(hidden, final)
             _fsync_directory(self.path)
         except OSError as error:
-            hidden.unlink(missing_ok=True)       # no partial file left behind (a full disk, say)
+            hidden.unlink(missing_ok=True)  # no partial file left behind (a full disk, say)
             kept = self.rows_kept
             last = f", to step {self._last_step_kept()}" if kept else ""
-            raise RecordingError(f"cannot write {self.path}: {error.strerror or error}; the recording keeps "
-                                 f"{kept} rows{last}") from None
+            raise RecordingError(
+                f"cannot write {self.path}: {error.strerror or error}; the recording keeps {kept} rows{last}"
+            ) from None
         self._flushed_at = time.monotonic()
         if complete:
             self._parts.append((int(self._steps[0]), int(self._steps[n - 1])) if n else (0, -1))
@@ -225,8 +250,15 @@ class Recording:
     step), ``swaps/<component>.<generation>.parquet`` (the outputs of a type swapped in for
     another, from the swap on), ``events.jsonl`` and the resolved ``config.yaml``."""
 
-    def __init__(self, directory: str | Path, columns: list[str], resolved_config: dict, *,
-                 chunk_rows: int = 1000, flush_s: float = 1.0):
+    def __init__(
+        self,
+        directory: str | Path,
+        columns: list[str],
+        resolved_config: dict,
+        *,
+        chunk_rows: int = 1000,
+        flush_s: float = 1.0,
+    ):
         self.directory = Path(directory)
         self.directory.mkdir(parents=True, exist_ok=True)
         for stale in ("signals.parquet", "swaps", "events.jsonl"):

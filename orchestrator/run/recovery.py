@@ -5,6 +5,7 @@ The procedures act at a step boundary, where every component is (the horizon is 
 drive the run through its state (:mod:`.state`), the crew that starts and asks its members and
 the listener that waits for their answers; the decisions are pure functions.
 """
+
 from __future__ import annotations
 
 import time
@@ -14,9 +15,9 @@ import numpy as np
 from components import protocol, schedule
 from components.constants import NS_PER_S
 from components.units import duration_ns, duration_text
-from orchestrator.run import wiring, wording
-from orchestrator.config.specs import ComponentSpec, Fault
 from orchestrator.config.connections import handover_problem, hands_over
+from orchestrator.config.specs import ComponentSpec, Fault
+from orchestrator.run import wiring, wording
 from orchestrator.run.control import SwapFailed
 from orchestrator.run.listener import Listener
 from orchestrator.run.members import Crew, Member, RunFailure, at_fault, terminate, terminate_all
@@ -34,16 +35,23 @@ def next_checkpoint(last: Checkpoint | None, checkpoint_ns: int | None, step_ns:
 def may_restart(failure: RunFailure, checkpoint: Checkpoint | None, live: dict[str, Member]) -> bool:
     """A live member that died or hung, and asked to be restarted."""
     member = failure.member
-    return (failure.lost and member is not None and member.spec.on_failure == "restart"
-            and checkpoint is not None and member.name in live)
+    return (
+        failure.lost
+        and member is not None
+        and member.spec.on_failure == "restart"
+        and checkpoint is not None
+        and member.name in live
+    )
 
 
 def faults_left(faults: list[Fault], failed: str, horizon: int, row: int, step_ns: int) -> list[Fault]:
     """The injected faults still to come after a restart from ``row``: an injected fault fires
     once, so neither the one behind this failure (of ``failed``, below ``horizon``) nor those the
     run went past (before ``row``) are left."""
+
     def step(f: Fault) -> int:
         return schedule.first_step_at(f.at_ns, step_ns)
+
     cause = next((f for f in faults if f.component == failed and step(f) <= horizon), None)
     return [f for f in faults if f is not cause and step(f) >= row]
 
@@ -93,10 +101,15 @@ class Recovery:
         run = self.run
         live = list(run.members.values())
         self.crew.ask(live, protocol.GetState(), "get_state (checkpoint)", run.config.step_timeout_s)
-        run.checkpoint = Checkpoint(run.rows.row, run.rows.values.copy(), [m.spec for m in live],
-                                    {m.name: m.reply["blob"] for m in live},
-                                    {m.name: (m.tag, m.latest.copy()) for m in live}, list(run.pending_events),
-                                    run.outcome.state() if run.outcome else None)
+        run.checkpoint = Checkpoint(
+            run.rows.row,
+            run.rows.values.copy(),
+            [m.spec for m in live],
+            {m.name: m.reply["blob"] for m in live},
+            {m.name: (m.tag, m.latest.copy()) for m in live},
+            list(run.pending_events),
+            run.outcome.state() if run.outcome else None,
+        )
         run.log("checkpoint", step=run.rows.row, time=run.rows.row * run.config.step_ns / NS_PER_S)
 
     def may_restart(self, failure: RunFailure) -> bool:
@@ -109,15 +122,20 @@ class Recovery:
         config = run.config
         step_ns = config.step_ns
         if run.restarts >= config.max_restarts:
-            raise RunFailure(f"{failure} (after {wording.count(run.restarts, 'restart')}: run.max_restarts)",
-                             failed) from None
+            raise RunFailure(
+                f"{failure} (after {wording.count(run.restarts, 'restart')}: run.max_restarts)", failed
+            ) from None
         began = time.perf_counter()
         run.restarts += 1
         run.log("fault", step=run.rows.row, component=failed.name, message=str(failure))
-        print(f"warning: {failure}\nrestarting from step {checkpoint.row} (t = {checkpoint.row * step_ns / NS_PER_S:g} s; "
-              f"restart {run.restarts} of at most {config.max_restarts})", file=self.out, flush=True)
+        print(
+            f"warning: {failure}\nrestarting from step {checkpoint.row} (t = {checkpoint.row * step_ns / NS_PER_S:g} s; "
+            f"restart {run.restarts} of at most {config.max_restarts})",
+            file=self.out,
+            flush=True,
+        )
         if failed.process is not None and failed.process.poll() is None:
-            failed.process.kill()   # hung: it would not answer terminate
+            failed.process.kill()  # hung: it would not answer terminate
         terminate_all([*run.members.values(), *run.joining.values()], timeout=2.0)
         run.joining.clear()
         run.pending_faults = faults_left(run.pending_faults, failed.name, run.horizon, run.rows.row, step_ns)
@@ -138,13 +156,19 @@ class Recovery:
         run.rows.rewind(checkpoint.row, checkpoint.values)
         run.horizon, run.horizon_at = checkpoint.row, now
         run.pending_events = list(checkpoint.events)
-        if run.outcome is not None:   # events after the checkpoint come again (or not) in the rerun
+        if run.outcome is not None:  # events after the checkpoint come again (or not) in the rerun
             run.outcome.restore(checkpoint.outcome)
         self.listener.sync(list(run.members.values()))
         for member in run.members.values():
             wiring.go(member, run.members, run.horizon)
-        run.log("restart", step=checkpoint.row, time=checkpoint.row * step_ns / NS_PER_S, component=failed.name,
-                restart=run.restarts, wall_s=round(time.perf_counter() - began, 4))
+        run.log(
+            "restart",
+            step=checkpoint.row,
+            time=checkpoint.row * step_ns / NS_PER_S,
+            component=failed.name,
+            restart=run.restarts,
+            wall_s=round(time.perf_counter() - began, 4),
+        )
 
     def check_hung(self) -> None:
         """Fail with a member that hung (see :func:`hung`), after salvaging the rows it completes."""
@@ -152,11 +176,15 @@ class Recovery:
         timeout = run.config.step_timeout_s
         m = hung(run.members, run.horizon, run.horizon_at, time.monotonic(), timeout)
         if m is not None:
-            m = at_fault(m)   # in a process group, the member whose step holds the others up
+            m = at_fault(m)  # in a process group, the member whose step holds the others up
             k = m.progress
             self.listener.salvage(m, lost=True)
-            raise RunFailure(f"component {m.name!r} did not answer step {k} within {timeout:g} s "
-                             f"(hung? raise run.step_timeout if it is just slow)", m, lost=True)
+            raise RunFailure(
+                f"component {m.name!r} did not answer step {k} within {timeout:g} s "
+                f"(hung? raise run.step_timeout if it is just slow)",
+                m,
+                lost=True,
+            )
 
     def swap(self, spec: ComponentSpec, planned: bool = False) -> int:
         """Replace a component at the current step boundary (docs/design.md §5); the new generation.
@@ -199,7 +227,7 @@ class Recovery:
             run.log("warning", message=f"swap of {spec.name} to {spec.type} failed: {failure}", step=row)
             raise SwapFailed(str(failure)) from None
         new.tag, new.latest, new.progress, new.initialized = row, np.array(outputs), row, True
-        run.rows.values[old.out_dst] = np.nan   # the old type's columns the new one lacks: NaN from here on
+        run.rows.values[old.out_dst] = np.nan  # the old type's columns the new one lacks: NaN from here on
         run.rows.take(new)
         run.members[spec.name] = run.joining.pop(spec.name)
         terminate(old)  # its late messages carry the old generation: ignored from here on
@@ -211,14 +239,23 @@ class Recovery:
         wiring.go(new, run.members, run.horizon)
         parameters = spec.cls.schema.plain(spec.resolved)
         if run.rows.recording is not None:
-            if not same_type:   # (a same-type swap goes on writing the table its type has, if any)
+            if not same_type:  # (a same-type swap goes on writing the table its type has, if any)
                 run.rows.new_table(new)
             if not planned:
                 self._record_event(new, parameters)
-        run.log("swap", component=spec.name, type=spec.type, parameters=parameters, generation=new.generation,
-                step=row, time=t_ns / NS_PER_S, state_handed_over=handed_over, wall_s=round(time.perf_counter() - began, 4))
+        run.log(
+            "swap",
+            component=spec.name,
+            type=spec.type,
+            parameters=parameters,
+            generation=new.generation,
+            step=row,
+            time=t_ns / NS_PER_S,
+            state_handed_over=handed_over,
+            wall_s=round(time.perf_counter() - began, 4),
+        )
         if self.restartable:
-            self.take_checkpoint()   # a restart never goes back across a swap
+            self.take_checkpoint()  # a restart never goes back across a swap
         return new.generation
 
     def _record_event(self, new: Member, parameters: dict) -> None:
@@ -226,7 +263,15 @@ class Recovery:
         run = self.run
         resolved = run.config.resolved
         resolved["events"] = sorted(
-            [*resolved["events"], {"at": duration_text(run.rows.row * run.config.step_ns), "swap": new.name,
-                                   "type": new.spec.type, "parameters": parameters}],
-            key=lambda e: duration_ns(e["at"], "at"))
+            [
+                *resolved["events"],
+                {
+                    "at": duration_text(run.rows.row * run.config.step_ns),
+                    "swap": new.name,
+                    "type": new.spec.type,
+                    "parameters": parameters,
+                },
+            ],
+            key=lambda e: duration_ns(e["at"], "at"),
+        )
         run.rows.recording.write_config(resolved)

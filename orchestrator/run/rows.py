@@ -1,9 +1,10 @@
 """The recorded row: every component's outputs, in config order, one row per step boundary,
 assembled from the batches of outputs the members send, and written to the recording, the tables
 of swapped-in types, and the viewer."""
+
 from __future__ import annotations
 
-from typing import Callable, Iterable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
@@ -49,8 +50,10 @@ class Rows:
             if index is not None and len(index) == v.size:
                 out_dst.append(index)
                 out_src.append(np.arange(spec.outputs.offsets[v.name].start, spec.outputs.offsets[v.name].stop))
-        return (np.concatenate(out_dst) if out_dst else np.zeros(0, dtype=np.int64),
-                np.concatenate(out_src) if out_src else np.zeros(0, dtype=np.int64))
+        return (
+            np.concatenate(out_dst) if out_dst else np.zeros(0, dtype=np.int64),
+            np.concatenate(out_src) if out_src else np.zeros(0, dtype=np.int64),
+        )
 
     def take(self, member) -> None:
         """Put ``member.latest`` in the row."""

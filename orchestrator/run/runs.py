@@ -4,6 +4,7 @@ Each run writes a small JSON file (run id, name, Zenoh endpoint, pid, and the ru
 a process needs to join its bus) in a per-user runtime directory while it lives, readable by that
 user alone; the CLI reads them and talks to the run over Zenoh.
 """
+
 from __future__ import annotations
 
 import json
@@ -24,9 +25,16 @@ def directory() -> Path:
 def register(run_id: str, name: str, endpoint: str, config: Path, secret: str, settings: dict | None = None) -> None:
     """Make a run findable; its entry holds the run's secret and the CLI's bus settings (with
     TLS, the paths of its certificate and key), so only its user may read it."""
-    entry = {"run_id": run_id, "name": name, "endpoint": endpoint, "pid": os.getpid(),
-             "config": str(config), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "secret": secret,
-             "settings": settings or {}}
+    entry = {
+        "run_id": run_id,
+        "name": name,
+        "endpoint": endpoint,
+        "pid": os.getpid(),
+        "config": str(config),
+        "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "secret": secret,
+        "settings": settings or {},
+    }
     # written under a hidden name, then renamed: a reader never sees half an entry
     final = directory() / f"{run_id}.json"
     partial = final.with_name(f".{final.name}.{os.getpid()}")
@@ -47,9 +55,9 @@ def alive() -> list[dict]:
         try:
             entry = json.loads(path.read_text())
             os.kill(entry["pid"], 0)
-        except (ValueError, KeyError, FileNotFoundError):   # not an entry (or gone since listed): not removed
+        except (ValueError, KeyError, FileNotFoundError):  # not an entry (or gone since listed): not removed
             continue
-        except ProcessLookupError:   # its orchestrator is gone (killed): a stale entry
+        except ProcessLookupError:  # its orchestrator is gone (killed): a stale entry
             path.unlink(missing_ok=True)
             continue
         except PermissionError:

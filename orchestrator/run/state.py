@@ -2,6 +2,7 @@
 horizon, what is still to happen (events, injected faults) and its last checkpoint. The parts
 that drive the run (:mod:`.engine`, :mod:`.listener`, :mod:`.recovery`) read and change it here,
 not in one another."""
+
 from __future__ import annotations
 
 import queue
@@ -20,13 +21,14 @@ from orchestrator.run.rows import Rows
 class Checkpoint:
     """Where a restart goes back to: a step boundary, every component's state there and what the
     orchestrator held (the recorded row, each member's last outputs)."""
+
     row: int
     values: np.ndarray
     specs: list[ComponentSpec]
     states: dict[str, bytes]
     latest: dict[str, tuple[int, np.ndarray]]
-    events: list                        # the config's swaps still to come
-    outcome: tuple | None = None        # the outcome so far (outcome.Tracker.state)
+    events: list  # the config's swaps still to come
+    outcome: tuple | None = None  # the outcome so far (outcome.Tracker.state)
 
 
 @dataclass
@@ -34,6 +36,7 @@ class RunState:
     """``inbox``: every message the orchestrator receives (the bus callbacks only enqueue);
     ``joining``: a swap's new generation, until it takes over; ``horizon``: steps k < horizon are
     granted (``horizon_at``: since when)."""
+
     config: RunConfig
     rows: Rows
     pending_events: list[Event]
@@ -46,14 +49,19 @@ class RunState:
     checkpoint: Checkpoint | None = None
     restarts: int = 0
     stop_reason: str | None = None
-    outcome: outcome.Tracker | None = None   # None: no component declares outcomes
+    outcome: outcome.Tracker | None = None  # None: no component declares outcomes
 
     @classmethod
     def of(cls, config: RunConfig) -> RunState:
         """A run of ``config`` before it starts."""
         found = outcome.declared(config.components)
-        return cls(config, Rows(config.components.values(), config.step_ns), list(config.events), list(config.faults),
-                   outcome=outcome.Tracker(found) if found else None)
+        return cls(
+            config,
+            Rows(config.components.values(), config.step_ns),
+            list(config.events),
+            list(config.faults),
+            outcome=outcome.Tracker(found) if found else None,
+        )
 
     def log(self, kind: str, **fields) -> None:
         """An event in events.jsonl, if the run is recorded; the outcome hears it, recorded or not."""

@@ -1,5 +1,6 @@
 """Component processes (one component's, or a process group's): start them, tell how they died,
 make sure none is left behind."""
+
 from __future__ import annotations
 
 import os
@@ -17,6 +18,7 @@ def child_setup() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         import ctypes
+
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
     except OSError:
         pass
@@ -46,7 +48,7 @@ def resolve_endpoints(listen: list[str]) -> tuple[list[str], str]:
 def runner_arguments(endpoint: str, run_id: str, members: list[tuple[str, int]]) -> list[str]:
     """The runner's arguments for one component, or a process group's (name, generation) each."""
     if len(members) == 1:
-        (name, generation), = members
+        ((name, generation),) = members
         return ["--connect", endpoint, "--run-id", run_id, "--name", name, "--generation", str(generation)]
     return ["--connect", endpoint, "--run-id", run_id, *(f"--member={n}:{g}" for n, g in members)]
 
@@ -58,6 +60,7 @@ class Placement:
     their whole processes); ``shared`` for every other thread of the run (orchestrator, other
     components, Zenoh's threads, the viewer); ``unplaced``: components that asked but found no
     CPU to spare."""
+
     dedicated: dict[str, int]
     shared: frozenset[int]
     unplaced: tuple[str, ...]
@@ -77,8 +80,11 @@ def place(asking: list[list[str]], available: set[int]) -> Placement:
     cpus = sorted(available, reverse=True)
     spare = max(len(cpus) - 1, 0)
     dedicated = {name: cpu for names, cpu in zip(asking[:spare], cpus) for name in names}
-    return Placement(dedicated, frozenset(available) - frozenset(dedicated.values()),
-                     tuple(name for names in asking[spare:] for name in names))
+    return Placement(
+        dedicated,
+        frozenset(available) - frozenset(dedicated.values()),
+        tuple(name for names in asking[spare:] for name in names),
+    )
 
 
 def keep_to(cpus: frozenset[int], pid: int = 0) -> None:
@@ -89,10 +95,15 @@ def keep_to(cpus: frozenset[int], pid: int = 0) -> None:
 def start_component(arguments: list[str], log_path: Path, cpus: frozenset[int], env: dict) -> subprocess.Popen:
     """``python -m components.runner ARGS`` on ``cpus`` in ``env``, with stdout and stderr in ``log_path``."""
     with open(log_path, "wb") as log:
-        process = subprocess.Popen([sys.executable, "-m", "components.runner", *arguments],
-                                   stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                                   preexec_fn=child_setup, env=env)
-    keep_to(cpus, process.pid)   # Popen returns after exec: the child has one thread yet, all inherit
+        process = subprocess.Popen(
+            [sys.executable, "-m", "components.runner", *arguments],
+            stdin=subprocess.DEVNULL,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            preexec_fn=child_setup,
+            env=env,
+        )
+    keep_to(cpus, process.pid)  # Popen returns after exec: the child has one thread yet, all inherit
     return process
 
 

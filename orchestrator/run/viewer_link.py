@@ -2,6 +2,7 @@
 observer processes reading it, started and stopped with the run: the viewer
 (components/viewer/observer.py for Rerun, components/viewer/foxglove_observer.py for Foxglove) and
 the ROS 2 view (components/ros2/observer.py, ``--ros2``)."""
+
 from __future__ import annotations
 
 import json
@@ -14,8 +15,8 @@ from pathlib import Path
 from components import bus
 from components.constants import NS_PER_S
 from components.ros2 import stream_report
-from orchestrator.run import supervisor
 from orchestrator.config.specs import Ros2Spec, RunConfig, ViewerSpec
+from orchestrator.run import supervisor
 from orchestrator.run.control import StopRequested, raise_stop
 from orchestrator.run.members import Wait
 
@@ -26,9 +27,9 @@ class ViewerLink:
     def __init__(self, spec: ViewerSpec | None, session, run_id: str, ros2: Ros2Spec | None = None):
         self.spec = spec
         self.ros2 = ros2
-        self.process: subprocess.Popen | None = None        # the viewer's
+        self.process: subprocess.Popen | None = None  # the viewer's
         self.ros2_process: subprocess.Popen | None = None
-        self.ros2_report: Path | None = None   # where the ROS 2 view writes what it delivered
+        self.ros2_report: Path | None = None  # where the ROS 2 view writes what it delivered
         self.rows_sent = 0
         self._signals = bus.publisher(session, bus.signals_key(run_id), drop=True)
 
@@ -38,29 +39,55 @@ class ViewerLink:
         self._signals.put(payload)
 
     def _spawn(self, module: str, endpoint: str, run_id: str, setup, env: dict, cpus: frozenset[int]):
-        process = subprocess.Popen([sys.executable, "-m", module, "--connect", endpoint, "--run-id", run_id,
-                                    "--setup", str(setup)],
-                                   stdin=subprocess.DEVNULL, preexec_fn=supervisor.child_setup, env=env)
+        process = subprocess.Popen(
+            [sys.executable, "-m", module, "--connect", endpoint, "--run-id", run_id, "--setup", str(setup)],
+            stdin=subprocess.DEVNULL,
+            preexec_fn=supervisor.child_setup,
+            env=env,
+        )
         supervisor.keep_to(cpus, process.pid)
         return process
 
-    def start(self, config: RunConfig, columns: list[str], *, setup, endpoint: str, run_id: str, env: dict,
-              cpus: frozenset[int], wait: Wait, frames_dir: Path | None = None, record_dir: Path | None = None) -> int:
+    def start(
+        self,
+        config: RunConfig,
+        columns: list[str],
+        *,
+        setup,
+        endpoint: str,
+        run_id: str,
+        env: dict,
+        cpus: frozenset[int],
+        wait: Wait,
+        frames_dir: Path | None = None,
+        record_dir: Path | None = None,
+    ) -> int:
         """Start the observers asked for (setup files ``setup`` and ``ros2.json`` beside it) and wait
         for their liveliness tokens; return the decimation (publish every n-th row), or 0.
         ``frames_dir``: the recording's frames/ (the cameras' images), None without --record;
         ``record_dir``: where the ROS 2 view's report goes (else beside ``setup``)."""
         rates, expected = [], {}
         if self.spec is not None:
-            setup.write_text(json.dumps({
-                "columns": columns, "config": config.resolved, "step_ns": config.step_ns,
-                "config_dir": str(config.path.parent.resolve()), "epoch": config.epoch,
-                "mode": self.spec.mode, "file": str(self.spec.file) if self.spec.file else None,
-                "open_browser": self.spec.open_browser, "port": self.spec.port,
-                "frames_dir": str(frames_dir) if frames_dir else None,
-                "linger": sys.stdin.isatty()}))   # foxglove: keep serving after the run (stop() waits for it)
-            module = ("components.viewer.foxglove_observer" if self.spec.mode == "foxglove"
-                      else "components.viewer.observer")
+            setup.write_text(
+                json.dumps(
+                    {
+                        "columns": columns,
+                        "config": config.resolved,
+                        "step_ns": config.step_ns,
+                        "config_dir": str(config.path.parent.resolve()),
+                        "epoch": config.epoch,
+                        "mode": self.spec.mode,
+                        "file": str(self.spec.file) if self.spec.file else None,
+                        "open_browser": self.spec.open_browser,
+                        "port": self.spec.port,
+                        "frames_dir": str(frames_dir) if frames_dir else None,
+                        "linger": sys.stdin.isatty(),
+                    }
+                )
+            )  # foxglove: keep serving after the run (stop() waits for it)
+            module = (
+                "components.viewer.foxglove_observer" if self.spec.mode == "foxglove" else "components.viewer.observer"
+            )
             self.process = self._spawn(module, endpoint, run_id, setup, env, cpus)
             rates.append(self.spec.rate_hz)
             expected[bus.VIEWER] = "alive"
@@ -68,12 +95,26 @@ class ViewerLink:
             ros2_setup = setup.with_name("ros2.json")
             node = "zenorbit_" + re.sub(r"[^A-Za-z0-9_]", "_", config.name)
             self.ros2_report = (record_dir or setup.parent) / stream_report.REPORT
-            ros2_setup.write_text(json.dumps({
-                "columns": columns, "config": config.resolved, "config_dir": str(config.path.parent.resolve()),
-                "ros2": {"endpoint": self.ros2.endpoint, "domain_id": self.ros2.domain_id,
-                         "distro": self.ros2.distro, "topics": self.ros2.topics, "node": node,
-                         "transport": self.ros2.transport, "python": self.ros2.python, "why": self.ros2.why},
-                "report": str(self.ros2_report)}))
+            ros2_setup.write_text(
+                json.dumps(
+                    {
+                        "columns": columns,
+                        "config": config.resolved,
+                        "config_dir": str(config.path.parent.resolve()),
+                        "ros2": {
+                            "endpoint": self.ros2.endpoint,
+                            "domain_id": self.ros2.domain_id,
+                            "distro": self.ros2.distro,
+                            "topics": self.ros2.topics,
+                            "node": node,
+                            "transport": self.ros2.transport,
+                            "python": self.ros2.python,
+                            "why": self.ros2.why,
+                        },
+                        "report": str(self.ros2_report),
+                    }
+                )
+            )
             self.ros2_process = self._spawn("components.ros2.observer", endpoint, run_id, ros2_setup, env, cpus)
             rates.append(self.ros2.rate_hz)
             expected[bus.ROS2] = "alive"
@@ -84,7 +125,7 @@ class ViewerLink:
 
     def exited(self, name: str = bus.VIEWER) -> str | None:
         """Why the run cannot start, if the observer ``name`` (bus.VIEWER, bus.ROS2) has exited."""
-        process, what = ((self.ros2_process, "the ROS 2 view") if name == bus.ROS2 else (self.process, "the viewer"))
+        process, what = (self.ros2_process, "the ROS 2 view") if name == bus.ROS2 else (self.process, "the viewer")
         if process is not None and process.poll() is not None:
             return f"{what} exited during start-up with code {process.returncode} (see its message above)"
         return None
@@ -100,7 +141,7 @@ class ViewerLink:
         if self.process is None:
             return
         if interrupted and self.spec.mode == "foxglove":
-            self.process.terminate()   # it would linger for the user, who asked to stop
+            self.process.terminate()  # it would linger for the user, who asked to stop
         try:
             if self.spec.mode in ("web", "foxglove") and sys.stdin.isatty() and not interrupted:
                 print(f"run finished; the {self.spec.mode} viewer stays up until Ctrl-C", file=out, flush=True)

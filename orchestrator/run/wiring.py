@@ -1,6 +1,7 @@
 """Who feeds whom: the routes of a member's inputs, and the wire, initialize, start and rewire
 messages that tell a member about them. The bodies are pure functions of the members and the
 config; the few functions that send them say so."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -9,36 +10,61 @@ from components import protocol, schedule
 from components.constants import NS_PER_S
 from components.schedule import Route
 from orchestrator.config.specs import ComponentSpec, RunConfig
-from orchestrator.config.specs import Fault as Injected   # an injected fault (not a reported one)
+from orchestrator.config.specs import Fault as Injected  # an injected fault (not a reported one)
 from orchestrator.run.members import Crew, Member, RunFailure
 
 
 def routes(consumer: ComponentSpec, members: dict[str, Member], config: RunConfig) -> list[Route]:
-    return schedule.routes(consumer.name, consumer.inputs.offsets, config.connections,
-                           {n: m.spec.outputs.offsets for n, m in members.items()},
-                           {n: m.ratio for n, m in members.items()}, list(config.components), config.algorithm)
+    return schedule.routes(
+        consumer.name,
+        consumer.inputs.offsets,
+        config.connections,
+        {n: m.spec.outputs.offsets for n, m in members.items()},
+        {n: m.ratio for n, m in members.items()},
+        list(config.components),
+        config.algorithm,
+    )
 
 
 def frame_routes(consumer: ComponentSpec, members: dict[str, Member], config: RunConfig) -> list[schedule.FrameRoute]:
-    return schedule.frame_routes(consumer.name, [v.name for v in consumer.inputs.frames], config.connections,
-                                 {n: m.ratio for n, m in members.items()}, list(config.components), config.algorithm)
+    return schedule.frame_routes(
+        consumer.name,
+        [v.name for v in consumer.inputs.frames],
+        config.connections,
+        {n: m.ratio for n, m in members.items()},
+        list(config.components),
+        config.algorithm,
+    )
 
 
-def wire_message(member: Member, members: dict[str, Member], config: RunConfig, faults: list[Injected],
-                 k: int) -> protocol.Wire:
+def wire_message(
+    member: Member, members: dict[str, Member], config: RunConfig, faults: list[Injected], k: int
+) -> protocol.Wire:
     """Which sources feed which of ``member``'s inputs (its routes, set), whom it feeds, from step
     ``k``, and the faults to inject into it."""
     name, step_ns = member.name, config.step_ns
     batched = schedule.batch_consumers(name, config.connections)
     return protocol.Wire(
-        generation=member.generation, step_ns=step_ns, ratio=member.ratio, k=k,
+        generation=member.generation,
+        step_ns=step_ns,
+        ratio=member.ratio,
+        k=k,
         consumers=sorted({d for d, _, s, _ in config.connections if s == name and d != name} - set(batched)),
         batch_consumers=batched,
         routes=member.routes,
         sources=sources(member, members),
-        faults=[(schedule.first_step_at(f.at_ns, step_ns), f.kind, (f.duration_ns or 0) / NS_PER_S) for f in faults if f.component == name],
-        frame_routes=[(r.source, r.output, r.input, r.ratio, r.ahead) for r in frame_routes(member.spec, members, config)],
-        frame_consumers=schedule.frame_consumers(name, [v.name for v in member.spec.outputs.frames], config.connections))
+        faults=[
+            (schedule.first_step_at(f.at_ns, step_ns), f.kind, (f.duration_ns or 0) / NS_PER_S)
+            for f in faults
+            if f.component == name
+        ],
+        frame_routes=[
+            (r.source, r.output, r.input, r.ratio, r.ahead) for r in frame_routes(member.spec, members, config)
+        ],
+        frame_consumers=schedule.frame_consumers(
+            name, [v.name for v in member.spec.outputs.frames], config.connections
+        ),
+    )
 
 
 def sources(member: Member, members: dict[str, Member]) -> dict[str, int]:
@@ -85,8 +111,10 @@ def initialize(crew: Crew, member: Member, members: dict[str, Member], t_ns: int
     vector = np.frombuffer(member.reply["blob"], dtype=np.float64)
     variable = member.spec.outputs.first_non_finite(vector)
     if variable is not None:
-        raise RunFailure(f"component {member.name!r} produced a non-finite value in output {variable!r} "
-                         f"after initialize (t = {t_ns / NS_PER_S:g} s)")
+        raise RunFailure(
+            f"component {member.name!r} produced a non-finite value in output {variable!r} "
+            f"after initialize (t = {t_ns / NS_PER_S:g} s)"
+        )
     return vector
 
 

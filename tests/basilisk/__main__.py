@@ -1,4 +1,5 @@
 """Remake Basilisk's reference fixtures: ``python -m tests.basilisk [MODEL ...]`` (see __init__)."""
+
 from __future__ import annotations
 
 import argparse
@@ -38,9 +39,12 @@ def main(argv: list[str] | None = None) -> int:
     for model in args.models or models():
         result = subprocess.run([str(python), str(HERE / f"{model}.py")], capture_output=True, text=True, cwd=HERE)
         if result.returncode != 0:
-            print(f"{model}: Basilisk's script failed (exit {result.returncode}):\n{result.stderr[-3000:]}", file=sys.stderr)
+            print(
+                f"{model}: Basilisk's script failed (exit {result.returncode}):\n{result.stderr[-3000:]}",
+                file=sys.stderr,
+            )
             return 1
-        values = json.loads(result.stdout)   # a script prints one JSON document
+        values = json.loads(result.stdout)  # a script prints one JSON document
         (HERE / f"{model}.json").write_text(json.dumps(values, indent=1) + "\n")
         print(f"{model}: wrote {HERE / f'{model}.json'}")
     return 0

@@ -18,6 +18,7 @@ Exponential (``EXPONENTIAL_CASES``): rho = baseDensity exp(-(|r| - planetRadius)
 a position r; each band of Zenorbit's table as one exponential (planetRadius = R_E + h0), and one
 single layer.
 """
+
 from __future__ import annotations
 
 import json
@@ -27,7 +28,7 @@ import time
 
 import numpy as np
 
-R_EARTH = 6378137.0          # m: the sphere Basilisk's conversion uses, here the WGS 84 semi-major axis
+R_EARTH = 6378137.0  # m: the sphere Basilisk's conversion uses, here the WGS 84 semi-major axis
 
 # (UTC y, m, d, h, min, s), latitude deg, longitude deg, height m, F10.7, F10.7a, Ap, theta deg, tilt deg
 MSIS_CASES = [
@@ -54,7 +55,7 @@ EXPONENTIAL_CASES = [
     (655.0e3, 600e3, 1.454e-13, 71.835e3),
     (1200e3, 1000e3, 3.019e-15, 268.00e3),
     (96.0e3, 90e3, 3.396e-6, 5.382e3),
-    (431.7e3, 400e3, 4e-12, 60e3),       # one layer (Basilisk gives 0 below planetRadius - 1 m: no case there)
+    (431.7e3, 400e3, 4e-12, 60e3),  # one layer (Basilisk gives 0 below planetRadius - 1 m: no case there)
 ]
 
 
@@ -83,7 +84,7 @@ def msis_case(case) -> dict:
     epoch.seconds = float(utc[5])
     keep.append(messaging.EpochMsg().write(epoch))
     atmosphere.epochInMsg.subscribeTo(keep[-1])
-    for k in range(23):            # 0: daily Ap, 1-20: 3-hour ap, 21: F10.7 81-day average, 22: F10.7 previous day
+    for k in range(23):  # 0: daily Ap, 1-20: 3-hour ap, 21: F10.7 81-day average, 22: F10.7 previous day
         payload = messaging.SwDataMsgPayload()
         payload.dataValue = f107a if k == 21 else f107 if k == 22 else ap
         keep.append(messaging.SwDataMsg().write(payload))
@@ -106,12 +107,26 @@ def msis_case(case) -> dict:
     sim.ConfigureStopTime(0)
     sim.ExecuteSimulation()
     out = atmosphere.envOutMsgs[0].read()
-    r_back = M @ r_N                # Basilisk's PCI2PCPF, then its spherical conversion
-    lla = [math.degrees(math.atan2(r_back[2], math.hypot(r_back[0], r_back[1]))),
-           math.degrees(math.atan2(r_back[1], r_back[0])), float(np.linalg.norm(r_back) - R_EARTH)]
-    return {"utc": list(utc), "latitude": lat, "longitude": lon, "height": height, "f107": f107, "f107a": f107a,
-            "ap": ap, "J20002Pfix": M.tolist(), "r_BN_N": r_N.tolist(), "lla": lla,
-            "density": out.neutralDensity, "temperature": out.localTemp}
+    r_back = M @ r_N  # Basilisk's PCI2PCPF, then its spherical conversion
+    lla = [
+        math.degrees(math.atan2(r_back[2], math.hypot(r_back[0], r_back[1]))),
+        math.degrees(math.atan2(r_back[1], r_back[0])),
+        float(np.linalg.norm(r_back) - R_EARTH),
+    ]
+    return {
+        "utc": list(utc),
+        "latitude": lat,
+        "longitude": lon,
+        "height": height,
+        "f107": f107,
+        "f107a": f107a,
+        "ap": ap,
+        "J20002Pfix": M.tolist(),
+        "r_BN_N": r_N.tolist(),
+        "lla": lla,
+        "density": out.neutralDensity,
+        "temperature": out.localTemp,
+    }
 
 
 def exponential_case(case) -> dict:
@@ -127,7 +142,7 @@ def exponential_case(case) -> dict:
     atmosphere.planetRadius = R_EARTH + h0
     atmosphere.baseDensity = rho0
     atmosphere.scaleHeight = scale
-    r = (R_EARTH + altitude) * np.array([0.48, -0.6, 0.64])     # a unit vector, off every axis
+    r = (R_EARTH + altitude) * np.array([0.48, -0.6, 0.64])  # a unit vector, off every axis
     state = messaging.SCStatesMsgPayload()
     state.r_BN_N = r.tolist()
     msg = messaging.SCStatesMsg().write(state)
@@ -136,18 +151,30 @@ def exponential_case(case) -> dict:
     sim.InitializeSimulation()
     sim.ConfigureStopTime(0)
     sim.ExecuteSimulation()
-    return {"r": r.tolist(), "h0": h0, "rho0": rho0, "scale_height": scale,
-            "density": atmosphere.envOutMsgs[0].read().neutralDensity}
+    return {
+        "r": r.tolist(),
+        "h0": h0,
+        "rho0": rho0,
+        "scale_height": scale,
+        "density": atmosphere.envOutMsgs[0].read().neutralDensity,
+    }
 
 
 def main() -> None:
-    os.environ["TZ"] = "UTC"        # Basilisk's epoch goes through mktime (local time)
+    os.environ["TZ"] = "UTC"  # Basilisk's epoch goes through mktime (local time)
     time.tzset()
     from Basilisk import __version__
 
-    print(json.dumps({"basilisk": __version__, "R_EARTH": R_EARTH,
-                      "msis": [msis_case(c) for c in MSIS_CASES],
-                      "exponential": [exponential_case(c) for c in EXPONENTIAL_CASES]}))
+    print(
+        json.dumps(
+            {
+                "basilisk": __version__,
+                "R_EARTH": R_EARTH,
+                "msis": [msis_case(c) for c in MSIS_CASES],
+                "exponential": [exponential_case(c) for c in EXPONENTIAL_CASES],
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

@@ -12,6 +12,7 @@ script instead gives ``configureWMMFile`` the identical file pygeomag ships (``W
 a1b6402dd23658d15affb0f31babccc7, checked here): ``ZENORBIT_WMM_DIR`` names its folder, else it is
 looked for in the site-packages of the Python this venv was made from (the project's).
 """
+
 from __future__ import annotations
 
 import glob
@@ -32,7 +33,11 @@ CASES = [
     {"epoch": "2025-06-21T06:30:15", "r_eci": [-2561234.5, 5437812.25, 3521908.0], "angles": [1.234, 0.0021, -0.7]},
     {"epoch": "2026-03-14T05:26:53", "r_eci": [4123456.0, -3210987.0, -4876543.0], "angles": [2.71, -0.0018, 0.45]},
     {"epoch": "2027-11-02T17:45:00", "r_eci": [-6012345.0, -2345678.0, 1987654.0], "angles": [-2.2, 0.0035, 1.9]},
-    {"epoch": "2028-02-29T23:59:59", "r_eci": [123456.0, 234567.0, 7078137.0], "angles": [0.77, 0.001, -2.5]},   # near the pole
+    {
+        "epoch": "2028-02-29T23:59:59",
+        "r_eci": [123456.0, 234567.0, 7078137.0],
+        "angles": [0.77, 0.001, -2.5],
+    },  # near the pole
     {"epoch": "2029-08-08T08:08:08", "r_eci": [5500000.0, 4400000.0, -1200000.0], "angles": [-0.9, -0.0027, 3.0]},
     {"epoch": "2029-12-31T12:00:00", "r_eci": [-4000000.0, 2000000.0, -5300000.0], "angles": [1.7, 0.0012, -1.1]},
     {"epoch": "2026-09-30T00:00:01", "r_eci": [6378137.0 + 35786e3, 1000.0, -2000.0], "angles": [0.1, 0.0, 0.2]},  # GEO
@@ -40,8 +45,11 @@ CASES = [
 # one magnetorquer case: three rods along body axes (Gt = identity) and a skewed fourth, a command
 # above the limit on two of them, a general attitude (MRP sigma_BN), a field in N
 MTB_CASE = {
-    "gt_B": [[1.0, 0.0, 0.0, 0.57735026918962573], [0.0, 1.0, 0.0, 0.57735026918962573],
-             [0.0, 0.0, 1.0, 0.57735026918962573]],
+    "gt_B": [
+        [1.0, 0.0, 0.0, 0.57735026918962573],
+        [0.0, 1.0, 0.0, 0.57735026918962573],
+        [0.0, 0.0, 1.0, 0.57735026918962573],
+    ],
     "max_dipoles": [80.0, 100.0, 60.0, 30.0],
     "dipoles": [55.5, -130.0, 90.0, -12.5],
     "sigma_BN": [0.21, -0.33, 0.12],
@@ -66,7 +74,9 @@ def rotation(angles):
 def wmm_file():
     folder = os.environ.get("ZENORBIT_WMM_DIR")
     if not folder:
-        found = glob.glob(os.path.join(sys.base_prefix, "lib", "python3*", "site-packages", "pygeomag", "wmm", "WMM.COF"))
+        found = glob.glob(
+            os.path.join(sys.base_prefix, "lib", "python3*", "site-packages", "pygeomag", "wmm", "WMM.COF")
+        )
         if not found:
             raise SystemExit("no WMM.COF: set ZENORBIT_WMM_DIR to the folder of pygeomag's wmm/WMM.COF")
         folder = os.path.dirname(found[0])
@@ -127,14 +137,17 @@ def mtb_torque(case):
     n = len(case["dipoles"])
     params = messaging.MTBArrayConfigMsgPayload()
     params.numMTB = n
-    params.GtMatrix_B = [x for row in case["gt_B"] for x in row]     # row major, 3 x n
+    params.GtMatrix_B = [x for row in case["gt_B"] for x in row]  # row major, 3 x n
     params.maxMtbDipoles = case["max_dipoles"]
     cmd = messaging.MTBCmdMsgPayload()
     cmd.mtbDipoleCmds = case["dipoles"]
     mag = messaging.MagneticFieldMsgPayload()
     mag.magField_N = case["b_N"]
-    msgs = (messaging.MTBArrayConfigMsg().write(params), messaging.MTBCmdMsg().write(cmd),
-            messaging.MagneticFieldMsg().write(mag))
+    msgs = (
+        messaging.MTBArrayConfigMsg().write(params),
+        messaging.MTBCmdMsg().write(cmd),
+        messaging.MagneticFieldMsg().write(mag),
+    )
     mtb.mtbParamsInMsg.subscribeTo(msgs[0])
     mtb.mtbCmdInMsg.subscribeTo(msgs[1])
     mtb.magInMsg.subscribeTo(msgs[2])
@@ -162,8 +175,17 @@ def main():
         module = magneticFieldWMM.MagneticFieldWMM()
         module.configureWMMFile(path)
         wmm.append(field(module, case))
-    print(json.dumps({"basilisk": Basilisk.__version__, "dipole_coefficients": coefficients,
-                      "dipole": dipole, "wmm": wmm, "mtb": mtb_torque(MTB_CASE)}))
+    print(
+        json.dumps(
+            {
+                "basilisk": Basilisk.__version__,
+                "dipole_coefficients": coefficients,
+                "dipole": dipole,
+                "wmm": wmm,
+                "mtb": mtb_torque(MTB_CASE),
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

@@ -5,6 +5,7 @@ Basilisk's constants and its values). The Sun, the Earth and the Moon are consta
 same positions on both sides: no ephemeris enters). Modules: ``eclipse`` (conical, the nearest
 occulter), ``radiationPressure`` (cannonball), ``facetSRPDynamicEffector`` (static facets).
 """
+
 import json
 
 import numpy as np
@@ -47,7 +48,7 @@ ECLIPSE_CASES = [
     ("Moon antumbra (annular)", behind(MOON, 5.3e8, 1.1e5, [0.4, -1.0, 0.3])),
 ]
 
-CANNONBALL_CASES = [   # position m, Cr, area m^2, illumination factor
+CANNONBALL_CASES = [  # position m, Cr, area m^2, illumination factor
     ([6.9e6, -1.2e6, 2.3e6], 1.3, 4.7, 1.0),
     ([-2.1e7, 3.4e7, -1.1e7], 1.8, 0.83, 0.37),
     ([1.4e8, -2.2e8, 9.0e7], 1.05, 27.5, 0.0),
@@ -158,21 +159,38 @@ def facets(r, sigma, factor):
 
 def main():
     out = {
-        "constants": {"AU": AU_M, "SOLAR_FLUX_EARTH": astroConstants.SOLAR_FLUX_EARTH,
-                      "SPEED_LIGHT": float(astroConstants.SPEED_LIGHT), "REQ_SUN": astroConstants.REQ_SUN * 1000.0,
-                      "REQ_EARTH": R_E, "REQ_MOON": R_M,
-                      "facet_flux": 1368.0, "facet_AU": 149597870700.0},    # facetSRPDynamicEffector.cpp's own
-        "sun": SUN, "moon": MOON,
+        "constants": {
+            "AU": AU_M,
+            "SOLAR_FLUX_EARTH": astroConstants.SOLAR_FLUX_EARTH,
+            "SPEED_LIGHT": float(astroConstants.SPEED_LIGHT),
+            "REQ_SUN": astroConstants.REQ_SUN * 1000.0,
+            "REQ_EARTH": R_E,
+            "REQ_MOON": R_M,
+            "facet_flux": 1368.0,
+            "facet_AU": 149597870700.0,
+        },  # facetSRPDynamicEffector.cpp's own
+        "sun": SUN,
+        "moon": MOON,
         "eclipse": [{"case": name, "r": r, "factor": f} for (name, r), f in zip(ECLIPSE_CASES, eclipse_factors())],
-        "cannonball": [{"r": r, "cr": cr, "area": area, "factor": factor, "force_N": cannonball(r, cr, area, factor)}
-                       for r, cr, area, factor in CANNONBALL_CASES],
+        "cannonball": [
+            {"r": r, "cr": cr, "area": area, "factor": factor, "force_N": cannonball(r, cr, area, factor)}
+            for r, cr, area, factor in CANNONBALL_CASES
+        ],
         "facets": [{"area": a, "normal": n, "centre": c, "specular": sp, "diffuse": d} for a, n, c, sp, d in FACETS],
         "facet_cases": [],
     }
     for r, sigma, factor in FACET_CASES:
         force, torque = facets(r, sigma, factor)
-        out["facet_cases"].append({"r": r, "sigma_BN": sigma, "dcm_BN": rbk.MRP2C(sigma).tolist(), "factor": factor,
-                                   "force_B": force, "torque_B": torque})
+        out["facet_cases"].append(
+            {
+                "r": r,
+                "sigma_BN": sigma,
+                "dcm_BN": rbk.MRP2C(sigma).tolist(),
+                "factor": factor,
+                "force_B": force,
+                "torque_B": torque,
+            }
+        )
     print(json.dumps(out))
 
 

@@ -1,5 +1,6 @@
 """sensor.camera in the harness: its frames on the capture scene (the dynamics' own initial state),
 the seeded noise (its spread, replayed bit for bit, restored mid-run), and its outputs."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -15,14 +16,16 @@ pytestmark = pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here:
 CAPTURE = yaml.safe_load((ROOT / "configs" / "capture_tumbling_target.yaml").read_text())
 EPOCH = CAPTURE["run"]["epoch"]
 CONFIGS = ROOT / "configs"
-STEP = 100_000_000   # ns
+STEP = 100_000_000  # ns
 
 
 @pytest.fixture(scope="module")
 def truth():
     """The capture scene's orbit and dynamics outputs at t0."""
     orbit = Harness("orbit.kepler", CAPTURE["components"]["orbit"]["parameters"], epoch=EPOCH, config_dir=CONFIGS)
-    dynamics = Harness("dynamics.dart", CAPTURE["components"]["dynamics"]["parameters"], epoch=EPOCH, config_dir=CONFIGS)
+    dynamics = Harness(
+        "dynamics.dart", CAPTURE["components"]["dynamics"]["parameters"], epoch=EPOCH, config_dir=CONFIGS
+    )
     o = orbit.initialize()
     for key in ("r_eci", "v_eci", "q_eci_lvlh", "w_lvlh"):
         dynamics.inputs[key] = o[key]
@@ -32,6 +35,7 @@ def truth():
 def looking_at(direction) -> list[float]:
     """q_link_camera [x, y, z, w] whose z axis points along ``direction`` (link axes)."""
     from scipy.spatial.transform import Rotation
+
     z = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
     x = np.cross([0.0, 0.0, 1.0], z)
     x /= np.linalg.norm(x)
@@ -41,13 +45,30 @@ def looking_at(direction) -> list[float]:
 def camera(truth, **changes):
     """A camera on the servicer's bus, 1.1 m out from its centre towards the target, looking at it."""
     from components.rotations import quat_to_matrix
+
     R_W_bus = quat_to_matrix(truth["servicer.orientation"])
     towards = R_W_bus.T @ (truth["target.position"] - truth["servicer.position"])
     towards /= np.linalg.norm(towards)
-    params = {"bodies": {"servicer": "../models/capture/servicer.urdf", "target": "../models/capture/target.urdf"},
-              "body": "servicer", "link": "bus", "position": (1.1 * towards).tolist(), "orientation": looking_at(towards),
-              "width": 160, "height": 120, "fx": 60.0, "fy": 60.0, "cx": 79.5, "cy": 59.5, "near": 0.05,
-              "far": 30.0, "ambient": 0.2, "seed": 7, "pixel_noise": 3.0, "depth_noise": 0.002, **changes}
+    params = {
+        "bodies": {"servicer": "../models/capture/servicer.urdf", "target": "../models/capture/target.urdf"},
+        "body": "servicer",
+        "link": "bus",
+        "position": (1.1 * towards).tolist(),
+        "orientation": looking_at(towards),
+        "width": 160,
+        "height": 120,
+        "fx": 60.0,
+        "fy": 60.0,
+        "cx": 79.5,
+        "cy": 59.5,
+        "near": 0.05,
+        "far": 30.0,
+        "ambient": 0.2,
+        "seed": 7,
+        "pixel_noise": 3.0,
+        "depth_noise": 0.002,
+        **changes,
+    }
     h = Harness("sensor.camera", params, epoch=EPOCH, config_dir=CONFIGS)
     for body in ("servicer", "target"):
         for variable in ("position", "orientation", "q"):
@@ -75,7 +96,7 @@ def test_the_camera_sees_the_target_and_its_noise_has_the_declared_spread(truth)
     assert unclipped.sum() > 5000
     pixel_error = noisy["rgb"].astype(float)[unclipped] - clean["rgb"].astype(float)[unclipped]
     # rounding to whole counts adds 1/12 to the variance
-    assert np.std(pixel_error) == pytest.approx(np.sqrt(3.0 ** 2 + 1 / 12), rel=0.02)
+    assert np.std(pixel_error) == pytest.approx(np.sqrt(3.0**2 + 1 / 12), rel=0.02)
     assert np.std(noisy["depth"][hit] - clean["depth"][hit]) == pytest.approx(0.002, rel=0.02)
     assert not noisy["depth"][~hit].any()
 
@@ -85,7 +106,7 @@ def test_noise_replays_bit_for_bit_and_a_restored_camera_continues_it(truth):
     first, second = frames(a, 3), frames(b, 3)
     for x, y in zip(first, second):
         assert x["rgb"].tobytes() == y["rgb"].tobytes() and x["depth"].tobytes() == y["depth"].tobytes()
-    assert first[0]["rgb"].tobytes() != first[1]["rgb"].tobytes()          # each frame its own noise
+    assert first[0]["rgb"].tobytes() != first[1]["rgb"].tobytes()  # each frame its own noise
     restored = camera(truth)
     restored.t_ns = a.t_ns
     restored.set_state(a.get_state())
@@ -98,7 +119,7 @@ def test_noise_replays_bit_for_bit_and_a_restored_camera_continues_it(truth):
 
 def test_a_lens_with_distortion_bends_the_image_and_says_so_in_the_frame(truth):
     pinhole = frames(camera(truth, pixel_noise=0.0), 1)[0]
-    D = [-0.05, 0.005, 0.0, 0.0, 0.0]      # a mild barrel over this 106 deg field of view
+    D = [-0.05, 0.005, 0.0, 0.0, 0.0]  # a mild barrel over this 106 deg field of view
     bent = frames(camera(truth, pixel_noise=0.0, distortion=D), 1)[0]
     assert np.array_equal(bent["D"], D) and not pinhole["D"].any()
     assert bent["rgb"].shape == pinhole["rgb"].shape
@@ -115,13 +136,14 @@ def test_outputs_say_when_the_frame_was_taken_and_whether_it_was_lit(truth):
     assert out["t_frame"] == 0.1 and out["frame"] == 2.0 and out["lit"] == 1.0
     # the orbit point moved behind the Earth (opposite the Sun): the frame is dark but for the ambient
     from components.camera.sun import SunClock
+
     h.inputs["r_eci"] = -6778e3 * SunClock(EPOCH).direction(h.t_ns)
     shadowed = h.component.take(h.t_ns, h._input_views())
     assert h.step(STEP)["lit"] == 0.0
     lit = frames(camera(truth, pixel_noise=0.0), 1)[0]
-    assert lit["rgb"].max() > 100                             # the Sun on some face
-    assert shadowed["rgb"].max() <= 0.2 * 255 + 6 * 3.0       # ambient only (and 6 sigma of noise)
-    assert not lit["rgb"][lit["depth"] == 0].any()            # black sky
+    assert lit["rgb"].max() > 100  # the Sun on some face
+    assert shadowed["rgb"].max() <= 0.2 * 255 + 6 * 3.0  # ambient only (and 6 sigma of noise)
+    assert not lit["rgb"][lit["depth"] == 0].any()  # black sky
 
 
 def test_the_frame_outputs_are_the_frames_it_takes(truth):
@@ -129,9 +151,10 @@ def test_the_frame_outputs_are_the_frames_it_takes(truth):
     frames the camera takes, bit for bit; K, D and T_link_camera are its parameters'; before the
     first step the images are zeros."""
     from components.camera.model import mount_transform
+
     h = camera(truth)
     assert not h.initialize()["t_frame"] and not h.frames["rgb"].any() and not h.frames["depth"].any()
-    twin = camera(truth)                   # the same seed: the same noise
+    twin = camera(truth)  # the same seed: the same noise
     expected = frames(twin, 1)[0]
     out = h.step(STEP)
     assert h.frames["rgb"].dtype == np.uint8 and h.frames["rgb"].shape == (120, 160, 3)
@@ -143,18 +166,18 @@ def test_the_frame_outputs_are_the_frames_it_takes(truth):
     assert "depth" not in camera(truth, depth=False).frames
 
 
-
 def test_the_recorded_frames_are_the_rendered_ones_bit_for_bit_in_fewer_bytes(truth, tmp_path):
     """With --record (``_frames``) each frame's file reads back as the frame outputs of its step,
     bit for bit, deflated: smaller than the raw arrays even with pixel noise."""
     from components.camera.frames import frame_files, read_frame
+
     h = camera(truth, _frames=str(tmp_path / "camera"))
     h.initialize()
     rendered = []
     for _ in range(3):
         h.step(STEP)
         rendered.append({key: h.frames[key].copy() for key in ("rgb", "depth")})
-    h.component.terminate()                # writes what is queued
+    h.component.terminate()  # writes what is queued
     files = frame_files(tmp_path / "camera")
     assert [f.name for f in files] == ["000000.npz", "000001.npz", "000002.npz"]
     for path, frame in zip(files, rendered):

@@ -1,6 +1,7 @@
 """dynamics.dart through the in-process harness: parameters and variables, cheap declare, config
 errors naming the key, NaN inputs, LVLH start, bit-exact restart; the shipped configs check and
 run (integration: real orchestrator)."""
+
 import math
 import subprocess
 import sys
@@ -22,23 +23,29 @@ from tests.conftest import orchestrator
 ROOT = Path(__file__).resolve().parents[2]
 CONFIGS = ROOT / "configs"
 MS = 1_000_000
-HUMANOID = {"urdf": "../models/humanoid_torso.urdf", "q": {"arm_right_4_joint": "-60 deg"},
-            "qd": {"arm_right_1_joint": "0.1 rad/s"}}
+HUMANOID = {
+    "urdf": "../models/humanoid_torso.urdf",
+    "q": {"arm_right_4_joint": "-60 deg"},
+    "qd": {"arm_right_1_joint": "0.1 rad/s"},
+}
 MU = 3.986004418e14
 
 
 def circular(a, t):
     n = math.sqrt(MU / a**3)
     th = n * t
-    return {"r_eci": a * np.array([math.cos(th), math.sin(th), 0.0]),
-            "v_eci": a * n * np.array([-math.sin(th), math.cos(th), 0.0]),
-            "q_eci_lvlh": np.array([0.0, 0.0, math.sin(th / 2), math.cos(th / 2)]),
-            "w_lvlh": np.array([0.0, 0.0, n])}
+    return {
+        "r_eci": a * np.array([math.cos(th), math.sin(th), 0.0]),
+        "v_eci": a * n * np.array([-math.sin(th), math.cos(th), 0.0]),
+        "q_eci_lvlh": np.array([0.0, 0.0, math.sin(th / 2), math.cos(th / 2)]),
+        "w_lvlh": np.array([0.0, 0.0, n]),
+    }
 
 
 def harness(bodies=None, t0_ns=0, **params):
-    return Harness("dynamics.dart", {"bodies": bodies or {"humanoid": HUMANOID}, **params}, config_dir=CONFIGS,
-                   t0_ns=t0_ns)
+    return Harness(
+        "dynamics.dart", {"bodies": bodies or {"humanoid": HUMANOID}, **params}, config_dir=CONFIGS, t0_ns=t0_ns
+    )
 
 
 def errors_of(params):
@@ -68,29 +75,36 @@ def test_link_outputs_are_left_out_by_default():
 
 
 def test_declare_does_not_load_dart():
-    code = ("import sys; from components.dynamics.component import DartDynamics as D; "
-            "from components.sdk import resolve_parameters as r; "
-            "p, e = r(D, {'bodies': {'h': {'urdf': 'models/humanoid_torso.urdf'}}}); assert not e, e; "
-            "v = D.declare(p); assert len(v) > 10; assert 'dartpy' not in sys.modules, 'dartpy imported'")
+    code = (
+        "import sys; from components.dynamics.component import DartDynamics as D; "
+        "from components.sdk import resolve_parameters as r; "
+        "p, e = r(D, {'bodies': {'h': {'urdf': 'models/humanoid_torso.urdf'}}}); assert not e, e; "
+        "v = D.declare(p); assert len(v) > 10; assert 'dartpy' not in sys.modules, 'dartpy imported'"
+    )
     done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
 
 
-@pytest.mark.parametrize("bodies, key", [
-    ({"humanoid": {"urdf": "../models/nope.urdf"}}, "bodies.humanoid.urdf"),
-    ({"humanoid": {}}, "bodies.humanoid.urdf"),
-    ({"humanoid": {**HUMANOID, "colour": "red"}}, "bodies.humanoid.colour"),
-    ({"humanoid": {**HUMANOID, "q": {"arm_right_9_joint": 0.1}}}, "bodies.humanoid.q.arm_right_9_joint"),
-    ({"humanoid": {**HUMANOID, "q": {"arm_right_4_joint": "-60 m"}}}, "bodies.humanoid.q.arm_right_4_joint"),
-    ({"humanoid": {**HUMANOID, "position": [0, 0]}}, "bodies.humanoid.position"),
-    ({"humanoid": {**HUMANOID, "frame": "ecef"}}, "bodies.humanoid.frame"),
-    ({"humanoid": {**HUMANOID, "locked_joints": ["arm_right_1_joint"], "qd": {"arm_right_1_joint": 1.0}}},
-     "bodies.humanoid.qd.arm_right_1_joint"),
-    ({"humanoid": {**HUMANOID, "drag_area": {"no_link": 1.0}}}, "bodies.humanoid.drag_area.no_link"),
-    ([{"name": "humanoid", **HUMANOID}], "bodies"),
-    ({"my body": HUMANOID}, "bodies.my body"),
-    ({}, "bodies"),
-])
+@pytest.mark.parametrize(
+    "bodies, key",
+    [
+        ({"humanoid": {"urdf": "../models/nope.urdf"}}, "bodies.humanoid.urdf"),
+        ({"humanoid": {}}, "bodies.humanoid.urdf"),
+        ({"humanoid": {**HUMANOID, "colour": "red"}}, "bodies.humanoid.colour"),
+        ({"humanoid": {**HUMANOID, "q": {"arm_right_9_joint": 0.1}}}, "bodies.humanoid.q.arm_right_9_joint"),
+        ({"humanoid": {**HUMANOID, "q": {"arm_right_4_joint": "-60 m"}}}, "bodies.humanoid.q.arm_right_4_joint"),
+        ({"humanoid": {**HUMANOID, "position": [0, 0]}}, "bodies.humanoid.position"),
+        ({"humanoid": {**HUMANOID, "frame": "ecef"}}, "bodies.humanoid.frame"),
+        (
+            {"humanoid": {**HUMANOID, "locked_joints": ["arm_right_1_joint"], "qd": {"arm_right_1_joint": 1.0}}},
+            "bodies.humanoid.qd.arm_right_1_joint",
+        ),
+        ({"humanoid": {**HUMANOID, "drag_area": {"no_link": 1.0}}}, "bodies.humanoid.drag_area.no_link"),
+        ([{"name": "humanoid", **HUMANOID}], "bodies"),
+        ({"my body": HUMANOID}, "bodies.my body"),
+        ({}, "bodies"),
+    ],
+)
 def test_bad_bodies_are_config_errors_naming_the_key(bodies, key):
     errors = errors_of({"bodies": bodies})
     assert errors and errors[0].key == key, [str(e) for e in errors]
@@ -100,8 +114,8 @@ def test_bad_urdf_is_a_config_error_naming_the_key(tmp_path):
     bad = {
         "not_xml.urdf": "<robot name='x'><link name='a'>",
         "floating.urdf": "<robot name='x'><link name='a'><inertial><mass value='1'/><inertia ixx='1' iyy='1' izz='1'/>"
-                         "</inertial></link><link name='b'/><joint name='j' type='floating'><parent link='a'/>"
-                         "<child link='b'/></joint></robot>",
+        "</inertial></link><link name='b'/><joint name='j' type='floating'><parent link='a'/>"
+        "<child link='b'/></joint></robot>",
         "massless.urdf": "<robot name='x'><link name='a'/></robot>",
         "two_roots.urdf": "<robot name='x'><link name='a'/><link name='b'/></robot>",
     }
@@ -148,9 +162,10 @@ def link_inertials(urdf):
         xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
         rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
         i = {k: float(inertial.find("inertia").get(k, 0.0)) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
-        inertia = np.array([[i["ixx"], i["ixy"], i["ixz"]], [i["ixy"], i["iyy"], i["iyz"]],
-                            [i["ixz"], i["iyz"], i["izz"]]])
-        C = Rotation.from_euler("xyz", rpy).as_matrix()            # URDF rpy: Rz Ry Rx
+        inertia = np.array(
+            [[i["ixx"], i["ixy"], i["ixz"]], [i["ixy"], i["iyy"], i["iyz"]], [i["ixz"], i["iyz"], i["izz"]]]
+        )
+        C = Rotation.from_euler("xyz", rpy).as_matrix()  # URDF rpy: Rz Ry Rx
         out.append((float(inertial.find("mass").get("value")), np.array(xyz), C @ inertia @ C.T))
     return out
 
@@ -170,17 +185,21 @@ def environment_closed_form(urdf, link_position, link_orientation, R):
     with localcontext() as ctx:
         ctx.prec = 40
         mu = Decimal(MU)
-        dot = lambda x, y: sum(a * b for a, b in zip(x, y))                          # noqa: E731
-        g = lambda x: [-mu * c / (dot(x, x) * dot(x, x).sqrt()) for c in x]          # noqa: E731
+        dot = lambda x, y: sum(a * b for a, b in zip(x, y))  # noqa: E731
+        g = lambda x: [-mu * c / (dot(x, x) * dot(x, x).sqrt()) for c in x]  # noqa: E731
         R_ = [Decimal(c) for c in R]
         for (mass, com, inertia), p, C in zip(link_inertials(urdf), link_position.reshape(-1, 3), rotations):
             rho = [Decimal(r) + Decimal(d) for r, d in zip(R, p + C @ com)]
             force.append([float(Decimal(mass) * (a - b)) for a, b in zip(g(rho), g(R_))])
             I_rho = [dot([Decimal(v) for v in row], rho) for row in C @ inertia @ C.T]
             k = 3 * mu / dot(rho, rho) ** 2 / dot(rho, rho).sqrt()
-            torque.append([float(k * (rho[1] * I_rho[2] - rho[2] * I_rho[1])),
-                           float(k * (rho[2] * I_rho[0] - rho[0] * I_rho[2])),
-                           float(k * (rho[0] * I_rho[1] - rho[1] * I_rho[0]))])
+            torque.append(
+                [
+                    float(k * (rho[1] * I_rho[2] - rho[2] * I_rho[1])),
+                    float(k * (rho[2] * I_rho[0] - rho[0] * I_rho[2])),
+                    float(k * (rho[0] * I_rho[1] - rho[1] * I_rho[0])),
+                ]
+            )
     return np.array(force), np.array(torque)
 
 
@@ -190,12 +209,21 @@ def test_lvlh_start_and_environment_outputs():
     after 20 steps of 10 ms (link poses from the outputs, checked against Pinocchio in
     tests/unit/test_dynamics_pinocchio.py; reference point: the circular orbit at the step's end,
     which the dynamics' Taylor propagation reaches to ~1e-14 m)."""
-    attitude = [0.2, -0.3, 0.4, 0.8]                                # the target: turned, off-centre
+    attitude = [0.2, -0.3, 0.4, 0.8]  # the target: turned, off-centre
     attitude = np.array(attitude) / np.linalg.norm(attitude)
     urdfs = {"humanoid": CONFIGS / HUMANOID["urdf"], "target": CONFIGS / "../models/target.urdf"}
-    h = harness({"humanoid": {**HUMANOID, "frame": "lvlh"},
-                 "target": {"urdf": "../models/target.urdf", "frame": "lvlh", "position": [3.0, -2.0, 1.0],
-                            "orientation": attitude.tolist()}}, link_outputs=True)
+    h = harness(
+        {
+            "humanoid": {**HUMANOID, "frame": "lvlh"},
+            "target": {
+                "urdf": "../models/target.urdf",
+                "frame": "lvlh",
+                "position": [3.0, -2.0, 1.0],
+                "orientation": attitude.tolist(),
+            },
+        },
+        link_outputs=True,
+    )
     a = 6778e3
     h.inputs.update(circular(a, 0.0))
     out = h.initialize()
@@ -210,8 +238,9 @@ def test_lvlh_start_and_environment_outputs():
         # Tolerance: 1e-12 of the largest link value per quantity and body (float64 rounding
         # of the dynamics' own evaluation; measured <= 4e-15).
         for body, urdf in urdfs.items():
-            force, torque = environment_closed_form(urdf, out[f"{body}.link_position"],
-                                                    out[f"{body}.link_orientation"], R)
+            force, torque = environment_closed_form(
+                urdf, out[f"{body}.link_position"], out[f"{body}.link_orientation"], R
+            )
             for name, expected in (("tidal_force", force), ("gg_torque", torque)):
                 got = out[f"{body}.{name}"].reshape(-1, 3)
                 scale = np.abs(expected).max()
@@ -223,7 +252,7 @@ def test_lvlh_start_and_environment_outputs():
         h.inputs.update(circular(a, k * 1e-2))
         out = h.step(10 * MS)
     check(out, circular(a, 20 * 1e-2)["r_eci"])
-    assert np.all(out["humanoid.drag_force"] == 0.0)          # drag off by default
+    assert np.all(out["humanoid.drag_force"] == 0.0)  # drag off by default
     assert np.all(np.isfinite(np.concatenate(list(out.values()))))
 
 
@@ -255,13 +284,16 @@ def test_restart_from_state_is_bit_exact(integrator):
         assert np.array_equal(value, got[key]), key
 
 
-@pytest.mark.parametrize("engine, params", [
-    ("dart", {}),                                                                  # the demo's dynamics
-    ("dart", {"drag": True, "link_outputs": True, "integrator": "rk4", "substeps": 2}),
-    ("dart", {"integrator": "dart"}),
-    ("pinocchio", {}),
-    ("pinocchio", {"drag": True, "link_outputs": True, "substeps": 2}),
-])
+@pytest.mark.parametrize(
+    "engine, params",
+    [
+        ("dart", {}),  # the demo's dynamics
+        ("dart", {"drag": True, "link_outputs": True, "integrator": "rk4", "substeps": 2}),
+        ("dart", {"integrator": "dart"}),
+        ("pinocchio", {}),
+        ("pinocchio", {"drag": True, "link_outputs": True, "substeps": 2}),
+    ],
+)
 def test_numba_kernels_are_compiled_at_instantiate_not_in_step_0(monkeypatch, engine, params):
     """The first run after install compiled the numba kernels inside step 0 (seconds), which
     counts against run.step_timeout: "did not answer step 0 within 10 s" on a loaded machine.
@@ -272,24 +304,36 @@ def test_numba_kernels_are_compiled_at_instantiate_not_in_step_0(monkeypatch, en
 
     from components.dynamics import link_forces, manifold_rk4, pinocchio_kernels
 
-    names = {"dart": [(link_forces, "generalized_forces"), (manifold_rk4, "moved"), (manifold_rk4, "stage"),
-                      (manifold_rk4, "combine")],
-             "pinocchio": [(link_forces, "tree_generalized_forces"), (pinocchio_kernels, "pinocchio_inputs"),
-                           (pinocchio_kernels, "from_pinocchio"), (pinocchio_kernels, "rk4_begin"),
-                           (pinocchio_kernels, "rk4_evaluation")]}[engine]     # (its stages: in these)
+    names = {
+        "dart": [
+            (link_forces, "generalized_forces"),
+            (manifold_rk4, "moved"),
+            (manifold_rk4, "stage"),
+            (manifold_rk4, "combine"),
+        ],
+        "pinocchio": [
+            (link_forces, "tree_generalized_forces"),
+            (pinocchio_kernels, "pinocchio_inputs"),
+            (pinocchio_kernels, "from_pinocchio"),
+            (pinocchio_kernels, "rk4_begin"),
+            (pinocchio_kernels, "rk4_evaluation"),
+        ],
+    }[engine]  # (its stages: in these)
     names += [(link_forces, "propagate_reference")]
     kernels = {}
     for module, name in names:
         kernels[name] = numba.njit(cache=True)(getattr(module, name).py_func)
         monkeypatch.setattr(module, name, kernels[name])
     assert not any(kernel.signatures for kernel in kernels.values())
-    bodies = {"humanoid": {**HUMANOID, "drag_area": 0.5},
-              "target": {"urdf": "../models/target.urdf", "position": [1.2, 0, 0], "twist": [0, 0, 0, 0.3, 0, 0.2]}}
+    bodies = {
+        "humanoid": {**HUMANOID, "drag_area": 0.5},
+        "target": {"urdf": "../models/target.urdf", "position": [1.2, 0, 0], "twist": [0, 0, 0, 0.3, 0, 0.2]},
+    }
     h = Harness(f"dynamics.{engine}", {"bodies": bodies, **params}, config_dir=CONFIGS)
     rk4 = params.get("integrator", "rk4") == "rk4"
     used = [name for name in kernels if rk4 or name in ("generalized_forces", "propagate_reference")]
     compiled = {name: list(kernel.signatures) for name, kernel in kernels.items()}
-    assert all(compiled[name] for name in used), compiled                      # before any initialize or step
+    assert all(compiled[name] for name in used), compiled  # before any initialize or step
     h.inputs.update(circular(6778e3, 0.0))
     h.initialize()
     for k in range(5):
@@ -301,8 +345,14 @@ def test_numba_kernels_are_compiled_at_instantiate_not_in_step_0(monkeypatch, en
 
 def test_check_refuses_the_dart_integrator_with_pinocchio():
     """dynamics.pinocchio has no contact solver: integrator: dart is a config error (exit 2) naming the key."""
-    done = orchestrator("check", CONFIGS / "humanoid_tracking.yaml", "--set", "components.dynamics.type=dynamics.pinocchio",
-                        "--set", "components.dynamics.parameters.integrator=dart")
+    done = orchestrator(
+        "check",
+        CONFIGS / "humanoid_tracking.yaml",
+        "--set",
+        "components.dynamics.type=dynamics.pinocchio",
+        "--set",
+        "components.dynamics.parameters.integrator=dart",
+    )
     assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
     assert "components.dynamics.parameters.integrator: dynamics.pinocchio has no contact solver" in done.stderr
 
@@ -317,8 +367,15 @@ def test_shipped_configs_check(config):
 def test_free_floating_humanoid_config_runs_and_records(tmp_path):
     import pyarrow.parquet as pq
 
-    done = orchestrator("run", CONFIGS / "free_floating_humanoid.yaml", "--record", tmp_path / "rec",
-                        "--set", "run.duration=0.5s", timeout=120)
+    done = orchestrator(
+        "run",
+        CONFIGS / "free_floating_humanoid.yaml",
+        "--record",
+        tmp_path / "rec",
+        "--set",
+        "run.duration=0.5s",
+        timeout=120,
+    )
     assert done.returncode == 0, done.stdout + done.stderr
     table = pq.read_table(tmp_path / "rec" / "signals.parquet")
     assert table.num_rows == 51
@@ -352,20 +409,24 @@ def test_tumbling_orientation_outputs_keep_their_sign_across_a_restore():
     before = run(first, 200)
     blob, t_blob = first.get_state(), first.t_ns
     after = run(first, 200)
-    second = harness(bodies, link_outputs=True, t0_ns=t_blob)      # never initialized: a restore
+    second = harness(bodies, link_outputs=True, t0_ns=t_blob)  # never initialized: a restore
     second.set_state(blob)
-    assert all(np.array_equal(a["target.orientation"], b["target.orientation"]) for a, b in zip(after, run(second, 200)))
+    assert all(
+        np.array_equal(a["target.orientation"], b["target.orientation"]) for a, b in zip(after, run(second, 200))
+    )
     series = before + after
     for key in ("target.orientation", "target.link_orientation"):
         q = np.array([o[key] for o in series]).reshape(len(series), -1, 4)
-        assert np.min(np.einsum("tij,tij->ti", q[1:], q[:-1])) > 0.9, key      # 10 ms of 3 rad/s: cos 0.015
-        assert np.ptp(np.sign(q[:, 0, 3])) == 2, key                             # w did change sign
+        assert np.min(np.einsum("tij,tij->ti", q[1:], q[:-1])) > 0.9, key  # 10 ms of 3 rad/s: cos 0.015
+        assert np.ptp(np.sign(q[:, 0, 3])) == 2, key  # w did change sign
     R = first.component.world.bodies["target"].root.getTransform().rotation()
     assert np.abs(Rotation.from_quat(series[-1]["target.orientation"]).as_matrix() - R).max() < 1e-14
 
 
-@pytest.mark.parametrize("algorithm, orbit_step", [("jacobi", "10 s"), ("gauss-seidel", "10 s"),
-                                                   ("jacobi", "60 s"), ("gauss-seidel", "60 s")])
+@pytest.mark.parametrize(
+    "algorithm, orbit_step",
+    [("jacobi", "10 s"), ("gauss-seidel", "10 s"), ("jacobi", "60 s"), ("gauss-seidel", "60 s")],
+)
 def test_libration_matches_the_closed_form_under_every_schedule(algorithm, orbit_step):
     """configs/gravity_gradient_libration.yaml (a box with Ix < Iy = Iz pitched 1 deg in LVLH,
     10 s steps) stepped in process under Jacobi and Gauss-Seidel, with the orbit at the dynamics'
@@ -377,30 +438,37 @@ def test_libration_matches_the_closed_form_under_every_schedule(algorithm, orbit
     from orchestrator.config.load import load
     from orchestrator.run.inprocess import run_in_process
 
-    config = load(CONFIGS / "gravity_gradient_libration.yaml",
-                  [f"run.algorithm={algorithm}", f"components.orbit.step={orbit_step}"])
+    config = load(
+        CONFIGS / "gravity_gradient_libration.yaml",
+        [f"run.algorithm={algorithm}", f"components.orbit.step={orbit_step}"],
+    )
     rows = run_in_process(config)
     columns = [c for spec in config.components.values() for v in spec.outputs.variables for c in v.columns(spec.name)]
 
     def column(prefix, n):
         i = columns.index(f"{prefix}[0]")
-        return rows[:, i:i + n]
+        return rows[:, i : i + n]
 
     ratio = config.components["orbit"].step_ns // config.step_ns
-    fresh = np.arange(0, len(rows), ratio)            # rows where the orbit's output is of that time
+    fresh = np.arange(0, len(rows), ratio)  # rows where the orbit's output is of that time
     q_body, q_lvlh = column("dynamics.target.orientation", 4)[fresh], column("orbit.q_eci_lvlh", 4)[fresh]
     x_L = np.array([matrix(l).T @ matrix(b)[:, 0] for b, l in zip(q_body, q_lvlh)])
     theta = np.arctan2(x_L[:, 1], x_L[:, 0])
     t = fresh * config.step_ns / NS_PER_S
-    crossings = [t[i] - theta[i] * (t[i + 1] - t[i]) / (theta[i + 1] - theta[i])
-                 for i in range(len(theta) - 1) if theta[i] * theta[i + 1] < 0]
+    crossings = [
+        t[i] - theta[i] * (t[i + 1] - t[i]) / (theta[i + 1] - theta[i])
+        for i in range(len(theta) - 1)
+        if theta[i] * theta[i + 1] < 0
+    ]
     n = math.sqrt(MU / 6778e3**3)
     Ix, Iy = 200 / 12 * 2.0, 200 / 12 * (1.6**2 + 1.0)
     expected = n * math.sqrt(3 * (Iy - Ix) / Iy)
     measured = math.pi / np.mean(np.diff(crossings))
     amplitude = math.degrees(np.abs(theta).max())
-    print(f"{algorithm}, orbit every {orbit_step}: w {measured:.5e} (closed form {expected:.5e}), "
-          f"amplitude {amplitude:.4f} deg, mean {math.degrees(theta.mean()):+.4f} deg")
+    print(
+        f"{algorithm}, orbit every {orbit_step}: w {measured:.5e} (closed form {expected:.5e}), "
+        f"amplitude {amplitude:.4f} deg, mean {math.degrees(theta.mean()):+.4f} deg"
+    )
     assert len(crossings) >= 3
     validation.check("libration_schedules", max(abs(measured / expected - 1), abs(amplitude - 1.0)))
 
@@ -424,8 +492,9 @@ connections: {{dynamics.r_eci: orbit.r_eci, dynamics.v_eci: orbit.v_eci, dynamic
 """
 
 
-@pytest.mark.parametrize("algorithm, orbit_step", [("jacobi", "5 s"), ("gauss-seidel", "5 s"),
-                                                   ("jacobi", "30 s"), ("gauss-seidel", "30 s")])
+@pytest.mark.parametrize(
+    "algorithm, orbit_step", [("jacobi", "5 s"), ("gauss-seidel", "5 s"), ("jacobi", "30 s"), ("gauss-seidel", "30 s")]
+)
 def test_clohessy_wiltshire_under_every_schedule(tmp_path, algorithm, orbit_step):
     """A body released 10 m radially at rest in LVLH (6778 km circular orbit, inclined): after a
     quarter orbit its LVLH position is x = (4 - 3 cos nt) x0, y = 6 (sin nt - nt) x0, within 1e-4
@@ -440,13 +509,16 @@ def test_clohessy_wiltshire_under_every_schedule(tmp_path, algorithm, orbit_step
     n = math.sqrt(MU / a**3)
     duration = round(math.pi / 2 / n / 30) * 30
     path = tmp_path / "cw.yaml"
-    path.write_text(CW_CONFIG.format(duration=duration, algorithm=algorithm, orbit_step=orbit_step,
-                                     urdf=ROOT / "models" / "target.urdf"))
+    path.write_text(
+        CW_CONFIG.format(
+            duration=duration, algorithm=algorithm, orbit_step=orbit_step, urdf=ROOT / "models" / "target.urdf"
+        )
+    )
     config = load(path)
     rows = run_in_process(config)
     columns = [c for spec in config.components.values() for v in spec.outputs.variables for c in v.columns(spec.name)]
-    p = rows[-1, columns.index("dynamics.probe.position[0]"):][:3]
-    q = rows[-1, columns.index("orbit.q_eci_lvlh[0]"):][:4]          # the last row is an orbit step
+    p = rows[-1, columns.index("dynamics.probe.position[0]") :][:3]
+    q = rows[-1, columns.index("orbit.q_eci_lvlh[0]") :][:4]  # the last row is an orbit step
     position = matrix(q).T @ p
     cw = np.array([(4 - 3 * math.cos(n * duration)) * x0, 6 * (math.sin(n * duration) - n * duration) * x0, 0.0])
     error = np.linalg.norm(position - cw) / np.linalg.norm(cw - [x0, 0, 0])

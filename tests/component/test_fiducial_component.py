@@ -11,6 +11,7 @@
 - the state handed to a fresh instance, bit for bit;
 - bad parameters refused naming the key.
 """
+
 from __future__ import annotations
 
 import math
@@ -35,17 +36,50 @@ CONFIGS = ROOT / "configs"
 EPOCH = "2022-09-18T12:00:00Z"
 STEP = 100_000_000
 LAYOUT = read_layout(scenes.LAYOUT)
-CAMERA = {"bodies": {"servicer": "../models/capture/servicer.urdf", "target": "../models/capture/target.urdf"},
-          "body": "servicer", "link": "ee", "position": [0.0, 0.07, -0.03], "orientation": [0.1305, 0.0, 0.0, 0.9914],
-          "width": 640, "height": 480, "fx": 500.0, "fy": 500.0, "cx": 321.3, "cy": 236.8, "near": 0.02,
-          "far": 20.0, "ambient": 0.1, "seed": 3, "pixel_noise": 2.0, "depth_noise": 0.0}
-PARAMS = {"body": "servicer", "urdf": "../models/capture/servicer.urdf", "link": "ee", "end_effector": "ee",
-          "width": 640, "height": 480, "markers": "../models/capture/grapple_markers.yaml", "min_markers": 2,
-          "max_reprojection_error": 1.5}
-ARM = yaml.safe_load((CONFIGS / "capture_tumbling_target.yaml").read_text())[
-    "components"]["dynamics"]["parameters"]["bodies"]["servicer"]["q"]
-JOINTS = ["arm_1_joint", "arm_2_joint", "arm_3_joint", "arm_4_joint", "arm_5_joint", "arm_6_joint",
-          "wheel_x_joint", "wheel_y_joint", "wheel_z_joint"]          # the URDF's order
+CAMERA = {
+    "bodies": {"servicer": "../models/capture/servicer.urdf", "target": "../models/capture/target.urdf"},
+    "body": "servicer",
+    "link": "ee",
+    "position": [0.0, 0.07, -0.03],
+    "orientation": [0.1305, 0.0, 0.0, 0.9914],
+    "width": 640,
+    "height": 480,
+    "fx": 500.0,
+    "fy": 500.0,
+    "cx": 321.3,
+    "cy": 236.8,
+    "near": 0.02,
+    "far": 20.0,
+    "ambient": 0.1,
+    "seed": 3,
+    "pixel_noise": 2.0,
+    "depth_noise": 0.0,
+}
+PARAMS = {
+    "body": "servicer",
+    "urdf": "../models/capture/servicer.urdf",
+    "link": "ee",
+    "end_effector": "ee",
+    "width": 640,
+    "height": 480,
+    "markers": "../models/capture/grapple_markers.yaml",
+    "min_markers": 2,
+    "max_reprojection_error": 1.5,
+}
+ARM = yaml.safe_load((CONFIGS / "capture_tumbling_target.yaml").read_text())["components"]["dynamics"]["parameters"][
+    "bodies"
+]["servicer"]["q"]
+JOINTS = [
+    "arm_1_joint",
+    "arm_2_joint",
+    "arm_3_joint",
+    "arm_4_joint",
+    "arm_5_joint",
+    "arm_6_joint",
+    "wheel_x_joint",
+    "wheel_y_joint",
+    "wheel_z_joint",
+]  # the URDF's order
 
 
 def harness(**params) -> Harness:
@@ -60,13 +94,16 @@ def seen(estimator: Harness, camera: Harness, T_E_G: np.ndarray) -> dict:
     """The camera takes a frame of the grapple at T_E_G; the estimator's step on it."""
     camera.inputs.update(scene_inputs(T_E_G))
     out = camera.step(STEP)
-    estimator.inputs.update(rgb=camera.frames["rgb"], **{k: out[k] for k in ("K", "D", "T_link_camera", "t_frame", "frame")})
+    estimator.inputs.update(
+        rgb=camera.frames["rgb"], **{k: out[k] for k in ("K", "D", "T_link_camera", "t_frame", "frame")}
+    )
     return estimator.step(STEP)
 
 
 def ee_in_base() -> np.ndarray:
     """T_base_ee (4x4) of the servicer in the capture config's arm pose, by Pinocchio."""
     import pinocchio as pin
+
     model = pin.buildModelFromUrdf(str(ROOT / "models" / "capture" / "servicer.urdf"), pin.JointModelFreeFlyer())
     data = model.createData()
     q = pin.neutral(model)
@@ -83,21 +120,27 @@ def scene_inputs(T_E_G: np.ndarray) -> dict:
     """The camera's inputs that put the grapple at T_E_G in the end effector, the markers' face
     turned 30 deg off the Sun (lit), the servicer's base at W's origin."""
     from components.camera.sun import SunClock
+
     T_base_E = ee_in_base()
     sun = SunClock(EPOCH).direction(0)
-    normal = (T_base_E @ T_E_G)[:3, :3] @ [0.0, 0.0, -1.0]            # the markers face -z of G
+    normal = (T_base_E @ T_E_G)[:3, :3] @ [0.0, 0.0, -1.0]  # the markers face -z of G
     side = np.cross(sun, [0.3, 0.2, 0.9])
     wanted = exp_so3(side / np.linalg.norm(side) * math.radians(30.0)) @ sun
     axis = np.cross(normal, wanted)
     R_W_base = exp_so3(axis / np.linalg.norm(axis) * math.acos(np.clip(normal @ wanted, -1.0, 1.0)))
     T_W_base = np.eye(4)
     T_W_base[:3, :3] = R_W_base
-    T_target_G = np.eye(4)                                              # target.urdf's grapple_joint
+    T_target_G = np.eye(4)  # target.urdf's grapple_joint
     T_target_G[:3, :3], T_target_G[:3, 3] = rpy_to_matrix((math.pi, 0.0, 0.0)), (0.0, 0.0, 0.65)
     T_W_target = T_W_base @ T_base_E @ T_E_G @ np.linalg.inv(T_target_G)
-    return {"r_eci": np.zeros(3), "servicer.position": np.zeros(3),
-            "servicer.orientation": matrix_to_quat(R_W_base), "servicer.q": np.array([ARM.get(j, 0.0) for j in JOINTS]),
-            "target.position": T_W_target[:3, 3], "target.orientation": matrix_to_quat(T_W_target[:3, :3])}
+    return {
+        "r_eci": np.zeros(3),
+        "servicer.position": np.zeros(3),
+        "servicer.orientation": matrix_to_quat(R_W_base),
+        "servicer.q": np.array([ARM.get(j, 0.0) for j in JOINTS]),
+        "target.position": T_W_target[:3, 3],
+        "target.orientation": matrix_to_quat(T_W_target[:3, :3]),
+    }
 
 
 def grapple(distance: float, tilt, roll: float, offset=(0.01, -0.03)) -> np.ndarray:
@@ -107,8 +150,9 @@ def grapple(distance: float, tilt, roll: float, offset=(0.01, -0.03)) -> np.ndar
     return T
 
 
-@pytest.mark.parametrize("distance, tilt, roll", [(0.15, (0.05, -0.08), 0.4), (0.3, (0.1, 0.05), 2.0),
-                                                  (0.5, (-0.07, 0.1), -1.2)])
+@pytest.mark.parametrize(
+    "distance, tilt, roll", [(0.15, (0.05, -0.08), 0.4), (0.3, (0.1, 0.05), 2.0), (0.5, (-0.07, 0.1), -1.2)]
+)
 def test_the_rendered_target_gives_the_pose_the_kinematics_put_it_at(distance, tilt, roll):
     """Measured: 0.3-0.6 mm and 0.03-0.16 deg, 3 to 5 markers."""
     T_E_G = grapple(distance, tilt, roll)
@@ -151,7 +195,7 @@ def test_the_state_continues_in_a_fresh_instance_bit_for_bit():
 
 # --------------------------------------------------------------------------- the step on drawn frames
 
-ROLLS = np.linspace(0.0, 2.8 * math.pi, 12)          # 1.4 turns about the optical axis in 12 frames
+ROLLS = np.linspace(0.0, 2.8 * math.pi, 12)  # 1.4 turns about the optical axis in 12 frames
 K = scenes.K
 R_E_C = quat_to_matrix(CAMERA["orientation"])
 P_E_C = np.array(CAMERA["position"])
@@ -167,8 +211,15 @@ def drawn(roll: float):
 def feed(h: Harness, frame: dict, k: int) -> None:
     """Frame k of a camera stepping every STEP, as its outputs would give it."""
     from components.camera.model import mount_transform
-    h.inputs.update(rgb=frame["rgb"], K=frame["K"], D=frame["D"], t_frame=k * STEP / 1e9, frame=k + 1.0,
-                    T_link_camera=mount_transform(CAMERA["position"], CAMERA["orientation"]))
+
+    h.inputs.update(
+        rgb=frame["rgb"],
+        K=frame["K"],
+        D=frame["D"],
+        t_frame=k * STEP / 1e9,
+        frame=k + 1.0,
+        T_link_camera=mount_transform(CAMERA["position"], CAMERA["orientation"]),
+    )
 
 
 def test_a_turning_grapple_frame_by_frame_with_q_sign_continuous():
@@ -197,32 +248,35 @@ def test_a_frame_without_markers_is_not_valid_and_holds_the_pose():
     h = harness()
     blank = {"rgb": np.full((480, 640, 3), scenes.BACKGROUND, np.uint8), "K": K.copy(), "D": np.zeros(5)}
     frames = [drawn(r)[2] for r in ROLLS[:3]] + [blank, drawn(ROLLS[4])[2]]
-    nothing = h.step(STEP)                                                 # the camera's start values: no frame yet
+    nothing = h.step(STEP)  # the camera's start values: no frame yet
     assert nothing["valid"] == 0.0 and nothing["t_measured"] == 0.0 and np.array_equal(nothing["q"], [0, 0, 0, 1])
     for k in range(3):
         feed(h, frames[k], k)
         good = h.step(STEP)
     feed(h, frames[3], 3)
-    h.inputs["t_frame"] = 0.29                                             # taken 10 ms before its step
+    h.inputs["t_frame"] = 0.29  # taken 10 ms before its step
     held = h.step(STEP)
     assert held["valid"] == 0.0 and held["markers"] == 0.0 and held["reprojection_error"] == 0.0
-    assert held["t_measured"] == 0.29                                      # the frame's time
+    assert held["t_measured"] == 0.29  # the frame's time
     assert np.array_equal(held["p"], good["p"]) and np.array_equal(held["q"], good["q"])
     feed(h, frames[4], 4)
     after = h.step(STEP)
     assert after["valid"] == 1.0 and float(after["q"] @ good["q"]) > 0.0
 
 
-@pytest.mark.parametrize("change, key, expected", [
-    ({"markers": "none.yaml"}, "markers", "marker layout 'none.yaml' not found"),
-    ({"min_markers": 6}, "min_markers", "at most the layout's 5 markers, got 6"),
-    ({"end_effector": "hand"}, "end_effector", "expected a link of ../models/capture/servicer.urdf"),
-    ({"end_effector": "arm_5_link"}, "end_effector", "joint arm_6_joint between them is revolute, not fixed"),
-    ({"link": "hand"}, "link", "expected a link of ../models/capture/servicer.urdf"),
-    ({"width": 9000}, "width", "expected 1 to 8192 pixels, got 9000"),
-    ({"max_reprojection_error": 0}, "max_reprojection_error", "expected a quantity > 0"),
-    ({"fx": 500}, "fx", "unknown parameter"),
-])
+@pytest.mark.parametrize(
+    "change, key, expected",
+    [
+        ({"markers": "none.yaml"}, "markers", "marker layout 'none.yaml' not found"),
+        ({"min_markers": 6}, "min_markers", "at most the layout's 5 markers, got 6"),
+        ({"end_effector": "hand"}, "end_effector", "expected a link of ../models/capture/servicer.urdf"),
+        ({"end_effector": "arm_5_link"}, "end_effector", "joint arm_6_joint between them is revolute, not fixed"),
+        ({"link": "hand"}, "link", "expected a link of ../models/capture/servicer.urdf"),
+        ({"width": 9000}, "width", "expected 1 to 8192 pixels, got 9000"),
+        ({"max_reprojection_error": 0}, "max_reprojection_error", "expected a quantity > 0"),
+        ({"fx": 500}, "fx", "unknown parameter"),
+    ],
+)
 def test_bad_parameters_are_refused_naming_the_key(change, key, expected):
     with pytest.raises(ConfigError, match=expected) as raised:
         harness(**change)

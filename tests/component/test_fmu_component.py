@@ -1,6 +1,7 @@
 """Type ``fmu`` in-process (real FMUs built by pythonfmu, run through FMPy): its outputs equal
 FMPy's own ``simulate_fmu`` of the same FMU on the same steps; its variables, units and state;
 and every bad input it must refuse."""
+
 import re
 import subprocess
 import sys
@@ -17,7 +18,7 @@ from tests.conftest import ROOT, needs
 
 pytestmark = needs("fmi", "type fmu")
 
-H_NS = 15_625_000            # 1/64 s: n h is exact in binary, so FMPy's times and Zenorbit's are the same floats
+H_NS = 15_625_000  # 1/64 s: n h is exact in binary, so FMPy's times and Zenorbit's are the same floats
 H_S = H_NS / NS_PER_S
 WHEEL = {"inertia": 0.05, "max_torque": 0.2, "max_speed": 5.0, "time_constant": 0.05}
 
@@ -45,20 +46,35 @@ def simulate_fmu_apart(path, tmp_path, **options) -> np.ndarray:
     (test_fmu_exit.py runs these tests in processes that must exit 0)."""
     arguments, result = tmp_path / "simulate_args.npz", tmp_path / "simulate_result.npy"
     np.savez(arguments, options=np.array([options], dtype=object))
-    code = ("import sys, numpy as np, fmpy; options = np.load(sys.argv[2], allow_pickle=True)['options'][0]; "
-            "np.save(sys.argv[3], fmpy.simulate_fmu(sys.argv[1], **options))")
-    subprocess.run([sys.executable, "-c", code, str(path), str(arguments), str(result)], check=True,
-                   capture_output=True, timeout=300)
+    code = (
+        "import sys, numpy as np, fmpy; options = np.load(sys.argv[2], allow_pickle=True)['options'][0]; "
+        "np.save(sys.argv[3], fmpy.simulate_fmu(sys.argv[1], **options))"
+    )
+    subprocess.run(
+        [sys.executable, "-c", code, str(path), str(arguments), str(result)],
+        check=True,
+        capture_output=True,
+        timeout=300,
+    )
     return np.load(result)
 
 
 def test_outputs_equal_fmpy_simulate_fmu_on_the_same_steps(wheel_fmu, tmp_path):
-    n = 400   # 6.25 s: the wheel reaches max_speed, the command saturates and reverses
+    n = 400  # 6.25 s: the wheel reaches max_speed, the command saturates and reverses
     u = _command(n + 1)
     signal = np.array(list(zip(np.arange(n + 1) * H_S, u)), dtype=[("time", float), ("torque_command", float)])
     outputs = ["motor_torque", "reaction_torque", "wheel_speed"]
-    reference = simulate_fmu_apart(wheel_fmu, tmp_path, start_time=0.0, stop_time=n * H_S, step_size=H_S,
-                                   output_interval=H_S, start_values=WHEEL, input=signal, output=outputs)
+    reference = simulate_fmu_apart(
+        wheel_fmu,
+        tmp_path,
+        start_time=0.0,
+        stop_time=n * H_S,
+        step_size=H_S,
+        output_interval=H_S,
+        start_values=WHEEL,
+        input=signal,
+        output=outputs,
+    )
     h = Harness("fmu", {"path": str(wheel_fmu), "start_values": WHEEL})
     h.inputs["torque_command"] = u[0]
     h.initialize()
@@ -70,23 +86,27 @@ def test_outputs_equal_fmpy_simulate_fmu_on_the_same_steps(wheel_fmu, tmp_path):
     ours = np.array(rows)
     theirs = np.column_stack([reference[name] for name in outputs])
     assert len(reference) == n + 1
-    assert np.array_equal(ours, theirs)                           # bit for bit
-    assert 5.0 <= abs(ours[:, 2]).max() <= 5.0 + 0.2 * H_S / 0.05    # the speed limit held, one step late at most
-    assert ours[:, 0].min() < -0.1 < 0.1 < ours[:, 0].max()        # and the torque changed sign
+    assert np.array_equal(ours, theirs)  # bit for bit
+    assert 5.0 <= abs(ours[:, 2]).max() <= 5.0 + 0.2 * H_S / 0.05  # the speed limit held, one step late at most
+    assert ours[:, 0].min() < -0.1 < 0.1 < ours[:, 0].max()  # and the torque changed sign
 
 
 def test_vectors_names_types_and_units_come_from_the_model_description(wheel_fmu, probe_fmu):
     by_name = {v.name: v for v in FMUComponent.declare({"path": str(probe_fmu), "start_values": {}})}
     assert {n: (v.causality, v.shape) for n, v in by_name.items()} == {
-        "u": ("input", (3,)), "mode": ("input", ()), "p": ("output", (3,)), "der_q": ("output", ()),
-        "count": ("output", ())}
+        "u": ("input", (3,)),
+        "mode": ("input", ()),
+        "p": ("output", (3,)),
+        "der_q": ("output", ()),
+        "count": ("output", ()),
+    }
     assert "der(q)" in by_name["der_q"].description
     wheel = {v.name: v for v in FMUComponent.declare({"path": str(wheel_fmu), "start_values": {"torque_command": 0.1}})}
-    assert wheel["motor_torque"].unit == "N*m" and wheel["wheel_speed"].unit == "rad/s"   # FMI "N.m" read as N*m
-    assert wheel["torque_command"].start == 0.1   # an unconnected input holds its start value
+    assert wheel["motor_torque"].unit == "N*m" and wheel["wheel_speed"].unit == "rad/s"  # FMI "N.m" read as N*m
+    assert wheel["torque_command"].start == 0.1  # an unconnected input holds its start value
 
     h = Harness("fmu", {"path": str(probe_fmu), "start_values": {"gain": 2.0}})
-    h.inputs["u"], h.inputs["mode"] = [1.0, -2.0, 0.5], 2   # Integer input: set as an int
+    h.inputs["u"], h.inputs["mode"] = [1.0, -2.0, 0.5], 2  # Integer input: set as an int
     h.initialize()
     for _ in range(4):
         h.step(H_NS)
@@ -104,7 +124,7 @@ def test_state_restores_into_a_fresh_instance_and_continues_bit_for_bit(wheel_fm
         first.step(H_NS)
     state = first.get_state()
     second = Harness("fmu", params, t0_ns=first.t_ns)
-    second.set_state(state)                  # never initialized
+    second.set_state(state)  # never initialized
     for k in range(60, 120):
         for h in (first, second):
             h.inputs["torque_command"] = u[k]
@@ -122,8 +142,20 @@ def test_a_state_of_another_fmu_is_refused(wheel_fmu, probe_fmu):
 
 
 def test_an_fmu_without_state_support_says_why(tmp_path):
-    subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", str(ROOT / "tests" / "fmus" / "probe.py"),
-                    "-d", str(tmp_path)], check=True, capture_output=True)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pythonfmu",
+            "build",
+            "-f",
+            str(ROOT / "tests" / "fmus" / "probe.py"),
+            "-d",
+            str(tmp_path),
+        ],
+        check=True,
+        capture_output=True,
+    )
     params = {"path": str(tmp_path / "Probe.fmu"), "start_values": {}}
     assert "canGetAndSetFMUstate=false" in FMUComponent.state_problem(params)
     h = Harness("fmu", params)
@@ -156,12 +188,14 @@ def test_bad_files_are_refused_naming_the_key_and_the_file(tmp_path, probe_fmu):
     with zipfile.ZipFile(no_description, "w") as z:
         z.writestr("resources/x.txt", "x")
     assert "no modelDescription.xml" in _error({"path": str(no_description)})
-    model_exchange = tmp_path / "me.fmu"   # the probe's archive with its interface renamed
+    model_exchange = tmp_path / "me.fmu"  # the probe's archive with its interface renamed
     with zipfile.ZipFile(probe_fmu) as src, zipfile.ZipFile(model_exchange, "w") as dst:
         for item in src.infolist():
             data = src.read(item)
             if item.filename == "modelDescription.xml":
-                data = re.sub(rb'<CoSimulation (?:[^>]*? )?(modelIdentifier="\w+")[^>]*?(/?)>', rb"<ModelExchange \1\2>", data)
+                data = re.sub(
+                    rb'<CoSimulation (?:[^>]*? )?(modelIdentifier="\w+")[^>]*?(/?)>', rb"<ModelExchange \1\2>", data
+                )
                 data = data.replace(b"</CoSimulation>", b"</ModelExchange>")
             dst.writestr(item, data)
     assert "model exchange only" in _error({"path": str(model_exchange)})
@@ -174,6 +208,7 @@ def test_only_an_fmu_that_is_safe_beside_others_may_join_a_process_group(tmp_pat
     """A pythonfmu FMU runs its model in the host's interpreter: refused; an FMU without one (here
     the probe's archive without pythonfmu's resource) may join, unless it says it can be
     instantiated only once per process."""
+
     def rewritten(name: str, once: bool):
         path = tmp_path / name
         with zipfile.ZipFile(probe_fmu) as src, zipfile.ZipFile(path, "w") as dst:
@@ -182,10 +217,12 @@ def test_only_an_fmu_that_is_safe_beside_others_may_join_a_process_group(tmp_pat
                 if item.filename == "resources/slavemodule.txt":
                     continue
                 if item.filename == "modelDescription.xml" and once:
-                    data = data.replace(b'canBeInstantiatedOnlyOncePerProcess="false"',
-                                        b'canBeInstantiatedOnlyOncePerProcess="true"')
+                    data = data.replace(
+                        b'canBeInstantiatedOnlyOncePerProcess="false"', b'canBeInstantiatedOnlyOncePerProcess="true"'
+                    )
                 dst.writestr(item, data)
         return {"path": str(path), "start_values": {}}
+
     assert "embeds a Python interpreter (pythonfmu)" in FMUComponent.group_problem({"path": str(probe_fmu)})
     assert FMUComponent.group_problem(rewritten("native.fmu", once=False)) is None
     assert "canBeInstantiatedOnlyOncePerProcess=true" in FMUComponent.group_problem(rewritten("once.fmu", once=True))
@@ -194,7 +231,10 @@ def test_only_an_fmu_that_is_safe_beside_others_may_join_a_process_group(tmp_pat
 def test_bad_start_values_are_refused_naming_the_variable(probe_fmu):
     def error(start_values):
         return _error({"path": str(probe_fmu), "start_values": start_values})
-    assert error({"gian": 1.0}).startswith("start_values.gian: the FMU has no variable 'gian' (its parameters and inputs: gain")
+
+    assert error({"gian": 1.0}).startswith(
+        "start_values.gian: the FMU has no variable 'gian' (its parameters and inputs: gain"
+    )
     assert "only its parameters and inputs take start values" in error({"count": 3})
     assert "is of type Integer: expected an integer, got 1.5" in error({"mode": 1.5})
     assert "is of type Real: expected a number, got 'fast'" in error({"gain": "fast"})
@@ -202,13 +242,33 @@ def test_bad_start_values_are_refused_naming_the_variable(probe_fmu):
 
 
 def test_an_fmi3_fmu_equals_fmpy_simulate_fmu(tmp_path):
-    subprocess.run([sys.executable, "-m", "pythonfmu3", "build", "-f", str(ROOT / "tests" / "fmus" / "integrator3.py"),
-                    "-d", str(tmp_path)], check=True, capture_output=True)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pythonfmu3",
+            "build",
+            "-f",
+            str(ROOT / "tests" / "fmus" / "integrator3.py"),
+            "-d",
+            str(tmp_path),
+        ],
+        check=True,
+        capture_output=True,
+    )
     path, n = tmp_path / "Integrator3.fmu", 50
     u = np.cos(np.arange(n + 1) * H_S * 3.0)
     signal = np.array(list(zip(np.arange(n + 1) * H_S, u)), dtype=[("time", float), ("u", float)])
-    reference = simulate_fmu_apart(path, tmp_path, stop_time=n * H_S, step_size=H_S, output_interval=H_S,
-                                   start_values={"k": 3.0}, input=signal, output=["y"])
+    reference = simulate_fmu_apart(
+        path,
+        tmp_path,
+        stop_time=n * H_S,
+        step_size=H_S,
+        output_interval=H_S,
+        start_values={"k": 3.0},
+        input=signal,
+        output=["y"],
+    )
     h = Harness("fmu", {"path": str(path), "start_values": {"k": 3.0}})
     assert h.component.md.fmiVersion == "3.0"
     h.inputs["u"] = u[0]

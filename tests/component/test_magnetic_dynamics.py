@@ -1,5 +1,6 @@
 """The magnetic field and magnetorquers in the dynamics (components/dynamics/magnetic.py), the
 magnetometer and the B-dot controller, through the in-process harness."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -18,13 +19,23 @@ R_ECI, V_ECI = np.array([2100e3, -6200e3, 2300e3]), np.array([6900.0, 1800.0, -1
 Q_BASE = np.array([0.18, -0.27, 0.41, 0.0])
 Q_BASE[3] = np.sqrt(1 - Q_BASE[:3] @ Q_BASE[:3])
 W_BASE = np.array([0.03, -0.05, 0.07])
-INERTIA = np.diag([33.33333333, 59.33333333, 59.33333333])      # models/target.urdf about its CoM = base origin
+INERTIA = np.diag([33.33333333, 59.33333333, 59.33333333])  # models/target.urdf about its CoM = base origin
 
 
 def dynamics(engine: str, model: str = "dipole", magnetorquers=True, environment=False) -> Harness:
-    params = {"bodies": {"target": {"urdf": str(ROOT / "models" / "target.urdf"), "position": [1.5, -2.0, 0.5],
-                                    "orientation": Q_BASE.tolist(), "twist": [0.0, 0.0, 0.0, *W_BASE]}},
-              "tidal_force": environment, "gravity_gradient": environment, "magnetic_field": {"model": model}}
+    params = {
+        "bodies": {
+            "target": {
+                "urdf": str(ROOT / "models" / "target.urdf"),
+                "position": [1.5, -2.0, 0.5],
+                "orientation": Q_BASE.tolist(),
+                "twist": [0.0, 0.0, 0.0, *W_BASE],
+            }
+        },
+        "tidal_force": environment,
+        "gravity_gradient": environment,
+        "magnetic_field": {"model": model},
+    }
     if magnetorquers:
         params["magnetorquers"] = {"target": {"max_dipole": [100.0, 60.0, 100.0]}}
     h = Harness(f"dynamics.{engine}", params, epoch=EPOCH)
@@ -42,14 +53,14 @@ def test_magnetorquer_torque_drives_both_engines(engine):
     B = GeomagneticField("dipole", EPOCH).b_eci(R_ECI + np.array([1.5, -2.0, 0.5]), 0)
     assert out["target.b_body"] == pytest.approx(R.T @ B, rel=1e-12)
     component = h.component
-    free = component.world.forward_dynamics("target")["dv_W_base"][3:6]       # no dipole yet
+    free = component.world.forward_dynamics("target")["dv_W_base"][3:6]  # no dipole yet
     h.inputs["target.dipole"] = np.array([40.0, -90.0, 25.0])
     component.magnetics.apply(h._input_views())
     alpha = component.world.forward_dynamics("target")["dv_W_base"][3:6]
-    m = np.array([40.0, -60.0, 25.0])                              # saturated at 60 on y
+    m = np.array([40.0, -60.0, 25.0])  # saturated at 60 on y
     torque_W = np.cross(R @ m, B)
     I_W = R @ INERTIA @ R.T
-    w_W = W_BASE                                                   # (twist in W axes)
+    w_W = W_BASE  # (twist in W axes)
     assert free == pytest.approx(np.linalg.solve(I_W, -np.cross(w_W, I_W @ w_W)), rel=1e-9)
     expected = np.linalg.solve(I_W, torque_W)
     validation.check("mtb_dynamics", float(np.linalg.norm((alpha - free) - expected) / np.linalg.norm(expected)))
@@ -101,12 +112,12 @@ def test_magnetometer_adds_its_bias_and_seeded_noise():
 def test_bdot_commands_minus_gain_times_the_field_rate_scaled_into_its_limit():
     h = Harness("controller.bdot", {"gain": 2e7, "max_dipole": [50.0, 50.0, 20.0]})
     h.inputs["b"] = np.array([20e-6, -5e-6, 30e-6])
-    assert np.array_equal(h.step(500_000_000)["dipole"], np.zeros(3))         # one sample: no rate yet
+    assert np.array_equal(h.step(500_000_000)["dipole"], np.zeros(3))  # one sample: no rate yet
     h.inputs["b"] = np.array([20.4e-6, -5.3e-6, 30.1e-6])
     out = h.step(500_000_000)
     rate = np.array([0.4e-6, -0.3e-6, 0.1e-6]) / 0.5
     assert out["b_rate"] == pytest.approx(rate, rel=1e-9)
-    assert out["dipole"] == pytest.approx(-2e7 * rate, rel=1e-9)              # (16, -12, -4): within limits
-    h.inputs["b"] = np.array([22.4e-6, -5.3e-6, 30.1e-6])                     # x rate 4e-6 T/s: -80 A m^2
+    assert out["dipole"] == pytest.approx(-2e7 * rate, rel=1e-9)  # (16, -12, -4): within limits
+    h.inputs["b"] = np.array([22.4e-6, -5.3e-6, 30.1e-6])  # x rate 4e-6 T/s: -80 A m^2
     out = h.step(500_000_000)
-    assert out["dipole"] == pytest.approx([-50.0, 0.0, 0.0], abs=1e-9)        # scaled as a whole into 50
+    assert out["dipole"] == pytest.approx([-50.0, 0.0, 0.0], abs=1e-9)  # scaled as a whole into 50

@@ -7,6 +7,7 @@ and bad parameters as ConfigErrors naming the key.
 Statistical tolerances: 20000 samples give a relative standard error of 0.5 % on a standard
 deviation and 0.3 % on an RMS angle, so the 3 % bounds are ~6 standard errors (the seeds are
 fixed: the tests are deterministic anyway); a mean is held to 4 sigma / sqrt(N)."""
+
 from __future__ import annotations
 
 import math
@@ -24,10 +25,20 @@ from components.testing.harness import Harness
 MS = 1_000_000
 N = 20000
 
-IMU = {"seed": 11, "rate_noise": [0.01, 0.02, 0.005], "rate_bias": [0.001, -0.002, 0.003],
-       "accel_noise": "0.05 m/s^2", "accel_bias": -0.2}
-FT = {"seed": 12, "force_noise": "0.5 N", "torque_noise": [0.02, 0.03, 0.04], "force_bias": [1.0, 0.0, -1.0],
-      "torque_bias": "0.1 N*m"}
+IMU = {
+    "seed": 11,
+    "rate_noise": [0.01, 0.02, 0.005],
+    "rate_bias": [0.001, -0.002, 0.003],
+    "accel_noise": "0.05 m/s^2",
+    "accel_bias": -0.2,
+}
+FT = {
+    "seed": 12,
+    "force_noise": "0.5 N",
+    "torque_noise": [0.02, 0.03, 0.04],
+    "force_bias": [1.0, 0.0, -1.0],
+    "torque_bias": "0.1 N*m",
+}
 POSE = {"seed": 13, "position_noise": "1 cm", "angle_noise": "0.5 deg", "latency": "30 ms"}
 
 
@@ -87,7 +98,7 @@ def test_imu_outputs_are_zero_until_the_first_step_and_initialize_draws_nothing(
     a.inputs.update(imu_truth(0))
     assert all(not v.any() for v in a.initialize().values())
     b.inputs.update(imu_truth(0))
-    assert bit_equal(a.step(10 * MS), b.step(10 * MS))    # b never initialized by hand: same draws
+    assert bit_equal(a.step(10 * MS), b.step(10 * MS))  # b never initialized by hand: same draws
 
 
 def test_imu_with_zero_sigmas_is_truth_plus_bias():
@@ -114,12 +125,16 @@ def test_force_torque_noise_and_bias_statistics_match_the_declared_sigmas():
 
 
 def test_force_torque_biases_default_to_zero():
-    out = run(Harness("sensor.force_torque", {"seed": 3, "force_noise": 0, "torque_noise": 0}), 3,
-              truth=lambda k: {"wrench_true": WRENCH})
+    out = run(
+        Harness("sensor.force_torque", {"seed": 3, "force_noise": 0, "torque_noise": 0}),
+        3,
+        truth=lambda k: {"wrench_true": WRENCH},
+    )
     assert np.array_equal(out["wrench"], np.tile(WRENCH, (3, 1)))
 
 
 # --------------------------------------------------------------------------- determinism and state
+
 
 def pose_truth(k):
     """A tumbling target that approaches: q_true flips sign every step (the same rotation), to
@@ -128,8 +143,11 @@ def pose_truth(k):
     return {"p_true": np.array([2.0 - 0.01 * k, 0.1, -0.05]), "q_true": q * (-1.0) ** k}
 
 
-CASES = [("sensor.imu", IMU, imu_truth), ("sensor.force_torque", FT, lambda k: {"wrench_true": WRENCH * k}),
-         ("sensor.relative_pose", POSE, pose_truth)]
+CASES = [
+    ("sensor.imu", IMU, imu_truth),
+    ("sensor.force_torque", FT, lambda k: {"wrench_true": WRENCH * k}),
+    ("sensor.relative_pose", POSE, pose_truth),
+]
 
 
 @pytest.mark.parametrize("type_name, params, truth", CASES)
@@ -143,7 +161,7 @@ def test_same_seed_replays_bit_for_bit_and_another_seed_differs(type_name, param
 
 
 @pytest.mark.parametrize("type_name, params, truth", CASES)
-@pytest.mark.parametrize("at", [0, 1, 2, 17])     # before the first step, inside and past the latency
+@pytest.mark.parametrize("at", [0, 1, 2, 17])  # before the first step, inside and past the latency
 def test_state_into_a_fresh_instance_continues_bit_for_bit(type_name, params, truth, at):
     if type_name == "sensor.imu":
         params = {**params, "rate_bias_walk": 1e-3, "accel_bias_walk": 1e-2}
@@ -152,12 +170,12 @@ def test_state_into_a_fresh_instance_continues_bit_for_bit(type_name, params, tr
     a.initialize()
     run(a, at, truth=truth)
     blob = a.get_state()
-    b = Harness(type_name, params, t0_ns=a.t_ns)   # constructed, never initialized
+    b = Harness(type_name, params, t0_ns=a.t_ns)  # constructed, never initialized
     b.set_state(blob)
     state_a, state_b = decode_state(blob), decode_state(b.get_state())
     assert sorted(state_a) == sorted(state_b)
     assert all(state_a[k].dtype == state_b[k].dtype and state_a[k].tobytes() == state_b[k].tobytes() for k in state_a)
-    shifted = lambda k: truth(k + at)   # noqa: E731
+    shifted = lambda k: truth(k + at)  # noqa: E731
     assert bit_equal(run(a, 30, truth=shifted), run(b, 30, truth=shifted))
     assert a.get_state() == b.get_state()
 
@@ -175,7 +193,7 @@ def test_latency_publishes_the_truth_of_latency_over_step_steps_before(step_ms, 
     start = h.initialize()
     assert start["valid"] == 0 and start["p"].tolist() == [0.0] * 3 and start["q"].tolist() == [0, 0, 0, 1]
     out = run(h, steps, h_ns=step_ms * MS, truth=pose_truth)
-    assert out["valid"].tolist() == [0.0] * n + [1.0] * (steps - n)       # valid from step n on
+    assert out["valid"].tolist() == [0.0] * n + [1.0] * (steps - n)  # valid from step n on
     assert not out["p"][:n].any() and np.all(out["q"][:n] == [0, 0, 0, 1]) and not out["t_measured"][:n].any()
     for k in range(n, steps):
         truth = pose_truth(k - n)
@@ -189,7 +207,7 @@ def test_t_measured_is_when_the_truth_was_sampled():
     measurement is of t + h, and t_measured says so."""
     h = Harness("sensor.relative_pose", {**EXACT, "latency": "20 ms"})
     times = []
-    for k in range(6):
+    for _k in range(6):
         h.input_times_ns = {"p_true": h.t_ns + 10 * MS, "q_true": h.t_ns + 10 * MS}
         times.append(float(h.step(10 * MS)["t_measured"]))
     assert times == [0.0, 0.0, 0.01, 0.02, 0.03, 0.04]
@@ -201,7 +219,7 @@ def test_q_is_unit_and_sign_continuous_when_the_truth_flips_sign():
     assert np.allclose(np.linalg.norm(q, axis=1), 1.0, rtol=0, atol=1e-15)
     assert np.all(np.einsum("ij,ij->i", q[1:], q[:-1]) > 0.9)
     first = pose_truth(0)["q_true"]
-    assert q[0] @ first > 0          # the first one keeps the sign of its sample
+    assert q[0] @ first > 0  # the first one keeps the sign of its sample
 
 
 def test_q_noise_rms_angle_is_sqrt3_sigma_and_position_noise_matches():
@@ -210,7 +228,7 @@ def test_q_noise_rms_angle_is_sqrt3_sigma_and_position_noise_matches():
     truth = pose_truth(7)
     R_true = quat_to_matrix(truth["q_true"])
     angles = np.array([np.linalg.norm(log_so3(R_true.T @ quat_to_matrix(q))) for q in out["q"]])
-    assert math.sqrt(np.mean(angles ** 2)) == pytest.approx(math.sqrt(3) * sigma, rel=0.03)
+    assert math.sqrt(np.mean(angles**2)) == pytest.approx(math.sqrt(3) * sigma, rel=0.03)
     # the rotation vectors, in target axes, have sigma on each axis
     phis = np.array([log_so3(R_true.T @ quat_to_matrix(q)) for q in out["q"][:4000]])
     assert np.allclose(phis.std(axis=0), sigma, rtol=0.05)
@@ -243,62 +261,72 @@ def test_a_q_true_that_is_no_rotation_says_so():
 
 # --------------------------------------------------------------------------- in a run
 
+
 def test_in_a_run_at_its_own_slower_step_it_equals_the_harness(tmp_path):
     """run.step 1 ms, the sensor's step 10 ms, latency 30 ms: its outputs hold between its
     steps, the sample of its step at 0 is published by its step at 30 ms and recorded from
     t = 40 ms (the end of that step) on; the values equal the harness stepped at 10 ms."""
-    from orchestrator.config.yaml_file import ConfigErrors
     from orchestrator.config.load import load
+    from orchestrator.config.yaml_file import ConfigErrors
     from orchestrator.run.inprocess import run_in_process
 
     config = tmp_path / "sensor.yaml"
-    config.write_text(textwrap.dedent("""\
+    config.write_text(
+        textwrap.dedent("""\
         run: {name: sensor, epoch: 2022-09-18T12:00:00Z, duration: 100 ms, step: 1 ms}
         components:
           camera:
             type: sensor.relative_pose
             step: 10 ms
             parameters: {seed: 3, position_noise: 1 cm, angle_noise: 1 deg, latency: 30 ms}
-        """))
+        """)
+    )
     rows = run_in_process(load(config))
     valid, t_measured, p = rows[:, 8], rows[:, 7], rows[:, 0:3]
     assert valid.tolist() == [0.0] * 40 + [1.0] * 61
     assert t_measured[40:50].tolist() == [0.0] * 10 and t_measured[50] == 0.01 and t_measured[100] == 0.06
-    h = Harness("sensor.relative_pose", {"seed": 3, "position_noise": "1 cm", "angle_noise": "1 deg",
-                                         "latency": "30 ms"})
+    h = Harness(
+        "sensor.relative_pose", {"seed": 3, "position_noise": "1 cm", "angle_noise": "1 deg", "latency": "30 ms"}
+    )
     reference = run(h, 10)
     assert np.array_equal(rows[10::10, 0:3], reference["p"]) and np.array_equal(rows[10::10, 3:7], reference["q"])
-    assert np.array_equal(p[41:50], np.tile(p[40], (9, 1)))        # held between its steps
+    assert np.array_equal(p[41:50], np.tile(p[40], (9, 1)))  # held between its steps
 
     bad = tmp_path / "bad.yaml"
     bad.write_text(config.read_text().replace("latency: 30 ms", "latency: 35 ms"))
-    with pytest.raises(ConfigErrors, match="components.camera.parameters.latency: must be a non-negative integer "
-                                          "multiple of the component's step"):
-        load(bad)                      # refused before the run (check and run alike), not at its first step
+    with pytest.raises(
+        ConfigErrors,
+        match="components.camera.parameters.latency: must be a non-negative integer multiple of the component's step",
+    ):
+        load(bad)  # refused before the run (check and run alike), not at its first step
 
 
 # --------------------------------------------------------------------------- bad parameters
 
-@pytest.mark.parametrize("type_name, params, change, key, message", [
-    ("sensor.imu", IMU, {"rate_noise": -0.1}, "rate_noise", ">= 0"),
-    ("sensor.imu", IMU, {"accel_noise": [0.1, -0.1, 0.1]}, "accel_noise[1]", ">= 0"),
-    ("sensor.imu", IMU, {"rate_bias": [0.1, 0.2]}, "rate_bias", "expected 3 values, got 2"),
-    ("sensor.imu", IMU, {"seed": None}, "seed", "missing required parameter"),
-    ("sensor.imu", IMU, {"seed": 1.5}, "seed", "expected an integer"),
-    ("sensor.imu", IMU, {"seed": -1}, "seed", ">= 0"),
-    ("sensor.imu", IMU, {"accel_noise": None}, "accel_noise", "missing required parameter"),
-    ("sensor.imu", IMU, {"rate_bias": None}, "rate_bias", "missing required parameter"),
-    ("sensor.imu", IMU, {"rate_noise": "1 m/s"}, "rate_noise", "does not measure rad/s"),
-    ("sensor.imu", IMU, {"rate_bias_walk": -1.0}, "rate_bias_walk", ">= 0"),
-    ("sensor.force_torque", FT, {"torque_noise": "1 N"}, "torque_noise", "does not measure N*m"),
-    ("sensor.force_torque", FT, {"force_bias": [1, 2, 3, 4]}, "force_bias", "expected 3 values, got 4"),
-    ("sensor.force_torque", FT, {"force_noise": None}, "force_noise", "missing required parameter"),
-    ("sensor.relative_pose", POSE, {"latency": "-10 ms"}, "latency", ">= 0"),
-    ("sensor.relative_pose", POSE, {"latency": None}, "latency", "missing required parameter"),
-    ("sensor.relative_pose", POSE, {"angle_noise": -0.01}, "angle_noise", ">= 0"),
-    ("sensor.relative_pose", POSE, {"position_noise": [0.1, 0.1]}, "position_noise", "expected 3 values, got 2"),
-    ("sensor.relative_pose", POSE, {"range": 3.0}, "range", "unknown parameter"),
-])
+
+@pytest.mark.parametrize(
+    "type_name, params, change, key, message",
+    [
+        ("sensor.imu", IMU, {"rate_noise": -0.1}, "rate_noise", ">= 0"),
+        ("sensor.imu", IMU, {"accel_noise": [0.1, -0.1, 0.1]}, "accel_noise[1]", ">= 0"),
+        ("sensor.imu", IMU, {"rate_bias": [0.1, 0.2]}, "rate_bias", "expected 3 values, got 2"),
+        ("sensor.imu", IMU, {"seed": None}, "seed", "missing required parameter"),
+        ("sensor.imu", IMU, {"seed": 1.5}, "seed", "expected an integer"),
+        ("sensor.imu", IMU, {"seed": -1}, "seed", ">= 0"),
+        ("sensor.imu", IMU, {"accel_noise": None}, "accel_noise", "missing required parameter"),
+        ("sensor.imu", IMU, {"rate_bias": None}, "rate_bias", "missing required parameter"),
+        ("sensor.imu", IMU, {"rate_noise": "1 m/s"}, "rate_noise", "does not measure rad/s"),
+        ("sensor.imu", IMU, {"rate_bias_walk": -1.0}, "rate_bias_walk", ">= 0"),
+        ("sensor.force_torque", FT, {"torque_noise": "1 N"}, "torque_noise", "does not measure N*m"),
+        ("sensor.force_torque", FT, {"force_bias": [1, 2, 3, 4]}, "force_bias", "expected 3 values, got 4"),
+        ("sensor.force_torque", FT, {"force_noise": None}, "force_noise", "missing required parameter"),
+        ("sensor.relative_pose", POSE, {"latency": "-10 ms"}, "latency", ">= 0"),
+        ("sensor.relative_pose", POSE, {"latency": None}, "latency", "missing required parameter"),
+        ("sensor.relative_pose", POSE, {"angle_noise": -0.01}, "angle_noise", ">= 0"),
+        ("sensor.relative_pose", POSE, {"position_noise": [0.1, 0.1]}, "position_noise", "expected 3 values, got 2"),
+        ("sensor.relative_pose", POSE, {"range": 3.0}, "range", "unknown parameter"),
+    ],
+)
 def test_bad_parameters_are_config_errors_naming_the_key(type_name, params, change, key, message):
     params = {k: v for k, v in {**params, **change}.items() if v is not None}
     with pytest.raises(ConfigError) as error:
@@ -317,8 +345,12 @@ def test_wrong_input_shape_is_refused_naming_the_input():
 @pytest.mark.parametrize("type_name", ["sensor.imu", "sensor.force_torque", "sensor.relative_pose"])
 def test_docstrings_carry_the_parameter_and_variable_tables_with_units(type_name):
     from components import registry
+
     doc = registry.load(type_name).__doc__
     assert "| seed | int | required |" in doc and "| variable | causality | shape | unit | description |" in doc
-    for unit in {"sensor.imu": ("rad/s", "m/s^2"), "sensor.force_torque": ("N*m", "N, N*m"),
-                 "sensor.relative_pose": ("| m |", "| s |", "duration")}[type_name]:
+    for unit in {
+        "sensor.imu": ("rad/s", "m/s^2"),
+        "sensor.force_torque": ("N*m", "N, N*m"),
+        "sensor.relative_pose": ("| m |", "| s |", "duration"),
+    }[type_name]:
         assert unit in doc

@@ -2,6 +2,7 @@
 pairs to a bridge in a namespace of its own (nothing touches the machine's own network). The
 bridge forgets addresses at once (ageing time 0), so it floods every frame to every port like a
 hub: a host on it sees the traffic of the others, as a reader on a shared link would."""
+
 from __future__ import annotations
 
 import os
@@ -9,7 +10,7 @@ import shutil
 import subprocess
 from dataclasses import dataclass
 
-SUBNET = "192.0.2"   # TEST-NET-1 (RFC 5737): documentation addresses, routed nowhere
+SUBNET = "192.0.2"  # TEST-NET-1 (RFC 5737): documentation addresses, routed nowhere
 
 
 def missing() -> str | None:
@@ -35,9 +36,9 @@ def _ip(*args: str, netns: str | None = None) -> None:
 
 @dataclass
 class Host:
-    name: str        # its namespace
-    address: str     # its IPv4 address on the shared link
-    port: str        # its veth end on the bridge (in the bridge's namespace)
+    name: str  # its namespace
+    address: str  # its IPv4 address on the shared link
+    port: str  # its veth end on the bridge (in the bridge's namespace)
 
     def command(self, *argv: str) -> list[str]:
         """``argv`` run inside this host."""
@@ -61,8 +62,20 @@ class Network:
                 self.hosts[name] = host
                 _ip("netns", "add", host.name)
                 _ip("link", "set", "lo", "up", netns=host.name)
-                _ip("link", "add", "eth0", "netns", host.name, "type", "veth", "peer", "name", host.port,
-                    "netns", self.bridge)
+                _ip(
+                    "link",
+                    "add",
+                    "eth0",
+                    "netns",
+                    host.name,
+                    "type",
+                    "veth",
+                    "peer",
+                    "name",
+                    host.port,
+                    "netns",
+                    self.bridge,
+                )
                 _ip("addr", "add", f"{host.address}/24", "dev", "eth0", netns=host.name)
                 _ip("link", "set", "eth0", "up", netns=host.name)
                 _ip("link", "set", host.port, "master", "br0", "up", netns=self.bridge)
@@ -86,7 +99,7 @@ class Network:
             subprocess.run(["ip", "netns", "del", host.name], capture_output=True)
         subprocess.run(["ip", "netns", "del", self.bridge], capture_output=True)
 
-    def __enter__(self) -> "Network":
+    def __enter__(self) -> Network:
         return self
 
     def __exit__(self, *exc) -> None:

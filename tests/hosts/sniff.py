@@ -3,6 +3,7 @@ raw to a file until SIGTERM. Run inside a host (network namespace) of tests/host
 
     python -m tests.hosts.sniff IFACE OUT
 """
+
 import signal
 import socket
 import sys
@@ -21,7 +22,7 @@ def main(interface: str, out: str) -> None:
         while not stop:
             try:
                 file.write(capture.recv(65535))
-            except socket.timeout:
+            except TimeoutError:
                 continue
 
 

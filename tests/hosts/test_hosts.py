@@ -2,6 +2,7 @@
 others (`orchestrator join`), all on one shared link (tests/hosts/netns.py) that a fourth host
 reads. Real processes, real Zenoh, real TCP between hosts; the reference is the same run with
 every component local, on loopback. Needs root and iproute2 (CI has both); skips otherwise."""
+
 from __future__ import annotations
 
 import json
@@ -19,8 +20,8 @@ from tests.hosts.netns import Network, missing
 
 pytestmark = [pytest.mark.integration, pytest.mark.skipif(missing() is not None, reason=str(missing()))]
 
-VALUE = 1234.5678           # src's output: its float64 bytes travel in every message src sends
-LEASE = "2 s"             # short, to see a cut soon; long enough for a loaded machine
+VALUE = 1234.5678  # src's output: its float64 bytes travel in every message src sends
+LEASE = "2 s"  # short, to see a cut soon; long enough for a loaded machine
 
 CONFIG = """
 run: {{name: {name}, epoch: 2022-09-18T12:00:00Z, duration: {duration}, step: 5 ms, realtime: {realtime},
@@ -36,10 +37,31 @@ connections:
 """
 
 
-def config(name, *, duration="2 s", realtime=0, listen="tcp/0.0.0.0:0", tls="auto", launch="external",
-           on_failure="stop", run_extra="", bus_extra="") -> str:
-    return CONFIG.format(name=name, duration=duration, realtime=realtime, listen=listen, tls=tls, lease=LEASE,
-                         launch=launch, on_failure=on_failure, value=VALUE, run_extra=run_extra, bus_extra=bus_extra)
+def config(
+    name,
+    *,
+    duration="2 s",
+    realtime=0,
+    listen="tcp/0.0.0.0:0",
+    tls="auto",
+    launch="external",
+    on_failure="stop",
+    run_extra="",
+    bus_extra="",
+) -> str:
+    return CONFIG.format(
+        name=name,
+        duration=duration,
+        realtime=realtime,
+        listen=listen,
+        tls=tls,
+        lease=LEASE,
+        launch=launch,
+        on_failure=on_failure,
+        value=VALUE,
+        run_extra=run_extra,
+        bus_extra=bus_extra,
+    )
 
 
 @pytest.fixture
@@ -51,6 +73,7 @@ def network():
 @pytest.fixture
 def reference(tmp_path_factory):
     """The same run, every component local, on loopback (no TLS)."""
+
     def run(duration="2 s"):
         directory = tmp_path_factory.mktemp("reference")
         path = directory / "config.yaml"
@@ -58,6 +81,7 @@ def reference(tmp_path_factory):
         result = orchestrator("run", path, "--record", directory / "rec")
         assert result.returncode == 0, result.stderr
         return table(directory / "rec")
+
     return run
 
 
@@ -72,8 +96,13 @@ class Processes:
         self.started: list[subprocess.Popen] = []
 
     def start(self, host, *args: str) -> subprocess.Popen:
-        process = subprocess.Popen(host.command(sys.executable, "-m", "orchestrator.cli", *args), cwd=ROOT,
-                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        process = subprocess.Popen(
+            host.command(sys.executable, "-m", "orchestrator.cli", *args),
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         self.started.append(process)
         return process
 
@@ -112,18 +141,25 @@ def start_spread(network, processes, tmp_path, text: str):
 
 @pytest.mark.parametrize("tls", ["auto", "false"])
 def test_a_run_across_hosts_equals_the_local_run_and_a_reader_on_the_link_sees_nothing_over_tls(
-        network, processes, reference, tmp_path, tls):
+    network, processes, reference, tmp_path, tls
+):
     """Signals bit-identical to the loopback run. A host on the same link captures every frame:
     over TLS (bus.tls auto: the bus leaves loopback) the bytes of src's float64 output never show
     in it; over plain TCP they do (so the capture sees the run's traffic)."""
     capture = tmp_path / "capture.bin"
     subprocess.run(network["tap"].command("ip", "link", "set", "eth0", "promisc", "on"), check=True)
-    sniffer = subprocess.Popen(network["tap"].command(sys.executable, "-m", "tests.hosts.sniff", "eth0", str(capture)),
-                               cwd=ROOT, stdout=subprocess.PIPE, text=True)
+    sniffer = subprocess.Popen(
+        network["tap"].command(sys.executable, "-m", "tests.hosts.sniff", "eth0", str(capture)),
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert sniffer.stdout.readline().strip() == "capturing"
-        plain = ", plaintext: accept-the-risk" if tls == "false" else ""     # said in words (issue 34)
-        run, joins, record = start_spread(network, processes, tmp_path, config(f"spread{tls}", tls=tls, bus_extra=plain))
+        plain = ", plaintext: accept-the-risk" if tls == "false" else ""  # said in words (issue 34)
+        run, joins, record = start_spread(
+            network, processes, tmp_path, config(f"spread{tls}", tls=tls, bus_extra=plain)
+        )
         _, err = run.communicate(timeout=240)
         assert run.returncode == 0, err
         for name, process in joins.items():
@@ -134,12 +170,12 @@ def test_a_run_across_hosts_equals_the_local_run_and_a_reader_on_the_link_sees_n
         sniffer.wait(timeout=30)
     assert table(record).equals(reference())
     bytes_seen = capture.read_bytes()
-    assert len(bytes_seen) > 20_000, len(bytes_seen)   # the run's traffic went past the reader
+    assert len(bytes_seen) > 20_000, len(bytes_seen)  # the run's traffic went past the reader
     payload = struct.pack("<d", VALUE)
     if tls == "false":
         assert payload in bytes_seen
     else:
-        assert b"\x17\x03\x03" in bytes_seen             # TLS 1.2/1.3 application data records
+        assert b"\x17\x03\x03" in bytes_seen  # TLS 1.2/1.3 application data records
         assert payload not in bytes_seen
 
 
@@ -152,14 +188,15 @@ def within_two_leases(record: Path, component: str) -> dict:
     assert fault["event"] == "fault" and end["event"] == "end" and end["status"] == "failed", events[-2:]
     assert fault["component"] == component and "nothing heard from it within bus.lease" in fault["message"]
     lease = float(LEASE.split()[0])
-    assert lease <= fault["silent_s"] < lease + 1.0, fault   # the lease found it, nothing slower
+    assert lease <= fault["silent_s"] < lease + 1.0, fault  # the lease found it, nothing slower
     assert fault["silent_s"] + end["wall_s"] - fault["wall_s"] <= 2 * lease + 1.0, (fault, end)
     return fault
 
 
 @pytest.mark.parametrize("realtime, step_timeout", [(1.0, "10 min"), (0, "10 s")])
-def test_a_cut_link_is_detected_within_the_lease_and_reported(network, processes, reference, tmp_path, realtime,
-                                                              step_timeout):
+def test_a_cut_link_is_detected_within_the_lease_and_reported(
+    network, processes, reference, tmp_path, realtime, step_timeout
+):
     """Host a's cable pulled midway (its port down: its TCP links just go silent): the
     orchestrator sees it within bus.lease (not the step_timeout: 10 min, or 10 s, which would end
     it 5 leases late), fails the run naming the component and its host within two leases, and
@@ -174,20 +211,21 @@ def test_a_cut_link_is_detected_within_the_lease_and_reported(network, processes
     assert run.returncode == 1, err
     assert f"component 'a' (test.integrator) on host {network['a'].address}" in err, err
     assert f"nothing heard from it within bus.lease ({LEASE})" in err, err
-    assert "step_timeout" not in err, err   # the lease found it, not the step_timeout
+    assert "step_timeout" not in err, err  # the lease found it, not the step_timeout
     fault = within_two_leases(record, "a")
     assert network["a"].address in fault["message"]
     recorded = table(record)
-    assert 1000 <= len(recorded) < 60 / 0.005   # failed before the run's end
+    assert 1000 <= len(recorded) < 60 / 0.005  # failed before the run's end
     if realtime:
-        assert recorded.equals(reference("60 s").iloc[:len(recorded)])
-    joins["a"].send_signal(signal.SIGINT)   # Ctrl-C on the cut host: closing must not wait for the dead link
-    _, joined = joins["a"].communicate(timeout=10)   # (Zenoh drains a link before closing it: ~17 s on a cut one)
+        assert recorded.equals(reference("60 s").iloc[: len(recorded)])
+    joins["a"].send_signal(signal.SIGINT)  # Ctrl-C on the cut host: closing must not wait for the dead link
+    _, joined = joins["a"].communicate(timeout=10)  # (Zenoh drains a link before closing it: ~17 s on a cut one)
     assert joins["a"].returncode == 130, joined
 
 
 def test_a_component_whose_link_was_cut_joins_again_and_the_run_restarts_from_its_checkpoint(
-        network, processes, reference, tmp_path):
+    network, processes, reference, tmp_path
+):
     """a (external, on_failure: restart) loses its link; once it is back, a's `orchestrator join`
     joins again, every component restarts from the last checkpoint and the run ends with the
     signals of a run that never failed."""
@@ -219,8 +257,9 @@ def test_a_run_through_the_router(network, processes, reference, tmp_path):
     (tmp_path / "config.yaml").write_text(text)
     record = tmp_path / "rec"
     run = processes.start(network["orch"], "run", str(tmp_path / "config.yaml"), "--record", str(record))
-    routing = processes.start(router, "router", "--listen", "tls/0.0.0.0:7447", "--join",
-                              str(join_file(record, "router")))
+    routing = processes.start(
+        router, "router", "--listen", "tls/0.0.0.0:7447", "--join", str(join_file(record, "router"))
+    )
     joins = {name: processes.start(network[name], "join", str(join_file(record, name))) for name in ("a", "b")}
     _, err = run.communicate(timeout=240)
     assert run.returncode == 0, err
@@ -228,6 +267,6 @@ def test_a_run_through_the_router(network, processes, reference, tmp_path):
     for process in joins.values():
         process.communicate(timeout=60)
         assert process.returncode == 0
-    _, routed = routing.communicate(timeout=60)   # it ends with the run
+    _, routed = routing.communicate(timeout=60)  # it ends with the run
     assert routing.returncode == 0 and "router of run 'routed'" in routed, routed
     assert table(record).equals(reference())

@@ -15,6 +15,7 @@ unanswered.
 
     python tests/integration/ros2_standin.py --listen tcp/127.0.0.1:7447 --kp 3 --kd 0.5 ...
 """
+
 from __future__ import annotations
 
 import argparse
@@ -26,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-ATTACHMENT = struct.Struct("<qqB16s")   # sequence, source timestamp (ns), LEB128 length 16, GID
+ATTACHMENT = struct.Struct("<qqB16s")  # sequence, source timestamp (ns), LEB128 length 16, GID
 
 
 def key(domain: int, topic: str, msgtype: str, typestore) -> str:
@@ -35,16 +36,21 @@ def key(domain: int, topic: str, msgtype: str, typestore) -> str:
     return f"{domain}/{topic.strip('/')}/{package}::msg::dds_::{name}_/{typestore.hash_rihs01(msgtype)}"
 
 
-def token(domain: int, zid: str, entity: int, kind: str, topic: str | None = None, msgtype: str | None = None,
-          typestore=None) -> str:
+def token(
+    domain: int, zid: str, entity: int, kind: str, topic: str | None = None, msgtype: str | None = None, typestore=None
+) -> str:
     """A liveliness token of node ``standin`` (id 0) in namespace and enclave ``/``: ``@ros2_lv/<domain>/<zid>/
     <node id>/<entity id>/<NN|MP|MS>/<enclave>/<namespace>/<name>[/<topic>/<type>/<hash>/<qos>]``, '/' in
     names as '%', the QoS (reliable, volatile, keep last 10) with rmw_zenoh's defaults left empty."""
     parts = ["@ros2_lv", str(domain), zid, "0", str(entity), kind, "%", "%", "standin"]
     if topic is not None:
         package, _, name = msgtype.split("/")
-        parts += [topic.replace("/", "%"), f"{package}::msg::dds_::{name}_", typestore.hash_rihs01(msgtype),
-                  "::,10:,:,:,,"]
+        parts += [
+            topic.replace("/", "%"),
+            f"{package}::msg::dds_::{name}_",
+            typestore.hash_rihs01(msgtype),
+            "::,10:,:,:,,",
+        ]
     return "/".join(parts)
 
 
@@ -77,16 +83,17 @@ def main() -> int:
     sequence = {"n": 0}
     effort_key = key(args.domain, args.effort, "trajectory_msgs/msg/JointTrajectory", store)
     array_key = key(args.domain, args.effort_array, "std_msgs/msg/Float64MultiArray", store)
-    received: queue.SimpleQueue = queue.SimpleQueue()   # callbacks only enqueue; the main thread answers
+    received: queue.SimpleQueue = queue.SimpleQueue()  # callbacks only enqueue; the main thread answers
     clocks: list[int] = []
 
     def put(k: str, message, msgtype: str, stamp: int) -> None:
         sequence["n"] += 1
-        session.put(k, bytes(store.serialize_cdr(message, msgtype)),
-                    attachment=ATTACHMENT.pack(sequence["n"], stamp, 16, gid))
+        session.put(
+            k, bytes(store.serialize_cdr(message, msgtype)), attachment=ATTACHMENT.pack(sequence["n"], stamp, 16, gid)
+        )
 
     def on_state(sample) -> None:
-        seq, _, length, _ = ATTACHMENT.unpack(sample.attachment.to_bytes())   # an rmw_zenoh sample has one
+        seq, _, length, _ = ATTACHMENT.unpack(sample.attachment.to_bytes())  # an rmw_zenoh sample has one
         assert length == 16 and seq >= 1
         received.put(("state", sample.payload.to_bytes()))
 
@@ -94,16 +101,21 @@ def main() -> int:
         ATTACHMENT.unpack(sample.attachment.to_bytes())
         received.put(("clock", sample.payload.to_bytes()))
 
-    subscribers = [session.declare_subscriber(key(args.domain, args.state, "sensor_msgs/msg/JointState", store),
-                                              on_state),
-                   session.declare_subscriber(key(args.domain, "/clock", "rosgraph_msgs/msg/Clock", store), on_clock)]
+    subscribers = [
+        session.declare_subscriber(key(args.domain, args.state, "sensor_msgs/msg/JointState", store), on_state),
+        session.declare_subscriber(key(args.domain, "/clock", "rosgraph_msgs/msg/Clock", store), on_clock),
+    ]
     zid = str(session.info.zid())
-    tokens = [session.liveliness().declare_token(t) for t in (
-        token(args.domain, zid, 0, "NN"),
-        token(args.domain, zid, 1, "MS", args.state, "sensor_msgs/msg/JointState", store),
-        token(args.domain, zid, 2, "MS", "/clock", "rosgraph_msgs/msg/Clock", store),
-        token(args.domain, zid, 3, "MP", args.effort, "trajectory_msgs/msg/JointTrajectory", store),
-        token(args.domain, zid, 4, "MP", args.effort_array, "std_msgs/msg/Float64MultiArray", store))]
+    tokens = [
+        session.liveliness().declare_token(t)
+        for t in (
+            token(args.domain, zid, 0, "NN"),
+            token(args.domain, zid, 1, "MS", args.state, "sensor_msgs/msg/JointState", store),
+            token(args.domain, zid, 2, "MS", "/clock", "rosgraph_msgs/msg/Clock", store),
+            token(args.domain, zid, 3, "MP", args.effort, "trajectory_msgs/msg/JointTrajectory", store),
+            token(args.domain, zid, 4, "MP", args.effort_array, "std_msgs/msg/Float64MultiArray", store),
+        )
+    ]
     signal.signal(signal.SIGTERM, lambda *_: received.put(("stop", b"")))
     args.ready.touch()
     try:
@@ -123,14 +135,27 @@ def main() -> int:
                 continue
             effort = -args.kp * state.position - args.kd * state.velocity
             point = types["trajectory_msgs/msg/JointTrajectoryPoint"](
-                positions=np.empty(0), velocities=np.empty(0), accelerations=np.empty(0), effort=effort,
-                time_from_start=types["builtin_interfaces/msg/Duration"](sec=0, nanosec=0))
-            put(effort_key, types["trajectory_msgs/msg/JointTrajectory"](
-                header=state.header, joint_names=list(state.name), points=[point]),
-                "trajectory_msgs/msg/JointTrajectory", stamp)
+                positions=np.empty(0),
+                velocities=np.empty(0),
+                accelerations=np.empty(0),
+                effort=effort,
+                time_from_start=types["builtin_interfaces/msg/Duration"](sec=0, nanosec=0),
+            )
+            put(
+                effort_key,
+                types["trajectory_msgs/msg/JointTrajectory"](
+                    header=state.header, joint_names=list(state.name), points=[point]
+                ),
+                "trajectory_msgs/msg/JointTrajectory",
+                stamp,
+            )
             layout = types["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
-            put(array_key, types["std_msgs/msg/Float64MultiArray"](layout=layout, data=effort),
-                "std_msgs/msg/Float64MultiArray", stamp)
+            put(
+                array_key,
+                types["std_msgs/msg/Float64MultiArray"](layout=layout, data=effort),
+                "std_msgs/msg/Float64MultiArray",
+                stamp,
+            )
     finally:
         args.clock_log.write_text("".join(f"{c}\n" for c in clocks))
         for declared in subscribers + tokens:

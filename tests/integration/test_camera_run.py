@@ -7,6 +7,7 @@ grapple is (``grasp.p_ee_grasp``, ``grasp.q_ee_grasp``, DART's kinematics): the 
 pixel nearest the grapple's projection meets the plane of the grapple's tip disc at a depth
 computed here in float64 from those recorded values.
 """
+
 from __future__ import annotations
 
 import os
@@ -21,8 +22,10 @@ from scipy.spatial.transform import Rotation
 from components.camera.render import EGL_PACKAGES, egl_problem
 from tests.conftest import ROOT, component_processes, needs, orchestrator
 
-pytestmark = [pytest.mark.integration,
-              pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}")]
+pytestmark = [
+    pytest.mark.integration,
+    pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}"),
+]
 
 CAPTURE = ROOT / "configs" / "capture_tumbling_target.yaml"
 # where the camera sits on the end effector (beside the tool, which spans |y| < 0.05 m)
@@ -30,7 +33,7 @@ MOUNT = np.array([0.0, 0.07, -0.03])
 # the grapple in the ee frame at the start (the capture config's initial arm pose): the camera
 # looks at it, so that the frames hold it while the arm starts to move
 GRAPPLE_AT_START = np.array([0.82793285, 0.29939321, -0.0460646])
-DISC_RADIUS = 0.05 * np.cos(np.pi / 64)       # the tip disc's 64-gon's inradius (m)
+DISC_RADIUS = 0.05 * np.cos(np.pi / 64)  # the tip disc's 64-gon's inradius (m)
 WIDTH, HEIGHT, F, CX, CY = 640, 480, 500.0, 301.3, 251.7
 
 
@@ -52,11 +55,26 @@ def camera_config(path: Path, duration: str = "1 s", step: str = "100 ms", **cam
         body["urdf"] = str((CAPTURE.parent / body["urdf"]).resolve())
     controller = config["components"]["controller"]["parameters"]
     controller["urdf"] = str((CAPTURE.parent / controller["urdf"]).resolve())
-    parameters = {"bodies": {name: body["urdf"] for name, body in bodies.items()},
-                  "body": "servicer", "link": "ee", "position": MOUNT.tolist(),
-                  "orientation": looking_at(GRAPPLE_AT_START - MOUNT),
-                  "width": WIDTH, "height": HEIGHT, "fx": F, "fy": F, "cx": CX, "cy": CY, "near": 0.05, "far": 20.0,
-                  "ambient": 0.1, "seed": 3, "pixel_noise": 0.0, "depth_noise": 0.0, **camera}
+    parameters = {
+        "bodies": {name: body["urdf"] for name, body in bodies.items()},
+        "body": "servicer",
+        "link": "ee",
+        "position": MOUNT.tolist(),
+        "orientation": looking_at(GRAPPLE_AT_START - MOUNT),
+        "width": WIDTH,
+        "height": HEIGHT,
+        "fx": F,
+        "fy": F,
+        "cx": CX,
+        "cy": CY,
+        "near": 0.05,
+        "far": 20.0,
+        "ambient": 0.1,
+        "seed": 3,
+        "pixel_noise": 0.0,
+        "depth_noise": 0.0,
+        **camera,
+    }
     config["components"]["camera"] = {"type": "sensor.camera", "step": step, "parameters": parameters}
     for body in bodies:
         for variable in ("position", "orientation", "q"):
@@ -80,11 +98,12 @@ def recorded(tmp_path_factory):
 def rrd_camera(rrd: Path, entity: str):
     """(the pinhole's K as logged, the colour images logged) of a camera entity in an .rrd."""
     from rerun.chunk import RrdReader
+
     pinhole, images = None, []
     for chunk in RrdReader(rrd).stream():
         batch = chunk.to_record_batch()
         if chunk.entity_path == entity and chunk.is_static and "Pinhole:image_from_camera" in batch.schema.names:
-            pinhole = np.array(batch.column("Pinhole:image_from_camera").to_pylist()[0]).reshape(3, 3).T   # column-major
+            pinhole = np.array(batch.column("Pinhole:image_from_camera").to_pylist()[0]).reshape(3, 3).T  # column-major
         if chunk.entity_path == f"{entity}/rgb" and "Image:buffer" in batch.schema.names:
             images += batch.column("Image:buffer").to_pylist()
     return pinhole, images
@@ -95,7 +114,7 @@ def test_a_wrist_camera_records_frames_whose_depth_at_the_grapple_is_the_dynamic
     record = recorded
     signals = pandas.read_parquet(record / "signals.parquet")
     frames = sorted((record / "frames" / "camera").glob("*.npz"))
-    assert [f.name for f in frames] == [f"{k:06d}.npz" for k in range(10)]     # 1 s at 10 Hz, none lost
+    assert [f.name for f in frames] == [f"{k:06d}.npz" for k in range(10)]  # 1 s at 10 Hz, none lost
     assert signals["camera.frame"].iloc[-1] == 10.0
     T_link_camera = np.eye(4)
     T_link_camera[:3, :3] = Rotation.from_quat(looking_at(GRAPPLE_AT_START - MOUNT)).as_matrix()
@@ -115,12 +134,12 @@ def test_a_wrist_camera_records_frames_whose_depth_at_the_grapple_is_the_dynamic
         R_c = T_link_camera[:3, :3].T
         origin = R_c @ (p_ee - MOUNT)
         normal = R_c @ R_ee_grasp[:, 2]
-        assert origin[2] > 0.3 and normal @ origin > 0.0   # in front, and the disc's face turned to the camera
+        assert origin[2] > 0.3 and normal @ origin > 0.0  # in front, and the disc's face turned to the camera
         u, v = (K @ origin)[:2] / origin[2]
         pixel = np.array([round(u), round(v)])
         ray = np.linalg.solve(K, [pixel[0], pixel[1], 1.0])
-        hit = ray * (normal @ origin) / (normal @ ray)                 # on the plane z_G = 0
-        assert np.linalg.norm(hit - origin) < DISC_RADIUS - 0.005      # well inside the disc
+        hit = ray * (normal @ origin) / (normal @ ray)  # on the plane z_G = 0
+        assert np.linalg.norm(hit - origin) < DISC_RADIUS - 0.005  # well inside the disc
         assert abs(depth[pixel[1], pixel[0]] - hit[2]) < 1e-4, (path.name, depth[pixel[1], pixel[0]], hit[2])
         checked += 1
     assert checked == 10
@@ -137,7 +156,7 @@ def test_a_second_run_records_the_same_frames_bit_for_bit(recorded, tmp_path):
     for a, b in zip(first, second):
         with np.load(a) as x, np.load(b) as y:
             assert x["rgb"].tobytes() == y["rgb"].tobytes() and x["depth"].tobytes() == y["depth"].tobytes(), a.name
-            assert x["rgb"].max() > 0                      # something lit is in view
+            assert x["rgb"].max() > 0  # something lit is in view
 
 
 @needs("view", "the recording's live view")
@@ -171,17 +190,24 @@ def test_the_rosbag2_export_carries_the_frames_their_intrinsics_and_the_mount(re
     plumb_bob D, stamped when taken, and the camera's optical frame on the ee link in /tf_static."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
+
     bag = tmp_path / "bag"
     done = orchestrator("export", recorded, "--rosbag2", bag, timeout=300)
     assert done.returncode == 0, done.stderr
     topics: dict[str, list] = {}
     with open(next(bag.glob("*.mcap")), "rb") as f:
-        for _, channel, message, decoded in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+        for _, channel, message, decoded in make_reader(
+            f, decoder_factories=[DecoderFactory()]
+        ).iter_decoded_messages():
             topics.setdefault(channel.topic, []).append((message.log_time, decoded))
     frames = sorted((recorded / "frames" / "camera").glob("*.npz"))
-    images, depths, infos = topics["/camera/image_raw"], topics["/camera/depth/image_raw"], topics["/camera/camera_info"]
+    images, depths, infos = (
+        topics["/camera/image_raw"],
+        topics["/camera/depth/image_raw"],
+        topics["/camera/camera_info"],
+    )
     assert len(images) == len(depths) == len(infos) == len(frames) == 10
-    epoch_ns = 1663502400 * 10**9                     # 2022-09-18T12:00:00Z
+    epoch_ns = 1663502400 * 10**9  # 2022-09-18T12:00:00Z
     for path, (ns, image), (_, depth), (_, info) in zip(frames, images, depths, infos):
         with np.load(path) as frame:
             assert ns == epoch_ns + round(float(frame["t"]) * 1e9)
@@ -202,6 +228,7 @@ def test_the_rosbag2_export_carries_the_frames_their_intrinsics_and_the_mount(re
 def test_the_guides_camera_passes_check(tmp_path):
     """docs/guides/camera.md's YAML, added to the capture config as it says, is a valid camera."""
     import re
+
     block = re.search(r"```yaml\n(.*?)```", (ROOT / "docs" / "guides" / "camera.md").read_text(), re.S).group(1)
     snippet = yaml.safe_load(block)
     config = yaml.safe_load(camera_config(tmp_path / "base.yaml").read_text())
@@ -215,18 +242,36 @@ def test_the_guides_camera_passes_check(tmp_path):
     assert done.returncode == 0, done.stderr
 
 
-@pytest.mark.parametrize("setting, key, expected", [
-    ("components.camera.parameters.link=hand", "components.camera.parameters.link", "expected a link of servicer"),
-    ("components.camera.parameters.body=moon", "components.camera.parameters.body", "expected one of bodies"),
-    ("components.camera.parameters.fx=0", "components.camera.parameters.fx", "expected a quantity > 0, got 0"),
-    ("components.camera.parameters.cx=700", "components.camera.parameters.cx", "within the image (-0.5 to 639.5"),
-    ("components.camera.parameters.width=0", "components.camera.parameters.width", "expected an integer >= 1, got 0"),
-    ("components.camera.parameters.height=9000", "components.camera.parameters.height", "expected 1 to 8192 pixels, got 9000"),
-    ("components.camera.step=15ms", "components.camera.step", "must be a positive integer multiple of run.step (10 ms)"),
-    ("components.camera.parameters.far=0.01", "components.camera.parameters.far", "expected more than near"),
-    ("components.camera.parameters.distortion=[-3, 0, 0, 0, 0]", "components.camera.parameters.distortion",
-     "the distortion does not invert over the image"),
-])
+@pytest.mark.parametrize(
+    "setting, key, expected",
+    [
+        ("components.camera.parameters.link=hand", "components.camera.parameters.link", "expected a link of servicer"),
+        ("components.camera.parameters.body=moon", "components.camera.parameters.body", "expected one of bodies"),
+        ("components.camera.parameters.fx=0", "components.camera.parameters.fx", "expected a quantity > 0, got 0"),
+        ("components.camera.parameters.cx=700", "components.camera.parameters.cx", "within the image (-0.5 to 639.5"),
+        (
+            "components.camera.parameters.width=0",
+            "components.camera.parameters.width",
+            "expected an integer >= 1, got 0",
+        ),
+        (
+            "components.camera.parameters.height=9000",
+            "components.camera.parameters.height",
+            "expected 1 to 8192 pixels, got 9000",
+        ),
+        (
+            "components.camera.step=15ms",
+            "components.camera.step",
+            "must be a positive integer multiple of run.step (10 ms)",
+        ),
+        ("components.camera.parameters.far=0.01", "components.camera.parameters.far", "expected more than near"),
+        (
+            "components.camera.parameters.distortion=[-3, 0, 0, 0, 0]",
+            "components.camera.parameters.distortion",
+            "the distortion does not invert over the image",
+        ),
+    ],
+)
 def test_a_bad_camera_is_refused_at_check_naming_the_key(tmp_path, setting, key, expected):
     config = camera_config(tmp_path / "camera.yaml")
     done = orchestrator("check", config, "--set", setting, timeout=300)
@@ -237,8 +282,9 @@ def test_a_bad_camera_is_refused_at_check_naming_the_key(tmp_path, setting, key,
 def test_no_egl_is_refused_at_check_naming_the_packages(tmp_path):
     """glvnd finding no EGL vendor is what a machine without Mesa's EGL looks like."""
     config = camera_config(tmp_path / "camera.yaml")
-    done = orchestrator("check", config, timeout=300,
-                        env={**os.environ, "__EGL_VENDOR_LIBRARY_FILENAMES": str(tmp_path / "none.json")})
+    done = orchestrator(
+        "check", config, timeout=300, env={**os.environ, "__EGL_VENDOR_LIBRARY_FILENAMES": str(tmp_path / "none.json")}
+    )
     assert done.returncode == 2, done.stdout + done.stderr
     assert "components.camera.parameters: sensor.camera renders with OpenGL on EGL" in done.stderr, done.stderr
     assert EGL_PACKAGES in done.stderr

@@ -26,6 +26,7 @@ four at a time. Every run's processes are checked gone when it ends. Nothing her
 compared with numbers the code produced before: the references are the URDFs, the configs and
 the physics.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -56,15 +57,18 @@ SERVICER_URDF = ROOT / "models" / "capture" / "servicer.urdf"
 TARGET_URDF = ROOT / "models" / "capture" / "target.urdf"
 ARM = [f"arm_{i}_joint" for i in range(1, 7)]
 WHEELS = ["wheel_x_joint", "wheel_y_joint", "wheel_z_joint"]
-H = 0.01                                   # run.step of the config (s)
-PARALLEL = 4                               # runs at a time (see the module's doc)
-RUN_TIMEOUT = 600.0                        # s of wall time: only there to end a run that would hang
+H = 0.01  # run.step of the config (s)
+PARALLEL = 4  # runs at a time (see the module's doc)
+RUN_TIMEOUT = 600.0  # s of wall time: only there to end a run that would hang
 
 DYNAMICS = "components.dynamics.parameters."
 TARGET = DYNAMICS + "bodies.target."
 ENVIRONMENT_OFF = (f"{DYNAMICS}tidal_force=false", f"{DYNAMICS}gravity_gradient=false")
-SEEDS = ("components.pose_sensor.parameters.seed", "components.imu.parameters.seed",
-         "components.wrist_ft.parameters.seed")
+SEEDS = (
+    "components.pose_sensor.parameters.seed",
+    "components.imu.parameters.seed",
+    "components.wrist_ft.parameters.seed",
+)
 
 # The capture timeline of the config, the earliest the grasp can close: the estimator needs 12
 # measurements of the 20 Hz pose sensor (the last taken at 0.55 s, published 100 ms later, seen
@@ -73,13 +77,14 @@ SEEDS = ("components.pose_sensor.parameters.seed", "components.imu.parameters.se
 # tolerance for 0.5 s; `close` reaches the dynamics one step later and the grasp closes at the end
 # of that step.
 EARLIEST_CAPTURE = 0.7 + 1.0 + 1.0 + 0.5 + 2 * H
-LATEST_CAPTURE = 9.5                       # the tests' own deadline
+LATEST_CAPTURE = 9.5  # the tests' own deadline
 
-WELD_TWIST = 1e-8                          # m/s, rad/s: the weld's relative twist after the impact
-WELD_DRIFT = 1e-9                          # m, rad: drift of the welded relative pose
+WELD_TWIST = 1e-8  # m/s, rad/s: the weld's relative twist after the impact
+WELD_DRIFT = 1e-9  # m, rad: drift of the welded relative pose
 
 
 # --------------------------------------------------------------------------- the URDFs
+
 
 def _floats(text: str | None, default: str) -> np.ndarray:
     return np.array([float(x) for x in (text or default).split()])
@@ -94,13 +99,17 @@ class Urdf:
         self.joints = {joint.get("name"): joint for joint in self.root.findall("joint")}
 
     def mass(self) -> float:
-        return sum(float(link.find("inertial/mass").get("value")) for link in self.links.values()
-                   if link.find("inertial") is not None)
+        return sum(
+            float(link.find("inertial/mass").get("value"))
+            for link in self.links.values()
+            if link.find("inertial") is not None
+        )
 
     def origin(self, joint: str) -> tuple[np.ndarray, np.ndarray]:
         o = self.joints[joint].find("origin")
-        return _floats(o.get("xyz") if o is not None else None, "0 0 0"), \
-            _floats(o.get("rpy") if o is not None else None, "0 0 0")
+        return _floats(o.get("xyz") if o is not None else None, "0 0 0"), _floats(
+            o.get("rpy") if o is not None else None, "0 0 0"
+        )
 
     def axis(self, joint: str) -> np.ndarray:
         a = self.joints[joint].find("axis")
@@ -109,9 +118,13 @@ class Urdf:
     def inertia(self, link: str) -> np.ndarray:
         """The link's inertia matrix about its CoM (inertial frame axes)."""
         i = self.links[link].find("inertial/inertia")
-        return np.array([[float(i.get("ixx")), float(i.get("ixy")), float(i.get("ixz"))],
-                         [float(i.get("ixy")), float(i.get("iyy")), float(i.get("iyz"))],
-                         [float(i.get("ixz")), float(i.get("iyz")), float(i.get("izz"))]])
+        return np.array(
+            [
+                [float(i.get("ixx")), float(i.get("ixy")), float(i.get("ixz"))],
+                [float(i.get("ixy")), float(i.get("iyy")), float(i.get("iyz"))],
+                [float(i.get("ixz")), float(i.get("iyz")), float(i.get("izz"))],
+            ]
+        )
 
     def spin_inertia(self, joint: str) -> float:
         """The child link's moment of inertia about the joint axis (the joint's frame is the link's:
@@ -134,7 +147,7 @@ class Urdf:
             offset = np.linalg.norm(_floats(origin.get("xyz") if origin is not None else None, "0 0 0"))
             farthest = base_from_com + offset + sum(np.linalg.norm(self.origin(j)[0]) for j in self.chain(name))
             mass = float(inertial.find("mass").get("value"))
-            total += np.linalg.eigvalsh(self.inertia(name)).max() + mass * farthest ** 2
+            total += np.linalg.eigvalsh(self.inertia(name)).max() + mass * farthest**2
         return float(total)
 
     def chain(self, link: str) -> list[str]:
@@ -155,11 +168,12 @@ def shoulder_and_reach() -> tuple[np.ndarray, float]:
     end effector: the sum of the joint offsets beyond arm_1_joint."""
     chain = SERVICER.chain("ee")
     first = chain.index("arm_1_joint")
-    reach = sum(float(np.linalg.norm(SERVICER.origin(j)[0])) for j in chain[first + 1:])
+    reach = sum(float(np.linalg.norm(SERVICER.origin(j)[0])) for j in chain[first + 1 :])
     return SERVICER.origin("arm_1_joint")[0], reach
 
 
 # --------------------------------------------------------------------------- cases
+
 
 def vector(x) -> str:
     """A YAML list for --set."""
@@ -171,6 +185,7 @@ class Case:
     """A target whose grapple frame starts where the end effector is at arm configuration
     ``q_grasp`` (the servicer at the LVLH origin, LVLH-aligned), tumbling at ``rate`` deg/s about
     ``axis`` (target axes), its CoM at rest in LVLH; sensor seeds of its own."""
+
     q_grasp: tuple
     axis: tuple
     rate: float
@@ -185,7 +200,7 @@ class Case:
         probe.reset_bodies()
         T = probe.bodies["servicer"].skel.getBodyNode("ee").getTransform().matrix()
         xyz, rpy = TARGET_MODEL.origin("grapple_joint")
-        R_t_g = Rotation.from_euler("xyz", rpy).as_matrix()          # grapple frame in the target's
+        R_t_g = Rotation.from_euler("xyz", rpy).as_matrix()  # grapple frame in the target's
         R_g = T[:3, :3]
         R_t = R_g @ R_t_g.T
         p_t = T[:3, 3] - R_t @ xyz
@@ -195,9 +210,12 @@ class Case:
 
     def overrides(self) -> list[str]:
         p, q, w = self.target()
-        return [f"{TARGET}position={vector(p)}", f"{TARGET}orientation={vector(q)}",
-                f"{TARGET}twist={vector([0.0, 0.0, 0.0, *w])}",
-                *(f"{key}={self.seed + i}" for i, key in enumerate(SEEDS))]
+        return [
+            f"{TARGET}position={vector(p)}",
+            f"{TARGET}orientation={vector(q)}",
+            f"{TARGET}twist={vector([0.0, 0.0, 0.0, *w])}",
+            *(f"{key}={self.seed + i}" for i, key in enumerate(SEEDS)),
+        ]
 
 
 # The servicer starts in the shipped configuration (q = -0.9, 0.2, 1.6, -0.3, 1.2, 0.3); the
@@ -214,11 +232,13 @@ CASES = {
 }
 
 SWAP_AT, CRASH_AT, CHECKPOINT_EVERY = 10.0, 11.0, 2.0
-FAST_RATE_DEG = 60.0                       # the grapple 0.65 m from the CoM: 0.68 m/s
-NOISY = ("2 cm", "2 deg")                  # 100 times the shipped pose sensor's noise
-NOISE_X5 = {"pose_sensor": (("position_noise", "1 mm"), ("angle_noise", "0.1 deg")),     # 5 times the shipped
-            "imu": (("rate_noise", "0.005 deg/s"), ("accel_noise", "5e-5")),
-            "wrist_ft": (("force_noise", "0.25 N"), ("torque_noise", "0.05 N*m"))}
+FAST_RATE_DEG = 60.0  # the grapple 0.65 m from the CoM: 0.68 m/s
+NOISY = ("2 cm", "2 deg")  # 100 times the shipped pose sensor's noise
+NOISE_X5 = {
+    "pose_sensor": (("position_noise", "1 mm"), ("angle_noise", "0.1 deg")),  # 5 times the shipped
+    "imu": (("rate_noise", "0.005 deg/s"), ("accel_noise", "5e-5")),
+    "wrist_ft": (("force_noise", "0.25 N"), ("torque_noise", "0.05 N*m")),
+}
 # A target 4 m out along LVLH x, turned so that its grapple faces the servicer (target z along -x).
 BEYOND = {"position": [4.0, 0.0, 1.2], "orientation": Rotation.from_euler("y", -90, degrees=True).as_quat()}
 
@@ -231,26 +251,50 @@ def _runs() -> dict[str, dict]:
         "shipped-again": shipped,
         "environment-off": {"duration": 20.0, "sets": list(ENVIRONMENT_OFF), "exit": 0},
         "swap": {"duration": 18.0, "sets": [f"events=[{{at: {SWAP_AT:g} s, swap: dynamics}}]"], "exit": 0},
-        "restart": {"duration": 18.0, "exit": 0, "sets": [
-            "components.dynamics.on_failure=restart", f"run.checkpoint_every={CHECKPOINT_EVERY:g} s",
-            f"faults=[{{at: {CRASH_AT:g} s, component: dynamics, kind: crash}}]"]},
+        "restart": {
+            "duration": 18.0,
+            "exit": 0,
+            "sets": [
+                "components.dynamics.on_failure=restart",
+                f"run.checkpoint_every={CHECKPOINT_EVERY:g} s",
+                f"faults=[{{at: {CRASH_AT:g} s, component: dynamics, kind: crash}}]",
+            ],
+        },
         "other-seed": {"duration": 0.6, "sets": [f"{key}={77 + i}" for i, key in enumerate(SEEDS)], "exit": 0},
-        "beyond": {"duration": 4.0, "exit": 0, "sets": [
-            f"{TARGET}position={vector(BEYOND['position'])}", f"{TARGET}orientation={vector(BEYOND['orientation'])}",
-            f"{TARGET}twist=[0, 0, 0, 0, 0, 0]"]},
+        "beyond": {
+            "duration": 4.0,
+            "exit": 0,
+            "sets": [
+                f"{TARGET}position={vector(BEYOND['position'])}",
+                f"{TARGET}orientation={vector(BEYOND['orientation'])}",
+                f"{TARGET}twist=[0, 0, 0, 0, 0, 0]",
+            ],
+        },
     }
     for name, case in CASES.items():
         runs[f"case:{name}"] = {"duration": 10.0, "sets": case, "exit": 0}
     # a tumble no arm joint can follow; sensor noise the estimator cannot beat (one approach)
-    runs["too-fast"] = {"duration": 2.0, "exit": 0, "sets": [
-        f"{TARGET}twist={{rate: {FAST_RATE_DEG:g} deg/s, axis: [1, 0, 0], axes: body}}"]}
-    runs["noise-x5"] = {"duration": 7.0, "exit": 0, "sets": [
-        f"components.pose_sensor.parameters.{key}={value}" for key, value in NOISE_X5["pose_sensor"]] + [
-        f"components.imu.parameters.{key}={value}" for key, value in NOISE_X5["imu"]] + [
-        f"components.wrist_ft.parameters.{key}={value}" for key, value in NOISE_X5["wrist_ft"]]}
-    runs["noisy"] = {"duration": 14.0, "exit": 0, "sets": [
-        f"components.pose_sensor.parameters.position_noise={NOISY[0]}",
-        f"components.pose_sensor.parameters.angle_noise={NOISY[1]}", "components.controller.parameters.attempts=1"]}
+    runs["too-fast"] = {
+        "duration": 2.0,
+        "exit": 0,
+        "sets": [f"{TARGET}twist={{rate: {FAST_RATE_DEG:g} deg/s, axis: [1, 0, 0], axes: body}}"],
+    }
+    runs["noise-x5"] = {
+        "duration": 7.0,
+        "exit": 0,
+        "sets": [f"components.pose_sensor.parameters.{key}={value}" for key, value in NOISE_X5["pose_sensor"]]
+        + [f"components.imu.parameters.{key}={value}" for key, value in NOISE_X5["imu"]]
+        + [f"components.wrist_ft.parameters.{key}={value}" for key, value in NOISE_X5["wrist_ft"]],
+    }
+    runs["noisy"] = {
+        "duration": 14.0,
+        "exit": 0,
+        "sets": [
+            f"components.pose_sensor.parameters.position_noise={NOISY[0]}",
+            f"components.pose_sensor.parameters.angle_noise={NOISY[1]}",
+            "components.controller.parameters.attempts=1",
+        ],
+    }
     return runs
 
 
@@ -259,13 +303,16 @@ RUNS = _runs()
 
 def uses(*names):
     """The runs a test reads ("{case}": its ``case`` parameter's)."""
+
     def mark(function):
         function.capture_runs = names
         return function
+
     return mark
 
 
 # --------------------------------------------------------------------------- running
+
 
 def leftovers(run_id: str) -> list[str]:
     out = subprocess.run(["ps", "-ww", "-eo", "pid=,args="], capture_output=True, text=True).stdout
@@ -295,8 +342,11 @@ class Run:
         return self.signals[[f"{name}[{i}]" for i in range(n)]].to_numpy(copy=True)
 
     def parts(self) -> dict[str, bytes]:
-        return {p.name: p.read_bytes() for p in sorted((self.record / "signals.parquet").glob("*.parquet"))
-                if not p.name.startswith(".")}
+        return {
+            p.name: p.read_bytes()
+            for p in sorted((self.record / "signals.parquet").glob("*.parquet"))
+            if not p.name.startswith(".")
+        }
 
     @property
     def config(self) -> dict:
@@ -312,7 +362,7 @@ class Runs:
         self.base = base
         self.env = {**os.environ, "ZENORBIT_RUNTIME_DIR": str(base / "runtime")}
         self.queue = sorted(names, key=lambda n: -RUNS[n]["duration"])
-        self.commands = {name: self._command(name) for name in names}     # DART places the cases' targets
+        self.commands = {name: self._command(name) for name in names}  # DART places the cases' targets
         self.done = {name: threading.Event() for name in names}
         self.results: dict[str, Run | BaseException] = {}
         self.procs: dict[str, subprocess.Popen] = {}
@@ -324,8 +374,14 @@ class Runs:
     def _command(self, name: str) -> list[str]:
         spec = RUNS[name]
         sets = spec["sets"].overrides() if isinstance(spec["sets"], Case) else spec["sets"]
-        args = ["run", str(CONFIG), "--record", str(self.base / name.replace(":", "-")),
-                "--set", f"run.duration={spec['duration']:g} s"]
+        args = [
+            "run",
+            str(CONFIG),
+            "--record",
+            str(self.base / name.replace(":", "-")),
+            "--set",
+            f"run.duration={spec['duration']:g} s",
+        ]
         for s in sets:
             args += ["--set", s]
         return [sys.executable, "-m", "orchestrator.cli", *args]
@@ -333,7 +389,7 @@ class Runs:
     def _work(self) -> None:
         try:
             self._schedule()
-        except BaseException as e:            # noqa: BLE001 - every test still waiting gets it
+        except BaseException as e:
             for name, done in self.done.items():
                 if not done.is_set():
                     self.results[name] = AssertionError(f"the runs' scheduler failed: {e!r}")
@@ -346,9 +402,15 @@ class Runs:
             while queue and len(running) < PARALLEL:
                 name = queue.pop(0)
                 try:
-                    proc = subprocess.Popen(self.commands[name], cwd=ROOT, env=self.env, stdout=subprocess.DEVNULL,
-                                            stderr=subprocess.PIPE, text=True)
-                except BaseException as e:        # noqa: BLE001 - handed to the test that reads it
+                    proc = subprocess.Popen(
+                        self.commands[name],
+                        cwd=ROOT,
+                        env=self.env,
+                        stdout=subprocess.DEVNULL,
+                        stderr=subprocess.PIPE,
+                        text=True,
+                    )
+                except BaseException as e:
                     self.results[name] = e
                     self.done[name].set()
                     continue
@@ -377,7 +439,7 @@ class Runs:
             left = leftovers(start["run_id"])
             assert not left, f"{name}: processes left behind: {left}"
             self.results[name] = run
-        except BaseException as e:            # noqa: BLE001
+        except BaseException as e:
             self.results[name] = AssertionError(f"{name} (exit {proc.returncode}): {e}\n{run.stderr}")
         self.done[name].set()
 
@@ -426,6 +488,7 @@ def runs(request, tmp_path_factory):
 
 # --------------------------------------------------------------------------- helpers
 
+
 def capture_of(run: Run) -> dict:
     captures = run.of("capture")
     assert len(captures) == 1, f"{run.name}: expected one capture event, got {captures}"
@@ -458,15 +521,15 @@ def momenta(run: Run) -> tuple[np.ndarray, np.ndarray]:
 
 def rates_deg(run: Run) -> tuple[np.ndarray, np.ndarray]:
     """Inertial angular speed of the servicer's and the target's base (deg/s), per row."""
-    return tuple(np.degrees(np.linalg.norm(run.vector(f"dynamics.{b}.twist", 6)[:, 3:], axis=1))
-                 for b in ("servicer", "target"))
+    return tuple(
+        np.degrees(np.linalg.norm(run.vector(f"dynamics.{b}.twist", 6)[:, 3:], axis=1)) for b in ("servicer", "target")
+    )
 
 
 def peak_wrench(run: Run) -> str:
     """The largest force and torque the end effector applied to the target."""
     wrench = run.vector("dynamics.grasp.wrench", 6)
-    return (f"{np.linalg.norm(wrench[:, :3], axis=1).max():.1f} N, "
-            f"{np.linalg.norm(wrench[:, 3:], axis=1).max():.1f} N m")
+    return f"{np.linalg.norm(wrench[:, :3], axis=1).max():.1f} N, {np.linalg.norm(wrench[:, 3:], axis=1).max():.1f} N m"
 
 
 def same_bits(a: pandas.DataFrame, b: pandas.DataFrame) -> list[str]:
@@ -477,6 +540,7 @@ def same_bits(a: pandas.DataFrame, b: pandas.DataFrame) -> list[str]:
 
 
 # --------------------------------------------------------------------------- 1. capture
+
 
 @pytest.mark.parametrize("case", list(CASES))
 @uses("case:{case}")
@@ -501,13 +565,15 @@ def test_capture_from_tumbles_and_offsets_nothing_was_tuned_on(runs, case):
     q = run.vector("dynamics.grasp.q_ee_grasp", 4)
     twist = run.vector("dynamics.grasp.twist_ee_grasp", 6)
     after = slice(k, None)
-    print(f"\n{case}: grapple {np.linalg.norm(p[0]):.2f} m and {math.degrees(angle(q[0])[0]):.0f} deg from the end "
-          f"effector at the start; capture at {t_c:.2f} s, residual {np.linalg.norm(linear) * 1e3:.3f} mm/s, "
-          f"{math.degrees(np.linalg.norm(angular)):.3f} deg/s, errors {event['errors']['position'] * 1e3:.3f} mm, "
-          f"{math.degrees(event['errors']['orientation']):.3f} deg; after it (to {data['time'].iloc[-1]:g} s) "
-          f"twist <= {np.abs(twist[after]).max():.1e}, pose drift {np.abs(p[after] - p[k]).max():.1e} m, "
-          f"{relative_angle(q[k], q[after]).max():.1e} rad; before it {np.abs(twist[k - 1]).max():.1e}; "
-          f"wall {run.wall:.0f} s")
+    print(
+        f"\n{case}: grapple {np.linalg.norm(p[0]):.2f} m and {math.degrees(angle(q[0])[0]):.0f} deg from the end "
+        f"effector at the start; capture at {t_c:.2f} s, residual {np.linalg.norm(linear) * 1e3:.3f} mm/s, "
+        f"{math.degrees(np.linalg.norm(angular)):.3f} deg/s, errors {event['errors']['position'] * 1e3:.3f} mm, "
+        f"{math.degrees(event['errors']['orientation']):.3f} deg; after it (to {data['time'].iloc[-1]:g} s) "
+        f"twist <= {np.abs(twist[after]).max():.1e}, pose drift {np.abs(p[after] - p[k]).max():.1e} m, "
+        f"{relative_angle(q[k], q[after]).max():.1e} rad; before it {np.abs(twist[k - 1]).max():.1e}; "
+        f"wall {run.wall:.0f} s"
+    )
     assert EARLIEST_CAPTURE - 1e-9 <= t_c <= LATEST_CAPTURE
     assert data["time"].iloc[k] == pytest.approx(t_c, abs=1e-9)
     assert np.linalg.norm(linear) <= tolerance["linear_velocity"]
@@ -518,18 +584,19 @@ def test_capture_from_tumbles_and_offsets_nothing_was_tuned_on(runs, case):
     assert math.isclose(np.linalg.norm(angular), event["errors"]["angular_velocity"], rel_tol=1e-9, abs_tol=1e-15)
     # the impact moved nothing: the first welded row holds the reported pose errors
     assert abs(np.linalg.norm(p[k]) - event["errors"]["position"]) < 1e-12
-    assert abs(angle(q[k])[0] - event["errors"]["orientation"]) < 1e-10     # the report's acos: ~eps / angle
+    assert abs(angle(q[k])[0] - event["errors"]["orientation"]) < 1e-10  # the report's acos: ~eps / angle
     assert not closed[:k].any() and (closed[k:] == 1.0).all()
     assert (data["controller.close"].to_numpy()[:k] == 1.0).any()
-    assert (data["controller.phase"].to_numpy()[-1]) == 5.0                    # captured
-    assert np.abs(twist[k - 1]).max() > 1e3 * WELD_TWIST         # there was a relative motion to cancel
+    assert (data["controller.phase"].to_numpy()[-1]) == 5.0  # captured
+    assert np.abs(twist[k - 1]).max() > 1e3 * WELD_TWIST  # there was a relative motion to cancel
     assert np.abs(twist[after]).max() < WELD_TWIST
     assert np.abs(p[after] - p[k]).max() < WELD_DRIFT
     assert relative_angle(q[k], q[after]).max() < WELD_DRIFT
-    assert len(data) - k >= round(0.5 / H)                       # at least 0.5 s of weld checked
+    assert len(data) - k >= round(0.5 / H)  # at least 0.5 s of weld checked
 
 
 # --------------------------------------------------------------------------- 2. momentum
+
 
 @uses("environment-off")
 def test_momentum_is_conserved_through_approach_capture_and_detumbling(runs):
@@ -564,11 +631,13 @@ def test_momentum_is_conserved_through_approach_capture_and_detumbling(runs):
     jump = target[k] - target[k - 1]
     expected = np.concatenate([impulse[:3], impulse[3:] + np.cross(P - c, impulse[:3])])
     miss = np.abs(jump - expected).max() / np.abs(expected).max()
-    print(f"\nenvironment off: capture at {event['time']:.2f} s; |P| {np.linalg.norm(linear[0]):.4f} kg m/s, "
-          f"|L_O| {np.linalg.norm(angular[0]):.4f} kg m^2/s; largest relative change: linear {dl:.1e}, angular "
-          f"{da:.1e}; the target keeps {kept:.1e} of its angular momentum; impulse "
-          f"{np.linalg.norm(impulse[:3]):.2e} N s, {np.linalg.norm(impulse[3:]):.2e} N m s, the target's momentum "
-          f"jump agrees to {miss:.1e}; peak grasp wrench {peak_wrench(run)}")
+    print(
+        f"\nenvironment off: capture at {event['time']:.2f} s; |P| {np.linalg.norm(linear[0]):.4f} kg m/s, "
+        f"|L_O| {np.linalg.norm(angular[0]):.4f} kg m^2/s; largest relative change: linear {dl:.1e}, angular "
+        f"{da:.1e}; the target keeps {kept:.1e} of its angular momentum; impulse "
+        f"{np.linalg.norm(impulse[:3]):.2e} N s, {np.linalg.norm(impulse[3:]):.2e} N m s, the target's momentum "
+        f"jump agrees to {miss:.1e}; peak grasp wrench {peak_wrench(run)}"
+    )
     assert run.signals["time"].iloc[-1] > event["time"] + 10.0 - 1e-9
     assert dl <= 1e-9 and da <= 1e-9
     assert kept < 0.1
@@ -593,9 +662,9 @@ def test_the_targets_momentum_ends_in_the_wheels(runs):
     c = (m_s * c_s + m_t * c_t) / (m_s + m_t)
     total = mom_s[:, 3:] + mom_t[:, 3:] + np.cross(c_s - c, mom_s[:, :3]) + np.cross(c_t - c, mom_t[:, :3])
     R = Rotation.from_quat(run.vector("dynamics.servicer.orientation", 4))
-    w_bus = R.inv().apply(run.vector("dynamics.servicer.twist", 6)[:, 3:])        # bus axes
+    w_bus = R.inv().apply(run.vector("dynamics.servicer.twist", 6)[:, 3:])  # bus axes
     qd = run.vector("dynamics.servicer.qd", 9)
-    joints = [name for name, joint in SERVICER.joints.items() if joint.get("type") != "fixed"]   # q's layout
+    joints = [name for name, joint in SERVICER.joints.items() if joint.get("type") != "fixed"]  # q's layout
     wheels = np.zeros_like(w_bus)
     for name in WHEELS:
         a = SERVICER.axis(name) / np.linalg.norm(SERVICER.axis(name))
@@ -609,22 +678,28 @@ def test_the_targets_momentum_ends_in_the_wheels(runs):
     base_s = np.linalg.norm(run.vector("dynamics.servicer.position", 3)[-1] - c_s[-1])
     base_t = np.linalg.norm(run.vector("dynamics.target.position", 3)[-1] - c_t[-1])
     reduced = m_s * m_t / (m_s + m_t)
-    inertia = (SERVICER.largest_moment_bound(base_s) + TARGET_MODEL.largest_moment_bound(base_t)
-               + reduced * np.linalg.norm(c_t[-1] - c_s[-1]) ** 2)
+    inertia = (
+        SERVICER.largest_moment_bound(base_s)
+        + TARGET_MODEL.largest_moment_bound(base_t)
+        + reduced * np.linalg.norm(c_t[-1] - c_s[-1]) ** 2
+    )
     servicer, target = rates_deg(run)
     omega = math.radians(max(servicer[-1], target[-1])) + np.abs(qd[-1, [joints.index(j) for j in ARM]]).sum()
-    print(f"\nwheels hold {np.linalg.norm(wheels[-1]):.4f} of {np.linalg.norm(total[-1]):.4f} kg m^2/s about the "
-          f"assembly CoM at {run.signals['time'].iloc[-1]:g} s; the rest {rest:.4f} ({rest / size:.1e} of it) <= "
-          f"I_max {inertia:.0f} kg m^2 x Omega {omega:.2e} rad/s = {inertia * omega:.4f}; before the capture the "
-          f"wheels held at most {before:.1e} of it; spin inertias {[SERVICER.spin_inertia(n) for n in WHEELS]} kg m^2")
+    print(
+        f"\nwheels hold {np.linalg.norm(wheels[-1]):.4f} of {np.linalg.norm(total[-1]):.4f} kg m^2/s about the "
+        f"assembly CoM at {run.signals['time'].iloc[-1]:g} s; the rest {rest:.4f} ({rest / size:.1e} of it) <= "
+        f"I_max {inertia:.0f} kg m^2 x Omega {omega:.2e} rad/s = {inertia * omega:.4f}; before the capture the "
+        f"wheels held at most {before:.1e} of it; spin inertias {[SERVICER.spin_inertia(n) for n in WHEELS]} kg m^2"
+    )
     assert [SERVICER.spin_inertia(n) for n in WHEELS] == [0.2, 0.2, 0.2]
-    assert np.abs(np.linalg.norm(total, axis=1) - size).max() < 1e-9 * size      # conserved about the moving CoM too
+    assert np.abs(np.linalg.norm(total, axis=1) - size).max() < 1e-9 * size  # conserved about the moving CoM too
     assert before < 1e-3
     assert rest <= inertia * omega
     assert rest < 0.02 * size
 
 
 # --------------------------------------------------------------------------- 3. detumble
+
 
 @uses("shipped")
 def test_the_assembly_detumbles_below_0_1_deg_s(runs):
@@ -637,11 +712,13 @@ def test_the_assembly_detumbles_below_0_1_deg_s(runs):
     servicer, target = rates_deg(run)
     last = run.signals["time"].to_numpy() >= run.signals["time"].iloc[-1] - 1.0 - 1e-9
     residual = np.array(event["relative_twist"])
-    print(f"\nshipped: capture at {event['time']:.2f} s (residual {np.linalg.norm(residual[:3]) * 1e3:.3f} mm/s, "
-          f"{math.degrees(np.linalg.norm(residual[3:])):.3f} deg/s); target {target[0]:.3f} deg/s at the start; at "
-          f"{run.signals['time'].iloc[-1]:g} s servicer {servicer[-1]:.4f}, target {target[-1]:.4f} deg/s; last second "
-          f"at most {max(servicer[last].max(), target[last].max()):.4f} deg/s; peak grasp wrench {peak_wrench(run)}; "
-          f"wall {run.wall:.0f} s")
+    print(
+        f"\nshipped: capture at {event['time']:.2f} s (residual {np.linalg.norm(residual[:3]) * 1e3:.3f} mm/s, "
+        f"{math.degrees(np.linalg.norm(residual[3:])):.3f} deg/s); target {target[0]:.3f} deg/s at the start; at "
+        f"{run.signals['time'].iloc[-1]:g} s servicer {servicer[-1]:.4f}, target {target[-1]:.4f} deg/s; last second "
+        f"at most {max(servicer[last].max(), target[last].max()):.4f} deg/s; peak grasp wrench {peak_wrench(run)}; "
+        f"wall {run.wall:.0f} s"
+    )
     assert target[0] > 2.0
     assert run.signals["dynamics.grasp.closed"].iloc[-1] == 1.0 and event["time"] < run.signals["time"].iloc[-1] - 1.0
     assert servicer[last].max() < 0.1 and target[last].max() < 0.1
@@ -652,6 +729,7 @@ def test_the_assembly_detumbles_below_0_1_deg_s(runs):
 
 
 # --------------------------------------------------------------------------- 4. determinism
+
 
 @uses("shipped", "shipped-again")
 def test_the_same_config_gives_bit_identical_signals(runs):
@@ -673,22 +751,31 @@ def test_another_sensor_seed_changes_the_measurements(runs):
     n = len(b.signals)
     shipped = a.signals.iloc[:n].reset_index(drop=True)
     # the controller's grasp_distance is the last measured distance until the first estimate
-    truth = [c for c in shipped.columns if c.startswith(("dynamics.", "orbit.", "controller."))
-             and c != "controller.grasp_distance"]
+    truth = [
+        c
+        for c in shipped.columns
+        if c.startswith(("dynamics.", "orbit.", "controller.")) and c != "controller.grasp_distance"
+    ]
     assert not same_bits(shipped[truth], b.signals[truth])
     # rows holding a sample: the pose sensor's first comes through its latency (valid), the others'
     # at their first step
     pose = shipped["pose_sensor.valid"].to_numpy() == 1.0
     assert (b.signals["pose_sensor.valid"].to_numpy() == pose).all()
     every = np.arange(n) >= 1
-    for name, size, sampled in (("pose_sensor.p", 3, pose), ("pose_sensor.q", 4, pose), ("imu.rate", 3, every),
-                                ("imu.specific_force", 3, every), ("wrist_ft.wrench", 6, every)):
+    for name, size, sampled in (
+        ("pose_sensor.p", 3, pose),
+        ("pose_sensor.q", 4, pose),
+        ("imu.rate", 3, every),
+        ("imu.specific_force", 3, every),
+        ("wrist_ft.wrench", 6, every),
+    ):
         x, y = a.vector(name, size)[:n], b.vector(name, size)
         assert sampled.sum() > n // 2, name
         assert np.all(np.any(x[sampled] != y[sampled], axis=1)), name
 
 
 # --------------------------------------------------------------------------- 5. state after capture
+
 
 @uses("shipped", "swap")
 def test_a_same_type_swap_of_the_dynamics_after_the_capture_changes_nothing(runs):
@@ -721,12 +808,13 @@ def test_a_restart_from_a_checkpoint_after_the_capture_changes_nothing(runs):
     # last unsent outputs with it)
     assert len(fault) == 1 and round(10.0 / H) < fault[0]["step"] <= round(CRASH_AT / H), fault
     logs = sorted(p.name for p in (restarted.record / "logs").iterdir())
-    assert "dynamics.1.log" in logs and "controller.1.log" in logs      # every component started again
+    assert "dynamics.1.log" in logs and "controller.1.log" in logs  # every component started again
     assert not same_bits(reference.signals, restarted.signals)
     assert reference.parts() == restarted.parts()
 
 
 # --------------------------------------------------------------------------- 6. not captured
+
 
 @uses("beyond")
 def test_a_target_beyond_the_arm_is_an_outcome_naming_the_reach(runs):
@@ -740,14 +828,15 @@ def test_a_target_beyond_the_arm_is_an_outcome_naming_the_reach(runs):
     holds its posture (within 1 mrad) to the end."""
     run = runs("beyond")
     shoulder, reach = shoulder_and_reach()
-    xyz, rpy = TARGET_MODEL.origin("grapple_joint")
+    xyz, _rpy = TARGET_MODEL.origin("grapple_joint")
     R_t = Rotation.from_quat(BEYOND["orientation"])
     grapple = np.array(BEYOND["position"]) + R_t.apply(xyz)
     distance = float(np.linalg.norm(grapple - shoulder))
     aborted = run.of("capture_aborted")
     assert len(aborted) == 1, run.events
-    found = re.search(r"the grasp point is ([\d.]+) m from the shoulder, the arm reaches ([\d.]+) m",
-                      aborted[0]["reason"])
+    found = re.search(
+        r"the grasp point is ([\d.]+) m from the shoulder, the arm reaches ([\d.]+) m", aborted[0]["reason"]
+    )
     print(f"\nbeyond: {aborted[0]['reason']}; expected {distance:.3f} m and {reach:.3f} m")
     assert found, aborted[0]["reason"]
     assert "(it does not turn that the estimator can tell: " in aborted[0]["reason"]
@@ -758,12 +847,13 @@ def test_a_target_beyond_the_arm_is_an_outcome_naming_the_reach(runs):
     assert not run.of("capture")
     data = run.signals
     assert (data["controller.close"].to_numpy() == 0.0).all()
-    assert data["controller.phase"].iloc[-1] == 6.0                          # aborted
+    assert data["controller.phase"].iloc[-1] == 6.0  # aborted
     q = run.vector("dynamics.servicer.q", 9)[:, :6]
     assert np.abs(q - q[0]).max() < 1e-3
 
 
 # --------------------------------------------------------------------------- 7. the envelope
+
 
 def _envelope() -> dict[str, tuple[np.ndarray, float]]:
     """Twelve tumble axes nobody tuned on, uniform over the sphere (target axes; numpy's default
@@ -776,8 +866,11 @@ def _envelope() -> dict[str, tuple[np.ndarray, float]]:
 ENVELOPE = _envelope()
 ENVELOPE_DURATION = 8.0
 for _name, (_axis, _rate) in ENVELOPE.items():
-    RUNS[f"envelope:{_name}"] = {"duration": ENVELOPE_DURATION, "exit": 0, "sets": [
-        f"{TARGET}twist={{rate: {_rate!r} deg/s, axis: {vector(_axis)}, axes: body}}", *ENVIRONMENT_OFF]}
+    RUNS[f"envelope:{_name}"] = {
+        "duration": ENVELOPE_DURATION,
+        "exit": 0,
+        "sets": [f"{TARGET}twist={{rate: {_rate!r} deg/s, axis: {vector(_axis)}, axes: body}}", *ENVIRONMENT_OFF],
+    }
 
 
 @pytest.mark.parametrize("case", list(ENVELOPE))
@@ -796,8 +889,10 @@ def test_a_tumble_about_any_axis_up_to_4_deg_s_is_captured(runs, case):
     grasp = run.config["components"]["dynamics"]["parameters"]["grasp"]
     wrench = run.vector("dynamics.grasp.wrench", 6)
     force, torque = np.linalg.norm(wrench[:, :3], axis=1).max(), np.linalg.norm(wrench[:, 3:], axis=1).max()
-    print(f"\n{case}: capture at {event['time']:.2f} s; momentum drift linear {dl:.1e}, angular {da:.1e}; peak wrist "
-          f"{force:.1f} N, {torque:.1f} N m; wall {run.wall:.0f} s")
+    print(
+        f"\n{case}: capture at {event['time']:.2f} s; momentum drift linear {dl:.1e}, angular {da:.1e}; peak wrist "
+        f"{force:.1f} N, {torque:.1f} N m; wall {run.wall:.0f} s"
+    )
     assert not run.of("capture_aborted") and not run.of("capture_retreat") and not run.of("grasp_overload")
     assert run.signals["dynamics.grasp.closed"].iloc[-1] == 1.0
     assert dl <= 1e-9 and da <= 1e-9
@@ -807,7 +902,6 @@ def test_a_tumble_about_any_axis_up_to_4_deg_s_is_captured(runs, case):
 def to_si(text) -> float:
     """'100 N' or '30 N*m' as the number (these units are SI already)."""
     return float(str(text).split()[0])
-
 
 
 @uses("too-fast")
@@ -821,8 +915,11 @@ def test_a_tumble_too_fast_for_the_joints_is_an_outcome_naming_the_joint(runs):
     assert len(aborted) == 1, run.events
     reason = aborted[0]["reason"]
     print(f"\ntoo fast: {reason}")
-    found = re.search(r"following the grapple needs (arm_\d_joint) at ([\d.]+) rad/s, more than 0.5 of its URDF "
-                      r"velocity limit ([\d.]+) rad/s", reason)
+    found = re.search(
+        r"following the grapple needs (arm_\d_joint) at ([\d.]+) rad/s, more than 0.5 of its URDF "
+        r"velocity limit ([\d.]+) rad/s",
+        reason,
+    )
     assert found and "in a whole turn of the tumble" in reason, reason
     limit = float(SERVICER.joints[found.group(1)].find("limit").get("velocity"))
     assert float(found.group(3)) == pytest.approx(limit, abs=0.005) and float(found.group(2)) > 0.5 * limit
@@ -841,8 +938,10 @@ def test_five_times_the_shipped_sensor_noise_still_captures(runs):
     print(f"\nnoise x5: capture at {event['time']:.2f} s, errors {event['errors']}")
     assert not run.of("capture_retreat") and not run.of("capture_aborted")
     assert [e["attempt"] for e in run.of("capture_approach")] == [1]
-    assert event["errors"]["position"] <= tolerance["position"] and event["errors"]["linear_velocity"] <= \
-        tolerance["linear_velocity"]
+    assert (
+        event["errors"]["position"] <= tolerance["position"]
+        and event["errors"]["linear_velocity"] <= tolerance["linear_velocity"]
+    )
 
 
 @uses("noisy")
@@ -857,9 +956,12 @@ def test_noise_the_estimator_cannot_beat_is_an_outcome_naming_the_estimate(runs)
     assert len(aborted) == 1 and len(retreats) == 1, run.events
     reason = aborted[0]["reason"]
     print(f"\nnoisy: {reason}")
-    found = re.search(r"^1 approach: the estimated errors did not stay within the tolerances .*: the "
-                      r"(position|attitude|velocity|rate) error was above \1_tolerance = ([\d.]+) (mm|deg|mm/s|deg/s) "
-                      r"(\d+)% of the time \(mean ([\d.]+) \3\)", reason)
+    found = re.search(
+        r"^1 approach: the estimated errors did not stay within the tolerances .*: the "
+        r"(position|attitude|velocity|rate) error was above \1_tolerance = ([\d.]+) (mm|deg|mm/s|deg/s) "
+        r"(\d+)% of the time \(mean ([\d.]+) \3\)",
+        reason,
+    )
     assert found, reason
     assert float(found.group(5)) > 0.0 and int(found.group(4)) > 0
     assert not run.of("capture") and run.events[-1]["status"] == "completed"

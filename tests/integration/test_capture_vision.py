@@ -11,6 +11,7 @@ ArUco solve), shortened to 10 s of its 40 (the grasp closes at 3.6 s):
   each frame's time (measured: up to 8.4 mm and 1.2 deg at 0.75 m while the arm swings, 1.0 mm and
   0.20 deg closer than 0.15 m);
 - `orchestrator figure` (components/camera/figure.py) draws the recorded frame nearest a time."""
+
 from __future__ import annotations
 
 import json
@@ -24,11 +25,14 @@ from components.camera.render import egl_problem
 from components.rotations import log_so3, quat_to_matrix
 from tests.conftest import ROOT, component_processes, needs, orchestrator
 
-pytestmark = [pytest.mark.integration, needs("vision", "estimator.fiducial"),
-              pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}")]
+pytestmark = [
+    pytest.mark.integration,
+    needs("vision", "estimator.fiducial"),
+    pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}"),
+]
 CONFIG = ROOT / "configs" / "capture_vision.yaml"
-FRAME_STEPS = 5                     # the estimator's 50 ms in the run's 10 ms steps
-CAPTURED = 5                        # controller.capture's phase after a capture
+FRAME_STEPS = 5  # the estimator's 50 ms in the run's 10 ms steps
+CAPTURED = 5  # controller.capture's phase after a capture
 
 
 def frame_errors(signals: pandas.DataFrame):
@@ -43,8 +47,14 @@ def frame_errors(signals: pandas.DataFrame):
         p_true = np.array([truth[f"dynamics.grasp.p_ee_grasp[{i}]"] for i in range(3)])
         R = quat_to_matrix([row[f"pose_sensor.q[{i}]"] for i in range(4)])
         R_true = quat_to_matrix([truth[f"dynamics.grasp.q_ee_grasp[{i}]"] for i in range(4)])
-        out.append((row["pose_sensor.t_measured"], np.linalg.norm(p_true), np.linalg.norm(p - p_true),
-                    np.linalg.norm(log_so3(R_true.T @ R))))
+        out.append(
+            (
+                row["pose_sensor.t_measured"],
+                np.linalg.norm(p_true),
+                np.linalg.norm(p - p_true),
+                np.linalg.norm(log_so3(R_true.T @ R)),
+            )
+        )
     return np.array(out)
 
 
@@ -73,14 +83,17 @@ def test_the_vision_capture_closes_the_grasp_on_the_estimators_poses(tmp_path):
     frames_before = math.ceil(t_capture / 0.05)
     assert before.sum() >= 0.95 * frames_before, (before.sum(), frames_before)
     _, distance, position, attitude = errors[before].T
-    assert distance.max() > 0.7 and distance.min() < 0.02           # from the observation pose onto the grapple
+    assert distance.max() > 0.7 and distance.min() < 0.02  # from the observation pose onto the grapple
     assert position.max() <= 0.010 and attitude.max() <= math.radians(2.0), (position.max(), attitude.max())
     near = distance < 0.15
     assert near.sum() >= 10
-    assert position[near].max() <= 0.003 and attitude[near].max() <= math.radians(0.6), \
-        (position[near].max(), math.degrees(attitude[near].max()))
+    assert position[near].max() <= 0.003 and attitude[near].max() <= math.radians(0.6), (
+        position[near].max(),
+        math.degrees(attitude[near].max()),
+    )
     # the README's figure: the recorded frame nearest 2.5 s, colour beside depth
     from components.camera.figure import draw, nearest_frame
+
     path = nearest_frame(run / "frames" / "wrist", 2.52)
     assert path.name == f"{50:06d}.npz"
     draw(path, tmp_path / "figure.png")

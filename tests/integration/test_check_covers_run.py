@@ -11,6 +11,7 @@ given that value, one at a time:
 Today check refuses all 126 of them; before the relative-pose sensor's latency was checked there,
 its 1.5-step latency passed check and failed the run at step 0.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -21,8 +22,8 @@ import yaml
 from components.constants import NS_PER_S
 from components.errors import ComponentError, ConfigError
 from components.schema import Bool, Duration, Float, Int, ListOf, Str, Vector
-from orchestrator.config.yaml_file import ConfigErrors
 from orchestrator.config.load import load
+from orchestrator.config.yaml_file import ConfigErrors
 from orchestrator.run.inprocess import run_in_process
 from tests.conftest import SHIPPED, config_missing
 
@@ -45,7 +46,7 @@ def refused_value(kind, step_ns: int):
     if isinstance(kind, Vector) and kind.size is not None:
         return [0.0] * (kind.size + 1)
     if isinstance(kind, Duration):
-        return f"{step_ns * 1.5 / NS_PER_S!r} s"      # not a whole number of steps
+        return f"{step_ns * 1.5 / NS_PER_S!r} s"  # not a whole number of steps
     if isinstance(kind, ListOf) and kind.min_items:
         return []
     return None
@@ -61,8 +62,7 @@ def cases():
             for parameter in spec.cls.parameters:
                 value = refused_value(parameter.kind, spec.step_ns)
                 if value is not None:
-                    yield pytest.param(config, name, parameter.name, value,
-                                       id=f"{config.stem}-{name}-{parameter.name}")
+                    yield pytest.param(config, name, parameter.name, value, id=f"{config.stem}-{name}-{parameter.name}")
 
 
 @pytest.mark.parametrize("config, component, parameter, value", list(cases()))

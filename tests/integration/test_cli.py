@@ -1,4 +1,5 @@
 """The CLI around a run: check, describe, runtime swap."""
+
 from __future__ import annotations
 
 import json
@@ -14,8 +15,18 @@ import pytest
 import yaml
 
 from components.units import duration_ns
-from tests.conftest import (ROOT, SHIPPED, component_processes, config_missing, needs, orchestrator, signal_files,
-                            start_run, wait_for_components, wait_for_step)
+from tests.conftest import (
+    ROOT,
+    SHIPPED,
+    component_processes,
+    config_missing,
+    needs,
+    orchestrator,
+    signal_files,
+    start_run,
+    wait_for_components,
+    wait_for_step,
+)
 
 pytestmark = pytest.mark.integration
 
@@ -50,12 +61,12 @@ def test_swap_while_running_hands_over_state(write_config, tmp_path):
     config = write_config(CHAIN)
     run = start_run(config, tmp_path / "rec")
     try:
-        wait_for_step("swapme", 20, run=run)                 # mid-run: the integral is not 0
+        wait_for_step("swapme", 20, run=run)  # mid-run: the integral is not 0
         bad = orchestrator("swap", "--run", "swapme", "first", "--set", "gian=3")
         assert bad.returncode == 2 and "gian: unknown parameter" in bad.stderr
         swap = orchestrator("swap", "--run", "swapme", "first", "--set", "gain=3")
         assert swap.returncode == 0, swap.stderr
-        wait_for_step("swapme", swap_step(tmp_path / "rec") + 20, run=run)   # and steps after it
+        wait_for_step("swapme", swap_step(tmp_path / "rec") + 20, run=run)  # and steps after it
         assert orchestrator("stop", "--run", "swapme").returncode == 0
         _, err = run.communicate(timeout=30)
     finally:
@@ -66,7 +77,7 @@ def test_swap_while_running_hands_over_state(write_config, tmp_path):
     swap_event = next(e for e in events if e["event"] == "swap")
     s = swap_event["step"]
     x = np.array(pq.read_table(tmp_path / "rec/signals.parquet").column("first.x"))
-    assert 20 <= s and len(x) > s + 20
+    assert s >= 20 and len(x) > s + 20
     k = np.arange(len(x))
     h = 0.01
     expected = np.where(k <= s, k * h, s * h + 3 * (k - s) * h)  # the integral carries over, then gain 3
@@ -91,7 +102,8 @@ def test_a_failed_runtime_swap_leaves_the_old_component_running(write_config, tm
         "from components.testing.blocks import Integrator\n\n"
         "class Boom(Integrator):\n"
         "    def initialize(self, t0_ns, inputs):\n"
-        "        raise RuntimeError('cannot start')\n")
+        "        raise RuntimeError('cannot start')\n"
+    )
     config = write_config(CHAIN.replace("swapme", "keepme"))
     run = start_run(config, tmp_path / "rec")
     try:
@@ -99,7 +111,7 @@ def test_a_failed_runtime_swap_leaves_the_old_component_running(write_config, tm
         swap = orchestrator("swap", "--run", "keepme", "first", "--type", "boom.py:Boom")
         assert swap.returncode == 1 and "RuntimeError: cannot start" in swap.stderr, swap.stderr
         assert len(component_processes("keepme-")) == 2  # the replacement is gone, the old one runs
-        wait_for_step("keepme", 20, run=run)             # and steps on
+        wait_for_step("keepme", 20, run=run)  # and steps on
         assert orchestrator("stop", "--run", "keepme").returncode == 0
         _, err = run.communicate(timeout=30)
     finally:
@@ -120,7 +132,9 @@ def test_an_unusable_record_directory_is_a_usage_error(write_config, tmp_path):
     assert result.returncode == 2 and "--record" in result.stderr and "Traceback" not in result.stderr
 
 
-SHORT = CHAIN.replace("swapme", "short").replace("duration: 600 s", "duration: 1 s").replace("realtime: 1.0", "realtime: 0")
+SHORT = (
+    CHAIN.replace("swapme", "short").replace("duration: 600 s", "duration: 1 s").replace("realtime: 1.0", "realtime: 0")
+)
 
 
 def test_every_run_ends_with_a_summary_even_off_a_terminal(write_config, tmp_path):
@@ -166,14 +180,16 @@ def test_record_refuses_a_used_directory_unless_overwrite(write_config, tmp_path
 
     again = orchestrator("run", config, "--record", rec, "--set", "components.source.parameters.value=2")
     assert again.returncode == 2 and str(rec) in again.stderr and "--overwrite" in again.stderr, again.stderr
-    assert signal_files(rec) == before                                # nothing lost
+    assert signal_files(rec) == before  # nothing lost
 
-    replaced = orchestrator("run", config, "--record", rec, "--overwrite", "--set", "components.source.parameters.value=2")
+    replaced = orchestrator(
+        "run", config, "--record", rec, "--overwrite", "--set", "components.source.parameters.value=2"
+    )
     assert replaced.returncode == 0, replaced.stderr
     assert not (rec / "logs" / "stale.0.log").exists()
     assert pq.read_table(rec / "signals.parquet").column("first.x").to_pylist()[-1] == pytest.approx(2.0)
 
-    (rec / "notes.txt").write_text("mine")                           # not a run's: --overwrite keeps out
+    (rec / "notes.txt").write_text("mine")  # not a run's: --overwrite keeps out
     refused = orchestrator("run", config, "--record", rec, "--overwrite")
     assert refused.returncode == 2 and "notes.txt" in refused.stderr and (rec / "notes.txt").exists()
     assert orchestrator("run", config, "--overwrite").returncode == 2
@@ -213,10 +229,12 @@ def test_describe_a_user_component_shows_its_variables_once_its_parameters_are_g
     bare = orchestrator("describe", "oscillator.py:Oscillator", cwd=cwd)
     assert bare.returncode == 0, bare.stderr
     assert "depend on the required parameters mass, stiffness" in bare.stdout
-    assert bare.stdout.count("moving mass") == 1                       # parameters listed once
+    assert bare.stdout.count("moving mass") == 1  # parameters listed once
     given = orchestrator("describe", "oscillator.py:Oscillator", "--set", "mass=2", "--set", "stiffness=3 N/m", cwd=cwd)
     rows = [line.split() for line in given.stdout.splitlines() if line.startswith(("  input", "  output"))]
-    assert [r[:3] for r in rows] == [["input", "force", "()"], ["output", "x", "()"], ["output", "v", "()"]], given.stdout
+    assert [r[:3] for r in rows] == [["input", "force", "()"], ["output", "x", "()"], ["output", "v", "()"]], (
+        given.stdout
+    )
     typo = orchestrator("describe", "oscillator.py:Oscillator", "--set", "stifness=3", cwd=cwd)
     assert typo.returncode == 2 and "stifness: unknown parameter" in typo.stderr and "stiffness" in typo.stderr
     bad = orchestrator("describe", "oscillator.py:Oscillator", "--set", "mass=2", "--set", "stiffness=3 kg", cwd=cwd)
@@ -231,9 +249,18 @@ def test_describe_shows_nested_parameters_typed_and_the_config_sections():
     same declaration that validates them; `describe config` lists the config's sections."""
     dynamics = orchestrator("describe", "dynamics.dart")
     lines = [line.split() for line in dynamics.stdout.splitlines()]
-    assert ["bodies", "{body", "name:", "Body}", "required"] == lines[[l[:1] for l in lines].index(["bodies"])][:5]
-    assert (["position", "float[3]", "[m];", "plausible", "-100", "to", "100", "km", "default"]
-            == lines[[l[:1] for l in lines].index(["position"])][:9])
+    assert lines[[l[:1] for l in lines].index(["bodies"])][:5] == ["bodies", "{body", "name:", "Body}", "required"]
+    assert lines[[l[:1] for l in lines].index(["position"])][:9] == [
+        "position",
+        "float[3]",
+        "[m];",
+        "plausible",
+        "-100",
+        "to",
+        "100",
+        "km",
+        "default",
+    ]
     assert "Body: one free-floating URDF multibody (bodies.<name>)" in dynamics.stdout
     pid = orchestrator("describe", "controller.joint_pd").stdout
     assert "PID gains: one joint's gains" in pid and "float [N*m/rad]" in pid
@@ -267,7 +294,7 @@ def test_a_swap_to_another_type_records_what_is_true(write_config, tmp_path):
     assert swap_event["state_handed_over"] is False
     signals = pandas.read_parquet(record / "signals.parquet")
     x = signals["first.x"].to_numpy()
-    assert np.allclose(x[:s + 1], np.arange(s + 1) * 0.01, rtol=0, atol=1e-9) and np.isnan(x[s + 1:]).all()
+    assert np.allclose(x[: s + 1], np.arange(s + 1) * 0.01, rtol=0, atol=1e-9) and np.isnan(x[s + 1 :]).all()
     assert len(x) > s + 1 and (signals["source.y"] == 1.0).all()
     swapped = pandas.read_parquet(record / "swaps" / f"first.{swap_event['generation']}.parquet")
     assert list(swapped.columns) == ["step", "time", "first.y[0]"]
@@ -276,8 +303,16 @@ def test_a_swap_to_another_type_records_what_is_true(write_config, tmp_path):
     assert duration_ns(recorded["events"][0].pop("at"), "at") == s * 10_000_000
     assert recorded["events"] == [{"swap": "first", "type": "test.noop", "parameters": {"size": 1}}]
     rows = len(signals)
-    replay = orchestrator("run", record / "config.yaml", "--record", tmp_path / "replay",
-                          "--set", f"run.duration={(rows - 1) * 10} ms", "--set", "run.realtime=0")
+    replay = orchestrator(
+        "run",
+        record / "config.yaml",
+        "--record",
+        tmp_path / "replay",
+        "--set",
+        f"run.duration={(rows - 1) * 10} ms",
+        "--set",
+        "run.realtime=0",
+    )
     assert replay.returncode == 0, replay.stderr
     assert pandas.read_parquet(tmp_path / "replay" / "signals.parquet").equals(signals)
     assert not component_processes("retype-")
@@ -289,9 +324,15 @@ def test_check_compiles_no_kernel(tmp_path):
     its instantiate, with its note); each check passes (issue 34)."""
     cache = tmp_path / "numba"
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache)}
-    for config in [c for c in SHIPPED if not config_missing(c)]:   # those of an extra not installed: exit 2
-        result = subprocess.run([sys.executable, "-m", "orchestrator.cli", "check", str(config)], cwd=ROOT, env=env,
-                                capture_output=True, text=True, timeout=300)
+    for config in [c for c in SHIPPED if not config_missing(c)]:  # those of an extra not installed: exit 2
+        result = subprocess.run(
+            [sys.executable, "-m", "orchestrator.cli", "check", str(config)],
+            cwd=ROOT,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
         assert result.returncode == 0, (config.name, result.stderr)
     compiled = [p.name for p in cache.rglob("*") if p.is_file()]
     assert not compiled, compiled
@@ -301,9 +342,13 @@ def test_check_compiles_no_kernel(tmp_path):
 def test_dart_warnings_on_massless_links_are_no_noise():
     """The Panda on a bus (panda_link8 has no <inertial>, on a fixed joint: harmless): `check
     --strict` passes, with none of DART's raw C++ warning lines (issue 34) and no warning."""
-    result = subprocess.run([sys.executable, "-m", "orchestrator.cli", "check", "--strict",
-                             str(ROOT / "configs" / "panda_on_bus.yaml")], cwd=ROOT, capture_output=True, text=True,
-                            timeout=300)
+    result = subprocess.run(
+        [sys.executable, "-m", "orchestrator.cli", "check", "--strict", str(ROOT / "configs" / "panda_on_bus.yaml")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert result.returncode == 0, result.stderr
     assert "BodyNode.cpp" not in result.stderr and "\x1b[" not in result.stderr, result.stderr
     assert "without mass" not in result.stderr and "warning" not in result.stderr, result.stderr
@@ -315,20 +360,26 @@ def test_an_implausible_value_is_a_warning_and_under_strict_an_error(write_confi
     run --strict starts nothing."""
     capture = ROOT / "configs" / "capture_tumbling_target.yaml"
     rate = "components.dynamics.parameters.bodies.target.twist.rate"
-    line = (f"{capture}: {rate}: 8 (read as rad/s) = 458 deg/s, outside the plausible 0 to 60 deg/s; "
-            f"write '8 deg/s' for degrees")
+    line = (
+        f"{capture}: {rate}: 8 (read as rad/s) = 458 deg/s, outside the plausible 0 to 60 deg/s; "
+        f"write '8 deg/s' for degrees"
+    )
     check = orchestrator("check", capture, "--set", f"{rate}=8")
     assert check.returncode == 0 and check.stderr.splitlines() == [f"warning: {line}"], check.stderr
     strict = orchestrator("check", capture, "--set", f"{rate}=8", "--strict")
     assert strict.returncode == 2 and strict.stderr.splitlines() == [
-        f"error: {line}", f"error: {capture}: --strict makes the warning above an error"], strict.stderr
+        f"error: {line}",
+        f"error: {capture}: --strict makes the warning above an error",
+    ], strict.stderr
     config = write_config("""
 run: {name: heavy, epoch: 2022-09-18T12:00:00Z, duration: 10 ms, step: 1 ms}
 components:
   spring: {type: components.examples.oscillator:Oscillator, parameters: {mass: 1e7, stiffness: 8 N/m}}
 """)
-    said = (f"{config}: components.spring.parameters.mass: 1e7 (read as kg), outside the plausible 0.001 to 1e+06 kg; "
-            f"write '1e7 g' for grams")
+    said = (
+        f"{config}: components.spring.parameters.mass: 1e7 (read as kg), outside the plausible 0.001 to 1e+06 kg; "
+        f"write '1e7 g' for grams"
+    )
     run = orchestrator("run", config, "--record", tmp_path / "rec")
     assert run.returncode == 0, run.stderr
     assert f"warning: {said}" in run.stderr.splitlines(), run.stderr
@@ -336,5 +387,7 @@ components:
     assert [e["message"] for e in events if e["event"] == "warning"] == [said]
     refused = orchestrator("run", config, "--record", tmp_path / "strict", "--strict")
     assert refused.returncode == 2 and refused.stderr.splitlines() == [
-        f"error: {said}", f"error: {config}: --strict makes the warning above an error"], refused.stderr
+        f"error: {said}",
+        f"error: {config}: --strict makes the warning above an error",
+    ], refused.stderr
     assert not (tmp_path / "strict").exists() or not any((tmp_path / "strict").iterdir())

@@ -1,6 +1,7 @@
 """Component types bring their plots and views: a user's type plots itself with no edit of
 orchestrator/, and the capture controller and the sensors plot (and view) what they recorded.
 Checked by what the figures show (their lines' data against the recorded columns)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -67,8 +68,15 @@ def test_a_users_own_type_plots_itself(tmp_path):
 def capture(tmp_path_factory):
     """configs/capture_tumbling_target.yaml, its first 6 s (approach, closing, capture), recorded."""
     record = tmp_path_factory.mktemp("capture") / "rec"
-    result = orchestrator("run", ROOT / "configs" / "capture_tumbling_target.yaml", "--set", "run.duration=6 s",
-                          "--record", record, timeout=300)
+    result = orchestrator(
+        "run",
+        ROOT / "configs" / "capture_tumbling_target.yaml",
+        "--set",
+        "run.duration=6 s",
+        "--record",
+        record,
+        timeout=300,
+    )
     assert result.returncode == 0, result.stderr
     return record
 
@@ -82,16 +90,19 @@ def test_the_capture_controller_and_the_sensors_plot_what_they_recorded(capture)
     phases = made["controller_phases.png"]
     t, phase = _line(phases, "phase", "phase")
     assert np.array_equal(t, columns["time"]) and np.array_equal(phase, columns["controller.phase"])
-    assert {0.0, 1.0, 2.0, 5.0} <= set(phase)                       # waited, approached, closed, captured
+    assert {0.0, 1.0, 2.0, 5.0} <= set(phase)  # waited, approached, closed, captured
     assert np.array_equal(_line(phases, "distance", "grasp_distance")[1], columns["controller.grasp_distance"])
-    assert np.allclose(_line(phases, "velocity error", "close_errors[2]")[1], 1e3 * columns["controller.close_errors[2]"],
-                       rtol=1e-15, atol=0)   # m/s drawn in mm/s
+    assert np.allclose(
+        _line(phases, "velocity error", "close_errors[2]")[1],
+        1e3 * columns["controller.close_errors[2]"],
+        rtol=1e-15,
+        atol=0,
+    )  # m/s drawn in mm/s
     # each measurement against the true value feeding the sensor (the connection's source)
     imu = made["imu_measured.png"]
     for k in range(3):
         assert np.array_equal(_line(imu, "imu.rate", f"rate[{k}]")[1], columns[f"imu.rate[{k}]"])
-        assert np.array_equal(_line(imu, "imu.rate", f"rate_true[{k}]")[1],
-                              columns[f"dynamics.servicer.imu_rate[{k}]"])
+        assert np.array_equal(_line(imu, "imu.rate", f"rate_true[{k}]")[1], columns[f"dynamics.servicer.imu_rate[{k}]"])
     wrench = made["wrist_ft_measured.png"]
     assert np.array_equal(_line(wrench, "wrench", "wrench_true[5]")[1], columns["dynamics.grasp.wrench[5]"])
     assert np.array_equal(_line(wrench, "wrench", "wrench[5]")[1], columns["wrist_ft.wrench[5]"])
@@ -105,14 +116,17 @@ def test_the_sensors_view_shows_measured_beside_true(capture, tmp_path):
     result = orchestrator("view", capture, "--view", f"save:{rrd}")
     assert result.returncode == 0, result.stderr
     entities, columns = read_rrd(rrd), _columns(capture)
-    for path, column in (("/plots/imu/rate/measured", "imu.rate"), ("/plots/imu/rate/true", "dynamics.servicer.imu_rate"),
-                         ("/plots/wrist_ft/wrench/true", "dynamics.grasp.wrench")):
+    for path, column in (
+        ("/plots/imu/rate/measured", "imu.rate"),
+        ("/plots/imu/rate/true", "dynamics.servicer.imu_rate"),
+        ("/plots/wrist_ft/wrench/true", "dynamics.grasp.wrench"),
+    ):
         logged = entities[path]["data"]
         at = np.searchsorted(columns["step"], logged["step"])
         n = len(logged["Scalars:scalars"][0])
         recorded = np.column_stack([columns[f"{column}[{k}]"] for k in range(n)])[at]
         assert np.array_equal(np.array(logged["Scalars:scalars"]), recorded), path
-    assert "/signals/imu/rate" not in entities                     # shown once, beside its true value
+    assert "/signals/imu/rate" not in entities  # shown once, beside its true value
 
 
 def test_the_plot_table_is_the_declarations():

@@ -6,6 +6,7 @@ run, and the recorded config.yaml replays it bit for bit.
 The undisturbed reference is the same config stepped in process (orchestrator/run/inprocess.py),
 which a bus run equals bit for bit (tests/integration/test_bus_equals_in_process.py).
 """
+
 from __future__ import annotations
 
 import json
@@ -44,16 +45,16 @@ def test_swap_from_dart_to_pinocchio_continues_from_the_exact_state(tmp_path):
     undisturbed = pandas.DataFrame(run_in_process(config), columns=columns)
     dynamics = [c for c in columns if c.startswith(("dynamics.", "controller."))]
     before, after = swapped[dynamics].iloc[:5001].to_numpy(), swapped[dynamics].iloc[5000:].to_numpy()
-    assert np.array_equal(before, undisturbed[dynamics].iloc[:5001].to_numpy())      # DART until the swap
+    assert np.array_equal(before, undisturbed[dynamics].iloc[:5001].to_numpy())  # DART until the swap
     reference = undisturbed[dynamics].iloc[5000:].to_numpy()
     difference = np.abs(after - reference) / np.maximum(1.0, np.abs(reference))
     print(f"largest difference after the swap: {difference.max():.1e} (last row {difference[-1].max():.1e})")
     assert len(after) == 1001 and difference.max() <= 1e-9
-    table = pandas.read_parquet(record / "swaps" / "dynamics.1.parquet")   # the new type's own table
+    table = pandas.read_parquet(record / "swaps" / "dynamics.1.parquet")  # the new type's own table
     q = "dynamics.humanoid.q[13]"
     assert table["step"].iloc[0] == 5000 and np.array_equal(table[q].to_numpy(), swapped[q].to_numpy()[5000:])
 
-    (tmp_path / "models").symlink_to(ROOT / "models")      # the recorded config's ../models/ paths
+    (tmp_path / "models").symlink_to(ROOT / "models")  # the recorded config's ../models/ paths
     done = orchestrator("run", record / "config.yaml", "--record", replay)
     assert done.returncode == 0, done.stderr
     assert pandas.read_parquet(replay / "signals.parquet").equals(swapped)

@@ -10,6 +10,7 @@ images over the bus, in place of the relative-pose oracle:
   frustum on the end effector and its frames;
 - ``orchestrator check``: accepted as it is, refused with exit 2 naming the key (and the field of
   the layout file) for bad parameters."""
+
 from __future__ import annotations
 
 import math
@@ -25,8 +26,11 @@ from components.rotations import log_so3, matrix_to_quat, quat_to_matrix
 from orchestrator.plots.recording import figures
 from tests.conftest import ROOT, component_processes, needs, orchestrator
 
-pytestmark = [pytest.mark.integration, needs("vision", "estimator.fiducial"),
-              pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}")]
+pytestmark = [
+    pytest.mark.integration,
+    needs("vision", "estimator.fiducial"),
+    pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}"),
+]
 CAPTURE = ROOT / "configs" / "capture_tumbling_target.yaml"
 KEY = "components.pose_sensor.parameters"
 
@@ -34,7 +38,7 @@ KEY = "components.pose_sensor.parameters"
 # the grapple in the end-effector frame at the start (the config's arm pose): the camera looks at it
 GRAPPLE_AT_START = np.array([0.82793285, 0.29939321, -0.0460646])
 MOUNT = np.array([0.0, 0.07, -0.03])
-EPOCH_NS = 1663502400 * 1_000_000_000        # the capture config's epoch, 2022-09-18T12:00:00Z
+EPOCH_NS = 1663502400 * 1_000_000_000  # the capture config's epoch, 2022-09-18T12:00:00Z
 
 
 def looking_at(direction) -> list[float]:
@@ -54,15 +58,41 @@ def vision_config(path: Path, duration: str = "40 s") -> Path:
     controller = data["components"]["controller"]["parameters"]
     controller["urdf"] = str((CAPTURE.parent / controller["urdf"]).resolve())
     bodies = {name: body["urdf"] for name, body in data["components"]["dynamics"]["parameters"]["bodies"].items()}
-    camera = {"bodies": bodies, "body": "servicer", "link": "ee", "position": MOUNT.tolist(),
-              "orientation": looking_at(GRAPPLE_AT_START - MOUNT), "width": 640, "height": 480, "fx": 500, "fy": 500,
-              "cx": 319.5, "cy": 239.5, "near": 0.02, "far": 20, "ambient": 0.1, "seed": 5, "pixel_noise": 2,
-              "depth_noise": 0}
+    camera = {
+        "bodies": bodies,
+        "body": "servicer",
+        "link": "ee",
+        "position": MOUNT.tolist(),
+        "orientation": looking_at(GRAPPLE_AT_START - MOUNT),
+        "width": 640,
+        "height": 480,
+        "fx": 500,
+        "fy": 500,
+        "cx": 319.5,
+        "cy": 239.5,
+        "near": 0.02,
+        "far": 20,
+        "ambient": 0.1,
+        "seed": 5,
+        "pixel_noise": 2,
+        "depth_noise": 0,
+    }
     data["components"]["wrist"] = {"type": "sensor.camera", "step": "100 ms", "parameters": camera}
-    data["components"]["pose_sensor"] = {"type": "estimator.fiducial", "step": "100 ms", "parameters": {
-        "body": "servicer", "urdf": bodies["servicer"], "link": "ee", "end_effector": "ee", "width": 640,
-        "height": 480, "markers": str(ROOT / "models" / "capture" / "grapple_markers.yaml"),
-        "min_markers": 2, "max_reprojection_error": 1.5}}
+    data["components"]["pose_sensor"] = {
+        "type": "estimator.fiducial",
+        "step": "100 ms",
+        "parameters": {
+            "body": "servicer",
+            "urdf": bodies["servicer"],
+            "link": "ee",
+            "end_effector": "ee",
+            "width": 640,
+            "height": 480,
+            "markers": str(ROOT / "models" / "capture" / "grapple_markers.yaml"),
+            "min_markers": 2,
+            "max_reprojection_error": 1.5,
+        },
+    }
     connections = data["connections"]
     del connections["pose_sensor.p_true"], connections["pose_sensor.q_true"]
     for body in bodies:
@@ -98,8 +128,12 @@ def test_the_estimator_over_a_run_against_the_dynamics_and_again_bit_for_bit(tmp
     # estimator's step then reads: its solve is out from (k + 2) * 100 ms on; before, no frame
     assert (signals.loc[signals["step"] < 20, "pose_sensor.valid"] == 0.0).all()
     frames = signals[(signals["step"] % 10 == 0) & (signals["step"] >= 20)]
-    assert np.array_equal(frames["pose_sensor.t_measured"].to_numpy(), (frames["step"].to_numpy() // 10 - 2) * 1e8 / 1e9)
-    assert len(frames) == 11 and (frames["pose_sensor.valid"] == 1.0).all() and (frames["pose_sensor.markers"] >= 3).all()
+    assert np.array_equal(
+        frames["pose_sensor.t_measured"].to_numpy(), (frames["step"].to_numpy() // 10 - 2) * 1e8 / 1e9
+    )
+    assert (
+        len(frames) == 11 and (frames["pose_sensor.valid"] == 1.0).all() and (frames["pose_sensor.markers"] >= 3).all()
+    )
     position_errors, attitude_errors = [], []
     for _, row in frames.iterrows():
         truth = signals.loc[np.isclose(signals["time"], row["pose_sensor.t_measured"], atol=1e-9)].iloc[0]
@@ -109,8 +143,10 @@ def test_the_estimator_over_a_run_against_the_dynamics_and_again_bit_for_bit(tmp
         R_true = quat_to_matrix([truth[f"dynamics.grasp.q_ee_grasp[{i}]"] for i in range(4)])
         position_errors.append(np.linalg.norm(p - p_true))
         attitude_errors.append(np.linalg.norm(log_so3(R_true.T @ R)))
-    assert max(position_errors) <= 0.005 and max(attitude_errors) <= math.radians(0.6), \
-        (position_errors, attitude_errors)
+    assert max(position_errors) <= 0.005 and max(attitude_errors) <= math.radians(0.6), (
+        position_errors,
+        attitude_errors,
+    )
     # orchestrator plot draws those errors at the frames' times
     done = orchestrator("plot", tmp_path / "a")
     assert done.returncode == 0, done.stderr
@@ -120,8 +156,10 @@ def test_the_estimator_over_a_run_against_the_dynamics_and_again_bit_for_bit(tmp
     assert np.array_equal(t, frames["pose_sensor.t_measured"].to_numpy())
     assert np.allclose(position, 1e3 * np.array(position_errors), rtol=1e-12, atol=0.0)
     assert np.allclose(line(figure, "attitude error", "attitude")[1], np.degrees(attitude_errors), rtol=1e-12, atol=0.0)
-    assert len(list((tmp_path / "a" / "frames" / "wrist").glob("*.npz"))) == 12   # the last one too
-    assert frames["wrist.frame"].tolist() == list(range(2, 13)) and frames["pose_sensor.frame_solved"].tolist() == list(range(1, 12))
+    assert len(list((tmp_path / "a" / "frames" / "wrist").glob("*.npz"))) == 12  # the last one too
+    assert frames["wrist.frame"].tolist() == list(range(2, 13)) and frames["pose_sensor.frame_solved"].tolist() == list(
+        range(1, 12)
+    )
     # orchestrator export --rosbag2: a PoseStamped per frame in the end effector's tf frame, read back
     # with the independent MCAP reader
     bag = tmp_path / "bag"
@@ -150,11 +188,13 @@ def read_bag(bag: Path) -> dict[str, list]:
     """{topic: [(log time ns, decoded message)]} with the MCAP reader (not the exporter's rosbags)."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
+
     (path,) = bag.glob("*.mcap")
     topics: dict[str, list] = {}
     with open(path, "rb") as f:
         for _, channel, message, decoded in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
-                log_time_order=True):
+            log_time_order=True
+        ):
             topics.setdefault(channel.topic, []).append((message.log_time, decoded))
     return topics
 
@@ -168,11 +208,12 @@ def line(fig, title_part: str, label: str):
 def rrd_camera(rrd: Path, entity: str):
     """(the pinhole's K as logged, the colour images logged) of a camera entity in an .rrd."""
     from rerun.chunk import RrdReader
+
     pinhole, images = None, []
     for chunk in RrdReader(rrd).stream():
         batch = chunk.to_record_batch()
         if chunk.entity_path == entity and chunk.is_static and "Pinhole:image_from_camera" in batch.schema.names:
-            pinhole = np.array(batch.column("Pinhole:image_from_camera").to_pylist()[0]).reshape(3, 3).T   # column-major
+            pinhole = np.array(batch.column("Pinhole:image_from_camera").to_pylist()[0]).reshape(3, 3).T  # column-major
         if chunk.entity_path == f"{entity}/rgb" and "Image:buffer" in batch.schema.names:
             images += batch.column("Image:buffer").to_pylist()
     return pinhole, images
@@ -184,13 +225,16 @@ def test_the_estimator_in_place_of_the_oracle_checks(config):
     assert "7 components" in done.stdout
 
 
-@pytest.mark.parametrize("setting, key, expected", [
-    ("min_markers=9", "min_markers", "expected at most the layout's 5 markers, got 9"),
-    ("markers=nowhere.yaml", "markers", "marker layout 'nowhere.yaml' not found"),
-    ("end_effector=arm_5_link", "end_effector", "joint arm_6_joint between them is revolute, not fixed"),
-    ("link=hand", "link", "expected a link of"),
-    ("max_reprojection_error=-1", "max_reprojection_error", "expected a quantity > 0, got -1"),
-])
+@pytest.mark.parametrize(
+    "setting, key, expected",
+    [
+        ("min_markers=9", "min_markers", "expected at most the layout's 5 markers, got 9"),
+        ("markers=nowhere.yaml", "markers", "marker layout 'nowhere.yaml' not found"),
+        ("end_effector=arm_5_link", "end_effector", "joint arm_6_joint between them is revolute, not fixed"),
+        ("link=hand", "link", "expected a link of"),
+        ("max_reprojection_error=-1", "max_reprojection_error", "expected a quantity > 0, got -1"),
+    ],
+)
 def test_bad_parameters_exit_2_naming_the_key(config, setting, key, expected):
     done = orchestrator("check", config, "--set", f"{KEY}.{setting}")
     assert done.returncode == 2, done.stdout + done.stderr
@@ -200,8 +244,10 @@ def test_bad_parameters_exit_2_naming_the_key(config, setting, key, expected):
 def test_an_estimator_of_another_image_size_than_its_camera_exits_2_naming_both(config):
     done = orchestrator("check", config, "--set", f"{KEY}.width=641")
     assert done.returncode == 2, done.stdout + done.stderr
-    assert ("connections.pose_sensor.rgb: frame mismatch: input pose_sensor.rgb is uint8 (480, 641, 3), "
-            "output wrist.rgb is uint8 (480, 640, 3)") in done.stderr, done.stderr
+    assert (
+        "connections.pose_sensor.rgb: frame mismatch: input pose_sensor.rgb is uint8 (480, 641, 3), "
+        "output wrist.rgb is uint8 (480, 640, 3)"
+    ) in done.stderr, done.stderr
 
 
 def test_a_bad_layout_file_exits_2_naming_the_field_in_it(config, tmp_path):

@@ -1,5 +1,6 @@
 """orchestrator export-fmu: component types as FMI 2.0 co-simulation FMUs, run by FMPy (a master
 Zenorbit did not write) and compared bit for bit with the native component and a real run."""
+
 from __future__ import annotations
 
 import json
@@ -22,13 +23,14 @@ from tests.conftest import ROOT, orchestrator
 fmpy = pytest.importorskip("fmpy", reason=missing("fmi", "testing the FMU export"))
 from fmpy.fmi2 import FMU2Slave  # noqa: E402  (the extra [fmi]: skipped above without it)
 from fmpy.validation import validate_fmu  # noqa: E402
+
 from components.fmi.exported import element_units, export_fmu  # noqa: E402  (pythonfmu: the same extra)
 
 pytestmark = pytest.mark.integration
 
 EPOCH = "2022-09-18T12:00:00Z"
-KEPLER_STEPS, KEPLER_STEP = 60, 1.0          # s: configs/orbit_iss_kepler.yaml's step
-HUMANOID_STEPS, HUMANOID_STEP = 40, 0.01     # s: configs/free_floating_humanoid.yaml's step
+KEPLER_STEPS, KEPLER_STEP = 60, 1.0  # s: configs/orbit_iss_kepler.yaml's step
+HUMANOID_STEPS, HUMANOID_STEP = 40, 0.01  # s: configs/free_floating_humanoid.yaml's step
 
 
 def config_parameters(config: str, component: str) -> dict:
@@ -74,8 +76,12 @@ def humanoid_torques(size: int) -> np.ndarray:
 
 
 def humanoid_harness() -> Harness:
-    return Harness("dynamics.dart", config_parameters("free_floating_humanoid.yaml", "dynamics"), epoch=EPOCH,
-                   config_dir=ROOT / "configs")
+    return Harness(
+        "dynamics.dart",
+        config_parameters("free_floating_humanoid.yaml", "dynamics"),
+        epoch=EPOCH,
+        config_dir=ROOT / "configs",
+    )
 
 
 def constant_inputs(harness: Harness, values: dict[str, np.ndarray]) -> np.ndarray:
@@ -92,12 +98,19 @@ def constant_inputs(harness: Harness, values: dict[str, np.ndarray]) -> np.ndarr
 @pytest.fixture(scope="module")
 def kepler_fmu(tmp_path_factory):
     out = tmp_path_factory.mktemp("kepler") / "kepler.fmu"
-    result = orchestrator("export-fmu", "orbit.kepler",
-                          *[arg for s in as_overrides(config_parameters("orbit_iss_kepler.yaml", "orbit"))
-                            for arg in ("--set", s)], "--epoch", EPOCH, "-o", out)
+    result = orchestrator(
+        "export-fmu",
+        "orbit.kepler",
+        *[arg for s in as_overrides(config_parameters("orbit_iss_kepler.yaml", "orbit")) for arg in ("--set", s)],
+        "--epoch",
+        EPOCH,
+        "-o",
+        out,
+    )
     assert result.returncode == 0, result.stderr
-    assert result.stdout.strip() == (f"wrote {out} (0 inputs, 13 outputs, FMI 2.0 co-simulation, "
-                                     "state: get/set and serialize)")
+    assert result.stdout.strip() == (
+        f"wrote {out} (0 inputs, 13 outputs, FMI 2.0 co-simulation, state: get/set and serialize)"
+    )
     return out
 
 
@@ -105,14 +118,16 @@ def kepler_fmu(tmp_path_factory):
 def humanoid_fmu(tmp_path_factory):
     """The free-floating humanoid's dynamics; its URDF path (../models/...) is relative to configs/."""
     out = tmp_path_factory.mktemp("humanoid") / "humanoid.fmu"
-    export_fmu("dynamics.dart", config_parameters("free_floating_humanoid.yaml", "dynamics"), out, EPOCH,
-               ROOT / "configs")
+    export_fmu(
+        "dynamics.dart", config_parameters("free_floating_humanoid.yaml", "dynamics"), out, EPOCH, ROOT / "configs"
+    )
     return out
 
 
 def test_kepler_fmu_in_fmpy_equals_native_and_orchestrator_run(kepler_fmu, tmp_path):
-    result = fmpy.simulate_fmu(kepler_fmu, start_time=0.0, stop_time=KEPLER_STEPS * KEPLER_STEP,
-                               output_interval=KEPLER_STEP)
+    result = fmpy.simulate_fmu(
+        kepler_fmu, start_time=0.0, stop_time=KEPLER_STEPS * KEPLER_STEP, output_interval=KEPLER_STEP
+    )
     harness = Harness("orbit.kepler", config_parameters("orbit_iss_kepler.yaml", "orbit"), epoch=EPOCH)
     names = output_names(harness)
     from_fmu = fmu_rows(result, names)
@@ -120,8 +135,9 @@ def test_kepler_fmu_in_fmpy_equals_native_and_orchestrator_run(kepler_fmu, tmp_p
     assert np.array_equal(result["time"], np.arange(KEPLER_STEPS + 1) * KEPLER_STEP)
     assert np.array_equal(from_fmu, native_rows(harness, KEPLER_STEPS, round(KEPLER_STEP * NS_PER_S)))
 
-    run = orchestrator("run", "configs/orbit_iss_kepler.yaml", "--set", f"run.duration={KEPLER_STEPS} s",
-                       "--record", tmp_path / "rec")
+    run = orchestrator(
+        "run", "configs/orbit_iss_kepler.yaml", "--set", f"run.duration={KEPLER_STEPS} s", "--record", tmp_path / "rec"
+    )
     assert run.returncode == 0, run.stderr
     signals = pq.read_table(tmp_path / "rec/signals.parquet")
     recorded = np.column_stack([np.asarray(signals.column(f"orbit.{name}")) for name in names])
@@ -134,13 +150,18 @@ def test_dynamics_fmu_with_constant_inputs_equals_native(humanoid_fmu):
     values = {**orbit_inputs(), "humanoid.tau": humanoid_torques(n)}
     harness.inputs.update(values)
     stop = HUMANOID_STEPS * HUMANOID_STEP
-    result = fmpy.simulate_fmu(humanoid_fmu, start_time=0.0, stop_time=stop, output_interval=HUMANOID_STEP,
-                               input=constant_inputs(harness, values))
+    result = fmpy.simulate_fmu(
+        humanoid_fmu,
+        start_time=0.0,
+        stop_time=stop,
+        output_interval=HUMANOID_STEP,
+        input=constant_inputs(harness, values),
+    )
     native = native_rows(harness, HUMANOID_STEPS, round(HUMANOID_STEP * NS_PER_S))
     from_fmu = fmu_rows(result, output_names(harness))
     assert from_fmu.shape == native.shape == (HUMANOID_STEPS + 1, harness.output_layout.size)
     assert np.array_equal(from_fmu, native)
-    assert np.ptp(result["humanoid.q[0]"]) > 1e-3   # the arm moved: the inputs and steps did something
+    assert np.ptp(result["humanoid.q[0]"]) > 1e-3  # the arm moved: the inputs and steps did something
     with zipfile.ZipFile(humanoid_fmu) as archive:  # the URDF travels in the FMU, the parameter rewritten
         assert "resources/files/_outside/up/models/humanoid_torso.urdf" in archive.namelist()
         spec = json.loads(archive.read("resources/zenorbit.json"))
@@ -163,7 +184,7 @@ def test_model_description_is_valid_with_vector_names_units_and_descriptions(kep
     humanoid = fmpy.read_model_description(humanoid_fmu, validate=True)
     by_name = {v.name: v for v in humanoid.modelVariables}
     twist = [by_name[f"humanoid.twist[{i}]"].unit for i in range(6)]
-    assert twist == ["m/s"] * 3 + ["rad/s"] * 3                     # "m/s, rad/s" split over the six
+    assert twist == ["m/s"] * 3 + ["rad/s"] * 3  # "m/s, rad/s" split over the six
     assert by_name["humanoid.momentum[5]"].unit == "kg*m^2/s"
     tau = by_name["humanoid.tau[0]"]
     assert (tau.causality, tau.unit, tau.start) == ("input", "N*m", "0.0")
@@ -181,12 +202,16 @@ def test_fmu_state_serialized_mid_run_restores_bit_identically(humanoid_fmu):
     steps, middle, h = 12, 5, HUMANOID_STEP
 
     def instance(name: str) -> FMU2Slave:
-        slave = FMU2Slave(guid=description.guid, unzipDirectory=unzipped,
-                          modelIdentifier=description.coSimulation.modelIdentifier, instanceName=name)
+        slave = FMU2Slave(
+            guid=description.guid,
+            unzipDirectory=unzipped,
+            modelIdentifier=description.coSimulation.modelIdentifier,
+            instanceName=name,
+        )
         slave.instantiate()
         return slave
 
-    def torques(k: int) -> list[float]:   # inputs that change from step to step
+    def torques(k: int) -> list[float]:  # inputs that change from step to step
         return list(humanoid_torques(len(torque)) * (1 + k % 3))
 
     def step(slave: FMU2Slave, k: int) -> list[float]:
@@ -211,7 +236,7 @@ def test_fmu_state_serialized_mid_run_restores_bit_identically(humanoid_fmu):
         assert first.getReal(outputs) == rows[middle - 1] and first.getReal(torque) == torques(middle - 1)
         assert np.array_equal([step(first, k) for k in range(middle, steps)], rows[middle:])
 
-        state = second.deSerializeFMUstate(blob)   # serialized by one instance, restored in another
+        state = second.deSerializeFMUstate(blob)  # serialized by one instance, restored in another
         second.setFMUstate(state)
         second.freeFMUstate(state)
         assert np.array_equal([step(second, k) for k in range(middle, steps)], rows[middle:])
@@ -258,9 +283,10 @@ def test_type_without_state_travels_with_its_files_and_a_failing_step_fails(tmp_
     (tmp_path / "plant/ramp.py").write_text(RAMP)
     (tmp_path / "data").mkdir()
     (tmp_path / "data/slopes.txt").write_text("1 2 3 4 5\n")
-    out = export_fmu("plant/ramp.py:Ramp", {"slopes": "data/slopes.txt", "fail_at": 0.35}, tmp_path / "out/ramp.fmu",
-                     None, tmp_path)
-    shutil.rmtree(tmp_path / "plant")   # the FMU carries the type's file and the table
+    out = export_fmu(
+        "plant/ramp.py:Ramp", {"slopes": "data/slopes.txt", "fail_at": 0.35}, tmp_path / "out/ramp.fmu", None, tmp_path
+    )
+    shutil.rmtree(tmp_path / "plant")  # the FMU carries the type's file and the table
     shutil.rmtree(tmp_path / "data")
 
     description = fmpy.read_model_description(out, validate=True)
@@ -270,11 +296,16 @@ def test_type_without_state_travels_with_its_files_and_a_failing_step_fails(tmp_
     assert (y0.name, y0.unit, y0.description) == ("y[0]", None, "the ramps (element 0) [units: m, s]")
 
     messages = []
-    result = fmpy.simulate_fmu(out, stop_time=1.0, output_interval=0.1, debug_logging=True,
-                               input=np.array([(0.0, 0.25)], dtype=[("time", float), ("offset.u", float)]),
-                               logger=lambda env, name, status, category, message: messages.append(message))
-    assert result["time"][-1] == pytest.approx(0.3)   # the step to 0.4 failed: the simulation ends there
-    assert result["y[4]"][3] == 5 * 0.3 + 0.25     # the component saw t = 300 000 000 ns
+    result = fmpy.simulate_fmu(
+        out,
+        stop_time=1.0,
+        output_interval=0.1,
+        debug_logging=True,
+        input=np.array([(0.0, 0.25)], dtype=[("time", float), ("offset.u", float)]),
+        logger=lambda env, name, status, category, message: messages.append(message),
+    )
+    assert result["time"][-1] == pytest.approx(0.3)  # the step to 0.4 failed: the simulation ends there
+    assert result["y[4]"][3] == 5 * 0.3 + 0.25  # the component saw t = 300 000 000 ns
     assert b"plant/ramp.py:Ramp: step at t = 0.3 s failed: RuntimeError: the ramp ran out" in messages
 
 
@@ -292,9 +323,15 @@ import json, sys, fmpy
 result = fmpy.simulate_fmu({str(humanoid_fmu)!r}, stop_time=0.03, output_interval=0.01)
 print(json.dumps({{"components": sys.modules["components"].__file__, "q": result["humanoid.q[0]"].tolist()}}))
 """
-    done = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True, text=True, timeout=120,
-                          env={k: v for k, v in os.environ.items() if k != "PYTHONPATH"})
-    assert done.returncode == 0, done.stderr[-2000:]   # no crash at exit either
+    done = subprocess.run(
+        [sys.executable, "-c", script],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={k: v for k, v in os.environ.items() if k != "PYTHONPATH"},
+    )
+    assert done.returncode == 0, done.stderr[-2000:]  # no crash at exit either
     answer = json.loads(done.stdout.strip().splitlines()[-1])
     assert answer["components"].endswith("/resources/components/__init__.py")
     assert not answer["components"].startswith(str(ROOT))
@@ -304,19 +341,30 @@ print(json.dumps({{"components": sys.modules["components"].__file__, "q": result
 
 def kepler_sets(**changes) -> list[str]:
     parameters = {**config_parameters("orbit_iss_kepler.yaml", "orbit"), **changes}
-    return ["orbit.kepler", *(f"--set={s}" for s in as_overrides({k: v for k, v in parameters.items() if v is not None}))]
+    return [
+        "orbit.kepler",
+        *(f"--set={s}" for s in as_overrides({k: v for k, v in parameters.items() if v is not None})),
+    ]
 
 
-@pytest.mark.parametrize("arguments, message", [
-    (["orbit.keppler"], "unknown component type 'orbit.keppler'"),
-    (kepler_sets(semi_major_axes="7000 km"), "--set semi_major_axes: unknown parameter of orbit.kepler (known: "),
-    (kepler_sets(eccentricity=None), "--set eccentricity: missing required parameter"),
-    (kepler_sets(mean_anomaly=None, time_of_perigee="2022-09-18T11:30:00Z"),
-     "orbit.kepler needs the run epoch (run.epoch, the UTC of t = 0): pass --epoch UTC"),
-    ([*kepler_sets(), "--epoch", "yesterday"], "--epoch: expected a UTC time like 2022-09-18T12:00:00Z"),
-    (["dynamics.dart", "--set=bodies.robot.urdf=missing.urdf"],
-     "--set bodies.robot.urdf: URDF file 'missing.urdf' not found"),
-], ids=["unknown-type", "unknown-parameter", "missing-parameter", "needs-epoch", "bad-epoch", "missing-file"])
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        (["orbit.keppler"], "unknown component type 'orbit.keppler'"),
+        (kepler_sets(semi_major_axes="7000 km"), "--set semi_major_axes: unknown parameter of orbit.kepler (known: "),
+        (kepler_sets(eccentricity=None), "--set eccentricity: missing required parameter"),
+        (
+            kepler_sets(mean_anomaly=None, time_of_perigee="2022-09-18T11:30:00Z"),
+            "orbit.kepler needs the run epoch (run.epoch, the UTC of t = 0): pass --epoch UTC",
+        ),
+        ([*kepler_sets(), "--epoch", "yesterday"], "--epoch: expected a UTC time like 2022-09-18T12:00:00Z"),
+        (
+            ["dynamics.dart", "--set=bodies.robot.urdf=missing.urdf"],
+            "--set bodies.robot.urdf: URDF file 'missing.urdf' not found",
+        ),
+    ],
+    ids=["unknown-type", "unknown-parameter", "missing-parameter", "needs-epoch", "bad-epoch", "missing-file"],
+)
 def test_bad_export_requests_exit_2_naming_the_problem(arguments, message, tmp_path):
     result = orchestrator("export-fmu", *arguments, "-o", tmp_path / "x.fmu")
     assert result.returncode == 2 and message in result.stderr, result.stderr
@@ -324,10 +372,13 @@ def test_bad_export_requests_exit_2_naming_the_problem(arguments, message, tmp_p
     assert not list(tmp_path.glob("*.fmu"))
 
 
-@pytest.mark.parametrize("name, message", [
-    ("kepler.zip", "kepler.zip: the output must be a .fmu file, e.g. -o "),
-    ("my-orbit.fmu", "my-orbit.fmu: the file name is the FMU's model identifier and must be a C identifier"),
-])
+@pytest.mark.parametrize(
+    "name, message",
+    [
+        ("kepler.zip", "kepler.zip: the output must be a .fmu file, e.g. -o "),
+        ("my-orbit.fmu", "my-orbit.fmu: the file name is the FMU's model identifier and must be a C identifier"),
+    ],
+)
 def test_output_name_must_be_an_fmu_named_by_an_identifier(name, message, tmp_path):
     result = orchestrator("export-fmu", *kepler_sets(), "-o", tmp_path / name)
     assert result.returncode == 2 and message in result.stderr, result.stderr

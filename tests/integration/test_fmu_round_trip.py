@@ -1,6 +1,7 @@
 """Export, then import: orbit.kepler and dynamics.dart exported by `orchestrator export-fmu` and run
 back in Zenorbit as type ``fmu`` give the native run's signals, bit for bit (real processes, real
 Zenoh, FMPy loading pythonfmu's binary)."""
+
 import pandas
 import pytest
 import yaml
@@ -45,15 +46,19 @@ def test_exported_components_imported_back_equal_the_native_run(tmp_path, write_
     imported = yaml.safe_load(NATIVE)
     for name, entry in config["components"].items():
         fmu = tmp_path / f"{name}.fmu"
-        done = orchestrator("export-fmu", entry["type"], *_flat("", entry["parameters"]),
-                            "--epoch", "2022-09-18T12:00:00Z", "-o", fmu)
+        done = orchestrator(
+            "export-fmu", entry["type"], *_flat("", entry["parameters"]), "--epoch", "2022-09-18T12:00:00Z", "-o", fmu
+        )
         assert done.returncode == 0, done.stderr
         imported["components"][name] = {"type": "fmu", "parameters": {"path": str(fmu)}}
     runs = {}
-    for label, path in (("native", native), ("imported", write_config(yaml.safe_dump(imported, sort_keys=False), "imported.yaml"))):
+    for label, path in (
+        ("native", native),
+        ("imported", write_config(yaml.safe_dump(imported, sort_keys=False), "imported.yaml")),
+    ):
         done = orchestrator("run", path, "--record", tmp_path / label)
         assert done.returncode == 0, done.stderr[-2000:]
         runs[label] = pandas.read_parquet(tmp_path / label / "signals.parquet")
-    assert list(runs["imported"].columns) == list(runs["native"].columns)   # r_eci[0]... back to r_eci
+    assert list(runs["imported"].columns) == list(runs["native"].columns)  # r_eci[0]... back to r_eci
     assert runs["imported"].equals(runs["native"])
-    assert runs["native"]["dynamics.target.twist[5]"].abs().max() > 0.02    # it moved
+    assert runs["native"]["dynamics.target.twist[5]"].abs().max() > 0.02  # it moved

@@ -2,6 +2,7 @@
 `websockets` package, not the Foxglove app): the advertised channels are the topics of the rosbag2
 export of the same run, recorded at the same time, and every message received is, byte for byte,
 that export's message of the same topic and log time. Bad input: a port in use, an unknown mode."""
+
 from __future__ import annotations
 
 import asyncio
@@ -21,10 +22,10 @@ from tests.conftest import ROOT, needs, orchestrator
 
 pytestmark = pytest.mark.integration
 
-SUBPROTOCOL = "foxglove.sdk.v1"   # what foxglove-sdk 0.30 accepts (the app's newer name of foxglove.websocket.v1)
+SUBPROTOCOL = "foxglove.sdk.v1"  # what foxglove-sdk 0.30 accepts (the app's newer name of foxglove.websocket.v1)
 MESSAGE_DATA = 0x01
 FETCH_ASSET_RESPONSE = 0x04
-DEADLINE_S = 240.0                # start-up may compile numba kernels on a fresh machine
+DEADLINE_S = 240.0  # start-up may compile numba kernels on a fresh machine
 
 
 def _free_port() -> int:
@@ -40,7 +41,7 @@ class Client:
     def __init__(self, port: int, run: subprocess.Popen):
         self.port, self.run = port, run
         self.channels: dict[int, dict] = {}
-        self.messages: list[tuple[str, int, bytes]] = []   # (topic, log time ns, payload)
+        self.messages: list[tuple[str, int, bytes]] = []  # (topic, log time ns, payload)
         self.server_info: dict | None = None
         self.error: BaseException | None = None
         self.thread = threading.Thread(target=self._main, daemon=True)
@@ -49,7 +50,7 @@ class Client:
     def _main(self):
         try:
             asyncio.run(self._session())
-        except BaseException as e:   # reported by the test
+        except BaseException as e:  # reported by the test
             self.error = e
 
     async def _session(self):
@@ -64,7 +65,7 @@ class Client:
             except OSError:
                 if self.run.poll() is not None or time.monotonic() > deadline:
                     raise
-                await asyncio.sleep(0.02)   # poll: the server listens once the observer is up
+                await asyncio.sleep(0.02)  # poll: the server listens once the observer is up
         async with ws:
             try:
                 while time.monotonic() < deadline:
@@ -75,16 +76,22 @@ class Client:
                         subscription, log_time = struct.unpack_from("<IQ", frame, 1)
                         self.messages.append((self.channels[subscription]["topic"], log_time, bytes(frame[13:])))
             except websockets.ConnectionClosed:
-                pass   # the run is over: the observer stops its server
+                pass  # the run is over: the observer stops its server
 
     async def _control(self, ws, message: dict):
         if message["op"] == "serverInfo":
             self.server_info = message
         elif message["op"] == "advertise":
             for channel in message["channels"]:
-                self.channels[channel["id"]] = channel   # subscription id = channel id
-            await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
-                {"id": c["id"], "channelId": c["id"]} for c in message["channels"]]}))
+                self.channels[channel["id"]] = channel  # subscription id = channel id
+            await ws.send(
+                json.dumps(
+                    {
+                        "op": "subscribe",
+                        "subscriptions": [{"id": c["id"], "channelId": c["id"]} for c in message["channels"]],
+                    }
+                )
+            )
 
 
 def _bag(bag) -> dict[tuple[str, int], set[bytes]]:
@@ -106,12 +113,28 @@ def live(tmp_path_factory):
     """The demo, 2 s, recorded and served to a client; then the recording exported."""
     record = tmp_path_factory.mktemp("foxglove") / "rec"
     port = _free_port()
-    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", str(ROOT / "configs/humanoid_tracking.yaml"),
-                            "--set", "run.duration=2 s", "--record", str(record), "--view", f"foxglove:{port}"],
-                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    run = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "orchestrator.cli",
+            "run",
+            str(ROOT / "configs/humanoid_tracking.yaml"),
+            "--set",
+            "run.duration=2 s",
+            "--record",
+            str(record),
+            "--view",
+            f"foxglove:{port}",
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         client = Client(port, run)
-        out, err = run.communicate(timeout=DEADLINE_S)
+        _out, err = run.communicate(timeout=DEADLINE_S)
         client.thread.join(timeout=30)
     finally:
         if run.poll() is None:
@@ -142,7 +165,7 @@ def test_messages_equal_the_exports(live):
     for topic, log_time, payload in client.messages:
         assert payload in bag.get((topic, log_time), set()), f"{topic} at {log_time}: not the export's message"
     clock_stamps = sorted(t for topic, t, _ in client.messages if topic == "/clock")
-    assert len(clock_stamps) == len(set(clock_stamps)) > 1   # decimated rows, in order, none twice
+    assert len(clock_stamps) == len(set(clock_stamps)) > 1  # decimated rows, in order, none twice
 
 
 def test_port_in_use_is_refused_before_the_run():
@@ -150,8 +173,9 @@ def test_port_in_use_is_refused_before_the_run():
         taken.bind(("127.0.0.1", 0))
         taken.listen()
         port = taken.getsockname()[1]
-        result = orchestrator("run", ROOT / "configs/humanoid_tracking.yaml", "--set", "run.duration=0.01 s",
-                              "--view", f"foxglove:{port}")
+        result = orchestrator(
+            "run", ROOT / "configs/humanoid_tracking.yaml", "--set", "run.duration=0.01 s", "--view", f"foxglove:{port}"
+        )
     assert result.returncode == 2
     assert f"port {port}" in result.stderr and "in use" in result.stderr
 
@@ -163,26 +187,29 @@ def test_bad_view(view, expected):
     assert expected in result.stderr
 
 
-
 @needs("robots", "the Panda of example-robot-data")
 def test_meshes_are_served_to_the_3d_panel():
     """Foxglove's fetchAsset for the Panda's meshes (package:// URIs as its robot_description names
     them) answers the file's bytes, found independently in the installed example-robot-data; any
     other file is refused."""
+    from importlib.metadata import distribution
+
+    import foxglove
     import numpy as np
     import yaml
-    import foxglove
     from rosbags.typesys import Stores, get_typestore
+
     from components.plotting import RecordedRun
-    from components.rosbag import RosContext
     from components.ros_topics import run_topics
+    from components.rosbag import RosContext
     from components.viewer.foxglove_observer import DISTRO, RosChannels, serve
-    from importlib.metadata import distribution
 
     config = yaml.safe_load((ROOT / "configs/panda_on_bus.yaml").read_text())
     channels = RosChannels(["time"], config, str(ROOT / "configs"), foxglove.Context())
     channels.build(np.zeros(1), np.zeros((1, 1)))
-    context = RosContext(RecordedRun(config, {}, np.zeros(1), str(ROOT / "configs")), get_typestore(Stores(DISTRO)), print)
+    context = RosContext(
+        RecordedRun(config, {}, np.zeros(1), str(ROOT / "configs")), get_typestore(Stores(DISTRO)), print
+    )
     (description,) = [t for t in run_topics(context, lambda _: None) if t.name.endswith("robot_description")]
     uris = set(re.findall(r'filename="([^"]+)"', description.messages[0][1].data))
     assert uris and all(u.startswith("package://example-robot-data/") for u in uris)
@@ -212,5 +239,5 @@ async def _fetch(port: int, uris: list[str]) -> list[tuple[int, bytes]]:
             frame = await asyncio.wait_for(ws.recv(), 30)
             if isinstance(frame, bytes) and frame[0] == FETCH_ASSET_RESPONSE:
                 request, status, length = struct.unpack_from("<IBI", frame, 1)
-                answers[request] = (status, bytes(frame[10 + length:]))
+                answers[request] = (status, bytes(frame[10 + length :]))
     return [answers[i] for i in range(len(uris))]

@@ -1,6 +1,7 @@
 """Frames on the bus end to end: real processes on real Zenoh give exactly the numbers of the same
 components stepped in one process (orchestrator/run/inprocess.py), frames included; ``check``
 refuses a frame connected to a float or to a frame of another shape or dtype."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -53,7 +54,7 @@ def run_and_compare(path, tmp_path):
 def test_frames_over_the_bus_equal_the_in_process_loop_bit_for_bit(write_config, tmp_path, algorithm, grouped):
     bus = run_and_compare(write_config(config_text(algorithm, grouped)), tmp_path)
     reader_s, slow_t = bus[:, 1], bus[:, 6]
-    assert len(np.unique(reader_s)) > 15          # each frame gave the reader other numbers
+    assert len(np.unique(reader_s)) > 15  # each frame gave the reader other numbers
     # row 40 holds the slow reader's step at 20 ms, which read the camera's frame of 20 ms
     # (Gauss-Seidel too: the camera's next frame, of 30 ms, is not due at 21 ms)
     assert slow_t[40] == 0.02 and slow_t[39] == 0.0
@@ -70,12 +71,27 @@ def test_full_size_frames_arrive_in_a_run_with_tls_and_access_control(write_conf
     assert bus[50, 2] == float((u + n + ramp).astype(np.float32).astype(np.float64).sum())
 
 
-@pytest.mark.parametrize("connection, expected", [
-    ("reader.rgb: camera.n", "kind mismatch: input reader.rgb is a frame (image), output camera.n is a float variable"),
-    ("camera.u: camera.rgb", "kind mismatch: input camera.u is a float variable, output camera.rgb is a frame (image)"),
-    ("reader.rgb: other.rgb", "frame mismatch: input reader.rgb is uint8 (48, 64, 3), output other.rgb is uint8 (48, 65, 3)"),
-    ("reader.depth: camera.rgb", "frame mismatch: input reader.depth is float32 (48, 64), output camera.rgb is uint8 (48, 64, 3)"),
-])
+@pytest.mark.parametrize(
+    "connection, expected",
+    [
+        (
+            "reader.rgb: camera.n",
+            "kind mismatch: input reader.rgb is a frame (image), output camera.n is a float variable",
+        ),
+        (
+            "camera.u: camera.rgb",
+            "kind mismatch: input camera.u is a float variable, output camera.rgb is a frame (image)",
+        ),
+        (
+            "reader.rgb: other.rgb",
+            "frame mismatch: input reader.rgb is uint8 (48, 64, 3), output other.rgb is uint8 (48, 65, 3)",
+        ),
+        (
+            "reader.depth: camera.rgb",
+            "frame mismatch: input reader.depth is float32 (48, 64), output camera.rgb is uint8 (48, 64, 3)",
+        ),
+    ],
+)
 def test_check_refuses_a_frame_connected_to_what_does_not_fit(write_config, connection, expected):
     path = write_config(f"""
 run: {{name: frames, epoch: 2022-09-18T12:00:00Z, duration: 0.1 s, step: 1 ms}}
@@ -90,12 +106,20 @@ connections: {{{connection}}}
     assert expected in result.stdout + result.stderr
 
 
-@pytest.mark.parametrize("setting, expected", [
-    ("components.reader.on_failure=restart", "components.reader.on_failure: restart is not supported yet in a run "
-                                             "with frame connections (camera, reader, slow exchange images)"),
-    ("events=[{at: 0.1 s, swap: reader, type: test.image_sum}]",
-     "the connection reader.rgb: camera.rgb carries frames (images): a component joined by one cannot be swapped yet"),
-])
+@pytest.mark.parametrize(
+    "setting, expected",
+    [
+        (
+            "components.reader.on_failure=restart",
+            "components.reader.on_failure: restart is not supported yet in a run "
+            "with frame connections (camera, reader, slow exchange images)",
+        ),
+        (
+            "events=[{at: 0.1 s, swap: reader, type: test.image_sum}]",
+            "the connection reader.rgb: camera.rgb carries frames (images): a component joined by one cannot be swapped yet",
+        ),
+    ],
+)
 def test_check_refuses_what_frames_do_not_support_yet(write_config, setting, expected):
     result = orchestrator("check", write_config(config_text("jacobi", False)), "--set", setting)
     assert result.returncode == 2, result.stdout + result.stderr
@@ -103,14 +127,17 @@ def test_check_refuses_what_frames_do_not_support_yet(write_config, setting, exp
 
 
 def test_check_refuses_a_component_reading_its_own_frames(write_config):
-    write_config("""
+    write_config(
+        """
 import numpy as np
 from components.sdk import Component, Variable
 
 class Echo(Component):
     variables = (Variable("image_in", "input", (4, 4), "1", 0, "in", frame=True, dtype="uint8"),
                  Variable("image_out", "output", (4, 4), "1", 0, "out", frame=True, dtype="uint8"))
-""", name="echo.py")
+""",
+        name="echo.py",
+    )
     path = write_config("""
 run: {name: frames, epoch: 2022-09-18T12:00:00Z, duration: 0.1 s, step: 1 ms}
 components:

@@ -7,6 +7,7 @@ Two runs in parallel, once per module: the demo (15 s) and the same trajectory u
 fixed-base computed torque, cut at 8 s (the first 7 s of the 10 s move: the peak speed, most of
 the base's reaction).
 """
+
 from __future__ import annotations
 
 import json
@@ -23,7 +24,7 @@ from tests.conftest import ROOT, component_processes, orchestrator
 pytestmark = pytest.mark.integration
 
 CONFIG = ROOT / "configs" / "humanoid_tracking.yaml"
-START, DURATION = 1.0, 10.0          # the move, as in the config
+START, DURATION = 1.0, 10.0  # the move, as in the config
 FIXED_UNTIL = 8.0
 
 
@@ -41,12 +42,27 @@ def runs(tmp_path_factory):
     base = tmp_path_factory.mktemp("humanoid")
     commands = {
         "free_floating": ["run", CONFIG, "--record", base / "free_floating"],
-        "fixed": ["run", CONFIG, "--record", base / "fixed", "--set", "components.controller.parameters.base_model=fixed",
-                  "--set", f"run.duration={FIXED_UNTIL:g} s"],
+        "fixed": [
+            "run",
+            CONFIG,
+            "--record",
+            base / "fixed",
+            "--set",
+            "components.controller.parameters.base_model=fixed",
+            "--set",
+            f"run.duration={FIXED_UNTIL:g} s",
+        ],
     }
-    procs = {name: subprocess.Popen([sys.executable, "-m", "orchestrator.cli", *map(str, args)], cwd=ROOT,
-                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-             for name, args in commands.items()}
+    procs = {
+        name: subprocess.Popen(
+            [sys.executable, "-m", "orchestrator.cli", *map(str, args)],
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for name, args in commands.items()
+    }
     results = {}
     for name, proc in procs.items():
         try:
@@ -76,21 +92,23 @@ def test_demo_tracks_the_papers_trajectory(runs):
     move = (t >= START) & (t <= START + DURATION)
     tau = vector(data, "controller.tau", 14)
     sigma = data["controller.sigma_min"]
-    print(f"\nfinal error {position[-1]:.2e} m, {orientation[-1]:.2e} rad; during the move max {position[move].max():.2e} m, "
-          f"{orientation[move].max():.2e} rad; overall max {position.max():.2e} m; max |tau| {np.abs(tau).max():.4f} N m; "
-          f"min sigma_min(J_g) {sigma.min():.3f}")
+    print(
+        f"\nfinal error {position[-1]:.2e} m, {orientation[-1]:.2e} rad; during the move max {position[move].max():.2e} m, "
+        f"{orientation[move].max():.2e} rad; overall max {position.max():.2e} m; max |tau| {np.abs(tau).max():.4f} N m; "
+        f"min sigma_min(J_g) {sigma.min():.3f}"
+    )
     # acceptance (the issue): < 1 mm and < 1 mrad at the end, < 5 mm while moving, |tau| <= 1 N m
     assert position[-1] < 1e-3 and orientation[-1] < 1e-3
     assert position[move].max() < 5e-3
     assert position.max() < 5e-3 and orientation.max() < 1e-2
-    assert np.abs(tau).max() <= 1.0                                      # paper Fig. 7: within +-1 N m
+    assert np.abs(tau).max() <= 1.0  # paper Fig. 7: within +-1 N m
     # regression: just under 10x the measured values (final 9.1e-9 m and 2.1e-8 rad; during the
     # move 5.0e-7 m and 2.4e-6 rad; max |tau| 0.035 N m), so tracking 10x worse fails
     assert position[-1] < 8e-8 and orientation[-1] < 2e-7
     assert position[move].max() < 4.5e-6 and orientation[move].max() < 2.2e-5
     assert np.abs(tau).max() < 0.3
-    assert not np.any(tau[:, :7])                                        # the locked left arm gets nothing
-    assert sigma.min() > 0.1                                             # away from singularities all along
+    assert not np.any(tau[:, :7])  # the locked left arm gets nothing
+    assert sigma.min() > 0.1  # away from singularities all along
 
 
 def test_base_moves_by_reaction_while_the_end_effector_tracks_in_the_inertial_frame(runs):
@@ -100,9 +118,11 @@ def test_base_moves_by_reaction_while_the_end_effector_tracks_in_the_inertial_fr
     ee = vector(data, "controller.ee_position", 3)
     drift = np.linalg.norm(base[-1] - base[0])
     turn = 2 * np.degrees(np.arccos(min(1.0, abs(quat[-1] @ quat[0]))))
-    print(f"\nbase drift {drift * 1e3:.1f} mm, base rotation {turn:.2f} deg, end effector moved "
-          f"{np.linalg.norm(ee[-1] - ee[0]):.4f} m in W")
-    assert drift > 5e-3 and turn > 2.0                                   # the torso reacts (co-rotation with LVLH alone: ~1 deg)
+    print(
+        f"\nbase drift {drift * 1e3:.1f} mm, base rotation {turn:.2f} deg, end effector moved "
+        f"{np.linalg.norm(ee[-1] - ee[0]):.4f} m in W"
+    )
+    assert drift > 5e-3 and turn > 2.0  # the torso reacts (co-rotation with LVLH alone: ~1 deg)
     # the end effector ends 0.5 m along the torso's *initial* x axis, in W: tracking is inertial,
     # and not relative to the torso, which has turned
     R0, R1 = quat_to_matrix(quat[0]), quat_to_matrix(quat[-1])
@@ -112,11 +132,16 @@ def test_base_moves_by_reaction_while_the_end_effector_tracks_in_the_inertial_fr
 
 def test_fixed_base_controller_tracks_worse(runs):
     free, fixed = runs["free_floating"], runs["fixed"]
-    window = lambda d: (d["time"] >= START) & (d["time"] <= FIXED_UNTIL)
+
+    def window(d):
+        return (d["time"] >= START) & (d["time"] <= FIXED_UNTIL)
+
     p_free, o_free = (e[window(free)] for e in errors(free))
     p_fixed, o_fixed = (e[window(fixed)] for e in errors(fixed))
-    print(f"\nmax error over [{START:g}, {FIXED_UNTIL:g}] s: free-floating {p_free.max():.2e} m, {o_free.max():.2e} rad; "
-          f"fixed base {p_fixed.max():.2e} m, {o_fixed.max():.2e} rad")
+    print(
+        f"\nmax error over [{START:g}, {FIXED_UNTIL:g}] s: free-floating {p_free.max():.2e} m, {o_free.max():.2e} rad; "
+        f"fixed base {p_fixed.max():.2e} m, {o_fixed.max():.2e} rad"
+    )
     assert p_fixed.max() > 3 * p_free.max()
     assert o_fixed.max() > 3 * o_free.max()
 
@@ -133,8 +158,14 @@ def test_plots_of_the_recording(runs, tmp_path):
 
     record = runs["dir"] / "free_floating"
     written = plot_recording(record, tmp_path / "plots")
-    assert [p.name for p in written] == ["orbit_track.png", "dynamics_humanoid.png", "controller_path.png",
-                                         "controller_error.png", "controller_torque.png", "controller_base.png"]
+    assert [p.name for p in written] == [
+        "orbit_track.png",
+        "dynamics_humanoid.png",
+        "controller_path.png",
+        "controller_error.png",
+        "controller_torque.png",
+        "controller_base.png",
+    ]
     assert all(path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for path in written)
     made, data = dict(figures(record)), runs["free_floating"]
     t, error = data["time"], vector(data, "controller.ee_error", 6)
@@ -153,26 +184,40 @@ def test_plots_of_the_recording(runs, tmp_path):
     for line, i in zip(lines, driven):
         assert np.array_equal(line.get_ydata(), tau[:, i]), line.get_label()
     # the path (in the base's initial frame: a rotation, so the distances are the recording's)
-    (desired,), (obtained,) = (plotted(made["controller_path.png"], "end-effector path", label)
-                               for label in ("desired", "obtained"))
+    (desired,), (obtained,) = (
+        plotted(made["controller_path.png"], "end-effector path", label) for label in ("desired", "obtained")
+    )
     p_d, p = (np.column_stack(line.get_data_3d()) for line in (desired, obtained))
-    recorded_p, recorded_p_d = vector(data, "controller.ee_position", 3), vector(data, "controller.ee_position_desired", 3)
+    recorded_p, recorded_p_d = (
+        vector(data, "controller.ee_position", 3),
+        vector(data, "controller.ee_position_desired", 3),
+    )
     assert np.allclose(np.linalg.norm(p - p_d, axis=1), np.linalg.norm(recorded_p - recorded_p_d, axis=1), atol=1e-12)
-    assert np.allclose(p_d[0], 0.0) and np.linalg.norm(p_d[-1]) == pytest.approx(0.5, abs=1e-9)   # the 0.5 m move
+    assert np.allclose(p_d[0], 0.0) and np.linalg.norm(p_d[-1]) == pytest.approx(0.5, abs=1e-9)  # the 0.5 m move
     # the base's reaction: its displacement in mm
     base = vector(data, "dynamics.humanoid.position", 3)
     (x,) = plotted(made["controller_base.png"], "base displacement", "x")
     assert np.array_equal(x.get_ydata(), (base[:, 0] - base[0, 0]) * 1e3) and np.ptp(x.get_ydata()) > 0
 
 
-@pytest.mark.parametrize("override, key", [
-    ("components.controller.parameters.kp=[100, 100, 100]", "components.controller.parameters.kp"),
-    ("components.controller.parameters.end_effector=arm_right_hand", "components.controller.parameters.end_effector"),
-    ("components.controller.parameters.joints=[arm_right_1_joint, arm_right_9_joint]",
-     "components.controller.parameters.joints"),
-    ("components.controller.parameters.trajectory.displacement=2 m",
-     "components.controller.parameters.trajectory.displacement"),
-])
+@pytest.mark.parametrize(
+    "override, key",
+    [
+        ("components.controller.parameters.kp=[100, 100, 100]", "components.controller.parameters.kp"),
+        (
+            "components.controller.parameters.end_effector=arm_right_hand",
+            "components.controller.parameters.end_effector",
+        ),
+        (
+            "components.controller.parameters.joints=[arm_right_1_joint, arm_right_9_joint]",
+            "components.controller.parameters.joints",
+        ),
+        (
+            "components.controller.parameters.trajectory.displacement=2 m",
+            "components.controller.parameters.trajectory.displacement",
+        ),
+    ],
+)
 def test_bad_controller_config_is_refused_before_anything_starts(override, key):
     result = orchestrator("run", CONFIG, "--set", override, timeout=60)
     assert result.returncode == 2

@@ -2,6 +2,7 @@
 `orchestrator join`, what is refused (a wrong secret, a certificate of another CA, a second join,
 control messages from a component's identity), run.join_timeout, and a joined component left
 alone when its orchestrator dies. The same across real network namespaces: tests/hosts/."""
+
 from __future__ import annotations
 
 import json
@@ -15,8 +16,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from components import bus, protocol
+from orchestrator.hosts.tls import _pem_certificate, _pem_key, issue, make_ca
 from orchestrator.run import runs
-from orchestrator.hosts.tls import make_ca, issue, _pem_certificate, _pem_key
 from tests.conftest import ROOT, orchestrator, start_run, wait_for_step, wait_until
 
 pytestmark = pytest.mark.integration
@@ -36,13 +37,20 @@ connections:
 
 
 def chain(name="joined", duration="0.5 s", realtime=0, join_timeout="60 s", tls="true", launch="external") -> str:
-    return CHAIN.format(name=name, duration=duration, realtime=realtime, join_timeout=join_timeout, tls=tls,
-                        launch=launch)
+    return CHAIN.format(
+        name=name, duration=duration, realtime=realtime, join_timeout=join_timeout, tls=tls, launch=launch
+    )
 
 
 def join(path, *extra, **popen) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "join", str(path), *extra], cwd=ROOT,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **popen)
+    return subprocess.Popen(
+        [sys.executable, "-m", "orchestrator.cli", "join", str(path), *extra],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        **popen,
+    )
 
 
 def join_file(record, name="a"):
@@ -72,7 +80,7 @@ def test_a_component_joins_from_its_join_file_and_the_run_equals_the_local_one(w
         assert all(e.startswith("tls/") for e in body["connect"])
         joined = join(path)
         _, err = run.communicate(timeout=120)
-        joined_out, joined_err = joined.communicate(timeout=60)
+        _joined_out, joined_err = joined.communicate(timeout=60)
     finally:
         for p in (run, joined):
             if p is not None and p.poll() is None:
@@ -90,7 +98,7 @@ def _tampered(path, tmp_path, name, change) -> str:
     change(body)
     out = tmp_path / f"{name}.join"
     out.write_text(json.dumps(body))
-    out.chmod(0o600)             # a join file others can read is refused before anything else
+    out.chmod(0o600)  # a join file others can read is refused before anything else
     return str(out)
 
 
@@ -115,7 +123,7 @@ def test_a_wrong_secret_a_foreign_certificate_and_a_second_join_are_refused(writ
         wait_for_step("refusals", 20, run=run)
         second = orchestrator("join", path, timeout=120)
         assert second.returncode == 1 and "a second join is refused" in second.stderr, second.stderr
-        assert first.poll() is None   # the first one serves on
+        assert first.poll() is None  # the first one serves on
         assert orchestrator("stop", "--run", "refusals").returncode == 0
         _, err = run.communicate(timeout=120)
         first.communicate(timeout=60)
@@ -129,7 +137,7 @@ def test_a_wrong_secret_a_foreign_certificate_and_a_second_join_are_refused(writ
     assert "warning: refused a link to the run's bus: a certificate not of this run's CA" in err, err
     assert first.returncode == 0
     data = table(record)
-    assert np.allclose(data["a.x"], 0.37 * 1234.5678 * data["time"], rtol=1e-9)   # a stepped on, untouched
+    assert np.allclose(data["a.x"], 0.37 * 1234.5678 * data["time"], rtol=1e-9)  # a stepped on, untouched
 
 
 def test_only_the_orchestrator_sends_control_messages(write_config, tmp_path):
@@ -144,19 +152,22 @@ def test_only_the_orchestrator_sends_control_messages(write_config, tmp_path):
         wait_for_step("acl", 20, run=run)
         entry = runs.find("acl")[0]
         rid = entry["run_id"]
-        tls = {part: entry["settings"]["tls"][part].replace("cli.", "component.a.") for part in ("ca", "certificate", "key")}
+        tls = {
+            part: entry["settings"]["tls"][part].replace("cli.", "component.a.")
+            for part in ("ca", "certificate", "key")
+        }
         settings = {**entry["settings"], "tls": tls}
-        assert bus_security.component_name("a")   # the identity the run gave component a
-        with bus.open_session(["tls/127.0.0.1:0"], [entry["endpoint"]], mesh=True, secret=entry["secret"],
-                              settings=settings) as session:
+        assert bus_security.component_name("a")  # the identity the run gave component a
+        with bus.open_session(
+            ["tls/127.0.0.1:0"], [entry["endpoint"]], mesh=True, secret=entry["secret"], settings=settings
+        ) as session:
             wait_until(lambda: len(list(session.info.peers_zid())) == 4, "links to the run's 4 processes", run=run)
             for name in ("src", "a", "b"):
                 for generation in (0, 1):
-                    session.put(bus.command_key(rid, name, generation),
-                                protocol.Terminate(final=True).encode())
+                    session.put(bus.command_key(rid, name, generation), protocol.Terminate(final=True).encode())
             session.put(bus.quit_key(rid, "b", 0), protocol.Quit().encode())
             row = wait_for_step("acl", 20, run=run)
-            wait_for_step("acl", row + 200, run=run)   # still stepping: nothing was taken
+            wait_for_step("acl", row + 200, run=run)  # still stepping: nothing was taken
         assert orchestrator("stop", "--run", "acl").returncode == 0
         _, err = run.communicate(timeout=120)
     finally:
@@ -217,4 +228,6 @@ def test_the_join_file_of_a_run_that_ended_says_it_is_not_alive(write_config, tm
     copy.chmod(0o644)
     shared = join(copy)
     _, err = shared.communicate(timeout=60)
-    assert shared.returncode == 2 and "readable or writable by others (mode 644)" in err and f"chmod 600 {copy}" in err, err
+    assert (
+        shared.returncode == 2 and "readable or writable by others (mode 644)" in err and f"chmod 600 {copy}" in err
+    ), err

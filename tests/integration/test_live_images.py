@@ -9,6 +9,7 @@ waits for its mesh link to the camera before the run starts; frames may still dr
 (the cameras' publishers drop rather than hold up a step) on a loaded machine, never arrive
 twice or out of order.
 """
+
 from __future__ import annotations
 
 import os
@@ -25,13 +26,15 @@ from tests.integration.test_camera_run import camera_config
 from tests.integration.test_foxglove_view import DEADLINE_S, Client, _bag, _free_port
 from tests.integration.test_ros2_router import Router
 
-pytestmark = [pytest.mark.integration,
-              pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}")]
+pytestmark = [
+    pytest.mark.integration,
+    pytest.mark.skipif(egl_problem() is not None, reason=f"no EGL here: {egl_problem()}"),
+]
 
 DOMAIN = 9
 TOPICS = ("/camera/image_raw", "/camera/depth/image_raw", "/camera/camera_info")
-EPOCH_NS = 1663502400 * 10 ** 9   # the capture scenario's run.epoch, 2022-09-18T12:00:00Z
-FRAMES = 10                       # 1 s at 10 Hz
+EPOCH_NS = 1663502400 * 10**9  # the capture scenario's run.epoch, 2022-09-18T12:00:00Z
+FRAMES = 10  # 1 s at 10 Hz
 
 
 class RosSubscriber:
@@ -42,6 +45,7 @@ class RosSubscriber:
         import zenoh
 
         from components import bus
+
         self.session = zenoh.open(bus.session_config(connect=[endpoint], mesh=True))
         self.samples: list[tuple[str, bytes]] = []
         self.lock = threading.Lock()
@@ -60,7 +64,7 @@ class RosSubscriber:
 def _stamp(cdr: bytes) -> int:
     """The header stamp of an Image or CameraInfo (CDR: 4-byte encapsulation, then sec, nanosec)."""
     sec, nanosec = np.frombuffer(cdr, dtype="<i4", count=2, offset=4)
-    return int(sec) * 10 ** 9 + int(nanosec)
+    return int(sec) * 10**9 + int(nanosec)
 
 
 @pytest.fixture(scope="module")
@@ -72,10 +76,28 @@ def live(tmp_path_factory):
     ros = run = client = None
     try:
         ros = RosSubscriber(endpoint)
-        run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", str(config), "--set", "run.realtime=1",
-                                "--record", str(base / "rec"), "--ros2", endpoint, "--view", f"foxglove:{port}"],
-                               cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               env={**os.environ, "ROS_DOMAIN_ID": str(DOMAIN)})
+        run = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "orchestrator.cli",
+                "run",
+                str(config),
+                "--set",
+                "run.realtime=1",
+                "--record",
+                str(base / "rec"),
+                "--ros2",
+                endpoint,
+                "--view",
+                f"foxglove:{port}",
+            ],
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "ROS_DOMAIN_ID": str(DOMAIN)},
+        )
         client = Client(port, run)
         _, err = run.communicate(timeout=DEADLINE_S)
         client.thread.join(timeout=30)
@@ -104,7 +126,7 @@ def _check(messages, bag, record, err):
     for path in frames:
         with np.load(path) as frame:
             stamps.append(EPOCH_NS + round(float(frame["t"]) * 1e9))
-    assert stamps == [EPOCH_NS + k * 100_000_000 for k in range(FRAMES)]   # the camera's rate, in run time
+    assert stamps == [EPOCH_NS + k * 100_000_000 for k in range(FRAMES)]  # the camera's rate, in run time
     by_topic: dict[str, list[int]] = {}
     for topic, data in messages:
         ns = _stamp(data)
@@ -130,10 +152,11 @@ def test_the_image_is_the_recorded_frame(live):
     """Independently of the export's builders: the Image's data is the recorded array's bytes (the
     last frame both images of which the ROS 2 view delivered)."""
     samples, _, _, record, err = live
-    both = ({_stamp(d) for t, d in samples if t == "/camera/image_raw"}
-            & {_stamp(d) for t, d in samples if t == "/camera/depth/image_raw"})
+    both = {_stamp(d) for t, d in samples if t == "/camera/image_raw"} & {
+        _stamp(d) for t, d in samples if t == "/camera/depth/image_raw"
+    }
     assert both, err[-3000:]
-    k = (max(both) - EPOCH_NS) // 100_000_000   # the frame file of that stamp (the camera's 10 Hz)
+    k = (max(both) - EPOCH_NS) // 100_000_000  # the frame file of that stamp (the camera's 10 Hz)
     with np.load(record / "frames" / "camera" / f"{k:06d}.npz") as frame:
         rgb, depth = frame["rgb"], frame["depth"]
         assert EPOCH_NS + round(float(frame["t"]) * 1e9) == max(both)
@@ -141,5 +164,5 @@ def test_the_image_is_the_recorded_frame(live):
     depth_image = [d for t, d in samples if t == "/camera/depth/image_raw" and _stamp(d) == max(both)]
     assert len(image) == len(depth_image) == 1, err[-3000:]
     assert len(image[0]) == 921_652 and len(depth_image[0]) == 1_228_852
-    assert image[0][-rgb.nbytes:] == rgb.tobytes() and depth_image[0][-depth.nbytes:] == depth.astype("<f4").tobytes()
-    assert np.any(rgb) and np.any(depth)   # the grapple is in view: not a blank frame
+    assert image[0][-rgb.nbytes :] == rgb.tobytes() and depth_image[0][-depth.nbytes :] == depth.astype("<f4").tobytes()
+    assert np.any(rgb) and np.any(depth)  # the grapple is in view: not a blank frame

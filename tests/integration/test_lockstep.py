@@ -1,18 +1,25 @@
 """Multi-process runs: the real orchestrator CLI, real component processes, real Zenoh on loopback."""
+
 from __future__ import annotations
 
 import os
 import signal
-import subprocess
-import sys
 import time
 
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from tests.conftest import (ROOT, component_processes, orchestrator, signal_files, start_run, wait_for_components,
-                            wait_for_step, wait_until)
+from tests.conftest import (
+    ROOT,
+    component_processes,
+    orchestrator,
+    signal_files,
+    start_run,
+    wait_for_components,
+    wait_for_step,
+    wait_until,
+)
 
 pytestmark = pytest.mark.integration
 
@@ -34,15 +41,19 @@ def signals(directory):
 
 def events(directory):
     import json
+
     return [json.loads(line) for line in (directory / "events.jsonl").read_text().splitlines()]
 
 
-@pytest.mark.parametrize("algorithm, second", [
-    # integrator chain with a 1 s step: first.x(k) = k exactly; second sees first.x with
-    # Jacobi's one-step delay (sum of 0..k-1) or Gauss-Seidel's same-step value (sum of 1..k).
-    ("jacobi", lambda k: k * (k - 1) / 2),
-    ("gauss-seidel", lambda k: k * (k + 1) / 2),
-])
+@pytest.mark.parametrize(
+    "algorithm, second",
+    [
+        # integrator chain with a 1 s step: first.x(k) = k exactly; second sees first.x with
+        # Jacobi's one-step delay (sum of 0..k-1) or Gauss-Seidel's same-step value (sum of 1..k).
+        ("jacobi", lambda k: k * (k - 1) / 2),
+        ("gauss-seidel", lambda k: k * (k + 1) / 2),
+    ],
+)
 def test_integrator_chain_matches_closed_form_exactly(write_config, tmp_path, algorithm, second):
     steps = 10_000
     config = write_config(CHAIN.format(name="chain", steps=steps, algorithm=algorithm))
@@ -52,7 +63,7 @@ def test_integrator_chain_matches_closed_form_exactly(write_config, tmp_path, al
     k = np.arange(steps + 1)
     assert data["step"] == list(k)
     assert np.array_equal(data["time"], k.astype(float))
-    assert np.array_equal(data["first.x"], k.astype(float))          # exact: integers in float64
+    assert np.array_equal(data["first.x"], k.astype(float))  # exact: integers in float64
     assert np.array_equal(data["second.x"], second(k).astype(float))
     kinds = [e["event"] for e in events(tmp_path / "rec")]
     assert kinds[0] == "start" and kinds[-1] == "end"
@@ -102,8 +113,10 @@ def test_two_simultaneous_runs_do_not_cross(write_config, tmp_path):
     """Same run name, same keys, two orchestrators at once: each sees only its own components."""
     procs = []
     for value, name in ((1.0, "a"), (3.0, "b")):
-        config = write_config(CHAIN.format(name="same", steps=3000, algorithm="jacobi").replace(
-            "value: 1.0", f"value: {value}"), name=f"{name}.yaml")
+        config = write_config(
+            CHAIN.format(name="same", steps=3000, algorithm="jacobi").replace("value: 1.0", f"value: {value}"),
+            name=f"{name}.yaml",
+        )
         procs.append(start_run(config, tmp_path / name))
     for p in procs:
         _, err = p.communicate(timeout=120)
@@ -135,13 +148,16 @@ components:
 """
 
 
-@pytest.mark.parametrize("fault, message", [
-    ("raise", "component 'bad' (test.faulty) failed in step 50 (t = 0.5 s): RuntimeError: deliberate failure"),
-    ("kill", "component 'bad' (test.faulty) died at step "),
-    ("exit", "component 'bad' (test.faulty) died at step "),
-    ("hang", "component 'bad' did not answer step 50 within 5 s"),
-    ("nan", "component 'bad' produced a non-finite value in output 'y' at step 50"),
-])
+@pytest.mark.parametrize(
+    "fault, message",
+    [
+        ("raise", "component 'bad' (test.faulty) failed in step 50 (t = 0.5 s): RuntimeError: deliberate failure"),
+        ("kill", "component 'bad' (test.faulty) died at step "),
+        ("exit", "component 'bad' (test.faulty) died at step "),
+        ("hang", "component 'bad' did not answer step 50 within 5 s"),
+        ("nan", "component 'bad' produced a non-finite value in output 'y' at step 50"),
+    ],
+)
 def test_a_failing_component_stops_the_run_with_exit_1(write_config, tmp_path, fault, message):
     config = write_config(FAULTY.format(fault=fault))
     result = orchestrator("run", config, "--record", tmp_path / "rec", timeout=120)
@@ -164,8 +180,9 @@ def test_every_row_the_failing_component_sent_is_recorded_when_the_others_are_la
     loaded machine those may come seconds later: here the counter is held 3 s at step 45 (an
     injected delay: a component starved of CPU, as it looks to the orchestrator) while 'bad' runs
     ahead and fails at step 50. Every row up to 50 is recorded, none left out for lateness."""
-    config = write_config(FAULTY.format(fault="raise") +
-                          "faults: [{at: 0.45 s, component: counter, kind: delay, duration: 3 s}]\n")
+    config = write_config(
+        FAULTY.format(fault="raise") + "faults: [{at: 0.45 s, component: counter, kind: delay, duration: 3 s}]\n"
+    )
     result = orchestrator("run", config, "--record", tmp_path / "rec", timeout=120)
     assert result.returncode == 1, result.stderr
     assert "component 'bad' (test.faulty) failed in step 50" in result.stderr, result.stderr
@@ -199,7 +216,7 @@ components:
     assert run.returncode == 1, err
     assert "component 'b' (test.counter) died" in err and "did not answer" not in err, err
     steps = signals(tmp_path / "rec")["step"]
-    assert steps == list(range(len(steps))) and len(steps) > reached   # every row up to the death
+    assert steps == list(range(len(steps))) and len(steps) > reached  # every row up to the death
     assert not component_processes("victim-")
 
 
@@ -238,8 +255,9 @@ def thread_cpus(pid: int) -> dict[int, set[int]]:
     for tid in os.listdir(f"/proc/{pid}/task"):
         status = open(f"/proc/{pid}/task/{tid}/status").read()
         allowed = status.split("Cpus_allowed_list:")[1].split()[0]
-        cpus[int(tid)] = {c for part in allowed.split(",") for c in (
-            range(int(part.split("-")[0]), int(part.split("-")[-1]) + 1))}
+        cpus[int(tid)] = {
+            c for part in allowed.split(",") for c in (range(int(part.split("-")[0]), int(part.split("-")[-1]) + 1))
+        }
     return cpus
 
 
@@ -259,9 +277,9 @@ components:
     try:
         lines = wait_for_components("pinned-", 2)
         pids = {line.split("--name ")[1].split()[0]: int(line.split()[0]) for line in lines}
-        wait_for_step("pinned", 10, run=run)     # stepping: every process has its bus threads
+        wait_for_step("pinned", 10, run=run)  # stepping: every process has its bus threads
         a, b, orchestrator_threads = thread_cpus(pids["a"]), thread_cpus(pids["b"]), thread_cpus(run.pid)
-        assert a[pids["a"]] == {dedicated}        # a's stepping (main) thread, alone on its CPU
+        assert a[pids["a"]] == {dedicated}  # a's stepping (main) thread, alone on its CPU
         a_bus = [c for tid, c in a.items() if tid != pids["a"]]
         others = list(b.values()) + list(orchestrator_threads.values()) + (a_bus if mode == "true" else [])
         # the bus's threads are among them: a's own besides its stepping thread (true), b's, the orchestrator's
@@ -336,8 +354,10 @@ components:
 
 def test_swap_event_hands_over_state(write_config, tmp_path):
     """A same-type swap at 5 s continues exactly; the new generation's integrator keeps the integral."""
-    config = write_config(CHAIN.format(name="swapper", steps=10, algorithm="jacobi")
-                          + "events:\n  - {at: 5 s, swap: second, parameters: {gain: 2.0}}\n")
+    config = write_config(
+        CHAIN.format(name="swapper", steps=10, algorithm="jacobi")
+        + "events:\n  - {at: 5 s, swap: second, parameters: {gain: 2.0}}\n"
+    )
     assert orchestrator("run", config, "--record", tmp_path / "rec").returncode == 0
     data = signals(tmp_path / "rec")
     k = np.arange(11)
@@ -345,9 +365,18 @@ def test_swap_event_hands_over_state(write_config, tmp_path):
     assert np.array_equal(data["second.x"], expected)
     swaps = [e for e in events(tmp_path / "rec") if e["event"] == "swap"]
     assert swaps[0].pop("wall_s") > 0
-    assert swaps == [{"event": "swap", "component": "second", "type": "test.integrator",
-                      "parameters": {"gain": 2.0, "x0": 0.0}, "generation": 1, "step": 5, "time": 5.0,
-                      "state_handed_over": True}]
+    assert swaps == [
+        {
+            "event": "swap",
+            "component": "second",
+            "type": "test.integrator",
+            "parameters": {"gain": 2.0, "x0": 0.0},
+            "generation": 1,
+            "step": 5,
+            "time": 5.0,
+            "state_handed_over": True,
+        }
+    ]
 
 
 def test_bad_config_exits_2_before_starting_anything(write_config):
@@ -416,13 +445,13 @@ def test_a_slow_instantiate_gets_a_note_naming_the_component(write_config, monke
     import math
     import threading
 
-    from orchestrator.run import engine, listener
     from orchestrator.config.load import load
+    from orchestrator.run import engine, listener
 
     config = write_config(SLOW_START)
     gate = config.parent / "go"
     (config.parent / "slow_start.py").write_text(SLOW_COMPONENT.replace("GATE", repr(str(gate))))
-    waits: list[dict] = []                          # the instantiate wait's expectations, as the run meets them
+    waits: list[dict] = []  # the instantiate wait's expectations, as the run meets them
     wait = listener.Listener.wait
 
     def watched_wait(self, expect, timeout, what):
@@ -430,7 +459,7 @@ def test_a_slow_instantiate_gets_a_note_naming_the_component(write_config, monke
             waits.append(expect)
         return wait(self, expect, timeout, what)
 
-    def conduct():   # quick answered -> no more patience; the note out -> slow may finish
+    def conduct():  # quick answered -> no more patience; the note out -> slow may finish
         try:
             wait_until(lambda: waits and list(waits[0]) == ["slow"], "quick instantiated, slow still waited for")
             monkeypatch.setattr(listener, "SLOW_START_S", 0.0)
@@ -446,9 +475,13 @@ def test_a_slow_instantiate_gets_a_note_naming_the_component(write_config, monke
     assert engine.Run(load(config), out=out).execute() == 0, out.getvalue()
     conductor.join(timeout=60)
     notes = [line for line in out.getvalue().splitlines() if line.startswith("note: waiting for")]
-    assert notes == ["note: waiting for 'slow' to instantiate: the first run on a machine compiles its kernels "
-                     "(numba; 20-45 s on 2 cores), later runs load them from the cache (run.start_timeout: 180 s)"]
-    monkeypatch.setattr(listener, "SLOW_START_S", math.inf)   # every start is quick against it: no note
+    assert notes == [
+        "note: waiting for 'slow' to instantiate: the first run on a machine compiles its kernels "
+        "(numba; 20-45 s on 2 cores), later runs load them from the cache (run.start_timeout: 180 s)"
+    ]
+    monkeypatch.setattr(listener, "SLOW_START_S", math.inf)  # every start is quick against it: no note
     out = io.StringIO()
-    assert engine.Run(load(write_config(CHAIN.format(name="quick", steps=2, algorithm="jacobi"))), out=out).execute() == 0
+    assert (
+        engine.Run(load(write_config(CHAIN.format(name="quick", steps=2, algorithm="jacobi"))), out=out).execute() == 0
+    )
     assert "note: waiting for" not in out.getvalue()

@@ -3,6 +3,7 @@ processes over Zenoh), short enough to end captured, aborted or undecided. The s
 last of stderr) states the outcome, events.jsonl's end event records it, --expect / run.expect
 turn another outcome into exit code 3, an unknown one is refused before anything starts, and a
 campaign's cases say undecided instead of completed."""
+
 from __future__ import annotations
 
 import json
@@ -19,7 +20,7 @@ from tests.conftest import ROOT, component_processes, orchestrator
 pytestmark = pytest.mark.integration
 
 CONFIG = ROOT / "configs" / "capture_tumbling_target.yaml"
-QUICK_ABORT = "components.controller.parameters.capture_timeout=0.3 s"   # no estimate by then: aborted
+QUICK_ABORT = "components.controller.parameters.capture_timeout=0.3 s"  # no estimate by then: aborted
 
 
 def end_event(record) -> dict:
@@ -43,16 +44,36 @@ def test_a_run_that_does_not_conclude_is_undecided_and_fails_expect_captured(tmp
 
 
 def test_an_abort_is_stated_with_its_time_and_reason_and_run_expect_accepts_it(tmp_path):
-    run = orchestrator("run", CONFIG, "--set", "run.duration=1 s", "--set", QUICK_ABORT, "--set", "run.expect=aborted",
-                       "--record", tmp_path / "r")
+    run = orchestrator(
+        "run",
+        CONFIG,
+        "--set",
+        "run.duration=1 s",
+        "--set",
+        QUICK_ABORT,
+        "--set",
+        "run.expect=aborted",
+        "--record",
+        tmp_path / "r",
+    )
     assert run.returncode == 0, run.stderr
     events = [json.loads(line) for line in (tmp_path / "r" / "events.jsonl").read_text().splitlines()]
     aborted = next(e for e in events if e["event"] == "capture_aborted")
     assert last_line(run).endswith(f"; capture aborted at {aborted['time']:g} s: {aborted['reason']}"), last_line(run)
     assert events[-1]["outcome"] == "aborted" and events[-1]["outcome_text"].startswith("capture aborted at 0.3 s: ")
     # --expect overrides run.expect
-    other = orchestrator("run", CONFIG, "--set", "run.duration=1 s", "--set", QUICK_ABORT, "--set",
-                         "run.expect=aborted", "--expect", "undecided")
+    other = orchestrator(
+        "run",
+        CONFIG,
+        "--set",
+        "run.duration=1 s",
+        "--set",
+        QUICK_ABORT,
+        "--set",
+        "run.expect=aborted",
+        "--expect",
+        "undecided",
+    )
     assert other.returncode == 3 and "capture aborted at 0.3 s" in last_line(other), other.stderr
     assert component_processes() == []
 
@@ -71,8 +92,10 @@ def test_an_unknown_expected_outcome_is_refused_before_anything_starts(tmp_path)
     for args in (["--expect", "detumbled"], ["--set", "run.expect=detumbled"]):
         run = orchestrator("run", CONFIG, *args, "--record", tmp_path / "r")
         assert run.returncode == 2, run.stderr
-        assert "'detumbled' is not an outcome of controller (controller.capture); its outcomes: undecided, " \
-               "captured, aborted" in run.stderr
+        assert (
+            "'detumbled' is not an outcome of controller (controller.capture); its outcomes: undecided, "
+            "captured, aborted" in run.stderr
+        )
         assert not (tmp_path / "r" / "events.jsonl").exists() and "Traceback" not in run.stderr
     check = orchestrator("check", CONFIG, "--expect", "detumbled")
     assert check.returncode == 2 and "its outcomes: undecided, captured, aborted" in check.stderr
@@ -83,12 +106,38 @@ def test_an_unknown_expected_outcome_is_refused_before_anything_starts(tmp_path)
 
 def test_a_campaigns_cases_say_undecided_and_aborted_not_completed(tmp_path):
     campaign = tmp_path / "campaign.yaml"
-    campaign.write_text(yaml.safe_dump({
-        "config": str(CONFIG), "samples": 1, "seed": 1,
-        "grid": {"run.duration": ["1 s"], "components.controller.parameters.capture_timeout": ["0.3 s", "300 s"]},
-        "metrics": {"abort_time": {"event": "capture_aborted", "field": "time"}}, "keep": "none"}))
-    sweep = subprocess.run([sys.executable, "-m", "orchestrator.cli", "sweep", str(campaign), "--out",
-                            str(tmp_path / "out"), "--jobs", "2"], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    campaign.write_text(
+        yaml.safe_dump(
+            {
+                "config": str(CONFIG),
+                "samples": 1,
+                "seed": 1,
+                "grid": {
+                    "run.duration": ["1 s"],
+                    "components.controller.parameters.capture_timeout": ["0.3 s", "300 s"],
+                },
+                "metrics": {"abort_time": {"event": "capture_aborted", "field": "time"}},
+                "keep": "none",
+            }
+        )
+    )
+    sweep = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "orchestrator.cli",
+            "sweep",
+            str(campaign),
+            "--out",
+            str(tmp_path / "out"),
+            "--jobs",
+            "2",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert sweep.returncode == 0, sweep.stderr
     table = pq.read_table(tmp_path / "out" / "cases.parquet").to_pandas()
     assert list(table["status"]) == ["completed", "completed"]

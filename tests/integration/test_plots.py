@@ -1,5 +1,6 @@
 """`orchestrator plot` as a user runs it: figures picked by the component types, checked by what
 they show (read back from the plotted lines), --signals, and a recording with nothing to plot."""
+
 from __future__ import annotations
 
 import math
@@ -33,13 +34,20 @@ def _line(fig, title_part: str, label: str):
 def test_plot_writes_orbit_and_dynamics_figures_that_show_the_libration(libration):
     result = orchestrator("plot", libration)
     assert result.returncode == 0, result.stderr
-    assert result.stdout.split() == ["wrote", str(libration / "plots" / "orbit_track.png"),
-                                     "wrote", str(libration / "plots" / "dynamics_target.png")]
+    assert result.stdout.split() == [
+        "wrote",
+        str(libration / "plots" / "orbit_track.png"),
+        "wrote",
+        str(libration / "plots" / "dynamics_target.png"),
+    ]
     made = dict(figures(libration))
     # the pitch (about LVLH z) as plotted: 1 deg amplitude at w = n sqrt(3 (Iyy - Ixx) / Izz)
     t, pitch = _line(made["dynamics_target.png"], "attitude against LVLH", "about z")
-    crossings = [t[i] - pitch[i] * (t[i + 1] - t[i]) / (pitch[i + 1] - pitch[i])
-                 for i in range(len(t) - 1) if pitch[i] * pitch[i + 1] < 0]
+    crossings = [
+        t[i] - pitch[i] * (t[i + 1] - t[i]) / (pitch[i + 1] - pitch[i])
+        for i in range(len(t) - 1)
+        if pitch[i] * pitch[i + 1] < 0
+    ]
     n = math.sqrt(MU_EARTH / 6778e3**3)
     expected = n * math.sqrt(3 * (59.33333333 - 33.33333333) / 59.33333333)
     assert math.pi / np.mean(np.diff(crossings)) == pytest.approx(expected, rel=0.01)
@@ -54,7 +62,9 @@ def test_plot_writes_orbit_and_dynamics_figures_that_show_the_libration(libratio
 
 
 def test_plot_signals_plots_the_named_columns(libration, tmp_path):
-    result = orchestrator("plot", libration, "--out", tmp_path / "out", "--signals", "orbit.r_eci, dynamics.target.twist[5]")
+    result = orchestrator(
+        "plot", libration, "--out", tmp_path / "out", "--signals", "orbit.r_eci, dynamics.target.twist[5]"
+    )
     assert result.returncode == 0 and result.stdout.strip() == f"wrote {tmp_path / 'out' / 'signals.png'}"
     made = dict(figures(libration, ["orbit.r_eci", "dynamics.target.twist[5]"]))
     table = pq.read_table(libration / "signals.parquet")
@@ -67,7 +77,9 @@ def test_plot_signals_plots_the_named_columns(libration, tmp_path):
 
 def test_a_recording_with_nothing_to_plot_says_so_and_leaves_no_folder(tmp_path):
     record = tmp_path / "rec"
-    run = orchestrator("run", ROOT / "configs" / "user_component.yaml", "--set", "run.duration=0.1 s", "--record", record)
+    run = orchestrator(
+        "run", ROOT / "configs" / "user_component.yaml", "--set", "run.duration=0.1 s", "--record", record
+    )
     assert run.returncode == 0, run.stderr
     result = orchestrator("plot", record)
     assert result.returncode == 2 and "nothing to plot" in result.stderr and "--signals" in result.stderr

@@ -4,6 +4,7 @@ exit 2, a message naming the path as given, no traceback, and nothing written or
 
 The unwritable output is a path under a regular file (``file.txt/out``): it fails for root too,
 where a read-only directory would not (the tests may run as root)."""
+
 from __future__ import annotations
 
 import os
@@ -19,7 +20,7 @@ pytestmark = pytest.mark.integration
 
 CONFIG = ROOT / "configs" / "orbit_iss_kepler.yaml"
 CAMPAIGN = ROOT / "configs" / "campaigns" / "capture_envelope.yaml"
-UNWRITABLE = "file.txt/out"   # under a regular file, relative to the test's directory
+UNWRITABLE = "file.txt/out"  # under a regular file, relative to the test's directory
 
 # command -> the arguments with an unwritable output ({rec}: a recording; {out}: UNWRITABLE)
 OUTPUTS = {
@@ -47,10 +48,16 @@ INPUTS = {
     "figure": ["figure", "missing", "--component", "camera", "--time", "0", "--out", "frame.png"],
     "markers": ["markers", "missing.yaml"],
 }
-NO_PATHS = {"ps", "stop", "swap", "types"}   # they take no path
+NO_PATHS = {"ps", "stop", "swap", "types"}  # they take no path
 # command -> the extra it needs (without it, it is refused for that: tests/unit/test_extras.py)
-EXTRAS = {"run --view save:": "view", "view --view save:": "view", "view": "view", "export-fmu -o": "fmi",
-          "export-fmu": "fmi", "markers": "vision"}
+EXTRAS = {
+    "run --view save:": "view",
+    "view --view save:": "view",
+    "view": "view",
+    "export-fmu -o": "fmi",
+    "export-fmu": "fmi",
+    "markers": "vision",
+}
 
 
 def cases(commands: dict) -> list:
@@ -65,9 +72,14 @@ def recording(tmp_path_factory):
     assert done.returncode == 0, done.stderr
     rng = np.random.default_rng(0)
     (record / "frames" / "camera").mkdir(parents=True)
-    write_frame(frame_path(record / "frames" / "camera", 0),
-                {"rgb": rng.integers(0, 256, (48, 64, 3), dtype=np.uint8), "depth": np.ones((48, 64), np.float32),
-                 "t": np.float64(0.0)})
+    write_frame(
+        frame_path(record / "frames" / "camera", 0),
+        {
+            "rgb": rng.integers(0, 256, (48, 64, 3), dtype=np.uint8),
+            "depth": np.ones((48, 64), np.float32),
+            "t": np.float64(0.0),
+        },
+    )
     return record
 
 
@@ -97,7 +109,7 @@ def test_an_unwritable_output_is_refused_naming_it_before_anything_starts(case, 
     before, recorded = _files(tmp_path), _files(recording)
     done = orchestrator(*args, cwd=tmp_path, timeout=120)
     _refused(done, UNWRITABLE)
-    assert _files(tmp_path) == before and _files(recording) == recorded   # nothing written
+    assert _files(tmp_path) == before and _files(recording) == recorded  # nothing written
     assert "started" not in done.stdout + done.stderr and not done.stdout, done.stdout
 
 

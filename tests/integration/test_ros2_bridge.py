@@ -14,6 +14,7 @@ follows rmw_zenoh's conventions): a mass on a spring whose force is a PD law com
 - A run stopped (Ctrl-C) while the bridge waits: the bridge's wait is interrupted, so it ends by
   itself rather than being killed after the orchestrator's grace period.
 """
+
 from __future__ import annotations
 
 import signal
@@ -45,8 +46,15 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def config(name: str, port: int, timeout: str = "20 s", step_timeout: str = "60 s", steps: int = STEPS,
-           wait_for: str = "stamped", realtime: float = 0) -> str:
+def config(
+    name: str,
+    port: int,
+    timeout: str = "20 s",
+    step_timeout: str = "60 s",
+    steps: int = STEPS,
+    wait_for: str = "stamped",
+    realtime: float = 0,
+) -> str:
     return f"""
 run: {{name: {name}, epoch: {EPOCH}, duration: {steps * STEP_NS // 1_000_000} ms, step: 10 ms,
        step_timeout: {step_timeout}, realtime: {realtime}}}
@@ -83,9 +91,27 @@ class StandIn:
         self.ready, self.waiting, self.clock_log = tmp / "standin.ready", tmp / "standin.waiting", tmp / "clock.log"
         self.log = open(tmp / "standin.log", "w")
         self.process = subprocess.Popen(
-            [sys.executable, str(STANDIN), "--listen", f"tcp/127.0.0.1:{port}", "--kp", str(KP), "--kd", str(KD),
-             "--ready", str(self.ready), "--waiting", str(self.waiting), "--clock-log", str(self.clock_log), *extra],
-            cwd=ROOT, stdout=self.log, stderr=subprocess.STDOUT)
+            [
+                sys.executable,
+                str(STANDIN),
+                "--listen",
+                f"tcp/127.0.0.1:{port}",
+                "--kp",
+                str(KP),
+                "--kd",
+                str(KD),
+                "--ready",
+                str(self.ready),
+                "--waiting",
+                str(self.waiting),
+                "--clock-log",
+                str(self.clock_log),
+                *extra,
+            ],
+            cwd=ROOT,
+            stdout=self.log,
+            stderr=subprocess.STDOUT,
+        )
         wait_until(lambda: self.ready.exists() or self.process.poll() is not None, "the stand-in node ready", 60)
         assert self.process.poll() is None, (tmp / "standin.log").read_text()
 
@@ -111,6 +137,7 @@ def standin(tmp_path):
         node = StandIn(tmp_path, port, *extra)
         started.append(node)
         return node
+
     yield start
     for node in started:
         node.stop()
@@ -125,11 +152,14 @@ def reference(steps: int) -> dict[str, np.ndarray]:
         x, v, force = xs[-1], vs[-1], forces[-1]
         spring.inputs["force"] = force
         spring.step(STEP_NS)
-        forces.append(-KP * np.array([x]) - KD * np.array([v]))   # the node's expression, on float64 arrays
+        forces.append(-KP * np.array([x]) - KD * np.array([v]))  # the node's expression, on float64 arrays
         xs.append(spring.outputs["x"])
         vs.append(spring.outputs["v"])
-    return {"spring.x": np.array(xs, dtype=np.float64).ravel(), "spring.v": np.array(vs, dtype=np.float64).ravel(),
-            "node.force[0]": np.array([np.ravel(f)[0] for f in forces], dtype=np.float64)}
+    return {
+        "spring.x": np.array(xs, dtype=np.float64).ravel(),
+        "spring.v": np.array(vs, dtype=np.float64).ravel(),
+        "node.force[0]": np.array([np.ravel(f)[0] for f in forces], dtype=np.float64),
+    }
 
 
 def test_stamped_lockstep_equals_the_loop_in_process(tmp_path, write_config, standin):
@@ -146,11 +176,12 @@ def test_stamped_lockstep_equals_the_loop_in_process(tmp_path, write_config, sta
     expected = reference(STEPS)
     for column, values in expected.items():
         got = signals[column].to_numpy()
-        assert got.tobytes() == values.tobytes(), f"{column}: first difference at row " \
-                                                  f"{int(np.flatnonzero(got != values)[0])}"
+        assert got.tobytes() == values.tobytes(), (
+            f"{column}: first difference at row {int(np.flatnonzero(got != values)[0])}"
+        )
     # the answer rule (no header) gives the same numbers as the stamped one
     assert signals["node.force_array[0]"].to_numpy().tobytes() == expected["node.force[0]"].tobytes()
-    assert np.ptp(expected["node.force[0]"]) > 1.0    # the PD law did act
+    assert np.ptp(expected["node.force[0]"]) > 1.0  # the PD law did act
     # /clock: the run's time at initialize and at each step, as ROS time (run.epoch + t)
     assert sorted(set(node.clocks())) == [epoch_ns(EPOCH) + k * STEP_NS for k in range(STEPS)]
     assert not component_processes("ros2_bridge_pd")
@@ -163,20 +194,21 @@ def test_latest_takes_answers_to_earlier_steps(tmp_path, write_config, standin):
     node = standin(port)
     record = tmp_path / "rec"
     # paced at the wall clock (10 ms a step), so that the node's answers arrive while the run goes on
-    result = orchestrator("run", write_config(config("ros2_bridge_latest", port, wait_for="latest", realtime=1)),
-                          "--record", record)
+    result = orchestrator(
+        "run", write_config(config("ros2_bridge_latest", port, wait_for="latest", realtime=1)), "--record", record
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     node.stop()
     signals = pd.read_parquet(record / "signals.parquet")
     x, v = signals["spring.x"].to_numpy(), signals["spring.v"].to_numpy()
-    answers = -KP * x - KD * v          # the node's answer to the inputs of each row
-    answered = []                       # the row each output answers (-1: the start value)
+    answers = -KP * x - KD * v  # the node's answer to the inputs of each row
+    answered = []  # the row each output answers (-1: the start value)
     for row, force in enumerate(signals["node.force[0]"].to_numpy()):
         earlier = [j for j in range(row) if answers[j] == force]
-        if not earlier:   # the start value, until the first answer arrives
+        if not earlier:  # the start value, until the first answer arrives
             assert force == 0.0 and set(answered) <= {-1}, f"row {row}: {force} answers no earlier step"
         answered.append(earlier[-1] if earlier else -1)
-    assert answered == sorted(answered)                  # each answer is newer than the one before
+    assert answered == sorted(answered)  # each answer is newer than the one before
     assert max(answered) > 0
     assert not component_processes("ros2_bridge_latest")
 
@@ -185,7 +217,7 @@ def test_a_node_that_stops_answering_fails_the_run_naming_the_topic(tmp_path, wr
     import pandas as pd
 
     port = _free_port()
-    last = 40   # the node answers the steps up to this one
+    last = 40  # the node answers the steps up to this one
     standin(port, "--answer-until", str(epoch_ns(EPOCH) + last * STEP_NS))
     record = tmp_path / "rec"
     result = orchestrator("run", write_config(config("ros2_bridge_silent", port, timeout="3 s")), "--record", record)
@@ -194,7 +226,7 @@ def test_a_node_that_stops_answering_fails_the_run_naming_the_topic(tmp_path, wr
     t = epoch_ns(EPOCH) + (last + 1) * STEP_NS
     assert f"no message on /spring/effort stamped {t // 10**9}.{t % 10**9:09d}" in out, out
     assert f"failed in step {last + 1}" in out, out
-    assert len(pd.read_parquet(record / "signals.parquet")) == last + 2    # rows 0..last+1: the answered steps'
+    assert len(pd.read_parquet(record / "signals.parquet")) == last + 2  # rows 0..last+1: the answered steps'
     assert not component_processes("ros2_bridge_silent")
 
 
@@ -203,14 +235,18 @@ def test_no_router_or_no_node_fails_the_start_naming_it(tmp_path, write_config, 
     result = orchestrator("run", write_config(config("ros2_bridge_alone", port, timeout="1 s")))
     out = result.stdout + result.stderr
     assert result.returncode == 1, out
-    assert f"failed in instantiate: ComponentError: cannot reach the ROS 2 router at tcp/127.0.0.1:{port} " \
-           "within 1 s" in out, out
-    standin(port, "--state", "/other/joint_states")   # a node, but not on the bridge's input topic
+    assert (
+        f"failed in instantiate: ComponentError: cannot reach the ROS 2 router at tcp/127.0.0.1:{port} "
+        "within 1 s" in out
+    ), out
+    standin(port, "--state", "/other/joint_states")  # a node, but not on the bridge's input topic
     result = orchestrator("run", write_config(config("ros2_bridge_alone", port, timeout="2 s")))
     out = result.stdout + result.stderr
     assert result.returncode == 1, out
-    assert ("no ROS 2 node subscribes to /spring/joint_states (sensor_msgs::msg::dds_::JointState_) in domain 0 "
-            f"at tcp/127.0.0.1:{port} within 2 s") in out, out
+    assert (
+        "no ROS 2 node subscribes to /spring/joint_states (sensor_msgs::msg::dds_::JointState_) in domain 0 "
+        f"at tcp/127.0.0.1:{port} within 2 s"
+    ) in out, out
     assert not component_processes("ros2_bridge_alone")
 
 
@@ -234,11 +270,17 @@ def test_a_run_stopped_while_the_bridge_waits_ends_its_wait(tmp_path, write_conf
     assert not component_processes("ros2_bridge_stop")
 
 
-@pytest.mark.parametrize("key, value, words", [
-    ("outputs.force.type", "nav_msgs/msg/Odometry",
-     ["topic /spring/effort: the bridge cannot map message type 'nav_msgs/msg/Odometry'", "sensor_msgs/msg/Imu"]),
-    ("outputs.force.topic", "/spring/effort-command", ["'/spring/effort-command' is not a ROS 2 topic name"]),
-])
+@pytest.mark.parametrize(
+    "key, value, words",
+    [
+        (
+            "outputs.force.type",
+            "nav_msgs/msg/Odometry",
+            ["topic /spring/effort: the bridge cannot map message type 'nav_msgs/msg/Odometry'", "sensor_msgs/msg/Imu"],
+        ),
+        ("outputs.force.topic", "/spring/effort-command", ["'/spring/effort-command' is not a ROS 2 topic name"]),
+    ],
+)
 def test_check_refuses_what_the_bridge_cannot_map_with_exit_2(write_config, key, value, words):
     path = write_config(config("ros2_bridge_check", 7447))
     assert orchestrator("check", path).returncode == 0
@@ -250,10 +292,11 @@ def test_check_refuses_what_the_bridge_cannot_map_with_exit_2(write_config, key,
 
 def _ros2_with_rmw_zenoh() -> bool:
     import shutil
+
     if shutil.which("ros2") is None:
         return False
     found = subprocess.run(["ros2", "pkg", "prefix", "rmw_zenoh_cpp"], capture_output=True, timeout=60)
-    with socket.socket() as s:   # rmw_zenohd's own port, which this test's router takes
+    with socket.socket() as s:  # rmw_zenohd's own port, which this test's router takes
         free = s.connect_ex(("127.0.0.1", 7447)) != 0
     return found.returncode == 0 and free
 
@@ -274,10 +317,22 @@ def test_the_guides_rclpy_node_in_the_loop_over_a_real_rmw_zenohd(tmp_path, writ
     env = {**os.environ, "RMW_IMPLEMENTATION": "rmw_zenoh_cpp", "ROS_DOMAIN_ID": "42"}
     started = []
     try:
-        started.append(subprocess.Popen(["ros2", "run", "rmw_zenoh_cpp", "rmw_zenohd"], env=env,
-                                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        started.append(subprocess.Popen(["python3", str(tmp_path / "pd.py"), "--ros-args", "-p", "use_sim_time:=true"],
-                                        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        started.append(
+            subprocess.Popen(
+                ["ros2", "run", "rmw_zenoh_cpp", "rmw_zenohd"],
+                env=env,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
+        )
+        started.append(
+            subprocess.Popen(
+                ["python3", str(tmp_path / "pd.py"), "--ros-args", "-p", "use_sim_time:=true"],
+                env=env,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
+        )
         text = config("ros2_bridge_rclpy", 7447).replace("domain_id: 0", "domain_id: 42")
         text = text.replace("endpoint: tcp/127.0.0.1:7447", "endpoint: tcp/localhost:7447")
         # the guide's node answers on one topic
@@ -303,11 +358,12 @@ def test_check_refuses_a_second_clock_from_the_live_ros2_view(write_config, monk
     path = write_config(config("ros2_bridge_clock", 7447) + "ros2: {endpoint: tcp/localhost:7447}\n")
     result = orchestrator("check", path)
     assert result.returncode == 2, result.stdout + result.stderr
-    assert ("ros2: the live ROS 2 view would publish /clock in domain 0, where the bridge 'node' publishes the "
-            "run's /clock") in result.stderr, result.stderr
+    assert (
+        "ros2: the live ROS 2 view would publish /clock in domain 0, where the bridge 'node' publishes the run's /clock"
+    ) in result.stderr, result.stderr
     assert orchestrator("check", path, "--set", "ros2.topics=[/tf]").returncode == 0
     assert orchestrator("check", path, "--set", "components.node.parameters.clock=false").returncode == 0
     assert orchestrator("check", path, "--set", "components.node.parameters.domain_id=3").returncode == 0
     plain = write_config(config("ros2_bridge_clock", 7447), "plain.yaml")
-    result = orchestrator("run", plain, "--ros2")      # refused before anything starts
+    result = orchestrator("run", plain, "--ros2")  # refused before anything starts
     assert result.returncode == 2 and "--ros2: the live ROS 2 view would publish /clock" in result.stderr, result.stderr

@@ -14,6 +14,7 @@ nodes in processes of their own, run by that venv's Python; they import only ROS
   ``reference``), the node's clock read the stamp of each state it answered, and the docs' own node
   (docs/guides/ros2.md) does the same; a node that dies fails the run naming its topic.
 """
+
 from __future__ import annotations
 
 import json
@@ -34,16 +35,17 @@ pytestmark = pytest.mark.integration
 
 HERE = ROOT / "tests" / "ros2_rclpy"
 CAPTURE = ROOT / "configs" / "capture_tumbling_target.yaml"
-WITHOUT_WHEEL = {"tf2_msgs"}   # message packages ROS 2 Jazzy has no PyPI wheel for
+WITHOUT_WHEEL = {"tf2_msgs"}  # message packages ROS 2 Jazzy has no PyPI wheel for
 # each test its own ROS domain, so that nothing of one test's DDS graph reaches another's, and
 # each test session its own five (from its process id), for two sessions on one machine
-_BASE = 10 + 5 * (os.getpid() % 40)   # Fast DDS takes domain ids up to 232
+_BASE = 10 + 5 * (os.getpid() % 40)  # Fast DDS takes domain ids up to 232
 DOMAIN_VIEW, DOMAIN_LATE, DOMAIN_BRIDGE, DOMAIN_DOCS, DOMAIN_DIES = range(_BASE, _BASE + 5)
 
 
 @pytest.fixture(scope="session")
 def ros_python() -> str:
     from tests.ros2_rclpy.environment import ensure
+
     try:
         return str(ensure())
     except (RuntimeError, OSError, subprocess.SubprocessError) as e:
@@ -58,8 +60,13 @@ class RosProcess:
         self.log_path = tmp / f"{name}.log"
         self.log = open(self.log_path, "w")
         extra = ["--ready", str(self.ready)] if ready else []
-        self.process = subprocess.Popen([python, str(script), *args, *extra], stdin=subprocess.PIPE,
-                                        stdout=self.log, stderr=subprocess.STDOUT, cwd=tmp)
+        self.process = subprocess.Popen(
+            [python, str(script), *args, *extra],
+            stdin=subprocess.PIPE,
+            stdout=self.log,
+            stderr=subprocess.STDOUT,
+            cwd=tmp,
+        )
         if ready:
             wait_until(lambda: self.ready.exists() or self.process.poll() is not None, f"{name} ready", 120)
             assert self.process.poll() is None, self.log_path.read_text()
@@ -91,6 +98,7 @@ def ros(tmp_path, ros_python):
         process = RosProcess(ros_python, script, tmp_path, name, *args, ready=ready)
         started.append(process)
         return process
+
     yield start
     for process in started:
         process.stop()
@@ -132,9 +140,21 @@ def clock_ns(cdr: bytes) -> int:
 
 def capture_run(ros_python: str, domain: int, duration: str, realtime: float = 0) -> list[str]:
     """The arguments of ``orchestrator run`` for the capture scenario published with rclpy, every row."""
-    return [str(CAPTURE), "--set", f"run.duration={duration}", "--set", f"run.realtime={realtime}",
-            "--set", "ros2.transport=rclpy", "--set", f"ros2.python={ros_python}",
-            "--set", f"ros2.domain_id={domain}", "--set", "ros2.rate=100 Hz"]
+    return [
+        str(CAPTURE),
+        "--set",
+        f"run.duration={duration}",
+        "--set",
+        f"run.realtime={realtime}",
+        "--set",
+        "ros2.transport=rclpy",
+        "--set",
+        f"ros2.python={ros_python}",
+        "--set",
+        f"ros2.domain_id={domain}",
+        "--set",
+        "ros2.rate=100 Hz",
+    ]
 
 
 def listener_args(topics: dict[str, str], latched: set[str], domain: int, out: Path) -> list[str]:
@@ -177,36 +197,55 @@ def test_a_stock_ros2_subscriber_receives_every_topic_of_the_export(tmp_path, wr
     export = export_messages(record, tmp_path / "bag")
     with_wheel = {t for t, (msgtype, _) in export.items() if msgtype.split("/")[0] not in WITHOUT_WHEEL}
     assert with_wheel == set(CAPTURE_TOPICS)
-    for topic in sorted(set(export) - with_wheel):   # said, not silently missing
+    for topic in sorted(set(export) - with_wheel):  # said, not silently missing
         assert f"{topic}: no message type {export[topic][0]} in this ROS 2 environment" in result.stderr
 
     got = received(out)
     stamps = [clock_ns(cdr) for cdr in got["/clock"]]
     rows = [ns for ns, _ in export["/clock"][1]]
-    assert stamps == rows, f"{len(stamps)} of {len(rows)} rows reached ROS"   # all, in order
+    assert stamps == rows, f"{len(stamps)} of {len(rows)} rows reached ROS"  # all, in order
     for topic in sorted(with_wheel):
         msgtype, messages = export[topic]
         expected = [dds_padded(messages[0][1])] if topic in LATCHED else [dds_padded(cdr) for _, cdr in messages]
-        assert got.get(topic, []) == expected, (f"{topic} ({msgtype}): {len(got.get(topic, []))} received, "
-                                                f"{len(expected)} expected")
+        assert got.get(topic, []) == expected, (
+            f"{topic} ({msgtype}): {len(got.get(topic, []))} received, {len(expected)} expected"
+        )
     assert not component_processes("capture_tumbling_target")
 
 
 def test_a_late_joiner_gets_the_latched_topics(tmp_path, write_config, ros, ros_python):
     early_out, late_out = tmp_path / "early.jsonl", tmp_path / "late.jsonl"
     clock = {"/clock": CAPTURE_TOPICS["/clock"]}
-    early = ros(HERE / "listener.py", "early", *listener_args(clock, set(), DOMAIN_LATE, early_out),
-                "--first", str(tmp_path / "first"))
+    early = ros(
+        HERE / "listener.py",
+        "early",
+        *listener_args(clock, set(), DOMAIN_LATE, early_out),
+        "--first",
+        str(tmp_path / "first"),
+    )
     record = tmp_path / "rec"
     # paced at wall time and long: it goes on until the late joiner has what it asks for, then Ctrl-C
-    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run",
-                            *capture_run(ros_python, DOMAIN_LATE, "120 s", realtime=1), "--record", str(record)],
-                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    run = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "orchestrator.cli",
+            "run",
+            *capture_run(ros_python, DOMAIN_LATE, "120 s", realtime=1),
+            "--record",
+            str(record),
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         wait_until(lambda: (tmp_path / "first").exists(), "the run's first /clock in ROS", 180, run=run)
         late_topics = {t: CAPTURE_TOPICS[t] for t in LATCHED}
-        late = ros(HERE / "listener.py", "late", *listener_args(late_topics, LATCHED, DOMAIN_LATE, late_out),
-                   "--until-all")
+        late = ros(
+            HERE / "listener.py", "late", *listener_args(late_topics, LATCHED, DOMAIN_LATE, late_out), "--until-all"
+        )
         assert late.process.wait(120) == 0, late.log_path.read_text()
         assert run.poll() is None, "the run ended before the late joiner had the latched topics"
         run.send_signal(signal.SIGINT)
@@ -224,8 +263,9 @@ def test_a_late_joiner_gets_the_latched_topics(tmp_path, write_config, ros, ros_
     assert not component_processes("capture_tumbling_target")
 
 
-def bridge_config(name: str, ros_python: str, domain: int, outputs: str, timeout: str = "30 s",
-                  steps: int = STEPS) -> str:
+def bridge_config(
+    name: str, ros_python: str, domain: int, outputs: str, timeout: str = "30 s", steps: int = STEPS
+) -> str:
     return f"""
 run: {{name: {name}, epoch: {EPOCH}, duration: {steps * STEP_NS // 1_000_000} ms, step: 10 ms, step_timeout: 60 s}}
 components:
@@ -261,11 +301,22 @@ def test_bridge_in_lockstep_with_an_rclpy_node_equals_the_loop_in_process(tmp_pa
     import pandas as pd
 
     log = tmp_path / "answers.log"
-    node = ros(HERE / "spring_node.py", "spring", "--domain", str(DOMAIN_BRIDGE), "--kp", str(KP), "--kd", str(KD),
-               "--log", str(log))
+    node = ros(
+        HERE / "spring_node.py",
+        "spring",
+        "--domain",
+        str(DOMAIN_BRIDGE),
+        "--kp",
+        str(KP),
+        "--kd",
+        str(KD),
+        "--log",
+        str(log),
+    )
     record = tmp_path / "rec"
-    result = orchestrator("run", write_config(bridge_config("rclpy_pd", ros_python, DOMAIN_BRIDGE, BOTH_OUTPUTS)),
-                          "--record", record)
+    result = orchestrator(
+        "run", write_config(bridge_config("rclpy_pd", ros_python, DOMAIN_BRIDGE, BOTH_OUTPUTS)), "--record", record
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     node.stop()
     assert "transport: rclpy" in (record / "logs" / "node.0.log").read_text()
@@ -274,10 +325,11 @@ def test_bridge_in_lockstep_with_an_rclpy_node_equals_the_loop_in_process(tmp_pa
     expected = reference(STEPS)
     for column, values in expected.items():
         got = signals[column].to_numpy()
-        assert got.tobytes() == values.tobytes(), f"{column}: first difference at row " \
-                                                  f"{int(np.flatnonzero(got != values)[0])}"
+        assert got.tobytes() == values.tobytes(), (
+            f"{column}: first difference at row {int(np.flatnonzero(got != values)[0])}"
+        )
     assert signals["node.force_array[0]"].to_numpy().tobytes() == expected["node.force[0]"].tobytes()
-    assert np.ptp(expected["node.force[0]"]) > 1.0    # the PD law did act
+    assert np.ptp(expected["node.force[0]"]) > 1.0  # the PD law did act
     # use_sim_time: the node's clock, when it answered step k, read t_k exactly (the run's /clock)
     answers = [tuple(map(int, line.split())) for line in log.read_text().splitlines()]
     assert [stamp for stamp, _ in answers] == [epoch_ns(EPOCH) + k * STEP_NS for k in range(STEPS)]
@@ -293,19 +345,23 @@ def test_the_docs_node_drives_the_docs_bridge(tmp_path, write_config, ros, ros_p
     (tmp_path / "pd.py").write_text(source)
     # the guide's own command line (ROS_DOMAIN_ID in its environment: a user's shell)
     env_domain = {"ROS_DOMAIN_ID": str(DOMAIN_DOCS)}
-    node = subprocess.Popen([ros_python, str(tmp_path / "pd.py"), "--ros-args", "-p", "use_sim_time:=true"],
-                            env={**os.environ, **env_domain}, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    node = subprocess.Popen(
+        [ros_python, str(tmp_path / "pd.py"), "--ros-args", "-p", "use_sim_time:=true"],
+        env={**os.environ, **env_domain},
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
-        outputs = BOTH_OUTPUTS.splitlines()[0]   # the guide's node answers on one topic
+        outputs = BOTH_OUTPUTS.splitlines()[0]  # the guide's node answers on one topic
         text = bridge_config("rclpy_docs", ros_python, DOMAIN_DOCS, outputs)
         record = tmp_path / "rec"
-        result = orchestrator("run", write_config(text), "--record", record)   # waits for the node's topics
+        result = orchestrator("run", write_config(text), "--record", record)  # waits for the node's topics
         assert result.returncode == 0, result.stdout + result.stderr
     finally:
         node.terminate()
         try:
             node.wait(30)
-        except subprocess.TimeoutExpired:   # a loaded machine: never leave the node behind
+        except subprocess.TimeoutExpired:  # a loaded machine: never leave the node behind
             node.kill()
             node.wait()
     signals = pd.read_parquet(record / "signals.parquet")
@@ -317,8 +373,20 @@ def test_a_node_that_dies_fails_the_run_naming_its_topic(tmp_path, write_config,
     import pandas as pd
 
     last = 40
-    ros(HERE / "spring_node.py", "spring", "--domain", str(DOMAIN_DIES), "--kp", str(KP), "--kd", str(KD),
-        "--log", str(tmp_path / "answers.log"), "--exit-after", str(last + 1))
+    ros(
+        HERE / "spring_node.py",
+        "spring",
+        "--domain",
+        str(DOMAIN_DIES),
+        "--kp",
+        str(KP),
+        "--kd",
+        str(KD),
+        "--log",
+        str(tmp_path / "answers.log"),
+        "--exit-after",
+        str(last + 1),
+    )
     record = tmp_path / "rec"
     text = bridge_config("rclpy_dies", ros_python, DOMAIN_DIES, BOTH_OUTPUTS, timeout="3 s")
     result = orchestrator("run", write_config(text), "--record", record)
@@ -331,8 +399,11 @@ def test_a_node_that_dies_fails_the_run_naming_its_topic(tmp_path, write_config,
 
 
 def test_rclpy_asked_for_without_it_is_refused_at_check(write_config):
-    path = write_config(bridge_config("rclpy_none", "/usr/bin/env", 0, BOTH_OUTPUTS).replace(
-        "python: /usr/bin/env", f"python: {sys.executable}"))
+    path = write_config(
+        bridge_config("rclpy_none", "/usr/bin/env", 0, BOTH_OUTPUTS).replace(
+            "python: /usr/bin/env", f"python: {sys.executable}"
+        )
+    )
     result = orchestrator("check", path)
     assert result.returncode == 2, result.stdout + result.stderr
     assert "transport rclpy: no Python here imports rclpy" in result.stderr, result.stderr

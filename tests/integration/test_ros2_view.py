@@ -14,14 +14,15 @@ decoded by code of this file, from rmw_zenoh's facts, not by components.ros2.rmw
 - a late joiner (an AdvancedSubscriber with history, as a TRANSIENT_LOCAL subscription) gets
   /tf_static from the publisher's cache; an unreachable router: a warning naming it, the run completes.
 """
+
 from __future__ import annotations
 
 import json
 import os
 import queue
+import re
 import shutil
 import signal
-import re
 import socket
 import subprocess
 import sys
@@ -57,8 +58,13 @@ ROUTER_ENV = {k: v for k, v in os.environ.items() if k != "ZENOH_RUNTIME"}
 
 
 def _start_router(endpoint: str) -> subprocess.Popen:
-    process = subprocess.Popen([sys.executable, "-c", ROUTER % endpoint], stdin=subprocess.PIPE,
-                               stdout=subprocess.PIPE, text=True, env=ROUTER_ENV)
+    process = subprocess.Popen(
+        [sys.executable, "-c", ROUTER % endpoint],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        env=ROUTER_ENV,
+    )
     assert process.stdout.readline().strip() == "ready"
     return process
 
@@ -82,9 +88,16 @@ def _parse_token(key: str) -> dict:
     """A liveliness token as rmw_zenoh's ``Entity::make(keyexpr)`` reads it."""
     parts = key.split("/")
     assert parts[0] == "@ros2_lv" and len(parts) >= 9 and all(parts), key
-    entity = {"domain": int(parts[1]), "zid": parts[2], "nid": parts[3], "id": parts[4], "kind": parts[5],
-              "enclave": parts[6].replace("%", "/"), "namespace": parts[7].replace("%", "/"),
-              "node": parts[8].replace("%", "/")}
+    entity = {
+        "domain": int(parts[1]),
+        "zid": parts[2],
+        "nid": parts[3],
+        "id": parts[4],
+        "kind": parts[5],
+        "enclave": parts[6].replace("%", "/"),
+        "namespace": parts[7].replace("%", "/"),
+        "node": parts[8].replace("%", "/"),
+    }
     if entity["kind"] != "NN":
         assert len(parts) == 13, key
         entity.update(topic=parts[9].replace("%", "/"), type=parts[10].replace("%", "/"), hash=parts[11], qos=parts[12])
@@ -100,13 +113,14 @@ def _ros_type(dds_type: str) -> str:
 
 def _gid(token: str) -> bytes:
     """liveliness_utils.cpp: XXH3-128 of the token, the low 64 bits then the high 64, little endian."""
-    digest = xxhash.xxh3_128(token.encode()).digest()   # big endian: high half first
+    digest = xxhash.xxh3_128(token.encode()).digest()  # big endian: high half first
     return digest[8:][::-1] + digest[:8][::-1]
 
 
 def _decoders(typestore, msgtypes):
     """mcap-ros2-support's decoders from the ROS 2 message definitions (the schema text)."""
     from mcap_ros2._dynamic import generate_dynamic
+
     return {t: generate_dynamic(t, typestore.generate_msgdef(t, ros_version=2)[0])[t] for t in msgtypes}
 
 
@@ -123,9 +137,9 @@ class RosSide:
         self.endpoint = endpoint
         self.closed = False
         self.session = zenoh.open(bus.session_config(connect=[endpoint], mesh=True))
-        self._late_session = None   # the late joiner: another node, so a session of its own
+        self._late_session = None  # the late joiner: another node, so a session of its own
         self.tokens: dict[str, bool] = {}
-        self.samples: list[tuple[str, bytes, bytes | None]] = []   # (key, payload, attachment)
+        self.samples: list[tuple[str, bytes, bytes | None]] = []  # (key, payload, attachment)
         self.late: list[bytes] = []
         self.live_tf_static: list[bytes] = []
         self._late_sub = None
@@ -138,6 +152,7 @@ class RosSide:
 
     def _token(self, sample) -> None:
         import zenoh
+
         key = str(sample.key_expr)
         self.tokens[key] = sample.kind == zenoh.SampleKind.PUT
         if "/MP/" in key and "/%tf_static/" in key and self._late_sub is None:
@@ -156,6 +171,7 @@ class RosSide:
         import zenoh.ext
 
         from components import bus
+
         entity = self._pending.get()
         if entity is None:
             return
@@ -164,9 +180,13 @@ class RosSide:
         # depth samples, subscriber detection, heartbeat recovery
         self._late_session = zenoh.open(bus.session_config(connect=[self.endpoint], mesh=True))
         self._late_sub = zenoh.ext.declare_advanced_subscriber(
-            self._late_session, key, lambda s: self.late.append(s.payload.to_bytes()), subscriber_detection=True,
+            self._late_session,
+            key,
+            lambda s: self.late.append(s.payload.to_bytes()),
+            subscriber_detection=True,
             history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
-            recovery=zenoh.ext.RecoveryConfig(heartbeat=True))
+            recovery=zenoh.ext.RecoveryConfig(heartbeat=True),
+        )
 
     def last_sequences(self) -> dict[str, int]:
         """Each data key's highest sequence number received (the attachment's first int64)."""
@@ -210,11 +230,23 @@ def live(router, tmp_path_factory):
     record = tmp_path_factory.mktemp("ros2") / "rec"
     ros = RosSide(router)
     try:
-        result = orchestrator("run", CONFIG, "--set", "run.duration=2 s", "--set", "run.realtime=1",
-                              "--set", "ros2.rate=100 Hz", "--record", record, "--ros2", router,
-                              env={**os.environ, "ROS_DOMAIN_ID": str(DOMAIN)})
+        result = orchestrator(
+            "run",
+            CONFIG,
+            "--set",
+            "run.duration=2 s",
+            "--set",
+            "run.realtime=1",
+            "--set",
+            "ros2.rate=100 Hz",
+            "--record",
+            record,
+            "--ros2",
+            router,
+            env={**os.environ, "ROS_DOMAIN_ID": str(DOMAIN)},
+        )
         sent = re.search(r"run over: (\d+) messages published", result.stderr)
-        if sent:   # the last ones may still be on their way through the router when the run returns
+        if sent:  # the last ones may still be on their way through the router when the run returns
             ros.wait_for(int(sent.group(1)), timeout_s=20)
     finally:
         ros.close()
@@ -229,13 +261,22 @@ def test_graph_tokens_name_the_node_and_a_publisher_per_topic(live):
     ros, _, _, _ = live
     entities = [_parse_token(k) for k in ros.tokens]
     nodes = [e for e in entities if e["kind"] == "NN"]
-    assert [(e["node"], e["namespace"], e["enclave"], e["domain"]) for e in nodes] == \
-        [("zenorbit_capture_tumbling_target", "/", "/", DOMAIN)]
+    assert [(e["node"], e["namespace"], e["enclave"], e["domain"]) for e in nodes] == [
+        ("zenorbit_capture_tumbling_target", "/", "/", DOMAIN)
+    ]
     assert nodes[0]["nid"] == nodes[0]["id"]
     publishers = {e["topic"]: e for e in entities if e["kind"] == "MP"}
     assert all(e["zid"] == nodes[0]["zid"] and e["nid"] == nodes[0]["nid"] for e in publishers.values())
-    assert {"/clock", "/tf", "/tf_static", "/imu/imu", "/wrist_ft/wrench", "/pose_sensor/pose",
-            "/dynamics/servicer/joint_states", "/dynamics/servicer/robot_description"} <= set(publishers)
+    assert {
+        "/clock",
+        "/tf",
+        "/tf_static",
+        "/imu/imu",
+        "/wrist_ft/wrench",
+        "/pose_sensor/pose",
+        "/dynamics/servicer/joint_states",
+        "/dynamics/servicer/robot_description",
+    } <= set(publishers)
     for topic, e in publishers.items():
         msgtype = _ros_type(e["type"])
         assert e["hash"] == "RIHS01_" + PUBLISHED_HASHES[msgtype], topic
@@ -246,17 +287,20 @@ def test_graph_tokens_name_the_node_and_a_publisher_per_topic(live):
 
 def test_samples_carry_rmw_zenohs_attachment_and_key(live):
     ros, _, _, _ = live
-    publishers = {f"{DOMAIN}/{e['topic'].strip('/')}/{e['type']}/{e['hash']}": token
-                  for token in ros.tokens if (e := _parse_token(token))["kind"] == "MP"}
+    publishers = {
+        f"{DOMAIN}/{e['topic'].strip('/')}/{e['type']}/{e['hash']}": token
+        for token in ros.tokens
+        if (e := _parse_token(token))["kind"] == "MP"
+    }
     sequences: dict[str, list[int]] = {}
     for key, payload, attachment in ros.samples:
         assert key in publishers, f"a sample on {key}, which no publisher token announces"
         assert attachment is not None and len(attachment) == 33
         sequence, timestamp, length = np.frombuffer(attachment[:16], "<i8").tolist() + [attachment[16]]
         assert length == 16 and attachment[17:] == _gid(publishers[key])
-        assert timestamp > 1_600_000_000 * 10 ** 9   # the system clock (ns since 1970), as rmw_zenoh's
+        assert timestamp > 1_600_000_000 * 10**9  # the system clock (ns since 1970), as rmw_zenoh's
         sequences.setdefault(key, []).append(sequence)
-        assert payload[:4] == b"\x00\x01\x00\x00"   # CDR, little endian encapsulation
+        assert payload[:4] == b"\x00\x01\x00\x00"  # CDR, little endian encapsulation
     # rmw_zenoh's publishers count from 1, each sample one more (no gap: the next test)
     assert sequences and all(s == sorted(set(s)) and s[0] >= 1 for s in sequences.values())
 
@@ -265,7 +309,7 @@ def test_messages_equal_the_recording_and_the_export(live):
     from mcap.reader import make_reader
     from rosbags.typesys import Stores, get_typestore
 
-    ros, record, bag, result = live
+    ros, record, bag, _result = live
     typestore = get_typestore(Stores.ROS2_JAZZY)
     by_topic: dict[str, list[bytes]] = {}
     types = {}
@@ -290,8 +334,10 @@ def test_messages_equal_the_recording_and_the_export(live):
     _equal([_xyz(m.angular_velocity) for m in imu], _vector(columns, "imu.rate", 3)[rows(imu)])
     _equal([_xyz(m.linear_acceleration) for m in imu], _vector(columns, "imu.specific_force", 3)[rows(imu)])
     wrench = topics["/wrist_ft/wrench"]
-    _equal([_xyz(m.wrench.force) + _xyz(m.wrench.torque) for m in wrench],
-           _vector(columns, "wrist_ft.wrench", 6)[rows(wrench)])
+    _equal(
+        [_xyz(m.wrench.force) + _xyz(m.wrench.torque) for m in wrench],
+        _vector(columns, "wrist_ft.wrench", 6)[rows(wrench)],
+    )
     joints = topics["/dynamics/servicer/joint_states"]
     joint_stamps = [_ns(m.header.stamp) for m in joints]
     assert len(joint_stamps) > 1 and joint_stamps == sorted(set(joint_stamps))
@@ -304,7 +350,7 @@ def test_messages_equal_the_recording_and_the_export(live):
         for _, channel, message in make_reader(f).iter_messages(log_time_order=True):
             exported.setdefault(channel.topic, []).append(bytes(message.data))
     assert {"/clock", "/tf", "/imu/imu", "/dynamics/servicer/joint_states"} <= by_topic.keys() <= exported.keys()
-    for topic, payloads in by_topic.items():   # in order, byte for byte the export's (all of them, unloaded)
+    for topic, payloads in by_topic.items():  # in order, byte for byte the export's (all of them, unloaded)
         remaining = iter(exported[topic])
         assert all(any(p == e for e in remaining) for p in payloads), f"{topic}: not the export's messages in order"
 
@@ -328,7 +374,7 @@ def _events(record, kind: str) -> list[dict]:
 
 
 def test_the_report_counts_every_message_and_the_run_says_it(live):
-    ros, record, _, result = live
+    _ros, record, _, result = live
     report = json.loads((record / "ros2.report.json").read_text())
     sent = int(re.search(r"run over: (\d+) messages published", result.stderr).group(1))
     assert sum(report["published"].values()) == sent and report["dropped"] == {} and report["why"] == {}
@@ -337,8 +383,10 @@ def test_the_report_counts_every_message_and_the_run_says_it(live):
     assert report["published"]["/clock"] == report["rows"] > 1
     (event,) = _events(record, "ros2_stream")
     assert event["published"] == report["published"] and 0 < report["rows"] <= event["rows_sent"]
-    line = (f"ROS 2 view: {sent} messages published on {len(report['published'])} topics; of the "
-            f"{event['rows_sent']} rows sent to it, {report['rows']} arrived; dropped: none")
+    line = (
+        f"ROS 2 view: {sent} messages published on {len(report['published'])} topics; of the "
+        f"{event['rows_sent']} rows sent to it, {report['rows']} arrived; dropped: none"
+    )
     assert line in result.stdout + result.stderr
 
 
@@ -356,7 +404,7 @@ class RosSubscriber(RosSide):
     def _token(self, sample) -> None:
         super()._token(sample)
         key = str(sample.key_expr)
-        if "/MP/" in key and _parse_token(key)["qos"].startswith(":1:"):   # TRANSIENT_LOCAL
+        if "/MP/" in key and _parse_token(key)["qos"].startswith(":1:"):  # TRANSIENT_LOCAL
             self._subscriptions.put(_parse_token(key))
 
     def _declare(self) -> None:
@@ -395,21 +443,41 @@ def test_a_restarted_router_gets_the_rest_of_the_stream_and_the_latched_topics_a
     lines: list[str] = []
     try:
         first = RosSide(endpoint)
-        run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", str(CONFIG), "--set", "run.duration=10 s",
-                                "--set", "run.realtime=1", "--set", "ros2.rate=100 Hz", "--record", str(record),
-                                "--ros2", endpoint], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                               text=True, env={**os.environ, "ROS_DOMAIN_ID": str(DOMAIN)})
+        run = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "orchestrator.cli",
+                "run",
+                str(CONFIG),
+                "--set",
+                "run.duration=10 s",
+                "--set",
+                "run.realtime=1",
+                "--set",
+                "ros2.rate=100 Hz",
+                "--record",
+                str(record),
+                "--ros2",
+                endpoint,
+            ],
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            env={**os.environ, "ROS_DOMAIN_ID": str(DOMAIN)},
+        )
         _read_until(run.stdout, "publishing the run to ROS 2", lines)
         with first._arrived:
             assert first._arrived.wait_for(lambda: len(first.samples) > 50, 60), "no data before the restart"
         _stop_router(router)
         router = None
-        first.close()   # what it got is the stream before the restart
+        first.close()  # what it got is the stream before the restart
         _read_until(run.stdout, "is down", lines)
         router = _start_router(endpoint)
         second = RosSubscriber(endpoint)
         _read_until(run.stdout, "the stream resumes", lines)
-        lines += run.stdout.readlines()   # to the end of the run
+        lines += run.stdout.readlines()  # to the end of the run
         assert run.wait(timeout=120) == 0, "".join(lines)
         sent = int(re.search(r"run over: (\d+) messages published", "".join(lines)).group(1))
         second.wait_for(sent, timeout_s=20)
@@ -451,16 +519,17 @@ def test_a_restarted_router_gets_the_rest_of_the_stream_and_the_latched_topics_a
 def test_a_late_joiner_gets_tf_static_from_the_publishers_cache(live):
     ros, _, bag, _ = live
     from mcap.reader import make_reader
+
     with open(next(bag.glob("*.mcap")), "rb") as f:
         (static,) = [bytes(m.data) for _, c, m in make_reader(f).iter_messages() if c.topic == "/tf_static"]
     # sent once, before the late joiner came (unless the router had not yet told the observer of
     # this volatile subscription: then only the cache below has it)
     assert ros.live_tf_static in ([static], [])
-    assert ros.late == [static]                  # which got it from the cache
+    assert ros.late == [static]  # which got it from the cache
 
 
 def test_an_unreachable_router_warns_and_the_run_completes(tmp_path):
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"   # nothing listens there
+    endpoint = f"tcp/127.0.0.1:{_free_port()}"  # nothing listens there
     record = tmp_path / "rec"
     result = orchestrator("run", CONFIG, "--set", "run.duration=0.1 s", "--record", record, "--ros2", endpoint)
     assert result.returncode == 0, result.stderr
@@ -472,9 +541,26 @@ def test_a_router_that_comes_up_during_the_run_gets_the_rest_of_it(tmp_path):
     """No router at the start: the warning; the router started upon it: the observer's retry
     links to it, and the ROS side sees the node and the /clock of the later rows."""
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
-    run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", str(CONFIG), "--set", "run.duration=12 s",
-                            "--set", "run.realtime=1", "--ros2", endpoint], cwd=ROOT, stdout=subprocess.DEVNULL,
-                           stderr=subprocess.PIPE, text=True, env={**os.environ, "ROS_DOMAIN_ID": str(DOMAIN)})
+    run = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "orchestrator.cli",
+            "run",
+            str(CONFIG),
+            "--set",
+            "run.duration=12 s",
+            "--set",
+            "run.realtime=1",
+            "--ros2",
+            endpoint,
+        ],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "ROS_DOMAIN_ID": str(DOMAIN)},
+    )
     router = ros = None
     lines: list[str] = []
     try:
@@ -484,7 +570,7 @@ def test_a_router_that_comes_up_during_the_run_gets_the_rest_of_it(tmp_path):
                 break
         router = _start_router(endpoint)
         ros = RosSide(endpoint)
-        lines += run.stderr.readlines()   # to the end of the run
+        lines += run.stderr.readlines()  # to the end of the run
         assert run.wait(timeout=120) == 0, "".join(lines)
     finally:
         if run.poll() is None:
@@ -500,11 +586,14 @@ def test_a_router_that_comes_up_during_the_run_gets_the_rest_of_it(tmp_path):
     assert len(clock) > 10
 
 
-@pytest.mark.parametrize("sets, expected", [
-    (["ros2.topics=[/clock, /imu-1/imu]"], "ros2.topics[1]: ROS 2 rejects the topic name '/imu-1/imu'"),
-    (["ros2.topic=[/clock]"], "ros2.topic: unknown key"),
-    (["ros2.distro=humble"], "ros2.distro"),
-])
+@pytest.mark.parametrize(
+    "sets, expected",
+    [
+        (["ros2.topics=[/clock, /imu-1/imu]"], "ros2.topics[1]: ROS 2 rejects the topic name '/imu-1/imu'"),
+        (["ros2.topic=[/clock]"], "ros2.topic: unknown key"),
+        (["ros2.distro=humble"], "ros2.distro"),
+    ],
+)
 def test_bad_ros2_sections_are_refused_at_check(sets, expected):
     result = orchestrator("check", CONFIG, *[a for s in sets for a in ("--set", s)])
     assert result.returncode == 2
@@ -529,15 +618,44 @@ def test_ros2_topic_echo_sees_the_runs_clock_through_rmw_zenohd(tmp_path):
     """The real thing: rmw_zenohd as the router, `ros2 topic echo /clock` and `ros2 topic list` as the
     ROS side (RMW_IMPLEMENTATION=rmw_zenoh_cpp), against the demo paced at real time."""
     env = {**os.environ, "RMW_IMPLEMENTATION": "rmw_zenoh_cpp", "ROS_DOMAIN_ID": str(DOMAIN)}
-    router = subprocess.Popen(["ros2", "run", "rmw_zenoh_cpp", "rmw_zenohd"], env=env, stdin=subprocess.DEVNULL,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    router = subprocess.Popen(
+        ["ros2", "run", "rmw_zenoh_cpp", "rmw_zenohd"],
+        env=env,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
     run = None
     try:
-        run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", str(CONFIG), "--set", "run.duration=30 s",
-                                "--set", "run.realtime=1", "--ros2", "tcp/localhost:7447"], cwd=ROOT, env=env,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
-        echo = subprocess.run(["ros2", "topic", "echo", "--once", "/clock", "rosgraph_msgs/msg/Clock"], env=env,
-                              capture_output=True, text=True, timeout=120)
+        run = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "orchestrator.cli",
+                "run",
+                str(CONFIG),
+                "--set",
+                "run.duration=30 s",
+                "--set",
+                "run.realtime=1",
+                "--ros2",
+                "tcp/localhost:7447",
+            ],
+            cwd=ROOT,
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
+        )
+        echo = subprocess.run(
+            ["ros2", "topic", "echo", "--once", "/clock", "rosgraph_msgs/msg/Clock"],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert echo.returncode == 0, echo.stderr
         assert "clock:" in echo.stdout and "sec:" in echo.stdout and "nanosec:" in echo.stdout
         listed = subprocess.run(["ros2", "topic", "list"], env=env, capture_output=True, text=True, timeout=60)

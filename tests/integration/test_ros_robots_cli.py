@@ -6,6 +6,7 @@ saved view whose .rrd holds geometry for every visual link. Then each bad input 
 and message, a live recording directory refused, Ctrl-C when SIGINT was ignored on entry, and the
 summary of a stopped run.
 """
+
 from __future__ import annotations
 
 import json
@@ -57,13 +58,16 @@ def test_panda_from_example_robot_data_checks_runs_and_is_drawn(tmp_path):
     table = pq.read_table(tmp_path / "rec" / "signals.parquet")
     assert table.num_rows == 301
     q7, q8 = (table.column(f"dynamics.sat.q[{i}]").to_numpy() for i in (7, 8))
-    assert abs(q7 - q8).max() < 1e-9                      # the mimic finger follows
+    assert abs(q7 - q8).max() < 1e-9  # the mimic finger follows
     error = max(abs(table.column(f"controller.ee_error[{i}]").to_numpy()).max() for i in range(3))
     assert error < 1e-4, error
     # every visual link has geometry in the .rrd: the bus box and the 11 .dae meshes as triangles
     entities = read_rrd(rrd)
-    visuals = {path.split("/links/")[1].split("/")[0]: entry["static"] for path, entry in entities.items()
-               if "/links/" in path and "/visual_" in path}
+    visuals = {
+        path.split("/links/")[1].split("/")[0]: entry["static"]
+        for path, entry in entities.items()
+        if "/links/" in path and "/visual_" in path
+    }
     expected = {"bus"} | {f"panda_link{i}" for i in range(8)} | {"panda_hand", "panda_leftfinger", "panda_rightfinger"}
     assert set(visuals) == expected
     for link, components in visuals.items():
@@ -73,37 +77,50 @@ def test_panda_from_example_robot_data_checks_runs_and_is_drawn(tmp_path):
 
 
 def bad_urdf_config(tmp_path, link: str, duration="0.01 s", step="1 ms", extra_body="") -> str:
-    (tmp_path / "bad.urdf").write_text(textwrap.dedent(f"""\
+    (tmp_path / "bad.urdf").write_text(
+        textwrap.dedent(f"""\
         <robot name="bad">
           <link name="base"><inertial><mass value="10"/>
             <inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>
           {link}
           <joint name="j" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 0 1"/>
             <limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
-        </robot>"""))
+        </robot>""")
+    )
     path = tmp_path / "bad.yaml"
-    path.write_text(textwrap.dedent(f"""\
+    path.write_text(
+        textwrap.dedent(f"""\
         run: {{name: bad, epoch: 2022-09-18T12:00:00Z, duration: {duration}, step: {step}}}
         components:
           dynamics:
             type: dynamics.dart
             parameters: {{bodies: {{b: {{urdf: bad.urdf, frame: lvlh{extra_body}}}}}}}
-        """))
+        """)
+    )
     return path
 
 
 GOOD_ARM = '<link name="arm"><inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1"/></inertial></link>'
 
 
-@pytest.mark.parametrize("link, words", [
-    ('<link name="arm"><inertial><mass value="1"/><inertia ixx="1" iyy="0.1" izz="0.1"/></inertial></link>',
-     "link 'arm': the inertia breaks the triangle inequality: principal moment 1 > 0.1 + 0.1 kg m^2"),
-    ('<link name="arm"><inertial><mass value="1"/><inertia ixx="-0.1" iyy="0.1" izz="0.1"/></inertial></link>',
-     "link 'arm': the inertia is not positive definite"),
-    ('<link name="arm"><visual><geometry><mesh filename="package://ghost_pkg/m.dae"/></geometry></visual>'
-     '<inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1"/></inertial></link>',
-     "link 'arm' visual mesh package://ghost_pkg/m.dae: package 'ghost_pkg' not found (looked in: run.packages"),
-])
+@pytest.mark.parametrize(
+    "link, words",
+    [
+        (
+            '<link name="arm"><inertial><mass value="1"/><inertia ixx="1" iyy="0.1" izz="0.1"/></inertial></link>',
+            "link 'arm': the inertia breaks the triangle inequality: principal moment 1 > 0.1 + 0.1 kg m^2",
+        ),
+        (
+            '<link name="arm"><inertial><mass value="1"/><inertia ixx="-0.1" iyy="0.1" izz="0.1"/></inertial></link>',
+            "link 'arm': the inertia is not positive definite",
+        ),
+        (
+            '<link name="arm"><visual><geometry><mesh filename="package://ghost_pkg/m.dae"/></geometry></visual>'
+            '<inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1"/></inertial></link>',
+            "link 'arm' visual mesh package://ghost_pkg/m.dae: package 'ghost_pkg' not found (looked in: run.packages",
+        ),
+    ],
+)
 def test_bad_urdf_refused_at_check(tmp_path, link, words):
     result = orchestrator("check", bad_urdf_config(tmp_path, link))
     assert result.returncode == 2, result.stderr
@@ -115,8 +132,10 @@ def test_zero_mass_link_warned_at_check_and_at_run(tmp_path):
     config = bad_urdf_config(tmp_path, massless)
     words = "link 'arm' has no mass (nor anything welded to it), but joint 'j' moves it"
     check = orchestrator("check", config)
-    assert check.returncode == 0 and f"warning: {config}: components.dynamics.parameters.bodies.b: bad.urdf: {words}" \
-        in check.stderr, check.stderr
+    assert (
+        check.returncode == 0
+        and f"warning: {config}: components.dynamics.parameters.bodies.b: bad.urdf: {words}" in check.stderr
+    ), check.stderr
     run = orchestrator("run", config, "--record", tmp_path / "rec")
     assert words in run.stderr, run.stderr
     events = [json.loads(line) for line in (tmp_path / "rec" / "events.jsonl").read_text().splitlines()]
@@ -127,28 +146,48 @@ def test_step_too_coarse_warned_with_the_figure(tmp_path):
     config = bad_urdf_config(tmp_path, GOOD_ARM, duration="2 h", step="1 h")
     check = orchestrator("check", config)
     assert check.returncode == 0, check.stderr
-    assert ("the step is too coarse for the dynamics: the orbit's rate (mean motion at the lowest orbit), "
-            "0.00124 rad/s, turns it 4.46 rad (256 deg) per step of 3600 s") in check.stderr, check.stderr
+    assert (
+        "the step is too coarse for the dynamics: the orbit's rate (mean motion at the lowest orbit), "
+        "0.00124 rad/s, turns it 4.46 rad (256 deg) per step of 3600 s"
+    ) in check.stderr, check.stderr
     assert "use a step of at most 80.7 s" in check.stderr
 
 
-@pytest.mark.parametrize("text, code, words", [
-    (b"run: {name: x, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 1 ms}\n# caf\xe9\ncomponents: {}\n", 2,
-     "not UTF-8 text (byte 0xe9 at line 2); save the config as UTF-8"),
-    (b"run: {name: x, epoch: 2022-09-18T12:00:00Z, duration: 1e400 s, step: 1 ms}\n"
-     b"components: {c: {type: test.constant}}\n", 2,
-     "run.duration: expected a duration of at most 100 years"),
-    (b"run: {name: x, epoch: 2022-09-18T12:00:00Z, duration: 3000 d, step: 1 us}\n"
-     b"components: {c: {type: test.constant}}\n", 2,
-     "run.duration: 2.59e+14 steps of 1 us; at most 1e+12 steps"),
-    (b"run: {name: x, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 1 s}\n"
-     b"components: {o: {type: orbit.kepler, parameters: {semi_major_axis: 6000 km, eccentricity: 0,"
-     b" inclination: 51 deg, raan: 0, arg_perigee: 0, mean_anomaly: 0}}}\n", 2,
-     "a is measured from Earth's centre, not its surface: for an altitude of 6000 km, a = '12378.1 km'"),
-    (b"run: {name: x, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 1 s, packages: {mine: ./nowhere}}\n"
-     b"components: {c: {type: test.constant}}\n", 2,
-     "run.packages.mine: directory './nowhere' not found"),
-])
+@pytest.mark.parametrize(
+    "text, code, words",
+    [
+        (
+            b"run: {name: x, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 1 ms}\n# caf\xe9\ncomponents: {}\n",
+            2,
+            "not UTF-8 text (byte 0xe9 at line 2); save the config as UTF-8",
+        ),
+        (
+            b"run: {name: x, epoch: 2022-09-18T12:00:00Z, duration: 1e400 s, step: 1 ms}\n"
+            b"components: {c: {type: test.constant}}\n",
+            2,
+            "run.duration: expected a duration of at most 100 years",
+        ),
+        (
+            b"run: {name: x, epoch: 2022-09-18T12:00:00Z, duration: 3000 d, step: 1 us}\n"
+            b"components: {c: {type: test.constant}}\n",
+            2,
+            "run.duration: 2.59e+14 steps of 1 us; at most 1e+12 steps",
+        ),
+        (
+            b"run: {name: x, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 1 s}\n"
+            b"components: {o: {type: orbit.kepler, parameters: {semi_major_axis: 6000 km, eccentricity: 0,"
+            b" inclination: 51 deg, raan: 0, arg_perigee: 0, mean_anomaly: 0}}}\n",
+            2,
+            "a is measured from Earth's centre, not its surface: for an altitude of 6000 km, a = '12378.1 km'",
+        ),
+        (
+            b"run: {name: x, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 1 s, packages: {mine: ./nowhere}}\n"
+            b"components: {c: {type: test.constant}}\n",
+            2,
+            "run.packages.mine: directory './nowhere' not found",
+        ),
+    ],
+)
 def test_bad_config_exit_code_and_message(tmp_path, text, code, words):
     path = tmp_path / "c.yaml"
     path.write_bytes(text)
@@ -171,8 +210,13 @@ def test_overwrite_against_a_live_run_is_refused_and_the_live_run_keeps_every_ro
     config = tmp_path / "live.yaml"
     config.write_text(LONG.replace("NAME", "livelock").replace("duration: 600 s", "duration: 3 s"))
     record = tmp_path / "rec"
-    live = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", str(config), "--record", str(record)],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    live = subprocess.Popen(
+        [sys.executable, "-m", "orchestrator.cli", "run", str(config), "--record", str(record)],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         wait_for_step("livelock", 5, run=live)
         for extra in (["--overwrite"], []):
@@ -191,15 +235,20 @@ def test_overwrite_against_a_live_run_is_refused_and_the_live_run_keeps_every_ro
     events = [json.loads(line)["event"] for line in (record / "events.jsonl").read_text().splitlines()]
     assert events[0] == "start" and events.count("start") == 1 and events[-1] == "end"
     again = orchestrator("run", config, "--record", record, "--overwrite", "--set", "run.realtime=0")
-    assert again.returncode == 0, again.stderr     # the lock ended with its run
+    assert again.returncode == 0, again.stderr  # the lock ended with its run
 
 
 def test_stopped_run_summary_agrees_with_events(tmp_path):
     config = tmp_path / "stop.yaml"
     config.write_text(LONG.replace("NAME", "stopme"))
     record = tmp_path / "rec"
-    live = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", str(config), "--record", str(record)],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    live = subprocess.Popen(
+        [sys.executable, "-m", "orchestrator.cli", "run", str(config), "--record", str(record)],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         wait_for_step("stopme", 5, run=live)
         assert orchestrator("stop", "--run", "stopme").returncode == 0
@@ -224,9 +273,14 @@ def test_ctrl_c_ends_a_run_that_inherited_sigint_ignored(tmp_path):
     def ignore_sigint():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
 
-    live = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", str(config), "--record", str(record)],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=ignore_sigint)
+    live = subprocess.Popen(
+        [sys.executable, "-m", "orchestrator.cli", "run", str(config), "--record", str(record)],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=ignore_sigint,
+    )
     try:
         wait_for_step("background", 5, run=live)
         live.send_signal(signal.SIGINT)

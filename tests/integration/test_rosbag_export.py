@@ -1,10 +1,11 @@
 """`orchestrator export DIR --rosbag2 OUT` as a user runs it: the demo and the capture scenario,
 recorded once each, exported, and read back with a second, independent reader (`mcap` with
 `mcap-ros2-support`, not rosbags) against signals.parquet bit for bit; metadata.yaml; bad input."""
+
 from __future__ import annotations
 
 import shutil
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -41,8 +42,12 @@ def demo(tmp_path_factory):
 @pytest.fixture(scope="module")
 def capture(tmp_path_factory):
     """configs/capture_tumbling_target.yaml, 1 s at 10 ms, with the link poses recorded, exported."""
-    record = _record(tmp_path_factory, "capture_tumbling_target", "run.duration=1 s",
-                     "components.dynamics.parameters.link_outputs=true")
+    record = _record(
+        tmp_path_factory,
+        "capture_tumbling_target",
+        "run.duration=1 s",
+        "components.dynamics.parameters.link_outputs=true",
+    )
     bag = record.parent / "bag"
     return record, bag, _export(record, bag)
 
@@ -56,7 +61,8 @@ def _read(bag) -> dict[str, list]:
     topics: dict[str, list] = {}
     with open(path, "rb") as f:
         for _, channel, message, decoded in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
-                log_time_order=True):
+            log_time_order=True
+        ):
             topics.setdefault(channel.topic, []).append((message.log_time, decoded))
     return topics
 
@@ -72,7 +78,7 @@ def _vector(columns, name, n):
 
 def _stamps(record, columns) -> np.ndarray:
     epoch = yaml.safe_load((record / "config.yaml").read_text())["run"]["epoch"]
-    start = datetime.fromisoformat(str(epoch).replace("Z", "+00:00")) - datetime(1970, 1, 1, tzinfo=timezone.utc)
+    start = datetime.fromisoformat(str(epoch).replace("Z", "+00:00")) - datetime(1970, 1, 1, tzinfo=UTC)
     return int(start.total_seconds()) * 1_000_000_000 + np.rint(columns["time"] * 1e9).astype(np.int64)
 
 
@@ -136,8 +142,9 @@ def test_the_demo_exports_clock_tf_joint_states_pose_and_twist_bit_for_bit(demo)
     _equal([_xyz(t.transform.translation) for t in tf["dynamics/world"]], _vector(columns, "orbit.r_eci", 3))
     assert {t.header.frame_id for t in lvlh + tf["dynamics/world"]} == {"eci"}
     links = [child for child in tf if child.startswith("dynamics/humanoid/")]
-    assert len(links) > 10 and all(len(tf[c]) == n for c in links)     # every link, forward kinematics
+    assert len(links) > 10 and all(len(tf[c]) == n for c in links)  # every link, forward kinematics
     from components.robots.urdf import read_urdf
+
     model = read_urdf(ROOT / "models" / "humanoid_torso.urdf")
     assert set(links) == {f"dynamics/humanoid/{link}" for link in model.link_names}
     base = tf[f"dynamics/humanoid/{model.root}"]
@@ -162,7 +169,9 @@ def test_the_capture_exports_sensors_links_and_static_mounts_bit_for_bit(capture
 
     # relative pose: once per measurement, stamped when it was taken, logged when it came out
     valid, t_measured = columns["pose_sensor.valid"], columns["pose_sensor.t_measured"]
-    rows = [r for r in range(len(valid)) if valid[r] and (r == 0 or not valid[r - 1] or t_measured[r] != t_measured[r - 1])]
+    rows = [
+        r for r in range(len(valid)) if valid[r] and (r == 0 or not valid[r - 1] or t_measured[r] != t_measured[r - 1])
+    ]
     pose = topics["/pose_sensor/pose"]
     assert len(pose) == len(rows) > 5
     _equal([_xyz(m.pose.position) for _, m in pose], _vector(columns, "pose_sensor.p", 3)[rows])
@@ -173,22 +182,30 @@ def test_the_capture_exports_sensors_links_and_static_mounts_bit_for_bit(capture
 
     # every link as recorded (link_outputs: true), in W; the base as position and orientation
     from components.robots.urdf import read_urdf
+
     model = read_urdf(ROOT / "models" / "capture" / "servicer.urdf")
     n, m = len(stamps), len(model.link_names)
     link_position = _vector(columns, "dynamics.servicer.link_position", 3 * m).reshape(n, m, 3)
     link_orientation = _vector(columns, "dynamics.servicer.link_orientation", 4 * m).reshape(n, m, 4)
     tf = _tf_by_child(topics["/tf"])
-    assert {c for c in tf if c.startswith("dynamics/servicer/")} == {f"dynamics/servicer/{link}" for link in model.link_names}
+    assert {c for c in tf if c.startswith("dynamics/servicer/")} == {
+        f"dynamics/servicer/{link}" for link in model.link_names
+    }
     for j, link in enumerate(model.link_names):
         transforms = tf[f"dynamics/servicer/{link}"]
         assert {t.header.frame_id for t in transforms} == {"dynamics/world"} and len(transforms) == n
         if link == model.root:
-            expected = _vector(columns, "dynamics.servicer.position", 3), _vector(columns, "dynamics.servicer.orientation", 4)
+            expected = (
+                _vector(columns, "dynamics.servicer.position", 3),
+                _vector(columns, "dynamics.servicer.orientation", 4),
+            )
         else:
             expected = link_position[:, j], link_orientation[:, j]
         _equal([_xyz(t.transform.translation) for t in transforms], expected[0])
         _equal([_xyzw(t.transform.rotation) for t in transforms], expected[1])
-    ee = yaml.safe_load((record / "config.yaml").read_text())["components"]["dynamics"]["parameters"]["grasp"]["end_effector"]
+    ee = yaml.safe_load((record / "config.yaml").read_text())["components"]["dynamics"]["parameters"]["grasp"][
+        "end_effector"
+    ]
     static = topics["/tf_static"]
     assert len(static) == 1
     mounts = {t.child_frame_id: t.header.frame_id for t in static[0][1].transforms}
@@ -200,28 +217,37 @@ def test_metadata_names_the_topics_types_counts_storage_and_latched_qos(capture)
     record, bag, _ = capture
     info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert info["storage_identifier"] == "mcap" and info["version"] == 9
-    assert info["ros_distro"] == "jazzy"   # the types' distro, as rosbag2 writes it (rosbags wrote "rosbags")
+    assert info["ros_distro"] == "jazzy"  # the types' distro, as rosbag2 writes it (rosbags wrote "rosbags")
     topics = {t["topic_metadata"]["name"]: t for t in info["topics_with_message_count"]}
     rows = pq.read_table(record / "signals.parquet", columns=["time"]).num_rows
-    expected = {"/clock": "rosgraph_msgs/msg/Clock", "/tf": "tf2_msgs/msg/TFMessage",
-                "/tf_static": "tf2_msgs/msg/TFMessage", "/imu/imu": "sensor_msgs/msg/Imu",
-                "/wrist_ft/wrench": "geometry_msgs/msg/WrenchStamped",
-                "/pose_sensor/pose": "geometry_msgs/msg/PoseStamped",
-                "/dynamics/servicer/joint_states": "sensor_msgs/msg/JointState",
-                "/dynamics/servicer/pose": "geometry_msgs/msg/PoseStamped",
-                "/dynamics/servicer/twist": "geometry_msgs/msg/TwistStamped",
-                "/dynamics/servicer/robot_description": "std_msgs/msg/String",
-                "/dynamics/target/robot_description": "std_msgs/msg/String"}
+    expected = {
+        "/clock": "rosgraph_msgs/msg/Clock",
+        "/tf": "tf2_msgs/msg/TFMessage",
+        "/tf_static": "tf2_msgs/msg/TFMessage",
+        "/imu/imu": "sensor_msgs/msg/Imu",
+        "/wrist_ft/wrench": "geometry_msgs/msg/WrenchStamped",
+        "/pose_sensor/pose": "geometry_msgs/msg/PoseStamped",
+        "/dynamics/servicer/joint_states": "sensor_msgs/msg/JointState",
+        "/dynamics/servicer/pose": "geometry_msgs/msg/PoseStamped",
+        "/dynamics/servicer/twist": "geometry_msgs/msg/TwistStamped",
+        "/dynamics/servicer/robot_description": "std_msgs/msg/String",
+        "/dynamics/target/robot_description": "std_msgs/msg/String",
+    }
     for name, msgtype in expected.items():
         assert topics[name]["topic_metadata"]["type"] == msgtype
         assert topics[name]["topic_metadata"]["type_description_hash"].startswith("RIHS01_")
     assert topics["/clock"]["message_count"] == topics["/imu/imu"]["message_count"] == rows
     assert info["message_count"] == sum(t["message_count"] for t in topics.values())
-    for name, durability in (("/tf_static", "transient_local"), ("/dynamics/servicer/robot_description", "transient_local"),
-                             ("/tf", "volatile")):
-        qos = yaml.safe_load(topics[name]["topic_metadata"]["offered_qos_profiles"]) \
-            if isinstance(topics[name]["topic_metadata"]["offered_qos_profiles"], str) \
+    for name, durability in (
+        ("/tf_static", "transient_local"),
+        ("/dynamics/servicer/robot_description", "transient_local"),
+        ("/tf", "volatile"),
+    ):
+        qos = (
+            yaml.safe_load(topics[name]["topic_metadata"]["offered_qos_profiles"])
+            if isinstance(topics[name]["topic_metadata"]["offered_qos_profiles"], str)
             else topics[name]["topic_metadata"]["offered_qos_profiles"]
+        )
         assert qos[0]["durability"] == durability and qos[0]["reliability"] == "reliable"
 
 
@@ -232,7 +258,7 @@ def test_an_existing_out_is_refused_unless_overwrite_and_kept_when_refused(captu
     (out / "mine.txt").write_text("keep me")
     result = orchestrator("export", record, "--rosbag2", out)
     assert result.returncode == 2 and "--overwrite" in result.stderr and (out / "mine.txt").exists()
-    result = orchestrator("export", record, "--rosbag2", out, "--overwrite")   # not a bag: not touched
+    result = orchestrator("export", record, "--rosbag2", out, "--overwrite")  # not a bag: not touched
     assert result.returncode == 2 and "metadata.yaml" in result.stderr and (out / "mine.txt").exists()
     copy = tmp_path / "copy"
     shutil.copytree(bag, copy)
@@ -254,7 +280,7 @@ def test_a_recording_cut_short_exports_the_rows_it_has(capture, tmp_path):
     short.mkdir()
     shutil.copy(record / "config.yaml", short / "config.yaml")
     table = pq.read_table(record / "signals.parquet")
-    (short / "signals.parquet").mkdir()     # a dataset directory, as the run writes it, stopped at row 37
+    (short / "signals.parquet").mkdir()  # a dataset directory, as the run writes it, stopped at row 37
     pq.write_table(table.slice(0, 37), short / "signals.parquet" / "part-000000.parquet")
     result = orchestrator("export", short, "--rosbag2", tmp_path / "bag")
     assert result.returncode == 0, result.stderr

@@ -1,5 +1,6 @@
 """Campaigns for real: each case is the plain run of its config, locally and on Dask, bit for bit;
 a failing case, --only, --resume after Ctrl-C, a worker killed mid-campaign."""
+
 from __future__ import annotations
 
 import json
@@ -19,29 +20,46 @@ pytestmark = pytest.mark.integration
 
 CONFIG = {
     "run": {"name": "sweepcase", "epoch": "2022-09-18T12:00:00Z", "duration": "200 ms", "step": "10 ms"},
-    "components": {"push": {"type": "test.constant", "parameters": {"value": 1.0}},
-                   "total": {"type": "test.integrator", "parameters": {"gain": 2.0}},
-                   "bad": {"type": "test.faulty", "parameters": {"fault": "raise", "at_step": 100000}}},
+    "components": {
+        "push": {"type": "test.constant", "parameters": {"value": 1.0}},
+        "total": {"type": "test.integrator", "parameters": {"gain": 2.0}},
+        "bad": {"type": "test.faulty", "parameters": {"fault": "raise", "at_step": 100000}},
+    },
     "connections": {"total.u": "push.y"},
 }
-METRICS = {"final": {"signal": "total.x", "reduce": "final"},
-           "peak": {"signal": "total.x", "reduce": "max_abs"},
-           "cross": {"signal": "total.x", "reduce": "first_crossing", "threshold": 0.1}}
+METRICS = {
+    "final": {"signal": "total.x", "reduce": "final"},
+    "peak": {"signal": "total.x", "reduce": "max_abs"},
+    "cross": {"signal": "total.x", "reduce": "first_crossing", "threshold": 0.1},
+}
 
 
 def campaign_file(tmp_path, name="campaign.yaml", config=CONFIG, **extra):
     path = tmp_path / name
-    body = {"config": config, "samples": 3, "seed": 5,
-            "disperse": {"components.push.parameters.value": {"normal": [1.0, 0.2]},
-                         "components.total.parameters.gain": {"uniform": [1, 3]}},
-            "metrics": METRICS, "keep": "all", **extra}
+    body = {
+        "config": config,
+        "samples": 3,
+        "seed": 5,
+        "disperse": {
+            "components.push.parameters.value": {"normal": [1.0, 0.2]},
+            "components.total.parameters.gain": {"uniform": [1, 3]},
+        },
+        "metrics": METRICS,
+        "keep": "all",
+        **extra,
+    }
     path.write_text(yaml.safe_dump(body, sort_keys=False))
     return path
 
 
 def sweep(*args, timeout=300):
-    return subprocess.run([sys.executable, "-m", "orchestrator.cli", "sweep", *map(str, args)], cwd=ROOT,
-                          capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "orchestrator.cli", "sweep", *map(str, args)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 def cases(out):
@@ -63,12 +81,23 @@ def test_each_case_is_the_plain_run_of_its_config(tmp_path):
     assert "3 completed" in result.stderr and "final" in result.stderr
     table = cases(out)
     assert list(table["case"]) == [0, 1, 2] and set(table["status"]) == {"completed"}
-    assert list(table.columns[:6]) == ["case", "status", "outcome", "error", "components.push.parameters.value",
-                                       "components.total.parameters.gain"]
+    assert list(table.columns[:6]) == [
+        "case",
+        "status",
+        "outcome",
+        "error",
+        "components.push.parameters.value",
+        "components.total.parameters.gain",
+    ]
     for index in range(3):
         plain = tmp_path / f"plain{index}"
-        run = subprocess.run([sys.executable, "-m", "orchestrator.cli", "run", out / "cases" / f"{index:04d}.yaml",
-                              "--record", plain], cwd=ROOT, capture_output=True, text=True, timeout=120)
+        run = subprocess.run(
+            [sys.executable, "-m", "orchestrator.cli", "run", out / "cases" / f"{index:04d}.yaml", "--record", plain],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert run.returncode == 0, run.stderr
         mine = pq.read_table(out / "cases" / f"{index:04d}" / "signals.parquet")
         theirs = pq.read_table(plain / "signals.parquet")
@@ -87,26 +116,28 @@ def test_each_case_is_the_plain_run_of_its_config(tmp_path):
     # the same directory again without --resume is refused; plot draws the campaign
     again = sweep(campaign_file(tmp_path), "--out", out)
     assert again.returncode == 2 and "--resume" in again.stderr
-    plot = subprocess.run([sys.executable, "-m", "orchestrator.cli", "plot", out], cwd=ROOT, capture_output=True,
-                          text=True, timeout=120)
+    plot = subprocess.run(
+        [sys.executable, "-m", "orchestrator.cli", "plot", out], cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
     assert plot.returncode == 0, plot.stderr
     assert (out / "plots" / "metrics_histograms.png").exists() and (out / "plots" / "final_vs_parameters.png").exists()
 
 
 def test_a_failing_case_is_recorded_and_the_campaign_goes_on(tmp_path):
     out = tmp_path / "out"
-    path = campaign_file(tmp_path, grid={"components.bad.parameters.at_step": [100000, 4]}, samples=1, keep="failed",
-                         disperse={})
+    path = campaign_file(
+        tmp_path, grid={"components.bad.parameters.at_step": [100000, 4]}, samples=1, keep="failed", disperse={}
+    )
     result = sweep(path, "--out", out)
     assert result.returncode == 0, result.stderr
     table = cases(out)
     assert list(table["status"]) == ["completed", "failed"]
     assert "deliberate failure at step 4" in table["error"][1]
-    assert table["recording"][0] == "" and table["recording"][1] == "cases/0001"   # keep: failed
+    assert table["recording"][0] == "" and table["recording"][1] == "cases/0001"  # keep: failed
     assert not (out / "cases" / "0000").exists() and (out / "cases" / "0001" / "signals.parquet").exists()
     # a failed case's metrics come from its recording too (its rows up to the failure)
     kept = pq.read_table(out / "cases" / "0001" / "signals.parquet")
-    column = "total.x"                 # the metric "final" of campaign_file
+    column = "total.x"  # the metric "final" of campaign_file
     assert table["final"][1] == kept.column(column).to_numpy()[-1] and not table["final"].isna()[0]
     assert list(table["outcome"]) == ["completed", "failed"]
     assert "case 1 failed: " in result.stderr
@@ -123,8 +154,11 @@ def test_bad_campaign_files_stop_before_anything_runs(tmp_path):
 
 def started_cases(out) -> list[Path]:
     """The cases whose run has begun (its recording has its start event) and not yet finished (no result file)."""
-    return [record for record in (out / "cases").glob("[0-9][0-9][0-9][0-9]")
-            if (record / "events.jsonl").exists() and not record.with_suffix(".json").exists()]
+    return [
+        record
+        for record in (out / "cases").glob("[0-9][0-9][0-9][0-9]")
+        if (record / "events.jsonl").exists() and not record.with_suffix(".json").exists()
+    ]
 
 
 def started_runs_under(pid: int) -> list[Path]:
@@ -135,7 +169,7 @@ def started_runs_under(pid: int) -> list[Path]:
     for child in psutil.Process(pid).children(recursive=True):
         try:
             args = child.cmdline()
-        except psutil.Error:   # ended meanwhile
+        except psutil.Error:  # ended meanwhile
             continue
         if "--record" in args and (Path(args[args.index("--record") + 1]) / "events.jsonl").exists():
             records.append(Path(args[args.index("--record") + 1]))
@@ -148,11 +182,26 @@ def test_resume_after_ctrl_c_runs_only_what_is_left(tmp_path):
     out = tmp_path / "out"
     slow = {**CONFIG, "run": {**CONFIG["run"], "realtime": 1.0, "duration": "1 s"}}
     path = tmp_path / "slow.yaml"
-    path.write_text(yaml.safe_dump({"config": slow, "samples": 6, "seed": 3, "metrics": METRICS, "keep": "none",
-                                    "disperse": {"components.push.parameters.value": {"uniform": [0, 1]}}}))
-    process = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "sweep", str(path), "--out", str(out),
-                                "--jobs", "1"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "config": slow,
+                "samples": 6,
+                "seed": 3,
+                "metrics": METRICS,
+                "keep": "none",
+                "disperse": {"components.push.parameters.value": {"uniform": [0, 1]}},
+            }
+        )
+    )
+    process = subprocess.Popen(
+        [sys.executable, "-m", "orchestrator.cli", "sweep", str(path), "--out", str(out), "--jobs", "1"],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
+    )
     try:
         wait_until(lambda: len(list((out / "cases").glob("*.json"))) >= 2, "two cases finished", run=process)
         wait_until(lambda: started_cases(out), "the third case's run started", run=process)
@@ -168,7 +217,7 @@ def test_resume_after_ctrl_c_runs_only_what_is_left(tmp_path):
     assert 2 <= len(finished) < 6 and set(first["status"]) == {"completed", "interrupted"}
     stamps = {i: (out / "cases" / f"{i:04d}.json").stat().st_mtime_ns for i in finished}
     leftovers = subprocess.run(["ps", "-eo", "args="], capture_output=True, text=True).stdout
-    assert str(out / "cases") not in leftovers          # no case's run left behind
+    assert str(out / "cases") not in leftovers  # no case's run left behind
     result = sweep(path, "--out", out, "--resume")
     assert result.returncode == 0, result.stderr
     assert f"{len(finished)} of 6 cases already finished" in result.stderr
@@ -182,8 +231,10 @@ def test_resume_after_ctrl_c_runs_only_what_is_left(tmp_path):
 @pytest.fixture
 def dask_cluster():
     import distributed
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-                                       scheduler_port=0)
+
+    cluster = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, scheduler_port=0
+    )
     client = distributed.Client(cluster)
     try:
         yield cluster, client
@@ -194,20 +245,38 @@ def dask_cluster():
 
 def test_dask_gives_the_local_results_and_survives_a_dead_worker(tmp_path, dask_cluster):
     cluster, client = dask_cluster
-    paced = {**CONFIG, "run": {**CONFIG["run"], "realtime": 1.0, "duration": "1 s"}}   # a case lasts > 1 s
+    paced = {**CONFIG, "run": {**CONFIG["run"], "realtime": 1.0, "duration": "1 s"}}  # a case lasts > 1 s
     path = campaign_file(tmp_path, samples=6, config=paced)
     local, remote = tmp_path / "local", tmp_path / "remote"
     assert sweep(path, "--out", local).returncode == 0
     # a worker killed while it runs a case: the case runs again elsewhere, none is lost
-    process = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "sweep", str(path), "--out", str(remote),
-                                "--cluster", cluster.scheduler_address], cwd=ROOT, stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "orchestrator.cli",
+            "sweep",
+            str(path),
+            "--out",
+            str(remote),
+            "--cluster",
+            cluster.scheduler_address,
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     killed = None
     try:
-        busy = wait_until(lambda: [w for w, keys in client.processing().items()
-                                   if any("zenorbit-case" in str(k) for k in keys)], "a worker given a case", 60, process)
+        busy = wait_until(
+            lambda: [w for w, keys in client.processing().items() if any("zenorbit-case" in str(k) for k in keys)],
+            "a worker given a case",
+            60,
+            process,
+        )
         pid = client.run(os.getpid, workers=[busy[0]])[busy[0]]
-        wait_until(lambda: started_runs_under(pid), "the worker's case run started", 60, process)   # mid-case
+        wait_until(lambda: started_runs_under(pid), "the worker's case run started", 60, process)  # mid-case
         os.kill(pid, signal.SIGKILL)
         killed = busy[0]
         _, err = process.communicate(timeout=240)

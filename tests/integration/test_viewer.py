@@ -4,6 +4,7 @@ A web-view test loads the served page in headless Chromium and takes a screensho
 Chromium is installed: ``apt-get install -y chromium``). Set ZENORBIT_VIEWER_SCREENSHOT=FILE.png to
 keep the screenshot.
 """
+
 from __future__ import annotations
 
 import base64
@@ -24,6 +25,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 import yaml
+
 from components.extras import missing
 from tests.conftest import ROOT, component_processes, orchestrator
 
@@ -95,6 +97,7 @@ def humanoid_config(directory: Path, name: str, duration: str = "1 s") -> Path:
 def read_rrd(path) -> dict:
     """{entity: {"rows": temporal rows, "timelines": set, "static": set of components, "data": {component: values}}}."""
     import pyarrow as pa
+
     entities: dict = {}
     for chunk in RrdReader(path).stream():
         entry = entities.setdefault(chunk.entity_path, {"rows": 0, "timelines": set(), "static": set(), "data": {}})
@@ -137,24 +140,37 @@ def test_saved_view_has_robot_orbit_and_plots_at_the_viewer_rate(saved_run):
     rec, rrd, stderr = saved_run
     data = pq.read_table(rec / "signals.parquet").to_pydict()
     steps = np.array(data["step"])
-    shown = steps[steps % 3 == 0]            # 30 Hz of sim time at 10 ms steps: every 3rd step, from step 0
+    shown = steps[steps % 3 == 0]  # 30 Hz of sim time at 10 ms steps: every 3rd step, from step 0
     assert len(shown) == 34
     entities = read_rrd(rrd)
     signal_entity = entities["/signals/orbit/v_eci"]["data"]
-    logged = signal_entity["step"]           # the rows that reached the viewer
+    logged = signal_entity["step"]  # the rows that reached the viewer
     assert 0 < len(logged) <= len(shown) and set(logged) <= set(shown) and logged == sorted(set(logged)), logged
     at = np.isin(steps, logged)
     from components.viewer.robot import read_geometry
+
     links = read_geometry(ROOT / "models" / "humanoid_torso.urdf").links
     expected = [f"/world/dynamics/humanoid/links/{link}" for link in links] + [
-        "/world/dynamics/humanoid/com", "/world/dynamics/humanoid/gg_torque", "/world/dynamics/humanoid/tidal_force",
-        "/world/controller/ee_desired", "/world/controller/ee_actual", "/world/lvlh",
-        "/plots/controller/ee_position/desired", "/plots/controller/ee_position/actual",
-        "/plots/controller/ee_error/position", "/plots/controller/ee_error/orientation", "/plots/controller/tau",
-        "/plots/dynamics/humanoid/momentum/linear", "/plots/dynamics/humanoid/momentum/angular",
+        "/world/dynamics/humanoid/com",
+        "/world/dynamics/humanoid/gg_torque",
+        "/world/dynamics/humanoid/tidal_force",
+        "/world/controller/ee_desired",
+        "/world/controller/ee_actual",
+        "/world/lvlh",
+        "/plots/controller/ee_position/desired",
+        "/plots/controller/ee_position/actual",
+        "/plots/controller/ee_error/position",
+        "/plots/controller/ee_error/orientation",
+        "/plots/controller/tau",
+        "/plots/dynamics/humanoid/momentum/linear",
+        "/plots/dynamics/humanoid/momentum/angular",
         "/plots/dynamics/humanoid/gg_torque_norm",
-        "/orbit/orbit/trail", "/orbit/orbit/spacecraft",
-        "/signals/orbit/v_eci", "/signals/dynamics/humanoid.q", "/signals/dynamics/humanoid.twist"]
+        "/orbit/orbit/trail",
+        "/orbit/orbit/spacecraft",
+        "/signals/orbit/v_eci",
+        "/signals/dynamics/humanoid.q",
+        "/signals/dynamics/humanoid.twist",
+    ]
     for path in expected:
         assert path in entities, f"{path} missing; entities: {sorted(entities)}"
         assert entities[path]["rows"] == len(logged), path
@@ -192,6 +208,7 @@ def test_replay_of_the_recording_shows_what_the_live_view_showed(saved_run, tmp_
 def test_observer_follows_the_bus_contract(tmp_path):
     """Without the orchestrator: rows and END on `signals`, the `_viewer` token, exit when told."""
     import zenoh
+
     from components import bus
 
     with socket.socket() as s:
@@ -202,24 +219,50 @@ def test_observer_follows_the_bus_contract(tmp_path):
     columns = ["a.x[0]", "a.x[1]", "b.n"]
     rrd = tmp_path / "contract.rrd"
     setup = tmp_path / "viewer.json"
-    setup.write_text(json.dumps({"columns": columns, "config": {"components": {"a": {"type": "test.constant"}}},
-                                 "step_ns": 1_000_000, "config_dir": str(tmp_path), "epoch": "2022-09-18T12:00:00Z",
-                                 "mode": "save", "file": str(rrd), "open_browser": False}))
+    setup.write_text(
+        json.dumps(
+            {
+                "columns": columns,
+                "config": {"components": {"a": {"type": "test.constant"}}},
+                "step_ns": 1_000_000,
+                "config_dir": str(tmp_path),
+                "epoch": "2022-09-18T12:00:00Z",
+                "mode": "save",
+                "file": str(rrd),
+                "open_browser": False,
+            }
+        )
+    )
     session = zenoh.open(bus.session_config(listen=[endpoint]))
     seen: queue.Queue = queue.Queue()
-    watch = session.liveliness().declare_subscriber(bus.run_key(run_id, "alive", "_viewer", "0"),
-                                                    lambda sample: seen.put(sample.kind))
+    watch = session.liveliness().declare_subscriber(
+        bus.run_key(run_id, "alive", "_viewer", "0"), lambda sample: seen.put(sample.kind)
+    )
     token = session.liveliness().declare_token(bus.run_key(run_id, "alive", "orchestrator"))
     out = bus.publisher(session, bus.run_key(run_id, "signals"), drop=True)
-    process = subprocess.Popen([sys.executable, "-m", "components.viewer.observer", "--connect", endpoint,
-                                "--run-id", run_id, "--setup", str(setup)], cwd=ROOT,
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    process = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "components.viewer.observer",
+            "--connect",
+            endpoint,
+            "--run-id",
+            run_id,
+            "--setup",
+            str(setup),
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     try:
         assert seen.get(timeout=30) == zenoh.SampleKind.PUT
         header = bus.SIGNALS_HEADER
         for k in range(50):
             out.put(header.pack(k, k * 1e-3) + np.array([k, -k, 0.5 * k], dtype=np.float64).tobytes())
-        out.put(b"junk")                                    # a malformed row is counted, not fatal
+        out.put(b"junk")  # a malformed row is counted, not fatal
         out.put(b"END")
         assert process.wait(timeout=30) == 0
         assert seen.get(timeout=30) == zenoh.SampleKind.DELETE
@@ -237,6 +280,7 @@ def test_observer_follows_the_bus_contract(tmp_path):
 
 def test_observer_exits_when_the_orchestrator_goes_away(tmp_path):
     import zenoh
+
     from components import bus
 
     with socket.socket() as s:
@@ -248,12 +292,26 @@ def test_observer_exits_when_the_orchestrator_goes_away(tmp_path):
     setup.write_text(json.dumps({"columns": ["a.y"], "config": {}, "mode": "save", "file": str(tmp_path / "o.rrd")}))
     session = zenoh.open(bus.session_config(listen=[endpoint]))
     seen: queue.Queue = queue.Queue()
-    watch = session.liveliness().declare_subscriber(bus.run_key(run_id, "alive", "_viewer", "0"),
-                                                    lambda sample: seen.put(sample.kind))
+    watch = session.liveliness().declare_subscriber(
+        bus.run_key(run_id, "alive", "_viewer", "0"), lambda sample: seen.put(sample.kind)
+    )
     token = session.liveliness().declare_token(bus.run_key(run_id, "alive", "orchestrator"))
-    process = subprocess.Popen([sys.executable, "-m", "components.viewer.observer", "--connect", endpoint,
-                                "--run-id", run_id, "--setup", str(setup)], cwd=ROOT,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    process = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "components.viewer.observer",
+            "--connect",
+            endpoint,
+            "--run-id",
+            run_id,
+            "--setup",
+            str(setup),
+        ],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         assert seen.get(timeout=30) == zenoh.SampleKind.PUT
         token.undeclare()
@@ -273,15 +331,26 @@ def test_spawn_mode_streams_to_a_listening_desktop_viewer(tmp_path):
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    config_home = tmp_path / "xdg"                 # the stand-in viewer with analytics off, user config untouched
+    config_home = tmp_path / "xdg"  # the stand-in viewer with analytics off, user config untouched
     (config_home / "rerun").mkdir(parents=True)
-    (config_home / "rerun" / "analytics.json").write_text(json.dumps({
-        "analytics_enabled": False, "analytics_id": "test", "metadata": {},
-        "config_file_path": str(config_home / "rerun" / "analytics.json"), "data_dir_path": str(tmp_path / "data")}))
+    (config_home / "rerun" / "analytics.json").write_text(
+        json.dumps(
+            {
+                "analytics_enabled": False,
+                "analytics_id": "test",
+                "metadata": {},
+                "config_file_path": str(config_home / "rerun" / "analytics.json"),
+                "data_dir_path": str(tmp_path / "data"),
+            }
+        )
+    )
     received = tmp_path / "received.rrd"
-    listener = subprocess.Popen([rerun_exe, "--port", str(port), "--save", str(received)],
-                                env={**os.environ, "XDG_CONFIG_HOME": str(config_home)},
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    listener = subprocess.Popen(
+        [rerun_exe, "--port", str(port), "--save", str(received)],
+        env={**os.environ, "XDG_CONFIG_HOME": str(config_home)},
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         deadline = time.monotonic() + 30
         while True:
@@ -291,8 +360,12 @@ def test_spawn_mode_streams_to_a_listening_desktop_viewer(tmp_path):
             assert time.monotonic() < deadline and listener.poll() is None, "the stand-in viewer did not start"
             time.sleep(0.1)
         config = humanoid_config(tmp_path, "viewer_spawn")
-        env = {**os.environ, "ZENORBIT_RUNTIME_DIR": str(tmp_path / "runtime"), "ZENORBIT_RERUN_SPAWN_PORT": str(port),
-               "DISPLAY": os.environ.get("DISPLAY") or ":0"}
+        env = {
+            **os.environ,
+            "ZENORBIT_RUNTIME_DIR": str(tmp_path / "runtime"),
+            "ZENORBIT_RERUN_SPAWN_PORT": str(port),
+            "DISPLAY": os.environ.get("DISPLAY") or ":0",
+        }
         result = orchestrator("run", config, "--view", "spawn", env=env, timeout=120)
         assert result.returncode == 0, result.stderr
     finally:
@@ -303,8 +376,9 @@ def test_spawn_mode_streams_to_a_listening_desktop_viewer(tmp_path):
             listener.kill()
             listener.wait()
     import warnings
+
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")              # a streamed .rrd has no footer
+        warnings.simplefilter("ignore")  # a streamed .rrd has no footer
         entities = read_rrd(received)
     # streamed through the publisher that drops rather than waits: the rows that arrived, at the
     # viewer rate (every 3rd of the 101 steps: 34 at most), in both entities
@@ -325,12 +399,13 @@ def test_spawn_without_a_display_is_refused_before_the_run(tmp_path):
     # slows past a minute: the conftest's generous bound, only there to end a hang
     result = orchestrator("run", config, "--view", "spawn", env=env)
     assert result.returncode == 2 and "no display" in result.stderr, result.stderr
-    assert not component_processes("viewer_nodisplay-")   # refused before the run: nothing started
+    assert not component_processes("viewer_nodisplay-")  # refused before the run: nothing started
     replay = orchestrator("view", tmp_path, "--view", "spawn", env=env)
     assert replay.returncode == 2 and "no display" in replay.stderr, replay.stderr
 
 
 # ------------------------------------------------------------------------------------------ web view
+
 
 def chromium() -> str | None:
     for name in ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable"):
@@ -340,8 +415,17 @@ def chromium() -> str | None:
     return None
 
 
-CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-quic",
-                  "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+CHROMIUM_FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--enable-unsafe-swiftshader",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 
 
 def screenshot(url: str, png: Path, *, settle_s: float = 3.0, timeout_s: float = 60.0, size=(1280, 800)) -> list[str]:
@@ -359,10 +443,21 @@ def screenshot(url: str, png: Path, *, settle_s: float = 3.0, timeout_s: float =
         os.dup2(from_browser_w, 4)
 
     profile = tempfile.mkdtemp(prefix="zenorbit-chromium-")
-    process = subprocess.Popen([chromium(), *CHROMIUM_FLAGS, f"--user-data-dir={profile}",
-                                f"--window-size={size[0]},{size[1]}", "--remote-debugging-pipe", "about:blank"],
-                               pass_fds=(3, 4), preexec_fn=child_fds, stdin=subprocess.DEVNULL,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    process = subprocess.Popen(
+        [
+            chromium(),
+            *CHROMIUM_FLAGS,
+            f"--user-data-dir={profile}",
+            f"--window-size={size[0]},{size[1]}",
+            "--remote-debugging-pipe",
+            "about:blank",
+        ],
+        pass_fds=(3, 4),
+        preexec_fn=child_fds,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     os.close(to_browser_r)
     os.close(from_browser_w)
     inbox: queue.Queue = queue.Queue()
@@ -411,8 +506,11 @@ def screenshot(url: str, png: Path, *, settle_s: float = 3.0, timeout_s: float =
         page = next(t for t in call("Target.getTargets")["targetInfos"] if t["type"] == "page")
         session = call("Target.attachToTarget", {"targetId": page["targetId"], "flatten": True})["sessionId"]
         call("Runtime.enable", session=session)
-        call("Emulation.setDeviceMetricsOverride", {"width": size[0], "height": size[1], "deviceScaleFactor": 1,
-                                                    "mobile": False}, session=session)
+        call(
+            "Emulation.setDeviceMetricsOverride",
+            {"width": size[0], "height": size[1], "deviceScaleFactor": 1, "mobile": False},
+            session=session,
+        )
         call("Page.navigate", {"url": url}, session=session)
         deadline = time.monotonic() + timeout_s
         while not any("App started" in line for line in console) and time.monotonic() < deadline:
@@ -453,8 +551,15 @@ def test_web_view_renders_in_headless_chromium(tmp_path):
     # (without one it stops the viewer 30 s after the run, which a slow machine may need for the page)
     terminal, terminal_child = os.openpty()
     with open(log, "w") as stderr:
-        run = subprocess.Popen([sys.executable, "-m", "orchestrator.cli", "run", str(config), "--view", "web"],
-                               cwd=ROOT, env=env, stdin=terminal_child, stdout=stderr, stderr=stderr, text=True)
+        run = subprocess.Popen(
+            [sys.executable, "-m", "orchestrator.cli", "run", str(config), "--view", "web"],
+            cwd=ROOT,
+            env=env,
+            stdin=terminal_child,
+            stdout=stderr,
+            stderr=stderr,
+            text=True,
+        )
     os.close(terminal_child)
     try:
         deadline = time.monotonic() + 90
@@ -476,7 +581,7 @@ def test_web_view_renders_in_headless_chromium(tmp_path):
             shutil.copy(png, keep)
     finally:
         if run.poll() is None:
-            run.send_signal(signal.SIGTERM)          # the web view serves until the run is stopped
+            run.send_signal(signal.SIGTERM)  # the web view serves until the run is stopped
         run.wait(timeout=60)
         os.close(terminal)
     assert not component_processes("viewer_web") and not viewer_processes("viewer_web")

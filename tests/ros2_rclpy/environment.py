@@ -4,6 +4,7 @@ wheels of ``requirements.txt``, made once and reused (``ZENORBIT_ROS2_VENV``, el
 before the suite (``python -m tests.ros2_rclpy.environment``); a test session makes it if it is
 missing, under a file lock so two test workers do not both build it.
 """
+
 from __future__ import annotations
 
 import fcntl
@@ -34,8 +35,12 @@ def ensure() -> Path:
         if python.exists() and stamp.exists() and stamp.read_text() == digest:
             return python
         subprocess.run([sys.executable, "-m", "venv", "--clear", str(venv)], check=True, capture_output=True)
-        done = subprocess.run([str(python), "-m", "pip", "install", "-q", "--disable-pip-version-check",
-                               "-r", str(REQUIREMENTS)], capture_output=True, text=True, timeout=INSTALL_TIMEOUT_S)
+        done = subprocess.run(
+            [str(python), "-m", "pip", "install", "-q", "--disable-pip-version-check", "-r", str(REQUIREMENTS)],
+            capture_output=True,
+            text=True,
+            timeout=INSTALL_TIMEOUT_S,
+        )
         if done.returncode != 0:
             tail = "\n".join((done.stderr or done.stdout).strip().splitlines()[-5:])
             raise RuntimeError(f"pip could not install the ROS 2 Jazzy wheels into {venv}:\n{tail}")

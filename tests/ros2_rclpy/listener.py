@@ -7,6 +7,7 @@ once every topic has had a message. Imports only the standard library and rclpy.
 
     python listener.py --topic /clock=rosgraph_msgs/msg/Clock --latched /x --ready R --out O
 """
+
 import argparse
 import importlib
 import json
@@ -32,8 +33,9 @@ def main() -> int:
     parser.add_argument("--ready", type=Path, required=True)
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--first", type=Path, help="created when the first message arrives")
-    parser.add_argument("--until-all", action="store_true",
-                        help="end once every topic has had a message (else when stdin closes)")
+    parser.add_argument(
+        "--until-all", action="store_true", help="end once every topic has had a message (else when stdin closes)"
+    )
     args = parser.parse_args()
     rclpy.init(domain_id=args.domain)
     node = rclpy.create_node("test_listener")
@@ -49,14 +51,18 @@ def main() -> int:
                 received.append((topic, data))
                 if {t for t, _ in received} == topics:
                     every_topic.set()
+
         return on_message
 
     for spec in args.topic:
         topic, msgtype = spec.split("=")
         latched = topic in args.latched
-        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1 if latched else 1000,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+        qos = QoSProfile(
+            history=HistoryPolicy.KEEP_LAST,
+            depth=1 if latched else 1000,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+        )
         node.create_subscription(message_class(msgtype), topic, keep(topic), qos, raw=True)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
@@ -66,7 +72,7 @@ def main() -> int:
     if args.until_all:
         every_topic.wait()
     else:
-        sys.stdin.read()   # until the test closes it
+        sys.stdin.read()  # until the test closes it
     executor.shutdown(timeout_sec=1.0)
     rclpy.try_shutdown()
     spinner.join(timeout=2.0)

@@ -8,6 +8,7 @@ then (``--log``, one ``stamp now`` line per answer, written as it goes). ``--exi
 process after N answers (a node that dies). ``--ready`` is created once its subscriptions are up.
 Imports only the standard library and ROS 2's packages.
 """
+
 import argparse
 import queue
 import sys
@@ -35,7 +36,7 @@ def main() -> int:
     args = parser.parse_args()
     rclpy.init(domain_id=args.domain)
     node = rclpy.create_node("spring_pd", parameter_overrides=[Parameter("use_sim_time", Parameter.Type.BOOL, True)])
-    states: queue.SimpleQueue = queue.SimpleQueue()   # callbacks only enqueue; the main thread answers
+    states: queue.SimpleQueue = queue.SimpleQueue()  # callbacks only enqueue; the main thread answers
     effort_pub = node.create_publisher(JointTrajectory, "/spring/effort", 10)
     array_pub = node.create_publisher(Float64MultiArray, "/spring/effort_array", 10)
     node.create_subscription(JointState, "/spring/joint_states", states.put, 10)
@@ -54,8 +55,11 @@ def main() -> int:
                 waited += 0.001
             now = node.get_clock().now().nanoseconds
             effort = [-args.kp * p - args.kd * v for p, v in zip(state.position, state.velocity)]
-            effort_pub.publish(JointTrajectory(header=state.header, joint_names=list(state.name),
-                                               points=[JointTrajectoryPoint(effort=effort)]))
+            effort_pub.publish(
+                JointTrajectory(
+                    header=state.header, joint_names=list(state.name), points=[JointTrajectoryPoint(effort=effort)]
+                )
+            )
             array_pub.publish(Float64MultiArray(data=effort))
             log.write(f"{stamp} {now}\n")
             log.flush()

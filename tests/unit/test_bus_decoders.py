@@ -2,6 +2,7 @@
 and anything else (random bytes, truncations, bit flips, wrong lengths, fields of the wrong type)
 raises Malformed and nothing else, so whoever can reach the bus cannot crash a run. The control
 messages are enumerated from components.protocol.MESSAGES, so a new one is fuzzed too."""
+
 import json
 import struct
 import zlib
@@ -36,7 +37,7 @@ def test_well_formed_messages_decode_to_what_was_encoded():
     m = _valid_messages()
     generation, tag, vector = bus.decode_output(m["output"])
     assert (generation, tag, vector.tolist()) == (2, 7, [0.0, 1.0, 2.0, 3.0])
-    generation, tags, timings, outputs = bus.decode_batch(m["batch"])
+    generation, tags, _timings, outputs = bus.decode_batch(m["batch"])
     assert generation == 2 and tags.tolist() == [5, 6, 7] and outputs[2].tolist() == [8.0, 9.0, 10.0, 11.0]
     assert bus.decode_sync(m["sync"]) == 3
 
@@ -53,7 +54,7 @@ def _mutations(payload: bytes):
     for _ in range(100):
         yield payload + RNG.bytes(int(RNG.integers(1, 40)))
         yield RNG.bytes(int(RNG.integers(0, 200)))
-    yield b"\x00\x01\x02"   # the 3 bytes that used to end a run
+    yield b"\x00\x01\x02"  # the 3 bytes that used to end a run
 
 
 @pytest.mark.parametrize("kind", list(DECODERS))
@@ -70,12 +71,15 @@ def test_every_decoder_raises_only_malformed_on_garbage(kind):
     assert rejected > 100, f"{kind}: only {rejected} mutations rejected; the decoder checks too little"
 
 
-@pytest.mark.parametrize("payload, message", [
-    (bus.encode_batch(0, np.array([3, 2]), np.zeros((2, 2)), np.zeros((2, 1))), "not increasing"),
-    (bus.encode_batch(0, np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros((0, 3))), "does not hold 0 steps"),
-    (bus.encode_batch(0, np.array([1]), np.zeros((1, 2)), np.zeros((1, 3)))[:-8], "does not hold"),
-    (bus.encode_output(0, 1, np.zeros(2))[:-3], "whole number of float64"),
-])
+@pytest.mark.parametrize(
+    "payload, message",
+    [
+        (bus.encode_batch(0, np.array([3, 2]), np.zeros((2, 2)), np.zeros((2, 1))), "not increasing"),
+        (bus.encode_batch(0, np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros((0, 3))), "does not hold 0 steps"),
+        (bus.encode_batch(0, np.array([1]), np.zeros((1, 2)), np.zeros((1, 3)))[:-8], "does not hold"),
+        (bus.encode_output(0, 1, np.zeros(2))[:-3], "whole number of float64"),
+    ],
+)
 def test_malformed_says_what_is_wrong(payload, message):
     with pytest.raises(bus.Malformed, match=message):
         (bus.decode_batch if payload[:1] == bus.BATCH else bus.decode_output)(payload)
@@ -83,39 +87,56 @@ def test_malformed_says_what_is_wrong(payload, message):
 
 # ------------------------------------------------------------------ the control messages (components.protocol)
 
+
 def _route(source: str, src: list[int], dst: list[int], ratio: int, ahead: int) -> Route:
     return Route(source, np.array(src, dtype=np.int64), np.array(dst, dtype=np.int64), ratio, ahead)
 
 
-EXAMPLES = {   # each declared message with values that are not defaults
-    protocol.Horizon: protocol.Horizon(2 ** 40 + 3),
-    protocol.Instantiate: protocol.Instantiate("dynamics.pinocchio", {"mass": 12.5, "urdf": "arm.urdf",
-                                                                     "gains": [1, 2.5], "nested": {"a": None}}),
-    protocol.Wire: protocol.Wire(generation=3, step_ns=1_000_000, ratio=4, k=120, consumers=["controller", "viewer"],
-                                 batch_consumers=["logger"], routes=[_route("orbit", [0, 1, 2], [5, 6, 7], 2, 1),
-                                                                     _route("sensor", [], [], 1, 0)],
-                                 sources={"orbit": 3, "sensor": 0}, faults=[(40, "crash", 0.0), (80, "delay", 1.5)],
-                                 frame_routes=[("camera", "rgb", "image", 10, 1)], frame_consumers={"rgb": ["viewer"]}),
-    protocol.Initialize: protocol.Initialize(7_000_000_000, {"q": 6_000_000_000, "qd": 0}, np.array([1.5, -2.0, 1e-300])),
+EXAMPLES = {  # each declared message with values that are not defaults
+    protocol.Horizon: protocol.Horizon(2**40 + 3),
+    protocol.Instantiate: protocol.Instantiate(
+        "dynamics.pinocchio", {"mass": 12.5, "urdf": "arm.urdf", "gains": [1, 2.5], "nested": {"a": None}}
+    ),
+    protocol.Wire: protocol.Wire(
+        generation=3,
+        step_ns=1_000_000,
+        ratio=4,
+        k=120,
+        consumers=["controller", "viewer"],
+        batch_consumers=["logger"],
+        routes=[_route("orbit", [0, 1, 2], [5, 6, 7], 2, 1), _route("sensor", [], [], 1, 0)],
+        sources={"orbit": 3, "sensor": 0},
+        faults=[(40, "crash", 0.0), (80, "delay", 1.5)],
+        frame_routes=[("camera", "rgb", "image", 10, 1)],
+        frame_consumers={"rgb": ["viewer"]},
+    ),
+    protocol.Initialize: protocol.Initialize(
+        7_000_000_000, {"q": 6_000_000_000, "qd": 0}, np.array([1.5, -2.0, 1e-300])
+    ),
     protocol.Sync: protocol.Sync(),
-    protocol.Start: protocol.Start([("orbit", 8, 2), ("orbit", 9, 2), ("sensor", 8, 1)], 64,
-                                   np.array([1.0, 2.0, 3.0, 4.0, -5.0])),
-    protocol.Rewire: protocol.Rewire([("dynamics", 12, 3)], [_route("dynamics", [2, 0], [1, 3], 1, 0)],
-                                     {"dynamics": 2}, np.array([0.5, 0.25, 0.125])),
+    protocol.Start: protocol.Start(
+        [("orbit", 8, 2), ("orbit", 9, 2), ("sensor", 8, 1)], 64, np.array([1.0, 2.0, 3.0, 4.0, -5.0])
+    ),
+    protocol.Rewire: protocol.Rewire(
+        [("dynamics", 12, 3)], [_route("dynamics", [2, 0], [1, 3], 1, 0)], {"dynamics": 2}, np.array([0.5, 0.25, 0.125])
+    ),
     protocol.GetState: protocol.GetState(),
     protocol.SetState: protocol.SetState(bus.encode_state({"x": np.arange(4.0), "k": np.int64(3)})),
     protocol.Terminate: protocol.Terminate(final=True),
     protocol.Reply: protocol.Reply("instantiate", {"inputs": 13, "outputs": 21, "pid": 4242}, b"\x00\x01\xff"),
     protocol.Fault: protocol.Fault("step", 17, "ValueError: the arm left its workspace"),
-    protocol.Events: protocol.Events(33, [("capture_closed", {"time": 12.5, "reason": "within tolerance"}),
-                                          ("capture_retreat", {})]),
+    protocol.Events: protocol.Events(
+        33, [("capture_closed", {"time": 12.5, "reason": "within tolerance"}), ("capture_retreat", {})]
+    ),
     protocol.Beat: protocol.Beat(),
     protocol.Quit: protocol.Quit(),
 }
 
 # what decodes whatever comes on each message's key
-DISPATCHERS = {**dict.fromkeys(protocol.COMMANDS_SENT, protocol.decode_command),
-               **dict.fromkeys(protocol.REPORTS, protocol.decode_report)}
+DISPATCHERS = {
+    **dict.fromkeys(protocol.COMMANDS_SENT, protocol.decode_command),
+    **dict.fromkeys(protocol.REPORTS, protocol.decode_report),
+}
 
 
 def _same(a, b) -> bool:
@@ -150,24 +171,38 @@ def test_a_message_decodes_to_what_was_encoded(kind):
 def test_the_wire_bytes_are_those_of_the_json_messages_before_them():
     """The bytes of the dict-built messages the protocol replaced: a component of either version
     reads the other's."""
+
     def framed(kind: bytes, body: dict, blob: bytes = b"") -> bytes:
         text = json.dumps(body).encode()
         return kind + struct.pack("<I", len(text)) + text + blob
 
     wire = EXAMPLES[protocol.Wire]
-    assert wire.encode() == framed(b"C", {"op": "wire", "generation": 3, "step_ns": 1_000_000, "ratio": 4, "k": 120,
-                                          "consumers": ["controller", "viewer"], "batch_consumers": ["logger"],
-                                          "routes": [r.to_json() for r in wire.routes],
-                                          "sources": {"orbit": 3, "sensor": 0},
-                                          "faults": [[40, "crash", 0.0], [80, "delay", 1.5]],
-                                          "frame_routes": [["camera", "rgb", "image", 10, 1]],
-                                          "frame_consumers": {"rgb": ["viewer"]}})
+    assert wire.encode() == framed(
+        b"C",
+        {
+            "op": "wire",
+            "generation": 3,
+            "step_ns": 1_000_000,
+            "ratio": 4,
+            "k": 120,
+            "consumers": ["controller", "viewer"],
+            "batch_consumers": ["logger"],
+            "routes": [r.to_json() for r in wire.routes],
+            "sources": {"orbit": 3, "sensor": 0},
+            "faults": [[40, "crash", 0.0], [80, "delay", 1.5]],
+            "frame_routes": [["camera", "rgb", "image", 10, 1]],
+            "frame_consumers": {"rgb": ["viewer"]},
+        },
+    )
     assert EXAMPLES[protocol.Start].encode() == framed(
-        b"C", {"op": "start", "held": [["orbit", 8, 2], ["orbit", 9, 2], ["sensor", 8, 1]], "horizon": 64},
-        np.array([1.0, 2.0, 3.0, 4.0, -5.0]).tobytes())
+        b"C",
+        {"op": "start", "held": [["orbit", 8, 2], ["orbit", 9, 2], ["sensor", 8, 1]], "horizon": 64},
+        np.array([1.0, 2.0, 3.0, 4.0, -5.0]).tobytes(),
+    )
     assert protocol.Reply("wire").encode() == framed(b"R", {"op": "wire"})
-    assert EXAMPLES[protocol.Fault].encode() == framed(b"E", {"op": "step", "k": 17,
-                                                              "error": "ValueError: the arm left its workspace"})
+    assert EXAMPLES[protocol.Fault].encode() == framed(
+        b"E", {"op": "step", "k": 17, "error": "ValueError: the arm left its workspace"}
+    )
     assert protocol.Horizon(40).encode() == b"H" + struct.pack("<q", 40)
     assert (protocol.Beat().encode(), protocol.Quit().encode()) == (b"K", b"Q")
 
@@ -183,7 +218,7 @@ def test_topics_spell_the_keys_and_cover_them_for_access_control():
         protocol.COMMANDS.key("r-1", name="arm")
 
 
-_ODD_JSON = (None, True, -1, 2 ** 64, 1.5, float("nan"), "", "x", [], {}, [[1, "a"]], {"op": 1})
+_ODD_JSON = (None, True, -1, 2**64, 1.5, float("nan"), "", "x", [], {}, [[1, "a"]], {"op": 1})
 
 
 def _json_paths(value, path=()):
@@ -222,7 +257,7 @@ def _structured_mutations(payload: bytes, rng):
     if payload[:1] not in (protocol.CONTROL, protocol.REPLY, protocol.FAULT, protocol.EVENT):
         return
     (n,) = struct.unpack_from("<I", payload, 1)
-    body, blob = json.loads(payload[5:5 + n]), payload[5 + n:]
+    body, blob = json.loads(payload[5 : 5 + n]), payload[5 + n :]
     for path, _ in _json_paths(body):
         for odd in (*_ODD_JSON, _DELETE) if path else _ODD_JSON:
             yield _framed_like(payload, _replaced(body, path, odd), blob)
@@ -232,7 +267,7 @@ def _structured_mutations(payload: bytes, rng):
         yield _framed_like(payload, body, blob + rng.bytes(grow))
     for op in ("", "explode", "wire", "start", "terminate", "events"):
         yield _framed_like(payload, {**body, "op": op}, blob)
-    yield payload[:1] + struct.pack("<I", 20_000) + b"[" * 20_000   # nested too deep for json
+    yield payload[:1] + struct.pack("<I", 20_000) + b"[" * 20_000  # nested too deep for json
 
 
 def _fuzz_cases(payload: bytes, seed: int):
@@ -254,7 +289,7 @@ def _fuzz_cases(payload: bytes, seed: int):
     for _ in range(300):
         i = int(rng.integers(len(payload) + 1))
         yield payload[:i] + rng.bytes(int(rng.integers(1, 5))) + payload[i:]
-        yield payload[:i] + payload[i + int(rng.integers(1, 5)):]
+        yield payload[:i] + payload[i + int(rng.integers(1, 5)) :]
     for _ in range(300):
         yield payload + rng.bytes(int(rng.integers(1, 40)))
         yield payload[:1] + rng.bytes(int(rng.integers(0, 200)))
@@ -284,18 +319,36 @@ def test_every_message_decoder_decodes_or_raises_malformed_on_garbage(kind):
     assert rejected > 500, f"{kind.__name__}: only {rejected} of {cases} cases rejected; the decoder checks too little"
 
 
-@pytest.mark.parametrize("payload, message", [
-    (b"C" + struct.pack("<I", 2) + b"{}", r"command: expected op one of instantiate, wire, .*, got None"),
-    (b"E" + struct.pack("<I", 37) + b'{"op": "step", "k": "1", "error": ""}', r"Fault.k: expected an integer .*, got '1'"),
-    (protocol.Horizon(3).encode()[:-1], r"Horizon: expected b'H' and an int64 \(9 bytes\), got 8 bytes"),
-    (protocol.Start([("a", 1, 2)], 5, np.zeros(3)).encode(), r"Start: expected held sizes >= 0 adding up to the 3 values"),
-    (protocol.Wire(0, 1, 1, 0, [], [], [_route("a", [0], [0], 0, 0)], {}, []).encode(), r"Wire.routes\[0\]: .* ratio 0"),
-    (protocol.Initialize(0, {}, np.zeros(2)).encode()[:-1], r"Initialize.inputs: expected float64 values .* got 15 bytes"),
-    (b"K!", r"Beat: expected the one byte b'K'"),
-])
+@pytest.mark.parametrize(
+    "payload, message",
+    [
+        (b"C" + struct.pack("<I", 2) + b"{}", r"command: expected op one of instantiate, wire, .*, got None"),
+        (
+            b"E" + struct.pack("<I", 37) + b'{"op": "step", "k": "1", "error": ""}',
+            r"Fault.k: expected an integer .*, got '1'",
+        ),
+        (protocol.Horizon(3).encode()[:-1], r"Horizon: expected b'H' and an int64 \(9 bytes\), got 8 bytes"),
+        (
+            protocol.Start([("a", 1, 2)], 5, np.zeros(3)).encode(),
+            r"Start: expected held sizes >= 0 adding up to the 3 values",
+        ),
+        (
+            protocol.Wire(0, 1, 1, 0, [], [], [_route("a", [0], [0], 0, 0)], {}, []).encode(),
+            r"Wire.routes\[0\]: .* ratio 0",
+        ),
+        (
+            protocol.Initialize(0, {}, np.zeros(2)).encode()[:-1],
+            r"Initialize.inputs: expected float64 values .* got 15 bytes",
+        ),
+        (b"K!", r"Beat: expected the one byte b'K'"),
+    ],
+)
 def test_a_malformed_message_says_which_and_what_was_expected(payload, message):
-    decode = protocol.decode_report if payload[:1] in (protocol.REPLY, protocol.FAULT, protocol.EVENT, protocol.BEAT) \
+    decode = (
+        protocol.decode_report
+        if payload[:1] in (protocol.REPLY, protocol.FAULT, protocol.EVENT, protocol.BEAT)
         else protocol.decode_command
+    )
     with pytest.raises(protocol.Malformed, match=message):
         decode(payload)
 
@@ -309,16 +362,27 @@ def test_keys_are_read_back_by_the_topics_that_spell_them():
     assert bus.alive_source(protocol.ALIVE.key(run, name="arm", generation=3)) == ("arm", 3)
     assert bus.alive_source(protocol.ORCHESTRATOR_ALIVE.key(run)) is None
     assert bus.alive_source(protocol.ALIVE.key(run, name="arm", generation="²")) is None
-    for key in (protocol.REPLIES.key(run, name="arm", generation="x"), protocol.BATCHES.key(run, name="arm") + "/x",
-                f"zenorbit/{run}/c/arm/1/in", "elsewhere/r1/c/arm/1/out", protocol.BATCHES.key(run, name="")):
+    for key in (
+        protocol.REPLIES.key(run, name="arm", generation="x"),
+        protocol.BATCHES.key(run, name="arm") + "/x",
+        f"zenorbit/{run}/c/arm/1/in",
+        "elsewhere/r1/c/arm/1/out",
+        protocol.BATCHES.key(run, name=""),
+    ):
         with pytest.raises(bus.Malformed):
             bus.reply_source(key) if "/c/" in key else bus.batch_source(key)
     rng = np.random.default_rng(7)
     for template in (protocol.REPLIES, protocol.ALIVE, protocol.BATCHES, protocol.OUTPUTS, protocol.COMMANDS):
-        key = template.key(run, **{f: "n1" if f == "name" else "4" for f in ("name", "generation", "source")
-                                   if "{" + f + "}" in template.template})
-        for _ in range(300):   # a key cut or grown by chunks: read back as its fields or refused, never a crash
+        key = template.key(
+            run,
+            **{
+                f: "n1" if f == "name" else "4"
+                for f in ("name", "generation", "source")
+                if "{" + f + "}" in template.template
+            },
+        )
+        for _ in range(300):  # a key cut or grown by chunks: read back as its fields or refused, never a crash
             chunks = key.split("/")
-            cut = chunks[:rng.integers(1, len(chunks) + 1)] + ["x"] * int(rng.integers(0, 2))
+            cut = chunks[: rng.integers(1, len(chunks) + 1)] + ["x"] * int(rng.integers(0, 2))
             fields = template.fields("/".join(cut))
             assert fields is None or template.key(run, **fields) == "/".join(cut)

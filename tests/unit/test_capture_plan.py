@@ -1,6 +1,7 @@
 """The capture planner's parts (components/controller/capture_plan.py) against independent
 references: the rigid tumble's closed form, the quintic's boundary conditions and finite
 differences, and DART's forward kinematics of the servicer's URDF for the inverse kinematics."""
+
 from __future__ import annotations
 
 import math
@@ -67,8 +68,15 @@ def kinematics():
     model = read_model(str(SERVICER), None, "urdf", None)
     arm = FreeFloatingArm(model, model.movable_joints, ARM, "ee")
     arm_q = np.array([arm.model.joints[arm.model.getJointId(j)].idx_q for j in ARM])
-    limits = Limits(np.array([model.joint(j).lower for j in ARM]), np.array([model.joint(j).upper for j in ARM]),
-                    np.array([model.joint(j).velocity for j in ARM]), 0.15, 0.05, 0.5, 1.54)
+    limits = Limits(
+        np.array([model.joint(j).lower for j in ARM]),
+        np.array([model.joint(j).upper for j in ARM]),
+        np.array([model.joint(j).velocity for j in ARM]),
+        0.15,
+        0.05,
+        0.5,
+        1.54,
+    )
     kin = ArmKinematics(arm.model, arm.arm_v, arm_q, arm.ee, arm.model.getJointId("arm_1_joint"), ARM, limits)
     base = ([0.2, -0.1, 0.05], np.array([0.1, -0.2, 0.3, 0.9]) / np.linalg.norm([0.1, -0.2, 0.3, 0.9]))
     arm.set_state(base[0], base[1], np.zeros(6), np.zeros(9), np.zeros(9))
@@ -79,8 +87,9 @@ def dart_ee(q, base):
     """The end effector's pose in W by DART from the URDF, the base at ``base``."""
     from components.dynamics.world import BodySpec, OrbitalWorld
 
-    world = OrbitalWorld([BodySpec("servicer", SERVICER, position=base[0], orientation=base[1], q=dict(zip(ARM, q)))],
-                         joint_limits=False)
+    world = OrbitalWorld(
+        [BodySpec("servicer", SERVICER, position=base[0], orientation=base[1], q=dict(zip(ARM, q)))], joint_limits=False
+    )
     world.reset_bodies()
     T = world.bodies["servicer"].skel.getBodyNode("ee").getTransform().matrix()
     return T[:3, 3], T[:3, :3]
@@ -100,10 +109,13 @@ def test_inverse_kinematics_reaches_the_pose_dart_gives_and_the_rates_follow_the
     q = kin.solve(q_pin, pin.SE3(R, p), seed)
     assert q is not None
     p_s, R_s = dart_ee(q, base)
-    assert np.linalg.norm(p_s - p) < ArmKinematics.TOLERANCE and np.linalg.norm(log_so3(R_s @ R.T)) < ArmKinematics.TOLERANCE
+    assert (
+        np.linalg.norm(p_s - p) < ArmKinematics.TOLERANCE
+        and np.linalg.norm(log_so3(R_s @ R.T)) < ArmKinematics.TOLERANCE
+    )
     twist = np.array([0.03, -0.02, 0.01, 0.02, 0.05, -0.03])
     verdict = kin.judge(q_pin, q, twist, p)
-    h = 1e-5                                  # DART's pose at q -+ qd h: the end effector's twist
+    h = 1e-5  # DART's pose at q -+ qd h: the end effector's twist
     (pa, Ra), (pb, Rb) = dart_ee(q - verdict.qd * h, base), dart_ee(q + verdict.qd * h, base)
     assert np.abs((pb - pa) / (2 * h) - twist[:3]).max() < 1e-8
     assert np.abs(log_so3(Rb @ Ra.T) / (2 * h) - twist[3:]).max() < 1e-8
@@ -123,7 +135,7 @@ def test_a_configuration_is_judged_on_limits_singularities_and_rates(kinematics)
     verdict = kin.judge(q_pin, stretched, twist0, np.zeros(3))
     assert not verdict.feasible and "singularity" in verdict.reason
     near_limit = good.copy()
-    near_limit[2] = 2.75                                  # arm_3's URDF limit is 2.8 rad
+    near_limit[2] = 2.75  # arm_3's URDF limit is 2.8 rad
     verdict = kin.judge(q_pin, near_limit, twist0, np.zeros(3))
     assert not verdict.feasible and verdict.reason.startswith("arm_3_joint at 2.75 rad is within 0.15 rad")
     kin.pin.framesForwardKinematics(kin.model, kin.data, kin._configure(q_pin, good))

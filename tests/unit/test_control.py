@@ -1,5 +1,6 @@
 """The control server (orchestrator/run/control.py) against a stand-in run: all it needs of a run is
 the small Controlled interface."""
+
 from __future__ import annotations
 
 import json
@@ -42,19 +43,21 @@ class StandIn:
 
 def test_a_swap_waits_for_the_components_own_step_boundary(tmp_path):
     path = tmp_path / "two.yaml"
-    path.write_text("run: {name: two, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 10 ms}\n"
-                    "components: {fast: {type: test.counter}, slow: {type: test.counter, step: 30 ms}}\n")
+    path.write_text(
+        "run: {name: two, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 10 ms}\n"
+        "components: {fast: {type: test.counter}, slow: {type: test.counter, step: 30 ms}}\n"
+    )
     run = StandIn(load(path))
     server = ControlServer(run)
     swap, status, stop = Query({"op": "swap", "component": "slow"}), Query({"op": "status"}), Query({"op": "stop"})
     for query in (swap, status, stop):
         server.add(query)
-    assert server.swap_boundary() == 6          # slow steps every 3 run steps; the run is at 4
+    assert server.swap_boundary() == 6  # slow steps every 3 run steps; the run is at 4
     server.serve(quiescent=True)
     assert status.answer == {"ok": True, "step": 4} and stop.answer == {"ok": True}
     assert run.stopped == "stopped by request" and swap.answer is None and server.queries == [swap]
     run.row = 6
-    server.serve(quiescent=False)                # not every component at the boundary yet
+    server.serve(quiescent=False)  # not every component at the boundary yet
     assert swap.answer is None
     server.serve(quiescent=True)
     assert swap.answer == {"ok": True, "step": 6, "generation": 1} and server.swap_boundary() is None
@@ -69,8 +72,10 @@ def test_a_swap_naming_no_component_by_a_string_is_refused_not_fatal(tmp_path):
     """A request whose component is a list (or a number) is answered with an error; the run, which
     asks swap_boundary on every loop, is not ended by it."""
     path = tmp_path / "one.yaml"
-    path.write_text("run: {name: one, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 10 ms}\n"
-                    "components: {c: {type: test.counter}}\n")
+    path.write_text(
+        "run: {name: one, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 10 ms}\n"
+        "components: {c: {type: test.counter}}\n"
+    )
     run = StandIn(load(path))
     server = ControlServer(run)
     bad = [Query({"op": "swap", "component": ["c"]}), Query({"op": "swap", "component": 3})]

@@ -9,22 +9,23 @@
   motion (base and passive-joint rates from DART's mass matrix; total momentum zero when the
   left arm is locked), and the drift against a finite difference of J_g qdot.
 """
+
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from components.controller.computed_torque import FreeFloatingArm, dls_inverse
-from components.rotations import log_so3
-from components.robots.urdf import read_urdf
 from components.dynamics.world import BodySpec, OrbitalWorld
+from components.robots.urdf import read_urdf
+from components.rotations import log_so3
 from tests import validation
 
 ROOT = Path(__file__).resolve().parents[2]
 URDF = ROOT / "models" / "humanoid_torso.urdf"
 ARM = [f"arm_right_{i}_joint" for i in range(1, 8)]
 LEFT = [f"arm_left_{i}_joint" for i in range(1, 8)]
-TOOL_OFFSET = np.array([0.0, 0.0, -0.1])          # arm_right_tool_joint origin in arm_right_7_link
+TOOL_OFFSET = np.array([0.0, 0.0, -0.1])  # arm_right_tool_joint origin in arm_right_7_link
 
 
 def random_rotation(rng):
@@ -40,8 +41,9 @@ class Setup:
         self.joints = self.model.movable_joints
         self.lock = {j: 0.3 * (-1) ** i for i, j in enumerate(LEFT)} if locked else {}
         # in-range values for the locked left arm
-        self.lock = {j: float(np.clip(v, self.model.joint(j).lower, self.model.joint(j).upper))
-                     for j, v in self.lock.items()}
+        self.lock = {
+            j: float(np.clip(v, self.model.joint(j).lower, self.model.joint(j).upper)) for j, v in self.lock.items()
+        }
         spec = BodySpec("robot", URDF, q=dict(self.lock), locked_joints=tuple(self.lock))
         self.world = OrbitalWorld([spec], tidal_force=False, gravity_gradient=False, joint_limits=False)
         self.body = self.world.bodies["robot"]
@@ -93,8 +95,11 @@ def test_generalized_inertia_and_coriolis_match_dart(setup):
             accelerations.append(setup.world.forward_dynamics("robot")["qdd"][setup.arm_index])
         qdd0 = accelerations[-1]
         Q = np.column_stack(accelerations[:-1]) - qdd0[:, None]
-        worst = max(worst, np.abs(s.M_star @ Q - np.eye(n)).max(),
-                    np.abs(s.M_star @ qdd0 + s.C_star).max() / max(1.0, np.abs(s.C_star).max()))
+        worst = max(
+            worst,
+            np.abs(s.M_star @ Q - np.eye(n)).max(),
+            np.abs(s.M_star @ qdd0 + s.C_star).max() / max(1.0, np.abs(s.C_star).max()),
+        )
         assert np.allclose(s.M_star, s.M_star.T, atol=1e-14)
         assert np.all(np.linalg.eigvalsh(s.M_star) > 0)
     print(f"M*, C* vs DART: max residual {worst:.2e}")
@@ -190,7 +195,7 @@ def test_drift_is_the_rate_of_J_g_qdot_at_zero_momentum():
         twist, qd = zero_momentum_rates(setup, p, quat, q, qd)
         setup.set(p, quat, twist, q, qd)
         s = setup.arm.compute()
-        assert np.allclose(s.xdot, s.J_g @ qd[setup.arm_index], atol=1e-10)   # h = 0: xdot = J_g qdot
+        assert np.allclose(s.xdot, s.J_g @ qd[setup.arm_index], atol=1e-10)  # h = 0: xdot = J_g qdot
         q_pin, v_pin = setup.arm.q_pin.copy(), setup.arm.v_pin.copy()
         J = []
         for sign in (1.0, -1.0):
@@ -220,7 +225,7 @@ def test_fixed_base_model_is_the_textbook_one(setup):
     M = pin.crba(model, data, setup.arm.q_pin)
     M = np.triu(M) + np.triu(M, 1).T
     assert np.allclose(fixed.M_star, M[np.ix_(setup.arm.arm_v, setup.arm.arm_v)], atol=1e-14)
-    assert not np.allclose(fixed.J_g, free.J_g, atol=1e-3)          # the base reaction matters
+    assert not np.allclose(fixed.J_g, free.J_g, atol=1e-3)  # the base reaction matters
     # the Schur complement only removes inertia: M* <= M_mm
     assert np.all(np.linalg.eigvalsh(fixed.M_star - free.M_star) > -1e-12)
 
@@ -230,7 +235,7 @@ def test_damped_least_squares_inverse():
     J = rng.normal(size=(6, 7))
     J_plus, N, s_min = dls_inverse(J, eps=1e-3, lambda_max=0.05)
     assert s_min > 1e-3
-    assert np.allclose(J_plus, np.linalg.pinv(J), atol=1e-12)         # undamped away from singularities
+    assert np.allclose(J_plus, np.linalg.pinv(J), atol=1e-12)  # undamped away from singularities
     assert np.allclose(J @ N, 0.0, atol=1e-12) and np.allclose(N @ N, N, atol=1e-12)
     # a singular Jacobian (two equal rows): bounded, damped inverse
     J[5] = J[4]
@@ -267,7 +272,10 @@ def test_compiled_kernels_equal_the_numpy_expressions_bit_for_bit(setup):
         gathered = kernels.gather(arm.data.M, arm.data.nle, J, a_0, arm._perm, arm.base_v, arm.arm_v)
         assert all(np.array_equal(a, b) for a, b in zip(gathered, (Mc, Ja, J_b)))
         _, X, _ = dposv(Mc[:nb, :nb], Mc[:nb, nb:])
-        for fixed, terms, task in ((False, Mc[nb:, nb:] - Mc[:nb, nb:-1].T @ X, Ja - J_b @ X), (True, Mc[nb:, nb:], Ja)):
+        for fixed, terms, task in (
+            (False, Mc[nb:, nb:] - Mc[:nb, nb:-1].T @ X, Ja - J_b @ X),
+            (True, Mc[nb:, nb:], Ja),
+        ):
             M_star = terms[:, :n]
             expected = (0.5 * (M_star + M_star.T), terms[:, n], task[:, :n], task[:, n])
             got = kernels.schur(Mc, Ja, J_b, fixed)
@@ -286,9 +294,32 @@ def test_compiled_kernels_equal_the_numpy_expressions_bit_for_bit(setup):
             xdd_r = np.concatenate([a_d, dw_d]) + kd * (np.concatenate([v_d, w_d]) - xdot) + kp * error
             qdd = J_plus @ (xdd_r - a_drift) + N @ (null_kp * (q_posture - q) - null_kd * qd)
             tau = M_s @ qdd + C_s
-            effort = np.abs(tau) * np.where(np.arange(n) % 2, 0.5, 2.0)   # every other torque clipped
-            got = kernels.law(U, s, Vt, lam2, p_d, p, rotation, v_d, w_d, a_d, dw_d, xdot, kp, kd, a_drift,
-                              null_kp, null_kd, q_posture, q, qd, M_s, C_s, effort)
+            effort = np.abs(tau) * np.where(np.arange(n) % 2, 0.5, 2.0)  # every other torque clipped
+            got = kernels.law(
+                U,
+                s,
+                Vt,
+                lam2,
+                p_d,
+                p,
+                rotation,
+                v_d,
+                w_d,
+                a_d,
+                dw_d,
+                xdot,
+                kp,
+                kd,
+                a_drift,
+                null_kp,
+                null_kd,
+                q_posture,
+                q,
+                qd,
+                M_s,
+                C_s,
+                effort,
+            )
             expected = (np.minimum(np.maximum(tau, -effort), effort), error, qdd)
             assert all(np.array_equal(a, b) for a, b in zip(got, expected))
             assert np.array_equal(np.abs(got[0]) < np.abs(tau), np.arange(n) % 2 == 1)

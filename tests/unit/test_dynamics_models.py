@@ -1,5 +1,6 @@
 """models/*.urdf: Table 1 of the paper in the humanoid, names the controller relies on, and both
 URDF readers (ours, Pinocchio's) agree."""
+
 from pathlib import Path
 
 import numpy as np
@@ -32,8 +33,9 @@ def test_humanoid_follows_table_1():
     assert set(model.frame_links()) == {"arm_left_tool_link", "arm_right_tool_link"}
 
 
-@pytest.mark.parametrize("name, nq, mass", [("humanoid_torso", 14, 93 + 2 * sum(TABLE1_MASS)),
-                                            ("servicer", 6, None), ("target", 0, 200.0)])
+@pytest.mark.parametrize(
+    "name, nq, mass", [("humanoid_torso", 14, 93 + 2 * sum(TABLE1_MASS)), ("servicer", 6, None), ("target", 0, 200.0)]
+)
 def test_pinocchio_loads_the_models_on_a_free_flyer(name, nq, mass):
     model = pin.buildModelFromUrdf(str(MODELS / f"{name}.urdf"), pin.JointModelFreeFlyer())
     ours = read_urdf(MODELS / f"{name}.urdf")
@@ -50,13 +52,17 @@ def test_read_urdf_errors(tmp_path):
     with pytest.raises(UrdfError, match="not found"):
         read_urdf(tmp_path / "missing.urdf")
     path = tmp_path / "cycle.urdf"
-    path.write_text("<robot name='c'><link name='a'/><link name='b'/>"
-                    "<joint name='j1' type='fixed'><parent link='a'/><child link='b'/></joint>"
-                    "<joint name='j2' type='fixed'><parent link='b'/><child link='a'/></joint></robot>")
+    path.write_text(
+        "<robot name='c'><link name='a'/><link name='b'/>"
+        "<joint name='j1' type='fixed'><parent link='a'/><child link='b'/></joint>"
+        "<joint name='j2' type='fixed'><parent link='b'/><child link='a'/></joint></robot>"
+    )
     with pytest.raises(UrdfError, match="root"):
         read_urdf(path)
-    path.write_text("<robot name='c'><link name='a'><inertial><mass value='1'/><inertia ixx='1' iyy='1' izz='1'/>"
-                    "</inertial></link><link name='b'/><joint name='j' type='revolute'><parent link='a'/>"
-                    "<child link='b'/><axis xyz='0 0 1'/></joint></robot>")
+    path.write_text(
+        "<robot name='c'><link name='a'><inertial><mass value='1'/><inertia ixx='1' iyy='1' izz='1'/>"
+        "</inertial></link><link name='b'/><joint name='j' type='revolute'><parent link='a'/>"
+        "<child link='b'/><axis xyz='0 0 1'/></joint></robot>"
+    )
     with pytest.raises(UrdfError, match="needs a <limit>"):
         read_urdf(path)

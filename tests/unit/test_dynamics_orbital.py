@@ -5,13 +5,15 @@ USSA-76, and the environment functions.
 The reference orbit is circular and computed here in closed form (radius a, mean motion n):
 r = a (cos nt, sin nt, 0), LVLH = Rz(nt) (x radial, y along-track, z orbit normal).
 """
+
 import math
 from pathlib import Path
 
 import numpy as np
 
 from components.constants import EARTH_RATE, MU_EARTH, R_EARTH
-from components.dynamics import environment as env, link_forces
+from components.dynamics import environment as env
+from components.dynamics import link_forces
 from components.dynamics.world import BodySpec, OrbitalWorld
 from components.rotations import quat_to_matrix
 from tests import validation
@@ -73,7 +75,7 @@ def test_gravity_gradient_libration_in_roll_pitch_and_yaw(tmp_path):
     a = 6778e3
     n = math.sqrt(MU / a**3)
     c = n * (J1 - J2 + J3)
-    A = np.zeros((6, 6))                                    # state: phi, theta, psi and their rates
+    A = np.zeros((6, 6))  # state: phi, theta, psi and their rates
     A[:3, 3:] = np.eye(3)
     A[3, 0], A[3, 5] = -4 * n * n * (J2 - J3) / J1, c / J1
     A[4, 1] = -3 * n * n * (J1 - J3) / J2
@@ -99,9 +101,11 @@ def test_gravity_gradient_libration_in_roll_pitch_and_yaw(tmp_path):
     simulated = run(world, a, h, steps, angles)
     closed_form = np.array([(expm(A * k * h) @ x0)[:3] for k in range(steps + 1)])
     error = np.abs(simulated - closed_form).max(axis=0) / x0[:3].max()
-    print(f"libration roll/yaw at {coupled[0] / n:.4f} n and {coupled[1] / n:.4f} n; error (fraction of "
-          f"the amplitude) roll {error[0]:.1e}, pitch {error[1]:.1e}, yaw {error[2]:.1e}")
-    assert np.abs(simulated).max(axis=0).min() > 0.5 * x0[2]          # every axis moves
+    print(
+        f"libration roll/yaw at {coupled[0] / n:.4f} n and {coupled[1] / n:.4f} n; error (fraction of "
+        f"the amplitude) roll {error[0]:.1e}, pitch {error[1]:.1e}, yaw {error[2]:.1e}"
+    )
+    assert np.abs(simulated).max(axis=0).min() > 0.5 * x0[2]  # every axis moves
     validation.check("libration", error.max())
 
 
@@ -199,11 +203,34 @@ def test_exponential_atmosphere_table():
 # U.S. Standard Atmosphere 1976 (NOAA, NASA, USAF), tabulated density (kg/m^3) by geometric
 # altitude (km), as reprinted in Curtis, Orbital Mechanics for Engineering Students, Appendix.
 US_STANDARD_ATMOSPHERE_1976 = {
-    0: 1.225, 25: 4.008e-2, 30: 1.841e-2, 40: 3.996e-3, 50: 1.027e-3, 60: 3.097e-4, 70: 8.283e-5,
-    80: 1.846e-5, 90: 3.416e-6, 100: 5.606e-7, 110: 9.708e-8, 120: 2.222e-8, 130: 8.152e-9,
-    140: 3.831e-9, 150: 2.076e-9, 180: 5.194e-10, 200: 2.541e-10, 250: 6.073e-11, 300: 1.916e-11,
-    350: 7.014e-12, 400: 2.803e-12, 450: 1.184e-12, 500: 5.215e-13, 600: 1.137e-13, 700: 3.070e-14,
-    800: 1.136e-14, 900: 5.759e-15, 1000: 3.561e-15,
+    0: 1.225,
+    25: 4.008e-2,
+    30: 1.841e-2,
+    40: 3.996e-3,
+    50: 1.027e-3,
+    60: 3.097e-4,
+    70: 8.283e-5,
+    80: 1.846e-5,
+    90: 3.416e-6,
+    100: 5.606e-7,
+    110: 9.708e-8,
+    120: 2.222e-8,
+    130: 8.152e-9,
+    140: 3.831e-9,
+    150: 2.076e-9,
+    180: 5.194e-10,
+    200: 2.541e-10,
+    250: 6.073e-11,
+    300: 1.916e-11,
+    350: 7.014e-12,
+    400: 2.803e-12,
+    450: 1.184e-12,
+    500: 5.215e-13,
+    600: 1.137e-13,
+    700: 3.070e-14,
+    800: 1.136e-14,
+    900: 5.759e-15,
+    1000: 3.561e-15,
 }
 
 

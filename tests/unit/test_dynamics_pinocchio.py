@@ -6,6 +6,7 @@ its acceleration the derivative of those. With R = R_W_base:
     a_pin_angular = R^T alpha_W,  a_pin_linear = R^T a_W - omega_b x v_b.
 Tolerance: |a_dart - a_pin| <= 1e-8 * max(1, |a|) over every coordinate.
 """
+
 from pathlib import Path
 
 import numpy as np
@@ -72,7 +73,7 @@ def test_free_floating_accelerations_match_pinocchio(urdf):
         v_W, w_W = rng.normal(size=3), rng.normal(size=3)
         q = rng.uniform(lower, upper)
         qd, tau = rng.normal(size=len(joints)), rng.normal(size=len(joints)) * 2.0
-        tau = np.clip(tau, -body.effort, body.effort)         # OrbitalWorld clips to the URDF efforts
+        tau = np.clip(tau, -body.effort, body.effort)  # OrbitalWorld clips to the URDF efforts
         world.set_body_state("robot", p, quat, np.concatenate([v_W, w_W]), q, qd)
         world.set_torques("robot", tau)
         dart = world.forward_dynamics("robot")
@@ -109,8 +110,8 @@ def test_environment_wrenches_match_pinocchio_external_forces():
         world.set_body_state("robot", p, quat, np.concatenate([v_W, w_W]), q, qd)
         world.set_torques("robot", tau)
         dart = world.forward_dynamics("robot")
-        nodes = [body.link_names.index(bn.getName()) for bn in body.nodes]     # per node (massive link)
-        tidal, drag, torque = (w[nodes] for w in body.environment_wrenches(r_eci, np.zeros(3)))
+        nodes = [body.link_names.index(bn.getName()) for bn in body.nodes]  # per node (massive link)
+        tidal, _drag, torque = (w[nodes] for w in body.environment_wrenches(r_eci, np.zeros(3)))
         largest = max(largest, np.abs(tidal).max(), np.abs(torque).max())
         q_pin, v_pin, R = pinocchio_state(model, joints, p, quat, v_W, w_W, q, qd)
         pin.forwardKinematics(model, data, q_pin)
@@ -119,7 +120,7 @@ def test_environment_wrenches_match_pinocchio_external_forces():
         for bn, f, t in zip(body.nodes, tidal, torque):
             frame = model.frames[model.getFrameId(bn.getName(), pin.BODY)]
             c = np.array(bn.getCOM())
-            wrench_W = pin.Force(f, t + np.cross(c, f))          # about the W origin
+            wrench_W = pin.Force(f, t + np.cross(c, f))  # about the W origin
             fext[frame.parentJoint] += data.oMi[frame.parentJoint].actInv(wrench_W)
         tau_pin = np.zeros(model.nv)
         for name, value in zip(joints, tau):
@@ -182,10 +183,10 @@ def test_demo_humanoid_under_recorded_torques_matches_pinocchio_aba_and_dop853()
     joints = OrbitalWorld([BodySpec("robot", ROOT / "models" / "humanoid_torso.urdf")]).bodies["robot"].joints
     full = free_floating_model(ROOT / "models" / "humanoid_torso.urdf")
     locked = [full.getJointId(j) for j in body["locked_joints"]]
-    model = pin.buildReducedModel(full, locked, pin.neutral(full))   # the config locks the left arm at 0
+    model = pin.buildReducedModel(full, locked, pin.neutral(full))  # the config locks the left arm at 0
     model.gravity = pin.Motion.Zero()
     data = model.createData()
-    moving = [joints.index(model.names[i]) for i in range(2, model.njoints)]   # joint columns, model order
+    moving = [joints.index(model.names[i]) for i in range(2, model.njoints)]  # joint columns, model order
     tau, r_eci, v_eci = column("controller.tau")[:, moving], column("orbit.r_eci"), column("orbit.v_eci")
     position, orientation, twist = (column(f"dynamics.humanoid.{k}") for k in ("position", "orientation", "twist"))
     q, qd = column("dynamics.humanoid.q")[:, moving], column("dynamics.humanoid.qd")[:, moving]
@@ -195,25 +196,29 @@ def test_demo_humanoid_under_recorded_torques_matches_pinocchio_aba_and_dop853()
     inertia = np.array([model.inertias[i].inertia for i in bodies])
     h = config.step_ns / NS_PER_S
 
-    def orbit_point(k, s):                      # cubic Hermite between the samples at t_k and t_k+1
-        return ((2 * s**3 - 3 * s**2 + 1) * r_eci[k] + (s**3 - 2 * s**2 + s) * h * v_eci[k]
-                + (-2 * s**3 + 3 * s**2) * r_eci[k + 1] + (s**3 - s**2) * h * v_eci[k + 1])
+    def orbit_point(k, s):  # cubic Hermite between the samples at t_k and t_k+1
+        return (
+            (2 * s**3 - 3 * s**2 + 1) * r_eci[k]
+            + (s**3 - 2 * s**2 + s) * h * v_eci[k]
+            + (-2 * s**3 + 3 * s**2) * r_eci[k + 1]
+            + (s**3 - s**2) * h * v_eci[k + 1]
+        )
 
     def rates(t, y, k, torque):
-        x, v = y[:model.nq].copy(), y[model.nq:]
+        x, v = y[: model.nq].copy(), y[model.nq :]
         x[3:7] /= np.linalg.norm(x[3:7])
         r = orbit_point(k, t / h)
         g, u = MU_EARTH / np.linalg.norm(r) ** 3, r / np.linalg.norm(r)
         pin.forwardKinematics(model, data, x)
         R = np.array([data.oMi[i].rotation for i in bodies])
         com = np.einsum("ijk,ik->ij", R, lever) + np.array([data.oMi[i].translation for i in bodies])
-        force = g * mass[:, None] * (3 * (com @ u)[:, None] * u - com)      # W axes, at each CoM
+        force = g * mass[:, None] * (3 * (com @ u)[:, None] * u - com)  # W axes, at each CoM
         f_local = np.einsum("ijk,ij->ik", R, force)
         u_local = np.einsum("ijk,j->ik", R, u)
         moment = 3 * g * np.cross(u_local, np.einsum("ijk,ik->ij", inertia, u_local)) + np.cross(lever, f_local)
         fext = [pin.Force.Zero()] + [pin.Force(f, m) for f, m in zip(f_local, moment)]
         a = pin.aba(model, data, x, v, np.concatenate([np.zeros(6), torque]), fext)
-        xq, w = x[3:7], v[3:6]                  # quaternion [x, y, z, w], body angular velocity
+        xq, w = x[3:7], v[3:6]  # quaternion [x, y, z, w], body angular velocity
         dquat = 0.5 * np.concatenate([xq[3] * w + np.cross(xq[:3], w), [-xq[:3] @ w]])
         R_base = pin.Quaternion(xq[3], *xq[:3]).toRotationMatrix()
         return np.concatenate([R_base @ v[:3], dquat, v[6:], a])
@@ -226,14 +231,24 @@ def test_demo_humanoid_under_recorded_torques_matches_pinocchio_aba_and_dop853()
     x, v = recorded(0)
     worst = np.zeros(3)
     for k in range(len(rows) - 1):
-        y = solve_ivp(rates, (0.0, h), np.concatenate([x, v]), method="DOP853", rtol=1e-12, atol=1e-14,
-                      first_step=h, args=(k, tau[k])).y[:, -1]
-        x, v = y[:model.nq], y[model.nq:]
+        y = solve_ivp(
+            rates,
+            (0.0, h),
+            np.concatenate([x, v]),
+            method="DOP853",
+            rtol=1e-12,
+            atol=1e-14,
+            first_step=h,
+            args=(k, tau[k]),
+        ).y[:, -1]
+        x, v = y[: model.nq], y[model.nq :]
         x[3:7] /= np.linalg.norm(x[3:7])
         d = pin.difference(model, x, recorded(k + 1)[0])
         worst = np.maximum(worst, [np.abs(d[:3]).max(), np.abs(d[3:6]).max(), np.abs(d[6:]).max()])
     moved = np.abs(q[-1] - q[0]).max()
-    print(f"3 s of the demo (joints moved up to {moved:.3f} rad): DART vs Pinocchio ABA + DOP853: "
-          f"base position {worst[0]:.1e} m, attitude {worst[1]:.1e} rad, joints {worst[2]:.1e} rad")
+    print(
+        f"3 s of the demo (joints moved up to {moved:.3f} rad): DART vs Pinocchio ABA + DOP853: "
+        f"base position {worst[0]:.1e} m, attitude {worst[1]:.1e} rad, joints {worst[2]:.1e} rad"
+    )
     assert moved > 0.01
     validation.check("dart_arm_trajectory", worst.max())

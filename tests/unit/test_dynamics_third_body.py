@@ -3,6 +3,7 @@ dynamics.pinocchio: each link's force against ``environment.third_body_tidal_acc
 subtraction of the two pulls in extended precision, both evaluated on the links' output poses (the
 kernels' frames, anchors and tree are not used); the base's acceleration against the closed forms
 along and across the Sun line; the IMU; both engines against each other; off by default."""
+
 from __future__ import annotations
 
 from fractions import Fraction
@@ -25,16 +26,27 @@ EPOCH = "2024-03-20T06:00:00Z"
 MS = 1_000_000
 MU = {"sun": MU_SUN, "moon": MU_MOON}
 # the servicer off the orbit point (no link at a symmetric place), a welded link, a tumble
-SERVICER = {"urdf": "../models/capture/servicer.urdf", "position": [3.0, -2.0, 1.5], "locked_joints": ["arm_5_joint"],
-            "q": {"arm_2_joint": 0.6, "arm_3_joint": 1.0, "arm_5_joint": 0.4},
-            "orientation": [0.2, -0.1, 0.3, 0.92], "twist": [0, 0, 0, 0.01, -0.02, 0.03]}
-PLATE = ('<robot name="plate"><link name="plate"><inertial><mass value="12.5"/><origin xyz="0 0 0"/>'
-         '<inertia ixx="1.1" iyy="2.3" izz="3.1" ixy="0.1" ixz="0" iyz="0"/></inertial></link></robot>')
+SERVICER = {
+    "urdf": "../models/capture/servicer.urdf",
+    "position": [3.0, -2.0, 1.5],
+    "locked_joints": ["arm_5_joint"],
+    "q": {"arm_2_joint": 0.6, "arm_3_joint": 1.0, "arm_5_joint": 0.4},
+    "orientation": [0.2, -0.1, 0.3, 0.92],
+    "twist": [0, 0, 0, 0.01, -0.02, 0.03],
+}
+PLATE = (
+    '<robot name="plate"><link name="plate"><inertial><mass value="12.5"/><origin xyz="0 0 0"/>'
+    '<inertia ixx="1.1" iyy="2.3" izz="3.1" ixy="0.1" ixz="0" iyz="0"/></inertial></link></robot>'
+)
 
 
 def servicer(engine: str, third_bodies=("sun", "moon"), **params) -> Harness:
-    return Harness(f"dynamics.{engine}", {"third_bodies": list(third_bodies), "link_outputs": True,
-                                          "bodies": {"servicer": SERVICER}, **params}, config_dir=CONFIGS, epoch=EPOCH)
+    return Harness(
+        f"dynamics.{engine}",
+        {"third_bodies": list(third_bodies), "link_outputs": True, "bodies": {"servicer": SERVICER}, **params},
+        config_dir=CONFIGS,
+        epoch=EPOCH,
+    )
 
 
 def sun_and_moon(t_ns: int) -> dict[str, np.ndarray]:
@@ -66,12 +78,22 @@ def test_link_third_body_forces_are_the_tidal_form_on_the_link_poses(engine):
     d = np.array([positions[k] + rotations[k] @ np.asarray(urdf.links[k].com) for k in massive])
     mass = np.array([urdf.links[k].mass for k in massive])
     expected = sum(third_body_tidal_acceleration(R, d, bodies[b], MU[b]) for b in MU) * mass[:, None]
-    exact = np.array([sum(exact_third_body_difference([Fraction(x) + Fraction(y) for x, y in zip(R, dk)], R, bodies[b],
-                                                      MU[b]) for b in MU) for dk in d]) * mass[:, None]    # R + d unrounded
+    exact = (
+        np.array(
+            [
+                sum(
+                    exact_third_body_difference([Fraction(x) + Fraction(y) for x, y in zip(R, dk)], R, bodies[b], MU[b])
+                    for b in MU
+                )
+                for dk in d
+            ]
+        )
+        * mass[:, None]
+    )  # R + d unrounded
     for n, k in enumerate(massive):
         validation.check("third_body_links", relative(got[k], expected[n]))
         validation.check("third_body_links", relative(got[k], exact[n]))
-    assert np.linalg.norm(got, axis=1).max() > 1e-10         # the bus, 2 t at 4 m: ~3e-10 N
+    assert np.linalg.norm(got, axis=1).max() > 1e-10  # the bus, 2 t at 4 m: ~3e-10 N
 
 
 def test_base_accelerates_by_the_closed_forms_along_and_across_the_third_body_line(tmp_path):
@@ -90,12 +112,24 @@ def test_base_accelerates_by_the_closed_forms_along_and_across_the_third_body_li
             across = np.cross(u, [0.3, -0.4, 0.8])
             across /= np.linalg.norm(across)
             k = MU[body] / np.linalg.norm(x) ** 3
-            for d, closed_form in ((5.0 * u, 2.0 * k * 5.0 * u), (-5.0 * u, -2.0 * k * 5.0 * u),
-                                   (5.0 * across, -k * 5.0 * across)):
-                h = Harness(f"dynamics.{engine}", {"third_bodies": [body], "tidal_force": False, "gravity_gradient": False,
-                                                   "imu": ["plate"], "bodies": {"plate": {"urdf": str(urdf), "position": d.tolist(),
-                                                                                          "orientation": [0.3, -0.2, 0.1, 0.93]}}},
-                            epoch=EPOCH)
+            for d, closed_form in (
+                (5.0 * u, 2.0 * k * 5.0 * u),
+                (-5.0 * u, -2.0 * k * 5.0 * u),
+                (5.0 * across, -k * 5.0 * across),
+            ):
+                h = Harness(
+                    f"dynamics.{engine}",
+                    {
+                        "third_bodies": [body],
+                        "tidal_force": False,
+                        "gravity_gradient": False,
+                        "imu": ["plate"],
+                        "bodies": {
+                            "plate": {"urdf": str(urdf), "position": d.tolist(), "orientation": [0.3, -0.2, 0.1, 0.93]}
+                        },
+                    },
+                    epoch=EPOCH,
+                )
                 h.inputs.update({**circular(0.0), "r_eci": r_eci})
                 out = h.initialize()
                 a = h.component.world.forward_dynamics("plate")["dv_W_base"][:3]
@@ -129,7 +163,7 @@ def test_third_bodies_move_the_bodies_and_are_off_by_default():
         change[name] = momentum[-1] - momentum[0]
         if bodies:
             forces = np.array([out["servicer.third_body_force"].reshape(-1, 3).sum(axis=0) for out in history])
-            impulse = 0.5 * (forces[:-1] + forces[1:]).sum(axis=0) * 1e-3        # over the same 99 steps
+            impulse = 0.5 * (forces[:-1] + forces[1:]).sum(axis=0) * 1e-3  # over the same 99 steps
     assert np.abs(change["off"]).max() < 1e-13
     assert relative(change["on"], impulse) < 1e-3, (change, impulse)
 
@@ -140,5 +174,9 @@ def test_third_bodies_settings_are_checked():
     with pytest.raises(ConfigError, match="listed twice"):
         servicer("dart", third_bodies=("moon", "moon"))
     with pytest.raises(ConfigError, match=r"third_bodies \(moon\) need the run's epoch"):
-        Harness("dynamics.dart", {"third_bodies": ["moon"], "bodies": {"servicer": SERVICER}}, config_dir=CONFIGS,
-                epoch=None)
+        Harness(
+            "dynamics.dart",
+            {"third_bodies": ["moon"], "bodies": {"servicer": SERVICER}},
+            config_dir=CONFIGS,
+            epoch=None,
+        )

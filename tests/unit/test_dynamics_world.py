@@ -2,6 +2,7 @@
 
 Tolerances are stated per test. No environment here (r_eci = 0: deep space) unless said.
 """
+
 from pathlib import Path
 
 import numpy as np
@@ -16,13 +17,22 @@ ROOT = Path(__file__).resolve().parents[2]
 HUMANOID = ROOT / "models" / "humanoid_torso.urdf"
 TARGET = ROOT / "models" / "target.urdf"
 # a posture away from the joint limits, both elbows bent
-POSTURE = {"arm_right_1_joint": -0.4, "arm_right_2_joint": -0.3, "arm_right_4_joint": -1.0,
-           "arm_left_1_joint": -0.4, "arm_left_2_joint": 0.3, "arm_left_4_joint": -1.0}
+POSTURE = {
+    "arm_right_1_joint": -0.4,
+    "arm_right_2_joint": -0.3,
+    "arm_right_4_joint": -1.0,
+    "arm_left_1_joint": -0.4,
+    "arm_left_2_joint": 0.3,
+    "arm_left_4_joint": -1.0,
+}
 
 
 def humanoid(**kw) -> BodySpec:
-    defaults = dict(q=POSTURE, qd={"arm_right_1_joint": 0.3, "arm_left_3_joint": -0.4},
-                    twist=np.array([0.02, -0.01, 0.005, 0.01, -0.02, 0.015]))
+    defaults = dict(
+        q=POSTURE,
+        qd={"arm_right_1_joint": 0.3, "arm_left_3_joint": -0.4},
+        twist=np.array([0.02, -0.01, 0.005, 0.01, -0.02, 0.015]),
+    )
     defaults.update(kw)
     return BodySpec("humanoid", HUMANOID, **defaults)
 
@@ -73,8 +83,10 @@ def test_rk4_conserves_momentum_of_free_floating_humanoid():
             h = world.momentum("humanoid")
             worst_linear = max(worst_linear, np.linalg.norm(h[:3] - h0[:3]) / np.linalg.norm(h0[:3]))
             worst_angular = max(worst_angular, np.linalg.norm(h[3:] - h0[3:]) / np.linalg.norm(h0[3:]))
-    print(f"rk4 10 s at 1 ms, |tau| up to {tau_max:.2f} N m: relative momentum drift "
-          f"linear {worst_linear:.1e}, angular {worst_angular:.1e}")
+    print(
+        f"rk4 10 s at 1 ms, |tau| up to {tau_max:.2f} N m: relative momentum drift "
+        f"linear {worst_linear:.1e}, angular {worst_angular:.1e}"
+    )
     assert tau_max > 0.1
     assert worst_linear < 1e-6 and worst_angular < 1e-6
 
@@ -120,6 +132,7 @@ def test_state_restore_at_a_joint_limit_continues_bit_exactly():
     """A wrist pushed into its stop: the state taken while it rests there (the stop is part of
     the state) restores into a fresh world that continues to identical bits. Without the stop in
     the state the continuation differs (the issue measured 1.2e-4 rad within 20 steps)."""
+
     def pushed(world, n):
         tau = np.zeros(14)
         tau[world.bodies["humanoid"].joints.index("arm_right_7_joint")] = 0.2
@@ -177,8 +190,8 @@ def test_locked_joints_stay_at_their_initial_position():
     assert body.skel.getNumDofs() == 6 + 14 - 2
     idx = [body.joints.index(j) for j in locked]
     h0 = world.momentum("humanoid")
-    for k in range(200):
-        world.set_torques("humanoid", np.full(14, 0.05))      # torque on locked joints ignored
+    for _k in range(200):
+        world.set_torques("humanoid", np.full(14, 0.05))  # torque on locked joints ignored
         world.step(1e-3)
     out = world.outputs("humanoid")
     assert out["q"].shape == (14,)
@@ -190,8 +203,9 @@ def test_locked_joints_stay_at_their_initial_position():
     welded = OrbitalWorld([humanoid(qd={}, locked_joints=tuple(locked))])
     free.reset_bodies()
     welded.reset_bodies()
-    assert np.allclose(free.outputs("humanoid")["link_position"], welded.outputs("humanoid")["link_position"],
-                       atol=1e-12)
+    assert np.allclose(
+        free.outputs("humanoid")["link_position"], welded.outputs("humanoid")["link_position"], atol=1e-12
+    )
 
 
 def test_environment_as_generalized_forces_equals_dart_external_forces():
@@ -213,11 +227,12 @@ def test_environment_as_generalized_forces_equals_dart_external_forces():
         quat = rng.normal(size=4)
         q = rng.uniform(-0.5, 0.5, 14)
         q[[body.joints.index(j) for j in locked]] = [POSTURE.get(j, 0.0) for j in locked]
-        world.set_body_state("humanoid", rng.normal(size=3), quat / np.linalg.norm(quat), rng.normal(size=6), q,
-                             rng.normal(size=14))
+        world.set_body_state(
+            "humanoid", rng.normal(size=3), quat / np.linalg.norm(quat), rng.normal(size=6), q, rng.normal(size=14)
+        )
         world.set_torques("humanoid", rng.normal(size=14))
         qdd = world.forward_dynamics("humanoid")["qdd"]
-        nodes = [body.link_names.index(bn.getName()) for bn in body.nodes]     # per node (massive link)
+        nodes = [body.link_names.index(bn.getName()) for bn in body.nodes]  # per node (massive link)
         tidal, _, torque = (w[nodes] for w in body.environment_wrenches(r_eci, np.zeros(3)))
         coms = np.array([bn.getCOM() for bn in body.nodes])
         expected_tidal = body.mass[:, None] * tidal_acceleration(r_eci, coms, 1e12)
@@ -239,8 +254,9 @@ def test_lvlh_initial_state_co_rotates():
     angle = 0.7
     q_eci_lvlh = np.array([0.0, 0.0, np.sin(angle / 2), np.cos(angle / 2)])
     w_lvlh = np.array([0.0, 0.0, 1.1e-3])
-    spec = BodySpec("t", TARGET, frame="lvlh", position=np.array([10.0, 0.0, 0.0]),
-                    orientation=np.array([0.0, 0.0, 0.0, 1.0]))
+    spec = BodySpec(
+        "t", TARGET, frame="lvlh", position=np.array([10.0, 0.0, 0.0]), orientation=np.array([0.0, 0.0, 0.0, 1.0])
+    )
     world = OrbitalWorld([spec], tidal_force=False, gravity_gradient=False)
     world.set_orbit([7e6, 0, 0], [0, 7.5e3, 0], q_eci_lvlh, w_lvlh)
     world.reset_bodies()
@@ -297,7 +313,7 @@ def test_bad_specs_are_refused_naming_the_key():
         OrbitalWorld([humanoid(q={"no_such_joint": 0.1})])
     assert e.value.key == "humanoid.q.no_such_joint"
     with pytest.raises(ModelError) as e:
-        OrbitalWorld([humanoid(q={"arm_right_4_joint": 1.0})])       # elbow limit [-2.36, 0.0035]
+        OrbitalWorld([humanoid(q={"arm_right_4_joint": 1.0})])  # elbow limit [-2.36, 0.0035]
     assert e.value.key == "humanoid.q.arm_right_4_joint"
     with pytest.raises(ModelError) as e:
         OrbitalWorld([humanoid(locked_joints=("arm_right_1_joint",))])  # locked but has qd
@@ -309,8 +325,9 @@ def test_contact_between_bodies_in_dart_mode():
     pushes the humanoid: it ends up moving with the box, and the total linear momentum of the
     two bodies is conserved to 1e-4 relative (contact impulses are equal and opposite; DART's
     first-order step of the moving arm drifts ~1e-5)."""
-    box = BodySpec("target", TARGET, position=np.array([1.0, 0.0, -0.1]),
-                   twist=np.array([-0.2, 0.0, 0.0, 0.0, 0.0, 0.0]))
+    box = BodySpec(
+        "target", TARGET, position=np.array([1.0, 0.0, -0.1]), twist=np.array([-0.2, 0.0, 0.0, 0.0, 0.0, 0.0])
+    )
     world = OrbitalWorld([humanoid(twist=np.zeros(6), qd={}), box], integrator="dart")
     world.reset_bodies()
     total0 = world.momentum("humanoid")[:3] + world.momentum("target")[:3]
@@ -319,9 +336,11 @@ def test_contact_between_bodies_in_dart_mode():
         world.step(1e-3)
     humanoid_p = world.momentum("humanoid")[:3]
     total = humanoid_p + world.momentum("target")[:3]
-    print(f"contact: humanoid linear momentum {humanoid_p.round(3)} kg m/s, total drift "
-          f"{np.linalg.norm(total - total0) / np.linalg.norm(total0):.1e}")
-    assert humanoid_p[0] < -5.0          # pushed along -x by a good part of the box's 40 kg m/s
+    print(
+        f"contact: humanoid linear momentum {humanoid_p.round(3)} kg m/s, total drift "
+        f"{np.linalg.norm(total - total0) / np.linalg.norm(total0):.1e}"
+    )
+    assert humanoid_p[0] < -5.0  # pushed along -x by a good part of the box's 40 kg m/s
     assert np.linalg.norm(total - total0) / np.linalg.norm(total0) < 1e-4
 
 
@@ -363,7 +382,7 @@ def test_compiled_so3_exp_and_log_are_exact_at_every_angle(angle):
     back = log_so3(expected)
     if angle < 3.0:
         assert np.linalg.norm(back - phi) <= 1e-15 * angle
-    else:                # near pi the angle is ill-conditioned in R: compare the rotations
+    else:  # near pi the angle is ill-conditioned in R: compare the rotations
         assert np.abs(Rotation.from_rotvec(back).as_matrix() - expected).max() <= 1e-15
     q0 = np.concatenate([rng.normal(size=3), rng.normal(size=3), [0.4, -0.2]])
     xi = np.concatenate([phi, rng.normal(size=3), [0.01, 0.02]])
@@ -392,8 +411,14 @@ def euler_reference(duration: float) -> np.ndarray:
         W = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
         return np.concatenate([dw, (R @ W).ravel()])
 
-    y = solve_ivp(rates, (0.0, duration), np.concatenate([TUMBLER_OMEGA, np.eye(3).ravel()]),
-                  method="DOP853", rtol=1e-13, atol=1e-15).y[:, -1]
+    y = solve_ivp(
+        rates,
+        (0.0, duration),
+        np.concatenate([TUMBLER_OMEGA, np.eye(3).ravel()]),
+        method="DOP853",
+        rtol=1e-13,
+        atol=1e-15,
+    ).y[:, -1]
     return y[3:].reshape(3, 3)
 
 
@@ -420,10 +445,12 @@ def test_rk4_attitude_converges_at_fourth_order_down_to_small_steps(tmp_path):
         R = quat_to_matrix(world.outputs("box", links=False)["orientation"])
         errors[h_ms] = float(np.linalg.norm(log_so3(reference.T @ R)))
         drifts[h_ms] = float(np.linalg.norm(world.momentum("box")[3:] - L0) / np.linalg.norm(L0))
-    print("h ms: attitude error rad, momentum drift: " +
-          ", ".join(f"{h}: {errors[h]:.1e}, {drifts[h]:.1e}" for h in errors))
+    print(
+        "h ms: attitude error rad, momentum drift: "
+        + ", ".join(f"{h}: {errors[h]:.1e}, {drifts[h]:.1e}" for h in errors)
+    )
     steps = list(errors)
-    for big, small in zip(steps[:3], steps[1:4]):            # 8 -> 4 -> 2 -> 1 ms
+    for big, small in zip(steps[:3], steps[1:4]):  # 8 -> 4 -> 2 -> 1 ms
         assert 12 < errors[big] / errors[small] < 20, (big, errors)
     for big, small in zip(steps, steps[1:]):
         assert errors[small] <= max(errors[big], 1e-12), (small, errors)

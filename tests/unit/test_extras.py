@@ -1,6 +1,7 @@
 """The default install without its extras (pyproject.toml): every shipped config but those of
 CONFIG_EXTRAS checks, and each feature of an extra is refused with exit 2, naming the extra and the
 command that installs it. The extras are hidden in this process, as if not installed."""
+
 from __future__ import annotations
 
 import sys
@@ -22,10 +23,13 @@ def default_install(monkeypatch):
     """The extras' modules and ROS packages not found, as in ``pip install -e .``."""
     for modules in extras.MODULES.values():
         for module in modules:
-            monkeypatch.setitem(sys.modules, module, None)   # find_spec None, import fails
+            monkeypatch.setitem(sys.modules, module, None)  # find_spec None, import fails
     found = packages.find_package
-    monkeypatch.setattr(packages, "find_package", lambda name, given=None: (None, ["hidden by the test"])
-                        if name in extras.PACKAGES else found(name, given))
+    monkeypatch.setattr(
+        packages,
+        "find_package",
+        lambda name, given=None: (None, ["hidden by the test"]) if name in extras.PACKAGES else found(name, given),
+    )
 
 
 @pytest.mark.parametrize("config", SHIPPED, ids=lambda p: p.name)
@@ -40,19 +44,22 @@ def test_a_shipped_config_checks_without_extras_unless_it_names_its_own(config, 
     assert f"[{extra}]" in message and extras.install_command(extra) in message, message
 
 
-@pytest.mark.parametrize("command, extra", [
-    (["check", str(ROOT / "configs" / "panda_on_bus.yaml")], "robots"),
-    (["check", str(ROOT / "configs" / "capture_vision.yaml")], "vision"),
-    (["check", str(ROOT / "configs" / "reaction_wheel_fmu.yaml")], "fmi"),
-    (["run", str(DEMO), "--view", "web"], "view"),
-    (["run", str(DEMO), "--view", "save:x.rrd"], "view"),
-    (["view", str(ROOT), "--view", "web"], "view"),
-    (["export-fmu", "orbit.kepler", "-o", "x.fmu"], "fmi"),
-    (["markers", str(ROOT / "models" / "capture" / "grapple_markers.yaml"), "--check"], "vision"),
-], ids=lambda v: v if isinstance(v, str) else v[0])
-def test_a_feature_without_its_extra_exits_2_naming_it(command, extra, default_install, capsys, tmp_path,
-                                                       monkeypatch):
-    monkeypatch.chdir(tmp_path)          # nothing written here: each is refused before it starts
+@pytest.mark.parametrize(
+    "command, extra",
+    [
+        (["check", str(ROOT / "configs" / "panda_on_bus.yaml")], "robots"),
+        (["check", str(ROOT / "configs" / "capture_vision.yaml")], "vision"),
+        (["check", str(ROOT / "configs" / "reaction_wheel_fmu.yaml")], "fmi"),
+        (["run", str(DEMO), "--view", "web"], "view"),
+        (["run", str(DEMO), "--view", "save:x.rrd"], "view"),
+        (["view", str(ROOT), "--view", "web"], "view"),
+        (["export-fmu", "orbit.kepler", "-o", "x.fmu"], "fmi"),
+        (["markers", str(ROOT / "models" / "capture" / "grapple_markers.yaml"), "--check"], "vision"),
+    ],
+    ids=lambda v: v if isinstance(v, str) else v[0],
+)
+def test_a_feature_without_its_extra_exits_2_naming_it(command, extra, default_install, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # nothing written here: each is refused before it starts
     assert main(command) == 2
     error = capsys.readouterr().err
     assert f"[{extra}]" in error and f'pip install -e "{ROOT}[{extra}]"' in error, error

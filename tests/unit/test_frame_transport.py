@@ -2,6 +2,7 @@
 and a consumer steps k only once the frame tagged for k is held, whatever order the messages come
 in, giving the numbers of the same components stepped by hand (the harness). No Zenoh: the
 processes' publish callbacks are lists, their messages handed on directly."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -37,8 +38,11 @@ def test_a_frame_message_of_the_wrong_length_is_malformed(cut):
 def process(name: str, kind: str, sent: list, **wire) -> ComponentProcess:
     p = ComponentProcess(name, lambda payload: None, lambda consumers, payload: sent.append(payload), sent.append)
     p.command(protocol.Instantiate(kind, SIZE).encode())
-    p.command(protocol.Wire(generation=0, step_ns=STEP_NS, ratio=wire.pop("ratio", 1), k=0, batch_consumers=[],
-                            faults=[], **wire).encode())
+    p.command(
+        protocol.Wire(
+            generation=0, step_ns=STEP_NS, ratio=wire.pop("ratio", 1), k=0, batch_consumers=[], faults=[], **wire
+        ).encode()
+    )
     p.command(protocol.Initialize(0, {}, np.zeros(p.inputs.size)).encode())
     return p
 
@@ -46,12 +50,20 @@ def process(name: str, kind: str, sent: list, **wire) -> ComponentProcess:
 def camera_messages(steps: int) -> list[bytes]:
     """What test.imager (step 2 run steps) sends its consumer: sync, then per step its two frames and its outputs."""
     sent: list[bytes] = []
-    camera = process("camera", "test.imager", sent, ratio=2, consumers=["reader"], routes=[], sources={},
-                     frame_consumers={"rgb": ["reader"], "depth": ["reader"]})
+    camera = process(
+        "camera",
+        "test.imager",
+        sent,
+        ratio=2,
+        consumers=["reader"],
+        routes=[],
+        sources={},
+        frame_consumers={"rgb": ["reader"], "depth": ["reader"]},
+    )
     camera.command(protocol.Sync().encode())
     camera.command(protocol.Start([], 2 * steps, np.empty(0)).encode())
     camera.advance()
-    return [m for m in sent if m[:1] != bus.BATCH]   # those go to the orchestrator
+    return [m for m in sent if m[:1] != bus.BATCH]  # those go to the orchestrator
 
 
 def test_the_producer_sends_each_frame_before_its_steps_outputs():
@@ -63,8 +75,15 @@ def test_the_producer_sends_each_frame_before_its_steps_outputs():
 
 def reader(sent: list) -> ComponentProcess:
     # steps every run step, reads the camera's frames (step 2): tags 0, 0, 2, 2, 4, ...
-    p = process("reader", "test.image_sum", sent, consumers=[], routes=[], sources={"camera": 0},
-                frame_routes=[("camera", "rgb", "rgb", 2, 0), ("camera", "depth", "depth", 2, 0)])
+    p = process(
+        "reader",
+        "test.image_sum",
+        sent,
+        consumers=[],
+        routes=[],
+        sources={"camera": 0},
+        frame_routes=[("camera", "rgb", "rgb", 2, 0), ("camera", "depth", "depth", 2, 0)],
+    )
     return p
 
 
@@ -93,9 +112,9 @@ def recorded(sent: list[bytes]) -> list[np.ndarray]:
 def test_late_and_reordered_frames_give_the_numbers_of_the_frames_in_order():
     """The camera's messages delivered with every step's frames after its outputs and the frames
     of two steps swapped: the reader waits for each frame and its numbers are the harness's."""
-    messages = [m for m in camera_messages(4) if m[:1] != bus.OUTPUT]   # the reader reads no float of the camera
+    messages = [m for m in camera_messages(4) if m[:1] != bus.OUTPUT]  # the reader reads no float of the camera
     sync, frames = messages[2], [m for m in messages if m[:1] == bus.FRAME]
-    swapped = frames[:2] + frames[4:6] + frames[2:4] + frames[6:]        # tag 4's frames before tag 2's
+    swapped = frames[:2] + frames[4:6] + frames[2:4] + frames[6:]  # tag 4's frames before tag 2's
     sent: list[bytes] = []
     p = reader(sent)
     p.source_output("camera", sync)
@@ -111,7 +130,7 @@ def test_late_and_reordered_frames_give_the_numbers_of_the_frames_in_order():
     p.flush()
     got = recorded(sent)
     assert len(got) == 8 and all(np.array_equal(g, e) for g, e in zip(got, expected))
-    assert len({float(row[0]) for row in got}) == 4   # each tag's frame gave other numbers
+    assert len({float(row[0]) for row in got}) == 4  # each tag's frame gave other numbers
 
 
 def test_a_frame_input_holds_zeros_at_initialize_and_is_read_only_in_a_step():
@@ -120,5 +139,5 @@ def test_a_frame_input_holds_zeros_at_initialize_and_is_read_only_in_a_step():
     assert not p.input_views["rgb"].any() and not p.input_views["rgb"].flags.writeable
     h = Harness("test.image_sum", SIZE)
     h.inputs["rgb"] = np.full((30, 40, 3), 255, dtype=np.uint8)
-    assert h.initialize()["d"] == 0.0     # a frame is first read at a step
+    assert h.initialize()["d"] == 0.0  # a frame is first read at a step
     assert h.step(STEP_NS)["s"] == pytest.approx(float(np.arange(1, 3601) @ np.full(3600, 255.0)) / 9973.0 % 1.0)

@@ -1,6 +1,7 @@
 """The grasp of a capture (components/dynamics/capture.py) in OrbitalWorld: the inelastic impact,
 the weld, and the quantities the sensors read, against conservation laws, closed forms and finite
 differences. No environment (r_eci = 0) unless said. Tolerances are stated per test."""
+
 from pathlib import Path
 
 import numpy as np
@@ -26,13 +27,29 @@ def unit(q):
     return q / np.linalg.norm(q)
 
 
-def world(*, locked=False, target_twist=(0.01, -0.02, 0.005, 0.03, -0.02, 0.04), tolerance=ANYWHERE,
-          target_position=(1.6, 0.3, 2.6), target_orientation=(0.1, 0.2, 0.05, 1.0), **kw) -> OrbitalWorld:
-    w = OrbitalWorld([BodySpec("servicer", SERVICER, q=ARM, locked_joints=tuple(ARM) if locked else ()),
-                      BodySpec("target", TARGET, position=np.array(target_position),
-                               orientation=unit(target_orientation), twist=np.array(target_twist, dtype=float))],
-                     grasp=GraspSpec("servicer", "arm_tool_link", "target", "target", tolerance),
-                     **{"tidal_force": False, "gravity_gradient": False, **kw})
+def world(
+    *,
+    locked=False,
+    target_twist=(0.01, -0.02, 0.005, 0.03, -0.02, 0.04),
+    tolerance=ANYWHERE,
+    target_position=(1.6, 0.3, 2.6),
+    target_orientation=(0.1, 0.2, 0.05, 1.0),
+    **kw,
+) -> OrbitalWorld:
+    w = OrbitalWorld(
+        [
+            BodySpec("servicer", SERVICER, q=ARM, locked_joints=tuple(ARM) if locked else ()),
+            BodySpec(
+                "target",
+                TARGET,
+                position=np.array(target_position),
+                orientation=unit(target_orientation),
+                twist=np.array(target_twist, dtype=float),
+            ),
+        ],
+        grasp=GraspSpec("servicer", "arm_tool_link", "target", "target", tolerance),
+        **{"tidal_force": False, "gravity_gradient": False, **kw},
+    )
     w.reset_bodies()
     return w
 
@@ -62,7 +79,7 @@ def test_impact_and_weld_conserve_momentum():
     w = world()
     before = total_momentum(w)
     report = w.grasp.close()
-    assert np.linalg.norm(report.relative_twist[:3]) > 0.03   # a real impact, not a touch
+    assert np.linalg.norm(report.relative_twist[:3]) > 0.03  # a real impact, not a touch
     scale = np.abs(before).max()
     assert np.abs(total_momentum(w) - before).max() < 1e-13 * scale
     assert np.abs(w.grasp.relative()["twist_ee_grasp"]).max() < 1e-12
@@ -76,12 +93,26 @@ def test_capture_with_spinning_wheels_conserves_momentum():
     """The capture models (wheels off the arm's chain, spinning at 50, -30, 20 rad/s, the arm and
     wheels torqued): momentum through the impact to 1e-13 and over 1 s welded to 1e-11 relative."""
     capture = ROOT / "models" / "capture"
-    w = OrbitalWorld([BodySpec("servicer", capture / "servicer.urdf", q={"arm_2_joint": 0.6, "arm_3_joint": 1.0},
-                               qd={"wheel_x_joint": 50.0, "wheel_y_joint": -30.0, "wheel_z_joint": 20.0}),
-                      BodySpec("target", capture / "target.urdf", position=np.array([1.9, 0.2, 1.7]),
-                               orientation=unit([0.3, -0.1, 0.2, 1.0]), twist=np.array([0.0, 0.01, 0.0, 0.02, 0.04, -0.03]))],
-                     grasp=GraspSpec("servicer", "ee", "target", "grapple", ANYWHERE), tidal_force=False,
-                     gravity_gradient=False)
+    w = OrbitalWorld(
+        [
+            BodySpec(
+                "servicer",
+                capture / "servicer.urdf",
+                q={"arm_2_joint": 0.6, "arm_3_joint": 1.0},
+                qd={"wheel_x_joint": 50.0, "wheel_y_joint": -30.0, "wheel_z_joint": 20.0},
+            ),
+            BodySpec(
+                "target",
+                capture / "target.urdf",
+                position=np.array([1.9, 0.2, 1.7]),
+                orientation=unit([0.3, -0.1, 0.2, 1.0]),
+                twist=np.array([0.0, 0.01, 0.0, 0.02, 0.04, -0.03]),
+            ),
+        ],
+        grasp=GraspSpec("servicer", "ee", "target", "grapple", ANYWHERE),
+        tidal_force=False,
+        gravity_gradient=False,
+    )
     w.reset_bodies()
     before = total_momentum(w)
     w.grasp.close()
@@ -157,9 +188,19 @@ def test_imu_reads_the_base_rate_and_non_gravitational_acceleration(environment)
     """The IMU at the servicer's base origin: rate = R^T w; specific force = R^T (a - g_tidal(p)),
     a from central differences of the base origin's velocity (O(h^2)), under joint torques and, in
     orbit, the tidal field (which the IMU must not sense). To 1e-6 of the acceleration's size."""
-    w = OrbitalWorld([BodySpec("servicer", SERVICER, q=ARM, position=np.array([3.0, -2.0, 1.0]),
-                               twist=np.array([0.0, 0.0, 0.0, 0.01, 0.02, -0.01]))],
-                     tidal_force=environment, gravity_gradient=environment)
+    w = OrbitalWorld(
+        [
+            BodySpec(
+                "servicer",
+                SERVICER,
+                q=ARM,
+                position=np.array([3.0, -2.0, 1.0]),
+                twist=np.array([0.0, 0.0, 0.0, 0.01, 0.02, -0.01]),
+            )
+        ],
+        tidal_force=environment,
+        gravity_gradient=environment,
+    )
     w.set_orbit(R_ORBIT if environment else np.zeros(3), V_ORBIT if environment else np.zeros(3))
     w.reset_bodies()
     w.set_torques("servicer", [20.0, -15.0, 10.0, 2.0, 1.0, 0.5])
@@ -179,7 +220,7 @@ def test_imu_reads_the_base_rate_and_non_gravitational_acceleration(environment)
     expected = R.T @ (a - gravity)
     assert np.allclose(imu["imu_rate"], R.T @ rate, rtol=0, atol=1e-15)
     validation.check("imu_specific_force", np.abs(imu["specific_force"] - expected).max() / np.abs(expected).max())
-    if environment:   # the tidal acceleration at 3.7 m is ~1e-5 m/s^2: it must have been taken out
+    if environment:  # the tidal acceleration at 3.7 m is ~1e-5 m/s^2: it must have been taken out
         assert np.linalg.norm(gravity) > 1e-6
 
 
@@ -191,7 +232,7 @@ def test_the_grasp_closes_only_within_every_tolerance():
     report = w.capture()
     assert report is not None and w.grasp.closed
     assert 1.2 < report.errors["position"] < 1.3
-    assert world(tolerance=Tolerance(1.3, 4.0, 0.01, 10.0)).capture() is None   # 34 mm/s relative
+    assert world(tolerance=Tolerance(1.3, 4.0, 0.01, 10.0)).capture() is None  # 34 mm/s relative
 
 
 def test_state_after_capture_continues_bit_for_bit():
@@ -215,22 +256,44 @@ def test_bad_grasps_are_refused_naming_the_key():
     with pytest.raises(ModelError, match="grasp: a capture needs integrator rk4"):
         world(integrator="dart")
     with pytest.raises(ModelError, match="grasp.grasp_frame: 'handle' is not a link of target"):
-        OrbitalWorld([BodySpec("servicer", SERVICER), BodySpec("target", TARGET)],
-                     grasp=GraspSpec("servicer", "arm_tool_link", "target", "handle", ANYWHERE))
+        OrbitalWorld(
+            [BodySpec("servicer", SERVICER), BodySpec("target", TARGET)],
+            grasp=GraspSpec("servicer", "arm_tool_link", "target", "handle", ANYWHERE),
+        )
 
 
 def test_component_capture_event_and_outputs():
     """dynamics.dart with a grasp: nothing closes while grasp.close is 0; with it set, the first
     step within tolerance closes, emits one 'capture' event with the residual twist and impulse,
     and grasp.closed turns 1 with the relative twist gone."""
-    params = {"bodies": {"servicer": {"urdf": str(SERVICER), "q": ARM},
-                         "target": {"urdf": str(TARGET), "position": [1.6, 0.3, 2.6],
-                                    "twist": [0.01, -0.02, 0.005, 0.03, -0.02, 0.04]}},
-              "tidal_force": False, "gravity_gradient": False, "imu": ["servicer"], "frame_outputs": True,
-              "grasp": {"chaser": "servicer", "end_effector": "arm_tool_link", "target": "target",
-                        "grasp_frame": "target", "tolerance": {"position": "2 m", "orientation": "180 deg",
-                                                               "linear_velocity": "1 m/s", "angular_velocity": "1 rad/s"},
-                        "force_limit": "1000 N", "torque_limit": "1000 N*m"}}
+    params = {
+        "bodies": {
+            "servicer": {"urdf": str(SERVICER), "q": ARM},
+            "target": {
+                "urdf": str(TARGET),
+                "position": [1.6, 0.3, 2.6],
+                "twist": [0.01, -0.02, 0.005, 0.03, -0.02, 0.04],
+            },
+        },
+        "tidal_force": False,
+        "gravity_gradient": False,
+        "imu": ["servicer"],
+        "frame_outputs": True,
+        "grasp": {
+            "chaser": "servicer",
+            "end_effector": "arm_tool_link",
+            "target": "target",
+            "grasp_frame": "target",
+            "tolerance": {
+                "position": "2 m",
+                "orientation": "180 deg",
+                "linear_velocity": "1 m/s",
+                "angular_velocity": "1 rad/s",
+            },
+            "force_limit": "1000 N",
+            "torque_limit": "1000 N*m",
+        },
+    }
     h = Harness("dynamics.dart", params)
     h.initialize()
     out = h.step(1_000_000)
@@ -249,14 +312,33 @@ def test_component_capture_event_and_outputs():
 
 # --------------------------------------------------------------------------- load limits
 
+
 def overload_world(action: str, force_limit: float, torque_limit: float) -> OrbitalWorld:
     """The arm welded to the target (no environment), the grasp with these load limits."""
-    w = OrbitalWorld([BodySpec("servicer", SERVICER, q=ARM),
-                      BodySpec("target", TARGET, position=np.array((1.6, 0.3, 2.6)), orientation=unit((0.1, 0.2, 0.05, 1.0)),
-                               twist=np.array((0.01, -0.02, 0.005, 0.03, -0.02, 0.04)))],
-                     grasp=GraspSpec("servicer", "arm_tool_link", "target", "target", ANYWHERE,
-                                     force_limit=force_limit, torque_limit=torque_limit, on_overload=action),
-                     tidal_force=False, gravity_gradient=False)
+    w = OrbitalWorld(
+        [
+            BodySpec("servicer", SERVICER, q=ARM),
+            BodySpec(
+                "target",
+                TARGET,
+                position=np.array((1.6, 0.3, 2.6)),
+                orientation=unit((0.1, 0.2, 0.05, 1.0)),
+                twist=np.array((0.01, -0.02, 0.005, 0.03, -0.02, 0.04)),
+            ),
+        ],
+        grasp=GraspSpec(
+            "servicer",
+            "arm_tool_link",
+            "target",
+            "target",
+            ANYWHERE,
+            force_limit=force_limit,
+            torque_limit=torque_limit,
+            on_overload=action,
+        ),
+        tidal_force=False,
+        gravity_gradient=False,
+    )
     w.reset_bodies()
     w.grasp.close()
     return w
@@ -279,7 +361,7 @@ def test_an_overloaded_weld_reports_its_peak_and_releases_or_holds(action):
     w.step(1e-3)
     mean_force = float(np.linalg.norm(w.momentum("target")[:3] - p0) / 1e-3)
     peak = w.grasp.peak.copy()
-    assert w.grasp.check_overload() is None                    # within the large limits: nothing
+    assert w.grasp.check_overload() is None  # within the large limits: nothing
     print(f"mean weld force {mean_force:.3f} N, peak over the stages {peak[0]:.3f} N, torque {peak[1]:.3f} N m")
     assert mean_force * (1 - 1e-9) <= peak[0] <= 1.01 * mean_force
     w = overload_world(action, 0.5 * mean_force, 1e6)
@@ -294,31 +376,46 @@ def test_an_overloaded_weld_reports_its_peak_and_releases_or_holds(action):
         assert not w.grasp.closed
         w.set_torques("servicer", np.zeros_like(torques))
         w.step(1e-3)
-        assert w.grasp.check_overload() is None and w.capture() is None      # disarmed: no re-close
+        assert w.grasp.check_overload() is None and w.capture() is None  # disarmed: no re-close
         w.grasp.rearm(False)
-        assert w.capture() is not None and w.grasp.closed                    # close lowered, then raised
+        assert w.capture() is not None and w.grasp.closed  # close lowered, then raised
     else:
         assert w.grasp.closed
         w.step(1e-3)
-        assert w.grasp.check_overload() is None                              # the same overload: one report
+        assert w.grasp.check_overload() is None  # the same overload: one report
         w.set_torques("servicer", np.zeros_like(torques))
         for _ in range(3):
             w.step(1e-3)
             w.grasp.check_overload()
-        assert not w.grasp.overloaded                                        # back within the limits
+        assert not w.grasp.overloaded  # back within the limits
 
 
 def test_component_grasp_overload_event_names_the_peaks_and_limits():
     """dynamics.dart: after the capture, torques on the arm beyond what the fixture carries give one
     grasp_overload event (time, peak force and torque, the limits, the action) and grasp.closed
     back to 0 (release, the default)."""
-    params = {"bodies": {"servicer": {"urdf": str(SERVICER), "q": ARM},
-                         "target": {"urdf": str(TARGET), "position": [1.6, 0.3, 2.6]}},
-              "tidal_force": False, "gravity_gradient": False,
-              "grasp": {"chaser": "servicer", "end_effector": "arm_tool_link", "target": "target",
-                        "grasp_frame": "target", "tolerance": {"position": "2 m", "orientation": "180 deg",
-                                                               "linear_velocity": "1 m/s", "angular_velocity": "1 rad/s"},
-                        "force_limit": "5 N", "torque_limit": "5 N*m"}}
+    params = {
+        "bodies": {
+            "servicer": {"urdf": str(SERVICER), "q": ARM},
+            "target": {"urdf": str(TARGET), "position": [1.6, 0.3, 2.6]},
+        },
+        "tidal_force": False,
+        "gravity_gradient": False,
+        "grasp": {
+            "chaser": "servicer",
+            "end_effector": "arm_tool_link",
+            "target": "target",
+            "grasp_frame": "target",
+            "tolerance": {
+                "position": "2 m",
+                "orientation": "180 deg",
+                "linear_velocity": "1 m/s",
+                "angular_velocity": "1 rad/s",
+            },
+            "force_limit": "5 N",
+            "torque_limit": "5 N*m",
+        },
+    }
     h = Harness("dynamics.dart", params)
     h.initialize()
     h.inputs["grasp.close"] = 1.0

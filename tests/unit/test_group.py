@@ -1,6 +1,7 @@
 """A process group's routing without the bus (components/group.py Group): outputs to a member go
 on the group's own queue, outputs to anyone else through the transport; a member that leaves is
 reached through the transport from then on; the stepping mark names the member whose code runs."""
+
 from __future__ import annotations
 
 import queue
@@ -66,11 +67,37 @@ def started_group():
     group = Group(RUN, [("src", 0), ("int", 0)], transport, inbox, marks)
     command(inbox, "src", protocol.Instantiate("test.constant", {"value": 2.0}))
     command(inbox, "int", protocol.Instantiate("test.integrator", {"gain": 0.5}))
-    command(inbox, "src", protocol.Wire(generation=0, step_ns=STEP_NS, ratio=1, k=0, consumers=["int", "outside"],
-                                       batch_consumers=[], routes=[], sources={}, faults=[]))
+    command(
+        inbox,
+        "src",
+        protocol.Wire(
+            generation=0,
+            step_ns=STEP_NS,
+            ratio=1,
+            k=0,
+            consumers=["int", "outside"],
+            batch_consumers=[],
+            routes=[],
+            sources={},
+            faults=[],
+        ),
+    )
     route = Route("src", np.array([0]), np.array([0]), 1, 0)
-    command(inbox, "int", protocol.Wire(generation=0, step_ns=STEP_NS, ratio=1, k=0, consumers=[],
-                                       batch_consumers=[], routes=[route], sources={"src": 0}, faults=[]))
+    command(
+        inbox,
+        "int",
+        protocol.Wire(
+            generation=0,
+            step_ns=STEP_NS,
+            ratio=1,
+            k=0,
+            consumers=[],
+            batch_consumers=[],
+            routes=[route],
+            sources={"src": 0},
+            faults=[],
+        ),
+    )
     for name, inputs in (("src", np.empty(0)), ("int", np.array([2.0]))):
         command(inbox, name, protocol.Initialize(0, {}, inputs))
     command(inbox, "src", protocol.Start([], 0, np.empty(0)))
@@ -82,8 +109,10 @@ def started_group():
 
 def recorded(transport: Transport, name: str) -> tuple[list[int], np.ndarray]:
     batches = [bus.decode_batch(b) for b in transport.batches.get(name, [])]
-    return ([t for b in batches for t in b[1].tolist()],
-            np.concatenate([b[3] for b in batches]) if batches else np.empty((0, 0)))
+    return (
+        [t for b in batches for t in b[1].tolist()],
+        np.concatenate([b[3] for b in batches]) if batches else np.empty((0, 0)),
+    )
 
 
 def test_outputs_to_a_member_stay_in_the_group_and_the_others_go_through_the_transport():
@@ -91,10 +120,10 @@ def test_outputs_to_a_member_stay_in_the_group_and_the_others_go_through_the_tra
     for name in ("src", "int"):
         command(inbox, name, protocol.Horizon(5))
     assert drain(group, inbox) is None
-    assert [(c, s) for c, s, _ in transport.outputs] == [("outside", "src")] * 5   # none to int
+    assert [(c, s) for c, s, _ in transport.outputs] == [("outside", "src")] * 5  # none to int
     tags, rows = recorded(transport, "int")
     assert tags == [1, 2, 3, 4, 5]
-    assert np.array_equal(rows[:, 0], 0.5 * 2.0 * np.arange(1, 6) * 1e-3)        # every step on src's y
+    assert np.array_equal(rows[:, 0], 0.5 * 2.0 * np.arange(1, 6) * 1e-3)  # every step on src's y
     # each member's code ran under its own mark (1 + its index), cleared after
     assert set(marks.written) == {0, 1, 2} and read_mark_of(marks) is None
 

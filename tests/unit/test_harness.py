@@ -1,4 +1,5 @@
 """The in-process harness and the SDK's layouts and state encoding."""
+
 import numpy as np
 import pytest
 
@@ -31,8 +32,8 @@ def test_unconnected_input_holds_its_start_value():
 
     h = Harness(StartsAt2_5, {"gain": 2.0, "x0": 1.0})
     assert h.inputs["u"] == 2.5
-    assert h.step(1_000_000_000)["x"] == 6.0      # 1 + 2 * 2.5 * 1
-    assert h.step(1_000_000_000)["x"] == 11.0     # held over the next step too
+    assert h.step(1_000_000_000)["x"] == 6.0  # 1 + 2 * 2.5 * 1
+    assert h.step(1_000_000_000)["x"] == 11.0  # held over the next step too
 
 
 def test_state_round_trip_restarts_exactly():
@@ -41,7 +42,7 @@ def test_state_round_trip_restarts_exactly():
     for _ in range(3):
         a.step(1_000_000)
     b = Harness("test.integrator", {"gain": 0.1}, t0_ns=a.t_ns)
-    b.set_state(a.get_state())                    # never initialized: a restore, as a swap or restart does
+    b.set_state(a.get_state())  # never initialized: a restore, as a swap or restart does
     b.inputs["u"] = 0.7
     assert a.step(1_000_000)["x"] == b.step(1_000_000)["x"]
 
@@ -70,12 +71,17 @@ def test_layout_packs_and_checks_sizes():
         layout.pack({"a": 1.0, "b": np.zeros(4)}, vector)
 
 
-@pytest.mark.filterwarnings("ignore:invalid value encountered in dot")   # as components.sdk's own filter
+@pytest.mark.filterwarnings("ignore:invalid value encountered in dot")  # as components.sdk's own filter
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
 def test_layout_names_the_first_variable_holding_a_non_finite_value(bad):
-    layout = Layout([Variable("a", "output", (), "1", 1.0, ""), Variable("b", "output", (3,), "m", 0.0, ""),
-                     Variable("c", "output", (2,), "m", 0.0, "")])
-    vector = np.array([1e308, -1e308, 1e308, 5e-324, 0.0, -0.0])   # finite, however large or small
+    layout = Layout(
+        [
+            Variable("a", "output", (), "1", 1.0, ""),
+            Variable("b", "output", (3,), "m", 0.0, ""),
+            Variable("c", "output", (2,), "m", 0.0, ""),
+        ]
+    )
+    vector = np.array([1e308, -1e308, 1e308, 5e-324, 0.0, -0.0])  # finite, however large or small
     assert layout.first_non_finite(vector) is None
     for index, name in ((0, "a"), (3, "b"), (5, "c")):
         broken = vector.copy()

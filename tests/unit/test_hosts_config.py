@@ -1,15 +1,16 @@
 """The bus across hosts, without running anything: the ``bus:`` section's checks, the run's
 certificates against its CA, the access control Zenoh accepts, where other hosts reach the run,
 and the join desk's answers."""
+
 import textwrap
 import types
 
 import pytest
 
 from components import bus_security
-from orchestrator.hosts.bus_config import is_loopback
-from orchestrator.config.yaml_file import ConfigErrors
 from orchestrator.config.load import load
+from orchestrator.config.yaml_file import ConfigErrors
+from orchestrator.hosts.bus_config import is_loopback
 from orchestrator.hosts.run_bus import interface_addresses, reachable_endpoints
 
 BASE = """
@@ -35,7 +36,7 @@ def errors_of(write_config, section: str) -> list[str]:
 def test_the_default_bus_stays_on_loopback_without_tls(write_config):
     spec = bus_of(write_config)
     assert spec.listen == ["tcp/127.0.0.1:0"] and not spec.tls and spec.mode == "peer" and spec.router is None
-    assert spec.lease_ns == 10 * 10 ** 9
+    assert spec.lease_ns == 10 * 10**9
     assert load(write_config(BASE)).join_timeout_s == 300.0
 
 
@@ -45,25 +46,35 @@ def test_leaving_loopback_turns_tls_on_and_tcp_endpoints_into_tls(write_config):
     assert bus_of(write_config, "bus: {router: tcp/192.0.2.9:7447, mode: client}\n").router == "tls/192.0.2.9:7447"
     # no TLS beyond loopback only when asked for in words: refused naming the way out, else a warning
     refused = errors_of(write_config, "bus: {listen: [tcp/0.0.0.0:7447], tls: false}\n")
-    assert any("bus.tls: false, and the bus leaves loopback (tcp/0.0.0.0:7447): every process would listen there "
-               "in plain TCP" in line and "bus.plaintext: accept-the-risk" in line for line in refused), refused
+    assert any(
+        "bus.tls: false, and the bus leaves loopback (tcp/0.0.0.0:7447): every process would listen there in plain TCP"
+        in line
+        and "bus.plaintext: accept-the-risk" in line
+        for line in refused
+    ), refused
     config = load(write_config(BASE + "bus: {listen: [tcp/0.0.0.0:7447], tls: false, plaintext: accept-the-risk}\n"))
     plain = config.bus
     assert not plain.tls and plain.listen == ["tcp/0.0.0.0:7447"] and plain.plaintext_beyond == ("tcp/0.0.0.0:7447",)
     assert any("bus: plain TCP beyond loopback (tcp/0.0.0.0:7447)" in note for note in config.notes), config.notes
-    assert not load(write_config(BASE + "bus: {tls: false}\n")).notes          # loopback in plain: no word
+    assert not load(write_config(BASE + "bus: {tls: false}\n")).notes  # loopback in plain: no word
     assert bus_of(write_config, "bus: {tls: true}\n").listen == ["tls/127.0.0.1:0"]
 
 
-@pytest.mark.parametrize("section, expected", [
-    ("bus: {listen: [udp/0.0.0.0:7447]}", "bus.listen[0]: udp/0.0.0.0:7447 cannot carry TLS (bus.tls is auto"),
-    ("bus: {listen: [tls/127.0.0.1:0]}", "bus.listen[0]: tls/127.0.0.1:0 is TLS, and bus.tls is auto"),
-    ("bus: {mode: client}", "bus.mode: client sends everything through a router; give bus.router"),
-    ("bus: {lease: 50 ms}", "bus.lease: expected at least 100 ms"),
-    ("bus: {tls: maybe}", "bus.tls: expected"),
-    ("bus: {tls: true, ca: {certificate: nowhere.pem, key: nowhere.key}}", "bus.ca.certificate: file 'nowhere.pem' not found"),
-    ("run: {join_timeout: soon}", "run.join_timeout"),
-])
+@pytest.mark.parametrize(
+    "section, expected",
+    [
+        ("bus: {listen: [udp/0.0.0.0:7447]}", "bus.listen[0]: udp/0.0.0.0:7447 cannot carry TLS (bus.tls is auto"),
+        ("bus: {listen: [tls/127.0.0.1:0]}", "bus.listen[0]: tls/127.0.0.1:0 is TLS, and bus.tls is auto"),
+        ("bus: {mode: client}", "bus.mode: client sends everything through a router; give bus.router"),
+        ("bus: {lease: 50 ms}", "bus.lease: expected at least 100 ms"),
+        ("bus: {tls: maybe}", "bus.tls: expected"),
+        (
+            "bus: {tls: true, ca: {certificate: nowhere.pem, key: nowhere.key}}",
+            "bus.ca.certificate: file 'nowhere.pem' not found",
+        ),
+        ("run: {join_timeout: soon}", "run.join_timeout"),
+    ],
+)
 def test_each_bus_error_names_its_key(write_config, section, expected):
     if section.startswith("run:"):
         text = BASE.replace("step: 1 ms}", "step: 1 ms, join_timeout: soon}")
@@ -89,8 +100,9 @@ def test_the_run_certificates_come_from_the_users_ca_and_name_their_holders(writ
     spec = bus_of(write_config, "bus: {tls: true, ca: {certificate: ca.pem, key: ca.key}}\n")
     made = RunCertificates(tmp_path / "run", {"component.far": bus_security.component_name("far")}, spec.ca)
     certificate = x509.load_pem_x509_certificate(made.pem("component.far")["certificate"].encode())
-    ca_key.public_key().verify(certificate.signature, certificate.tbs_certificate_bytes,
-                               ec.ECDSA(certificate.signature_hash_algorithm))
+    ca_key.public_key().verify(
+        certificate.signature, certificate.tbs_certificate_bytes, ec.ECDSA(certificate.signature_hash_algorithm)
+    )
     assert certificate.subject.rfc4514_string() == "CN=zenorbit component far"
     assert (tmp_path / "run" / "component.far.key").stat().st_mode & 0o777 == 0o600
     leaf_key, leaf = issue(ca_key, ca_certificate, "not a CA")
@@ -110,6 +122,7 @@ def test_zenoh_takes_the_access_control_as_written():
     import zenoh
 
     from components import bus
+
     acl = bus_security.access_control("spread-1", ["src", "far"])
     config = bus.session_config()
     config.insert_json5("access_control", json.dumps(acl))
@@ -141,14 +154,14 @@ def test_the_join_desk_grants_a_waited_generation_once_and_refuses_a_second_join
         desk = JoinDesk(session, "spread-1", io.StringIO())
         far = types.SimpleNamespace(name="far", generation=0, ended=False, host="", zid="")
         request = {"address": "192.0.2.2", "hostname": "flight", "pid": 42, "zid": "abc"}
-        assert desk._decide("far", request)["status"] == "refused"          # not invited yet
+        assert desk._decide("far", request)["status"] == "refused"  # not invited yet
         desk.invite(far)
         granted = desk._decide("far", request)
         assert granted == {"status": "granted", "generation": 0, "orchestrator": str(session.zid())}
         assert far.host == "host 192.0.2.2 (flight), pid 42" and far.zid == "abc"
         second = desk._decide("far", {**request, "pid": 43})
         assert second["status"] == "joined" and "a second join is refused" in second["error"]
-        far.ended = True                                                    # terminated for a restart
+        far.ended = True  # terminated for a restart
         assert desk._decide("far", request) == {"status": "wait"}
         desk.invite(types.SimpleNamespace(name="far", generation=1, ended=False, host="", zid=""))
         assert desk._decide("far", request)["generation"] == 1

@@ -1,5 +1,6 @@
 """The layers: components never import orchestrator (an exported FMU ships only components/),
 and running an FMU does not load the FMU export (pythonfmu)."""
+
 import ast
 import subprocess
 import sys
@@ -12,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def imported_modules(tree: ast.AST) -> list[str]:
     names = []
-    for node in ast.walk(tree):   # function-level imports too
+    for node in ast.walk(tree):  # function-level imports too
         if isinstance(node, ast.Import):
             names += [alias.name for alias in node.names]
         elif isinstance(node, ast.ImportFrom) and node.level == 0:
@@ -21,10 +22,12 @@ def imported_modules(tree: ast.AST) -> list[str]:
 
 
 def test_no_component_module_imports_the_orchestrator():
-    offenders = [f"{path.relative_to(ROOT)}: {name}"
-                 for path in sorted((ROOT / "components").rglob("*.py"))
-                 for name in imported_modules(ast.parse(path.read_text(), str(path)))
-                 if name == "orchestrator" or name.startswith("orchestrator.")]
+    offenders = [
+        f"{path.relative_to(ROOT)}: {name}"
+        for path in sorted((ROOT / "components").rglob("*.py"))
+        for name in imported_modules(ast.parse(path.read_text(), str(path)))
+        if name == "orchestrator" or name.startswith("orchestrator.")
+    ]
     assert not offenders, offenders
 
 
@@ -32,9 +35,11 @@ def test_no_component_module_imports_the_orchestrator():
 def test_running_an_fmu_does_not_import_pythonfmu():
     imported = ROOT / "components" / "fmi" / "imported.py"
     assert "components.fmi.exported" not in imported_modules(ast.parse(imported.read_text()))
-    code = ("import sys, components.fmi.imported, components.registry; "
-            "loaded = [m for m in sys.modules if m.split('.')[0] == 'pythonfmu' or m == 'components.fmi.exported']; "
-            "assert not loaded, loaded")
+    code = (
+        "import sys, components.fmi.imported, components.registry; "
+        "loaded = [m for m in sys.modules if m.split('.')[0] == 'pythonfmu' or m == 'components.fmi.exported']; "
+        "assert not loaded, loaded"
+    )
     done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
 
@@ -67,7 +72,7 @@ def import_graph() -> dict[str, set[str]]:
 def test_no_two_modules_import_each_other():
     graph = import_graph()
     circles = []
-    for start in graph:   # a path back to itself, found depth-first
+    for start in graph:  # a path back to itself, found depth-first
         stack, seen = [(start, (start,))], set()
         while stack:
             module, path = stack.pop()
@@ -96,28 +101,39 @@ def private_imports(source: str, filename: str = "<source>") -> list[str]:
     module keeps private, used across the module boundary (dunder names such as __version__ are public)."""
     found = []
     imports = [node for node in ast.walk(ast.parse(source, filename)) if isinstance(node, ast.ImportFrom)]
-    for node in sorted(imports, key=lambda node: node.lineno):   # function-level imports too
+    for node in sorted(imports, key=lambda node: node.lineno):  # function-level imports too
         module = node.module or ""
         if node.level == 0 and module.split(".")[0] not in ("components", "orchestrator"):
             continue
-        found += [f"{filename}:{node.lineno}: from {'.' * node.level}{module} import {alias.name}"
-                  for alias in node.names if alias.name.startswith("_") and not alias.name.startswith("__")]
+        found += [
+            f"{filename}:{node.lineno}: from {'.' * node.level}{module} import {alias.name}"
+            for alias in node.names
+            if alias.name.startswith("_") and not alias.name.startswith("__")
+        ]
     return found
 
 
 def test_no_module_imports_a_private_name_of_another():
-    offenders = [line for path in sorted(project_modules().values())
-                 for line in private_imports(path.read_text(), str(path.relative_to(ROOT)))]
-    assert not offenders, "private names imported across modules (make them public or move them):\n" + "\n".join(offenders)
+    offenders = [
+        line
+        for path in sorted(project_modules().values())
+        for line in private_imports(path.read_text(), str(path.relative_to(ROOT)))
+    ]
+    assert not offenders, "private names imported across modules (make them public or move them):\n" + "\n".join(
+        offenders
+    )
 
 
 def test_the_private_import_check_finds_one():
-    planted = ("import os\nfrom os.path import _get_sep\nfrom components.units import to_si, _unit\n"
-               "def f():\n    from orchestrator.run import _hidden\nfrom . import _sibling\nfrom components import __version__\n")
+    planted = (
+        "import os\nfrom os.path import _get_sep\nfrom components.units import to_si, _unit\n"
+        "def f():\n    from orchestrator.run import _hidden\nfrom . import _sibling\nfrom components import __version__\n"
+    )
     assert private_imports(planted, "planted.py") == [
         "planted.py:3: from components.units import _unit",
         "planted.py:5: from orchestrator.run import _hidden",
-        "planted.py:6: from . import _sibling"]
+        "planted.py:6: from . import _sibling",
+    ]
 
 
 # the component domains: each keeps to itself. What several of them use lives below them: the
@@ -139,12 +155,20 @@ def _package_imports(package: str) -> list[tuple[str, str]]:
 
 
 def test_no_component_domain_imports_another():
-    offenders = [f"{path}: components.{other}" for domain in DOMAINS
-                 for path, other in _package_imports(domain) if other in DOMAINS and other != domain]
+    offenders = [
+        f"{path}: components.{other}"
+        for domain in DOMAINS
+        for path, other in _package_imports(domain)
+        if other in DOMAINS and other != domain
+    ]
     assert not offenders, offenders
 
 
 def test_the_shared_packages_import_no_component_domain():
-    offenders = [f"{path}: components.{other}" for package in SHARED_BELOW_THE_DOMAINS
-                 for path, other in _package_imports(package) if other in DOMAINS]
+    offenders = [
+        f"{path}: components.{other}"
+        for package in SHARED_BELOW_THE_DOMAINS
+        for path, other in _package_imports(package)
+        if other in DOMAINS
+    ]
     assert not offenders, offenders

@@ -1,4 +1,5 @@
 """LVLH frame and its angular velocity (references: scipy's Rotation, finite differences)."""
+
 import math
 
 import numpy as np
@@ -6,8 +7,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from components.orbit.frames import lvlh_dcm, lvlh_state
-from components.rotations import continuous
 from components.orbit.kepler import KeplerOrbit
+from components.rotations import continuous
 
 deg = math.radians
 
@@ -72,8 +73,9 @@ def _rate_by_finite_difference(q_of_t, t, h):
     return (qp * qm.inv()).as_rotvec() / (2 * h)
 
 
-@pytest.mark.parametrize("j2,a,e", [(False, 6778e3, 0.0), (False, 26600e3, 0.7), (True, 6778e3, 0.0004),
-                                    (True, 10000e3, 0.3)])
+@pytest.mark.parametrize(
+    "j2,a,e", [(False, 6778e3, 0.0), (False, 26600e3, 0.7), (True, 6778e3, 0.0004), (True, 10000e3, 0.3)]
+)
 def test_w_lvlh_matches_finite_difference_of_q_eci_lvlh(j2, a, e):
     # Central difference of the quaternion series (h = 0.5 s, truncation O(h^2 w^3) ~ 1e-11 rad/s);
     # tolerance 1e-10 rad/s absolute. With J2 the out-of-plane (x) term is ~1e-6 rad/s, so the
@@ -90,6 +92,6 @@ def test_w_lvlh_matches_finite_difference_of_q_eci_lvlh(j2, a, e):
         assert np.linalg.norm(w - w_fd) < 1e-10, (t, w, w_fd)
         x_rate = w @ lvlh_dcm(r, v)[:, 0]
         if j2:
-            assert abs(x_rate) > 1e-8     # the out-of-plane term is exercised
+            assert abs(x_rate) > 1e-8  # the out-of-plane term is exercised
         else:
             assert abs(x_rate) < 1e-15

@@ -1,5 +1,6 @@
 """Kepler orbits against independent references: Vallado's textbook example, the closed-form
 period, scipy's DOP853 two-body and J2 integrations, and a bracketing root finder."""
+
 import math
 
 import numpy as np
@@ -8,18 +9,25 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from components.constants import EARTH_RATE, J2_EARTH, MU_EARTH, R_EARTH
-from components.orbit.kepler import (ElementError, KeplerOrbit, check_elements, coe_to_rv, j2_secular_rates,
-                                     solve_kepler, true_from_eccentric)
+from components.orbit.kepler import (
+    ElementError,
+    KeplerOrbit,
+    check_elements,
+    coe_to_rv,
+    j2_secular_rates,
+    solve_kepler,
+    true_from_eccentric,
+)
 from tests import validation
 
 deg = math.radians
 
 
 def test_constants_are_the_published_values():
-    assert MU_EARTH == 3.986004418e14                                   # WGS 84 GM
-    assert R_EARTH == 6378137.0                                         # WGS 84 a
-    assert J2_EARTH == pytest.approx(math.sqrt(5) * 4.84165371736e-4, rel=1e-8)   # EGM96 -sqrt(5) C20
-    assert EARTH_RATE == 7.292115e-5                                    # WGS 84 omega
+    assert MU_EARTH == 3.986004418e14  # WGS 84 GM
+    assert R_EARTH == 6378137.0  # WGS 84 a
+    assert pytest.approx(math.sqrt(5) * 4.84165371736e-4, rel=1e-8) == J2_EARTH  # EGM96 -sqrt(5) C20
+    assert EARTH_RATE == 7.292115e-5  # WGS 84 omega
 
 
 def test_vallado_example_2_6_coe2rv():
@@ -29,8 +37,8 @@ def test_vallado_example_2_6_coe2rv():
     # r = 6525.368 I + 6861.532 J + 6449.119 K km, v = 4.902279 I + 5.533140 J - 1.975710 K km/s.
     # The book prints 3 decimals in km and 6 in km/s: tolerance half a unit of the last digit.
     r, v = coe_to_rv(11067.790e3, 0.83285, deg(87.87), deg(227.89), deg(53.38), deg(92.335), 398600.4418e9)
-    validation.check("kepler_vallado", np.abs(r - [6525.368e3, 6861.532e3, 6449.119e3]).max())   # m
-    np.testing.assert_allclose(v, [4902.279, 5533.140, -1975.710], rtol=0, atol=0.5e-3)         # m/s
+    validation.check("kepler_vallado", np.abs(r - [6525.368e3, 6861.532e3, 6449.119e3]).max())  # m
+    np.testing.assert_allclose(v, [4902.279, 5533.140, -1975.710], rtol=0, atol=0.5e-3)  # m/s
 
 
 def test_kepler_orbit_reproduces_vallado_example_at_true_anomaly():
@@ -76,7 +84,7 @@ def test_true_from_eccentric_matches_the_half_angle_formula():
 def test_one_period_returns_to_start_without_j2(a, e):
     # Closed form: a two-body orbit is periodic with T = 2 pi sqrt(a^3/mu). Tolerance 1 mm, 1 µm/s.
     orbit = KeplerOrbit(a, e, deg(51.6), deg(30), deg(40), deg(10))
-    assert orbit.period == pytest.approx(2 * math.pi * math.sqrt(a ** 3 / MU_EARTH), rel=1e-15)
+    assert orbit.period == pytest.approx(2 * math.pi * math.sqrt(a**3 / MU_EARTH), rel=1e-15)
     r0, v0, _ = orbit.state(0.0)
     r1, v1, _ = orbit.state(orbit.period)
     assert np.linalg.norm(r1 - r0) < 1e-3
@@ -99,8 +107,9 @@ def test_kepler_matches_dop853_two_body_over_one_day(a, e, i):
     r0, v0, acc0 = orbit.state(0.0)
     np.testing.assert_allclose(acc0, -MU_EARTH * r0 / np.linalg.norm(r0) ** 3, rtol=1e-12)
     ts = np.linspace(0.0, 86400.0, 97)
-    sol = solve_ivp(_two_body, (0.0, 86400.0), np.concatenate([r0, v0]), method="DOP853",
-                    rtol=1e-12, atol=1e-6, t_eval=ts)
+    sol = solve_ivp(
+        _two_body, (0.0, 86400.0), np.concatenate([r0, v0]), method="DOP853", rtol=1e-12, atol=1e-6, t_eval=ts
+    )
     assert sol.success
     worst = 0.0
     for k, t in enumerate(ts):
@@ -118,16 +127,16 @@ def _raan(r, v):
 def _j2_accel(r):
     x, y, z = r
     rn = np.linalg.norm(r)
-    k = 1.5 * J2_EARTH * MU_EARTH * R_EARTH ** 2 / rn ** 5
-    f = 5.0 * z * z / rn ** 2
-    return -MU_EARTH * r / rn ** 3 + k * np.array([x * (f - 1.0), y * (f - 1.0), z * (f - 3.0)])
+    k = 1.5 * J2_EARTH * MU_EARTH * R_EARTH**2 / rn**5
+    f = 5.0 * z * z / rn**2
+    return -MU_EARTH * r / rn**3 + k * np.array([x * (f - 1.0), y * (f - 1.0), z * (f - 3.0)])
 
 
 def test_j2_raan_drift_of_iss_matches_closed_form_and_numerical_j2_integration():
     a, e, i = 6778e3, 0.0004, deg(51.64)
     orbit = KeplerOrbit(a, e, i, deg(10), deg(30), 0.0, j2=True)
     # closed form -3/2 n J2 (R/p)^2 cos i, evaluated independently here
-    n = math.sqrt(MU_EARTH / a ** 3)
+    n = math.sqrt(MU_EARTH / a**3)
     closed = -1.5 * n * J2_EARTH * (R_EARTH / (a * (1 - e * e))) ** 2 * math.cos(i)
     assert orbit.raan_rate == pytest.approx(closed, rel=1e-14)
     assert math.degrees(closed) * 86400 == pytest.approx(-5.0, abs=0.01)  # ISS: about -5 deg/day
@@ -142,8 +151,15 @@ def test_j2_raan_drift_of_iss_matches_closed_form_and_numerical_j2_integration()
     # state; the secular node rate must agree with first-order theory to 1 % (second-order J2 and
     # mean-vs-osculating elements; measured 4e-4)
     r0, v0, _ = orbit.state(0.0)
-    sol = solve_ivp(lambda t, y: np.concatenate([y[3:], _j2_accel(y[:3])]), (0.0, 86400.0),
-                    np.concatenate([r0, v0]), method="DOP853", rtol=1e-10, atol=1e-4, t_eval=ts)
+    sol = solve_ivp(
+        lambda t, y: np.concatenate([y[3:], _j2_accel(y[:3])]),
+        (0.0, 86400.0),
+        np.concatenate([r0, v0]),
+        method="DOP853",
+        rtol=1e-10,
+        atol=1e-4,
+        t_eval=ts,
+    )
     assert sol.success
     nodes_num = np.unwrap([_raan(sol.y[:3, k], sol.y[3:, k]) for k in range(len(ts))])
     validation.check("kepler_j2_raan", abs(np.polyfit(ts, nodes_num, 1)[0] / closed - 1))
@@ -173,17 +189,20 @@ def test_j2_velocity_and_acceleration_are_time_derivatives_of_position():
         assert np.linalg.norm(acc + MU_EARTH * r / np.linalg.norm(r) ** 3) > 1e-4
 
 
-@pytest.mark.parametrize("args,key", [
-    ((6778e3, 1.0, 0.5), "eccentricity"),
-    ((6778e3, 1.5, 0.5), "eccentricity"),
-    ((6778e3, -0.1, 0.5), "eccentricity"),
-    ((-6778e3, 0.0, 0.5), "semi_major_axis"),
-    ((0.0, 0.0, 0.5), "semi_major_axis"),
-    ((6778e3, 0.0, -0.1), "inclination"),
-    ((6778e3, 0.0, math.pi + 1e-9), "inclination"),
-    ((6778.0, 0.0, 0.5), "semi_major_axis"),          # km given as m: below the surface
-    ((7000e3, 0.2, 0.5), "semi_major_axis"),          # perigee 5600 km
-])
+@pytest.mark.parametrize(
+    "args,key",
+    [
+        ((6778e3, 1.0, 0.5), "eccentricity"),
+        ((6778e3, 1.5, 0.5), "eccentricity"),
+        ((6778e3, -0.1, 0.5), "eccentricity"),
+        ((-6778e3, 0.0, 0.5), "semi_major_axis"),
+        ((0.0, 0.0, 0.5), "semi_major_axis"),
+        ((6778e3, 0.0, -0.1), "inclination"),
+        ((6778e3, 0.0, math.pi + 1e-9), "inclination"),
+        ((6778.0, 0.0, 0.5), "semi_major_axis"),  # km given as m: below the surface
+        ((7000e3, 0.2, 0.5), "semi_major_axis"),  # perigee 5600 km
+    ],
+)
 def test_bad_elements_name_the_element(args, key):
     with pytest.raises(ElementError) as info:
         check_elements(*args)

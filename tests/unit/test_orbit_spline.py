@@ -1,4 +1,5 @@
 """Quintic Hermite spline: interpolation, C2 continuity, and agreement with scipy's BPoly."""
+
 import numpy as np
 import pytest
 from scipy.interpolate import BPoly
@@ -17,7 +18,7 @@ def test_passes_through_every_waypoint_position_velocity_acceleration():
     t, p, v, a = _waypoints()
     s = QuinticHermiteSpline(t, p, v, a)
     for k in range(len(t)):
-        for seg in {max(k - 1, 0), min(k, len(t) - 2)}:        # from both neighbouring segments
+        for seg in {max(k - 1, 0), min(k, len(t) - 2)}:  # from both neighbouring segments
             pk, vk, ak = s.evaluate(t[k], segment=seg)
             np.testing.assert_allclose(pk, p[k], rtol=0, atol=1e-12 * 7e6 * 10)
             np.testing.assert_allclose(vk, v[k], rtol=0, atol=1e-12 * 7e3 * 10)
@@ -59,11 +60,22 @@ def test_matches_scipy_bpoly_from_derivatives():
 
 def test_reproduces_a_quintic_exactly():
     # Waypoints sampled from one quintic polynomial: the spline must be that polynomial everywhere
-    coef = np.array([[1.0, -2.0, 0.5], [3.0, 1.0, -1.0], [0.2, 0.0, 0.1],
-                     [-0.03, 0.01, 0.02], [0.002, -0.001, 0.0], [-1e-4, 2e-5, 3e-5]])
+    coef = np.array(
+        [
+            [1.0, -2.0, 0.5],
+            [3.0, 1.0, -1.0],
+            [0.2, 0.0, 0.1],
+            [-0.03, 0.01, 0.02],
+            [0.002, -0.001, 0.0],
+            [-1e-4, 2e-5, 3e-5],
+        ]
+    )
     poly = [np.polynomial.Polynomial(coef[:, j]) for j in range(3)]
     t = np.array([0.0, 1.5, 4.0, 7.0, 10.0])
-    value = lambda x, m: np.array([pj.deriv(m)(x) if m else pj(x) for pj in poly])
+
+    def value(x, m):
+        return np.array([pj.deriv(m)(x) if m else pj(x) for pj in poly])
+
     s = QuinticHermiteSpline(t, [value(x, 0) for x in t], [value(x, 1) for x in t], [value(x, 2) for x in t])
     for x in np.linspace(0, 10, 41):
         pos, vel, acc = s.evaluate(x)
@@ -79,11 +91,14 @@ def test_outside_span_is_an_error():
         s.evaluate(t[-1] + 1e-3)
 
 
-@pytest.mark.parametrize("times,match,index", [
-    ([0.0], "at least 2 waypoints, got 1", None),
-    ([0.0, 2.0, 1.0], r"strictly increasing times, got t\[1\] = 2.0 s then t\[2\] = 1.0 s", 2),
-    ([0.0, 1.0, 1.0], r"strictly increasing times, got t\[1\] = 1.0 s then t\[2\] = 1.0 s", 2),
-])
+@pytest.mark.parametrize(
+    "times,match,index",
+    [
+        ([0.0], "at least 2 waypoints, got 1", None),
+        ([0.0, 2.0, 1.0], r"strictly increasing times, got t\[1\] = 2.0 s then t\[2\] = 1.0 s", 2),
+        ([0.0, 1.0, 1.0], r"strictly increasing times, got t\[1\] = 1.0 s then t\[2\] = 1.0 s", 2),
+    ],
+)
 def test_bad_waypoints(times, match, index):
     n = len(times)
     with pytest.raises(SplineError, match=match) as info:

@@ -1,5 +1,6 @@
 """SGP4 adapter against the verification vectors shipped with the sgp4 package, the TEME->GCRF
 rotation against an independent ERFA path and Vallado's worked example, and TLE format checks."""
+
 import math
 import os
 
@@ -9,13 +10,21 @@ import pytest
 import sgp4
 
 from components import timescales
-from components.orbit.tle import (SGP4Propagator, TLEFormatError, check_tle, read_tle_file, teme_to_gcrf_matrix,
-                                  tle_checksum)
+from components.orbit.tle import (
+    SGP4Propagator,
+    TLEFormatError,
+    check_tle,
+    read_tle_file,
+    teme_to_gcrf_matrix,
+    tle_checksum,
+)
 from tests import validation
 
 SGP4_DIR = os.path.dirname(sgp4.__file__)
-ISS = ("1 25544U 98067A   22261.04293564  .00008098  00000-0  14900-3 0  9998",   # ISS, 2022-09-18
-       "2 25544  51.6433 236.5547 0002449 262.4353 208.9254 15.50138447359588")
+ISS = (
+    "1 25544U 98067A   22261.04293564  .00008098  00000-0  14900-3 0  9998",  # ISS, 2022-09-18
+    "2 25544  51.6433 236.5547 0002449 262.4353 208.9254 15.50138447359588",
+)
 
 
 def _with_fixed_checksum(line):
@@ -37,7 +46,7 @@ def _verification_cases():
     assert len(tle_lines) == 2 * len(blocks) == 66
     for line1, line2, rows in zip(tle_lines[::2], tle_lines[1::2], blocks):
         start, stop, step = (float(x) for x in line2[69:].split())
-        times, t = [0.0], start                     # the schedule the verification program prints
+        times, t = [0.0], start  # the schedule the verification program prints
         while t <= stop:
             if not t == start == 0.0:
                 times.append(t)
@@ -59,8 +68,8 @@ def test_teme_output_matches_sgp4_verification_vectors():
         try:
             prop = SGP4Propagator(_with_fixed_checksum(line1), _with_fixed_checksum(line2))
             jd1, jd2 = prop.epoch_utc
-            at = lambda minutes: prop.teme((jd1, jd2 + minutes / 1440.0))        # noqa: E731
-        except RuntimeError as e:          # fails at its epoch: the reference has one junk line
+            at = lambda minutes: prop.teme((jd1, jd2 + minutes / 1440.0))  # noqa: E731
+        except RuntimeError as e:  # fails at its epoch: the reference has one junk line
             errors.append(int(str(e).split()[2]))
             assert len(rows) == 1
             continue
@@ -75,6 +84,7 @@ def test_teme_output_matches_sgp4_verification_vectors():
                 at(times[len(rows)])
             code = int(str(info.value).split()[2])
             from sgp4.api import SGP4_ERRORS
+
             assert SGP4_ERRORS[code] in str(info.value)
             errors.append(code)
     assert errors == [1, 1, 6, 6, 4, 3, 6]
@@ -89,8 +99,9 @@ def _independent_cio_path(tt, ut1):
     return erfa.c2t06a(*tt, *ut1, 0.0, 0.0).T @ pef_from_teme
 
 
-@pytest.mark.parametrize("when", ["1990-01-01T00:00:00Z", "2004-04-06T07:51:28.386009Z",
-                                  "2022-09-18T12:00:00Z", "2040-06-30T18:00:00Z"])
+@pytest.mark.parametrize(
+    "when", ["1990-01-01T00:00:00Z", "2004-04-06T07:51:28.386009Z", "2022-09-18T12:00:00Z", "2040-06-30T18:00:00Z"]
+)
 def test_teme_to_gcrf_is_a_proper_rotation_agreeing_with_cio_path(when):
     # Proper rotation to 1e-14; agreement with the CIO-based path to 1e-9 rad (measured ~1e-11)
     utc = timescales.parse_utc(when)
@@ -114,7 +125,7 @@ def test_teme_to_gcrf_reproduces_vallado_example_3_15():
     # Tolerance 1 cm and 10 µm/s for the model difference (measured 4 mm, 2 µm/s).
     utc = timescales.parse_utc("2004-04-06T07:51:28.386009Z")
     tt = timescales.utc_to_tt(utc)
-    assert sum(tt) == pytest.approx(2453101.828154745, abs=1e-9)   # Vallado's JD_TT
+    assert sum(tt) == pytest.approx(2453101.828154745, abs=1e-9)  # Vallado's JD_TT
     ut1 = (utc[0], utc[1] - 0.4399619 / 86400.0)
     c = teme_to_gcrf_matrix(tt, ut1)
     r = c @ np.array([5094.18016210, 6127.64465950, 6380.34453270]) * 1e3
@@ -139,24 +150,34 @@ def test_decayed_satellite_raises_runtime_error_with_sgp4_text():
 
 # ---- format checks: each names the line and column ----
 
+
 def _replace(line, column, text):
-    line = line[:column - 1] + text + line[column - 1 + len(text):]
+    line = line[: column - 1] + text + line[column - 1 + len(text) :]
     return line[:68] + str(tle_checksum(line))
 
 
-@pytest.mark.parametrize("lines,match", [
-    ((ISS[0][:68] + "4", ISS[1]), r"line 1, column 69: checksum: expected 8 \(from columns 1-68\), got 4"),
-    ((ISS[0], ISS[1][:68] + "0"), r"line 2, column 69: checksum: expected 8 \(from columns 1-68\), got 0"),
-    ((ISS[0][:60], ISS[1]), r"line 1: expected 69 characters, got 60"),
-    ((ISS[1], ISS[0]), r"line 1, column 1: line number: expected '1', got '2'"),
-    ((_replace(ISS[0], 33, "x"), ISS[1]), r"line 1, column 33: separator: expected a blank, got 'x'"),
-    ((ISS[0], _replace(ISS[1], 27, "0.00067")), r"line 2, columns 27-33: eccentricity: expected 7 digits"),
-    ((ISS[0], _replace(ISS[1], 9, "51,6416")), r"line 2, columns 9-16: inclination \(deg\): expected DDD.DDDD"),
-    ((ISS[0], _replace(ISS[1], 9, "190.0000")), r"line 2, columns 9-16: inclination: expected 0 to 180 deg, got 190"),
-    ((ISS[0], _replace(ISS[1], 3, "25545")), r"line 2, columns 3-7: satellite number: expected '25544' as on line 1"),
-    ((ISS[0], _replace(ISS[1], 53, " 0.00000000")), r"line 2, columns 53-63: mean motion: expected > 0"),
-    ((_replace(ISS[0], 54, " 30057+X"), ISS[1]), r"line 1, columns 54-61: BSTAR drag term"),
-])
+@pytest.mark.parametrize(
+    "lines,match",
+    [
+        ((ISS[0][:68] + "4", ISS[1]), r"line 1, column 69: checksum: expected 8 \(from columns 1-68\), got 4"),
+        ((ISS[0], ISS[1][:68] + "0"), r"line 2, column 69: checksum: expected 8 \(from columns 1-68\), got 0"),
+        ((ISS[0][:60], ISS[1]), r"line 1: expected 69 characters, got 60"),
+        ((ISS[1], ISS[0]), r"line 1, column 1: line number: expected '1', got '2'"),
+        ((_replace(ISS[0], 33, "x"), ISS[1]), r"line 1, column 33: separator: expected a blank, got 'x'"),
+        ((ISS[0], _replace(ISS[1], 27, "0.00067")), r"line 2, columns 27-33: eccentricity: expected 7 digits"),
+        ((ISS[0], _replace(ISS[1], 9, "51,6416")), r"line 2, columns 9-16: inclination \(deg\): expected DDD.DDDD"),
+        (
+            (ISS[0], _replace(ISS[1], 9, "190.0000")),
+            r"line 2, columns 9-16: inclination: expected 0 to 180 deg, got 190",
+        ),
+        (
+            (ISS[0], _replace(ISS[1], 3, "25545")),
+            r"line 2, columns 3-7: satellite number: expected '25544' as on line 1",
+        ),
+        ((ISS[0], _replace(ISS[1], 53, " 0.00000000")), r"line 2, columns 53-63: mean motion: expected > 0"),
+        ((_replace(ISS[0], 54, " 30057+X"), ISS[1]), r"line 1, columns 54-61: BSTAR drag term"),
+    ],
+)
 def test_malformed_tle_names_line_and_column(lines, match):
     with pytest.raises(TLEFormatError, match=match) as info:
         check_tle(*lines)

@@ -1,5 +1,6 @@
 """The run's outcome (orchestrator/run/outcome.py): declared as data on a component type, derived
 from that component's own events, checked against what --expect names."""
+
 from __future__ import annotations
 
 import pytest
@@ -21,8 +22,11 @@ def test_with_no_deciding_event_the_capture_is_undecided_by_the_end():
 
 
 def test_the_capture_is_captured_at_the_controllers_event_time():
-    events = [ev("capture_approach", time=0.7), ev("capture", component="dynamics", time=3.74),
-              ev("capture_closed", time=3.74, attempt=1)]
+    events = [
+        ev("capture_approach", time=0.7),
+        ev("capture", component="dynamics", time=3.74),
+        ev("capture_closed", time=3.74, attempt=1),
+    ]
     assert outcome.derive(CAPTURE, events, 12.0) == ("captured", "captured at 3.74 s")
 
 
@@ -40,8 +44,10 @@ def test_the_last_deciding_event_wins_a_grasp_lost_after_capture_is_undecided_ag
 
 def test_events_of_another_component_decide_nothing():
     """A shadow of the controller (another name) or the dynamics' own 'capture' does not decide."""
-    events = [ev("capture_aborted", component="controller_shadow", time=1.0, reason="x"),
-              ev("capture_closed", component="other", time=2.0)]
+    events = [
+        ev("capture_aborted", component="controller_shadow", time=1.0, reason="x"),
+        ev("capture_closed", component="other", time=2.0),
+    ]
     assert outcome.derive(CAPTURE, events, 5.0)[0] == "undecided"
 
 
@@ -69,19 +75,24 @@ class _Plain(Component):
 
 
 def test_the_first_declaring_component_not_a_shadow_gives_the_outcomes():
-    specs = {"orbit": _Spec("test.plain", _Plain), "shadow": _Spec("controller.capture", CaptureComponent, "controller"),
-             "controller": _Spec("controller.capture", CaptureComponent)}
+    specs = {
+        "orbit": _Spec("test.plain", _Plain),
+        "shadow": _Spec("controller.capture", CaptureComponent, "controller"),
+        "controller": _Spec("controller.capture", CaptureComponent),
+    }
     found = outcome.declared(specs)
     assert found.component == "controller" and found.names == ["undecided", "captured", "aborted"]
     assert outcome.expect_problem(specs, "captured") is None
-    assert outcome.expect_problem(specs, "capturd") == ("'capturd' is not an outcome of controller (controller.capture);"
-                                                        " its outcomes: undecided, captured, aborted")
+    assert outcome.expect_problem(specs, "capturd") == (
+        "'capturd' is not an outcome of controller (controller.capture); its outcomes: undecided, captured, aborted"
+    )
     assert "no component of this run declares outcomes" in outcome.expect_problem({"orbit": specs["orbit"]}, "captured")
 
 
 def test_a_type_whose_outcomes_share_an_event_is_refused():
     with pytest.raises(TypeError, match="an event deciding one outcome at most"):
-        class Twice(Component):   # noqa: F841
+
+        class Twice(Component):
             type_name = "test.twice"
             variables = ()
             outcomes = (Outcome("a", "a"), Outcome("b", "b", ("e",)), Outcome("c", "c", ("e",)))
@@ -97,5 +108,8 @@ def test_run_expect_is_checked_against_the_declared_outcomes(tmp_path):
     assert load(config, ["run.expect=aborted"]).expect == "aborted"
     with pytest.raises(ConfigErrors) as error:
         load(config, ["run.expect=detumbled"])
-    assert any("run.expect: 'detumbled' is not an outcome of controller (controller.capture); its outcomes: "
-               "undecided, captured, aborted" in line for line in error.value.errors), error.value.errors
+    assert any(
+        "run.expect: 'detumbled' is not an outcome of controller (controller.capture); its outcomes: "
+        "undecided, captured, aborted" in line
+        for line in error.value.errors
+    ), error.value.errors

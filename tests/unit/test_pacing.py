@@ -1,4 +1,5 @@
 """The step horizon (orchestrator/run/pacing.py): how far ahead, in which chunks, how fast in real time."""
+
 from __future__ import annotations
 
 import pytest
@@ -12,12 +13,12 @@ def test_as_fast_as_possible_the_horizon_goes_a_window_ahead_in_half_window_chun
     assert WINDOW == 256
     # (row, horizon, limit) -> the new horizon; the loop looks again within 0.2 s in any case
     assert grant(0, 0, 15_000, 0, MS, 0.0) == (256, 0.2)
-    assert grant(100, 256, 15_000, 0, MS, 0.0) == (None, 0.2)      # 100 more: less than a chunk
-    assert grant(128, 256, 15_000, 0, MS, 0.0) == (384, 0.2)       # a whole chunk
-    assert grant(256, 100, 15_000, 0, MS, 0.0) == (512, 0.2)       # row and horizon are not interchangeable
-    assert grant(900, 1000, 1010, 0, MS, 0.0) == (1010, 0.2)       # the limit is granted even in a small piece
-    assert grant(900, 1000, 950, 0, MS, 0.0) == (None, 0.2)        # never taken back
-    assert grant(1000, 1000, 1000, 0, MS, 0.0) == (None, 0.2)      # held at a boundary (event, swap, checkpoint)
+    assert grant(100, 256, 15_000, 0, MS, 0.0) == (None, 0.2)  # 100 more: less than a chunk
+    assert grant(128, 256, 15_000, 0, MS, 0.0) == (384, 0.2)  # a whole chunk
+    assert grant(256, 100, 15_000, 0, MS, 0.0) == (512, 0.2)  # row and horizon are not interchangeable
+    assert grant(900, 1000, 1010, 0, MS, 0.0) == (1010, 0.2)  # the limit is granted even in a small piece
+    assert grant(900, 1000, 950, 0, MS, 0.0) == (None, 0.2)  # never taken back
+    assert grant(1000, 1000, 1000, 0, MS, 0.0) == (None, 0.2)  # held at a boundary (event, swap, checkpoint)
 
 
 def test_realtime_lets_step_k_start_once_k_steps_of_wall_time_have_passed():
@@ -41,5 +42,5 @@ def test_realtime_lets_step_k_start_once_k_steps_of_wall_time_have_passed():
 
 
 def test_realtime_wakes_at_least_every_half_millisecond_and_at_most_every_0_2_s():
-    assert grant(0, 0, 15_000, 1.0, MS, 0.00499)[1] == 0.0005        # the chunk is due now: not a busy loop
-    assert grant(0, 0, 15_000, 0.001, MS, 0.0)[1] == 0.2             # 1 s steps, chunks of one: 1 s away
+    assert grant(0, 0, 15_000, 1.0, MS, 0.00499)[1] == 0.0005  # the chunk is due now: not a busy loop
+    assert grant(0, 0, 15_000, 0.001, MS, 0.0)[1] == 0.2  # 1 s steps, chunks of one: 1 s away

@@ -1,6 +1,7 @@
 """The recording's durability (orchestrator/run/recording.py, issue 34): rows reach the disk at least
 every run.record_flush of wall time, a full disk keeps every row written before it and leaves
 no partial file, and the parts a run ends with do not depend on when the flushes came."""
+
 from __future__ import annotations
 
 import os
@@ -29,7 +30,10 @@ def test_rows_are_on_disk_before_their_chunk_is_complete_and_the_end_is_the_same
     closed (a kill here), the dataset reads 7 rows, the values bit for bit; rewinding to step 3
     leaves 4 on disk. Closed, its part files are byte for byte those of a table that never flushed
     early (flush_s = 1 h): the final layout is by row count alone."""
-    eager, lazy = Table(tmp_path / "eager", COLUMNS, 5, flush_s=0.0), Table(tmp_path / "lazy", COLUMNS, 5, flush_s=3600.0)
+    eager, lazy = (
+        Table(tmp_path / "eager", COLUMNS, 5, flush_s=0.0),
+        Table(tmp_path / "lazy", COLUMNS, 5, flush_s=3600.0),
+    )
     for k in range(7):
         eager.append(k, k * 0.01, rows(k))
         lazy.append(k, k * 0.01, rows(k))
@@ -46,7 +50,9 @@ def test_rows_are_on_disk_before_their_chunk_is_complete_and_the_end_is_the_same
     eager.close()
     lazy.close()
     parts = sorted(p.name for p in (tmp_path / "eager").iterdir())
-    assert parts == sorted(p.name for p in (tmp_path / "lazy").iterdir()) == [f"part-00000{i}.parquet" for i in range(3)]
+    assert (
+        parts == sorted(p.name for p in (tmp_path / "lazy").iterdir()) == [f"part-00000{i}.parquet" for i in range(3)]
+    )
     assert all((tmp_path / "eager" / p).read_bytes() == (tmp_path / "lazy" / p).read_bytes() for p in parts)
 
 
@@ -55,9 +61,13 @@ def tiny_disk(tmp_path):
     """A 256 KiB tmpfs (a real ENOSPC); skipped where mounting is not allowed."""
     mount = tmp_path / "tiny"
     mount.mkdir()
-    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(mount)], capture_output=True, text=True)
+    done = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(mount)], capture_output=True, text=True
+    )
     if done.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here ({done.stderr.strip() or done.returncode}): the full-disk test needs root")
+        pytest.skip(
+            f"cannot mount a tmpfs here ({done.stderr.strip() or done.returncode}): the full-disk test needs root"
+        )
     try:
         yield mount
     finally:
@@ -76,8 +86,10 @@ def test_a_full_disk_keeps_every_row_flushed_and_says_how_many(tiny_disk):
     message = str(caught.value)
     kept = table.rows_kept
     print(message)
-    assert message.startswith(f"cannot write {tiny_disk / 'signals.parquet'}: No space left on device; the recording "
-                              f"keeps {kept} rows, to step {kept - 1}")
+    assert message.startswith(
+        f"cannot write {tiny_disk / 'signals.parquet'}: No space left on device; the recording "
+        f"keeps {kept} rows, to step {kept - 1}"
+    )
     assert 0 < kept < 1000
     on_disk = read(tiny_disk / "signals.parquet")
     assert list(on_disk["step"]) == list(range(kept))
@@ -88,8 +100,8 @@ def test_a_full_disk_keeps_every_row_flushed_and_says_how_many(tiny_disk):
 def test_plot_and_view_of_a_recording_with_no_rows_say_so(tmp_path):
     """A recording whose run wrote no row (its table closed empty, as a disk full at once leaves
     it): plot and view both say the recording holds no rows, not a missing column."""
-    from components.viewer.replay import ReplayError, replay
     from components.plotting import PlotError
+    from components.viewer.replay import ReplayError, replay
     from orchestrator.plots.recording import figures
 
     record = tmp_path / "rec"

@@ -14,6 +14,7 @@ References (not our code, not rosbags):
   zenoh-python's own serializer ``zenoh.ext.z_serialize``: the attachment rmw_zenoh writes with
   zenoh-cpp's ``ext::Serializer`` (attachment_helpers.cpp).
 """
+
 from __future__ import annotations
 
 import pytest
@@ -55,16 +56,22 @@ def test_type_hash_equals_the_published_value(msgtype):
 
 
 def test_the_run_publishes_only_types_with_a_pinned_hash():
-    import components.ros_topics  # noqa: F401  (the types the builders use are the ones above)
-    from pathlib import Path
     import re
+    from pathlib import Path
+
+    import components.ros_topics  # noqa: F401  (the types the builders use are the ones above)
+
     root = Path(rz.__file__).parents[1]
     used = set()
     for path in root.rglob("*.py"):
-        used |= {m for m in re.findall(r'"([a-z0-9_]+_msgs/msg/[A-Za-z0-9]+)"', path.read_text())
-                 if not m.startswith(("std_msgs/msg/Header", "std_msgs/msg/MultiArray"))}
-    nested = {"geometry_msgs/msg/" + n for n in ("Point", "Pose", "Quaternion", "Transform", "Twist", "Vector3",
-                                                 "Wrench")}
+        used |= {
+            m
+            for m in re.findall(r'"([a-z0-9_]+_msgs/msg/[A-Za-z0-9]+)"', path.read_text())
+            if not m.startswith(("std_msgs/msg/Header", "std_msgs/msg/MultiArray"))
+        }
+    nested = {
+        "geometry_msgs/msg/" + n for n in ("Point", "Pose", "Quaternion", "Transform", "Twist", "Vector3", "Wrench")
+    }
     assert used - nested <= set(PUBLISHED_HASHES), used - nested - set(PUBLISHED_HASHES)
 
 
@@ -72,28 +79,57 @@ def test_dds_type_names_and_keys_from_the_design_document():
     assert rz.dds_type_name("std_msgs/msg/String") == "std_msgs::msg::dds_::String_"
     assert rz.dds_type_name("example_interfaces/srv/AddTwoInts") == "example_interfaces::srv::dds_::AddTwoInts_"
     hash_ = "RIHS01_" + PUBLISHED_HASHES["std_msgs/msg/String"]
-    assert rz.topic_key(0, "/chatter", "std_msgs/msg/String", TYPESTORE) == \
-        f"0/chatter/std_msgs::msg::dds_::String_/{hash_}"
-    assert rz.topic_key(0, "/robot1/chatter", "std_msgs/msg/String", TYPESTORE) == \
-        f"0/robot1/chatter/std_msgs::msg::dds_::String_/{hash_}"
+    assert (
+        rz.topic_key(0, "/chatter", "std_msgs/msg/String", TYPESTORE)
+        == f"0/chatter/std_msgs::msg::dds_::String_/{hash_}"
+    )
+    assert (
+        rz.topic_key(0, "/robot1/chatter", "std_msgs/msg/String", TYPESTORE)
+        == f"0/robot1/chatter/std_msgs::msg::dds_::String_/{hash_}"
+    )
     assert rz.topic_key(7, "/tf_static", "tf2_msgs/msg/TFMessage", TYPESTORE).startswith(
-        "7/tf_static/tf2_msgs::msg::dds_::TFMessage_/RIHS01_e369d0f0")
+        "7/tf_static/tf2_msgs::msg::dds_::TFMessage_/RIHS01_e369d0f0"
+    )
     with pytest.raises(ValueError):
         rz.dds_type_name("String")
 
 
 def test_tokens_from_the_design_document():
     hash_ = "RIHS01_" + PUBLISHED_HASHES["std_msgs/msg/String"]
-    assert rz.token_key(2, "aac3178e146ba6f1fc6e6a4085e77f21", 0, 0, rz.NODE, "/", "/", "listener") == \
-        "@ros2_lv/2/aac3178e146ba6f1fc6e6a4085e77f21/0/0/NN/%/%/listener"
+    assert (
+        rz.token_key(2, "aac3178e146ba6f1fc6e6a4085e77f21", 0, 0, rz.NODE, "/", "/", "listener")
+        == "@ros2_lv/2/aac3178e146ba6f1fc6e6a4085e77f21/0/0/NN/%/%/listener"
+    )
     # rclcpp's default subscription: KEEP_LAST 10, RELIABLE, VOLATILE
-    assert rz.token_key(2, "aac3178e146ba6f1fc6e6a4085e77f21", 0, 10, rz.SUBSCRIPTION, "/", "/", "listener",
-                        ("/chatter", "std_msgs::msg::dds_::String_", hash_, rz.qos_keyexpr(depth=10))) == \
-        f"@ros2_lv/2/aac3178e146ba6f1fc6e6a4085e77f21/0/10/MS/%/%/listener/%chatter/std_msgs::msg::dds_::String_/{hash_}/::,10:,:,:,,"
+    assert (
+        rz.token_key(
+            2,
+            "aac3178e146ba6f1fc6e6a4085e77f21",
+            0,
+            10,
+            rz.SUBSCRIPTION,
+            "/",
+            "/",
+            "listener",
+            ("/chatter", "std_msgs::msg::dds_::String_", hash_, rz.qos_keyexpr(depth=10)),
+        )
+        == f"@ros2_lv/2/aac3178e146ba6f1fc6e6a4085e77f21/0/10/MS/%/%/listener/%chatter/std_msgs::msg::dds_::String_/{hash_}/::,10:,:,:,,"
+    )
     # the talker's publisher has depth 7
-    assert rz.token_key(2, "8b20917502ee955ac4476e0266340d5c", 0, 10, rz.PUBLISHER, "/", "/", "talker",
-                        ("/chatter", "std_msgs::msg::dds_::String_", hash_, rz.qos_keyexpr(depth=7))) == \
-        f"@ros2_lv/2/8b20917502ee955ac4476e0266340d5c/0/10/MP/%/%/talker/%chatter/std_msgs::msg::dds_::String_/{hash_}/::,7:,:,:,,"
+    assert (
+        rz.token_key(
+            2,
+            "8b20917502ee955ac4476e0266340d5c",
+            0,
+            10,
+            rz.PUBLISHER,
+            "/",
+            "/",
+            "talker",
+            ("/chatter", "std_msgs::msg::dds_::String_", hash_, rz.qos_keyexpr(depth=7)),
+        )
+        == f"@ros2_lv/2/8b20917502ee955ac4476e0266340d5c/0/10/MP/%/%/talker/%chatter/std_msgs::msg::dds_::String_/{hash_}/::,7:,:,:,,"
+    )
 
 
 def test_qos_strings_write_only_what_differs_from_rmw_zenohs_defaults():
@@ -122,15 +158,26 @@ def test_attachment_is_zenohs_serialization_of_seq_timestamp_gid():
 def test_gid_is_xxh3_128_of_the_token_low_half_first():
     token = "@ros2_lv/0/aac3178e146ba6f1fc6e6a4085e77f21/0/0/NN/%/%/listener"
     digest = xxhash.xxh3_128(token.encode())
-    high, low = digest.digest()[:8], digest.digest()[8:]   # xxhash's digest() is big endian, high half first
+    high, low = digest.digest()[:8], digest.digest()[8:]  # xxhash's digest() is big endian, high half first
     assert rz.gid_of(token) == low[::-1] + high[::-1]
 
 
-@pytest.mark.parametrize("name, problem", [
-    ("/clock", None), ("/servicer/joint_states", None), ("/a_1/b2", None),
-    ("", "empty"), ("clock", "absolute"), ("/clock/", "ends with"), ("/joint-states", "'-'"),
-    ("/a//b", "'//'"), ("/robot/1arm", "digit"), ("/" + "a" * 247, "248 characters"), ("/a b", "' '"),
-])
+@pytest.mark.parametrize(
+    "name, problem",
+    [
+        ("/clock", None),
+        ("/servicer/joint_states", None),
+        ("/a_1/b2", None),
+        ("", "empty"),
+        ("clock", "absolute"),
+        ("/clock/", "ends with"),
+        ("/joint-states", "'-'"),
+        ("/a//b", "'//'"),
+        ("/robot/1arm", "digit"),
+        ("/" + "a" * 247, "248 characters"),
+        ("/a b", "' '"),
+    ],
+)
 def test_topic_names_by_rmw_rules(name, problem):
     result = rz.check_topic_name(name)
     if problem is None:
@@ -142,6 +189,7 @@ def test_topic_names_by_rmw_rules(name, problem):
 def test_a_node_declares_its_tokens_and_undeclares_them(tmp_path):
     """A node on a real Zenoh session: the tokens a graph cache sees, with GIDs from the tokens."""
     import zenoh
+
     from components import bus
 
     session = bus.open_session()
@@ -156,8 +204,10 @@ def test_a_node_declares_its_tokens_and_undeclares_them(tmp_path):
         keys = sorted(str(r.ok.key_expr) for r in replies)
         clock_hash = "RIHS01_" + PUBLISHED_HASHES["rosgraph_msgs/msg/Clock"]
         assert node.token_key in keys
-        assert pub.token_key == (f"@ros2_lv/3/{zid}/{node.id}/{node.id + 1}/MP/%/%sim/zenorbit/%sim%clock/"
-                                 f"rosgraph_msgs::msg::dds_::Clock_/{clock_hash}/::,10:,:,:,,")
+        assert pub.token_key == (
+            f"@ros2_lv/3/{zid}/{node.id}/{node.id + 1}/MP/%/%sim/zenorbit/%sim%clock/"
+            f"rosgraph_msgs::msg::dds_::Clock_/{clock_hash}/::,10:,:,:,,"
+        )
         assert pub.key == f"3/sim/clock/rosgraph_msgs::msg::dds_::Clock_/{clock_hash}"
         assert latched.token_key.endswith("/:1:,1:,:,:,,") and "/MP/" in latched.token_key
         assert "/MS/" in sub.token_key
@@ -203,7 +253,7 @@ def test_a_subscriber_gets_the_payload_and_attachment_and_a_latched_one_the_cach
     publisher = talker.publisher("/chatter", "std_msgs/msg/String", TYPESTORE)
     static = talker.publisher("/latched", "std_msgs/msg/String", TYPESTORE, latched=True)
     static.put(TYPESTORE.serialize_cdr(String(data="kept"), "std_msgs/msg/String"), 5)
-    for i in range(1, 201):   # until the subscription's declaration has reached the publisher
+    for i in range(1, 201):  # until the subscription's declaration has reached the publisher
         publisher.put(TYPESTORE.serialize_cdr(String(data=f"hello {i}"), "std_msgs/msg/String"), 1000 + i)
         try:
             data, (sequence, timestamp, gid) = got.get(timeout=0.05)
@@ -213,8 +263,9 @@ def test_a_subscriber_gets_the_payload_and_attachment_and_a_latched_one_the_cach
     assert TYPESTORE.deserialize_cdr(data, "std_msgs/msg/String").data == f"hello {sequence}"
     assert timestamp == 1000 + sequence and gid == publisher.gid
     late: queue.Queue = queue.Queue()
-    listener.subscriber("/latched", "std_msgs/msg/String", TYPESTORE, lambda data, info: late.put((data, info)),
-                        latched=True)
+    listener.subscriber(
+        "/latched", "std_msgs/msg/String", TYPESTORE, lambda data, info: late.put((data, info)), latched=True
+    )
     data, (sequence, timestamp, gid) = late.get(timeout=10)
     assert TYPESTORE.deserialize_cdr(data, "std_msgs/msg/String").data == "kept"
     assert (sequence, timestamp, gid) == (1, 5, static.gid)
@@ -234,7 +285,7 @@ def test_a_publisher_declared_again_keeps_its_gid_and_numbers_on(linked):
     listener.subscriber("/chatter", "std_msgs/msg/String", TYPESTORE, lambda data, info: got.put(info))
     publisher = talker.publisher("/chatter", "std_msgs/msg/String", TYPESTORE)
     message = TYPESTORE.serialize_cdr(String(data="x"), "std_msgs/msg/String")
-    for i in range(1, 201):   # until the subscription's declaration has reached the publisher
+    for i in range(1, 201):  # until the subscription's declaration has reached the publisher
         publisher.put(message, i)
         try:
             first = got.get(timeout=0.05)
@@ -245,7 +296,7 @@ def test_a_publisher_declared_again_keeps_its_gid_and_numbers_on(linked):
     publisher.declare_again()
     assert publisher._publisher is not declared
     before = publisher.sequence
-    for i in range(200):   # the new declaration's matching, as after a reconnect
+    for i in range(200):  # the new declaration's matching, as after a reconnect
         publisher.put(message, 7)
         try:
             sequence, timestamp, gid = got.get(timeout=0.05)
@@ -268,11 +319,15 @@ def test_a_publisher_knows_a_subscription_by_its_token(linked):
     static = talker.publisher("/latched", "std_msgs/msg/String", TYPESTORE, latched=True)
     assert not static.has_subscribers()
     other = listener.subscriber("/other", "std_msgs/msg/String", TYPESTORE, lambda data, info: None)
-    wait_until(lambda: any("/MS/" in str(r.ok.key_expr) for r in a.liveliness().get("@ros2_lv/0/**")),
-               "the other subscription's token", 10)
+    wait_until(
+        lambda: any("/MS/" in str(r.ok.key_expr) for r in a.liveliness().get("@ros2_lv/0/**")),
+        "the other subscription's token",
+        10,
+    )
     assert not static.has_subscribers()
-    subscription = listener.subscriber("/latched", "std_msgs/msg/String", TYPESTORE, lambda data, info: None,
-                                       latched=True)
+    subscription = listener.subscriber(
+        "/latched", "std_msgs/msg/String", TYPESTORE, lambda data, info: None, latched=True
+    )
     wait_until(static.has_subscribers, "the subscription known", 10)
     subscription.close()
     wait_until(lambda: not static.has_subscribers(), "the subscription gone", 10)

@@ -1,6 +1,7 @@
 """``ros2.bridge`` without a run: its message mapping against a second CDR implementation
 (``mcap-ros2-support``, not rosbags), its lockstep rules (components/ros2/lockstep.py), and the
 configuration errors ``orchestrator check`` reports (exit 2), each naming its key."""
+
 from __future__ import annotations
 
 import threading
@@ -12,13 +13,14 @@ from components.ros2 import lockstep, messages
 from components.ros2.bridge import Ros2Bridge
 from components.sdk import resolve_parameters
 
-STAMP = 1_663_502_400_123_456_789   # 2022-09-18T12:00:00.123456789Z as ROS time (ns)
+STAMP = 1_663_502_400_123_456_789  # 2022-09-18T12:00:00.123456789Z as ROS time (ns)
 JOINTS = ["shoulder", "elbow", "wrist"]
 
 
 @pytest.fixture(scope="module")
 def typestore():
     from rosbags.typesys import Stores, get_typestore
+
     return get_typestore(Stores.ROS2_JAZZY)
 
 
@@ -65,6 +67,7 @@ def _values(field: messages.Field, seed: int) -> np.ndarray:
 
 def _second_reader(msgtype: str, typestore):
     from mcap_ros2._dynamic import generate_dynamic, serialize_dynamic
+
     definition = typestore.generate_msgdef(msgtype, ros_version=2)[0]
     return generate_dynamic(msgtype, definition)[msgtype], serialize_dynamic(msgtype, definition)[msgtype]
 
@@ -126,13 +129,15 @@ def test_joint_values_are_read_by_name_in_the_order_asked(typestore):
 
 
 def test_parts_not_given_are_neutral(typestore):
-    imu = messages.MAPS["sensor_msgs/msg/Imu"].build(typestore.types, STAMP, "imu", (),
-                                                       {"angular_velocity": np.array([0.1, 0.2, 0.3])})
+    imu = messages.MAPS["sensor_msgs/msg/Imu"].build(
+        typestore.types, STAMP, "imu", (), {"angular_velocity": np.array([0.1, 0.2, 0.3])}
+    )
     assert _xyzw(imu.orientation) == [0.0, 0.0, 0.0, 1.0]
-    assert imu.orientation_covariance[0] == -1.0 and imu.linear_acceleration_covariance[0] == -1.0   # REP 145
+    assert imu.orientation_covariance[0] == -1.0 and imu.linear_acceleration_covariance[0] == -1.0  # REP 145
     assert imu.angular_velocity_covariance[0] == 0.0
-    pose = messages.MAPS["geometry_msgs/msg/PoseStamped"].build(typestore.types, STAMP, "", (),
-                                                                {"position": np.array([1.0, 2.0, 3.0])})
+    pose = messages.MAPS["geometry_msgs/msg/PoseStamped"].build(
+        typestore.types, STAMP, "", (), {"position": np.array([1.0, 2.0, 3.0])}
+    )
     assert _xyzw(pose.pose.orientation) == [0.0, 0.0, 0.0, 1.0]
 
 
@@ -145,20 +150,21 @@ def test_a_float64_multiarray_is_read_after_its_data_offset(typestore):
 
 # ---------------------------------------------------------------------------------- lockstep rules
 
+
 def test_stamped_takes_the_message_of_the_step_and_drops_older_ones():
     arrivals = lockstep.Arrivals({"/a": True})
     for stamp in (10, 20, 30):
         arrivals.put("/a", stamp, f"m{stamp}")
     assert arrivals.take_stamped(20, 0.0) == {"/a": "m20"}
-    assert arrivals.dropped["/a"] == 1                      # m10: older than the step
-    arrivals.put("/a", 15, "late")                          # stamped before the step now waited for
+    assert arrivals.dropped["/a"] == 1  # m10: older than the step
+    arrivals.put("/a", 15, "late")  # stamped before the step now waited for
     assert arrivals.dropped["/a"] == 2
     assert arrivals.take_stamped(30, 0.0) == {"/a": "m30"}
 
 
 def test_stamped_waits_for_a_message_from_another_thread():
     arrivals = lockstep.Arrivals({"/a": True, "/b": False})
-    arrivals.put("/b", None, "before")       # not an answer to the step's inputs
+    arrivals.put("/b", None, "before")  # not an answer to the step's inputs
     arrivals.expect()
     got = {}
     waiter = threading.Thread(target=lambda: got.update(arrivals.take_stamped(7, 60.0)))
@@ -189,6 +195,7 @@ def test_an_interrupt_ends_a_wait():
             arrivals.take_stamped(5, 3600.0)
         except lockstep.Interrupted as e:
             failure.append(str(e))
+
     waiter = threading.Thread(target=wait)
     waiter.start()
     arrivals.interrupt()
@@ -207,6 +214,7 @@ def test_latest_takes_the_newest_whatever_its_stamp():
 
 # ---------------------------------------------------------------------------------- check-time errors
 
+
 def _errors(outputs=None, inputs=None, **extra) -> dict[str, str]:
     params = {"wait_for": "stamped", "outputs": outputs or {}, "inputs": inputs or {}, **extra}
     _, errors = resolve_parameters(Ros2Bridge, params)
@@ -214,16 +222,33 @@ def _errors(outputs=None, inputs=None, **extra) -> dict[str, str]:
 
 
 TAU = {"topic": "/arm/effort", "type": "std_msgs/msg/Float64MultiArray", "size": 2, "unit": "N*m"}
-Q = {"topic": "/arm/joint_states", "type": "sensor_msgs/msg/JointState", "field": "position",
-     "names": ["j1", "j2"], "unit": "rad"}
+Q = {
+    "topic": "/arm/joint_states",
+    "type": "sensor_msgs/msg/JointState",
+    "field": "position",
+    "names": ["j1", "j2"],
+    "unit": "rad",
+}
 
 
 def test_a_valid_bridge_declares_its_variables():
     assert _errors({"tau": TAU}, {"q": Q}) == {}
-    variables = {v.name: v for v in Ros2Bridge.declare(resolve_parameters(Ros2Bridge, {
-        "wait_for": "latest", "outputs": {"tau": TAU, "f": {"topic": "/ft", "type": "geometry_msgs/msg/WrenchStamped",
-                                                              "field": "wrench"}},
-        "inputs": {"q": Q}})[0])}
+    variables = {
+        v.name: v
+        for v in Ros2Bridge.declare(
+            resolve_parameters(
+                Ros2Bridge,
+                {
+                    "wait_for": "latest",
+                    "outputs": {
+                        "tau": TAU,
+                        "f": {"topic": "/ft", "type": "geometry_msgs/msg/WrenchStamped", "field": "wrench"},
+                    },
+                    "inputs": {"q": Q},
+                },
+            )[0]
+        )
+    }
     assert (variables["tau"].causality, variables["tau"].shape, variables["tau"].unit) == ("output", (2,), "N*m")
     assert (variables["f"].shape, variables["f"].unit) == ((6,), "N, N*m")
     assert (variables["q"].causality, variables["q"].shape) == ("input", (2,))
@@ -236,25 +261,38 @@ def test_a_type_the_bridge_cannot_map_names_the_topic_and_the_supported_types():
     assert all(t in message for t in messages.MAPS)
 
 
-@pytest.mark.parametrize("topic, why", [("arm/effort", "not absolute"), ("/arm/2effort", "starts with a digit"),
-                                        ("/arm effort", "contains ' '"), ("/arm//effort", "'//'"),
-                                        ("/arm/", "ends with '/'")])
+@pytest.mark.parametrize(
+    "topic, why",
+    [
+        ("arm/effort", "not absolute"),
+        ("/arm/2effort", "starts with a digit"),
+        ("/arm effort", "contains ' '"),
+        ("/arm//effort", "'//'"),
+        ("/arm/", "ends with '/'"),
+    ],
+)
 def test_a_topic_name_ros_rejects_is_named(topic, why):
     message = _errors({"tau": {**TAU, "topic": topic}})["outputs.tau.topic"]
     assert repr(topic) in message and why in message
 
 
-@pytest.mark.parametrize("spec, key, words", [
-    ({**TAU, "size": None}, "outputs.tau.size", "is a sequence"),
-    ({**TAU, "unit": None}, "outputs.tau.unit", "has no unit of its own"),
-    ({**TAU, "field": "layout"}, "outputs.tau.field", "expected a field of std_msgs/msg/Float64MultiArray (data)"),
-    ({**TAU, "names": ["a", "b"]}, "outputs.tau.names", "carries no joint names"),
-    ({**TAU, "topic": "/clock"}, "outputs.tau.topic", "/clock is the bridge's own"),
-    ({"topic": "/w", "type": "geometry_msgs/msg/WrenchStamped"}, "outputs.tau.field", "several fields"),
-    ({"topic": "/w", "type": "geometry_msgs/msg/WrenchStamped", "field": "force", "size": 6}, "outputs.tau.size",
-     "holds 3 values, got size 6"),
-    ({**Q, "names": ["j1"], "size": 2}, "outputs.tau.names", "expected 2 joint names"),
-])
+@pytest.mark.parametrize(
+    "spec, key, words",
+    [
+        ({**TAU, "size": None}, "outputs.tau.size", "is a sequence"),
+        ({**TAU, "unit": None}, "outputs.tau.unit", "has no unit of its own"),
+        ({**TAU, "field": "layout"}, "outputs.tau.field", "expected a field of std_msgs/msg/Float64MultiArray (data)"),
+        ({**TAU, "names": ["a", "b"]}, "outputs.tau.names", "carries no joint names"),
+        ({**TAU, "topic": "/clock"}, "outputs.tau.topic", "/clock is the bridge's own"),
+        ({"topic": "/w", "type": "geometry_msgs/msg/WrenchStamped"}, "outputs.tau.field", "several fields"),
+        (
+            {"topic": "/w", "type": "geometry_msgs/msg/WrenchStamped", "field": "force", "size": 6},
+            "outputs.tau.size",
+            "holds 3 values, got size 6",
+        ),
+        ({**Q, "names": ["j1"], "size": 2}, "outputs.tau.names", "expected 2 joint names"),
+    ],
+)
 def test_a_wrong_output_is_named(spec, key, words):
     errors = _errors({"tau": spec})
     assert key in errors and words in errors[key], errors
@@ -266,8 +304,19 @@ def test_variables_of_one_topic_must_agree():
     assert "topic /w: f is its force already" in errors["outputs.w.field"]
     errors = _errors({"tau": TAU, "t2": {**TAU, "type": "std_msgs/msg/Float64", "size": None}})
     assert "is std_msgs/msg/Float64MultiArray (for tau)" in errors["outputs.t2.type"]
-    errors = _errors({"tau": TAU}, {"q": {**Q, "topic": "/arm/effort", "type": "std_msgs/msg/Float64MultiArray",
-                                          "field": None, "names": None, "size": 2}})
+    errors = _errors(
+        {"tau": TAU},
+        {
+            "q": {
+                **Q,
+                "topic": "/arm/effort",
+                "type": "std_msgs/msg/Float64MultiArray",
+                "field": None,
+                "names": None,
+                "size": 2,
+            }
+        },
+    )
     assert "/arm/effort is also among the outputs" in errors["inputs.q.topic"]
     errors = _errors({"q": TAU}, {"q": Q})
     assert "unique" in errors["inputs.q"]

@@ -1,5 +1,6 @@
 """The ROS 2 view's counts (components/ros2/stream_report.py, RosPublishers in
 components/ros2/observer.py): what it writes to ros2.report.json and the line the run prints."""
+
 from __future__ import annotations
 
 import json
@@ -43,30 +44,35 @@ class Node:
 
 
 def _batch(n: int, start: int = 0):
-    return [(CLOCK, [(k, b"c%d" % k) for k in range(start, start + n)]), (TF_STATIC, [(start, b"static")]),
-            (BAD, [(start, b"x")])]
+    return [
+        (CLOCK, [(k, b"c%d" % k) for k in range(start, start + n)]),
+        (TF_STATIC, [(start, b"static")]),
+        (BAD, [(start, b"x")]),
+    ]
 
 
 def test_published_and_dropped_per_topic_and_the_latched_topic_again_once_subscribed():
     warnings = []
     counts = StreamCounts()
     publishers = RosPublishers(None, None, None, warnings.append, counts)
-    publishers.publish(_batch(3), up=True)             # no node yet (no router): dropped
+    publishers.publish(_batch(3), up=True)  # no node yet (no router): dropped
     node = Node()
     publishers.node = node
-    publishers.publish(_batch(4, start=3), up=False)   # the link is down: dropped
+    publishers.publish(_batch(4, start=3), up=False)  # the link is down: dropped
     publishers.publish(_batch(5, start=7), up=True)
     assert counts.published == {"/clock": 5, "/tf_static": 1}
     assert counts.dropped == {"/clock": 7, "/tf_static": 2} and counts.why == {NO_LINK: 9}
     assert node.sent == {"/clock": [b"c%d" % k for k in range(7, 12)], "/tf_static": [b"static"]}
-    assert warnings == ["topic /imu-1/imu not published: ROS 2 rejects the name (it contains '-' "
-                        "(only letters, digits, '_' and '/' are allowed))"]
+    assert warnings == [
+        "topic /imu-1/imu not published: ROS 2 rejects the name (it contains '-' "
+        "(only letters, digits, '_' and '/' are allowed))"
+    ]
     publishers.link_back()
-    publishers.resend_latched()                        # nobody subscribed yet: not sent
+    publishers.resend_latched()  # nobody subscribed yet: not sent
     assert node.sent["/tf_static"] == [b"static"]
     node.subscribed[0] = True
     publishers.resend_latched()
-    publishers.resend_latched()                        # once
+    publishers.resend_latched()  # once
     assert node.sent["/tf_static"] == [b"static", b"static"] and counts.published["/tf_static"] == 2
     assert publishers.sent == 7 and publishers.missing() == []
 
@@ -99,17 +105,22 @@ def test_the_report_round_trips_and_the_summary_says_the_numbers(tmp_path):
     assert stream_report.summary(report, 201) == (
         "ROS 2 view: 300 messages published on 2 topics; of the 201 rows sent to it, 190 arrived; "
         "dropped: 81 messages (/tf 41, /clock 40; no link: 80, publish failed: 1); "
-        "the link to the ROS 2 router went down 1 time(s), came back 1")
+        "the link to the ROS 2 router went down 1 time(s), came back 1"
+    )
 
 
 def test_a_clean_run_and_a_missing_report():
     counts = StreamCounts()
     counts.sent("/clock", 201)
     counts.rows = 201
-    assert stream_report.summary(counts.as_dict(), 201) == \
-        "ROS 2 view: 201 messages published on 1 topics; of the 201 rows sent to it, 201 arrived; dropped: none"
-    assert stream_report.summary(None, 201, exit_code=-9) == \
-        "ROS 2 view: no report from its process (it exited with code -9); what it delivered is unknown"
+    assert (
+        stream_report.summary(counts.as_dict(), 201)
+        == "ROS 2 view: 201 messages published on 1 topics; of the 201 rows sent to it, 201 arrived; dropped: none"
+    )
+    assert (
+        stream_report.summary(None, 201, exit_code=-9)
+        == "ROS 2 view: no report from its process (it exited with code -9); what it delivered is unknown"
+    )
 
 
 def test_a_file_that_is_not_a_report_is_none(tmp_path):
@@ -117,7 +128,7 @@ def test_a_file_that_is_not_a_report_is_none(tmp_path):
     assert stream_report.read(path) is None
     path.write_text("[1, 2]")
     assert stream_report.read(path) is None
-    path.write_text("{\"published\": {}}")
+    path.write_text('{"published": {}}')
     assert stream_report.read(path) is None
     with pytest.raises(ValueError):
         StreamCounts().drop("/clock", "tired")

@@ -1,5 +1,6 @@
 """Robots as ROS packages ship them (package:// URIs, xacro, mimic joints, .dae visuals), physics
 that cannot be right refused or flagged, and the recording directory's lock. No processes."""
+
 from __future__ import annotations
 
 import multiprocessing
@@ -26,18 +27,22 @@ def urdf(tmp_path: Path, body: str, name: str = "robot.urdf") -> Path:
     return path
 
 
-BASE = '''<link name="base"><inertial><mass value="10"/>
-  <inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>'''
+BASE = """<link name="base"><inertial><mass value="10"/>
+  <inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>"""
 
 
 def arm(inertia: str = 'ixx="0.1" iyy="0.1" izz="0.1"', mass: str = "1") -> str:
-    return BASE + f'''<link name="arm"><inertial><mass value="{mass}"/>
+    return (
+        BASE
+        + f'''<link name="arm"><inertial><mass value="{mass}"/>
       <inertia {inertia} ixy="0" ixz="0" iyz="0"/></inertial></link>
       <joint name="j" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 0 1"/>
       <limit lower="-1" upper="1" effort="10" velocity="1"/></joint>'''
+    )
 
 
 # ---------------------------------------------------------------- package:// and xacro
+
 
 def mesh_package(tmp_path: Path, name: str = "my_robot") -> Path:
     package = tmp_path / "src" / name
@@ -48,9 +53,12 @@ def mesh_package(tmp_path: Path, name: str = "my_robot") -> Path:
 
 
 def mesh_urdf(tmp_path: Path, uri: str) -> Path:
-    return urdf(tmp_path, f'''<link name="base"><inertial><mass value="1"/>
+    return urdf(
+        tmp_path,
+        f'''<link name="base"><inertial><mass value="1"/>
         <inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>
-        <visual><geometry><mesh filename="{uri}"/></geometry></visual></link>''')
+        <visual><geometry><mesh filename="{uri}"/></geometry></visual></link>''',
+    )
 
 
 def test_package_uri_from_the_packages_map(tmp_path, monkeypatch):
@@ -85,7 +93,7 @@ def test_missing_mesh_file_in_a_found_package(tmp_path):
 
 @needs_robots
 def test_installed_python_package_and_xacro_wrapper():
-    model = read_urdf(PANDA_BUS)           # $(find example-robot-data) and package:// through the wheel
+    model = read_urdf(PANDA_BUS)  # $(find example-robot-data) and package:// through the wheel
     assert model.root == "bus" and "panda_hand" in model.link_names
     assert model.mimics == {"panda_finger_joint2": ("panda_finger_joint1", 1.0, 0.0)}
     assert "package://" not in model.text and "$(find" not in model.text
@@ -95,8 +103,10 @@ def test_installed_python_package_and_xacro_wrapper():
 def test_xacro_with_an_unknown_package(tmp_path, monkeypatch):
     monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
     path = tmp_path / "r.urdf.xacro"
-    path.write_text('<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">'
-                    '<xacro:include filename="$(find nowhere_pkg)/r.urdf"/></robot>')
+    path.write_text(
+        '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+        '<xacro:include filename="$(find nowhere_pkg)/r.urdf"/></robot>'
+    )
     with pytest.raises(UrdfError, match="nowhere_pkg.*not found"):
         read_urdf(path)
 
@@ -121,10 +131,14 @@ def test_resolve_uri_file_and_relative(tmp_path):
 
 # ---------------------------------------------------------------- physics refused or flagged
 
-@pytest.mark.parametrize("inertia, words", [
-    ('ixx="-0.1" iyy="0.1" izz="0.1"', "not positive definite"),
-    ('ixx="1.0" iyy="0.1" izz="0.1"', "triangle inequality"),
-])
+
+@pytest.mark.parametrize(
+    "inertia, words",
+    [
+        ('ixx="-0.1" iyy="0.1" izz="0.1"', "not positive definite"),
+        ('ixx="1.0" iyy="0.1" izz="0.1"', "triangle inequality"),
+    ],
+)
 def test_impossible_inertia_refused_naming_the_link(tmp_path, inertia, words):
     with pytest.raises(UrdfError, match=f"link 'arm'.*{words}"):
         read_urdf(urdf(tmp_path, arm(inertia)))
@@ -140,9 +154,12 @@ def test_zero_mass_link_under_a_moving_joint_is_noted(tmp_path):
 
 
 def test_mimic_of_a_missing_joint(tmp_path):
-    body = arm() + '''<link name="b"><inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1"/></inertial></link>
+    body = (
+        arm()
+        + """<link name="b"><inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1"/></inertial></link>
       <joint name="k" type="revolute"><parent link="base"/><child link="b"/><mimic joint="nope"/>
-      <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'''
+      <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>"""
+    )
     with pytest.raises(UrdfError, match="'k' mimics 'nope'"):
         read_urdf(urdf(tmp_path, body))
 
@@ -152,8 +169,9 @@ def dynamics_params(tmp_path, **body):
     from components.sdk import resolve_parameters, run_parameters
 
     path = urdf(tmp_path, arm())
-    params, errors = resolve_parameters(DartDynamics, {"bodies": {"b": {"urdf": str(path), **body}},
-                                                       **run_parameters("2022-01-01T00:00:00Z", tmp_path)})
+    params, errors = resolve_parameters(
+        DartDynamics, {"bodies": {"b": {"urdf": str(path), **body}}, **run_parameters("2022-01-01T00:00:00Z", tmp_path)}
+    )
     assert not errors
     return DartDynamics, params
 
@@ -173,7 +191,7 @@ def test_duration_bounds():
 
     with pytest.raises(ConfigError, match="at most 100 years"):
         Duration().convert("1e400 s", "run.duration")
-    assert Duration().convert("1 h", "x") == 3600 * 10 ** 9
+    assert Duration().convert("1 h", "x") == 3600 * 10**9
 
 
 def test_kepler_hint_below_the_surface():
@@ -193,19 +211,25 @@ def test_waypoint_time_is_described_as_absolute():
 
 # ---------------------------------------------------------------- mimic joints in DART and Pinocchio
 
+
 @needs_robots
 @pytest.mark.parametrize("limits", [False, True])
 def test_mimic_joint_kept_and_momentum_conserved_rk4(limits):
     from components.dynamics.world import BodySpec, OrbitalWorld
 
     model = read_urdf(PANDA_BUS)
-    spec = BodySpec(name="sat", urdf=model.path, q={"panda_joint2": 0.3, "panda_finger_joint1": 0.01},
-                    qd={"panda_joint1": 0.5, "panda_finger_joint1": 0.005}, twist=np.array([0, 0, 0, 0.01, 0.02, 0]))
+    spec = BodySpec(
+        name="sat",
+        urdf=model.path,
+        q={"panda_joint2": 0.3, "panda_finger_joint1": 0.01},
+        qd={"panda_joint1": 0.5, "panda_finger_joint1": 0.005},
+        twist=np.array([0, 0, 0, 0.01, 0.02, 0]),
+    )
     world = OrbitalWorld([spec], models={"sat": model}, tidal_force=False, gravity_gradient=False, joint_limits=limits)
     world.reset_bodies()
     h0 = world.momentum("sat")
     tau = np.zeros(9)
-    tau[7] = 0.5                                    # pushes finger 1 (and through the mimic, finger 2) open
+    tau[7] = 0.5  # pushes finger 1 (and through the mimic, finger 2) open
     world.set_torques("sat", tau)
     for _ in range(1000):
         world.step(1e-3)
@@ -225,9 +249,13 @@ def test_controller_model_with_a_mimic_finger_matches_the_dynamics():
 
     model = read_urdf(PANDA_BUS)
     joints = [f"panda_joint{i}" for i in range(1, 8)]
-    spec = BodySpec(name="sat", urdf=model.path, twist=np.array([0.01, 0, 0, 0.01, 0.02, 0]),
-                    q={"panda_joint2": -0.3, "panda_joint4": -2.2, "panda_joint6": 1.9, "panda_finger_joint1": 0.02},
-                    qd={"panda_joint1": 0.5, "panda_joint3": -0.4, "panda_finger_joint1": 0.05})
+    spec = BodySpec(
+        name="sat",
+        urdf=model.path,
+        twist=np.array([0.01, 0, 0, 0.01, 0.02, 0]),
+        q={"panda_joint2": -0.3, "panda_joint4": -2.2, "panda_joint6": 1.9, "panda_finger_joint1": 0.02},
+        qd={"panda_joint1": 0.5, "panda_joint3": -0.4, "panda_finger_joint1": 0.05},
+    )
     world = OrbitalWorld([spec], models={"sat": model}, tidal_force=False, gravity_gradient=False)
     world.reset_bodies()
     tau = np.zeros(9)
@@ -257,10 +285,11 @@ def test_dae_visuals_become_triangles():
 
 # ---------------------------------------------------------------- the recording directory's lock
 
+
 def _hold_lock(directory, ready):
     from orchestrator.run.recording import claim_directory
 
-    lock = claim_directory(Path(directory), False, "holder")   # noqa: F841 (held until killed)
+    lock = claim_directory(Path(directory), False, "holder")  # noqa: F841 (held until killed)
     ready.set()
     signal.pause()
 
@@ -279,28 +308,40 @@ def test_a_live_run_locks_its_directory_and_the_lock_dies_with_it(tmp_path):
                 claim_directory(directory, overwrite, "second")
             assert f"run holder (pid {holder.pid}" in str(error.value) and "--overwrite" not in str(error.value)
     finally:
-        os.kill(holder.pid, signal.SIGKILL)          # a crash: no clean-up of its own
+        os.kill(holder.pid, signal.SIGKILL)  # a crash: no clean-up of its own
         holder.join(60)
-    claim_directory(directory, True, "after").close()   # the kernel dropped the dead run's lock
+    claim_directory(directory, True, "after").close()  # the kernel dropped the dead run's lock
 
 
 def test_a_visual_mesh_that_cannot_be_read_is_drawn_from_the_collision_geometry(tmp_path):
     from tests.unit.test_viewer_scene import save
 
     (tmp_path / "broken.dae").write_text("<COLLADA>not a mesh</COLLADA>")
-    path = urdf(tmp_path, '''<link name="base"><inertial><mass value="1"/>
+    path = urdf(
+        tmp_path,
+        """<link name="base"><inertial><mass value="1"/>
         <inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>
         <visual><geometry><mesh filename="broken.dae"/></geometry></visual>
-        <collision><geometry><box size="1 2 3"/></geometry></collision></link>''')
+        <collision><geometry><box size="1 2 3"/></geometry></collision></link>""",
+    )
     config = {"components": {"dyn": {"type": "dynamics.dart", "parameters": {"bodies": {"b": {"urdf": str(path)}}}}}}
-    columns = ["dyn.b.position[0]", "dyn.b.position[1]", "dyn.b.position[2]", "dyn.b.orientation[0]",
-               "dyn.b.orientation[1]", "dyn.b.orientation[2]", "dyn.b.orientation[3]"]
+    columns = [
+        "dyn.b.position[0]",
+        "dyn.b.position[1]",
+        "dyn.b.position[2]",
+        "dyn.b.orientation[0]",
+        "dyn.b.orientation[1]",
+        "dyn.b.orientation[2]",
+        "dyn.b.orientation[3]",
+    ]
     warnings = []
     rows = np.zeros((2, len(columns)))
     rows[:, 6] = 1.0
     _, rrd = save(tmp_path, columns, config, [(np.arange(2), np.arange(2) * 0.1, rows)], warnings=warnings)
-    assert any("visual mesh of link base cannot be drawn (broken.dae" in w and "collision geometry instead" in w
-               for w in warnings), warnings
+    assert any(
+        "visual mesh of link base cannot be drawn (broken.dae" in w and "collision geometry instead" in w
+        for w in warnings
+    ), warnings
     box = next(entry for p, entry in rrd.items() if p.endswith("/links/base/visual_0_collision_0"))
     assert any(name.endswith("half_sizes") for name in box["static"])
 
@@ -321,4 +362,5 @@ def test_a_robot_mounted_below_its_own_root_is_told_which_link_to_mount(tmp_path
     assert str(error.value) == (
         "mounted.urdf: joint 'mount': link 'base_link' has two parent joints, 'world_joint' (from 'world') and "
         "'mount' (from 'bus'); 'world' is a root of the file already: mount the robot by it (a joint from 'bus' "
-        "to 'world'), or leave 'world' and its joint out")
+        "to 'world'), or leave 'world' and its joint out"
+    )

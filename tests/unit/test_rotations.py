@@ -3,24 +3,39 @@
 
 Tolerances: 1e-14 absolute where only rounding separates the two (unit-size entries), stated
 otherwise per test."""
+
 import math
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from components.rotations import (cross, cross3, exp_so3, log_so3, matrix_to_quat, matrix_to_rpy, quat_to_matrix,
-                                  rpy_to_matrix, skew)
+from components.rotations import (
+    cross,
+    cross3,
+    exp_so3,
+    log_so3,
+    matrix_to_quat,
+    matrix_to_rpy,
+    quat_to_matrix,
+    rpy_to_matrix,
+    skew,
+)
 
 
 def _rotations():
     """Random rotations plus the hard cases for Shepperd's branches: identity, half turns about
     the axes and a diagonal, and angles just below pi."""
-    return Rotation.concatenate([
-        Rotation.random(300, random_state=3), Rotation.identity(),
-        *(Rotation.from_rotvec(math.pi * a) for a in np.eye(3)),
-        Rotation.from_rotvec([math.pi / math.sqrt(2), math.pi / math.sqrt(2), 0]),
-        Rotation.from_rotvec([0, math.pi - 1e-9, 0]), Rotation.from_rotvec([1e-12, 0, 0])])
+    return Rotation.concatenate(
+        [
+            Rotation.random(300, random_state=3),
+            Rotation.identity(),
+            *(Rotation.from_rotvec(math.pi * a) for a in np.eye(3)),
+            Rotation.from_rotvec([math.pi / math.sqrt(2), math.pi / math.sqrt(2), 0]),
+            Rotation.from_rotvec([0, math.pi - 1e-9, 0]),
+            Rotation.from_rotvec([1e-12, 0, 0]),
+        ]
+    )
 
 
 def _w_nonnegative(q):
@@ -35,7 +50,7 @@ def test_cross_products_match_numpy():
         np.testing.assert_allclose(cross3(list(x), tuple(y)), np.cross(x, y), rtol=0, atol=1e-14)
         np.testing.assert_allclose(skew(x) @ y, np.cross(x, y), rtol=0, atol=1e-14)
     np.testing.assert_allclose(cross(a, b), np.cross(a, b), rtol=0, atol=1e-14)
-    np.testing.assert_allclose(cross(a[0], b), np.cross(a[0], b), rtol=0, atol=1e-14)   # broadcasting
+    np.testing.assert_allclose(cross(a[0], b), np.cross(a[0], b), rtol=0, atol=1e-14)  # broadcasting
 
 
 def test_quat_to_matrix_matches_scipy_single_and_batched():
@@ -43,7 +58,7 @@ def test_quat_to_matrix_matches_scipy_single_and_batched():
     quats, matrices = rotations.as_quat(), rotations.as_matrix()
     for q, R in zip(quats, matrices):
         np.testing.assert_allclose(quat_to_matrix(q), R, rtol=0, atol=1e-14)
-        np.testing.assert_allclose(quat_to_matrix(-3.0 * q), R, rtol=0, atol=1e-14)   # normalized first, sign-free
+        np.testing.assert_allclose(quat_to_matrix(-3.0 * q), R, rtol=0, atol=1e-14)  # normalized first, sign-free
     np.testing.assert_allclose(quat_to_matrix(quats), matrices, rtol=0, atol=1e-14)
     batch = quat_to_matrix(2.0 * quats[:300].reshape(3, 100, 4))
     assert batch.shape == (3, 100, 3, 3)
@@ -67,7 +82,7 @@ def test_matrix_to_quat_matches_scipy_with_w_nonnegative_single_and_batched():
         same = np.minimum(np.abs(q - reference).max(axis=1), np.abs(q + reference).max(axis=1))
         assert same.max() < 1e-14
         np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, rtol=0, atol=1e-15)
-    np.testing.assert_allclose(single, batched, rtol=0, atol=1e-15)   # both paths agree
+    np.testing.assert_allclose(single, batched, rtol=0, atol=1e-15)  # both paths agree
     shaped = matrix_to_quat(rotations.as_matrix()[:300].reshape(3, 100, 3, 3))
     assert shaped.shape == (3, 100, 4)
     np.testing.assert_allclose(shaped.reshape(-1, 4), batched[:300], rtol=0, atol=0)
@@ -99,8 +114,10 @@ def test_exp_so3_matches_scipy():
     np.testing.assert_allclose(exp_so3([0.0, 0.0, 0.0]), np.eye(3), rtol=0, atol=0)
 
 
-@pytest.mark.parametrize("angle", [0.0, 1e-12, 1e-6, 1e-3, 0.5, 1.5, 2.0, 3.0, math.pi - 1e-2, math.pi - 1e-4,
-                                   math.pi - 1e-6, math.pi - 1e-9])
+@pytest.mark.parametrize(
+    "angle",
+    [0.0, 1e-12, 1e-6, 1e-3, 0.5, 1.5, 2.0, 3.0, math.pi - 1e-2, math.pi - 1e-4, math.pi - 1e-6, math.pi - 1e-9],
+)
 def test_log_so3_matches_the_rotation_vector_at_every_angle(angle):
     # R from scipy's from_rotvec; tolerance 1e-14 rad absolute (plus 1e-12 relative) including
     # angles a hair below pi, where sin(angle) -> 0 and the axis must come from the symmetric part
@@ -117,7 +134,7 @@ def test_log_so3_at_a_half_turn_and_round_trip():
     for axis in list(np.eye(3)) + list(rng.normal(size=(10, 3))):
         phi = math.pi * axis / np.linalg.norm(axis)
         got = log_so3(Rotation.from_rotvec(phi).as_matrix())
-        assert min(np.abs(got - phi).max(), np.abs(got + phi).max()) < 1e-14    # +-: the same rotation
+        assert min(np.abs(got - phi).max(), np.abs(got + phi).max()) < 1e-14  # +-: the same rotation
     for phi in list(rng.normal(size=(20, 3))) + [np.array([np.pi - 1e-7, 0, 0]), np.array([0, 1e-9, 0])]:
         R = exp_so3(phi)
         angle = np.linalg.norm(phi) % (2 * np.pi)

@@ -1,4 +1,5 @@
 """Assembling the recorded rows (orchestrator/run/rows.py) from the batches members send, no bus."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -35,8 +36,14 @@ def setup(tmp_path):
     rows = Rows(config.components.values(), config.step_ns)
     members = {}
     for name, spec in config.components.items():
-        member = members[name] = Member(spec=spec, generation=0, process=None, log_path=None,
-                                        ratio=spec.step_ns // config.step_ns, latest=spec.outputs.start_vector())
+        member = members[name] = Member(
+            spec=spec,
+            generation=0,
+            process=None,
+            log_path=None,
+            ratio=spec.step_ns // config.step_ns,
+            latest=spec.outputs.start_vector(),
+        )
         member.out_dst, member.out_src = rows.placement(spec)
     rows.recording = Sink()
     return rows, members
@@ -62,11 +69,14 @@ def test_a_row_is_recorded_once_every_member_has_sent_its_outputs_for_it(setup):
     assert [(k, v) for k, _, v in rows.recording.rows] == [(1, [10, 0.01, 0]), (2, [20, 0.02, 0])]
     receive(slow, [3, 6], [[1], [2]])
     rows.advance(members, horizon=6)
-    assert [(k, v) for k, _, v in rows.recording.rows[2:]] == [(3, [30, 0.03, 1]), (4, [40, 0.04, 1]),
-                                                               (5, [50, 0.05, 1])]
+    assert [(k, v) for k, _, v in rows.recording.rows[2:]] == [
+        (3, [30, 0.03, 1]),
+        (4, [40, 0.04, 1]),
+        (5, [50, 0.05, 1]),
+    ]
     assert rows.row == 5 and (fast.tag, slow.tag) == (5, 3) and [t for t, _ in slow.received] == [6]
     receive(fast, [6, 7], [[60, 0.06], [70, 0.07]])
-    rows.advance(members, horizon=6)   # tag 7 is there, but row 7 is not granted yet
+    rows.advance(members, horizon=6)  # tag 7 is there, but row 7 is not granted yet
     assert rows.row == 6 and rows.recording.rows[-1] == (6, pytest.approx(0.06), [60, 0.06, 2])
     assert rows.values.tolist() == [60, 0.06, 2] and [t for t, _ in fast.received] == [7]
 
@@ -90,7 +100,7 @@ def test_a_swapped_in_type_fills_only_the_columns_it_shares(setup, tmp_path):
     rows, _ = setup
     path = tmp_path / "other.yaml"
     path.write_text(CONFIG.replace("test.counter, step: 30 ms", "test.integrator, step: 30 ms"))
-    other = load(path).components["slow"]   # outputs x and u_time: no column slow.n
+    other = load(path).components["slow"]  # outputs x and u_time: no column slow.n
     out_dst, out_src = rows.placement(other)
     assert out_dst.tolist() == [] and out_src.tolist() == []
     out_dst, out_src = rows.placement(load(path).components["fast"])

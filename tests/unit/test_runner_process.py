@@ -1,5 +1,6 @@
 """A component process's step logic (components/process.py ComponentProcess) without the bus: its
 three publish callbacks are lists, and the orchestrator's messages are handed to it directly."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -15,8 +16,9 @@ class Transport:
         self.replies, self.outputs, self.batches = [], [], []
 
     def process(self, name: str) -> ComponentProcess:
-        return ComponentProcess(name, self.replies.append, lambda consumers, payload: self.outputs.append(payload),
-                                self.batches.append)
+        return ComponentProcess(
+            name, self.replies.append, lambda consumers, payload: self.outputs.append(payload), self.batches.append
+        )
 
     def faults(self) -> list[dict]:
         return [protocol.Fault.decode(p) for p in self.replies if p[:1] == protocol.FAULT]
@@ -29,8 +31,19 @@ def started(transport: Transport, params: dict) -> ComponentProcess:
     """test.faulty instantiated, wired (no inputs), initialized and started with horizon 0."""
     p = transport.process("f")
     p.command(protocol.Instantiate("test.faulty", params).encode())
-    p.command(protocol.Wire(generation=0, step_ns=1_000_000, ratio=1, k=0, consumers=[], batch_consumers=[],
-                            routes=[], sources={}, faults=[]).encode())
+    p.command(
+        protocol.Wire(
+            generation=0,
+            step_ns=1_000_000,
+            ratio=1,
+            k=0,
+            consumers=[],
+            batch_consumers=[],
+            routes=[],
+            sources={},
+            faults=[],
+        ).encode()
+    )
     p.command(protocol.Initialize(0, {}, np.empty(0)).encode())
     p.command(protocol.Start([], 0, np.empty(0)).encode())
     return p

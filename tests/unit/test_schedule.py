@@ -1,4 +1,5 @@
 """The lockstep rules (components/schedule.py) and the in-process loop built on them, no processes."""
+
 from __future__ import annotations
 
 import struct
@@ -31,8 +32,9 @@ def test_routes_group_connections_by_source_and_mark_gauss_seidel_order():
     outputs = {"a": {"y": slice(0, 1), "w": slice(1, 4)}, "c": {"y": slice(0, 1)}}
     connections = [("b", "v", "a", "w"), ("b", "u", "c", "y"), ("x", "u", "a", "y")]
     for algorithm, ahead in (("jacobi", {"a": 0, "c": 0}), ("gauss-seidel", {"a": 1, "c": 0})):
-        found = {r.source: r for r in routes("b", inputs, connections, outputs, {"a": 1, "c": 2},
-                                            ["a", "b", "c"], algorithm)}
+        found = {
+            r.source: r for r in routes("b", inputs, connections, outputs, {"a": 1, "c": 2}, ["a", "b", "c"], algorithm)
+        }
         assert set(found) == {"a", "c"}
         assert found["a"].src.tolist() == [1, 2, 3] and found["a"].dst.tolist() == [1, 2, 3]
         assert found["c"].src.tolist() == [0] and found["c"].dst.tolist() == [0] and found["c"].ratio == 2
@@ -61,10 +63,13 @@ connections: {{first.u: source.y, second.u: first.x}}
 """
 
 
-@pytest.mark.parametrize("algorithm, second", [
-    ("jacobi", lambda k: k * (k - 1) / 2),        # one-step delay: sum of 0..k-1
-    ("gauss-seidel", lambda k: k * (k + 1) / 2),  # same-step value: sum of 1..k
-])
+@pytest.mark.parametrize(
+    "algorithm, second",
+    [
+        ("jacobi", lambda k: k * (k - 1) / 2),  # one-step delay: sum of 0..k-1
+        ("gauss-seidel", lambda k: k * (k + 1) / 2),  # same-step value: sum of 1..k
+    ],
+)
 def test_in_process_loop_matches_the_closed_form_exactly(tmp_path, algorithm, second):
     path = tmp_path / "chain.yaml"
     path.write_text(CHAIN.format(steps=200, algorithm=algorithm))
@@ -96,9 +101,14 @@ connections: {{sum.u: slow.n}}
 
 def test_consumers_off_every_loop_back_get_batches():
     from components.schedule import batch_consumers
+
     # the paper's demo: orbit -> dynamics <-> controller; a self-connection is not a loop
-    demo = [("dynamics", "r_eci", "orbit", "r_eci"), ("dynamics", "tau", "controller", "tau"),
-            ("controller", "q", "dynamics", "q"), ("orbit", "u", "orbit", "y")]
+    demo = [
+        ("dynamics", "r_eci", "orbit", "r_eci"),
+        ("dynamics", "tau", "controller", "tau"),
+        ("controller", "q", "dynamics", "q"),
+        ("orbit", "u", "orbit", "y"),
+    ]
     assert [batch_consumers(n, demo) for n in ("orbit", "dynamics", "controller")] == [["dynamics"], [], []]
     # with a shadow of the controller (fed by dynamics, feeding nothing): dynamics batches to it alone
     shadowed = demo + [("controller_shadow", "q", "dynamics", "q")]
@@ -110,6 +120,7 @@ def test_consumers_off_every_loop_back_get_batches():
 
 def test_dedicated_cpus_are_handed_out_from_the_top_keeping_one_for_the_rest():
     from orchestrator.run.supervisor import place
+
     two = place([["dynamics"]], {0, 1})
     assert two.dedicated == {"dynamics": 1} and two.shared == {0} and two.unplaced == ()
     four = place([["a"], ["b"]], {0, 1, 2, 3})
@@ -127,6 +138,7 @@ def test_dedicated_cpus_are_handed_out_from_the_top_keeping_one_for_the_rest():
 
 def test_fed_inputs_names_the_variables_a_route_feeds():
     from components.schedule import fed_inputs
+
     offsets = {"a": slice(0, 3), "b": slice(3, 4), "c": slice(4, 8)}
     route = Route("s", np.arange(2), np.array([4, 5, 6, 7, 3]), 1, 0)
     assert fed_inputs(route, offsets) == ["b", "c"]
@@ -137,40 +149,47 @@ def test_inbox_entries_decode_to_typed_messages():
     from orchestrator.run.messages import LIVELINESS, OUTPUTS, REPLY, Fault, Liveliness, Outputs, Reply, decode
 
     rid = "demo-1a2b3c4d"
-    batch = bus.encode_batch(3, np.array([4, 5]), np.array([[1.0, 2.0], [3.0, 4.0]]), np.array([[7.0, 6.0], [8.0, 5.0]]))
+    batch = bus.encode_batch(
+        3, np.array([4, 5]), np.array([[1.0, 2.0], [3.0, 4.0]]), np.array([[7.0, 6.0], [8.0, 5.0]])
+    )
     outputs = decode(OUTPUTS, bus.batch_key(rid, "int"), batch)
     assert type(outputs) is Outputs and (outputs.name, outputs.generation) == ("int", 3)
     assert outputs.tags.tolist() == [4, 5] and outputs.outputs.tolist() == [[7.0, 6.0], [8.0, 5.0]]
-    assert outputs.timings.tolist() == [[1.0, 2.0], [3.0, 4.0]]   # (compute, idle) of each step
+    assert outputs.timings.tolist() == [[1.0, 2.0], [3.0, 4.0]]  # (compute, idle) of each step
     out_key = bus.reply_key(rid, "int", 12)
-    assert decode(REPLY, out_key, protocol.Reply("wire", {"n": 2}, b"\x01\x02").encode()) == \
-        Reply("int", 12, {"op": "wire", "n": 2}, b"\x01\x02")
-    assert decode(REPLY, out_key, protocol.Fault("step", 9, "boom").encode()) == \
-        Fault("int", 12, "step", 9, "boom")
+    assert decode(REPLY, out_key, protocol.Reply("wire", {"n": 2}, b"\x01\x02").encode()) == Reply(
+        "int", 12, {"op": "wire", "n": 2}, b"\x01\x02"
+    )
+    assert decode(REPLY, out_key, protocol.Fault("step", 9, "boom").encode()) == Fault("int", 12, "step", 9, "boom")
     assert decode(LIVELINESS, bus.alive_key(rid, "int", 7), False) == Liveliness("int", 7, False)
     assert decode(LIVELINESS, bus.viewer_alive_key(rid), True) == Liveliness(bus.VIEWER, 0, True)
-    assert decode(LIVELINESS, bus.run_key(rid, "alive", "int", "x"), True) is None   # not a process's token
+    assert decode(LIVELINESS, bus.run_key(rid, "alive", "int", "x"), True) is None  # not a process's token
 
 
-@pytest.mark.parametrize("kind, key, payload, reason", [
-    ("o", "r/int", b"junk", "expected a B message"),
-    ("o", "r/int", "tag 0", "tag 0: the outputs of a step are tagged 1 or later"),
-    ("r", "c/int/x/out", "reply", "not a component's reply key"),
-    ("r", "c/int/\u00b2/out", "reply", "not a component's reply key"),   # "²".isdigit(), but no number
-    ("r", "out", "reply", "not a component's reply key"),
-    ("r", "c/int/0/out", b"X" + bytes(8), "expected first byte one of"),
-    ("r", "c/int/0/out", "fault without k", "expected a field 'k'"),
-    ("r", "c/int/0/out", b"R\xff\xff\xff\xff{", "announces"),
-])
+@pytest.mark.parametrize(
+    "kind, key, payload, reason",
+    [
+        ("o", "r/int", b"junk", "expected a B message"),
+        ("o", "r/int", "tag 0", "tag 0: the outputs of a step are tagged 1 or later"),
+        ("r", "c/int/x/out", "reply", "not a component's reply key"),
+        ("r", "c/int/\u00b2/out", "reply", "not a component's reply key"),  # "²".isdigit(), but no number
+        ("r", "out", "reply", "not a component's reply key"),
+        ("r", "c/int/0/out", b"X" + bytes(8), "expected first byte one of"),
+        ("r", "c/int/0/out", "fault without k", "expected a field 'k'"),
+        ("r", "c/int/0/out", b"R\xff\xff\xff\xff{", "announces"),
+    ],
+)
 def test_malformed_inbox_entries_are_refused_with_a_reason(kind, key, payload, reason):
     from components import bus, protocol
     from orchestrator.run.messages import decode
 
     text = b'{"op": "step", "error": "x"}'
 
-    payload = {"tag 0": bus.encode_batch(0, np.array([0, 1]), np.zeros((2, 2)), np.zeros((2, 1))),
-               "reply": protocol.Reply("wire").encode(),
-               "fault without k": b"E" + struct.pack("<I", len(text)) + text}.get(payload, payload)
+    payload = {
+        "tag 0": bus.encode_batch(0, np.array([0, 1]), np.zeros((2, 2)), np.zeros((2, 1))),
+        "reply": protocol.Reply("wire").encode(),
+        "fault without k": b"E" + struct.pack("<I", len(text)) + text,
+    }.get(payload, payload)
     with pytest.raises(bus.Malformed, match=reason):
         decode(kind, bus.run_key("demo-1a2b3c4d", *key.split("/")), payload)
 
@@ -184,8 +203,10 @@ def test_a_fault_overtaking_earlier_batches_keeps_the_progress_it_reported(tmp_p
     from orchestrator.run.messages import OUTPUTS, decode
 
     path = tmp_path / "one.yaml"
-    path.write_text("run: {name: one, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 10 ms}\n"
-                    "components: {bad: {type: test.counter}}\n")
+    path.write_text(
+        "run: {name: one, epoch: 2022-09-18T12:00:00Z, duration: 1 s, step: 10 ms}\n"
+        "components: {bad: {type: test.counter}}\n"
+    )
     spec = load(path).components["bad"]
     member = Member(spec=spec, generation=0, process=None, log_path=None, ratio=1, progress=50)
     tags = np.arange(1, 33)
@@ -193,8 +214,10 @@ def test_a_fault_overtaking_earlier_batches_keeps_the_progress_it_reported(tmp_p
     member.receive(decode(OUTPUTS, bus.batch_key("one-1a2b3c4d", "bad"), batch))
     assert member.progress == 50 and [t for t, _ in member.received] == tags.tolist()
     assert (member.steps, member.compute_s, member.idle_s) == (32, 16.0, 16.0)
-    for stale in (bus.encode_batch(1, tags, np.zeros((32, 2)), np.zeros((32, 1))),   # another generation
-                  bus.encode_batch(0, tags, np.zeros((32, 2)), np.zeros((32, 2)))):  # another size
+    for stale in (
+        bus.encode_batch(1, tags, np.zeros((32, 2)), np.zeros((32, 1))),  # another generation
+        bus.encode_batch(0, tags, np.zeros((32, 2)), np.zeros((32, 2))),
+    ):  # another size
         with pytest.raises(bus.Malformed):
             member.receive(decode(OUTPUTS, bus.batch_key("one-1a2b3c4d", "bad"), stale))
     assert member.steps == 32

@@ -1,6 +1,7 @@
 """The sensors' noise models (components/noise.py) against independent references:
 numpy's own generator for the seeded stream, the rotation-matrix helpers of components.rotations
 for the quaternion product and exponential, closed forms for the random walk and the latency."""
+
 from __future__ import annotations
 
 import math
@@ -10,9 +11,19 @@ import pytest
 
 from components.bus import decode_state, encode_state
 from components.errors import ConfigError
+from components.noise import (
+    BiasRandomWalk,
+    LatencyBuffer,
+    NormalStream,
+    latency_samples,
+    normalized,
+    per_axis,
+    perturb_quaternion,
+    quat_exp,
+    quat_multiply,
+    white,
+)
 from components.rotations import exp_so3, matrix_to_quat, quat_to_matrix
-from components.noise import (BiasRandomWalk, LatencyBuffer, NormalStream, latency_samples, normalized,
-                                      per_axis, perturb_quaternion, quat_exp, quat_multiply, white)
 
 MS = 1_000_000
 
@@ -21,19 +32,19 @@ def test_stream_is_numpys_pcg64_and_replays_from_its_seed():
     reference = np.random.Generator(np.random.PCG64(42)).standard_normal(30)
     a, b = NormalStream(42), NormalStream(42)
     got = np.concatenate([a.draw(6) for _ in range(5)])
-    assert got.tobytes() == reference.tobytes()     # blocks of 6 = one draw of 30, bit for bit
+    assert got.tobytes() == reference.tobytes()  # blocks of 6 = one draw of 30, bit for bit
     assert np.concatenate([b.draw(6) for _ in range(5)]).tobytes() == got.tobytes()
     assert not np.array_equal(NormalStream(43).draw(30), reference)
 
 
-@pytest.mark.parametrize("seed", [0, 7, 2**63 + 12345, 2**100])      # 128-bit PCG64 words survive
+@pytest.mark.parametrize("seed", [0, 7, 2**63 + 12345, 2**100])  # 128-bit PCG64 words survive
 def test_stream_state_through_the_bus_encoding_continues_bit_for_bit(seed):
     a = NormalStream(seed)
     a.draw(1001)
-    a.rng.integers(0, 10, dtype=np.uint32)      # leaves a buffered uint32 (has_uint32) in the state
+    a.rng.integers(0, 10, dtype=np.uint32)  # leaves a buffered uint32 (has_uint32) in the state
     words = a.get_state()
     assert words.dtype == np.uint64 and words.shape == (6,)
-    b = NormalStream(999)                       # another seed: the state replaces it
+    b = NormalStream(999)  # another seed: the state replaces it
     b.set_state(decode_state(encode_state({"rng": words}))["rng"])
     assert b.rng.bit_generator.state == a.rng.bit_generator.state
     assert b.draw(500).tobytes() == a.draw(500).tobytes()
@@ -83,7 +94,9 @@ def test_latency_samples_counts_whole_steps_and_names_the_key_otherwise():
     with pytest.raises(ConfigError) as error:
         latency_samples(25 * MS, 10 * MS, "latency")
     assert error.value.key == "latency"
-    assert "integer multiple of the component's step (10 ms" in error.value.message and "got 25 ms" in error.value.message
+    assert (
+        "integer multiple of the component's step (10 ms" in error.value.message and "got 25 ms" in error.value.message
+    )
     with pytest.raises(ConfigError, match="latency"):
         latency_samples(-10 * MS, 10 * MS)
 
@@ -113,7 +126,7 @@ def test_latency_buffer_state_round_trip_mid_pipeline():
     for k in range(2, 10):
         ra, rb = a.push(k, [k, 2 * k, 3 * k]), b.push(k, [k, 2 * k, 3 * k])
         assert (ra is None and rb is None) or (ra[0] == rb[0] and ra[1].tobytes() == rb[1].tobytes())
-    fresh = LatencyBuffer(3)                       # never stepped: no delay yet
+    fresh = LatencyBuffer(3)  # never stepped: no delay yet
     fresh.set_state(decode_state(encode_state(LatencyBuffer(3).get_state("x_"))), "x_")
     assert fresh.delay is None and not fresh.samples
     with pytest.raises(RuntimeError):

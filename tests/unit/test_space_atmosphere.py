@@ -1,6 +1,7 @@
 """components/space/atmosphere.py against Basilisk (tests/basilisk/atmosphere.json, made by
 tests/basilisk/atmosphere.py): NRLMSISE-00 (msisAtmosphere) and the exponential (exponentialAtmosphere);
 the drag's local exponential against the model evaluated per link per stage; the dynamics' parameter."""
+
 from __future__ import annotations
 
 import json
@@ -13,8 +14,13 @@ import pytest
 
 from components.constants import EARTH_RATE, MU_EARTH, R_EARTH
 from components.space import earth
-from components.space.atmosphere import (ANOMALOUS_OXYGEN_MASS, ExponentialAtmosphere, LocalExponential, Nrlmsise00,
-                                         utc_datetime64)
+from components.space.atmosphere import (
+    ANOMALOUS_OXYGEN_MASS,
+    ExponentialAtmosphere,
+    LocalExponential,
+    Nrlmsise00,
+    utc_datetime64,
+)
 from tests import validation
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -68,8 +74,10 @@ def test_nrlmsise00_matches_basilisk():
         if case["height"] < 500e3:
             rho -= ANOMALOUS_OXYGEN_MASS * out[8]
         error = abs(rho / case["density"] - 1)
-        print(f"{case['height'] / 1e3:5.0f} km lat {case['latitude']:6.1f} lon {case['longitude']:7.1f}: "
-              f"{rho:.6e} vs {case['density']:.6e} kg/m^3, {error:.1e}")
+        print(
+            f"{case['height'] / 1e3:5.0f} km lat {case['latitude']:6.1f} lon {case['longitude']:7.1f}: "
+            f"{rho:.6e} vs {case['density']:.6e} kg/m^3, {error:.1e}"
+        )
         worst = max(worst, error)
         if case["longitude"] >= 0:
             east = max(east, error)
@@ -80,14 +88,16 @@ def test_nrlmsise00_matches_basilisk():
 def test_nrlmsise00_responds_to_its_inputs():
     """The inputs reach the model: more flux, more activity, lower height: denser; the day side
     denser than the night side; geodetic, not geocentric, height; indices out of range refused."""
-    utc = (2461119.5, 0.5)         # 2026-03-20T12:00Z
+    utc = (2461119.5, 0.5)  # 2026-03-20T12:00Z
     base = Nrlmsise00(150.0, 150.0, 4.0)
     rho = float(base.density_geodetic(utc, 0.3, 0.2, 400e3))
     assert Nrlmsise00(200.0, 150.0, 4.0).density_geodetic(utc, 0.3, 0.2, 400e3) > rho
     assert Nrlmsise00(150.0, 200.0, 4.0).density_geodetic(utc, 0.3, 0.2, 400e3) > rho
     assert Nrlmsise00(150.0, 150.0, 50.0).density_geodetic(utc, 0.3, 0.2, 400e3) > rho
     assert base.density_geodetic(utc, 0.3, 0.2, 399e3) > rho
-    assert base.density_geodetic(utc, 0.0, 0.0, 400e3) > base.density_geodetic(utc, 0.0, math.pi, 400e3)   # noon vs midnight
+    assert base.density_geodetic(utc, 0.0, 0.0, 400e3) > base.density_geodetic(
+        utc, 0.0, math.pi, 400e3
+    )  # noon vs midnight
     for key, value in (("f107", -1.0), ("f107a", 0.0), ("ap", 401.0), ("ap", math.nan)):
         with pytest.raises(ValueError, match=key):
             Nrlmsise00(**{"f107": 150.0, "f107a": 150.0, "ap": 4.0, key: value})
@@ -143,8 +153,9 @@ def drag_world(engine: str, atmosphere):
     from components.dynamics.world import BodySpec, OrbitalWorld
 
     spec = BodySpec("sat", str(ROOT / "models" / "target.urdf"), drag_area={"target": 2.0}, drag_cd=2.2)
-    return OrbitalWorld([spec], engine=engine, tidal_force=False, gravity_gradient=False, drag=True,
-                        atmosphere=atmosphere)
+    return OrbitalWorld(
+        [spec], engine=engine, tidal_force=False, gravity_gradient=False, drag=True, atmosphere=atmosphere
+    )
 
 
 @pytest.mark.parametrize("engine", ["dart", "pinocchio"])
@@ -162,7 +173,7 @@ def test_the_dynamics_drag_uses_nrlmsise00(engine):
     world.reset_bodies()
     world.update_atmosphere(0.0)
     force = world.outputs("sat")["drag_force"]
-    x = r + world.outputs("sat")["link_position"][:3]        # the target's link origin is its CoM
+    x = r + world.outputs("sat")["link_position"][:3]  # the target's link origin is its CoM
     v_rel = v - np.cross([0.0, 0.0, EARTH_RATE], x)
     utc, tt = layer.clock.utc_tt(t0)
     rho = model.density(x, utc, tt)
@@ -170,7 +181,7 @@ def test_the_dynamics_drag_uses_nrlmsise00(engine):
     assert np.abs(force - expected).max() < 1e-6 * np.linalg.norm(expected)
     world.step(4.0)
     R_mid, _ = circular_orbit(t0 + 2.0)
-    assert abs(layer.h0[0] - (np.linalg.norm(R_mid) - R_EARTH)) < 0.05      # reference propagated 2 s: mm
+    assert abs(layer.h0[0] - (np.linalg.norm(R_mid) - R_EARTH)) < 0.05  # reference propagated 2 s: mm
     assert abs(layer.rho0[0] / model.density(R_mid, *layer.clock.utc_tt(t0 + 2.0)) - 1) < 1e-5
 
 
@@ -188,8 +199,12 @@ def test_the_dynamics_parameter():
     from components.sdk import resolve_parameters
 
     def resolve(atmosphere, epoch=EPOCH):
-        raw = {"bodies": {"sat": {"urdf": str(ROOT / "models" / "target.urdf"), "drag_area": 2.0}}, "drag": True,
-               "atmosphere": atmosphere, **({"_epoch": epoch} if epoch else {})}
+        raw = {
+            "bodies": {"sat": {"urdf": str(ROOT / "models" / "target.urdf"), "drag_area": 2.0}},
+            "drag": True,
+            "atmosphere": atmosphere,
+            **({"_epoch": epoch} if epoch else {}),
+        }
         return resolve_parameters(PinocchioDynamics, raw)
 
     params, errors = resolve({"model": "nrlmsise00", "f107": 150, "f107a": 140, "ap": 4})
@@ -201,12 +216,13 @@ def test_the_dynamics_parameter():
     assert not errors
     world = PinocchioDynamics(params, compile_kernels=False).world
     assert world.atmosphere.rho0.tolist() == [4e-12] and not world.atmosphere_varies
-    for atmosphere, epoch, key in (({"model": "nrlmsise00", "f107": 150, "f107a": 140}, EPOCH, "atmosphere.ap"),
-                                   ({"model": "nrlmsise00", "f107": 150, "f107a": 140, "ap": 4, "density": 1e-12},
-                                    EPOCH, "atmosphere.density"),
-                                   ({"altitude": 4e5, "density": 4e-12}, EPOCH, "atmosphere.scale_height"),
-                                   ({"model": "nrlmsise00", "f107": 150, "f107a": 140, "ap": 4}, None, "_epoch"),
-                                   ({"model": "msis", "f107": 150, "f107a": 140, "ap": 4}, EPOCH, "atmosphere.model")):
+    for atmosphere, epoch, key in (
+        ({"model": "nrlmsise00", "f107": 150, "f107a": 140}, EPOCH, "atmosphere.ap"),
+        ({"model": "nrlmsise00", "f107": 150, "f107a": 140, "ap": 4, "density": 1e-12}, EPOCH, "atmosphere.density"),
+        ({"altitude": 4e5, "density": 4e-12}, EPOCH, "atmosphere.scale_height"),
+        ({"model": "nrlmsise00", "f107": 150, "f107a": 140, "ap": 4}, None, "_epoch"),
+        ({"model": "msis", "f107": 150, "f107a": 140, "ap": 4}, EPOCH, "atmosphere.model"),
+    ):
         _, errors = resolve(atmosphere, epoch)
         assert [e.key for e in errors] == [key], errors
 
@@ -215,17 +231,17 @@ def test_the_dynamics_parameter():
 # pymsis' tests): iyd (yyddd), UT s, height km, geodetic latitude and longitude deg, F10.7a, F10.7, Ap,
 # total mass density g/cm^3 (4 significant digits); every 9th row between 150 and 900 km.
 MSIS21_REFERENCE = [
-    (6264, 42650, 155.0, 80.8, 150.2, 77.7, 70.9, 3.0, 0.9118E-12),
-    (9305, 984, 175.0, -59.3, 143.7, 72.9, 75.1, 3.0, 0.4316E-12),
-    (74057, 42345, 209.8, 63.4, -59.9, 79.6, 80.2, 28.0, 0.1300E-12),
-    (79080, 80550, 227.7, 50.7, -10.0, 185.9, 185.6, 5.0, 0.1449E-12),
-    (12178, 13881, 250.0, -6.9, -38.6, 127.6, 88.5, 7.0, 0.3556E-13),
-    (3069, 10185, 250.0, 18.6, -175.0, 125.9, 152.8, 16.0, 0.8350E-13),
-    (82137, 51096, 262.3, -78.1, 154.2, 161.1, 135.9, 12.0, 0.4256E-13),
-    (10351, 42720, 282.6, -72.0, -99.4, 83.8, 84.1, 4.0, 0.1527E-13),
-    (6283, 41080, 358.8, 46.2, 160.7, 79.3, 75.0, 2.0, 0.1644E-14),
-    (74213, 39510, 399.1, -24.4, 119.1, 86.5, 84.8, 6.0, 0.9457E-15),
-    (6257, 18301, 500.0, -47.6, 125.3, 77.6, 82.9, 4.0, 0.1879E-15),
+    (6264, 42650, 155.0, 80.8, 150.2, 77.7, 70.9, 3.0, 0.9118e-12),
+    (9305, 984, 175.0, -59.3, 143.7, 72.9, 75.1, 3.0, 0.4316e-12),
+    (74057, 42345, 209.8, 63.4, -59.9, 79.6, 80.2, 28.0, 0.1300e-12),
+    (79080, 80550, 227.7, 50.7, -10.0, 185.9, 185.6, 5.0, 0.1449e-12),
+    (12178, 13881, 250.0, -6.9, -38.6, 127.6, 88.5, 7.0, 0.3556e-13),
+    (3069, 10185, 250.0, 18.6, -175.0, 125.9, 152.8, 16.0, 0.8350e-13),
+    (82137, 51096, 262.3, -78.1, 154.2, 161.1, 135.9, 12.0, 0.4256e-13),
+    (10351, 42720, 282.6, -72.0, -99.4, 83.8, 84.1, 4.0, 0.1527e-13),
+    (6283, 41080, 358.8, 46.2, 160.7, 79.3, 75.0, 2.0, 0.1644e-14),
+    (74213, 39510, 399.1, -24.4, 119.1, 86.5, 84.8, 6.0, 0.9457e-15),
+    (6257, 18301, 500.0, -47.6, 125.3, 77.6, 82.9, 4.0, 0.1879e-15),
 ]
 
 

@@ -1,5 +1,6 @@
 """components/space/earth.py: WGS 84 geodetic coordinates against ERFA's gc2gd/gd2gc, the GCRF -> ITRF
 rotation against ERFA's IAU 2006/2000A chain, the run clock across a leap second."""
+
 from __future__ import annotations
 
 import math
@@ -22,7 +23,7 @@ def test_geodetic_from_ecef_matches_erfa_gc2gd():
     """Points from 6200 km (below the equator's surface) to beyond GEO, every direction."""
     worst_height, worst_angle = 0.0, 0.0
     for r in random_points(5000):
-        longitude, latitude, height = erfa.gc2gd(1, r)              # 1: WGS 84
+        longitude, latitude, height = erfa.gc2gd(1, r)  # 1: WGS 84
         phi, lam, h = earth.geodetic_from_ecef(r)
         worst_height = max(worst_height, abs(h - height))
         worst_angle = max(worst_angle, abs(phi - latitude), abs(math.remainder(lam - longitude, 2 * math.pi)))
@@ -57,9 +58,9 @@ def test_gcrf_to_itrf_is_iau_2006_2000a():
     tt = timescales.utc_to_tt(utc)
     M = earth.gcrf_to_itrf(tt, utc)
     later = earth.gcrf_to_itrf((tt[0], tt[1] + 1.0 / 86400), (utc[0], utc[1] + 1.0 / 86400))
-    x = M.T @ np.array([1.0, 0.0, 0.0])           # the ITRF x axis in GCRF, then a second later
+    x = M.T @ np.array([1.0, 0.0, 0.0])  # the ITRF x axis in GCRF, then a second later
     turned = math.atan2(np.linalg.norm(np.cross(x, later.T @ [1.0, 0.0, 0.0])), x @ (later.T @ [1.0, 0.0, 0.0]))
-    assert abs(turned - 7.292115e-5) < 1e-9       # rad in one second: the Earth's rate (+ precession)
+    assert abs(turned - 7.292115e-5) < 1e-9  # rad in one second: the Earth's rate (+ precession)
 
 
 def test_earth_clock_counts_the_leap_second():
@@ -68,4 +69,4 @@ def test_earth_clock_counts_the_leap_second():
     after = erfa.d2dtf("UTC", 0, *clock.utc_tt(2.0)[0])
     assert (int(after[0]), int(after[1]), int(after[2])) == (2017, 1, 1) and tuple(after[3])[:3] == (0, 0, 0)
     tt = clock.utc_tt(0.0)[1]
-    assert abs(((tt[0] - 2457753.5) + tt[1]) * 86400 - (86399 + 68.184)) < 1e-4     # TT - UTC = 68.184 s
+    assert abs(((tt[0] - 2457753.5) + tt[1]) * 86400 - (86399 + 68.184)) < 1e-4  # TT - UTC = 68.184 s

@@ -2,6 +2,7 @@
 (components/space/earth.py) and the magnetorquer torque, against Basilisk's
 magneticFieldCenteredDipole, magneticFieldWMM and MtbEffector (fixtures tests/basilisk/geomagnetic.json,
 remade by ``python -m tests.basilisk geomagnetic``) and closed forms."""
+
 from __future__ import annotations
 
 import json
@@ -11,10 +12,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.timescales import parse_utc
 from components.space.earth import EarthRotation, gcrf_to_itrf
-from components.space.geomagnetic import (BASILISK_DIPOLE, GeomagneticField, WorldMagneticModel, decimal_year,
-                                          dipole_field_ecef, wmm_coefficients)
+from components.space.geomagnetic import (
+    BASILISK_DIPOLE,
+    GeomagneticField,
+    WorldMagneticModel,
+    decimal_year,
+    dipole_field_ecef,
+    wmm_coefficients,
+)
+from components.timescales import parse_utc
 from tests import validation
 
 FIXTURES = json.loads((Path(__file__).resolve().parents[1] / "basilisk" / "geomagnetic.json").read_text())
@@ -44,7 +51,7 @@ def test_wmm_field_matches_basilisk():
         C = np.array(case["C_ecef_eci"])
         b = wmm.field_ecef(C @ np.array(case["r_eci"]), decimal_year(parse_utc(case["epoch"]))) @ C
         expected = np.array(case["b_eci"])
-        assert np.linalg.norm(expected) > 50 * NT                   # (GEO: ~100 nT; LEO: 18-50 uT)
+        assert np.linalg.norm(expected) > 50 * NT  # (GEO: ~100 nT; LEO: 18-50 uT)
         worst = max(worst, float(np.linalg.norm(b - expected)) / NT)
     validation.check("geomagnetic_wmm", worst)
 
@@ -57,7 +64,7 @@ def test_magnetorquer_torque_matches_basilisk_mtb_effector():
     case = FIXTURES["mtb"]
     s = np.array(case["sigma_BN"])
     s2 = s @ s
-    q_N_B = np.append(2 * s, 1 - s2) / (1 + s2)                  # the MRP's quaternion [x, y, z, w]
+    q_N_B = np.append(2 * s, 1 - s2) / (1 + s2)  # the MRP's quaternion [x, y, z, w]
     b_body = quat_to_matrix(q_N_B).T @ np.array(case["b_N"])
     limit = np.array(case["max_dipoles"])
     m = np.array(case["gt_B"]) @ np.clip(case["dipoles"], -limit, limit)
@@ -78,8 +85,8 @@ def test_dipole_field_at_its_pole_is_twice_the_equators():
     equator_field = dipole_field_ecef(r * equator, **BASILISK_DIPOLE)
     assert np.linalg.norm(pole_field) == pytest.approx(2 * scale, rel=1e-14)
     assert np.linalg.norm(equator_field) == pytest.approx(scale, rel=1e-14)
-    assert pole_field == pytest.approx(2 * scale * axis, rel=1e-14)           # along the axis, outwards
-    assert equator_field == pytest.approx(-scale * axis, rel=1e-13)            # antiparallel to it
+    assert pole_field == pytest.approx(2 * scale * axis, rel=1e-14)  # along the axis, outwards
+    assert equator_field == pytest.approx(-scale * axis, rel=1e-13)  # antiparallel to it
     # g10 < 0: the field points down into the Earth near the north geographic pole
     assert dipole_field_ecef([0.0, 0.0, r], **BASILISK_DIPOLE)[2] < 0
 
@@ -102,7 +109,7 @@ def test_wmm_falls_as_the_dipole_far_away():
 
 
 def test_decimal_year_counts_days_as_the_wmm_does():
-    assert decimal_year(parse_utc("2026-07-02T12:00:00Z")) == 2026.5                # day 183 of 365, noon
+    assert decimal_year(parse_utc("2026-07-02T12:00:00Z")) == 2026.5  # day 183 of 365, noon
     assert decimal_year(parse_utc("2028-01-01T00:00:00Z")) == 2028.0
     assert decimal_year(parse_utc("2028-12-31T12:00:00Z")) == pytest.approx(2028 + 365.5 / 366, abs=1e-12)
 
@@ -125,7 +132,7 @@ def test_earth_rotation_is_the_earth_rotation_angle_at_j2000():
     C = rotation.ecef_from_eci(0)
     assert np.abs(C - r3).max() < 1e-4
     dt = 600.0
-    turn = rotation.ecef_from_eci(int(dt * 1e9)) @ C.T                       # R3(omega dt)
+    turn = rotation.ecef_from_eci(int(dt * 1e9)) @ C.T  # R3(omega dt)
     omega = 2 * math.pi * 1.00273781191135448 / 86400.0
     assert math.atan2(turn[0, 1], turn[0, 0]) == pytest.approx(omega * dt, rel=1e-6)
     assert np.linalg.det(C) == pytest.approx(1.0, abs=1e-14)
@@ -138,6 +145,6 @@ def test_field_in_eci_rotates_the_ecef_field_back():
     t_ns = 1234 * 10**9
     utc, tt = field.rotation.dates(t_ns)
     C = field.rotation.ecef_from_eci(t_ns)
-    assert np.abs(C - gcrf_to_itrf(tt, utc)).max() < 1e-9            # at t itself (C_cirs_gcrf a minute old)
+    assert np.abs(C - gcrf_to_itrf(tt, utc)).max() < 1e-9  # at t itself (C_cirs_gcrf a minute old)
     assert field.b_eci(r, t_ns) == pytest.approx(C.T @ dipole_field_ecef(C @ r, **BASILISK_DIPOLE), rel=1e-14)
     assert field.b_eci(np.array([r, 2 * r]), t_ns)[1] == pytest.approx(field.b_eci(r, t_ns) / 8, rel=1e-13)

@@ -1,6 +1,7 @@
 """Eclipse factor and solar radiation pressure (components/space/eclipse.py, srp.py) against
 Basilisk's fixtures (tests/basilisk/srp.json: ``eclipse``, ``radiationPressure``,
 ``facetSRPDynamicEffector`` on the same Sun and Moon positions) and closed forms."""
+
 import json
 import math
 from pathlib import Path
@@ -54,8 +55,8 @@ def test_partial_disk_fraction_against_numerical_overlap():
     a, b, c = 0.0047, 0.0061, 0.0083
     n = 1601
     x, y = np.meshgrid(np.linspace(-a, a, n), np.linspace(-a, a, n))
-    inside_sun = x ** 2 + y ** 2 <= a ** 2
-    visible = inside_sun & ((x - c) ** 2 + y ** 2 > b ** 2)
+    inside_sun = x**2 + y**2 <= a**2
+    visible = inside_sun & ((x - c) ** 2 + y**2 > b**2)
     assert eclipse.disk_fraction(a, b, c) == pytest.approx(visible.sum() / inside_sun.sum(), abs=2e-3)
 
 
@@ -86,7 +87,7 @@ def test_cannonball_force_matches_basilisk_radiation_pressure(case):
         assert not np.any(force) and not np.any(case["force_N"])
         return
     validation.check("srp_cannonball_basilisk", relative(force, case["force_N"]))
-    assert force @ s < 0.0                                      # away from the Sun
+    assert force @ s < 0.0  # away from the Sun
 
 
 @pytest.mark.parametrize("case", FIXTURE["facet_cases"], ids=lambda c: str(c["sigma_BN"]))
@@ -94,7 +95,7 @@ def test_facet_force_and_torque_match_basilisk_facet_srp(case):
     facets = srp.facet_rows(FIXTURE["facets"])
     s_B = np.array(case["dcm_BN"]) @ (SUN - np.array(case["r"]))
     lit = facets[:, 1:4] @ (s_B / np.linalg.norm(s_B)) > 0
-    assert 1 <= lit.sum() < len(facets)                         # some facets face the Sun, some do not
+    assert 1 <= lit.sum() < len(facets)  # some facets face the Sun, some do not
     force, torque = srp.facet_wrench(s_B, facets, case["factor"], flux=K["facet_flux"], au=K["facet_AU"])
     validation.check("srp_facets_basilisk", max(relative(force, case["force_B"]), relative(torque, case["torque_B"])))
 
@@ -106,7 +107,9 @@ def test_flat_plate_facing_the_sun_closed_form():
     n = s / np.linalg.norm(s)
     area, specular, diffuse, nu = 2.5, 0.3, 0.45, 0.8
     centre = np.array([0.4, -1.1, 0.25])
-    plate = srp.facet_rows([{"area": area, "normal": n * 3.0, "centre": centre, "specular": specular, "diffuse": diffuse}])
+    plate = srp.facet_rows(
+        [{"area": area, "normal": n * 3.0, "centre": centre, "specular": specular, "diffuse": diffuse}]
+    )
     force, torque = srp.facet_wrench(s, plate, nu)
     pressure = srp.SOLAR_FLUX / srp.SPEED_OF_LIGHT * (srp.AU / np.linalg.norm(s)) ** 2
     want = -nu * pressure * area * (1 + specular + 2 * diffuse / 3) * n
@@ -121,6 +124,8 @@ def test_flat_plate_facing_the_sun_closed_form():
 
 def test_facet_rows_refuse_what_cannot_be_a_facet():
     with pytest.raises(ValueError, match=r"f\[0\].normal: expected a direction"):
-        srp.facet_rows([{"area": 1.0, "normal": [0, 0, 0], "centre": [0, 0, 0], "specular": 0.1, "diffuse": 0.1}], where="f")
+        srp.facet_rows(
+            [{"area": 1.0, "normal": [0, 0, 0], "centre": [0, 0, 0], "specular": 0.1, "diffuse": 0.1}], where="f"
+        )
     with pytest.raises(ValueError, match=r"specular \+ diffuse <= 1"):
         srp.facet_rows([{"area": 1.0, "normal": [0, 0, 1], "centre": [0, 0, 0], "specular": 0.7, "diffuse": 0.5}])

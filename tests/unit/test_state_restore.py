@@ -5,6 +5,7 @@ shipped configs use (stepped in process as a Jacobi run wires them, states throu
 bytes encoding): the restored instance B publishes bit for bit what the original A publishes
 over the following steps, given the same inputs, and B's ``get_state`` right after the restore
 is A's (same keys, same bits)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -65,17 +66,17 @@ class Run:
 
     def __init__(self, config: str, edit=None):
         self.config = yaml.safe_load((CONFIGS / config).read_text())
-        if edit is not None:                    # a variant of the shipped config
+        if edit is not None:  # a variant of the shipped config
             edit(self.config)
         self.step_ns = duration_ns(self.config["run"]["step"], "run.step")
-        self.sources = {}                       # component -> [(input, source component, output)]
+        self.sources = {}  # component -> [(input, source component, output)]
         for dst, src in (self.config["connections"] or {}).items():
             (c, i), (s, o) = dst.split(".", 1), src.split(".", 1)
             self.sources.setdefault(c, []).append((i, s, o))
         self.components = {name: self.make(name) for name in self.config["components"]}
         self.outputs: dict[str, dict] = {}
         self.shadows: dict[str, Harness] = {}
-        for name, h in self.components.items():   # config order
+        for name, h in self.components.items():  # config order
             ready = {i: h.t_ns for i, s, _ in self.sources.get(name, ()) if s in self.outputs}
             self.feed(name, h)
             h.input_times_ns = ready
@@ -84,8 +85,9 @@ class Run:
 
     def make(self, name: str, t0_ns: int = 0) -> Harness:
         spec = self.config["components"][name]
-        return Harness(spec["type"], spec.get("parameters"), t0_ns=t0_ns, epoch=self.config["run"]["epoch"],
-                       config_dir=CONFIGS)
+        return Harness(
+            spec["type"], spec.get("parameters"), t0_ns=t0_ns, epoch=self.config["run"]["epoch"], config_dir=CONFIGS
+        )
 
     def feed(self, name: str, h: Harness) -> None:
         for i, s, o in self.sources.get(name, ()):
@@ -135,7 +137,7 @@ def test_reanchoring_at_9s_would_fail_the_reach_check(demo_at_9s):
     the 0.5 m move would leave the arm's reach."""
     run = demo_at_9s
     fresh = run.make("controller", run.t_ns)
-    run.feed("controller", fresh)                                 # the dynamics' state at t
+    run.feed("controller", fresh)  # the dynamics' state at t
     fresh.input_times_ns = {name: run.t_ns for name in fresh.inputs}
     with pytest.raises(ConfigError, match="out of reach"):
         fresh.initialize()
@@ -156,6 +158,7 @@ def test_computed_torque_dynamics_and_kepler_restore_mid_move(demo_at_9s):
 def test_computed_torque_restores_the_positions_its_locked_joints_are_welded_at():
     """The demo with the locked left arm bent (the demo's is at q = 0): the restored model is
     welded where the run's initialize measured it, not at zero."""
+
     def bent_left_arm(config):
         q = config["components"]["dynamics"]["parameters"]["bodies"]["humanoid"]["q"]
         q.update(arm_left_1_joint=-0.4, arm_left_2_joint=0.3, arm_left_4_joint=-1.2)
@@ -188,7 +191,7 @@ def test_computed_torque_restores_the_signs_of_its_output_quaternions():
     for k in range(1, 341):
         turned(a, k)
         a.step(MS)
-    assert a.outputs["ee_orientation"][3] < 0.0                  # w >= 0 is the other sign
+    assert a.outputs["ee_orientation"][3] < 0.0  # w >= 0 is the other sign
     b = restore(a, make)
     for k in range(341, 401):
         turned(a, k)
@@ -201,9 +204,12 @@ def test_computed_torque_restored_before_its_first_step_still_reanchors():
     its first step; a restore between the two (a checkpoint at t0) carries that pending
     re-anchoring over. (A small move: the demo's 0.5 m one is out of reach of the start values'
     posture, q = 0.)"""
+
     def small_move(config):
         config["components"]["controller"]["parameters"]["trajectory"] = {
-            "type": "waypoints", "waypoints": [{"time": 0.1, "position": [0.02, 0.0, 0.0]}]}
+            "type": "waypoints",
+            "waypoints": [{"time": 0.1, "position": [0.02, 0.0, 0.0]}],
+        }
 
     def controller_first(config):
         small_move(config)
@@ -213,24 +219,40 @@ def test_computed_torque_restored_before_its_first_step_still_reanchors():
     assert any(key.startswith("initial.") for key in decode_state(run.components["controller"].get_state()))
     run.restore("orbit", "controller", "dynamics")
     run.step(50)
-    expected = Run("humanoid_tracking.yaml", small_move)      # anchored at initialize
+    expected = Run("humanoid_tracking.yaml", small_move)  # anchored at initialize
     expected.step(50)
-    assert np.allclose(run.outputs["controller"]["ee_position_desired"],
-                       expected.outputs["controller"]["ee_position_desired"], rtol=0, atol=1e-12)
+    assert np.allclose(
+        run.outputs["controller"]["ee_position_desired"],
+        expected.outputs["controller"]["ee_position_desired"],
+        rtol=0,
+        atol=1e-12,
+    )
 
 
 def test_joint_pd_restores_mid_trajectory():
     """controller.joint_pd (no shipped config: in the demo's place, as tests/component wire it)
     restored 0.8 s into a joint trajectory, its integral terms wound up: the reference and the
     integral terms come from the state."""
+
     def joint_pd(config):
         arm = [f"arm_right_{i}_joint" for i in range(1, 8)]
         gains = {j: {"p": 20.0, "d": 3.0, "i": 1.0, "i_clamp": 0.2} for j in arm[:4]}
         gains.update({j: {"p": 1.0, "d": 0.05} for j in arm[4:]})
-        config["components"]["controller"] = {"type": "controller.joint_pd", "parameters": {
-            "urdf": "../models/humanoid_torso.urdf", "gains": gains, "targets": {"arm_right_4_joint": -1.5},
-            "trajectory": {"start": 0.2, "waypoints": [{"time": 1.2, "q": {"arm_right_1_joint": -0.5}},
-                                                       {"time": 2.0, "q": {"arm_right_2_joint": -2.0}}]}}}
+        config["components"]["controller"] = {
+            "type": "controller.joint_pd",
+            "parameters": {
+                "urdf": "../models/humanoid_torso.urdf",
+                "gains": gains,
+                "targets": {"arm_right_4_joint": -1.5},
+                "trajectory": {
+                    "start": 0.2,
+                    "waypoints": [
+                        {"time": 1.2, "q": {"arm_right_1_joint": -0.5}},
+                        {"time": 2.0, "q": {"arm_right_2_joint": -2.0}},
+                    ],
+                },
+            },
+        }
 
     run = Run("humanoid_tracking.yaml", joint_pd)
     run.run_to(1.0)
@@ -255,6 +277,7 @@ def test_dynamics_restores_with_a_joint_resting_on_a_limit_stop(engine):
     """The same with the right shoulder (arm_right_2_joint) thrown against its upper limit: it
     rests on the stop from t = 2.02 s; restored at 3 s, the stop comes from the state. Either
     engine (dynamics.dart, dynamics.pinocchio)."""
+
     def thrown(config):
         config["components"]["dynamics"]["type"] = f"dynamics.{engine}"
         config["components"]["dynamics"]["parameters"]["bodies"]["humanoid"]["qd"]["arm_right_2_joint"] = 0.3
@@ -274,11 +297,14 @@ def test_dynamics_restores_in_the_gravity_gradient_libration():
     run.run_to(2400.0)
 
 
-@pytest.mark.parametrize("config, at, until", [
-    ("orbit_iss_kepler.yaml", 2700.0, 2760.0),
-    ("orbit_iss_sgp4.yaml", 2700.0, 2760.0),
-    ("custom_path.yaml", 5340.0, 5460.0),           # across the last waypoint (90 min): after_end hold
-])
+@pytest.mark.parametrize(
+    "config, at, until",
+    [
+        ("orbit_iss_kepler.yaml", 2700.0, 2760.0),
+        ("orbit_iss_sgp4.yaml", 2700.0, 2760.0),
+        ("custom_path.yaml", 5340.0, 5460.0),  # across the last waypoint (90 min): after_end hold
+    ],
+)
 def test_orbit_restores(config, at, until):
     run = Run(config)
     run.run_to(at)
@@ -288,8 +314,10 @@ def test_orbit_restores(config, at, until):
 
 def test_orbit_fixed_restores():
     """orbit.fixed (no shipped config): a quaternion with w < 0 keeps its sign through a restore."""
+
     def make(t0_ns=0):
         return Harness("orbit.fixed", {"r_eci": [7e6, 0.0, 0.0], "q_eci_lvlh": [0.0, 0.6, 0.0, -0.8]}, t0_ns=t0_ns)
+
     a = make()
     a.initialize()
     for _ in range(3):
@@ -310,16 +338,20 @@ def test_user_component_oscillator_and_constant_restore():
     run.run_to(5.2)
 
 
-@pytest.mark.parametrize("type_name, params, u", [
-    ("test.counter", {}, None),
-    ("test.constant", {"value": 2.5}, None),
-    ("test.integrator", {"gain": 0.3, "x0": 1.0}, lambda k: 0.1 * k - 0.4),
-    ("test.noop", {"size": 3}, lambda k: [k, -k, 0.5]),
-    ("test.faulty", {"fault": "nan", "at_step": 8}, None),
-])
+@pytest.mark.parametrize(
+    "type_name, params, u",
+    [
+        ("test.counter", {}, None),
+        ("test.constant", {"value": 2.5}, None),
+        ("test.integrator", {"gain": 0.3, "x0": 1.0}, lambda k: 0.1 * k - 0.4),
+        ("test.noop", {"size": 3}, lambda k: [k, -k, 0.5]),
+        ("test.faulty", {"fault": "nan", "at_step": 8}, None),
+    ],
+)
 def test_test_blocks_restore(type_name, params, u):
     """The test blocks, restored after 5 steps; test.faulty misbehaves at the same step (its
     step count is its state)."""
+
     def make(t0_ns=0):
         return Harness(type_name, params, t0_ns=t0_ns)
 
@@ -339,4 +371,4 @@ def test_test_blocks_restore(type_name, params, u):
         for key in expected:
             assert bit_equal(got[key], expected[key]), (type_name, k, key)
         if type_name == "test.faulty":
-            assert np.isnan(got["y"]) == (k >= 8)      # stuck at its faulty step
+            assert np.isnan(got["y"]) == (k >= 8)  # stuck at its faulty step

@@ -1,6 +1,7 @@
 """Viewer robot geometry and forward kinematics (Pinocchio) against a hand-written URDF chain in numpy."""
-from pathlib import Path
+
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -51,9 +52,13 @@ def reference_poses(path, p_base, q_base, joint_values):
     """Link poses by walking the URDF tree with 4x4 matrices: T_child = T_parent T_origin T_motion."""
     root = ET.parse(path).getroot()
     x, y, z, w = q_base
-    R0 = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                   [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                   [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    R0 = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
     links = [link.get("name") for link in root.findall("link")]
     children = {j.find("child").get("link") for j in root.findall("joint")}
     base = next(name for name in links if name not in children)
@@ -87,12 +92,12 @@ def test_geometry_reads_links_joints_visuals_and_colours(tmp_path):
     path.write_text(CHAIN)
     g = read_geometry(path)
     assert g.links == ["base", "a", "b", "c", "tool"]
-    assert g.joints == ["spin", "slide", "bend"]           # movable joints, file order
+    assert g.joints == ["spin", "slide", "bend"]  # movable joints, file order
     assert np.allclose(g.coms[0], [0.1, 0, 0]) and np.allclose(g.coms[4], 0)
     kinds = [(v.link, v.kind, v.size) for v in g.visuals]
     assert kinds == [("base", "box", (0.2, 0.4, 0.6)), ("a", "cylinder", (0.03, 0.2)), ("b", "sphere", (0.05,))]
-    assert g.visuals[0].color == (255, 0, 0, 255)           # named material at the top level
-    assert g.visuals[1].color == (0, 128, 255, 255)         # inline colour
+    assert g.visuals[0].color == (255, 0, 0, 255)  # named material at the top level
+    assert g.visuals[1].color == (0, 128, 255, 255)  # inline colour
 
 
 def test_humanoid_geometry_matches_the_dynamics_layout():
@@ -115,7 +120,7 @@ def test_link_poses_match_a_numpy_walk_of_the_urdf(tmp_path, urdf):
     n = 5
     position = rng.normal(size=(n, 3))
     orientation = rng.normal(size=(n, 4))
-    orientation *= 3.0                                       # not normalized: the viewer normalizes
+    orientation *= 3.0  # not normalized: the viewer normalizes
     q = rng.uniform(-1.5, 1.5, size=(n, len(g.joints)))
     translations, rotations = kin.link_poses(position, orientation, q)
     for i in range(n):

@@ -1,4 +1,5 @@
 """SceneLogger (rows -> Rerun): what ends up in an .rrd, read back with Rerun's own reader (rerun.chunk)."""
+
 from pathlib import Path
 
 import numpy as np
@@ -25,11 +26,22 @@ def columns_of(spec):
     return out
 
 
-SPEC = [("orbit.r_eci", 3), ("orbit.q_eci_lvlh", 4), ("dyn.humanoid.position", 3), ("dyn.humanoid.orientation", 4),
-        ("dyn.humanoid.q", 14), ("dyn.humanoid.com", 3), ("dyn.humanoid.momentum", 6),
-        ("dyn.humanoid.gg_torque", 51), ("dyn.humanoid.link_position", 51),
-        ("ctrl.tau", 14), ("ctrl.ee_position", 3), ("ctrl.ee_position_desired", 3), ("ctrl.ee_error", 6),
-        ("extra.n", 0)]
+SPEC = [
+    ("orbit.r_eci", 3),
+    ("orbit.q_eci_lvlh", 4),
+    ("dyn.humanoid.position", 3),
+    ("dyn.humanoid.orientation", 4),
+    ("dyn.humanoid.q", 14),
+    ("dyn.humanoid.com", 3),
+    ("dyn.humanoid.momentum", 6),
+    ("dyn.humanoid.gg_torque", 51),
+    ("dyn.humanoid.link_position", 51),
+    ("ctrl.tau", 14),
+    ("ctrl.ee_position", 3),
+    ("ctrl.ee_position_desired", 3),
+    ("ctrl.ee_error", 6),
+    ("extra.n", 0),
+]
 CONFIG = {
     "run": {"name": "scene_test", "step": "10000000 ns"},
     "components": {
@@ -38,8 +50,7 @@ CONFIG = {
         "ctrl": {"type": "controller.computed_torque", "parameters": {}},
         "extra": {"type": "test.counter", "parameters": {}},
     },
-    "connections": {"dyn.humanoid.tau": "ctrl.tau", "ctrl.q": "dyn.humanoid.q",
-                    "dyn.q_eci_lvlh": "orbit.q_eci_lvlh"},
+    "connections": {"dyn.humanoid.tau": "ctrl.tau", "ctrl.q": "dyn.humanoid.q", "dyn.q_eci_lvlh": "orbit.q_eci_lvlh"},
 }
 
 
@@ -47,7 +58,9 @@ def synthetic_rows(columns, n, seed=1):
     rng = np.random.default_rng(seed)
     rows = rng.normal(scale=0.3, size=(n, len(columns)))
     index = parse_columns(columns)
-    rows[:, index["orbit", "r_eci"]] = 6.778e6 * np.c_[np.cos(np.arange(n) / 50), np.sin(np.arange(n) / 50), 0 * np.arange(n)]
+    rows[:, index["orbit", "r_eci"]] = (
+        6.778e6 * np.c_[np.cos(np.arange(n) / 50), np.sin(np.arange(n) / 50), 0 * np.arange(n)]
+    )
     rows[:, index["extra", "n"][0]] = np.arange(n)
     return rows
 
@@ -67,7 +80,7 @@ def read_rrd(path):
         entry["timelines"] |= set(chunk.timeline_names)
         for name in names:
             column = batch.column(name)
-            if pa.types.is_duration(column.type):            # sim_time: integer nanoseconds
+            if pa.types.is_duration(column.type):  # sim_time: integer nanoseconds
                 column = column.cast(pa.int64())
             entry["data"].setdefault(name, []).extend(column.to_pylist())
     return entities
@@ -76,8 +89,9 @@ def read_rrd(path):
 def save(tmp_path, columns, config, batches, name="scene.rrd", warnings=None):
     path = tmp_path / name
     stream = rr.RecordingStream("zenorbit_test", recording_id=name)
-    scene = SceneLogger(columns, config, None, recording=stream,
-                        warn=(warnings.append if warnings is not None else None))
+    scene = SceneLogger(
+        columns, config, None, recording=stream, warn=(warnings.append if warnings is not None else None)
+    )
     stream.save(str(path), default_blueprint=scene.blueprint())
     scene.log_static()
     for steps, times, rows in batches:
@@ -99,8 +113,9 @@ def test_rows_become_entities_on_sim_time_and_step(tmp_path):
     rows = synthetic_rows(columns, n)
     steps = np.arange(n) * 3
     times = steps * 0.01
-    scene, rrd = save(tmp_path, columns, CONFIG, [(steps[:12], times[:12], rows[:12]),
-                                                  (steps[12:], times[12:], rows[12:])])
+    scene, rrd = save(
+        tmp_path, columns, CONFIG, [(steps[:12], times[:12], rows[:12]), (steps[12:], times[12:], rows[12:])]
+    )
     links = read_geometry(URDF).links
     for link in links:
         entry = rrd[f"/world/dyn/humanoid/links/{link}"]
@@ -108,10 +123,15 @@ def test_rows_become_entities_on_sim_time_and_step(tmp_path):
     # the link poses are Pinocchio's forward kinematics of the recorded base pose and q
     index = parse_columns(columns)
     kin = Kinematics(read_geometry(URDF))
-    translations, _ = kin.link_poses(rows[:, index["dyn", "humanoid.position"]],
-                                     rows[:, index["dyn", "humanoid.orientation"]], rows[:, index["dyn", "humanoid.q"]])
-    logged = np.array([r[0] for r in rrd["/world/dyn/humanoid/links/arm_left_7_link"]["data"]["Transform3D:translation"]])
-    assert np.allclose(logged, translations[:, links.index("arm_left_7_link")], atol=1e-6)   # float32 in Rerun
+    translations, _ = kin.link_poses(
+        rows[:, index["dyn", "humanoid.position"]],
+        rows[:, index["dyn", "humanoid.orientation"]],
+        rows[:, index["dyn", "humanoid.q"]],
+    )
+    logged = np.array(
+        [r[0] for r in rrd["/world/dyn/humanoid/links/arm_left_7_link"]["data"]["Transform3D:translation"]]
+    )
+    assert np.allclose(logged, translations[:, links.index("arm_left_7_link")], atol=1e-6)  # float32 in Rerun
     # time columns: sim_time is a duration (ns), step the step index
     entry = rrd["/plots/ctrl/tau"]
     assert entry["data"]["step"] == list(steps)
@@ -127,7 +147,7 @@ def test_rows_become_entities_on_sim_time_and_step(tmp_path):
     arrows = rrd["/world/dyn/humanoid/gg_torque"]
     assert arrows["rows"] == n and all(len(v) == len(links) for v in arrows["data"]["Arrows3D:vectors"])
     first_batch = np.array(arrows["data"]["Arrows3D:vectors"][:12])
-    assert np.isclose(np.linalg.norm(first_batch, axis=2).max(), 0.25, rtol=1e-5)   # scaled on first sight
+    assert np.isclose(np.linalg.norm(first_batch, axis=2).max(), 0.25, rtol=1e-5)  # scaled on first sight
     assert rrd["/plots/dyn/humanoid/gg_torque_norm"]["rows"] == n
     # orbit view: Earth, trail, spacecraft with LVLH axes; LVLH axes in the robot view
     assert "Ellipsoids3D:half_sizes" in rrd["/orbit/earth"]["static"]
@@ -138,8 +158,12 @@ def test_rows_become_entities_on_sim_time_and_step(tmp_path):
     assert rrd["/signals/extra/n"]["rows"] == n
     assert [v[0] for v in rrd["/signals/extra/n"]["data"]["Scalars:scalars"]] == list(range(n))
     assert rrd["/signals/dyn/humanoid.q"]["rows"] == n
-    for absent in ("/signals/ctrl/tau", "/signals/dyn/humanoid.momentum", "/signals/dyn/humanoid.link_position",
-                   "/signals/dyn/humanoid.gg_torque"):
+    for absent in (
+        "/signals/ctrl/tau",
+        "/signals/dyn/humanoid.momentum",
+        "/signals/dyn/humanoid.link_position",
+        "/signals/dyn/humanoid.gg_torque",
+    ):
         assert absent not in rrd
     assert "TextDocument:text" in rrd["/notes"]["static"]
     assert RrdReader(tmp_path / "scene.rrd").blueprints(), "the layout (blueprint) is saved with the data"
@@ -147,35 +171,57 @@ def test_rows_become_entities_on_sim_time_and_step(tmp_path):
 
 
 def test_absent_or_inconsistent_signals_are_skipped_not_fatal(tmp_path):
-    spec = [("dyn.humanoid.position", 3), ("dyn.humanoid.orientation", 4), ("dyn.humanoid.q", 5),   # wrong size
-            ("dyn.ghost.position", 3), ("ctrl.ee_error", 6), ("ctrl.ee_position", 2)]           # wrong size
-    config = {"components": {
-        "dyn": {"type": "dynamics.dart", "parameters": {"bodies": {
-            "humanoid": {"urdf": str(URDF)}, "ghost": {"urdf": "no/such.urdf"}}}},
-        "ctrl": {"type": "controller.joint_pd"}}}
+    spec = [
+        ("dyn.humanoid.position", 3),
+        ("dyn.humanoid.orientation", 4),
+        ("dyn.humanoid.q", 5),  # wrong size
+        ("dyn.ghost.position", 3),
+        ("ctrl.ee_error", 6),
+        ("ctrl.ee_position", 2),
+    ]  # wrong size
+    config = {
+        "components": {
+            "dyn": {
+                "type": "dynamics.dart",
+                "parameters": {"bodies": {"humanoid": {"urdf": str(URDF)}, "ghost": {"urdf": "no/such.urdf"}}},
+            },
+            "ctrl": {"type": "controller.joint_pd"},
+        }
+    }
     columns = columns_of(spec)
     warnings = []
     n = 4
-    _, rrd = save(tmp_path, columns, config, [(np.arange(n), np.arange(n) * 0.1, np.zeros((n, len(columns))))],
-                  warnings=warnings)
+    _, rrd = save(
+        tmp_path, columns, config, [(np.arange(n), np.arange(n) * 0.1, np.zeros((n, len(columns))))], warnings=warnings
+    )
     assert any("ghost" in w and "not found" in w for w in warnings)
     assert any("humanoid.q has 5 values" in w for w in warnings)
     assert not any(path.startswith("/world/dyn/humanoid/links/") and entry["rows"] for path, entry in rrd.items())
     assert rrd["/plots/ctrl/ee_error/position"]["rows"] == n
-    assert rrd["/signals/ctrl/ee_position"]["rows"] == n        # not a 3-vector: shown as a plain signal
+    assert rrd["/signals/ctrl/ee_position"]["rows"] == n  # not a 3-vector: shown as a plain signal
     assert rrd["/signals/dyn/humanoid.q"]["rows"] == n
 
 
 def test_zero_vector_fields_draw_no_arrows_until_they_are_nonzero(tmp_path):
-    spec = [("dyn.humanoid.position", 3), ("dyn.humanoid.orientation", 4), ("dyn.humanoid.q", 14),
-            ("dyn.humanoid.tidal_force", 51)]
-    config = {"components": {"dyn": {"type": "dynamics.dart", "parameters": {"bodies": {"humanoid": {"urdf": str(URDF)}}}}}}
+    spec = [
+        ("dyn.humanoid.position", 3),
+        ("dyn.humanoid.orientation", 4),
+        ("dyn.humanoid.q", 14),
+        ("dyn.humanoid.tidal_force", 51),
+    ]
+    config = {
+        "components": {"dyn": {"type": "dynamics.dart", "parameters": {"bodies": {"humanoid": {"urdf": str(URDF)}}}}}
+    }
     columns = columns_of(spec)
     rows = np.zeros((6, len(columns)))
-    rows[:, 6] = 1.0                                                   # identity orientation
-    rows[3:, 3 + 4 + 14 + 3 * 5 + 2] = 2.0                             # link 5, z: from row 3 on
-    scene, rrd = save(tmp_path, columns, config, [(np.arange(3), np.arange(3) * 0.1, rows[:3]),
-                                                  (np.arange(3, 6), np.arange(3, 6) * 0.1, rows[3:])])
+    rows[:, 6] = 1.0  # identity orientation
+    rows[3:, 3 + 4 + 14 + 3 * 5 + 2] = 2.0  # link 5, z: from row 3 on
+    scene, rrd = save(
+        tmp_path,
+        columns,
+        config,
+        [(np.arange(3), np.arange(3) * 0.1, rows[:3]), (np.arange(3, 6), np.arange(3, 6) * 0.1, rows[3:])],
+    )
     assert rrd["/world/dyn/humanoid/tidal_force"]["rows"] == 3
     assert scene.arrow_scales == {("dyn", "humanoid", "tidal_force"): pytest.approx(0.25 / 2.0)}
     assert "tidal_force: 0.125 m per N" in rrd["/notes"]["static"]["TextDocument:text"][0]
@@ -183,8 +229,14 @@ def test_zero_vector_fields_draw_no_arrows_until_they_are_nonzero(tmp_path):
 
 def test_module_class_types_are_recognised_by_their_type_name(tmp_path):
     columns = columns_of([("d.humanoid.position", 3), ("d.humanoid.orientation", 4), ("d.humanoid.q", 14)])
-    config = {"components": {"d": {"type": "components.dynamics.component:DartDynamics",
-                                   "parameters": {"bodies": {"humanoid": {"urdf": str(URDF)}}}}}}
+    config = {
+        "components": {
+            "d": {
+                "type": "components.dynamics.component:DartDynamics",
+                "parameters": {"bodies": {"humanoid": {"urdf": str(URDF)}}},
+            }
+        }
+    }
     scene = SceneLogger(columns, config)
     assert [b.name for b in scene.bodies] == ["humanoid"] and scene.bodies[0].kinematics is not None
 
@@ -195,8 +247,10 @@ def test_bodies_and_urdf_paths_are_read_as_the_dynamics_reads_them(tmp_path, mon
     from components.dynamics.component import load_models
 
     here, there = tmp_path / "config", tmp_path / "cwd"
-    for path, source in ((here / "models" / "robot.urdf", "servicer.urdf"),
-                         (there / "models" / "humanoid_torso.urdf", "target.urdf")):   # a decoy in the cwd
+    for path, source in (
+        (here / "models" / "robot.urdf", "servicer.urdf"),
+        (there / "models" / "humanoid_torso.urdf", "target.urdf"),
+    ):  # a decoy in the cwd
         path.parent.mkdir(parents=True)
         path.write_text((ROOT / "models" / source).read_text())
     monkeypatch.chdir(there)
@@ -209,27 +263,54 @@ def test_bodies_and_urdf_paths_are_read_as_the_dynamics_reads_them(tmp_path, mon
         assert body.geometry.path == simulated[body.name].path
         assert body.geometry.links == simulated[body.name].link_names
     assert scene.bodies[0].geometry.path == (here / "models" / "robot.urdf").resolve()
-    assert scene.bodies[1].geometry.path == URDF.resolve()             # project root fallback
+    assert scene.bodies[1].geometry.path == URDF.resolve()  # project root fallback
 
 
 # ---------------------------------------------------------------------------------------- capture
 
 CAPTURE = ROOT / "models" / "capture"
-CAPTURE_PARAMS = {      # configs/capture_tumbling_target.yaml's bodies and grasp, in W, no orbit, closing anywhere
-    "bodies": {"servicer": {"urdf": str(CAPTURE / "servicer.urdf"),
-                            "q": {"arm_1_joint": -0.9, "arm_2_joint": 0.2, "arm_3_joint": 1.6, "arm_4_joint": -0.3,
-                                  "arm_5_joint": 1.2, "arm_6_joint": 0.3}},
-               "target": {"urdf": str(CAPTURE / "target.urdf"), "position": [2.0558, 0.2176, 1.198],
-                          "orientation": [-0.544708, -0.481372, 0.620058, 0.295131],
-                          "twist": [0, 0, 0, -0.026038, 0.006364, -0.034429]}},
-    "tidal_force": False, "gravity_gradient": False,
-    "grasp": {"chaser": "servicer", "end_effector": "ee", "target": "target", "grasp_frame": "grapple",
-              "tolerance": {"position": "2 m", "orientation": "180 deg", "linear_velocity": "1 m/s",
-                            "angular_velocity": "1 rad/s"},
-              "force_limit": "1e6 N", "torque_limit": "1e6 N*m"}}
-CAPTURE_CONFIG = {"run": {"name": "capture_view", "step": "10 ms"},
-                  "components": {"dyn": {"type": "dynamics.dart", "parameters": CAPTURE_PARAMS}}}
-CLOSE_AT = 7          # grasp.close set for this step on
+CAPTURE_PARAMS = {  # configs/capture_tumbling_target.yaml's bodies and grasp, in W, no orbit, closing anywhere
+    "bodies": {
+        "servicer": {
+            "urdf": str(CAPTURE / "servicer.urdf"),
+            "q": {
+                "arm_1_joint": -0.9,
+                "arm_2_joint": 0.2,
+                "arm_3_joint": 1.6,
+                "arm_4_joint": -0.3,
+                "arm_5_joint": 1.2,
+                "arm_6_joint": 0.3,
+            },
+        },
+        "target": {
+            "urdf": str(CAPTURE / "target.urdf"),
+            "position": [2.0558, 0.2176, 1.198],
+            "orientation": [-0.544708, -0.481372, 0.620058, 0.295131],
+            "twist": [0, 0, 0, -0.026038, 0.006364, -0.034429],
+        },
+    },
+    "tidal_force": False,
+    "gravity_gradient": False,
+    "grasp": {
+        "chaser": "servicer",
+        "end_effector": "ee",
+        "target": "target",
+        "grasp_frame": "grapple",
+        "tolerance": {
+            "position": "2 m",
+            "orientation": "180 deg",
+            "linear_velocity": "1 m/s",
+            "angular_velocity": "1 rad/s",
+        },
+        "force_limit": "1e6 N",
+        "torque_limit": "1e6 N*m",
+    },
+}
+CAPTURE_CONFIG = {
+    "run": {"name": "capture_view", "step": "10 ms"},
+    "components": {"dyn": {"type": "dynamics.dart", "parameters": CAPTURE_PARAMS}},
+}
+CLOSE_AT = 7  # grasp.close set for this step on
 
 
 @pytest.fixture(scope="module")
@@ -262,27 +343,40 @@ def views(container):
 def pose(entry, i):
     """Translation and rotation matrix of row i of a logged Transform3D."""
     from components.rotations import quat_to_matrix
-    return (np.array(entry["data"]["Transform3D:translation"][i][0]),
-            quat_to_matrix(np.array(entry["data"]["Transform3D:quaternion"][i][0])))
+
+    return (
+        np.array(entry["data"]["Transform3D:translation"][i][0]),
+        quat_to_matrix(np.array(entry["data"]["Transform3D:quaternion"][i][0])),
+    )
 
 
 @pytest.mark.parametrize("split", ["one batch", "capture starts a batch", "row by row"])
 def test_capture_view_draws_both_bodies_the_grasp_frames_and_the_capture_once(tmp_path, capture_rows, split):
     columns, rows, capture = capture_rows
     n = len(rows)
-    steps = np.arange(n) * 2                      # steps and times unlike the row index, as a decimated view
+    steps = np.arange(n) * 2  # steps and times unlike the row index, as a decimated view
     times = steps * 0.01
-    bounds = {"one batch": [0, n], "capture starts a batch": [0, 4, capture, n], "row by row": list(range(n + 1))}[split]
-    scene, rrd = save(tmp_path, columns, CAPTURE_CONFIG,
-                      [(steps[a:b], times[a:b], rows[a:b]) for a, b in zip(bounds[:-1], bounds[1:])])
+    bounds = {"one batch": [0, n], "capture starts a batch": [0, 4, capture, n], "row by row": list(range(n + 1))}[
+        split
+    ]
+    scene, rrd = save(
+        tmp_path,
+        columns,
+        CAPTURE_CONFIG,
+        [(steps[a:b], times[a:b], rows[a:b]) for a, b in zip(bounds[:-1], bounds[1:])],
+    )
     index = parse_columns(columns)
     base = "/world/dyn"
     # both spacecraft: every link posed on every row, their URDF boxes and cylinders drawn
     for body in ("servicer", "target"):
         for link in read_geometry(CAPTURE / f"{body}.urdf").links:
             assert rrd[f"{base}/{body}/links/{link}"]["rows"] == n
-        kinds = {name.split(":")[0] for path, entry in rrd.items() if path.startswith(f"{base}/{body}/links/")
-                 for name in entry["static"]}
+        kinds = {
+            name.split(":")[0]
+            for path, entry in rrd.items()
+            if path.startswith(f"{base}/{body}/links/")
+            for name in entry["static"]
+        }
         assert {"Boxes3D", "Cylinders3D"} <= kinds
     # E and G as axes, children of their links (they move with the logged link poses)
     for path, length in ((f"{base}/servicer/links/ee/grasp_E", 0.15), (f"{base}/target/links/grapple/grasp_G", 0.25)):
@@ -295,45 +389,63 @@ def test_capture_view_draws_both_bodies_the_grasp_frames_and_the_capture_once(tm
     for i in range(capture):
         (p_E, R_E), (p_G, _) = pose(ee, i), pose(grapple, i)
         start, end = np.array(strips[i][0])
-        assert np.allclose(start, 0.0) and np.allclose(p_E + R_E @ end, p_G, atol=1e-5)      # float32 in Rerun
+        assert np.allclose(start, 0.0) and np.allclose(p_E + R_E @ end, p_G, atol=1e-5)  # float32 in Rerun
     # the capture: once, on the first closed row, in the text log, as G's marker and on the distance plot
     events = rrd["/events/dyn/grasp"]
     assert events["rows"] == 1 and events["data"]["step"] == [steps[capture]]
     assert events["data"]["sim_time"] == [int(round(times[capture] * NS_PER_S))]
     text = events["data"]["TextLog:text"][0][0]
-    assert text.startswith(f"capture at t = {times[capture]:.6g} s (step {steps[capture]}): servicer.ee -> target.grapple")
+    assert text.startswith(
+        f"capture at t = {times[capture]:.6g} s (step {steps[capture]}): servicer.ee -> target.grapple"
+    )
     marker = rrd[f"{base}/target/links/grapple/grasp_G/marker"]["data"]
     assert marker["step"] == [steps[0], steps[capture]]
     assert [label[0] for label in marker["Points3D:labels"]] == ["G", "G captured"]
-    assert marker["Points3D:radii"][1][0] > marker["Points3D:radii"][0][0] and len(set(map(tuple, marker["Points3D:colors"]))) == 2
+    assert (
+        marker["Points3D:radii"][1][0] > marker["Points3D:radii"][0][0]
+        and len(set(map(tuple, marker["Points3D:colors"]))) == 2
+    )
     assert rrd["/plots/dyn/grasp/distance/capture"]["data"]["step"] == [steps[capture]]
+
     # distance and wrench magnitudes, per row; the raw outputs still plotted under /signals
     def plotted(path):
         return np.array(rrd[path]["data"]["Scalars:scalars"])
-    assert np.allclose(plotted("/plots/dyn/grasp/distance")[:, 0],
-                       np.linalg.norm(rows[:, index["dyn", "grasp.p_ee_grasp"]], axis=1))
+
+    assert np.allclose(
+        plotted("/plots/dyn/grasp/distance")[:, 0], np.linalg.norm(rows[:, index["dyn", "grasp.p_ee_grasp"]], axis=1)
+    )
     wrench = rows[:, index["dyn", "grasp.wrench"]]
     force, torque = plotted("/plots/dyn/grasp/wrench").T
-    assert np.allclose(force, np.linalg.norm(wrench[:, :3], axis=1)) and np.allclose(torque, np.linalg.norm(wrench[:, 3:], axis=1))
+    assert np.allclose(force, np.linalg.norm(wrench[:, :3], axis=1)) and np.allclose(
+        torque, np.linalg.norm(wrench[:, 3:], axis=1)
+    )
     assert rrd["/plots/dyn/grasp/wrench"]["static"]["SeriesLines:names"] == ["|force| (N)", "|torque| (N m)"]
     assert not force[:capture].any() and force[capture:].all()
     for name in ("p_ee_grasp", "closed", "wrench"):
         assert rrd[f"/signals/dyn/grasp.{name}"]["rows"] == n
     # the layout: grasp plots next to the robots, the text log in a tab
     origins = {(view.class_identifier, str(view.origin)) for view in views(scene.blueprint().root_container)}
-    assert {("TimeSeries", "/plots/dyn/grasp/distance"), ("TimeSeries", "/plots/dyn/grasp/wrench"),
-            ("TextLog", "/events")} <= origins
+    assert {
+        ("TimeSeries", "/plots/dyn/grasp/distance"),
+        ("TimeSeries", "/plots/dyn/grasp/wrench"),
+        ("TextLog", "/events"),
+    } <= origins
 
 
 def test_grasp_without_a_drawn_target_still_plots_and_logs_the_capture(tmp_path, capture_rows):
-    columns, rows, capture = capture_rows
+    columns, rows, _capture = capture_rows
     params = {**CAPTURE_PARAMS, "bodies": {**CAPTURE_PARAMS["bodies"], "target": {"urdf": "no/such.urdf"}}}
     warnings = []
     n = len(rows)
-    _, rrd = save(tmp_path, columns, {"components": {"dyn": {"type": "dynamics.dart", "parameters": params}}},
-                  [(np.arange(n), np.arange(n) * 0.01, rows)], warnings=warnings)
+    _, rrd = save(
+        tmp_path,
+        columns,
+        {"components": {"dyn": {"type": "dynamics.dart", "parameters": params}}},
+        [(np.arange(n), np.arange(n) * 0.01, rows)],
+        warnings=warnings,
+    )
     assert any("target" in w and "not found" in w for w in warnings)
-    assert not any(path.startswith("/world/dyn/target/links/") for path in rrd)   # no G axes floating at the origin
+    assert not any(path.startswith("/world/dyn/target/links/") for path in rrd)  # no G axes floating at the origin
     assert "Arrows3D:vectors" in rrd["/world/dyn/servicer/links/ee/grasp_E"]["static"]
     assert rrd["/plots/dyn/grasp/distance"]["rows"] == n and rrd["/events/dyn/grasp"]["rows"] == 1
 
@@ -341,18 +453,23 @@ def test_grasp_without_a_drawn_target_still_plots_and_logs_the_capture(tmp_path,
 def test_capture_text_when_the_first_row_is_already_closed(tmp_path):
     columns = columns_of([("dyn.grasp.p_ee_grasp", 3), ("dyn.grasp.closed", 0)])
     rows = np.zeros((5, len(columns)))
-    rows[:, 3] = [1, 1, 0, 1, 1]                      # closed, opened again, closed again
+    rows[:, 3] = [1, 1, 0, 1, 1]  # closed, opened again, closed again
     rows[:, 0] = 0.004
     config = {"components": {"dyn": {"type": "dynamics.dart", "parameters": CAPTURE_PARAMS}}}
-    _, rrd = save(tmp_path, columns, config, [(np.arange(2), np.arange(2) * 0.5, rows[:2]),
-                                              (np.arange(2, 5), np.arange(2, 5) * 0.5, rows[2:])])
+    _, rrd = save(
+        tmp_path,
+        columns,
+        config,
+        [(np.arange(2), np.arange(2) * 0.5, rows[:2]), (np.arange(2, 5), np.arange(2, 5) * 0.5, rows[2:])],
+    )
     events = rrd["/events/dyn/grasp"]["data"]
     assert events["step"] == [0, 2, 3]
     assert [t[0] for t in events["TextLog:text"]] == [
         "capture at t = 0 s (step 0): servicer.ee -> target.grapple closed (already at the first row shown), "
         "E-G distance 4 mm",
         "grasp open again at t = 1 s (step 2): servicer.ee -> target.grapple",
-        "capture at t = 1.5 s (step 3): servicer.ee -> target.grapple closed, E-G distance 4 mm"]
+        "capture at t = 1.5 s (step 3): servicer.ee -> target.grapple closed, E-G distance 4 mm",
+    ]
     assert [level[0] for level in events["TextLog:level"]] == ["INFO", "WARN", "INFO"]
     assert rrd["/plots/dyn/grasp/distance/capture"]["data"]["step"] == [0, 3]
 
@@ -363,7 +480,7 @@ def test_robot_camera_frames_bodies_that_start_apart():
     start = np.array(CAPTURE_PARAMS["bodies"]["target"]["position"])
     assert np.allclose(target, start / 2)
     assert abs((eye - target) @ start) < 1e-9 and np.linalg.norm(eye - target) > 2 * np.linalg.norm(start)
-    eye, target = SceneLogger([], CONFIG)._camera()                      # one body at the origin: as before
+    eye, target = SceneLogger([], CONFIG)._camera()  # one body at the origin: as before
     assert tuple(eye) == (1.9, -1.6, 1.0) and not target.any()
 
 
@@ -374,6 +491,8 @@ def test_replay_finds_a_config_named_relative_to_the_project_root(tmp_path, monk
 
     (tmp_path / "signals.parquet").write_bytes(b"")
     (tmp_path / "config.yaml").write_text("run: {name: r}\n")
-    (tmp_path / "events.jsonl").write_text('{"event": "start", "run_id": "r-1", "config": "configs/capture_tumbling_target.yaml"}\n')
+    (tmp_path / "events.jsonl").write_text(
+        '{"event": "start", "run_id": "r-1", "config": "configs/capture_tumbling_target.yaml"}\n'
+    )
     monkeypatch.chdir(tmp_path)
     assert read_recording(tmp_path)[1:] == ((ROOT / "configs").resolve(), "r-1")

@@ -9,6 +9,7 @@ loopback TCP, reliable, BLOCK, express) between two processes, so the two number
 from __future__ import annotations
 
 import argparse
+import io
 import os
 import platform
 import subprocess
@@ -86,11 +87,11 @@ def lockstep(steps: int) -> float:
 
     config = Path(tempfile.mkdtemp()) / "noop.yaml"
     config.write_text(
-        "run: {name: bench, epoch: 2022-09-18T12:00:00Z, duration: %d ms, step: 1 ms, algorithm: jacobi}\n"
+        f"run: {{name: bench, epoch: 2022-09-18T12:00:00Z, duration: {steps} ms, step: 1 ms, algorithm: jacobi}}\n"
         "components:\n  a: {type: test.noop}\n  b: {type: test.noop}\n  c: {type: test.noop}\n"
-        "connections: {b.u: a.y, c.u: b.y, a.u: c.y}\n" % steps
+        "connections: {b.u: a.y, c.u: b.y, a.u: c.y}\n"
     )
-    run = Run(load(config), out=open(os.devnull, "w"))
+    run = Run(load(config), out=io.StringIO())
     assert run.execute() == 0
     return steps / run.loop_s
 

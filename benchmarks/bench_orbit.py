@@ -55,6 +55,17 @@ def kepler(j2: bool) -> Harness:
     return harness
 
 
+def timed_steps(harness):
+    """(label, step(k)) pairs: the orbit's state alone, and a component step with its output packing."""
+    component, orbit = harness.component, harness.component.orbit
+    outputs = harness.output_layout.start_vector()
+
+    def do_step(k):
+        harness.output_layout.pack(component.do_step(k * MS, MS, {}), outputs)
+
+    return (("KeplerOrbit.state", lambda k: orbit.state(k * 1e-3)), ("do_step + output packing", do_step))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=5000)
@@ -66,15 +77,7 @@ def main() -> None:
         f"{platform.processor() or platform.machine()}, Python {platform.python_version()})"
     )
     for j2 in (True, False):
-        harness = kepler(j2)
-        component, orbit = harness.component, harness.component.orbit
-        outputs = harness.output_layout.start_vector()
-
-        def do_step(k):
-            harness.output_layout.pack(component.do_step(k * MS, MS, {}), outputs)
-
-        rows = (("KeplerOrbit.state", lambda k: orbit.state(k * 1e-3)), ("do_step + output packing", do_step))
-        for label, step in rows:
+        for label, step in timed_steps(kepler(j2)):
             us = cpu_time_per_step(step, args.steps, args.repeat) * 1e6
             print(f"  j2 {str(j2).lower():<6}{label:<40}{us:9.1f} us/step")
 

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import io
 import os
 import platform
 import subprocess
@@ -142,7 +143,7 @@ def child(overrides: list[str]) -> None:
     from orchestrator.config.load import load
     from orchestrator.run.engine import Run
 
-    run = Run(load(DEMO, overrides), out=open(os.devnull, "w"))
+    run = Run(load(DEMO, overrides), out=io.StringIO())
     samples: list = []
     sampler = threading.Thread(
         target=lambda: cpu_window(run, os.getpid(), threading.get_native_id(), WINDOW, samples), daemon=True

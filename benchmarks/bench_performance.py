@@ -18,6 +18,7 @@ Steps/s count the stepping loop only (start-up excluded); figures are medians of
 from __future__ import annotations
 
 import argparse
+import io
 import os
 import platform
 import subprocess
@@ -56,7 +57,7 @@ def run_config(text: str, name: str = "bench.yaml") -> float:
     path = Path(tempfile.mkdtemp()) / name
     path.write_text(text)
     config = load(path)
-    run = Run(config, out=open(os.devnull, "w"))
+    run = Run(config, out=io.StringIO())
     if run.execute() != 0:
         raise RuntimeError(f"benchmark run failed: {path}")
     return config.steps / run.loop_s
@@ -68,8 +69,8 @@ def noop_loop(count: int, steps: int, size: int = 1, closed: bool = True) -> str
     pairs = [(names[(i + 1) % count], names[i]) for i in range(count if closed else count - 1)]
     connections = ", ".join(f"{d}.u: {s}.y" for d, s in pairs)
     return (
-        "run: {name: bench, epoch: 2022-09-18T12:00:00Z, duration: %d ms, step: 1 ms, algorithm: jacobi}\n"
-        "components:\n%sconnections: {%s}\n" % (steps, components, connections)
+        f"run: {{name: bench, epoch: 2022-09-18T12:00:00Z, duration: {steps} ms, step: 1 ms, algorithm: jacobi}}\n"
+        f"components:\n{components}connections: {{{connections}}}\n"
     )
 
 
@@ -84,7 +85,7 @@ def demo(seconds: float, repeat: int, more: list[str] = ()) -> tuple[float, floa
     overrides = [f"run.duration={seconds} s"]
     bus = []
     for _ in range(repeat):
-        run = Run(load(config_path, [*overrides, *more]), out=open(os.devnull, "w"))
+        run = Run(load(config_path, [*overrides, *more]), out=io.StringIO())
         if run.execute() != 0:
             raise RuntimeError("the demo failed over the bus")
         bus.append(seconds / run.loop_s)

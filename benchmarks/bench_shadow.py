@@ -14,6 +14,7 @@ preemption included).
 from __future__ import annotations
 
 import argparse
+import io
 import os
 import resource
 import sys
@@ -50,7 +51,7 @@ def demo(seconds: float, more: list[str]) -> tuple[float, float, dict[str, float
     before = cpu_s()
     run = Run(
         load(ROOT / "configs" / "humanoid_tracking.yaml", [f"run.duration={seconds} s", *more]),
-        out=open(os.devnull, "w"),
+        out=io.StringIO(),
     )
     if run.execute() != 0:
         raise RuntimeError("the demo failed over the bus")

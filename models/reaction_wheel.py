@@ -68,9 +68,9 @@ class ReactionWheel(Fmi2Slave):
         ):
             self.register_variable(Quantity(name, unit, causality=Fmi2Causality.output, description=what))
 
-    def to_xml(self, model_options=dict()) -> Element:
+    def to_xml(self, model_options: dict[str, str] | None = None) -> Element:
         """The model description, with the UnitDefinitions FMI 2.0 requires for the units used."""
-        root = super().to_xml(model_options)
+        root = super().to_xml(model_options or {})
         units = Element("UnitDefinitions")
         for unit in sorted({v.unit for v in self.vars.values() if isinstance(v, Quantity)}):
             SubElement(units, "Unit", name=unit)

@@ -201,7 +201,7 @@ class FreeFloatingArm:
             base = list(self.base_v)
             drop = [base.index(model.joints[model.getJointId(j)].idx_v) for j, _, _ in pairs]
             G = np.eye(len(base))
-            for (j, f, m), k in zip(pairs, drop):
+            for (_, f, m), k in zip(pairs, drop):
                 G[k, :] = 0.0
                 G[k, base.index(model.joints[model.getJointId(f)].idx_v)] = m
             self._G = np.ascontiguousarray(np.delete(G, drop, axis=1))

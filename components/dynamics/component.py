@@ -697,7 +697,7 @@ class OrbitalDynamics(Component):
                         "(with link_outputs and third_bodies)",
                     )
                 )
-        for name, model in load_models(params).items():
+        for name in load_models(params):
             if params.get("frame_outputs", False):
                 variables += frame_variables(name)
             if name in params.get("imu", ()):

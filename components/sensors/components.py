@@ -113,7 +113,7 @@ class ImuComponent(_SeededSensor):
     """
 
     type_name = "sensor.imu"
-    measures = {"rate": "rate_true", "specific_force": "specific_force_true"}
+    measures: ClassVar[Mapping[str, str]] = {"rate": "rate_true", "specific_force": "specific_force_true"}
     plots = (measured_against_true(measures),)
     view = SensorView
     rosbag = sensor_ros.IMU
@@ -197,7 +197,7 @@ class ForceTorqueComponent(_SeededSensor):
     """
 
     type_name = "sensor.force_torque"
-    measures = {"wrench": "wrench_true"}
+    measures: ClassVar[Mapping[str, str]] = {"wrench": "wrench_true"}
     plots = (measured_against_true(measures),)
     view = SensorView
     rosbag = sensor_ros.FORCE_TORQUE
@@ -273,7 +273,7 @@ class RelativePoseComponent(_SeededSensor):
     """
 
     type_name = "sensor.relative_pose"
-    measures = {"p": "p_true", "q": "q_true"}
+    measures: ClassVar[Mapping[str, str]] = {"p": "p_true", "q": "q_true"}
     plots = (measured_against_true(measures),)
     view = SensorView
     rosbag = sensor_ros.RELATIVE_POSE
@@ -382,7 +382,7 @@ class MagnetometerComponent(_SeededSensor):
     """
 
     type_name = "sensor.magnetometer"
-    measures = {"b": "b_true"}
+    measures: ClassVar[Mapping[str, str]] = {"b": "b_true"}
     plots = (measured_against_true(measures),)
     view = SensorView
     parameters = (

@@ -146,7 +146,7 @@ def pines_field(x, y, z, mu, radius, c, s, degree, order, first, diagonal, below
         im[m] = su * im[m - 1] + tu * re[m - 1]
     ratio = radius / r
     rho = mu / (r * r)
-    for n in range(first):
+    for _ in range(first):
         rho *= ratio
     a1 = a2 = a3 = a4 = 0.0
     for n in range(first, degree + 1):

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import re
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -150,7 +150,7 @@ class View:
     column indices of an LVLH attitude it outputs (``q_eci_lvlh``), the robot view's axes.
     """
 
-    bodies: list = []
+    bodies: Sequence = ()
     lvlh: np.ndarray | None = None
 
     def __init__(self, name: str, parameters: dict, scene: SceneLogger):

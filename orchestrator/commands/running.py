@@ -134,9 +134,10 @@ def _viewer(view: str | None, config):
             return None, "; ".join(errors) or "--view: expected spawn, web, save:FILE.rrd or foxglove[:PORT]"
     chosen = viewer or config.viewer
     mode = getattr(chosen, "mode", None)
-    if mode == "save":  # an .rrd it cannot write: before the run
-        if problem := output_problem(chosen.file, "--view save:", "file"):
-            return None, problem
+    if mode == "save" and (
+        problem := output_problem(chosen.file, "--view save:", "file")
+    ):  # an .rrd it cannot write: before the run
+        return None, problem
     if mode == "spawn":  # fail before the run, not after
         from components.viewer.sinks import spawn_problem
 

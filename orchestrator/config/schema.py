@@ -404,9 +404,10 @@ CONFIG = Record(
 
 DOCS_START = "<!-- config reference: python -m orchestrator.config --docs -->"
 DOCS_END = "<!-- end of config reference -->"
+DESIGN_DOC = Path(__file__).resolve().parents[2] / "docs" / "design.md"
 
 
-def write_docs(design: Path = Path(__file__).resolve().parents[2] / "docs" / "design.md") -> None:
+def write_docs(design: Path = DESIGN_DOC) -> None:
     """Write CONFIG's tables into docs/design.md between the markers (they come from the declaration)."""
     head, rest = design.read_text().split(DOCS_START, 1)
     tail = rest.split(DOCS_END, 1)[1]

@@ -71,7 +71,7 @@ def claim_directory(directory: Path, overwrite: bool, run: str = "") -> object:
     if directory.exists() and not directory.is_dir():
         raise RecordingError(f"--record {directory}: exists and is not a directory")
     directory.mkdir(parents=True, exist_ok=True)
-    lock = open(directory / LOCK_FILE, "a+")
+    lock = open(directory / LOCK_FILE, "a+")  # noqa: SIM115 (held, locked, for the whole run)
     try:
         fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
@@ -268,7 +268,7 @@ class Recording:
         self.write_config(resolved_config)
         self.signals = Table(self.directory / "signals.parquet", columns, chunk_rows, flush_s)
         self.tables = [self.signals]
-        self._events = open(self.directory / "events.jsonl", "a")
+        self._events = open(self.directory / "events.jsonl", "a")  # noqa: SIM115 (open until close())
 
     def write_config(self, resolved_config: dict) -> None:
         """(Re)write config.yaml, atomically: a swap during the run adds itself to its events."""

@@ -452,7 +452,7 @@ def test_libration_matches_the_closed_form_under_every_schedule(algorithm, orbit
     ratio = config.components["orbit"].step_ns // config.step_ns
     fresh = np.arange(0, len(rows), ratio)  # rows where the orbit's output is of that time
     q_body, q_lvlh = column("dynamics.target.orientation", 4)[fresh], column("orbit.q_eci_lvlh", 4)[fresh]
-    x_L = np.array([matrix(l).T @ matrix(b)[:, 0] for b, l in zip(q_body, q_lvlh)])
+    x_L = np.array([matrix(q_l).T @ matrix(q_b)[:, 0] for q_b, q_l in zip(q_body, q_lvlh)])
     theta = np.arctan2(x_L[:, 1], x_L[:, 0])
     t = fresh * config.step_ns / NS_PER_S
     crossings = [

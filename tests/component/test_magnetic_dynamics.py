@@ -75,7 +75,7 @@ def test_magnetic_outputs_are_off_by_default_and_need_the_field():
     h = Harness("dynamics.dart", params, epoch=EPOCH)
     assert not any("b_body" in k or "dipole" in k for k in [*h.outputs, *h.inputs])
     assert h.component.magnetics is None
-    with pytest.raises(ConfigError, match="magnetorquers.target.*expected magnetic_field"):
+    with pytest.raises(ConfigError, match=r"magnetorquers\.target.*expected magnetic_field"):
         Harness("dynamics.dart", {**params, "magnetorquers": {"target": {"max_dipole": 10.0}}}, epoch=EPOCH)
 
 

@@ -234,14 +234,14 @@ def test_sgp4_decay_during_the_run_is_a_runtime_error_with_sgp4_text():
     h = Harness("orbit.sgp4", {"tle": DECAYING}, epoch="2005-11-29T00:29:00Z")  # TLE epoch + ~0 min
     h.initialize()
     with pytest.raises(
-        RuntimeError, match="SGP4 error 6 .*mrt is less than 1.0 which indicates the satellite has decayed"
+        RuntimeError, match=r"SGP4 error 6 .*mrt is less than 1\.0 which indicates the satellite has decayed"
     ):
         for _ in range(120):
             h.step(60 * S)
 
 
 def test_sgp4_decayed_at_epoch_is_a_config_error():
-    with pytest.raises(ConfigError, match="cannot propagate to run.epoch .*decayed") as info:
+    with pytest.raises(ConfigError, match=r"cannot propagate to run\.epoch .*decayed") as info:
         Harness("orbit.sgp4", {"tle": DECAYING}, epoch="2005-11-29T03:00:00Z")
     assert info.value.key == "tle"
 

@@ -296,7 +296,7 @@ def test_in_a_run_at_its_own_slower_step_it_equals_the_harness(tmp_path):
     bad.write_text(config.read_text().replace("latency: 30 ms", "latency: 35 ms"))
     with pytest.raises(
         ConfigErrors,
-        match="components.camera.parameters.latency: must be a non-negative integer multiple of the component's step",
+        match=r"components\.camera\.parameters\.latency: must be a non-negative integer multiple of the component's step",
     ):
         load(bad)  # refused before the run (check and run alike), not at its first step
 

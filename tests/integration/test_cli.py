@@ -249,8 +249,14 @@ def test_describe_shows_nested_parameters_typed_and_the_config_sections():
     same declaration that validates them; `describe config` lists the config's sections."""
     dynamics = orchestrator("describe", "dynamics.dart")
     lines = [line.split() for line in dynamics.stdout.splitlines()]
-    assert lines[[l[:1] for l in lines].index(["bodies"])][:5] == ["bodies", "{body", "name:", "Body}", "required"]
-    assert lines[[l[:1] for l in lines].index(["position"])][:9] == [
+    assert lines[[words[:1] for words in lines].index(["bodies"])][:5] == [
+        "bodies",
+        "{body",
+        "name:",
+        "Body}",
+        "required",
+    ]
+    assert lines[[words[:1] for words in lines].index(["position"])][:9] == [
         "position",
         "float[3]",
         "[m];",

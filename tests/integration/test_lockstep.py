@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import signal
 import time
+from pathlib import Path
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -253,7 +254,7 @@ def thread_cpus(pid: int) -> dict[int, set[int]]:
     """{thread id: the CPUs it may run on} of a live process, from /proc."""
     cpus = {}
     for tid in os.listdir(f"/proc/{pid}/task"):
-        status = open(f"/proc/{pid}/task/{tid}/status").read()
+        status = Path(f"/proc/{pid}/task/{tid}/status").read_text()
         allowed = status.split("Cpus_allowed_list:")[1].split()[0]
         cpus[int(tid)] = {
             c for part in allowed.split(",") for c in (range(int(part.split("-")[0]), int(part.split("-")[-1]) + 1))

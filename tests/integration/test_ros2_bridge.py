@@ -89,7 +89,7 @@ class StandIn:
 
     def __init__(self, tmp: Path, port: int, *extra: str):
         self.ready, self.waiting, self.clock_log = tmp / "standin.ready", tmp / "standin.waiting", tmp / "clock.log"
-        self.log = open(tmp / "standin.log", "w")
+        self.log = open(tmp / "standin.log", "w")  # noqa: SIM115 (the process writes it; stop() closes it)
         self.process = subprocess.Popen(
             [
                 sys.executable,

@@ -58,7 +58,7 @@ class RosProcess:
     def __init__(self, python: str, script: Path, tmp: Path, name: str, *args: str, ready: bool = True):
         self.ready = tmp / f"{name}.ready"
         self.log_path = tmp / f"{name}.log"
-        self.log = open(self.log_path, "w")
+        self.log = open(self.log_path, "w")  # noqa: SIM115 (the process writes it; stop() closes it)
         extra = ["--ready", str(self.ready)] if ready else []
         self.process = subprocess.Popen(
             [python, str(script), *args, *extra],

@@ -575,7 +575,7 @@ def test_web_view_renders_in_headless_chromium(tmp_path):
         assert image.size == (1280, 800)
         pixels = np.asarray(image).reshape(-1, 3)
         assert pixels.std() > 20 and len(np.unique(pixels, axis=0)) > 500, "the page looks blank"
-        assert not any("Data source failed" in line for line in console), [l for l in console if "rror" in l]
+        assert not any("Data source failed" in line for line in console), [line for line in console if "rror" in line]
         keep = os.environ.get("ZENORBIT_VIEWER_SCREENSHOT")
         if keep:
             shutil.copy(png, keep)

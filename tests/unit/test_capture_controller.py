@@ -80,7 +80,7 @@ class Scene:
     (target axes), its CoM at rest; no environment (r_eci = 0). The pose sensor samples DART's
     ee and grapple body nodes every ``sensor_period`` and delivers after ``latency``."""
 
-    def __init__(self, q0, q_grasp, axis, rate_deg, *, sensor_period=0.05, latency=0.03, grasp_offset=np.zeros(3)):
+    def __init__(self, q0, q_grasp, axis, rate_deg, *, sensor_period=0.05, latency=0.03, grasp_offset=(0.0, 0.0, 0.0)):
         servicer = BodySpec("servicer", SERVICER, q=dict(zip(ARM, q_grasp)))
         probe = OrbitalWorld([servicer])
         probe.reset_bodies()

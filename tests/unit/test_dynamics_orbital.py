@@ -175,9 +175,9 @@ def test_tidal_acceleration_against_direct_and_linear_forms():
 def test_gravity_gradient_torque_textbook():
     """Principal inertia, rho at angle th in the x-y plane: tau_z = 3 mu/r^3 (Iy - Ix) sin th cos th."""
     r, th = 7e6, 0.3
-    I = np.diag([10.0, 25.0, 30.0])
+    inertia = np.diag([10.0, 25.0, 30.0])
     rho = r * np.array([[math.cos(th), math.sin(th), 0.0]])
-    tau = env.gravity_gradient_torque(rho, I[None], MU)[0]
+    tau = env.gravity_gradient_torque(rho, inertia[None], MU)[0]
     assert np.allclose(tau, [0, 0, 3 * MU / r**3 * (25.0 - 10.0) * math.sin(th) * math.cos(th)], rtol=1e-12, atol=1e-20)
 
 

@@ -32,6 +32,7 @@ LAYOUT = read_layout(scenes.LAYOUT)
 # the wrist camera's mount in E used throughout: off the tool's axis, tilted towards it
 P_EE_CAMERA = np.array([0.0, 0.07, -0.05])
 R_EE_CAMERA = exp_so3([0.12, 0.0, 0.02])
+NO_DISTORTION = np.zeros(0)  # a pinhole lens
 # (distance m, offset m, tilt rad, roll rad): no pose with a symmetry of the layout
 POSES = [
     (0.10, (0.01, -0.02), (0.05, -0.08), 0.3),
@@ -70,7 +71,7 @@ def errors(estimate, R_C_G, p_C_G):
     return float(np.linalg.norm(estimate.p_ee_grasp - p_true)), float(np.linalg.norm(log_so3(R_true.T @ R)))
 
 
-def solve(image, estimator=None, K=scenes.K, distortion=np.zeros(0)):
+def solve(image, estimator=None, K=scenes.K, distortion=NO_DISTORTION):
     estimator = estimator or FiducialEstimator(LAYOUT, 1, 1.5)
     return estimator.estimate(image, K, distortion, P_EE_CAMERA, R_EE_CAMERA)
 
@@ -131,7 +132,7 @@ def test_markers_turned_and_tilted_in_their_link():
     layout = dataclasses.replace(LAYOUT, markers=turned)
     R_C_G, p_C_G = scenes.camera_pose(0.5, (0.05, -0.03), (0.12, 0.02), 2.9)
     estimate = FiducialEstimator(layout, 3, 1.5).estimate(
-        scenes.noisy(scenes.warp(layout, R_C_G, p_C_G), 2.0, seed=2), scenes.K, np.zeros(0), P_EE_CAMERA, R_EE_CAMERA
+        scenes.noisy(scenes.warp(layout, R_C_G, p_C_G), 2.0, seed=2), scenes.K, NO_DISTORTION, P_EE_CAMERA, R_EE_CAMERA
     )
     assert estimate.valid and estimate.markers >= 4, estimate.reason
     dp, da = errors(estimate, R_C_G, p_C_G)
@@ -140,7 +141,7 @@ def test_markers_turned_and_tilted_in_their_link():
     R_C_G, p_C_G = scenes.camera_pose(0.2, (0.02, 0.13), (0.1, 0.05), 0.6)
     alone = scenes.warp(dataclasses.replace(layout, markers=(turned[2],)), R_C_G, p_C_G)
     estimate = FiducialEstimator(layout, 1, 1.5).estimate(
-        scenes.noisy(alone, 2.0, seed=4), scenes.K, np.zeros(0), P_EE_CAMERA, R_EE_CAMERA
+        scenes.noisy(alone, 2.0, seed=4), scenes.K, NO_DISTORTION, P_EE_CAMERA, R_EE_CAMERA
     )
     assert estimate.valid and estimate.markers == 1, estimate.reason
     dp, da = errors(estimate, R_C_G, p_C_G)
@@ -164,7 +165,7 @@ def test_occluded_markers_are_not_used_and_too_few_give_no_pose():
     for marker in LAYOUT.markers[1:]:  # an arm in front of every root marker
         quad, _ = cv2.projectPoints(marker.corners(marker.size * 0.8), rvec, p_C_G, scenes.K, None)
         cv2.fillConvexPoly(image, np.rint(quad.reshape(4, 2)).astype(np.int32), (40, 40, 40))
-    two = FiducialEstimator(LAYOUT, 2, 1.5).estimate(image, scenes.K, np.zeros(0), P_EE_CAMERA, R_EE_CAMERA)
+    two = FiducialEstimator(LAYOUT, 2, 1.5).estimate(image, scenes.K, NO_DISTORTION, P_EE_CAMERA, R_EE_CAMERA)
     assert not two.valid and two.markers == 1 and "1 marker(s) seen, 2 needed" in two.reason
     one = solve(image)
     assert one.valid and one.markers == 1
@@ -179,7 +180,7 @@ def test_a_marker_away_from_its_place_fails_the_reprojection_check():
     estimate = solve(image)
     assert not estimate.valid and estimate.markers == 5
     assert estimate.reprojection_error > 1.5 and "reprojection error" in estimate.reason
-    assert FiducialEstimator(LAYOUT, 1, 50.0).estimate(image, scenes.K, np.zeros(0), P_EE_CAMERA, R_EE_CAMERA).valid
+    assert FiducialEstimator(LAYOUT, 1, 50.0).estimate(image, scenes.K, NO_DISTORTION, P_EE_CAMERA, R_EE_CAMERA).valid
 
 
 def test_ids_outside_the_layout_and_ids_seen_twice_are_dropped():

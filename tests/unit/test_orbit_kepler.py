@@ -65,7 +65,7 @@ def test_kepler_solver_converges_to_1e_12_rad(e):
     for m in ms:
         ecc = solve_kepler(m, e)
         m0 = m - 2 * math.pi * math.floor(m / (2 * math.pi))
-        ref = brentq(lambda x: x - e * math.sin(x) - m0, 0.0, 2 * math.pi, xtol=1e-15)
+        ref = brentq(lambda x, m0=m0: x - e * math.sin(x) - m0, 0.0, 2 * math.pi, xtol=1e-15)
         ref += m - m0
         worst = max(worst, abs(ecc - ref))
         assert abs(ecc - e * math.sin(ecc) - m) < 1e-12 * max(1.0, abs(m))

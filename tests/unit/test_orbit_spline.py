@@ -107,7 +107,7 @@ def test_bad_waypoints(times, match, index):
 
 
 def test_mismatched_shapes_and_nan():
-    with pytest.raises(SplineError, match="velocitys|velocities|shape"):
+    with pytest.raises(SplineError, match=r"velocitys|velocities|shape"):
         QuinticHermiteSpline([0, 1], np.ones((2, 3)), np.ones((2, 2)), np.ones((2, 3)))
     with pytest.raises(SplineError, match="finite positions"):
         QuinticHermiteSpline([0, 1], [[0, 0, 0], [np.nan, 0, 0]], np.ones((2, 3)), np.ones((2, 3)))

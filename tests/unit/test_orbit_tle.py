@@ -68,7 +68,7 @@ def test_teme_output_matches_sgp4_verification_vectors():
         try:
             prop = SGP4Propagator(_with_fixed_checksum(line1), _with_fixed_checksum(line2))
             jd1, jd2 = prop.epoch_utc
-            at = lambda minutes: prop.teme((jd1, jd2 + minutes / 1440.0))  # noqa: E731
+            at = lambda minutes, prop=prop, jd1=jd1, jd2=jd2: prop.teme((jd1, jd2 + minutes / 1440.0))  # noqa: E731
         except RuntimeError as e:  # fails at its epoch: the reference has one junk line
             errors.append(int(str(e).split()[2]))
             assert len(rows) == 1
@@ -144,7 +144,7 @@ def test_decayed_satellite_raises_runtime_error_with_sgp4_text():
     prop = SGP4Propagator(line1, line2)
     jd1, jd2 = prop.epoch_utc
     prop.teme((jd1, jd2 + 50.0 / 1440.0))
-    with pytest.raises(RuntimeError, match="mrt is less than 1.0 which indicates the satellite has decayed"):
+    with pytest.raises(RuntimeError, match=r"mrt is less than 1\.0 which indicates the satellite has decayed"):
         prop.teme((jd1, jd2 + 60.0 / 1440.0))
 
 

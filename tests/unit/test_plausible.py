@@ -91,7 +91,7 @@ def test_an_option_that_fails_leaves_no_warning_behind():
 
 def test_a_default_outside_its_range_is_a_declaration_error():
     with pytest.raises(
-        ValueError, match="its default is not plausible: mass: 0 .*outside the plausible 0.001 to 10 kg"
+        ValueError, match=r"its default is not plausible: mass: 0 .*outside the plausible 0\.001 to 10 kg"
     ):
         Parameter("mass", "float", unit="kg", default=0.0, plausible=(1e-3, 10.0))
     with pytest.raises(ValueError, match="plausible= goes with kind 'float' or 'vector'"):

@@ -296,7 +296,7 @@ def test_a_publisher_declared_again_keeps_its_gid_and_numbers_on(linked):
     publisher.declare_again()
     assert publisher._publisher is not declared
     before = publisher.sequence
-    for i in range(200):  # the new declaration's matching, as after a reconnect
+    for _ in range(200):  # the new declaration's matching, as after a reconnect
         publisher.put(message, 7)
         try:
             sequence, timestamp, gid = got.get(timeout=0.05)

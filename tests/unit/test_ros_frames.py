@@ -157,7 +157,7 @@ def test_frames_go_only_while_a_view_subscribes_and_then_all_arrive(camera_run):
         assert not sender.watched.get("depth")  # its topic was not asked for
         for k in range(3):  # one at a time: a frame the link cannot take at once is dropped, by design
             assert sender.send("rgb", k * 100_000_000, 0, 10 * (k + 1), np.roll(rgb, k))
-            assert _until(lambda: frames.received == k + 1)
+            assert _until(lambda k=k: frames.received == k + 1)
         batch = {topic.name: messages for topic, messages in frames.take()}
         assert sorted(batch) == ["/camera/camera_info", "/camera/image_raw"]
         assert [ns for ns, _ in batch["/camera/image_raw"]] == [EPOCH_NS + k * 100_000_000 for k in range(3)]

@@ -87,7 +87,7 @@ def test_unresolved_package_names_the_uri_and_where_it_looked(tmp_path, monkeypa
 
 def test_missing_mesh_file_in_a_found_package(tmp_path):
     package = mesh_package(tmp_path)
-    with pytest.raises(UrdfError, match="no file 'meshes/gone.dae' in package 'my_robot'"):
+    with pytest.raises(UrdfError, match=r"no file 'meshes/gone\.dae' in package 'my_robot'"):
         read_urdf(mesh_urdf(tmp_path, "package://my_robot/meshes/gone.dae"), {"my_robot": str(package)})
 
 
@@ -107,7 +107,7 @@ def test_xacro_with_an_unknown_package(tmp_path, monkeypatch):
         '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">'
         '<xacro:include filename="$(find nowhere_pkg)/r.urdf"/></robot>'
     )
-    with pytest.raises(UrdfError, match="nowhere_pkg.*not found"):
+    with pytest.raises(UrdfError, match=r"nowhere_pkg.*not found"):
         read_urdf(path)
 
 

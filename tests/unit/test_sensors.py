@@ -164,7 +164,7 @@ def test_perturb_quaternion_rotates_about_the_second_frames_axes():
 
 def test_normalized_refuses_what_is_no_rotation():
     assert normalized([0.0, 0.0, 0.0, 2.0]).tolist() == [0.0, 0.0, 0.0, 1.0]
-    with pytest.raises(ValueError, match="q_true .* is not a rotation"):
+    with pytest.raises(ValueError, match=r"q_true .* is not a rotation"):
         normalized([0.0, 0.0, 0.0, 0.0], "q_true")
     with pytest.raises(ValueError, match="not a rotation"):
         normalized([np.nan, 0.0, 0.0, 1.0])

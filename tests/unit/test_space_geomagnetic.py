@@ -115,7 +115,7 @@ def test_decimal_year_counts_days_as_the_wmm_does():
 
 
 def test_wmm_refuses_a_date_outside_its_years():
-    with pytest.raises(ValueError, match="2025 to 2030.*2024"):
+    with pytest.raises(ValueError, match=r"2025 to 2030.*2024"):
         GeomagneticField("wmm", "2024-06-01T00:00:00Z").b_eci(np.array([7e6, 0.0, 0.0]), 0)
 
 

@@ -143,7 +143,7 @@ def test_bad_campaigns_name_their_keys(tmp_path):
     assert "keep: expected one of all, failed, none" in errors_of(tmp_path, {"keep": "some"})
     missing = tmp_path / "nofile.yaml"
     missing.write_text("config: nowhere.yaml\n")
-    with pytest.raises(CampaignErrors, match="config: .*nowhere.yaml: cannot read"):
+    with pytest.raises(CampaignErrors, match=r"config: .*nowhere\.yaml: cannot read"):
         load_campaign(missing)
 
 
@@ -268,7 +268,7 @@ def test_a_twist_from_rate_and_axis(tmp_path):
     body["twist"]["axes"] = "frame"
     assert np.allclose(np.array(initial_twist(body))[3:], [0.07 / 3, 0.14 / 3, 0.14 / 3], atol=1e-16)
     body["twist"]["axis"] = [0.0, 0.0, 0.0]
-    with pytest.raises(ConfigError, match="twist.axis"):
+    with pytest.raises(ConfigError, match=r"twist\.axis"):
         initial_twist(body)
 
 

@@ -115,7 +115,7 @@ class LatencyBuffer:
         self.samples.append((int(t_ns), np.array(values, dtype=np.float64).reshape(self.width)))
         return self.samples.popleft() if len(self.samples) > self.delay else None
 
-    def get_state(self, prefix: str) -> dict[str, np.ndarray]:
+    def get_state(self, prefix: str) -> dict[str, np.ndarray | np.int64]:
         values = np.array([v for _, v in self.samples], dtype=np.float64).reshape(-1, self.width)
         return {
             f"{prefix}delay": np.int64(-1 if self.delay is None else self.delay),

@@ -187,7 +187,7 @@ def duration_ns(value, key: str) -> int:
 _ANGLE_DISPLAY = {(0, 0, 0, 1): "deg", (0, 0, -1, 1): "deg/s", (0, 0, -2, 1): "deg/s^2"}
 _TIME, _LENGTH = (0, 0, 1, 0), (1, 0, 0, 0)
 # a bare number the user may have meant in another unit: the units to suggest, by dimension
-_MEANT = {
+_MEANT: dict[tuple[int, ...], tuple[str, ...]] = {
     (0, 0, 0, 1): ("deg",),
     (0, 0, -1, 1): ("deg/s",),
     (0, 0, -2, 1): ("deg/s^2",),

@@ -21,7 +21,7 @@ def _required(run: RecordedRun, c: str, *names: str) -> list[np.ndarray]:
     missing = [name for name, value in zip(names, found) if value is None]
     if missing:
         raise PlotError(f"{c}: the recording lacks {', '.join(missing)}")
-    return found
+    return [value for value in found if value is not None]  # all of them, now
 
 
 def _base_attitude(run: RecordedRun, c: str) -> tuple[str | None, np.ndarray | None]:

@@ -66,7 +66,8 @@ Density = Callable[[Instant, np.ndarray], float]
 
 
 class PointMass:
-    name, needs = "point_mass", frozenset()
+    name = "point_mass"
+    needs: frozenset[str] = frozenset()
 
     def __init__(self, mu: float):
         self.mu = float(mu)

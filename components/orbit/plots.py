@@ -77,8 +77,8 @@ def accelerations(run: RecordedRun, c: str) -> dict:
     """The magnitude of each acceleration orbit.numerical publishes (``a_<term>_eci``), log scale;
     a zero (SRP in eclipse) is a gap in its line, each label gives the term's mean over the run."""
     t = run.time
-    found = [(term, run.vector(f"{c}.a_{term}_eci", 3)) for term in TERMS]
-    found = [(term, a) for term, a in found if a is not None]
+    vectors = [(term, run.vector(f"{c}.a_{term}_eci", 3)) for term in TERMS]
+    found = [(term, a) for term, a in vectors if a is not None]
     if not found:
         return {}
     fig = new_figure(10.0, 5.5)

@@ -75,7 +75,8 @@ def joint_units(model: UrdfModel) -> tuple[str, str, str]:
     has it (rad, rad/s, N*m when there are none), else one per joint, comma separated, which the
     SDK spreads over the elements (as ``m/s, rad/s`` over a twist)."""
     per_joint = [JOINT_UNITS[j.type] for j in model.joints if j.movable] or [JOINT_UNITS["revolute"]]
-    return tuple(units[0] if len(set(units)) == 1 else ", ".join(units) for units in zip(*per_joint))
+    q, qd, tau = (units[0] if len(set(units)) == 1 else ", ".join(units) for units in zip(*per_joint))
+    return q, qd, tau
 
 
 def kinematic_chain(model: UrdfModel, link: str) -> list:

@@ -160,7 +160,7 @@ def serve(
             ) from None
         try:
             reach = run_endpoint(listen[0])
-            everywhere = any(_ENDPOINT.fullmatch(e)["host"] in _ANY_HOST for e in listen)
+            everywhere = any((m := _ENDPOINT.fullmatch(e)) is not None and m["host"] in _ANY_HOST for e in listen)
             override = (
                 ""
                 if reach == f"tcp/localhost:{DEFAULT_PORT}"

@@ -39,7 +39,7 @@ def remote_case(payload: dict) -> dict:
                 last_check[1] = bool(stop_event.is_set())
             except Exception:
                 pass
-        return last_check[1]
+        return bool(last_check[1])
 
     try:
         config_file = work / f"{payload['case']:04d}.yaml"

@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,7 +44,7 @@ class Metric:
     field: str | None = None
     unit: str = "1"
 
-    def value(self, time: np.ndarray, table: dict[str, np.ndarray], events: list[dict] = ()) -> float | str:
+    def value(self, time: np.ndarray, table: dict[str, np.ndarray], events: Sequence[dict] = ()) -> float | str:
         """The metric of a recording (``table``: column -> values, ``events``: events.jsonl's
         records); NaN if it has no rows (or no such event)."""
         if self.event is not None:

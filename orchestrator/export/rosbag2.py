@@ -25,12 +25,13 @@ import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Final
 
 from components.ros_topics import run_topics
 from components.rosbag import RosContext, RosTopic, TopicError
 
 DISTRO = "ros2_jazzy"  # message definitions and type hashes (rosbags' typestore)
-BAG_VERSION = 9  # rosbag2's metadata.yaml version (Jazzy)
+BAG_VERSION: Final = 9  # rosbag2's metadata.yaml version (Jazzy)
 
 
 class ExportError(Exception):

@@ -48,7 +48,7 @@ def check(section: dict, config_dir: Path, errors: list[str], file) -> BusSpec |
     """The section as a BusSpec, or None with the problems added to ``errors``."""
     before = len(errors)
     router = section["router"]
-    named = [
+    named: list[tuple[str, int | None, str]] = [
         *(("listen", i, e) for i, e in enumerate(section["listen"])),
         *(("connect", i, e) for i, e in enumerate(section["connect"])),
     ]

@@ -59,7 +59,7 @@ def _unit_of(key: str, values: list, meta: dict) -> tuple[str, float]:
             if unit:
                 break
     scale = unit_scale(unit) if unit else None
-    return (unit, scale[0]) if scale else ("", 1.0)
+    return (unit, scale[0]) if unit and scale else ("", 1.0)
 
 
 def quantities(columns: dict[str, list], keys: list[str], meta: dict) -> tuple[list[Quantity], list[str], dict]:

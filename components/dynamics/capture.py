@@ -276,7 +276,7 @@ class Grasp:
 
     # ------------------------------------------------------------------ state
 
-    def get_state(self) -> dict[str, np.ndarray]:
+    def get_state(self) -> dict[str, np.ndarray | np.float64]:
         return {
             "grasp.closed": np.float64(self.closed),
             "grasp.p_in_chaser": self.p_in_chaser.copy(),

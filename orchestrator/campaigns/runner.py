@@ -148,10 +148,10 @@ def summary(rows: list[dict], campaign: Campaign, wall: float, out, ran: int | N
     for m in campaign.metrics:
         texts = sorted({r[m.name] for r in ok if isinstance(r[m.name], str) and r[m.name]})
         if texts:  # a text metric (an event's reason): how often each
-            counts = {t: sum(1 for r in ok if r[m.name] == t) for t in texts}
+            tally = {t: sum(1 for r in ok if r[m.name] == t) for t in texts}
             print(
                 f"  {m.name}: "
-                + "; ".join(f"{n} x {t[:160]}" for t, n in sorted(counts.items(), key=lambda x: -x[1])[:5]),
+                + "; ".join(f"{n} x {t[:160]}" for t, n in sorted(tally.items(), key=lambda x: -x[1])[:5]),
                 file=out,
             )
     if numeric and ok:

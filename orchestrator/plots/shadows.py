@@ -18,8 +18,7 @@ def _outputs(columns: dict, component: str) -> dict[str, list[str]]:
     found: dict[str, list[tuple[int, str]]] = {}
     prefix = f"{component}."
     for column in columns:
-        if column.startswith(prefix):
-            match = _COLUMN.match(column[len(prefix) :])
+        if column.startswith(prefix) and (match := _COLUMN.match(column[len(prefix) :])):
             found.setdefault(match["variable"], []).append((int(match["index"] or 0), column))
     return {name: [c for _, c in sorted(entries)] for name, entries in found.items()}
 
@@ -27,7 +26,7 @@ def _outputs(columns: dict, component: str) -> dict[str, list[str]]:
 def shadow_figures(config: dict, columns: dict, t: np.ndarray) -> list[tuple[str, object]]:
     from matplotlib.figure import Figure
 
-    made = []
+    made: list[tuple[str, object]] = []
     for name, entry in (config.get("components") or {}).items():
         if not (entry or {}).get("shadow"):
             continue

@@ -24,9 +24,8 @@ CPU.
   fixture's limits.
 
 Every run the selected tests of this module need is started by one module fixture, at most
-``PARALLEL`` at a time, longest first; each test waits for the runs it reads. A capture run is
-paced by its lockstep hops more than by a CPU: on 2 cores the module's 37 runs take about 4 min
-four at a time. Every run's processes are checked gone when it ends. Nothing here is
+``PARALLEL`` at a time, longest first; each test waits for the runs it reads. On an idle 2-core
+machine the module's 37 runs take about 2 min four at a time (260 CPU-s). Every run's processes are checked gone when it ends. Nothing here is
 compared with numbers the code produced before: the references are the URDFs, the configs and
 the physics.
 """

@@ -25,9 +25,9 @@ CPU.
 
 Every run the selected tests of this module need is started by one module fixture, at most
 ``PARALLEL`` at a time, longest first; each test waits for the runs it reads. On an idle 2-core
-machine the module's 37 runs take about 2 min four at a time (260 CPU-s). Every run's processes are checked gone when it ends. Nothing here is
-compared with numbers the code produced before: the references are the URDFs, the configs and
-the physics.
+machine the module's 37 runs take about 2 min four at a time (260 CPU-s). Every run's processes
+are checked gone when it ends. Nothing here is compared with numbers the code produced before:
+the references are the URDFs, the configs and the physics.
 """
 
 from __future__ import annotations

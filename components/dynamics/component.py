@@ -787,6 +787,8 @@ class OrbitalDynamics(Component):
                     f"(or substeps)"
                 )
         if full:  # the engine loads every body: what it refuses is an error now, not at the start
+            from components.dynamics.world_contacts import initial_overlaps
+
             world = cls(params, compile_kernels=False).world  # (the kernels compile at the run's instantiate)
             notes += [
                 f"bodies.{name}: {note}"
@@ -797,7 +799,7 @@ class OrbitalDynamics(Component):
                 f"bodies.{a} and bodies.{b} overlap at the start: {a}'s link {la!r} and {b}'s link {lb!r} "
                 f"by {depth * 1e3:.3g} mm (their collision geometry); the rk4 integrator has no contacts: "
                 f"they pass through each other"
-                for a, la, b, lb, depth in world.overlaps()
+                for a, la, b, lb, depth in initial_overlaps(world)
             ]
         return notes
 

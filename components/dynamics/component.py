@@ -530,6 +530,7 @@ class OrbitalDynamics(Component):
 
     engine = ""
     state_form = "dynamics"
+    bodies_parameter = "bodies"
     plots = (dynamics_plots.BODIES, dynamics_plots.CAPTURE, dynamics_plots.MAGNETIC)
     view = DynamicsView
     rosbag = dynamics_ros.ROS_EXPORT

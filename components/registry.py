@@ -30,7 +30,7 @@ TYPES = {
     "test.image_sum": "components.testing.blocks:ImageSum",
     # orbit
     "orbit.kepler": "components.orbit.components:KeplerComponent",
-    "orbit.numerical": "components.orbit.components:NumericalComponent",
+    "orbit.numerical": "components.orbit.numerical_component:NumericalComponent",
     "orbit.sgp4": "components.orbit.components:SGP4Component",
     "orbit.custom_path": "components.orbit.components:CustomPathComponent",
     "orbit.fixed": "components.orbit.components:FixedComponent",

@@ -139,6 +139,11 @@ class Component:
     #: The ends a run with a component of this type comes to (:class:`Outcome`): the summary line
     #: states it, ``run --expect NAME`` checks it, events.jsonl's end event records it. Empty: none.
     outcomes: ClassVar[tuple[Outcome, ...]] = ()
+    #: The parameter naming the run's bodies (name -> a mapping with the body's ``urdf``): the dynamics'.
+    bodies_parameter: ClassVar[str | None] = None
+    #: A parameter (name -> URDF) that, left out of the config, is the run's bodies: the config fills
+    #: it from the one component whose type has ``bodies_parameter`` (the camera's scene).
+    scene_parameter: ClassVar[str | None] = None
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)

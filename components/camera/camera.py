@@ -33,7 +33,9 @@ CAMERA_PARAMETERS = (
     Parameter(
         "bodies",
         MapOf(Str(hint="a URDF file path"), "body name", min_items=1),
-        description="the bodies in the scene: name (as the dynamics names it) -> its URDF, relative to the config",
+        default=None,
+        description="the bodies in the scene: name (as the dynamics names it) -> its URDF, relative to the config; "
+        "null (default): the run's, every body of the dynamics with its urdf",
     ),
     Parameter("body", Str(), description="the body carrying the camera"),
     Parameter("link", Str(), description="the link of that body the camera is fixed to"),
@@ -99,6 +101,10 @@ CAMERA_PARAMETERS = (
 
 
 def _models(camera: Mapping[str, Any], run: Mapping[str, Any]):
+    if camera["bodies"] is None:  # a run's config fills it in from the dynamics (orchestrator/config/scene.py)
+        raise ConfigError(
+            "bodies", "expected a mapping body name -> URDF (none given, and no dynamics to take it from)"
+        )
     return {
         name: read_model(urdf, run.get("_config_dir"), f"bodies.{name}", run.get("_packages"))
         for name, urdf in camera["bodies"].items()

@@ -31,7 +31,8 @@ from components.sdk import Component, Variable
 
 class CameraComponent(Component):
     """An RGB-D camera (type ``sensor.camera``) on link ``link`` of body ``body``, looking at every
-    body of ``bodies`` (their URDF visuals) lit by the Sun; black sky, no Earth in the image.
+    body of ``bodies`` (their URDF visuals; left out, the dynamics' bodies) lit by the Sun; black sky,
+    no Earth in the image.
 
     Connect each body's base pose and joints from the dynamics (``camera.<body>.position:
     dynamics.<body>.position``, the same for ``orientation`` and ``q``) and the orbit
@@ -43,6 +44,7 @@ class CameraComponent(Component):
     view = CameraView
     rosbag = CAMERA_ROS
     parameters = CAMERA_PARAMETERS
+    scene_parameter = "bodies"
 
     @classmethod
     def declare(cls, params):

@@ -22,6 +22,7 @@ triangle inequality (ixx <= iyy + izz, ...) are errors naming the link.
 
 from __future__ import annotations
 
+import hashlib
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -253,8 +254,29 @@ def source_text(path: str | Path, packages=None) -> str:
 
 def read_urdf(path: str | Path, packages=None) -> UrdfModel:
     """Parse and check a URDF (or .xacro) file: tree of links, supported joints, positive base
-    mass, physical inertias, mesh files found. ``packages``: name -> directory (``run.packages``)."""
+    mass, physical inertias, mesh files found. ``packages``: name -> directory (``run.packages``).
+    Parsed once per process: the check, the declaration and the setup of every component in the
+    process share the model (read-only), until the file's text changes."""
     path = Path(path)
+    key = (path.resolve(), _digest(path), tuple(sorted((str(k), str(v)) for k, v in (packages or {}).items())))
+    model = _parsed.get(key)
+    if model is None:
+        model = _parsed[key] = _parse(path, packages)
+    return model
+
+
+_parsed: dict[tuple, UrdfModel] = {}  # read_urdf's: (resolved path, text's digest, packages) -> model
+
+
+def _digest(path: Path) -> bytes:
+    """The file's text digest (a xacro's top file: its includes are taken as unchanged for the process)."""
+    try:
+        return hashlib.blake2b(path.read_bytes(), digest_size=16).digest()
+    except OSError:
+        raise UrdfError(f"URDF file {path} not found") from None
+
+
+def _parse(path: Path, packages) -> UrdfModel:
     text = _source(path, packages)
     try:
         tree = ET.ElementTree(ET.fromstring(text))
@@ -263,7 +285,15 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
     robot = tree.getroot()
     if robot.tag != "robot":
         raise UrdfError(f"{path}: expected a <robot> root element, got <{robot.tag}>")
+    links = _read_links(robot, path)
+    joints = _read_joints(robot, path, {link.name for link in links})
+    _check_mimics(joints, path)
+    root = _root_link(links, joints, path)
+    _resolve_meshes(robot, path, packages)
+    return UrdfModel(path, robot.get("name") or path.stem.removesuffix(".urdf"), links, joints, root, tree)
 
+
+def _read_links(robot: ET.Element, path: Path) -> list[UrdfLink]:
     links: list[UrdfLink] = []
     for element in robot.findall("link"):
         name = element.get("name")
@@ -304,8 +334,10 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
         )
     if not links:
         raise UrdfError(f"{path.name}: no <link> elements")
-    link_names = {link.name for link in links}
+    return links
 
+
+def _read_joints(robot: ET.Element, path: Path, link_names: set[str]) -> list[UrdfJoint]:
     joints: list[UrdfJoint] = []
     children: set[str] = set()
     for element in robot.findall("joint"):
@@ -336,22 +368,7 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
             if link not in link_names:
                 raise UrdfError(f"{where}: {role} link {link!r} is not a <link> of the file")
         if child in children:
-            first = next(j for j in joints if j.child == child)
-            held = {c.get("link") for c in robot.findall("joint/child")}
-            own_root = next((p for p in (first.parent, parent) if p not in held), None)
-            mount = parent if own_root == first.parent else first.parent
-            hint = (
-                (
-                    f"; {own_root!r} is a root of the file already: mount the robot by it (a joint from "
-                    f"{mount!r} to {own_root!r}), or leave {own_root!r} and its joint out"
-                )
-                if own_root
-                else ""
-            )
-            raise UrdfError(
-                f"{where}: link {child!r} has two parent joints, {first.name!r} (from {first.parent!r}) and "
-                f"{name!r} (from {parent!r}){hint}"
-            )
+            raise _two_parents(robot, next(j for j in joints if j.child == child), name, parent, child, where)
         children.add(child)
         origin = element.find("origin")
         xyz = _floats(origin.get("xyz") if origin is not None else None, 3, (0.0, 0.0, 0.0), f"{where} origin xyz")
@@ -363,21 +380,52 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
             raise UrdfError(f"{where}: axis must be non-zero, got {axis}")
         if norm > 0:
             axis = tuple(a / norm for a in axis)
-        lower, upper, effort, velocity = -math.inf, math.inf, math.inf, math.inf
-        limit = element.find("limit")
-        if limit is not None:
-            effort = _float(limit, "effort", math.inf, f"{where} limit")
-            velocity = _float(limit, "velocity", math.inf, f"{where} limit")
-            if effort <= 0.0:  # URDF convention: 0 effort means "not given"
-                effort = math.inf
-            if kind in ("revolute", "prismatic"):
-                lower = _float(limit, "lower", 0.0, f"{where} limit")
-                upper = _float(limit, "upper", 0.0, f"{where} limit")
-                if lower > upper:
-                    raise UrdfError(f"{where}: limit lower {lower} > upper {upper}")
-        elif kind in ("revolute", "prismatic"):
-            raise UrdfError(f"{where}: a {kind} joint needs a <limit> element")
+        lower, upper, effort, velocity = _limits(element, kind, where)
         joints.append(UrdfJoint(name, kind, parent, child, xyz, rpy, axis, lower, upper, effort, velocity, mimic))
+    return joints
+
+
+def _two_parents(robot: ET.Element, first: UrdfJoint, name: str, parent: str, child: str, where: str) -> UrdfError:
+    """The error for a link that two joints hold, with the way out when one of them hangs from a
+    root of its own (a robot mounted by a second root)."""
+    held = {c.get("link") for c in robot.findall("joint/child")}
+    own_root = next((p for p in (first.parent, parent) if p not in held), None)
+    mount = parent if own_root == first.parent else first.parent
+    hint = (
+        (
+            f"; {own_root!r} is a root of the file already: mount the robot by it (a joint from "
+            f"{mount!r} to {own_root!r}), or leave {own_root!r} and its joint out"
+        )
+        if own_root
+        else ""
+    )
+    return UrdfError(
+        f"{where}: link {child!r} has two parent joints, {first.name!r} (from {first.parent!r}) and "
+        f"{name!r} (from {parent!r}){hint}"
+    )
+
+
+def _limits(element: ET.Element, kind: str, where: str) -> tuple[float, float, float, float]:
+    """A joint's (lower, upper, effort, velocity): -inf/+inf where the URDF gives none."""
+    lower, upper, effort, velocity = -math.inf, math.inf, math.inf, math.inf
+    limit = element.find("limit")
+    if limit is not None:
+        effort = _float(limit, "effort", math.inf, f"{where} limit")
+        velocity = _float(limit, "velocity", math.inf, f"{where} limit")
+        if effort <= 0.0:  # URDF convention: 0 effort means "not given"
+            effort = math.inf
+        if kind in ("revolute", "prismatic"):
+            lower = _float(limit, "lower", 0.0, f"{where} limit")
+            upper = _float(limit, "upper", 0.0, f"{where} limit")
+            if lower > upper:
+                raise UrdfError(f"{where}: limit lower {lower} > upper {upper}")
+    elif kind in ("revolute", "prismatic"):
+        raise UrdfError(f"{where}: a {kind} joint needs a <limit> element")
+    return lower, upper, effort, velocity
+
+
+def _check_mimics(joints: list[UrdfJoint], path: Path) -> None:
+    """Each mimic joint follows a movable joint of the file that is not a mimic itself."""
     by_name = {j.name: j for j in joints}
     for j in joints:
         if j.mimic is None:
@@ -395,6 +443,11 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
         if not all(math.isfinite(v) for v in j.mimic[1:]):
             raise UrdfError(f"{path.name}: joint {j.name!r}: mimic multiplier and offset must be finite")
 
+
+def _root_link(links: list[UrdfLink], joints: list[UrdfJoint], path: Path) -> str:
+    """The one root link (the free-floating base, with a mass) from which every link hangs."""
+    children = {j.child for j in joints}
+    link_names = {link.name for link in links}
     roots = [link.name for link in links if link.name not in children]
     if len(roots) != 1:
         raise UrdfError(
@@ -419,8 +472,7 @@ def read_urdf(path: str | Path, packages=None) -> UrdfModel:
     root_link = next(link for link in links if link.name == root)
     if root_link.mass <= 0.0:
         raise UrdfError(f"{path.name}: the base link {root!r} needs a positive mass, got {root_link.mass} kg")
-    _resolve_meshes(robot, path, packages)
-    return UrdfModel(path, robot.get("name") or path.stem.removesuffix(".urdf"), links, joints, root, tree)
+    return root
 
 
 def dart_urdf_text(model: UrdfModel, locked: dict[str, float]) -> str:

@@ -17,6 +17,7 @@ from components.schema import implausible_values
 from components.units import duration_text
 from orchestrator.config import groups
 from orchestrator.config.connections import check_replacement, handover_problem, hands_over, parse_connections
+from orchestrator.config.scene import fill_scenes
 from orchestrator.config.schema import BUS, COMPONENT, CONFIG, FAULT, MAX_STEPS, ROS2, RUN, VIEWER
 from orchestrator.config.shadows import mismatches, shadow_spec, with_shadows
 from orchestrator.config.specs import ComponentSpec, Event, Fault, Ros2Spec, RunConfig, ViewerSpec
@@ -237,6 +238,7 @@ def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) ->
         if not where.is_dir():
             errors.append(f"{file}: run.packages.{package}: directory {directory!r} not found ({where})")
         packages[package] = str(where)
+    fill_scenes(config, config_dir, file, errors)
     entries = config.get("components", {})
     shadows: dict[str, ComponentSpec] = {}  # main's name -> its shadow
     if step_ns is not None and epoch is not None:

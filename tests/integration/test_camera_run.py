@@ -146,17 +146,37 @@ def test_a_wrist_camera_records_frames_whose_depth_at_the_grapple_is_the_dynamic
     assert signals["camera.lit"].iloc[-1] in (0.0, 1.0)
 
 
-@needs("view", "the recording's live view")
-def test_a_second_run_records_the_same_frames_bit_for_bit(recorded, tmp_path):
-    done = orchestrator("run", recorded / "config.yaml", "--record", tmp_path / "again", timeout=600)
-    assert done.returncode == 0, done.stderr[-3000:]
-    first = sorted((recorded / "frames" / "camera").glob("*.npz"))
-    second = sorted((tmp_path / "again" / "frames" / "camera").glob("*.npz"))
+def assert_same_frames(first_run: Path, second_run: Path) -> None:
+    """The camera's frames of two recordings: the same files, the same images bit for bit, something lit."""
+    first = sorted((first_run / "frames" / "camera").glob("*.npz"))
+    second = sorted((second_run / "frames" / "camera").glob("*.npz"))
     assert [f.name for f in first] == [f.name for f in second] and len(first) == 10
     for a, b in zip(first, second):
         with np.load(a) as x, np.load(b) as y:
             assert x["rgb"].tobytes() == y["rgb"].tobytes() and x["depth"].tobytes() == y["depth"].tobytes(), a.name
             assert x["rgb"].max() > 0  # something lit is in view
+
+
+@needs("view", "the recording's live view")
+def test_a_second_run_records_the_same_frames_bit_for_bit(recorded, tmp_path):
+    done = orchestrator("run", recorded / "config.yaml", "--record", tmp_path / "again", timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert_same_frames(recorded, tmp_path / "again")
+
+
+@needs("view", "the recording's live view")
+def test_a_camera_without_bodies_sees_the_dynamics_bodies_in_the_same_frames(recorded, tmp_path):
+    """``recorded``'s camera names the dynamics' bodies itself; left out, it takes them: the
+    recording's config.yaml writes them out and the frames are the same bit for bit."""
+    config = yaml.safe_load((recorded.parent / "camera.yaml").read_text())
+    del config["components"]["camera"]["parameters"]["bodies"]
+    (tmp_path / "scene.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
+    done = orchestrator("run", tmp_path / "scene.yaml", "--record", tmp_path / "run", timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    written = yaml.safe_load((tmp_path / "run" / "config.yaml").read_text())["components"]
+    dynamics = written["dynamics"]["parameters"]["bodies"]
+    assert written["camera"]["parameters"]["bodies"] == {name: body["urdf"] for name, body in dynamics.items()}
+    assert_same_frames(recorded, tmp_path / "run")
 
 
 @needs("view", "the recording's live view")
@@ -226,7 +246,8 @@ def test_the_rosbag2_export_carries_the_frames_their_intrinsics_and_the_mount(re
 
 
 def test_the_guides_camera_passes_check(tmp_path):
-    """docs/guides/camera.md's YAML, added to the capture config as it says, is a valid camera."""
+    """docs/guides/camera.md's YAML, added to the capture config as it says, is a valid camera (its
+    scene: the dynamics' bodies)."""
     import re
 
     block = re.search(r"```yaml\n(.*?)```", (ROOT / "docs" / "guides" / "camera.md").read_text(), re.S).group(1)
@@ -235,8 +256,6 @@ def test_the_guides_camera_passes_check(tmp_path):
     del config["components"]["camera"]
     config["components"].update(snippet["components"])
     config["connections"].update(snippet["connections"])
-    for name, urdf in config["components"]["camera"]["parameters"]["bodies"].items():
-        config["components"]["camera"]["parameters"]["bodies"][name] = str((CAPTURE.parent / urdf).resolve())
     (tmp_path / "guide.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
     done = orchestrator("check", tmp_path / "guide.yaml", timeout=300)
     assert done.returncode == 0, done.stderr

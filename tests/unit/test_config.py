@@ -430,3 +430,41 @@ def test_ros2_section_domain_from_environment_and_endpoint_override(monkeypatch)
     assert ros2_spec(None, "--ros2", errors).domain_id == 0
     assert ros2_spec({"topics": ["/ok", "/2d/pose"]}, "ros2", errors) is None
     assert errors == ["ros2.topics[1]: ROS 2 rejects the topic name '/2d/pose': a part of it starts with a digit"]
+
+
+def test_a_camera_without_bodies_takes_the_dynamics_and_one_with_them_keeps_its_own():
+    """The config's fill (orchestrator/config/scene.py): the camera's scene is the dynamics' bodies
+    as name -> urdf when left out or null, its own when given; a swap event's camera likewise; two
+    components naming bodies leave no scene to take."""
+    from orchestrator.config.scene import fill_scenes
+
+    bodies = {"a": {"urdf": "a.urdf", "frame": "lvlh"}, "b": {"urdf": "b.urdf"}}
+    config = {
+        "components": {
+            "dynamics": {"type": "dynamics.dart", "parameters": {"bodies": bodies}},
+            "left_out": {"type": "sensor.camera", "parameters": {"body": "a"}},
+            "null": {"type": "sensor.camera", "parameters": {"body": "a", "bodies": None}},
+            "own": {"type": "sensor.camera", "parameters": {"bodies": {"a": "other.urdf"}}},
+        },
+        "events": [{"swap": "own", "type": None, "parameters": {"body": "b"}}],
+    }
+    errors = []
+    fill_scenes(config, Path("."), Path("c.yaml"), errors)
+    cameras = {
+        name: entry["parameters"]["bodies"] for name, entry in config["components"].items() if name != "dynamics"
+    }
+    assert not errors and cameras == {
+        "left_out": {"a": "a.urdf", "b": "b.urdf"},
+        "null": {"a": "a.urdf", "b": "b.urdf"},
+        "own": {"a": "other.urdf"},
+    }
+    assert config["events"][0]["parameters"] == {"body": "b", "bodies": {"a": "a.urdf", "b": "b.urdf"}}
+    assert config["components"]["dynamics"]["parameters"]["bodies"] is bodies  # the dynamics' untouched
+
+    config["components"]["second"] = {"type": "dynamics.pinocchio", "parameters": {"bodies": bodies}}
+    config["components"]["left_out"]["parameters"] = {"body": "a"}
+    fill_scenes(config, Path("."), Path("c.yaml"), errors)
+    assert errors == [
+        "c.yaml: components.left_out.parameters.bodies: the run's bodies are in dynamics and second: give this one's "
+        "(body name -> URDF)"
+    ]

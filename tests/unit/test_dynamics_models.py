@@ -66,3 +66,36 @@ def test_read_urdf_errors(tmp_path):
     )
     with pytest.raises(UrdfError, match="needs a <limit>"):
         read_urdf(path)
+
+
+def test_a_process_parses_each_urdf_once(monkeypatch, tmp_path):
+    """The demo's dynamics (schema, declaration, check, setup) and controller (schema, declaration)
+    in one process, as in the orchestrator's check or a process group, parse the humanoid once; a
+    changed file is parsed again."""
+    import yaml
+
+    from components.controller.components import ComputedTorqueComponent
+    from components.dynamics.component import DartDynamics
+    from components.robots import urdf
+    from components.sdk import resolve_parameters, run_parameters
+
+    parses, parse = [], urdf._parse
+    monkeypatch.setattr(urdf, "_parsed", {})
+    monkeypatch.setattr(urdf, "_parse", lambda path, packages: parses.append(path.name) or parse(path, packages))
+    demo = MODELS.parent / "configs" / "humanoid_tracking.yaml"
+    components = yaml.safe_load(demo.read_text())["components"]
+    run = run_parameters("2022-01-01T00:00:00Z", demo.parent)
+    params = {}
+    for cls, name in ((DartDynamics, "dynamics"), (ComputedTorqueComponent, "controller")):
+        params[name], errors = resolve_parameters(cls, {**components[name]["parameters"], **run})
+        assert not errors
+        cls.declare(params[name])
+    DartDynamics.preflight(params["dynamics"], 0.001)
+    DartDynamics(params["dynamics"], compile_kernels=False)
+    assert parses == ["humanoid_torso.urdf"]
+
+    copy = tmp_path / "humanoid_torso.urdf"
+    copy.write_text((MODELS / "humanoid_torso.urdf").read_text())
+    assert read_urdf(copy) is read_urdf(copy)
+    copy.write_text(copy.read_text().replace('name="humanoid_torso"', 'name="renamed"', 1))
+    assert read_urdf(copy).name == "renamed" and parses == ["humanoid_torso.urdf"] * 3

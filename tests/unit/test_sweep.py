@@ -253,7 +253,7 @@ def test_a_twist_from_rate_and_axis(tmp_path):
     """bodies.<b>.twist: {rate, axis, axes, linear}: rate times the normalized axis, in the body's
     own axes turned by its orientation (axes: body) or as given (axes: frame); a zero axis is
     refused naming the key."""
-    from components.dynamics.component import initial_twist
+    from components.dynamics.specs import initial_twist
     from components.errors import ConfigError
     from components.rotations import quat_to_matrix
 

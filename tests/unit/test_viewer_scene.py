@@ -244,7 +244,7 @@ def test_module_class_types_are_recognised_by_their_type_name(tmp_path):
 def test_bodies_and_urdf_paths_are_read_as_the_dynamics_reads_them(tmp_path, monkeypatch):
     """The viewer draws the URDF dynamics.dart simulates: same bodies, same path resolution
     (config directory first, then the project root; not the cwd)."""
-    from components.dynamics.component import load_models
+    from components.dynamics.specs import load_models
 
     here, there = tmp_path / "config", tmp_path / "cwd"
     for path, source in (

@@ -39,7 +39,7 @@ from components import bus
 from components.constants import NS_PER_S
 from orchestrator.config import groups, shadows
 from orchestrator.config.specs import ComponentSpec, Ros2Spec, RunConfig, ViewerSpec
-from orchestrator.hosts.run_bus import RunBus
+from orchestrator.hosts.run_bus import BusUnavailable, RunBus
 from orchestrator.run import outcome, recovery, report, runs, supervisor, wiring
 from orchestrator.run.control import ControlServer, StopRequested, raise_stop
 from orchestrator.run.listener import Listener
@@ -143,7 +143,7 @@ class Run:
             self._open_bus()
             self._start(len(own_cpus))
             self._loop()
-        except (RunFailure, RecordingError) as failure:
+        except (RunFailure, RecordingError, BusUnavailable) as failure:
             code, message = 1, str(failure)
             # who and when, as numbers: the wall seconds since the start (and how long a lost
             # link had been silent) say how soon the run ended after a cut
@@ -226,7 +226,7 @@ class Run:
 
     def _open_bus(self) -> None:
         """The orchestrator's Zenoh session, its subscriptions, and the run's entry for `ps`."""
-        self.hosts = RunBus(self.config, self.run_id, self.secret, self.record_dir, self.out)
+        self.hosts = RunBus(self.config, self.run_id, self.secret, self.record_dir, runs.directory(), self.out)
         self.child_env.update(self.hosts.child_env(None))
         self.session = session = self.hosts.open()
         run_id = self.run_id

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from components import schedule
+from orchestrator.config.outcomes import declared
 from orchestrator.config.specs import ComponentSpec, Event, Fault, RunConfig
 from orchestrator.run import outcome
 from orchestrator.run.members import Member
@@ -54,7 +55,7 @@ class RunState:
     @classmethod
     def of(cls, config: RunConfig) -> RunState:
         """A run of ``config`` before it starts."""
-        found = outcome.declared(config.components)
+        found = declared(config.components)
         return cls(
             config,
             Rows(config.components.values(), config.step_ns),

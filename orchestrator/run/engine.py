@@ -35,7 +35,7 @@ import traceback
 import uuid
 from pathlib import Path
 
-from components import bus
+from components import bus, queries
 from components.constants import NS_PER_S
 from orchestrator.config import groups, shadows
 from orchestrator.config.specs import ComponentSpec, Ros2Spec, RunConfig, ViewerSpec
@@ -104,22 +104,15 @@ class Run:
     def specs(self) -> dict[str, ComponentSpec]:
         return {n: m.spec for n, m in self.state.members.items()}
 
-    def status(self) -> dict:
-        return {
-            "run_id": self.run_id,
-            "name": self.config.name,
-            "step": self.row,
-            "steps": self.config.steps,
-            "time": self.row * self.config.step_ns / NS_PER_S,
-            "components": {
-                n: {
-                    "type": m.spec.type,
-                    "generation": m.generation,
-                    **({"shadow_of": m.spec.shadow_of} if m.spec.shadow_of else {}),
-                }
-                for n, m in self.state.members.items()
-            },
-        }
+    def status(self) -> queries.RunStatus:
+        return queries.RunStatus(
+            self.run_id,
+            self.config.name,
+            self.row,
+            self.config.steps,
+            self.row * self.config.step_ns / NS_PER_S,
+            {n: queries.Running(m.spec.type, m.generation, m.spec.shadow_of) for n, m in self.state.members.items()},
+        )
 
     def request_stop(self, reason: str) -> None:
         self.state.stop_reason = reason

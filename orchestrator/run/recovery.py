@@ -105,7 +105,7 @@ class Recovery:
             run.rows.row,
             run.rows.values.copy(),
             [m.spec for m in live],
-            {m.name: m.reply["blob"] for m in live},
+            {m.name: m.reply.blob for m in live},
             {m.name: (m.tag, m.latest.copy()) for m in live},
             list(run.pending_events),
             run.outcome.state() if run.outcome else None,
@@ -214,7 +214,7 @@ class Recovery:
             wiring.wire(crew, new, joined, run.pending_faults, row)
             if handed_over:
                 crew.ask([old], protocol.GetState(), "get_state", config.step_timeout_s)
-                crew.ask([new], protocol.SetState(old.reply["blob"]), "set_state", config.step_timeout_s)
+                crew.ask([new], protocol.SetState(old.reply.blob), "set_state", config.step_timeout_s)
                 outputs = old.latest
             else:
                 outputs = wiring.initialize(crew, new, joined, t_ns)

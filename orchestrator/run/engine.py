@@ -115,7 +115,7 @@ class Run:
         )
 
     def request_stop(self, reason: str) -> None:
-        self.state.stop_reason = reason
+        self.state.stop(reason)
 
     def swap(self, spec: ComponentSpec, planned: bool = False) -> int:
         return self.recovery.swap(spec, planned)
@@ -150,7 +150,7 @@ class Run:
                 wall_s=round(time.perf_counter() - run_start, 3),
             )
         except (KeyboardInterrupt, StopRequested):
-            self.state.stop_reason = "interrupted"
+            self.state.stop("interrupted")
             code = 130
         except Exception as error:  # a bug of ours: still a clean end, and no "completed" in events.jsonl
             traceback.print_exc(file=self.out)

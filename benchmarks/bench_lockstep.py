@@ -48,7 +48,7 @@ def round_trip(n: int) -> np.ndarray:
     import zenoh
 
     from components import bus
-    from orchestrator.run.supervisor import resolve_endpoints
+    from orchestrator.hosts.run_bus import resolve_endpoints
 
     listen, endpoint = resolve_endpoints(["tcp/127.0.0.1:0"])
     session = zenoh.open(bus.session_config(listen=listen))

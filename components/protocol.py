@@ -17,12 +17,13 @@ Topics, under ``zenorbit/<run_id>/``:
 | ``ORCHESTRATOR_ALIVE`` | ``alive/orchestrator`` | orchestrator | liveliness token; components exit when it goes |
 | ``SIGNALS`` | ``signals`` | orchestrator -> observers | one recorded row per step (binary), may drop |
 | ``VIEWS`` | ``v/<name>/<output>`` | component -> live views | a frame output of a step (``VIEW_FRAME``), may drop; sent only while a view subscribes |
-| ``CTL`` | ``ctl`` | CLI -> orchestrator | queryable: status, stop, swap (JSON) |
-| ``JOIN`` | ``join/<name>`` | joiner -> orchestrator | queryable: which generation to serve (JSON) |
+| ``CTL`` | ``ctl`` | CLI -> orchestrator | queryable: status, stop, swap (:mod:`components.queries`) |
+| ``JOIN`` | ``join/<name>`` | joiner -> orchestrator | queryable: which generation to serve (:mod:`components.queries`) |
 
 Messages: a first byte says the kind; ``C``, ``R``, ``E`` and ``V`` then hold a JSON object
-(length-prefixed, uint32 little-endian) and a blob (the rest); the JSON object's ``op`` names
-the command, or for ``R`` and ``E`` the command answered. Times in integer ns, values float64.
+(length-prefixed, uint32 little-endian) and a blob (the rest), framed by
+:mod:`components.message_codec`; the JSON object's ``op`` names the command, or for ``R`` and
+``E`` the command answered. Times in integer ns, values float64.
 
 | message | kind, op | topic | fields (JSON unless said) |
 |---|---|---|---|
@@ -43,30 +44,23 @@ the command, or for ``R`` and ``E`` the command answered. Times in integer ns, v
 | ``Quit`` | ``Q`` | QUITS | (none) |
 
 Each message has one encoder (``message.encode()``) and one decoder (``Type.decode(payload)``,
-or :func:`decode_command` / :func:`decode_report` for whatever comes on a topic); a decoder
+or ``decode_command`` / ``decode_report`` for whatever comes on a topic); a decoder
 raises :class:`Malformed` for anything but a well-formed message of its type, whose fields then
 have their declared types.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import json
 import struct
-import typing
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
 
 import numpy as np
 
+from components.message_codec import Bare, Json, Malformed, Message, OneOf, frame, from_json
 from components.schedule import Route
 
 ROOT = "zenorbit"
 ORCHESTRATOR = "orchestrator"  # the orchestrator's liveliness name
-
-
-class Malformed(ValueError):
-    """A payload (or key) that is not a well-formed message of the kind expected: dropped, never fatal."""
 
 
 # ---------------------------------------------------------------------------------------- topics
@@ -154,169 +148,6 @@ QUIT = b"Q"  # a component to itself, when the orchestrator's liveliness token i
 BEAT = b"K"  # component -> orchestrator: "still here"
 
 _INT = struct.Struct("<q")
-_JSON_LENGTH = struct.Struct("<I")
-
-Json = Any  # a field holding any JSON value, taken as it comes
-
-
-# ----------------------------------------------------------------------------- the codec
-
-
-class Message:
-    """A control message: a frozen dataclass whose fields, in order, are its JSON object after
-    ``op`` (see the module's table); a field typed ``bytes`` or ``np.ndarray`` (float64) is the
-    blob. ``KIND`` is its first byte, ``OP`` its fixed ``op`` (None: an ``op`` field instead)."""
-
-    KIND: ClassVar[bytes]
-    OP: ClassVar[str | None] = None
-
-    def encode(self) -> bytes:
-        body, blob = {} if self.OP is None else {"op": self.OP}, b""
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if f.name != _blob_field(type(self)):
-                body[f.name] = _to_json(value)
-            elif _hints(type(self))[f.name] is bytes:
-                blob = bytes(value)
-            else:
-                blob = np.ascontiguousarray(value, dtype=np.float64).tobytes()
-        return _frame(self.KIND, body, blob)
-
-    @classmethod
-    def decode(cls, payload: bytes):
-        """The message in ``payload``; Malformed unless it is exactly one of this type."""
-        body, blob = _unframe(payload, cls.KIND, cls.__name__)
-        return cls._from_parts(body, blob)
-
-    @classmethod
-    def _from_parts(cls, body: dict, blob: bytes):
-        name = cls.__name__
-        if cls.OP is not None and body.get("op") != cls.OP:
-            raise Malformed(f"{name}: expected op {cls.OP!r}, got {body.get('op')!r:.40}")
-        hints, blob_field, values = _hints(cls), _blob_field(cls), {}
-        for f in dataclasses.fields(cls):
-            if f.name == blob_field:
-                values[f.name] = _from_blob(blob, hints[f.name], f"{name}.{f.name}")
-            elif f.name in body:
-                values[f.name] = _from_json(body[f.name], hints[f.name], f"{name}.{f.name}")
-            else:
-                raise Malformed(f"{name}: expected a field {f.name!r}, got only {', '.join(map(repr, body))}")
-        if blob and blob_field is None:
-            raise Malformed(f"{name}: expected no blob, got {len(blob)} bytes")
-        message = cls(**values)
-        message._check()
-        return message
-
-    def _check(self) -> None:
-        """Malformed unless the fields agree with each other (a decoded message's types are checked already)."""
-
-
-def _frame(kind: bytes, body: dict, blob: bytes) -> bytes:
-    text = json.dumps(body).encode()
-    return kind + _JSON_LENGTH.pack(len(text)) + text + blob
-
-
-def _unframe(payload: bytes, kind: bytes, name: str) -> tuple[dict, bytes]:
-    """(JSON object, blob) of a message of ``kind``."""
-    if payload[:1] != kind:
-        raise Malformed(f"{name}: expected first byte {kind!r}, got {bytes(payload[:1])!r}")
-    if len(payload) < 1 + _JSON_LENGTH.size:
-        raise Malformed(f"{name}: expected at least {1 + _JSON_LENGTH.size} bytes, got {len(payload)}")
-    (n,) = _JSON_LENGTH.unpack_from(payload, 1)
-    start = 1 + _JSON_LENGTH.size
-    if start + n > len(payload):
-        raise Malformed(f"{name}: announces {n} bytes of JSON, got {len(payload) - start} bytes after the header")
-    try:
-        body = json.loads(payload[start : start + n])
-    except (ValueError, RecursionError) as e:  # JSONDecodeError, UnicodeDecodeError; nesting too deep
-        raise Malformed(f"{name}: expected a JSON object, got text that is not JSON ({e})") from None
-    if not isinstance(body, dict):
-        raise Malformed(f"{name}: expected a JSON object, got {body!r:.60}")
-    return body, bytes(payload[start + n :])
-
-
-def _hints(cls) -> dict:
-    hints = cls.__dict__.get("_resolved_hints")
-    if hints is None:
-        hints = typing.get_type_hints(cls)
-        cls._resolved_hints = hints
-    return hints
-
-
-def _blob_field(cls) -> str | None:
-    hints = _hints(cls)
-    blobs = [f.name for f in dataclasses.fields(cls) if hints[f.name] in (bytes, np.ndarray)]
-    return blobs[0] if blobs else None
-
-
-def _to_json(value):
-    if isinstance(value, Route):
-        return value.to_json()
-    if isinstance(value, (list, tuple)):
-        return [_to_json(v) for v in value]
-    if isinstance(value, dict):
-        return {k: _to_json(v) for k, v in value.items()}
-    return value
-
-
-_SCALARS = {int: "an integer in int64's range", float: "a number", str: "a string", bool: "true or false"}
-
-
-def _from_json(value, hint, where: str):
-    """``value`` as ``hint`` says: int, float, str, bool, Json, Route, list[X], dict[str, X] or
-    tuple[X, Y, ...] (an array of that length); Malformed otherwise."""
-    if hint is Json:
-        return value
-    if hint in _SCALARS:
-        if hint is float and isinstance(value, int) and not isinstance(value, bool) and abs(value) < 2**1023:
-            return float(value)
-        if not isinstance(value, hint) or (hint is int and (isinstance(value, bool) or not -(2**63) <= value < 2**63)):
-            raise Malformed(f"{where}: expected {_SCALARS[hint]}, got {value!r:.40}")
-        return value
-    if hint is Route:
-        return _route(_from_json(value, dict[str, Json], where), where)
-    origin, args = typing.get_origin(hint), typing.get_args(hint)
-    if origin is list:
-        if not isinstance(value, list):
-            raise Malformed(f"{where}: expected an array, got {value!r:.40}")
-        return [_from_json(v, args[0], f"{where}[{i}]") for i, v in enumerate(value)]
-    if origin is tuple:
-        if not isinstance(value, list) or len(value) != len(args):
-            raise Malformed(f"{where}: expected an array of {len(args)}, got {value!r:.40}")
-        return tuple(_from_json(v, a, f"{where}[{i}]") for i, (v, a) in enumerate(zip(value, args)))
-    if origin is dict:
-        if not isinstance(value, dict):
-            raise Malformed(f"{where}: expected an object, got {value!r:.40}")
-        return {k: _from_json(v, args[1], f"{where}[{k!r:.20}]") for k, v in value.items()}
-    raise TypeError(f"{where}: no JSON form for {hint!r}")  # a declaration this codec cannot carry
-
-
-def _route(data: dict, where: str) -> Route:
-    keys = ("source", "src", "dst", "ratio", "ahead")
-    if sorted(data) != sorted(keys):
-        raise Malformed(f"{where}: expected a route of {', '.join(keys)}, got {', '.join(data)}")
-    src, dst = (_from_json(data[k], list[int], f"{where}.{k}") for k in ("src", "dst"))
-    ratio, ahead = (_from_json(data[k], int, f"{where}.{k}") for k in ("ratio", "ahead"))
-    if len(src) != len(dst) or min(src + dst, default=0) < 0 or ratio < 1 or ahead not in (0, 1):
-        raise Malformed(
-            f"{where}: expected src and dst of one length, indices >= 0, ratio >= 1 and ahead 0 or 1, "
-            f"got {len(src)} and {len(dst)} indices, ratio {ratio}, ahead {ahead}"
-        )
-    return Route(
-        _from_json(data["source"], str, f"{where}.source"),
-        np.asarray(src, dtype=np.int64),
-        np.asarray(dst, dtype=np.int64),
-        ratio,
-        ahead,
-    )
-
-
-def _from_blob(blob: bytes, hint, where: str):
-    if hint is bytes:
-        return blob
-    if len(blob) % 8:
-        raise Malformed(f"{where}: expected float64 values (a multiple of 8 bytes), got {len(blob)} bytes")
-    return np.frombuffer(blob, dtype=np.float64)
 
 
 # ------------------------------------------------------------------------------ the messages
@@ -376,7 +207,7 @@ class Initialize(Message):
 class _Holding:
     """Start and Rewire: ``held`` lists [source, tag, size], ``values`` the outputs in that order."""
 
-    def _check(self) -> None:
+    def check(self) -> None:
         sizes = [size for _, _, size in self.held]
         if min(sizes, default=0) < 0 or sum(sizes) != self.values.size:
             raise Malformed(
@@ -451,12 +282,12 @@ class Reply(Message):
     blob: bytes = b""
 
     def encode(self) -> bytes:
-        return _frame(REPLY, {"op": self.op, **self.details}, self.blob)
+        return frame(REPLY, {"op": self.op, **self.details}, self.blob)
 
     @classmethod
-    def _from_parts(cls, body: dict, blob: bytes) -> Reply:
+    def from_parts(cls, body: dict, blob: bytes) -> Reply:
         details = dict(body)
-        return cls(_from_json(details.pop("op", None), str, "Reply.op"), details, blob)
+        return cls(from_json(details.pop("op", None), str, "Reply.op"), details, blob)
 
 
 @dataclass(frozen=True)
@@ -475,28 +306,12 @@ class Events(Message):
 
 
 @dataclass(frozen=True)
-class _Bare(Message):
-    """A message of one byte."""
-
-    def encode(self) -> bytes:
-        return self.KIND
-
-    @classmethod
-    def decode(cls, payload: bytes):
-        if payload != cls.KIND:
-            raise Malformed(
-                f"{cls.__name__}: expected the one byte {cls.KIND!r}, got {bytes(payload[:8])!r} ({len(payload)} bytes)"
-            )
-        return cls()
-
-
-@dataclass(frozen=True)
-class Beat(_Bare):
+class Beat(Bare):
     KIND = BEAT
 
 
 @dataclass(frozen=True)
-class Quit(_Bare):
+class Quit(Bare):
     KIND = QUIT
 
 
@@ -504,25 +319,5 @@ COMMANDS_SENT = (Horizon, Instantiate, Wire, Initialize, Sync, Start, Rewire, Ge
 REPORTS = (Reply, Fault, Events, Beat)
 MESSAGES = (*COMMANDS_SENT, *REPORTS, Quit)
 
-_BY_OP = {m.OP: m for m in COMMANDS_SENT if m.OP is not None}
-_REPORT_BY_KIND = {m.KIND: m for m in REPORTS}
-
-
-def decode_command(payload: bytes) -> Message:
-    """What came on a component's COMMANDS key: a Horizon or a command; Malformed otherwise."""
-    if payload[:1] == HORIZON:
-        return Horizon.decode(payload)
-    body, blob = _unframe(payload, CONTROL, "command")
-    op = body.get("op")
-    kind = _BY_OP.get(op) if isinstance(op, str) else None
-    if kind is None:
-        raise Malformed(f"command: expected op one of {', '.join(_BY_OP)}, got {body.get('op')!r:.40}")
-    return kind._from_parts(body, blob)
-
-
-def decode_report(payload: bytes) -> Message:
-    """What came on a component's REPLIES key: a Reply, Fault, Events or Beat; Malformed otherwise."""
-    kind = _REPORT_BY_KIND.get(bytes(payload[:1]))
-    if kind is None:
-        raise Malformed(f"report: expected first byte one of {b''.join(_REPORT_BY_KIND)!r}, got {bytes(payload[:1])!r}")
-    return kind.decode(payload)
+decode_command = OneOf("command", COMMANDS_SENT)  # what comes on a component's COMMANDS key
+decode_report = OneOf("report", REPORTS)  # what comes on a component's REPLIES key

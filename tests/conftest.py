@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys
@@ -74,17 +73,17 @@ def wait_until(condition, what: str, timeout: float = 120.0, run: subprocess.Pop
 def wait_for_step(name: str, step: int, timeout: float = 120.0, run: subprocess.Popen | None = None) -> int:
     """Wait until the live run named ``name`` has recorded row ``step`` (the run's own answer to
     a status query, as `orchestrator ps` asks it); return the row it had reached."""
-    from components import bus
+    from components import bus, queries
     from orchestrator.run import runs
 
     entry = wait_until(lambda: runs.find(name), f"run {name} registered", timeout, run)[0]
     session = bus.open_session(connect=[entry["endpoint"]], secret=entry["secret"], settings=entry.get("settings"))
 
     def reached():
-        for reply in session.get(bus.run_key(entry["run_id"], "ctl"), payload=b'{"op": "status"}', timeout=10.0):
+        for reply in session.get(bus.control_key(entry["run_id"]), payload=queries.Status().encode(), timeout=10.0):
             if reply.ok is not None:
-                row = json.loads(reply.ok.payload.to_bytes()).get("step", -1)
-                return row if row >= step else None
+                status = queries.decode_control_answer(reply.ok.payload.to_bytes())
+                return status.step if status.step >= step else None
         return None
 
     try:

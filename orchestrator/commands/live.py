@@ -2,20 +2,29 @@
 
 from __future__ import annotations
 
-import json
-
+from components import queries
+from components.message_codec import Malformed, Message
 from orchestrator.commands.exits import USAGE_ERROR, fail
 
 
-def _query(entry: dict, request: dict, timeout: float = 30.0) -> dict:
+def _query(entry: dict, request: Message, expected: type[Message], timeout: float = 30.0) -> Message:
+    """The run's answer to ``request``: one of type ``expected``, or Refused saying why not."""
     from components import bus
 
     session = bus.open_session(connect=[entry["endpoint"]], secret=entry["secret"], settings=entry.get("settings"))
     try:
-        for reply in session.get(bus.control_key(entry["run_id"]), payload=json.dumps(request), timeout=timeout):
+        for reply in session.get(bus.control_key(entry["run_id"]), payload=request.encode(), timeout=timeout):
             if reply.ok is not None:
-                return json.loads(reply.ok.payload.to_bytes())
-        return {"ok": False, "error": f"run {entry['run_id']} did not answer within {timeout:g} s"}
+                try:
+                    answer = queries.decode_control_answer(reply.ok.payload.to_bytes())
+                except Malformed as e:
+                    return queries.Refused(f"run {entry['run_id']} answered something malformed: {e}", usage=False)
+                if type(answer) in (expected, queries.Refused):
+                    return answer
+                return queries.Refused(
+                    f"run {entry['run_id']} answered {type(answer).__name__}, expected {expected.__name__}", usage=False
+                )
+        return queries.Refused(f"run {entry['run_id']} did not answer within {timeout:g} s", usage=True)
     finally:
         session.close()
 
@@ -41,12 +50,12 @@ def cmd_ps(args) -> int:
         return 0
     print(f"{'RUN ID':<32}{'PID':>8}  {'TIME':>12}  {'ENDPOINT':<24}COMPONENTS")
     for entry in entries:
-        status = _query(entry, {"op": "status"}, timeout=3.0)
-        if status.get("ok"):
-            when = f"{status['time']:.3f} s"
-            comps = ", ".join(f"{n}:{c['type']}" for n, c in status["components"].items())
+        status = _query(entry, queries.Status(), queries.RunStatus, timeout=3.0)
+        if type(status) is queries.RunStatus:
+            when = f"{status.time:.3f} s"
+            comps = ", ".join(f"{n}:{c.type}" for n, c in status.components.items())
         else:
-            when, comps = "?", status.get("error", "")
+            when, comps = "?", status.error
         print(f"{entry['run_id']:<32}{entry['pid']:>8}  {when:>12}  {entry['endpoint']:<24}{comps}")
     return 0
 
@@ -55,9 +64,9 @@ def cmd_stop(args) -> int:
     entry, error = _one_run(args.run)
     if error:
         return fail(error)
-    answer = _query(entry, {"op": "stop"})
-    if not answer.get("ok"):
-        return fail(answer.get("error", "stop refused"), 1)
+    answer = _query(entry, queries.Stop(), queries.Stopping)
+    if type(answer) is queries.Refused:
+        return fail(answer.error, 1)
     print(f"stopping {entry['run_id']}")
     return 0
 
@@ -66,10 +75,8 @@ def cmd_swap(args) -> int:
     entry, error = _one_run(args.run)
     if error:
         return fail(error)
-    answer = _query(
-        entry, {"op": "swap", "component": args.component, "type": args.type, "set": args.set}, timeout=120.0
-    )
-    if not answer.get("ok"):  # bad parameters or type: 2; a replacement that failed to start: 1
-        return fail(answer.get("error", "swap refused"), USAGE_ERROR if answer.get("usage", True) else 1)
-    print(f"swapped {args.component} at step {answer['step']} (generation {answer['generation']})")
+    answer = _query(entry, queries.Swap(args.component, args.type, args.set), queries.Swapped, timeout=120.0)
+    if type(answer) is queries.Refused:  # bad parameters or type: 2; a replacement that failed to start: 1
+        return fail(answer.error, USAGE_ERROR if answer.usage else 1)
+    print(f"swapped {args.component} at step {answer.step} (generation {answer.generation})")
     return 0

@@ -52,7 +52,7 @@ def _check_campaign(path: str) -> int:
 
 def _expect_problem(config, expect: str | None) -> str | None:
     """--expect NAME against the outcomes the run's components declare."""
-    from orchestrator.run.outcome import expect_problem
+    from orchestrator.config.outcomes import expect_problem
 
     return f"--expect {problem}" if expect and (problem := expect_problem(config.components, expect)) else None
 

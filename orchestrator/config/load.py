@@ -17,13 +17,13 @@ from components.schema import implausible_values
 from components.units import duration_text
 from orchestrator.config import groups
 from orchestrator.config.connections import check_replacement, handover_problem, hands_over, parse_connections
+from orchestrator.config.outcomes import expect_problem
 from orchestrator.config.scene import fill_scenes
 from orchestrator.config.schema import BUS, COMPONENT, CONFIG, FAULT, MAX_STEPS, ROS2, RUN, VIEWER
 from orchestrator.config.shadows import mismatches, shadow_spec, with_shadows
 from orchestrator.config.specs import ComponentSpec, Event, Fault, Ros2Spec, RunConfig, ViewerSpec
 from orchestrator.config.yaml_file import ConfigErrors, apply_overrides, read_yaml
 from orchestrator.hosts import bus_config
-from orchestrator.run.outcome import expect_problem
 
 
 def viewer_spec(raw: Any, where: str, errors: list[str], base: Path) -> ViewerSpec | None:

@@ -15,7 +15,8 @@ import json
 import threading
 from pathlib import Path
 
-from components import protocol
+from components import protocol, queries
+from components.message_codec import Malformed
 from orchestrator.hosts.tls import write_private
 
 FORMAT = "zenorbit join 1"  # the file's first key, so that a wrong file is told apart
@@ -78,45 +79,44 @@ class JoinDesk:
         with self.lock:
             self.over = True
 
-    def _decide(self, name: str, request: dict) -> dict:
+    def _decide(self, name: str, request: queries.Join | None) -> queries.Message:
         if self.over:
-            return {"status": "over"}
+            return queries.Over()
         entry = self.entries.get(name)
         if entry is None:
-            return {"status": "refused", "error": f"no component {name!r} of this run joins from another host"}
+            return queries.JoinRefused(f"no component {name!r} of this run joins from another host")
         member = entry["member"]
         if entry["joined"] and not member.ended:
-            return {
-                "status": "joined",
-                "error": f"component {name!r} has joined already (generation "
-                f"{entry['generation']}, {entry['host']}): a second join is refused",
-            }
+            return queries.JoinRefused(
+                f"component {name!r} has joined already (generation "
+                f"{entry['generation']}, {entry['host']}): a second join is refused"
+            )
         if entry["joined"]:
-            return {"status": "wait"}  # terminated: a restart will invite the next generation
+            return queries.Wait()  # terminated: a restart will invite the next generation
         entry["joined"], entry["host"] = True, request_host(request)
-        member.host, member.zid = entry["host"], str(request.get("zid", ""))
-        return {"status": "granted", "generation": entry["generation"], "orchestrator": self.zid}
+        member.host, member.zid = entry["host"], request.zid if request is not None else ""
+        return queries.Granted(entry["generation"], self.zid)
 
     def _answer(self, query) -> None:
         name = str(query.key_expr).rpartition("/")[2]
         try:
-            request = json.loads(query.payload.to_bytes()) if query.payload is not None else {}
-            if not isinstance(request, dict):
-                raise ValueError("not an object")
-        except ValueError:
-            request = {}
+            request = queries.Join.decode(query.payload.to_bytes() if query.payload is not None else b"")
+        except Malformed:
+            request = None
         with self.lock:
             answer = self._decide(name, request)
-        if answer["status"] in ("joined", "refused"):
+        if type(answer) is queries.JoinRefused:
             print(
-                f"warning: refused a join for {name!r} from {request_host(request)}: {answer['error']}",
+                f"warning: refused a join for {name!r} from {request_host(request)}: {answer.error}",
                 file=self.out,
                 flush=True,
             )
-        query.reply(query.key_expr, json.dumps(answer))
+        query.reply(query.key_expr, answer.encode())
 
 
-def request_host(request: dict) -> str:
+def request_host(request: queries.Join | None) -> str:
     """How a join names where it comes from: 'host ADDRESS (NAME), pid PID'."""
-    address, name, pid = (str(request.get(k, "?"))[:80] for k in ("address", "hostname", "pid"))
+    if request is None:
+        return "host ? (?), pid ?"
+    address, name, pid = (str(v)[:80] for v in (request.address, request.hostname, request.pid))
     return f"host {address} ({name}), pid {pid}"

@@ -19,7 +19,8 @@ import threading
 import time
 from pathlib import Path
 
-from components import bus
+from components import bus, queries
+from components.message_codec import Malformed
 from orchestrator.hosts.join import FORMAT, join_key
 from orchestrator.hosts.tls import write_pem_files
 
@@ -102,20 +103,16 @@ def own_address(endpoint: str) -> str:
         return "?"
 
 
-def _ask(session, body: dict, endpoint: str) -> dict | None:
-    request = {
-        "address": own_address(endpoint),
-        "hostname": socket.gethostname(),
-        "pid": os.getpid(),
-        "zid": str(session.zid()),
-    }
+def _ask(session, body: dict, endpoint: str) -> queries.Message | None:
+    """The run's answer to a join (Granted, Wait, JoinRefused, Over); None: none, or a malformed one."""
+    request = queries.Join(own_address(endpoint), socket.gethostname(), os.getpid(), str(session.zid()))
     for reply in session.get(
-        join_key(body["run_id"], body["component"]), payload=json.dumps(request), timeout=ASK_TIMEOUT_S
+        join_key(body["run_id"], body["component"]), payload=request.encode(), timeout=ASK_TIMEOUT_S
     ):
         if reply.ok is not None:
             try:
-                return json.loads(reply.ok.payload.to_bytes())
-            except ValueError:
+                return queries.decode_join_answer(reply.ok.payload.to_bytes())
+            except Malformed:
                 return None
     return None
 
@@ -179,20 +176,19 @@ def join(
             try:
                 while True:
                     answer = _ask(session, body, endpoint)
-                    status = (answer or {}).get("status")
-                    if status == "granted":
+                    if type(answer) is queries.Granted:
                         print(
                             f"joined run {body['run']!r} ({body['run_id']}) at {endpoint} as {name!r}, "
-                            f"generation {answer['generation']}",
+                            f"generation {answer.generation}",
                             file=out,
                             flush=True,
                         )
                         ended = serve_session(
                             session,
                             body["run_id"],
-                            [(name, answer["generation"])],
+                            [(name, answer.generation)],
                             cpu,
-                            answer.get("orchestrator"),
+                            answer.orchestrator,
                             beat_interval(settings),
                         )
                         served = True
@@ -208,10 +204,12 @@ def join(
                         if ended != RELEASED:
                             return 0
                         continue
-                    if status == "over" or (answer is None and served and not _orchestrator_alive(session, body)):
+                    if type(answer) is queries.Over or (
+                        answer is None and served and not _orchestrator_alive(session, body)
+                    ):
                         return 0
-                    if status in ("joined", "refused") and not served:
-                        raise JoinError(f"the run refused the join: {answer['error']}")
+                    if type(answer) is queries.JoinRefused and not served:
+                        raise JoinError(f"the run refused the join: {answer.error}")
                     if answer is None and not served:
                         raise JoinError(
                             f"the run {body['run']!r} at {endpoint} did not answer the join "

@@ -52,19 +52,43 @@ def reachable_endpoints(listen: list[str]) -> list[str]:
     return out + local
 
 
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def resolve_endpoints(listen: list[str]) -> tuple[list[str], str]:
+    """Fill port 0 with a free port; return (listen endpoints, the one local components connect to)."""
+    resolved = []
+    for endpoint in listen:
+        proto, _, address = endpoint.partition("/")
+        host, _, port = address.rpartition(":")
+        if port == "0":
+            port = str(free_port())
+        resolved.append(f"{proto}/{host}:{port}")
+    proto, _, address = resolved[0].partition("/")
+    host, _, port = address.rpartition(":")
+    local_host = "127.0.0.1" if host in ("0.0.0.0", "[::]") else host
+    return resolved, f"{proto}/{local_host}:{port}"
+
+
+class BusUnavailable(Exception):
+    """The run's bus cannot be opened: the run cannot start."""
+
+
 class RunBus:
     """The bus of one run: its settings for each process, the orchestrator's session, the join
     files and the desk that answers joins. With TLS, ``directory`` (0700, removed by
-    :meth:`close`) holds the run's certificates for the processes of this host."""
+    :meth:`close`) holds the run's certificates for the processes of this host; ``runtime``: the
+    directory of this user's runs (:func:`orchestrator.run.runs.directory`)."""
 
-    def __init__(self, config, run_id: str, secret: str, record_dir: Path | None, out):
-        from orchestrator.run import runs
-
+    def __init__(self, config, run_id: str, secret: str, record_dir: Path | None, runtime: Path, out):
         spec: BusSpec = config.bus
         self.config, self.spec, self.run_id, self.secret, self.out = config, spec, run_id, secret, out
-        self.directory = runs.directory() / f"{run_id}.bus"
+        self.directory = runtime / f"{run_id}.bus"
         # join files go with the recording, else with the run's entry in the runtime directory
-        self.join_dir = (record_dir / "join") if record_dir else runs.directory().parent / "join" / run_id
+        self.join_dir = (record_dir / "join") if record_dir else runtime.parent / "join" / run_id
         self.certificates = self.acl = self.desk = self.watch = None
         self.base = {"mode": spec.mode, "lease_ms": spec.lease_ms}
         self.endpoints: list[str] = []  # where other hosts reach the run
@@ -98,8 +122,6 @@ class RunBus:
         import zenoh
 
         from orchestrator.hosts.join import JoinDesk
-        from orchestrator.run import supervisor
-        from orchestrator.run.members import RunFailure
 
         spec = self.spec
         if spec.tls or any(c.launch == "external" for c in self.config.components.values()):
@@ -117,7 +139,7 @@ class RunBus:
             )
         listen_asked = [] if spec.mode == "client" else spec.listen
         for attempt in range(3):  # a free port picked here may be taken by another run before Zenoh binds it
-            listen, local = supervisor.resolve_endpoints(listen_asked) if listen_asked else ([], spec.router)
+            listen, local = resolve_endpoints(listen_asked) if listen_asked else ([], spec.router)
             try:
                 session = bus.open_session(
                     listen,
@@ -130,12 +152,12 @@ class RunBus:
                 break
             except zenoh.ZError as e:
                 if spec.mode == "client":
-                    raise RunFailure(
+                    raise BusUnavailable(
                         f"cannot reach the router at {spec.router} (bus.router) within "
                         f"{self.config.join_timeout_s:g} s (run.join_timeout): {e}"
                     ) from None
                 if attempt == 2 or not any(e.endswith(":0") for e in spec.listen):
-                    raise RunFailure(f"cannot open the bus on {', '.join(listen)} (bus.listen): {e}") from None
+                    raise BusUnavailable(f"cannot open the bus on {', '.join(listen)} (bus.listen): {e}") from None
         self.listen, self.local = listen, local
         self.endpoints = [spec.router] if spec.mode == "client" else reachable_endpoints(listen)
         self.desk = JoinDesk(session, self.run_id, self.out)

@@ -4,18 +4,20 @@
 from __future__ import annotations
 
 import copy
-import json
 from collections.abc import Mapping
 from typing import Protocol
 
-from components import registry
+from components import queries, registry
 from components.errors import ConfigError
+from components.message_codec import Malformed, Message
 from orchestrator.config.connections import check_replacement, hands_over
 from orchestrator.config.load import component_spec
 from orchestrator.config.schema import COMPONENT
 from orchestrator.config.shadows import mismatches
 from orchestrator.config.specs import ComponentSpec, RunConfig
 from orchestrator.config.yaml_file import ConfigErrors, apply_overrides
+
+Answer = queries.RunStatus | queries.Stopping | queries.Swapped | queries.Refused
 
 
 class SwapFailed(Exception):
@@ -41,7 +43,7 @@ class Controlled(Protocol):
 
     def specs(self) -> Mapping[str, ComponentSpec]: ...  # the live components, in config order
 
-    def status(self) -> dict: ...
+    def status(self) -> queries.RunStatus: ...
 
     def request_stop(self, reason: str) -> None: ...
 
@@ -49,31 +51,33 @@ class Controlled(Protocol):
 
 
 class ControlServer:
-    """Queries queue up as they arrive; ``serve`` answers them at a step boundary."""
+    """Queries queue up as they arrive (with their requests, or why they are malformed); ``serve``
+    answers them at a step boundary."""
 
     def __init__(self, run: Controlled):
         self.run = run
-        self.queries: list = []
+        self.queries: list[tuple[object, Message | str]] = []
 
     def add(self, query) -> None:
-        self.queries.append(query)
+        try:
+            request = queries.decode_control_request(query.payload.to_bytes() if query.payload is not None else b"")
+        except Malformed as e:
+            request = f"malformed request: {e}"
+        self.queries.append((query, request))
 
     def swap_boundary(self) -> int | None:
         """The step at which the first waiting swap can happen (a slower component is replaced at
         one of its own step boundaries), or None if no swap waits."""
-        for query in self.queries:
-            spec = self._swap_target(_request(query))
+        for _, request in self.queries:
+            spec = self._swap_target(request)
             if spec is not None:
                 return self._boundary(spec)
         return None
 
-    def _swap_target(self, request: dict) -> ComponentSpec | None:
+    def _swap_target(self, request) -> ComponentSpec | None:
         """The spec of the live component a swap request names, or None (not a swap, or no such
         component: the request is answered at once, with an error if it is one)."""
-        component = request.get("component")
-        if request.get("op") != "swap" or not isinstance(component, str):
-            return None
-        return self.run.specs().get(component)
+        return self.run.specs().get(request.component) if type(request) is queries.Swap else None
 
     def _boundary(self, spec: ComponentSpec) -> int:
         """The first step boundary of ``spec``'s component at or after the run's."""
@@ -83,76 +87,63 @@ class ControlServer:
     def serve(self, quiescent: bool) -> None:
         """Answer what can be answered now; swaps only when every component is at the boundary."""
         waiting = []
-        for query in self.queries:
-            request = _request(query)
+        for query, request in self.queries:
             target = self._swap_target(request)
             if target is not None and (not quiescent or self._boundary(target) != self.run.row):
-                waiting.append(query)
+                waiting.append((query, request))
                 continue
             try:
-                answer = self._answer(request)
+                answer = queries.Refused(request, usage=True) if isinstance(request, str) else self._answer(request)
             except SwapFailed as error:
-                answer = {"ok": False, "error": str(error), "usage": False}
+                answer = queries.Refused(str(error), usage=False)
             except (KeyError, TypeError, ValueError) as error:
-                answer = {"ok": False, "error": f"malformed request: {error}", "usage": True}
-            query.reply(query.key_expr, json.dumps(answer))
+                answer = queries.Refused(f"malformed request: {error}", usage=True)
+            query.reply(query.key_expr, answer.encode())
             query.drop()
         self.queries = waiting
 
-    def _answer(self, request: dict) -> dict:
+    def _answer(self, request: queries.Status | queries.Stop | queries.Swap) -> Answer:
         run = self.run
-        op = request.get("op")
-        if op == "status":
-            return {"ok": True, **run.status()}
-        if op == "stop":
+        if type(request) is queries.Status:
+            return run.status()
+        if type(request) is queries.Stop:
             run.request_stop("stopped by request")
-            return {"ok": True}
-        if op == "swap":
-            name = request["component"]
-            specs = run.specs()
-            if not isinstance(name, str) or name not in specs:
-                return {"ok": False, "error": f"no component {name!r} (components: {', '.join(specs)})", "usage": True}
-            old = specs[name]
-            new_type = request.get("type") or old.type
-            try:
-                handed_over = hands_over(old, new_type, registry.load(new_type, run.config.path.parent.resolve()))
-            except ConfigError as e:
-                return {"ok": False, "error": f"--type: {e.message}", "usage": True}
-            entry = {
-                "type": new_type,
-                "parameters": copy.deepcopy(old.parameters if handed_over else {}),
-                "on_failure": old.on_failure,
-            }
-            try:
-                apply_overrides(entry, [f"parameters.{s}" for s in request.get("set", [])])
-                converted, problems = COMPONENT.resolve(entry, f"components.{name}")
-                if problems:
-                    raise ConfigErrors([str(e) for e in problems])
-                spec = component_spec(
-                    name,
-                    {**converted, "step": old.step_ns},
-                    run.config.step_ns,
-                    run.config.path.parent.resolve(),
-                    run.config.epoch,
-                    f"components.{name}",
-                    run.config.packages,
-                )
-                spec.shadow_of = old.shadow_of  # a shadow swapped stays one, and fits its main
-                problems = check_replacement(spec, run.config.connections) + (
-                    mismatches(specs[old.shadow_of], spec, run.config.connections) if old.shadow_of else []
-                )
-                if problems:
-                    raise ConfigErrors(problems)
-            except ConfigErrors as e:
-                return {"ok": False, "error": "; ".join(e.errors), "usage": True}
-            generation = run.swap(spec)
-            return {"ok": True, "step": run.row, "generation": generation}
-        return {"ok": False, "error": f"unknown operation {op!r} (status, stop, swap)"}
-
-
-def _request(query) -> dict:
-    try:
-        request = json.loads(query.payload.to_bytes()) if query.payload is not None else {}
-    except ValueError:
-        return {}
-    return request if isinstance(request, dict) else {}
+            return queries.Stopping()
+        name, specs = request.component, run.specs()
+        if name not in specs:
+            return queries.Refused(f"no component {name!r} (components: {', '.join(specs)})", usage=True)
+        old = specs[name]
+        new_type = request.type or old.type
+        try:
+            handed_over = hands_over(old, new_type, registry.load(new_type, run.config.path.parent.resolve()))
+        except ConfigError as e:
+            return queries.Refused(f"--type: {e.message}", usage=True)
+        entry = {
+            "type": new_type,
+            "parameters": copy.deepcopy(old.parameters if handed_over else {}),
+            "on_failure": old.on_failure,
+        }
+        try:
+            apply_overrides(entry, [f"parameters.{s}" for s in request.set])
+            converted, problems = COMPONENT.resolve(entry, f"components.{name}")
+            if problems:
+                raise ConfigErrors([str(e) for e in problems])
+            spec = component_spec(
+                name,
+                {**converted, "step": old.step_ns},
+                run.config.step_ns,
+                run.config.path.parent.resolve(),
+                run.config.epoch,
+                f"components.{name}",
+                run.config.packages,
+            )
+            spec.shadow_of = old.shadow_of  # a shadow swapped stays one, and fits its main
+            problems = check_replacement(spec, run.config.connections) + (
+                mismatches(specs[old.shadow_of], spec, run.config.connections) if old.shadow_of else []
+            )
+            if problems:
+                raise ConfigErrors(problems)
+        except ConfigErrors as e:
+            return queries.Refused("; ".join(e.errors), usage=True)
+        generation = run.swap(spec)
+        return queries.Swapped(run.row, generation)

@@ -35,11 +35,11 @@ import traceback
 import uuid
 from pathlib import Path
 
-from components import bus
+from components import bus, queries
 from components.constants import NS_PER_S
 from orchestrator.config import groups, shadows
 from orchestrator.config.specs import ComponentSpec, Ros2Spec, RunConfig, ViewerSpec
-from orchestrator.hosts.run_bus import RunBus
+from orchestrator.hosts.run_bus import BusUnavailable, RunBus
 from orchestrator.run import outcome, recovery, report, runs, supervisor, wiring
 from orchestrator.run.control import ControlServer, StopRequested, raise_stop
 from orchestrator.run.listener import Listener
@@ -104,25 +104,18 @@ class Run:
     def specs(self) -> dict[str, ComponentSpec]:
         return {n: m.spec for n, m in self.state.members.items()}
 
-    def status(self) -> dict:
-        return {
-            "run_id": self.run_id,
-            "name": self.config.name,
-            "step": self.row,
-            "steps": self.config.steps,
-            "time": self.row * self.config.step_ns / NS_PER_S,
-            "components": {
-                n: {
-                    "type": m.spec.type,
-                    "generation": m.generation,
-                    **({"shadow_of": m.spec.shadow_of} if m.spec.shadow_of else {}),
-                }
-                for n, m in self.state.members.items()
-            },
-        }
+    def status(self) -> queries.RunStatus:
+        return queries.RunStatus(
+            self.run_id,
+            self.config.name,
+            self.row,
+            self.config.steps,
+            self.row * self.config.step_ns / NS_PER_S,
+            {n: queries.Running(m.spec.type, m.generation, m.spec.shadow_of) for n, m in self.state.members.items()},
+        )
 
     def request_stop(self, reason: str) -> None:
-        self.state.stop_reason = reason
+        self.state.stop(reason)
 
     def swap(self, spec: ComponentSpec, planned: bool = False) -> int:
         return self.recovery.swap(spec, planned)
@@ -143,7 +136,7 @@ class Run:
             self._open_bus()
             self._start(len(own_cpus))
             self._loop()
-        except (RunFailure, RecordingError) as failure:
+        except (RunFailure, RecordingError, BusUnavailable) as failure:
             code, message = 1, str(failure)
             # who and when, as numbers: the wall seconds since the start (and how long a lost
             # link had been silent) say how soon the run ended after a cut
@@ -157,7 +150,7 @@ class Run:
                 wall_s=round(time.perf_counter() - run_start, 3),
             )
         except (KeyboardInterrupt, StopRequested):
-            self.state.stop_reason = "interrupted"
+            self.state.stop("interrupted")
             code = 130
         except Exception as error:  # a bug of ours: still a clean end, and no "completed" in events.jsonl
             traceback.print_exc(file=self.out)
@@ -226,7 +219,7 @@ class Run:
 
     def _open_bus(self) -> None:
         """The orchestrator's Zenoh session, its subscriptions, and the run's entry for `ps`."""
-        self.hosts = RunBus(self.config, self.run_id, self.secret, self.record_dir, self.out)
+        self.hosts = RunBus(self.config, self.run_id, self.secret, self.record_dir, runs.directory(), self.out)
         self.child_env.update(self.hosts.child_env(None))
         self.session = session = self.hosts.open()
         run_id = self.run_id

@@ -10,18 +10,7 @@ import time
 from components import bus, protocol
 from orchestrator.run.control import ControlServer
 from orchestrator.run.members import Member, RunFailure, at_fault, death, exited, fault_message
-from orchestrator.run.messages import (
-    CONTROL,
-    OUTPUTS,
-    REPLY,
-    Beat,
-    Events,
-    LinkLost,
-    Liveliness,
-    Outputs,
-    Reply,
-    decode,
-)
+from orchestrator.run.messages import CONTROL, OUTPUTS, REPLY, LinkLost, Liveliness, Outputs, Report, decode
 from orchestrator.run.state import RunState
 from orchestrator.run.viewer_link import ViewerLink
 
@@ -90,27 +79,28 @@ class Listener:
                     del expect[name]
                 return
             return  # a token may go with another peer's link: its process or link tells (check_processes)
+        report = message.message
         member = self._member(name, message.generation)
         if member is None:
-            if type(message) is Beat or self._replaced(name, message.generation):
+            if type(report) is protocol.Beat or self._replaced(name, message.generation):
                 return  # a generation swapped out (or restarted) on purpose may still say its last
             raise bus.Malformed(f"no component {name!r} of generation {message.generation} in this run")
         member.heard_at = time.monotonic()
-        if type(message) is Beat:
+        if type(report) is protocol.Beat:
             return
-        if type(message) is Reply:
-            member.reply = {**message.body, "blob": message.blob}
-            if expect.get(name) == message.body["op"]:
+        if type(report) is protocol.Reply:
+            member.reply = report
+            if expect.get(name) == report.op:
                 del expect[name]
             return
-        if type(message) is Events:
-            for kind, fields in message.events:  # what a component reports cannot rename the line's keys
-                run.log(kind, **{**fields, "component": name, "step": message.k})
+        if type(report) is protocol.Events:
+            for kind, fields in report.events:  # what a component reports cannot rename the line's keys
+                run.log(kind, **{**fields, "component": name, "step": report.k})
             return
-        if message.k >= 0:  # a fault: it published every output before the failing step's
-            member.progress = max(member.progress, message.k)
+        if report.k >= 0:  # a fault: it published every output before the failing step's
+            member.progress = max(member.progress, report.k)
         self.salvage(member)
-        raise RunFailure(fault_message(member, message, run.config.step_ns), member)
+        raise RunFailure(fault_message(member, report, run.config.step_ns), member)
 
     def _member(self, name: str, generation: int) -> Member | None:
         """The live (or joining) member with this name and generation; None for a stale generation."""
@@ -241,7 +231,7 @@ class Listener:
                     reply = decode(kind, key, payload)
                 except bus.Malformed:
                     continue
-                if type(reply) is Reply and reply.body.get("op") == "synced":
+                if type(reply) is Report and type(reply.message) is protocol.Reply and reply.message.op == "synced":
                     asked.discard(reply.name)
 
     def _take_outputs(self, timeout: float) -> bool:

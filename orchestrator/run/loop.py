@@ -103,7 +103,7 @@ class Loop:
             time.perf_counter() - wall_start if realtime > 0 else 0.0,
         )
         if horizon is not None:
-            state.horizon, state.horizon_at = horizon, time.monotonic()
+            state.grant(horizon, time.monotonic())
             grant = protocol.Horizon(horizon).encode()
             for member in state.members.values():
                 member.command.put(grant)

@@ -20,7 +20,7 @@ from components.schedule import Route
 from orchestrator.config import groups
 from orchestrator.config.specs import ComponentSpec, RunConfig
 from orchestrator.run import supervisor
-from orchestrator.run.messages import Fault, Outputs
+from orchestrator.run.messages import Outputs
 
 
 class RunFailure(Exception):
@@ -58,7 +58,7 @@ class Member:
     compute_s: float = 0.0
     idle_s: float = 0.0
     steps: int = 0
-    reply: dict | None = field(default=None, repr=False)
+    reply: protocol.Reply | None = field(default=None, repr=False)  # its last
     host: str = ""  # where an external member joined from
     zid: str = ""  # the Zenoh id of its session, when linked to ours directly
     heard_at: float = 0.0  # wall time of its last message (heartbeats included)
@@ -270,7 +270,7 @@ def death(member: Member, how: str) -> str:
     )
 
 
-def fault_message(member: Member, fault: Fault, step_ns: int) -> str:
+def fault_message(member: Member, fault: protocol.Fault, step_ns: int) -> str:
     when = f"step {fault.k} (t = {fault.k * step_ns / NS_PER_S:g} s)"
     if fault.op == "nan":
         return f"component {member.name!r} produced a non-finite value in output {fault.error!r} at {when}"

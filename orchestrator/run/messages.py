@@ -29,28 +29,12 @@ class Outputs:
 
 
 @dataclass(slots=True)
-class Reply:
+class Report:
+    """What a member said on its REPLIES key: a protocol.Reply, Fault, Events or Beat."""
+
     name: str
     generation: int
-    body: dict  # holds "op", the request answered
-    blob: bytes
-
-
-@dataclass(slots=True)
-class Fault:
-    name: str
-    generation: int
-    op: str  # where it failed: "step", "nan" (a non-finite output), or a control op
-    k: int  # the failing step; < 0 if not in a step
-    error: str
-
-
-@dataclass(slots=True)
-class Events:
-    name: str
-    generation: int
-    k: int  # the step that emitted them
-    events: list  # [kind, fields] pairs (Component.emit)
+    message: protocol.Reply | protocol.Fault | protocol.Events | protocol.Beat
 
 
 @dataclass(slots=True)
@@ -65,13 +49,7 @@ class LinkLost:
     zid: str
 
 
-@dataclass(slots=True)
-class Beat:
-    name: str
-    generation: int
-
-
-def decode(kind: str, key: str, payload) -> Outputs | Reply | Fault | Events | Beat | Liveliness | LinkLost | None:
+def decode(kind: str, key: str, payload) -> Outputs | Report | Liveliness | LinkLost | None:
     """The message of an inbox entry; None for a liveliness token that is not a process's."""
     if kind == OUTPUTS:
         generation, tags, timings, outputs = bus.decode_batch(payload)
@@ -79,15 +57,7 @@ def decode(kind: str, key: str, payload) -> Outputs | Reply | Fault | Events | B
             raise bus.Malformed(f"tag {tags[0]}: the outputs of a step are tagged 1 or later")
         return Outputs(bus.batch_source(key), generation, tags, timings, outputs)
     if kind == REPLY:
-        name, generation = bus.reply_source(key)
-        report = protocol.decode_report(payload)
-        if type(report) is protocol.Beat:
-            return Beat(name, generation)
-        if type(report) is protocol.Reply:
-            return Reply(name, generation, {"op": report.op, **report.details}, report.blob)
-        if type(report) is protocol.Fault:
-            return Fault(name, generation, report.op, report.k, report.error)
-        return Events(name, generation, report.k, report.events)
+        return Report(*bus.reply_source(key), protocol.decode_report(payload))
     if kind == LIVELINESS:
         source = bus.alive_source(key)
         return None if source is None else Liveliness(*source, payload)

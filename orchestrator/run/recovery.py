@@ -12,11 +12,11 @@ import time
 
 import numpy as np
 
-from components import protocol, schedule
+from components import protocol
 from components.constants import NS_PER_S
 from components.units import duration_ns, duration_text
 from orchestrator.config.connections import handover_problem, hands_over
-from orchestrator.config.specs import ComponentSpec, Fault
+from orchestrator.config.specs import ComponentSpec
 from orchestrator.run import wiring, wording
 from orchestrator.run.control import SwapFailed
 from orchestrator.run.listener import Listener
@@ -42,18 +42,6 @@ def may_restart(failure: RunFailure, checkpoint: Checkpoint | None, live: dict[s
         and checkpoint is not None
         and member.name in live
     )
-
-
-def faults_left(faults: list[Fault], failed: str, horizon: int, row: int, step_ns: int) -> list[Fault]:
-    """The injected faults still to come after a restart from ``row``: an injected fault fires
-    once, so neither the one behind this failure (of ``failed``, below ``horizon``) nor those the
-    run went past (before ``row``) are left."""
-
-    def step(f: Fault) -> int:
-        return schedule.first_step_at(f.at_ns, step_ns)
-
-    cause = next((f for f in faults if f.component == failed and step(f) <= horizon), None)
-    return [f for f in faults if f is not cause and step(f) >= row]
 
 
 def hung(live: dict[str, Member], horizon: int, horizon_at: float, now: float, timeout: float) -> Member | None:
@@ -88,9 +76,9 @@ class Recovery:
         """At a step boundary every component has reached: the config's swaps due there, then the
         periodic checkpoint if it is due."""
         run = self.run
-        while run.next_event_step() is not None and run.next_event_step() <= run.rows.row:
+        while (event := run.take_due_event()) is not None:
             try:
-                self.swap(run.pending_events.pop(0).spec, planned=True)
+                self.swap(event.spec, planned=True)
             except SwapFailed as failure:  # a swap the config asks for is part of the experiment
                 raise RunFailure(str(failure)) from None
         if run.rows.row == self.next_checkpoint():
@@ -101,15 +89,7 @@ class Recovery:
         run = self.run
         live = list(run.members.values())
         self.crew.ask(live, protocol.GetState(), "get_state (checkpoint)", run.config.step_timeout_s)
-        run.checkpoint = Checkpoint(
-            run.rows.row,
-            run.rows.values.copy(),
-            [m.spec for m in live],
-            {m.name: m.reply["blob"] for m in live},
-            {m.name: (m.tag, m.latest.copy()) for m in live},
-            list(run.pending_events),
-            run.outcome.state() if run.outcome else None,
-        )
+        run.keep_checkpoint({m.name: m.reply.blob for m in live})
         run.log("checkpoint", step=run.rows.row, time=run.rows.row * run.config.step_ns / NS_PER_S)
 
     def may_restart(self, failure: RunFailure) -> bool:
@@ -126,7 +106,10 @@ class Recovery:
                 f"{failure} (after {wording.count(run.restarts, 'restart')}: run.max_restarts)", failed
             ) from None
         began = time.perf_counter()
-        run.restarts += 1
+        if failed.process is not None and failed.process.poll() is None:
+            failed.process.kill()  # hung: it would not answer terminate
+        terminate_all([*run.members.values(), *run.joining.values()], timeout=2.0)
+        generations = run.begin_restart(failed.name)
         run.log("fault", step=run.rows.row, component=failed.name, message=str(failure))
         print(
             f"warning: {failure}\nrestarting from step {checkpoint.row} (t = {checkpoint.row * step_ns / NS_PER_S:g} s; "
@@ -134,30 +117,14 @@ class Recovery:
             file=self.out,
             flush=True,
         )
-        if failed.process is not None and failed.process.poll() is None:
-            failed.process.kill()  # hung: it would not answer terminate
-        terminate_all([*run.members.values(), *run.joining.values()], timeout=2.0)
-        run.joining.clear()
-        run.pending_faults = faults_left(run.pending_faults, failed.name, run.horizon, run.rows.row, step_ns)
         self.listener.discard_stale()
-        generations = {n: m.generation + 1 for n, m in run.members.items()}
-        run.members = {}
         crew.start(checkpoint.specs, generations, run.members)
         for member in run.members.values():
             wiring.wire(crew, member, run.members, run.pending_faults, checkpoint.row)
         for member in run.members.values():
             member.control(protocol.SetState(checkpoint.states[member.name]))
         self.listener.wait({m: "set_state" for m in run.members}, config.step_timeout_s, "set_state (restart)")
-        now = time.monotonic()
-        for member in run.members.values():
-            tag, latest = checkpoint.latest[member.name]
-            member.tag, member.latest, member.initialized = tag, latest.copy(), True
-            member.progress, member.progress_at = checkpoint.row, now
-        run.rows.rewind(checkpoint.row, checkpoint.values)
-        run.horizon, run.horizon_at = checkpoint.row, now
-        run.pending_events = list(checkpoint.events)
-        if run.outcome is not None:  # events after the checkpoint come again (or not) in the rerun
-            run.outcome.restore(checkpoint.outcome)
+        run.restart_from_checkpoint(time.monotonic())
         self.listener.sync(list(run.members.values()))
         for member in run.members.values():
             wiring.go(member, run.members, run.horizon)
@@ -214,14 +181,14 @@ class Recovery:
             wiring.wire(crew, new, joined, run.pending_faults, row)
             if handed_over:
                 crew.ask([old], protocol.GetState(), "get_state", config.step_timeout_s)
-                crew.ask([new], protocol.SetState(old.reply["blob"]), "set_state", config.step_timeout_s)
+                crew.ask([new], protocol.SetState(old.reply.blob), "set_state", config.step_timeout_s)
                 outputs = old.latest
             else:
                 outputs = wiring.initialize(crew, new, joined, t_ns)
         except RunFailure as failure:
             if old.process is not None and old.process.poll() is not None:
                 raise  # the old generation is gone too: nothing to run on
-            joining = run.joining.pop(spec.name, None)
+            joining = run.drop_joining(spec.name)
             if joining is not None:
                 terminate(joining, timeout=2.0)
             run.log("warning", message=f"swap of {spec.name} to {spec.type} failed: {failure}", step=row)
@@ -229,7 +196,7 @@ class Recovery:
         new.tag, new.latest, new.progress, new.initialized = row, np.array(outputs), row, True
         run.rows.values[old.out_dst] = np.nan  # the old type's columns the new one lacks: NaN from here on
         run.rows.take(new)
-        run.members[spec.name] = run.joining.pop(spec.name)
+        run.take_over(spec.name)
         terminate(old)  # its late messages carry the old generation: ignored from here on
         consumers = [m for m in run.members.values() if m is not new and any(r.source == spec.name for r in m.routes)]
         for consumer in consumers:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -22,27 +21,6 @@ def child_setup() -> None:
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
     except OSError:
         pass
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def resolve_endpoints(listen: list[str]) -> tuple[list[str], str]:
-    """Fill port 0 with a free port; return (listen endpoints, the one local components connect to)."""
-    resolved = []
-    for endpoint in listen:
-        proto, _, address = endpoint.partition("/")
-        host, _, port = address.rpartition(":")
-        if port == "0":
-            port = str(free_port())
-        resolved.append(f"{proto}/{host}:{port}")
-    proto, _, address = resolved[0].partition("/")
-    host, _, port = address.rpartition(":")
-    local_host = "127.0.0.1" if host in ("0.0.0.0", "[::]") else host
-    return resolved, f"{proto}/{local_host}:{port}"
 
 
 def runner_arguments(endpoint: str, run_id: str, members: list[tuple[str, int]]) -> list[str]:

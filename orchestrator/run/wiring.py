@@ -4,6 +4,8 @@ config; the few functions that send them say so."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from components import protocol, schedule
@@ -38,7 +40,7 @@ def frame_routes(consumer: ComponentSpec, members: dict[str, Member], config: Ru
 
 
 def wire_message(
-    member: Member, members: dict[str, Member], config: RunConfig, faults: list[Injected], k: int
+    member: Member, members: dict[str, Member], config: RunConfig, faults: Sequence[Injected], k: int
 ) -> protocol.Wire:
     """Which sources feed which of ``member``'s inputs (its routes, set), whom it feeds, from step
     ``k``, and the faults to inject into it."""
@@ -96,7 +98,7 @@ def initial_inputs(member: Member, members: dict[str, Member], step_ns: int) -> 
     return inputs, times
 
 
-def wire(crew: Crew, member: Member, members: dict[str, Member], faults: list[Injected], k: int) -> None:
+def wire(crew: Crew, member: Member, members: dict[str, Member], faults: Sequence[Injected], k: int) -> None:
     """Route ``member``'s inputs and send it the wire message; wait for its answer."""
     config = crew.config
     member.routes = routes(member.spec, members, config)
@@ -108,7 +110,7 @@ def initialize(crew: Crew, member: Member, members: dict[str, Member], t_ns: int
     """Initialize ``member`` at ``t_ns``; its outputs there, all finite (else RunFailure)."""
     inputs, times = initial_inputs(member, members, crew.config.step_ns)
     crew.ask([member], protocol.Initialize(t_ns, times, inputs), "initialize", crew.config.start_timeout_s)
-    vector = np.frombuffer(member.reply["blob"], dtype=np.float64)
+    vector = np.frombuffer(member.reply.blob, dtype=np.float64)
     variable = member.spec.outputs.first_non_finite(vector)
     if variable is not None:
         raise RunFailure(

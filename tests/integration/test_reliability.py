@@ -11,7 +11,7 @@ import numpy as np
 import pandas
 import pytest
 
-from components import bus, protocol
+from components import bus, protocol, queries
 from orchestrator.run import runs
 from tests.conftest import (
     component_processes,
@@ -108,7 +108,7 @@ def test_a_stranger_publishing_garbage_on_the_run_keys_does_not_end_it(write_con
                 ) as insider:
                     wait_until(lambda: _peers(insider) >= 3, "gossip to the run's 3 peers", run=run)
                 assert _peers(session) == 0
-            replies = list(session.get(bus.run_key(rid, "ctl"), payload=b'{"op": "status"}', timeout=30.0))
+            replies = list(session.get(bus.run_key(rid, "ctl"), payload=queries.Status().encode(), timeout=30.0))
             assert len(replies) == (1 if joins else 0)
             for _ in range(3):
                 for key, payloads in garbage.items():

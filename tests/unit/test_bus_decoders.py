@@ -1,7 +1,8 @@
 """Every decoder of the wire protocol, fuzzed: a well-formed message decodes to what was encoded,
 and anything else (random bytes, truncations, bit flips, wrong lengths, fields of the wrong type)
 raises Malformed and nothing else, so whoever can reach the bus cannot crash a run. The control
-messages are enumerated from components.protocol.MESSAGES, so a new one is fuzzed too."""
+messages and the queries are enumerated from components.protocol.MESSAGES and
+components.queries.MESSAGES, so a new one is fuzzed too."""
 
 import json
 import struct
@@ -10,7 +11,7 @@ import zlib
 import numpy as np
 import pytest
 
-from components import bus, protocol
+from components import bus, protocol, queries
 from components.schedule import Route
 
 RNG = np.random.default_rng(20261124)
@@ -130,12 +131,35 @@ EXAMPLES = {  # each declared message with values that are not defaults
     ),
     protocol.Beat: protocol.Beat(),
     protocol.Quit: protocol.Quit(),
+    queries.Status: queries.Status(),
+    queries.Stop: queries.Stop(),
+    queries.Swap: queries.Swap("controller", "controller.pd", ["kp=40", "gains=[1, 2]"]),
+    queries.RunStatus: queries.RunStatus(
+        "demo-1a2b3c4d",
+        "demo",
+        1200,
+        15000,
+        1.2,
+        {"arm": queries.Running("dynamics.pinocchio", 2, None), "twin": queries.Running("dynamics.dart", 0, "arm")},
+    ),
+    queries.Stopping: queries.Stopping(),
+    queries.Swapped: queries.Swapped(9000, 1),
+    queries.Refused: queries.Refused("no component 'x' (components: arm)", usage=True),
+    queries.Join: queries.Join("192.0.2.2", "flight", 4242, "a1b2c3"),
+    queries.Granted: queries.Granted(3, "f00d"),
+    queries.Wait: queries.Wait(),
+    queries.JoinRefused: queries.JoinRefused("component 'arm' has joined already"),
+    queries.Over: queries.Over(),
 }
+MESSAGES = (*protocol.MESSAGES, *queries.MESSAGES)
 
 # what decodes whatever comes on each message's key
 DISPATCHERS = {
     **dict.fromkeys(protocol.COMMANDS_SENT, protocol.decode_command),
     **dict.fromkeys(protocol.REPORTS, protocol.decode_report),
+    **dict.fromkeys(queries.CONTROL_REQUESTS, queries.decode_control_request),
+    **dict.fromkeys(queries.CONTROL_ANSWERS, queries.decode_control_answer),
+    **dict.fromkeys(queries.JOIN_ANSWERS, queries.decode_join_answer),
 }
 
 
@@ -145,7 +169,7 @@ def _same(a, b) -> bool:
         return type(a) is type(b) and a.dtype == b.dtype and np.array_equal(a, b)
     if type(a) is not type(b):
         return False
-    if isinstance(a, (Route, protocol.Message)):
+    if isinstance(a, (Route, protocol.Message, queries.Running)):
         return all(_same(getattr(a, f), getattr(b, f)) for f in a.__dataclass_fields__)
     if isinstance(a, (list, tuple)):
         return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
@@ -155,10 +179,10 @@ def _same(a, b) -> bool:
 
 
 def test_every_declared_message_has_an_example():
-    assert set(EXAMPLES) == set(protocol.MESSAGES), "give a new message an example here: it is fuzzed then"
+    assert set(EXAMPLES) == set(MESSAGES), "give a new message an example here: it is fuzzed then"
 
 
-@pytest.mark.parametrize("kind", protocol.MESSAGES, ids=lambda kind: kind.__name__)
+@pytest.mark.parametrize("kind", MESSAGES, ids=lambda kind: kind.__name__)
 def test_a_message_decodes_to_what_was_encoded(kind):
     message = EXAMPLES[kind]
     payload = message.encode()
@@ -254,7 +278,14 @@ def _framed_like(payload: bytes, body, blob: bytes) -> bytes:
 def _structured_mutations(payload: bytes, rng):
     """The JSON object of a C/R/E/V message with each of its values (and keys) replaced by
     values of other types, or deleted, framed right; and its blob cut or grown."""
-    if payload[:1] not in (protocol.CONTROL, protocol.REPLY, protocol.FAULT, protocol.EVENT):
+    if payload[:1] not in (
+        protocol.CONTROL,
+        protocol.REPLY,
+        protocol.FAULT,
+        protocol.EVENT,
+        queries.REQUEST,
+        queries.ANSWER,
+    ):
         return
     (n,) = struct.unpack_from("<I", payload, 1)
     body, blob = json.loads(payload[5 : 5 + n]), payload[5 + n :]
@@ -265,7 +296,7 @@ def _structured_mutations(payload: bytes, rng):
         yield _framed_like(payload, body, blob[:-cut])
     for grow in range(1, 17):
         yield _framed_like(payload, body, blob + rng.bytes(grow))
-    for op in ("", "explode", "wire", "start", "terminate", "events"):
+    for op in ("", "explode", "wire", "start", "terminate", "events", "swap", "status", "granted"):
         yield _framed_like(payload, {**body, "op": op}, blob)
     yield payload[:1] + struct.pack("<I", 20_000) + b"[" * 20_000  # nested too deep for json
 
@@ -297,7 +328,7 @@ def _fuzz_cases(payload: bytes, seed: int):
     yield from _structured_mutations(payload, rng)
 
 
-@pytest.mark.parametrize("kind", protocol.MESSAGES, ids=lambda kind: kind.__name__)
+@pytest.mark.parametrize("kind", MESSAGES, ids=lambda kind: kind.__name__)
 def test_every_message_decoder_decodes_or_raises_malformed_on_garbage(kind):
     """A few thousand cases per decoder; what decodes is a message of its declared types (it
     encodes again, to bytes that decode to the same message)."""

@@ -146,26 +146,25 @@ def test_the_join_desk_grants_a_waited_generation_once_and_refuses_a_second_join
 
     import zenoh
 
-    from components import bus
+    from components import bus, queries
     from orchestrator.hosts.join import JoinDesk
 
     session = zenoh.open(bus.session_config())
     try:
         desk = JoinDesk(session, "spread-1", io.StringIO())
         far = types.SimpleNamespace(name="far", generation=0, ended=False, host="", zid="")
-        request = {"address": "192.0.2.2", "hostname": "flight", "pid": 42, "zid": "abc"}
-        assert desk._decide("far", request)["status"] == "refused"  # not invited yet
+        request = queries.Join("192.0.2.2", "flight", 42, "abc")
+        assert type(desk._decide("far", request)) is queries.JoinRefused  # not invited yet
         desk.invite(far)
-        granted = desk._decide("far", request)
-        assert granted == {"status": "granted", "generation": 0, "orchestrator": str(session.zid())}
+        assert desk._decide("far", request) == queries.Granted(0, str(session.zid()))
         assert far.host == "host 192.0.2.2 (flight), pid 42" and far.zid == "abc"
-        second = desk._decide("far", {**request, "pid": 43})
-        assert second["status"] == "joined" and "a second join is refused" in second["error"]
+        second = desk._decide("far", queries.Join("192.0.2.2", "flight", 43, "abc"))
+        assert type(second) is queries.JoinRefused and "a second join is refused" in second.error
         far.ended = True  # terminated for a restart
-        assert desk._decide("far", request) == {"status": "wait"}
+        assert desk._decide("far", request) == queries.Wait()
         desk.invite(types.SimpleNamespace(name="far", generation=1, ended=False, host="", zid=""))
-        assert desk._decide("far", request)["generation"] == 1
+        assert desk._decide("far", request) == queries.Granted(1, str(session.zid()))
         desk.close()
-        assert desk._decide("far", request) == {"status": "over"}
+        assert desk._decide("far", request) == queries.Over()
     finally:
         session.close()

@@ -1,5 +1,6 @@
 """The layers: components never import orchestrator (an exported FMU ships only components/),
-and running an FMU does not load the FMU export (pythonfmu)."""
+running an FMU does not load the FMU export (pythonfmu), no two modules and no two of orchestrator's
+folders import each other, no component domain imports another."""
 
 import ast
 import subprocess
@@ -69,31 +70,72 @@ def import_graph() -> dict[str, set[str]]:
     return graph
 
 
-def test_no_two_modules_import_each_other():
-    graph = import_graph()
-    circles = []
-    for start in graph:  # a path back to itself, found depth-first
+def circles(graph: dict[str, set[str]]) -> list[str]:
+    """Every path from a node back to itself, depth-first, as "a -> b -> a"."""
+    found = []
+    for start in graph:
         stack, seen = [(start, (start,))], set()
         while stack:
-            module, path = stack.pop()
-            for nxt in graph[module]:
+            node, path = stack.pop()
+            for nxt in graph[node]:
                 if nxt == start:
-                    circles.append(" -> ".join(path + (start,)))
+                    found.append(" -> ".join(path + (start,)))
                 elif nxt not in seen:
                     seen.add(nxt)
                     stack.append((nxt, path + (nxt,)))
-    assert not circles, "\n".join(sorted(set(circles)))
+    return sorted(set(found))
 
 
-def test_the_circle_check_finds_a_circle(monkeypatch):
-    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
-    monkeypatch.setattr(sys.modules[__name__], "import_graph", lambda: graph)
-    try:
-        test_no_two_modules_import_each_other()
-    except AssertionError as e:
-        assert "a -> b -> c -> a" in str(e)
-    else:
-        raise AssertionError("the circle a -> b -> c -> a was not found")
+def test_no_two_modules_import_each_other():
+    found = circles(import_graph())
+    assert not found, "\n".join(found)
+
+
+def test_the_circle_check_finds_a_circle():
+    assert circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [
+        "a -> b -> c -> a",
+        "b -> c -> a -> b",
+        "c -> a -> b -> c",
+    ]
+
+
+def orchestrator_folder(module: str) -> str | None:
+    """The folder of orchestrator/ a module is in (``run`` for orchestrator.run.engine), None outside them."""
+    parts = module.split(".")
+    return parts[1] if parts[0] == "orchestrator" and len(parts) > 2 else None
+
+
+def folder_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    """orchestrator's folders -> the other folders their modules import, wherever in a module the
+    import is (one inside a function is no way around a layer)."""
+    folders: dict[str, set[str]] = {}
+    for module, imported in graph.items():
+        folder = orchestrator_folder(module)
+        if folder is not None:
+            folders.setdefault(folder, set()).update(orchestrator_folder(m) for m in imported)
+    return {folder: edges - {folder, None} for folder, edges in folders.items()}
+
+
+def test_no_two_orchestrator_folders_import_each_other():
+    """Each folder of orchestrator/ is a layer: config below run, hosts below config (the loop
+    run -> config -> hosts -> run once hid behind imports inside functions)."""
+    found = circles(folder_graph(import_graph()))
+    assert not found, "folders importing each other (move what they share down a layer):\n" + "\n".join(found)
+
+
+def test_the_folder_check_sees_an_import_inside_a_function():
+    planted = {
+        "orchestrator.run.engine": {"orchestrator.config.load"},
+        "orchestrator.config.load": {"orchestrator.hosts.bus_config"},
+        "orchestrator.hosts.bus_config": set(),
+        "orchestrator.hosts.run_bus": {"orchestrator.run.runs"},  # as a function-level import would
+        "orchestrator.cli": {"orchestrator.run.engine"},
+        "components.bus": set(),
+    }
+    assert folder_graph(planted) == {"run": {"config"}, "config": {"hosts"}, "hosts": {"run"}}
+    assert "config -> hosts -> run -> config" in circles(folder_graph(planted))
+    source = "def open():\n    from orchestrator.run import runs\n"
+    assert imported_modules(ast.parse(source)) == ["orchestrator.run"]
 
 
 def private_imports(source: str, filename: str = "<source>") -> list[str]:

@@ -1,4 +1,4 @@
-"""The run's outcome (orchestrator/run/outcome.py): declared as data on a component type, derived
+"""The run's outcome (orchestrator/config/outcomes.py, orchestrator/run/outcome.py): declared as data on a component type, derived
 from that component's own events, checked against what --expect names."""
 
 from __future__ import annotations
@@ -7,9 +7,10 @@ import pytest
 
 from components.controller.capture_component import CaptureComponent
 from components.sdk import Component, Outcome
+from orchestrator.config import outcomes
 from orchestrator.run import outcome
 
-CAPTURE = outcome.Declared("controller", "controller.capture", CaptureComponent.outcomes)
+CAPTURE = outcomes.Declared("controller", "controller.capture", CaptureComponent.outcomes)
 
 
 def ev(kind: str, component: str = "controller", **fields) -> dict:
@@ -80,13 +81,15 @@ def test_the_first_declaring_component_not_a_shadow_gives_the_outcomes():
         "shadow": _Spec("controller.capture", CaptureComponent, "controller"),
         "controller": _Spec("controller.capture", CaptureComponent),
     }
-    found = outcome.declared(specs)
+    found = outcomes.declared(specs)
     assert found.component == "controller" and found.names == ["undecided", "captured", "aborted"]
-    assert outcome.expect_problem(specs, "captured") is None
-    assert outcome.expect_problem(specs, "capturd") == (
+    assert outcomes.expect_problem(specs, "captured") is None
+    assert outcomes.expect_problem(specs, "capturd") == (
         "'capturd' is not an outcome of controller (controller.capture); its outcomes: undecided, captured, aborted"
     )
-    assert "no component of this run declares outcomes" in outcome.expect_problem({"orbit": specs["orbit"]}, "captured")
+    assert "no component of this run declares outcomes" in outcomes.expect_problem(
+        {"orbit": specs["orbit"]}, "captured"
+    )
 
 
 def test_a_type_whose_outcomes_share_an_event_is_refused():

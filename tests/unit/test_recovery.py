@@ -1,4 +1,4 @@
-"""The decisions behind checkpoints, restarts and hang detection (orchestrator/run/recovery.py)."""
+"""The decisions behind checkpoints, restarts and hang detection (orchestrator/run/recovery.py, state.py)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ import numpy as np
 
 from components.schedule import Route
 from orchestrator.config.specs import Fault
-from orchestrator.run.recovery import Checkpoint, faults_left, hung, next_checkpoint
+from orchestrator.run.recovery import hung, next_checkpoint
+from orchestrator.run.state import Checkpoint, faults_left
 
 MS = 1_000_000
 

@@ -146,7 +146,7 @@ def test_fed_inputs_names_the_variables_a_route_feeds():
 
 def test_inbox_entries_decode_to_typed_messages():
     from components import bus, protocol
-    from orchestrator.run.messages import LIVELINESS, OUTPUTS, REPLY, Fault, Liveliness, Outputs, Reply, decode
+    from orchestrator.run.messages import LIVELINESS, OUTPUTS, REPLY, Liveliness, Outputs, Report, decode
 
     rid = "demo-1a2b3c4d"
     batch = bus.encode_batch(
@@ -157,10 +157,10 @@ def test_inbox_entries_decode_to_typed_messages():
     assert outputs.tags.tolist() == [4, 5] and outputs.outputs.tolist() == [[7.0, 6.0], [8.0, 5.0]]
     assert outputs.timings.tolist() == [[1.0, 2.0], [3.0, 4.0]]  # (compute, idle) of each step
     out_key = bus.reply_key(rid, "int", 12)
-    assert decode(REPLY, out_key, protocol.Reply("wire", {"n": 2}, b"\x01\x02").encode()) == Reply(
-        "int", 12, {"op": "wire", "n": 2}, b"\x01\x02"
-    )
-    assert decode(REPLY, out_key, protocol.Fault("step", 9, "boom").encode()) == Fault("int", 12, "step", 9, "boom")
+    reply = protocol.Reply("wire", {"n": 2}, b"\x01\x02")
+    assert decode(REPLY, out_key, reply.encode()) == Report("int", 12, reply)
+    fault = protocol.Fault("step", 9, "boom")
+    assert decode(REPLY, out_key, fault.encode()) == Report("int", 12, fault)
     assert decode(LIVELINESS, bus.alive_key(rid, "int", 7), False) == Liveliness("int", 7, False)
     assert decode(LIVELINESS, bus.viewer_alive_key(rid), True) == Liveliness(bus.VIEWER, 0, True)
     assert decode(LIVELINESS, bus.run_key(rid, "alive", "int", "x"), True) is None  # not a process's token

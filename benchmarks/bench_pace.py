@@ -78,7 +78,7 @@ def record_demo(seconds: float, folder: Path) -> None:
     rows = run_in_process(config)
     start = 0
     for name, spec in config.components.items():
-        size = resolve(spec.cls, {**spec.parameters, **config.run_parameters}).outputs.size
+        size = resolve(spec.cls, spec.parameters, config.run_settings).outputs.size
         if name in ("dynamics", "controller"):
             np.save(folder / f"{name}.npy", rows[:, start : start + size])
         start += size

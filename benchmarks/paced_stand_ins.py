@@ -31,13 +31,13 @@ class _Paced(Component):
     real: type[Component]
 
     @classmethod
-    def declare(cls, params):
-        return cls.real.declare(params)
+    def declare(cls, params, run):
+        return cls.real.declare(params, run)
 
-    def __init__(self, params):
-        super().__init__(params)
+    def __init__(self, params, run):
+        super().__init__(params, run)
         self.rows = np.load(params["replay"])
-        self.layout = layouts(self.declare(params))[1]
+        self.layout = layouts(self.declare(params, run))[1]
         if self.rows.shape[1] != self.layout.size:
             raise ValueError(f"replay: rows of {self.rows.shape[1]} values, the outputs hold {self.layout.size}")
         self.cost_ns = round(params["cost"] * NS_PER_S)

@@ -19,7 +19,7 @@ import numpy as np
 
 from components import bus, protocol, registry
 from components.schedule import FrameRoute, Route, fed_inputs
-from components.sdk import ComponentOutputError
+from components.sdk import ComponentOutputError, RunSettings
 
 BATCH_STEPS = 32  # outputs go to the orchestrator in batches of this many steps ...
 BATCH_MIN_S = 0.002  # ... more (up to BATCH_CAPACITY) while this long has not passed since the last (each
@@ -145,7 +145,7 @@ class ComponentProcess:
         op, kind = message.OP, type(message)
         if kind is protocol.Instantiate:
             try:
-                resolved = registry.resolve(message.type, message.params)  # run parameters included
+                resolved = registry.resolve(message.type, message.params, RunSettings.from_json(message.run))
             except registry.Unresolved as e:
                 raise e.errors[0] from None
             self.inputs, self.outputs = resolved.inputs, resolved.outputs

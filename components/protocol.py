@@ -176,6 +176,7 @@ class Instantiate(Message):
     KIND, OP = CONTROL, "instantiate"
     type: str
     params: dict[str, Json]
+    run: dict[str, Json]  # sdk.RunSettings.to_json
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from components.errors import ConfigError
-from components.sdk import Component, Layout, layouts, resolve_parameters, run_parameters
+from components.sdk import Component, Layout, RunSettings, layouts, resolve_parameters
 
 TYPES = {
     # small blocks for tests and examples
@@ -96,16 +96,19 @@ def load(type_name: str, config_dir: str | Path | None = None) -> type[Component
 @dataclass
 class Resolved:
     """A component type with validated parameters and the layouts of its variables: all that
-    comes before an instance."""
+    comes before an instance. ``params``: the checked parameters (SI); ``typed``: what the type's
+    ``validate`` made of them, which ``build`` hands to the instance."""
 
     cls: type[Component]
     params: dict
+    typed: Any
+    run: RunSettings
     inputs: Layout
     outputs: Layout
 
     def build(self) -> Component:
         """A new instance (FMI's instantiate)."""
-        return self.cls(self.params)
+        return self.cls(self.typed, self.run)
 
 
 class Unresolved(Exception):
@@ -120,26 +123,22 @@ class Unresolved(Exception):
 def resolve(
     component_type: str | type[Component],
     params: Mapping[str, Any],
-    *,
-    epoch: str | None = None,
-    config_dir: str | Path | None = None,
-    packages: Mapping[str, str] | None = None,
+    run: RunSettings,
 ) -> Resolved:
-    """The one way from raw parameters to a component: load the type (a name or the class), add
-    the run parameters (``params`` may hold them already, as the instantiate message does),
-    validate, declare and lay out the inputs and outputs. Unresolved when any of it fails."""
-    raw = {**params, **run_parameters(epoch, config_dir, packages)}
+    """The one way from raw parameters to a component: load the type (a name or the class),
+    validate (once: its typed parameters are kept for ``build``), declare and lay out the inputs
+    and outputs. Unresolved when any of it fails."""
     cls = component_type
     if isinstance(component_type, str):
         try:
-            cls = load(component_type, raw.get("_config_dir"))
+            cls = load(component_type, run.config_dir)
         except ConfigError as e:
             raise Unresolved("type", [e]) from None
-    resolved, errors = resolve_parameters(cls, raw)
+    checked, typed, errors = resolve_parameters(cls, params, run)
     if errors:
         raise Unresolved("parameters", errors)
     try:
-        variables = cls.declare(resolved)
+        variables = cls.declare(typed, run)
     except Exception as e:  # a component's own bug too: the caller words it
         raise Unresolved("declare", [e]) from None
-    return Resolved(cls, resolved, *layouts(variables))
+    return Resolved(cls, checked, typed, run, *layouts(variables))

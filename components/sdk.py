@@ -149,35 +149,37 @@ class Component:
         super().__init_subclass__(**kwargs)
         _check_outcomes(cls)
         cls.schema = Record(
-            cls.type_name or cls.__name__,
-            tuple(cls.parameters),
-            noun=f"parameter of {cls.type_name or cls.__name__}",
-            extra=RUN_PARAMETERS,
+            cls.type_name or cls.__name__, tuple(cls.parameters), noun=f"parameter of {cls.type_name or cls.__name__}"
         )
         if cls.__dict__.get("__doc__"):  # its own docstring, not an inherited one
             cls.__doc__ = inspect.cleandoc(cls.__doc__) + "\n\n" + declaration_tables(cls)
 
     @classmethod
-    def declare(cls, params: Mapping[str, Any]) -> list[Variable]:
-        """Inputs and outputs, given validated parameters. Must be cheap (no heavy imports)."""
+    def declare(cls, params: Any, run: RunSettings) -> list[Variable]:
+        """Inputs and outputs, given the typed parameters (what ``validate`` returned). Must be cheap
+        (no heavy imports)."""
         if cls.variables is None:
             raise NotImplementedError(f"{cls.__name__} declares neither variables nor declare()")
         return list(cls.variables)
 
     @classmethod
-    def validate(cls, params: Mapping[str, Any]) -> None:
-        """Checks across parameters beyond their kinds; raise ConfigError(key, message)."""
+    def validate(cls, params: Mapping[str, Any], run: RunSettings) -> Any:
+        """Checks across the checked parameters beyond their kinds (raise ConfigError(key, message));
+        returns the typed parameters that ``declare``, ``preflight`` and ``__init__`` get, so that
+        what the checks work out (a URDF read, gains per joint) is worked out once. Default: the
+        checked parameters themselves."""
+        return params
 
     @classmethod
-    def preflight(cls, params: Mapping[str, Any], step_s: float, full: bool = False) -> list[str]:
+    def preflight(cls, params: Any, run: RunSettings, step_s: float, full: bool = False) -> list[str]:
         """What the orchestrator warns about before a run with these (validated) parameters and
         this step (s): physics that runs but is suspect, one line each naming the figure. With
         ``full`` (``orchestrator check``) it may also load what ``__init__`` would (a physics
         engine's model), raising ConfigError(key, message) for what fails. Default: nothing."""
         return []
 
-    def __init__(self, params: Mapping[str, Any]):
-        self.params = params
+    def __init__(self, params: Any, run: RunSettings):
+        self.params, self.run = params, run
 
     def initialize(self, t0_ns: int, inputs: Mapping[str, np.ndarray]) -> Mapping[str, Any]:
         """Prepare for the first step at ``t0_ns``; return the outputs at t0."""
@@ -238,34 +240,41 @@ class Component:
         return other is cls or (cls.state_form is not None and cls.state_form == other.state_form)
 
     @classmethod
-    def group_problem(cls, params: Mapping[str, Any]) -> str | None:
-        """Why an instance with these (validated) parameters cannot share a process with other
+    def group_problem(cls, params: Any, run: RunSettings) -> str | None:
+        """Why an instance with these (typed) parameters cannot share a process with other
         components (``process:``, a process group), or None: ``check`` refuses the group with it.
         Default: it can (its code runs in the process's Python like any other member's)."""
         return None
 
     @classmethod
-    def state_problem(cls, params: Mapping[str, Any]) -> str | None:
-        """Why an instance with these (validated) parameters cannot hand its state over, or None.
+    def state_problem(cls, params: Any, run: RunSettings) -> str | None:
+        """Why an instance with these (typed) parameters cannot hand its state over, or None.
         Swaps that hand the state over (``takes_state_of``) and restarts are refused with this reason."""
         return None if cls.restorable() else f"{cls.type_name or cls.__name__} has no get_state/set_state"
 
 
-def resolve_parameters(cls: type[Component], raw: Mapping[str, Any] | None) -> tuple[dict, list[ConfigError]]:
+def resolve_parameters(
+    cls: type[Component], raw: Mapping[str, Any] | None, run: RunSettings
+) -> tuple[dict, Any, list[ConfigError]]:
     """Validate raw config parameters against the type's declaration (``cls.schema``).
 
-    Returns the converted parameters (defaults filled, SI) and every error found (unknown keys,
-    missing required keys, wrong kinds, units, then the type's own ``validate``).
+    Returns the converted parameters (defaults filled, SI), the typed parameters the type's own
+    ``validate`` makes of them (None when there are errors) and every error found (unknown keys,
+    missing required keys, wrong kinds, units, then ``validate``'s).
     """
     params, errors = cls.schema.resolve(raw)
+    typed = None
     if not errors:
         try:
-            cls.validate(params)
+            typed = cls.validate(params, run)
         except Problems as e:
             errors += e.problems
         except ConfigError as e:
             errors.append(e)
-    return params, errors
+        else:
+            if typed is None:  # a validate written as a check only: its parameters would be lost
+                raise TypeError(f"{cls.__name__}.validate returned None: expected the typed parameters (return params)")
+    return params, typed, errors
 
 
 def declaration_tables(cls: type[Component]) -> str:
@@ -316,24 +325,39 @@ def _check_outcomes(cls) -> None:
 # The events the orchestrator itself writes to events.jsonl; a component's emit() cannot use them.
 ORCHESTRATOR_EVENTS = ("start", "end", "fault", "warning", "swap", "checkpoint", "restart", "viewer")
 
-# Injected by the orchestrator into every component's parameters; not declared by the types.
-# ``_frames``: with --record DIR, DIR/frames/<component>, where a component may write files of
-# its own (camera frames); absent without a recording.
-RUN_PARAMETERS = ("_epoch", "_config_dir", "_packages", "_frames")
+
+@dataclass(frozen=True)
+class RunSettings:
+    """What every component of a run gets from the orchestrator besides its own parameters, as its
+    own argument (``validate``, ``declare``, ``preflight``, ``__init__``). One left None (or empty)
+    was not given; a type that needs it says so (a ConfigError naming ``EPOCH_KEY``, say)."""
+
+    epoch: str | None = None  # run.epoch: the UTC of t = 0, ISO-8601 text
+    config_dir: Path | None = None  # where the config's relative paths start
+    packages: Mapping[str, str] = field(default_factory=dict)  # run.packages: ROS package -> absolute directory
+    frames: Path | None = None  # with --record DIR: DIR/frames/<component>, for files of its own (camera frames)
+
+    def to_json(self) -> dict[str, Any]:
+        """As the instantiate message carries it."""
+        return {
+            "epoch": self.epoch,
+            "config_dir": None if self.config_dir is None else str(self.config_dir),
+            "packages": {str(k): str(v) for k, v in self.packages.items()},
+            "frames": None if self.frames is None else str(self.frames),
+        }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> RunSettings:
+        return cls(
+            epoch=data["epoch"],
+            config_dir=None if data["config_dir"] is None else Path(data["config_dir"]),
+            packages=dict(data["packages"]),
+            frames=None if data["frames"] is None else Path(data["frames"]),
+        )
 
 
-def run_parameters(
-    epoch: str | None, config_dir: str | Path | None, packages: Mapping[str, str] | None = None
-) -> dict[str, Any]:
-    """RUN_PARAMETERS for a run starting at ``epoch`` (UTC text) whose relative paths start at
-    ``config_dir``, with ``packages`` (``run.packages``: ROS package name -> absolute directory);
-    one given as None (or empty) is left out (a type that needs it says so)."""
-    given = {
-        "_epoch": epoch,
-        "_config_dir": None if config_dir is None else str(config_dir),
-        "_packages": {str(k): str(v) for k, v in packages.items()} if packages else None,
-    }
-    return {key: value for key, value in given.items() if value is not None}
+# The key a ConfigError names when a type needs the run's epoch and was given none.
+EPOCH_KEY = "_epoch"
 
 
 @dataclass

@@ -59,14 +59,15 @@ def _summary(cls) -> str:
 
 def _variables(type_name: str, cls) -> tuple[str, list]:
     """(where the variables come from, the variables) of a type."""
-    from components.sdk import REQUIRED, resolve_parameters, run_parameters
+    from components.sdk import REQUIRED, RunSettings, resolve_parameters
 
     if cls.variables is not None:
         return "", list(cls.variables)
     if type_name not in EXAMPLES and not any(p.default is REQUIRED for p in cls.parameters):
-        params, errors = resolve_parameters(cls, run_parameters("2000-01-01T12:00:00Z", ROOT))
+        run = RunSettings("2000-01-01T12:00:00Z", ROOT)
+        _, typed, errors = resolve_parameters(cls, {}, run)
         if not errors:
-            return " (with the default parameters)", cls.declare(params)
+            return " (with the default parameters)", cls.declare(typed, run)
     if type_name in EXAMPLES:
         from orchestrator.config.load import load
 

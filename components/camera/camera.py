@@ -24,7 +24,7 @@ from components.errors import ConfigError
 from components.noise import NormalStream, normalized
 from components.robots.model import read_model
 from components.schema import Bool, Float, Int, MapOf, Str, Vector
-from components.sdk import Parameter, Variable
+from components.sdk import EPOCH_KEY, Parameter, RunSettings, Variable
 from components.signals import body_signals
 
 ECLIPSE_MODELS = ("cylindrical", "conical", "none")
@@ -100,21 +100,20 @@ CAMERA_PARAMETERS = (
 )
 
 
-def _models(camera: Mapping[str, Any], run: Mapping[str, Any]):
+def _models(camera: Mapping[str, Any], run: RunSettings):
     if camera["bodies"] is None:  # a run's config fills it in from the dynamics (orchestrator/config/scene.py)
         raise ConfigError(
             "bodies", "expected a mapping body name -> URDF (none given, and no dynamics to take it from)"
         )
     return {
-        name: read_model(urdf, run.get("_config_dir"), f"bodies.{name}", run.get("_packages"))
+        name: read_model(urdf, run.config_dir, f"bodies.{name}", run.packages)
         for name, urdf in camera["bodies"].items()
     }
 
 
-def camera_inputs(camera: Mapping[str, Any], run: Mapping[str, Any]) -> list[Variable]:
+def camera_inputs(camera: Mapping[str, Any], run: RunSettings) -> list[Variable]:
     """The inputs a camera reads: ``r_eci`` and, per body, its base ``position``, ``orientation``
-    and joints ``q``. ``run``: the component's parameters, for the run parameters
-    (``_config_dir``, ``_packages``)."""
+    and joints ``q``. ``run``: the run's settings (``config_dir``, ``packages``)."""
     variables = [
         Variable(
             "r_eci",
@@ -130,7 +129,7 @@ def camera_inputs(camera: Mapping[str, Any], run: Mapping[str, Any]) -> list[Var
     return variables
 
 
-def check_camera(camera: Mapping[str, Any], run: Mapping[str, Any]) -> None:
+def check_camera(camera: Mapping[str, Any], run: RunSettings) -> None:
     """Checks across a camera's parameters: ConfigError naming the key (relative to the camera's)."""
     models = _models(camera, run)
     if camera["body"] not in models:
@@ -176,19 +175,19 @@ def check_egl(who: str = "sensor.camera") -> None:
 
 
 class Camera:
-    """The frames of one camera (``camera``: its validated parameters; ``run``: the component's
-    parameters, for ``_epoch``, ``_config_dir`` and ``_packages``)."""
+    """The frames of one camera (``camera``: its validated parameters; ``run``: the run's settings,
+    for the epoch, config_dir and packages)."""
 
-    def __init__(self, camera: Mapping[str, Any], run: Mapping[str, Any]):
+    def __init__(self, camera: Mapping[str, Any], run: RunSettings):
         from components.camera.model import CameraModel, Intrinsics, mount_transform
         from components.camera.sun import SunClock
         from components.viewer.robot import read_geometry
 
-        if not run.get("_epoch"):
-            raise ConfigError("_epoch", "a camera needs the run's epoch (run.epoch) for the Sun")
+        if not run.epoch:
+            raise ConfigError(EPOCH_KEY, "a camera needs the run's epoch (run.epoch) for the Sun")
         self.camera = camera
         models = _models(camera, run)
-        geometries = {name: read_geometry(model.path, run.get("_packages")) for name, model in models.items()}
+        geometries = {name: read_geometry(model.path, run.packages) for name, model in models.items()}
         distortion = None if camera["distortion"] is None else tuple(float(c) for c in camera["distortion"])
         self.intrinsics = Intrinsics(
             camera["width"],
@@ -212,7 +211,7 @@ class Camera:
             camera["lamp"],
         )
         self.D = np.array(distortion or (0.0,) * 5)  # plumb_bob [k1, k2, p1, p2, k3]
-        self.sun = SunClock(run["_epoch"])
+        self.sun = SunClock(run.epoch)
         self.pixel_stream = NormalStream(np.random.SeedSequence([camera["seed"], 0]))
         self.depth_stream = NormalStream(np.random.SeedSequence([camera["seed"], 1]))
         self.bodies = list(models)

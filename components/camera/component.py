@@ -47,9 +47,9 @@ class CameraComponent(Component):
     scene_parameter = "bodies"
 
     @classmethod
-    def declare(cls, params):
+    def declare(cls, params, run):
         return (
-            camera_inputs(params, params)
+            camera_inputs(params, run)
             + [
                 Variable("t_frame", "output", (), "s", 0.0, "when the latest frame was taken (0 before the first)"),
                 Variable(
@@ -98,19 +98,20 @@ class CameraComponent(Component):
         )
 
     @classmethod
-    def validate(cls, params):
-        check_camera(params, params)
+    def validate(cls, params, run):
+        check_camera(params, run)
+        return params
 
     @classmethod
-    def preflight(cls, params, step_s, full=False):
+    def preflight(cls, params, run, step_s, full=False):
         """The camera needs an OpenGL context on EGL: checked by making one, at check and run."""
         check_egl()
         return []
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         self.params = params
-        self.camera = Camera(params, params)
-        self.writer = FrameWriter(params["_frames"]) if params.get("_frames") else None
+        self.camera = Camera(params, run)
+        self.writer = FrameWriter(run.frames) if run.frames else None
         self.k = 0  # frames taken
         self.t_frame_ns, self.lit = 0, False
         h, w = params["height"], params["width"]

@@ -134,11 +134,13 @@ def frame_topics(context: RosContext, camera: str) -> FrameTopics | None:
     ``/<c>/depth/image_raw``; the same messages as the export's for a frame taken at that stamp.
     None when the parameters do not resolve (``orchestrator check`` names the problem)."""
     from components import registry  # the type by its name: camera/component.py imports this module
-    from components.sdk import resolve_parameters
+    from components.sdk import RunSettings, resolve_parameters
 
     spec = (context.run.config.get("components") or {}).get(camera) or {}
     component_type = registry.load(spec.get("type", "sensor.camera"), context.run.config_dir)
-    params, errors = resolve_parameters(component_type, context.run.parameters(camera))
+    params, _, errors = resolve_parameters(
+        component_type, context.run.parameters(camera), RunSettings(config_dir=context.run.config_dir)
+    )
     if errors:
         context.warn(f"{camera}: its frames are not published live ({errors[0]})")
         return None

@@ -98,7 +98,7 @@ class BdotComponent(Component):
         Variable("b_rate", "output", (3,), "T/s", [0.0] * 3, "dB/dt, body axes, from the last two samples"),
     )
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         self.law = BdotLaw(params["gain"], params["max_dipole"])
         self.out = {"dipole": np.zeros(3), "b_rate": np.zeros(3)}
 

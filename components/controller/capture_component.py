@@ -15,6 +15,7 @@ returns the torques to apply from t + h on, as ``controller.computed_torque`` do
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -36,8 +37,10 @@ from components.units import DEG
 @dataclass(frozen=True)
 class CaptureSetup:
     """The parameters checked against the URDF: arm and wheel joints, the wheels' axes in the base
-    frame (columns) and limits, the arm's limits, the shoulder and reach, the gains per axis or joint."""
+    frame (columns) and limits, the arm's limits, the shoulder and reach, the gains per axis or joint;
+    ``checked``: the parameters they come from."""
 
+    checked: Mapping[str, Any]
     model: Any
     joints: list[str]
     wheels: list[str]
@@ -297,9 +300,9 @@ class CaptureComponent(Component):
     )
 
     @classmethod
-    def setup(cls, params) -> CaptureSetup:
-        """What the parameters mean for this URDF (validate checks it; __init__ uses it)."""
-        model = read_model(params["urdf"], params.get("_config_dir"), "urdf", params.get("_packages"))
+    def validate(cls, params, run) -> CaptureSetup:
+        """What the parameters mean for this URDF, checked."""
+        model = read_model(params["urdf"], run.config_dir, "urdf", run.packages)
         movable = model.movable_joints
         for key in ("joints", "wheels"):
             for name in params[key]:
@@ -325,7 +328,8 @@ class CaptureComponent(Component):
             if not math.isfinite(joint.effort):
                 raise ConfigError("wheels", f"{name!r} has no effort limit in the URDF: the wheel torques need one")
         n = len(joints)
-        return CaptureSetup(
+        setup = CaptureSetup(
+            checked=params,
             model=model,
             joints=joints,
             wheels=wheels,
@@ -347,20 +351,17 @@ class CaptureComponent(Component):
             captured_kp=per_item(params["captured_kp"], n, "captured_kp"),
             captured_kd=per_item(params["captured_kd"], n, "captured_kd"),
         )
-
-    @classmethod
-    def validate(cls, params):
-        cls.setup(params)
         minimum = params["estimator_minimum"]
         if minimum is not None and minimum > params["estimator_window"]:
             raise ConfigError(
                 "estimator_minimum",
                 f"expected at most estimator_window = {params['estimator_window']} measurements, got {minimum}",
             )
+        return setup
 
     @classmethod
-    def declare(cls, params):
-        model = read_model(params["urdf"], params.get("_config_dir"), "urdf", params.get("_packages"))
+    def declare(cls, params, run):
+        model = params.model
         return body_signals("input", model, names=BODY_STATE) + [
             Variable(
                 "grasp_p",
@@ -442,11 +443,11 @@ class CaptureComponent(Component):
             ),
         ]
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         from components.controller.computed_torque import compile_kernels
 
-        super().__init__(params)
-        self.config = self.setup(params)
+        super().__init__(params.checked, run)
+        self.config = params
         self.controller = self._build()
         warm = self._build()  # the first control step comes with the approach, seconds into the run
         compile_kernels(warm.arm, warm.law)

@@ -30,15 +30,15 @@ from components.errors import ConfigError
 from components.robots.model import JOINT_VALUE, arm_reach, joint_units, read_model
 from components.rotations import continuous
 from components.schema import Float, ListOf, MapOf, Record, Str
-from components.sdk import Component, Parameter, Variable
+from components.sdk import Component, Parameter, RunSettings, Variable
 from components.signals import BODY_STATE, body_signals, torque_signal
 
 # --------------------------------------------------------------------------- shared helpers
 
 
-def _urdf(params: Mapping[str, Any]):
+def _urdf(params: Mapping[str, Any], run: RunSettings):
     """The parsed URDF of ``params['urdf']``, found as ``dynamics.dart`` finds it; ConfigError naming ``urdf``."""
-    return read_model(params["urdf"], params.get("_config_dir"), "urdf", params.get("_packages"))
+    return read_model(params["urdf"], run.config_dir, "urdf", run.packages)
 
 
 def _check_names(names: list[str], key: str, allowed: list[str], what: str) -> list[str]:
@@ -63,8 +63,10 @@ def _loop_signals(model) -> list[Variable]:
 class ArmSetup:
     """The computed-torque parameters checked against the URDF: the arm's joints in the
     config's order, the gains one per axis (6) or per joint, the trajectory in SI (parse_cartesian)
-    and the reach (first moving joint, m) the trajectory was checked against."""
+    and the reach (first moving joint, m) the trajectory was checked against; ``checked``: the
+    parameters they come from."""
 
+    checked: Mapping[str, Any]
     model: Any
     joints: list[str]
     locked: list[str]
@@ -147,11 +149,11 @@ class ComputedTorqueComponent(Component):
     )
 
     @classmethod
-    def setup(cls, params) -> ArmSetup:
-        """What the parameters mean for this URDF (validate checks it; __init__ uses it)."""
+    def validate(cls, params, run) -> ArmSetup:
+        """What the parameters mean for this URDF, checked."""
         from components.controller.trajectory import max_offset, parse_cartesian
 
-        model = _urdf(params)
+        model = _urdf(params, run)
         movable = model.movable_joints
         joints = _check_names(params["joints"], "joints", movable, "movable joint")
         locked = _check_names(params["locked_joints"], "locked_joints", movable, "movable joint")
@@ -169,6 +171,7 @@ class ComputedTorqueComponent(Component):
                 f"position, the arm spans at most {2 * reach:.3f} m",
             )
         return ArmSetup(
+            checked=params,
             model=model,
             joints=joints,
             locked=locked,
@@ -181,22 +184,18 @@ class ComputedTorqueComponent(Component):
         )
 
     @classmethod
-    def validate(cls, params):
-        cls.setup(params)
-
-    @classmethod
-    def preflight(cls, params, step_s, full=False):
+    def preflight(cls, params, run, step_s, full=False):
         """``full``: Pinocchio builds the model (mimic joints, locked joints at 0) as at initialize."""
         if full:
             try:
-                cls(params)._build(np.zeros(len(params["locked_joints"])))
+                cls(params, run)._build(np.zeros(len(params.locked)))
             except ValueError as e:
                 raise ConfigError("urdf", f"Pinocchio cannot build the controller's model: {e}") from None
         return []
 
     @classmethod
-    def declare(cls, params):
-        return _loop_signals(_urdf(params)) + [
+    def declare(cls, params, run):
+        return _loop_signals(params.model) + [
             Variable("ee_position", "output", (3,), "m", [0.0] * 3, "end-effector frame origin, W"),
             Variable("ee_position_desired", "output", (3,), "m", [0.0] * 3, "its reference, W"),
             Variable(
@@ -215,9 +214,9 @@ class ComputedTorqueComponent(Component):
             Variable("sigma_min", "output", (), "1", 0.0, "smallest singular value of the (generalized) Jacobian"),
         ]
 
-    def __init__(self, params):
-        super().__init__(params)
-        self.arm = self.setup(params)
+    def __init__(self, params, run):
+        super().__init__(params.checked, run)
+        self.arm = params
         self.controller = None
         self._initial_inputs = None
         self.last_quaternions: dict[str, np.ndarray] = {}
@@ -381,8 +380,10 @@ JOINT_TRAJECTORY = Record(
 @dataclass(frozen=True)
 class JointSetup:
     """The joint PID parameters checked against the URDF: the driven joints in URDF order, the
-    gains per joint (arrays by p, i, d, i_clamp), the targets and trajectory in SI."""
+    gains per joint (arrays by p, i, d, i_clamp), the targets and trajectory in SI; ``checked``:
+    the parameters they come from."""
 
+    checked: Mapping[str, Any]
     model: Any
     joints: list[str]
     targets: dict[str, float]
@@ -430,9 +431,9 @@ class JointPDComponent(Component):
     )
 
     @classmethod
-    def setup(cls, params) -> JointSetup:
-        """What the parameters mean for this URDF (validate checks it; __init__ uses it)."""
-        model = _urdf(params)
+    def validate(cls, params, run) -> JointSetup:
+        """What the parameters mean for this URDF, checked."""
+        model = _urdf(params, run)
         movable = model.movable_joints
         gains = params["gains"]
         for name in gains:
@@ -467,6 +468,7 @@ class JointPDComponent(Component):
                 previous = point["time"]
                 positions(point["q"], f"{key}.q")
         return JointSetup(
+            checked=params,
             model=model,
             joints=joints,
             targets=targets,
@@ -476,12 +478,8 @@ class JointPDComponent(Component):
         )
 
     @classmethod
-    def validate(cls, params):
-        cls.setup(params)
-
-    @classmethod
-    def declare(cls, params):
-        model = _urdf(params)
+    def declare(cls, params, run):
+        model = params.model
         n = len(model.movable_joints)
         return _loop_signals(model) + [
             Variable(
@@ -494,11 +492,11 @@ class JointPDComponent(Component):
             ),
         ]
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         from components.controller.joint_pd import JointPID, PidGains
 
-        super().__init__(params)
-        c = self.joints = self.setup(params)
+        super().__init__(params.checked, run)
+        c = self.joints = params
         body = c.model.movable_joints
         self.index = np.array([body.index(j) for j in c.joints])
         self.n = len(body)

@@ -28,7 +28,7 @@ from components.dynamics.view import DynamicsView
 from components.errors import ComponentError, ConfigError
 from components.robots.model import body_items
 from components.rotations import continuous
-from components.sdk import Component
+from components.sdk import EPOCH_KEY, Component
 from components.signals import BODY as BODY_OUTPUTS
 from components.signals import ORBIT as ORBIT_INPUTS
 from components.space.ephemeris import moon_position_eci, sun_position_eci
@@ -68,23 +68,23 @@ class OrbitalDynamics(Component):
     parameters = PARAMETERS
 
     @classmethod
-    def declare(cls, params):
-        return dynamics_variables(params)
+    def declare(cls, params, run):
+        return dynamics_variables(params, run)
 
     @classmethod
-    def validate(cls, params):
-        models = load_models(params)
+    def validate(cls, params, run):
+        models = load_models(params, run)
         body_specs(params, models)
-        check_atmosphere(params["atmosphere"], params.get("_epoch"))
+        check_atmosphere(params["atmosphere"], run.epoch)
         for key in ("imu", "sun_sensor"):
             for i, name in enumerate(params[key]):
                 if name not in models:
                     raise ConfigError(f"{key}[{i}]", f"expected a body name ({', '.join(models)}), got {name!r}")
-        if (params["srp"] or params["sun_sensor"]) and not params.get("_epoch"):
-            raise ConfigError("_epoch", "SRP and a sun sensor need the run's epoch (run.epoch) for the Sun")
-        if params["third_bodies"] and not params.get("_epoch"):
+        if (params["srp"] or params["sun_sensor"]) and not run.epoch:
+            raise ConfigError(EPOCH_KEY, "SRP and a sun sensor need the run's epoch (run.epoch) for the Sun")
+        if params["third_bodies"] and not run.epoch:
             raise ConfigError(
-                "_epoch",
+                EPOCH_KEY,
                 f"third_bodies ({', '.join(params['third_bodies'])}) need the run's epoch "
                 f"(run.epoch) for their positions, got none",
             )
@@ -116,14 +116,15 @@ class OrbitalDynamics(Component):
                     )
             if grasp["chaser"] == grasp["target"]:
                 raise ConfigError("grasp.target", f"expected another body than the chaser, got {grasp['target']!r}")
+        return params
 
     @classmethod
-    def preflight(cls, params, step_s, full=False):
+    def preflight(cls, params, run, step_s, full=False):
         """Zero-mass links a joint moves; a step too coarse for the rotation the bodies see (the
         largest of: a body's initial angular rate, its joints' rates, and the orbit's mean motion
         when the body co-rotates with LVLH or the environment is on, taken at the lowest orbit,
         ORBIT_RATE_MAX) against MAX_ROTATION_PER_STEP. ``full``: DART loads every body."""
-        models = load_models(params)
+        models = load_models(params, run)
         notes = [f"bodies.{name}: {note}" for name, model in models.items() for note in model.notes()]
         h = step_s / params["substeps"]
         environment = params["tidal_force"] or params["gravity_gradient"] or params["third_bodies"]
@@ -149,7 +150,7 @@ class OrbitalDynamics(Component):
         if full:  # the engine loads every body: what it refuses is an error now, not at the start
             from components.dynamics.world_contacts import initial_overlaps
 
-            world = cls(params, compile_kernels=False).world  # (the kernels compile at the run's instantiate)
+            world = cls(params, run, compile_kernels=False).world  # (the kernels compile at the run's instantiate)
             notes += [
                 f"bodies.{name}: {note}"
                 for name, body in world.bodies.items()
@@ -163,12 +164,12 @@ class OrbitalDynamics(Component):
             ]
         return notes
 
-    def __init__(self, params, *, compile_kernels: bool = True):
-        super().__init__(params)
+    def __init__(self, params, run, *, compile_kernels: bool = True):
+        super().__init__(params, run)
         from components.dynamics.capture import GraspSpec, Tolerance
         from components.dynamics.world import ModelError, OrbitalWorld
 
-        models = load_models(params)
+        models = load_models(params, run)
         specs = body_specs(params, models)
         grasp = params["grasp"]
         self.grasp = grasp is not None and GraspSpec(
@@ -191,7 +192,7 @@ class OrbitalDynamics(Component):
                 gravity_gradient=params["gravity_gradient"],
                 drag=params["drag"],
                 mu=params["mu"],
-                atmosphere=world_atmosphere(params["atmosphere"], params.get("_epoch")),
+                atmosphere=world_atmosphere(params["atmosphere"], run.epoch),
                 joint_limits=params["joint_limits"],
                 models=models,
                 grasp=self.grasp or None,
@@ -214,7 +215,7 @@ class OrbitalDynamics(Component):
         if params["srp"] or self.sun_sensors or params["third_bodies"]:  # the Sun and Moon at each step's start
             from components.space.ephemeris import Ephemeris
 
-            self.ephemeris = Ephemeris(params["_epoch"])
+            self.ephemeris = Ephemeris(run.epoch)
         self.quaternion_outputs = [
             f"{name}.{key}"
             for name in self.names
@@ -228,12 +229,12 @@ class OrbitalDynamics(Component):
             from components.dynamics.magnetic import Magnetics
             from components.space.geomagnetic import GeomagneticField
 
-            if not params.get("_epoch"):
-                raise ConfigError("_epoch", "the magnetic field needs the run's epoch (run.epoch)")
+            if not run.epoch:
+                raise ConfigError(EPOCH_KEY, "the magnetic field needs the run's epoch (run.epoch)")
             dipole = {key: field[key] for key in ("g10", "g11", "h11", "radius")}
             self.magnetics = Magnetics(
                 self.world,
-                GeomagneticField(field["model"], params["_epoch"], dipole),
+                GeomagneticField(field["model"], run.epoch, dipole),
                 {
                     name: np.broadcast_to(np.asarray(m["max_dipole"], dtype=float), (3,))
                     for name, m in params["magnetorquers"].items()
@@ -367,11 +368,11 @@ class PinocchioDynamics(OrbitalDynamics):
     engine = "pinocchio"
 
     @classmethod
-    def validate(cls, params):
+    def validate(cls, params, run):
         if params["integrator"] != "rk4":
             raise ConfigError(
                 "integrator",
                 f"dynamics.pinocchio has no contact solver: expected rk4 (DART's own "
                 f"step with contacts is dynamics.dart's), got {params['integrator']!r}",
             )
-        super().validate(params)
+        return super().validate(params, run)

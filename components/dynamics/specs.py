@@ -11,12 +11,13 @@ import numpy as np
 from components.errors import ConfigError
 from components.robots.model import body_items, read_model
 from components.robots.urdf import UrdfModel
+from components.sdk import RunSettings
 
 
-def load_models(params: Mapping[str, Any]) -> dict[str, UrdfModel]:
+def load_models(params: Mapping[str, Any], run: RunSettings) -> dict[str, UrdfModel]:
     """Parsed URDF of every body (xml.etree only); ConfigError naming ``bodies.<name>.urdf``."""
     return {
-        name: read_model(body["urdf"], params.get("_config_dir"), f"bodies.{name}.urdf", params.get("_packages"))
+        name: read_model(body["urdf"], run.config_dir, f"bodies.{name}.urdf", run.packages)
         for name, body in body_items(params["bodies"])
     }
 

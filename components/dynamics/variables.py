@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from components.dynamics.specs import load_models
-from components.sdk import Variable
+from components.sdk import RunSettings, Variable
 from components.signals import body_signals, orbit_signals, torque_signal
 
 
@@ -152,7 +152,7 @@ def magnetic_variables(name: str, magnetorquers: bool) -> list[Variable]:
     return variables
 
 
-def dynamics_variables(params: Mapping[str, Any]) -> list[Variable]:
+def dynamics_variables(params: Mapping[str, Any], run: RunSettings) -> list[Variable]:
     """Every input and output of a dynamics type with these parameters."""
     lvlh = "used at initialize for frame: lvlh bodies"
     variables = orbit_signals(
@@ -160,7 +160,7 @@ def dynamics_variables(params: Mapping[str, Any]) -> list[Variable]:
         notes={"r_eci": "the origin of W; all zero: no orbit, no environment", "q_eci_lvlh": lvlh, "w_lvlh": lvlh},
     )
     links = params.get("link_outputs", False)
-    for name, model in load_models(params).items():
+    for name, model in load_models(params, run).items():
         m = len(model.links)
         link_names = ", ".join(model.link_names)
         variables += [torque_signal("input", model, name)] + body_signals("output", model, name)
@@ -216,7 +216,7 @@ def dynamics_variables(params: Mapping[str, Any]) -> list[Variable]:
                     "(with link_outputs and third_bodies)",
                 )
             )
-    for name in load_models(params):
+    for name in load_models(params, run):
         if params.get("frame_outputs", False):
             variables += frame_variables(name)
         if name in params.get("imu", ()):
@@ -226,6 +226,6 @@ def dynamics_variables(params: Mapping[str, Any]) -> list[Variable]:
     if params.get("grasp"):
         variables += grasp_variables(params["grasp"])
     if params.get("magnetic_field"):
-        for name in load_models(params):
+        for name in load_models(params, run):
             variables += magnetic_variables(name, name in (params.get("magnetorquers") or {}))
     return variables

@@ -18,11 +18,11 @@ from components.robots.model import read_model
 from components.robots.urdf import UrdfModel
 from components.rotations import continuous, rpy_to_matrix
 from components.schema import Float, Int, Str
-from components.sdk import Component, Parameter, Variable
+from components.sdk import Component, Parameter, RunSettings, Variable
 
 
-def _layout(params: Mapping[str, Any]) -> MarkerLayout:
-    return read_layout(layout_path(params["markers"], params.get("_config_dir")), "markers")
+def _layout(params: Mapping[str, Any], run: RunSettings) -> MarkerLayout:
+    return read_layout(layout_path(params["markers"], run.config_dir), "markers")
 
 
 def fixed_transform(model: UrdfModel, a: str, b: str) -> np.ndarray:
@@ -52,9 +52,9 @@ def fixed_transform(model: UrdfModel, a: str, b: str) -> np.ndarray:
     return np.linalg.inv(to_common(up_a)) @ to_common(up_b)
 
 
-def _link_in_ee(params: Mapping[str, Any]) -> np.ndarray:
+def _link_in_ee(params: Mapping[str, Any], run: RunSettings) -> np.ndarray:
     """T_E_link (4x4): the camera's link in the end effector, from the URDF; ConfigError naming the key."""
-    model = read_model(params["urdf"], params.get("_config_dir"), "urdf", params.get("_packages"))
+    model = read_model(params["urdf"], run.config_dir, "urdf", run.packages)
     for key in ("end_effector", "link"):
         if params[key] not in model.link_names:
             raise ConfigError(
@@ -151,7 +151,7 @@ class FiducialComponent(Component):
     )
 
     @classmethod
-    def declare(cls, params):
+    def declare(cls, params, run):
         return [
             Variable(
                 "rgb",
@@ -171,30 +171,33 @@ class FiducialComponent(Component):
         ] + list(cls.OUTPUTS)
 
     @classmethod
-    def validate(cls, params):
+    def validate(cls, params, run):
         for key in ("width", "height"):
             if params[key] > MAX_IMAGE_SIZE:
                 raise ConfigError(key, f"expected 1 to {MAX_IMAGE_SIZE} pixels, got {params[key]}")
-        _link_in_ee(params)
-        layout = _layout(params)
+        _link_in_ee(params, run)
+        layout = _layout(params, run)
         if params["min_markers"] > len(layout.markers):
             raise ConfigError(
                 "min_markers",
                 f"expected at most the layout's {len(layout.markers)} markers, got {params['min_markers']}",
             )
+        return params
 
     @classmethod
-    def preflight(cls, params, step_s, full=False):
+    def preflight(cls, params, run, step_s, full=False):
         """ArUco detection needs OpenCV (the extra [vision]): checked at check and run."""
         require("vision", "estimator.fiducial")
         return []
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         from components.estimators.fiducial import FiducialEstimator
 
         self.params = params
-        self.estimator = FiducialEstimator(_layout(params), params["min_markers"], params["max_reprojection_error"])
-        self.T_E_link = _link_in_ee(params)
+        self.estimator = FiducialEstimator(
+            _layout(params, run), params["min_markers"], params["max_reprojection_error"]
+        )
+        self.T_E_link = _link_in_ee(params, run)
         self.p, self.q = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
         self.accepted = False  # a pose was accepted (q's sign follows it)
         self.t_measured_ns, self.valid, self.markers, self.error = 0, False, 0, 0.0

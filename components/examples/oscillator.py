@@ -15,14 +15,14 @@ class Oscillator(Component):
     )
 
     @classmethod
-    def declare(cls, params):
+    def declare(cls, params, run):
         return [
             Variable("force", "input", (), "N", 0.0, "external force"),
             Variable("x", "output", (), "m", params["x0"], "position"),
             Variable("v", "output", (), "m/s", 0.0, "velocity"),
         ]
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         self.m, self.k, self.x, self.v = params["mass"], params["stiffness"], params["x0"], 0.0
 
     def initialize(self, t0_ns, inputs):

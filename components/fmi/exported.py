@@ -112,9 +112,10 @@ def resolve_spec(spec: dict, files_dir: Path):
     """The spec's type and parameters resolved (a registry.Resolved); ExportError naming the key."""
     from components import registry
     from components.errors import ConfigError
+    from components.sdk import RunSettings
 
     try:
-        return registry.resolve(spec["type"], spec["parameters"], epoch=spec.get("epoch"), config_dir=files_dir)
+        return registry.resolve(spec["type"], spec["parameters"], RunSettings(spec.get("epoch"), files_dir))
     except registry.Unresolved as unresolved:
         e = unresolved.errors[0]
         if unresolved.stage == "type":
@@ -123,10 +124,6 @@ def resolve_spec(spec: dict, files_dir: Path):
             raise ExportError([_set_problem(p, spec) for p in unresolved.errors]) from None
         if isinstance(e, ConfigError):
             raise ExportError(_set_problem(e, spec)) from None
-        if isinstance(e, KeyError):
-            raise ExportError(
-                _missing_epoch(spec) if e.args == ("_epoch",) else f"declare failed: KeyError {e}"
-            ) from None
         raise e from None
 
 
@@ -138,10 +135,6 @@ def instantiate(resolved, spec: dict):
         return resolved.build()
     except ConfigError as e:
         raise ExportError(_set_problem(e, spec)) from None
-    except KeyError as e:
-        if e.args == ("_epoch",):
-            raise ExportError(_missing_epoch(spec)) from None
-        raise
 
 
 def _missing_epoch(spec: dict) -> str:
@@ -153,7 +146,9 @@ def _missing_epoch(spec: dict) -> str:
 
 def _set_problem(error, spec: dict) -> str:
     """One line for a parameter error, as the CLI's describe words it."""
-    if error.key.split(".")[0] == "_epoch":
+    from components.sdk import EPOCH_KEY
+
+    if error.key.split(".")[0] == EPOCH_KEY:
         return _missing_epoch(spec) if spec.get("epoch") is None else f"--epoch: {error.message}"
     return f"--set {error.key}: {error.message}" if error.key else error.message
 

@@ -30,7 +30,7 @@ from components.errors import ComponentError, ConfigError
 from components.extras import require
 from components.fmi.pythonfmu_exit import hold_binary_until_exit  # pythonfmu's crash at exit, worked around
 from components.schema import Anything, MapOf, Str
-from components.sdk import Component, Parameter, Variable, layouts
+from components.sdk import Component, Parameter, RunSettings, Variable, layouts
 from components.units import normalized_unit
 
 NUMERIC_TYPES = {  # FMI type -> (FMPy setter/getter suffix, numpy dtype of the calls' values)
@@ -331,29 +331,30 @@ class FMUComponent(Component):
     )
 
     @classmethod
-    def _model(cls, params):
+    def _model(cls, params, run: RunSettings):
         require("fmi", "type fmu", "path")
-        file = fmu_file(params["path"], params.get("_config_dir"))
+        file = fmu_file(params["path"], run.config_dir)
         return file, model_description(file)
 
     @classmethod
-    def validate(cls, params):
-        file, md = cls._model(params)
+    def validate(cls, params, run):
+        file, md = cls._model(params, run)
         for name, value in params["start_values"].items():
             _setting(md, name, value, f"start_values.{name}")
         signals(md, file)
+        return params
 
     @classmethod
-    def declare(cls, params):
-        file, md = cls._model(params)
+    def declare(cls, params, run):
+        file, md = cls._model(params, run)
         return [
             Variable(s.name, s.causality, s.shape, s.unit, _start(s, params["start_values"]), s.description)
             for s in signals(md, file)
         ]
 
     @classmethod
-    def state_problem(cls, params):
-        _file, md = cls._model(params)
+    def state_problem(cls, params, run):
+        _file, md = cls._model(params, run)
         cs = md.coSimulation
         if not (cs.canGetAndSetFMUstate and cs.canSerializeFMUstate):
             return (
@@ -364,8 +365,8 @@ class FMUComponent(Component):
         return None
 
     @classmethod
-    def group_problem(cls, params):
-        file, md = cls._model(params)
+    def group_problem(cls, params, run):
+        file, md = cls._model(params, run)
         name = Path(params["path"]).name
         with zipfile.ZipFile(file) as archive:
             if "resources/slavemodule.txt" in archive.namelist():
@@ -381,11 +382,11 @@ class FMUComponent(Component):
             )
         return None
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         from fmpy import extract
 
-        super().__init__(params)
-        self.file, self.md = self._model(params)
+        super().__init__(params, run)
+        self.file, self.md = self._model(params, self.run)
         self.label = Path(params["path"]).name  # as the config names it (not a build cache's file)
         self.fmi3 = self.md.fmiVersion.startswith("3.")
         self.messages: list[str] = []
@@ -395,7 +396,7 @@ class FMUComponent(Component):
         self._release = weakref.finalize(self, _release, self.fmu, self.unzipped)
         self._release.atexit = False  # at exit, pythonfmu's binary is finalized instead (below)
         hold_binary_until_exit(Path(self.unzipped) / "resources", self.md.coSimulation.modelIdentifier)
-        self.input_layout, self.output_layout = layouts(self.declare(params))
+        self.input_layout, self.output_layout = layouts(self.declare(params, run))
         self.input_vector = self.input_layout.start_vector()
         grouped = signals(self.md, self.file)
         self.inputs = self._plan([s for s in grouped if s.causality == "input"])
@@ -527,7 +528,7 @@ class FMUComponent(Component):
         return self._get_outputs()
 
     def get_state(self):
-        problem = self.state_problem(self.params)
+        problem = self.state_problem(self.params, self.run)
         if problem:
             raise ComponentError(problem)
         state = self._call(self.fmu.getFMUState, "getFMUstate")
@@ -540,7 +541,7 @@ class FMUComponent(Component):
         }
 
     def set_state(self, state):
-        problem = self.state_problem(self.params)
+        problem = self.state_problem(self.params, self.run)
         if problem:
             raise ComponentError(problem)
         token = bytes(np.asarray(state["token"], dtype=np.uint8)).decode()

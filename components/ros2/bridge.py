@@ -339,7 +339,7 @@ class Ros2Bridge(Component):
     )
 
     @classmethod
-    def validate(cls, params):
+    def validate(cls, params, run):
         if not params["outputs"] and not params["inputs"]:
             raise ConfigError("outputs", "the bridge has no variable: declare outputs (read from ROS 2) or inputs")
         bindings(params)
@@ -348,9 +348,10 @@ class Ros2Bridge(Component):
                 choose(RCLPY, params["python"])
             except ComponentError as e:
                 raise ConfigError("transport", str(e)) from None
+        return params
 
     @classmethod
-    def declare(cls, params):
+    def declare(cls, params, run):
         return [
             Variable(
                 b.variable, b.causality, b.shape, b.unit, b.start, f"{b.topic} ({b.message.msgtype}.{b.field.name})"
@@ -359,24 +360,24 @@ class Ros2Bridge(Component):
         ]
 
     @classmethod
-    def state_problem(cls, params):
+    def state_problem(cls, params, run):
         return (
             "ros2.bridge: the ROS 2 node's state lives outside the run, so a restart or a swap cannot "
             "take it back to a checkpoint"
         )
 
     @classmethod
-    def group_problem(cls, params):
+    def group_problem(cls, params, run):
         return "ros2.bridge waits for a ROS 2 node within its steps: it would hold up the group's other members"
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         from rosbags.typesys import Stores, get_typestore
 
-        super().__init__(params)
+        super().__init__(params, run)
         self.bindings = bindings(params)
         self.typestore = get_typestore(Stores.ROS2_JAZZY)
         self.types = self.typestore.types
-        self.epoch_ns = epoch_ns(params.get("_epoch"))
+        self.epoch_ns = epoch_ns(run.epoch)
         self.wait_for = params["wait_for"]
         self.domain_id, self.endpoint = params["domain_id"], params["endpoint"]
         self.timeout_s = params["timeout"] / NS_PER_S

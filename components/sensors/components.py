@@ -40,7 +40,7 @@ from components.noise import (
 )
 from components.rotations import continuous
 from components.schema import Duration, Float, Int, OneOf, Vector
-from components.sdk import Component, Parameter, Variable
+from components.sdk import Component, Parameter, RunSettings, Variable
 from components.sensors import ros as sensor_ros
 from components.sensors.plots import measured_against_true
 from components.sensors.view import SensorView
@@ -81,7 +81,7 @@ class _SeededSensor(Component):
 
     DRAWS = 0
 
-    def __init__(self, params: Mapping[str, Any]):
+    def __init__(self, params: Mapping[str, Any], run: RunSettings):
         self.params = params
         self.stream = NormalStream(params["seed"])
 
@@ -151,8 +151,8 @@ class ImuComponent(_SeededSensor):
     )
     DRAWS = 12
 
-    def __init__(self, params):
-        super().__init__(params)
+    def __init__(self, params, run):
+        super().__init__(params, run)
         self.rate_noise, self.accel_noise = per_axis(params["rate_noise"]), per_axis(params["accel_noise"])
         self.gyro_bias = BiasRandomWalk(per_axis(params["rate_bias"]), per_axis(params["rate_bias_walk"]))
         self.accel_bias = BiasRandomWalk(per_axis(params["accel_bias"]), per_axis(params["accel_bias_walk"]))
@@ -228,8 +228,8 @@ class ForceTorqueComponent(_SeededSensor):
     )
     DRAWS = 6
 
-    def __init__(self, params):
-        super().__init__(params)
+    def __init__(self, params, run):
+        super().__init__(params, run)
         self.sigma = np.concatenate([per_axis(params["force_noise"]), per_axis(params["torque_noise"])])
         self.bias = np.concatenate([per_axis(params["force_bias"]), per_axis(params["torque_bias"])])
         self.out = np.zeros(6)
@@ -305,14 +305,14 @@ class RelativePoseComponent(_SeededSensor):
     DRAWS = 6
 
     @classmethod
-    def preflight(cls, params, step_s, full=False):
+    def preflight(cls, params, run, step_s, full=False):
         """The latency must be a whole number of the component's steps: refused before the run
         (check and run alike), not at its first step."""
         latency_samples(int(params["latency"]), round(step_s * NS_PER_S), "latency")
         return []
 
-    def __init__(self, params):
-        super().__init__(params)
+    def __init__(self, params, run):
+        super().__init__(params, run)
         self.position_noise, self.angle_noise = per_axis(params["position_noise"]), per_axis(params["angle_noise"])
         self.latency_ns = int(params["latency"])
         self.step_ns = 0  # learnt at the first do_step
@@ -397,8 +397,8 @@ class MagnetometerComponent(_SeededSensor):
     )
     DRAWS = 3
 
-    def __init__(self, params):
-        super().__init__(params)
+    def __init__(self, params, run):
+        super().__init__(params, run)
         self.sigma, self.bias = per_axis(params["noise"]), per_axis(params["bias"])
         self.out = np.zeros(3)
 

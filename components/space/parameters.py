@@ -12,7 +12,7 @@ from collections.abc import Mapping
 
 from components.errors import ConfigError
 from components.schema import Float, Record, Str
-from components.sdk import Parameter
+from components.sdk import EPOCH_KEY, Parameter
 
 EXPONENTIAL_LAYER = ("altitude", "density", "scale_height")
 SPACE_WEATHER = ("f107", "f107a", "ap")
@@ -93,4 +93,4 @@ def check_atmosphere(atmosphere: Mapping | None, epoch) -> None:
                 f"got no {', '.join(missing)}",
             )
     if model != "exponential" and epoch is None:
-        raise ConfigError("_epoch", f"atmosphere model {model} needs the run's epoch (expected run.epoch)")
+        raise ConfigError(EPOCH_KEY, f"atmosphere model {model} needs the run's epoch (expected run.epoch)")

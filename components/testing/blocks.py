@@ -18,7 +18,7 @@ class Counter(Component):
     type_name = "test.counter"
     variables = (Variable("n", "output", (), "1", 0.0, "number of steps done"),)
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         self.n = 0
 
     def initialize(self, t0_ns, inputs):
@@ -42,10 +42,10 @@ class Constant(Component):
     parameters = (Parameter("value", "float", unit="1", description="the constant output"),)
 
     @classmethod
-    def declare(cls, params):
+    def declare(cls, params, run):
         return [Variable("y", "output", (), "1", params["value"], "the parameter value")]
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         self.value = params["value"]
 
     def initialize(self, t0_ns, inputs):
@@ -71,7 +71,7 @@ class Integrator(Component):
     )
 
     @classmethod
-    def declare(cls, params):
+    def declare(cls, params, run):
         return [
             Variable("u", "input", (), "1", 0.0, "rate (held over the step)"),
             Variable("x", "output", (), "1", params["x0"], "integral of gain * u"),
@@ -85,7 +85,7 @@ class Integrator(Component):
             ),
         ]
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         self.gain, self.x = params["gain"], params["x0"]
 
     def initialize(self, t0_ns, inputs):
@@ -109,11 +109,11 @@ class NoOp(Component):
     parameters = (Parameter("size", "int", default=1, description="length of u and y"),)
 
     @classmethod
-    def declare(cls, params):
+    def declare(cls, params, run):
         n = params["size"]
         return [Variable("u", "input", (n,), "1", 0.0, "ignored"), Variable("y", "output", (n,), "1", 0.0, "zeros")]
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         self.y = np.zeros(params["size"])
 
     def initialize(self, t0_ns, inputs):
@@ -143,7 +143,7 @@ class Faulty(Component):
 
     variables = (Variable("y", "output", (), "1", 0.0, "the step count, or NaN at the faulty step with fault: nan"),)
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         self.fault, self.at_step, self.k = params["fault"], params["at_step"], 0
 
     def initialize(self, t0_ns, inputs):
@@ -185,7 +185,7 @@ class Imager(Component):
     )
 
     @classmethod
-    def declare(cls, params):
+    def declare(cls, params, run):
         h, w = params["height"], params["width"]
         return [
             Variable("u", "input", (), "1", 0.0, "shifts every pixel"),
@@ -194,7 +194,7 @@ class Imager(Component):
             Variable("n", "output", (), "1", 0.0, "frames made so far"),
         ]
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         h, w = params["height"], params["width"]
         i, j, c = np.meshgrid(np.arange(h), np.arange(w), np.arange(3), indexing="ij")
         self.pattern = 3 * i + 5 * j + 7 * c
@@ -226,7 +226,7 @@ class ImageSum(Component):
     )
 
     @classmethod
-    def declare(cls, params):
+    def declare(cls, params, run):
         h, w = params["height"], params["width"]
         return [
             Variable("rgb", "input", (h, w, 3), "1", 0, "an image", frame=True, dtype="uint8"),
@@ -236,7 +236,7 @@ class ImageSum(Component):
             Variable("t_image", "output", (), "s", 0.0, "when the image was made"),
         ]
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         self.weights = np.arange(params["height"] * params["width"] * 3, dtype=np.float64) + 1.0
 
     def _outputs(self, inputs):

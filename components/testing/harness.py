@@ -31,11 +31,12 @@ import numpy as np
 from components import registry
 from components.bus import decode_state, encode_state
 from components.errors import ConfigError
-from components.sdk import Component
+from components.sdk import Component, RunSettings
 
 
 class Harness:
-    """One component instance, stepped by hand. ``t_ns`` is the current time."""
+    """One component instance, stepped by hand. ``t_ns`` is the current time. ``epoch``, ``config_dir``
+    and ``frames`` (a recording's DIR/frames/<component>) are its RunSettings."""
 
     def __init__(
         self,
@@ -45,9 +46,11 @@ class Harness:
         t0_ns: int = 0,
         epoch: str = "2000-01-01T12:00:00Z",
         config_dir: str | Path = ".",
+        frames: str | Path | None = None,
     ):
         try:
-            resolved = registry.resolve(component_type, params or {}, epoch=epoch, config_dir=config_dir)
+            run = RunSettings(epoch, Path(config_dir), frames=None if frames is None else Path(frames))
+            resolved = registry.resolve(component_type, params or {}, run)
         except registry.Unresolved as e:
             raise e.errors[0] from None
         self.params, self.input_layout, self.output_layout = resolved.params, resolved.inputs, resolved.outputs

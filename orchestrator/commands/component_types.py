@@ -73,7 +73,7 @@ def cmd_describe(args) -> int:
 
     from components import registry
     from components.errors import ConfigError
-    from components.sdk import REQUIRED
+    from components.sdk import REQUIRED, RunSettings
     from orchestrator.config.yaml_file import ConfigErrors, apply_overrides
 
     if args.type == "config":
@@ -107,7 +107,7 @@ def cmd_describe(args) -> int:
         )
         return 0
     try:  # as a run resolves it (epoch: any will do for the variables)
-        resolved = registry.resolve(cls, given, epoch="2000-01-01T12:00:00Z", config_dir=Path.cwd())
+        resolved = registry.resolve(cls, given, RunSettings("2000-01-01T12:00:00Z", Path.cwd()))
         variables, errors = (
             (resolved.inputs.variables + resolved.inputs.frames + resolved.outputs.variables + resolved.outputs.frames),
             [],

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+from typing import TypeVar
+
 from components import queries
 from components.message_codec import Malformed, Message
 from orchestrator.commands.exits import USAGE_ERROR, fail
 
+M = TypeVar("M", bound=Message)
 
-def _query(entry: dict, request: Message, expected: type[Message], timeout: float = 30.0) -> Message:
+
+def _query(entry: dict, request: Message, expected: type[M], timeout: float = 30.0) -> M | queries.Refused:
     """The run's answer to ``request``: one of type ``expected``, or Refused saying why not."""
     from components import bus
 
@@ -19,7 +23,7 @@ def _query(entry: dict, request: Message, expected: type[Message], timeout: floa
                     answer = queries.decode_control_answer(reply.ok.payload.to_bytes())
                 except Malformed as e:
                     return queries.Refused(f"run {entry['run_id']} answered something malformed: {e}", usage=False)
-                if type(answer) in (expected, queries.Refused):
+                if isinstance(answer, (expected, queries.Refused)):
                     return answer
                 return queries.Refused(
                     f"run {entry['run_id']} answered {type(answer).__name__}, expected {expected.__name__}", usage=False
@@ -51,7 +55,7 @@ def cmd_ps(args) -> int:
     print(f"{'RUN ID':<32}{'PID':>8}  {'TIME':>12}  {'ENDPOINT':<24}COMPONENTS")
     for entry in entries:
         status = _query(entry, queries.Status(), queries.RunStatus, timeout=3.0)
-        if type(status) is queries.RunStatus:
+        if isinstance(status, queries.RunStatus):
             when = f"{status.time:.3f} s"
             comps = ", ".join(f"{n}:{c.type}" for n, c in status.components.items())
         else:
@@ -76,7 +80,7 @@ def cmd_swap(args) -> int:
     if error:
         return fail(error)
     answer = _query(entry, queries.Swap(args.component, args.type, args.set), queries.Swapped, timeout=120.0)
-    if type(answer) is queries.Refused:  # bad parameters or type: 2; a replacement that failed to start: 1
+    if isinstance(answer, queries.Refused):  # bad parameters or type: 2; a replacement that failed to start: 1
         return fail(answer.error, USAGE_ERROR if answer.usage else 1)
     print(f"swapped {args.component} at step {answer.step} (generation {answer.generation})")
     return 0

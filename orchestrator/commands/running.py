@@ -126,7 +126,7 @@ def _viewer(view: str | None, config):
     if view == "off":
         config.viewer = None
     elif view:
-        from orchestrator.config.load import viewer_spec
+        from orchestrator.config.views import viewer_spec
 
         errors: list[str] = []
         viewer = viewer_spec(view, "--view", errors, Path.cwd())
@@ -156,7 +156,7 @@ def _ros2(endpoint: str | None, config):
     without --ros2; or the problem)."""
     if endpoint is None:
         return None, None
-    from orchestrator.config.load import clock_clash, ros2_spec
+    from orchestrator.config.views import clock_clash, ros2_spec
 
     errors: list[str] = []
     ros2 = ros2_spec(config.resolved.get("ros2"), "--ros2", errors, endpoint=endpoint or None)

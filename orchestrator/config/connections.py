@@ -49,7 +49,7 @@ def handover_problem(old: ComponentSpec, new: ComponentSpec) -> str | None:
     (``Component.state_problem``), or, for another type, the outputs differ (the new generation
     starts from the old one's outputs)."""
     what = "the same type" if new.type == old.type else new.type
-    problem = old.cls.state_problem(old.resolved)
+    problem = old.cls.state_problem(old.typed, old.run)
     if problem:
         return f"a swap to {what} hands the state over, and {old.name} cannot: {problem} (give another type)"
     ours = [(v.name, v.shape) for v in old.outputs.variables]

@@ -61,7 +61,7 @@ def problems(specs: list[ComponentSpec]) -> list[str]:
                 f"got {given}"
             )
         for member in members:
-            problem = member.cls.group_problem(member.resolved)
+            problem = member.cls.group_problem(member.typed, member.run)
             if problem:
                 found.append(
                     f"components.{member.name}.process: {member.name} ({member.type}) cannot join group "

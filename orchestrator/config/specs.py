@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
-from components.sdk import Component, Layout, Variable, run_parameters
+from components.sdk import Component, Layout, RunSettings, Variable
 from orchestrator.hosts.bus_config import BusSpec
 
 
@@ -17,6 +18,8 @@ class ComponentSpec:
     step_ns: int
     parameters: dict  # raw, as in the config (+ injected run parameters)
     resolved: dict  # validated, SI
+    typed: Any  # what the type's validate made of them (declare, preflight and __init__ get it)
+    run: RunSettings  # the run's settings it was resolved with
     inputs: Layout
     outputs: Layout
     launch: str = "local"
@@ -120,6 +123,6 @@ class RunConfig:
         return self.duration_ns // self.step_ns
 
     @property
-    def run_parameters(self) -> dict[str, str]:
-        """What every component gets besides its own parameters (sdk.RUN_PARAMETERS)."""
-        return run_parameters(self.epoch, self.path.parent.resolve(), self.packages)
+    def run_settings(self) -> RunSettings:
+        """What every component gets besides its own parameters."""
+        return RunSettings(self.epoch, self.path.parent.resolve(), self.packages)

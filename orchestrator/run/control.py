@@ -132,10 +132,8 @@ class ControlServer:
                 name,
                 {**converted, "step": old.step_ns},
                 run.config.step_ns,
-                run.config.path.parent.resolve(),
-                run.config.epoch,
+                run.config.run_settings,
                 f"components.{name}",
-                run.config.packages,
             )
             spec.shadow_of = old.shadow_of  # a shadow swapped stays one, and fits its main
             problems = check_replacement(spec, run.config.connections) + (

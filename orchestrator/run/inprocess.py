@@ -17,6 +17,7 @@ import numpy as np
 
 from components import bus, schedule
 from components.registry import Unresolved, resolve
+from components.sdk import RunSettings
 from orchestrator.config import shadows
 from orchestrator.config.specs import RunConfig
 
@@ -26,9 +27,10 @@ class _Stepped:
 
     def __init__(self, config: RunConfig, name: str):
         spec = config.components[name]
-        raw = json.loads(json.dumps(bus.jsonable({**spec.parameters, **config.run_parameters})))
+        raw = json.loads(json.dumps(bus.jsonable(spec.parameters)))
+        run = RunSettings.from_json(json.loads(json.dumps(config.run_settings.to_json())))
         try:
-            resolved = resolve(spec.cls, raw)
+            resolved = resolve(spec.cls, raw, run)
         except Unresolved as e:
             raise e.errors[0] from None
         self.inputs, self.outputs = resolved.inputs, resolved.outputs

@@ -8,7 +8,7 @@ import collections
 import subprocess
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -223,10 +223,10 @@ class Crew:
 
 
 def instantiate_message(spec: ComponentSpec, config: RunConfig, frames_dir: Path | None = None) -> protocol.Instantiate:
-    """The instantiate message: the type and its parameters, with the run's own (``_frames``: the
+    """The instantiate message: the type, its parameters and the run's settings (``frames``: the
     component's directory in ``frames_dir``, when the run records)."""
-    frames = {} if frames_dir is None else {"_frames": str(frames_dir / spec.name)}
-    return protocol.Instantiate(spec.type, bus.jsonable({**spec.parameters, **config.run_parameters, **frames}))
+    run = replace(config.run_settings, frames=None if frames_dir is None else frames_dir / spec.name)
+    return protocol.Instantiate(spec.type, bus.jsonable(spec.parameters), run.to_json())
 
 
 def terminate(member: Member, timeout: float = 5.0, final: bool = False) -> None:

@@ -197,5 +197,7 @@ class RunState:
         self.rows.rewind(checkpoint.row, checkpoint.values)
         self._horizon, self._horizon_at = checkpoint.row, now
         self._events = list(checkpoint.events)
-        if self._outcome is not None:  # events after the checkpoint come again (or not) in the rerun
+        if (
+            self._outcome is not None and checkpoint.outcome is not None
+        ):  # events after the checkpoint come again (or not) in the rerun
             self._outcome.restore(checkpoint.outcome)

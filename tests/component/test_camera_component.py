@@ -42,7 +42,7 @@ def looking_at(direction) -> list[float]:
     return list(Rotation.from_matrix(np.column_stack([x, np.cross(z, x), z])).as_quat())
 
 
-def camera(truth, **changes):
+def camera(truth, frames=None, **changes):
     """A camera on the servicer's bus, 1.1 m out from its centre towards the target, looking at it."""
     from components.rotations import quat_to_matrix
 
@@ -69,7 +69,7 @@ def camera(truth, **changes):
         "depth_noise": 0.002,
         **changes,
     }
-    h = Harness("sensor.camera", params, epoch=EPOCH, config_dir=CONFIGS)
+    h = Harness("sensor.camera", params, epoch=EPOCH, config_dir=CONFIGS, frames=frames)
     for body in ("servicer", "target"):
         for variable in ("position", "orientation", "q"):
             h.inputs[f"{body}.{variable}"] = truth[f"{body}.{variable}"]
@@ -167,11 +167,11 @@ def test_the_frame_outputs_are_the_frames_it_takes(truth):
 
 
 def test_the_recorded_frames_are_the_rendered_ones_bit_for_bit_in_fewer_bytes(truth, tmp_path):
-    """With --record (``_frames``) each frame's file reads back as the frame outputs of its step,
+    """With --record (``run.frames``) each frame's file reads back as the frame outputs of its step,
     bit for bit, deflated: smaller than the raw arrays even with pixel noise."""
     from components.camera.frames import frame_files, read_frame
 
-    h = camera(truth, _frames=str(tmp_path / "camera"))
+    h = camera(truth, frames=tmp_path / "camera")
     h.initialize()
     rendered = []
     for _ in range(3):

@@ -15,7 +15,7 @@ from components import registry
 from components.constants import NS_PER_S
 from components.dynamics.component import DartDynamics
 from components.errors import ComponentError
-from components.sdk import resolve_parameters
+from components.sdk import RunSettings, resolve_parameters
 from components.testing.harness import Harness
 from tests import validation
 from tests.conftest import orchestrator
@@ -49,7 +49,7 @@ def harness(bodies=None, t0_ns=0, **params):
 
 
 def errors_of(params):
-    _, errors = resolve_parameters(DartDynamics, {"_config_dir": str(CONFIGS), **params})
+    _, _, errors = resolve_parameters(DartDynamics, params, RunSettings(config_dir=CONFIGS))
     return errors
 
 
@@ -77,9 +77,9 @@ def test_link_outputs_are_left_out_by_default():
 def test_declare_does_not_load_dart():
     code = (
         "import sys; from components.dynamics.component import DartDynamics as D; "
-        "from components.sdk import resolve_parameters as r; "
-        "p, e = r(D, {'bodies': {'h': {'urdf': 'models/humanoid_torso.urdf'}}}); assert not e, e; "
-        "v = D.declare(p); assert len(v) > 10; assert 'dartpy' not in sys.modules, 'dartpy imported'"
+        "from components.sdk import RunSettings, resolve_parameters as r; "
+        "_, p, e = r(D, {'bodies': {'h': {'urdf': 'models/humanoid_torso.urdf'}}}, RunSettings()); assert not e, e; "
+        "v = D.declare(p, RunSettings()); assert len(v) > 10; assert 'dartpy' not in sys.modules, 'dartpy imported'"
     )
     done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
@@ -121,7 +121,9 @@ def test_bad_urdf_is_a_config_error_naming_the_key(tmp_path):
     }
     for name, text in bad.items():
         (tmp_path / name).write_text(text)
-        _, errors = resolve_parameters(DartDynamics, {"_config_dir": str(tmp_path), "bodies": {"b": {"urdf": name}}})
+        _, _, errors = resolve_parameters(
+            DartDynamics, {"bodies": {"b": {"urdf": name}}}, RunSettings(config_dir=tmp_path)
+        )
         assert errors and errors[0].key == "bodies.b.urdf", (name, [str(e) for e in errors])
         assert name in str(errors[0])
     assert errors_of({"bodies": {"humanoid": HUMANOID}, "integrator": "euler"})[0].key == "integrator"

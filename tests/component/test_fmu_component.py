@@ -13,6 +13,7 @@ import pytest
 from components.constants import NS_PER_S
 from components.errors import ComponentError, ConfigError
 from components.fmi.imported import FMUComponent, build_python_model
+from components.sdk import RunSettings
 from components.testing.harness import Harness
 from tests.conftest import ROOT, needs
 
@@ -92,7 +93,7 @@ def test_outputs_equal_fmpy_simulate_fmu_on_the_same_steps(wheel_fmu, tmp_path):
 
 
 def test_vectors_names_types_and_units_come_from_the_model_description(wheel_fmu, probe_fmu):
-    by_name = {v.name: v for v in FMUComponent.declare({"path": str(probe_fmu), "start_values": {}})}
+    by_name = {v.name: v for v in FMUComponent.declare({"path": str(probe_fmu), "start_values": {}}, RunSettings())}
     assert {n: (v.causality, v.shape) for n, v in by_name.items()} == {
         "u": ("input", (3,)),
         "mode": ("input", ()),
@@ -101,7 +102,10 @@ def test_vectors_names_types_and_units_come_from_the_model_description(wheel_fmu
         "count": ("output", ()),
     }
     assert "der(q)" in by_name["der_q"].description
-    wheel = {v.name: v for v in FMUComponent.declare({"path": str(wheel_fmu), "start_values": {"torque_command": 0.1}})}
+    wheel = {
+        v.name: v
+        for v in FMUComponent.declare({"path": str(wheel_fmu), "start_values": {"torque_command": 0.1}}, RunSettings())
+    }
     assert wheel["motor_torque"].unit == "N*m" and wheel["wheel_speed"].unit == "rad/s"  # FMI "N.m" read as N*m
     assert wheel["torque_command"].start == 0.1  # an unconnected input holds its start value
 
@@ -157,7 +161,7 @@ def test_an_fmu_without_state_support_says_why(tmp_path):
         capture_output=True,
     )
     params = {"path": str(tmp_path / "Probe.fmu"), "start_values": {}}
-    assert "canGetAndSetFMUstate=false" in FMUComponent.state_problem(params)
+    assert "canGetAndSetFMUstate=false" in FMUComponent.state_problem(params, RunSettings())
     h = Harness("fmu", params)
     h.initialize()
     with pytest.raises(ComponentError, match="cannot save its state"):
@@ -223,9 +227,13 @@ def test_only_an_fmu_that_is_safe_beside_others_may_join_a_process_group(tmp_pat
                 dst.writestr(item, data)
         return {"path": str(path), "start_values": {}}
 
-    assert "embeds a Python interpreter (pythonfmu)" in FMUComponent.group_problem({"path": str(probe_fmu)})
-    assert FMUComponent.group_problem(rewritten("native.fmu", once=False)) is None
-    assert "canBeInstantiatedOnlyOncePerProcess=true" in FMUComponent.group_problem(rewritten("once.fmu", once=True))
+    assert "embeds a Python interpreter (pythonfmu)" in FMUComponent.group_problem(
+        {"path": str(probe_fmu)}, RunSettings()
+    )
+    assert FMUComponent.group_problem(rewritten("native.fmu", once=False), RunSettings()) is None
+    assert "canBeInstantiatedOnlyOncePerProcess=true" in FMUComponent.group_problem(
+        rewritten("once.fmu", once=True), RunSettings()
+    )
 
 
 def test_bad_start_values_are_refused_naming_the_variable(probe_fmu):

@@ -264,8 +264,8 @@ class Ramp(Component):
     variables = (Variable("offset.u", "input", (), "m", 0.5, "added to every ramp"),
                  Variable("y", "output", (5,), "m, s", 0.0, "the ramps"))
 
-    def __init__(self, params):
-        self.slopes = np.loadtxt(Path(params["_config_dir"]) / params["slopes"])
+    def __init__(self, params, run):
+        self.slopes = np.loadtxt(run.config_dir / params["slopes"])
         self.fail_at = params["fail_at"]
 
     def initialize(self, t0_ns, inputs):

@@ -430,10 +430,10 @@ class SlowStart(Constant):
     component compiling its kernels would take long."""
     type_name = "test.slow_start"
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         while not Path(GATE).exists():
             time.sleep(0.05)
-        super().__init__(params)
+        super().__init__(params, run)
 '''
 
 

@@ -46,7 +46,7 @@ class FakeController(Component):
     parameters = (Parameter("joints", "int", default=14, description="number of joint torques"),)
 
     @classmethod
-    def declare(cls, params):
+    def declare(cls, params, run):
         n = params["joints"]
         return [Variable("q", "input", (n,), "rad", 0.0, "joint positions"),
                 Variable("tau", "output", (n,), "N*m", 0.0, "joint torques"),
@@ -54,7 +54,7 @@ class FakeController(Component):
                 Variable("ee_position_desired", "output", (3,), "m", 0.0, "desired end effector, W"),
                 Variable("ee_error", "output", (6,), "m, rad", 0.0, "position and orientation error")]
 
-    def __init__(self, params):
+    def __init__(self, params, run):
         self.n = params["joints"]
 
     def outputs(self, t):

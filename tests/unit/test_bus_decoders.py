@@ -96,7 +96,9 @@ def _route(source: str, src: list[int], dst: list[int], ratio: int, ahead: int) 
 EXAMPLES = {  # each declared message with values that are not defaults
     protocol.Horizon: protocol.Horizon(2**40 + 3),
     protocol.Instantiate: protocol.Instantiate(
-        "dynamics.pinocchio", {"mass": 12.5, "urdf": "arm.urdf", "gains": [1, 2.5], "nested": {"a": None}}
+        "dynamics.pinocchio",
+        {"mass": 12.5, "urdf": "arm.urdf", "gains": [1, 2.5], "nested": {"a": None}},
+        {"epoch": "2022-09-18T12:00:00Z", "config_dir": "/configs", "packages": {"arm": "/arm"}, "frames": None},
     ),
     protocol.Wire: protocol.Wire(
         generation=3,

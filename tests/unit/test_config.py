@@ -189,7 +189,7 @@ def test_a_shadow_is_checked_like_a_component_and_against_its_main(write_config,
     # u_time in ms where test.integrator has it in s
     (tmp_path / "milli.py").write_text(
         "from components.sdk import Variable\nfrom components.testing.blocks import Integrator\n\n"
-        "class Milli(Integrator):\n    @classmethod\n    def declare(cls, params):\n"
+        "class Milli(Integrator):\n    @classmethod\n    def declare(cls, params, run):\n"
         "        return [Variable('u', 'input', (), '1', 0.0, 'rate'), Variable('x', 'output', (), '1', 0.0, 'x'),\n"
         "                Variable('u_time', 'output', (), 'ms', 0.0, 'when')]\n"
     )
@@ -387,7 +387,9 @@ def test_an_external_group_is_refused_with_the_reason(write_config):
 def test_a_type_that_cannot_share_a_process_is_refused_with_its_reason(write_config, monkeypatch):
     from components.testing.blocks import Constant
 
-    monkeypatch.setattr(Constant, "group_problem", classmethod(lambda cls, params: "it owns the process's signals"))
+    monkeypatch.setattr(
+        Constant, "group_problem", classmethod(lambda cls, params, run: "it owns the process's signals")
+    )
     errors = errors_of(write_config, GOOD.replace("{value: 1.0}}", "{value: 1.0}, process: loop}"))
     assert any(
         "components.src.process: src (test.constant) cannot join group 'loop': it owns the process's "
@@ -397,7 +399,7 @@ def test_a_type_that_cannot_share_a_process_is_refused_with_its_reason(write_con
 
 
 def test_view_foxglove_port():
-    from orchestrator.config.load import viewer_spec
+    from orchestrator.config.views import viewer_spec
 
     errors: list[str] = []
     assert viewer_spec("foxglove", "--view", errors, Path(".")).port == 8765
@@ -410,7 +412,7 @@ def test_view_foxglove_port():
 
 
 def test_ros2_section_domain_from_environment_and_endpoint_override(monkeypatch):
-    from orchestrator.config.load import ros2_spec
+    from orchestrator.config.views import ros2_spec
 
     monkeypatch.setenv("ROS_DOMAIN_ID", "5")
     errors: list[str] = []

@@ -77,21 +77,21 @@ def test_a_process_parses_each_urdf_once(monkeypatch, tmp_path):
     from components.controller.components import ComputedTorqueComponent
     from components.dynamics.component import DartDynamics
     from components.robots import urdf
-    from components.sdk import resolve_parameters, run_parameters
+    from components.sdk import RunSettings, resolve_parameters
 
     parses, parse = [], urdf._parse
     monkeypatch.setattr(urdf, "_parsed", {})
     monkeypatch.setattr(urdf, "_parse", lambda path, packages: parses.append(path.name) or parse(path, packages))
     demo = MODELS.parent / "configs" / "humanoid_tracking.yaml"
     components = yaml.safe_load(demo.read_text())["components"]
-    run = run_parameters("2022-01-01T00:00:00Z", demo.parent)
+    run = RunSettings("2022-01-01T00:00:00Z", demo.parent)
     params = {}
     for cls, name in ((DartDynamics, "dynamics"), (ComputedTorqueComponent, "controller")):
-        params[name], errors = resolve_parameters(cls, {**components[name]["parameters"], **run})
+        _, params[name], errors = resolve_parameters(cls, components[name]["parameters"], run)
         assert not errors
-        cls.declare(params[name])
-    DartDynamics.preflight(params["dynamics"], 0.001)
-    DartDynamics(params["dynamics"], compile_kernels=False)
+        cls.declare(params[name], run)
+    DartDynamics.preflight(params["dynamics"], run, 0.001)
+    DartDynamics(params["dynamics"], run, compile_kernels=False)
     assert parses == ["humanoid_torso.urdf"]
 
     copy = tmp_path / "humanoid_torso.urdf"

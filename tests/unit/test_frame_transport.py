@@ -10,6 +10,7 @@ import pytest
 
 from components import bus, protocol
 from components.process import ComponentProcess
+from components.sdk import RunSettings
 from components.testing.harness import Harness
 
 STEP_NS = 1_000_000
@@ -37,7 +38,7 @@ def test_a_frame_message_of_the_wrong_length_is_malformed(cut):
 
 def process(name: str, kind: str, sent: list, **wire) -> ComponentProcess:
     p = ComponentProcess(name, lambda payload: None, lambda consumers, payload: sent.append(payload), sent.append)
-    p.command(protocol.Instantiate(kind, SIZE).encode())
+    p.command(protocol.Instantiate(kind, SIZE, RunSettings().to_json()).encode())
     p.command(
         protocol.Wire(
             generation=0, step_ns=STEP_NS, ratio=wire.pop("ratio", 1), k=0, batch_consumers=[], faults=[], **wire

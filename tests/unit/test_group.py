@@ -11,6 +11,7 @@ import numpy as np
 from components import bus, protocol
 from components.group import TERMINATED, Group, read_mark
 from components.schedule import Route
+from components.sdk import RunSettings
 
 RUN = "loop-0"
 STEP_NS = 1_000_000
@@ -65,8 +66,8 @@ def started_group():
     """src (test.constant 2) -> int (test.integrator), src also feeding ``outside``, not hosted here."""
     inbox, transport, marks = queue.SimpleQueue(), Transport(), Marks()
     group = Group(RUN, [("src", 0), ("int", 0)], transport, inbox, marks)
-    command(inbox, "src", protocol.Instantiate("test.constant", {"value": 2.0}))
-    command(inbox, "int", protocol.Instantiate("test.integrator", {"gain": 0.5}))
+    command(inbox, "src", protocol.Instantiate("test.constant", {"value": 2.0}, RunSettings().to_json()))
+    command(inbox, "int", protocol.Instantiate("test.integrator", {"gain": 0.5}, RunSettings().to_json()))
     command(
         inbox,
         "src",

@@ -27,8 +27,8 @@ def test_unconnected_input_holds_its_start_value():
 
     class StartsAt2_5(Integrator):
         @classmethod
-        def declare(cls, params):
-            return [replace(v, start=2.5) if v.name == "u" else v for v in super().declare(params)]
+        def declare(cls, params, run):
+            return [replace(v, start=2.5) if v.name == "u" else v for v in super().declare(params, run)]
 
     h = Harness(StartsAt2_5, {"gain": 2.0, "x0": 1.0})
     assert h.inputs["u"] == 2.5

@@ -11,7 +11,7 @@ import pytest
 from components import registry
 from components.robots.model import joint_units
 from components.robots.urdf import read_urdf
-from components.sdk import resolve_parameters
+from components.sdk import RunSettings, resolve_parameters
 from components.signals import BODY_STATE
 from orchestrator.config.load import load
 from orchestrator.config.yaml_file import ConfigErrors
@@ -37,9 +37,9 @@ def robot(tmp_path, *kinds: str, name: str = "robot") -> Path:
 
 def variables(type_name: str, params: dict) -> dict:
     cls = registry.load(type_name)
-    resolved, errors = resolve_parameters(cls, params)
+    _, typed, errors = resolve_parameters(cls, params, RunSettings())
     assert not errors, errors
-    return {v.name: v for v in cls.declare(resolved)}
+    return {v.name: v for v in cls.declare(typed, RunSettings())}
 
 
 @pytest.mark.parametrize(

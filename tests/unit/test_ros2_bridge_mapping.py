@@ -11,7 +11,7 @@ import pytest
 
 from components.ros2 import lockstep, messages
 from components.ros2.bridge import Ros2Bridge
-from components.sdk import resolve_parameters
+from components.sdk import RunSettings, resolve_parameters
 
 STAMP = 1_663_502_400_123_456_789  # 2022-09-18T12:00:00.123456789Z as ROS time (ns)
 JOINTS = ["shoulder", "elbow", "wrist"]
@@ -217,7 +217,7 @@ def test_latest_takes_the_newest_whatever_its_stamp():
 
 def _errors(outputs=None, inputs=None, **extra) -> dict[str, str]:
     params = {"wait_for": "stamped", "outputs": outputs or {}, "inputs": inputs or {}, **extra}
-    _, errors = resolve_parameters(Ros2Bridge, params)
+    _, _, errors = resolve_parameters(Ros2Bridge, params, RunSettings())
     return {e.key: e.message for e in errors}
 
 
@@ -246,7 +246,9 @@ def test_a_valid_bridge_declares_its_variables():
                     },
                     "inputs": {"q": Q},
                 },
-            )[0]
+                RunSettings(),
+            )[1],
+            RunSettings(),
         )
     }
     assert (variables["tau"].causality, variables["tau"].shape, variables["tau"].unit) == ("output", (2,), "N*m")

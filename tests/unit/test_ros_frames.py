@@ -20,6 +20,7 @@ from components.plotting import RecordedRun
 from components.process import ComponentProcess
 from components.ros_frames import LiveFrames
 from components.rosbag import RosContext
+from components.sdk import RunSettings
 from tests.integration.test_camera_run import camera_config
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
@@ -51,7 +52,7 @@ class Sent(list):
 def test_the_process_hands_each_steps_frames_to_the_view_stamped_at_the_step():
     p = ComponentProcess("camera", lambda payload: None, lambda consumers, payload: None, lambda payload: None)
     p.view = Sent()
-    p.command(protocol.Instantiate("test.imager", {"width": 8, "height": 6}).encode())
+    p.command(protocol.Instantiate("test.imager", {"width": 8, "height": 6}, RunSettings().to_json()).encode())
     p.command(
         protocol.Wire(
             generation=0,

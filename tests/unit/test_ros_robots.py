@@ -166,24 +166,23 @@ def test_mimic_of_a_missing_joint(tmp_path):
 
 def dynamics_params(tmp_path, **body):
     from components.dynamics.component import DartDynamics
-    from components.sdk import resolve_parameters, run_parameters
+    from components.sdk import RunSettings, resolve_parameters
 
     path = urdf(tmp_path, arm())
-    params, errors = resolve_parameters(
-        DartDynamics, {"bodies": {"b": {"urdf": str(path), **body}}, **run_parameters("2022-01-01T00:00:00Z", tmp_path)}
-    )
+    run = RunSettings("2022-01-01T00:00:00Z", tmp_path)
+    _, params, errors = resolve_parameters(DartDynamics, {"bodies": {"b": {"urdf": str(path), **body}}}, run)
     assert not errors
-    return DartDynamics, params
+    return DartDynamics, params, run
 
 
 def test_step_too_coarse_is_flagged_with_the_figure(tmp_path):
-    cls, params = dynamics_params(tmp_path, frame="lvlh")
-    notes = cls.preflight(params, 3600.0)
+    cls, params, run = dynamics_params(tmp_path, frame="lvlh")
+    notes = cls.preflight(params, run, 3600.0)
     assert len(notes) == 1 and "too coarse" in notes[0] and "4.46 rad" in notes[0] and "at most 80.7 s" in notes[0]
-    assert cls.preflight(params, 60.0) == []
-    cls, params = dynamics_params(tmp_path, twist=[0, 0, 0, 0, 0, 2.0])
+    assert cls.preflight(params, run, 60.0) == []
+    cls, params, run = dynamics_params(tmp_path, twist=[0, 0, 0, 0, 0, 2.0])
     params = {**params, "tidal_force": False, "gravity_gradient": False}
-    assert "2 rad/s" in cls.preflight(params, 0.1)[0] and cls.preflight(params, 0.01) == []
+    assert "2 rad/s" in cls.preflight(params, run, 0.1)[0] and cls.preflight(params, run, 0.01) == []
 
 
 def test_duration_bounds():

@@ -7,6 +7,7 @@ import numpy as np
 
 from components import bus, protocol
 from components.process import ComponentProcess, Halt
+from components.sdk import RunSettings
 
 
 class Transport:
@@ -30,7 +31,7 @@ class Transport:
 def started(transport: Transport, params: dict) -> ComponentProcess:
     """test.faulty instantiated, wired (no inputs), initialized and started with horizon 0."""
     p = transport.process("f")
-    p.command(protocol.Instantiate("test.faulty", params).encode())
+    p.command(protocol.Instantiate("test.faulty", params, RunSettings().to_json()).encode())
     p.command(
         protocol.Wire(
             generation=0,

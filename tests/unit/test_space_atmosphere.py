@@ -196,25 +196,24 @@ def test_the_dynamics_parameter():
     """atmosphere: {model: nrlmsise00, f107, f107a, ap} builds the local exponential; a layer as before;
     another model's keys, a missing one, or no epoch are errors naming the key."""
     from components.dynamics.component import PinocchioDynamics
-    from components.sdk import resolve_parameters
+    from components.sdk import RunSettings, resolve_parameters
 
     def resolve(atmosphere, epoch=EPOCH):
         raw = {
             "bodies": {"sat": {"urdf": str(ROOT / "models" / "target.urdf"), "drag_area": 2.0}},
             "drag": True,
             "atmosphere": atmosphere,
-            **({"_epoch": epoch} if epoch else {}),
         }
-        return resolve_parameters(PinocchioDynamics, raw)
+        return resolve_parameters(PinocchioDynamics, raw, RunSettings(epoch))
 
-    params, errors = resolve({"model": "nrlmsise00", "f107": 150, "f107a": 140, "ap": 4})
+    _, params, errors = resolve({"model": "nrlmsise00", "f107": 150, "f107a": 140, "ap": 4})
     assert not errors
-    world = PinocchioDynamics(params, compile_kernels=False).world
+    world = PinocchioDynamics(params, RunSettings(EPOCH), compile_kernels=False).world
     assert isinstance(world.atmosphere, LocalExponential) and world.atmosphere.model.f107a == 140.0
     assert world.atmosphere_varies
-    params, errors = resolve({"altitude": 4e5, "density": 4e-12, "scale_height": 6e4})
+    _, params, errors = resolve({"altitude": 4e5, "density": 4e-12, "scale_height": 6e4})
     assert not errors
-    world = PinocchioDynamics(params, compile_kernels=False).world
+    world = PinocchioDynamics(params, RunSettings(EPOCH), compile_kernels=False).world
     assert world.atmosphere.rho0.tolist() == [4e-12] and not world.atmosphere_varies
     for atmosphere, epoch, key in (
         ({"model": "nrlmsise00", "f107": 150, "f107a": 140}, EPOCH, "atmosphere.ap"),
@@ -223,7 +222,7 @@ def test_the_dynamics_parameter():
         ({"model": "nrlmsise00", "f107": 150, "f107a": 140, "ap": 4}, None, "_epoch"),
         ({"model": "msis", "f107": 150, "f107a": 140, "ap": 4}, EPOCH, "atmosphere.model"),
     ):
-        _, errors = resolve(atmosphere, epoch)
+        _, _, errors = resolve(atmosphere, epoch)
         assert [e.key for e in errors] == [key], errors
 
 

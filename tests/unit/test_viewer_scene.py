@@ -8,6 +8,7 @@ import pytest
 
 from components.constants import NS_PER_S
 from components.extras import missing
+from components.sdk import RunSettings
 from components.viewer.robot import Kinematics, read_geometry
 from components.viewer.scene import SceneLogger, parse_columns
 
@@ -257,7 +258,7 @@ def test_bodies_and_urdf_paths_are_read_as_the_dynamics_reads_them(tmp_path, mon
     bodies = {"a": {"urdf": "models/robot.urdf"}, "b": {"urdf": "models/humanoid_torso.urdf"}}
     config = {"components": {"dyn": {"type": "dynamics.dart", "parameters": {"bodies": bodies}}}}
     scene = SceneLogger([], config, here)
-    simulated = load_models({"bodies": bodies, "_config_dir": str(here)})
+    simulated = load_models({"bodies": bodies}, RunSettings(config_dir=here))
     assert [b.name for b in scene.bodies] == ["a", "b"]
     for body in scene.bodies:
         assert body.geometry.path == simulated[body.name].path

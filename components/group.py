@@ -60,7 +60,8 @@ class Group:
     """The members' step logic and the routing between them; no Zenoh (``transport`` carries
     what leaves the group, so the routing is tested with a stand-in). ``inbox``: the queue the
     members' messages come on, as (member name, key, payload) (``get`` and ``put``); (None, "", b"")
-    says the orchestrator went away. ``stepping``: a writable 4-byte buffer (the mapped stepping file)."""
+    says the orchestrator went away. ``stepping``: a writable 4-byte buffer (the mapped stepping file), or
+    None where no one reads the marks (a component alone in its process)."""
 
     def __init__(self, run_id: str, members: list[tuple[str, int]], transport, inbox, stepping):
         self.run_id, self.transport, self.inbox, self.stepping = run_id, transport, inbox, stepping
@@ -108,11 +109,14 @@ class Group:
         member = self.members.get(name)
         if member is None:
             return None  # for a member that has left
-        self.stepping[: _MARK.size] = member.mark
+        stepping = self.stepping
+        if stepping is None:  # one component: its process names it
+            return self._apply(member, key, payload)
+        stepping[: _MARK.size] = member.mark
         try:
             return self._apply(member, key, payload)
         finally:
-            self.stepping[: _MARK.size] = _IDLE
+            stepping[: _MARK.size] = _IDLE
 
     def _apply(self, member: Member, key: str, payload: bytes) -> str | None:
         process = member.process

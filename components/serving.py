@@ -230,7 +230,7 @@ def serve_session(
     inbox = (FifoInbox if len(members) == 1 else QueueInbox)(session, run_id)
     transport = ZenohTransport(session, run_id, inbox)
     mark_file = open(stepping, "r+b") if stepping else None  # noqa: SIM115 (closed in the finally below)
-    mark = mmap.mmap(mark_file.fileno(), MARK_SIZE) if mark_file else bytearray(MARK_SIZE)
+    mark = mmap.mmap(mark_file.fileno(), MARK_SIZE) if mark_file else None
     group = Group(run_id, members, transport, inbox, mark)
     stop, keep = threading.Event(), []
     try:

@@ -8,13 +8,18 @@ written as that part, replaced as it grows. Whatever stops the run (a kill -9, a
 full disk), what is on disk reads with pyarrow and pandas (``pandas.read_parquet(DIR /
 "signals.parquet")``) and lacks at most the rows of the last ``flush_s``; a failed write leaves
 no partial file and its error names the path and the rows kept.
+
+A run's loop never waits on the disk: :class:`Recording` hands its rows to a writer thread, which
+runs the tables' writes in order; the loop hears a write's error at its next row, or at the end.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import queue
 import shutil
+import threading
 import time
 from pathlib import Path
 
@@ -245,10 +250,53 @@ def _fsync_directory(path: Path) -> None:
         os.close(directory)
 
 
+class _Writer:
+    """A thread that runs the calls handed to it in order; the first error a call raises
+    (RecordingError, or a bug's) is raised to whoever hands over the next call or waits, and the
+    calls after it are not run (the loop that handed them stops at that error, as it would have at a
+    write of its own)."""
+
+    def __init__(self):
+        self._calls: queue.SimpleQueue = queue.SimpleQueue()
+        self.error: Exception | None = None
+        self._thread = threading.Thread(target=self._run, name="recording", daemon=True)
+        self._thread.start()
+
+    def put(self, call, *args) -> None:
+        if self.error is not None:
+            raise self.error
+        self._calls.put((call, args))
+
+    def wait(self) -> None:
+        """Until every call handed over is done."""
+        done = threading.Event()
+        self._calls.put((done.set, None))
+        done.wait()
+        if self.error is not None:
+            raise self.error
+
+    def stop(self) -> None:
+        self._calls.put(None)
+        self._thread.join()
+
+    def _run(self) -> None:
+        while (item := self._calls.get()) is not None:
+            call, args = item
+            if args is None:  # a wait: answered whatever came before
+                call()
+            elif self.error is None:
+                try:
+                    call(*args)
+                except Exception as error:  # for the loop to raise: this thread goes on, to answer waits
+                    self.error = error
+
+
 class Recording:
     """A run's recording directory: ``signals.parquet`` (every component's outputs, one row per
     step), ``swaps/<component>.<generation>.parquet`` (the outputs of a type swapped in for
-    another, from the swap on), ``events.jsonl`` and the resolved ``config.yaml``."""
+    another, from the swap on), ``events.jsonl`` and the resolved ``config.yaml``. The tables are
+    written on a thread of their own (:class:`_Writer`): the rows handed to :meth:`append` are
+    copied."""
 
     def __init__(
         self,
@@ -269,6 +317,7 @@ class Recording:
         self.signals = Table(self.directory / "signals.parquet", columns, chunk_rows, flush_s)
         self.tables = [self.signals]
         self._events = open(self.directory / "events.jsonl", "a")  # noqa: SIM115 (open until close())
+        self._writer = _Writer()
 
     def write_config(self, resolved_config: dict) -> None:
         """(Re)write config.yaml, atomically: a swap during the run adds itself to its events."""
@@ -277,29 +326,43 @@ class Recording:
         hidden.write_text(yaml.dump(resolved_config, Dumper=_ConfigDumper, sort_keys=False))
         os.replace(hidden, path)
 
-    def append(self, step: int, time_s: float, values: np.ndarray) -> None:
-        self.signals.append(step, time_s, values)
+    def append(self, step: int, time_s: float, values: np.ndarray, table: Table | None = None) -> None:
+        """A row of ``table`` (the signals by default); RecordingError for a write that failed before."""
+        self._writer.put((table or self.signals).append, step, time_s, values.copy())
 
     def add_table(self, name: str, columns: list[str]) -> Table:
-        """A table of its own, ``swaps/<name>.parquet``, for columns the signals do not have."""
+        """A table of its own, ``swaps/<name>.parquet``, for columns the signals do not have
+        (its rows go through :meth:`append`)."""
         table = Table(self.directory / "swaps" / f"{name}.parquet", columns, self.chunk_rows, self.flush_s)
         self.tables.append(table)
         return table
 
     def rewind(self, step: int) -> None:
         for table in self.tables:
-            table.rewind(step)
+            self._writer.put(table.rewind, step)
+        self._writer.wait()
 
     def event(self, kind: str, **fields) -> None:
         self._events.write(json.dumps({"event": kind, **fields}) + "\n")
         self._events.flush()
 
     def close(self) -> None:
+        """Write what the tables hold and stop the writer; RecordingError for the first write that
+        failed (closing still writes what it can, as after a failed write of the loop's own)."""
+        writer = self._writer
+        earlier, writer.error = writer.error, None
         try:
             for table in self.tables:
-                table.close()
+                writer.put(table.close)
+            writer.wait()
+        except RecordingError:
+            if earlier is None:
+                raise
         finally:
+            writer.stop()
             self._events.close()
+        if earlier is not None:
+            raise earlier
 
 
 class _ConfigDumper(yaml.SafeDumper):

@@ -89,7 +89,7 @@ class Rows:
             if self.recording is not None:
                 self.recording.append(row, row * step_ns / NS_PER_S, self.values)
                 for name, table in self.tables.items():
-                    table.append(row, row * step_ns / NS_PER_S, members[name].latest)
+                    self.recording.append(row, row * step_ns / NS_PER_S, members[name].latest, table)
             if self.decimation and row % self.decimation == 0:
                 self.signals(_SIGNALS.pack(row, row * step_ns / NS_PER_S) + self.values.tobytes())
 
@@ -99,7 +99,7 @@ class Rows:
         self.tables.pop(name, None)
         columns = [c for v in member.spec.outputs.variables for c in v.columns(name)]
         table = self.tables[name] = self.recording.add_table(f"{name}.{member.generation}", columns)
-        table.append(self.row, self.row * self.step_ns / NS_PER_S, member.latest)
+        self.recording.append(self.row, self.row * self.step_ns / NS_PER_S, member.latest, table)
 
     def rewind(self, row: int, values: np.ndarray) -> None:
         """Back to ``row`` (a checkpoint's), whose values were ``values``."""

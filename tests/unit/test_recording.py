@@ -112,3 +112,62 @@ def test_plot_and_view_of_a_recording_with_no_rows_say_so(tmp_path):
         figures(record)
     with pytest.raises(ReplayError, match="the recording holds no rows"):
         replay(record, "save", tmp_path / "x.rrd")
+
+
+def test_a_recording_written_on_its_thread_has_the_parts_a_table_written_in_line_has(tmp_path):
+    """A Recording's rows go to disk on its writer thread: 2500 rows of chunks of 1000, rewound to
+    step 1800 and carried on to 2600, then closed, give signals.parquet part files byte for byte those
+    of a Table written on the caller's thread; a swapped-in type's table too."""
+    from orchestrator.run.recording import Recording
+
+    recording = Recording(tmp_path / "threaded", COLUMNS, {"run": {"name": "t"}})
+    swap = recording.add_table("b.1", COLUMNS[:3])
+    inline = Table(tmp_path / "inline", COLUMNS, 1000)
+    inline_swap = Table(tmp_path / "inline_swap", COLUMNS[:3], 1000)
+    values = np.empty(len(COLUMNS))
+    for k in [*range(2500), *range(1801, 2601)]:
+        if k == 1801:
+            recording.rewind(1800)
+            inline.rewind(1800)
+            inline_swap.rewind(1800)
+        values[:] = rows(k)  # one buffer, changed after each append: the recording keeps a copy
+        recording.append(k, k * 0.01, values)
+        recording.append(k, k * 0.01, values[:3], swap)
+        inline.append(k, k * 0.01, values)
+        inline_swap.append(k, k * 0.01, values[:3])
+    recording.close()
+    inline.close()
+    inline_swap.close()
+    for threaded, in_line in [("threaded/signals.parquet", "inline"), ("threaded/swaps/b.1.parquet", "inline_swap")]:
+        parts = sorted(p.name for p in (tmp_path / threaded).iterdir())
+        assert (
+            parts
+            == sorted(p.name for p in (tmp_path / in_line).iterdir())
+            == [f"part-00000{i}.parquet" for i in range(3)]
+        )
+        assert all((tmp_path / threaded / p).read_bytes() == (tmp_path / in_line / p).read_bytes() for p in parts)
+    assert list(read(tmp_path / "threaded" / "signals.parquet")["step"]) == list(range(2601))
+
+
+def test_a_full_disk_under_a_recording_is_raised_to_the_loop_with_the_rows_kept(tiny_disk):
+    """The writer thread's RecordingError reaches whoever hands it the next row, or closes it: the
+    message is the table's (the path, No space left on device, the rows kept), and the dataset
+    reads exactly those rows."""
+    from orchestrator.run.recording import Recording
+
+    recording = Recording(tiny_disk, COLUMNS, {"run": {"name": "full"}}, flush_s=0.0)
+    with pytest.raises(RecordingError) as caught:
+        try:
+            for k in range(1000):
+                recording.append(k, k * 0.01, rows(k))
+        finally:
+            recording.close()  # raised at a row or not, closing says it
+    message = str(caught.value)
+    kept = recording.signals.rows_kept
+    assert message.startswith(
+        f"cannot write {tiny_disk / 'signals.parquet'}: No space left on device; the recording "
+        f"keeps {kept} rows, to step {kept - 1}"
+    )
+    on_disk = read(tiny_disk / "signals.parquet")
+    assert list(on_disk["step"]) == list(range(kept))
+    assert on_disk[COLUMNS].to_numpy().tobytes() == np.array([rows(k) for k in range(kept)]).tobytes()

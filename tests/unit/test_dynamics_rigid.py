@@ -170,3 +170,22 @@ def test_rigid_steps_agree_with_basilisk():
     assert angles(reference, q).max() < 1e-12
     assert angles(fast, reference).max() < 1e-12
     assert angles(q[:1], q[-1:])[0] > 0.5  # (the box did turn)
+
+
+def test_the_rigid_kernel_is_compiled_at_construction(monkeypatch):
+    """As the other kernels (tests/component/test_dynamics_component.py): a fresh dispatcher holds
+    its signature once the world is built, and steps with and without the environment compile
+    nothing more."""
+    import numba
+
+    from components.dynamics import pinocchio_kernels
+
+    kernel = numba.njit(cache=True)(pinocchio_kernels.rk4_rigid.py_func)
+    monkeypatch.setattr(pinocchio_kernels, "rk4_rigid", kernel)
+    w = world(ROOT / "models" / "target.urdf")
+    compiled = list(kernel.signatures)
+    assert compiled
+    w.step(1.0)
+    w.set_orbit(np.zeros(3), np.zeros(3))  # no orbit: no environment
+    w.step(1.0)
+    assert list(kernel.signatures) == compiled

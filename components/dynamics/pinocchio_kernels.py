@@ -87,6 +87,39 @@ def form_stage(stage, c, a, q0, v0, work, x, v):
 
 
 @numba.njit(cache=True)
+def environment_forces(x, v, tau, point, s, joints, frames, links, link_joint, constants, atmosphere, wrenches, facets):
+    """tau plus the orbital environment's generalized forces at (x, v), the reference point s
+    seconds after it was at ``point`` (R, V: ``link_forces.propagate_reference``), the terms and
+    constants from ``constants`` (``pinocchio_inputs``): ``link_forces.tree_generalized_forces``,
+    which fills ``wrenches`` (force, torque per link)."""
+    R, V = link_forces.propagate_reference(point[0:3], point[3:6], s, constants[0])
+    return link_forces.tree_generalized_forces(
+        x,
+        v,
+        tau,
+        joints,
+        frames,
+        links,
+        link_joint,
+        R,
+        V,
+        constants[0],
+        constants[3] != 0.0,
+        constants[4] != 0.0,
+        constants[5] != 0.0,
+        atmosphere,
+        constants[1],
+        constants[2],
+        wrenches[0],
+        wrenches[1],
+        constants[6] != 0.0,
+        constants[LIGHT:THIRD],
+        facets,
+        constants[THIRD:CONSTANTS],
+    )
+
+
+@numba.njit(cache=True)
 def pinocchio_inputs(
     stage,
     c,
@@ -125,30 +158,8 @@ def pinocchio_inputs(
     if stage:
         form_stage(stage, c, a, q0, v0, work, x, v)
     if environment:
-        R, V = link_forces.propagate_reference(point[0:3], point[3:6], s, constants[0])
-        Q = link_forces.tree_generalized_forces(
-            x,
-            v,
-            tau,
-            joints,
-            frames,
-            links,
-            link_joint,
-            R,
-            V,
-            constants[0],
-            constants[3] != 0.0,
-            constants[4] != 0.0,
-            constants[5] != 0.0,
-            atmosphere,
-            constants[1],
-            constants[2],
-            wrenches[0],
-            wrenches[1],
-            constants[6] != 0.0,
-            constants[LIGHT:THIRD],
-            facets,
-            constants[THIRD:CONSTANTS],
+        Q = environment_forces(
+            x, v, tau, point, s, joints, frames, links, link_joint, constants, atmosphere, wrenches, facets
         )
     else:
         Q = tau
@@ -549,31 +560,9 @@ def rk4_rigid(ints, values, rigid, x, v, environment, point, h, s, stage_x, stag
     ``form_stage`` into (stage_x, stage_v), the end into (x_end, v_end) and the body's outputs
     there (``body_summary``), Pinocchio's inputs as ``rk4_evaluation`` leaves them. The body's
     arrays from its pools (``unpool``)."""
-    (
-        joints,
-        link_joint,
-        pin_index,
-        frames,
-        links,
-        constants,
-        atmosphere,
-        wrenches,
-        rotation,
-        buffer,
-        work,
-        _,
-        tau,
-        summary,
-        facets,
-    ) = unpool(ints, values, 6)
-    mu, tidal, gravity_gradient, drag, srp = (
-        constants[0],
-        constants[3] != 0.0,
-        constants[4] != 0.0,
-        constants[5] != 0.0,
-        constants[6] != 0.0,
-    )
-    light, third = constants[LIGHT:THIRD], constants[THIRD:CONSTANTS]
+    arrays = unpool(ints, values, 6)
+    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work = arrays[:11]
+    tau, summary, facets = arrays[12:]
     q0, v0 = work[8], work[9]
     q0[:] = x
     v0[:] = v
@@ -581,30 +570,9 @@ def rk4_rigid(ints, values, rigid, x, v, environment, point, h, s, stage_x, stag
     for stage in range(4):  # evaluations at s, s + h/2 (twice), s + h
         Q = tau
         if environment:
-            R, V = link_forces.propagate_reference(point[0:3], point[3:6], s + (0.0, 0.5 * h, 0.5 * h, h)[stage], mu)
-            Q = link_forces.tree_generalized_forces(
-                xs,
-                vs,
-                tau,
-                joints,
-                frames,
-                links,
-                link_joint,
-                R,
-                V,
-                mu,
-                tidal,
-                gravity_gradient,
-                drag,
-                atmosphere,
-                constants[1],
-                constants[2],
-                wrenches[0],
-                wrenches[1],
-                srp,
-                light,
-                facets,
-                third,
+            t = s + (0.0, 0.5 * h, 0.5 * h, h)[stage]
+            Q = environment_forces(
+                xs, vs, tau, point, t, joints, frames, links, link_joint, constants, atmosphere, wrenches, facets
             )
         a = work[3 + stage]
         rigid_acceleration(rigid, xs, vs, Q, a)

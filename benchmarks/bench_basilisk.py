@@ -1,17 +1,19 @@
 """A rigid spacecraft in Zenorbit and in Basilisk: per-step cost side by side, and how far apart
 the two attitudes end.
 
-    python benchmarks/bench_basilisk.py [--type dynamics.dart] [--step 1] [--orbits 2] [--rounds 5]
+    python benchmarks/bench_basilisk.py [--type dynamics.pinocchio] [--step 1] [--orbits 2] [--rounds 5]
 
 The body and the orbit are configs/gravity_gradient_libration.yaml's (models/target.urdf: a
 200 kg box, one link, no joints; a circular 6778 km orbit at 51.64 deg; the box starts pitched
 1 deg from LVLH and co-rotating with it), simulated for ``--orbits`` orbits at ``--step``:
 
-- Zenorbit: the component ``--type`` (``dynamics.dart``, or any type with its parameters, e.g.
-  ``dynamics.pinocchio``) with the config's parameters (rk4, tidal force and gravity-gradient
+- Zenorbit: the component ``--type`` (``dynamics.pinocchio``, whose rigid body steps in one
+  compiled call, ``pinocchio_kernels.rk4_rigid``; or any type with its parameters, e.g. the
+  config's ``dynamics.dart``) with the config's parameters (rk4, tidal force and gravity-gradient
   torque), stepped in this process through its layouts as components/process.py steps it, its
   orbit inputs from ``orbit.kepler`` with the config's elements (the orbit's own cost not counted).
-- Basilisk (``bsk``, installed on first use in a virtual environment of its own, ``--venv``;
+- Basilisk (``bsk``, in the virtual environment of its fixtures, made on first use:
+  ``~/.cache/zenorbit/basilisk`` or ``ZENORBIT_BASILISK_VENV``, see tests/basilisk;
   benchmarks/basilisk_rigid_body.py): a Spacecraft hub with the same mass and inertia, started
   at the same position, velocity, attitude and rate as Zenorbit's body at t = 0, Earth's
   point-mass gravity with the same mu, its GravityGradientEffector and its RK4 integrator, one
@@ -46,6 +48,7 @@ sys.path.insert(0, str(ROOT))
 
 from components.constants import MU_EARTH, NS_PER_S  # noqa: E402
 from components.testing.harness import Harness  # noqa: E402
+from tests.basilisk.__main__ import basilisk_python  # noqa: E402
 
 CONFIG = ROOT / "configs" / "gravity_gradient_libration.yaml"
 BASILISK = ROOT / "benchmarks" / "basilisk_rigid_body.py"
@@ -66,16 +69,6 @@ def machine() -> str:
 
 def load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
-
-
-def basilisk_python(venv: Path) -> Path:
-    """The interpreter of the Basilisk environment, made (``pip install bsk``) on first use."""
-    python = venv / "bin" / "python"
-    if not python.exists():
-        print(f"(making the Basilisk environment in {venv}: pip install bsk)", file=sys.stderr)
-        subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
-        subprocess.run([str(python), "-m", "pip", "install", "-q", "bsk"], check=True)
-    return python
 
 
 def rigid_body(urdf: Path) -> tuple[float, list[list[float]]]:
@@ -187,16 +180,10 @@ def largest_angle_deg(a: np.ndarray, b: np.ndarray) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--type", default="dynamics.dart", help="the Zenorbit dynamics type (dynamics.dart)")
+    parser.add_argument("--type", default="dynamics.pinocchio", help="the Zenorbit dynamics type (dynamics.pinocchio)")
     parser.add_argument("--step", type=float, default=1.0, help="step, s (1)")
     parser.add_argument("--orbits", type=float, default=2.0, help="simulated orbits (2)")
     parser.add_argument("--rounds", type=int, default=5, help="alternating rounds (5)")
-    parser.add_argument(
-        "--venv",
-        type=Path,
-        default=ROOT / "benchmarks" / ".venv-basilisk",
-        help="Basilisk's virtual environment (made on first use)",
-    )
     args = parser.parse_args()
     from components.errors import ConfigError
     from components.registry import load as load_type
@@ -205,7 +192,7 @@ def main() -> None:
         load_type(args.type)
     except ConfigError as e:
         parser.error(f"--type: {e.message}")
-    python = basilisk_python(args.venv)
+    python = basilisk_python()
     scenario = Scenario(args.type, round(args.step * NS_PER_S), args.orbits)
     print(f"machine: {machine()}; load average {load()}")
     print(

@@ -47,6 +47,8 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from bench_performance import machine, noop_loop, run_config  # noqa: E402
 
+from tests.basilisk.__main__ import basilisk_venv  # noqa: E402
+
 CONFIGS = ROOT / "configs"
 DEMO = CONFIGS / "humanoid_tracking.yaml"
 CAPTURE = CONFIGS / "capture_tumbling_target.yaml"
@@ -54,6 +56,7 @@ RIGID = CONFIGS / "gravity_gradient_libration.yaml"
 LOOP = ["dynamics", "controller"]  # the members of the demo's and capture's commented group
 PINOCCHIO = ["components.dynamics.type=dynamics.pinocchio"]
 RIGID_STEPS = 11106  # two orbits of 6778 km at 1 s
+BASILISK_VENV = basilisk_venv()  # bench_basilisk.py's, the fixtures'
 SUMMARY = re.compile(
     r"(\d+) steps? of (\d+), ([\d.e+]+) s simulated; ([\d.]+) s wall "
     r"\(([\d.]+) s stepping, real-time factor ([\d.]+)\)"
@@ -135,7 +138,7 @@ def sweep_rate(cases: int, group: bool) -> float:
 
 def basilisk_step_us() -> float | None:
     """Basilisk's CPU per step of the same rigid body (bench_basilisk.py), if its environment exists."""
-    python = ROOT / "benchmarks" / ".venv-basilisk" / "bin" / "python"
+    python = BASILISK_VENV / "bin" / "python"
     if not python.exists():
         return None
     from bench_basilisk import Scenario
@@ -192,7 +195,7 @@ def main() -> None:
                 lambda: 1e6 / orchestrator_run(RIGID, rigid + both, record=True)["factor"],
             ),
         ]
-        if not (ROOT / "benchmarks" / ".venv-basilisk" / "bin" / "python").exists():
+        if not (BASILISK_VENV / "bin" / "python").exists():
             print(
                 f"(no Basilisk environment: its per step is --basilisk-us, {args.basilisk_us} us; "
                 f"python benchmarks/bench_basilisk.py makes it)"

@@ -2,8 +2,9 @@
 world's coordinates and Pinocchio's (see that module's docstring), and the RK4 evaluations of a
 body that steps itself (``rk4_begin``, ``rk4_evaluation``: one call per evaluation, the stage
 arithmetic, the environment and Pinocchio's inputs in it; a call's cost grows with its arguments,
-so the body's arrays come in two pools, ``unpool``). numba, no fastmath: IEEE arithmetic, the
-same bits at every run.
+so the body's arrays come in two pools, ``unpool``), and a rigid body's (no joints) whole step in
+one call without Pinocchio (``rk4_rigid``). numba, no fastmath: IEEE arithmetic, the same bits at
+every run.
 """
 
 from __future__ import annotations
@@ -86,6 +87,39 @@ def form_stage(stage, c, a, q0, v0, work, x, v):
 
 
 @numba.njit(cache=True)
+def environment_forces(x, v, tau, point, s, joints, frames, links, link_joint, constants, atmosphere, wrenches, facets):
+    """tau plus the orbital environment's generalized forces at (x, v), the reference point s
+    seconds after it was at ``point`` (R, V: ``link_forces.propagate_reference``), the terms and
+    constants from ``constants`` (``pinocchio_inputs``): ``link_forces.tree_generalized_forces``,
+    which fills ``wrenches`` (force, torque per link)."""
+    R, V = link_forces.propagate_reference(point[0:3], point[3:6], s, constants[0])
+    return link_forces.tree_generalized_forces(
+        x,
+        v,
+        tau,
+        joints,
+        frames,
+        links,
+        link_joint,
+        R,
+        V,
+        constants[0],
+        constants[3] != 0.0,
+        constants[4] != 0.0,
+        constants[5] != 0.0,
+        atmosphere,
+        constants[1],
+        constants[2],
+        wrenches[0],
+        wrenches[1],
+        constants[6] != 0.0,
+        constants[LIGHT:THIRD],
+        facets,
+        constants[THIRD:CONSTANTS],
+    )
+
+
+@numba.njit(cache=True)
 def pinocchio_inputs(
     stage,
     c,
@@ -124,30 +158,8 @@ def pinocchio_inputs(
     if stage:
         form_stage(stage, c, a, q0, v0, work, x, v)
     if environment:
-        R, V = link_forces.propagate_reference(point[0:3], point[3:6], s, constants[0])
-        Q = link_forces.tree_generalized_forces(
-            x,
-            v,
-            tau,
-            joints,
-            frames,
-            links,
-            link_joint,
-            R,
-            V,
-            constants[0],
-            constants[3] != 0.0,
-            constants[4] != 0.0,
-            constants[5] != 0.0,
-            atmosphere,
-            constants[1],
-            constants[2],
-            wrenches[0],
-            wrenches[1],
-            constants[6] != 0.0,
-            constants[LIGHT:THIRD],
-            facets,
-            constants[THIRD:CONSTANTS],
+        Q = environment_forces(
+            x, v, tau, point, s, joints, frames, links, link_joint, constants, atmosphere, wrenches, facets
         )
     else:
         Q = tau
@@ -485,3 +497,100 @@ def point_acceleration(linear, alpha, w, r):
         out[i] = alpha[i]
         out[3 + i] = linear[i] + (alpha[j] * r[k] - alpha[k] * r[j]) + (w[j] * wr[k] - w[k] * wr[j])
     return out
+
+
+RIGID = 22  # a rigid body for rigid_acceleration: mass, CoM (3), inertia about the CoM (9), its inverse (9)
+
+
+def rigid_inertia(mass: float, com: np.ndarray, inertia: np.ndarray) -> np.ndarray:
+    """``rigid_acceleration``'s body (RIGID,): ``mass`` (kg), the CoM ``com`` (m, base frame) and the
+    ``inertia`` (3, 3) about it (kg m^2, base axes)."""
+    inertia = np.asarray(inertia, dtype=float)
+    return np.concatenate([[mass], com, inertia.ravel(), np.linalg.inv(inertia).ravel()])
+
+
+@numba.njit(cache=True)
+def rigid_acceleration(rigid, x, v, Q, a):
+    """The forward dynamics of a rigid body (``rigid_inertia``) in the world's coordinates, into
+    ``a``: at x (base rotation vector, origin), v (omega, the origin's velocity, W) under Q (torque
+    about the base origin, force; W). With c the CoM from the origin and I the inertia about it
+    (W axes: R c_b, R I_b R^T): Euler about the CoM, I alpha + omega x I omega = N - c x F, and
+    Newton, m (a_o + alpha x c + omega x (omega x c)) = F. Pinocchio's ABA solves the same
+    equations (to ~1e-13: ``PinocchioBody.rk4_step``)."""
+    m = rigid[0]
+    r = manifold_rk4.exp_entries(x[0], x[1], x[2])
+    w0, w1, w2 = v[0], v[1], v[2]
+    b0 = r[0] * rigid[1] + r[1] * rigid[2] + r[2] * rigid[3]  # c = R c_b
+    b1 = r[3] * rigid[1] + r[4] * rigid[2] + r[5] * rigid[3]
+    b2 = r[6] * rigid[1] + r[7] * rigid[2] + r[8] * rigid[3]
+    o0 = r[0] * w0 + r[3] * w1 + r[6] * w2  # omega in base axes
+    o1 = r[1] * w0 + r[4] * w1 + r[7] * w2
+    o2 = r[2] * w0 + r[5] * w1 + r[8] * w2
+    i0 = rigid[4] * o0 + rigid[5] * o1 + rigid[6] * o2  # I_b omega_b
+    i1 = rigid[7] * o0 + rigid[8] * o1 + rigid[9] * o2
+    i2 = rigid[10] * o0 + rigid[11] * o1 + rigid[12] * o2
+    h0 = r[0] * i0 + r[1] * i1 + r[2] * i2  # I omega, W
+    h1 = r[3] * i0 + r[4] * i1 + r[5] * i2
+    h2 = r[6] * i0 + r[7] * i1 + r[8] * i2
+    F0, F1, F2 = Q[3], Q[4], Q[5]
+    n0 = Q[0] - (b1 * F2 - b2 * F1) - (w1 * h2 - w2 * h1)  # N - c x F - omega x I omega
+    n1 = Q[1] - (b2 * F0 - b0 * F2) - (w2 * h0 - w0 * h2)
+    n2 = Q[2] - (b0 * F1 - b1 * F0) - (w0 * h1 - w1 * h0)
+    o0 = r[0] * n0 + r[3] * n1 + r[6] * n2  # ... in base axes, through I_b^-1, back to W: alpha
+    o1 = r[1] * n0 + r[4] * n1 + r[7] * n2
+    o2 = r[2] * n0 + r[5] * n1 + r[8] * n2
+    i0 = rigid[13] * o0 + rigid[14] * o1 + rigid[15] * o2
+    i1 = rigid[16] * o0 + rigid[17] * o1 + rigid[18] * o2
+    i2 = rigid[19] * o0 + rigid[20] * o1 + rigid[21] * o2
+    al0 = r[0] * i0 + r[1] * i1 + r[2] * i2
+    al1 = r[3] * i0 + r[4] * i1 + r[5] * i2
+    al2 = r[6] * i0 + r[7] * i1 + r[8] * i2
+    u0, u1, u2 = w1 * b2 - w2 * b1, w2 * b0 - w0 * b2, w0 * b1 - w1 * b0  # omega x c
+    a[0], a[1], a[2] = al0, al1, al2
+    a[3] = F0 / m - (al1 * b2 - al2 * b1) - (w1 * u2 - w2 * u1)
+    a[4] = F1 / m - (al2 * b0 - al0 * b2) - (w2 * u0 - w0 * u2)
+    a[5] = F2 / m - (al0 * b1 - al1 * b0) - (w0 * u1 - w1 * u0)
+
+
+@numba.njit(cache=True)
+def rk4_rigid(ints, values, rigid, x, v, environment, point, h, s, stage_x, stage_v, x_end, v_end):
+    """A rigid body's whole RK4 step of h seconds from s seconds after the orbit inputs, at (x, v),
+    in one call: each evaluation ``rigid_acceleration`` under tau and (``environment``) the
+    environment at ``point`` (``link_forces.tree_generalized_forces``), the stages by
+    ``form_stage`` into (stage_x, stage_v), the end into (x_end, v_end) and the body's outputs
+    there (``body_summary``), Pinocchio's inputs as ``rk4_evaluation`` leaves them. The body's
+    arrays from its pools (``unpool``)."""
+    arrays = unpool(ints, values, 6)
+    joints, link_joint, pin_index, frames, links, constants, atmosphere, wrenches, rotation, buffer, work = arrays[:11]
+    tau, summary, facets = arrays[12:]
+    q0, v0 = work[8], work[9]
+    q0[:] = x
+    v0[:] = v
+    xs, vs = q0, v0
+    for stage in range(4):  # evaluations at s, s + h/2 (twice), s + h
+        Q = tau
+        if environment:
+            t = s + (0.0, 0.5 * h, 0.5 * h, h)[stage]
+            Q = environment_forces(
+                xs, vs, tau, point, t, joints, frames, links, link_joint, constants, atmosphere, wrenches, facets
+            )
+        a = work[3 + stage]
+        rigid_acceleration(rigid, xs, vs, Q, a)
+        if stage < 3:
+            form_stage(stage + 1, 0.5 * h if stage < 2 else h, a, q0, v0, work, stage_x, stage_v)
+            xs, vs = stage_x, stage_v
+    form_stage(4, h, work[6], q0, v0, work, x_end, v_end)
+    body_summary(x_end, v_end, joints, frames, links, link_joint, summary)
+    nq = ints[4]  # Pinocchio's inputs and R_W_base at the end, as rk4_evaluation leaves them
+    to_pinocchio(
+        x_end,
+        v_end,
+        tau,
+        pin_index[0],
+        pin_index[1],
+        pin_index[2],
+        rotation,
+        buffer[:nq],
+        buffer[nq : nq + 6],
+        buffer[nq + 6 :],
+    )

@@ -2,7 +2,8 @@
 
 Each model has a script here, ``<model>.py``, that builds the shared cases in Basilisk and prints
 their values as JSON; that output is committed beside it as ``<model>.json``, and the tests compare
-Zenorbit's models against it (``tests/unit/test_space_*.py``). Remake them with
+Zenorbit's models against it (``tests/unit/test_space_*.py``; the rigid spacecraft's,
+``tests/unit/test_dynamics_rigid.py``). Remake them with
 
     python -m tests.basilisk [MODEL ...]      # all models without arguments
 

@@ -13,9 +13,14 @@ HERE = Path(__file__).resolve().parent
 DEFAULT_VENV = Path.home() / ".cache" / "zenorbit" / "basilisk"
 
 
+def basilisk_venv() -> Path:
+    """Basilisk's environment (the fixtures' and the benchmarks')."""
+    return Path(os.environ.get("ZENORBIT_BASILISK_VENV", DEFAULT_VENV))
+
+
 def basilisk_python() -> Path:
     """The interpreter of Basilisk's environment, made (``pip install bsk numpy``) on first use."""
-    venv = Path(os.environ.get("ZENORBIT_BASILISK_VENV", DEFAULT_VENV))
+    venv = basilisk_venv()
     python = venv / "bin" / "python"
     if not python.exists():
         print(f"(making Basilisk's environment in {venv}: pip install bsk)", file=sys.stderr)

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
-from basilisk_rigid_body import quaternions, spacecraft_sim  # noqa: E402
+from basilisk_rigid_body import quaternions, spacecraft_sim
 
 CASE = {
     "mass": 200.0,

@@ -19,13 +19,14 @@ components:
 
 
 class Sink:
-    """A recording, or a table, that keeps what it is given."""
+    """A recording, or a table, that keeps what it is given: a row given with a table goes to that
+    table, as the recording's writer hands it on."""
 
     def __init__(self):
         self.rows: list[tuple[int, float, list[float]]] = []
 
-    def append(self, k: int, t: float, values: np.ndarray) -> None:
-        self.rows.append((k, t, values.tolist()))
+    def append(self, k: int, t: float, values: np.ndarray, table: Sink | None = None) -> None:
+        (table or self).rows.append((k, t, values.tolist()))
 
 
 @pytest.fixture

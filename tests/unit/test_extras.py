@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from components import extras
-from components.robots import packages
+from components.robots import packages, urdf
 from orchestrator.cli import main
 from orchestrator.config.load import load
 from orchestrator.config.yaml_file import ConfigErrors
@@ -20,7 +20,10 @@ DEMO = ROOT / "configs" / "humanoid_tracking.yaml"
 
 @pytest.fixture
 def default_install(monkeypatch):
-    """The extras' modules and ROS packages not found, as in ``pip install -e .``."""
+    """The extras' modules and ROS packages not found, as in ``pip install -e .``; no URDF parsed
+    earlier in this process (read_urdf keeps each once: a xacro that finds a hidden package
+    would otherwise come back from an earlier test's parse)."""
+    monkeypatch.setattr(urdf, "_parsed", {})
     for modules in extras.MODULES.values():
         for module in modules:
             monkeypatch.setitem(sys.modules, module, None)  # find_spec None, import fails

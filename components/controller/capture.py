@@ -74,7 +74,8 @@ from components.controller.capture_estimate import GraspTracker, fit_motion
 from components.controller.capture_law import JointLaw, LimitWatch, WheelLaw, closing_reference
 from components.controller.capture_plan import JointMove, WindowPlanner
 from components.controller.capture_settings import CLOSE_ERRORS, CaptureSettings
-from components.controller.computed_torque import ArmState, ComputedTorqueLaw, FreeFloatingArm
+from components.controller.computed_torque import ComputedTorqueLaw
+from components.controller.free_floating_arm import ArmState, FreeFloatingArm
 from components.controller.trajectory import PoseSample
 from components.rotations import log_so3
 

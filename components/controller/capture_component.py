@@ -455,7 +455,8 @@ class CaptureComponent(Component):
     def _build(self):
         from components.controller.capture import CaptureController
         from components.controller.capture_settings import CaptureSettings
-        from components.controller.computed_torque import ComputedTorqueLaw, FreeFloatingArm
+        from components.controller.computed_torque import ComputedTorqueLaw
+        from components.controller.free_floating_arm import FreeFloatingArm
 
         c, p = self.config, self.params
         arm = FreeFloatingArm(c.model, c.model.movable_joints, c.joints, p["end_effector"])

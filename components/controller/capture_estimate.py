@@ -45,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from components.controller.computed_torque import ArmState
+from components.controller.free_floating_arm import ArmState
 from components.controller.trajectory import PoseSample
 from components.errors import ComponentError
 from components.rotations import exp_so3, log_so3, quat_to_matrix, skew

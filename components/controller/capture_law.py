@@ -52,7 +52,8 @@ import numpy as np
 
 from components.controller.capture_plan import JointMove
 from components.controller.capture_settings import CaptureSettings
-from components.controller.computed_torque import ArmState, ComputedTorqueLaw, FreeFloatingArm, dls_inverse
+from components.controller.computed_torque import ComputedTorqueLaw, dls_inverse
+from components.controller.free_floating_arm import ArmState, FreeFloatingArm
 from components.controller.trajectory import PoseSample, quintic
 from components.rotations import exp_so3
 

@@ -59,7 +59,7 @@ import numpy as np
 
 from components.controller.capture_estimate import GraspEstimator
 from components.controller.capture_settings import CaptureSettings
-from components.controller.computed_torque import ArmState, FreeFloatingArm
+from components.controller.free_floating_arm import ArmState, FreeFloatingArm
 from components.controller.trajectory import PoseSample
 from components.rotations import exp_so3, skew
 

@@ -228,7 +228,8 @@ class ComputedTorqueComponent(Component):
 
     def _build(self, locked_q: np.ndarray):
         """The controller, its model welded at ``locked_q`` (the positions of ``locked_joints``)."""
-        from components.controller.computed_torque import ArmController, ComputedTorqueLaw, FreeFloatingArm
+        from components.controller.computed_torque import ArmController, ComputedTorqueLaw
+        from components.controller.free_floating_arm import FreeFloatingArm
 
         a, p = self.arm, self.params
         body = a.model.movable_joints

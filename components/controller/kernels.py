@@ -12,7 +12,7 @@ used). ``tests/unit/test_controller_model.py`` checks the kernels against the nu
 | kernel | what |
 |---|---|
 | ``gather`` | ``[M \\| c]`` in (base, arm) order from the upper triangle Pinocchio's CRBA fills, ``[J_m \\| a_0]``, ``J_b`` |
-| ``schur`` | ``M*``, ``C*``, ``J_g``, ``a_drift`` (eqs. 3, 4, 7 and the drift; module doc of computed_torque) |
+| ``schur`` | ``M*``, ``C*``, ``J_g``, ``a_drift`` (eqs. 3, 4, 7 and the drift; module doc of free_floating_arm) |
 | ``pseudo_inverse`` | the damped pseudo-inverse and the null-space projector from an SVD |
 | ``law`` | eqs. 6 and 8: the commanded acceleration, the torque clipped to the efforts, the task error |
 

@@ -62,7 +62,7 @@ def test_the_joint_move_meets_its_ends_and_its_derivatives_are_consistent():
 
 @pytest.fixture(scope="module")
 def kinematics():
-    from components.controller.computed_torque import FreeFloatingArm
+    from components.controller.free_floating_arm import FreeFloatingArm
     from components.robots.model import read_model
 
     model = read_model(str(SERVICER), None, "urdf", None)

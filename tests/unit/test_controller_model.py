@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.controller.computed_torque import FreeFloatingArm, dls_inverse
+from components.controller.computed_torque import dls_inverse
+from components.controller.free_floating_arm import FreeFloatingArm
 from components.dynamics.world import BodySpec, OrbitalWorld
 from components.robots.urdf import read_urdf
 from components.rotations import log_so3

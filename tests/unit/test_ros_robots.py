@@ -243,7 +243,7 @@ def test_controller_model_with_a_mimic_finger_matches_the_dynamics():
     """M* qdd + C* = tau of the controller's Pinocchio model (mimic applied to M, c, J) against
     DART's forward dynamics with the mimic constraint: equal to rounding (0.15 rad/s^2 off when
     the controller's model has the finger joints independent)."""
-    from components.controller.computed_torque import FreeFloatingArm
+    from components.controller.free_floating_arm import FreeFloatingArm
     from components.dynamics.world import BodySpec, OrbitalWorld
 
     model = read_urdf(PANDA_BUS)

@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 from components.constants import NS_PER_S
-from components.controller.components import ComputedTorqueComponent
+from components.controller.computed_torque_component import ComputedTorqueComponent
 from components.dynamics.component import DartDynamics
 from components.schema import Float
 from components.sdk import Component, Parameter, layouts

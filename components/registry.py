@@ -38,8 +38,8 @@ TYPES = {
     "dynamics.dart": "components.dynamics.component:DartDynamics",
     "dynamics.pinocchio": "components.dynamics.component:PinocchioDynamics",
     # controllers
-    "controller.computed_torque": "components.controller.components:ComputedTorqueComponent",
-    "controller.joint_pd": "components.controller.components:JointPDComponent",
+    "controller.computed_torque": "components.controller.computed_torque_component:ComputedTorqueComponent",
+    "controller.joint_pd": "components.controller.joint_pd_component:JointPDComponent",
     "controller.capture": "components.controller.capture_component:CaptureComponent",
     "controller.bdot": "components.controller.bdot:BdotComponent",
     "sensor.imu": "components.sensors.components:ImuComponent",

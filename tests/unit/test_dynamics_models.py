@@ -74,7 +74,7 @@ def test_a_process_parses_each_urdf_once(monkeypatch, tmp_path):
     changed file is parsed again."""
     import yaml
 
-    from components.controller.components import ComputedTorqueComponent
+    from components.controller.computed_torque_component import ComputedTorqueComponent
     from components.dynamics.component import DartDynamics
     from components.robots import urdf
     from components.sdk import RunSettings, resolve_parameters

@@ -10,7 +10,7 @@ from __future__ import annotations
 import pytest
 
 from components import registry
-from components.controller import body_loop, capture_component
+from components.controller import body_loop, capture_setup
 from components.sdk import RunSettings
 from orchestrator.config.load import load
 from tests.conftest import ROOT
@@ -41,7 +41,7 @@ def test_a_component_process_reads_its_urdf_once(config, type_name, parameters, 
 
         return read_model
 
-    for module in (body_loop, capture_component):
+    for module in (body_loop, capture_setup):
         monkeypatch.setattr(module, "read_model", counted(module.read_model))
     run = RunSettings.from_json(spec.run.to_json())  # as the instantiate message carries it
     registry.resolve(type_name, params, run).build()

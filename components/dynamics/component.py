@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from operator import itemgetter
+from typing import Any
 
 import numpy as np
 
@@ -54,6 +55,22 @@ MAGNETIC = "magnetic."  # state keys of the magnetic field and magnetorquers (co
 # 1 h, 4 rad, ends 174 deg off), and the mean motion of the lowest orbit (at Earth's radius)
 MAX_ROTATION_PER_STEP = 0.1
 ORBIT_RATE_MAX = float(np.sqrt(MU_EARTH / 6378137.0**3))
+
+
+def _grasp_spec(grasp: Mapping[str, Any]):
+    """The grasp's GraspSpec from its validated parameters."""
+    from components.dynamics.capture import GraspSpec, Tolerance
+
+    return GraspSpec(
+        chaser=grasp["chaser"],
+        end_effector=grasp["end_effector"],
+        target=grasp["target"],
+        grasp_frame=grasp["grasp_frame"],
+        tolerance=Tolerance(**grasp["tolerance"]),
+        force_limit=grasp["force_limit"],
+        torque_limit=grasp["torque_limit"],
+        on_overload=grasp["on_overload"],
+    )
 
 
 class OrbitalDynamics(Component):
@@ -166,22 +183,12 @@ class OrbitalDynamics(Component):
 
     def __init__(self, params, run, *, compile_kernels: bool = True):
         super().__init__(params, run)
-        from components.dynamics.capture import GraspSpec, Tolerance
         from components.dynamics.world import ModelError, OrbitalWorld
 
         models = load_models(params, run)
         specs = body_specs(params, models)
         grasp = params["grasp"]
-        self.grasp = grasp is not None and GraspSpec(
-            chaser=grasp["chaser"],
-            end_effector=grasp["end_effector"],
-            target=grasp["target"],
-            grasp_frame=grasp["grasp_frame"],
-            tolerance=Tolerance(**grasp["tolerance"]),
-            force_limit=grasp["force_limit"],
-            torque_limit=grasp["torque_limit"],
-            on_overload=grasp["on_overload"],
-        )
+        self.grasp = grasp is not None and _grasp_spec(grasp)
         try:
             self.world = OrbitalWorld(
                 specs,
@@ -223,25 +230,29 @@ class OrbitalDynamics(Component):
         ]
         self.quaternion_outputs += [f"{name}.q_lvlh_body" for name in self.names if self.frames]
         self.quaternion_outputs += ["grasp.q_ee_grasp", "grasp.q_c_t"] if self.grasp else []
-        self.magnetics = None  # the field and magnetorquers (magnetic_field), else nothing per step
-        field = params["magnetic_field"]
-        if field is not None:
-            from components.dynamics.magnetic import Magnetics
-            from components.space.geomagnetic import GeomagneticField
-
-            if not run.epoch:
-                raise ConfigError(EPOCH_KEY, "the magnetic field needs the run's epoch (run.epoch)")
-            dipole = {key: field[key] for key in ("g10", "g11", "h11", "radius")}
-            self.magnetics = Magnetics(
-                self.world,
-                GeomagneticField(field["model"], run.epoch, dipole),
-                {
-                    name: np.broadcast_to(np.asarray(m["max_dipole"], dtype=float), (3,))
-                    for name, m in params["magnetorquers"].items()
-                },
-            )
+        self.magnetics = self._magnetics(params, run)  # the field and magnetorquers, else None: nothing per step
         self.capture_report = None  # the last step's capture, for the event
         self.last_quaternions: dict[str, np.ndarray] = {}
+
+    def _magnetics(self, params, run):
+        """The geomagnetic field and the magnetorquers (``magnetic_field``), or None without a field."""
+        field = params["magnetic_field"]
+        if field is None:
+            return None
+        from components.dynamics.magnetic import Magnetics
+        from components.space.geomagnetic import GeomagneticField
+
+        if not run.epoch:
+            raise ConfigError(EPOCH_KEY, "the magnetic field needs the run's epoch (run.epoch)")
+        dipole = {key: field[key] for key in ("g10", "g11", "h11", "radius")}
+        return Magnetics(
+            self.world,
+            GeomagneticField(field["model"], run.epoch, dipole),
+            {
+                name: np.broadcast_to(np.asarray(m["max_dipole"], dtype=float), (3,))
+                for name, m in params["magnetorquers"].items()
+            },
+        )
 
     def _inputs(self, inputs: Mapping[str, np.ndarray], torques: bool, t_ns: int) -> None:
         age = (t_ns - self.input_times_ns.get("r_eci", t_ns)) / NS_PER_S  # < 0 under Gauss-Seidel

@@ -8,24 +8,19 @@ them; for the shipped models it is the identity and nothing is copied).
 The environment: a link welded to its parent (fixed URDF joint, locked joint) moves with its
 anchor, the nearest ancestor that is not welded (or itself). It takes one DART call per anchor,
 its Jacobian, which gives the anchor's pose and maps the wrench of its links to generalized
-forces (``link_forces.generalized_forces``: no DART call per link and wrench).
+forces (``anchor_forces.generalized_forces``: no DART call per link and wrench). The skeleton is
+loaded from the URDF in :mod:`components.dynamics.dart_skeleton`.
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
-import re
-import sys
-import tempfile
-from pathlib import Path
-
 import numpy as np
 
 from components.constants import EARTH_RATE, R_EARTH
-from components.dynamics import link_forces, manifold_rk4
-from components.dynamics.bodies import Body, BodySpec, Environment, ModelError
-from components.robots.urdf import UrdfModel, dart_urdf_text
+from components.dynamics import anchor_forces, link_forces, manifold_rk4
+from components.dynamics.bodies import Body, BodySpec, Environment
+from components.dynamics.dart_skeleton import load_skeleton
+from components.robots.urdf import UrdfModel
 from components.rotations import cross3, rpy_to_matrix
 
 ORIGIN = np.zeros(3)
@@ -39,47 +34,9 @@ class DartBody(Body):
     def __init__(self, spec: BodySpec, model: UrdfModel, environment: Environment, dart, integrator: str = "rk4"):
         super().__init__(spec, model, environment)
         self.dart = dart
-        loader = dart.utils.DartLoader()
-        options = dart.utils.DartLoader.Options()
-        options.mDefaultRootJointType = dart.utils.DartLoader.RootJointType.FLOATING
         frames = model.frame_links()
-        if any(not link.has_inertial and link.name not in frames for link in model.links):
-            massless = dart.dynamics.Inertia()  # links without <inertial>: 0 kg, as in URDF
-            massless.setMass(0.0)  # (DART's default is 1 kg; it warns on 0)
-            massless.setMoment(np.zeros((3, 3)))
-            options.mDefaultInertia = massless
-        loader.setOptions(options)
-        uri = dart.common.Uri.createFromPath(str(Path(spec.urdf).resolve()))
-        with _captured_stderr() as said:  # DART's C++ warnings: one note instead of raw lines
-            skel = loader.parseSkeletonString(dart_urdf_text(model, self.locked), uri)
-        # a massless link a fixed joint holds is harmless (it only adds a frame): no warning of it
-        held = {j.child for j in model.joints if j.type == "fixed"}
-        massless = [
-            name
-            for name in re.findall(r"zero mass \[[^\]]*\] is set to BodyNode \[([^\]]+)\]", said.text)
-            if name not in held
-        ]
-        other = [line for line in said.text.splitlines() if line.strip() and "zero mass" not in line]
-        if other:
-            print("\n".join(other), file=sys.stderr)
-        self.engine_notes = (
-            [
-                f"{len(massless)} link(s) without mass that a joint moves, as the URDF gives them "
-                f"(no <inertial>): {', '.join(massless)}; DART warns of them"
-            ]
-            if massless
-            else []
-        )
-        if skel is None:
-            raise ModelError(f"{spec.name}.urdf", f"DART could not load {spec.urdf}")
-        skel.setName(spec.name)
-        skel.setGravity(np.zeros(3))
-        skel.disableSelfCollisionCheck()
+        skel, self.engine_notes = load_skeleton(spec, model, self.locked, dart)
         self.skel = skel
-        if skel.getRootJoint().getType() != "FreeJoint":
-            raise ModelError(
-                f"{spec.name}.urdf", f"expected a free-floating base, DART made a {skel.getRootJoint().getType()}"
-            )
         dof_names = [skel.getDof(i).getName() for i in range(skel.getNumDofs())]
         # DART's dof of each coordinate; None when they agree (the usual case)
         order = np.array(list(range(6)) + [dof_names.index(j) for j in self.free_joints], dtype=int)
@@ -103,6 +60,39 @@ class DartBody(Body):
         self.local_com = np.array([bn.getLocalCOM() for bn in self.nodes]).reshape(-1, 3)
         self.local_inertia = np.array([bn.getInertia().getMoment() for bn in self.nodes]).reshape(-1, 3, 3)
         self.total_mass = float(self.mass.sum())
+        link_in_anchor = self._anchor_tables()
+        self.root = skel.getRootBodyNode()
+        node_slot = {bn.getName(): i for i, bn in enumerate(self.nodes)}
+        self.link_source = []  # (node, env slot or -1, fixed offset or None)
+        for link in self.link_names:
+            if link in frames:
+                joint = frames[link]
+                T = np.eye(4)
+                T[:3, :3], T[:3, 3] = rpy_to_matrix(joint.rpy), joint.xyz
+                self.link_source.append((nodes[joint.parent], -1, T))
+            else:
+                self.link_source.append((nodes[link], node_slot.get(link, -1), None))
+        self.massive_links = np.array([i for i, (_, slot, _) in enumerate(self.link_source) if slot >= 0], dtype=int)
+        self.massive_slots = np.array([slot for _, slot, _ in self.link_source if slot >= 0], dtype=int)
+        self.node_drag_k = np.array([self.drag_k.get(bn.getName(), 0.0) for bn in self.nodes])
+        self.srp_links, self.srp_facet_rows = self.srp_tables(
+            [bn.getName() for bn in self.nodes],
+            [T[:3, :3] for T in link_in_anchor],
+            [T[:3, 3] - c for T, c in zip(link_in_anchor, self.com_in_anchor)],
+        )
+        self.light = environment.light()  # the Sun and Moon: world.set_sun
+        self.third = environment.third()  # the third bodies' GMs (0: off)
+        self.no_third = np.zeros(2)
+        self.force = np.zeros((len(self.nodes), 3))  # environment per link, anchor axes
+        self.torque = np.zeros((len(self.nodes), 3))
+        self.dart_tau = self.tau  # tau in DART's order
+        self.forces_are_tau = False  # the skeleton's forces are tau alone
+        self.world_frame = dart.dynamics.Frame.World()
+
+    def _anchor_tables(self) -> list[np.ndarray]:
+        """Each massive node's anchor (the nearest ancestor not welded to its parent, or itself), its
+        CoM and inertia in the anchor's axes; the anchors' Jacobian columns side by side. Returns
+        each node's transform in its anchor's frame."""
         anchor_index: dict[str, int] = {}
         self.anchors = []
         slots, com_in_anchor, inertia_in_anchor, link_in_anchor = [], [], [], []
@@ -133,33 +123,7 @@ class DartBody(Body):
         ).astype(int)
         starts = np.cumsum([0] + [len(anchor_dofs) for anchor_dofs in dofs[:-1]])
         self.base_rotation_columns = (starts[:, None] + np.arange(3)).astype(int)
-        self.root = skel.getRootBodyNode()
-        node_slot = {bn.getName(): i for i, bn in enumerate(self.nodes)}
-        self.link_source = []  # (node, env slot or -1, fixed offset or None)
-        for link in self.link_names:
-            if link in frames:
-                joint = frames[link]
-                T = np.eye(4)
-                T[:3, :3], T[:3, 3] = rpy_to_matrix(joint.rpy), joint.xyz
-                self.link_source.append((nodes[joint.parent], -1, T))
-            else:
-                self.link_source.append((nodes[link], node_slot.get(link, -1), None))
-        self.massive_links = np.array([i for i, (_, slot, _) in enumerate(self.link_source) if slot >= 0], dtype=int)
-        self.massive_slots = np.array([slot for _, slot, _ in self.link_source if slot >= 0], dtype=int)
-        self.node_drag_k = np.array([self.drag_k.get(bn.getName(), 0.0) for bn in self.nodes])
-        self.srp_links, self.srp_facet_rows = self.srp_tables(
-            [bn.getName() for bn in self.nodes],
-            [T[:3, :3] for T in link_in_anchor],
-            [T[:3, 3] - c for T, c in zip(link_in_anchor, self.com_in_anchor)],
-        )
-        self.light = environment.light()  # the Sun and Moon: world.set_sun
-        self.third = environment.third()  # the third bodies' GMs (0: off)
-        self.no_third = np.zeros(2)
-        self.force = np.zeros((len(self.nodes), 3))  # environment per link, anchor axes
-        self.torque = np.zeros((len(self.nodes), 3))
-        self.dart_tau = self.tau  # tau in DART's order
-        self.forces_are_tau = False  # the skeleton's forces are tau alone
-        self.world_frame = dart.dynamics.Frame.World()
+        return link_in_anchor
 
     # -- state
     def base_coordinates(self, R, p) -> np.ndarray:
@@ -213,7 +177,7 @@ class DartBody(Body):
         v_com = np.array([bn.getCOMLinearVelocity() for bn in self.nodes]).reshape(-1, 3) if drag else self.force
         e = self.environment
         atmosphere = e.atmosphere
-        forces = link_forces.generalized_forces(
+        forces = anchor_forces.generalized_forces(
             J,
             self.base_rotation_columns,
             self.jacobian_anchor,
@@ -354,24 +318,3 @@ class DartBody(Body):
     def point_bias(self, link: str, point: np.ndarray) -> np.ndarray:
         node, point = self._node_point(link, point)
         return self.skel.getJacobianClassicDeriv(node, point, self.world_frame) @ self.skel.getVelocities()
-
-
-class _Said:
-    text = ""
-
-
-@contextlib.contextmanager
-def _captured_stderr():
-    """What C++ writes to file descriptor 2 meanwhile, as ``.text`` after the block."""
-    said = _Said()
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile() as sink:
-        os.dup2(sink.fileno(), 2)
-        try:
-            yield said
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            sink.seek(0)
-            said.text = re.sub(r"\x1b\[[0-9;]*m", "", sink.read().decode(errors="replace"))

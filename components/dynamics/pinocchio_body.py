@@ -14,32 +14,37 @@ orthogonal map v -> v_pin. Continuous joints are (cos q, sin q) in Pinocchio's c
 The model is the URDF text the DART loader gets (``UrdfModel.text``: meshes resolved), with the
 locked joints welded at their positions (``pinocchio.buildReducedModel``); mimic joints are
 independent joints (the world holds them). The environment goes in as generalized forces
-(``link_forces.tree_generalized_forces``: forward kinematics over the model's tree, compiled,
+(``tree_forces.tree_generalized_forces``: forward kinematics over the model's tree, compiled,
 the links' inertia from the URDF). The compiled kernels are in
 :mod:`components.dynamics.pinocchio_kernels`: an evaluation is one compiled call and one ABA, and
 the step's last call also forms the outputs (pose, twist, CoM and momentum over the same tree:
-``body_summary``, which agrees with Pinocchio's centroidal momentum to rounding). A rigid body (no
+``tree_outputs.body_summary``, which agrees with Pinocchio's centroidal momentum to rounding). A rigid body (no
 joints) steps in one compiled call without Pinocchio (``rk4_rigid``: a rigid body's Newton-Euler in
-place of the ABA: one call instead of five and four ABAs).
+place of the ABA: one call instead of five and four ABAs). The conversions between the coordinates
+are compiled in :mod:`components.dynamics.pinocchio_conversions`; the model and its tables are made
+in :mod:`components.dynamics.pinocchio_model`, the outputs given in
+:mod:`components.dynamics.pinocchio_outputs`.
 """
 
 from __future__ import annotations
 
 import functools
-import math
 
 import numpy as np
 
 from components.constants import EARTH_RATE, R_EARTH
-from components.dynamics import link_forces, manifold_rk4
+from components.dynamics import manifold_rk4
+from components.dynamics import pinocchio_conversions as conversions
 from components.dynamics import pinocchio_kernels as kernels
-from components.dynamics.bodies import Body, BodySpec, Environment, ModelError
+from components.dynamics.bodies import Body, BodySpec, Environment
+from components.dynamics.pinocchio_model import link_rows, load_model, tree_tables
+from components.dynamics.pinocchio_outputs import PinocchioOutputs
 from components.robots.urdf import UrdfModel
 
 NO_STAGE = np.zeros(0)  # pinocchio_inputs' a when x, v are formed (and its R, V without environment)
 
 
-class PinocchioBody(Body):
+class PinocchioBody(PinocchioOutputs, Body):
     """A body as a Pinocchio model; the state is held here, in the world's coordinates (``x``, ``v``)."""
 
     engine = "pinocchio"
@@ -49,60 +54,17 @@ class PinocchioBody(Body):
 
         super().__init__(spec, model, environment)
         self.pin = pin
-        try:
-            full = pin.buildModelFromXML(model.text, pin.JointModelFreeFlyer())
-        except (RuntimeError, ValueError) as e:
-            raise ModelError(f"{spec.name}.urdf", f"Pinocchio could not load {spec.urdf}: {e}") from None
-        if self.locked:
-            reference = pin.neutral(full)
-            for name, value in self.locked.items():
-                joint = full.joints[full.getJointId(name)]
-                if joint.nq == 2:  # continuous: (cos, sin)
-                    reference[joint.idx_q : joint.idx_q + 2] = math.cos(value), math.sin(value)
-                else:
-                    reference[joint.idx_q] = value
-            pm = pin.buildReducedModel(full, [full.getJointId(n) for n in self.locked], reference)
-        else:
-            pm = full
-        pm.gravity = pin.Motion.Zero()
+        pm = load_model(pin, spec, model, self.locked)
         self.pm, self.data = pm, pm.createData()
         joints = [pm.joints[pm.getJointId(j)] for j in self.free_joints]
         self.idx_q = np.array([j.idx_q for j in joints], dtype=np.int64)
         self.nq = np.array([j.nq for j in joints], dtype=np.int64)
         self.idx_v = np.array([j.idx_v for j in joints], dtype=np.int64)
-        # the tree for the environment (link_forces.tree_kinematics): joint 1 is the free flyer
-        nj = pm.njoints
-        self.tree_joints = np.zeros((nj, 3), dtype=np.int64)  # parent, kind, coordinate
-        self.tree_frames = np.zeros((nj, 15))  # placement R, p; axis
-        for j in range(1, nj):
-            placement = pm.jointPlacements[j]
-            self.tree_frames[j, :12] = np.concatenate([placement.rotation.ravel(), placement.translation])
-            self.tree_joints[j, 0] = pm.parents[j]
-            if j >= 2:
-                joint = model.joint(pm.names[j])
-                kind = link_forces.PRISMATIC if joint.type == "prismatic" else link_forces.REVOLUTE
-                self.tree_joints[j, 1:] = kind, 6 + self.free_joints.index(joint.name)
-                self.tree_frames[j, 12:] = joint.axis
+        self.tree_joints, self.tree_frames = tree_tables(pm, model, self.free_joints)
         # links: each URDF link's frame (its joint, its placement there); those with mass
         self.frame_id = {link: pm.getFrameId(link, pin.BODY) for link in self.link_names}
         self.massive_links = np.array([i for i, link in enumerate(model.links) if link.mass > 0.0], dtype=np.int64)
-        joint_of, rows, placements = [], [], []
-        for i in self.massive_links:
-            link = model.links[i]
-            frame = pm.frames[self.frame_id[link.name]]
-            P = frame.placement
-            joint_of.append(frame.parentJoint)
-            placements.append(P)
-            inertia = P.rotation @ np.array(link.inertia).reshape(3, 3) @ P.rotation.T
-            rows.append(
-                np.concatenate(
-                    [
-                        P.rotation @ np.array(link.com) + P.translation,
-                        inertia.ravel(),
-                        [link.mass, self.drag_k[link.name]],
-                    ]
-                )
-            )
+        joint_of, rows, placements = link_rows(pm, model, self.massive_links, self.frame_id, self.drag_k)
         self.link_joint = np.array(joint_of, dtype=np.int64)
         rows = np.array(rows).reshape(-1, 14)
         srp_links, self.facets = self.srp_tables(
@@ -131,7 +93,7 @@ class PinocchioBody(Body):
         self.buffer = np.concatenate([pin.neutral(pm), np.zeros(2 * pm.nv)])
         self.q_pin, self.v_pin, self.tau_pin = np.split(self.buffer, [pm.nq, pm.nq + pm.nv])  # views
         self.step_values = np.zeros(9)  # (rk4_begin's: environment, h, s, point)
-        self.summary = np.zeros(25)  # (kernels.body_summary's: pose, twist, CoM, momentum)
+        self.summary = np.zeros(25)  # (tree_outputs.body_summary's: pose, twist, CoM, momentum)
         self.pool()
         inertia = pm.inertias[1]  # a rigid body (no joints: Pinocchio merged its links here) steps in one call
         self.rigid = kernels.rigid_inertia(inertia.mass, inertia.lever, inertia.inertia) if pm.nv == 6 else None
@@ -325,146 +287,10 @@ class PinocchioBody(Body):
         )
         self.stage, self.synced, self.summarized, self.jacobians = 0, True, False, False
         ddq = self.pin.aba(self.pm, self.data, self.q_pin, self.v_pin, self.tau_pin)
-        return kernels.from_pinocchio(ddq, self.v_pin, self.rotation, self.idx_v, np.empty(self.ndofs))
+        return conversions.from_pinocchio(ddq, self.v_pin, self.rotation, self.idx_v, np.empty(self.ndofs))
 
     def inverse_mass(self) -> np.ndarray:
         if not self.synced:
             self._sync()
         upper = self.pin.computeMinverse(self.pm, self.data, self.q_pin)
-        return kernels.world_inverse_mass(upper, self.rotation, self.idx_v)
-
-    # -- outputs
-    def base_pose(self):
-        if not self.synced:
-            self._sync()
-        return self.rotation.copy(), self.x[3:6]  # (an x is never written once formed)
-
-    def orientation(self, R: np.ndarray) -> np.ndarray:
-        """The configuration's quaternion (w = cos(|phi|/2), made >= 0)."""
-        if not self.synced:
-            self._sync()
-        q = self.q_pin[3:7].copy()
-        return -q if q[3] < 0.0 else q
-
-    def _summary(self) -> np.ndarray:
-        if not self.synced:
-            self._sync()
-        if not self.summarized:
-            kernels.summary(self.ints, self.values, self.x, self.v)
-            self.summarized = True
-        return self.summary
-
-    def state_outputs(self) -> dict[str, np.ndarray]:
-        o = self._summary().copy()
-        return {
-            "position": o[0:3],
-            "orientation": o[3:7],
-            "twist": o[7:13],
-            "q": self.joint_positions(self.x),
-            "qd": self.joint_velocities(self.v),
-            "com": o[13:16],
-            "momentum": o[19:25],
-        }
-
-    def com(self) -> np.ndarray:
-        return self._summary()[13:16].copy()
-
-    def com_velocity(self) -> np.ndarray:
-        return self._summary()[16:19].copy()
-
-    def momentum(self, com=None, base_position=None) -> np.ndarray:
-        return self._summary()[19:25].copy()  # (linear, angular about the CoM), W axes
-
-    def _frames(self) -> None:
-        if not self.synced:
-            self._sync()
-        self.pin.framesForwardKinematics(self.pm, self.data, self.q_pin)
-
-    def link_transforms(self) -> np.ndarray:
-        self._frames()
-        return np.array([self.data.oMf[self.frame_id[link]].homogeneous for link in self.link_names])
-
-    def environment_wrenches(self, R, V):
-        return self._wrenches(
-            R,
-            V,
-            (((True, True, False, False, False), ((0, 0), (2, 1))), ((False, False, True, False, False), ((1, 0),))),
-            3,
-        )
-
-    def srp_wrenches(self, R, V):
-        return self._wrenches(R, V, (((False, False, False, True, False), ((0, 0), (1, 1))),), 2)
-
-    def third_body_forces(self, R, V):
-        return self._wrenches(R, V, (((False, False, False, False, True), ((0, 0),)),), 1)[0]
-
-    def _wrenches(self, R, V, calls, count):
-        """Per URDF link, W axes: ``count`` outputs, each call's terms (tidal, gravity gradient,
-        drag, SRP, third bodies) on filling outputs from its (output, force 0 or torque 1) pairs."""
-        R, V = np.asarray(R, dtype=float), np.asarray(V, dtype=float)
-        if self.stage:
-            self._sync()
-        out = [np.zeros((len(self.link_names), 3)) for _ in range(count)]
-        for terms, parts in calls:
-            third = terms[4] and self.third.any()
-            terms = self.terms & np.array(terms[:4])
-            if terms.any() or third:
-                link_forces.tree_generalized_forces(
-                    self.x,
-                    self.v,
-                    self.tau,
-                    self.tree_joints,
-                    self.tree_frames,
-                    self.tree_links,
-                    self.link_joint,
-                    R,
-                    V,
-                    self.environment.mu,
-                    terms[0],
-                    terms[1],
-                    terms[2],
-                    self.atmosphere,
-                    EARTH_RATE,
-                    R_EARTH,
-                    self.force,
-                    self.torque,
-                    terms[3],
-                    self.light,
-                    self.facets,
-                    self.third if third else self.no_third,
-                )
-                for part, wrench in parts:
-                    out[part][self.massive_links] = self.wrenches[wrench]
-        return tuple(out)
-
-    # -- a grasp
-    def link_pose(self, link: str):
-        self._frames()
-        placement = self.data.oMf[self.frame_id[link]]
-        return placement.translation.copy(), placement.rotation.copy()
-
-    def point_jacobian(self, link: str, point: np.ndarray) -> np.ndarray:
-        pin = self.pin
-        if not self.synced:
-            self._sync()
-        if not self.jacobians:  # the joints' Jacobians, once per state
-            pin.computeJointJacobians(self.pm, self.data, self.q_pin)
-            self.jacobians = True
-        frame = self.frame_id[link]
-        J = pin.getFrameJacobian(self.pm, self.data, frame, pin.LOCAL_WORLD_ALIGNED)  # [linear; angular]
-        r = pin.updateFramePlacement(self.pm, self.data, frame).rotation @ point
-        return kernels.world_point_jacobian(J, r, self.rotation, self.idx_v)
-
-    def point_bias(self, link: str, point: np.ndarray) -> np.ndarray:
-        """Pinocchio's forward kinematics at the acceleration that is zero in the world's
-        coordinates (``zero_world_acceleration``)."""
-        pin = self.pin
-        if not self.synced:
-            self._sync()
-        a = kernels.zero_world_acceleration(self.v_pin)
-        pin.forwardKinematics(self.pm, self.data, self.q_pin, self.v_pin, a)  # (the same q: data.J holds)
-        frame = self.frame_id[link]
-        r = pin.updateFramePlacement(self.pm, self.data, frame).rotation @ point
-        acceleration = pin.getFrameClassicalAcceleration(self.pm, self.data, frame, pin.LOCAL_WORLD_ALIGNED)
-        w = pin.getFrameVelocity(self.pm, self.data, frame, pin.LOCAL_WORLD_ALIGNED).angular
-        return kernels.point_acceleration(acceleration.linear, acceleration.angular, w, r)
+        return conversions.world_inverse_mass(upper, self.rotation, self.idx_v)

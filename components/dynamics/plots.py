@@ -86,14 +86,7 @@ def capture(run: RecordedRun, c: str) -> dict:
     qd = run.vector(f"{c}.{chaser}.qd")
     joints = run.joint_names((params["bodies"][chaser] or {}).get("urdf"), qd.shape[1]) if qd is not None else []
     wheels = [i for i, j in enumerate(joints) if "wheel" in j] if qd is not None else []
-    total = np.zeros((len(t), 6))
-    for body in params.get("bodies") or {}:
-        momentum, com = run.vector(f"{c}.{body}.momentum", 6), run.vector(f"{c}.{body}.com", 3)
-        if momentum is None or com is None:
-            total = None
-            break
-        total[:, :3] += momentum[:, :3]
-        total[:, 3:] += momentum[:, 3:] + np.cross(com, momentum[:, :3])
+    total = _total_momentum(run, c, params, len(t))
     fig = new_figure(12.0, 15.0)
     axes = fig.subplot_mosaic(
         [["distance", "rate"], ["rel_v", "rel_w"], ["force", "torque"], ["wheels", "wheels"], ["p", "L"]]
@@ -136,6 +129,19 @@ def capture(run: RecordedRun, c: str) -> dict:
         if len(ax.get_legend_handles_labels()[0]) > 1:
             ax.legend(loc="upper right", fontsize="x-small", ncols=2)
     return {f"{c}_capture.png": fig}
+
+
+def _total_momentum(run: RecordedRun, c: str, params: dict, rows: int) -> np.ndarray | None:
+    """All bodies' momentum (linear; angular about W's origin), or None when a body's momentum or
+    CoM is not recorded."""
+    total = np.zeros((rows, 6))
+    for body in params.get("bodies") or {}:
+        momentum, com = run.vector(f"{c}.{body}.momentum", 6), run.vector(f"{c}.{body}.com", 3)
+        if momentum is None or com is None:
+            return None
+        total[:, :3] += momentum[:, :3]
+        total[:, 3:] += momentum[:, 3:] + np.cross(com, momentum[:, :3])
+    return total
 
 
 def _momentum_changed_by(params: dict) -> str:

@@ -54,8 +54,6 @@ def _links_in_w(context: RosContext, dynamics: str, body: str, urdf, position, o
 
 
 def _topics(context: RosContext, dynamics: str):
-    from components.robots.urdf import read_urdf, source_text
-
     run, stamps = context.run, context.stamps
     try:
         bodies = body_items(run.parameters(dynamics).get("bodies"))
@@ -71,80 +69,7 @@ def _topics(context: RosContext, dynamics: str):
             transforms[row].append(context.transform(ns, ROOT_FRAME, world, r_eci[row], (0.0, 0.0, 0.0, 1.0)))
     topics = []
     for body, spec in bodies:
-        prefix = f"{dynamics}.{body}"
-        position, orientation = run.vector(f"{prefix}.position", 3), run.vector(f"{prefix}.orientation", 4)
-        twist, q, qd = run.vector(f"{prefix}.twist", 6), run.vector(f"{prefix}.q"), run.vector(f"{prefix}.qd")
-        try:
-            urdf = resolve_urdf(spec["urdf"], run.config_dir, f"bodies.{body}.urdf", _packages(context))
-            model = read_urdf(urdf, _packages(context))
-            description = source_text(urdf, _packages(context))
-        except (ConfigError, ValueError, OSError) as e:
-            context.warn(f"{prefix}: its URDF cannot be read ({e}); no joint names, links or robot_description")
-            urdf = model = None
-        if model is not None:
-            topics.append(
-                RosTopic(
-                    f"/{dynamics}/{body}/robot_description",
-                    "std_msgs/msg/String",
-                    [(int(stamps[0]), context.msg("std_msgs/msg/String")(data=description))],
-                    latched=True,
-                )
-            )
-        if position is None or orientation is None:
-            continue
-        base = link_frame(dynamics, body, model.root if model else "base")
-        links = _links_in_w(context, dynamics, body, urdf, position, orientation, q) if model else None
-        for row, ns in enumerate(stamps):
-            transforms[row].append(context.transform(ns, world, base, position[row], orientation[row]))
-            if links is not None:
-                for j, link in enumerate(model.link_names):
-                    if link != model.root:
-                        transforms[row].append(
-                            context.transform(
-                                ns, world, link_frame(dynamics, body, link), links[0][row, j], links[1][row, j]
-                            )
-                        )
-        Pose, PoseStamped = context.msg("geometry_msgs/msg/Pose"), context.msg("geometry_msgs/msg/PoseStamped")
-        topics.append(
-            RosTopic(
-                f"/{dynamics}/{body}/pose",
-                "geometry_msgs/msg/PoseStamped",
-                [
-                    (
-                        int(ns),
-                        PoseStamped(
-                            header=context.header(ns, world),
-                            pose=Pose(
-                                position=context.point(position[row]), orientation=context.quaternion(orientation[row])
-                            ),
-                        ),
-                    )
-                    for row, ns in enumerate(stamps)
-                ],
-            )
-        )
-        if twist is not None:
-            Twist, TwistStamped = context.msg("geometry_msgs/msg/Twist"), context.msg("geometry_msgs/msg/TwistStamped")
-            topics.append(
-                RosTopic(
-                    f"/{dynamics}/{body}/twist",
-                    "geometry_msgs/msg/TwistStamped",
-                    [
-                        (
-                            int(ns),
-                            TwistStamped(
-                                header=context.header(ns, world),
-                                twist=Twist(
-                                    linear=context.vector3(twist[row, :3]), angular=context.vector3(twist[row, 3:])
-                                ),
-                            ),
-                        )
-                        for row, ns in enumerate(stamps)
-                    ],
-                )
-            )
-        if q is not None:
-            topics.append(_joint_states(context, dynamics, body, model, q, qd))
+        topics += _body_topics(context, dynamics, body, spec, world, transforms)
     topics.insert(
         0,
         RosTopic(
@@ -152,6 +77,90 @@ def _topics(context: RosContext, dynamics: str):
         ),
     )
     return topics
+
+
+def _body_topics(context: RosContext, dynamics: str, body: str, spec, world: str, transforms: list[list]):
+    """One body's topics (robot_description, pose, twist, joint_states); its frames appended to
+    ``transforms`` (one list per row)."""
+    from components.robots.urdf import read_urdf, source_text
+
+    run, stamps = context.run, context.stamps
+    prefix = f"{dynamics}.{body}"
+    position, orientation = run.vector(f"{prefix}.position", 3), run.vector(f"{prefix}.orientation", 4)
+    twist, q, qd = run.vector(f"{prefix}.twist", 6), run.vector(f"{prefix}.q"), run.vector(f"{prefix}.qd")
+    try:
+        urdf = resolve_urdf(spec["urdf"], run.config_dir, f"bodies.{body}.urdf", _packages(context))
+        model = read_urdf(urdf, _packages(context))
+        description = source_text(urdf, _packages(context))
+    except (ConfigError, ValueError, OSError) as e:
+        context.warn(f"{prefix}: its URDF cannot be read ({e}); no joint names, links or robot_description")
+        urdf = model = None
+    topics = []
+    if model is not None:
+        topics.append(
+            RosTopic(
+                f"/{dynamics}/{body}/robot_description",
+                "std_msgs/msg/String",
+                [(int(stamps[0]), context.msg("std_msgs/msg/String")(data=description))],
+                latched=True,
+            )
+        )
+    if position is None or orientation is None:
+        return topics
+    base = link_frame(dynamics, body, model.root if model else "base")
+    links = _links_in_w(context, dynamics, body, urdf, position, orientation, q) if model else None
+    for row, ns in enumerate(stamps):
+        transforms[row].append(context.transform(ns, world, base, position[row], orientation[row]))
+        if links is not None:
+            for j, link in enumerate(model.link_names):
+                if link != model.root:
+                    transforms[row].append(
+                        context.transform(
+                            ns, world, link_frame(dynamics, body, link), links[0][row, j], links[1][row, j]
+                        )
+                    )
+    topics.append(_pose_topic(context, dynamics, body, world, position, orientation))
+    if twist is not None:
+        topics.append(_twist_topic(context, dynamics, body, world, twist))
+    if q is not None:
+        topics.append(_joint_states(context, dynamics, body, model, q, qd))
+    return topics
+
+
+def _pose_topic(context: RosContext, dynamics: str, body: str, world: str, position, orientation) -> RosTopic:
+    Pose, PoseStamped = context.msg("geometry_msgs/msg/Pose"), context.msg("geometry_msgs/msg/PoseStamped")
+    return RosTopic(
+        f"/{dynamics}/{body}/pose",
+        "geometry_msgs/msg/PoseStamped",
+        [
+            (
+                int(ns),
+                PoseStamped(
+                    header=context.header(ns, world),
+                    pose=Pose(position=context.point(position[row]), orientation=context.quaternion(orientation[row])),
+                ),
+            )
+            for row, ns in enumerate(context.stamps)
+        ],
+    )
+
+
+def _twist_topic(context: RosContext, dynamics: str, body: str, world: str, twist) -> RosTopic:
+    Twist, TwistStamped = context.msg("geometry_msgs/msg/Twist"), context.msg("geometry_msgs/msg/TwistStamped")
+    return RosTopic(
+        f"/{dynamics}/{body}/twist",
+        "geometry_msgs/msg/TwistStamped",
+        [
+            (
+                int(ns),
+                TwistStamped(
+                    header=context.header(ns, world),
+                    twist=Twist(linear=context.vector3(twist[row, :3]), angular=context.vector3(twist[row, 3:])),
+                ),
+            )
+            for row, ns in enumerate(context.stamps)
+        ],
+    )
 
 
 def _joint_states(context: RosContext, dynamics: str, body: str, model, q, qd) -> RosTopic:

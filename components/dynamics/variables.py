@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from components.dynamics.specs import load_models
+from components.robots.urdf import UrdfModel
 from components.sdk import RunSettings, Variable
 from components.signals import body_signals, orbit_signals, torque_signal
 
@@ -152,6 +153,63 @@ def magnetic_variables(name: str, magnetorquers: bool) -> list[Variable]:
     return variables
 
 
+def link_variables(name: str, model: UrdfModel, third_bodies: bool) -> list[Variable]:
+    """The body's per-link outputs (``link_outputs: true``)."""
+    m = len(model.links)
+    link_names = ", ".join(model.link_names)
+    variables = [
+        Variable(
+            f"{name}.gg_torque",
+            "output",
+            (3 * m,),
+            "N*m",
+            0.0,
+            f"gravity-gradient torque per link about its CoM, W axes, links: {link_names} "
+            "(this and the next four only with link_outputs: true)",
+        ),
+        Variable(f"{name}.tidal_force", "output", (3 * m,), "N", 0.0, "tidal force per link, W axes"),
+        Variable(f"{name}.drag_force", "output", (3 * m,), "N", 0.0, "drag force per link, W axes"),
+        Variable(
+            f"{name}.srp_force",
+            "output",
+            (3 * m,),
+            "N",
+            0.0,
+            "solar radiation pressure force per link at its CoM, W axes",
+        ),
+        Variable(
+            f"{name}.srp_torque",
+            "output",
+            (3 * m,),
+            "N*m",
+            0.0,
+            "solar radiation pressure torque per link about its CoM, W axes",
+        ),
+        Variable(f"{name}.link_position", "output", (3 * m,), "m", 0.0, "link frame origins in W"),
+        Variable(
+            f"{name}.link_orientation",
+            "output",
+            (4 * m,),
+            "1",
+            np.tile([0.0, 0.0, 0.0, 1.0], m),
+            "q_W_link per link [x, y, z, w]",
+        ),
+    ]
+    if third_bodies:
+        variables.append(
+            Variable(
+                f"{name}.third_body_force",
+                "output",
+                (3 * m,),
+                "N",
+                0.0,
+                "the third bodies' (Sun's, Moon's) tidal force per link at its CoM, W axes "
+                "(with link_outputs and third_bodies)",
+            )
+        )
+    return variables
+
+
 def dynamics_variables(params: Mapping[str, Any], run: RunSettings) -> list[Variable]:
     """Every input and output of a dynamics type with these parameters."""
     lvlh = "used at initialize for frame: lvlh bodies"
@@ -161,61 +219,9 @@ def dynamics_variables(params: Mapping[str, Any], run: RunSettings) -> list[Vari
     )
     links = params.get("link_outputs", False)
     for name, model in load_models(params, run).items():
-        m = len(model.links)
-        link_names = ", ".join(model.link_names)
         variables += [torque_signal("input", model, name)] + body_signals("output", model, name)
-        if not links:
-            continue
-        variables += [
-            Variable(
-                f"{name}.gg_torque",
-                "output",
-                (3 * m,),
-                "N*m",
-                0.0,
-                f"gravity-gradient torque per link about its CoM, W axes, links: {link_names} "
-                "(this and the next four only with link_outputs: true)",
-            ),
-            Variable(f"{name}.tidal_force", "output", (3 * m,), "N", 0.0, "tidal force per link, W axes"),
-            Variable(f"{name}.drag_force", "output", (3 * m,), "N", 0.0, "drag force per link, W axes"),
-            Variable(
-                f"{name}.srp_force",
-                "output",
-                (3 * m,),
-                "N",
-                0.0,
-                "solar radiation pressure force per link at its CoM, W axes",
-            ),
-            Variable(
-                f"{name}.srp_torque",
-                "output",
-                (3 * m,),
-                "N*m",
-                0.0,
-                "solar radiation pressure torque per link about its CoM, W axes",
-            ),
-            Variable(f"{name}.link_position", "output", (3 * m,), "m", 0.0, "link frame origins in W"),
-            Variable(
-                f"{name}.link_orientation",
-                "output",
-                (4 * m,),
-                "1",
-                np.tile([0.0, 0.0, 0.0, 1.0], m),
-                "q_W_link per link [x, y, z, w]",
-            ),
-        ]
-        if params.get("third_bodies"):
-            variables.append(
-                Variable(
-                    f"{name}.third_body_force",
-                    "output",
-                    (3 * m,),
-                    "N",
-                    0.0,
-                    "the third bodies' (Sun's, Moon's) tidal force per link at its CoM, W axes "
-                    "(with link_outputs and third_bodies)",
-                )
-            )
+        if links:
+            variables += link_variables(name, model, bool(params.get("third_bodies")))
     for name in load_models(params, run):
         if params.get("frame_outputs", False):
             variables += frame_variables(name)

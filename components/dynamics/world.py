@@ -73,6 +73,30 @@ INTEGRATORS = ("rk4", "dart")
 ENGINES = ("dart", "pinocchio")
 
 
+def _check_stepping(engine: str, integrator: str, substeps: int) -> None:
+    """ValueError unless the engine, its integrator and the substeps are ones a world takes."""
+    if engine not in ENGINES:
+        raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
+    integrators = INTEGRATORS if engine == "dart" else ("rk4",)  # contacts: DART's own step only
+    if integrator not in integrators:
+        raise ValueError(
+            f"integrator: expected one of {', '.join(integrators)} with engine {engine}, got {integrator!r}"
+        )
+    if not (isinstance(substeps, int) and substeps >= 1):
+        raise ValueError(f"substeps: expected an integer >= 1, got {substeps!r}")
+
+
+def _check_sky(eclipse: str, third_bodies: tuple[str, ...]) -> None:
+    """ValueError unless the eclipse model and the third bodies are known ones (the bodies distinct)."""
+    if eclipse not in ECLIPSE_MODELS:
+        raise ValueError(f"eclipse: expected one of {', '.join(ECLIPSE_MODELS)}, got {eclipse!r}")
+    unknown = [b for b in third_bodies if b not in THIRD_BODIES]
+    if unknown or len(set(third_bodies)) < len(third_bodies):
+        raise ValueError(
+            f"third_bodies: expected distinct names of {', '.join(THIRD_BODIES)}, got {list(third_bodies)}"
+        )
+
+
 class OrbitalWorld(WorldOutputs, WorldState):
     """Free-floating URDF bodies in the free-falling frame W, with the orbital environment.
 
@@ -120,27 +144,13 @@ class OrbitalWorld(WorldOutputs, WorldState):
         solar_flux: float = SOLAR_FLUX,
         third_bodies: tuple[str, ...] = (),
     ):
-        if engine not in ENGINES:
-            raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
-        integrators = INTEGRATORS if engine == "dart" else ("rk4",)  # contacts: DART's own step only
-        if integrator not in integrators:
-            raise ValueError(
-                f"integrator: expected one of {', '.join(integrators)} with engine {engine}, got {integrator!r}"
-            )
-        if not (isinstance(substeps, int) and substeps >= 1):
-            raise ValueError(f"substeps: expected an integer >= 1, got {substeps!r}")
+        _check_stepping(engine, integrator, substeps)
         self.engine, self.integrator, self.substeps = engine, integrator, substeps
         self.tidal, self.gg, self.drag = bool(tidal_force), bool(gravity_gradient), bool(drag)
         self.mu = float(mu)
         self.atmosphere = atmosphere or env.ExponentialAtmosphere()
-        if eclipse not in ECLIPSE_MODELS:
-            raise ValueError(f"eclipse: expected one of {', '.join(ECLIPSE_MODELS)}, got {eclipse!r}")
+        _check_sky(eclipse, third_bodies)
         self.srp = bool(srp)
-        unknown = [b for b in third_bodies if b not in THIRD_BODIES]
-        if unknown or len(set(third_bodies)) < len(third_bodies):
-            raise ValueError(
-                f"third_bodies: expected distinct names of {', '.join(THIRD_BODIES)}, got {list(third_bodies)}"
-            )
         self.third_bodies = tuple(third_bodies)
         self.environment = Environment(
             self.mu,
@@ -158,18 +168,8 @@ class OrbitalWorld(WorldOutputs, WorldState):
         self.sun_eci, self.moon_eci = None, None  # set_sun
         self.joint_limits = bool(joint_limits)
         self.dart_world = None
-        if engine == "dart":
-            import dartpy as dart
-
-            self.dart_world = dart.simulation.World()
-            self.dart_world.setGravity(np.zeros(3))
         self.bodies: dict[str, Body] = {}
-        for spec in bodies:
-            if spec.name in self.bodies:
-                raise ModelError(spec.name, "duplicate body name")
-            model = (models or {}).get(spec.name) or read_urdf(spec.urdf)
-            check_spec(spec, model)
-            self.bodies[spec.name] = self._body(spec, model)
+        self._make_bodies(bodies, models)
         self.grasp = self._make_grasp(grasp) if grasp is not None else None
         self.r_eci = np.zeros(3)
         self.v_eci = np.zeros(3)
@@ -180,6 +180,20 @@ class OrbitalWorld(WorldOutputs, WorldState):
         self._orbit_changed()  # environment_on: the environment applies (r_eci = 0: no orbit, none)
         if compile_kernels:  # not for a check of the models (orchestrator check stays quick)
             integration.compile_kernels(self)
+
+    def _make_bodies(self, bodies: list[BodySpec], models: Mapping[str, UrdfModel] | None) -> None:
+        """The engine's bodies into ``bodies`` (and, engine dart, its world first)."""
+        if self.engine == "dart":
+            import dartpy as dart
+
+            self.dart_world = dart.simulation.World()
+            self.dart_world.setGravity(np.zeros(3))
+        for spec in bodies:
+            if spec.name in self.bodies:
+                raise ModelError(spec.name, "duplicate body name")
+            model = (models or {}).get(spec.name) or read_urdf(spec.urdf)
+            check_spec(spec, model)
+            self.bodies[spec.name] = self._body(spec, model)
 
     def _body(self, spec: BodySpec, model: UrdfModel) -> Body:
         if self.engine == "pinocchio":

@@ -304,19 +304,26 @@ def test_numba_kernels_are_compiled_at_instantiate_not_in_step_0(monkeypatch, en
     on, torques, drag) compile nothing more: the argument types were the steps' own."""
     import numba
 
-    from components.dynamics import link_forces, manifold_rk4, pinocchio_kernels
+    from components.dynamics import (
+        anchor_forces,
+        link_forces,
+        manifold_rk4,
+        pinocchio_conversions,
+        pinocchio_kernels,
+        tree_forces,
+    )
 
     names = {
         "dart": [
-            (link_forces, "generalized_forces"),
+            (anchor_forces, "generalized_forces"),
             (manifold_rk4, "moved"),
             (manifold_rk4, "stage"),
             (manifold_rk4, "combine"),
         ],
         "pinocchio": [
-            (link_forces, "tree_generalized_forces"),
+            (tree_forces, "tree_generalized_forces"),
             (pinocchio_kernels, "pinocchio_inputs"),
-            (pinocchio_kernels, "from_pinocchio"),
+            (pinocchio_conversions, "from_pinocchio"),
             (pinocchio_kernels, "rk4_begin"),
             (pinocchio_kernels, "rk4_evaluation"),
         ],

@@ -56,7 +56,7 @@ TYPES = {
 }
 
 
-def load(type_name: str, config_dir: str | Path | None = None) -> type[Component]:
+def load(type_name: object, config_dir: str | Path | None = None) -> type[Component]:
     """The Component class for ``type_name``; ConfigError (key ``type``) when it cannot be found."""
     if not isinstance(type_name, str):
         raise ConfigError("type", f"expected a component type name such as orbit.kepler, got {type_name!r}")

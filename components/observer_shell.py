@@ -27,10 +27,16 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from components import bus, bus_security
+
+if TYPE_CHECKING:
+    import zenoh
+
+    from components.ros_frames import LiveFrames
 
 HEADER = bus.SIGNALS_HEADER  # k, time in s
 END = bus.SIGNALS_END
@@ -179,8 +185,8 @@ class Shell:
         self.columns = list(setup["columns"])
         self.config = setup.get("config") or {}
         self.config_dir = setup.get("config_dir")
-        self.session = None
-        self.frames = None  # components.ros_frames.LiveFrames, when the view asked for them
+        self.session: zenoh.Session | None = None  # from run on
+        self.frames: LiveFrames | None = None  # when the view asked for them
         self.view = view(self)
 
     def live_frames(self, typestore, topics: list[str] | None = None):
@@ -197,20 +203,21 @@ class Shell:
         view, log = self.view, self.log
         secret, settings = os.environ.get(bus.SECRET_ENV), bus_security.from_env()
         if view.mesh:
-            self.session = bus.open_view_session(self.connect, secret, settings)
+            session = bus.open_view_session(self.connect, secret, settings)
         else:
-            self.session = bus.open_session(connect=[self.connect], secret=secret, settings=settings)
+            session = bus.open_session(connect=[self.connect], secret=secret, settings=settings)
+        self.session = session
         token = watcher = signals = None
         completed = False
         try:
-            signals = self.session.declare_subscriber(bus.signals_key(self.run_id), zenoh.handlers.FifoChannel(16384))
-            watcher = self.session.liveliness().declare_subscriber(
+            signals = session.declare_subscriber(bus.signals_key(self.run_id), zenoh.handlers.FifoChannel(16384))
+            watcher = session.liveliness().declare_subscriber(
                 bus.orchestrator_alive_key(self.run_id), zenoh.handlers.FifoChannel(16)
             )
             view.prepare()
             if self.frames is not None and (unlinked := self.frames.wait_linked()):
                 self.warn(f"no mesh link yet to {', '.join(unlinked)}: their first frames may be missing from the view")
-            token = self.session.liveliness().declare_token(view.alive_key(self.run_id))
+            token = session.liveliness().declare_token(view.alive_key(self.run_id))
             view.start()
             buffer = RowBuffer(len(self.columns))
             last = time.monotonic()
@@ -247,7 +254,7 @@ class Shell:
                         declared.undeclare()
                     except Exception:
                         pass
-            self.session.close()
+            session.close()
             view.close(completed)
         return 0
 

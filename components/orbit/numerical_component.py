@@ -200,7 +200,9 @@ class NumericalComponent(OrbitComponent):
         super().__init__(params, run)
         g = params["gravity"]
         field = gravity.GravityField(g["degree"], g["order"], gravity.GGM03S_20)
-        terms = [numerical.PointMass(field.mu)] + ([numerical.Harmonics(field)] if g["degree"] >= 2 else [])
+        terms: list[numerical.AccelerationTerm] = [numerical.PointMass(field.mu)] + (
+            [numerical.Harmonics(field)] if g["degree"] >= 2 else []
+        )
         a, e = params["semi_major_axis"], params["eccentricity"]
         m0 = epoch_mean_anomaly(params, run, math.sqrt(field.mu / a**3))
         nu = true_from_eccentric(solve_kepler(m0, e), e)
@@ -223,7 +225,7 @@ class NumericalComponent(OrbitComponent):
                         ),
                         rotation,
                     ),
-                    {"earth_rotation"},
+                    frozenset({"earth_rotation"}),
                 )
             else:
                 layer = (
@@ -231,7 +233,7 @@ class NumericalComponent(OrbitComponent):
                     if atmosphere is None
                     else (atmosphere["altitude"], atmosphere["density"], atmosphere["scale_height"])
                 )
-                density, needs = numerical.exponential_density(ExponentialAtmosphere(layer)), set()
+                density, needs = numerical.exponential_density(ExponentialAtmosphere(layer)), frozenset()
             terms.append(numerical.Drag(density, d["cd"], d["area"], params["mass"], needs=needs))
         if params.get("srp") is not None:
             s = params["srp"]

@@ -196,17 +196,19 @@ class Shell:
         self.frames = LiveFrames(self.session, self.run_id, self.config, self.config_dir, typestore, self.warn, topics)
         return self.frames
 
+    def _open_session(self, mesh: bool):
+        """The view's session: a peer of the run's mesh (``mesh``), else linked to ``connect`` alone."""
+        secret, settings = os.environ.get(bus.SECRET_ENV), bus_security.from_env()
+        if mesh:
+            return bus.open_view_session(self.connect, secret, settings)
+        return bus.open_session(connect=[self.connect], secret=secret, settings=settings)
+
     def run(self) -> int:
         """Until END (and the view's lingering) or the orchestrator is gone; the exit code."""
         import zenoh
 
         view, log = self.view, self.log
-        secret, settings = os.environ.get(bus.SECRET_ENV), bus_security.from_env()
-        if view.mesh:
-            session = bus.open_view_session(self.connect, secret, settings)
-        else:
-            session = bus.open_session(connect=[self.connect], secret=secret, settings=settings)
-        self.session = session
+        self.session = session = self._open_session(view.mesh)
         token = watcher = signals = None
         completed = False
         try:

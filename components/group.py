@@ -21,9 +21,13 @@ from __future__ import annotations
 import struct
 import sys
 import threading
+from typing import TYPE_CHECKING
 
 from components import bus, protocol
 from components.process import ComponentProcess, Halt
+
+if TYPE_CHECKING:
+    from components.sdk import Component
 
 TERMINATED, RELEASED, ORPHANED = "terminated", "released", "orphaned"  # how serving a generation ended
 
@@ -151,7 +155,9 @@ class Group:
         outside ends that wait now."""
         for member in list(self.members.values()):  # a copy: members leave on the stepping thread
             if member.interruptible:
-                member.process.component.interrupt()
+                component: Component | None = member.process.component
+                assert component is not None, "a member is interruptible once its component is built"
+                component.interrupt()
 
     def tick(self, beat: bool) -> None:
         """From the watchdog thread: flush the batches that are due; with ``beat``, a heartbeat

@@ -86,7 +86,10 @@ def _is_sequence(value: Any) -> bool:
 class Kind:
     """The type of a config value; subclasses convert, check and describe it."""
 
-    text = "any"
+    @property
+    def text(self) -> str:
+        """Its name in ``describe`` and messages ("float [m]"); a fixed one may be a class attribute."""
+        return "any"
 
     def convert(self, value: Any, key: str) -> Any:
         return value

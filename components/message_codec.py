@@ -39,6 +39,7 @@ class Message:
 
     KIND: ClassVar[bytes]
     OP: ClassVar[str | None] = None
+    __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]  # each message is a dataclass
 
     def encode(self) -> bytes:
         body, blob = {} if self.OP is None else {"op": self.OP}, b""
@@ -119,7 +120,7 @@ class OneOf:
         op = body.get("op")
         message = ops.get(op) if isinstance(op, str) else None
         if message is None:
-            raise Malformed(f"{self.name}: expected op one of {', '.join(ops)}, got {body.get('op')!r:.40}")
+            raise Malformed(f"{self.name}: expected op one of {', '.join(map(str, ops))}, got {body.get('op')!r:.40}")
         return message.from_parts(body, blob)
 
 

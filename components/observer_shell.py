@@ -27,10 +27,16 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from components import bus, bus_security
+
+if TYPE_CHECKING:
+    import zenoh
+
+    from components.ros_frames import LiveFrames
 
 HEADER = bus.SIGNALS_HEADER  # k, time in s
 END = bus.SIGNALS_END
@@ -179,8 +185,8 @@ class Shell:
         self.columns = list(setup["columns"])
         self.config = setup.get("config") or {}
         self.config_dir = setup.get("config_dir")
-        self.session = None
-        self.frames = None  # components.ros_frames.LiveFrames, when the view asked for them
+        self.session: zenoh.Session | None = None  # from run on
+        self.frames: LiveFrames | None = None  # when the view asked for them
         self.view = view(self)
 
     def live_frames(self, typestore, topics: list[str] | None = None):
@@ -190,27 +196,30 @@ class Shell:
         self.frames = LiveFrames(self.session, self.run_id, self.config, self.config_dir, typestore, self.warn, topics)
         return self.frames
 
+    def _open_session(self, mesh: bool):
+        """The view's session: a peer of the run's mesh (``mesh``), else linked to ``connect`` alone."""
+        secret, settings = os.environ.get(bus.SECRET_ENV), bus_security.from_env()
+        if mesh:
+            return bus.open_view_session(self.connect, secret, settings)
+        return bus.open_session(connect=[self.connect], secret=secret, settings=settings)
+
     def run(self) -> int:
         """Until END (and the view's lingering) or the orchestrator is gone; the exit code."""
         import zenoh
 
         view, log = self.view, self.log
-        secret, settings = os.environ.get(bus.SECRET_ENV), bus_security.from_env()
-        if view.mesh:
-            self.session = bus.open_view_session(self.connect, secret, settings)
-        else:
-            self.session = bus.open_session(connect=[self.connect], secret=secret, settings=settings)
+        self.session = session = self._open_session(view.mesh)
         token = watcher = signals = None
         completed = False
         try:
-            signals = self.session.declare_subscriber(bus.signals_key(self.run_id), zenoh.handlers.FifoChannel(16384))
-            watcher = self.session.liveliness().declare_subscriber(
+            signals = session.declare_subscriber(bus.signals_key(self.run_id), zenoh.handlers.FifoChannel(16384))
+            watcher = session.liveliness().declare_subscriber(
                 bus.orchestrator_alive_key(self.run_id), zenoh.handlers.FifoChannel(16)
             )
             view.prepare()
             if self.frames is not None and (unlinked := self.frames.wait_linked()):
                 self.warn(f"no mesh link yet to {', '.join(unlinked)}: their first frames may be missing from the view")
-            token = self.session.liveliness().declare_token(view.alive_key(self.run_id))
+            token = session.liveliness().declare_token(view.alive_key(self.run_id))
             view.start()
             buffer = RowBuffer(len(self.columns))
             last = time.monotonic()
@@ -247,7 +256,7 @@ class Shell:
                         declared.undeclare()
                     except Exception:
                         pass
-            self.session.close()
+            session.close()
             view.close(completed)
         return 0
 

@@ -110,9 +110,12 @@ class Topic:
         for chunk in self.template.split("/"):
             if chunk.startswith("{"):
                 name = chunk[1:-1]
-                if name not in fields and wildcard is None:
+                if name in fields:
+                    chunk = str(fields[name])
+                elif wildcard is not None:
+                    chunk = wildcard
+                else:
                     raise TypeError(f"key of {self.template!r}: no value for {name!r} (given: {', '.join(fields)})")
-                chunk = str(fields[name]) if name in fields else wildcard
             chunks.append(chunk)
         return "/".join((ROOT, run_id, *chunks))
 
@@ -207,6 +210,9 @@ class Initialize(Message):
 
 class _Holding:
     """Start and Rewire: ``held`` lists [source, tag, size], ``values`` the outputs in that order."""
+
+    held: list[tuple[str, int, int]]
+    values: np.ndarray
 
     def check(self) -> None:
         sizes = [size for _, _, size in self.held]

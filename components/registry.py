@@ -11,7 +11,7 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import sys
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -56,7 +56,7 @@ TYPES = {
 }
 
 
-def load(type_name: str, config_dir: str | Path | None = None) -> type[Component]:
+def load(type_name: object, config_dir: str | Path | None = None) -> type[Component]:
     """The Component class for ``type_name``; ConfigError (key ``type``) when it cannot be found."""
     if not isinstance(type_name, str):
         raise ConfigError("type", f"expected a component type name such as orbit.kepler, got {type_name!r}")
@@ -74,6 +74,7 @@ def load(type_name: str, config_dir: str | Path | None = None) -> type[Component
             if not path.is_file():
                 raise ConfigError("type", f"component file {path} not found")
             spec = importlib.util.spec_from_file_location(f"zenorbit_user_{path.stem}", path)
+            assert spec is not None and spec.loader is not None, "a .py file has a spec with a loader"
             module = importlib.util.module_from_spec(spec)
             sys.modules[spec.name] = module
             spec.loader.exec_module(module)
@@ -115,7 +116,7 @@ class Unresolved(Exception):
     """Why :func:`resolve` failed. ``stage``: "type" (it cannot be loaded), "parameters"
     (``errors`` holds every parameter error) or "declare" (``errors[0]`` is what declare raised)."""
 
-    def __init__(self, stage: str, errors: list[Exception]):
+    def __init__(self, stage: str, errors: Sequence[Exception]):
         super().__init__(str(errors[0]))
         self.stage, self.errors = stage, errors
 
@@ -128,12 +129,13 @@ def resolve(
     """The one way from raw parameters to a component: load the type (a name or the class),
     validate (once: its typed parameters are kept for ``build``), declare and lay out the inputs
     and outputs. Unresolved when any of it fails."""
-    cls = component_type
     if isinstance(component_type, str):
         try:
             cls = load(component_type, run.config_dir)
         except ConfigError as e:
             raise Unresolved("type", [e]) from None
+    else:
+        cls = component_type
     checked, typed, errors = resolve_parameters(cls, params, run)
     if errors:
         raise Unresolved("parameters", errors)

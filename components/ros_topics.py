@@ -5,8 +5,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -91,7 +92,8 @@ def merged(context: RosContext, topics: list[RosTopic]) -> list[RosTopic]:
         by_name[name] = RosTopic(name, first.msgtype, messages, first.latched)
     static = by_name.get("/tf_static")
     if static is not None and static.messages:
-        transforms = [t for _, message in static.messages for t in message.transforms]
+        tf_messages: Sequence[tuple[int, Any]] = static.messages  # tf2_msgs/msg/TFMessage
+        transforms = [t for _, message in tf_messages for t in message.transforms]
         static.messages = [(min(ns for ns, _ in static.messages), context.tf(transforms))]
     return list(by_name.values())
 
@@ -109,7 +111,7 @@ def run_topics(context: RosContext, warn: Callable[[str], None], all_signals: bo
 def run_assets(context: RosContext, warn: Callable[[str], None]) -> dict[str, Path]:
     """{URI: file} of every file the run's topics reference (meshes of ``robot_description``),
     from the component types that declare them (``RosExport.assets``)."""
-    assets = {}
+    assets: dict[str, Path] = {}
     for name, spec in (context.run.config.get("components") or {}).items():
         try:
             cls = registry.load((spec or {}).get("type"), context.run.config_dir)
@@ -133,7 +135,7 @@ class LiveTopics:
         self.config, self.columns, self.typestore, self.warn = config, columns, typestore, warn
         self.config_dir = Path(config_dir) if config_dir else None
         self.latched_sent: set[str] = set()
-        self._lead = None  # (time s, row) of the previous batch's last row
+        self._lead: tuple[float, np.ndarray] | None = None  # (time s, row) of the previous batch's last row
 
     def batch(self, times, rows) -> tuple[list[tuple[RosTopic, list[tuple[int, bytes]]]], int]:
         """``times`` (s) and ``rows`` (one column per name of ``columns``): each topic with its

@@ -42,25 +42,25 @@ def lvlh_frame(orbit: str) -> str:
 
 
 class LazyMessages(Sequence):
-    """A topic's messages built one at a time when read: ``count`` of them, the k-th from
+    """A topic's messages built one at a time when read: ``length`` of them, the k-th from
     ``build(k)`` -> (log time ns, message), in time order. The export writes each and drops it, so
     a recording's camera frames (2 MB each uncompressed) are never all in memory at once."""
 
-    def __init__(self, count: int, build: Callable[[int], tuple[int, object]]):
-        self.count, self.build = count, build
+    def __init__(self, length: int, build: Callable[[int], tuple[int, object]]):
+        self.length, self.build = length, build
 
     def __len__(self) -> int:
-        return self.count
+        return self.length
 
     def __getitem__(self, k):
         if isinstance(k, slice):
-            return [self.build(i) for i in range(*k.indices(self.count))]
-        if not -self.count <= k < self.count:
-            raise IndexError(f"message {k} of {self.count}")
-        return self.build(k % self.count)
+            return [self.build(i) for i in range(*k.indices(self.length))]
+        if not -self.length <= k < self.length:
+            raise IndexError(f"message {k} of {self.length}")
+        return self.build(k % self.length)
 
     def __iter__(self) -> Iterator[tuple[int, object]]:
-        return (self.build(k) for k in range(self.count))
+        return (self.build(k) for k in range(self.length))
 
 
 @dataclass

@@ -9,7 +9,7 @@ the resolved ``config.yaml`` all read that declaration.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -64,7 +64,7 @@ class Parameter:
             )
         if isinstance(self.kind, str):
             unit = self.unit or "1"
-            shorthand = {
+            shorthand: dict[str, Callable[[], Kind]] = {
                 "float": lambda: Float(unit, plausible=self.plausible),
                 "int": Int,
                 "bool": Bool,
@@ -77,16 +77,23 @@ class Parameter:
                     f"parameter {self.name}: kind must be a Kind or one of {', '.join(shorthand)}, got {self.kind!r}"
                 )
             object.__setattr__(self, "kind", shorthand[self.kind]())
-        if self.unit is None and getattr(self.kind, "unit", "1") != "1":
-            object.__setattr__(self, "unit", self.kind.unit)
+        kind_unit = getattr(self.kind, "unit", "1")
+        if self.unit is None and kind_unit != "1":
+            object.__setattr__(self, "unit", kind_unit)
         if self.default is not REQUIRED and self.default is not None:
             try:
                 with implausible_values() as found:
-                    self.kind.convert(self.default, self.name)
+                    self.the_kind.convert(self.default, self.name)
             except ConfigError as e:
                 raise ValueError(f"parameter {self.name}: its default does not fit its kind: {e}") from None
             if found:
                 raise ValueError(f"parameter {self.name}: its default is not plausible: {found[0]}")
+
+    @property
+    def the_kind(self) -> Kind:
+        """``kind`` as a Kind: ``__post_init__`` turned a shorthand ("float") into one."""
+        assert isinstance(self.kind, Kind), "__post_init__ converts a shorthand kind"
+        return self.kind
 
     @property
     def required(self) -> bool:
@@ -96,10 +103,10 @@ class Parameter:
         """The config value checked and in SI; None stands for "not given" when the default is None."""
         if value is None and self.default is None:
             return None
-        return self.kind.convert(value, self.name if key is None else key)
+        return self.the_kind.convert(value, self.name if key is None else key)
 
     def plain(self, value: Any) -> Any:
-        return None if value is None else self.kind.plain(value)
+        return None if value is None else self.the_kind.plain(value)
 
     @property
     def default_text(self) -> str:
@@ -109,7 +116,7 @@ class Parameter:
             return "-"
         if isinstance(self.kind, Record):
             return "its defaults"
-        value = self.plain(self.kind.convert(self.default, self.name))
+        value = self.plain(self.the_kind.convert(self.default, self.name))
         if isinstance(value, bool):
             return str(value).lower()
         return f"{value:.12g}" if isinstance(value, float) else str(value)
@@ -190,7 +197,7 @@ class Record(Kind):
     def records(self):
         nested = [self]
         for p in self.fields:
-            nested += [r for r in p.kind.records() if r not in nested]
+            nested += [r for r in p.the_kind.records() if r not in nested]
         return nested
 
 
@@ -244,7 +251,7 @@ def table(fields: tuple[Parameter, ...]) -> list[tuple[str, str, str, str]]:
     return [
         (
             p.name,
-            p.kind.text + (f"; plausible {r}" if (r := p.kind.plausible_text) else ""),
+            p.the_kind.text + (f"; plausible {r}" if (r := p.the_kind.plausible_text) else ""),
             p.default_text,
             p.description,
         )

@@ -51,6 +51,7 @@ class Variable:
     description: str
     frame: bool = False
     dtype: str = "float64"
+    size: int = field(init=False, repr=False, compare=False)  # how many numbers: the product of shape
 
     def __post_init__(self):
         if self.causality not in CAUSALITIES:
@@ -112,6 +113,9 @@ class Component:
 
     type_name: ClassVar[str] = ""
     parameters: ClassVar[tuple[Parameter, ...]] = ()
+    #: The parameters as one Record (``resolve_parameters`` checks a config's against it); each
+    #: subclass gets its own when it is defined.
+    schema: ClassVar[Record]
     variables: ClassVar[tuple[Variable, ...] | None] = None
     #: Set by the framework before ``initialize`` and each ``do_step``: for each input fed by a
     #: connection, the time (ns) at which its value was sampled, which is not always t_ns: under
@@ -151,8 +155,9 @@ class Component:
         cls.schema = Record(
             cls.type_name or cls.__name__, tuple(cls.parameters), noun=f"parameter of {cls.type_name or cls.__name__}"
         )
-        if cls.__dict__.get("__doc__"):  # its own docstring, not an inherited one
-            cls.__doc__ = inspect.cleandoc(cls.__doc__) + "\n\n" + declaration_tables(cls)
+        doc = cls.__dict__.get("__doc__")
+        if doc:  # its own docstring, not an inherited one
+            cls.__doc__ = inspect.cleandoc(doc) + "\n\n" + declaration_tables(cls)
 
     @classmethod
     def declare(cls, params: Any, run: RunSettings) -> list[Variable]:

@@ -31,7 +31,12 @@ Earth in the scene: the sky is black. Units: m, rad, pixels.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    import moderngl
 
 #: The Debian packages that provide EGL and Mesa's software OpenGL (llvmpipe).
 EGL_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri"
@@ -121,7 +126,8 @@ def _context():
     except ImportError as e:
         raise RenderError(f"moderngl is not installed ({e}): pip install moderngl") from None
     try:
-        return moderngl.create_standalone_context(backend="egl", require=330)
+        # moderngl's stub types each **settings value as a dict; backend is a string
+        return moderngl.create_standalone_context(backend="egl", require=330)  # type: ignore[arg-type]
     except Exception as e:  # glcontext raises plain Exceptions: a missing libEGL, no driver
         raise RenderError(
             f"no EGL OpenGL 3.3 context ({type(e).__name__}: {e}); on Debian/Ubuntu: apt-get install {EGL_PACKAGES}"
@@ -157,7 +163,7 @@ class Renderer:
             color_attachments=[self.colour_buffer, self.depth_buffer], depth_attachment=self.z_buffer
         )
         self.program["image"].value = 0
-        self.meshes: list[tuple[object, object, object]] = []  # (vao, buffer, texture or None)
+        self.meshes: list[tuple[moderngl.VertexArray, moderngl.Buffer, moderngl.Texture | None]] = []
 
     def add_mesh(
         self,

@@ -66,9 +66,9 @@ def _shape_trimesh(visual: Visual):
     raise ValueError(f"unknown visual kind {visual.kind!r}")
 
 
-def _appearance(mesh, colour: tuple[float, float, float]):
+def _appearance(mesh, colour: np.ndarray):
     """(colours (3m, 3), uv (3m, 2) or None, texture or None) per triangle corner of ``mesh``: its
-    texture, else its face or vertex colours, else ``colour``."""
+    texture, else its face or vertex colours, else ``colour`` (r, g, b in 0..1)."""
     corners = mesh.faces.ravel()
     visual = mesh.visual
     try:

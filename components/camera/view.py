@@ -55,7 +55,8 @@ class CameraView(View):
             K = [[float(p["fx"]), 0.0, float(p["cx"])], [0.0, float(p["fy"]), float(p["cy"])], [0.0, 0.0, 1.0]]
             resolution = [int(p["width"]), int(p["height"])]
             mount = rr.Transform3D(
-                translation=[float(v) for v in p["position"]], quaternion=[float(v) for v in p["orientation"]]
+                translation=[float(v) for v in p["position"]],
+                quaternion=rr.Quaternion(xyzw=[float(v) for v in p["orientation"]]),
             )
         except (KeyError, TypeError, ValueError) as e:  # a raw config with units: no frustum, images only
             scene.warn(f"{self.name}: cannot read its intrinsics or mount from the config ({e}); no frustum drawn")

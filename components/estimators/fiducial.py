@@ -81,11 +81,11 @@ class FiducialEstimator:
         corners, ids, _ = self.detector.detectMarkers(gray)
         if ids is None:
             return {}
-        ids = ids.ravel().tolist()
+        found = [int(i) for i in ids.ravel()]
         return {
             i: c.reshape(4, 2).astype(np.float64)
-            for i, c in zip(ids, corners)
-            if i in self.markers and ids.count(i) == 1
+            for i, c in zip(found, corners)
+            if i in self.markers and found.count(i) == 1
         }
 
     def estimate(
@@ -116,6 +116,7 @@ class FiducialEstimator:
                 error = self._rms(points_G, pixels, R_C_G, p_C_G, K, distortion)
                 if best is None or error < best[0]:
                     best = (error, R_C_G, p_C_G)
+        assert best is not None, "IPPE_SQUARE gives each marker seen its poses"
         _, R_C_G, p_C_G = best
         rvec, tvec = cv2.solvePnPRefineLM(points_G, pixels, K, distortion, cv2.Rodrigues(R_C_G)[0], p_C_G.reshape(3, 1))
         R_C_G, p_C_G = cv2.Rodrigues(rvec)[0], tvec.ravel()

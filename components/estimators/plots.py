@@ -44,13 +44,21 @@ def _truth(run: RecordedRun, c: str) -> str | None:
     return dynamics
 
 
+def _recorded(run: RecordedRun, name: str) -> np.ndarray:
+    """A variable recorded with the one the plot starts from (the estimator's outputs with its
+    ``frame_solved``, the dynamics' grasp pose with its ``p_ee_grasp``)."""
+    found = run.variable(name)
+    assert found is not None, f"{name} is not recorded"
+    return found
+
+
 def frame_errors(run: RecordedRun, c: str, dynamics: str):
     """(t_measured s, position error m, attitude error rad) of every accepted frame: the first row
     that shows each frame's solve, against the truth at the frame's time."""
-    valid, t_measured = run.variable(f"{c}.valid")[:, 0], run.variable(f"{c}.t_measured")[:, 0]
-    p, q = run.variable(f"{c}.p"), run.variable(f"{c}.q")
-    p_true, q_true = run.variable(f"{dynamics}.grasp.p_ee_grasp"), run.variable(f"{dynamics}.grasp.q_ee_grasp")
-    rows = [k for k in new_frames(run.variable(f"{c}.frame_solved")[:, 0]) if valid[k] > 0.5]
+    valid, t_measured = _recorded(run, f"{c}.valid")[:, 0], _recorded(run, f"{c}.t_measured")[:, 0]
+    p, q = _recorded(run, f"{c}.p"), _recorded(run, f"{c}.q")
+    p_true, q_true = _recorded(run, f"{dynamics}.grasp.p_ee_grasp"), _recorded(run, f"{dynamics}.grasp.q_ee_grasp")
+    rows = [k for k in new_frames(_recorded(run, f"{c}.frame_solved")[:, 0]) if valid[k] > 0.5]
     out = []
     for k in rows:
         j = int(np.argmin(np.abs(run.time - t_measured[k])))
@@ -69,7 +77,7 @@ def draw(run: RecordedRun, c: str) -> dict:
     fig = new_figure(9.0, 10.0)
     axes = [fig.add_subplot(4, 1, row) for row in range(1, 5)]
     new = new_frames(frame[:, 0])
-    t_frame = run.variable(f"{c}.t_measured")[new, 0]
+    t_frame = _recorded(run, f"{c}.t_measured")[new, 0]
     if dynamics is not None:
         errors = frame_errors(run, c, dynamics)
         axes[0].plot(errors[:, 0], 1e3 * errors[:, 1], ".-", label="position")
@@ -77,15 +85,15 @@ def draw(run: RecordedRun, c: str) -> dict:
         axes[1].plot(errors[:, 0], np.degrees(errors[:, 2]), ".-", label="attitude")
         axes[1].set(ylabel="deg", title=f"{c}: attitude error")
     else:
-        p = run.variable(f"{c}.p")
+        p = _recorded(run, f"{c}.p")
         for k in range(3):
             axes[0].plot(run.time, p[:, k], label=f"p[{k}]")
         axes[0].set(ylabel="m", title=f"{c}.p (no grasp pose of the same frames recorded to compare with)")
         axes[1].set_axis_off()
-    axes[2].plot(t_frame, run.variable(f"{c}.markers")[new, 0], ".", label="markers")
-    axes[2].plot(t_frame, run.variable(f"{c}.valid")[new, 0], "x", label="valid")
+    axes[2].plot(t_frame, _recorded(run, f"{c}.markers")[new, 0], ".", label="markers")
+    axes[2].plot(t_frame, _recorded(run, f"{c}.valid")[new, 0], "x", label="valid")
     axes[2].set(title=f"{c}: markers found and valid, per frame")
-    axes[3].plot(t_frame, run.variable(f"{c}.reprojection_error")[new, 0], ".", label="reprojection error")
+    axes[3].plot(t_frame, _recorded(run, f"{c}.reprojection_error")[new, 0], ".", label="reprojection error")
     axes[3].set(xlabel="frame time (s)", ylabel="px", title=f"{c}: RMS reprojection error")
     for ax in axes:
         if ax.axison:

@@ -17,7 +17,7 @@ def _pose(context: RosContext, c: str) -> list[RosTopic]:
         return []
     params = run.parameters(c)
     dynamics = chaser_dynamics(run, c)
-    frame = link_frame(dynamics, params.get("body"), params.get("end_effector")) if dynamics else c
+    frame = link_frame(dynamics, str(params.get("body")), str(params.get("end_effector"))) if dynamics else c
     Pose, PoseStamped = context.msg("geometry_msgs/msg/Pose"), context.msg("geometry_msgs/msg/PoseStamped")
     return [
         RosTopic(

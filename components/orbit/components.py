@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -24,9 +25,10 @@ from components.orbit import ros as orbit_ros
 from components.orbit.frames import lvlh_dcm, lvlh_state
 from components.orbit.kepler import ElementError, KeplerOrbit, check_elements
 from components.orbit.view import OrbitView
+from components.plotting import Plot
 from components.rotations import continuous
 from components.schema import Float, ListOf, Record, Str, UtcTime, Vector
-from components.sdk import EPOCH_KEY, Component, Parameter, RunSettings
+from components.sdk import EPOCH_KEY, Component, Parameter, RunSettings, Variable
 from components.signals import orbit_signals
 
 ORBIT_OUTPUTS = tuple(orbit_signals("output"))
@@ -52,8 +54,8 @@ def _epoch(run: RunSettings) -> tuple[float, float]:
 class OrbitComponent(Component):
     """Shared lifecycle: subclasses implement ``_sample(t_s) -> (r, v, q, w)``."""
 
-    variables = ORBIT_OUTPUTS
-    plots = (orbit_plots.TRACK,)
+    variables: ClassVar[tuple[Variable, ...] | None] = ORBIT_OUTPUTS  # a subclass's None: declare() gives them
+    plots: ClassVar[tuple[Plot, ...]] = (orbit_plots.TRACK,)
     view = OrbitView
     rosbag = orbit_ros.ROS_EXPORT
 
@@ -357,7 +359,7 @@ class CustomPathComponent(OrbitComponent):
             )
         for k in range(len(t)):
             h = np.linalg.norm(np.cross(r[k], v[k]))
-            if not h > 1e-12 * np.linalg.norm(r[k]) * max(np.linalg.norm(v[k]), 1e-300):
+            if not h > 1e-12 * np.linalg.norm(r[k]) * max(float(np.linalg.norm(v[k])), 1e-300):
                 raise ConfigError(
                     f"waypoints[{k}].velocity",
                     f"expected a velocity not parallel to the position (LVLH needs r x v != 0), "

@@ -67,6 +67,29 @@ SRP = Record(
 )
 
 
+def _drag(params, rotation):
+    """The drag term (cannonball, ``mass``): in NRLMSISE-00 / MSIS 2.1 turning with the Earth
+    (``rotation``), or in the exponential table or layer."""
+    from components.orbit import numerical
+    from components.space.atmosphere import ExponentialAtmosphere, Nrlmsise00
+
+    d, atmosphere = params["drag"], params.get("atmosphere")
+    if atmosphere is not None and atmosphere["model"] != "exponential":
+        density, needs = (
+            numerical.msis_density(
+                Nrlmsise00(atmosphere["f107"], atmosphere["f107a"], atmosphere["ap"], model=atmosphere["model"]),
+                rotation,
+            ),
+            frozenset({"earth_rotation"}),
+        )
+    else:
+        layer = (
+            None if atmosphere is None else (atmosphere["altitude"], atmosphere["density"], atmosphere["scale_height"])
+        )
+        density, needs = numerical.exponential_density(ExponentialAtmosphere(layer)), frozenset()
+    return numerical.Drag(density, d["cd"], d["area"], params["mass"], needs=needs)
+
+
 class NumericalComponent(OrbitComponent):
     """An orbit integrated under the Earth's harmonics, the Sun, the Moon, drag and SRP (type ``orbit.numerical``).
 
@@ -194,13 +217,14 @@ class NumericalComponent(OrbitComponent):
         from components.orbit import numerical
         from components.orbit.kepler import coe_to_rv, solve_kepler, true_from_eccentric
         from components.space import ephemeris, gravity
-        from components.space.atmosphere import ExponentialAtmosphere, Nrlmsise00
         from components.space.earth import EarthRotation
 
         super().__init__(params, run)
         g = params["gravity"]
         field = gravity.GravityField(g["degree"], g["order"], gravity.GGM03S_20)
-        terms = [numerical.PointMass(field.mu)] + ([numerical.Harmonics(field)] if g["degree"] >= 2 else [])
+        terms: list[numerical.AccelerationTerm] = [numerical.PointMass(field.mu)] + (
+            [numerical.Harmonics(field)] if g["degree"] >= 2 else []
+        )
         a, e = params["semi_major_axis"], params["eccentricity"]
         m0 = epoch_mean_anomaly(params, run, math.sqrt(field.mu / a**3))
         nu = true_from_eccentric(solve_kepler(m0, e), e)
@@ -214,25 +238,7 @@ class NumericalComponent(OrbitComponent):
             if b in params["third_bodies"]
         ]
         if params.get("drag") is not None:
-            d, atmosphere = params["drag"], params.get("atmosphere")
-            if atmosphere is not None and atmosphere["model"] != "exponential":
-                density, needs = (
-                    numerical.msis_density(
-                        Nrlmsise00(
-                            atmosphere["f107"], atmosphere["f107a"], atmosphere["ap"], model=atmosphere["model"]
-                        ),
-                        rotation,
-                    ),
-                    {"earth_rotation"},
-                )
-            else:
-                layer = (
-                    None
-                    if atmosphere is None
-                    else (atmosphere["altitude"], atmosphere["density"], atmosphere["scale_height"])
-                )
-                density, needs = numerical.exponential_density(ExponentialAtmosphere(layer)), set()
-            terms.append(numerical.Drag(density, d["cd"], d["area"], params["mass"], needs=needs))
+            terms.append(_drag(params, rotation))
         if params.get("srp") is not None:
             s = params["srp"]
             terms.append(

@@ -16,11 +16,11 @@ def measured_against_true(pairs: Mapping[str, str]) -> Plot:
         found = {output: run.variable(f"{c}.{output}") for output in pairs}
         if all(measured is None for measured in found.values()):
             return {}
-        shown = [output for output, measured in found.items() if measured is not None]
+        shown = {output: measured for output, measured in found.items() if measured is not None}
         fig = new_figure(9.0, 3.0 * len(shown))
-        for row, output in enumerate(shown, start=1):
+        for row, (output, measured) in enumerate(shown.items(), start=1):
             ax = fig.add_subplot(len(shown), 1, row)
-            measured, source = found[output], run.source(c, pairs[output])
+            source = run.source(c, pairs[output])
             true = run.variable(source) if source else None
             for k in range(measured.shape[1]):
                 ax.plot(run.time, measured[:, k], color=f"C{k % 10}", linewidth=1.0, label=f"{output}[{k}]")

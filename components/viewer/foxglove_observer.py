@@ -30,12 +30,16 @@ import socket
 import sys
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from components import observer_shell
 from components.observer_shell import View, ViewError, logger, once
 from components.ros_topics import LiveTopics
+
+if TYPE_CHECKING:
+    from foxglove import Channel
 
 HOST = "127.0.0.1"
 DISTRO = "ros2_jazzy"  # message definitions, as the rosbag2 export writes them
@@ -67,7 +71,7 @@ class RosChannels:
         self.config_dir = Path(config_dir) if config_dir else None
         self.context = context
         self.typestore = get_typestore(Stores(DISTRO))
-        self.channels: dict[str, object] = {}
+        self.channels: dict[str, Channel] = {}
         self.latched: dict[str, bytes] = {}  # topic -> its one message (sent again on subscribe)
         self.latched_ns: dict[str, int] = {}
         self.warn = warn or once(log)  # the builders run per batch: say each thing once

@@ -16,9 +16,15 @@ batches (a few per second live, every 2 s when saving: far cheaper per row).
 from __future__ import annotations
 
 import sys
+from typing import TYPE_CHECKING
 
 from components import observer_shell
 from components.observer_shell import View, ViewError
+
+if TYPE_CHECKING:
+    import rerun as rr
+
+    from components.viewer.scene import SceneLogger
 
 FILE_BATCH_S = 2.0  # save: nobody watches, so larger batches still
 
@@ -34,7 +40,9 @@ class RerunView(View):
         self.mode, self.file = shell.setup.get("mode", "save"), shell.setup.get("file")
         if self.mode == "save":
             self.batch_s = FILE_BATCH_S
-        self.scene = self.stream = self.url = None
+        self.scene: SceneLogger | None = None  # from start on
+        self.stream: rr.RecordingStream | None = None
+        self.url: str | None = None
 
     def start(self) -> None:
         from components.viewer.scene import SceneLogger
@@ -62,14 +70,17 @@ class RerunView(View):
 
     def step(self, batch) -> None:
         if batch is not None:
+            assert self.scene is not None, "the shell starts the view before its steps"
             self.scene.log_rows(*batch)
 
     def finish(self, ended: bool) -> None:
+        assert self.stream is not None, "the shell starts the view before it finishes it"
         self.stream.flush(timeout_sec=30.0)
 
     def linger(self) -> str | None:
         if self.mode != "web":
             return None
+        assert self.scene is not None, "the shell starts the view before it lingers"
         return f"run over ({self.scene.rows_logged} rows); still serving {self.url} until Ctrl-C"
 
     def close(self, completed: bool) -> None:

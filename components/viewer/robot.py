@@ -65,12 +65,17 @@ def _floats(text: str | None, n: int, default: tuple[float, ...]) -> tuple[float
     return values
 
 
+def _triple(text: str | None, default: tuple[float, float, float]) -> tuple[float, float, float]:
+    x, y, z = _floats(text, 3, default)
+    return x, y, z
+
+
 def _color(element: ET.Element | None) -> tuple[int, int, int, int] | None:
     color = element.find("color") if element is not None else None
     if color is None or color.get("rgba") is None:
         return None
-    r, g, b, a = _floats(color.get("rgba"), 4, (0.6, 0.6, 0.6, 1.0))
-    return tuple(int(round(255 * min(max(c, 0.0), 1.0))) for c in (r, g, b, a))
+    r, g, b, a = (int(round(255 * min(max(c, 0.0), 1.0))) for c in _floats(color.get("rgba"), 4, (0.6, 0.6, 0.6, 1.0)))
+    return r, g, b, a
 
 
 def mesh_arrays(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
@@ -78,13 +83,15 @@ def mesh_arrays(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, 
     None when the file has none) of a mesh file, every part of a scene merged (trimesh; COLLADA
     through pycollada). Raises whatever trimesh raises for a file it cannot read."""
     import trimesh
+    from trimesh.visual.texture import TextureVisuals
 
     mesh = trimesh.load(str(path), force="mesh")
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise ValueError(f"{path.name}: no triangles")
     colors = None
     try:
-        if mesh.visual is not None and mesh.visual.kind is not None:
+        # a texture only: ColorVisuals (vertex or face colours) has no to_color, its colours go unread
+        if isinstance(mesh.visual, TextureVisuals) and mesh.visual.kind is not None:
             colors = np.asarray(mesh.visual.to_color().vertex_colors, dtype=np.uint8)
             if colors.shape != (len(mesh.vertices), 4):
                 colors = None
@@ -100,8 +107,8 @@ def mesh_arrays(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, 
 
 def _shape(name: str, element: ET.Element, color) -> Visual | None:
     origin = element.find("origin")
-    xyz = _floats(origin.get("xyz") if origin is not None else None, 3, (0.0, 0.0, 0.0))
-    rpy = _floats(origin.get("rpy") if origin is not None else None, 3, (0.0, 0.0, 0.0))
+    xyz = _triple(origin.get("xyz") if origin is not None else None, (0.0, 0.0, 0.0))
+    rpy = _triple(origin.get("rpy") if origin is not None else None, (0.0, 0.0, 0.0))
     geometry = element.find("geometry")
     shape = geometry[0] if geometry is not None and len(geometry) else None
     if shape is None:
@@ -114,8 +121,9 @@ def _shape(name: str, element: ET.Element, color) -> Visual | None:
         )
     if shape.tag == "sphere":
         return Visual(name, "sphere", (float(shape.get("radius", 0.05)),), xyz, rpy, color)
-    if shape.tag == "mesh" and shape.get("filename"):
-        mesh = Path(shape.get("filename"))  # resolved by read_urdf: an absolute path that exists
+    filename = shape.get("filename")
+    if shape.tag == "mesh" and filename:
+        mesh = Path(filename)  # resolved by read_urdf: an absolute path that exists
         return Visual(
             name,
             "mesh",
@@ -134,10 +142,12 @@ def read_geometry(path: str | Path, packages=None) -> Geometry:
     ``packages``: ``run.packages`` (name -> directory) for ``package://`` URIs."""
     model = read_urdf(path, packages)
     root = model.tree.getroot()
+    assert root is not None, "read_urdf parsed a tree"
     materials = {m.get("name"): _color(m) for m in root.findall("material")}
     visuals, collisions = [], []
     for link in root.findall("link"):
         name = link.get("name")
+        assert name, "read_urdf refuses a link without a name"
         for collision in link.findall("collision"):
             shape = _shape(name, collision, DEFAULT_COLOR)
             if shape is not None:

@@ -25,10 +25,17 @@ import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from components.viewer.robot import normalized_quaternions
+
+if TYPE_CHECKING:
+    import rerun as rr
+    import rerun.blueprint as rrb
+    from rerun.blueprint.api import VisualizerLike
+    from rerun.encodings import EntityPathLike
 
 TIMELINE = "sim_time"
 STEP_TIMELINE = "step"
@@ -84,7 +91,7 @@ def entity_path(*parts: str) -> str:
     return "/" + "/".join(rr.escape_entity_path_part(p) for p in parts)
 
 
-def trail():
+def trail() -> rrb.VisibleTimeRanges:
     """A blueprint override: an entity's past points stay shown (a path drawn as it goes)."""
     import rerun.blueprint as rrb
 
@@ -116,7 +123,7 @@ class Batch:
     steps: np.ndarray
     times: np.ndarray
     rows: np.ndarray
-    recording: object
+    recording: rr.RecordingStream | None
 
     def send(self, path: str, columns) -> None:
         import rerun as rr
@@ -310,7 +317,9 @@ class SceneLogger:
         spatial = []
         eye, target = self._camera()
         if any(layout.world for layout in layouts):
-            trails = {path: trail() for layout in layouts for path in layout.trails if path.startswith("/world/")}
+            trails: dict[EntityPathLike, VisualizerLike] = {
+                path: trail() for layout in layouts for path in layout.trails if path.startswith("/world/")
+            }
             if self.world_lvlh is not None:  # seen from LVLH (z orbit normal up): a steady camera
                 spatial.append(
                     rrb.Spatial3DView(
@@ -344,7 +353,7 @@ class SceneLogger:
         if any(layout.events for layout in layouts):
             tabs.append(rrb.TextLogView(origin="/events", name="Events"))
         tabs.append(rrb.TextDocumentView(origin="/notes", name="Run"))
-        columns = []
+        columns: list[rrb.Container] = []
         if spatial:
             columns.append(rrb.Vertical(*spatial))
         if figures:

@@ -3,12 +3,17 @@ declare, and the files made from them."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from components.extras import missing
 from components.outputs import output_problem
 from orchestrator.commands.exits import fail, fail_all
 from orchestrator.run.wording import count
+
+if TYPE_CHECKING:
+    from components.sdk import Variable
 
 
 def _summary(cls) -> str:
@@ -106,6 +111,8 @@ def cmd_describe(args) -> int:
             f"variables, e.g. orchestrator describe {args.type} --set {missing[0]}=VALUE"
         )
         return 0
+    variables: list[Variable]
+    errors: Sequence[Exception]
     try:  # as a run resolves it (epoch: any will do for the variables)
         resolved = registry.resolve(cls, given, RunSettings("2000-01-01T12:00:00Z", Path.cwd()))
         variables, errors = (

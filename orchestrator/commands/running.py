@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from io import IOBase
 from pathlib import Path
 
 from components.outputs import output_problem
@@ -117,6 +118,7 @@ def cmd_run(args) -> int:
         return run.execute()
     finally:
         if lock is not None:
+            assert isinstance(lock, IOBase), "claim_directory's lock is an open file"
             lock.close()
 
 
@@ -134,10 +136,10 @@ def _viewer(view: str | None, config):
             return None, "; ".join(errors) or "--view: expected spawn, web, save:FILE.rrd or foxglove[:PORT]"
     chosen = viewer or config.viewer
     mode = getattr(chosen, "mode", None)
-    if mode == "save" and (
-        problem := output_problem(chosen.file, "--view save:", "file")
-    ):  # an .rrd it cannot write: before the run
-        return None, problem
+    if mode == "save":
+        assert chosen.file is not None, "viewer_spec refuses save without a file"
+        if problem := output_problem(chosen.file, "--view save:", "file"):  # an .rrd it cannot write: before the run
+            return None, problem
     if mode == "spawn":  # fail before the run, not after
         from components.viewer.sinks import spawn_problem
 

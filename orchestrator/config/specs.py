@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import builtins
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -14,7 +15,7 @@ from orchestrator.hosts.bus_config import BusSpec
 class ComponentSpec:
     name: str
     type: str
-    cls: type[Component]
+    cls: builtins.type[Component]  # builtins': the field above hides the name in the class
     step_ns: int
     parameters: dict  # raw, as in the config (+ injected run parameters)
     resolved: dict  # validated, SI

@@ -11,10 +11,16 @@ import socket
 import struct
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from components import bus, bus_security
 from components.constants import NS_PER_S
 from orchestrator.hosts.bus_config import BusSpec, host_of, is_loopback
+
+if TYPE_CHECKING:
+    from orchestrator.hosts.join import JoinDesk
+    from orchestrator.hosts.link_watch import LinkWatch
+    from orchestrator.hosts.tls import RunCertificates
 
 SIOCGIFADDR = 0x8915
 
@@ -89,7 +95,10 @@ class RunBus:
         self.directory = runtime / f"{run_id}.bus"
         # join files go with the recording, else with the run's entry in the runtime directory
         self.join_dir = (record_dir / "join") if record_dir else runtime.parent / "join" / run_id
-        self.certificates = self.acl = self.desk = self.watch = None
+        self.certificates: RunCertificates | None = None
+        self.acl: dict | None = None
+        self.desk: JoinDesk | None = None  # from open_session on
+        self.watch: LinkWatch | None = None
         self.base = {"mode": spec.mode, "lease_ms": spec.lease_ms}
         self.endpoints: list[str] = []  # where other hosts reach the run
         self.local: str = ""  # where processes of this host (and the CLI) connect
@@ -139,7 +148,11 @@ class RunBus:
             )
         listen_asked = [] if spec.mode == "client" else spec.listen
         for attempt in range(3):  # a free port picked here may be taken by another run before Zenoh binds it
-            listen, local = resolve_endpoints(listen_asked) if listen_asked else ([], spec.router)
+            if listen_asked:
+                listen, local = resolve_endpoints(listen_asked)
+            else:  # a client: bus_config.check made sure it names its router
+                assert spec.router is not None, "a client's bus names its router"
+                listen, local = [], spec.router
             try:
                 session = bus.open_session(
                     listen,
@@ -159,7 +172,7 @@ class RunBus:
                 if attempt == 2 or not any(e.endswith(":0") for e in spec.listen):
                     raise BusUnavailable(f"cannot open the bus on {', '.join(listen)} (bus.listen): {e}") from None
         self.listen, self.local = listen, local
-        self.endpoints = [spec.router] if spec.mode == "client" else reachable_endpoints(listen)
+        self.endpoints = [local] if spec.mode == "client" else reachable_endpoints(listen)  # local: the router
         self.desk = JoinDesk(session, self.run_id, self.out)
         return session
 
@@ -183,6 +196,7 @@ class RunBus:
     def invite(self, member) -> Path:
         """Write the join file of an external member, say where it is, and wait for its join."""
         path = self._write("component", self.join_dir.resolve() / f"{member.name}.join", self.endpoints, member)
+        assert self.desk is not None, "open_session comes before an invite"
         self.desk.invite(member)
         print(
             f"waiting for external component {member.name!r} (generation {member.generation}, up to "

@@ -75,6 +75,7 @@ def load_ca(certificate_path: Path, key_path: Path):
     """(key, certificate) of the user's CA; ValueError saying what is wrong with them."""
     from cryptography import x509
     from cryptography.hazmat.primitives import serialization
+    from cryptography.hazmat.primitives.asymmetric import dsa, ec, rsa
 
     try:
         certificate = x509.load_pem_x509_certificate(Path(certificate_path).read_bytes())
@@ -84,7 +85,10 @@ def load_ca(certificate_path: Path, key_path: Path):
         key = serialization.load_pem_private_key(Path(key_path).read_bytes(), password=None)
     except (ValueError, TypeError) as e:
         raise ValueError(f"{key_path} is not an unencrypted PEM private key ({e})") from None
-    if key.public_key().public_numbers() != certificate.public_key().public_numbers():
+    if not isinstance(key, (rsa.RSAPrivateKey, ec.EllipticCurvePrivateKey, dsa.DSAPrivateKey)):
+        raise ValueError(f"{key_path} is not an RSA, EC or DSA key (the run's certificates are signed with SHA-256)")
+    spki = (serialization.Encoding.DER, serialization.PublicFormat.SubjectPublicKeyInfo)
+    if key.public_key().public_bytes(*spki) != certificate.public_key().public_bytes(*spki):
         raise ValueError(f"{key_path} is not the key of the certificate {certificate_path}")
     try:
         is_ca = certificate.extensions.get_extension_for_class(x509.BasicConstraints).value.ca

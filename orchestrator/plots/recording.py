@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from components.plotting import PlotError, RecordedRun, new_figure
+from components.plotting import Plot, PlotError, RecordedRun, new_figure
 from orchestrator.plots.shadows import shadow_figures
 
 
@@ -185,12 +185,14 @@ def _titled(fig, outcome: str) -> None:
 def plot_recording(record_dir, out_dir, signals: list[str] | None = None) -> list[Path]:
     """Write :func:`figures` as PNGs into ``out_dir`` (created only then); return their paths."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     made = figures(record_dir, signals)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
     for filename, fig in made:
+        assert isinstance(fig, Figure), f"{filename}: a plot draws Matplotlib figures"
         FigureCanvasAgg(fig)
         fig.savefig(out_dir / filename, dpi=110)
         paths.append(out_dir / filename)
@@ -203,7 +205,7 @@ def plot_table() -> str:
     from components import registry
 
     types_of: dict[int, list[str]] = {}
-    plots = {}
+    plots: dict[int, Plot] = {}
     for type_name in registry.TYPES:
         for plot in registry.load(type_name).plots:
             plots.setdefault(id(plot), plot)

@@ -31,9 +31,10 @@ _MASK64 = (1 << 64) - 1
 
 
 class NormalStream:
-    """Standard normal draws from ``numpy.random.Generator(PCG64(seed))``."""
+    """Standard normal draws from ``numpy.random.Generator(PCG64(seed))`` (an integer seed, or a
+    ``SeedSequence`` spawned from one)."""
 
-    def __init__(self, seed: int):
+    def __init__(self, seed: int | np.random.SeedSequence):
         self.rng = np.random.Generator(np.random.PCG64(seed))
 
     def draw(self, n: int) -> np.ndarray:

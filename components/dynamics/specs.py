@@ -83,11 +83,11 @@ def body_specs(params: Mapping[str, Any], models: Mapping[str, UrdfModel]):
 def world_atmosphere(atmosphere: Mapping | None, epoch):
     """The world's atmosphere: None (the table), one exponential layer, or NRLMSISE-00 as a local exponential."""
     from components.space.atmosphere import ExponentialAtmosphere, LocalExponential, Nrlmsise00
+    from components.space.parameters import exponential_layer
 
-    if atmosphere is None or (atmosphere["model"] == "exponential" and atmosphere["altitude"] is None):
-        return None
-    if atmosphere["model"] == "exponential":
-        return ExponentialAtmosphere(single=(atmosphere["altitude"], atmosphere["density"], atmosphere["scale_height"]))
+    if atmosphere is None or atmosphere["model"] == "exponential":
+        layer = exponential_layer(atmosphere)
+        return None if layer is None else ExponentialAtmosphere(single=layer)
     return LocalExponential(
         Nrlmsise00(atmosphere["f107"], atmosphere["f107a"], atmosphere["ap"], model=atmosphere["model"]), epoch
     )

@@ -23,7 +23,7 @@ from components.rotations import continuous
 from components.schema import Float, Int, ListOf, Record, Str
 from components.sdk import Parameter, Variable
 from components.space.eclipse import MODELS as ECLIPSE_MODELS
-from components.space.parameters import ATMOSPHERE, check_atmosphere
+from components.space.parameters import ATMOSPHERE, check_atmosphere, exponential_layer
 from components.space.srp import SOLAR_FLUX
 
 GRAVITY = Record(
@@ -83,10 +83,10 @@ def _drag(params, rotation):
             frozenset({"earth_rotation"}),
         )
     else:
-        layer = (
-            None if atmosphere is None else (atmosphere["altitude"], atmosphere["density"], atmosphere["scale_height"])
+        density, needs = (
+            numerical.exponential_density(ExponentialAtmosphere(exponential_layer(atmosphere))),
+            frozenset(),
         )
-        density, needs = numerical.exponential_density(ExponentialAtmosphere(layer)), frozenset()
     return numerical.Drag(density, d["cd"], d["area"], params["mass"], needs=needs)
 
 

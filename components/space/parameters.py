@@ -69,6 +69,15 @@ ATMOSPHERE = Record(
 )
 
 
+def exponential_layer(atmosphere: Mapping | None) -> tuple[float, float, float] | None:
+    """One exponential layer's (altitude, density, scale_height) (m, kg/m^3, m) of a checked
+    ``ATMOSPHERE``; None for the 0-1000 km table: no atmosphere, or ``model: exponential`` without
+    a layer, or a model that is not exponential."""
+    if atmosphere is None or atmosphere["model"] != "exponential" or atmosphere["altitude"] is None:
+        return None
+    return atmosphere["altitude"], atmosphere["density"], atmosphere["scale_height"]
+
+
 def check_atmosphere(atmosphere: Mapping | None, epoch) -> None:
     """ConfigError naming the key: a model's own parameters, all of them, and no other's; NRLMSISE-00
     needs the run's epoch (its time of day and year)."""

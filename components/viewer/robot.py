@@ -83,6 +83,7 @@ def mesh_arrays(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, 
     None when the file has none) of a mesh file, every part of a scene merged (trimesh; COLLADA
     through pycollada). Raises whatever trimesh raises for a file it cannot read."""
     import trimesh
+    from trimesh.visual.color import ColorVisuals
     from trimesh.visual.texture import TextureVisuals
 
     mesh = trimesh.load(str(path), force="mesh")
@@ -90,9 +91,13 @@ def mesh_arrays(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, 
         raise ValueError(f"{path.name}: no triangles")
     colors = None
     try:
-        # a texture only: ColorVisuals (vertex or face colours) has no to_color, its colours go unread
-        if isinstance(mesh.visual, TextureVisuals) and mesh.visual.kind is not None:
-            colors = np.asarray(mesh.visual.to_color().vertex_colors, dtype=np.uint8)
+        visual = mesh.visual
+        if isinstance(visual, TextureVisuals) and visual.kind is not None:
+            visual = visual.to_color()  # a texture baked into vertex colours
+        # face colours (a merged scene's materials) reach the vertices averaged over their faces:
+        # exact where, as there, each part has vertices of its own
+        if isinstance(visual, ColorVisuals) and visual.kind in ("vertex", "face"):
+            colors = np.asarray(visual.vertex_colors, dtype=np.uint8)
             if colors.shape != (len(mesh.vertices), 4):
                 colors = None
     except Exception:  # a texture trimesh cannot bake into colours: the URDF's colour instead

@@ -396,6 +396,26 @@ def test_each_term_is_an_output_and_sums_to_what_the_lvlh_rate_uses():
     assert set(plain.outputs) == {"r_eci", "v_eci", "q_eci_lvlh", "w_lvlh", "a_point_mass_eci"}
 
 
+def test_drag_in_the_exponential_table_or_one_layer_is_the_closed_form():
+    """``atmosphere: {model: exponential}`` without a layer is the 0-1000 km table, as no
+    atmosphere is; one layer gives a = -1/2 rho Cd A/m |v_rel| v_rel with v_rel = v - omega_E z x r
+    and rho = rho0 exp(-(h - h0)/H), h = |r| - R_E (numerical.py's table), to 1e-12 relative."""
+    from components.constants import EARTH_RATE, R_EARTH
+
+    drag = {"drag": {"cd": 2.2, "area": "10 m^2"}, "mass": "500 kg"}
+    table = numerical_orbit(**drag).step(60 * 10**9)
+    named_table = numerical_orbit(**drag, atmosphere={"model": "exponential"}).step(60 * 10**9)
+    assert np.array_equal(named_table["a_drag_eci"], table["a_drag_eci"])
+    layer = {"model": "exponential", "altitude": "380 km", "density": 4.0e-12, "scale_height": "58 km"}
+    out = numerical_orbit(**drag, atmosphere=layer).step(60 * 10**9)
+    r, v = out["r_eci"], out["v_eci"]
+    v_rel = v - np.cross([0.0, 0.0, EARTH_RATE], r)
+    rho = 4.0e-12 * math.exp(-(np.linalg.norm(r) - R_EARTH - 380e3) / 58e3)
+    want = -0.5 * rho * 2.2 * 10.0 / 500.0 * np.linalg.norm(v_rel) * v_rel
+    assert relative(out["a_drag_eci"], want) < 1e-12
+    assert relative(table["a_drag_eci"], want) > 1e-3  # the table is another atmosphere: the layer was used
+
+
 @pytest.mark.parametrize(
     "changes, key, words",
     [

@@ -135,3 +135,29 @@ def test_link_poses_match_a_numpy_walk_of_the_urdf(tmp_path, urdf):
 def test_normalized_quaternions():
     q = normalized_quaternions(np.array([[0, 0, 0, 0], [0, 0, 0, 2.0], [1, 1, 1, 1]]))
     assert np.allclose(q, [[0, 0, 0, 1], [0, 0, 0, 1], [0.5, 0.5, 0.5, 0.5]])
+
+
+def test_a_mesh_s_vertex_and_face_colours_reach_the_view(tmp_path):
+    """Colours a mesh file carries, not the URDF's: per vertex as written (PLY), and per face of a
+    merged two-part mesh (each part its own vertices) as that part's colour on its vertices."""
+    import trimesh
+
+    from components.viewer.robot import mesh_arrays
+
+    box = trimesh.creation.box((0.1, 0.2, 0.3))
+    vertex_colours = np.array([[(37 * i) % 256, (91 * i) % 256, (53 * i) % 256, 255] for i in range(8)], np.uint8)
+    box.visual = trimesh.visual.ColorVisuals(box, vertex_colors=vertex_colours)
+    box.export(tmp_path / "vertex.ply")
+    vertices, _, _, colours = mesh_arrays(tmp_path / "vertex.ply")
+    order = [int(np.argmin(np.linalg.norm(box.vertices - v, axis=1))) for v in vertices]
+    assert colours is not None and np.array_equal(colours, vertex_colours[order])
+
+    red, blue = trimesh.creation.box((0.1, 0.1, 0.1)), trimesh.creation.box((0.1, 0.1, 0.1))
+    blue.apply_translation((1.0, 0.0, 0.0))
+    red.visual.face_colors, blue.visual.face_colors = (255, 0, 0, 255), (0, 0, 255, 255)
+    trimesh.util.concatenate([red, blue]).export(tmp_path / "faces.ply")
+    vertices, _, _, colours = mesh_arrays(tmp_path / "faces.ply")
+    assert colours is not None
+    on_blue = vertices[:, 0] > 0.5
+    assert on_blue.sum() == 8 and (colours[on_blue] == (0, 0, 255, 255)).all()
+    assert (colours[~on_blue] == (255, 0, 0, 255)).all()

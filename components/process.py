@@ -63,7 +63,7 @@ class ComponentProcess:
         self.frames_held: dict[tuple[str, str], dict[int, np.ndarray]] = {}  # (source, output) -> tag -> frame
         self.frame_consumers: dict[str, list[str]] = {}  # our frame output -> who gets it
         self.frame_messages: dict[str, bytes] = {}  # our frame output -> its latest message (sent again at sync)
-        self.view = None  # a bus.LiveFrameSender: our frame outputs for the live views, while one watches
+        self.view = None  # a live_frames.LiveFrameSender: our frame outputs for the live views, while one watches
         self.source_sizes: dict[str, int] = {}  # source -> the outputs its routes read
         self.drops: dict[str, int] = {}  # key -> messages dropped from it
         self.synced = False

@@ -15,6 +15,7 @@ import time
 
 from components import bus, protocol
 from components.group import MARK_SIZE, Group
+from components.live_frames import LiveFrameSender
 from components.process import IDLE_FLUSH_S
 
 INBOX_CAPACITY = 4096  # messages waiting in a component's inbox FIFO (a full one holds the senders back)
@@ -79,7 +80,7 @@ class ZenohTransport:
         self.replies: dict[str, object] = {}
         self.batches: dict[str, object] = {}
         self.outputs: dict[tuple[str, str], object] = {}  # (consumer, source) -> publisher
-        self.views: dict[str, bus.LiveFrameSender] = {}  # member -> its frames for the live views
+        self.views: dict[str, LiveFrameSender] = {}  # member -> its frames for the live views
 
     def join(self, name: str, generation: int) -> None:
         session, run_id = self.session, self.run_id
@@ -91,7 +92,7 @@ class ZenohTransport:
             self.batches[name],
             session.liveliness().declare_token(bus.alive_key(run_id, name, generation)),
         ]
-        self.views[name] = bus.LiveFrameSender(session, run_id, name)
+        self.views[name] = LiveFrameSender(session, run_id, name)
         self.held[name].append(self.views[name])
 
     def publish_reply(self, name: str, payload: bytes) -> None:

@@ -82,7 +82,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=20000)
     steps = parser.parse_args().steps
     print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}")
-    from components.fmi.imported import build_python_model
+    from components.fmi.fmu_file import build_python_model
 
     wheel = build_python_model(ROOT / "models" / "reaction_wheel.py")
     compare(

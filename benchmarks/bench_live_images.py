@@ -2,7 +2,7 @@
 
     python -m benchmarks.bench_live_images [--frames 100]
 
-- in the camera's process, per step: ``bus.LiveFrameSender.send`` while nobody watches (a dict
+- in the camera's process, per step: ``live_frames.LiveFrameSender.send`` while nobody watches (a dict
   look-up: nothing encoded), and the encoding of the view messages when a view watches
   (``bus.encode_view_frame``, RGB uint8 and depth float32);
 - in the view, per frame: :meth:`components.ros_frames.LiveFrames.take` for one RGB + depth frame
@@ -45,6 +45,7 @@ def main() -> None:
     from rosbags.typesys import Stores, get_typestore
 
     from components import bus
+    from components.live_frames import LiveFrameSender
     from components.ros_frames import LiveFrames
     from tests.integration.test_camera_run import camera_config
 
@@ -56,7 +57,7 @@ def main() -> None:
 
     session = bus.open_session()
     try:
-        sender = bus.LiveFrameSender(session, "bench", "camera")
+        sender = LiveFrameSender(session, "bench", "camera")
         sender.declare(["rgb", "depth"])
         idle = []
         for _ in range(args.frames):

@@ -1,5 +1,5 @@
 """The live views' camera frames: frame outputs from the bus (``v/<component>/<output>``, sent by
-:class:`components.bus.LiveFrameSender` only while a view subscribes), as the ROS 2 messages of the
+:class:`components.live_frames.LiveFrameSender` only while a view subscribes), as the ROS 2 messages of the
 rosbag2 export (``RosExport.frames``: sensor.camera's Image and CameraInfo, CDR bytes).
 
 A subscriber per frame output keeps the messages as they come (Zenoh's thread only stores them,

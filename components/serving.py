@@ -15,6 +15,7 @@ import time
 
 from components import bus, protocol
 from components.group import MARK_SIZE, Group
+from components.live_frames import LiveFrameSender
 from components.process import IDLE_FLUSH_S
 
 INBOX_CAPACITY = 4096  # messages waiting in a component's inbox FIFO (a full one holds the senders back)
@@ -79,7 +80,7 @@ class ZenohTransport:
         self.replies: dict[str, object] = {}
         self.batches: dict[str, object] = {}
         self.outputs: dict[tuple[str, str], object] = {}  # (consumer, source) -> publisher
-        self.views: dict[str, bus.LiveFrameSender] = {}  # member -> its frames for the live views
+        self.views: dict[str, LiveFrameSender] = {}  # member -> its frames for the live views
 
     def join(self, name: str, generation: int) -> None:
         session, run_id = self.session, self.run_id
@@ -91,7 +92,7 @@ class ZenohTransport:
             self.batches[name],
             session.liveliness().declare_token(bus.alive_key(run_id, name, generation)),
         ]
-        self.views[name] = bus.LiveFrameSender(session, run_id, name)
+        self.views[name] = LiveFrameSender(session, run_id, name)
         self.held[name].append(self.views[name])
 
     def publish_reply(self, name: str, payload: bytes) -> None:
@@ -134,6 +135,21 @@ class ZenohTransport:
     def close(self) -> None:
         for name in list(self.held):
             self.leave(name)
+
+
+def _watch_orchestrator(session, run_id: str, orchestrator: str | None, gone):
+    """Call ``gone`` when the orchestrator goes away: the closing of this session's direct link to
+    it (Zenoh id ``orchestrator``), else the deletion of its liveliness token. The listener or
+    subscriber that watches, to undeclare."""
+    import zenoh
+
+    if orchestrator in {str(t.zid) for t in session.info.transports()}:
+        return session.info.declare_transport_events_listener(
+            lambda e: gone() if e.kind == zenoh.SampleKind.DELETE and str(e.transport.zid) == orchestrator else None
+        )
+    return session.liveliness().declare_subscriber(
+        bus.orchestrator_alive_key(run_id), lambda s: gone() if s.kind == zenoh.SampleKind.DELETE else None
+    )
 
 
 def _undeclare(held) -> None:
@@ -225,8 +241,6 @@ def serve_session(
     token may be dropped with another peer's link), else its liveliness token does. ``beat_s``:
     send a heartbeat that often. ``stepping``: the file to mark the member whose code runs in
     (none: marks go nowhere)."""
-    import zenoh
-
     inbox = (FifoInbox if len(members) == 1 else QueueInbox)(session, run_id)
     transport = ZenohTransport(session, run_id, inbox)
     mark_file = open(stepping, "r+b") if stepping else None  # noqa: SIM115 (closed in the finally below)
@@ -239,20 +253,7 @@ def serve_session(
             group.interrupt()
             inbox.wake()
 
-        if orchestrator in {str(t.zid) for t in session.info.transports()}:
-            keep.append(
-                session.info.declare_transport_events_listener(
-                    lambda e: (
-                        gone() if e.kind == zenoh.SampleKind.DELETE and str(e.transport.zid) == orchestrator else None
-                    )
-                )
-            )
-        else:
-            keep.append(
-                session.liveliness().declare_subscriber(
-                    bus.orchestrator_alive_key(run_id), lambda s: gone() if s.kind == zenoh.SampleKind.DELETE else None
-                )
-            )
+        keep.append(_watch_orchestrator(session, run_id, orchestrator, gone))
         for name, generation in members:
             transport.join(name, generation)
             group.members[name].process.view = transport.views[name]

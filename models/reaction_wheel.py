@@ -97,7 +97,7 @@ if __name__ == "__main__":
     parser.add_argument("-o", "--output", default="reaction_wheel.fmu", help="the .fmu to write")
     out = Path(parser.parse_args().output)
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from components.fmi.imported import build_python_model
+    from components.fmi.fmu_file import build_python_model
 
     shutil.copyfile(build_python_model(Path(__file__).resolve()), out)
     print(f"wrote {out}")

@@ -8,298 +8,23 @@ start values, initialization mode with the inputs, ``doStep`` each step; ``get_s
 
 from __future__ import annotations
 
-import hashlib
-import os
-import re
 import shutil
-import subprocess
-import sys
 import tempfile
 import weakref
 import zipfile
 from collections.abc import Mapping
-from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from components.constants import NS_PER_S
-from components.errors import ComponentError, ConfigError
+from components.errors import ComponentError
 from components.extras import require
+from components.fmi.fmu_file import fmu_file, model_description
 from components.fmi.pythonfmu_exit import hold_binary_until_exit  # pythonfmu's crash at exit, worked around
+from components.fmi.variables import NUMERIC_TYPES, Signal, signals, start_setting, start_value
 from components.schema import Anything, MapOf, Str
 from components.sdk import Component, Parameter, RunSettings, Variable, layouts
-from components.units import normalized_unit
-
-NUMERIC_TYPES = {  # FMI type -> (FMPy setter/getter suffix, numpy dtype of the calls' values)
-    "Real": ("Real", float),
-    "Integer": ("Integer", int),
-    "Enumeration": ("Integer", int),
-    "Boolean": ("Boolean", bool),
-    "Float64": ("Float64", float),
-    "Float32": ("Float32", float),
-    "Int8": ("Int8", int),
-    "UInt8": ("UInt8", int),
-    "Int16": ("Int16", int),
-    "UInt16": ("UInt16", int),
-    "Int32": ("Int32", int),
-    "UInt32": ("UInt32", int),
-    "Int64": ("Int64", int),
-    "UInt64": ("UInt64", int),
-}
-SETTABLE = ("parameter", "input")  # causalities start_values may name
-ELEMENT = re.compile(r"^(.*)\[(\d+)\]$")
-NAME_PART = re.compile(r"[A-Za-z_]\w*")
-
-
-class FMUError(ConfigError):
-    """A problem with the FMU file itself (missing, corrupt, not co-simulation...)."""
-
-
-@dataclass(frozen=True)
-class Signal:
-    """A Zenorbit variable made of FMI variables: ``refs`` in element order."""
-
-    name: str
-    causality: str
-    refs: tuple[Any, ...]  # FMPy ModelVariable per element (an FMI 3 array counts once, with its size)
-    shape: tuple[int, ...]  # () for a scalar, (n,) for a vector
-    unit: str
-    description: str
-
-    @property
-    def size(self) -> int:
-        return self.shape[0] if self.shape else 1
-
-
-def fmu_file(path: str, config_dir: str | None, key: str = "path") -> Path:
-    """The FMU a ``path`` parameter names: an .fmu, or a pythonfmu model (.py) built on first use."""
-    file = Path(path)
-    if not file.is_absolute():
-        file = Path(config_dir or ".") / file
-    if not file.is_file():
-        raise FMUError(key, f"FMU file {path!r} not found (looked for {file})")
-    if file.suffix == ".py":
-        return build_python_model(file, key)
-    if file.suffix != ".fmu":
-        raise FMUError(key, f"expected an .fmu file (or a pythonfmu model .py), got {path!r}")
-    return file.resolve()
-
-
-def build_python_model(script: Path, key: str = "path") -> Path:
-    """Build a pythonfmu model (an ``Fmi2Slave`` subclass in ``script``) into an FMU with state
-    support, cached by content under ``$XDG_CACHE_HOME/zenorbit/fmus`` (built in a child process:
-    pythonfmu imports the script)."""
-    import pythonfmu
-
-    digest = hashlib.sha256(script.read_bytes() + pythonfmu.__version__.encode()).hexdigest()[:16]
-    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "zenorbit" / "fmus"
-    target = cache / f"{script.stem}-{digest}.fmu"
-    if target.is_file():
-        return target
-    cache.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix="zenorbit-build-", dir=cache) as tmp:
-        done = subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "pythonfmu",
-                "build",
-                "-f",
-                str(script),
-                "-d",
-                tmp,
-                "--handle-state",
-                "--serialize-state",
-            ],
-            capture_output=True,
-            text=True,
-        )
-        built = list(Path(tmp).glob("*.fmu"))
-        if done.returncode != 0 or len(built) != 1:
-            last = (done.stderr or done.stdout).strip().splitlines()[-1:] or ["no FMU written"]
-            raise FMUError(key, f"pythonfmu could not build {script}: {last[0]}")
-        os.replace(built[0], target)  # atomic: a concurrent build writes the same bytes
-    return target
-
-
-@lru_cache(maxsize=32)
-def _read(file: Path, mtime_ns: int):
-    import fmpy
-
-    try:
-        with zipfile.ZipFile(file) as archive:
-            if "modelDescription.xml" not in archive.namelist():
-                raise FMUError("path", f"{file} is not an FMU: it has no modelDescription.xml")
-        return fmpy.read_model_description(str(file))
-    except zipfile.BadZipFile:
-        raise FMUError("path", f"{file} is not an FMU: not a zip archive (corrupt or truncated?)") from None
-    except FMUError:
-        raise
-    except Exception as e:  # FMPy's schema validation and XML errors
-        raise FMUError("path", f"{file}: cannot read its modelDescription.xml: {e}") from None
-
-
-def model_description(file: Path):
-    """FMPy's model description of a co-simulation FMU; FMUError otherwise."""
-    md = _read(file, file.stat().st_mtime_ns)
-    if md.coSimulation is None:
-        kinds = "model exchange" if md.modelExchange is not None else "no interface"
-        raise FMUError(
-            "path",
-            f"{file.name} is an FMI {md.fmiVersion} FMU for {kinds} only; "
-            "Zenorbit runs co-simulation FMUs (the FMU brings its own solver)",
-        )
-    if not md.fmiVersion.startswith(("2.", "3.")):
-        raise FMUError("path", f"{file.name} is an FMI {md.fmiVersion} FMU; Zenorbit runs FMI 2.0 and 3.0")
-    return md
-
-
-def _zenorbit_name(fmi_name: str) -> str:
-    """A name for recording columns and connections: dotted identifiers (``der(x)`` -> ``der_x``)."""
-    parts = [re.sub(r"\W+", "_", p).strip("_") or "_" for p in fmi_name.split(".")]
-    return ".".join(p if NAME_PART.fullmatch(p) else f"_{p}" for p in parts)
-
-
-def _unit(v) -> str:
-    unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
-    return normalized_unit(unit) if unit else ""
-
-
-def signals(md, file: Path) -> list[Signal]:
-    """The FMU's inputs and outputs as Zenorbit variables: ``x[0]..x[n-1]`` (or Modelica's
-    ``x[1]..x[n]``) of one causality become a vector ``x`` of n; other names are kept, made into
-    dotted identifiers."""
-    groups: dict[tuple[str, str], list[tuple[int, Any]]] = {}
-    singles: list[Any] = []
-    for v in md.modelVariables:
-        if v.causality not in ("input", "output"):
-            continue
-        if v.type not in NUMERIC_TYPES:
-            raise FMUError(
-                "path",
-                f"{file.name}: {v.causality} {v.name!r} is of type {v.type}; "
-                f"Zenorbit signals are numbers ({', '.join(NUMERIC_TYPES)})",
-            )
-        if (v.dimensions and len(v.dimensions) > 1) or v.dimensionValueReferences:
-            raise FMUError(
-                "path",
-                f"{file.name}: {v.causality} {v.name!r} is an array of variable or "
-                "several dimensions; Zenorbit signals are scalars and vectors",
-            )
-        m = ELEMENT.match(v.name)
-        if m and not v.dimensions:
-            groups.setdefault((m.group(1), v.causality), []).append((int(m.group(2)), v))
-        else:
-            singles.append(v)
-    out = []
-    for v in singles:
-        shape = (int(v.dimensions[0].start),) if v.dimensions else ()
-        out.append(
-            Signal(
-                _zenorbit_name(v.name),
-                v.causality,
-                (v,),
-                shape,
-                _unit(v),
-                (v.description or "") + (f" (FMI name {v.name})" if _zenorbit_name(v.name) != v.name else ""),
-            )
-        )
-    for (base, causality), elements in groups.items():
-        elements.sort(key=lambda e: e[0])
-        indices = [i for i, _ in elements]
-        first = indices[0]
-        if first in (0, 1) and indices == list(range(first, first + len(indices))):
-            refs = tuple(v for _, v in elements)
-            units = {_unit(v) for v in refs}
-            out.append(
-                Signal(
-                    _zenorbit_name(base),
-                    causality,
-                    refs,
-                    (len(refs),),
-                    units.pop() if len(units) == 1 else "",
-                    (refs[0].description or "") + f" (FMI {base}[{first}]..{base}[{indices[-1]}])",
-                )
-            )
-        else:  # not a vector: each element on its own
-            out += [
-                Signal(
-                    _zenorbit_name(f"{base}_{i}"),
-                    causality,
-                    (v,),
-                    (),
-                    _unit(v),
-                    (v.description or "") + f" (FMI name {v.name})",
-                )
-                for i, v in elements
-            ]
-    names = [s.name for s in out]
-    repeated = sorted({n for n in names if names.count(n) > 1})
-    if repeated:
-        raise FMUError(
-            "path",
-            f"{file.name}: FMI names that differ only in characters Zenorbit names cannot "
-            f"hold map to the same name {repeated[0]!r}",
-        )
-    order = {id(v): i for i, v in enumerate(md.modelVariables)}
-    return sorted(out, key=lambda s: order[id(s.refs[0])])
-
-
-def _start(signal: Signal, start_values: Mapping[str, Any]) -> np.ndarray:
-    """The signal's start: the config's start_values, else the FMU's declared start, else 0."""
-    values = []
-    for v in signal.refs:
-        if v.name in start_values:
-            given = start_values[v.name]
-            values += [float(x) for x in (given if isinstance(given, (list, tuple)) else [given])]
-            continue
-        text = v.start if v.start is not None else "0"
-        words = str(text).replace(",", " ").split() or ["0"]
-        values += [1.0 if w == "true" else 0.0 if w == "false" else float(w) for w in words]
-    values += [0.0] * (signal.size - len(values))
-    return np.array(values[: signal.size]).reshape(signal.shape)
-
-
-def _setting(md, name: str, value: Any, key: str) -> tuple[Any, list]:
-    """The FMI variable ``name`` and the values to set it to; ConfigError naming ``key``."""
-    by_name = {v.name: v for v in md.modelVariables}
-    v = by_name.get(name)
-    if v is None:
-        settable = [v.name for v in md.modelVariables if v.causality in SETTABLE]
-        raise ConfigError(
-            key,
-            f"the FMU has no variable {name!r} (its parameters and inputs: "
-            f"{', '.join(settable[:20]) or 'none'}{' ...' if len(settable) > 20 else ''})",
-        )
-    if v.causality not in SETTABLE or v.variability == "constant":
-        raise ConfigError(
-            key,
-            f"{name!r} is a {v.variability or ''} {v.causality} of the FMU: only its parameters "
-            "and inputs take start values",
-        )
-    values = list(value) if isinstance(value, (list, tuple)) else [value]
-    size = int(np.prod([int(d.start) for d in v.dimensions])) if v.dimensions else 1
-    if len(values) != size:
-        raise ConfigError(key, f"expected {size} value{'s' * (size > 1)} for {name!r}, got {len(values)}")
-    if v.type == "String":
-        if not all(isinstance(x, str) for x in values):
-            raise ConfigError(key, f"{name!r} is a String: expected text, got {value!r}")
-    elif v.type == "Boolean":
-        if not all(isinstance(x, bool) for x in values):
-            raise ConfigError(key, f"{name!r} is a Boolean: expected true or false, got {value!r}")
-    elif v.type in NUMERIC_TYPES:
-        integral = NUMERIC_TYPES[v.type][1] is int
-        for x in values:
-            if isinstance(x, bool) or not isinstance(x, (int, float)) or (integral and not isinstance(x, int)):
-                raise ConfigError(
-                    key, f"{name!r} is of type {v.type}: expected {'an integer' if integral else 'a number'}, got {x!r}"
-                )
-    else:
-        raise ConfigError(key, f"{name!r} is of type {v.type}, which start_values cannot set")
-    return v, values
 
 
 class FMUComponent(Component):
@@ -340,7 +65,7 @@ class FMUComponent(Component):
     def validate(cls, params, run):
         file, md = cls._model(params, run)
         for name, value in params["start_values"].items():
-            _setting(md, name, value, f"start_values.{name}")
+            start_setting(md, name, value, f"start_values.{name}")
         signals(md, file)
         return params
 
@@ -348,7 +73,7 @@ class FMUComponent(Component):
     def declare(cls, params, run):
         file, md = cls._model(params, run)
         return [
-            Variable(s.name, s.causality, s.shape, s.unit, _start(s, params["start_values"]), s.description)
+            Variable(s.name, s.causality, s.shape, s.unit, start_value(s, params["start_values"]), s.description)
             for s in signals(md, file)
         ]
 
@@ -497,7 +222,7 @@ class FMUComponent(Component):
     def _enter(self, t0_s: float):
         """Start values set, initialization mode entered (FMI 2: after setupExperiment)."""
         for name, value in self.params["start_values"].items():
-            v, values = _setting(self.md, name, value, f"start_values.{name}")
+            v, values = start_setting(self.md, name, value, f"start_values.{name}")
             suffix = NUMERIC_TYPES[v.type][0] if v.type in NUMERIC_TYPES else "String"
             self._call(getattr(self.fmu, f"set{suffix}"), f"setting start value {name}", [v.valueReference], values)
         if self.fmi3:

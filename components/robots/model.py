@@ -10,7 +10,8 @@ from typing import Any
 
 from components.errors import ConfigError
 from components.robots.packages import PackageError, resolve_uri
-from components.robots.urdf import UrdfError, UrdfModel, read_urdf
+from components.robots.urdf import UrdfModel, read_urdf
+from components.robots.urdf_elements import UrdfError
 from components.schema import Float, OneOf
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]

@@ -96,35 +96,29 @@ def discover(node, limit_s: float) -> None:
         time.sleep(0.02)
 
 
-def main() -> int:
-    out = os.dup(1)  # the protocol's descriptor; fd 1 becomes stderr for everything else
-    os.dup2(2, 1)
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--domain", type=int, required=True)
-    parser.add_argument("--node", required=True)
-    parser.add_argument("--namespace", default="/")
-    parser.add_argument(
-        "--discover", type=float, default=0.0, help="at most this long (s), learn the graph before saying ready"
-    )
-    args = parser.parse_args()
+class SideNode:
+    """The rclpy node and what the parent declared on it: publishers and subscriptions by id,
+    each answering the parent's frames."""
 
-    import rclpy
-    import rclpy.duration
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    def __init__(self, channel: Channel, domain: int, name: str, namespace: str):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
 
-    channel = Channel(out)
-    rclpy.init(domain_id=args.domain)
-    node = rclpy.create_node(args.node, namespace=args.namespace)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, name="rclpy-spin", daemon=True)
-    spinner.start()
-    publishers: dict[int, object] = {}
-    subscriptions: dict[int, object] = {}
-    unpublished: set[str] = set()  # topics a publish failed on (said once each)
+        self.channel = channel
+        rclpy.init(domain_id=domain)
+        self.node = rclpy.create_node(name, namespace=namespace)
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self.spinner = threading.Thread(target=self.executor.spin, name="rclpy-spin", daemon=True)
+        self.spinner.start()
+        self.publishers: dict[int, object] = {}
+        self.subscriptions: dict[int, object] = {}
+        self.unpublished: set[str] = set()  # topics a publish failed on (said once each)
 
-    def qos(spec: dict) -> QoSProfile:
+    @staticmethod
+    def qos(spec: dict):
+        from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
         if spec["depth"] is None:  # KEEP_ALL: reliable delivery of every sample to the readers it matched
             return QoSProfile(
                 history=HistoryPolicy.KEEP_ALL,
@@ -138,11 +132,11 @@ def main() -> int:
             durability=DurabilityPolicy.TRANSIENT_LOCAL if spec["latched"] else DurabilityPolicy.VOLATILE,
         )
 
-    def declare(kind: bytes, spec: dict) -> None:
+    def declare(self, kind: bytes, spec: dict) -> None:
         try:
             cls = message_class(spec["type"])
         except (ImportError, AttributeError, ValueError) as e:
-            channel.send_json(
+            self.channel.send_json(
                 b"W",
                 {
                     "id": spec["id"],
@@ -152,24 +146,25 @@ def main() -> int:
             )
             return
         if kind == b"P":
-            publisher = node.create_publisher(cls, spec["topic"], qos(spec))
-            publishers[spec["id"]] = publisher
-            await_matches(publisher, spec["topic"])
+            publisher = self.node.create_publisher(cls, spec["topic"], self.qos(spec))
+            self.publishers[spec["id"]] = publisher
+            self.await_matches(publisher, spec["topic"])
         else:
-            header = ENTITY_ID.pack(spec["id"])
-            subscriptions[spec["id"]] = node.create_subscription(
-                cls, spec["topic"], lambda data: channel.send(b"M", header + data), qos(spec), raw=True
+            header, channel = ENTITY_ID.pack(spec["id"]), self.channel
+            self.subscriptions[spec["id"]] = self.node.create_subscription(
+                cls, spec["topic"], lambda data: channel.send(b"M", header + data), self.qos(spec), raw=True
             )
 
-    def await_matches(publisher, topic: str) -> None:
+    def await_matches(self, publisher, topic: str) -> None:
         # a message published before DDS matched a subscription the graph already knows is lost to it
         deadline = time.monotonic() + MATCH_WAIT_S
-        while publisher.get_subscription_count() < node.count_subscribers(topic) and time.monotonic() < deadline:
+        while publisher.get_subscription_count() < self.node.count_subscribers(topic) and time.monotonic() < deadline:
             time.sleep(0.005)
 
-    def graph(request: dict) -> dict:
-        matched = {str(i): p.get_subscription_count() for i, p in publishers.items()}
-        matched |= {str(i): s.get_publisher_count() for i, s in subscriptions.items()}
+    def graph(self, request: dict) -> dict:
+        node = self.node
+        matched = {str(i): p.get_subscription_count() for i, p in self.publishers.items()}
+        matched |= {str(i): s.get_publisher_count() for i, s in self.subscriptions.items()}
         others = []
         own = (node.get_name(), node.get_namespace())
         for topic in request["topics"]:
@@ -184,17 +179,26 @@ def main() -> int:
                 ]
         return {"request": request["request"], "matched": matched, "graph": others}
 
-    discover(node, args.discover)
-    channel.send_json(
-        b"R",
-        {
-            "rmw": rclpy.get_rmw_implementation_identifier(),
-            "domain": args.domain,
-            "python": sys.executable,
-            "node": node.get_fully_qualified_name(),
-        },
-    )
-    try:
+    def publish(self, payload: bytes) -> None:
+        (entity,) = ENTITY_ID.unpack_from(payload)
+        publisher = self.publishers.get(entity)
+        if publisher is None:
+            return
+        try:
+            publisher.publish(payload[ENTITY_ID.size :])
+        except Exception as e:  # rclpy's RCLError: the writer's history full past its wait
+            if publisher.topic_name not in self.unpublished:
+                self.unpublished.add(publisher.topic_name)
+                self.channel.send_json(
+                    b"W",
+                    {
+                        "id": None,
+                        "text": f"{publisher.topic_name}: a message could not be published ({type(e).__name__}: {e})",
+                    },
+                )
+
+    def serve(self) -> None:
+        """Answer the parent's frames until it says finish or goes away."""
         while True:
             header = read_exact(0, HEADER.size)
             if header is None:
@@ -205,40 +209,61 @@ def main() -> int:
                 break
             kind = bytes([kind])
             if kind == b"M":
-                (entity,) = ENTITY_ID.unpack_from(payload)
-                publisher = publishers.get(entity)
-                if publisher is not None:
-                    try:
-                        publisher.publish(payload[ENTITY_ID.size :])
-                    except Exception as e:  # rclpy's RCLError: the writer's history full past its wait
-                        if publisher.topic_name not in unpublished:
-                            unpublished.add(publisher.topic_name)
-                            channel.send_json(
-                                b"W",
-                                {
-                                    "id": None,
-                                    "text": f"{publisher.topic_name}: a message "
-                                    f"could not be published ({type(e).__name__}: {e})",
-                                },
-                            )
+                self.publish(payload)
             elif kind in (b"P", b"S"):
-                declare(kind, json.loads(payload))
+                self.declare(kind, json.loads(payload))
             elif kind == b"G":
-                channel.send_json(b"G", graph(json.loads(payload)))
+                self.channel.send_json(b"G", self.graph(json.loads(payload)))
             elif kind == b"Q":
                 break
-    except KeyboardInterrupt:
-        pass
-    finally:
+
+    def close(self) -> None:
+        """Give the subscribers up to FLUSH_S to acknowledge what was published, then end rclpy."""
+        import rclpy
+        import rclpy.duration
+
         deadline = time.monotonic() + FLUSH_S  # reliable: what was published reaches who matched
-        for publisher in publishers.values():
+        for publisher in self.publishers.values():
             publisher.wait_for_all_acked(
                 rclpy.duration.Duration(nanoseconds=max(0, int((deadline - time.monotonic()) * 1e9)))
             )
-        executor.shutdown(timeout_sec=1.0)
+        self.executor.shutdown(timeout_sec=1.0)
         rclpy.try_shutdown()  # wakes the spinning thread, which must end before the process does
-        spinner.join(timeout=2.0)
-        node.destroy_node()
+        self.spinner.join(timeout=2.0)
+        self.node.destroy_node()
+
+
+def main() -> int:
+    out = os.dup(1)  # the protocol's descriptor; fd 1 becomes stderr for everything else
+    os.dup2(2, 1)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--domain", type=int, required=True)
+    parser.add_argument("--node", required=True)
+    parser.add_argument("--namespace", default="/")
+    parser.add_argument(
+        "--discover", type=float, default=0.0, help="at most this long (s), learn the graph before saying ready"
+    )
+    args = parser.parse_args()
+
+    import rclpy
+
+    side = SideNode(Channel(out), args.domain, args.node, args.namespace)
+    discover(side.node, args.discover)
+    side.channel.send_json(
+        b"R",
+        {
+            "rmw": rclpy.get_rmw_implementation_identifier(),
+            "domain": args.domain,
+            "python": sys.executable,
+            "node": side.node.get_fully_qualified_name(),
+        },
+    )
+    try:
+        side.serve()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        side.close()
     return 0
 
 

@@ -98,23 +98,11 @@ def replay(
     out=sys.stderr,
 ) -> int:
     """Log a recording into Rerun; returns the number of rows logged. Web mode serves until Ctrl-C."""
-    import numpy as np
-
     from components.viewer.scene import SceneLogger
     from components.viewer.sinks import close_stream, open_stream
 
     config, config_dir, run_id = read_recording(directory)
-    import pyarrow.dataset as ds
-
-    parquet = ds.dataset(Path(directory) / "signals.parquet", format="parquet")  # a file, or a dataset directory
-    names = parquet.schema.names
-    if not names or not parquet.count_rows():
-        raise ReplayError(
-            f"{directory}/signals.parquet: the recording holds no rows (the run wrote none before it ended: its events.jsonl says why)"
-        )
-    if names[:2] != ["step", "time"]:
-        raise ReplayError(f"{directory}/signals.parquet: expected the columns step, time first, got {names[:2]}")
-    columns = names[2:]
+    parquet, columns = _signals(directory)
     n = decimation(config, rate_hz)
     scene = SceneLogger(
         columns,
@@ -134,32 +122,60 @@ def replay(
     scene.rec = stream
     try:
         scene.log_static()
-        for batch in parquet.to_batches(batch_size=BATCH_ROWS):
-            steps = batch.column(0).to_numpy()
-            keep = np.flatnonzero(steps % n == 0)
-            if not len(keep):
-                continue
-            times = batch.column(1).to_numpy()[keep]
-            rows = (
-                np.column_stack([batch.column(j).to_numpy()[keep] for j in range(2, batch.num_columns)])
-                if columns
-                else np.zeros((len(keep), 0))
-            )
-            scene.log_rows(steps[keep], times, rows)
+        _log_rows(scene, parquet, columns, n)
         stream.flush(timeout_sec=60.0)
         if url:
             print(f"Rerun web viewer at {url}\n{scene.rows_logged} rows; serving until Ctrl-C", file=out, flush=True)
-            previous = signal.signal(signal.SIGTERM, _raise_interrupt)
-            try:
-                while True:
-                    time.sleep(3600)
-            except KeyboardInterrupt:
-                pass
-            finally:
-                signal.signal(signal.SIGTERM, previous)
+            _serve_until_interrupted()
     finally:
         close_stream(stream)
     return scene.rows_logged
+
+
+def _signals(directory: str | Path):
+    """(the recording's signals.parquet as a pyarrow dataset, its recorded columns after step and
+    time); ReplayError for one with no rows or other first columns."""
+    import pyarrow.dataset as ds
+
+    parquet = ds.dataset(Path(directory) / "signals.parquet", format="parquet")  # a file, or a dataset directory
+    names = parquet.schema.names
+    if not names or not parquet.count_rows():
+        raise ReplayError(
+            f"{directory}/signals.parquet: the recording holds no rows (the run wrote none before it ended: its events.jsonl says why)"
+        )
+    if names[:2] != ["step", "time"]:
+        raise ReplayError(f"{directory}/signals.parquet: expected the columns step, time first, got {names[:2]}")
+    return parquet, names[2:]
+
+
+def _log_rows(scene, parquet, columns: list[str], n: int) -> None:
+    """Log every ``n``-th step's row of the recording, read in batches."""
+    import numpy as np
+
+    for batch in parquet.to_batches(batch_size=BATCH_ROWS):
+        steps = batch.column(0).to_numpy()
+        keep = np.flatnonzero(steps % n == 0)
+        if not len(keep):
+            continue
+        times = batch.column(1).to_numpy()[keep]
+        rows = (
+            np.column_stack([batch.column(j).to_numpy()[keep] for j in range(2, batch.num_columns)])
+            if columns
+            else np.zeros((len(keep), 0))
+        )
+        scene.log_rows(steps[keep], times, rows)
+
+
+def _serve_until_interrupted() -> None:
+    """Keep the web viewer's server up until Ctrl-C or SIGTERM."""
+    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _raise_interrupt(signum, frame):

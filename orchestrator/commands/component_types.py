@@ -135,7 +135,8 @@ def cmd_describe(args) -> int:
 def cmd_export_fmu(args) -> int:
     if problem := missing("fmi", "orchestrator export-fmu"):
         return fail(problem)
-    from components.fmi.exported import ExportError, export_fmu, fmu_summary
+    from components.fmi.exported import export_fmu, fmu_summary
+    from components.fmi.spec import ExportError
     from orchestrator.config.yaml_file import ConfigErrors, apply_overrides
 
     if not args.output.endswith(".fmu"):

@@ -12,7 +12,8 @@ import pytest
 
 from components.constants import NS_PER_S
 from components.errors import ComponentError, ConfigError
-from components.fmi.imported import FMUComponent, build_python_model
+from components.fmi.fmu_file import build_python_model
+from components.fmi.imported import FMUComponent
 from components.sdk import RunSettings
 from components.testing.harness import Harness
 from tests.conftest import ROOT, needs

@@ -24,7 +24,8 @@ fmpy = pytest.importorskip("fmpy", reason=missing("fmi", "testing the FMU export
 from fmpy.fmi2 import FMU2Slave  # noqa: E402  (the extra [fmi]: skipped above without it)
 from fmpy.validation import validate_fmu  # noqa: E402
 
-from components.fmi.exported import element_units, export_fmu  # noqa: E402  (pythonfmu: the same extra)
+from components.fmi.exported import export_fmu  # noqa: E402  (pythonfmu: the same extra)
+from components.fmi.slave import element_units  # noqa: E402
 
 pytestmark = pytest.mark.integration
 

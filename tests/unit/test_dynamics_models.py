@@ -7,7 +7,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from components.robots.urdf import UrdfError, read_urdf
+from components.robots.urdf import read_urdf
+from components.robots.urdf_elements import UrdfError
 
 MODELS = Path(__file__).resolve().parents[2] / "models"
 TABLE1_MASS = [2.741, 2.425, 2.209, 0.877, 1.878, 0.409, 0.308]

@@ -57,7 +57,7 @@ def test_joint_units_follow_the_joint_types(tmp_path, kinds, units):
 
 @needs("fmi", "an FMU's units")
 def test_a_mixed_body_has_one_unit_per_joint_in_fmus_too(tmp_path):
-    from components.fmi.exported import element_units
+    from components.fmi.slave import element_units
 
     dynamics = variables("dynamics.dart", {"bodies": {"r": {"urdf": str(robot(tmp_path, "prismatic", "revolute"))}}})
     assert element_units(dynamics["r.q"].unit, 2) == ["m", "rad"]

@@ -1,4 +1,4 @@
-"""Frames for the live views (components/bus.py ``LiveFrameSender``, components/ros_frames.py,
+"""Frames for the live views (components/live_frames.py ``LiveFrameSender``, components/ros_frames.py,
 components/camera/ros.py ``frame_topics``): the view message round trip; a component's process
 hands each step's frames to its sender stamped when taken; the live Image/CameraInfo of a frame is
 byte for byte what the rosbag2 export builds from the same frame recorded to a file; and over real
@@ -16,6 +16,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from components import bus, protocol
 from components.camera.ros import _camera, frame_topics
+from components.live_frames import LiveFrameSender
 from components.plotting import RecordedRun
 from components.process import ComponentProcess
 from components.ros_frames import LiveFrames
@@ -148,7 +149,7 @@ def test_frames_go_only_while_a_view_subscribes_and_then_all_arrive(camera_run):
     camera = bus.open_session([endpoint], [], mesh=True)
     view = frames = sender = None
     try:
-        sender = bus.LiveFrameSender(camera, "r1", "camera")
+        sender = LiveFrameSender(camera, "r1", "camera")
         sender.declare(["rgb", "depth"])
         rgb, _depth = _frame(2)
         assert not sender.send("rgb", 0, 0, 10, rgb)  # nobody watches: nothing encoded, nothing sent

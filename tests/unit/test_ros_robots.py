@@ -14,7 +14,8 @@ import pytest
 
 from components.errors import ConfigError
 from components.robots.packages import resolve_uri
-from components.robots.urdf import UrdfError, read_urdf
+from components.robots.urdf import read_urdf
+from components.robots.urdf_elements import UrdfError
 from tests.conftest import ROOT, needs
 
 PANDA_BUS = ROOT / "models" / "ros" / "panda_on_bus.urdf.xacro"

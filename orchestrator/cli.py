@@ -18,27 +18,38 @@ from orchestrator.commands import component_types, hosts, live, recordings, runn
 
 
 def build_parser() -> argparse.ArgumentParser:
-    # long, but a table: the whole surface in one place, in the order of --help
+    """Every command and its arguments, in the order of --help (one function per command)."""
     parser = argparse.ArgumentParser(prog="orchestrator", description="Zenorbit: lockstep co-simulation over Zenoh.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for add in COMMANDS:
+        add(sub)
 
-    def with_set(p):
-        p.add_argument(
-            "--set",
-            action="append",
-            default=[],
-            metavar="KEY=VALUE",
-            help="override a config key, e.g. run.duration=2s (repeatable)",
-        )
+    from components.viewer.replay import add_view_command  # orchestrator view DIR: replay in Rerun
 
-    def with_strict(p):
-        p.add_argument(
-            "--strict",
-            action="store_true",
-            help="the check's warnings (a value outside its plausible "
-            "range, suspect physics) are errors: exit 2, nothing started (as run.strict: true)",
-        )
+    add_view_command(sub)
+    return parser
 
+
+def _with_set(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a config key, e.g. run.duration=2s (repeatable)",
+    )
+
+
+def _with_strict(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--strict",
+        action="store_true",
+        help="the check's warnings (a value outside its plausible "
+        "range, suspect physics) are errors: exit 2, nothing started (as run.strict: true)",
+    )
+
+
+def _add_run(sub) -> None:
     p = sub.add_parser("run", help="run a config")
     p.add_argument("config")
     p.add_argument(
@@ -47,8 +58,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="write signals.parquet, events.jsonl and config.yaml to DIR (a new or empty directory)",
     )
     p.add_argument("--overwrite", action="store_true", help="replace the recording already in --record DIR")
-    with_set(p)
-    with_strict(p)
+    _with_set(p)
+    _with_strict(p)
     p.add_argument(
         "--view",
         metavar="{spawn,web,save:FILE.rrd,foxglove[:PORT]}",
@@ -80,20 +91,28 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=running.cmd_run)
 
+
+def _add_check(sub) -> None:
     p = sub.add_parser("check", help="validate a config without running it")
     p.add_argument("config")
-    with_set(p)
-    with_strict(p)
+    _with_set(p)
+    _with_strict(p)
     p.add_argument("--expect", metavar="OUTCOME", help="check that the run can come to this outcome (run --expect)")
     p.set_defaults(func=running.cmd_check)
 
+
+def _add_ps(sub) -> None:
     p = sub.add_parser("ps", help="list runs alive on this machine")
     p.set_defaults(func=live.cmd_ps)
 
+
+def _add_stop(sub) -> None:
     p = sub.add_parser("stop", help="stop a run cleanly (recording flushed)")
     p.add_argument("--run", required=True, metavar="NAME", help="run name or run id")
     p.set_defaults(func=live.cmd_stop)
 
+
+def _add_swap(sub) -> None:
     p = sub.add_parser("swap", help="replace a component of a running run at the next step boundary")
     p.add_argument("--run", required=True, metavar="NAME", help="run name or run id")
     p.add_argument("component")
@@ -101,6 +120,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a parameter of the new component")
     p.set_defaults(func=live.cmd_swap)
 
+
+def _add_plot(sub) -> None:
     p = sub.add_parser("plot", help="PNG plots of a recording: orbit, dynamics, and the paper's Figs. 5-7")
     p.add_argument("recording", metavar="DIR", help="a directory written by run --record")
     p.add_argument("--out", metavar="DIR", help="where to write the PNGs (default: DIR/plots)")
@@ -109,6 +130,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=recordings.cmd_plot)
 
+
+def _add_export(sub) -> None:
     p = sub.add_parser("export", help="a recording as a rosbag2 folder (MCAP storage) for ros2 bag and Foxglove")
     p.add_argument("recording", metavar="DIR", help="a directory written by run --record")
     p.add_argument("--rosbag2", required=True, metavar="OUT", help="the bag folder to write (must not exist)")
@@ -121,6 +144,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=recordings.cmd_export)
 
+
+def _add_figure(sub) -> None:
     p = sub.add_parser("figure", help="a camera's recorded frame as a PNG: its colour image beside its depth")
     p.add_argument("recording", metavar="DIR", help="a directory written by run --record")
     p.add_argument("--component", required=True, help="the camera's component name (its frames' folder)")
@@ -128,11 +153,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="FILE.png", help="the PNG to write")
     p.set_defaults(func=recordings.cmd_figure)
 
+
+def _add_markers(sub) -> None:
     p = sub.add_parser("markers", help="write the meshes (OBJ) of a fiducial marker layout, which the URDF draws")
     p.add_argument("layout", metavar="LAYOUT.yaml", help="the marker layout, e.g. models/capture/grapple_markers.yaml")
     p.add_argument("--check", action="store_true", help="write nothing; exit 1 if the meshes differ from the layout's")
     p.set_defaults(func=component_types.cmd_markers)
 
+
+def _add_sweep(sub) -> None:
     p = sub.add_parser("sweep", help="run a campaign: a grid and dispersions over a config's keys, many cases")
     p.add_argument("campaign", metavar="CAMPAIGN.yaml")
     p.add_argument("--out", required=True, metavar="DIR", help="where cases.parquet and the cases go")
@@ -149,6 +178,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--only", metavar="N[,N]", help="run only these cases (numbered from 0)")
     p.set_defaults(func=running.cmd_sweep)
 
+
+def _add_join(sub) -> None:
     p = sub.add_parser(
         "join",
         help="on another host: serve a launch: external component of a run, from the join file the orchestrator wrote",
@@ -172,6 +203,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cpu", type=int, help="step on this CPU alone")
     p.set_defaults(func=hosts.cmd_join)
 
+
+def _add_router(sub) -> None:
     p = sub.add_parser(
         "router",
         help="the run's Zenoh router (bus.router), for hosts that cannot reach each other; "
@@ -194,9 +227,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=hosts.cmd_router)
 
+
+def _add_types(sub) -> None:
     p = sub.add_parser("types", help="list the component types, with a line each")
     p.set_defaults(func=component_types.cmd_types)
 
+
+def _add_describe(sub) -> None:
     p = sub.add_parser("describe", help="print a component type's parameters and variables")
     p.add_argument("type", help="a type from `orchestrator types`, module:Class or file.py:Class")
     p.add_argument(
@@ -208,6 +245,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=component_types.cmd_describe)
 
+
+def _add_export_fmu(sub) -> None:
     p = sub.add_parser(
         "export-fmu", help="package a component type, its parameters fixed, as an FMI 2.0 co-simulation FMU"
     )
@@ -227,10 +266,25 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=component_types.cmd_export_fmu)
 
-    from components.viewer.replay import add_view_command  # orchestrator view DIR: replay in Rerun
 
-    add_view_command(sub)
-    return parser
+# the order of --help
+COMMANDS = (
+    _add_run,
+    _add_check,
+    _add_ps,
+    _add_stop,
+    _add_swap,
+    _add_plot,
+    _add_export,
+    _add_figure,
+    _add_markers,
+    _add_sweep,
+    _add_join,
+    _add_router,
+    _add_types,
+    _add_describe,
+    _add_export_fmu,
+)
 
 
 def main(argv: list[str] | None = None) -> int:

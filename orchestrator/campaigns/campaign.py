@@ -1,9 +1,9 @@
 """Campaigns (``orchestrator sweep``): a base config, a grid and dispersions over its keys, and
 metrics reduced from each case's signals (README "Parameter sweeps and Monte Carlo campaigns").
 
-This module is the pure part: reading and validating a campaign file, generating its cases and
-reducing metrics from a recording (:mod:`orchestrator.campaigns.dispersions`, :mod:`orchestrator.campaigns.metrics`).
-Running them is :mod:`orchestrator.campaigns.runner`.
+This module is the pure part: a campaign and its cases (:mod:`orchestrator.campaigns.dispersions`,
+:mod:`orchestrator.campaigns.metrics`). Reading and validating a campaign file is
+:mod:`orchestrator.campaigns.campaign_file`; running the cases is :mod:`orchestrator.campaigns.runner`.
 
 A campaign file::
 
@@ -44,23 +44,10 @@ import yaml
 
 from components.errors import ConfigError
 from components.units import parse_quantity, parse_unit
-from orchestrator.campaigns.dispersions import Dispersion, dispersion
-from orchestrator.campaigns.metrics import Metric, metric, signals_of
-from orchestrator.config.load import validate
-from orchestrator.config.yaml_file import ConfigErrors, read_yaml
+from orchestrator.campaigns.dispersions import Dispersion
+from orchestrator.campaigns.metrics import Metric
 
-CAMPAIGN_KEYS = ("config", "grid", "disperse", "samples", "seed", "metrics", "outcomes", "keep")
-RESERVED_OUTCOMES = ("completed", "failed", "interrupted")
-KEEP = ("all", "failed", "none")
 _KEY_PART = re.compile(r"^([A-Za-z0-9_\-]+)((?:\[\d+\])*)$")
-
-
-class CampaignErrors(Exception):
-    """Every problem of a campaign file, each ``file: key: message``."""
-
-    def __init__(self, errors: list[str]):
-        super().__init__("\n".join(errors))
-        self.errors = errors
 
 
 # ---------------------------------------------------------------- keys and values
@@ -220,226 +207,6 @@ class Campaign:
             default=str,
         )
         return hashlib.sha256(text.encode()).hexdigest()[:16]
-
-
-def absolute_paths(node: Any, base_dir: Path) -> Any:
-    """Strings that name an existing file or directory relative to ``base_dir`` (``../models/x.urdf``)
-    made absolute, so that a case's config runs from anywhere."""
-    if isinstance(node, dict):
-        return {k: absolute_paths(v, base_dir) for k, v in node.items()}
-    if isinstance(node, list):
-        return [absolute_paths(v, base_dir) for v in node]
-    if (
-        isinstance(node, str)
-        and node
-        and not node.startswith("/")
-        and "://" not in node
-        and ("/" in node or "." in node)
-        and "\n" not in node
-        and len(node) < 4096
-    ):
-        try:
-            candidate = base_dir / node
-            if candidate.exists():
-                return str(candidate.resolve())
-        except OSError:
-            pass
-    return node
-
-
-def load_campaign(path: str | Path, *, check_cases: bool | list[int] = True) -> Campaign:
-    """Read and validate a campaign: its own keys, then every case's config against the config
-    schema (``check_cases``: True for all, or a list of case indexes). CampaignErrors lists
-    every problem, each naming its key."""
-    path = Path(path)
-    try:
-        raw = read_yaml(path)
-    except ConfigErrors as e:
-        raise CampaignErrors(
-            [m.replace("with run, components, connections", "with config, grid, disperse, metrics") for m in e.errors]
-        ) from None
-    errors: list[str] = []
-
-    def fail(key: str, message: str) -> None:
-        errors.append(f"{path}: {key}: {message}")
-
-    for key in raw:
-        if key not in CAMPAIGN_KEYS:
-            fail(str(key), f"unknown key (known: {', '.join(CAMPAIGN_KEYS)})")
-    base, base_path = None, path
-    source = raw.get("config")
-    if source is None:
-        fail("config", "missing: a config file (relative to this file) or a config inline")
-    elif isinstance(source, str):
-        base_path = (path.parent / source).resolve()
-        try:
-            base = read_yaml(base_path)
-        except ConfigErrors as e:
-            fail("config", "; ".join(e.errors))
-    elif isinstance(source, dict):
-        base = copy.deepcopy(source)
-    else:
-        fail("config", f"expected a file name or a config mapping, got {source!r}")
-    if base is not None:
-        base = absolute_paths(base, base_path.parent)
-
-    def integer(key: str, default: int | None, minimum: int) -> int | None:
-        value = raw.get(key, default)
-        if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-            fail(key, f"expected a whole number >= {minimum}, got {value!r}")
-            return None
-        return value
-
-    grid: dict[str, list] = {}
-    raw_grid = raw.get("grid") or {}
-    if not isinstance(raw_grid, dict):
-        fail("grid", f"expected KEY: [values] pairs, got {raw_grid!r}")
-        raw_grid = {}
-    for key, values in raw_grid.items():
-        if not isinstance(values, list) or not values:
-            fail(f"grid.{key}", f"expected a non-empty list of values, got {values!r}")
-        else:
-            grid[str(key)] = values
-    dispersions: list[Dispersion] = []
-    raw_disperse = raw.get("disperse") or {}
-    if not isinstance(raw_disperse, dict):
-        fail("disperse", f"expected KEY: {{distribution: [...]}} pairs, got {raw_disperse!r}")
-        raw_disperse = {}
-    for key, spec in raw_disperse.items():
-        if str(key) in grid:
-            fail(f"disperse.{key}", "also in grid: a key is either on the grid or dispersed")
-            continue
-        try:
-            dispersions.append(dispersion(str(key), spec, f"disperse.{key}"))
-        except ConfigError as e:
-            fail(e.key, e.message)
-    samples = integer("samples", 1, 1)
-    seed = integer("seed", 0, 0)
-    if "samples" in raw and not dispersions and samples and samples > 1:
-        fail("samples", "samples > 1 repeat draws of disperse:, and there is none (the cases would be identical)")
-    if dispersions and "seed" not in raw:
-        fail("seed", "missing: disperse needs a seed (every case's draws come from it and the case's index)")
-    outcomes: dict[str, str] = {}
-    raw_outcomes = raw.get("outcomes") or {}
-    if not isinstance(raw_outcomes, dict):
-        fail("outcomes", f"expected OUTCOME: EVENT pairs (e.g. captured: capture), got {raw_outcomes!r}")
-        raw_outcomes = {}
-    for name, event in raw_outcomes.items():
-        if str(name) in RESERVED_OUTCOMES:
-            fail(
-                f"outcomes.{name}",
-                f"{', '.join(RESERVED_OUTCOMES)} are the outcomes of a run itself: give another name",
-            )
-        elif not isinstance(event, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", event):
-            fail(f"outcomes.{name}", f"expected an event name (e.g. capture), got {event!r}")
-        elif event in outcomes.values():
-            fail(
-                f"outcomes.{name}",
-                f"event {event!r} already makes outcome {next(k for k, v in outcomes.items() if v == event)!r}",
-            )
-        else:
-            outcomes[str(name)] = event
-    keep = raw.get("keep", "failed")
-    if keep not in KEEP:
-        fail("keep", f"expected one of {', '.join(KEEP)}, got {keep!r}")
-    bad_keys = False
-    for key in list(grid) + [d.key for d in dispersions]:
-        where = f"grid.{key}" if key in grid else f"disperse.{key}"
-        try:
-            key_path(key)
-        except ValueError as e:
-            fail(where, str(e))
-            bad_keys = True
-            continue
-        if base is not None:
-            try:
-                set_key(copy.deepcopy(base), key, 0)
-            except ValueError as e:
-                fail(where, str(e))
-                bad_keys = True
-    raw_metrics = raw.get("metrics") or {}
-    if not isinstance(raw_metrics, dict):
-        fail("metrics", f"expected NAME: {{signal, reduce}} pairs, got {raw_metrics!r}")
-        raw_metrics = {}
-    campaign = None
-    signals = None
-    if base is not None and not bad_keys:  # the cases and metrics are checked even when other keys are wrong
-        campaign = Campaign(
-            path=path,
-            base=base,
-            base_path=base_path,
-            grid=grid,
-            dispersions=dispersions,
-            samples=samples or 1,
-            seed=seed or 0,
-            metrics=[],
-            keep=keep,
-            raw=raw,
-            outcomes=outcomes,
-        )
-        indexes = range(campaign.count) if check_cases is True else (check_cases or [])
-        seen: dict[str, list[int]] = {}  # a config key's problem: reported for its first case, counted after
-        for index in indexes:
-            if not 0 <= index < campaign.count:
-                errors.append(f"{path}: --only {index}: the campaign has cases 0..{campaign.count - 1}")
-                continue
-            case = campaign.case(index)
-            try:
-                config = validate(case.raw, base_path)
-            except ConfigErrors as e:
-                for message in e.errors:
-                    text = _config_problem(message)
-                    key = text.split(": ", 1)[0]
-                    if key in seen:
-                        seen[key].append(index)
-                        continue
-                    seen[key] = [index]
-                    errors.append(f"{path}: case {index} ({_describe(case.params)}): {text}")
-                continue
-            if signals is None:
-                signals = signals_of(config)
-        for key, cases in seen.items():
-            if len(cases) > 1:
-                listed = ", ".join(map(str, cases[1:6])) + (", ..." if len(cases) > 6 else "")
-                errors.append(f"{path}: {key}: the same problem in {len(cases) - 1} more case(s) ({listed})")
-    if base is not None and signals is None:  # the metrics are checked against the base config then
-        try:
-            signals = signals_of(validate(copy.deepcopy(base), base_path))
-        except ConfigErrors:
-            pass
-    names = set()
-    for name, spec in raw_metrics.items():
-        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.\-]*", str(name)):
-            fail(f"metrics.{name}", "a metric's name is letters, digits, '_', '-' or '.'")
-            continue
-        if (
-            str(name) in ("case", "status", "outcome", "error", "wall_time", "attempts", "host", "recording")
-            or str(name) in grid
-            or str(name) in raw_disperse
-        ):
-            fail(f"metrics.{name}", "the name of a column cases.parquet has already: give another")
-            continue
-        try:
-            parsed = metric(str(name), spec, signals, f"metrics.{name}")
-        except ConfigError as e:
-            fail(e.key, e.message)
-            continue
-        names.add(name)
-        if campaign is not None:
-            campaign.metrics.append(parsed)
-    if errors:
-        raise CampaignErrors(errors)
-    return campaign
-
-
-def _describe(params: dict) -> str:
-    return ", ".join(f"{k}={v}" for k, v in params.items()) or "the base config"
-
-
-def _config_problem(message: str) -> str:
-    """A config error without the file name the config validation puts first (``FILE: key: message``)."""
-    head, sep, rest = message.partition(": ")
-    return rest if sep and (head.endswith((".yaml", ".yml")) or "/" in head) else message
 
 
 def case_yaml(case: Case, campaign: Campaign) -> str:

@@ -101,44 +101,8 @@ def execute_case(
     if record_dir.exists():
         shutil.rmtree(record_dir)
     record_dir.parent.mkdir(parents=True, exist_ok=True)
-    command = [sys.executable, "-m", "orchestrator.cli", "run", str(config_file), "--record", str(record_dir)]
-    start = time.perf_counter()
-    process = subprocess.Popen(
-        command,
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        start_new_session=True,
-        preexec_fn=_affinity(cpus),
-    )
-    chunks: list[bytes] = []
-    reader = threading.Thread(target=lambda: chunks.extend(iter(lambda: process.stderr.read(4096), b"")), daemon=True)
-    reader.start()
-    interrupted = False
-    while True:
-        try:
-            rc = process.wait(timeout=0.2)
-            break
-        except subprocess.TimeoutExpired:
-            pass
-        if (stop is not None and stop.is_set()) or (stopped is not None and stopped()):
-            interrupted = True
-            _stop(process)
-    reader.join(timeout=5)
-    wall = time.perf_counter() - start
-    stderr = b"".join(chunks).decode(errors="replace")
-    if rc == 0 and not interrupted:
-        status, error = "completed", ""
-    elif interrupted or rc == 130:
-        status, error = "interrupted", "stopped (Ctrl-C)"
-    else:
-        lines = [ln.strip() for ln in stderr.splitlines() if ln.strip().startswith("error:")]
-        error = (
-            lines[0][len("error:") :].strip()
-            if lines
-            else (f"killed by signal {-rc}" if rc < 0 else f"exit code {rc}: {stderr.strip().splitlines()[-1:] or ''}")
-        )
-        status = "failed"
+    rc, interrupted, stderr, wall = _run(config_file, record_dir, stop, cpus, stopped)
+    status, error = _status(rc, interrupted, stderr)
     values = {m.name: math.nan for m in metrics}
     events: list[str] = []
     outcome = ""
@@ -169,6 +133,52 @@ def execute_case(
         "kept": kept,
         "attempts": 1,
     }
+
+
+def _run(config_file: Path, record_dir: Path, stop, cpus, stopped) -> tuple[int, bool, str, float]:
+    """``orchestrator run CONFIG --record DIR`` in a process of its own, stopped when ``stop`` is set
+    or ``stopped()`` says so: its exit code, whether it was stopped, its stderr, its wall time."""
+    command = [sys.executable, "-m", "orchestrator.cli", "run", str(config_file), "--record", str(record_dir)]
+    start = time.perf_counter()
+    process = subprocess.Popen(
+        command,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+        preexec_fn=_affinity(cpus),
+    )
+    chunks: list[bytes] = []
+    reader = threading.Thread(target=lambda: chunks.extend(iter(lambda: process.stderr.read(4096), b"")), daemon=True)
+    reader.start()
+    interrupted = False
+    while True:
+        try:
+            rc = process.wait(timeout=0.2)
+            break
+        except subprocess.TimeoutExpired:
+            pass
+        if (stop is not None and stop.is_set()) or (stopped is not None and stopped()):
+            interrupted = True
+            _stop(process)
+    reader.join(timeout=5)
+    wall = time.perf_counter() - start
+    return rc, interrupted, b"".join(chunks).decode(errors="replace"), wall
+
+
+def _status(rc: int, interrupted: bool, stderr: str) -> tuple[str, str]:
+    """A case's status (completed, interrupted, failed) and error, from how its run ended."""
+    if rc == 0 and not interrupted:
+        return "completed", ""
+    if interrupted or rc == 130:
+        return "interrupted", "stopped (Ctrl-C)"
+    lines = [ln.strip() for ln in stderr.splitlines() if ln.strip().startswith("error:")]
+    error = (
+        lines[0][len("error:") :].strip()
+        if lines
+        else (f"killed by signal {-rc}" if rc < 0 else f"exit code {rc}: {stderr.strip().splitlines()[-1:] or ''}")
+    )
+    return "failed", error
 
 
 def _stop(process: subprocess.Popen) -> None:

@@ -71,22 +71,8 @@ def run_dask(directory: CampaignDir, todo: list[int], address: str, retries: int
     token = uuid.uuid4().hex[:8]
     stop_name = f"zenorbit-stop-{token}"
     stop = Event(stop_name, client=client)
-    keys = {}
     try:
-        submitted = []
-        for index in todo:
-            payload = {
-                "case": index,
-                "config": directory.config_file(index).read_text(),
-                "metrics": campaign.metrics,
-                "keep": campaign.keep,
-                "stop_event": stop_name,
-            }
-            key = f"zenorbit-case-{campaign.fingerprint()}-{index:04d}-{token}"
-            future = client.submit(remote_case, payload, key=key, retries=retries, pure=False)
-            keys[future.key] = index
-            submitted.append(future)
-        completed = True
+        submitted, keys = _submit(client, directory, todo, retries, stop_name, token)
         pending = set(submitted)
         try:
             for future in as_completed(submitted):
@@ -95,16 +81,7 @@ def run_dask(directory: CampaignDir, todo: list[int], address: str, retries: int
                 try:
                     result = future.result()
                 except Exception as e:  # the task raised on every try, or its workers kept dying
-                    result = {
-                        "case": index,
-                        "status": "failed",
-                        "error": f"dask: {type(e).__name__}: {e}",
-                        "metrics": {m.name: math.nan for m in campaign.metrics},
-                        "wall_time": math.nan,
-                        "host": "",
-                        "kept": False,
-                        "attempts": retries + 1,
-                    }
+                    result = _failed(index, f"dask: {type(e).__name__}: {e}", campaign, retries)
                 result["attempts"] = max(result.get("attempts", 1), _attempts(client, future.key))
                 if result["status"] != "interrupted":
                     directory.store(result)
@@ -112,28 +89,63 @@ def run_dask(directory: CampaignDir, todo: list[int], address: str, retries: int
                 progress.running = sum(1 for f in pending if f.status == "pending")
                 progress.show()
         except KeyboardInterrupt:
-            completed = False
-
-            def wind_down():
-                stop.set()
-                queued = [f for f in pending if keys[f.key] not in _processing(client)]
-                client.cancel(queued)
-                deadline = time.monotonic() + STOP_GRACE_S + 10
-                for future in pending:
-                    if future in queued:
-                        continue
-                    try:
-                        result = future.result(timeout=max(deadline - time.monotonic(), 0.1))
-                    except Exception:
-                        continue
-                    if result["status"] != "interrupted":
-                        directory.store(result)
-                client.cancel(list(pending))
-
-            ignore_interrupts(wind_down)
-        return completed
+            ignore_interrupts(lambda: _wind_down(client, directory, pending, keys, stop))
+            return False
+        return True
     finally:
         client.close()
+
+
+def _submit(client, directory: CampaignDir, todo: list[int], retries: int, stop_name: str, token: str):
+    """Each case submitted as a task: the futures, and the case of each future's key."""
+    campaign = directory.campaign
+    keys = {}
+    submitted = []
+    for index in todo:
+        payload = {
+            "case": index,
+            "config": directory.config_file(index).read_text(),
+            "metrics": campaign.metrics,
+            "keep": campaign.keep,
+            "stop_event": stop_name,
+        }
+        key = f"zenorbit-case-{campaign.fingerprint()}-{index:04d}-{token}"
+        future = client.submit(remote_case, payload, key=key, retries=retries, pure=False)
+        keys[future.key] = index
+        submitted.append(future)
+    return submitted, keys
+
+
+def _failed(index: int, error: str, campaign, retries: int) -> dict:
+    """The result of a case whose task raised on every try."""
+    return {
+        "case": index,
+        "status": "failed",
+        "error": error,
+        "metrics": {m.name: math.nan for m in campaign.metrics},
+        "wall_time": math.nan,
+        "host": "",
+        "kept": False,
+        "attempts": retries + 1,
+    }
+
+
+def _wind_down(client, directory: CampaignDir, pending: set, keys: dict, stop) -> None:
+    """After Ctrl-C: the running cases stopped cleanly (their results kept), the queued ones cancelled."""
+    stop.set()
+    queued = [f for f in pending if keys[f.key] not in _processing(client)]
+    client.cancel(queued)
+    deadline = time.monotonic() + STOP_GRACE_S + 10
+    for future in pending:
+        if future in queued:
+            continue
+        try:
+            result = future.result(timeout=max(deadline - time.monotonic(), 0.1))
+        except Exception:
+            continue
+        if result["status"] != "interrupted":
+            directory.store(result)
+    client.cancel(list(pending))
 
 
 def _processing(client) -> set[int]:

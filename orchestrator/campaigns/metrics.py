@@ -121,30 +121,7 @@ def metric(name: str, spec: Any, signals: dict[str, tuple[tuple[str, ...], str]]
             where, f"expected {{signal: COMPONENT.OUTPUT, reduce: ...}} or {{event: NAME, field: FIELD}}, got {spec!r}"
         )
     if "event" in spec:
-        unknown = [k for k in spec if k not in ("event", "field", "reduce")]
-        if unknown:
-            raise ConfigError(f"{where}.{unknown[0]}", "unknown key (known for an event metric: event, field, reduce)")
-        how = spec.get("reduce", "first")
-        if how not in EVENT_REDUCERS:
-            raise ConfigError(
-                f"{where}.reduce", f"expected one of {', '.join(EVENT_REDUCERS)} for an event metric, got {how!r}"
-            )
-        if how != "count" and "field" not in spec:
-            raise ConfigError(
-                f"{where}.field", f"missing: which field of the {spec['event']!r} events (e.g. time), or reduce: count"
-            )
-        if not isinstance(spec["event"], str) or not spec["event"]:
-            raise ConfigError(f"{where}.event", f"expected an event name, got {spec['event']!r}")
-        field = spec.get("field")
-        return Metric(
-            name,
-            "",
-            how,
-            (),
-            event=spec["event"],
-            field=None if field is None else str(field),
-            unit="s" if field == "time" else "1",
-        )
+        return _event_metric(name, spec, where)
     unknown = [k for k in spec if k not in ("signal", "reduce", "threshold")]
     if unknown:
         raise ConfigError(
@@ -159,28 +136,69 @@ def metric(name: str, spec: Any, signals: dict[str, tuple[tuple[str, ...], str]]
     signal = str(spec["signal"])
     unit = "1"
     columns: tuple[str, ...] = (signal,)
-    sliced = _SLICE.match(signal)
     if signals is not None:
-        whole = sliced.group(1) if sliced else signal
-        if whole not in signals:
-            near = sorted(k for k in signals if "[" not in k)
+        columns, unit = _columns(signal, signals, where)
+    threshold = _threshold(spec, how, unit, where)
+    return Metric(name, signal, how, columns, threshold, unit=unit)
+
+
+def _event_metric(name: str, spec: dict, where: str) -> Metric:
+    """``{event, field, reduce}``: a field of the named events, or how many there are."""
+    unknown = [k for k in spec if k not in ("event", "field", "reduce")]
+    if unknown:
+        raise ConfigError(f"{where}.{unknown[0]}", "unknown key (known for an event metric: event, field, reduce)")
+    how = spec.get("reduce", "first")
+    if how not in EVENT_REDUCERS:
+        raise ConfigError(
+            f"{where}.reduce", f"expected one of {', '.join(EVENT_REDUCERS)} for an event metric, got {how!r}"
+        )
+    if how != "count" and "field" not in spec:
+        raise ConfigError(
+            f"{where}.field", f"missing: which field of the {spec['event']!r} events (e.g. time), or reduce: count"
+        )
+    if not isinstance(spec["event"], str) or not spec["event"]:
+        raise ConfigError(f"{where}.event", f"expected an event name, got {spec['event']!r}")
+    field = spec.get("field")
+    return Metric(
+        name,
+        "",
+        how,
+        (),
+        event=spec["event"],
+        field=None if field is None else str(field),
+        unit="s" if field == "time" else "1",
+    )
+
+
+def _columns(signal: str, signals: dict[str, tuple[tuple[str, ...], str]], where: str) -> tuple[tuple[str, ...], str]:
+    """The recorded columns of ``signal`` (``C.OUT`` or a slice ``C.OUT[i:j]``) and their unit (a
+    slice's own where the signal's unit list gives it one)."""
+    sliced = _SLICE.match(signal)
+    whole = sliced.group(1) if sliced else signal
+    if whole not in signals:
+        near = sorted(k for k in signals if "[" not in k)
+        raise ConfigError(
+            f"{where}.signal", f"no signal {whole!r} in a recording of the config (signals: {', '.join(near)})"
+        )
+    columns, unit = signals[whole]
+    if sliced:
+        i, j = int(sliced.group(2)), int(sliced.group(3))
+        if not 0 <= i < j <= len(columns):
             raise ConfigError(
-                f"{where}.signal", f"no signal {whole!r} in a recording of the config (signals: {', '.join(near)})"
+                f"{where}.signal",
+                f"expected a slice [i:j] with 0 <= i < j <= {len(columns)} (the size of {whole}), got [{i}:{j}]",
             )
-        columns, unit = signals[whole]
-        if sliced:
-            i, j = int(sliced.group(2)), int(sliced.group(3))
-            if not 0 <= i < j <= len(columns):
-                raise ConfigError(
-                    f"{where}.signal",
-                    f"expected a slice [i:j] with 0 <= i < j <= {len(columns)} (the size of {whole}), got [{i}:{j}]",
-                )
-            parts = [u.strip() for u in unit.split(",")]
-            if len(columns) % len(parts) == 0:  # "N, N*m" over 6 elements: each unit covers a half
-                per = len(columns) // len(parts)
-                covered = {parts[k // per] for k in range(i, j)}
-                unit = covered.pop() if len(covered) == 1 else unit
-            columns = columns[i:j]
+        parts = [u.strip() for u in unit.split(",")]
+        if len(columns) % len(parts) == 0:  # "N, N*m" over 6 elements: each unit covers a half
+            per = len(columns) // len(parts)
+            covered = {parts[k // per] for k in range(i, j)}
+            unit = covered.pop() if len(covered) == 1 else unit
+        columns = columns[i:j]
+    return columns, unit
+
+
+def _threshold(spec: dict, how: str, unit: str, where: str) -> float | None:
+    """first_crossing's threshold in SI (in the signal's unit when it has one); no other takes one."""
     threshold = None
     if how == "first_crossing":
         if "threshold" not in spec:
@@ -193,4 +211,4 @@ def metric(name: str, spec: Any, signals: dict[str, tuple[tuple[str, ...], str]]
             threshold = number * (parse_unit(given)[0] if given else 1.0)
     elif "threshold" in spec:
         raise ConfigError(f"{where}.threshold", f"only first_crossing takes a threshold, not {how}")
-    return Metric(name, signal, how, columns, threshold, unit=unit)
+    return threshold

@@ -181,6 +181,27 @@ def summary(rows: list[dict], campaign: Campaign, wall: float, out, ran: int | N
         print(f"  retried: {listed}", file=out)
 
 
+def _todo(directory: CampaignDir, scope: list[int], only: bool, stream) -> list[int]:
+    """The cases of ``scope`` to run: all of them for --only (their earlier results removed), else
+    those not finished yet; each case's config written beside its recording first."""
+    campaign = directory.campaign
+    for index in scope:  # each case's config beside its recording, written before any runs
+        path = directory.config_file(index)
+        text = case_yaml(campaign.case(index), campaign)
+        if not path.exists() or path.read_text() != text:
+            path.write_text(text)
+    if only:
+        todo = scope
+        for index in todo:
+            directory.result_file(index).unlink(missing_ok=True)
+    else:
+        todo = [i for i in scope if directory.done(i) is None]
+    skipped = len(scope) - len(todo)
+    if skipped:
+        print(f"resuming: {skipped} of {len(scope)} cases already finished, {len(todo)} to run", file=stream)
+    return todo
+
+
 def sweep(
     campaign: Campaign,
     out: Path,
@@ -197,20 +218,7 @@ def sweep(
     directory = CampaignDir(out, campaign)
     directory.prepare(resume, only)
     scope = list(only) if only is not None else list(range(campaign.count))
-    for index in scope:  # each case's config beside its recording, written before any runs
-        path = directory.config_file(index)
-        text = case_yaml(campaign.case(index), campaign)
-        if not path.exists() or path.read_text() != text:
-            path.write_text(text)
-    if only is not None:
-        todo = scope
-        for index in todo:
-            directory.result_file(index).unlink(missing_ok=True)
-    else:
-        todo = [i for i in scope if directory.done(i) is None]
-    skipped = len(scope) - len(todo)
-    if skipped:
-        print(f"resuming: {skipped} of {len(scope)} cases already finished, {len(todo)} to run", file=stream)
+    todo = _todo(directory, scope, only is not None, stream)
     jobs = jobs or default_jobs(campaign, todo)
     where = f"on {cluster}" if cluster else f"{jobs} at a time"
     print(f"campaign {campaign.path}: {len(todo)} cases {where}, into {out}", file=stream, flush=True)

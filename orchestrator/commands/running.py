@@ -38,7 +38,7 @@ def _is_campaign(path: str) -> bool:
 
 
 def _check_campaign(path: str) -> int:
-    from orchestrator.campaigns.campaign import CampaignErrors, load_campaign
+    from orchestrator.campaigns.campaign_file import CampaignErrors, load_campaign
 
     try:
         campaign = load_campaign(path)
@@ -168,7 +168,7 @@ def _ros2(endpoint: str | None, config):
 
 
 def cmd_sweep(args) -> int:
-    from orchestrator.campaigns.campaign import CampaignErrors, load_campaign
+    from orchestrator.campaigns.campaign_file import CampaignErrors, load_campaign
     from orchestrator.campaigns.directory import CampaignError
     from orchestrator.campaigns.runner import sweep
 

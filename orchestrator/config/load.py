@@ -8,18 +8,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from components import registry
 from components.constants import NS_PER_S
-from components.errors import ConfigError
 from components.schema import implausible_values
 from components.sdk import RunSettings
 from components.units import duration_text
-from orchestrator.config import groups
-from orchestrator.config.connections import check_replacement, handover_problem, hands_over, parse_connections
+from orchestrator.config import groups, timeline
+from orchestrator.config.component_specs import component_specs, preflight_notes
+from orchestrator.config.connections import parse_connections
 from orchestrator.config.outcomes import expect_problem
 from orchestrator.config.scene import fill_scenes
 from orchestrator.config.schema import BUS, COMPONENT, CONFIG, FAULT, MAX_STEPS, ROS2, RUN, VIEWER
-from orchestrator.config.shadows import mismatches, shadow_spec, with_shadows
+from orchestrator.config.shadows import mismatches, with_shadows
 from orchestrator.config.specs import ComponentSpec, Event, Fault, Ros2Spec, RunConfig, ViewerSpec
 from orchestrator.config.views import live_views
 from orchestrator.config.yaml_file import ConfigErrors, apply_overrides, read_yaml
@@ -34,69 +33,6 @@ def load(path: str | Path, overrides: list[str] = (), full: bool = False, strict
     raw = read_yaml(path)
     apply_overrides(raw, list(overrides))
     return validate(raw, path, full, strict)
-
-
-def component_spec(name: str, entry: dict, run_step_ns: int, run: RunSettings, key: str) -> ComponentSpec:
-    """One component's spec from its entry as COMPONENT converts it; ConfigErrors naming ``key.<...>``."""
-    errors: list[str] = []
-    type_name = entry["type"]
-    try:
-        cls = registry.load(type_name, run.config_dir)
-    except ConfigError as e:
-        raise ConfigErrors([f"{key}.type: {e.message}"]) from None
-    step_ns = run_step_ns if entry["step"] is None else entry["step"]
-    if step_ns % run_step_ns:
-        errors.append(
-            f"{key}.step: must be a positive integer multiple of run.step "
-            f"({duration_text(run_step_ns)}), got {duration_text(step_ns)}"
-        )
-    params_raw = entry["parameters"]
-    if not isinstance(params_raw, dict):
-        raise ConfigErrors([f"{key}.parameters: expected a mapping, got {params_raw!r}"])
-    unresolved = None
-    try:
-        with implausible_values() as found:
-            resolved = registry.resolve(cls, params_raw, run)
-    except registry.Unresolved as e:
-        unresolved = e
-    if unresolved and unresolved.stage == "parameters":
-        errors += [
-            f"{key}.parameters.{e.key}: {e.message}" if e.key else f"{key}.parameters: {e.message}"
-            for e in unresolved.errors
-        ]
-    if entry["dedicated_cpu"] and entry["launch"] == "external":
-        errors.append(
-            f"{key}.dedicated_cpu: only for components the orchestrator starts (launch: local); "
-            f"pin an external component where it runs (taskset)"
-        )
-    if errors:
-        raise ConfigErrors(errors)
-    if unresolved:  # declare failed; a component's own bug or a file it cannot read is one line too
-        e = unresolved.errors[0]
-        raise ConfigErrors(
-            [
-                f"{key}.parameters.{e.key}: {e.message}"
-                if isinstance(e, ConfigError)
-                else f"{key}.parameters: {type_name} cannot declare its variables: {type(e).__name__}: {e}"
-            ]
-        )
-    return ComponentSpec(
-        name=name,
-        type=type_name,
-        cls=cls,
-        step_ns=step_ns,
-        parameters=params_raw,
-        resolved=resolved.params,
-        typed=resolved.typed,
-        run=run,
-        launch=entry["launch"],
-        dedicated_cpu=entry["dedicated_cpu"],
-        on_failure=entry["on_failure"],
-        process=entry["process"],
-        inputs=resolved.inputs,
-        outputs=resolved.outputs,
-        implausible=[f"{key}.parameters.{f}" for f in found],
-    )
 
 
 def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) -> RunConfig:
@@ -114,37 +50,19 @@ def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) ->
     packages = _packages(run.get("packages") or {}, config_dir, file, errors)
     fill_scenes(config, config_dir, file, errors)
     settings = RunSettings(epoch, config_dir, packages)
-    components, shadows = _component_specs(config.get("components", {}), step_ns, settings, file, errors)
-    notes = [f"{file}: {f}" for f in found] + _preflight_notes(
+    components, shadows = component_specs(config.get("components", {}), step_ns, settings, file, errors)
+    notes = [f"{file}: {f}" for f in found] + preflight_notes(
         [*components.values(), *shadows.values()], full, file, errors
     )
-    raw_entries = raw.get("components") if isinstance(raw.get("components"), dict) else {}
-    connections = parse_connections(config.get("connections", {}), components, raw_entries, file, errors)
-    for name, shadow in shadows.items():
-        errors += [f"{file}: {shadow.key}: {p}" for p in mismatches(components[name], shadow, connections)]
-    errors += [f"{file}: {p}" for p in groups.problems(list(components.values()))]
+    connections = _connections(raw, config, components, shadows, file, errors)
     components, connections = with_shadows(components, shadows, connections)
-    events = _events(config.get("events", []), components, connections, step_ns, total_ns, settings, file, errors)
-    faults = _faults(config.get("faults", []), components, total_ns, file, errors)
-    notes += [f"{file}: {line}" for event in events for line in event.spec.implausible]
+    events, faults = _timeline(config, components, connections, step_ns, total_ns, settings, file, errors, notes)
     checkpoint_ns = run.get("checkpoint_every")
-    errors += [f"{file}: {p}" for p in _restart_problems(components, connections, checkpoint_ns)]
-    if run.get("expect") is not None and (problem := expect_problem(components, run["expect"])):
-        errors.append(f"{file}: run.expect: {problem}")
-    bus_spec = bus_config.check(config["bus"], config_dir, errors, file) if "bus" in config else None
-    if bus_spec is not None and bus_spec.plaintext_beyond:
-        notes.append(
-            f"{file}: bus: plain TCP beyond loopback ({', '.join(bus_spec.plaintext_beyond)}), as "
-            f"bus.plaintext: accept-the-risk allows: anyone on those networks can read the run's traffic"
-        )
+    errors += [f"{file}: {p}" for p in _run_problems(run, components, connections, checkpoint_ns)]
+    bus_spec = _bus(config, config_dir, file, errors, notes)
     viewer, ros2 = live_views(config, path, components, errors)
     if not errors and notes and (strict or run["strict"]):
-        why = "--strict" if strict else "run.strict: true"
-        errors = notes + [
-            f"{file}: {why} makes the warning above an error"
-            if len(notes) == 1
-            else f"{file}: {why} makes the {len(notes)} warnings above errors"
-        ]
+        errors = _strict_errors(notes, "--strict" if strict else "run.strict: true", file)
     if errors:
         raise ConfigErrors(errors)
     return RunConfig(
@@ -176,6 +94,72 @@ def validate(raw: dict, path: Path, full: bool = False, strict: bool = False) ->
     )
 
 
+def _connections(
+    raw: dict,
+    config: dict,
+    components: dict[str, ComponentSpec],
+    shadows: dict[str, ComponentSpec],
+    file: Path,
+    errors: list[str],
+) -> list:
+    """The connections, checked with the shadows' (each reads what its main reads) and the process
+    groups'."""
+    raw_entries = raw.get("components") if isinstance(raw.get("components"), dict) else {}
+    connections = parse_connections(config.get("connections", {}), components, raw_entries, file, errors)
+    for name, shadow in shadows.items():
+        errors += [f"{file}: {shadow.key}: {p}" for p in mismatches(components[name], shadow, connections)]
+    errors += [f"{file}: {p}" for p in groups.problems(list(components.values()))]
+    return connections
+
+
+def _timeline(
+    config: dict,
+    components: dict[str, ComponentSpec],
+    connections: list,
+    step_ns: int | None,
+    total_ns: int | None,
+    settings: RunSettings,
+    file: Path,
+    errors: list[str],
+    notes: list[str],
+) -> tuple[list[Event], list[Fault]]:
+    """The events and the faults; the events' new generations' warnings go to ``notes``."""
+    events = timeline.swap_events(
+        config.get("events", []), components, connections, step_ns, total_ns, settings, file, errors
+    )
+    faults = timeline.faults(config.get("faults", []), components, total_ns, file, errors)
+    notes += [f"{file}: {line}" for event in events for line in event.spec.implausible]
+    return events, faults
+
+
+def _run_problems(run: dict, components: dict[str, ComponentSpec], connections: list, checkpoint_ns) -> list[str]:
+    """What the run: section asks that the components cannot give: restarts, the expected outcome."""
+    problems = _restart_problems(components, connections, checkpoint_ns)
+    if run.get("expect") is not None and (problem := expect_problem(components, run["expect"])):
+        problems.append(f"run.expect: {problem}")
+    return problems
+
+
+def _bus(config: dict, config_dir: Path, file: Path, errors: list[str], notes: list[str]):
+    """The bus: section checked (None without one); plain TCP beyond loopback is a warning."""
+    bus_spec = bus_config.check(config["bus"], config_dir, errors, file) if "bus" in config else None
+    if bus_spec is not None and bus_spec.plaintext_beyond:
+        notes.append(
+            f"{file}: bus: plain TCP beyond loopback ({', '.join(bus_spec.plaintext_beyond)}), as "
+            f"bus.plaintext: accept-the-risk allows: anyone on those networks can read the run's traffic"
+        )
+    return bus_spec
+
+
+def _strict_errors(notes: list[str], why: str, file: Path) -> list[str]:
+    """The warnings as errors (``why``: --strict or run.strict), and a line saying so."""
+    return notes + [
+        f"{file}: {why} makes the warning above an error"
+        if len(notes) == 1
+        else f"{file}: {why} makes the {len(notes)} warnings above errors"
+    ]
+
+
 def _duration_problems(step_ns: int | None, total_ns: int | None, raw: dict, file: Path) -> list[str]:
     """run.duration a whole number of steps, and not more of them than an experiment takes."""
     if not (step_ns and total_ns):
@@ -202,47 +186,6 @@ def _packages(given: dict, config_dir: Path, file: Path, errors: list[str]) -> d
             errors.append(f"{file}: run.packages.{package}: directory {directory!r} not found ({where})")
         packages[package] = str(where)
     return packages
-
-
-def _component_specs(
-    entries: dict, step_ns: int | None, run: RunSettings, file: Path, errors: list[str]
-) -> tuple[dict[str, ComponentSpec], dict[str, ComponentSpec]]:
-    """The components' specs and their shadows' (main's name -> its shadow); none without a step
-    and an epoch (their errors are said already)."""
-    components: dict[str, ComponentSpec] = {}
-    shadows: dict[str, ComponentSpec] = {}
-    if step_ns is None or run.epoch is None:
-        return components, shadows
-    for name, entry in entries.items():
-        try:
-            components[name] = component_spec(name, entry, step_ns, run, f"components.{name}")
-            if entry["shadow"] is not None:
-                shadows[name] = shadow_spec(
-                    components[name],
-                    entry["shadow"],
-                    entries,
-                    lambda n, e, key: component_spec(n, e, step_ns, run, key),
-                )
-        except ConfigErrors as e:
-            errors += [f"{file}: {m}" for m in e.errors]
-    return components, shadows
-
-
-def _preflight_notes(specs: list[ComponentSpec], full: bool, file: Path, errors: list[str]) -> list[str]:
-    """Each spec's implausible values and its type's preflight warnings; a preflight that fails is an error."""
-    notes = [f"{file}: {line}" for spec in specs for line in spec.implausible]
-    for spec in specs:
-        key = f"{spec.key}.parameters"
-        try:
-            notes += [
-                f"{file}: {key}.{note}"
-                for note in spec.cls.preflight(spec.typed, spec.run, spec.step_ns / NS_PER_S, full)
-            ]
-        except ConfigError as e:
-            errors.append(f"{file}: {key}.{e.key}: {e.message}" if e.key else f"{file}: {key}: {e.message}")
-        except Exception as e:  # a component's own check failing is a line too, not a traceback
-            errors.append(f"{file}: {key}: {spec.type} cannot load its model: {type(e).__name__}: {e}")
-    return notes
 
 
 def _restart_problems(components: dict[str, ComponentSpec], connections: list, checkpoint_ns: int | None) -> list[str]:
@@ -345,114 +288,3 @@ def frame_problems(components: dict[str, ComponentSpec], connections: list, rest
         for n in restarting[:1]
         if framed
     ]
-
-
-def _events(
-    entries: list[dict],
-    components: dict[str, ComponentSpec],
-    connections: list,
-    step_ns: int | None,
-    total_ns: int | None,
-    run: RunSettings,
-    file: Path,
-    errors: list[str],
-) -> list[Event]:
-    events = []
-    for i, entry in enumerate(entries):
-        key = f"events[{i}]"
-        at_ns, target = entry["at"], entry["swap"]
-        if target not in components:
-            errors.append(f"{file}: {key}.swap: no component named {target!r}")
-            continue
-        old = components[target]
-        if total_ns is not None and at_ns >= total_ns:
-            errors.append(
-                f"{file}: {key}.at: must be within the run, 0 <= at < run.duration, got {duration_text(at_ns)}"
-            )
-            continue
-        if at_ns % old.step_ns:
-            errors.append(
-                f"{file}: {key}.at: must fall on a step boundary of {target} "
-                f"(a multiple of {duration_text(old.step_ns)}), got {duration_text(at_ns)}"
-            )
-            continue
-        new_type = entry["type"] or old.type
-        try:
-            handed_over = hands_over(old, new_type, registry.load(new_type, run.config_dir))
-        except ConfigError as e:
-            errors.append(f"{file}: {key}.type: {e.message}")
-            continue
-        problem = old.cls.state_problem(old.typed, old.run) if handed_over else None
-        if problem:
-            what = "the same type" if new_type == old.type else new_type
-            errors.append(
-                f"{file}: {key}.swap: a swap to {what} hands the state over, and {target} "
-                f"cannot: {problem} (give another type)"
-            )
-            continue
-        params = entry["parameters"]
-        if params is None:
-            params = old.parameters if handed_over else {}
-        try:
-            spec = component_spec(
-                target,
-                {
-                    "type": new_type,
-                    "parameters": params,
-                    "step": old.step_ns,
-                    "launch": "local",
-                    "dedicated_cpu": False,
-                    "on_failure": old.on_failure,
-                    "process": None,
-                },  # a new generation runs in a process of its own
-                step_ns,
-                run,
-                key,
-            )
-        except ConfigErrors as e:
-            errors += [f"{file}: {m}" for m in e.errors]
-            continue
-        problem = handover_problem(old, spec) if handed_over else None
-        if problem:
-            errors.append(f"{file}: {key}: {problem}")
-            continue
-        spec.shadow_of = old.shadow_of
-        problems = check_replacement(spec, connections) + (
-            mismatches(components[old.shadow_of], spec, connections) if old.shadow_of else []
-        )
-        if problems:
-            errors += [f"{file}: {key}: {p}" for p in problems]
-            continue
-        events.append(Event(at_ns=at_ns, swap=target, type=new_type, parameters=params, spec=spec))
-    return sorted(events, key=lambda e: e.at_ns)
-
-
-def _faults(
-    entries: list[dict], components: dict[str, ComponentSpec], total_ns: int | None, file: Path, errors: list[str]
-) -> list[Fault]:
-    faults = []
-    for i, entry in enumerate(entries):
-        key = f"faults[{i}]"
-        if entry["component"] not in components:
-            errors.append(
-                f"{file}: {key}.component: no component named {entry['component']!r} "
-                f"(components: {', '.join(components)})"
-            )
-        elif total_ns is not None and entry["at"] >= total_ns:
-            errors.append(
-                f"{file}: {key}.at: must be within the run, 0 <= at < run.duration, got {duration_text(entry['at'])}"
-            )
-        elif entry["kind"] == "nan" and not components[entry["component"]].outputs.size:
-            errors.append(f"{file}: {key}.kind: {entry['component']} has no output to make NaN")
-        elif (entry["kind"] == "delay") != (entry["duration"] is not None):
-            errors.append(
-                f"{file}: {key}.duration: "
-                + (
-                    "a delay needs one (e.g. duration: 2 s)"
-                    if entry["kind"] == "delay"
-                    else f"only a delay has one, not a {entry['kind']}"
-                )
-            )
-        else:
-            faults.append(Fault(entry["at"], entry["component"], entry["kind"], entry["duration"]))
-    return sorted(faults, key=lambda f: f.at_ns)

@@ -32,7 +32,7 @@ def shadow_spec(
 ) -> ComponentSpec:
     """The spec of ``main``'s shadow from its ``entry`` (config.SHADOW converted); its step and
     on_failure are the main's, the orchestrator starts it, in a process of its own. ``entries``: the config's components;
-    ``build(name, entry, key)``: config.component_spec."""
+    ``build(name, entry, key)``: component_specs.component_spec."""
     name, key = shadow_name(main.name), f"components.{main.name}.shadow"
     if name in entries:
         raise ConfigErrors(

@@ -57,20 +57,7 @@ def check(section: dict, config_dir: Path, errors: list[str], file) -> BusSpec |
     beyond = [e for _, _, e in named if not is_loopback(e)]
     asked = {True: "true", False: "false"}.get(section["tls"], "auto")
     tls = asked == "true" or (asked == "auto" and bool(beyond))
-    for key, i, endpoint in named:
-        where = f"bus.{key}" + (f"[{i}]" if i is not None else "")
-        protocol = endpoint.partition("/")[0]
-        if tls and protocol not in ("tcp", "tls"):
-            errors.append(
-                f"{file}: {where}: {endpoint} cannot carry TLS (bus.tls is {asked}"
-                f"{', and the bus leaves loopback' if asked == 'auto' else ''}); expected tcp/ or tls/"
-            )
-        if not tls and protocol == "tls":
-            errors.append(
-                f"{file}: {where}: {endpoint} is TLS, and bus.tls is {asked}"
-                f"{' (the bus stays on loopback)' if asked == 'auto' else ''}; "
-                f"write tcp/, or set bus.tls: true"
-            )
+    errors += _protocol_problems(named, tls, asked, file)
     if beyond and not tls and section["plaintext"] != "accept-the-risk":
         errors.append(
             f"{file}: bus.tls: false, and the bus leaves loopback ({', '.join(beyond)}): every process "
@@ -87,24 +74,7 @@ def check(section: dict, config_dir: Path, errors: list[str], file) -> BusSpec |
             f"{file}: bus.lease: expected at least 100 ms (keep-alives go every quarter of it), "
             f"got {section['lease'] / 1e6:g} ms"
         )
-    ca = None
-    if section["ca"] is not None:
-        if not tls:
-            errors.append(f"{file}: bus.ca: a CA is for TLS, and bus.tls is {asked}")
-        paths = []
-        for part in ("certificate", "key"):
-            path = (config_dir / section["ca"][part]).resolve()
-            if not path.is_file():
-                errors.append(f"{file}: bus.ca.{part}: file {section['ca'][part]!r} not found ({path})")
-            paths.append(path)
-        ca = tuple(paths)
-        if len(errors) == before:
-            from orchestrator.hosts.tls import load_ca
-
-            try:
-                load_ca(*ca)
-            except ValueError as e:
-                errors.append(f"{file}: bus.ca: {e}")
+    ca = _ca(section, config_dir, tls, asked, file, errors, before) if section["ca"] is not None else None
     if len(errors) > before:
         return None
     protocol = "tls" if tls else "tcp"
@@ -122,3 +92,45 @@ def check(section: dict, config_dir: Path, errors: list[str], file) -> BusSpec |
         ca=ca,
         plaintext_beyond=tuple(beyond) if not tls else (),
     )
+
+
+def _protocol_problems(named: list[tuple[str, int | None, str]], tls: bool, asked: str, file) -> list[str]:
+    """Each endpoint's protocol against bus.tls: TLS needs tcp/ or tls/, and tls/ needs TLS."""
+    problems = []
+    for key, i, endpoint in named:
+        where = f"bus.{key}" + (f"[{i}]" if i is not None else "")
+        protocol = endpoint.partition("/")[0]
+        if tls and protocol not in ("tcp", "tls"):
+            problems.append(
+                f"{file}: {where}: {endpoint} cannot carry TLS (bus.tls is {asked}"
+                f"{', and the bus leaves loopback' if asked == 'auto' else ''}); expected tcp/ or tls/"
+            )
+        if not tls and protocol == "tls":
+            problems.append(
+                f"{file}: {where}: {endpoint} is TLS, and bus.tls is {asked}"
+                f"{' (the bus stays on loopback)' if asked == 'auto' else ''}; "
+                f"write tcp/, or set bus.tls: true"
+            )
+    return problems
+
+
+def _ca(section: dict, config_dir: Path, tls: bool, asked: str, file, errors: list[str], before: int):
+    """bus.ca's certificate and key paths; loaded to check them when the section has no other
+    problem (``errors`` had ``before`` of them when it began)."""
+    if not tls:
+        errors.append(f"{file}: bus.ca: a CA is for TLS, and bus.tls is {asked}")
+    paths = []
+    for part in ("certificate", "key"):
+        path = (config_dir / section["ca"][part]).resolve()
+        if not path.is_file():
+            errors.append(f"{file}: bus.ca.{part}: file {section['ca'][part]!r} not found ({path})")
+        paths.append(path)
+    ca = tuple(paths)
+    if len(errors) == before:
+        from orchestrator.hosts.tls import load_ca
+
+        try:
+            load_ca(*ca)
+        except ValueError as e:
+            errors.append(f"{file}: bus.ca: {e}")
+    return ca

@@ -162,7 +162,6 @@ def join(
 ) -> int:
     """Serve the component of a join file for as long as the run wants it; the exit code."""
     from components.group import ORPHANED, RELEASED
-    from components.serving import beat_interval, serve_session
 
     body = read_join_file(path, "component")
     name, endpoints = body["component"], connect or body["connect"]
@@ -177,20 +176,7 @@ def join(
                 while True:
                     answer = _ask(session, body, endpoint)
                     if type(answer) is queries.Granted:
-                        print(
-                            f"joined run {body['run']!r} ({body['run_id']}) at {endpoint} as {name!r}, "
-                            f"generation {answer.generation}",
-                            file=out,
-                            flush=True,
-                        )
-                        ended = serve_session(
-                            session,
-                            body["run_id"],
-                            [(name, answer.generation)],
-                            cpu,
-                            answer.orchestrator,
-                            beat_interval(settings),
-                        )
+                        ended = _serve(session, body, endpoint, answer, cpu, settings, out)
                         served = True
                         deadline = time.monotonic() + timeout
                         if ended == ORPHANED:
@@ -223,6 +209,21 @@ def join(
                     time.sleep(0.2)
             finally:
                 bus.close_session(session)
+
+
+def _serve(session, body: dict, endpoint: str, granted: queries.Granted, cpu: int | None, settings: dict, out):
+    """Serve the generation the run granted until the run releases it, ends or is lost: how it ended."""
+    from components.serving import beat_interval, serve_session
+
+    name = body["component"]
+    print(
+        f"joined run {body['run']!r} ({body['run_id']}) at {endpoint} as {name!r}, generation {granted.generation}",
+        file=out,
+        flush=True,
+    )
+    return serve_session(
+        session, body["run_id"], [(name, granted.generation)], cpu, granted.orchestrator, beat_interval(settings)
+    )
 
 
 def _orchestrator_alive(session, body: dict) -> bool:

@@ -10,8 +10,8 @@ from typing import Protocol
 from components import queries, registry
 from components.errors import ConfigError
 from components.message_codec import Malformed, Message
+from orchestrator.config.component_specs import component_spec
 from orchestrator.config.connections import check_replacement, hands_over
-from orchestrator.config.load import component_spec
 from orchestrator.config.schema import COMPONENT
 from orchestrator.config.shadows import mismatches
 from orchestrator.config.specs import ComponentSpec, RunConfig

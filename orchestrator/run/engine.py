@@ -15,10 +15,11 @@ Components send the orchestrator their outputs in batches (see :mod:`components.
 Every message the orchestrator receives lands in one inbox queue (callbacks only enqueue) and the
 main thread does all the work. Times are integer nanoseconds, step k covers [k*h, (k+1)*h).
 
-This module is the run's life: start, end, and what the control server sees; the parts it drives:
-:mod:`.loop` (the lockstep loop), :mod:`.state` (what the run holds), :mod:`.messages` (decoding the
-inbox), :mod:`.listener` (applying it), :mod:`.members` (the processes), :mod:`.wiring` (who feeds
-whom), :mod:`.pacing` (the horizon), :mod:`.rows` (the recorded row), :mod:`.recovery` (swap,
+This module is the run's life and what the control server sees; the parts it drives:
+:mod:`.starting` (the start), :mod:`.loop` (the lockstep loop), :mod:`.ending` (the clean-up and
+what is printed), :mod:`.state` (what the run holds), :mod:`.messages` (decoding the inbox),
+:mod:`.listener` (applying it), :mod:`.members` (the processes), :mod:`.wiring` (who feeds whom),
+:mod:`.pacing` (the horizon), :mod:`.rows` (the recorded row), :mod:`.recovery` (swap,
 checkpoint, restart), :mod:`.viewer_link` and :mod:`.report`.
 """
 
@@ -26,7 +27,6 @@ from __future__ import annotations
 
 import os
 import secrets
-import shutil
 import signal
 import sys
 import tempfile
@@ -37,16 +37,16 @@ from pathlib import Path
 
 from components import bus, queries
 from components.constants import NS_PER_S
-from orchestrator.config import groups, shadows
+from orchestrator.config import groups
 from orchestrator.config.specs import ComponentSpec, Ros2Spec, RunConfig, ViewerSpec
 from orchestrator.hosts.run_bus import BusUnavailable, RunBus
-from orchestrator.run import outcome, recovery, report, runs, supervisor, wiring
+from orchestrator.run import ending, recovery, runs, starting, supervisor
 from orchestrator.run.control import ControlServer, StopRequested, raise_stop
 from orchestrator.run.listener import Listener
 from orchestrator.run.loop import Loop
-from orchestrator.run.members import Crew, RunFailure, terminate_all
+from orchestrator.run.members import Crew, RunFailure
 from orchestrator.run.messages import subscribe
-from orchestrator.run.recording import Recording, RecordingError
+from orchestrator.run.recording import RecordingError
 from orchestrator.run.state import RunState
 from orchestrator.run.viewer_link import ViewerLink
 
@@ -92,7 +92,7 @@ class Run:
         )
         self.session = self.crew = self.viewer_link = self.hosts = self.listener = self.recovery = None
         self.ros2_line: str | None = None  # the ROS 2 view's summary, printed before the run's
-        self._subscriptions: list = []
+        self.subscriptions: list = []
 
     # ---------------------------------------------------------------- what the control server sees
 
@@ -134,7 +134,7 @@ class Run:
         try:
             supervisor.keep_to(self.placement.shared)  # this thread, and the bus threads it starts
             self._open_bus()
-            self._start(len(own_cpus))
+            starting.start(self, len(own_cpus))
             self._loop()
         except (RunFailure, RecordingError, BusUnavailable) as failure:
             code, message = 1, str(failure)
@@ -160,49 +160,12 @@ class Run:
             # no second Ctrl-C/SIGTERM in the middle of the clean-up: it has bounded waits of its own
             for sig in (signal.SIGINT, signal.SIGTERM):
                 signal.signal(sig, signal.SIG_IGN)
-            code, message = self._clean_up(code, message, run_start)
+            code, message = ending.clean_up(self, code, message, run_start)
             signal.signal(signal.SIGINT, signal.default_int_handler)
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
             supervisor.keep_to(frozenset(own_cpus))
-        if message:
-            print(report.error(message, self.state.members.values()), file=self.out)
-        if self.profile:
-            print(
-                "\n".join(
-                    report.profile(
-                        self.state.members.values(), self.row, self.config.step_ns, self.loop_s, self.config.algorithm
-                    )
-                ),
-                file=self.out,
-            )
-        if self.ros2_line:
-            print(self.ros2_line, file=self.out)
-        # as events.jsonl's end line says it ("stopped by request" ends with exit code 0 too)
-        status = "failed" if code == 1 else (self.state.stop_reason or ("completed" if code == 0 else "interrupted"))
-        name, words = self._outcome(code)
-        if code == 0 and self.expect is not None and name != self.expect:
-            code = outcome.EXPECT_MISMATCH
-            print(
-                f"error: the run's outcome is {name}, not {self.expect} as expected (exit code {code})", file=self.out
-            )
-        print(
-            report.summary(
-                self.config.name,
-                status,
-                self.row,
-                self.config.steps,
-                self.config.step_ns,
-                time.perf_counter() - run_start,
-                self.loop_s,
-                self.state.restarts,
-                self.record_dir,
-                words,
-            ),
-            file=self.out,
-            flush=True,
-        )
-        return code
+        return ending.tell(self, code, message, run_start)
 
     def _loop(self) -> None:
         loop = Loop(self.state, self.listener, self.recovery, self.controls, self.progress, self.out)
@@ -211,19 +174,13 @@ class Run:
         finally:
             self.loop_s = loop.seconds
 
-    def _outcome(self, code: int) -> tuple[str | None, str | None]:
-        """The run's outcome (name, words); none for a failed run or one whose components declare none."""
-        if code == 1 or self.state.outcome is None:
-            return None, None
-        return self.state.outcome.result(self.row * self.config.step_ns / NS_PER_S)
-
     def _open_bus(self) -> None:
         """The orchestrator's Zenoh session, its subscriptions, and the run's entry for `ps`."""
         self.hosts = RunBus(self.config, self.run_id, self.secret, self.record_dir, runs.directory(), self.out)
         self.child_env.update(self.hosts.child_env(None))
         self.session = session = self.hosts.open()
         run_id = self.run_id
-        self._subscriptions = subscribe(session, run_id, self.state.inbox.put)
+        self.subscriptions = subscribe(session, run_id, self.state.inbox.put)
         self.viewer_link = ViewerLink(self.viewer, session, run_id, ros2=self.ros2)
         self.listener = Listener(self.state, self.controls, self.hosts, self.viewer_link, self.out)
         self.crew = Crew(
@@ -245,109 +202,3 @@ class Run:
         runs.register(
             run_id, self.config.name, self.hosts.local, self.config.path, self.secret, self.hosts.settings("cli")
         )
-
-    def _start(self, cpus: int) -> None:
-        """Start, wire and initialize every component, the recording and the viewer; let them go.
-        ``cpus``: how many the run may use."""
-        config, state, rows = self.config, self.state, self.state.rows
-        if self.record_dir is not None:
-            rows.recording = Recording(self.record_dir, rows.columns, config.resolved, flush_s=config.record_flush_s)
-        state.log(
-            "start",
-            run_id=self.run_id,
-            config=str(config.path.resolve()),
-            steps=config.steps,
-            step_ns=config.step_ns,
-            algorithm=config.algorithm,
-            components={n: s.type for n, s in config.components.items()},
-            shadows={n: s.shadow_of for n, s in config.components.items() if s.shadow_of},
-            cpus={**self.placement.dedicated, "shared": sorted(self.placement.shared)},
-        )
-        for note in config.notes:  # suspect physics the check found (orchestrator check shows them too)
-            print(f"warning: {note}", file=self.out)
-            state.log("warning", message=note, step=0)
-        if self.placement.unplaced:
-            message = (
-                f"no CPU to spare for {', '.join(self.placement.unplaced)} (dedicated_cpu; "
-                f"{cpus} CPU(s) available): they share the others'"
-            )
-            print(f"note: {message}", file=self.out)
-            state.log("warning", message=message, step=0)
-        self.crew.start(list(config.components.values()), {n: 0 for n in config.components}, state.members)
-        for member in state.members.values():
-            wiring.wire(self.crew, member, state.members, state.pending_faults, 0)
-        for name in shadows.initialization_order(config.components, config.connections):
-            member = state.members[name]
-            member.latest = wiring.initialize(self.crew, member, state.members, 0)
-            member.initialized = True
-            rows.take(member)
-        if rows.recording is not None:
-            rows.recording.append(0, 0.0, rows.values)
-        rows.decimation = self.viewer_link.start(
-            config,
-            rows.columns,
-            setup=self.log_dir / "viewer.json",
-            endpoint=self.crew.endpoint,
-            run_id=self.run_id,
-            env=self.child_env,
-            cpus=self.placement.shared,
-            wait=self.listener.wait,
-            frames_dir=self.record_dir / "frames" if self.record_dir else None,
-            record_dir=self.record_dir,
-        )
-        if rows.decimation:
-            if self.viewer is not None:
-                state.log("viewer", mode=self.viewer.mode, rate_hz=self.viewer.rate_hz)
-            if self.ros2 is not None:
-                state.log(
-                    "ros2",
-                    transport=self.ros2.transport,
-                    endpoint=self.ros2.endpoint,
-                    domain_id=self.ros2.domain_id,
-                    rate_hz=self.ros2.rate_hz,
-                )
-            rows.signals = self.viewer_link.signals
-            rows.publish()
-        self.listener.sync(list(state.members.values()))
-        if self.recovery.restartable:
-            self.recovery.take_checkpoint()
-        for member in state.members.values():
-            wiring.go(member, state.members, state.horizon)
-
-    def _clean_up(self, code: int, message: str | None, run_start: float) -> tuple[int, str | None]:
-        """Stop every process, close the recording and the bus; the exit code and error message,
-        which a recording that cannot be closed changes."""
-        if self.progress:
-            print(file=self.out)
-        if self.hosts is not None:
-            self.hosts.close()  # joins from now on are told the run is over
-        state, rows = self.state, self.state.rows
-        terminate_all(list(state.members.values()) + list(state.joining.values()), 2.0 if code else 5.0, final=True)
-        if self.viewer_link is not None:
-            self.viewer_link.stop(state.stop_reason == "interrupted", self.out)
-            if stream := self.viewer_link.ros2_stream():
-                event, self.ros2_line = stream
-                state.log("ros2_stream", **event)
-        name, words = self._outcome(code)
-        state.log(
-            "end",
-            step=rows.row,
-            time=rows.row * self.config.step_ns / NS_PER_S,
-            status="failed" if code == 1 else (state.stop_reason or "completed"),
-            wall_s=round(time.perf_counter() - run_start, 3),
-            **({"outcome": name, "outcome_text": words} if name else {}),
-        )
-        if rows.recording is not None:
-            try:
-                rows.recording.close()
-            except RecordingError as failure:
-                code, message = 1, message or str(failure)
-        runs.unregister(self.run_id)
-        self._subscriptions.clear()
-        if self.session is not None:
-            self.session.close()
-        if self.hosts is not None:
-            self.hosts.remove(join_files=self.record_dir is None)
-        if code == 0 and self.record_dir is None:
-            shutil.rmtree(self.log_dir, ignore_errors=True)
-        return code, message

@@ -166,44 +166,16 @@ class Recovery:
         SwapFailed is raised: the old generation runs on. ``planned``: an event of the config
         (else the recorded config gains one, so that it replays the run).
         """
-        run, crew, config = self.run, self.crew, self.run.config
+        run = self.run
         old, row = run.members[spec.name], run.rows.row
-        t_ns = row * config.step_ns
         same_type = spec.type == old.spec.type
         handed_over = hands_over(old.spec, spec.type, spec.cls)
         problem = handover_problem(old.spec, spec) if handed_over else None
         if problem:
             raise SwapFailed(problem)
         began = time.perf_counter()
-        try:
-            new = crew.start([spec], {spec.name: old.generation + 1}, run.joining)[0]
-            joined = {**run.members, spec.name: new}
-            wiring.wire(crew, new, joined, run.pending_faults, row)
-            if handed_over:
-                crew.ask([old], protocol.GetState(), "get_state", config.step_timeout_s)
-                crew.ask([new], protocol.SetState(old.reply.blob), "set_state", config.step_timeout_s)
-                outputs = old.latest
-            else:
-                outputs = wiring.initialize(crew, new, joined, t_ns)
-        except RunFailure as failure:
-            if old.process is not None and old.process.poll() is not None:
-                raise  # the old generation is gone too: nothing to run on
-            joining = run.drop_joining(spec.name)
-            if joining is not None:
-                terminate(joining, timeout=2.0)
-            run.log("warning", message=f"swap of {spec.name} to {spec.type} failed: {failure}", step=row)
-            raise SwapFailed(str(failure)) from None
-        new.tag, new.latest, new.progress, new.initialized = row, np.array(outputs), row, True
-        run.rows.values[old.out_dst] = np.nan  # the old type's columns the new one lacks: NaN from here on
-        run.rows.take(new)
-        run.take_over(spec.name)
-        terminate(old)  # its late messages carry the old generation: ignored from here on
-        consumers = [m for m in run.members.values() if m is not new and any(r.source == spec.name for r in m.routes)]
-        for consumer in consumers:
-            wiring.rewire(consumer, run.members, config, spec.name)
-        self.listener.wait({m.name: "rewire" for m in consumers}, config.step_timeout_s, "rewire")
-        self.listener.sync([new, *consumers])
-        wiring.go(new, run.members, run.horizon)
+        new = self._new_generation(spec, old, handed_over)
+        self._take_over(old, new)
         parameters = spec.cls.schema.plain(spec.resolved)
         if run.rows.recording is not None:
             if not same_type:  # (a same-type swap goes on writing the table its type has, if any)
@@ -217,13 +189,55 @@ class Recovery:
             parameters=parameters,
             generation=new.generation,
             step=row,
-            time=t_ns / NS_PER_S,
+            time=row * run.config.step_ns / NS_PER_S,
             state_handed_over=handed_over,
             wall_s=round(time.perf_counter() - began, 4),
         )
         if self.restartable:
             self.take_checkpoint()  # a restart never goes back across a swap
         return new.generation
+
+    def _new_generation(self, spec: ComponentSpec, old: Member, handed_over: bool) -> Member:
+        """The new generation started and wired on the side, with the old one's state (``handed_over``)
+        or initialized at this step; on a failure it is stopped and SwapFailed raised, unless the old
+        generation is gone too."""
+        run, crew, config = self.run, self.crew, self.run.config
+        row = run.rows.row
+        try:
+            new = crew.start([spec], {spec.name: old.generation + 1}, run.joining)[0]
+            joined = {**run.members, spec.name: new}
+            wiring.wire(crew, new, joined, run.pending_faults, row)
+            if handed_over:
+                crew.ask([old], protocol.GetState(), "get_state", config.step_timeout_s)
+                crew.ask([new], protocol.SetState(old.reply.blob), "set_state", config.step_timeout_s)
+                outputs = old.latest
+            else:
+                outputs = wiring.initialize(crew, new, joined, row * config.step_ns)
+        except RunFailure as failure:
+            if old.process is not None and old.process.poll() is not None:
+                raise  # the old generation is gone too: nothing to run on
+            joining = run.drop_joining(spec.name)
+            if joining is not None:
+                terminate(joining, timeout=2.0)
+            run.log("warning", message=f"swap of {spec.name} to {spec.type} failed: {failure}", step=row)
+            raise SwapFailed(str(failure)) from None
+        new.tag, new.latest, new.progress, new.initialized = row, np.array(outputs), row, True
+        return new
+
+    def _take_over(self, old: Member, new: Member) -> None:
+        """The new generation in the old one's place: its row columns, the old process stopped, its
+        consumers rewired to it; then both let go."""
+        run, name = self.run, new.name
+        run.rows.values[old.out_dst] = np.nan  # the old type's columns the new one lacks: NaN from here on
+        run.rows.take(new)
+        run.take_over(name)
+        terminate(old)  # its late messages carry the old generation: ignored from here on
+        consumers = [m for m in run.members.values() if m is not new and any(r.source == name for r in m.routes)]
+        for consumer in consumers:
+            wiring.rewire(consumer, run.members, run.config, name)
+        self.listener.wait({m.name: "rewire" for m in consumers}, run.config.step_timeout_s, "rewire")
+        self.listener.sync([new, *consumers])
+        wiring.go(new, run.members, run.horizon)
 
     def _record_event(self, new: Member, parameters: dict) -> None:
         """A swap from the CLI becomes an event of the recorded config, so that it replays the run."""

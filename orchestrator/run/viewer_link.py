@@ -68,60 +68,71 @@ class ViewerLink:
         ``record_dir``: where the ROS 2 view's report goes (else beside ``setup``)."""
         rates, expected = [], {}
         if self.spec is not None:
-            setup.write_text(
-                json.dumps(
-                    {
-                        "columns": columns,
-                        "config": config.resolved,
-                        "step_ns": config.step_ns,
-                        "config_dir": str(config.path.parent.resolve()),
-                        "epoch": config.epoch,
-                        "mode": self.spec.mode,
-                        "file": str(self.spec.file) if self.spec.file else None,
-                        "open_browser": self.spec.open_browser,
-                        "port": self.spec.port,
-                        "frames_dir": str(frames_dir) if frames_dir else None,
-                        "linger": sys.stdin.isatty(),
-                    }
-                )
-            )  # foxglove: keep serving after the run (stop() waits for it)
-            module = (
-                "components.viewer.foxglove_observer" if self.spec.mode == "foxglove" else "components.viewer.observer"
-            )
-            self.process = self._spawn(module, endpoint, run_id, setup, env, cpus)
+            self._start_viewer(config, columns, setup, endpoint, run_id, env, cpus, frames_dir)
             rates.append(self.spec.rate_hz)
             expected[bus.VIEWER] = "alive"
         if self.ros2 is not None:
-            ros2_setup = setup.with_name("ros2.json")
-            node = "zenorbit_" + re.sub(r"[^A-Za-z0-9_]", "_", config.name)
-            self.ros2_report = (record_dir or setup.parent) / stream_report.REPORT
-            ros2_setup.write_text(
-                json.dumps(
-                    {
-                        "columns": columns,
-                        "config": config.resolved,
-                        "config_dir": str(config.path.parent.resolve()),
-                        "ros2": {
-                            "endpoint": self.ros2.endpoint,
-                            "domain_id": self.ros2.domain_id,
-                            "distro": self.ros2.distro,
-                            "topics": self.ros2.topics,
-                            "node": node,
-                            "transport": self.ros2.transport,
-                            "python": self.ros2.python,
-                            "why": self.ros2.why,
-                        },
-                        "report": str(self.ros2_report),
-                    }
-                )
-            )
-            self.ros2_process = self._spawn("components.ros2.observer", endpoint, run_id, ros2_setup, env, cpus)
+            self._start_ros2(config, columns, setup, endpoint, run_id, env, cpus, record_dir)
             rates.append(self.ros2.rate_hz)
             expected[bus.ROS2] = "alive"
         if not expected:
             return 0
         wait(expected, config.start_timeout_s, "viewer start-up")
         return max(1, round(NS_PER_S / (max(rates) * config.step_ns)))
+
+    def _start_viewer(
+        self, config: RunConfig, columns: list[str], setup, endpoint, run_id, env, cpus, frames_dir
+    ) -> None:
+        """The viewer's observer (Rerun, or Foxglove), from its setup file ``setup``."""
+        setup.write_text(
+            json.dumps(
+                {
+                    "columns": columns,
+                    "config": config.resolved,
+                    "step_ns": config.step_ns,
+                    "config_dir": str(config.path.parent.resolve()),
+                    "epoch": config.epoch,
+                    "mode": self.spec.mode,
+                    "file": str(self.spec.file) if self.spec.file else None,
+                    "open_browser": self.spec.open_browser,
+                    "port": self.spec.port,
+                    "frames_dir": str(frames_dir) if frames_dir else None,
+                    "linger": sys.stdin.isatty(),
+                }
+            )
+        )  # foxglove: keep serving after the run (stop() waits for it)
+        module = "components.viewer.foxglove_observer" if self.spec.mode == "foxglove" else "components.viewer.observer"
+        self.process = self._spawn(module, endpoint, run_id, setup, env, cpus)
+
+    def _start_ros2(
+        self, config: RunConfig, columns: list[str], setup, endpoint, run_id, env, cpus, record_dir
+    ) -> None:
+        """The ROS 2 view's observer, from ``ros2.json`` beside ``setup``; its report goes to
+        ``record_dir`` (else beside ``setup``)."""
+        ros2_setup = setup.with_name("ros2.json")
+        node = "zenorbit_" + re.sub(r"[^A-Za-z0-9_]", "_", config.name)
+        self.ros2_report = (record_dir or setup.parent) / stream_report.REPORT
+        ros2_setup.write_text(
+            json.dumps(
+                {
+                    "columns": columns,
+                    "config": config.resolved,
+                    "config_dir": str(config.path.parent.resolve()),
+                    "ros2": {
+                        "endpoint": self.ros2.endpoint,
+                        "domain_id": self.ros2.domain_id,
+                        "distro": self.ros2.distro,
+                        "topics": self.ros2.topics,
+                        "node": node,
+                        "transport": self.ros2.transport,
+                        "python": self.ros2.python,
+                        "why": self.ros2.why,
+                    },
+                    "report": str(self.ros2_report),
+                }
+            )
+        )
+        self.ros2_process = self._spawn("components.ros2.observer", endpoint, run_id, ros2_setup, env, cpus)
 
     def exited(self, name: str = bus.VIEWER) -> str | None:
         """Why the run cannot start, if the observer ``name`` (bus.VIEWER, bus.ROS2) has exited."""

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import yaml
 
-from orchestrator.campaigns.campaign import CampaignErrors, key_path, load_campaign, set_key, si_value
+from orchestrator.campaigns.campaign import key_path, set_key, si_value
+from orchestrator.campaigns.campaign_file import CampaignErrors, load_campaign
 from orchestrator.campaigns.dispersions import dispersion
 from orchestrator.campaigns.metrics import reduce_signal
 from orchestrator.config.load import validate

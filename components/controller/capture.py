@@ -97,6 +97,12 @@ WAIT, APPROACH, CLOSING, TRACK, RETREAT, CAPTURED, ABORTED = range(7)
 PHASES = ("wait", "approach", "closing", "track", "retreat", "captured", "aborted")
 
 
+def _under_way(move: JointMove | None) -> JointMove:
+    """The joint move of the approach or the retreat under way (set on entering either)."""
+    assert move is not None, "an approach or a retreat has its move"
+    return move
+
+
 class CaptureController:
     """The capture controller of one servicer (module doc): the phases over the grasp frame's
     estimate, the planner and the laws. ``start(state)`` takes the arm's initial configuration (the
@@ -167,7 +173,7 @@ class CaptureController:
         else:
             if self.phase == WAIT:
                 self._wait(t, s, estimate, x)
-            if self.phase in (APPROACH, RETREAT) and t >= self._move().t0 + self._move().T:
+            if self.phase in (APPROACH, RETREAT) and t >= _under_way(self.move).t0 + _under_way(self.move).T:
                 self._arrive(t, s, estimate)
             if self.phase in (CLOSING, TRACK):
                 assert estimate is not None  # an approach starts from one, and the estimator stays ready
@@ -180,16 +186,11 @@ class CaptureController:
                 if problem:
                     self._retreat(t, s, problem)
             if self.phase in (APPROACH, RETREAT):
-                tau_arm = self.joints.follow(self._move(), t, s)
+                tau_arm = self.joints.follow(_under_way(self.move), t, s)
             elif self.phase in (WAIT, ABORTED):
                 tau_arm = self.joints.hold(s, self.q_posture)
         tau[arm.body_arm] = tau_arm
         return self._outputs(s, tau, estimate, reference)
-
-    def _move(self) -> JointMove:
-        """The joint move of the approach or the retreat under way (set on entering either)."""
-        assert self.move is not None, "an approach or a retreat has its move"
-        return self.move
 
     # ------------------------------------------------------------ transitions
 

@@ -100,14 +100,14 @@ def check_spec(spec: BodySpec, model: UrdfModel) -> None:
     n = spec.name
     if spec.frame not in FRAMES:
         raise ModelError(f"{n}.frame", f"expected one of {', '.join(FRAMES)}, got {spec.frame!r}")
-    for key, value, size in (
+    for key, given, size in (
         ("position", spec.position, 3),
         ("orientation", spec.orientation, 4),
         ("twist", spec.twist, 6),
     ):
-        array = np.asarray(value, dtype=float)
+        array = np.asarray(given, dtype=float)
         if array.shape != (size,) or not np.all(np.isfinite(array)):
-            raise ModelError(f"{n}.{key}", f"expected {size} finite numbers, got {value!r}")
+            raise ModelError(f"{n}.{key}", f"expected {size} finite numbers, got {given!r}")
     if not 0.5 < np.linalg.norm(spec.orientation) < 2.0:
         raise ModelError(f"{n}.orientation", f"expected a unit quaternion [x, y, z, w], got {list(spec.orientation)}")
     movable = model.movable_joints
@@ -127,12 +127,10 @@ def check_spec(spec: BodySpec, model: UrdfModel) -> None:
                     f"{n}.{key}.{joint}",
                     f"a mimic joint: it follows {model.mimics[joint][0]!r}; set {key} of that joint instead",
                 )
-    for joint, position in spec.q.items():
+    for joint, value in spec.q.items():
         j = model.joint(joint)
-        if not j.lower - 1e-9 <= position <= j.upper + 1e-9:
-            raise ModelError(
-                f"{n}.q.{joint}", f"expected within the URDF limits [{j.lower}, {j.upper}], got {position}"
-            )
+        if not j.lower - 1e-9 <= value <= j.upper + 1e-9:
+            raise ModelError(f"{n}.q.{joint}", f"expected within the URDF limits [{j.lower}, {j.upper}], got {value}")
     seen = set()
     for joint in spec.locked_joints:
         if joint not in movable:

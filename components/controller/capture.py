@@ -97,6 +97,12 @@ WAIT, APPROACH, CLOSING, TRACK, RETREAT, CAPTURED, ABORTED = range(7)
 PHASES = ("wait", "approach", "closing", "track", "retreat", "captured", "aborted")
 
 
+def _under_way(move: JointMove | None) -> JointMove:
+    """The joint move of the approach or the retreat under way (set on entering either)."""
+    assert move is not None, "an approach or a retreat has its move"
+    return move
+
+
 class CaptureController:
     """The capture controller of one servicer (module doc): the phases over the grasp frame's
     estimate, the planner and the laws. ``start(state)`` takes the arm's initial configuration (the
@@ -167,9 +173,10 @@ class CaptureController:
         else:
             if self.phase == WAIT:
                 self._wait(t, s, estimate, x)
-            if self.phase in (APPROACH, RETREAT) and t >= self.move.t0 + self.move.T:
+            if self.phase in (APPROACH, RETREAT) and t >= _under_way(self.move).t0 + _under_way(self.move).T:
                 self._arrive(t, s, estimate)
             if self.phase in (CLOSING, TRACK):
+                assert estimate is not None  # an approach starts from one, and the estimator stays ready
                 reference = self._reference(t, estimate)
                 out = self.law.control(s, reference, self.q_posture)
                 problem = self.limits.check(t, s, estimate, reference, out.qdd) or self._update_close(
@@ -179,7 +186,7 @@ class CaptureController:
                 if problem:
                     self._retreat(t, s, problem)
             if self.phase in (APPROACH, RETREAT):
-                tau_arm = self.joints.follow(self.move, t, s)
+                tau_arm = self.joints.follow(_under_way(self.move), t, s)
             elif self.phase in (WAIT, ABORTED):
                 tau_arm = self.joints.hold(s, self.q_posture)
         tau[arm.body_arm] = tau_arm
@@ -222,6 +229,7 @@ class CaptureController:
             if self.attempt >= self.cfg.attempts:
                 self._abort(t, f"{self.attempt} approach{'es' if self.attempt != 1 else ''}: {self.reason}")
             return
+        assert g is not None  # the approach started from one, and the estimator stays ready
         d = g.R.T @ (s.p - g.p)
         psi = log_so3(g.R.T @ s.R)
         self.closing = (t, d, psi)
@@ -340,7 +348,7 @@ class CaptureController:
             "grasp_rate_est": zero.copy() if g is None else g.w,
         }
 
-    def get_state(self) -> dict[str, np.ndarray]:
+    def get_state(self) -> dict[str, np.ndarray | np.float64]:
         t0, d0, psi0 = self.closing
         return {
             "started": np.float64(self.started),

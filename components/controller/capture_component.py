@@ -16,6 +16,8 @@ returns the torques to apply from t + h on, as ``controller.computed_torque`` do
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from components.constants import NS_PER_S
@@ -25,6 +27,9 @@ from components.controller.capture_setup import CaptureSetup, capture_settings, 
 from components.controller.capture_variables import capture_variables
 from components.controller.view import ControllerView
 from components.sdk import Component, Outcome
+
+if TYPE_CHECKING:
+    from components.controller.capture import CaptureController
 
 
 class CaptureComponent(Component):
@@ -104,7 +109,7 @@ class CaptureComponent(Component):
         warm = self._build()  # the first control step comes with the approach, seconds into the run
         compile_kernels(warm.arm, warm.law)
 
-    def _build(self):
+    def _build(self) -> CaptureController:
         from components.controller.capture import CaptureController
         from components.controller.computed_torque import ComputedTorqueLaw
         from components.controller.free_floating_arm import FreeFloatingArm
@@ -116,7 +121,7 @@ class CaptureComponent(Component):
         )
         return CaptureController(arm, law, capture_settings(c), c.wheels)
 
-    def _idle_outputs(self) -> dict[str, np.ndarray]:
+    def _idle_outputs(self) -> dict[str, np.ndarray | float]:
         z3 = np.zeros(3)
         return {
             "tau": np.zeros(self.controller.arm.n_body),

@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -251,7 +252,11 @@ class PoseHistory:
 
     def __init__(self, span: float):
         self.span = float(span)
-        self.t, self.p, self.R, self.v, self.w = [], [], [], [], []
+        self.t: list[float] = []
+        self.p: list[np.ndarray] = []
+        self.R: list[np.ndarray] = []
+        self.v: list[np.ndarray] = []
+        self.w: list[np.ndarray] = []
 
     @property
     def full(self) -> bool:
@@ -266,16 +271,17 @@ class PoseHistory:
             np.array(v, dtype=float),
             np.array(w, dtype=float),
         )
+        columns: tuple[list[Any], ...] = (self.t, self.p, self.R, self.v, self.w)
         if self.t and t <= self.t[-1]:
             if t < self.t[-1]:
                 raise ValueError(f"end-effector pose at t = {t} s is older than the last one ({self.t[-1]} s)")
-            for column, value in zip((self.t, self.p, self.R, self.v, self.w), entry):  # same time: replace
+            for column, value in zip(columns, entry):  # same time: replace
                 column[-1] = value
             return
-        for column, value in zip((self.t, self.p, self.R, self.v, self.w), entry):
+        for column, value in zip(columns, entry):
             column.append(value)
         while len(self.t) > 2 and self.t[1] <= t - self.span:
-            for column in (self.t, self.p, self.R, self.v, self.w):
+            for column in columns:
                 del column[0]
 
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray] | None:
@@ -354,9 +360,12 @@ class GraspTracker:
 
     def estimate(self, t: float) -> PoseSample | None:
         """The grasp frame at t (W), once the estimator holds its minimum of measurements."""
-        return self.estimator.fit.sample(t) if self.estimator.ready else None
+        if not self.estimator.ready:
+            return None
+        assert self.estimator.fit is not None  # each measurement refits
+        return self.estimator.fit.sample(t)
 
-    def get_state(self) -> dict[str, np.ndarray]:
+    def get_state(self) -> dict[str, np.ndarray | np.float64]:
         return {
             "last_seen": np.float64(self.last_seen),
             "last_distance": np.float64(self.last_distance),

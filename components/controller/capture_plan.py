@@ -350,6 +350,7 @@ class WindowPlanner:
         # by less than STILL over the longest scan is still: its one pose is its whole turn
         relative_rate = float(np.linalg.norm(prediction.w - base_w))
         fit = estimator.fit
+        assert fit is not None  # g is its estimate
         negligible = relative_rate * LONGEST_SCAN < STILL
         unresolved = not negligible and estimator.full and relative_rate < 3.0 * fit.rate_sigma  # noise
         still = negligible or unresolved

@@ -30,7 +30,7 @@ from scipy.linalg.lapack import dgesdd
 
 from components.controller import kernels
 from components.controller.free_floating_arm import ArmState, FreeFloatingArm
-from components.controller.trajectory import PoseSample
+from components.controller.trajectory import Hold, PoseSample
 from components.rotations import matrix_to_quat
 
 BASE_MODELS = ("free_floating", "fixed")
@@ -182,9 +182,9 @@ class ArmController:
     ):
         self.arm, self.law, self.spec = arm, law, trajectory_spec
         self.reach = reach  # (centre joint, reach m) for the out-of-reach check
-        self.trajectory = None
+        self.trajectory: Hold | None = None
         self.q_posture = np.zeros(arm.n)
-        self.anchor = None  # p0 (3), R0 (3x3), R_base0 (3x3)
+        self.anchor: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # p0 (3), R0 (3x3), R_base0 (3x3)
 
     def start(self, state: Mapping[str, np.ndarray]) -> None:
         from components.controller.trajectory import build_cartesian
@@ -216,9 +216,10 @@ class ArmController:
         self.q_posture = np.asarray(q_posture, dtype=float).copy()
         self.trajectory = build_cartesian(self.spec, *self.anchor)
 
-    def step(self, t: float, state: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    def step(self, t: float, state: Mapping[str, np.ndarray]) -> dict[str, np.ndarray | np.float64]:
         self.arm.set_state(state["position"], state["orientation"], state["twist"], state["q"], state["qd"])
         s = self.arm.compute(self.law.base_model)
+        assert self.trajectory is not None, "start or restore comes first"
         d = self.trajectory.sample(t)
         out = self.law.control(s, d, self.q_posture)
         tau = np.zeros(self.arm.n_body)

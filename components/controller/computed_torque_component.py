@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -28,6 +28,9 @@ from components.robots.model import arm_reach
 from components.rotations import continuous
 from components.schema import ListOf, Str
 from components.sdk import Component, Parameter, Variable
+
+if TYPE_CHECKING:
+    from components.controller.computed_torque import ArmController
 
 
 @dataclass(frozen=True)
@@ -188,8 +191,8 @@ class ComputedTorqueComponent(Component):
     def __init__(self, params, run):
         super().__init__(params.checked, run)
         self.arm = params
-        self.controller = None
-        self._initial_inputs = None
+        self.controller: ArmController | None = None
+        self._initial_inputs: dict[str, np.ndarray] | None = None
         self.last_quaternions: dict[str, np.ndarray] = {}
 
     def _locked_at(self, q: np.ndarray) -> np.ndarray:
@@ -197,7 +200,7 @@ class ComputedTorqueComponent(Component):
         body = self.arm.model.movable_joints
         return np.array([float(q[body.index(j)]) for j in self.arm.locked], dtype=np.float64)
 
-    def _build(self, locked_q: np.ndarray):
+    def _build(self, locked_q: np.ndarray) -> ArmController:
         """The controller, its model welded at ``locked_q`` (the positions of ``locked_joints``)."""
         from components.controller.computed_torque import ArmController, ComputedTorqueLaw
         from components.controller.free_floating_arm import FreeFloatingArm
@@ -219,7 +222,7 @@ class ComputedTorqueComponent(Component):
         )
         return ArmController(arm, law, a.trajectory, reach=a.reach)
 
-    def _continuous(self, out: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    def _continuous(self, out: dict[str, np.ndarray | np.float64]) -> dict[str, np.ndarray | np.float64]:
         """The output quaternions' signs continued from the last step's."""
         for key in QUATERNION_OUTPUTS:
             out[key] = self.last_quaternions[key] = continuous(out[key], self.last_quaternions.get(key))
@@ -244,11 +247,13 @@ class ComputedTorqueComponent(Component):
             self._initial_inputs = None
         # the reference at the time the state was sampled (t_(k+1) under Gauss-Seidel): like with like
         t_state = self.input_times_ns.get("q", t_ns)
+        assert self.controller is not None, "initialize or set_state comes first"
         return self._continuous(self.controller.step(t_state / NS_PER_S, inputs))
 
     def get_state(self):
         if self.controller is None:
             raise RuntimeError("get_state before initialize: the trajectory is not anchored yet")
+        assert self.controller.anchor is not None  # both start and restore anchor it
         p0, R0, Rb = self.controller.anchor
         locked = self.controller.arm.locked
         state = {

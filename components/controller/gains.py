@@ -28,6 +28,7 @@ def per_item(value: float | np.ndarray, n: int, key: str, each: str = "one per a
     """One number for all n, or n numbers (``each`` says what they are)."""
     if np.ndim(value) == 0:
         return np.full(n, float(value))
+    assert not isinstance(value, float)  # np.ndim is 0 for every float
     if len(value) != n:
         raise ConfigError(key, f"expected one number or {n} numbers ({each}), got {len(value)}")
     return np.array(value, dtype=np.float64)

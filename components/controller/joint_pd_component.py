@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,6 +23,9 @@ from components.errors import ConfigError
 from components.robots.model import JOINT_VALUE, joint_units
 from components.schema import Float, ListOf, MapOf, Record
 from components.sdk import Component, Parameter, Variable
+
+if TYPE_CHECKING:
+    from components.controller.trajectory import JointWaypoints
 
 PID_GAINS = Record(
     "PID gains",
@@ -204,9 +207,9 @@ class JointPDComponent(Component):
         g = c.gains
         self.pid = JointPID(PidGains(g["p"], g["i"], g["d"], g["i_clamp"]), c.effort)
         self.q_start = np.zeros(len(c.joints))
-        self.reference = None
+        self.reference: JointWaypoints | None = None
 
-    def _build_reference(self):
+    def _build_reference(self) -> JointWaypoints:
         from components.controller.trajectory import JointWaypoints
 
         spec = self.joints.trajectory
@@ -221,6 +224,7 @@ class JointPDComponent(Component):
 
     def _outputs(self, t: float, dt: float, inputs) -> dict[str, np.ndarray]:
         q, qd = np.asarray(inputs["q"], dtype=float), np.asarray(inputs["qd"], dtype=float)
+        assert self.reference is not None, "initialize or set_state comes first"
         q_d, qd_d, _ = self.reference.sample(t)
         tau = np.zeros(self.n)
         tau[self.index] = self.pid.torque(q_d, qd_d, q[self.index], qd[self.index], dt)

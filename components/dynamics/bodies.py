@@ -28,7 +28,7 @@ outputs ``base_pose()``, ``orientation()``, ``com()``, ``com_velocity()``, ``mom
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -82,9 +82,9 @@ class BodySpec:
     name: str
     urdf: str | Path
     frame: str = "world"
-    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    orientation: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
-    twist: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    position: Sequence[float] | np.ndarray = field(default_factory=lambda: np.zeros(3))
+    orientation: Sequence[float] | np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
+    twist: Sequence[float] | np.ndarray = field(default_factory=lambda: np.zeros(6))
     q: Mapping[str, float] = field(default_factory=dict)
     qd: Mapping[str, float] = field(default_factory=dict)
     locked_joints: tuple[str, ...] = ()
@@ -100,14 +100,14 @@ def check_spec(spec: BodySpec, model: UrdfModel) -> None:
     n = spec.name
     if spec.frame not in FRAMES:
         raise ModelError(f"{n}.frame", f"expected one of {', '.join(FRAMES)}, got {spec.frame!r}")
-    for key, value, size in (
+    for key, given, size in (
         ("position", spec.position, 3),
         ("orientation", spec.orientation, 4),
         ("twist", spec.twist, 6),
     ):
-        array = np.asarray(value, dtype=float)
+        array = np.asarray(given, dtype=float)
         if array.shape != (size,) or not np.all(np.isfinite(array)):
-            raise ModelError(f"{n}.{key}", f"expected {size} finite numbers, got {value!r}")
+            raise ModelError(f"{n}.{key}", f"expected {size} finite numbers, got {given!r}")
     if not 0.5 < np.linalg.norm(spec.orientation) < 2.0:
         raise ModelError(f"{n}.orientation", f"expected a unit quaternion [x, y, z, w], got {list(spec.orientation)}")
     movable = model.movable_joints
@@ -147,9 +147,9 @@ def check_spec(spec: BodySpec, model: UrdfModel) -> None:
         if not (area >= 0.0 and math.isfinite(area)):
             raise ModelError(f"{n}.drag_area.{link}", f"expected an area >= 0 m^2, got {area}")
     cds = spec.drag_cd.items() if isinstance(spec.drag_cd, Mapping) else [(None, spec.drag_cd)]
-    for link, cd in cds:
-        key = f"{n}.drag_cd" + (f".{link}" if link is not None else "")
-        if link is not None and link not in links:
+    for cd_link, cd in cds:
+        key = f"{n}.drag_cd" + (f".{cd_link}" if cd_link is not None else "")
+        if cd_link is not None and cd_link not in links:
             raise ModelError(key, f"not a link of {Path(spec.urdf).name}")
         if not (cd >= 0.0 and math.isfinite(cd)):
             raise ModelError(key, f"expected a drag coefficient >= 0, got {cd}")
@@ -249,6 +249,8 @@ class Body:
     | stops, stop_sides | coordinates resting on a limit stop (rk4), +1 upper, -1 lower |
     """
 
+    light: np.ndarray  # the kernels' light row: the engine's own array (DartBody, PinocchioBody), set_sun writes it
+
     def __init__(self, spec: BodySpec, model: UrdfModel, environment: Environment):
         self.spec, self.model, self.name, self.environment = spec, model, spec.name, environment
         self.joints = model.movable_joints
@@ -304,7 +306,8 @@ class Body:
         """The kernels' SRP tables for the massive ``links`` (names, the kernels' order) whose link
         frames sit in their local axes at rotation ``rotations[k]`` and origin ``offsets[k]`` (m,
         from the link's CoM): per link (Cr A, first facet row, count), and the facets there."""
-        per_link, rows = np.zeros((len(links), 3)), []
+        per_link = np.zeros((len(links), 3))
+        rows: list[np.ndarray] = []
         for k, link in enumerate(links):
             facets = self.srp_facets.get(link, np.zeros((0, 9)))
             per_link[k] = self.srp_cr_area.get(link, 0.0), sum(len(r) for r in rows), len(facets)
@@ -359,7 +362,7 @@ class Body:
         """A step starts from the current state (q0, v0)."""
         self.step_start = self.positions(), self.velocities()
         self.step_rates = [self.step_start[1]]  # d(xi)/dt of each stage: d1 = v0
-        self.step_accelerations = []
+        self.step_accelerations: list[np.ndarray] = []
 
     def next_stage(self, stage: int, c: float, a: np.ndarray) -> None:
         """Stage ``stage`` (2 to 4 of RK4: 1 to 3 here) from the last one's accelerations ``a``:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from operator import itemgetter
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -34,6 +34,9 @@ from components.signals import BODY as BODY_OUTPUTS
 from components.signals import ORBIT as ORBIT_INPUTS
 from components.space.ephemeris import moon_position_eci, sun_position_eci
 from components.space.parameters import check_atmosphere
+
+if TYPE_CHECKING:
+    from components.dynamics.capture import CaptureReport
 
 ORBIT_VALUES = itemgetter(*ORBIT_INPUTS)  # inputs -> the orbit inputs' values, in set_orbit's order
 
@@ -231,7 +234,7 @@ class OrbitalDynamics(Component):
         self.quaternion_outputs += [f"{name}.q_lvlh_body" for name in self.names if self.frames]
         self.quaternion_outputs += ["grasp.q_ee_grasp", "grasp.q_c_t"] if self.grasp else []
         self.magnetics = self._magnetics(params, run)  # the field and magnetorquers, else None: nothing per step
-        self.capture_report = None  # the last step's capture, for the event
+        self.capture_report: CaptureReport | None = None  # the last step's capture, for the event
         self.last_quaternions: dict[str, np.ndarray] = {}
 
     def _magnetics(self, params, run):
@@ -260,7 +263,8 @@ class OrbitalDynamics(Component):
             tt = self.ephemeris.tt(t_ns)
             self.world.set_sun(sun_position_eci(tt), moon_position_eci(tt))
         try:
-            self.world.set_orbit(*ORBIT_VALUES(inputs), age=age)
+            r_eci, v_eci, q_eci_lvlh, w_lvlh = ORBIT_VALUES(inputs)
+            self.world.set_orbit(r_eci, v_eci, q_eci_lvlh, w_lvlh, age=age)
             if self.world.atmosphere_varies:  # NRLMSISE-00 needs the time the orbit point is at
                 self.world.orbit_time = self.input_times_ns.get("r_eci", t_ns) / NS_PER_S
             if torques:
@@ -269,8 +273,8 @@ class OrbitalDynamics(Component):
         except ValueError as e:
             raise ComponentError(str(e)) from None
 
-    def _outputs(self, t_ns: int) -> dict[str, np.ndarray]:
-        out = {}
+    def _outputs(self, t_ns: int) -> dict[str, np.ndarray | np.float64]:
+        out: dict[str, np.ndarray | np.float64] = {}
         for name in self.names:
             output_names = self.output_names[name]
             for key, value in self.world.outputs(name, links=self.links).items():
@@ -287,7 +291,7 @@ class OrbitalDynamics(Component):
         if grasp is not None:
             out.update({f"grasp.{k}": v for k, v in grasp.relative().items()})
             out.update(
-                {f"grasp.{k}": v for k, v in self.world.relative_frames(self.grasp.chaser, self.grasp.target).items()}
+                {f"grasp.{k}": v for k, v in self.world.relative_frames(grasp.spec.chaser, grasp.spec.target).items()}
             )
             out["grasp.closed"] = np.float64(grasp.closed)
             out["grasp.wrench"] = grasp.wrench_on_target() if grasp.closed else np.zeros(6)

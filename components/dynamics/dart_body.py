@@ -14,6 +14,8 @@ loaded from the URDF in :mod:`components.dynamics.dart_skeleton`.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from components.constants import EARTH_RATE, R_EARTH
@@ -63,7 +65,7 @@ class DartBody(Body):
         link_in_anchor = self._anchor_tables()
         self.root = skel.getRootBodyNode()
         node_slot = {bn.getName(): i for i, bn in enumerate(self.nodes)}
-        self.link_source = []  # (node, env slot or -1, fixed offset or None)
+        self.link_source: list[tuple[Any, int, np.ndarray | None]] = []  # (node, env slot or -1, fixed offset or None)
         for link in self.link_names:
             if link in frames:
                 joint = frames[link]
@@ -94,7 +96,7 @@ class DartBody(Body):
         CoM and inertia in the anchor's axes; the anchors' Jacobian columns side by side. Returns
         each node's transform in its anchor's frame."""
         anchor_index: dict[str, int] = {}
-        self.anchors = []
+        self.anchors: list[Any] = []  # DART body nodes
         slots, com_in_anchor, inertia_in_anchor, link_in_anchor = [], [], [], []
         for bn, com, inertia in zip(self.nodes, self.local_com, self.local_inertia):
             anchor, T = bn, np.eye(4)

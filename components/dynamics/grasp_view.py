@@ -117,14 +117,13 @@ def _log_grasp_changes(g: Grasp, batch: Batch, closed: np.ndarray) -> None:
             ),
         )
     texts = {i: _grasp_text(g, steps[i], times[i], rows[i], closed[i], first and i == 0) for i in at}
-    logged = np.array([i for i, text in texts.items() if text], dtype=np.int64)
+    shown = {i: text for i, text in texts.items() if text}
+    logged = np.array(list(shown), dtype=np.int64)
     if len(logged):
         batch.send_at(
             g.events,
             logged,
-            rr.TextLog.columns(
-                text=[texts[i] for i in logged], level=["INFO" if closed[i] else "WARN" for i in logged]
-            ),
+            rr.TextLog.columns(text=list(shown.values()), level=["INFO" if closed[i] else "WARN" for i in logged]),
         )
     captures = at[closed[at]]
     if len(captures) and g.p_ee_grasp is not None:

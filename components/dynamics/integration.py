@@ -26,15 +26,23 @@ from components.dynamics.capture import Grasp
 
 
 class SteppedWorld(Protocol):
-    """What a step reads of its world (an OrbitalWorld)."""
+    """What a step reads of its world (an OrbitalWorld): read-only, so a dict of bodies and an
+    array orbit point qualify."""
 
-    bodies: Mapping[str, Body]
-    integrator: str  # "rk4" or "dart"
-    mu: float  # m^3/s^2
-    orbit_point: object  # the reference orbit's state at the stage (None before the first)
-    env_now: bool  # the environment's forces act
-    joint_limits: bool
-    grasp: Grasp | None
+    @property
+    def bodies(self) -> Mapping[str, Body]: ...
+    @property
+    def integrator(self) -> str: ...  # "rk4" or "dart"
+    @property
+    def mu(self) -> float: ...  # m^3/s^2
+    @property
+    def orbit_point(self) -> object: ...  # the reference orbit's state at the stage (None before the first)
+    @property
+    def env_now(self) -> bool: ...  # the environment's forces act
+    @property
+    def joint_limits(self) -> bool: ...
+    @property
+    def grasp(self) -> Grasp | None: ...
 
 
 def compile_kernels(world: SteppedWorld) -> None:
@@ -160,6 +168,7 @@ def rk4_welded(world: SteppedWorld, h: float, s: float) -> None:
     """One RK4 step of every body, stage by stage, with the grasp's weld wrench in each stage's
     accelerations (the welded pair is one assembly; the others step as in ``rk4``)."""
     grasp = world.grasp
+    assert grasp is not None, "a welded step needs the closed grasp"
     bodies = list(world.bodies.values())
     chaser, target = grasp.ee.body, grasp.grasp.body
 

@@ -7,16 +7,55 @@ Jacobian and bias; a mixin of :class:`components.dynamics.pinocchio_body.Pinocch
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from components.constants import EARTH_RATE, R_EARTH
 from components.dynamics import pinocchio_conversions as conversions
 from components.dynamics import pinocchio_kernels as kernels
 from components.dynamics import tree_forces
+from components.dynamics.bodies import Body
 
 
-class PinocchioOutputs:
+class PinocchioOutputs(Body):
     """The outputs of :class:`components.dynamics.pinocchio_body.PinocchioBody` (its ``_sync``'d state)."""
+
+    # what PinocchioBody holds and this reads (pinocchio has no stubs: its module, model, data)
+    pin: Any
+    pm: Any
+    data: Any
+    frame_id: dict[str, int]
+    idx_v: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    q_pin: np.ndarray
+    v_pin: np.ndarray
+    rotation: np.ndarray
+    summary: np.ndarray
+    ints: np.ndarray  # the pooled arrays (PinocchioBody.pool)
+    values: np.ndarray
+    tree_joints: np.ndarray
+    tree_frames: np.ndarray
+    tree_links: np.ndarray
+    link_joint: np.ndarray
+    massive_links: np.ndarray
+    wrenches: np.ndarray
+    force: np.ndarray
+    torque: np.ndarray
+    terms: np.ndarray
+    atmosphere: np.ndarray
+    facets: np.ndarray
+    third: np.ndarray
+    no_third: np.ndarray
+    stage: int
+    synced: bool
+    summarized: bool
+    jacobians: bool
+
+    def _sync(self) -> None:
+        """x, v formed, Pinocchio's q, v, tau and R_W_base at them (PinocchioBody's)."""
+        raise NotImplementedError
 
     def base_pose(self):
         if not self.synced:

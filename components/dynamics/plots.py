@@ -42,11 +42,13 @@ def bodies(run: RecordedRun, c: str) -> dict:
         for row, panel in enumerate(panels, start=1):
             ax = fig.add_subplot(len(panels), 1, row)
             if panel == "attitude":
+                assert attitude is not None  # a panel only with its data (as the two below)
                 angles, frame = attitude
                 for k, axis in enumerate("xyz"):
                     ax.plot(t, np.degrees(angles[:, k]), linewidth=1.0, label=f"about {axis}")
                 ax.set(ylabel="deg", title=f"{c}.{body}: attitude against {frame} (rotation vector)")
             elif panel == "momentum":
+                assert momentum is not None
                 for k, label in enumerate(("p_x", "p_y", "p_z")):
                     ax.plot(t, momentum[:, k] - momentum[0, k], linewidth=1.0, label=label + " (kg m/s)")
                 for k, label in enumerate(("L_x", "L_y", "L_z")):
@@ -59,6 +61,7 @@ def bodies(run: RecordedRun, c: str) -> dict:
                     )
                 ax.set(ylabel="change from t0", title=f"{c}.{body}: momentum (W axes, angular about the CoM)")
             else:
+                assert q is not None
                 names = run.joint_names((params["bodies"][body] or {}).get("urdf"), q.shape[1])
                 for k in range(q.shape[1]):
                     ax.plot(t, q[:, k], linewidth=1.0, label=f"q[{k}]" if names[k].startswith("tau[") else names[k])
@@ -104,8 +107,9 @@ def capture(run: RecordedRun, c: str) -> dict:
             axes["rate"].plot(t, np.degrees(np.linalg.norm(twist[:, 3:], axis=1)), label=body)
     axes["rate"].axhline(0.1, color="grey", linestyle=":", label="0.1 deg/s")
     axes["rate"].set(ylabel="deg/s", title="angular rate (inertial)")
-    for i in wheels:
-        axes["wheels"].plot(t, qd[:, i], label=joints[i])
+    if qd is not None:  # (no wheels without it)
+        for i in wheels:
+            axes["wheels"].plot(t, qd[:, i], label=joints[i])
     axes["wheels"].set(ylabel="rad/s", title=f"{chaser}: wheel rates" if wheels else "no joints named *wheel*")
     if wrench is not None:
         axes["force"].plot(t, np.linalg.norm(wrench[:, :3], axis=1))

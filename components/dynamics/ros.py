@@ -15,12 +15,16 @@ Base pose and twist are in W, not LVLH: they are what the dynamics records, so t
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from components.errors import ConfigError
 from components.robots.model import body_items, resolve_urdf
 from components.rosbag import ROOT_FRAME, RosContext, RosExport, RosTopic, link_frame, source_of, world_frame
+
+if TYPE_CHECKING:
+    from components.robots.urdf import UrdfModel
 
 
 def _packages(context: RosContext) -> dict:
@@ -88,13 +92,14 @@ def _body_topics(context: RosContext, dynamics: str, body: str, spec, world: str
     prefix = f"{dynamics}.{body}"
     position, orientation = run.vector(f"{prefix}.position", 3), run.vector(f"{prefix}.orientation", 4)
     twist, q, qd = run.vector(f"{prefix}.twist", 6), run.vector(f"{prefix}.q"), run.vector(f"{prefix}.qd")
+    model: UrdfModel | None
     try:
         urdf = resolve_urdf(spec["urdf"], run.config_dir, f"bodies.{body}.urdf", _packages(context))
         model = read_urdf(urdf, _packages(context))
         description = source_text(urdf, _packages(context))
     except (ConfigError, ValueError, OSError) as e:
         context.warn(f"{prefix}: its URDF cannot be read ({e}); no joint names, links or robot_description")
-        urdf = model = None
+        model = None
     topics = []
     if model is not None:
         topics.append(
@@ -111,7 +116,7 @@ def _body_topics(context: RosContext, dynamics: str, body: str, spec, world: str
     links = _links_in_w(context, dynamics, body, urdf, position, orientation, q) if model else None
     for row, ns in enumerate(stamps):
         transforms[row].append(context.transform(ns, world, base, position[row], orientation[row]))
-        if links is not None:
+        if links is not None and model is not None:  # (links only with a model)
             for j, link in enumerate(model.link_names):
                 if link != model.root:
                     transforms[row].append(
@@ -201,7 +206,7 @@ def _output_frames(context: RosContext, dynamics: str) -> dict[str, str]:
     grasp's at the chaser's end effector."""
     from components.robots.urdf import read_urdf
 
-    frames = {}
+    frames: dict[str, str] = {}
     params = context.run.parameters(dynamics)
     try:
         bodies = dict(body_items(params.get("bodies")))
@@ -246,6 +251,8 @@ def _assets(context: RosContext, dynamics: str) -> dict[str, Path]:
             continue  # the topics' builder says why the URDF cannot be read
         for mesh in meshes:
             uri = mesh.get("filename")
+            if uri is None:
+                continue  # read_urdf refuses it: the topics' builder says so
             try:
                 assets.setdefault(uri, resolve_uri(uri, urdf.parent, packages))
             except PackageError as e:

@@ -18,7 +18,9 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -36,7 +38,7 @@ VECTOR_FIELDS = {  # per-link 3-vectors drawn as arrows: colour, label, unit
 }
 
 
-def _start(spec: dict) -> tuple[str, np.ndarray] | None:
+def _start(spec: Mapping) -> tuple[str, np.ndarray] | None:
     """A body's initial base position as configured (``frame``, ``position`` in m; defaults world,
     origin); None when not plain numbers (a raw config with units)."""
     try:
@@ -86,7 +88,7 @@ class DynamicsView(View):
     def _bodies(self, scene, dynamics: str, parameters: dict) -> list[Body]:
         """The bodies of a dynamics component, read as ``dynamics.dart`` reads them (same ``bodies``
         forms, same URDF path resolution from the config's directory): the URDF drawn is the one simulated."""
-        bodies = []
+        bodies: list[Body] = []
         try:
             items = body_items(parameters.get("bodies"))
         except ConfigError as e:
@@ -189,7 +191,9 @@ class DynamicsView(View):
         for k, visual in enumerate(body.geometry.visuals):
             path = f"{body.base}/links/{rr.escape_entity_path_part(visual.link)}/visual_{k}"
             quaternion = matrix_to_quat(rpy_to_matrix(visual.rpy))
-            common = dict(centers=[visual.xyz], quaternions=[quaternion], colors=[visual.color], fill_mode="solid")
+            common: dict[str, Any] = dict(
+                centers=[visual.xyz], quaternions=[quaternion], colors=[visual.color], fill_mode="solid"
+            )
             if visual.kind == "box":
                 scene.log(path, rr.Boxes3D(half_sizes=[np.array(visual.size) / 2], **common), static=True)
             elif visual.kind == "cylinder":
@@ -205,7 +209,9 @@ class DynamicsView(View):
                 for i, shape in enumerate(fallback):
                     q = matrix_to_quat(rpy_to_matrix(shape.rpy))
                     where = f"{path}_collision_{i}"
-                    style = dict(centers=[shape.xyz], quaternions=[q], colors=[visual.color], fill_mode="solid")
+                    style: dict[str, Any] = dict(
+                        centers=[shape.xyz], quaternions=[q], colors=[visual.color], fill_mode="solid"
+                    )
                     if shape.kind == "box":
                         scene.log(where, rr.Boxes3D(half_sizes=[np.array(shape.size) / 2], **style), static=True)
                     elif shape.kind == "cylinder":
@@ -283,6 +289,7 @@ class DynamicsView(View):
             q = rows[:, body.q] if body.q is not None else np.zeros((n, body.kinematics.n_joints))
             translations, rotations = body.kinematics.link_poses(rows[:, body.position], rows[:, body.orientation], q)
             quaternions = matrix_to_quat(rotations)
+            assert body.geometry is not None  # the kinematics is built from it
             for j, link in enumerate(body.geometry.links):
                 send(
                     f"{body.base}/links/{rr.escape_entity_path_part(link)}",
@@ -294,6 +301,7 @@ class DynamicsView(View):
             send(plots + "/momentum/linear", rr.Scalars.columns(scalars=rows[:, body.momentum[:3]]))
             send(plots + "/momentum/angular", rr.Scalars.columns(scalars=rows[:, body.momentum[3:]]))
         if body.fields:
+            assert body.geometry is not None  # the fields are per link of it
             L = len(body.geometry.links)
             if rotations is not None:  # arrows start at the link CoMs, in W
                 origins = translations + np.einsum("nlij,lj->nli", rotations, body.geometry.coms)

@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -66,6 +67,7 @@ from components.dynamics.capture import CaptureReport, Grasp, GraspSpec
 from components.dynamics.world_outputs import WorldOutputs
 from components.dynamics.world_state import WorldState
 from components.robots.urdf import UrdfModel, read_urdf
+from components.space.atmosphere import LocalExponential
 from components.space.eclipse import MODELS as ECLIPSE_MODELS
 from components.space.srp import SOLAR_FLUX
 
@@ -167,7 +169,7 @@ class OrbitalWorld(WorldOutputs, WorldState):
         self.orbit_time = 0.0  # run time (s since run.epoch) at which the orbit inputs were sampled
         self.sun_eci, self.moon_eci = None, None  # set_sun
         self.joint_limits = bool(joint_limits)
-        self.dart_world = None
+        self.dart_world: Any = None  # engine dart: its dartpy World (no stubs)
         self.bodies: dict[str, Body] = {}
         self._make_bodies(bodies, models)
         self.grasp = self._make_grasp(grasp) if grasp is not None else None
@@ -249,6 +251,7 @@ class OrbitalWorld(WorldOutputs, WorldState):
         seconds after the orbit inputs were sampled (run time ``orbit_time`` + s); ``step`` takes each
         (sub)step's midpoint, and the outputs between steps keep the last step's band."""
         R, _ = self.reference(s)
+        assert isinstance(self.atmosphere, LocalExponential)  # the one atmosphere that varies
         self.atmosphere.update(R, self.orbit_time + s)
         for body in self.bodies.values():
             body.atmosphere_changed()
@@ -278,7 +281,10 @@ class OrbitalWorld(WorldOutputs, WorldState):
                 for body in self.bodies.values():
                     integration.rk4(self, body, dt, s)
             else:
+                from components.dynamics.dart_body import DartBody
+
                 for body in self.bodies.values():
+                    assert isinstance(body, DartBody)  # integrator dart: engine dart
                     body.set_forces((self.orbit_point, s) if self.env_now else None)
                 self.dart_world.setTimeStep(dt)
                 self.dart_world.step()

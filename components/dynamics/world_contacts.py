@@ -22,6 +22,8 @@ def initial_overlaps(world: OrbitalWorld) -> list[tuple[str, str, str, str, floa
         return []
     import dartpy as dart
 
+    from components.dynamics.dart_body import DartBody
+
     R_WL = quat_to_matrix(world.q_eci_lvlh)
     for body in world.bodies.values():
         spec = body.spec
@@ -41,6 +43,7 @@ def initial_overlaps(world: OrbitalWorld) -> list[tuple[str, str, str, str, floa
     detector = dart.collision.BulletCollisionDetector()
     groups = {}
     for name, body in world.bodies.items():
+        assert isinstance(body, DartBody)  # engine dart
         group = detector.createCollisionGroup()
         for i in range(body.skel.getNumBodyNodes()):
             group.addShapeFramesOf(body.skel.getBodyNode(i))

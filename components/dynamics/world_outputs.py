@@ -125,5 +125,6 @@ class WorldOutputs(WorldInputs):
             R, _ = self.reference(self.elapsed)
             for b, s in (("sun", self.sun_eci), ("moon", self.moon_eci)):
                 if b in self.third_bodies:
+                    assert s is not None, "set_sun comes first with third bodies"
                     a = a - env.third_body_tidal_acceleration(R, p[None, :], s, THIRD_BODIES[b])[0]
         return {"imu_rate": R_base.T @ body.velocities()[:3], "specific_force": R_base.T @ a}

@@ -19,14 +19,17 @@ class WorldState(WorldInputs):
 
     grasp: Grasp | None
 
-    def get_state(self) -> dict[str, np.ndarray]:
+    def get_state(self) -> dict[str, np.ndarray | np.float64]:
         """Everything needed to continue bit-exactly, in one form for every engine: per body
         ``position`` (m), ``rotation_vector`` (rad: R_W_base = exp of it), ``twist`` (m/s, rad/s:
         the base origin's, W), ``q``, ``qd``, ``tau`` (URDF joint order, locked joints at their
         lock), ``stop_side`` (per joint: +1 resting on its upper stop, -1 on its lower, 0 free);
         the orbit inputs and the time since they were set; the grasp's weld."""
         orbit = (self.r_eci, self.v_eci, self.q_eci_lvlh, self.w_lvlh)
-        state = {**{key: value.copy() for key, value in zip(ORBIT, orbit)}, "elapsed": np.float64(self.elapsed)}
+        state: dict[str, np.ndarray | np.float64] = {
+            **{key: value.copy() for key, value in zip(ORBIT, orbit)},
+            "elapsed": np.float64(self.elapsed),
+        }
         for name, body in self.bodies.items():
             x, v = body.positions(), body.velocities()
             side = np.zeros(body.ndofs)

@@ -364,3 +364,22 @@ def test_a_robot_mounted_below_its_own_root_is_told_which_link_to_mount(tmp_path
         "'mount' (from 'bus'); 'world' is a root of the file already: mount the robot by it (a joint from 'bus' "
         "to 'world'), or leave 'world' and its joint out"
     )
+
+
+def test_a_mesh_without_filename_is_no_asset_and_the_others_still_are(tmp_path):
+    """A bag's mesh assets: the URDF reader refuses a mesh without filename (the topics' builder
+    warns and goes on), so collecting the assets skips it instead of ending the export."""
+    from types import SimpleNamespace
+
+    from components.dynamics.ros import _assets
+
+    (tmp_path / "m.stl").write_bytes(b"solid m\nendsolid m\n")
+    meshes = (
+        '<visual><geometry><mesh/></geometry></visual><visual><geometry><mesh filename="m.stl"/></geometry></visual>'
+    )
+    path = urdf(tmp_path, BASE.replace("</link>", meshes + "</link>"))
+    bodies = {"bodies": {"b": {"urdf": str(path)}}}
+    run = SimpleNamespace(config={}, config_dir=str(tmp_path), parameters=lambda name: bodies)
+    warnings: list[str] = []
+    assert _assets(SimpleNamespace(run=run, warn=warnings.append), "dyn") == {"m.stl": (tmp_path / "m.stl").resolve()}
+    assert warnings == []

@@ -54,8 +54,8 @@ own engine's state and, to the engines' rounding, from the other's.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from typing import Any
+from collections.abc import Iterable, Mapping
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -70,6 +70,9 @@ from components.robots.urdf import UrdfModel, read_urdf
 from components.space.atmosphere import LocalExponential
 from components.space.eclipse import MODELS as ECLIPSE_MODELS
 from components.space.srp import SOLAR_FLUX
+
+if TYPE_CHECKING:
+    from components.dynamics.dart_body import DartBody
 
 INTEGRATORS = ("rk4", "dart")
 ENGINES = ("dart", "pinocchio")
@@ -281,10 +284,7 @@ class OrbitalWorld(WorldOutputs, WorldState):
                 for body in self.bodies.values():
                     integration.rk4(self, body, dt, s)
             else:
-                from components.dynamics.dart_body import DartBody
-
-                for body in self.bodies.values():
-                    assert isinstance(body, DartBody)  # integrator dart: engine dart
+                for body in cast("Iterable[DartBody]", self.bodies.values()):  # integrator dart: engine dart
                     body.set_forces((self.orbit_point, s) if self.env_now else None)
                 self.dart_world.setTimeStep(dt)
                 self.dart_world.step()

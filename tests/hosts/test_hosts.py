@@ -202,7 +202,8 @@ def test_a_cut_link_is_detected_within_the_lease_and_reported(
     it 5 leases late), fails the run naming the component and its host within two leases, and
     the recording keeps every row it had, equal to the reference's. As fast as it goes
     (realtime 0), the components on the other side of the cut have sent more than it carries."""
-    text = config("cut", duration="600 s" if realtime == 0 else "60 s", realtime=realtime)
+    duration_s = 600 if realtime == 0 else 60
+    text = config("cut", duration=f"{duration_s} s", realtime=realtime)
     text = text.replace("step_timeout: 10 min", f"step_timeout: {step_timeout}")
     run, joins, record = start_spread(network, processes, tmp_path, text)
     wait_until(lambda: recorded_rows(record / "signals.parquet") >= 1000, "the first 1000 rows recorded", run=run)
@@ -215,7 +216,7 @@ def test_a_cut_link_is_detected_within_the_lease_and_reported(
     fault = within_two_leases(record, "a")
     assert network["a"].address in fault["message"]
     recorded = table(record)
-    assert 1000 <= len(recorded) < 60 / 0.005  # failed before the run's end
+    assert 1000 <= len(recorded) < duration_s / 0.005  # failed before the run's end
     if realtime:
         assert recorded.equals(reference("60 s").iloc[: len(recorded)])
     joins["a"].send_signal(signal.SIGINT)  # Ctrl-C on the cut host: closing must not wait for the dead link

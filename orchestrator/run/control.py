@@ -24,8 +24,10 @@ class SwapFailed(Exception):
     """A replacement could not start; the component it was to replace runs on."""
 
 
-class StopRequested(Exception):
-    """Ctrl-C, SIGTERM or `orchestrator stop`: end the run cleanly."""
+class StopRequested(BaseException):
+    """Ctrl-C, SIGTERM or `orchestrator stop`: end the run cleanly. A BaseException, as
+    KeyboardInterrupt is: the signal lands wherever the main thread is, and an ``except Exception``
+    there (a decode, a retry) must not swallow the stop."""
 
 
 def raise_stop(signum, frame):

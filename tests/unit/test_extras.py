@@ -74,3 +74,17 @@ def test_the_install_command_is_this_clone_s(monkeypatch, tmp_path):
     assert extras.install_command("robots") == 'pip install -e ".[robots]"'
     monkeypatch.chdir(tmp_path)
     assert extras.install_command("robots") == f'pip install -e "{ROOT}[robots]"'
+
+
+def test_the_de440_ephemeris_without_its_extra_names_it(default_install):
+    from components.errors import ConfigError
+    from components.testing.harness import Harness
+
+    elements = {"semi_major_axis": "6778 km", "eccentricity": 0.0, "inclination": "51 deg", "raan": 0.0}
+    params = {**elements, "arg_perigee": 0.0, "mean_anomaly": 0.0, "step": "10 s", "gravity": {"degree": 0, "order": 0}}
+    with pytest.raises(ConfigError) as refused:
+        Harness(
+            "orbit.numerical", {**params, "third_bodies": ["moon"], "ephemeris": "de440"}, epoch="2026-03-20T00:00:00Z"
+        )
+    assert "[ephemeris]" in str(refused.value) and extras.install_command("ephemeris") in str(refused.value)
+    Harness("orbit.numerical", {**params, "third_bodies": ["moon"], "ephemeris": "erfa"}, epoch="2026-03-20T00:00:00Z")

@@ -103,7 +103,7 @@ def execute_case(
     record_dir.parent.mkdir(parents=True, exist_ok=True)
     rc, interrupted, stderr, wall = _run(config_file, record_dir, stop, cpus, stopped)
     status, error = _status(rc, interrupted, stderr)
-    values = {m.name: math.nan for m in metrics}
+    values: dict[str, float | str] = {m.name: math.nan for m in metrics}
     events: list[str] = []
     outcome = ""
     if status != "interrupted" and record_dir.exists():
@@ -149,7 +149,9 @@ def _run(config_file: Path, record_dir: Path, stop, cpus, stopped) -> tuple[int,
         preexec_fn=_affinity(cpus),
     )
     chunks: list[bytes] = []
-    reader = threading.Thread(target=lambda: chunks.extend(iter(lambda: process.stderr.read(4096), b"")), daemon=True)
+    stderr = process.stderr
+    assert stderr is not None, "opened with stderr=PIPE"
+    reader = threading.Thread(target=lambda: chunks.extend(iter(lambda: stderr.read(4096), b"")), daemon=True)
     reader.start()
     interrupted = False
     while True:

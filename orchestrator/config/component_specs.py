@@ -5,6 +5,7 @@ preflight warnings. Every problem is reported as ConfigErrors naming its key."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import cast
 
 from components import registry
 from components.constants import NS_PER_S
@@ -43,7 +44,7 @@ def component_spec(name: str, entry: dict, run_step_ns: int, run: RunSettings, k
     if unresolved and unresolved.stage == "parameters":
         errors += [
             f"{key}.parameters.{e.key}: {e.message}" if e.key else f"{key}.parameters: {e.message}"
-            for e in unresolved.errors
+            for e in cast("list[ConfigError]", unresolved.errors)  # the parameters stage raises ConfigErrors
         ]
     if entry["dedicated_cpu"] and entry["launch"] == "external":
         errors.append(

@@ -6,6 +6,7 @@ started before the whole config is valid. Unknown keys are errors, as are missin
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 from components.constants import NS_PER_S
@@ -25,7 +26,7 @@ from orchestrator.config.yaml_file import ConfigErrors, apply_overrides, read_ya
 from orchestrator.hosts import bus_config
 
 
-def load(path: str | Path, overrides: list[str] = (), full: bool = False, strict: bool = False) -> RunConfig:
+def load(path: str | Path, overrides: Sequence[str] = (), full: bool = False, strict: bool = False) -> RunConfig:
     """Read, override and validate ``path``; raises ConfigErrors listing every problem. ``full``
     (``orchestrator check``): the components also load what they would at the start (URDFs into
     DART), so that what fails there fails here. ``strict`` (``--strict``): warnings are errors."""
@@ -104,7 +105,8 @@ def _connections(
 ) -> list:
     """The connections, checked with the shadows' (each reads what its main reads) and the process
     groups'."""
-    raw_entries = raw.get("components") if isinstance(raw.get("components"), dict) else {}
+    entries = raw.get("components")
+    raw_entries = entries if isinstance(entries, dict) else {}
     connections = parse_connections(config.get("connections", {}), components, raw_entries, file, errors)
     for name, shadow in shadows.items():
         errors += [f"{file}: {shadow.key}: {p}" for p in mismatches(components[name], shadow, connections)]

@@ -76,7 +76,7 @@ class Event:
     swap: str
     type: str
     parameters: dict
-    spec: ComponentSpec | None = None
+    spec: ComponentSpec  # the new generation's, checked against the one it replaces
 
 
 @dataclass(frozen=True)

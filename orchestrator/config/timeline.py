@@ -51,6 +51,7 @@ def _swap_event(
     old = components.get(target)
     if old is None:
         raise ConfigErrors([f"{key}.swap: no component named {target!r}"])
+    assert step_ns is not None, "a config without run.step has no components"
     new_type, handed_over = _swap_type(key, entry, old, total_ns, run)
     params = entry["parameters"]
     if params is None:

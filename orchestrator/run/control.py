@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Mapping
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol, cast
 
 from components import queries, registry
 from components.errors import ConfigError
-from components.message_codec import Malformed, Message
+from components.message_codec import Malformed
 from orchestrator.config.component_specs import component_spec
 from orchestrator.config.connections import check_replacement, hands_over
 from orchestrator.config.schema import COMPONENT
@@ -17,6 +17,10 @@ from orchestrator.config.shadows import mismatches
 from orchestrator.config.specs import ComponentSpec, RunConfig
 from orchestrator.config.yaml_file import ConfigErrors, apply_overrides
 
+if TYPE_CHECKING:
+    import zenoh
+
+Request = queries.Status | queries.Stop | queries.Swap  # queries.CONTROL_REQUESTS
 Answer = queries.RunStatus | queries.Stopping | queries.Swapped | queries.Refused
 
 
@@ -58,11 +62,13 @@ class ControlServer:
 
     def __init__(self, run: Controlled):
         self.run = run
-        self.queries: list[tuple[object, Message | str]] = []
+        self.queries: list[tuple[zenoh.Query, Request | str]] = []
 
-    def add(self, query) -> None:
+    def add(self, query: zenoh.Query) -> None:
+        request: Request | str
         try:
-            request = queries.decode_control_request(query.payload.to_bytes() if query.payload is not None else b"")
+            payload = query.payload.to_bytes() if query.payload is not None else b""
+            request = cast(Request, queries.decode_control_request(payload))  # one of CONTROL_REQUESTS
         except Malformed as e:
             request = f"malformed request: {e}"
         self.queries.append((query, request))
@@ -104,13 +110,14 @@ class ControlServer:
             query.drop()
         self.queries = waiting
 
-    def _answer(self, request: queries.Status | queries.Stop | queries.Swap) -> Answer:
+    def _answer(self, request: Request) -> Answer:
         run = self.run
         if type(request) is queries.Status:
             return run.status()
         if type(request) is queries.Stop:
             run.request_stop("stopped by request")
             return queries.Stopping()
+        request = cast(queries.Swap, request)  # the one left
         name, specs = request.component, run.specs()
         if name not in specs:
             return queries.Refused(f"no component {name!r} (components: {', '.join(specs)})", usage=True)
@@ -127,9 +134,9 @@ class ControlServer:
         }
         try:
             apply_overrides(entry, [f"parameters.{s}" for s in request.set])
-            converted, problems = COMPONENT.resolve(entry, f"components.{name}")
-            if problems:
-                raise ConfigErrors([str(e) for e in problems])
+            converted, errors = COMPONENT.resolve(entry, f"components.{name}")
+            if errors:
+                raise ConfigErrors([str(e) for e in errors])
             spec = component_spec(
                 name,
                 {**converted, "step": old.step_ns},

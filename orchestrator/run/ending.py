@@ -6,15 +6,44 @@ from __future__ import annotations
 
 import shutil
 import time
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol
 
 from components.constants import NS_PER_S
+from orchestrator.config.specs import RunConfig
+from orchestrator.hosts.run_bus import RunBus
 from orchestrator.run import outcome, report, runs
 from orchestrator.run.members import terminate_all
 from orchestrator.run.recording import RecordingError
+from orchestrator.run.state import RunState
+from orchestrator.run.viewer_link import ViewerLink
 
-# ``run`` below is the engine's Run, which imports this module (so it is typed Any here)
-Run = Any
+if TYPE_CHECKING:
+    import zenoh
+
+
+class Run(Protocol):
+    """What the end reads of the engine's Run (which imports this module); the parts made when its
+    bus opened are None if it never did. ``ros2_line`` is written here."""
+
+    config: RunConfig
+    state: RunState
+    run_id: str
+    expect: str | None
+    record_dir: Path | None
+    log_dir: Path
+    profile: bool
+    progress: bool
+    out: Any  # a text stream
+    loop_s: float
+    subscriptions: list
+    session: zenoh.Session | None
+    hosts: RunBus | None
+    viewer_link: ViewerLink | None
+    ros2_line: str | None
+
+    @property
+    def row(self) -> int: ...
 
 
 def outcome_of(run: Run, code: int) -> tuple[str | None, str | None]:

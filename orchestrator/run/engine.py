@@ -34,6 +34,7 @@ import time
 import traceback
 import uuid
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from components import bus, queries
 from components.constants import NS_PER_S
@@ -49,6 +50,9 @@ from orchestrator.run.messages import subscribe
 from orchestrator.run.recording import RecordingError
 from orchestrator.run.state import RunState
 from orchestrator.run.viewer_link import ViewerLink
+
+if TYPE_CHECKING:
+    import zenoh
 
 
 class Run:
@@ -90,7 +94,13 @@ class Run:
         self.placement = supervisor.place(
             [[s.name for s in specs] for specs in processes if groups.dedicated_cpu(specs)], os.sched_getaffinity(0)
         )
-        self.session = self.crew = self.viewer_link = self.hosts = self.listener = self.recovery = None
+        # set once the bus is open (_open_bus); None before, which the clean-up checks
+        self.session: zenoh.Session | None = None
+        self.hosts: RunBus | None = None
+        self.viewer_link: ViewerLink | None = None
+        self.listener: Listener | None = None
+        self.crew: Crew | None = None
+        self.recovery: recovery.Recovery | None = None
         self.ros2_line: str | None = None  # the ROS 2 view's summary, printed before the run's
         self.subscriptions: list = []
 
@@ -118,6 +128,7 @@ class Run:
         self.state.stop(reason)
 
     def swap(self, spec: ComponentSpec, planned: bool = False) -> int:
+        assert self.recovery is not None, "a swap comes through the control server, which the open bus starts"
         return self.recovery.swap(spec, planned)
 
     # ---------------------------------------------------------------- the run's life
@@ -168,6 +179,7 @@ class Run:
         return ending.tell(self, code, message, run_start)
 
     def _loop(self) -> None:
+        assert self.listener is not None and self.recovery is not None, "the loop runs once the bus is open"
         loop = Loop(self.state, self.listener, self.recovery, self.controls, self.progress, self.out)
         try:
             loop.run()
@@ -176,29 +188,27 @@ class Run:
 
     def _open_bus(self) -> None:
         """The orchestrator's Zenoh session, its subscriptions, and the run's entry for `ps`."""
-        self.hosts = RunBus(self.config, self.run_id, self.secret, self.record_dir, runs.directory(), self.out)
-        self.child_env.update(self.hosts.child_env(None))
-        self.session = session = self.hosts.open()
+        self.hosts = hosts = RunBus(self.config, self.run_id, self.secret, self.record_dir, runs.directory(), self.out)
+        self.child_env.update(hosts.child_env(None))
+        self.session = session = hosts.open()
         run_id = self.run_id
         self.subscriptions = subscribe(session, run_id, self.state.inbox.put)
-        self.viewer_link = ViewerLink(self.viewer, session, run_id, ros2=self.ros2)
-        self.listener = Listener(self.state, self.controls, self.hosts, self.viewer_link, self.out)
-        self.crew = Crew(
+        self.viewer_link = viewer_link = ViewerLink(self.viewer, session, run_id, ros2=self.ros2)
+        self.listener = listener = Listener(self.state, self.controls, hosts, viewer_link, self.out)
+        self.crew = crew = Crew(
             self.config,
             run_id=run_id,
             session=session,
-            endpoint=self.hosts.local,
+            endpoint=hosts.local,
             secret=self.secret,
             env=self.child_env,
             log_dir=self.log_dir,
             placement=self.placement,
             out=self.out,
             place=self.state.rows.placement,
-            wait=self.listener.wait,
-            hosts=self.hosts,
+            wait=listener.wait,
+            hosts=hosts,
             frames_dir=self.record_dir / "frames" if self.record_dir else None,
         )
-        self.recovery = recovery.Recovery(self.state, self.crew, self.listener, self.out)
-        runs.register(
-            run_id, self.config.name, self.hosts.local, self.config.path, self.secret, self.hosts.settings("cli")
-        )
+        self.recovery = recovery.Recovery(self.state, crew, listener, self.out)
+        runs.register(run_id, self.config.name, hosts.local, self.config.path, self.secret, hosts.settings("cli"))

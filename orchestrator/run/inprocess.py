@@ -44,17 +44,18 @@ class _Stepped:
         self.routes: list[schedule.Route] = []
         self.frame_routes: list[schedule.FrameRoute] = []
         self.route_inputs: list[list[str]] = []
-        self.component.input_times_ns = self.input_times = {}
+        self.input_times: dict[str, int] = {}  # input -> when its value was sampled (ns); the component's own
+        self.component.input_times_ns = self.input_times
 
     def take_inputs(self, members: dict[str, _Stepped], k: int, step_ns: int) -> None:
         for route, names in zip(self.routes, self.route_inputs):
             tag = route.tag(k)
             self.input_vector[route.dst] = members[route.source].by_tag[tag][route.src]
             self.input_times.update(dict.fromkeys(names, tag * step_ns))
-        for route in self.frame_routes:
-            tag = route.tag(k)
-            self.input_views[route.input] = members[route.source].frames_by_tag[tag][route.output]
-            self.input_times[route.input] = tag * step_ns
+        for frame_route in self.frame_routes:
+            tag = frame_route.tag(k)
+            self.input_views[frame_route.input] = members[frame_route.source].frames_by_tag[tag][frame_route.output]
+            self.input_times[frame_route.input] = tag * step_ns
 
     def pack(self, result, tag: int) -> np.ndarray:
         """The float outputs of ``result`` as a vector; its frames kept under ``tag`` (copies, as the bus makes)."""

@@ -10,6 +10,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -35,6 +36,14 @@ class RunFailure(Exception):
         self.silent_s = silent_s
 
 
+def _no_index() -> np.ndarray:
+    return np.zeros(0, dtype=np.int64)
+
+
+def _no_outputs() -> np.ndarray:
+    return np.zeros(0)
+
+
 @dataclass
 class Member:
     """A live component: its spec, its process, its routes, and the outputs seen from it."""
@@ -44,13 +53,14 @@ class Member:
     process: subprocess.Popen | None
     log_path: Path | None
     ratio: int  # its step in run steps
-    command: object = None  # Zenoh publisher of its command key
+    command: Any = None  # zenoh.Publisher of its command key (set by Crew.launch)
     routes: list[Route] = field(default_factory=list)
     frame_routes: list = field(default_factory=list)  # schedule.FrameRoute: its frame inputs' sources
-    out_dst: np.ndarray = None  # where its outputs go in the recorded row ...
-    out_src: np.ndarray = None  # ... from these indices of its output vector
+    # set by Crew.launch; empty until then
+    out_dst: np.ndarray = field(default_factory=_no_index)  # where its outputs go in the recorded row ...
+    out_src: np.ndarray = field(default_factory=_no_index)  # ... from these indices of its output vector
     tag: int = 0  # the tag of ``latest``: what the recorded rows hold now
-    latest: np.ndarray = None
+    latest: np.ndarray = field(default_factory=_no_outputs)
     initialized: bool = False  # ``latest`` holds its outputs (not its start values)
     received: collections.deque = field(default_factory=collections.deque)  # (tag, outputs), not yet recorded
     progress: int = 0  # the highest tag it has published
@@ -69,6 +79,11 @@ class Member:
     @property
     def name(self) -> str:
         return self.spec.name
+
+    def answer(self) -> protocol.Reply:
+        """Its reply to the command last asked, which a completed ``Crew.ask`` holds."""
+        assert self.reply is not None, f"{self.name} has not answered"
+        return self.reply
 
     def control(self, message: protocol.Message) -> None:
         self.command.put(message.encode())
@@ -155,9 +170,11 @@ class Crew:
             )
             args += ["--orchestrator", str(self.session.zid())]
             if len(specs) > 1:
-                launches = self.launches[spec.process] = self.launches.get(spec.process, -1) + 1
-                log_path = self.log_dir / f"group.{spec.process}.{launches}.log"
-                shared = SharedProcess(spec.process, [], log_path.with_suffix(".stepping"))
+                group = spec.process
+                assert group is not None, "members launched together are a process group's"
+                launches = self.launches[group] = self.launches.get(group, -1) + 1
+                log_path = self.log_dir / f"group.{group}.{launches}.log"
+                shared = SharedProcess(group, [], log_path.with_suffix(".stepping"))
                 shared.stepping.write_bytes(bytes(4))  # the process maps it: no member running yet
                 args += ["--stepping", str(shared.stepping)]
             else:
@@ -170,7 +187,7 @@ class Crew:
             process = supervisor.start_component(
                 args,
                 log_path,
-                frozenset({cpu}) if whole else self.placement.shared,
+                frozenset({cpu}) if whole and cpu is not None else self.placement.shared,
                 {**self.env, **self.hosts.child_env(spec.name)},
             )
         members = []

@@ -6,10 +6,14 @@ check; here only its form is."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
 from components import bus, protocol
+
+# what protocol.decode_report returns (one of protocol.REPORTS), which its signature does not say
+ReportMessage = protocol.Reply | protocol.Fault | protocol.Events | protocol.Beat
 
 # inbox kinds: what the subscription callbacks enqueue, with the key and the payload
 OUTPUTS = "o"  # a batch of step outputs (payload: bytes)
@@ -34,7 +38,7 @@ class Report:
 
     name: str
     generation: int
-    message: protocol.Reply | protocol.Fault | protocol.Events | protocol.Beat
+    message: ReportMessage
 
 
 @dataclass(slots=True)
@@ -57,7 +61,7 @@ def decode(kind: str, key: str, payload) -> Outputs | Report | Liveliness | Link
             raise bus.Malformed(f"tag {tags[0]}: the outputs of a step are tagged 1 or later")
         return Outputs(bus.batch_source(key), generation, tags, timings, outputs)
     if kind == REPLY:
-        return Report(*bus.reply_source(key), protocol.decode_report(payload))
+        return Report(*bus.reply_source(key), cast(ReportMessage, protocol.decode_report(payload)))
     if kind == LIVELINESS:
         source = bus.alive_source(key)
         return None if source is None else Liveliness(*source, payload)

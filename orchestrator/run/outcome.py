@@ -24,11 +24,11 @@ class Tracker:
     """The outcome so far, as the declaring component's events come in."""
 
     declared: Declared
-    outcome: Outcome = None
+    outcome: Outcome = field(init=False)  # the first declared until an event decides another
     fields: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        self.outcome = self.outcome or self.declared.outcomes[0]
+        self.outcome = self.declared.outcomes[0]
         self._by_event = {e: o for o in self.declared.outcomes for e in o.events}
 
     def hear(self, kind: str, fields: Mapping[str, Any]) -> None:

@@ -89,7 +89,7 @@ class Recovery:
         run = self.run
         live = list(run.members.values())
         self.crew.ask(live, protocol.GetState(), "get_state (checkpoint)", run.config.step_timeout_s)
-        run.keep_checkpoint({m.name: m.reply.blob for m in live})
+        run.keep_checkpoint({m.name: m.answer().blob for m in live})
         run.log("checkpoint", step=run.rows.row, time=run.rows.row * run.config.step_ns / NS_PER_S)
 
     def may_restart(self, failure: RunFailure) -> bool:
@@ -99,6 +99,7 @@ class Recovery:
         """Stop every component and start them all again, in new processes, from the last checkpoint;
         RunFailure after run.max_restarts."""
         run, crew, checkpoint, failed = self.run, self.crew, self.run.checkpoint, failure.member
+        assert checkpoint is not None and failed is not None, "may_restart holds"
         config = run.config
         step_ns = config.step_ns
         if run.restarts >= config.max_restarts:
@@ -209,7 +210,7 @@ class Recovery:
             wiring.wire(crew, new, joined, run.pending_faults, row)
             if handed_over:
                 crew.ask([old], protocol.GetState(), "get_state", config.step_timeout_s)
-                crew.ask([new], protocol.SetState(old.reply.blob), "set_state", config.step_timeout_s)
+                crew.ask([new], protocol.SetState(old.answer().blob), "set_state", config.step_timeout_s)
                 outputs = old.latest
             else:
                 outputs = wiring.initialize(crew, new, joined, row * config.step_ns)
@@ -242,6 +243,7 @@ class Recovery:
     def _record_event(self, new: Member, parameters: dict) -> None:
         """A swap from the CLI becomes an event of the recorded config, so that it replays the run."""
         run = self.run
+        assert run.rows.recording is not None, "only a recorded run keeps its config"
         resolved = run.config.resolved
         resolved["events"] = sorted(
             [

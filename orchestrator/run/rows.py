@@ -5,12 +5,14 @@ of swapped-in types, and the viewer."""
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
+from typing import cast
 
 import numpy as np
 
 from components import bus
 from components.constants import NS_PER_S
 from orchestrator.config.specs import ComponentSpec
+from orchestrator.run.recording import Recording, Table
 
 _SIGNALS = bus.SIGNALS_HEADER
 
@@ -36,8 +38,8 @@ class Rows:
         # before initialization every output holds its declared start value
         self.values = np.concatenate([s.outputs.start_vector() for s in specs] or [np.zeros(0)])
         self.row = 0
-        self.recording = None
-        self.tables: dict[str, object] = {}
+        self.recording: Recording | None = None
+        self.tables: dict[str, Table] = {}
         self.signals: Callable[[bytes], None] | None = None
         self.decimation = 0
 
@@ -61,6 +63,7 @@ class Rows:
 
     def publish(self) -> None:
         """Send the current row to the viewer."""
+        assert self.signals is not None, "the engine sets the viewer's sink before it publishes"
         self.signals(_SIGNALS.pack(self.row, self.row * self.step_ns / NS_PER_S) + self.values.tobytes())
 
     def advance(self, members: dict, horizon: int) -> None:
@@ -68,6 +71,8 @@ class Rows:
         each member: (tag, outputs), tags increasing); each row takes, of each member, the outputs
         tagged with the member's last step at or before it (``ratio``: its step in run steps)."""
         step_ns = self.step_ns
+        # set whenever decimation is (by the engine): narrowed once, out of the loop
+        signals = cast(Callable[[bytes], None], self.signals)
         listed = list(members.values())
         while self.row < horizon:
             row = self.row + 1
@@ -91,10 +96,11 @@ class Rows:
                 for name, table in self.tables.items():
                     self.recording.append(row, row * step_ns / NS_PER_S, members[name].latest, table)
             if self.decimation and row % self.decimation == 0:
-                self.signals(_SIGNALS.pack(row, row * step_ns / NS_PER_S) + self.values.tobytes())
+                signals(_SIGNALS.pack(row, row * step_ns / NS_PER_S) + self.values.tobytes())
 
     def new_table(self, member) -> None:
         """From this row on, ``member`` (of a swapped-in type) is also recorded in a table of its own."""
+        assert self.recording is not None, "a swapped-in type gets a table only when the run records"
         name = member.name
         self.tables.pop(name, None)
         columns = [c for v in member.spec.outputs.variables for c in v.columns(name)]

@@ -4,30 +4,56 @@ components are let go."""
 
 from __future__ import annotations
 
-from typing import Any
+from pathlib import Path
+from typing import Any, Protocol
 
 from orchestrator.config import shadows
-from orchestrator.run import wiring
+from orchestrator.config.specs import Ros2Spec, RunConfig, ViewerSpec
+from orchestrator.run import supervisor, wiring
+from orchestrator.run.listener import Listener
+from orchestrator.run.members import Crew
 from orchestrator.run.recording import Recording
+from orchestrator.run.recovery import Recovery
+from orchestrator.run.state import RunState
+from orchestrator.run.viewer_link import ViewerLink
 
-# ``run`` below is the engine's Run, which imports this module (so it is typed Any here)
-Run = Any
+
+class Run(Protocol):
+    """What the start reads of the engine's Run (which imports this module); the parts made when
+    its bus opened are None before that."""
+
+    config: RunConfig
+    state: RunState
+    run_id: str
+    record_dir: Path | None
+    log_dir: Path
+    child_env: dict[str, str]
+    placement: supervisor.Placement
+    viewer: ViewerSpec | None
+    ros2: Ros2Spec | None
+    out: Any  # a text stream
+    crew: Crew | None
+    listener: Listener | None
+    recovery: Recovery | None
+    viewer_link: ViewerLink | None
 
 
 def start(run: Run, cpus: int) -> None:
     """Start, wire and initialize every component, the recording and the viewer; let them go.
     ``cpus``: how many the run may use."""
-    state = run.state
+    state, crew, listener, recovery, viewer_link = run.state, run.crew, run.listener, run.recovery, run.viewer_link
+    # made when the bus opened, which the engine does first
+    assert crew is not None and listener is not None and recovery is not None and viewer_link is not None
     if run.record_dir is not None:
         state.rows.recording = Recording(
             run.record_dir, state.rows.columns, run.config.resolved, flush_s=run.config.record_flush_s
         )
     _log_start(run, cpus)
-    _start_members(run)
-    _start_viewer(run)
-    run.listener.sync(list(state.members.values()))
-    if run.recovery.restartable:
-        run.recovery.take_checkpoint()
+    _start_members(run, crew)
+    _start_viewer(run, crew, listener, viewer_link)
+    listener.sync(list(state.members.values()))
+    if recovery.restartable:
+        recovery.take_checkpoint()
     for member in state.members.values():
         wiring.go(member, state.members, state.horizon)
 
@@ -58,9 +84,9 @@ def _log_start(run: Run, cpus: int) -> None:
         state.log("warning", message=message, step=0)
 
 
-def _start_members(run: Run) -> None:
+def _start_members(run: Run, crew: Crew) -> None:
     """Every component started, wired, and initialized in the shadows' order; row 0 recorded."""
-    config, state, rows, crew = run.config, run.state, run.state.rows, run.crew
+    config, state, rows = run.config, run.state, run.state.rows
     crew.start(list(config.components.values()), {n: 0 for n in config.components}, state.members)
     for member in state.members.values():
         wiring.wire(crew, member, state.members, state.pending_faults, 0)
@@ -73,18 +99,18 @@ def _start_members(run: Run) -> None:
         rows.recording.append(0, 0.0, rows.values)
 
 
-def _start_viewer(run: Run) -> None:
+def _start_viewer(run: Run, crew: Crew, listener: Listener, viewer_link: ViewerLink) -> None:
     """The viewer and the ROS 2 view, if any; row 0 published to them."""
     state, rows = run.state, run.state.rows
-    rows.decimation = run.viewer_link.start(
+    rows.decimation = viewer_link.start(
         run.config,
         rows.columns,
         setup=run.log_dir / "viewer.json",
-        endpoint=run.crew.endpoint,
+        endpoint=crew.endpoint,
         run_id=run.run_id,
         env=run.child_env,
         cpus=run.placement.shared,
-        wait=run.listener.wait,
+        wait=listener.wait,
         frames_dir=run.record_dir / "frames" if run.record_dir else None,
         record_dir=run.record_dir,
     )
@@ -100,5 +126,5 @@ def _start_viewer(run: Run) -> None:
             domain_id=run.ros2.domain_id,
             rate_hz=run.ros2.rate_hz,
         )
-    rows.signals = run.viewer_link.signals
+    rows.signals = viewer_link.signals
     rows.publish()

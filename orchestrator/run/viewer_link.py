@@ -68,11 +68,11 @@ class ViewerLink:
         ``record_dir``: where the ROS 2 view's report goes (else beside ``setup``)."""
         rates, expected = [], {}
         if self.spec is not None:
-            self._start_viewer(config, columns, setup, endpoint, run_id, env, cpus, frames_dir)
+            self._start_viewer(self.spec, config, columns, setup, endpoint, run_id, env, cpus, frames_dir)
             rates.append(self.spec.rate_hz)
             expected[bus.VIEWER] = "alive"
         if self.ros2 is not None:
-            self._start_ros2(config, columns, setup, endpoint, run_id, env, cpus, record_dir)
+            self._start_ros2(self.ros2, config, columns, setup, endpoint, run_id, env, cpus, record_dir)
             rates.append(self.ros2.rate_hz)
             expected[bus.ROS2] = "alive"
         if not expected:
@@ -81,7 +81,7 @@ class ViewerLink:
         return max(1, round(NS_PER_S / (max(rates) * config.step_ns)))
 
     def _start_viewer(
-        self, config: RunConfig, columns: list[str], setup, endpoint, run_id, env, cpus, frames_dir
+        self, spec: ViewerSpec, config: RunConfig, columns: list[str], setup, endpoint, run_id, env, cpus, frames_dir
     ) -> None:
         """The viewer's observer (Rerun, or Foxglove), from its setup file ``setup``."""
         setup.write_text(
@@ -92,20 +92,20 @@ class ViewerLink:
                     "step_ns": config.step_ns,
                     "config_dir": str(config.path.parent.resolve()),
                     "epoch": config.epoch,
-                    "mode": self.spec.mode,
-                    "file": str(self.spec.file) if self.spec.file else None,
-                    "open_browser": self.spec.open_browser,
-                    "port": self.spec.port,
+                    "mode": spec.mode,
+                    "file": str(spec.file) if spec.file else None,
+                    "open_browser": spec.open_browser,
+                    "port": spec.port,
                     "frames_dir": str(frames_dir) if frames_dir else None,
                     "linger": sys.stdin.isatty(),
                 }
             )
         )  # foxglove: keep serving after the run (stop() waits for it)
-        module = "components.viewer.foxglove_observer" if self.spec.mode == "foxglove" else "components.viewer.observer"
+        module = "components.viewer.foxglove_observer" if spec.mode == "foxglove" else "components.viewer.observer"
         self.process = self._spawn(module, endpoint, run_id, setup, env, cpus)
 
     def _start_ros2(
-        self, config: RunConfig, columns: list[str], setup, endpoint, run_id, env, cpus, record_dir
+        self, ros2: Ros2Spec, config: RunConfig, columns: list[str], setup, endpoint, run_id, env, cpus, record_dir
     ) -> None:
         """The ROS 2 view's observer, from ``ros2.json`` beside ``setup``; its report goes to
         ``record_dir`` (else beside ``setup``)."""
@@ -119,14 +119,14 @@ class ViewerLink:
                     "config": config.resolved,
                     "config_dir": str(config.path.parent.resolve()),
                     "ros2": {
-                        "endpoint": self.ros2.endpoint,
-                        "domain_id": self.ros2.domain_id,
-                        "distro": self.ros2.distro,
-                        "topics": self.ros2.topics,
+                        "endpoint": ros2.endpoint,
+                        "domain_id": ros2.domain_id,
+                        "distro": ros2.distro,
+                        "topics": ros2.topics,
                         "node": node,
-                        "transport": self.ros2.transport,
-                        "python": self.ros2.python,
-                        "why": self.ros2.why,
+                        "transport": ros2.transport,
+                        "python": ros2.python,
+                        "why": ros2.why,
                     },
                     "report": str(self.ros2_report),
                 }
@@ -151,11 +151,13 @@ class ViewerLink:
             self._finish(self.ros2_process, interrupted)
         if self.process is None:
             return
-        if interrupted and self.spec.mode == "foxglove":
+        spec = self.spec
+        assert spec is not None, "the viewer runs only when asked for"
+        if interrupted and spec.mode == "foxglove":
             self.process.terminate()  # it would linger for the user, who asked to stop
         try:
-            if self.spec.mode in ("web", "foxglove") and sys.stdin.isatty() and not interrupted:
-                print(f"run finished; the {self.spec.mode} viewer stays up until Ctrl-C", file=out, flush=True)
+            if spec.mode in ("web", "foxglove") and sys.stdin.isatty() and not interrupted:
+                print(f"run finished; the {spec.mode} viewer stays up until Ctrl-C", file=out, flush=True)
                 # the clean-up ignores signals; this one wait is what Ctrl-C (or SIGTERM) is for
                 signal.signal(signal.SIGINT, signal.default_int_handler)
                 signal.signal(signal.SIGTERM, raise_stop)
@@ -177,6 +179,7 @@ class ViewerLink:
         without a ROS 2 view."""
         if self.ros2_process is None:
             return None
+        assert self.ros2_report is not None, "set when the ROS 2 view started"
         report = stream_report.read(self.ros2_report)
         line = stream_report.summary(report, self.rows_sent, self.ros2_process.poll())
         return {**(report or {"report": None}), "rows_sent": self.rows_sent}, line

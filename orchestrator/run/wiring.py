@@ -110,7 +110,7 @@ def initialize(crew: Crew, member: Member, members: dict[str, Member], t_ns: int
     """Initialize ``member`` at ``t_ns``; its outputs there, all finite (else RunFailure)."""
     inputs, times = initial_inputs(member, members, crew.config.step_ns)
     crew.ask([member], protocol.Initialize(t_ns, times, inputs), "initialize", crew.config.start_timeout_s)
-    vector = np.frombuffer(member.reply.blob, dtype=np.float64)
+    vector = np.frombuffer(member.answer().blob, dtype=np.float64)
     variable = member.spec.outputs.first_non_finite(vector)
     if variable is not None:
         raise RunFailure(

@@ -26,7 +26,7 @@ import os
 import struct
 import tempfile
 import threading
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -49,7 +49,7 @@ def count_drop(counts: dict[str, int], key: str) -> int | None:
     return n if n & (n - 1) == 0 else None
 
 
-def _expect(payload: bytes, kind: bytes, minimum: int) -> None:
+def _expect(payload: bytes | memoryview, kind: bytes, minimum: int) -> None:
     if len(payload) < minimum or payload[:1] != kind:
         raise Malformed(
             f"expected a {kind.decode()} message of at least {minimum} bytes, got {len(payload)} "
@@ -210,7 +210,7 @@ def decode_view_frame(payload) -> tuple[int, int, int, str, np.ndarray]:
     return (taken, *decode_frame(memoryview(payload)[1 + _INT.size :]))
 
 
-def decode_frame(payload: bytes) -> tuple[int, int, str, np.ndarray]:
+def decode_frame(payload: bytes | memoryview) -> tuple[int, int, str, np.ndarray]:
     """(generation, tag, output, frame); the frame a read-only view of the payload. Malformed
     unless the payload holds exactly one frame of a known dtype."""
     _expect(payload, FRAME, 1 + _FRAME_HEADER.size)
@@ -282,7 +282,8 @@ def jsonable(value):
 def encode_state(state: Mapping[str, Any]) -> bytes:
     """A component state (dict of arrays/scalars) as .npz bytes: exact, no pickles."""
     buffer = io.BytesIO()
-    np.savez(buffer, **{k: np.asarray(v) for k, v in state.items()})
+    arrays: dict[str, Any] = {k: np.asarray(v) for k, v in state.items()}  # Any: no key is savez's allow_pickle
+    np.savez(buffer, **arrays)
     return buffer.getvalue()
 
 
@@ -299,8 +300,8 @@ USER = "zenorbit"
 
 
 def open_session(
-    listen: list[str] = (),
-    connect: list[str] = (),
+    listen: Sequence[str] = (),
+    connect: Sequence[str] = (),
     *,
     mesh: bool = False,
     secret: str | None = None,
@@ -364,7 +365,7 @@ def prefer_runtime(runtime: str) -> None:
         os.environ["ZENOH_RUNTIME"] = runtime
 
 
-def session_config(listen: list[str] = (), connect: list[str] = (), *, mesh: bool = False, mode: str = "peer"):
+def session_config(listen: Sequence[str] = (), connect: Sequence[str] = (), *, mesh: bool = False, mode: str = "peer"):
     """A Zenoh config: explicit endpoints, no multicast scouting; ``mode`` peer, client or router;
     Zenoh's runtime as ``RUNTIME`` in a process that has not started it yet.
 

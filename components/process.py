@@ -14,13 +14,14 @@ import sys
 import threading
 import time
 import traceback
+from typing import cast
 
 import numpy as np
 
 from components import bus, protocol
 from components.process_control import ProcessControl
 from components.schedule import FrameRoute
-from components.sdk import ComponentOutputError
+from components.sdk import Component, ComponentOutputError
 
 BATCH_STEPS = 32  # outputs go to the orchestrator in batches of this many steps ...
 BATCH_MIN_S = 0.002  # ... more (up to BATCH_CAPACITY) while this long has not passed since the last (each
@@ -98,7 +99,7 @@ class ComponentProcess(ProcessControl):
             return self.control(message)
         except Exception as error:  # reported to the orchestrator, which stops the run
             traceback.print_exc(file=sys.stderr)
-            self.fault(message.OP, -1, f"{type(error).__name__}: {error}")
+            self.fault(cast(str, message.OP), -1, f"{type(error).__name__}: {error}")
             return True
 
     def source_output(self, source: str, payload: bytes) -> None:
@@ -169,17 +170,17 @@ class ComponentProcess(ProcessControl):
                     )
                 vectors.append(held[0][1])
             frames = []
-            for route in self.frame_routes:
-                frame = self.frames_held[route.source, route.output].get(route.tag(k))
+            for frame_route in self.frame_routes:
+                frame = self.frames_held[frame_route.source, frame_route.output].get(frame_route.tag(k))
                 if frame is None:
                     return  # it comes before its step's outputs, unless the bus reordered them
                 frames.append(frame)
-            for route, frame in zip(self.frame_routes, frames):
-                self.input_views[route.input] = frame
-                self.input_times[route.input] = route.tag(k) * self.step_ns
-                held = self.frames_held[route.source, route.output]
-                for old in [t for t in held if t < route.tag(k)]:  # never read again: tags only grow
-                    del held[old]
+            for frame_route, frame in zip(self.frame_routes, frames):
+                self.input_views[frame_route.input] = frame
+                self.input_times[frame_route.input] = frame_route.tag(k) * self.step_ns
+                kept = self.frames_held[frame_route.source, frame_route.output]
+                for old in [t for t in kept if t < frame_route.tag(k)]:  # never read again: tags only grow
+                    del kept[old]
             for route, names, vector, tag in zip(self.routes, self.route_inputs, vectors, tags):
                 self.input_vector[route.dst] = vector[route.src]
                 for name in names:
@@ -191,15 +192,16 @@ class ComponentProcess(ProcessControl):
         fault = self.faults.pop(0)[1:] if self.faults and k >= self.faults[0][0] else None
         if fault:
             _inject(*fault)
+        component = cast(Component, self.component)  # built by instantiate, before any step
         try:
-            result = self.component.do_step(k * self.step_ns, self.ratio * self.step_ns, self.input_views)
+            result = component.do_step(k * self.step_ns, self.ratio * self.step_ns, self.input_views)
             self.outputs.pack(result, self.output_vector)
             if fault and fault[0] == "nan":
                 self.output_vector[0] = np.nan
             if self.frame_outputs:
                 self._frames(result, k + self.ratio, send=True)  # before the outputs: consumers hold it first
                 if self.view is not None:
-                    taken = self.component.frame_time_ns
+                    taken = component.frame_time_ns
                     for name in self.frame_outputs:
                         self.view.send(
                             name,
@@ -214,7 +216,7 @@ class ComponentProcess(ProcessControl):
         finally:
             self.stepping_since = None
         done = time.perf_counter()
-        events = self.component.take_events()
+        events = component.take_events()
         if events:
             self.publish_reply(protocol.Events(k, bus.jsonable([[kind, fields] for kind, fields in events])).encode())
         vector = self.output_vector

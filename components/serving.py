@@ -12,11 +12,16 @@ import os
 import queue
 import threading
 import time
+from typing import TYPE_CHECKING, cast
 
 from components import bus, protocol
 from components.group import MARK_SIZE, Group
 from components.live_frames import LiveFrameSender
 from components.process import IDLE_FLUSH_S
+
+if TYPE_CHECKING:
+    import zenoh
+    from zenoh.handlers import Handler
 
 INBOX_CAPACITY = 4096  # messages waiting in a component's inbox FIFO (a full one holds the senders back)
 _QUIT = protocol.Quit().encode()
@@ -30,7 +35,9 @@ class FifoInbox:
 
     def __init__(self, session, run_id: str):
         self.session, self.run_id = session, run_id
-        self.fifo = self.name = self.quit = None
+        self.fifo: zenoh.Subscriber[Handler[zenoh.Sample]] | None = None  # once subscribed
+        self.name: str | None = None
+        self.quit: str | None = None
 
     def subscribe(self, name: str, generation: int):
         import zenoh
@@ -42,7 +49,7 @@ class FifoInbox:
         return self.fifo
 
     def get(self) -> tuple[str | None, str, bytes]:
-        sample = self.fifo.recv()
+        sample = cast("zenoh.Subscriber[Handler[zenoh.Sample]]", self.fifo).recv()  # get follows subscribe
         key = str(sample.key_expr)
         return _GONE if key == self.quit else (self.name, key, sample.payload.to_bytes())
 
@@ -77,9 +84,9 @@ class ZenohTransport:
     def __init__(self, session, run_id: str, inbox):
         self.session, self.run_id, self.inbox = session, run_id, inbox
         self.held: dict[str, list] = {}  # member -> what it declared
-        self.replies: dict[str, object] = {}
-        self.batches: dict[str, object] = {}
-        self.outputs: dict[tuple[str, str], object] = {}  # (consumer, source) -> publisher
+        self.replies: dict[str, zenoh.Publisher] = {}
+        self.batches: dict[str, zenoh.Publisher] = {}
+        self.outputs: dict[tuple[str, str], zenoh.Publisher] = {}  # (consumer, source) -> publisher
         self.views: dict[str, LiveFrameSender] = {}  # member -> its frames for the live views
 
     def join(self, name: str, generation: int) -> None:
@@ -169,9 +176,9 @@ def _watchdog(group: Group, stop: threading.Event, beat_s: float | None) -> None
     beat_at = time.monotonic()
     try:
         while not stop.wait(IDLE_FLUSH_S):
-            beat = beat_s is not None and time.monotonic() >= beat_at
-            if beat:
-                beat_at = time.monotonic() + beat_s
+            beat = False
+            if beat_s is not None and time.monotonic() >= beat_at:
+                beat, beat_at = True, time.monotonic() + beat_s
             group.tick(beat)
     except zenoh.ZError:  # the session closed under it (Ctrl-C, a cut link): the stepping thread ends too
         pass
@@ -267,6 +274,7 @@ def serve_session(
             transport.close()
         for held in keep:
             _undeclare(held)
-        if mark_file is not None:
+        if mark is not None:
             mark.close()
+        if mark_file is not None:
             mark_file.close()

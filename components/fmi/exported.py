@@ -189,6 +189,8 @@ def fmu_summary(path: Path) -> dict[str, Any]:
         root = ElementTree.fromstring(archive.read("modelDescription.xml"))
     causalities = [v.get("causality") for v in root.iter("ScalarVariable")]
     co_simulation = root.find("CoSimulation")
+    if co_simulation is None:
+        raise ValueError(f"{path}: modelDescription.xml has no CoSimulation element")
     return {
         "fmi_version": root.get("fmiVersion"),
         "model_identifier": co_simulation.get("modelIdentifier"),

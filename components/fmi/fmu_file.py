@@ -21,7 +21,7 @@ class FMUError(ConfigError):
     """A problem with the FMU file itself (missing, corrupt, not co-simulation...)."""
 
 
-def fmu_file(path: str, config_dir: str | None, key: str = "path") -> Path:
+def fmu_file(path: str, config_dir: str | Path | None, key: str = "path") -> Path:
     """The FMU a ``path`` parameter names: an .fmu, or a pythonfmu model (.py) built on first use."""
     file = Path(path)
     if not file.is_absolute():

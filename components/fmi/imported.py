@@ -127,7 +127,7 @@ class FMUComponent(Component):
         self.inputs = self._plan([s for s in grouped if s.causality == "input"])
         self.outputs = self._plan([s for s in grouped if s.causality == "output"])
         self.initialized = False
-        self.t_ns = None
+        self.t_ns: int | None = None
 
     # ------------------------------------------------------------------ FMI calls
 
@@ -177,7 +177,8 @@ class FMUComponent(Component):
 
     def _plan(self, group: list[Signal]):
         """(FMPy setter, getter, value references, slice, cast) per FMI type, for the hot path."""
-        plan, offset = {}, 0
+        plan: dict[str, tuple[list[int], list[int], type]] = {}
+        offset = 0
         for s in group:
             for v in s.refs:
                 n = int(v.dimensions[0].start) if v.dimensions else 1
@@ -259,6 +260,7 @@ class FMUComponent(Component):
         state = self._call(self.fmu.getFMUState, "getFMUstate")
         blob = self._call(self.fmu.serializeFMUState, "serializeFMUstate", state)
         self._call(self.fmu.freeFMUState, "freeFMUstate", state)
+        assert self.t_ns is not None, "get_state before initialize"
         return {
             "fmu_state": np.frombuffer(bytes(blob), dtype=np.uint8).copy(),
             "t_ns": np.int64(self.t_ns),

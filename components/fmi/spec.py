@@ -6,6 +6,7 @@ the instance built, each problem an ExportError naming the key or option as the 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import cast
 
 SPEC_FILE = "zenorbit.json"
 FILES_DIR = "files"  # under the FMU's resources: the files the parameters name (the run's config dir)
@@ -30,8 +31,8 @@ def resolve_spec(spec: dict, files_dir: Path):
         return registry.resolve(spec["type"], spec["parameters"], RunSettings(spec.get("epoch"), files_dir))
     except registry.Unresolved as unresolved:
         e = unresolved.errors[0]
-        if unresolved.stage == "type":
-            raise ExportError(e.message) from None
+        if unresolved.stage == "type":  # a ConfigError: the type could not be loaded
+            raise ExportError(cast(ConfigError, e).message) from None
         if unresolved.stage == "parameters":
             raise ExportError([_set_problem(p, spec) for p in unresolved.errors]) from None
         if isinstance(e, ConfigError):

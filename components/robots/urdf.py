@@ -46,7 +46,7 @@ class UrdfModel:
     links: list[UrdfLink]
     joints: list[UrdfJoint]
     root: str
-    tree: ET.ElementTree = field(repr=False)
+    tree: ET.ElementTree[ET.Element] = field(repr=False)
 
     @property
     def link_names(self) -> list[str]:
@@ -178,7 +178,7 @@ def _digest(path: Path) -> bytes:
 def _parse(path: Path, packages) -> UrdfModel:
     text = _source(path, packages)
     try:
-        tree = ET.ElementTree(ET.fromstring(text))
+        tree: ET.ElementTree[ET.Element] = ET.ElementTree(ET.fromstring(text))
     except ET.ParseError as e:
         raise UrdfError(f"{path} is not valid XML: {e}") from None
     robot = tree.getroot()
@@ -246,12 +246,13 @@ def _root_link(links: list[UrdfLink], joints: list[UrdfJoint], path: Path) -> st
 def dart_urdf_text(model: UrdfModel, locked: dict[str, float]) -> str:
     """The URDF text DART loads: joints in ``locked`` (name -> position) become fixed joints at
     that position, and frame links (see ``UrdfModel.frame_links``) are left out."""
-    tree = ET.ElementTree(ET.fromstring(ET.tostring(model.tree.getroot())))
-    robot = tree.getroot()
+    robot = ET.fromstring(ET.tostring(model.tree.getroot()))
     frames = model.frame_links()
     for element in list(robot.findall("joint")):
         name = element.get("name")
-        if element.find("child").get("link") in frames:
+        child = element.find("child")
+        assert child is not None  # read_joints checked every joint has one
+        if child.get("link") in frames:
             robot.remove(element)
             continue
         if name not in locked:

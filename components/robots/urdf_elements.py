@@ -61,17 +61,19 @@ class UrdfLink:
     inertia: tuple[float, ...] = (0.0,) * 9
 
 
-def _floats(text: str | None, n: int, default: tuple[float, ...], where: str) -> tuple[float, ...]:
+def _floats(text: str | None, default: tuple[float, float, float], where: str) -> tuple[float, float, float]:
+    """Three finite numbers (an xyz or rpy attribute), or ``default`` without one."""
     if text is None:
         return default
     parts = text.split()
     try:
         values = tuple(float(p) for p in parts)
     except ValueError:
-        raise UrdfError(f"{where}: expected {n} numbers, got {text!r}") from None
-    if len(values) != n or not all(math.isfinite(v) for v in values):
-        raise UrdfError(f"{where}: expected {n} finite numbers, got {text!r}")
-    return values
+        raise UrdfError(f"{where}: expected 3 numbers, got {text!r}") from None
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise UrdfError(f"{where}: expected 3 finite numbers, got {text!r}")
+    x, y, z = values
+    return x, y, z
 
 
 def _float(element: ET.Element, attribute: str, default: float | None, where: str) -> float:
@@ -141,8 +143,8 @@ def read_links(robot: ET.Element, path: Path) -> list[UrdfLink]:
             origin = inertial.find("origin")
             rpy = (0.0, 0.0, 0.0)
             if origin is not None:
-                com = _floats(origin.get("xyz"), 3, com, f"{where} inertial origin xyz")
-                rpy = _floats(origin.get("rpy"), 3, rpy, f"{where} inertial origin rpy")
+                com = _floats(origin.get("xyz"), com, f"{where} inertial origin xyz")
+                rpy = _floats(origin.get("rpy"), rpy, f"{where} inertial origin rpy")
             inertia = inertial.find("inertia")
             if inertia is None and mass > 0.0:
                 raise UrdfError(f"{where}: <inertial> without <inertia>")
@@ -177,13 +179,14 @@ def read_joints(robot: ET.Element, path: Path, link_names: set[str]) -> list[Urd
             raise UrdfError(f"{path.name}: duplicate joint name {name!r}")
         if kind not in SUPPORTED_TYPES:
             raise UrdfError(f"{where}: unsupported joint type {kind!r} (expected one of {', '.join(SUPPORTED_TYPES)})")
-        mimic = None
+        mimic: tuple[str, float, float] | None = None
         mimic_el = element.find("mimic")
         if mimic_el is not None and kind in MOVABLE_TYPES:  # on a fixed joint it means nothing (as in ROS)
-            if not mimic_el.get("joint"):
+            followed = mimic_el.get("joint")
+            if not followed:
                 raise UrdfError(f"{where}: <mimic> needs joint=...")
             mimic = (
-                mimic_el.get("joint"),
+                followed,
                 _float(mimic_el, "multiplier", 1.0, f"{where} mimic"),
                 _float(mimic_el, "offset", 0.0, f"{where} mimic"),
             )
@@ -194,19 +197,20 @@ def read_joints(robot: ET.Element, path: Path, link_names: set[str]) -> list[Urd
         for role, link in (("parent", parent), ("child", child)):
             if link not in link_names:
                 raise UrdfError(f"{where}: {role} link {link!r} is not a <link> of the file")
+        assert parent is not None and child is not None  # both are links of the file
         if child in children:
             raise _two_parents(robot, next(j for j in joints if j.child == child), name, parent, child, where)
         children.add(child)
         origin = element.find("origin")
-        xyz = _floats(origin.get("xyz") if origin is not None else None, 3, (0.0, 0.0, 0.0), f"{where} origin xyz")
-        rpy = _floats(origin.get("rpy") if origin is not None else None, 3, (0.0, 0.0, 0.0), f"{where} origin rpy")
+        xyz = _floats(origin.get("xyz") if origin is not None else None, (0.0, 0.0, 0.0), f"{where} origin xyz")
+        rpy = _floats(origin.get("rpy") if origin is not None else None, (0.0, 0.0, 0.0), f"{where} origin rpy")
         axis_el = element.find("axis")
-        axis = _floats(axis_el.get("xyz") if axis_el is not None else None, 3, (1.0, 0.0, 0.0), f"{where} axis")
+        axis = _floats(axis_el.get("xyz") if axis_el is not None else None, (1.0, 0.0, 0.0), f"{where} axis")
         norm = math.sqrt(sum(a * a for a in axis))
         if kind in MOVABLE_TYPES and norm < 1e-12:
             raise UrdfError(f"{where}: axis must be non-zero, got {axis}")
         if norm > 0:
-            axis = tuple(a / norm for a in axis)
+            axis = (axis[0] / norm, axis[1] / norm, axis[2] / norm)
         lower, upper, effort, velocity = _limits(element, kind, where)
         joints.append(UrdfJoint(name, kind, parent, child, xyz, rpy, axis, lower, upper, effort, velocity, mimic))
     return joints

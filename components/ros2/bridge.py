@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import sys
 import time
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -31,6 +32,11 @@ from components.ros2.router import hint
 from components.rosbag import epoch_ns
 from components.schema import Bool, Duration, Float, Int, ListOf, MapOf, OneOf, Record, Str, Vector
 from components.sdk import Component, Parameter, Variable
+
+if TYPE_CHECKING:
+    import zenoh
+
+    from components.ros2.rmw_zenoh import Node
 
 DEFAULT_ENDPOINT = "tcp/localhost:7447"  # rmw_zenohd's own default
 DEFAULT_DOMAIN_ID = 0  # ROS_DOMAIN_ID's own default
@@ -225,7 +231,8 @@ class Ros2Bridge(Component):
         listened = {b.topic: b.message for b in self.outputs}
         self.listened = {topic: message.msgtype for topic, message in listened.items()}
         self.arrivals = lockstep.Arrivals({t: m.stamped for t, m in listened.items()})
-        self.session = self.node = None
+        self.session: zenoh.Session | None = None  # the zenoh transport's
+        self.node: RclpyNode | Node | None = None
         self._open(params, listened)
 
     def _open(self, params, listened: dict[str, messages.MessageMap]) -> None:
@@ -233,8 +240,8 @@ class Ros2Bridge(Component):
         router), the node, its publishers and subscribers."""
         self.transport, python, why = choose(params["transport"], params["python"])
         print(f"{params['node']}: {why}", file=sys.stderr, flush=True)
-        if self.transport == RCLPY:
-            self.node = RclpyNode(python, params["domain_id"], params["node"], params["namespace"])
+        if self.transport == RCLPY:  # then choose named a Python that imports rclpy
+            self.node = RclpyNode(cast(str, python), params["domain_id"], params["node"], params["namespace"])
         else:
             self.node = self._zenoh_node(params)
         self.clock = self.node.publisher(CLOCK_TOPIC, CLOCK_TYPE, self.typestore) if params["clock"] else None
@@ -293,22 +300,23 @@ class Ros2Bridge(Component):
 
     def _await_matches(self) -> None:
         """rclpy: until the middleware has matched each of the bridge's publishers and subscriptions."""
+        node = cast(RclpyNode, self.node)  # the rclpy transport's
         deadline = time.monotonic() + self.timeout_s
-        while missing := self.node.unmatched(self.timeout_s, exclude=(CLOCK_TOPIC,)):
+        while missing := node.unmatched(self.timeout_s, exclude=(CLOCK_TOPIC,)):
             if self.arrivals.interrupted:
                 raise lockstep.Interrupted("the run is ending: stopped waiting for the ROS graph")
             if time.monotonic() > deadline:
                 role, topic, msgtype = missing[0]
                 other_types = [
-                    f"{node} has it as {node_type}"
-                    for _, _, node_type, node in self.node.graph([topic], self.timeout_s)
+                    f"{other} has it as {node_type}"
+                    for _, _, node_type, other in node.graph([topic], self.timeout_s)
                     if node_type != msgtype
                 ]
                 wrong = f"; {other_types[0]}" if other_types else ""
                 role = "subscribes to" if role == "publisher" else "publishes"
                 raise ComponentError(
                     f"no ROS 2 node {role} {topic} ({msgtype}) in domain {self.domain_id} "
-                    f"({self.node.rmw}) within {self.timeout_s:g} s{wrong}: start the node before "
+                    f"({node.rmw}) within {self.timeout_s:g} s{wrong}: start the node before "
                     f"the run, with the same ROS_DOMAIN_ID and RMW_IMPLEMENTATION (or raise timeout)"
                 )
             time.sleep(0.02)
@@ -319,11 +327,12 @@ class Ros2Bridge(Component):
             (SUBSCRIPTION, topic, dds_type_name(group[0].message.msgtype)) for topic, group in self.published.items()
         }
         wanted |= {(PUBLISHER, topic, dds_type_name(msgtype)) for topic, msgtype in self.listened.items()}
-        own = str(self.session.info.zid())
+        session = cast("zenoh.Session", self.session)  # the zenoh transport's
+        own = str(session.info.zid())
         deadline = time.monotonic() + self.timeout_s
         while True:
             seen = set()
-            for reply in self.session.liveliness().get(f"{ADMIN_SPACE}/{self.domain_id}/**", timeout=self.timeout_s):
+            for reply in session.liveliness().get(f"{ADMIN_SPACE}/{self.domain_id}/**", timeout=self.timeout_s):
                 if reply.ok is not None:
                     parts = str(reply.ok.key_expr).split("/")
                     if len(parts) >= 11 and parts[2] != own:
@@ -358,7 +367,8 @@ class Ros2Bridge(Component):
             taken = self.arrivals.take_stamped(stamp, self.timeout_s) if self.outputs else {}
         else:
             taken = self.arrivals.take_latest()
-        decoded = {topic: self.typestore.deserialize_cdr(cdr, self.listened[topic]) for topic, cdr in taken.items()}
+        cdrs = cast("dict[str, bytes]", taken)  # what the receivers put: a message's CDR bytes
+        decoded = {topic: self.typestore.deserialize_cdr(cdr, self.listened[topic]) for topic, cdr in cdrs.items()}
         for b in self.outputs:
             if b.topic in decoded:
                 self.last[b.variable] = self._value(b, decoded[b.topic])

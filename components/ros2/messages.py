@@ -18,6 +18,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -38,7 +39,7 @@ class Field:
     size: int | None
     unit: str | None
     parts: tuple[str, ...]
-    read: Callable[[object], np.ndarray]
+    read: Callable[[Any], np.ndarray]  # the message: a rosbags dataclass of the map's type
     neutral: tuple[float, ...] | None = None
 
 

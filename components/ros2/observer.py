@@ -27,6 +27,7 @@ from __future__ import annotations
 import sys
 import threading
 import time
+from typing import cast
 
 from components import bus, observer_shell
 from components.observer_shell import Stop, View
@@ -217,7 +218,9 @@ class Ros2View(View):
         # control BLOCK: on bus.RUNTIME's one thread that wait stops the transmit that would end it
         bus.prefer_runtime(bus.RUNTIME_OWN_TX)
         self.counts = StreamCounts()
-        self.link = self.node = self.publishers = None
+        self.link: RosLink | None = None
+        self.node: RclpyNode | rmw_zenoh.Node | None = None
+        self.publishers: RosPublishers | None = None  # made by prepare, before any step
         self.ros, self.report = shell.setup["ros2"], shell.setup.get("report")
 
     def alive_key(self, run_id: str) -> str:
@@ -248,7 +251,7 @@ class Ros2View(View):
         self.live = LiveTopics(shell.config, shell.config_dir, shell.columns, typestore, shell.warn)
 
     def step(self, batch) -> None:
-        ros, link, publishers, counts = self.ros, self.link, self.publishers, self.counts
+        ros, link, publishers, counts = self.ros, self.link, cast(RosPublishers, self.publishers), self.counts
         if self.node is None and link is not None and link.session is not None:
             self.node = publishers.node = rmw_zenoh.Node(link.session, ros["domain_id"], ros["node"])
             self.log(
@@ -276,7 +279,7 @@ class Ros2View(View):
         publishers.publish(self.frames.take(), up)
 
     def finish(self, ended: bool) -> None:
-        publishers = self.publishers
+        publishers = cast(RosPublishers, self.publishers)
         if self.node is not None and (missing := publishers.missing()):
             self.log(
                 f"ros2.topics: the run had no {', '.join(missing)} "

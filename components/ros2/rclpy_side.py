@@ -36,6 +36,11 @@ import struct
 import sys
 import threading
 import time
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the checker's only: this file imports nothing but the standard library and rclpy
+    from rclpy.publisher import Publisher
+    from rclpy.subscription import Subscription
 
 HEADER = struct.Struct("<IB")
 ENTITY_ID = struct.Struct("<I")
@@ -111,8 +116,8 @@ class SideNode:
         self.executor.add_node(self.node)
         self.spinner = threading.Thread(target=self.executor.spin, name="rclpy-spin", daemon=True)
         self.spinner.start()
-        self.publishers: dict[int, object] = {}
-        self.subscriptions: dict[int, object] = {}
+        self.publishers: dict[int, Publisher] = {}
+        self.subscriptions: dict[int, Subscription] = {}
         self.unpublished: set[str] = set()  # topics a publish failed on (said once each)
 
     @staticmethod

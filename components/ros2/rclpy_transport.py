@@ -151,6 +151,9 @@ class RclpyNode:
             stdout=subprocess.PIPE,
             stderr=None,
         )
+        # both piped: typed once here for the per-message writes and the reader
+        assert self.process.stdin is not None and self.process.stdout is not None
+        self._stdin, self._stdout = self.process.stdin, self.process.stdout
         self._reader = threading.Thread(target=self._read, name="rclpy-reader", daemon=True)
         self._reader.start()
         with self._lock:
@@ -167,7 +170,9 @@ class RclpyNode:
 
     @property
     def rmw(self) -> str:
-        return self.ready["rmw"]
+        ready = self.ready
+        assert ready is not None  # __init__ waited for it
+        return ready["rmw"]
 
     @property
     def alive(self) -> bool:
@@ -230,15 +235,15 @@ class RclpyNode:
         frame = HEADER.pack(len(payload), kind[0]) + payload
         try:
             with self._send_lock:
-                self.process.stdin.write(frame)
-                self.process.stdin.flush()
+                self._stdin.write(frame)
+                self._stdin.flush()
         except (BrokenPipeError, ValueError, OSError):
             raise ComponentError(
                 f"the rclpy node ({self.python}) has exited (code {self.process.poll()}; its message is above)"
             ) from None
 
     def _read(self) -> None:
-        stream = self.process.stdout
+        stream = self._stdout
         while True:
             header = stream.read(HEADER.size)
             if len(header) < HEADER.size:
@@ -274,7 +279,7 @@ class RclpyNode:
         if self.process.poll() is None:
             try:
                 self._send(b"Q", b"")
-                self.process.stdin.close()
+                self._stdin.close()
             except (ComponentError, OSError):
                 pass
             try:

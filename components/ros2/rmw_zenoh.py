@@ -39,6 +39,10 @@ import re
 import struct
 import threading
 from collections.abc import Callable
+from typing import TYPE_CHECKING, TypedDict
+
+if TYPE_CHECKING:
+    import zenoh
 
 ADMIN_SPACE = "@ros2_lv"  # liveliness_utils.cpp ADMIN_SPACE
 NODE, PUBLISHER, SUBSCRIPTION = "NN", "MP", "MS"
@@ -183,6 +187,13 @@ def qualify(topic: str, namespace: str) -> str:
     return namespace.rstrip("/") + "/" + topic
 
 
+class _PublisherOptions(TypedDict):
+    """The keywords a publisher is declared with (again, after a lost link)."""
+
+    congestion_control: zenoh.CongestionControl
+    reliability: zenoh.Reliability
+
+
 class Publisher:
     """One ROS 2 publisher: its key expression, token and sequence numbers (made by :meth:`Node.publisher`)."""
 
@@ -206,7 +217,9 @@ class Publisher:
         self.gid = gid_of(token)
         self.sequence = 0
         congestion = zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP
-        options = self._options = dict(congestion_control=congestion, reliability=zenoh.Reliability.RELIABLE)
+        options = self._options = _PublisherOptions(
+            congestion_control=congestion, reliability=zenoh.Reliability.RELIABLE
+        )
         self._session = session
         if latched:  # late joiners get the cache through their AdvancedSubscriber's history query
             self._publisher = zenoh.ext.declare_advanced_publisher(
@@ -214,7 +227,9 @@ class Publisher:
                 key,
                 cache=zenoh.ext.CacheConfig(depth),
                 publisher_detection=True,
-                sample_miss_detection=zenoh.ext.MissDetectionConfig(sporadic_heartbeat=HEARTBEAT_MS / 1000),
+                sample_miss_detection=zenoh.ext.MissDetectionConfig(
+                    heartbeat=None, sporadic_heartbeat=HEARTBEAT_MS / 1000
+                ),
                 **options,
             )
         else:
@@ -280,7 +295,7 @@ class Subscriber:
                 on_sample,
                 subscriber_detection=True,
                 history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=depth),
-                recovery=zenoh.ext.RecoveryConfig(heartbeat=True),
+                recovery=zenoh.ext.RecoveryConfig(periodic_queries=None, heartbeat=True),
             )
         else:
             self._subscriber = session.declare_subscriber(key, on_sample)

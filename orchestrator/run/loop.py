@@ -35,6 +35,7 @@ class Loop:
         self.listener, self.recovery, self.controls = listener, recovery, controls
         self.progress, self.out = progress, out
         self.seconds = 0.0
+        self.rate = pacing.Rate(0, 0.0)  # rows a second lately: the horizon's window
 
     def run(self) -> None:
         """Grant, record and watch until the last row is in or a stop is asked for."""
@@ -54,6 +55,7 @@ class Loop:
 
     def _step_until(self, steps: int, wall_start: float) -> None:
         last_progress = last_check = time.monotonic()
+        self.rate = pacing.Rate(self.state.rows.row, time.perf_counter())
         expect: dict[str, str] = {}
         state, listener, rows = self.state, self.listener, self.state.rows
         while rows.row < steps and not state.stop_reason:
@@ -93,14 +95,15 @@ class Loop:
         for boundary in (state.next_event_step(), self.controls.swap_boundary(), self.recovery.next_checkpoint()):
             if boundary is not None:
                 limit = min(limit, max(boundary, state.rows.row))
-        realtime = config.realtime
+        realtime, now = config.realtime, time.perf_counter()
         horizon, wake = pacing.grant(
             state.rows.row,
             state.horizon,
             limit,
             realtime,
             config.step_ns,
-            time.perf_counter() - wall_start if realtime > 0 else 0.0,
+            now - wall_start,
+            self.rate.update(state.rows.row, now),
         )
         if horizon is not None:
             state.grant(horizon, time.monotonic())

@@ -4,21 +4,45 @@ from __future__ import annotations
 
 import pytest
 
-from orchestrator.run.pacing import WINDOW, grant
+from orchestrator.run.pacing import RATE_SPAN_S, WINDOW, WINDOW_MAX, WINDOW_S, Rate, grant, window
 
 MS = 1_000_000
 
 
-def test_as_fast_as_possible_the_horizon_goes_a_window_ahead_in_half_window_chunks():
+def test_as_fast_as_possible_the_horizon_goes_a_window_ahead_in_quarter_window_chunks():
     assert WINDOW == 256
     # (row, horizon, limit) -> the new horizon; the loop looks again within 0.2 s in any case
     assert grant(0, 0, 15_000, 0, MS, 0.0) == (256, 0.2)
-    assert grant(100, 256, 15_000, 0, MS, 0.0) == (None, 0.2)  # 100 more: less than a chunk
-    assert grant(128, 256, 15_000, 0, MS, 0.0) == (384, 0.2)  # a whole chunk
+    assert grant(60, 256, 15_000, 0, MS, 0.0) == (None, 0.2)  # 60 more: less than a chunk (64)
+    assert grant(64, 256, 15_000, 0, MS, 0.0) == (320, 0.2)  # a whole chunk
     assert grant(256, 100, 15_000, 0, MS, 0.0) == (512, 0.2)  # row and horizon are not interchangeable
     assert grant(900, 1000, 1010, 0, MS, 0.0) == (1010, 0.2)  # the limit is granted even in a small piece
     assert grant(900, 1000, 950, 0, MS, 0.0) == (None, 0.2)  # never taken back
     assert grant(1000, 1000, 1000, 0, MS, 0.0) == (None, 0.2)  # held at a boundary (event, swap, checkpoint)
+
+
+def test_fast_steps_get_a_window_of_fifty_milliseconds_up_to_the_cap():
+    assert WINDOW_S == 0.05 and WINDOW_MAX == 4096
+    assert window(0.0) == window(1000.0) == WINDOW  # slow or not yet measured: the floor
+    assert window(20_000.0) == 1000  # 20,000 rows a second: 1,000 steps are 50 ms
+    assert window(1e6) == WINDOW_MAX
+    # 20,000 rows a second: a window of 1,000 ahead of the row, granted in chunks of 250
+    assert grant(0, 0, 15_000, 0, MS, 0.0, 20_000.0) == (1000, 0.2)
+    assert grant(249, 1000, 15_000, 0, MS, 0.0, 20_000.0) == (None, 0.2)
+    assert grant(250, 1000, 15_000, 0, MS, 0.0, 20_000.0) == (1250, 0.2)
+    assert grant(250, 1000, 1100, 0, MS, 0.0, 20_000.0) == (1100, 0.2)  # never past the limit
+    # a realtime run is paced by the wall clock whatever the rate
+    assert grant(0, 0, 15_000, 1.0, MS, 0.0123, 20_000.0)[0] == 13
+
+
+def test_the_rate_is_measured_over_at_least_its_span_and_restarts_after_a_rollback():
+    rate = Rate(100, 10.0)
+    assert rate.update(150, 10.0 + RATE_SPAN_S / 2) == 0.0  # too soon: not measured yet
+    assert rate.update(500, 10.0 + 2 * RATE_SPAN_S) == pytest.approx(400 / (2 * RATE_SPAN_S))
+    assert rate.update(520, 10.0 + 2.5 * RATE_SPAN_S) == pytest.approx(400 / (2 * RATE_SPAN_S))  # held
+    assert rate.update(900, 10.0 + 4 * RATE_SPAN_S) == pytest.approx(400 / (2 * RATE_SPAN_S))  # 400 in 2 spans
+    assert rate.update(300, 10.0 + 5 * RATE_SPAN_S) == pytest.approx(400 / (2 * RATE_SPAN_S))  # a restart to 300
+    assert rate.update(400, 10.0 + 7 * RATE_SPAN_S) == pytest.approx(100 / (2 * RATE_SPAN_S))  # from 300
 
 
 def test_realtime_lets_step_k_start_once_k_steps_of_wall_time_have_passed():

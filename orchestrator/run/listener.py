@@ -15,6 +15,7 @@ from orchestrator.run.state import RunState
 from orchestrator.run.viewer_link import ViewerLink
 
 SYNC_ROUND_S = 0.05  # the start-up handshake is repeated at this interval until everyone hears everyone
+GONE_WAIT_S = 2.0  # a dead process's last batches come before its link closes: wait at most this long
 SLOW_START_S = 5.0  # an instantiate this long gets a note (a first run on a machine compiles the kernels)
 
 
@@ -78,6 +79,7 @@ class Listener:
                 if expect.get(name) == "alive":
                     del expect[name]
                 return
+            member.token_gone = True
             return  # a token may go with another peer's link: its process or link tells (check_processes)
         report = message.message
         member = self._member(name, message.generation)
@@ -175,9 +177,23 @@ class Listener:
             member = self.run.joining.get(name) or self.run.members[name]
             if how := exited(member) or self.hosts.silent(member):
                 silent_s = None if exited(member) else time.monotonic() - member.heard_at
+                if silent_s is None:
+                    self._until_gone(member)
                 member = at_fault(member)  # in a process group: the member whose code was running
                 self.salvage(member, lost=True)
                 raise RunFailure(death(member, how), member, lost=True, silent_s=silent_s)
+
+    def _until_gone(self, member: Member) -> None:
+        """A member whose process exited: apply what it sent before it died, still on its way, until
+        its liveliness token goes (which comes after it on its link), for at most GONE_WAIT_S. A
+        fast run's components run a window ahead of the recorded rows: its rows are in those batches."""
+        end = time.monotonic() + GONE_WAIT_S
+        while not member.token_gone and (left := end - time.monotonic()) > 0:
+            try:
+                entry = self.run.inbox.get(timeout=left)
+            except queue.Empty:
+                return
+            self.handle(entry, {})
 
     def salvage(self, failed: Member, lost: bool = False) -> None:
         """``failed`` failed: record every row up to its last output. The others' outputs for those

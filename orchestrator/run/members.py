@@ -73,6 +73,7 @@ class Member:
     zid: str = ""  # the Zenoh id of its session, when linked to ours directly
     heard_at: float = 0.0  # wall time of its last message (heartbeats included)
     cut: bool = False  # Zenoh closed the link to it
+    token_gone: bool = False  # its liveliness token went: all it sent before has come
     ended: bool = False  # asked to terminate
     shared: SharedProcess | None = field(default=None, repr=False)  # its process group's process
 

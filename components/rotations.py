@@ -75,6 +75,13 @@ def matrix_entries_to_quat(
 ) -> np.ndarray:
     """``matrix_to_quat`` of one rotation given as its nine entries (row-major floats): the fast
     path for per-step callers, with no 3x3 array to build."""
+    return np.array(quat_of_entries(m00, m01, m02, m10, m11, m12, m20, m21, m22))
+
+
+def quat_of_entries(
+    m00: float, m01: float, m02: float, m10: float, m11: float, m12: float, m20: float, m21: float, m22: float
+) -> tuple[float, float, float, float]:
+    """``matrix_entries_to_quat`` as four floats, for a caller that builds one array of them and more."""
     d = (1.0 + m00 - m11 - m22, 1.0 - m00 + m11 - m22, 1.0 - m00 - m11 + m22, 1.0 + m00 + m11 + m22)
     k = d.index(max(d))
     if k == 0:
@@ -86,7 +93,8 @@ def matrix_entries_to_quat(
     else:
         q = (m21 - m12, m02 - m20, m10 - m01, d[3])
     scale = 1.0 / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    return np.array(q) * (-scale if q[3] < 0.0 else scale)
+    scale = -scale if q[3] < 0.0 else scale
+    return q[0] * scale, q[1] * scale, q[2] * scale, q[3] * scale
 
 
 def matrix_to_quat(R) -> np.ndarray:

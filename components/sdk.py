@@ -397,8 +397,15 @@ class Layout:
             out[self.offsets[v.name]] = v.start.ravel()
         return out
 
-    def pack(self, values: Mapping[str, Any], into: np.ndarray) -> None:
-        """Write named values into ``into``; every variable of the layout must be present."""
+    def pack(self, values: Mapping[str, Any] | np.ndarray, into: np.ndarray) -> None:
+        """Write named values into ``into``; every variable of the layout must be present. Or
+        ``values`` is the whole vector, a float64 array of the layout's size holding the variables
+        in declaration order (a step with no Python object per output: a layout without frames)."""
+        if values.__class__ is np.ndarray:
+            if values.shape != into.shape or values.dtype != np.float64 or self.frames:
+                raise ComponentOutputError(self._not_the_vector(values))
+            into[:] = values
+            return
         for name, where, size, shape in self._plan:
             try:
                 value = values[name]
@@ -412,6 +419,17 @@ class Layout:
             if np.size(value) != size:
                 raise ComponentOutputError(f"output {name!r} has {np.size(value)} values, declared shape {shape}")
             into[where] = np.ravel(value)
+
+    def _not_the_vector(self, values: np.ndarray) -> str:
+        if self.frames:
+            return (
+                f"outputs as one vector: not with frame outputs ({', '.join(v.name for v in self.frames)}); "
+                f"return the outputs by name"
+            )
+        return (
+            f"outputs as one vector: expected {self.size} float64 values ({', '.join(v.name for v in self.variables)}, "
+            f"in that order), got {values.dtype} of shape {values.shape}"
+        )
 
     def first_non_finite(self, vector: np.ndarray) -> str | None:
         """The name of the first variable holding a NaN or infinity in ``vector``, or None."""

@@ -22,7 +22,7 @@ from components.constants import NS_PER_S
 from components.errors import ConfigError
 from components.orbit import plots as orbit_plots
 from components.orbit import ros as orbit_ros
-from components.orbit.frames import lvlh_dcm, lvlh_state
+from components.orbit.frames import lvlh_dcm, lvlh_floats, lvlh_state
 from components.orbit.kepler import ElementError, KeplerOrbit, check_elements
 from components.orbit.view import OrbitView
 from components.plotting import Plot
@@ -61,12 +61,12 @@ class OrbitComponent(Component):
 
     def __init__(self, params, run):
         super().__init__(params, run)
-        self._q_previous: np.ndarray | None = None
+        self._q_previous: np.ndarray | tuple[float, ...] | None = None
 
     def _sample(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         raise NotImplementedError
 
-    def _outputs_at(self, t_ns: int) -> dict[str, np.ndarray]:
+    def _outputs_at(self, t_ns: int) -> dict[str, np.ndarray] | np.ndarray:
         r, v, q, w = self._sample(t_ns / NS_PER_S)
         q = continuous(q, self._q_previous)
         self._q_previous = q
@@ -197,6 +197,17 @@ class KeplerComponent(OrbitComponent):
         r, v, a = self.orbit.state_tuples(t_s)
         q, w = lvlh_state(r, v, a)
         return np.array(r), np.array(v), q, w
+
+    def _outputs_at(self, t_ns: int) -> np.ndarray:
+        """``_sample`` and the sign continuity of the base's, in floats, as one vector (r_eci, v_eci,
+        q_eci_lvlh, w_lvlh): one array a step instead of six and a dict (the same numbers)."""
+        r, v, a = self.orbit.state_tuples(t_ns / NS_PER_S)
+        q, w = lvlh_floats(r, v, a)
+        p = self._q_previous
+        if p is not None and q[0] * p[0] + q[1] * p[1] + q[2] * p[2] + q[3] * p[3] < 0.0:
+            q = (-q[0], -q[1], -q[2], -q[3])
+        self._q_previous = q  # (get_state makes it an array)
+        return np.array(r + v + q + w)
 
 
 class SGP4Component(OrbitComponent):

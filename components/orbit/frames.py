@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from components.orbit.kepler import Vector3, cross_tuples
-from components.rotations import matrix_entries_to_quat
+from components.rotations import quat_of_entries
 
 
 def _floats(vector) -> Vector3:
@@ -64,15 +64,18 @@ def lvlh_state(r_eci, v_eci, a_eci) -> tuple[np.ndarray, np.ndarray]:
     non-zero). There is no y component because dx/dt = (v - (v·x) x)/|r| has no z part.
     Plain floats inside: the orbit components call this every step.
     """
-    x, y, z, r_norm, h_norm = _lvlh_axes(_floats(r_eci), _floats(v_eci))
-    a = _floats(a_eci)
+    q, w = lvlh_floats(_floats(r_eci), _floats(v_eci), _floats(a_eci))
+    return np.array(q), np.array(w)
+
+
+def lvlh_floats(r: Vector3, v: Vector3, a: Vector3) -> tuple[tuple[float, float, float, float], Vector3]:
+    """:func:`lvlh_state` of three tuples of floats, as tuples of floats."""
+    x, y, z, r_norm, h_norm = _lvlh_axes(r, v)
     out_of_plane = r_norm * (a[0] * z[0] + a[1] * z[1] + a[2] * z[2]) / h_norm
     in_plane = h_norm / (r_norm * r_norm)
-    w = np.array(
-        [
-            out_of_plane * x[0] + in_plane * z[0],
-            out_of_plane * x[1] + in_plane * z[1],
-            out_of_plane * x[2] + in_plane * z[2],
-        ]
+    w = (
+        out_of_plane * x[0] + in_plane * z[0],
+        out_of_plane * x[1] + in_plane * z[1],
+        out_of_plane * x[2] + in_plane * z[2],
     )
-    return matrix_entries_to_quat(x[0], y[0], z[0], x[1], y[1], z[1], x[2], y[2], z[2]), w
+    return quat_of_entries(x[0], y[0], z[0], x[1], y[1], z[1], x[2], y[2], z[2]), w

@@ -71,6 +71,21 @@ def test_layout_packs_and_checks_sizes():
         layout.pack({"a": 1.0, "b": np.zeros(4)}, vector)
 
 
+def test_a_step_may_return_its_outputs_as_one_vector_in_declaration_order():
+    layout = Layout([Variable("a", "output", (), "1", 1.0, ""), Variable("b", "output", (3,), "m", 0.0, "")])
+    vector = np.zeros(4)
+    layout.pack(np.array([5.0, 1.0, 2.0, 3.0]), vector)
+    assert list(vector) == [5.0, 1.0, 2.0, 3.0] and layout.unpack(vector)["a"] == 5.0
+    for wrong in (np.zeros(3), np.zeros(5), np.zeros((1, 4)), np.zeros(4, dtype=np.float32)):
+        with pytest.raises(ComponentOutputError, match=r"expected 4 float64 values \(a, b, in that order\), got"):
+            layout.pack(wrong, vector)
+    assert list(vector) == [5.0, 1.0, 2.0, 3.0]  # a refused vector changes nothing
+    rgb = Variable("rgb", "output", (2, 2, 3), "1", 0, "", frame=True, dtype="uint8")
+    framed = Layout([Variable("a", "output", (), "1", 1.0, ""), rgb])
+    with pytest.raises(ComponentOutputError, match="not with frame outputs \\(rgb\\)"):
+        framed.pack(np.zeros(1), np.zeros(1))
+
+
 @pytest.mark.filterwarnings("ignore:invalid value encountered in dot")  # as components.sdk's own filter
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
 def test_layout_names_the_first_variable_holding_a_non_finite_value(bad):

@@ -234,6 +234,7 @@ class OrbitalDynamics(Component):
         self.quaternion_outputs += [f"{name}.q_lvlh_body" for name in self.names if self.frames]
         self.quaternion_outputs += ["grasp.q_ee_grasp", "grasp.q_c_t"] if self.grasp else []
         self.magnetics = self._magnetics(params, run)  # the field and magnetorquers, else None: nothing per step
+        self.state_vector = StateVector.of(self.declare(params, run), self.names)  # None: outputs by name
         self.capture_report: CaptureReport | None = None  # the last step's capture, for the event
         self.last_quaternions: dict[str, np.ndarray] = {}
 
@@ -273,7 +274,9 @@ class OrbitalDynamics(Component):
         except ValueError as e:
             raise ComponentError(str(e)) from None
 
-    def _outputs(self, t_ns: int) -> dict[str, np.ndarray | np.float64]:
+    def _outputs(self, t_ns: int) -> dict[str, np.ndarray | np.float64] | np.ndarray:
+        if self.state_vector is not None:
+            return self.state_vector.build(self.world.bodies, self.last_quaternions)
         out: dict[str, np.ndarray | np.float64] = {}
         for name in self.names:
             output_names = self.output_names[name]
@@ -391,3 +394,37 @@ class PinocchioDynamics(OrbitalDynamics):
                 f"step with contacts is dynamics.dart's), got {params['integrator']!r}",
             )
         return super().validate(params, run)
+
+
+class StateVector:
+    """The outputs of a dynamics whose outputs are its bodies' states alone (no link outputs,
+    frames, sensors, grasp or magnetics: a rigid spacecraft) as one vector in declaration order,
+    the orientations sign-continuous as ``continuous`` makes them: one array a step, no dict."""
+
+    def __init__(self, names: list[str], orientations: list[tuple[str, int]]):
+        self.names, self.orientations = names, orientations
+
+    @classmethod
+    def of(cls, variables, names: list[str]) -> StateVector | None:
+        """For these declared variables and bodies, or None when there are outputs besides the states."""
+        outputs = [v for v in variables if v.causality == "output"]
+        if [v.name for v in outputs] != [f"{name}.{key}" for name in names for key in BODY_OUTPUTS]:
+            return None
+        offsets = np.cumsum([0] + [v.size for v in outputs])
+        return cls(names, [(v.name, int(at)) for v, at in zip(outputs, offsets) if v.name.endswith(".orientation")])
+
+    def build(self, bodies, last: dict[str, np.ndarray]) -> np.ndarray:
+        """The vector at the bodies' current state; ``last``: each orientation's previous value, updated."""
+        parts = []
+        for name in self.names:
+            state = bodies[name].state_outputs()
+            parts += [state[key] for key in BODY_OUTPUTS]
+        out = np.concatenate(parts)
+        for key, at in self.orientations:
+            q, previous = out[at : at + 4], last.get(key)
+            if previous is not None:
+                a, b = q.tolist(), previous.tolist()
+                if a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] < 0.0:
+                    q *= -1.0
+            last[key] = q.copy()
+        return out

@@ -38,6 +38,7 @@ from components.dynamics import environment as env
 from components.dynamics import manifold_rk4
 from components.robots.urdf import UrdfModel
 from components.rotations import matrix_to_quat
+from components.signals import BODY
 from components.space.gravity import MU_MOON, MU_SUN
 
 FRAMES = ("world", "lvlh")
@@ -414,6 +415,11 @@ class Body:
     def orientation(self, R: np.ndarray) -> np.ndarray:
         """q_W_base [x, y, z, w], w >= 0, of the base's attitude R (from ``base_pose``)."""
         return matrix_to_quat(R)
+
+    def state_vector(self) -> np.ndarray:
+        """``state_outputs``' values in the declaration's order (``signals.BODY``), as one new vector."""
+        state = self.state_outputs()
+        return np.concatenate([state[key] for key in BODY])
 
     def state_outputs(self) -> dict[str, np.ndarray]:
         """The body's outputs at the current state (new arrays): position, orientation, twist, q,

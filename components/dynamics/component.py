@@ -415,11 +415,12 @@ class StateVector:
 
     def build(self, bodies, last: dict[str, np.ndarray]) -> np.ndarray:
         """The vector at the bodies' current state; ``last``: each orientation's previous value, updated."""
-        parts = []
-        for name in self.names:
-            state = bodies[name].state_outputs()
-            parts += [state[key] for key in BODY_OUTPUTS]
-        out = np.concatenate(parts)
+        names = self.names
+        out = (
+            bodies[names[0]].state_vector()
+            if len(names) == 1
+            else np.concatenate([bodies[n].state_vector() for n in names])
+        )
         for key, at in self.orientations:
             q, previous = out[at : at + 4], last.get(key)
             if previous is not None:

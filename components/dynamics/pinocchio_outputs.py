@@ -89,6 +89,12 @@ class PinocchioOutputs(Body):
             "momentum": o[19:25],
         }
 
+    def state_vector(self) -> np.ndarray:
+        o = self._summary()
+        return np.concatenate(
+            (o[0:13], self.joint_positions(self.x), self.joint_velocities(self.v), o[13:16], o[19:25])
+        )
+
     def com(self) -> np.ndarray:
         return self._summary()[13:16].copy()
 

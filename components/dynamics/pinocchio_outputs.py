@@ -17,6 +17,8 @@ from components.dynamics import pinocchio_kernels as kernels
 from components.dynamics import tree_forces
 from components.dynamics.bodies import Body
 
+_RIGID_STATE = np.r_[0:16, 19:25]  # the summary's position, orientation, twist, com, momentum
+
 
 class PinocchioOutputs(Body):
     """The outputs of :class:`components.dynamics.pinocchio_body.PinocchioBody` (its ``_sync``'d state)."""
@@ -91,6 +93,8 @@ class PinocchioOutputs(Body):
 
     def state_vector(self) -> np.ndarray:
         o = self._summary()
+        if self.ndofs == 6:  # no joints: one gather from the summary
+            return o[_RIGID_STATE]
         return np.concatenate(
             (o[0:13], self.joint_positions(self.x), self.joint_velocities(self.v), o[13:16], o[19:25])
         )

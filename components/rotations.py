@@ -134,6 +134,12 @@ def matrix_to_quat(R) -> np.ndarray:
     return q.reshape(R.shape[:-2] + (4,))
 
 
+def opposite(a, b) -> bool:
+    """Whether quaternions ``a`` and ``b`` (four floats each) lie in opposite hemispheres (a . b < 0):
+    the sign test of ``continuous``, for per-step callers holding plain floats."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] < 0.0
+
+
 def continuous(q, q_previous) -> np.ndarray:
     """q with the sign of each of its quaternions (every 4 values, [x, y, z, w]) chosen closer to
     the same quaternion of ``q_previous`` (q and -q are the same rotation): no sign jumps from one
@@ -148,7 +154,7 @@ def continuous(q, q_previous) -> np.ndarray:
             if q_previous.__class__ is np.ndarray
             else np.asarray(q_previous, dtype=np.float64).tolist()
         )
-        if a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] < 0.0:
+        if opposite(a, b):
             q *= -1.0
         return q
     quats = q.reshape(-1, 4)

@@ -28,7 +28,7 @@ from components.dynamics.variables import dynamics_variables
 from components.dynamics.view import DynamicsView
 from components.errors import ComponentError, ConfigError
 from components.robots.model import body_items
-from components.rotations import continuous
+from components.rotations import continuous, opposite
 from components.sdk import EPOCH_KEY, Component
 from components.signals import BODY as BODY_OUTPUTS
 from components.signals import ORBIT as ORBIT_INPUTS
@@ -423,9 +423,7 @@ class StateVector:
         )
         for key, at in self.orientations:
             q, previous = out[at : at + 4], last.get(key)
-            if previous is not None:
-                a, b = q.tolist(), previous.tolist()
-                if a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] < 0.0:
-                    q *= -1.0
+            if previous is not None and opposite(q.tolist(), previous.tolist()):
+                q *= -1.0
             last[key] = q.copy()
         return out

@@ -26,7 +26,7 @@ from components.orbit.frames import lvlh_dcm, lvlh_floats, lvlh_state
 from components.orbit.kepler import ElementError, KeplerOrbit, check_elements
 from components.orbit.view import OrbitView
 from components.plotting import Plot
-from components.rotations import continuous
+from components.rotations import continuous, opposite
 from components.schema import Float, ListOf, Record, Str, UtcTime, Vector
 from components.sdk import EPOCH_KEY, Component, Parameter, RunSettings, Variable
 from components.signals import orbit_signals
@@ -204,7 +204,7 @@ class KeplerComponent(OrbitComponent):
         r, v, a = self.orbit.state_tuples(t_ns / NS_PER_S)
         q, w = lvlh_floats(r, v, a)
         p = self._q_previous
-        if p is not None and q[0] * p[0] + q[1] * p[1] + q[2] * p[2] + q[3] * p[3] < 0.0:
+        if p is not None and opposite(q, p):
             q = (-q[0], -q[1], -q[2], -q[3])
         self._q_previous = q  # (get_state makes it an array)
         return np.array(r + v + q + w)

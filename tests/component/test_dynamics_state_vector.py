@@ -4,17 +4,15 @@ name, orientations sign-continuous; any other output puts it back on the outputs
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from components.testing.harness import Harness
+from tests.unit.test_dynamics_engines import circular
 
 CONFIGS = Path(__file__).resolve().parents[2] / "configs"
-MU = 3.986004418e14
-A = 6.778e6
 # two tumbling bodies, one with joints (its q and qd sit between the orientations in the vector)
 BODIES = {
     "target": {"urdf": "../models/target.urdf", "frame": "lvlh", "twist": [0, 0, 0, 0.4, -0.3, 0.9]},
@@ -22,26 +20,15 @@ BODIES = {
 }
 
 
-def orbit(t: float) -> dict[str, np.ndarray]:
-    n = math.sqrt(MU / A**3)
-    th = n * t
-    return {
-        "r_eci": A * np.array([math.cos(th), math.sin(th), 0.0]),
-        "v_eci": A * n * np.array([-math.sin(th), math.cos(th), 0.0]),
-        "q_eci_lvlh": np.array([0.0, 0.0, math.sin(th / 2), math.cos(th / 2)]),
-        "w_lvlh": np.array([0.0, 0.0, n]),
-    }
-
-
 def run(engine: str, by_name: bool, steps: int, **params) -> np.ndarray:
     h = Harness(engine, {"bodies": BODIES, "gravity_gradient": True, **params}, config_dir=CONFIGS)
     if by_name:
         h.component.state_vector = None
-    h.inputs.update(orbit(0.0))
+    h.inputs.update(circular(0.0))
     h.initialize()
     rows = [h._outputs.copy()]
     for k in range(steps):
-        h.inputs.update(orbit(k * 0.05))
+        h.inputs.update(circular(k * 0.05))
         h.step(50_000_000)
         rows.append(h._outputs.copy())
     return np.array(rows)
